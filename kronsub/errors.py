@@ -1,0 +1,78 @@
+"""Problems found in a model, collected and reported together.
+
+Every user-facing error names the file, line and column, says what is wrong,
+and gives a hint. The CLI prints them as ``Error: FILE:LINE:COL: message``
+and exits with code 1; nothing here ever leaks a traceback.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+
+@dataclass(frozen=True)
+class Location:
+    """A place in a model file; line and column are 1-based."""
+
+    file: str
+    line: int = 0
+    column: int = 0
+
+    def shifted(self, columns: int) -> "Location":
+        """The location ``columns`` characters further on the same line."""
+        return Location(self.file, self.line, self.column + columns)
+
+    def __str__(self) -> str:
+        if self.line:
+            return f"{self.file}:{self.line}:{self.column}"
+        return self.file
+
+
+@dataclass(frozen=True)
+class Problem:
+    """One thing wrong with a model: where, what, and how to fix it."""
+
+    location: Location | None
+    message: str
+    hint: str | None = None
+
+    def format(self) -> str:
+        where = f"{self.location}: " if self.location is not None else ""
+        text = f"{where}{self.message}"
+        if self.hint:
+            text += f"\n  hint: {self.hint}"
+        return text
+
+
+class KronsubError(Exception):
+    """Base class of the errors kronsub reports to users."""
+
+
+class ModelError(KronsubError):
+    """One or more problems in a model; raised once with all of them."""
+
+    def __init__(self, problems: list[Problem]):
+        self.problems = list(problems)
+        super().__init__(self.format())
+
+    def format(self) -> str:
+        return "\n".join(p.format() for p in self.problems)
+
+
+@dataclass
+class ProblemCollector:
+    """Collects problems while validating a whole model, then raises once."""
+
+    problems: list[Problem] = field(default_factory=list)
+
+    def add(self, location: Location | None, message: str, hint: str | None = None) -> None:
+        self.problems.append(Problem(location, message, hint))
+
+    def extend(self, error: ModelError) -> None:
+        self.problems.extend(error.problems)
+
+    def __bool__(self) -> bool:
+        return bool(self.problems)
+
+    def raise_if_any(self) -> None:
+        if self.problems:
+            raise ModelError(self.problems)
