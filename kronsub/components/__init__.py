@@ -1,0 +1,15 @@
+"""The component library and its registry: YAML ``type:`` name -> component class."""
+from __future__ import annotations
+
+from .base import Body, Component, ParameterSpec
+from .particles import Particle1D, Particle2D, Particle3D, ParticlePolar, ParticleSpherical
+from .planar import Disc, Flywheel, PinnedRod, PlanarBody, Rod
+from .spatial import RigidBody3D
+
+REGISTRY: dict[str, type[Component]] = {
+    cls.type_name: cls
+    for cls in (Particle1D, Particle2D, Particle3D, ParticlePolar, ParticleSpherical,
+                PlanarBody, Rod, Disc, PinnedRod, Flywheel, RigidBody3D)
+}
+
+__all__ = ["REGISTRY", "Body", "Component", "ParameterSpec"]

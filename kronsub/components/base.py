@@ -1,0 +1,86 @@
+"""The contract of a library component: a known system of the simplest kind.
+
+A component is data: it declares its coordinates, its parameters, its metric
+``M(x)`` (the ``m_ab`` of (16)), its named points and its bodies (mass
+distribution). It knows nothing of YAML, printing or integration.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import ClassVar, Mapping
+
+import sympy
+
+
+@dataclass(frozen=True)
+class ParameterSpec:
+    """A parameter a component takes; ``default`` is an expression in the other parameters."""
+
+    name: str
+    description: str
+    default: str | None = None
+    unit: str = ""
+
+
+@dataclass(frozen=True)
+class Body:
+    """A rigid body (or particle) of a component, for gravity and energy checks.
+
+    ``centre`` is the world position of its mass centre, ``rotation`` the
+    world-from-body rotation matrix (None for a particle), ``inertia`` the
+    inertia about the centre in body axes (1x1 for planar bodies).
+    """
+
+    mass: sympy.Expr
+    centre: tuple[sympy.Expr, ...]
+    rotation: sympy.Matrix | None = None
+    inertia: sympy.Matrix | None = None
+
+
+@dataclass(frozen=True)
+class Component:
+    """Base class of library components (subclasses set the class variables).
+
+    An instance is a component *bound* to coordinate symbols and parameter
+    expressions: ``x`` maps the component's local coordinate names to symbols,
+    ``p`` its parameter names to expressions.
+    """
+
+    type_name: ClassVar[str] = ""
+    summary: ClassVar[str] = ""
+    coordinates: ClassVar[tuple[str, ...]] = ()
+    parameters: ClassVar[tuple[ParameterSpec, ...]] = ()
+    dimension: ClassVar[int] = 0  # dimension of the world its points live in
+
+    x: Mapping[str, sympy.Symbol] = field(default_factory=dict)
+    p: Mapping[str, sympy.Expr] = field(default_factory=dict)
+
+    # -- to be declared by each component --------------------------------
+    def metric(self) -> sympy.Matrix:
+        """The metric ``m_ab(x)``, kinetic energy ``T = 1/2 m_ab xdot^a xdot^b`` (24)."""
+        raise NotImplementedError
+
+    def points(self) -> dict[str, tuple[sympy.Expr, ...]]:
+        """Named points: world positions as functions of the coordinates."""
+        return {}
+
+    def bodies(self) -> tuple[Body, ...]:
+        """The mass distribution (used by gravity and by the energy checks)."""
+        return ()
+
+    # -- derived ---------------------------------------------------------
+    @property
+    def coordinate_symbols(self) -> tuple[sympy.Symbol, ...]:
+        return tuple(self.x[name] for name in self.coordinates)
+
+
+def rotation2(angle: sympy.Expr) -> sympy.Matrix:
+    """World-from-body rotation in the plane."""
+    c, s = sympy.cos(angle), sympy.sin(angle)
+    return sympy.Matrix([[c, -s], [s, c]])
+
+
+def centroidal_or(p: Mapping[str, sympy.Expr], name: str, fallback: sympy.Expr) -> sympy.Expr:
+    """A parameter's value, or a fallback when the parameter was not given."""
+    value = p.get(name)
+    return fallback if value is None else value

@@ -1,0 +1,113 @@
+"""The primitive system: the direct product of known components (Example III).
+
+Its metric is block diagonal, its velocity terms and forces are stacked; in
+Kron's words the primitive is "the system consisting of the parts not
+interconnected, the forces being the same as those acting externally".
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Mapping
+
+import sympy
+
+from ..components.base import Body, Component
+from .symbols import velocity_symbol
+
+
+def christoffel_terms(metric: sympy.Matrix, coordinates, velocities) -> sympy.Matrix:
+    """Velocity terms of a holonomic metric, from Lagrange's operator (A):
+
+    ``h_a = (d_c m_ab - 1/2 d_a m_bc) xdot^b xdot^c``, so that
+    ``D(dT/dxdot^a) - dT/dx^a = m_ab xddot^b + h_a``.
+    """
+    n = len(coordinates)
+    if all(not metric[i, j].has(*coordinates) for i in range(n) for j in range(n)):
+        return sympy.zeros(n, 1)
+    h = []
+    for a in range(n):
+        total = sympy.Integer(0)
+        for b in range(n):
+            for c in range(n):
+                term = sympy.diff(metric[a, b], coordinates[c]) - sympy.diff(metric[b, c], coordinates[a]) / 2
+                if term != 0:
+                    total += term * velocities[b] * velocities[c]
+        h.append(sympy.expand(total))
+    return sympy.Matrix(h)
+
+
+@dataclass(frozen=True)
+class Part:
+    """One known system placed in a primitive, with its coordinates bound to symbols."""
+
+    name: str
+    coordinates: tuple[sympy.Symbol, ...]
+    metric: sympy.Matrix
+    velocity_terms: sympy.Matrix
+    points: Mapping[str, tuple[sympy.Expr, ...]] = field(default_factory=dict)
+    bodies: tuple[Body, ...] = ()
+    dimension: int = 0
+    forces: Mapping[str, sympy.Matrix] = field(default_factory=dict)  # a known system's own effects
+    potential: sympy.Expr = sympy.Integer(0)
+    type_name: str = ""
+
+    @property
+    def velocities(self) -> tuple[sympy.Symbol, ...]:
+        return tuple(velocity_symbol(q) for q in self.coordinates)
+
+
+def part_from_component(name: str, component: Component) -> Part:
+    """Place a library component in a primitive."""
+    coords = component.coordinate_symbols
+    metric = sympy.Matrix(component.metric())
+    h = christoffel_terms(metric, coords, [velocity_symbol(q) for q in coords])
+    return Part(name, coords, metric, h, dict(component.points()), tuple(component.bodies()),
+                component.dimension, type_name=component.type_name)
+
+
+@dataclass(frozen=True)
+class Primitive:
+    """Direct product of parts: block-diagonal metric, stacked velocity terms (Example III)."""
+
+    parts: tuple[Part, ...]
+
+    @property
+    def coordinates(self) -> tuple[sympy.Symbol, ...]:
+        return tuple(q for part in self.parts for q in part.coordinates)
+
+    @property
+    def velocities(self) -> tuple[sympy.Symbol, ...]:
+        return tuple(velocity_symbol(q) for q in self.coordinates)
+
+    @property
+    def metric(self) -> sympy.Matrix:
+        return sympy.diag(*[part.metric for part in self.parts])
+
+    @property
+    def velocity_terms(self) -> sympy.Matrix:
+        return sympy.Matrix.vstack(*[part.velocity_terms for part in self.parts])
+
+    def part(self, name: str) -> Part:
+        for part in self.parts:
+            if part.name == name:
+                return part
+        raise KeyError(name)
+
+    def blocks(self):
+        """``(offset, part)`` for each diagonal block of the metric."""
+        offset = 0
+        for part in self.parts:
+            yield offset, part
+            offset += len(part.coordinates)
+
+    def points(self) -> dict[str, tuple[sympy.Expr, ...]]:
+        """Every named point, as ``part.point``."""
+        return {f"{part.name}.{name}": pos for part in self.parts for name, pos in part.points.items()}
+
+    def gradient(self, expr: sympy.Expr) -> list[sympy.Expr]:
+        """``d expr / d x^a`` over the primitive coordinates."""
+        return [sympy.diff(expr, q) for q in self.coordinates]
+
+    def rate(self, expr: sympy.Expr) -> sympy.Expr:
+        """Time derivative of a function of the coordinates: ``(d expr/d x^a) xdot^a``."""
+        return sympy.Add(*[g * v for g, v in zip(self.gradient(expr), self.velocities)])

@@ -1,0 +1,406 @@
+"""Trigonometric polynomials in the coordinates: the compact form of every entry.
+
+An expression is held as a finite sum
+
+    sum_k  c_k(atoms) * cos(k . q)   +   s_k(atoms) * sin(k . q)
+
+where ``k`` is a vector of rational frequencies over the coordinates ``q`` and
+the coefficients are polynomials (with rational exponents) in *atoms*: every
+other factor (parameters, velocities, coordinates appearing algebraically,
+``sqrt(...)``, ``asin(...)``...). Products of sines and cosines are turned into
+sums by the product-to-sum identities, so ``cos a cos b + sin a sin b``
+collapses to ``cos(a - b)`` as the product is formed. This keeps
+``Mbar = C^T M C`` (9'), (D) compact without any after-the-fact trigonometric
+simplification, which is what makes long chains cheap.
+"""
+from __future__ import annotations
+
+from fractions import Fraction
+from typing import Iterable, Iterator
+
+import sympy
+
+# A frequency vector: sorted tuple of (coordinate index, nonzero rational).
+Freq = tuple[tuple[int, int | Fraction], ...]
+# A monomial in atoms: sorted tuple of (atom index, nonzero rational exponent).
+Mono = tuple[tuple[int, int | Fraction], ...]
+Coef = dict[Mono, int | Fraction]
+COS, SIN = 0, 1
+ZERO_FREQ: Freq = ()
+ONE: Mono = ()
+
+
+def _num(value: Fraction) -> int | Fraction:
+    return value.numerator if value.denominator == 1 else value
+
+
+def _freq_combine(a: Freq, b: Freq, sign: int) -> Freq:
+    """The frequency vector ``a + sign * b``."""
+    if not b:
+        return a
+    out = dict(a)
+    for i, v in b:
+        w = out.get(i, 0) + sign * v
+        if w:
+            out[i] = w
+        else:
+            out.pop(i, None)
+    return tuple(sorted(out.items()))
+
+
+def _freq_negative(f: Freq) -> bool:
+    return bool(f) and f[0][1] < 0
+
+
+def _freq_neg(f: Freq) -> Freq:
+    return tuple((i, -v) for i, v in f)
+
+
+def _mono_mul(a: Mono, b: Mono) -> Mono:
+    if not a:
+        return b
+    if not b:
+        return a
+    out = dict(a)
+    for i, e in b:
+        w = out.get(i, 0) + e
+        if w:
+            out[i] = w
+        else:
+            del out[i]
+    return tuple(sorted(out.items()))
+
+
+def _coef_mul(a: Coef, b: Coef) -> Coef:
+    out: Coef = {}
+    for ma, ca in a.items():
+        for mb, cb in b.items():
+            m = _mono_mul(ma, mb)
+            v = out.get(m, 0) + ca * cb
+            if v:
+                out[m] = v
+            else:
+                out.pop(m, None)
+    return out
+
+
+def _coef_add_into(target: Coef, src: Coef, scale: int | Fraction = 1) -> None:
+    for m, c in src.items():
+        v = target.get(m, 0) + scale * c
+        if v:
+            target[m] = v
+        else:
+            target.pop(m, None)
+
+
+class TrigPoly:
+    """An element of the algebra: ``{(kind, freq): coefficient}`` (immutable by convention)."""
+
+    __slots__ = ("terms",)
+
+    def __init__(self, terms: dict[tuple[int, Freq], Coef] | None = None):
+        self.terms = terms or {}
+
+    def is_zero(self) -> bool:
+        return not self.terms
+
+    def __add__(self, other: "TrigPoly") -> "TrigPoly":
+        out = {k: dict(v) for k, v in self.terms.items()}
+        for k, c in other.terms.items():
+            tgt = out.setdefault(k, {})
+            _coef_add_into(tgt, c)
+            if not tgt:
+                del out[k]
+        return TrigPoly(out)
+
+    def __neg__(self) -> "TrigPoly":
+        return self.scaled(-1)
+
+    def __sub__(self, other: "TrigPoly") -> "TrigPoly":
+        return self + other.scaled(-1)
+
+    def scaled(self, factor: int | Fraction) -> "TrigPoly":
+        if factor == 0:
+            return TrigPoly()
+        return TrigPoly({k: {m: c * factor for m, c in v.items()} for k, v in self.terms.items()})
+
+    def __mul__(self, other: "TrigPoly") -> "TrigPoly":
+        out: dict[tuple[int, Freq], Coef] = {}
+        for (ka, fa), ca in self.terms.items():
+            for (kb, fb), cb in other.terms.items():
+                coef = _coef_mul(ca, cb)
+                if not coef:
+                    continue
+                for key, scale in _product_to_sum(ka, fa, kb, fb):
+                    tgt = out.setdefault(key, {})
+                    _coef_add_into(tgt, coef, scale)
+                    if not tgt:
+                        del out[key]
+        return TrigPoly(out)
+
+
+def _trig_key(kind: int, freq: Freq, scale: int | Fraction) -> tuple[tuple[int, Freq], int | Fraction] | None:
+    """Normalise ``scale * trig(freq)``: cos is even, sin odd, sin(0) = 0."""
+    if _freq_negative(freq):
+        freq = _freq_neg(freq)
+        if kind == SIN:
+            scale = -scale
+    if kind == SIN and not freq:
+        return None
+    return (kind, freq), scale
+
+
+_HALF = Fraction(1, 2)
+
+
+def _product_to_sum(ka: int, fa: Freq, kb: int, fb: Freq):
+    """Product-to-sum identities for trig(fa) * trig(fb)."""
+    if not fb:  # trig(fa) * cos(0)
+        return [((ka, fa), 1)]
+    if not fa:
+        return [((kb, fb), 1)]
+    diff = _freq_combine(fa, fb, -1)
+    summ = _freq_combine(fa, fb, +1)
+    if ka == COS and kb == COS:
+        parts = ((COS, diff, _HALF), (COS, summ, _HALF))
+    elif ka == SIN and kb == SIN:
+        parts = ((COS, diff, _HALF), (COS, summ, -_HALF))
+    elif ka == SIN:  # sin a cos b
+        parts = ((SIN, summ, _HALF), (SIN, diff, _HALF))
+    else:  # cos a sin b
+        parts = ((SIN, summ, _HALF), (SIN, diff, -_HALF))
+    out = []
+    for kind, freq, scale in parts:
+        norm = _trig_key(kind, freq, scale)
+        if norm is not None:
+            out.append(norm)
+    return out
+
+
+class TrigAlgebra:
+    """Converts sympy expressions in ``coordinates`` to and from :class:`TrigPoly`.
+
+    The algebra remembers the atoms it has met (in the order met, which is
+    deterministic) and their derivatives with respect to the coordinates.
+    """
+
+    def __init__(self, coordinates: Iterable[sympy.Symbol]):
+        self.coordinates = tuple(coordinates)
+        self.index = {q: i for i, q in enumerate(self.coordinates)}
+        self._atoms: list[sympy.Expr] = []
+        self._atom_index: dict[sympy.Expr, int] = {}
+        self._atom_deps: list[frozenset[int]] = []
+        self._atom_diff: dict[tuple[int, int], TrigPoly] = {}
+        self._cache: dict[sympy.Expr, TrigPoly] = {}
+
+    # ----------------------------------------------------------- construction
+    def constant(self, value: int | Fraction) -> TrigPoly:
+        return TrigPoly({(COS, ZERO_FREQ): {ONE: value}}) if value else TrigPoly()
+
+    def atom(self, expr: sympy.Expr, exponent: int | Fraction = 1) -> TrigPoly:
+        return TrigPoly({(COS, ZERO_FREQ): {((self._atom_id(expr), exponent),): 1}})
+
+    def _atom_id(self, expr: sympy.Expr) -> int:
+        idx = self._atom_index.get(expr)
+        if idx is None:
+            idx = len(self._atoms)
+            self._atoms.append(expr)
+            self._atom_index[expr] = idx
+            deps = frozenset(self.index[s] for s in expr.free_symbols if s in self.index)
+            self._atom_deps.append(deps)
+        return idx
+
+    def from_expr(self, expr: sympy.Expr) -> TrigPoly:
+        """The trigonometric-polynomial form of a sympy expression."""
+        expr = sympy.sympify(expr)
+        hit = self._cache.get(expr)
+        if hit is None:
+            hit = self._convert(expr)
+            self._cache[expr] = hit
+        return hit
+
+    def _convert(self, e: sympy.Expr) -> TrigPoly:
+        if e.is_Rational:
+            return self.constant(_num(Fraction(int(e.p), int(e.q))))
+        if e.is_Add:
+            out = TrigPoly()
+            for a in e.args:
+                out = out + self.from_expr(a)
+            return out
+        if e.is_Mul:
+            out = self.constant(1)
+            for a in e.args:
+                out = out * self.from_expr(a)
+            return out
+        if e.is_Pow:
+            return self._convert_pow(e)
+        if isinstance(e, (sympy.sin, sympy.cos)):
+            return self._convert_trig(e)
+        if not self._has_coordinates(e) or e.is_Symbol:
+            return self.atom(e)
+        return self.atom(e)
+
+    def _has_coordinates(self, e: sympy.Expr) -> bool:
+        return any(s in self.index for s in e.free_symbols)
+
+    def _convert_pow(self, e: sympy.Pow) -> TrigPoly:
+        base, exp = e.args
+        if not exp.is_Rational:
+            return self.atom(e)
+        inner = self.from_expr(base)
+        single = _single_monomial(inner)
+        if exp.is_Integer:
+            n = int(exp)
+            if single is not None:
+                mono, c = single
+                return TrigPoly({(COS, ZERO_FREQ): {tuple((i, _num(Fraction(k) * n)) for i, k in mono): _num(Fraction(c) ** n)}})
+            if n > 0:
+                return _power(inner, n, self.constant(1))
+        if single is not None:
+            mono, c = single
+            if c == 1 and len(mono) == 1:  # (atom**k)**r -> atom**(k r) only for k = 1
+                (i, k), = mono
+                if k == 1:
+                    return TrigPoly({(COS, ZERO_FREQ): {((i, _num(Fraction(int(exp.p), int(exp.q)))),): 1}})
+        return self.atom(base, _num(Fraction(int(exp.p), int(exp.q))))
+
+    def _convert_trig(self, e: sympy.Expr) -> TrigPoly:
+        arg = e.args[0]
+        linear: dict[int, Fraction] = {}
+        rest = []
+        for term in sympy.Add.make_args(arg):
+            coeff, sym = term.as_coeff_Mul()
+            if sym in self.index and coeff.is_Rational:
+                i = self.index[sym]
+                linear[i] = linear.get(i, 0) + Fraction(int(coeff.p), int(coeff.q))
+            else:
+                rest.append(term)
+        freq = tuple(sorted((i, _num(v)) for i, v in linear.items() if v))
+        kind = SIN if isinstance(e, sympy.sin) else COS
+        if not freq:
+            return self.atom(e)
+        pure = TrigPoly(dict([_pure_term(kind, freq)]))
+        if not rest:
+            return pure
+        r = sympy.Add(*rest)
+        other = TrigPoly(dict([_pure_term(COS if kind == SIN else SIN, freq)]))
+        # sin(L + R) = sin L cos R + cos L sin R ; cos(L + R) = cos L cos R - sin L sin R
+        cos_r, sin_r = self.from_expr(sympy.cos(r)), self.from_expr(sympy.sin(r))
+        if kind == SIN:
+            return pure * cos_r + other * sin_r
+        return pure * cos_r - other * sin_r
+
+    # ------------------------------------------------------------ derivatives
+    def diff(self, p: TrigPoly, coordinate: int) -> TrigPoly:
+        """``d p / d q[coordinate]``."""
+        out: dict[tuple[int, Freq], Coef] = {}
+        chain: list[TrigPoly] = []
+        for (kind, freq), coef in p.terms.items():
+            k = dict(freq).get(coordinate, 0)
+            if k:
+                # d/dq cos(f.q) = -k sin(f.q);  d/dq sin(f.q) = k cos(f.q)
+                if kind == COS:
+                    key, scale = (SIN, freq), -k
+                else:
+                    key, scale = (COS, freq), k
+                tgt = out.setdefault(key, {})
+                _coef_add_into(tgt, coef, scale)
+                if not tgt:
+                    del out[key]
+            for mono, c in coef.items():
+                for pos, (atom, e) in enumerate(mono):
+                    if coordinate not in self._atom_deps[atom]:
+                        continue
+                    d_atom = self._diff_atom(atom, coordinate)
+                    if d_atom.is_zero():
+                        continue
+                    rest = list(mono)
+                    if e == 1:
+                        del rest[pos]
+                    else:
+                        rest[pos] = (atom, e - 1)
+                    factor = TrigPoly({(kind, freq): {tuple(rest): c * e}})
+                    chain.append(factor * d_atom)
+        result = TrigPoly(out)
+        for extra in chain:
+            result = result + extra
+        return result
+
+    def _diff_atom(self, atom: int, coordinate: int) -> TrigPoly:
+        key = (atom, coordinate)
+        hit = self._atom_diff.get(key)
+        if hit is None:
+            hit = self.from_expr(sympy.diff(self._atoms[atom], self.coordinates[coordinate]))
+            self._atom_diff[key] = hit
+        return hit
+
+    # -------------------------------------------------------------- back out
+    def coefficient_expr(self, coef: Coef) -> sympy.Expr:
+        terms = []
+        for mono, c in coef.items():
+            factors = [self._atoms[i] ** _rational(e) for i, e in mono]
+            terms.append(sympy.Mul(_rational(c), *factors))
+        return sympy.Add(*terms)
+
+    def trig_expr(self, kind: int, freq: Freq) -> sympy.Expr:
+        if not freq:
+            return sympy.Integer(1)
+        arg = sympy.Add(*[_rational(v) * self.coordinates[i] for i, v in freq])
+        return sympy.cos(arg) if kind == COS else sympy.sin(arg)
+
+    def to_expr(self, p: TrigPoly) -> sympy.Expr:
+        """A compact sympy expression: common factors of each coefficient pulled out."""
+        parts = []
+        for (kind, freq), coef in _sorted_terms(p):
+            c = sympy.factor_terms(self.coefficient_expr(coef))
+            parts.append(c * self.trig_expr(kind, freq))
+        return sympy.Add(*parts)
+
+    def depends_on(self, p: TrigPoly) -> frozenset[int]:
+        """Indices of the coordinates that ``p`` depends on."""
+        deps: set[int] = set()
+        for (_, freq), coef in p.terms.items():
+            deps.update(i for i, _ in freq)
+            for mono in coef:
+                for atom, _ in mono:
+                    deps.update(self._atom_deps[atom])
+        return frozenset(deps)
+
+    def has_multiple_angles(self, p: TrigPoly) -> bool:
+        return any(abs(v) != 1 for (_, freq) in p.terms for _, v in freq)
+
+
+def _sorted_terms(p: TrigPoly) -> Iterator[tuple[tuple[int, Freq], Coef]]:
+    return iter(sorted(p.terms.items(), key=lambda kv: (len(kv[0][1]), kv[0][1], kv[0][0])))
+
+
+def _pure_term(kind: int, freq: Freq):
+    key, scale = _trig_key(kind, freq, 1)
+    return key, {ONE: scale}
+
+
+def _single_monomial(p: TrigPoly):
+    if len(p.terms) != 1:
+        return None
+    (key, coef), = p.terms.items()
+    if key != (COS, ZERO_FREQ) or len(coef) != 1:
+        return None
+    (mono, c), = coef.items()
+    return mono, c
+
+
+def _power(p: TrigPoly, n: int, one: TrigPoly) -> TrigPoly:
+    result, base = one, p
+    while n:
+        if n & 1:
+            result = result * base
+        n >>= 1
+        if n:
+            base = base * base
+    return result
+
+
+def _rational(v: int | Fraction) -> sympy.Rational:
+    if isinstance(v, Fraction):
+        return sympy.Rational(v.numerator, v.denominator)
+    return sympy.Integer(v)

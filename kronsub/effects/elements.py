@@ -1,0 +1,75 @@
+"""Force elements between two points or along an angle: springs and dampers."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import sympy
+
+from .base import Effect
+
+
+def _separation(primitive, ends):
+    a, b = (primitive.points()[e] if isinstance(e, str) else e for e in ends)
+    return [pb - pa for pa, pb in zip(a, b)]
+
+
+@dataclass(frozen=True)
+class Spring(Effect):
+    """Linear spring between two points (or a point and a fixed place):
+    ``V = k/2 (|p_b - p_a| - length)^2``; with zero rest length ``V = k/2 |p_b - p_a|^2``."""
+
+    ends: tuple = ()
+    stiffness: sympy.Expr = sympy.Integer(0)
+    length: sympy.Expr = sympy.Integer(0)
+
+    conservative = True
+
+    def potential(self, primitive):
+        d = _separation(primitive, self.ends)
+        square = sympy.Add(*[c**2 for c in d])
+        if self.length == 0:
+            return sympy.expand(self.stiffness * square / 2)
+        return self.stiffness * (sympy.sqrt(square) - self.length) ** 2 / 2
+
+
+@dataclass(frozen=True)
+class Damper(Effect):
+    """Linear damper between two points: force ``-c ldot`` along the line joining them,
+    ``f_a = -c ldot dl/dx^a`` with ``l = |p_b - p_a|``."""
+
+    ends: tuple = ()
+    coefficient: sympy.Expr = sympy.Integer(0)
+
+    def generalized_force(self, primitive):
+        d = _separation(primitive, self.ends)
+        square = sympy.Add(*[c**2 for c in d])
+        # c ldot dl/dx = c (dl^2/dt)(dl^2/dx) / (4 l^2): no square roots needed
+        rate = primitive.rate(square)
+        return [sympy.factor(-self.coefficient * rate * g / (4 * square)) if g != 0 else sympy.Integer(0)
+                for g in primitive.gradient(square)]
+
+
+@dataclass(frozen=True)
+class TorsionalSpring(Effect):
+    """Torsional spring on an angle expression: ``V = k/2 (angle - rest)^2``."""
+
+    angle: sympy.Expr = sympy.Integer(0)
+    stiffness: sympy.Expr = sympy.Integer(0)
+    rest: sympy.Expr = sympy.Integer(0)
+
+    conservative = True
+
+    def potential(self, primitive):
+        return self.stiffness * (self.angle - self.rest) ** 2 / 2
+
+
+@dataclass(frozen=True)
+class TorsionalDamper(Effect):
+    """Torsional damper on an angle expression: ``f_a = -c angledot d angle/dx^a``."""
+
+    angle: sympy.Expr = sympy.Integer(0)
+    coefficient: sympy.Expr = sympy.Integer(0)
+
+    def generalized_force(self, primitive):
+        rate = primitive.rate(self.angle)
+        return [sympy.expand(-self.coefficient * rate * g) for g in primitive.gradient(self.angle)]

@@ -1,0 +1,70 @@
+"""Applied loads: forces at points, torques on bodies, direct generalized forces."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import sympy
+
+from .base import Effect, virtual_work_force
+
+
+@dataclass(frozen=True)
+class Force(Effect):
+    """A force ``vector`` (world frame; may depend on time and state) at a named point."""
+
+    point: str = ""
+    vector: tuple[sympy.Expr, ...] = ()
+
+    def generalized_force(self, primitive):
+        return virtual_work_force(primitive, primitive.points()[self.point], self.vector)
+
+
+def angular_velocity(primitive, rotation: sympy.Matrix):
+    """World angular velocity of a rotation ``R(x)``: from ``Rdot R^T`` (skew)."""
+    rdot = sympy.Matrix(rotation.shape[0], rotation.shape[1],
+                        lambda i, j: primitive.rate(rotation[i, j]))
+    w = (rdot * rotation.T).applyfunc(lambda e: sympy.simplify(sympy.expand(e)))
+    if rotation.shape == (2, 2):
+        return (w[1, 0],)
+    return (w[2, 1], w[0, 2], w[1, 0])
+
+
+@dataclass(frozen=True)
+class Torque(Effect):
+    """A torque on the (first) body of a part: ``f_a = tau . d omega / d xdot^a``.
+
+    In the plane ``value`` is one expression (counter-clockwise); in space a
+    world-frame vector of three.
+    """
+
+    part: str = ""
+    value: tuple[sympy.Expr, ...] = ()
+
+    def generalized_force(self, primitive):
+        body = primitive.part(self.part).bodies[0]
+        omega = angular_velocity(primitive, body.rotation)
+        return [sympy.expand(sum(t * sympy.diff(w, v) for t, w in zip(self.value, omega)))
+                for v in primitive.velocities]
+
+
+@dataclass(frozen=True)
+class GeneralizedForce(Effect):
+    """A force acting directly on one primitive coordinate."""
+
+    coordinate: sympy.Symbol | None = None
+    value: sympy.Expr = sympy.Integer(0)
+
+    def generalized_force(self, primitive):
+        return [self.value if q == self.coordinate else sympy.Integer(0) for q in primitive.coordinates]
+
+
+@dataclass(frozen=True)
+class Potential(Effect):
+    """A conservative load given by its potential energy ``V(x)``."""
+
+    value: sympy.Expr = sympy.Integer(0)
+
+    conservative = True
+
+    def potential(self, primitive):
+        return self.value
