@@ -73,22 +73,25 @@ def project(
             a = offset + i
             # (M C)_a,k and (M Cdot xbardot + h)_a within the block
             mc: dict[int, TrigPoly] = {}
-            acc = h_part[i]
+            acc = h_part[i].copy()
             for j in range(size):
                 if block[i][j].is_zero():
                     continue
                 b = offset + j
                 for k in nonzero[b]:
-                    mc[k] = mc.get(k, TrigPoly()) + block[i][j] * C[b][k]
+                    mc.setdefault(k, TrigPoly()).add_product(block[i][j], C[b][k])
                 if not convective[b].is_zero():
-                    acc = acc + block[i][j] * convective[b]
+                    acc.add_product(block[i][j], convective[b])
             inertial[a] = acc
             for j in nonzero[a]:
                 for k, mck in mc.items():
                     if k >= j:
-                        mass[j][k] = mass[j][k] + C[a][j] * mck
+                        mass[j][k].add_product(C[a][j], mck)
 
-    velocity_terms = [_sum(C[a][j] * inertial[a] for a in range(len(x_prim)) if j in nonzero[a]) for j in range(n)]
+    velocity_terms = [TrigPoly() for _ in range(n)]
+    for a in range(len(x_prim)):
+        for j in nonzero[a]:
+            velocity_terms[j].add_product(C[a][j], inertial[a])
 
     effect_forces: dict[str, sympy.Matrix] = {}
     primitive_forces: dict[str, sympy.Matrix] = {}
@@ -148,7 +151,7 @@ def project(
 def _sum(polys) -> TrigPoly:
     total = TrigPoly()
     for p in polys:
-        total = total + p
+        total.add(p)
     return total
 
 

@@ -15,6 +15,7 @@ simplification, which is what makes long chains cheap.
 """
 from __future__ import annotations
 
+import math
 from fractions import Fraction
 from typing import Iterable, Iterator
 
@@ -104,14 +105,36 @@ class TrigPoly:
     def is_zero(self) -> bool:
         return not self.terms
 
+    def copy(self) -> "TrigPoly":
+        return TrigPoly({k: dict(v) for k, v in self.terms.items()})
+
     def __add__(self, other: "TrigPoly") -> "TrigPoly":
-        out = {k: dict(v) for k, v in self.terms.items()}
+        return self.copy().add(other)
+
+    def add(self, other: "TrigPoly") -> "TrigPoly":
+        """Add ``other`` into this polynomial in place (for accumulators); returns self."""
+        out = self.terms
         for k, c in other.terms.items():
             tgt = out.setdefault(k, {})
             _coef_add_into(tgt, c)
             if not tgt:
                 del out[k]
-        return TrigPoly(out)
+        return self
+
+    def add_product(self, a: "TrigPoly", b: "TrigPoly") -> "TrigPoly":
+        """``self += a * b`` in place; returns self."""
+        out = self.terms
+        for (ka, fa), ca in a.terms.items():
+            for (kb, fb), cb in b.terms.items():
+                coef = _coef_mul(ca, cb)
+                if not coef:
+                    continue
+                for key, scale in _product_to_sum(ka, fa, kb, fb):
+                    tgt = out.setdefault(key, {})
+                    _coef_add_into(tgt, coef, scale)
+                    if not tgt:
+                        del out[key]
+        return self
 
     def __neg__(self) -> "TrigPoly":
         return self.scaled(-1)
@@ -125,18 +148,7 @@ class TrigPoly:
         return TrigPoly({k: {m: c * factor for m, c in v.items()} for k, v in self.terms.items()})
 
     def __mul__(self, other: "TrigPoly") -> "TrigPoly":
-        out: dict[tuple[int, Freq], Coef] = {}
-        for (ka, fa), ca in self.terms.items():
-            for (kb, fb), cb in other.terms.items():
-                coef = _coef_mul(ca, cb)
-                if not coef:
-                    continue
-                for key, scale in _product_to_sum(ka, fa, kb, fb):
-                    tgt = out.setdefault(key, {})
-                    _coef_add_into(tgt, coef, scale)
-                    if not tgt:
-                        del out[key]
-        return TrigPoly(out)
+        return TrigPoly().add_product(self, other)
 
 
 def _trig_key(kind: int, freq: Freq, scale: int | Fraction) -> tuple[tuple[int, Freq], int | Fraction] | None:
@@ -192,6 +204,7 @@ class TrigAlgebra:
         self._atom_deps: list[frozenset[int]] = []
         self._atom_diff: dict[tuple[int, int], TrigPoly] = {}
         self._cache: dict[sympy.Expr, TrigPoly] = {}
+        self._trig_cache: dict[tuple[int, Freq], sympy.Expr] = {}
 
     # ----------------------------------------------------------- construction
     def constant(self, value: int | Fraction) -> TrigPoly:
@@ -225,7 +238,7 @@ class TrigAlgebra:
         if e.is_Add:
             out = TrigPoly()
             for a in e.args:
-                out = out + self.from_expr(a)
+                out.add(self.from_expr(a))
             return out
         if e.is_Mul:
             out = self.constant(1)
@@ -323,7 +336,7 @@ class TrigAlgebra:
                     chain.append(factor * d_atom)
         result = TrigPoly(out)
         for extra in chain:
-            result = result + extra
+            result.add(extra)
         return result
 
     def _diff_atom(self, atom: int, coordinate: int) -> TrigPoly:
@@ -343,17 +356,42 @@ class TrigAlgebra:
         return sympy.Add(*terms)
 
     def trig_expr(self, kind: int, freq: Freq) -> sympy.Expr:
-        if not freq:
-            return sympy.Integer(1)
-        arg = sympy.Add(*[_rational(v) * self.coordinates[i] for i, v in freq])
-        return sympy.cos(arg) if kind == COS else sympy.sin(arg)
+        key = (kind, freq)
+        hit = self._trig_cache.get(key)
+        if hit is None:
+            if not freq:
+                hit = sympy.Integer(1)
+            else:
+                # Built unevaluated, with sympy's own choice of sign, so the
+                # result is the very object ``cos(arg)`` would evaluate to.
+                arg = sympy.Add(*[_rational(v) * self.coordinates[i] for i, v in freq])
+                sign = 1
+                if arg.could_extract_minus_sign():
+                    arg, sign = -arg, -1
+                if kind == COS:
+                    hit = sympy.cos(arg, evaluate=False)
+                else:
+                    hit = sign * sympy.sin(arg, evaluate=False)
+            self._trig_cache[key] = hit
+        return hit
+
+    def factored_coefficient(self, coef: Coef) -> sympy.Expr:
+        """A coefficient with the monomial common to all its terms pulled out."""
+        if len(coef) == 1:
+            return self.coefficient_expr(coef)
+        common = _common_monomial(coef)
+        if not common:
+            return self.coefficient_expr(coef)
+        content = _content(coef.values())
+        inner = {_mono_mul(m, tuple((i, -e) for i, e in common)): c / content for m, c in coef.items()}
+        outer = [self._atoms[i] ** _rational(e) for i, e in common]
+        return sympy.Mul(_rational(_num(Fraction(content))), *outer, self.coefficient_expr(inner))
 
     def to_expr(self, p: TrigPoly) -> sympy.Expr:
         """A compact sympy expression: common factors of each coefficient pulled out."""
         parts = []
         for (kind, freq), coef in _sorted_terms(p):
-            c = sympy.factor_terms(self.coefficient_expr(coef))
-            parts.append(c * self.trig_expr(kind, freq))
+            parts.append(self.factored_coefficient(coef) * self.trig_expr(kind, freq))
         return sympy.Add(*parts)
 
     def depends_on(self, p: TrigPoly) -> frozenset[int]:
@@ -368,6 +406,33 @@ class TrigAlgebra:
 
     def has_multiple_angles(self, p: TrigPoly) -> bool:
         return any(abs(v) != 1 for (_, freq) in p.terms for _, v in freq)
+
+
+def _common_monomial(coef: Coef) -> Mono:
+    """Atoms (with exponents) that divide every monomial of ``coef``."""
+    monos = list(coef)
+    exps = dict(monos[0])
+    for mono in monos[1:]:
+        here = dict(mono)
+        for i in list(exps):
+            e, f = exps[i], here.get(i)
+            if f is None or (e > 0) != (f > 0):
+                del exps[i]
+            else:
+                exps[i] = min(e, f) if e > 0 else max(e, f)
+    return tuple(sorted(exps.items()))
+
+
+def _content(values) -> Fraction:
+    """Rational content of the coefficients, signed like the first."""
+    values = [Fraction(v) for v in values]
+    num = 0
+    den = 1
+    for v in values:
+        num = math.gcd(num, v.numerator)
+        den = den * v.denominator // math.gcd(den, v.denominator)
+    content = Fraction(num, den)
+    return -content if values[0] < 0 else content
 
 
 def _sorted_terms(p: TrigPoly) -> Iterator[tuple[tuple[int, Freq], Coef]]:
