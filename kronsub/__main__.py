@@ -1,0 +1,4 @@
+"""``python -m kronsub``."""
+from .cli import main
+
+main()

@@ -1,0 +1,121 @@
+"""The command line: ``kronsub derive MODEL``.
+
+Problems in a model print as ``Error: FILE:LINE:COL: message`` with a hint
+and exit with code 1 (usage errors: 2); never a traceback.
+"""
+from __future__ import annotations
+
+import difflib
+import os
+import sys
+import tempfile
+import warnings
+from pathlib import Path
+
+import click
+
+from . import __version__
+from .errors import KronsubError, ModelError
+
+
+def write_atomically(path: Path, text: str) -> None:
+    """Write ``text`` to ``path`` through a temporary file and a rename."""
+    path = Path(path)
+    fd, tmp = tempfile.mkstemp(dir=path.parent or Path("."), prefix=f".{path.name}.", suffix=".tmp")
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8", newline="\n") as fh:
+            fh.write(text)
+        os.replace(tmp, path)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
+
+
+def _fail(message: str) -> None:
+    click.echo(message, err=True)
+    sys.exit(1)
+
+
+def _report_model_error(exc: ModelError) -> None:
+    lines = []
+    for problem in exc.problems:
+        lines.append("Error: " + problem.format())
+    count = len(exc.problems)
+    if count > 1:
+        lines.append(f"{count} problems found.")
+    _fail("\n".join(lines))
+
+
+def _show_warning(message, category, filename, lineno, file=None, line=None):
+    click.echo(f"Warning: {message}", err=True)
+
+
+def _run(job):
+    """Run a command body, turning known errors into messages and exit codes."""
+    warnings.showwarning = _show_warning
+    try:
+        return job()
+    except ModelError as exc:
+        _report_model_error(exc)
+    except KronsubError as exc:
+        _fail(f"Error: {exc}")
+    except OSError as exc:
+        _fail(f"Error: {exc.filename or ''}: {exc.strerror or exc}\n  hint: check the path and its permissions")
+    except RecursionError:
+        _fail("Error: the model is nested too deeply to derive\n  hint: split it into known systems")
+    except KeyboardInterrupt:
+        _fail("Interrupted.")
+    except Exception as exc:  # never a traceback for users
+        if os.environ.get("KRONSUB_DEBUG"):
+            raise
+        _fail(f"Error: internal error: {type(exc).__name__}: {exc}\n"
+              "  hint: this is a bug in kronsub; run with KRONSUB_DEBUG=1 for the traceback and report it")
+
+
+@click.group(context_settings={"help_option_names": ["-h", "--help"]})
+@click.version_option(__version__, prog_name="kronsub")
+def main():
+    """Equations of motion of interconnected systems by Kron's method of subspaces."""
+
+
+@main.command()
+@click.argument("model", type=click.Path(dir_okay=False, path_type=Path))
+@click.option("--format", "fmt", type=click.Choice(["markdown", "latex", "json"]), default="markdown",
+              show_default=True, help="Output format.")
+@click.option("--output", "-o", type=click.Path(dir_okay=False, path_type=Path),
+              help="Write to FILE (atomically) instead of standard output.")
+@click.option("--check", type=click.Path(dir_okay=False, path_type=Path),
+              help="Compare with FILE; exit 1 with a unified diff when they differ.")
+@click.option("--no-cache", is_flag=True, help="Derive from scratch, ignoring the known-system cache.")
+def derive(model: Path, fmt: str, output: Path | None, check: Path | None, no_cache: bool):
+    """Derive the equations of motion of MODEL (a YAML file)."""
+    from .emitters import EMITTERS
+    from .model.loader import load_model
+
+    def job():
+        system = load_model(model).derive(cache=not no_cache)
+        text = EMITTERS[fmt](system)
+        if check is not None:
+            try:
+                expected = check.read_text(encoding="utf-8")
+            except OSError as exc:
+                _fail(f"Error: {check}: {exc.strerror}\n  hint: write it first with --output {check}")
+            if expected != text:
+                diff = difflib.unified_diff(expected.splitlines(True), text.splitlines(True),
+                                            fromfile=str(check), tofile=f"derived from {model}")
+                click.echo("".join(diff), nl=False)
+                _fail(f"Error: {check} differs from the derived equations")
+            click.echo(f"{check}: up to date", err=True)
+            return
+        if output is not None:
+            write_atomically(output, text)
+            click.echo(f"wrote {output}", err=True)
+        else:
+            click.echo(text, nl=False)
+
+    _run(job)
+
+
+if __name__ == "__main__":
+    main()

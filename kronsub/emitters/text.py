@@ -1,0 +1,61 @@
+"""Markdown, LaTeX and JSON emitters of a derived system (the ``--format`` registry)."""
+from __future__ import annotations
+
+import json
+from importlib import resources
+
+import jinja2
+
+from ..core.known_system import KnownSystem
+from .report import build_report, latex_printer, plain
+
+
+def _environment() -> jinja2.Environment:
+    loader = jinja2.FunctionLoader(lambda name: resources.files("kronsub.templates").joinpath(name).read_text("utf-8"))
+    return jinja2.Environment(loader=loader, autoescape=False, keep_trailing_newline=True,
+                              trim_blocks=True, lstrip_blocks=True, undefined=jinja2.StrictUndefined)
+
+
+def emit_markdown(system: KnownSystem) -> str:
+    """Markdown: the derivation step by step, expressions in sympy's ``str`` form."""
+    return _environment().get_template("derive.md.j2").render(r=build_report(system, plain))
+
+
+def emit_latex(system: KnownSystem) -> str:
+    """A standalone LaTeX document of the derivation."""
+    show = latex_printer(tuple(system.coordinates) + tuple(
+        system.transition.primitive_coordinates if system.transition else ()))
+    return _environment().get_template("derive.tex.j2").render(r=build_report(system, show))
+
+
+def emit_json(system: KnownSystem) -> str:
+    """The machine contract: ``Mbar qddot + hbar = fbar`` with sympy ``str`` expressions."""
+    r = build_report(system, plain)
+    data = {
+        "name": r["name"],
+        "coordinates": r["coordinate_names"],
+        "velocities": [f"{q}_dot" for q in r["coordinate_names"]],
+        "parameters": {p["name"]: {"value": p["value"] or None, "unit": p["unit"], "description": p["description"]}
+                       for p in r["parameters"]},
+        "mass_matrix": r["mass_matrix"],
+        "velocity_terms": r["velocity_terms"],
+        "forces": r["forces"],
+        "effects": {e["name"]: e["forces"] for e in r["effects"]},
+        "kinetic_energy": r["kinetic_energy"],
+        "potential_energy": r["potential_energy"],
+        "equation_form": "mass_matrix * [coordinate_ddot] + velocity_terms = forces",
+    }
+    if "primitive" in r:
+        p = r["primitive"]
+        data["primitive"] = {
+            "coordinates": p["coordinates"],
+            "metric": p["metric"],
+            "velocity_terms": p["velocity_terms"],
+            "forces": {f["name"]: f["forces"] for f in p["forces"]},
+            "connection": {c["coordinate"]: c["expression"] for c in p["connection"]},
+            "transformation": p["transformation"],
+        }
+    return json.dumps(data, indent=2, ensure_ascii=False) + "\n"
+
+
+EMITTERS = {"markdown": emit_markdown, "latex": emit_latex, "json": emit_json}

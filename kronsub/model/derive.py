@@ -1,0 +1,127 @@
+"""Deriving a model, with derived known systems cached on disk by content hash."""
+from __future__ import annotations
+
+import hashlib
+import os
+import pickle
+import tempfile
+import warnings
+from pathlib import Path
+
+import numpy as np
+import sympy
+
+from .. import __version__
+from ..core.known_system import KnownSystem
+from ..core.subspace import project
+
+CACHE_ENV = "KRONSUB_CACHE_DIR"
+
+
+def cache_dir() -> Path | None:
+    """Where derived known systems are kept (``$KRONSUB_CACHE_DIR``, else the user cache);
+    ``KRONSUB_CACHE_DIR=off`` turns the cache off."""
+    env = os.environ.get(CACHE_ENV)
+    if env == "off":
+        return None
+    if env:
+        return Path(env)
+    base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
+    return Path(base) / "kronsub"
+
+
+def content_key(*parts: str) -> str:
+    digest = hashlib.sha256()
+    digest.update(f"kronsub {__version__}\n".encode())
+    for part in parts:
+        digest.update(part.encode())
+        digest.update(b"\0")
+    return digest.hexdigest()
+
+
+def _cache_file(model) -> Path | None:
+    folder = cache_dir()
+    if folder is None or not model.content_hash:
+        return None
+    return folder / f"{model.content_hash}.pickle"
+
+
+def load_cached(model) -> KnownSystem | None:
+    path = _cache_file(model)
+    if path is None or not path.exists():
+        return None
+    try:
+        with open(path, "rb") as fh:
+            system = pickle.load(fh)
+    except Exception:  # a damaged or stale cache entry is rebuilt
+        return None
+    return system if isinstance(system, KnownSystem) else None
+
+
+def store_cached(model, system: KnownSystem) -> None:
+    path = _cache_file(model)
+    if path is None:
+        return
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(dir=path.parent, suffix=".tmp")
+        with os.fdopen(fd, "wb") as fh:
+            pickle.dump(system, fh, protocol=pickle.HIGHEST_PROTOCOL)
+        os.replace(tmp, path)
+    except OSError:
+        pass  # the cache is an optimisation only
+
+
+def derive_model(model, *, cache: bool = True) -> KnownSystem:
+    """Project the model's primitive onto its subspace (cached by content hash)."""
+    if cache:
+        hit = load_cached(model)
+        if hit is not None:
+            return hit
+    check_rank(model)
+    system = project(
+        model.primitive,
+        model.coordinates,
+        model.connection,
+        model.effects,
+        name=model.name,
+        parameters=model.parameters,
+        description=model.description,
+    )
+    if cache:
+        store_cached(model, system)
+    return system
+
+
+class RankWarning(UserWarning):
+    """``C`` lost rank at a sample configuration: the coordinates are not independent there."""
+
+
+def check_rank(model, samples: int = 3) -> None:
+    """Warn when ``C = dx/dxbar`` is rank-deficient at sample configurations."""
+    coords = model.coordinates
+    x = model.primitive.coordinates
+    C = sympy.Matrix([[sympy.diff(model.connection[xa], q) for q in coords] for xa in x])
+    symbols = sorted(C.free_symbols - set(coords), key=lambda s: s.name)
+    values = model.parameter_values()
+    rng = np.random.default_rng(20261121)
+    f = sympy.lambdify([list(coords), symbols], C, modules="numpy")
+    for _ in range(samples):
+        q = rng.uniform(-1.0, 1.0, len(coords))
+        p = [float(values[s]) if s in values and sympy.sympify(values[s]).is_number else rng.uniform(0.5, 1.5) for s in symbols]
+        try:
+            with np.errstate(all="ignore"):
+                m = np.array(f(q, p), dtype=float)
+        except Exception:
+            return
+        if not np.all(np.isfinite(m)):
+            continue
+        rank = np.linalg.matrix_rank(m) if m.size else 0
+        if rank < len(coords):
+            where = ", ".join(f"{c}={v:.3g}" for c, v in zip(coords, q))
+            loc = model.locations.get("connection")
+            prefix = f"{loc}: " if loc else ""
+            warnings.warn(RankWarning(
+                f"{prefix}C = dx/dxbar has rank {rank} < {len(coords)} at {where}: the generalized "
+                "coordinates are not independent there"))
+            return

@@ -1,0 +1,227 @@
+"""Reading the ``effects:`` section: one builder per effect type (the effect registry)."""
+from __future__ import annotations
+
+import sympy
+
+from ..effects.base import Effect
+from ..effects.elements import Damper, Spring, TorsionalDamper, TorsionalSpring
+from ..effects.gravity import Gravity
+from ..effects.loads import Force, GeneralizedForce, Potential, Torque
+from .source import Node
+
+DEFAULT_DOWN = {1: (-1,), 2: (0, -1), 3: (0, 0, -1)}
+
+
+def _required(loader, spec: Node, key: str, ename: str, hint: str) -> Node | None:
+    node = spec.get(key)
+    if node is None:
+        loader.error(spec, f"effect '{ename}' needs `{key}:`", hint)
+    return node
+
+
+def _vector(loader, node: Node, what: str):
+    if not node.is_sequence or not node.value:
+        loader.error(node, f"{what} must be a list of components, e.g. `[F, 0]`", "write `[x, y]` or `[x, y, z]`")
+        return None
+    values = [loader.expr(item, what=what) for item in node.value]
+    return None if any(v is None for v in values) else tuple(values)
+
+
+def _point(loader, node: Node, primitive, ename: str):
+    """A named point ``component.point``, or a fixed place given as a list."""
+    if node.is_sequence:
+        return _vector(loader, node, f"fixed point of '{ename}'")
+    name = str(node.value)
+    points = primitive.points()
+    if name not in points:
+        from .loader import close_matches
+
+        loader.error(node, f"unknown point '{name}' in effect '{ename}'", close_matches(name, points))
+        return None
+    return name
+
+
+def _gravity(loader, ename, spec, primitive):
+    if "g" in spec.value:
+        g = loader.expr(spec.get("g"), what="g")
+    elif "g" in loader.parameters:
+        g = loader.parameters["g"].symbol
+    else:
+        g = None
+        loader.error(spec, f"gravity '{ename}' needs `g:`", "give `g: 9.81` or declare a parameter `g`")
+    names = [p.name for p in primitive.parts]
+    chosen = names
+    if "components" in spec.value:
+        cnode = spec.get("components")
+        chosen = [str(n.value) for n in cnode.value] if cnode.is_sequence else []
+        for n in (cnode.value if cnode.is_sequence else ()):
+            if str(n.value) not in names:
+                from .loader import close_matches
+
+                loader.error(n, f"unknown component '{n.value}' in gravity '{ename}'", close_matches(str(n.value), names))
+    direction = None
+    if "direction" in spec.value:
+        direction = _vector(loader, spec.get("direction"), "direction of gravity")
+        if direction is None:
+            return None
+    parts = []
+    for name in chosen:
+        if name not in names:
+            continue
+        part = primitive.part(name)
+        massive = any(b.mass != 0 for b in part.bodies)
+        if not massive:
+            continue
+        if direction is None:
+            direction = DEFAULT_DOWN.get(part.dimension)
+        if part.dimension and len(direction) != part.dimension:
+            if "components" in spec.value:
+                loader.error(spec, f"gravity '{ename}' has a {len(direction)}-D direction but component "
+                                   f"'{name}' lives in {part.dimension}-D",
+                             "give a direction with one entry per world axis of the component")
+            continue
+        parts.append(name)
+    if g is None:
+        return None
+    return Gravity(ename, g=g, direction=tuple(direction or DEFAULT_DOWN[2]), parts=tuple(parts))
+
+
+def _force(loader, ename, spec, primitive):
+    pnode = _required(loader, spec, "point", ename, "e.g. `point: lower.centre`")
+    if pnode is None:
+        return None
+    point = _point(loader, pnode, primitive, ename)
+    if "vector" in spec.value:
+        vector = _vector(loader, spec.get("vector"), f"force vector of '{ename}'")
+    elif "direction" in spec.value and "magnitude" in spec.value:
+        d = _vector(loader, spec.get("direction"), f"direction of '{ename}'")
+        mag = loader.expr(spec.get("magnitude"), what=f"magnitude of '{ename}'")
+        vector = None
+        if d is not None and mag is not None:
+            norm = sympy.sqrt(sum(c**2 for c in d))
+            vector = tuple(mag * c / norm for c in d)
+    else:
+        loader.error(spec, f"force '{ename}' needs `vector:` or `direction:` and `magnitude:`",
+                     "e.g. `vector: [F, 0]`")
+        return None
+    if point is None or vector is None or not isinstance(point, str):
+        return None
+    if len(vector) != len(primitive.points()[point]):
+        loader.error(spec, f"force '{ename}' has {len(vector)} components but point '{point}' has "
+                           f"{len(primitive.points()[point])}", "give one component per world axis")
+        return None
+    return Force(ename, point=point, vector=vector)
+
+
+def _torque(loader, ename, spec, primitive):
+    cnode = _required(loader, spec, "component", ename, "e.g. `component: wheel`")
+    vnode = _required(loader, spec, "value", ename, "e.g. `value: tau`")
+    if cnode is None or vnode is None:
+        return None
+    names = [p.name for p in primitive.parts]
+    if str(cnode.value) not in names:
+        from .loader import close_matches
+
+        loader.error(cnode, f"unknown component '{cnode.value}'", close_matches(str(cnode.value), names))
+        return None
+    part = primitive.part(str(cnode.value))
+    if not part.bodies or part.bodies[0].rotation is None:
+        loader.error(cnode, f"component '{cnode.value}' has no rotating body to take a torque",
+                     "apply a torque to a rod, disc, body, pinned rod or flywheel")
+        return None
+    value = _vector(loader, vnode, "torque") if vnode.is_sequence else loader.expr(vnode, what="torque")
+    if value is None:
+        return None
+    return Torque(ename, part=part.name, value=value if isinstance(value, tuple) else (value,))
+
+
+def _spring(loader, ename, spec, primitive, damper=False):
+    bnode = _required(loader, spec, "between", ename, "e.g. `between: [upper.tip, [0, 0]]`")
+    if bnode is None:
+        return None
+    if not bnode.is_sequence or len(bnode.value) != 2:
+        loader.error(bnode, f"`between:` of '{ename}' must list two points", "e.g. `between: [a.tip, b.centre]`")
+        return None
+    ends = tuple(_point(loader, n, primitive, ename) for n in bnode.value)
+    key = "coefficient" if damper else "stiffness"
+    knode = _required(loader, spec, key, ename, f"e.g. `{key}: k`")
+    if knode is None or any(e is None for e in ends):
+        return None
+    k = loader.expr(knode, what=key)
+    if k is None:
+        return None
+    if damper:
+        return Damper(ename, ends=ends, coefficient=k)
+    length = loader.expr(spec.get("length"), what="rest length") if "length" in spec.value else sympy.Integer(0)
+    return None if length is None else Spring(ename, ends=ends, stiffness=k, length=length)
+
+
+def _torsional(loader, ename, spec, primitive, damper=False):
+    anode = _required(loader, spec, "angle", ename, "e.g. `angle: phi - theta` (primitive coordinates)")
+    key = "coefficient" if damper else "stiffness"
+    knode = _required(loader, spec, key, ename, f"e.g. `{key}: k`")
+    if anode is None or knode is None:
+        return None
+    angle, k = loader.expr(anode, what="angle"), loader.expr(knode, what=key)
+    if angle is None or k is None:
+        return None
+    if damper:
+        return TorsionalDamper(ename, angle=angle, coefficient=k)
+    rest = loader.expr(spec.get("rest"), what="rest angle") if "rest" in spec.value else sympy.Integer(0)
+    return None if rest is None else TorsionalSpring(ename, angle=angle, stiffness=k, rest=rest)
+
+
+def _generalized(loader, ename, spec, primitive):
+    cnode = _required(loader, spec, "coordinate", ename, "e.g. `coordinate: lower.phi`")
+    vnode = _required(loader, spec, "value", ename, "e.g. `value: -c*phi_dot`")
+    if cnode is None or vnode is None:
+        return None
+    q = loader.primitive_names.get(str(cnode.value))
+    if q is None:
+        from .loader import close_matches
+
+        loader.error(cnode, f"'{cnode.value}' is not a primitive coordinate", close_matches(str(cnode.value), loader.primitive_names))
+        return None
+    value = loader.expr(vnode, what="generalized force")
+    return None if value is None else GeneralizedForce(ename, coordinate=q, value=value)
+
+
+def _potential(loader, ename, spec, primitive):
+    vnode = _required(loader, spec, "value", ename, "e.g. `value: k*x**4/4`")
+    if vnode is None:
+        return None
+    value = loader.expr(vnode, what="potential")
+    return None if value is None else Potential(ename, value=value)
+
+
+BUILDERS = {
+    "gravity": (_gravity, ("g", "direction", "components")),
+    "force": (_force, ("point", "vector", "direction", "magnitude")),
+    "torque": (_torque, ("component", "value")),
+    "spring": (_spring, ("between", "stiffness", "length")),
+    "damper": (lambda l, n, s, p: _spring(l, n, s, p, damper=True), ("between", "coefficient")),
+    "torsional_spring": (_torsional, ("angle", "stiffness", "rest")),
+    "torsional_damper": (lambda l, n, s, p: _torsional(l, n, s, p, damper=True), ("angle", "coefficient")),
+    "generalized_force": (_generalized, ("coordinate", "value")),
+    "potential": (_potential, ("value",)),
+}
+
+
+def build_effect(loader, ename: str, spec: Node, primitive) -> Effect | None:
+    """Build one named effect from its YAML mapping (problems go to the loader)."""
+    from .loader import close_matches
+
+    if not spec.is_mapping:
+        loader.error(spec, f"effect '{ename}' must be a mapping", "e.g. `{type: gravity, g: g}`")
+        return None
+    tnode = spec.get("type")
+    if tnode is None:
+        loader.error(spec, f"effect '{ename}' has no `type:`", "valid types: " + ", ".join(sorted(BUILDERS)))
+        return None
+    entry = BUILDERS.get(str(tnode.value))
+    if entry is None:
+        loader.error(tnode, f"unknown effect type '{tnode.value}'", close_matches(str(tnode.value), BUILDERS))
+        return None
+    builder, keys = entry
+    loader.check_keys(spec, ("type", "description") + keys, f"effect '{ename}'")
+    return builder(loader, ename, spec, primitive)

@@ -1,0 +1,472 @@
+"""From a YAML model file to a validated :class:`~kronsub.model.model.Model`.
+
+The whole file is checked at once: every problem is collected with its
+file, line and column, then raised together as one :class:`ModelError`.
+Expressions go through the whitelisted parser only.
+"""
+from __future__ import annotations
+
+import difflib
+import re
+from pathlib import Path
+
+import sympy
+
+from ..components import REGISTRY
+from ..core.known_system import KnownSystem, ParameterInfo
+from ..core.primitive import Part, Primitive, part_from_component
+from ..core.symbols import TIME, symbol, velocity_symbol
+from ..errors import Location, ModelError, ProblemCollector
+from .derive import content_key, derive_model
+from .effects import build_effect
+from .expressions import parse_expression
+from .model import Model
+from .source import Node, load_yaml
+
+TOP_LEVEL = ("name", "description", "parameters", "components", "coordinates", "connection",
+             "constraints", "effects", "initial", "scenes")
+IDENTIFIER = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
+RESERVED = {"t", "pi"}
+
+
+def load_model(path, *, text: str | None = None, _stack: tuple[str, ...] = ()) -> Model:
+    """Load a model file; sub-model files are loaded (and derived) recursively."""
+    path = Path(path)
+    root = load_yaml(path, text)
+    return _Loader(path, root, text if text is not None else _read(path), _stack).build()
+
+
+def _read(path: Path) -> str:
+    return path.read_text(encoding="utf-8")
+
+
+def close_matches(name: str, options) -> str:
+    near = difflib.get_close_matches(name, sorted(options), n=3)
+    if near:
+        return "did you mean " + ", ".join(f"'{n}'" for n in near) + "?"
+    return "valid names: " + ", ".join(sorted(options)) if options else "none are defined"
+
+
+class _Loader:
+    def __init__(self, path: Path, root: Node, text: str, stack: tuple[str, ...]):
+        self.path = path
+        self.file = str(path)
+        self.root = root
+        self.text = text
+        self.stack = stack + (str(path.resolve()),)
+        self.problems = ProblemCollector()
+        self.names: dict[str, sympy.Basic] = {"t": TIME}
+        self.parameters: dict[str, ParameterInfo] = {}
+        self.parts: list[Part] = []
+        self.sub_hashes: list[str] = []
+        self.locations: dict[str, Location] = {}
+
+    # ----------------------------------------------------------- utilities
+    def error(self, node_or_loc, message: str, hint: str | None = None) -> None:
+        loc = node_or_loc.location if isinstance(node_or_loc, Node) else node_or_loc
+        self.problems.add(loc, message, hint)
+
+    def expr(self, node: Node, names: dict | None = None, what: str = "expression") -> sympy.Expr | None:
+        """Parse a scalar node as an expression; None (problem recorded) on failure."""
+        if not node.is_scalar or node.value is None or isinstance(node.value, bool):
+            self.error(node, f"expected {what} (a number or a formula), found {_kind(node)}",
+                       "write e.g. `2*a1*sin(theta)`")
+            return None
+        text = node.text if node.text is not None else str(node.value)
+        try:
+            return parse_expression(text, names if names is not None else self.names,
+                                    node.text_location or node.location, what=what)
+        except ModelError as exc:
+            self.problems.extend(exc)
+            return None
+
+    def mapping(self, node: Node | None, what: str, hint: str) -> dict[str, Node]:
+        if node is None or node.value is None:
+            return {}
+        if not node.is_mapping:
+            self.error(node, f"`{what}` must be a mapping, found {_kind(node)}", hint)
+            return {}
+        return node.value
+
+    def check_keys(self, node: Node, allowed, what: str) -> None:
+        for key in node.value:
+            if key not in allowed:
+                self.error(node.key_locations.get(key, node.location), f"unknown key '{key}' in {what}",
+                           close_matches(key, allowed))
+
+    def identifier(self, name: str, loc: Location, what: str) -> bool:
+        if not IDENTIFIER.match(name):
+            self.error(loc, f"{what} name '{name}' is not a valid name",
+                       "use letters, digits and underscores, starting with a letter")
+            return False
+        if name in RESERVED:
+            self.error(loc, f"{what} name '{name}' is reserved", "'t' is time and 'pi' is the constant")
+            return False
+        return True
+
+    # --------------------------------------------------------------- build
+    def build(self) -> Model:
+        root = self.root
+        if not root.is_mapping:
+            self.error(root, f"a model file must be a mapping of sections, found {_kind(root)}",
+                       "start with `name:`, `components:`, `coordinates:` and `connection:`")
+            self.problems.raise_if_any()
+        self.check_keys(root, TOP_LEVEL, "the model")
+        for key in ("constraints", "scenes"):
+            if key in root.value:
+                self.error(root.key_locations[key], f"`{key}:` is not supported yet",
+                           "express the subspace in parametric form under `connection:` (eq. 19/26)")
+        name = self._string(root.get("name"), self.path.stem)
+        description = self._string(root.get("description"), "")
+        self._parameters(root.get("parameters"))
+        self._components(root.get("components"))
+        coords = self._coordinates(root.get("coordinates"))
+        primitive = Primitive(tuple(self.parts))
+        self._primitive_names(primitive)
+        connection = self._connection(root.get("connection"), primitive, coords)
+        effects = self._effects(root.get("effects"), primitive, coords)
+        initial = self._initial(root.get("initial"), coords)
+        self.problems.raise_if_any()
+        return Model(
+            name=name,
+            description=description,
+            path=self.file,
+            parameters=tuple(self.parameters.values()),
+            primitive=primitive,
+            coordinates=coords,
+            connection=connection,
+            effects=tuple(effects),
+            initial=initial,
+            content_hash=content_key(self.text, *self.sub_hashes),
+            locations=self.locations,
+        )
+
+    def _string(self, node: Node | None, default: str) -> str:
+        if node is None:
+            return default
+        if not node.is_scalar or not isinstance(node.value, str):
+            self.error(node, f"expected text, found {_kind(node)}", "quote it")
+            return default
+        return node.value
+
+    # ---------------------------------------------------------- parameters
+    def _parameters(self, node: Node | None) -> None:
+        for pname, spec in self.mapping(node, "parameters", "write `m1: 1.0` or `m1: {value: 1.0, unit: kg}`").items():
+            loc = node.key_locations[pname]
+            if not self.identifier(pname, loc, "parameter"):
+                continue
+            value_node, unit, description = spec, "", ""
+            if spec.is_mapping:
+                self.check_keys(spec, ("value", "unit", "description"), f"parameter '{pname}'")
+                value_node = spec.get("value")
+                unit = self._string(spec.get("unit"), "")
+                description = self._string(spec.get("description"), "")
+            value = None
+            if value_node is not None and value_node.value is not None:
+                value = self.expr(value_node, {}, what=f"value of parameter '{pname}'")
+            self.add_parameter(ParameterInfo(pname, symbol(pname), value, unit, description))
+
+    def add_parameter(self, info: ParameterInfo, *, inherited: bool = False) -> None:
+        if info.name in self.parameters:
+            if not inherited:
+                self.parameters[info.name] = info
+            return
+        self.parameters[info.name] = info
+        self.names[info.name] = info.symbol
+
+    # ---------------------------------------------------------- components
+    def _components(self, node: Node | None) -> None:
+        comps = self.mapping(node, "components", "write `upper: {type: pinned_rod, parameters: {...}}`")
+        if node is not None and not comps and node.is_mapping:
+            self.error(node, "`components:` is empty", "list at least one component")
+        if node is None:
+            self.error(Location(self.file, 1, 1), "the model has no `components:`",
+                       "list the parts of the primitive system under `components:`")
+        for cname, spec in comps.items():
+            loc = node.key_locations[cname]
+            if not self.identifier(cname, loc, "component"):
+                continue
+            if not spec.is_mapping:
+                self.error(spec, f"component '{cname}' must be a mapping", "give at least `type:`")
+                continue
+            if spec.get("model") is not None:
+                part = self._known_system(cname, spec)
+            else:
+                part = self._library_component(cname, spec)
+            if part is not None:
+                self.parts.append(part)
+
+    def _library_component(self, cname: str, spec: Node) -> Part | None:
+        self.check_keys(spec, ("type", "parameters", "coordinates", "description"), f"component '{cname}'")
+        tnode = spec.get("type")
+        if tnode is None:
+            self.error(spec, f"component '{cname}' has no `type:`",
+                       "valid types: " + ", ".join(sorted(REGISTRY)) + " (or `model: file.yaml`)")
+            return None
+        cls = REGISTRY.get(str(tnode.value))
+        if cls is None:
+            self.error(tnode, f"unknown component type '{tnode.value}'", close_matches(str(tnode.value), REGISTRY))
+            return None
+        values = self._component_parameters(cname, spec.get("parameters"), [p.name for p in cls.parameters])
+        params: dict[str, sympy.Expr] = {}
+        for ps in cls.parameters:
+            if ps.name in values:
+                if values[ps.name] is not None:
+                    params[ps.name] = values[ps.name]
+            elif ps.default is not None:
+                params[ps.name] = parse_expression(ps.default, params)
+            else:
+                self.error(spec, f"component '{cname}' ({cls.type_name}) needs parameter '{ps.name}'",
+                           f"add `{ps.name}: ...` ({ps.description}) under its `parameters:`")
+        if len(params) != len(cls.parameters):
+            return None
+        names = self._coordinate_names(cname, spec.get("coordinates"), cls.coordinates, f"{cname}_{{}}")
+        if names is None:
+            return None
+        component = cls(x={local: symbol(n) for local, n in zip(cls.coordinates, names)}, p=params)
+        return part_from_component(cname, component)
+
+    def _component_parameters(self, cname: str, node: Node | None, allowed) -> dict[str, sympy.Expr | None]:
+        values: dict[str, sympy.Expr | None] = {}
+        params = self.mapping(node, f"{cname}.parameters", "write `parameters: {mass: m1, length: 2*a1}`")
+        for key, vnode in params.items():
+            if key not in allowed:
+                self.error(node.key_locations[key], f"component '{cname}' has no parameter '{key}'",
+                           close_matches(key, allowed))
+                continue
+            values[key] = self.expr(vnode, what=f"parameter '{key}' of '{cname}'")
+        return values
+
+    def _coordinate_names(self, cname: str, node: Node | None, local: tuple[str, ...], default: str):
+        """Names of a component's coordinates: ``{local: new}`` or a list in order."""
+        names = [default.format(n) for n in local]
+        if node is None:
+            return names
+        if node.is_sequence:
+            if len(node.value) != len(local):
+                self.error(node, f"component '{cname}' has {len(local)} coordinates ({', '.join(local)}), "
+                                 f"{len(node.value)} names given", "give one name per coordinate, in that order")
+                return None
+            items = list(zip(local, node.value))
+        elif node.is_mapping:
+            items = []
+            for key, vnode in node.value.items():
+                if key not in local:
+                    self.error(node.key_locations[key], f"component '{cname}' has no coordinate '{key}'",
+                               close_matches(key, local))
+                    continue
+                items.append((key, vnode))
+        else:
+            self.error(node, "`coordinates:` of a component must map its coordinates to new names",
+                       f"e.g. `coordinates: {{{local[0]}: q1}}`")
+            return None
+        for key, vnode in items:
+            new = str(vnode.value)
+            if self.identifier(new, vnode.location, "coordinate"):
+                names[local.index(key)] = new
+        return names
+
+    def _known_system(self, cname: str, spec: Node) -> Part | None:
+        """A derived model used as a component (examples II and III)."""
+        self.check_keys(spec, ("model", "parameters", "coordinates", "description"), f"component '{cname}'")
+        mnode = spec.get("model")
+        sub_path = (self.path.parent / str(mnode.value))
+        resolved = str(sub_path.resolve())
+        if resolved in self.stack:
+            chain = " -> ".join(Path(p).name for p in self.stack + (resolved,))
+            self.error(mnode, f"model files form a cycle: {chain}", "a model cannot contain itself")
+            return None
+        if not sub_path.exists():
+            self.error(mnode, f"model file '{mnode.value}' not found (looked at {sub_path})",
+                       "paths are relative to this model file")
+            return None
+        try:
+            sub = load_model(sub_path, _stack=self.stack)
+            system = derive_model(sub)
+        except ModelError as exc:
+            self.problems.extend(exc)
+            return None
+        self.sub_hashes.append(sub.content_hash)
+        # parameters: overrides, the rest inherited
+        allowed = [p.name for p in system.parameters]
+        overrides = self._component_parameters(cname, spec.get("parameters"), allowed)
+        for info in system.parameters:
+            if info.name not in overrides:
+                self.add_parameter(info, inherited=True)
+        local = tuple(q.name for q in system.coordinates)
+        names = self._coordinate_names(cname, spec.get("coordinates"), local, "{}")
+        if names is None or any(v is None for v in overrides.values()):
+            return None
+        return known_system_part(cname, system, {symbol(k): v for k, v in overrides.items()},
+                                 dict(zip(local, names)))
+
+    # --------------------------------------------------------- coordinates
+    def _coordinates(self, node: Node | None) -> tuple[sympy.Symbol, ...]:
+        if node is None:
+            self.error(Location(self.file, 1, 1), "the model has no `coordinates:`",
+                       "list the generalized coordinates of the new system, e.g. `coordinates: [theta, phi]`")
+            return ()
+        if not node.is_sequence or not node.value:
+            self.error(node, "`coordinates:` must be a non-empty list of names", "e.g. `coordinates: [theta, phi]`")
+            return ()
+        coords = []
+        for item in node.value:
+            name = str(item.value)
+            if not self.identifier(name, item.location, "coordinate"):
+                continue
+            if name in self.parameters:
+                self.error(item, f"'{name}' is both a parameter and a coordinate", "rename one of them")
+                continue
+            if symbol(name) in coords:
+                self.error(item, f"coordinate '{name}' is listed twice", "list each coordinate once")
+                continue
+            coords.append(symbol(name))
+        for q in coords:
+            self.names[q.name] = q
+            self.names[velocity_symbol(q).name] = velocity_symbol(q)
+        self.locations["coordinates"] = node.location
+        return tuple(coords)
+
+    def _primitive_names(self, primitive: Primitive) -> None:
+        """Primitive coordinates are known by their names and as ``component.local``."""
+        seen: dict[sympy.Symbol, str] = {}
+        for part in primitive.parts:
+            for q in part.coordinates:
+                if q in seen and seen[q] != part.name:
+                    self.error(self.root.key_locations.get("components", self.root.location),
+                               f"coordinate name '{q}' is used by components '{seen[q]}' and '{part.name}'",
+                               f"rename one under its `coordinates:`, e.g. `coordinates: {{...: {q}_{part.name}}}`")
+                seen[q] = part.name
+                if q.name in self.parameters:
+                    self.error(self.root.key_locations.get("components", self.root.location),
+                               f"coordinate name '{q}' of '{part.name}' is also a parameter", "rename one")
+        self.primitive_names: dict[str, sympy.Symbol] = {}
+        for part in primitive.parts:
+            local = self._local_names(part)
+            for q, lname in zip(part.coordinates, local):
+                self.primitive_names.setdefault(q.name, q)
+                self.primitive_names[f"{part.name}.{q.name}"] = q
+                self.primitive_names.setdefault(f"{part.name}.{lname}", q)
+        for key, q in list(self.primitive_names.items()):
+            self.names.setdefault(key, q)
+            v = velocity_symbol(q)
+            self.names.setdefault(f"{key}_dot", v)
+
+    def _local_names(self, part: Part) -> tuple[str, ...]:
+        cls = REGISTRY.get(part.type_name)
+        return cls.coordinates if cls is not None else tuple(q.name for q in part.coordinates)
+
+    # ---------------------------------------------------------- connection
+    def _connection(self, node: Node | None, primitive: Primitive, coords) -> dict:
+        connection: dict[sympy.Symbol, sympy.Expr] = {}
+        where: dict[sympy.Symbol, Location] = {}
+        names = {k: v for k, v in self.names.items() if not k.endswith("_dot") and v is not TIME}
+        generalized = {q.name: q for q in coords}
+        entries = self.mapping(node, "connection", "write one `primitive_coordinate: expression` per line")
+        if node is not None:
+            self.locations["connection"] = node.location
+        for key, vnode in entries.items():
+            loc = node.key_locations[key]
+            x = self.primitive_names.get(key)
+            if x is None:
+                self.error(loc, f"'{key}' is not a coordinate of the primitive system",
+                           close_matches(key, [k for k in self.primitive_names if "." in k] +
+                                         [q.name for q in primitive.coordinates]))
+                continue
+            if x in connection:
+                self.error(loc, f"primitive coordinate '{x}' is connected twice (first at line {where[x].line})",
+                           "connect each primitive coordinate once")
+                continue
+            value = self.expr(vnode, {**self.parameter_names(), **generalized},
+                              what=f"connection of '{key}'")
+            if value is None:
+                continue
+            connection[x] = sympy.sympify(value)
+            where[x] = loc
+        for x in primitive.coordinates:
+            if x in connection:
+                continue
+            if x.name in generalized:
+                connection[x] = x  # identity maps may be written short
+            else:
+                owner = next(p.name for p in primitive.parts if x in p.coordinates)
+                self.error(node.location if node is not None else self.root.location,
+                           f"primitive coordinate '{owner}.{x}' is not connected",
+                           f"add `{x}: <expression in {', '.join(generalized)}>` under `connection:`, "
+                           "or name it like a generalized coordinate for an identity map")
+        used = set().union(*(e.free_symbols for e in connection.values())) if connection else set()
+        for q in coords:
+            if q not in used:
+                self.error(self.locations.get("coordinates", self.root.location),
+                           f"generalized coordinate '{q}' does not appear in the connection",
+                           "every generalized coordinate must move some primitive coordinate")
+        return connection
+
+    def parameter_names(self) -> dict[str, sympy.Symbol]:
+        return {k: v.symbol for k, v in self.parameters.items()}
+
+    # -------------------------------------------------------------- effects
+    def _effects(self, node: Node | None, primitive: Primitive, coords):
+        effects = []
+        for ename, spec in self.mapping(node, "effects", "write `gravity: {type: gravity, g: g}`").items():
+            loc = node.key_locations[ename]
+            if not self.identifier(ename, loc, "effect"):
+                continue
+            effect = build_effect(self, ename, spec, primitive)
+            if effect is not None:
+                effects.append(effect)
+        return effects
+
+    def _initial(self, node: Node | None, coords):
+        initial: dict[sympy.Symbol, sympy.Expr] = {}
+        allowed = {q.name: q for q in coords}
+        allowed.update({velocity_symbol(q).name: velocity_symbol(q) for q in coords})
+        for key, vnode in self.mapping(node, "initial", "write `initial: {theta: 0.1, theta_dot: 0}`").items():
+            if key not in allowed:
+                self.error(node.key_locations[key], f"'{key}' is not a coordinate or velocity of this model",
+                           close_matches(key, allowed))
+                continue
+            value = self.expr(vnode, self.parameter_names(), what=f"initial value of '{key}'")
+            if value is not None:
+                initial[allowed[key]] = value
+        return initial
+
+
+def known_system_part(name: str, system: KnownSystem, overrides: dict, renames: dict[str, str]) -> Part:
+    """A derived system placed as a component: parameters overridden, coordinates renamed."""
+    sub = dict(overrides)
+    for q in system.coordinates:
+        new = symbol(renames.get(q.name, q.name))
+        sub[q] = new
+        sub[velocity_symbol(q)] = velocity_symbol(new)
+
+    def s(e):
+        return sympy.sympify(e).xreplace(sub)
+
+    from ..components.base import Body
+
+    bodies = tuple(Body(s(b.mass), tuple(s(c) for c in b.centre),
+                        b.rotation.xreplace(sub) if b.rotation is not None else None,
+                        b.inertia.xreplace(sub) if b.inertia is not None else None) for b in system.bodies)
+    return Part(
+        name=name,
+        coordinates=tuple(sub[q] for q in system.coordinates),
+        metric=system.mass_matrix.xreplace(sub),
+        velocity_terms=system.velocity_terms.xreplace(sub),
+        points={label: tuple(s(c) for c in pos) for label, pos in system.points.items()},
+        bodies=bodies,
+        dimension=system.dimension,
+        forces={label: f.xreplace(sub) for label, f in system.effect_forces.items()},
+        potential=s(system.potential_energy),
+        type_name="",
+    )
+
+
+def _kind(node: Node) -> str:
+    if node.is_mapping:
+        return "a mapping"
+    if node.is_sequence:
+        return "a list"
+    if node.value is None:
+        return "nothing"
+    return f"'{node.text if node.text is not None else node.value}'"

@@ -1,0 +1,43 @@
+"""The parsed model: immutable, validated, with every expression already in sympy.
+
+Data flows one way: YAML -> :class:`Model` -> primitive -> subspace ->
+equations. Deriving returns a new :class:`~kronsub.core.known_system.KnownSystem`.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Mapping
+
+import sympy
+
+from ..core.known_system import KnownSystem, ParameterInfo
+from ..core.primitive import Primitive
+from ..effects.base import Effect
+from ..errors import Location
+
+
+@dataclass(frozen=True)
+class Model:
+    """A model file, loaded: the primitive, the connection and the effects."""
+
+    name: str
+    description: str
+    path: str
+    parameters: tuple[ParameterInfo, ...]
+    primitive: Primitive
+    coordinates: tuple[sympy.Symbol, ...]
+    connection: Mapping[sympy.Symbol, sympy.Expr]
+    effects: tuple[Effect, ...]
+    initial: Mapping[sympy.Symbol, sympy.Expr] = field(default_factory=dict)
+    content_hash: str = ""
+    locations: Mapping[str, Location] = field(default_factory=dict)
+
+    def derive(self, *, cache: bool = True) -> KnownSystem:
+        """The equations of motion by projection onto the subspace (9'), (E), (F)."""
+        from .derive import derive_model
+
+        return derive_model(self, cache=cache)
+
+    def parameter_values(self) -> dict[sympy.Symbol, sympy.Expr]:
+        """Default values of the parameters that have one."""
+        return {p.symbol: p.value for p in self.parameters if p.value is not None}

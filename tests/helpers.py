@@ -1,0 +1,39 @@
+"""Test helpers: symbols by name, and numeric comparison of expressions."""
+from __future__ import annotations
+
+import numpy as np
+import sympy
+
+from kronsub.core.symbols import symbol
+
+
+def S(names: str):
+    """kronsub's (real) symbols by name: ``S('m1 m2')``."""
+    out = [symbol(n) for n in names.split()]
+    return out[0] if len(out) == 1 else out
+
+
+def by_name(expr):
+    """Replace every symbol by a plain symbol of the same name (to compare across conventions)."""
+    expr = sympy.sympify(expr)
+    return expr.xreplace({s: sympy.Symbol(s.name) for s in expr.free_symbols})
+
+
+def assert_same(a, b):
+    """Exact symbolic equality of two expressions, up to symbol assumptions."""
+    diff = sympy.simplify(by_name(a) - by_name(b))
+    assert diff == 0, f"{a}  !=  {b}  (difference {diff})"
+
+
+def random_values(names, rng, low=0.3, high=1.7):
+    return {n: float(rng.uniform(low, high)) for n in sorted(names)}
+
+
+def evaluate(expr, values: dict[str, float]) -> float:
+    expr = by_name(expr)
+    subs = {sympy.Symbol(k): v for k, v in values.items()}
+    return float(expr.xreplace(subs).evalf(30))
+
+
+def close(a: float, b: float, rel=1e-12, abs_=1e-12) -> bool:
+    return bool(np.isclose(a, b, rtol=rel, atol=abs_))
