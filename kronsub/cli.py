@@ -94,7 +94,7 @@ def derive(model: Path, fmt: str, output: Path | None, check: Path | None, no_ca
     from .model.loader import load_model
 
     def job():
-        system = load_model(model).derive(cache=not no_cache)
+        system = load_model(model, cache=not no_cache).derive(cache=not no_cache)
         text = EMITTERS[fmt](system)
         if check is not None:
             try:

@@ -21,6 +21,10 @@ def by_name(expr):
 
 def assert_same(a, b):
     """Exact symbolic equality of two expressions, up to symbol assumptions."""
+    if isinstance(a, sympy.MatrixBase):
+        diff = (a - b).applyfunc(lambda e: sympy.simplify(by_name(e)))
+        assert diff.is_zero_matrix, f"{a}  !=  {b}  (difference {diff})"
+        return
     diff = sympy.simplify(by_name(a) - by_name(b))
     assert diff == 0, f"{a}  !=  {b}  (difference {diff})"
 

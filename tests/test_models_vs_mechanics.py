@@ -18,7 +18,8 @@ CASES = {
     "hoffmann/three_particles.yaml": (ref.three_particles, {}),
     "hoffmann/system1.yaml": (ref.system1, {}),
     # |c - a1 sin(theta)| < a2 keeps the subspace (26) real
-    "hoffmann/system2.yaml": (ref.system2, {"c": (0.1, 0.3), "theta": (-0.3, 0.3)}),
+    "hoffmann/system2.yaml": (ref.system2, {"c": (0.1, 0.3), "theta": (-0.3, 0.3), "a1": (0.3, 0.6),
+                                              "a2": (0.9, 1.2)}),
     "examples/double_pendulum.yaml": (ref.double_pendulum, {}),
     "examples/cart_pole.yaml": (ref.cart_pole, {}),
     "examples/particle_on_sphere.yaml": (ref.particle_on_sphere, {"theta": (0.2, 2.9)}),

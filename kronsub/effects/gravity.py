@@ -10,20 +10,21 @@ from .base import Effect, dot
 
 @dataclass(frozen=True)
 class Gravity(Effect):
-    """``V = - sum_bodies m g (d . centre)`` with ``d`` the unit direction of gravity."""
+    """``V = - sum_bodies m g (d . centre)`` with ``d`` the unit direction of gravity.
+
+    ``parts`` pairs each component with the direction of gravity in its world.
+    """
 
     g: sympy.Expr = sympy.Integer(0)
-    direction: tuple[sympy.Expr, ...] = ()
-    parts: tuple[str, ...] = ()
+    parts: tuple[tuple[str, tuple[sympy.Expr, ...]], ...] = ()
 
     conservative = True
 
     def potential(self, primitive):
-        d = sympy.Matrix(self.direction)
-        norm = sympy.sqrt(sum(c**2 for c in d))
-        unit = [c / norm for c in d]
         total = sympy.Integer(0)
-        for name in self.parts:
+        for name, direction in self.parts:
+            norm = sympy.sqrt(sum(c**2 for c in direction))
+            unit = [c / norm for c in direction]
             for body in primitive.part(name).bodies:
                 if body.mass != 0:
                     total -= body.mass * self.g * dot(unit, body.centre)

@@ -30,9 +30,26 @@ def cache_dir() -> Path | None:
     return Path(base) / "kronsub"
 
 
+def _code_fingerprint() -> str:
+    """A hash of kronsub's own source, so a changed derivation never reads a stale cache."""
+    global _FINGERPRINT
+    if _FINGERPRINT is None:
+        digest = hashlib.sha256(__version__.encode())
+        package = Path(__file__).resolve().parent.parent
+        for path in sorted(package.rglob("*.py")):
+            digest.update(str(path.relative_to(package)).encode())
+            digest.update(path.read_bytes())
+        _FINGERPRINT = digest.hexdigest()
+    return _FINGERPRINT
+
+
+_FINGERPRINT: str | None = None
+
+
 def content_key(*parts: str) -> str:
+    """The cache key of a model: kronsub's code, the file's text and its sub-models' keys."""
     digest = hashlib.sha256()
-    digest.update(f"kronsub {__version__}\n".encode())
+    digest.update(_code_fingerprint().encode())
     for part in parts:
         digest.update(part.encode())
         digest.update(b"\0")

@@ -42,7 +42,15 @@ def _point(loader, node: Node, primitive, ename: str):
 
 
 def _gravity(loader, ename, spec, primitive):
-    if "g" in spec.value:
+    """Gravity on the chosen components (default: every library component with mass).
+
+    Known systems bring their own effects, so they are included only when named.
+    Without ``direction:`` each component falls "down" in its own world
+    (-x on a line, -y in the plane, -z in space).
+    """
+    from .loader import close_matches
+
+    if spec.get("g") is not None:
         g = loader.expr(spec.get("g"), what="g")
     elif "g" in loader.parameters:
         g = loader.parameters["g"].symbol
@@ -50,40 +58,40 @@ def _gravity(loader, ename, spec, primitive):
         g = None
         loader.error(spec, f"gravity '{ename}' needs `g:`", "give `g: 9.81` or declare a parameter `g`")
     names = [p.name for p in primitive.parts]
-    chosen = names
-    if "components" in spec.value:
-        cnode = spec.get("components")
-        chosen = [str(n.value) for n in cnode.value] if cnode.is_sequence else []
-        for n in (cnode.value if cnode.is_sequence else ()):
+    cnode = spec.get("components")
+    if cnode is None:
+        chosen = [p.name for p in primitive.parts if p.type_name and any(b.mass != 0 for b in p.bodies)]
+    elif not cnode.is_sequence:
+        loader.error(cnode, f"`components:` of gravity '{ename}' must be a list", f"e.g. `components: [{names[0]}]`")
+        return None
+    else:
+        chosen = []
+        for n in cnode.value:
             if str(n.value) not in names:
-                from .loader import close_matches
-
                 loader.error(n, f"unknown component '{n.value}' in gravity '{ename}'", close_matches(str(n.value), names))
+            else:
+                chosen.append(str(n.value))
     direction = None
-    if "direction" in spec.value:
+    if spec.get("direction") is not None:
         direction = _vector(loader, spec.get("direction"), "direction of gravity")
         if direction is None:
             return None
     parts = []
     for name in chosen:
-        if name not in names:
-            continue
         part = primitive.part(name)
-        massive = any(b.mass != 0 for b in part.bodies)
-        if not massive:
-            continue
-        if direction is None:
-            direction = DEFAULT_DOWN.get(part.dimension)
-        if part.dimension and len(direction) != part.dimension:
-            if "components" in spec.value:
-                loader.error(spec, f"gravity '{ename}' has a {len(direction)}-D direction but component "
+        if not part.dimension:
+            continue  # nothing of it moves in a world (a flywheel on its axis)
+        d = direction if direction is not None else DEFAULT_DOWN.get(part.dimension)
+        if len(d) != part.dimension:
+            if cnode is not None:
+                loader.error(spec, f"gravity '{ename}' has a {len(d)}-D direction but component "
                                    f"'{name}' lives in {part.dimension}-D",
                              "give a direction with one entry per world axis of the component")
             continue
-        parts.append(name)
+        parts.append((name, tuple(d)))
     if g is None:
         return None
-    return Gravity(ename, g=g, direction=tuple(direction or DEFAULT_DOWN[2]), parts=tuple(parts))
+    return Gravity(ename, g=g, parts=tuple(parts))
 
 
 def _force(loader, ename, spec, primitive):
@@ -104,7 +112,11 @@ def _force(loader, ename, spec, primitive):
         loader.error(spec, f"force '{ename}' needs `vector:` or `direction:` and `magnitude:`",
                      "e.g. `vector: [F, 0]`")
         return None
-    if point is None or vector is None or not isinstance(point, str):
+    if isinstance(point, tuple):
+        loader.error(pnode, f"force '{ename}' must act at a named point of a component",
+                     "e.g. `point: lower.centre`; a force at a fixed place does no work")
+        return None
+    if point is None or vector is None:
         return None
     if len(vector) != len(primitive.points()[point]):
         loader.error(spec, f"force '{ename}' has {len(vector)} components but point '{point}' has "
@@ -132,7 +144,13 @@ def _torque(loader, ename, spec, primitive):
     value = _vector(loader, vnode, "torque") if vnode.is_sequence else loader.expr(vnode, what="torque")
     if value is None:
         return None
-    return Torque(ename, part=part.name, value=value if isinstance(value, tuple) else (value,))
+    value = value if isinstance(value, tuple) else (value,)
+    axes = 1 if part.bodies[0].rotation.shape == (2, 2) else 3
+    if len(value) != axes:
+        loader.error(vnode, f"torque '{ename}' on '{part.name}' needs {axes} component(s), found {len(value)}",
+                     "one value about the plane's normal for planar bodies; [x, y, z] in space")
+        return None
+    return Torque(ename, part=part.name, value=value)
 
 
 def _spring(loader, ename, spec, primitive, damper=False):
@@ -146,6 +164,12 @@ def _spring(loader, ename, spec, primitive, damper=False):
     key = "coefficient" if damper else "stiffness"
     knode = _required(loader, spec, key, ename, f"e.g. `{key}: k`")
     if knode is None or any(e is None for e in ends):
+        return None
+    points = primitive.points()
+    dims = [len(points[e]) if isinstance(e, str) else len(e) for e in ends]
+    if dims[0] != dims[1]:
+        loader.error(bnode, f"the ends of '{ename}' live in {dims[0]}-D and {dims[1]}-D",
+                     "join points of the same world (or give a fixed place with as many entries)")
         return None
     k = loader.expr(knode, what=key)
     if k is None:

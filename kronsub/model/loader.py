@@ -29,11 +29,14 @@ IDENTIFIER = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
 RESERVED = {"t", "pi"}
 
 
-def load_model(path, *, text: str | None = None, _stack: tuple[str, ...] = ()) -> Model:
-    """Load a model file; sub-model files are loaded (and derived) recursively."""
+def load_model(path, *, text: str | None = None, cache: bool = True, _stack: tuple[str, ...] = ()) -> Model:
+    """Load a model file; sub-model files are loaded (and derived) recursively.
+
+    ``cache=False`` derives sub-models from scratch instead of reading the cache.
+    """
     path = Path(path)
     root = load_yaml(path, text)
-    return _Loader(path, root, text if text is not None else _read(path), _stack).build()
+    return _Loader(path, root, text if text is not None else _read(path), _stack, cache).build()
 
 
 def _read(path: Path) -> str:
@@ -48,7 +51,8 @@ def close_matches(name: str, options) -> str:
 
 
 class _Loader:
-    def __init__(self, path: Path, root: Node, text: str, stack: tuple[str, ...]):
+    def __init__(self, path: Path, root: Node, text: str, stack: tuple[str, ...], cache: bool = True):
+        self.cache = cache
         self.path = path
         self.file = str(path)
         self.root = root
@@ -112,10 +116,12 @@ class _Loader:
                        "start with `name:`, `components:`, `coordinates:` and `connection:`")
             self.problems.raise_if_any()
         self.check_keys(root, TOP_LEVEL, "the model")
-        for key in ("constraints", "scenes"):
-            if key in root.value:
-                self.error(root.key_locations[key], f"`{key}:` is not supported yet",
-                           "express the subspace in parametric form under `connection:` (eq. 19/26)")
+        if "constraints" in root.value:
+            self.error(root.key_locations["constraints"], "`constraints:` (implicit g(x) = 0) is not supported yet",
+                       "express the subspace in parametric form under `connection:` (eqs. 19, 26)")
+        if "scenes" in root.value:
+            self.error(root.key_locations["scenes"], "`scenes:` is not supported yet",
+                       "remove it; every effect of the model is applied")
         name = self._string(root.get("name"), self.path.stem)
         description = self._string(root.get("description"), "")
         self._parameters(root.get("parameters"))
@@ -177,7 +183,7 @@ class _Loader:
     # ---------------------------------------------------------- components
     def _components(self, node: Node | None) -> None:
         comps = self.mapping(node, "components", "write `upper: {type: pinned_rod, parameters: {...}}`")
-        if node is not None and not comps and node.is_mapping:
+        if node is not None and not comps and (node.is_mapping or node.value is None):
             self.error(node, "`components:` is empty", "list at least one component")
         if node is None:
             self.error(Location(self.file, 1, 1), "the model has no `components:`",
@@ -208,18 +214,15 @@ class _Loader:
             self.error(tnode, f"unknown component type '{tnode.value}'", close_matches(str(tnode.value), REGISTRY))
             return None
         values = self._component_parameters(cname, spec.get("parameters"), [p.name for p in cls.parameters])
-        params: dict[str, sympy.Expr] = {}
-        for ps in cls.parameters:
-            if ps.name in values:
-                if values[ps.name] is not None:
-                    params[ps.name] = values[ps.name]
-            elif ps.default is not None:
-                params[ps.name] = parse_expression(ps.default, params)
-            else:
-                self.error(spec, f"component '{cname}' ({cls.type_name}) needs parameter '{ps.name}'",
-                           f"add `{ps.name}: ...` ({ps.description}) under its `parameters:`")
-        if len(params) != len(cls.parameters):
+        missing = [ps for ps in cls.parameters if ps.name not in values and ps.default is None]
+        for ps in missing:
+            self.error(spec, f"component '{cname}' ({cls.type_name}) needs parameter '{ps.name}'",
+                       f"add `{ps.name}: ...` ({ps.description}) under its `parameters:`")
+        if missing or any(v is None for v in values.values()):
             return None
+        params: dict[str, sympy.Expr] = {}
+        for ps in cls.parameters:  # defaults are library text, in the other parameters
+            params[ps.name] = values[ps.name] if ps.name in values else parse_expression(ps.default, params)
         names = self._coordinate_names(cname, spec.get("coordinates"), cls.coordinates, f"{cname}_{{}}")
         if names is None:
             return None
@@ -261,9 +264,17 @@ class _Loader:
                        f"e.g. `coordinates: {{{local[0]}: q1}}`")
             return None
         for key, vnode in items:
-            new = str(vnode.value)
-            if self.identifier(new, vnode.location, "coordinate"):
-                names[local.index(key)] = new
+            if not isinstance(vnode.value, str):
+                self.error(vnode, f"coordinate name of '{cname}.{key}' must be a name, found {_kind(vnode)}",
+                           "use letters, digits and underscores")
+                continue
+            if self.identifier(vnode.value, vnode.location, "coordinate"):
+                names[local.index(key)] = vnode.value
+        for i, n in enumerate(names):
+            if n in names[:i]:
+                self.error(node, f"component '{cname}' gives two coordinates the name '{n}'",
+                           "give each coordinate its own name")
+                return None
         return names
 
     def _known_system(self, cname: str, spec: Node) -> Part | None:
@@ -281,8 +292,8 @@ class _Loader:
                        "paths are relative to this model file")
             return None
         try:
-            sub = load_model(sub_path, _stack=self.stack)
-            system = derive_model(sub)
+            sub = load_model(sub_path, cache=self.cache, _stack=self.stack)
+            system = derive_model(sub, cache=self.cache)
         except ModelError as exc:
             self.problems.extend(exc)
             return None
@@ -311,7 +322,10 @@ class _Loader:
             return ()
         coords = []
         for item in node.value:
-            name = str(item.value)
+            name = item.value
+            if not isinstance(name, str):
+                self.error(item, f"a coordinate must be a name, found {_kind(item)}", "e.g. `coordinates: [theta, phi]`")
+                continue
             if not self.identifier(name, item.location, "coordinate"):
                 continue
             if name in self.parameters:
@@ -347,10 +361,11 @@ class _Loader:
                 self.primitive_names.setdefault(q.name, q)
                 self.primitive_names[f"{part.name}.{q.name}"] = q
                 self.primitive_names.setdefault(f"{part.name}.{lname}", q)
-        for key, q in list(self.primitive_names.items()):
-            self.names.setdefault(key, q)
-            v = velocity_symbol(q)
-            self.names.setdefault(f"{key}_dot", v)
+        # effects act on the primitive: their expressions name primitive coordinates only
+        self.names = {"t": TIME, **self.parameter_names()}
+        for key, q in self.primitive_names.items():
+            self.names[key] = q
+            self.names[f"{key}_dot"] = velocity_symbol(q)
 
     def _local_names(self, part: Part) -> tuple[str, ...]:
         cls = REGISTRY.get(part.type_name)
@@ -360,8 +375,8 @@ class _Loader:
     def _connection(self, node: Node | None, primitive: Primitive, coords) -> dict:
         connection: dict[sympy.Symbol, sympy.Expr] = {}
         where: dict[sympy.Symbol, Location] = {}
-        names = {k: v for k, v in self.names.items() if not k.endswith("_dot") and v is not TIME}
         generalized = {q.name: q for q in coords}
+        attempted: set[sympy.Symbol] = set()
         entries = self.mapping(node, "connection", "write one `primitive_coordinate: expression` per line")
         if node is not None:
             self.locations["connection"] = node.location
@@ -377,6 +392,7 @@ class _Loader:
                 self.error(loc, f"primitive coordinate '{x}' is connected twice (first at line {where[x].line})",
                            "connect each primitive coordinate once")
                 continue
+            attempted.add(x)
             value = self.expr(vnode, {**self.parameter_names(), **generalized},
                               what=f"connection of '{key}'")
             if value is None:
@@ -384,7 +400,7 @@ class _Loader:
             connection[x] = sympy.sympify(value)
             where[x] = loc
         for x in primitive.coordinates:
-            if x in connection:
+            if x in connection or x in attempted:
                 continue
             if x.name in generalized:
                 connection[x] = x  # identity maps may be written short
@@ -395,6 +411,8 @@ class _Loader:
                            f"add `{x}: <expression in {', '.join(generalized)}>` under `connection:`, "
                            "or name it like a generalized coordinate for an identity map")
         used = set().union(*(e.free_symbols for e in connection.values())) if connection else set()
+        if attempted - set(connection):
+            return connection  # a connection that did not parse says nothing about unused coordinates
         for q in coords:
             if q not in used:
                 self.error(self.locations.get("coordinates", self.root.location),

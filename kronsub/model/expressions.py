@@ -1,0 +1,469 @@
+"""Whitelisted arithmetic expressions from model files, built as sympy objects.
+
+Model files are data, so their text never reaches ``eval``, ``exec``,
+``sympify`` or ``parse_expr``. ``ast.parse(..., mode="eval")`` only gives
+us a syntax tree; this module walks it and builds sympy objects itself,
+accepting numbers, declared names, ``+ - * / **``, unary signs and calls of
+the functions in `FUNCTIONS`. Decimal literals become exact rationals taken
+from their source text (``9.81`` is 981/100, never a binary float). Anything
+else is reported as a `ModelError` located at the offending piece of text.
+"""
+from __future__ import annotations
+
+import ast
+import difflib
+import keyword
+import operator
+import re
+import unicodedata
+from types import MappingProxyType
+from typing import Mapping, NamedTuple, NoReturn
+
+import sympy
+
+from kronsub.errors import Location, ModelError, Problem
+
+MAX_LENGTH = 10_000
+"""Longest expression text accepted, in characters."""
+MAX_DEPTH = 100
+"""Deepest nesting of operations accepted (long ``a + b + ...`` chains count once)."""
+MAX_BITS = 100_000
+"""Bound on the total size in bits of the exact numbers an expression may build."""
+MAX_FACTORS = 100
+"""Most factors accepted in one product ``a * b / c ...`` (folding is quadratic)."""
+MAX_EXPONENT = 1_000
+"""Largest decimal exponent accepted in a literal such as ``1e-3``."""
+
+FUNCTIONS: Mapping[str, tuple[type[sympy.Basic], int]] = MappingProxyType({
+    "sin": (sympy.sin, 1),
+    "cos": (sympy.cos, 1),
+    "tan": (sympy.tan, 1),
+    "asin": (sympy.asin, 1),
+    "acos": (sympy.acos, 1),
+    "atan": (sympy.atan, 1),
+    "atan2": (sympy.atan2, 2),
+    "sqrt": (sympy.sqrt, 1),
+    "exp": (sympy.exp, 1),
+    "log": (sympy.log, 1),
+    "sinh": (sympy.sinh, 1),
+    "cosh": (sympy.cosh, 1),
+    "tanh": (sympy.tanh, 1),
+    "abs": (sympy.Abs, 1),
+    "sign": (sympy.sign, 1),
+})
+"""The functions an expression may call: name -> (sympy function, number of arguments)."""
+
+_DEFAULT_LOCATION = Location("<expression>", 1, 1)
+_ALLOWED = ("only numbers, declared names, + - * / **, parentheses and the functions "
+            + ", ".join(FUNCTIONS) + " are allowed")
+_DECIMAL = re.compile(r"([+-]?)(\d*)(?:\.(\d*))?(?:[eE]([+-]?\d+))?")
+_WORD = re.compile(r"[^\W\d]\w*")
+_TOKEN = re.compile(r"\w+|\S")
+_UNDEFINED = (sympy.zoo, sympy.nan, sympy.oo, -sympy.oo, sympy.I)
+
+_BINARY_OPERATORS: dict[type, str] = {
+    ast.Add: "+", ast.Sub: "-", ast.Mult: "*", ast.Div: "/", ast.Pow: "**",
+    ast.BitXor: "^", ast.Mod: "%", ast.FloorDiv: "//", ast.MatMult: "@",
+    ast.LShift: "<<", ast.RShift: ">>", ast.BitOr: "|", ast.BitAnd: "&",
+}
+_OPERATOR_HINTS = {
+    ast.BitXor: "use ** for powers, e.g. x**2",
+    ast.FloorDiv: "use / for division",
+}
+_ARITHMETIC = {ast.Mult: operator.mul, ast.Div: operator.truediv}
+_UNARY_OPERATORS = {ast.UAdd: "+", ast.USub: "-", ast.Not: "not", ast.Invert: "~"}
+_REJECTED = {
+    ast.Lambda: "lambda expressions",
+    ast.Subscript: "subscripts '[...]'",
+    ast.Slice: "slices",
+    ast.ListComp: "comprehensions",
+    ast.SetComp: "comprehensions",
+    ast.DictComp: "comprehensions",
+    ast.GeneratorExp: "generator expressions",
+    ast.Compare: "comparisons",
+    ast.BoolOp: "'and'/'or'",
+    ast.NamedExpr: "':=' assignments",
+    ast.JoinedStr: "f-strings",
+    ast.FormattedValue: "f-strings",
+    ast.Tuple: "tuples (a ',' outside a function call)",
+    ast.List: "lists",
+    ast.Set: "sets",
+    ast.Dict: "dictionaries",
+    ast.IfExp: "'if ... else' expressions",
+    ast.Starred: "starred arguments ('*x')",
+    ast.Await: "'await'",
+    ast.Yield: "'yield'",
+    ast.YieldFrom: "'yield'",
+}
+
+_HANDLERS = {
+    ast.Constant: "_constant", ast.Name: "_name", ast.Attribute: "_attribute",
+    ast.BinOp: "_binary", ast.UnaryOp: "_unary", ast.Call: "_call",
+}
+
+
+class _Value(NamedTuple):
+    """A built sub-expression and an upper bound on the bits of its numbers."""
+
+    expr: sympy.Expr
+    bits: int
+
+
+class _Reject(Exception):
+    """Internal: a problem at a place inside the expression text."""
+
+    def __init__(self, line: int, column: int, message: str, hint: str):
+        super().__init__(message)
+        self.line, self.column, self.message, self.hint = line, column, message, hint
+
+
+def parse_expression(text: str, names: Mapping[str, sympy.Basic],
+                     location: Location | None = None, *,
+                     what: str = "expression") -> sympy.Expr:
+    """Build the sympy expression written in ``text``.
+
+    ``names`` maps every name the text may use (dotted ones like ``lower.y``
+    included) to its sympy object; ``pi`` means `sympy.pi` unless ``names``
+    defines it. ``location`` is where ``text`` starts in the model file and
+    ``what`` names the text in messages ("expression for F", ...). Raises
+    `ModelError` (and nothing else) for anything outside the whitelist.
+    """
+    base = location or _DEFAULT_LOCATION
+    if not isinstance(text, str):
+        raise _error(base, what, str(text), f"expected text, got {type(text).__name__}",
+                     "write the expression as text, e.g. '2*x'")
+    try:
+        return _Builder(text, names).build_all()
+    except _Reject as problem:
+        shift = base.shifted(problem.column - 1)
+        where = shift if problem.line == 1 else Location(
+            base.file, base.line + problem.line - 1, problem.column)
+        raise _error(where, what, text, problem.message, problem.hint) from None
+    except (RecursionError, MemoryError):
+        raise _error(base, what, text, "is nested too deeply",
+                     "split it into simpler parts") from None
+    except Exception as exc:  # a sympy failure must still be a ModelError
+        detail = str(exc).splitlines()[0][:80] if str(exc) else type(exc).__name__
+        raise _error(base, what, text, f"cannot be evaluated ({detail})",
+                     "simplify the expression") from None
+
+
+def parse_number(text: str | int | float, location: Location | None = None, *,
+                 what: str = "number") -> sympy.Rational:
+    """The exact value of a plain number such as ``9.81``, ``-1.5e-3`` or ``42``.
+
+    Decimal text gives an exact `sympy.Rational`, integers a `sympy.Integer`;
+    a Python float is read from its shortest repr. Raises `ModelError`.
+    """
+    base = location or _DEFAULT_LOCATION
+    if isinstance(text, int) and not isinstance(text, bool):
+        return sympy.Integer(text)
+    if isinstance(text, float):
+        text = repr(text)
+    hint = "write a plain number such as 9.81 or 1.5e-3"
+    if not isinstance(text, str):
+        raise _error(base, what, str(text), "is not a number", hint)
+    stripped = text.strip()
+    try:
+        value = _exact_decimal(stripped) if len(stripped) <= MAX_LENGTH else None
+    except ValueError:
+        raise _error(base, what, text, "is too large", "use a smaller exponent") from None
+    if value is None:
+        raise _error(base, what, text, "is not a number", hint)
+    return value
+
+
+def _exact_decimal(literal: str) -> sympy.Rational | None:
+    """The exact value of ``9.81``, ``.5``, ``1e-3``... (None if not a decimal).
+
+    Raises ValueError when the number is absurdly large or precise.
+    """
+    match = _DECIMAL.fullmatch(literal.replace("_", ""))
+    if match is None:
+        return None
+    sign, whole, fraction, exponent = match.groups()
+    fraction = fraction or ""
+    if not (whole or fraction):
+        return None
+    if exponent and len(exponent.lstrip("+-0")) > 4:
+        raise ValueError("exponent too large")
+    scale = int(exponent or 0)
+    if abs(scale) > MAX_EXPONENT:
+        raise ValueError("exponent too large")
+    scale -= len(fraction)
+    digits = int(whole + fraction)
+    value = (sympy.Integer(digits * 10 ** scale) if scale >= 0
+             else sympy.Rational(digits, 10 ** -scale))
+    return -value if sign == "-" else value
+
+
+def _error(where: Location, what: str, text: str, message: str, hint: str) -> ModelError:
+    return ModelError([Problem(where, f"in {what} '{_shorten(text)}': {message}", hint)])
+
+
+def _shorten(text: str) -> str:
+    flat = " ".join(text.split())
+    return flat if len(flat) <= 60 else flat[:57] + "..."
+
+
+def _rational_bits(value: sympy.Rational) -> int:
+    return abs(value.p).bit_length() + value.q.bit_length()
+
+
+def _name_hint(name: str, known: list[str]) -> str:
+    """Suggest the closest known names, or how to declare a new one."""
+    close = difflib.get_close_matches(name, known, n=3)
+    if close:
+        return "did you mean " + " or ".join(f"'{c}'" for c in close) + "?"
+    return "declare it under `parameters:` (or check the spelling)"
+
+
+class _Builder:
+    """Walks the syntax tree of one expression and builds sympy objects."""
+
+    def __init__(self, text: str, names: Mapping[str, sympy.Basic]):
+        self.lead = len(text) - len(text.lstrip(" \t\f"))
+        self.body = text[self.lead:]
+        self.lines = re.split(r"\r\n|\r|\n", self.body)
+        self.names = {unicodedata.normalize("NFKC", key): value for key, value in names.items()}
+        self.names.setdefault("pi", sympy.pi)
+        self.known = sorted(names)
+        self.name_bits: dict[str, int] = {}
+
+    # -- locations and problems -------------------------------------------
+    def _column(self, line: int, byte_offset: int) -> int:
+        """1-based character column of a byte offset of a body line."""
+        raw = self.lines[line - 1].encode()[:byte_offset]
+        return len(raw.decode("utf-8", "replace")) + 1 + (self.lead if line == 1 else 0)
+
+    def fail(self, node: ast.AST, message: str, hint: str, byte_offset: int | None = None) -> NoReturn:
+        offset = node.col_offset if byte_offset is None else byte_offset
+        raise _Reject(node.lineno, self._column(node.lineno, offset), message, hint)
+
+    def fail_at(self, line: int, char_column: int, message: str, hint: str) -> NoReturn:
+        """A problem at a 1-based character column of a body line."""
+        raise _Reject(line, char_column + (self.lead if line == 1 else 0), message, hint)
+
+    # -- entry point ---------------------------------------------------------
+    def build_all(self) -> sympy.Expr:
+        if not self.body.strip():
+            raise _Reject(1, 1, "is empty", "write an expression such as 2*x")
+        if len(self.body) > MAX_LENGTH:
+            self.fail_at(1, 1, f"is longer than {MAX_LENGTH} characters",
+                         "split it into named parts")
+        tree = self._parse()
+        result = self.build(tree.body, 0).expr
+        if result.has(*_UNDEFINED):
+            self.fail(tree.body, "is undefined or not a real number (division by zero?)",
+                      "check divisions and the arguments of sqrt, log, tan...")
+        return result
+
+    def _parse(self) -> ast.Expression:
+        try:
+            return ast.parse(self.body, mode="eval")
+        except SyntaxError as exc:
+            self._syntax_error(exc)
+        except (RecursionError, MemoryError):
+            self.fail_at(1, 1, "is nested too deeply", "split it into simpler parts")
+        except ValueError as exc:
+            self.fail_at(1, 1, f"cannot be read ({exc})", "remove unusual characters")
+
+    def _syntax_error(self, exc: SyntaxError) -> NoReturn:
+        """Report a Python syntax error in the terms of an expression."""
+        self._reserved_word(exc)
+        msg = exc.msg or "invalid syntax"
+        line = exc.lineno or 1
+        text = self.lines[line - 1] if 0 < line <= len(self.lines) else ""
+        offset = exc.offset or 0
+        if not exc.lineno or "null bytes" in msg:
+            self.fail_at(1, 1, "contains a null character", "remove it")
+        if "too many nested" in msg:
+            self.fail_at(line, max(offset, 1), "is nested too deeply", "split it into simpler parts")
+        if "Exceeds the limit" in msg:
+            self.fail_at(line, max(offset, 1), "a number is too large", "use a smaller number")
+        unclosed = re.fullmatch(r"'(.)' was never closed", msg)
+        if unclosed:
+            closing = {"(": ")", "[": "]", "{": "}"}.get(unclosed.group(1), "a closing bracket")
+            self.fail_at(line, offset, f"expected '{closing}'",
+                         f"the '{unclosed.group(1)}' here is never closed")
+        if offset < 1 or offset > len(text):
+            self.fail_at(line, len(text) + 1, "unexpected end of expression",
+                         "the expression is incomplete: complete the last operation")
+        token = _TOKEN.match(text, offset - 1) or _TOKEN.search(text, offset - 1)
+        shown = token.group() if token else text[offset - 1:offset]
+        if "decimal literal" in msg:
+            self.fail_at(line, offset, f"invalid number '{shown}'",
+                         "write products with '*', e.g. 2*x rather than 2x")
+        if msg.startswith("unmatched"):
+            self.fail_at(line, offset, msg, "remove it or add the matching opening bracket")
+        if "string" in msg:
+            self.fail_at(line, offset, "strings are not allowed", _ALLOWED)
+        self.fail_at(line, offset, f"unexpected '{shown}'",
+                     "check the operators and parentheses; write products with '*', e.g. 2*x")
+
+    def _reserved_word(self, exc: SyntaxError) -> None:
+        """Report a Python keyword used as a name, the usual cause of odd syntax errors."""
+        for line_number, text in enumerate(self.lines, start=1):
+            for word in _WORD.finditer(text):
+                name = word.group()
+                if keyword.iskeyword(name) and name not in ("True", "False", "None") \
+                        and (name in self.names or not exc.offset):
+                    self.fail_at(line_number, word.start() + 1,
+                                 f"'{name}' is a reserved word and cannot be used as a name",
+                                 f"rename it, e.g. '{name}_'")
+
+    # -- the walk ------------------------------------------------------------
+    def build(self, node: ast.AST, depth: int) -> _Value:
+        if depth > MAX_DEPTH:
+            self.fail(node, f"is nested more than {MAX_DEPTH} levels deep",
+                      "split it into simpler parts")
+        method = _HANDLERS.get(type(node))
+        if method is None:
+            self._reject(node)
+        value = getattr(self, method)(node, depth + 1)
+        if value.bits > MAX_BITS:
+            self.fail(node, "builds numbers that are too large", "use smaller numbers or exponents")
+        return value
+
+    def _reject(self, node: ast.AST) -> NoReturn:
+        what = _REJECTED.get(type(node), f"'{type(node).__name__}' constructs")
+        self.fail(node, f"{what} are not allowed", _ALLOWED)
+
+    def _constant(self, node: ast.Constant, depth: int) -> _Value:
+        value = node.value
+        if isinstance(value, bool) or value is None:
+            self.fail(node, f"'{value}' is not allowed", "an expression must be a number: use 1 or 0")
+        if isinstance(value, int):
+            number = sympy.Integer(value)
+            return _Value(number, _rational_bits(number))
+        if isinstance(value, float):
+            return self._decimal(node)
+        if isinstance(value, complex):
+            self.fail(node, "imaginary numbers are not allowed", "model quantities are real numbers")
+        if isinstance(value, (str, bytes)):
+            self.fail(node, "strings are not allowed", "remove the quotes; " + _ALLOWED)
+        self.fail(node, f"'{ast.get_source_segment(self.body, node)}' is not allowed", _ALLOWED)
+
+    def _decimal(self, node: ast.Constant) -> _Value:
+        """The exact rational a decimal literal such as ``9.81`` is written as."""
+        literal = ast.get_source_segment(self.body, node) or repr(node.value)
+        try:
+            number = _exact_decimal(literal)
+        except ValueError:
+            self.fail(node, f"the number '{literal}' is too large", "use a smaller exponent")
+        if number is None:
+            self.fail(node, f"invalid number '{literal}'", "write numbers like 9.81 or 1.5e-3")
+        return _Value(number, _rational_bits(number))
+
+    def _lookup(self, node: ast.AST, name: str) -> _Value:
+        if name in self.names:
+            value = self.names[name]
+            if name not in self.name_bits:
+                atoms = value.atoms(sympy.Rational) if isinstance(value, sympy.Basic) else ()
+                self.name_bits[name] = sum(_rational_bits(atom) for atom in atoms)
+            return _Value(value, self.name_bits[name])
+        if name in FUNCTIONS:
+            self.fail(node, f"'{name}' is a function", f"call it, e.g. {name}(x)")
+        self.fail(node, f"unknown name '{name}'", _name_hint(name, self.known))
+
+    def _name(self, node: ast.Name, depth: int) -> _Value:
+        return self._lookup(node, node.id)
+
+    def _attribute(self, node: ast.Attribute, depth: int) -> _Value:
+        """A dotted name such as ``upper.tip.x``; no other attribute access."""
+        parts, inner, current = [], node, node
+        while isinstance(current, ast.Attribute):
+            parts.append(current.attr)
+            inner, current = current, current.value
+        if not isinstance(current, ast.Name):
+            self.fail(inner, f"attribute access '.{inner.attr}' is not allowed", _ALLOWED,
+                      byte_offset=inner.end_col_offset - len(inner.attr.encode()))
+        return self._lookup(node, ".".join([current.id, *reversed(parts)]))
+
+    def _binary(self, node: ast.BinOp, depth: int) -> _Value:
+        kind = type(node.op)
+        if kind in (ast.Add, ast.Sub, ast.Mult, ast.Div):
+            return self._chain(node, depth)
+        if kind is not ast.Pow:
+            symbol = _BINARY_OPERATORS.get(kind, kind.__name__)
+            self.fail(node, f"operator '{symbol}' is not allowed",
+                      _OPERATOR_HINTS.get(kind, _ALLOWED), byte_offset=self._operator_offset(node, symbol))
+        base, exponent = self.build(node.left, depth), self.build(node.right, depth)
+        estimate = base.bits + exponent.bits
+        if exponent.expr.is_Rational:
+            estimate += base.bits * abs(exponent.expr.p)
+        if estimate > MAX_BITS:
+            self.fail(node, "builds numbers that are too large", "use smaller numbers or exponents",
+                      byte_offset=self._operator_offset(node, "**"))
+        return _Value(sympy.Pow(base.expr, exponent.expr), estimate)
+
+    def _chain(self, node: ast.BinOp, depth: int) -> _Value:
+        """``a + b - c`` or ``a * b / c``, with the value Python's left fold gives.
+
+        The chain is walked without recursion, so long sums count as one level.
+        Sums are built as one `sympy.Add` (the same canonical result, but linear
+        time); products are folded pairwise because sympy distributes a number
+        over a sum only in a two-factor product.
+        """
+        additive = isinstance(node.op, (ast.Add, ast.Sub))
+        ops = (ast.Add, ast.Sub) if additive else (ast.Mult, ast.Div)
+        steps, current = [], node
+        while isinstance(current, ast.BinOp) and isinstance(current.op, ops):
+            steps.append((current.op, current.right))
+            current = current.left
+        if not additive and len(steps) >= MAX_FACTORS:
+            self.fail(node, f"has a product of more than {MAX_FACTORS} factors",
+                      "split it into named parts")
+        result, bits = self.build(current, depth)
+        terms = [result]
+        for op, operand in reversed(steps):
+            value = self.build(operand, depth)
+            bits += value.bits + 1
+            if bits > MAX_BITS:
+                self.fail(operand, "builds numbers that are too large", "use smaller numbers")
+            if additive:
+                terms.append(-value.expr if isinstance(op, ast.Sub) else value.expr)
+            else:
+                result = _ARITHMETIC[type(op)](result, value.expr)
+        return _Value(sympy.Add(*terms) if additive else result, bits)
+
+    def _operator_offset(self, node: ast.BinOp, symbol: str) -> int:
+        """Byte offset of the operator between the operands (or the node's start)."""
+        left, right = node.left, node.right
+        if left.end_lineno != right.lineno:
+            return node.col_offset
+        raw = self.lines[right.lineno - 1].encode()
+        gap = raw[left.end_col_offset:right.col_offset]
+        found = gap.find(symbol.encode())
+        return node.col_offset if found < 0 else left.end_col_offset + found
+
+    def _unary(self, node: ast.UnaryOp, depth: int) -> _Value:
+        if isinstance(node.op, (ast.Not, ast.Invert)):
+            symbol = _UNARY_OPERATORS[type(node.op)]
+            self.fail(node, f"operator '{symbol}' is not allowed", _ALLOWED)
+        operand = self.build(node.operand, depth)
+        if isinstance(node.op, ast.USub):
+            return _Value(-operand.expr, operand.bits + 1)
+        return operand
+
+    def _call(self, node: ast.Call, depth: int) -> _Value:
+        func = node.func
+        listing = "allowed functions: " + ", ".join(FUNCTIONS)
+        if not isinstance(func, ast.Name):
+            self.fail(func, "only the known functions can be called", listing)
+        if func.id not in FUNCTIONS:
+            known = func.id in self.names
+            message = f"'{func.id}' is not a function" if known else f"unknown function '{func.id}'"
+            close = difflib.get_close_matches(func.id, list(FUNCTIONS), n=1)
+            hint = f"did you mean '{close[0]}'? " + listing if close else listing
+            self.fail(func, message, hint)
+        if node.keywords:
+            self.fail(node.keywords[0], "keyword arguments are not allowed",
+                      f"pass the arguments of {func.id}() by position")
+        function, arity = FUNCTIONS[func.id]
+        if len(node.args) != arity:
+            plural = "s" if arity > 1 else ""
+            self.fail(node, f"{func.id}() takes {arity} argument{plural}, got {len(node.args)}",
+                      f"write {func.id}({', '.join('xy'[:arity])})")
+        args = [self.build(arg, depth) for arg in node.args]
+        return _Value(function(*(arg.expr for arg in args)), sum(arg.bits for arg in args) + 8)

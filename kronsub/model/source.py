@@ -1,0 +1,328 @@
+"""Load a YAML model file into `Node` trees that remember where things are.
+
+Only `yaml.compose` with the safe loader is used, so nothing in a model file
+is ever turned into a Python object other than plain data. Every value keeps
+its 1-based line and column, and every scalar keeps the text it was written
+with (so ``9.81`` can later become the exact rational 981/100).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Callable
+
+import yaml
+from yaml.constructor import SafeConstructor
+from yaml.nodes import MappingNode, ScalarNode, SequenceNode
+
+from kronsub.errors import Location, ModelError, Problem, ProblemCollector
+
+_TAG = "tag:yaml.org,2002:"
+_MAP, _SEQ, _MERGE = _TAG + "map", _TAG + "seq", _TAG + "merge"
+_CONSTRUCTOR = SafeConstructor()
+_SCALAR_TAGS: dict[str, Callable[[ScalarNode], Any]] = {
+    _TAG + "str": lambda node: node.value,
+    _TAG + "int": _CONSTRUCTOR.construct_yaml_int,
+    _TAG + "float": _CONSTRUCTOR.construct_yaml_float,
+    _TAG + "bool": _CONSTRUCTOR.construct_yaml_bool,
+    _TAG + "null": _CONSTRUCTOR.construct_yaml_null,
+    # Dates, a lone ``=`` and a lone ``<<`` as values are kept as plain text.
+    _TAG + "timestamp": lambda node: node.value,
+    _TAG + "value": lambda node: node.value,
+    _MERGE: lambda node: node.value,
+}
+_DEFAULT_HINT = "check the indentation and that every `key: value` has a space after the colon"
+_PLAIN_DATA_HINT = "a model file is plain data: remove the tag"
+
+
+@dataclass(frozen=True)
+class Node:
+    """A YAML value with its position in the file.
+
+    ``value`` is a ``dict[str, Node]`` (file order) for a mapping, a
+    ``tuple[Node, ...]`` for a sequence, and for a scalar the str, int, float,
+    bool or None the safe loader resolves (dates stay str). ``text`` is the
+    scalar's text as written (quotes and escapes removed; None for
+    containers). ``location`` is where the value starts; ``text_location`` is
+    where ``text`` itself starts (after an opening quote, or on the first
+    line of a ``|``/``>`` block). ``key_locations`` maps each key of a
+    mapping to where the key starts. Nodes hold dicts, so they are not
+    hashable.
+    """
+
+    value: Any
+    text: str | None
+    location: Location
+    key_locations: dict[str, Location] = field(default_factory=dict)
+    text_location: Location | None = None
+
+    @property
+    def is_mapping(self) -> bool:
+        return isinstance(self.value, dict)
+
+    @property
+    def is_sequence(self) -> bool:
+        return isinstance(self.value, tuple)
+
+    @property
+    def is_scalar(self) -> bool:
+        return not (self.is_mapping or self.is_sequence)
+
+    def get(self, key: str, default: Node | None = None) -> Node | None:
+        """The value under ``key`` of a mapping (``default`` if absent or not a mapping)."""
+        if not self.is_mapping:
+            return default
+        return self.value.get(key, default)
+
+    def to_python(self) -> Any:
+        """The plain Python data (dicts, lists, scalars); aliases are copied."""
+        if self.is_mapping:
+            return {key: node.to_python() for key, node in self.value.items()}
+        if self.is_sequence:
+            return [node.to_python() for node in self.value]
+        return self.value
+
+
+def load_yaml(path: str | Path, text: str | None = None) -> Node:
+    """Parse a YAML model file (or ``text``, named ``path`` in messages).
+
+    Raises `ModelError` listing every problem found: unreadable or empty
+    file, YAML syntax, duplicate or non-string keys, unsupported tags.
+    """
+    name = str(path)
+    if text is None:
+        text = _read_text(Path(path))
+    root = _compose(text, name)
+    if root is None:
+        raise ModelError([Problem(
+            Location(name, 1, 1), "the file is empty",
+            "write the model as YAML `key: value` lines")])
+    converter = _Converter(name, text)
+    node = converter.convert(root)
+    converter.problems.raise_if_any()
+    return node
+
+
+def _read_text(path: Path) -> str:
+    """The file's text, or a `ModelError` saying why it cannot be read."""
+    try:
+        data = path.read_bytes()
+    except FileNotFoundError:
+        raise _file_error(path, "file not found", "check the file name and the current directory")
+    except IsADirectoryError:
+        raise _file_error(path, "is a directory, not a file", "give the path of a .yaml model file")
+    except OSError as exc:
+        raise _file_error(path, f"cannot read the file: {exc.strerror or exc}",
+                          "check the file's permissions")
+    try:
+        return data.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        line = data.count(b"\n", 0, exc.start) + 1
+        column = exc.start - (data.rfind(b"\n", 0, exc.start) + 1) + 1
+        raise ModelError([Problem(
+            Location(str(path), line, column),
+            f"the file is not valid UTF-8 text (byte 0x{data[exc.start]:02x})",
+            "save the file with UTF-8 encoding")])
+
+
+def _file_error(path: Path, message: str, hint: str) -> ModelError:
+    return ModelError([Problem(Location(str(path)), message, hint)])
+
+
+def _compose(text: str, name: str) -> yaml.Node | None:
+    """The YAML node tree of ``text``; syntax errors become `ModelError`."""
+    try:
+        return yaml.compose(text, Loader=yaml.SafeLoader)
+    except yaml.MarkedYAMLError as exc:
+        raise ModelError([_syntax_problem(exc, name)])
+    except yaml.reader.ReaderError as exc:
+        location = _location_of_index(name, text, exc.position)
+        raise ModelError([Problem(
+            location, f"the file contains a character YAML does not allow (U+{exc.character:04X})",
+            "remove the character; model files must be plain printable text")])
+    except RecursionError:
+        raise ModelError([Problem(
+            Location(name), "the YAML is nested too deeply", "flatten the structure")])
+    except yaml.YAMLError as exc:
+        raise ModelError([Problem(Location(name), f"invalid YAML: {exc}", _DEFAULT_HINT)])
+
+
+def _syntax_problem(exc: yaml.MarkedYAMLError, name: str) -> Problem:
+    """A `Problem` at the mark of a scanner/parser/composer error."""
+    mark = exc.problem_mark or exc.context_mark
+    location = _location_of_mark(name, mark) if mark else Location(name)
+    problem, context = exc.problem or "", exc.context or ""
+    if problem.startswith("but ") or not problem:
+        message = f"{context}, {problem}".strip(", ")
+    else:
+        message = problem
+        if context:
+            if context.startswith("while") and exc.context_mark and mark \
+                    and exc.context_mark.line != mark.line:
+                context += f" that starts at line {exc.context_mark.line + 1}"
+            message += f" ({context})"
+    return Problem(location, f"invalid YAML: {message}", _syntax_hint(problem, context))
+
+
+def _syntax_hint(problem: str, context: str) -> str:
+    """A hint matching the kind of syntax error."""
+    if "'\\t'" in problem:
+        return "YAML indentation must use spaces, not tabs"
+    if "flow" in context or "expected ',' or" in problem:
+        return "close every '[' with ']' and every '{' with '}', and quote values containing ',' '[' ']' '{' '}'"
+    if "escape" in problem:
+        return "use single quotes, or write a backslash as \\\\ inside double quotes"
+    if "quoted scalar" in context:
+        return "close the quote, or escape quotes inside the value"
+    if "alias" in problem:
+        return "define an anchor (&name) before using it as *name"
+    if "single document" in context:
+        return "a model file holds a single YAML document: remove the extra '---'"
+    if "mapping values are not allowed" in problem:
+        return _DEFAULT_HINT + "; quote values that contain ': '"
+    return _DEFAULT_HINT
+
+
+def _location_of_mark(name: str, mark: yaml.Mark) -> Location:
+    return Location(name, mark.line + 1, mark.column + 1)
+
+
+def _location_of_index(name: str, text: str, index: int) -> Location:
+    """The location of character ``index`` of ``text``."""
+    index = max(0, min(index, len(text)))
+    line = text.count("\n", 0, index) + 1
+    return Location(name, line, index - (text.rfind("\n", 0, index) + 1) + 1)
+
+
+class _Converter:
+    """Turns composed YAML nodes into `Node` objects, collecting problems."""
+
+    def __init__(self, name: str, text: str):
+        self.name = name
+        self.text = text
+        self.problems = ProblemCollector()
+        self.done: dict[int, Node] = {}  # aliases share nodes: convert each once
+        self.active: set[int] = set()
+
+    def convert(self, node: yaml.Node) -> Node:
+        key = id(node)
+        if key in self.done:
+            return self.done[key]
+        location = _location_of_mark(self.name, node.start_mark)
+        if key in self.active:
+            self.problems.add(location, "an alias refers to a value that contains it",
+                              "aliases must not be recursive")
+            return Node(None, None, location)
+        self.active.add(key)
+        try:
+            result = self._convert(node, location)
+        finally:
+            self.active.discard(key)
+        self.done[key] = result
+        return result
+
+    def _convert(self, node: yaml.Node, location: Location) -> Node:
+        if isinstance(node, ScalarNode):
+            return self._scalar(node, location)
+        expected = _MAP if isinstance(node, MappingNode) else _SEQ
+        if node.tag != expected:
+            self._bad_tag(node.tag, location)
+        if isinstance(node, SequenceNode):
+            return Node(tuple(self.convert(item) for item in node.value), None, location)
+        return self._mapping(node, location)
+
+    def _bad_tag(self, tag: str, location: Location) -> None:
+        shown = "!!" + tag[len(_TAG):] if tag.startswith(_TAG) else tag
+        self.problems.add(location, f"unsupported YAML tag '{shown}'", _PLAIN_DATA_HINT)
+
+    def _scalar(self, node: ScalarNode, location: Location) -> Node:
+        text_location = self._text_location(node, location)
+        construct = _SCALAR_TAGS.get(node.tag)
+        if construct is None:
+            self._bad_tag(node.tag, location)
+            return Node(node.value, node.value, location, text_location=text_location)
+        try:
+            value = construct(node)
+        except (ValueError, KeyError, TypeError, yaml.YAMLError):
+            tag = node.tag[len(_TAG):]
+            self.problems.add(location, f"'{node.value}' is not a valid {tag}",
+                              "remove the explicit tag or fix the value")
+            value = node.value
+        return Node(value, node.value, location, text_location=text_location)
+
+    def _text_location(self, node: ScalarNode, location: Location) -> Location:
+        """Where the scalar's text starts (after a quote or a block header)."""
+        if node.style in ("'", '"'):
+            return location.shifted(1)
+        if node.style not in ("|", ">"):
+            return location
+        index = self.text.find("\n", node.start_mark.index)
+        end = node.end_mark.index
+        while 0 <= index < end:
+            line_start = index + 1
+            index = self.text.find("\n", line_start)
+            line = self.text[line_start:index if index >= 0 else len(self.text)]
+            if line.strip():
+                start = line_start + len(line) - len(line.lstrip(" "))
+                return _location_of_index(self.name, self.text, start)
+        return location
+
+    def _mapping(self, node: MappingNode, location: Location) -> Node:
+        explicit = {key.value for key, _ in node.value
+                    if isinstance(key, ScalarNode) and key.tag != _MERGE}
+        values: dict[str, Node] = {}
+        key_locations: dict[str, Location] = {}
+        written: dict[str, Location] = {}
+        for key_node, value_node in node.value:
+            if isinstance(key_node, ScalarNode) and key_node.tag == _MERGE:
+                self._merge(value_node, explicit, values, key_locations)
+                continue
+            key = self._key(key_node)
+            if key is None:
+                continue
+            key_location = _location_of_mark(self.name, key_node.start_mark)
+            if key in written:
+                self._duplicate(key, key_location, written[key])
+                continue
+            written[key] = key_locations[key] = key_location
+            values[key] = self.convert(value_node)
+        return Node(values, None, location, key_locations)
+
+    def _duplicate(self, key: str, where: Location, first: Location) -> None:
+        self.problems.add(
+            where, f"duplicate key '{key}' (first defined at line {first.line})",
+            "each key may appear only once in a mapping: remove or rename one of them")
+
+    def _key(self, key_node: yaml.Node) -> str | None:
+        """The key as a string, or None after reporting why it is unusable."""
+        location = _location_of_mark(self.name, key_node.start_mark)
+        if not isinstance(key_node, ScalarNode):
+            kind = "mapping" if isinstance(key_node, MappingNode) else "list"
+            self.problems.add(location, f"a {kind} cannot be used as a key",
+                              "keys must be plain names like `mass:`")
+            return None
+        key = self._scalar(key_node, location).value
+        if not isinstance(key, str):
+            self.problems.add(location, f"key {key_node.value!r} is not a string (YAML reads it as {key!r})",
+                              f"quote the key: '\"{key_node.value}\": ...'")
+            return None
+        return key
+
+    def _merge(self, value_node: yaml.Node, explicit: set[str],
+               values: dict[str, Node], key_locations: dict[str, Location]) -> None:
+        """Add the entries of a ``<<`` merge that the mapping does not set itself."""
+        sources = value_node.value if isinstance(value_node, SequenceNode) else [value_node]
+        for source in sources:
+            if not isinstance(source, MappingNode):
+                self.problems.add(
+                    _location_of_mark(self.name, source.start_mark),
+                    "'<<' must be followed by a mapping or a list of mappings",
+                    "write `<<: *name` where `&name` marks a mapping")
+                continue
+            merged = self.convert(source)
+            if not merged.is_mapping:
+                continue
+            for key, item in merged.value.items():
+                if key not in explicit and key not in values:
+                    values[key] = item
+                    key_locations[key] = merged.key_locations[key]
