@@ -16,6 +16,7 @@ from typing import Mapping, Sequence
 
 import sympy
 
+from ..components.base import Body
 from .known_system import KnownSystem, ParameterInfo, Transition
 from .primitive import Primitive
 from .simplify import compact
@@ -53,6 +54,7 @@ def project(
     velocity = [_sum(C[a][j] * qdots[j] for j in nonzero[a]) for a in range(len(x_prim))]
     substitution = {x: connection[x] for x in x_prim}
     substitution.update({v: algebra.to_expr(vel) for v, vel in zip(primitive.velocities, velocity)})
+    substitution = {k: v for k, v in substitution.items() if k != v}  # identities would only rebuild
 
     def image(expr: sympy.Expr) -> TrigPoly:
         return algebra.from_expr(sympy.sympify(expr).xreplace(substitution))
@@ -65,8 +67,23 @@ def project(
 
     mass = [[TrigPoly() for _ in range(n)] for _ in range(n)]
     inertial = [TrigPoly() for _ in range(len(x_prim))]  # M Cdot xbardot + h
+    # A part whose coordinates are only renamed (C a permutation, Cdot = 0) is
+    # carried over as it is: a cached known system then costs almost nothing.
+    direct_mass: dict[tuple[int, int], list[sympy.Expr]] = {}
+    direct_h: dict[int, list[sympy.Expr]] = {}
+    renamed: dict[str, list[int]] = {}
     for offset, part in primitive.blocks():
         size = len(part.coordinates)
+        targets = _renaming(part, connection, coords)
+        if targets is not None:
+            renamed[part.name] = targets
+            for i, j in enumerate(targets):
+                if part.velocity_terms[i] != 0:
+                    direct_h.setdefault(j, []).append(part.velocity_terms[i].xreplace(substitution))
+                for i2, k in enumerate(targets):
+                    if j <= k and part.metric[i, i2] != 0:
+                        direct_mass.setdefault((j, k), []).append(part.metric[i, i2].xreplace(substitution))
+            continue
         block = [[image(part.metric[i, j]) for j in range(size)] for i in range(size)]
         h_part = [image(part.velocity_terms[i]) for i in range(size)]
         for i in range(size):
@@ -96,8 +113,14 @@ def project(
     effect_forces: dict[str, sympy.Matrix] = {}
     primitive_forces: dict[str, sympy.Matrix] = {}
     potential = sympy.Integer(0)
+    direct_forces: dict[str, sympy.Matrix] = {}
     for part in primitive.parts:  # a known system's own effects come along
         for label, f in part.forces.items():
+            if part.name in renamed:
+                vec = [sympy.Integer(0)] * n
+                for i, j in enumerate(renamed[part.name]):
+                    vec[j] = f[i].xreplace(substitution)
+                direct_forces[f"{part.name}.{label}"] = sympy.Matrix(vec)
             full = [sympy.Integer(0)] * len(x_prim)
             offset = x_prim.index(part.coordinates[0])
             for i in range(len(part.coordinates)):
@@ -108,6 +131,9 @@ def project(
         primitive_forces[effect.name] = sympy.Matrix(effect.generalized_force(primitive))
         potential += effect.potential(primitive).xreplace(substitution)
     for label, f in primitive_forces.items():
+        if label in direct_forces:
+            effect_forces[label] = direct_forces[label]
+            continue
         f_img = [image(fa) if fa != 0 else TrigPoly() for fa in f]
         fbar = [_sum(C[a][j] * f_img[a] for a in range(len(x_prim)) if j in nonzero[a] and not f_img[a].is_zero())
                 for j in range(n)]
@@ -116,7 +142,8 @@ def project(
     mass_matrix = sympy.zeros(n, n)
     for j in range(n):
         for k in range(j, n):
-            mass_matrix[j, k] = mass_matrix[k, j] = compact(algebra, mass[j][k])
+            mass_matrix[j, k] = mass_matrix[k, j] = compact(algebra, mass[j][k]) + sympy.Add(
+                *direct_mass.get((j, k), ()))
 
     C_matrix = sympy.Matrix(len(x_prim), n, lambda a, j: compact(algebra, C[a][j]))
     transition = Transition(
@@ -128,15 +155,24 @@ def project(
         transformation=C_matrix,
         parts=tuple((p.name, p.type_name) for p in primitive.parts),
     )
-    points = {label: tuple(_simplified(algebra, c.xreplace(substitution)) for c in pos)
-              for label, pos in primitive.points().items()}
-    bodies = tuple(_moved_body(algebra, body, substitution) for part in primitive.parts for body in part.bodies)
+    def moved(expr, part):
+        expr = sympy.sympify(expr).xreplace(substitution)
+        return expr if part.name in renamed else _simplified(algebra, expr)
+
+    points = {f"{part.name}.{label}": tuple(moved(c, part) for c in pos)
+              for part in primitive.parts for label, pos in part.points.items()}
+    bodies = tuple(
+        Body(body.mass, tuple(moved(c, part) for c in body.centre),
+             None if body.rotation is None else body.rotation.applyfunc(lambda e, part=part: moved(e, part)),
+             body.inertia)
+        for part in primitive.parts for body in part.bodies)
     dims = {part.dimension for part in primitive.parts if part.dimension}
     return KnownSystem(
         name=name,
         coordinates=coords,
         mass_matrix=mass_matrix,
-        velocity_terms=sympy.Matrix([compact(algebra, p) for p in velocity_terms]),
+        velocity_terms=sympy.Matrix([compact(algebra, p) + sympy.Add(*direct_h.get(j, ()))
+                                     for j, p in enumerate(velocity_terms)]),
         effect_forces=effect_forces,
         potential_energy=_simplified(algebra, potential),
         points=points,
@@ -146,6 +182,15 @@ def project(
         transition=transition,
         description=description,
     )
+
+
+def _renaming(part, connection, coords) -> list[int] | None:
+    """Indices of the new coordinates when the part's coordinates are only renamed."""
+    index = {q: j for j, q in enumerate(coords)}
+    targets = [index.get(connection[x]) for x in part.coordinates]
+    if None in targets or len(set(targets)) != len(targets):
+        return None
+    return targets
 
 
 def _sum(polys) -> TrigPoly:
@@ -161,13 +206,3 @@ def _coordinates_of(algebra: TrigAlgebra, p: TrigPoly):
 
 def _simplified(algebra: TrigAlgebra, expr: sympy.Expr) -> sympy.Expr:
     return compact(algebra, algebra.from_expr(expr))
-
-
-def _moved_body(algebra, body, substitution):
-    from ..components.base import Body
-
-    rotation = None
-    if body.rotation is not None:
-        rotation = body.rotation.applyfunc(lambda e: _simplified(algebra, e.xreplace(substitution)))
-    return Body(body.mass, tuple(_simplified(algebra, c.xreplace(substitution)) for c in body.centre),
-                rotation, body.inertia)

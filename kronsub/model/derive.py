@@ -10,6 +10,7 @@ from pathlib import Path
 
 import numpy as np
 import sympy
+from sympy.core.parameters import evaluate
 
 from .. import __version__
 from ..core.known_system import KnownSystem
@@ -56,27 +57,29 @@ def content_key(*parts: str) -> str:
     return digest.hexdigest()
 
 
-def _cache_file(model) -> Path | None:
+def _cache_file(key: str) -> Path | None:
     folder = cache_dir()
-    if folder is None or not model.content_hash:
+    if folder is None or not key:
         return None
-    return folder / f"{model.content_hash}.pickle"
+    return folder / f"{key}.pickle"
 
 
-def load_cached(model) -> KnownSystem | None:
-    path = _cache_file(model)
+def load_cached(key: str) -> KnownSystem | None:
+    """The derived known system stored under ``key``, if any."""
+    path = _cache_file(key)
     if path is None or not path.exists():
         return None
     try:
-        with open(path, "rb") as fh:
+        # the stored expressions are canonical already: rebuild them as they are
+        with open(path, "rb") as fh, evaluate(False):
             system = pickle.load(fh)
     except Exception:  # a damaged or stale cache entry is rebuilt
         return None
     return system if isinstance(system, KnownSystem) else None
 
 
-def store_cached(model, system: KnownSystem) -> None:
-    path = _cache_file(model)
+def store_cached(key: str, system: KnownSystem) -> None:
+    path = _cache_file(key)
     if path is None:
         return
     try:
@@ -92,7 +95,7 @@ def store_cached(model, system: KnownSystem) -> None:
 def derive_model(model, *, cache: bool = True) -> KnownSystem:
     """Project the model's primitive onto its subspace (cached by content hash)."""
     if cache:
-        hit = load_cached(model)
+        hit = load_cached(model.content_hash)
         if hit is not None:
             return hit
     check_rank(model)
@@ -106,7 +109,7 @@ def derive_model(model, *, cache: bool = True) -> KnownSystem:
         description=model.description,
     )
     if cache:
-        store_cached(model, system)
+        store_cached(model.content_hash, system)
     return system
 
 

@@ -236,9 +236,11 @@ class _Builder:
         raw = self.lines[line - 1].encode()[:byte_offset]
         return len(raw.decode("utf-8", "replace")) + 1 + (self.lead if line == 1 else 0)
 
-    def fail(self, node: ast.AST, message: str, hint: str, byte_offset: int | None = None) -> NoReturn:
-        offset = node.col_offset if byte_offset is None else byte_offset
-        raise _Reject(node.lineno, self._column(node.lineno, offset), message, hint)
+    def fail(self, node: ast.AST, message: str, hint: str,
+             at: tuple[int, int] | None = None) -> NoReturn:
+        """A problem at ``node`` (or at ``at`` = (line, byte offset) in the body)."""
+        line, offset = at or (node.lineno, node.col_offset)
+        raise _Reject(line, self._column(line, offset), message, hint)
 
     def fail_at(self, line: int, char_column: int, message: str, hint: str) -> NoReturn:
         """A problem at a 1-based character column of a body line."""
@@ -377,7 +379,7 @@ class _Builder:
             inner, current = current, current.value
         if not isinstance(current, ast.Name):
             self.fail(inner, f"attribute access '.{inner.attr}' is not allowed", _ALLOWED,
-                      byte_offset=inner.end_col_offset - len(inner.attr.encode()))
+                      at=(inner.end_lineno, inner.end_col_offset - len(inner.attr.encode())))
         return self._lookup(node, ".".join([current.id, *reversed(parts)]))
 
     def _binary(self, node: ast.BinOp, depth: int) -> _Value:
@@ -387,14 +389,14 @@ class _Builder:
         if kind is not ast.Pow:
             symbol = _BINARY_OPERATORS.get(kind, kind.__name__)
             self.fail(node, f"operator '{symbol}' is not allowed",
-                      _OPERATOR_HINTS.get(kind, _ALLOWED), byte_offset=self._operator_offset(node, symbol))
+                      _OPERATOR_HINTS.get(kind, _ALLOWED), at=self._operator_position(node, symbol))
         base, exponent = self.build(node.left, depth), self.build(node.right, depth)
         estimate = base.bits + exponent.bits
         if exponent.expr.is_Rational:
             estimate += base.bits * abs(exponent.expr.p)
         if estimate > MAX_BITS:
             self.fail(node, "builds numbers that are too large", "use smaller numbers or exponents",
-                      byte_offset=self._operator_offset(node, "**"))
+                      at=self._operator_position(node, "**"))
         return _Value(sympy.Pow(base.expr, exponent.expr), estimate)
 
     def _chain(self, node: ast.BinOp, depth: int) -> _Value:
@@ -427,15 +429,15 @@ class _Builder:
                 result = _ARITHMETIC[type(op)](result, value.expr)
         return _Value(sympy.Add(*terms) if additive else result, bits)
 
-    def _operator_offset(self, node: ast.BinOp, symbol: str) -> int:
-        """Byte offset of the operator between the operands (or the node's start)."""
+    def _operator_position(self, node: ast.BinOp, symbol: str) -> tuple[int, int]:
+        """(line, byte offset) of the operator between the operands, or of the node."""
         left, right = node.left, node.right
-        if left.end_lineno != right.lineno:
-            return node.col_offset
-        raw = self.lines[right.lineno - 1].encode()
-        gap = raw[left.end_col_offset:right.col_offset]
-        found = gap.find(symbol.encode())
-        return node.col_offset if found < 0 else left.end_col_offset + found
+        if left.end_lineno == right.lineno:
+            raw = self.lines[right.lineno - 1].encode()
+            found = raw[left.end_col_offset:right.col_offset].find(symbol.encode())
+            if found >= 0:
+                return right.lineno, left.end_col_offset + found
+        return node.lineno, node.col_offset
 
     def _unary(self, node: ast.UnaryOp, depth: int) -> _Value:
         if isinstance(node.op, (ast.Not, ast.Invert)):

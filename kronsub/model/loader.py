@@ -17,7 +17,7 @@ from ..core.known_system import KnownSystem, ParameterInfo
 from ..core.primitive import Part, Primitive, part_from_component
 from ..core.symbols import TIME, symbol, velocity_symbol
 from ..errors import Location, ModelError, ProblemCollector
-from .derive import content_key, derive_model
+from .derive import content_key, derive_model, load_cached
 from .effects import build_effect
 from .expressions import parse_expression
 from .model import Model
@@ -37,6 +37,29 @@ def load_model(path, *, text: str | None = None, cache: bool = True, _stack: tup
     path = Path(path)
     root = load_yaml(path, text)
     return _Loader(path, root, text if text is not None else _read(path), _stack, cache).build()
+
+
+def model_key(path: Path, stack: tuple[str, ...] = ()) -> str:
+    """The content hash of a model file and, recursively, of the model files it uses.
+
+    Cheap next to loading: it reads the YAML but builds nothing, so a cached
+    known system is found without deriving or even constructing its model.
+    """
+    resolved = str(path.resolve())
+    if resolved in stack:
+        return ""  # the cycle is reported when the model is loaded
+    text = _read(path)
+    root = load_yaml(path, text)
+    subs = []
+    comps = root.get("components")
+    if comps is not None and comps.is_mapping:
+        for spec in comps.value.values():
+            mnode = spec.get("model") if spec.is_mapping else None
+            if mnode is not None and isinstance(mnode.value, str):
+                sub_path = path.parent / mnode.value
+                if sub_path.exists():
+                    subs.append(model_key(sub_path, stack + (resolved,)))
+    return content_key(text, *subs)
 
 
 def _read(path: Path) -> str:
@@ -143,7 +166,7 @@ class _Loader:
             connection=connection,
             effects=tuple(effects),
             initial=initial,
-            content_hash=content_key(self.text, *self.sub_hashes),
+            content_hash=content_key(self.text, *self.sub_hashes) if self.text is not None else "",
             locations=self.locations,
         )
 
@@ -292,12 +315,15 @@ class _Loader:
                        "paths are relative to this model file")
             return None
         try:
-            sub = load_model(sub_path, cache=self.cache, _stack=self.stack)
-            system = derive_model(sub, cache=self.cache)
+            key = model_key(sub_path, self.stack)
+            system = load_cached(key) if self.cache else None
+            if system is None:
+                sub = load_model(sub_path, cache=self.cache, _stack=self.stack)
+                system = derive_model(sub, cache=self.cache)
         except ModelError as exc:
             self.problems.extend(exc)
             return None
-        self.sub_hashes.append(sub.content_hash)
+        self.sub_hashes.append(key)
         # parameters: overrides, the rest inherited
         allowed = [p.name for p in system.parameters]
         overrides = self._component_parameters(cname, spec.get("parameters"), allowed)
@@ -458,6 +484,12 @@ def known_system_part(name: str, system: KnownSystem, overrides: dict, renames: 
         sub[q] = new
         sub[velocity_symbol(q)] = velocity_symbol(new)
 
+    sub = {k: v for k, v in sub.items() if k != v}
+    if not sub:
+        return Part(name, tuple(system.coordinates), system.mass_matrix, system.velocity_terms,
+                    dict(system.points), tuple(system.bodies), system.dimension,
+                    dict(system.effect_forces), system.potential_energy, "")
+
     def s(e):
         return sympy.sympify(e).xreplace(sub)
 
@@ -468,7 +500,7 @@ def known_system_part(name: str, system: KnownSystem, overrides: dict, renames: 
                         b.inertia.xreplace(sub) if b.inertia is not None else None) for b in system.bodies)
     return Part(
         name=name,
-        coordinates=tuple(sub[q] for q in system.coordinates),
+        coordinates=tuple(sub.get(q, q) for q in system.coordinates),
         metric=system.mass_matrix.xreplace(sub),
         velocity_terms=system.velocity_terms.xreplace(sub),
         points={label: tuple(s(c) for c in pos) for label, pos in system.points.items()},
