@@ -16,6 +16,7 @@ import keyword
 import operator
 import re
 import unicodedata
+import warnings
 from types import MappingProxyType
 from typing import Mapping, NamedTuple, NoReturn
 
@@ -91,9 +92,9 @@ _REJECTED = {
     ast.Dict: "dictionaries",
     ast.IfExp: "'if ... else' expressions",
     ast.Starred: "starred arguments ('*x')",
-    ast.Await: "'await'",
-    ast.Yield: "'yield'",
-    ast.YieldFrom: "'yield'",
+    ast.Await: "'await' expressions",
+    ast.Yield: "'yield' expressions",
+    ast.YieldFrom: "'yield' expressions",
 }
 
 _HANDLERS = {
@@ -262,7 +263,9 @@ class _Builder:
 
     def _parse(self) -> ast.Expression:
         try:
-            return ast.parse(self.body, mode="eval")
+            with warnings.catch_warnings():  # Python's own SyntaxWarnings are not for users
+                warnings.simplefilter("ignore")
+                return ast.parse(self.body, mode="eval")
         except SyntaxError as exc:
             self._syntax_error(exc)
         except (RecursionError, MemoryError):

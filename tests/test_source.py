@@ -1,0 +1,236 @@
+"""Tests of kronsub.model.source: YAML loading that keeps positions."""
+from __future__ import annotations
+
+import textwrap
+
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from kronsub.errors import Location, ModelError
+from kronsub.model.source import Node, load_yaml
+
+MODEL = textwrap.dedent("""\
+    name: pendulum
+    parameters:
+      g: 9.81
+      m: {value: 2, unit: kg}
+    forces:
+      - "2*a1*sin(theta)"
+      - F * cos(theta)
+    flag: true
+    nothing:
+    """)
+
+
+def problems_of(text: str, name: str = "m.yaml"):
+    with pytest.raises(ModelError) as info:
+        load_yaml(name, text)
+    assert info.value.problems
+    for problem in info.value.problems:
+        assert problem.hint, problem
+    return info.value.problems
+
+
+def test_values_and_structure():
+    root = load_yaml("m.yaml", MODEL)
+    assert root.is_mapping and not root.is_scalar and not root.is_sequence
+    assert list(root.value) == ["name", "parameters", "forces", "flag", "nothing"]
+    assert root.get("name").value == "pendulum"
+    assert root.get("parameters").get("g").value == 9.81
+    assert root.get("parameters").get("m").get("value").value == 2
+    forces = root.get("forces")
+    assert forces.is_sequence and [f.value for f in forces.value] == ["2*a1*sin(theta)", "F * cos(theta)"]
+    assert root.get("flag").value is True
+    assert root.get("nothing").value is None
+    assert root.get("missing") is None
+    assert root.get("missing", forces) is forces
+    assert forces.get("x") is None  # not a mapping
+    assert root.to_python()["parameters"] == {"g": 9.81, "m": {"value": 2, "unit": "kg"}}
+
+
+def test_raw_text_is_kept():
+    root = load_yaml("m.yaml", MODEL)
+    g = root.get("parameters").get("g")
+    assert g.text == "9.81" and isinstance(g.value, float)
+    assert root.get("forces").value[1].text == "F * cos(theta)"
+    assert root.get("parameters").text is None
+    assert load_yaml("m.yaml", "x: 1.50\ny: 1_000\n").get("x").text == "1.50"
+
+
+def test_positions_of_keys_and_values():
+    root = load_yaml("m.yaml", MODEL)
+    assert root.location == Location("m.yaml", 1, 1)
+    assert root.key_locations["parameters"] == Location("m.yaml", 2, 1)
+    params = root.get("parameters")
+    assert params.key_locations == {"g": Location("m.yaml", 3, 3), "m": Location("m.yaml", 4, 3)}
+    assert params.get("g").location == Location("m.yaml", 3, 6)
+    m = params.get("m")
+    assert m.location == Location("m.yaml", 4, 6)
+    assert m.key_locations["unit"] == Location("m.yaml", 4, 17)
+    assert m.get("unit").location == Location("m.yaml", 4, 23)
+    first, second = root.get("forces").value
+    assert first.location == Location("m.yaml", 6, 5)
+    assert first.text_location == Location("m.yaml", 6, 6)  # after the quote
+    assert second.location == second.text_location == Location("m.yaml", 7, 5)
+    assert str(second.location) == "m.yaml:7:5"
+    assert root.get("flag").location == Location("m.yaml", 8, 7)
+
+
+def test_block_scalar_text_location():
+    root = load_yaml("m.yaml", "e: |\n\n    2*x\n")
+    assert root.get("e").text == "\n2*x\n"
+    assert root.get("e").text_location == Location("m.yaml", 3, 5)
+
+
+def test_reads_files(tmp_path):
+    path = tmp_path / "model.yaml"
+    path.write_text("a: 1\n", encoding="utf-8")
+    root = load_yaml(path)
+    assert root.get("a").value == 1
+    assert root.location.file == str(path)
+
+
+def test_missing_file(tmp_path):
+    path = tmp_path / "nope.yaml"
+    with pytest.raises(ModelError) as info:
+        load_yaml(path)
+    (problem,) = info.value.problems
+    assert problem.location == Location(str(path))
+    assert "not found" in problem.message and problem.hint
+
+
+def test_directory_and_bad_encoding(tmp_path):
+    with pytest.raises(ModelError):
+        load_yaml(tmp_path)
+    path = tmp_path / "bad.yaml"
+    path.write_bytes(b"a: 1\nb: \xff\n")
+    with pytest.raises(ModelError) as info:
+        load_yaml(path)
+    assert info.value.problems[0].location.line == 2
+
+
+@pytest.mark.parametrize("text", ["", "   \n", "# just a comment\n"])
+def test_empty_file(text):
+    (problem,) = problems_of(text)
+    assert "empty" in problem.message
+    assert problem.location.file == "m.yaml"
+
+
+def test_duplicate_keys_reported_with_both_lines():
+    problems = problems_of("a: 1\nb: 2\na: 3\nc:\n  x: 1\n  x: 2\nb: 4\n")
+    found = {(p.location.line, p.location.column): p.message for p in problems}
+    assert set(found) == {(3, 1), (6, 3), (7, 1)}
+    assert "'a'" in found[(3, 1)] and "line 1" in found[(3, 1)]
+    assert "'x'" in found[(6, 3)] and "line 5" in found[(6, 3)]
+    assert "'b'" in found[(7, 1)] and "line 2" in found[(7, 1)]
+
+
+@pytest.mark.parametrize("text, line, column", [
+    ("a:\n  b: 1\n c: 2\n", 3, 2),           # bad indentation
+    ("a: [1, 2\nb: 3\n", 2, 2),              # unclosed bracket
+    ("a: {x: 1\n", 2, 1),                    # unclosed brace
+    ("a:\n\tb: 1\n", 2, 1),                  # tab
+    ("a: b: c\n", 1, 5),                     # value with ': '
+    ("a: 'abc\n", 2, 1),                     # unclosed quote
+    ("a: 1\n---\nb: 2\n", 2, 1),             # two documents
+    ("a: *nope\n", 1, 4),                    # unknown alias
+    ("a: \x07\n", 1, 4),                     # control character
+])
+def test_malformed_yaml(text, line, column):
+    (problem,) = problems_of(text)
+    assert (problem.location.line, problem.location.column) == (line, column)
+    assert problem.message.startswith(("invalid YAML", "the file contains"))
+
+
+def test_tab_hint_and_expected_text():
+    (problem,) = problems_of("a:\n\tb: 1\n")
+    assert "tab" in problem.hint
+    (problem,) = problems_of("a: [1, 2\nb: 3\n")
+    assert "expected ',' or ']'" in problem.message and "']'" in problem.hint
+
+
+def test_non_string_keys():
+    problems = problems_of("1: x\ntrue: y\nok: 1\n[a]: z\n? {b: 1}\n: w\n")
+    assert [p.location.line for p in problems] == [1, 2, 4, 5]
+    assert "not a string" in problems[0].message and "quote" in problems[0].hint
+    assert "cannot be used as a key" in problems[2].message
+
+
+def test_quoted_numeric_key_is_fine():
+    assert list(load_yaml("m.yaml", '"1": x\n').value) == ["1"]
+
+
+@pytest.mark.parametrize("text", [
+    "a: !!python/object/apply:os.system ['echo pwned']\n",
+    "a: !!python/name:os.system\n",
+    "a: !custom 1\n",
+    "a: !!binary aGVsbG8=\n",
+    "a: !!set {x}\n",
+    "a: !!omap [b: 1]\n",
+])
+def test_tags_are_rejected(text, capfd):
+    (problem,) = problems_of(text)
+    assert "tag" in problem.message and problem.location.line == 1
+    assert "pwned" not in capfd.readouterr().out
+
+
+def test_standard_tags_and_bad_values():
+    root = load_yaml("m.yaml", "a: !!str 12\nb: !!float '1.5'\n")
+    assert root.get("a").value == "12" and root.get("b").value == 1.5
+    (problem,) = problems_of("a: !!int abc\n")
+    assert "abc" in problem.message
+
+
+def test_anchors_aliases_and_merge_keys():
+    text = "base: &b {m: 1, k: 2}\nx:\n  <<: *b\n  k: 3\ny: *b\n"
+    root = load_yaml("m.yaml", text)
+    assert root.get("x").to_python() == {"m": 1, "k": 3}
+    assert root.get("x").key_locations["k"] == Location("m.yaml", 4, 3)
+    assert root.get("x").key_locations["m"] == Location("m.yaml", 1, 11)
+    assert root.get("y").to_python() == {"m": 1, "k": 2}
+
+
+def test_merge_of_list_and_bad_merge():
+    root = load_yaml("m.yaml", "a: &a {p: 1}\nb: &b {p: 2, q: 2}\nc:\n  <<: [*a, *b]\n")
+    assert root.get("c").to_python() == {"p": 1, "q": 2}
+    (problem,) = problems_of("a:\n  <<: 3\n")
+    assert "'<<'" in problem.message
+
+
+def test_recursive_alias_and_alias_bomb():
+    (problem,) = problems_of("a: &x [*x]\n")
+    assert "alias" in problem.message
+    levels = "".join(f"a{i}: &a{i} [*a{i - 1}, *a{i - 1}, *a{i - 1}]\n" for i in range(1, 40))
+    root = load_yaml("m.yaml", "a0: &a0 [1, 2]\n" + levels)
+    assert len(root.value) == 40  # aliases are shared, not expanded
+
+
+def test_deep_nesting_is_an_error():
+    problems_of("[" * 5000 + "]" * 5000)
+
+
+def test_all_problems_reported_at_once():
+    problems = problems_of("a: 1\na: 2\n1: x\nb: !foo y\n")
+    assert [p.location.line for p in problems] == [2, 3, 4]
+
+
+def test_node_is_frozen():
+    root = load_yaml("m.yaml", "a: 1\n")
+    assert isinstance(root, Node)
+    with pytest.raises(AttributeError):
+        root.value = {}
+
+
+YAML_ALPHABET = " \t\n:-[]{},&*!|>'\"#?abc123.%@<=~\x07"
+
+
+@settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(st.one_of(st.text(max_size=60), st.text(alphabet=YAML_ALPHABET, max_size=60)))
+def test_random_text_gives_node_or_model_error(text):
+    try:
+        node = load_yaml("m.yaml", text)
+    except ModelError as exc:
+        assert exc.problems and all(p.hint and p.location for p in exc.problems)
+    else:
+        assert isinstance(node, Node)
