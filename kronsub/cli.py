@@ -94,6 +94,9 @@ def derive(model: Path, fmt: str, output: Path | None, check: Path | None, no_ca
     from .model.loader import load_model
 
     def job():
+        if output is not None and not output.resolve().parent.is_dir():
+            _fail(f"Error: {output}: the directory {output.resolve().parent} does not exist\n"
+                  "  hint: create it first, or choose another --output path")
         system = load_model(model, cache=not no_cache).derive(cache=not no_cache)
         text = EMITTERS[fmt](system)
         if check is not None:

@@ -156,8 +156,7 @@ def project(
         parts=tuple((p.name, p.type_name) for p in primitive.parts),
     )
     def moved(expr, part):
-        expr = sympy.sympify(expr).xreplace(substitution)
-        return expr if part.name in renamed else _simplified(algebra, expr)
+        return sympy.sympify(expr).xreplace(substitution)
 
     points = {f"{part.name}.{label}": tuple(moved(c, part) for c in pos)
               for part in primitive.parts for label, pos in part.points.items()}

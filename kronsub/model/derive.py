@@ -98,7 +98,6 @@ def derive_model(model, *, cache: bool = True) -> KnownSystem:
         hit = load_cached(model.content_hash)
         if hit is not None:
             return hit
-    check_rank(model)
     system = project(
         model.primitive,
         model.coordinates,
@@ -108,6 +107,7 @@ def derive_model(model, *, cache: bool = True) -> KnownSystem:
         parameters=model.parameters,
         description=model.description,
     )
+    check_rank(model, system.transition.transformation)
     if cache:
         store_cached(model.content_hash, system)
     return system
@@ -117,23 +117,21 @@ class RankWarning(UserWarning):
     """``C`` lost rank at a sample configuration: the coordinates are not independent there."""
 
 
-def check_rank(model, samples: int = 3) -> None:
-    """Warn when ``C = dx/dxbar`` is rank-deficient at sample configurations."""
+def check_rank(model, C: sympy.Matrix, samples: int = 3) -> None:
+    """Warn when ``C = dx/dxbar`` (21) is rank-deficient at sample configurations."""
     coords = model.coordinates
-    x = model.primitive.coordinates
-    C = sympy.Matrix([[sympy.diff(model.connection[xa], q) for q in coords] for xa in x])
     symbols = sorted(C.free_symbols - set(coords), key=lambda s: s.name)
     values = model.parameter_values()
     rng = np.random.default_rng(20261121)
-    f = sympy.lambdify([list(coords), symbols], C, modules="numpy")
+    f = sympy.lambdify([list(coords), symbols], C.tolist(), modules="math")
     for _ in range(samples):
-        q = rng.uniform(-1.0, 1.0, len(coords))
-        p = [float(values[s]) if s in values and sympy.sympify(values[s]).is_number else rng.uniform(0.5, 1.5) for s in symbols]
+        q = [float(v) for v in rng.uniform(-1.0, 1.0, len(coords))]
+        p = [float(values[s]) if s in values and sympy.sympify(values[s]).is_number else float(rng.uniform(0.5, 1.5))
+             for s in symbols]
         try:
-            with np.errstate(all="ignore"):
-                m = np.array(f(q, p), dtype=float)
-        except Exception:
-            return
+            m = np.array(f(q, p), dtype=float)
+        except (ValueError, ZeroDivisionError, OverflowError, TypeError):
+            continue  # outside the subspace's domain at this sample
         if not np.all(np.isfinite(m)):
             continue
         rank = np.linalg.matrix_rank(m) if m.size else 0

@@ -87,6 +87,7 @@ class _Loader:
         self.parts: list[Part] = []
         self.sub_hashes: list[str] = []
         self.locations: dict[str, Location] = {}
+        self.failed_components = False
 
     # ----------------------------------------------------------- utilities
     def error(self, node_or_loc, message: str, hint: str | None = None) -> None:
@@ -224,6 +225,9 @@ class _Loader:
                 part = self._library_component(cname, spec)
             if part is not None:
                 self.parts.append(part)
+                self.locations[f"component:{cname}"] = loc
+            else:
+                self.failed_components = True
 
     def _library_component(self, cname: str, spec: Node) -> Part | None:
         self.check_keys(spec, ("type", "parameters", "coordinates", "description"), f"component '{cname}'")
@@ -232,9 +236,13 @@ class _Loader:
             self.error(spec, f"component '{cname}' has no `type:`",
                        "valid types: " + ", ".join(sorted(REGISTRY)) + " (or `model: file.yaml`)")
             return None
-        cls = REGISTRY.get(str(tnode.value))
+        if not isinstance(tnode.value, str):
+            self.error(tnode, f"`type:` of component '{cname}' must be a name, found {_kind(tnode)}",
+                       "valid types: " + ", ".join(sorted(REGISTRY)))
+            return None
+        cls = REGISTRY.get(tnode.value)
         if cls is None:
-            self.error(tnode, f"unknown component type '{tnode.value}'", close_matches(str(tnode.value), REGISTRY))
+            self.error(tnode, f"unknown component type '{tnode.value}'", close_matches(tnode.value, REGISTRY))
             return None
         values = self._component_parameters(cname, spec.get("parameters"), [p.name for p in cls.parameters])
         missing = [ps for ps in cls.parameters if ps.name not in values and ps.default is None]
@@ -432,13 +440,13 @@ class _Loader:
                 connection[x] = x  # identity maps may be written short
             else:
                 owner = next(p.name for p in primitive.parts if x in p.coordinates)
-                self.error(node.location if node is not None else self.root.location,
+                self.error(node.location if node is not None else self.locations[f"component:{owner}"],
                            f"primitive coordinate '{owner}.{x}' is not connected",
                            f"add `{x}: <expression in {', '.join(generalized)}>` under `connection:`, "
                            "or name it like a generalized coordinate for an identity map")
         used = set().union(*(e.free_symbols for e in connection.values())) if connection else set()
-        if attempted - set(connection):
-            return connection  # a connection that did not parse says nothing about unused coordinates
+        if attempted - set(connection) or self.failed_components or not coords:
+            return connection  # after another error this check would only mislead
         for q in coords:
             if q not in used:
                 self.error(self.locations.get("coordinates", self.root.location),
