@@ -98,7 +98,10 @@ def load_yaml(path: str | Path, text: str | None = None) -> Node:
             Location(name, 1, 1), "the file is empty",
             "write the model as YAML `key: value` lines")])
     converter = _Converter(name, text)
-    node = converter.convert(root)
+    try:
+        node = converter.convert(root)
+    except RecursionError:
+        raise ModelError([Problem(Location(name), "the YAML is nested too deeply", "flatten the structure")])
     converter.problems.raise_if_any()
     return node
 
@@ -129,8 +132,17 @@ def _file_error(path: Path, message: str, hint: str) -> ModelError:
     return ModelError([Problem(Location(str(path)), message, hint)])
 
 
+# libyaml's composer when present (same nodes and marks, several times faster)
+_LOADER = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
+
+
 def _compose(text: str, name: str) -> yaml.Node | None:
     """The YAML node tree of ``text``; syntax errors become `ModelError`."""
+    if _LOADER is not yaml.SafeLoader:
+        try:
+            return yaml.compose(text, Loader=_LOADER)
+        except Exception:
+            pass  # the pure-Python parser below words the problem for users
     try:
         return yaml.compose(text, Loader=yaml.SafeLoader)
     except yaml.MarkedYAMLError as exc:
