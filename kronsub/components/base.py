@@ -79,8 +79,3 @@ def rotation2(angle: sympy.Expr) -> sympy.Matrix:
     c, s = sympy.cos(angle), sympy.sin(angle)
     return sympy.Matrix([[c, -s], [s, c]])
 
-
-def centroidal_or(p: Mapping[str, sympy.Expr], name: str, fallback: sympy.Expr) -> sympy.Expr:
-    """A parameter's value, or a fallback when the parameter was not given."""
-    value = p.get(name)
-    return fallback if value is None else value
