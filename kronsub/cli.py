@@ -120,5 +120,29 @@ def derive(model: Path, fmt: str, output: Path | None, check: Path | None, no_ca
     _run(job)
 
 
+@main.command()
+@click.argument("model", type=click.Path(dir_okay=False, path_type=Path))
+@click.option("--lang", type=click.Choice(["c", "python"]), default="c", show_default=True,
+              help="Language of the generated code.")
+@click.option("--output", "-o", "outdir", type=click.Path(file_okay=False, path_type=Path), default=Path("."),
+              show_default=True, help="Directory to write the files into.")
+@click.option("--name", help="Stem of the file names (default: the model file's stem).")
+def codegen(model: Path, lang: str, outdir: Path, name: str | None):
+    """Generate C (header + source) or a numpy module for MODEL."""
+    from .emitters.code import LANGUAGES
+    from .model.loader import load_model
+
+    def job():
+        if not outdir.is_dir():
+            _fail(f"Error: {outdir}: no such directory\n  hint: create it first, or choose another --output")
+        system = load_model(model).derive()
+        stem = name or model.stem
+        for generated in LANGUAGES[lang](system, stem, source=model.as_posix()):
+            write_atomically(outdir / generated.name, generated.text)
+            click.echo(f"wrote {outdir / generated.name}", err=True)
+
+    _run(job)
+
+
 if __name__ == "__main__":
     main()
