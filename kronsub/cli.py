@@ -144,5 +144,71 @@ def codegen(model: Path, lang: str, outdir: Path, name: str | None):
     _run(job)
 
 
+def _writable(path: Path | None, what: str) -> None:
+    """Fail before any work when an output file could not be written."""
+    if path is None:
+        return
+    parent = path.resolve().parent
+    if not parent.is_dir():
+        _fail(f"Error: {path}: the directory {parent} does not exist\n  hint: create it first, or choose another {what}")
+    if not os.access(parent, os.W_OK) or (path.exists() and not os.access(path, os.W_OK)):
+        _fail(f"Error: {path}: not writable\n  hint: choose another {what}")
+
+
+@main.command()
+@click.argument("model", type=click.Path(dir_okay=False, path_type=Path))
+@click.option("--t", "t_end", type=float, default=10.0, show_default=True, help="End time.")
+@click.option("--dt", type=float, default=0.01, show_default=True, help="Output interval (and step of fixed-step methods).")
+@click.option("--method", default="dop853", show_default=True,
+              help="dop853 (C, adaptive), gauss4 (C, symplectic, fixed step), RK45, DOP853, Radau, LSODA (scipy).")
+@click.option("--rtol", type=float, default=1e-10, show_default=True, help="Relative tolerance (adaptive methods).")
+@click.option("--atol", type=float, default=1e-10, show_default=True, help="Absolute tolerance (adaptive methods).")
+@click.option("--set", "settings", multiple=True, metavar="NAME=VALUE",
+              help="Set a parameter or an initial coordinate/velocity (repeatable).")
+@click.option("--output", "-o", type=click.Path(dir_okay=False, path_type=Path),
+              help="Write the CSV to FILE (atomically) instead of standard output.")
+@click.option("--points", "with_points", is_flag=True, help="Add the named points' positions to the CSV.")
+@click.option("--plot", type=click.Path(dir_okay=False, path_type=Path), help="Write a PNG of coordinates and energy.")
+def simulate(model: Path, t_end: float, dt: float, method: str, rtol: float, atol: float,
+             settings: tuple[str, ...], output: Path | None, with_points: bool, plot: Path | None):
+    """Simulate MODEL from t = 0 to --t and print (or write) the trajectory as CSV."""
+    from .model.loader import load_model
+    from .simulation.run import METHODS
+    from .simulation.run import simulate as run
+    from .simulation.table import to_csv
+    from .simulation.values import parse_assignments, resolve
+
+    def job():
+        if method not in METHODS:
+            _fail(f"Error: unknown method '{method}'\n  hint: choose one of {', '.join(METHODS)}")
+        _writable(output, "--output")
+        _writable(plot, "--plot")
+        if plot is not None:
+            try:
+                import matplotlib  # noqa: F401
+            except ImportError:
+                _fail("Error: --plot needs matplotlib\n  hint: pip install 'kronsub[plot]'")
+        loaded = load_model(model)
+        system = loaded.derive()
+        values = resolve(system, dict(loaded.initial), parse_assignments(settings))
+        traj = run(system, values, t_end, dt, method, rtol, atol)
+        text = to_csv(system, model.as_posix(), traj, values, rtol, atol, with_points)
+        if output is not None:
+            write_atomically(output, text)
+            click.echo(f"wrote {output} ({len(traj.t)} rows)", err=True)
+        else:
+            click.echo(text, nl=False)
+        if plot is not None:
+            from .simulation.plot import plot_trajectory
+
+            plot_trajectory(system, traj, values, plot)
+            click.echo(f"wrote {plot}", err=True)
+        if not traj.complete:
+            _fail(f"Error: the run stopped at t = {traj.t_fail:.6g}: {traj.message}; "
+                  f"the {len(traj.t)} rows computed so far are kept (marked incomplete)")
+
+    _run(job)
+
+
 if __name__ == "__main__":
     main()

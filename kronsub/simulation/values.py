@@ -1,0 +1,89 @@
+"""Numbers for a run: parameter values and the initial state.
+
+They come from the model (parameter defaults, ``initial:``) and are
+overridden by ``--set name=value``; values are constant expressions read by
+the whitelisted parser. Unset coordinates and velocities start at zero; a
+parameter without a value is an error that names it.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import sympy
+
+from ..core.known_system import KnownSystem
+from ..errors import ModelError, Problem
+from ..model.expressions import parse_expression
+
+
+@dataclass(frozen=True)
+class RunValues:
+    """Parameter values in the order of ``system.parameters`` and ``y0 = [q0; qdot0]``."""
+
+    parameters: tuple[float, ...]
+    y0: tuple[float, ...]
+
+
+def parse_assignments(items: tuple[str, ...]) -> dict[str, str]:
+    """``name=value`` strings from the command line."""
+    out: dict[str, str] = {}
+    problems = []
+    for item in items:
+        name, sep, value = item.partition("=")
+        if not sep or not name.strip() or not value.strip():
+            problems.append(Problem(None, f"--set '{item}' is not of the form name=value", "e.g. --set m1=2.5"))
+            continue
+        out[name.strip()] = value.strip()
+    if problems:
+        raise ModelError(problems)
+    return out
+
+
+def resolve(system: KnownSystem, initial: dict, settings: dict[str, str]) -> RunValues:
+    """Parameter values and initial state, with every problem reported at once."""
+    problems: list[Problem] = []
+    known = {p.name for p in system.parameters}
+    state = [q.name for q in system.coordinates] + [v.name for v in system.velocities]
+    for name in settings:
+        if name not in known and name not in state:
+            import difflib
+
+            near = difflib.get_close_matches(name, sorted(known | set(state)), n=3)
+            hint = ("did you mean " + ", ".join(near) + "?") if near else \
+                "parameters: " + ", ".join(sorted(known)) + "; state: " + ", ".join(state)
+            problems.append(Problem(None, f"--set {name}: no parameter, coordinate or velocity of that name", hint))
+
+    def number(text: str, what: str) -> float | None:
+        try:
+            value = parse_expression(text, {}, None, what=what)
+        except ModelError as exc:
+            problems.extend(exc.problems)
+            return None
+        return float(value)
+
+    params: list[float] = []
+    missing = []
+    for p in system.parameters:
+        if p.name in settings:
+            params.append(number(settings[p.name], f"value of {p.name}"))
+        elif p.value is not None and sympy.sympify(p.value).is_number:
+            params.append(float(p.value))
+        else:
+            missing.append(p.name)
+    if missing:
+        problems.append(Problem(None, "no value for parameter" + ("s " if len(missing) > 1 else " ")
+                                + ", ".join(missing), "give them a `value:` in the model or --set "
+                                + " ".join(f"{m}=..." for m in missing)))
+    values = dict(zip([p.symbol for p in system.parameters], params))
+    y0: list[float] = []
+    initial_by_name = {k.name: v for k, v in initial.items()}
+    for name in state:
+        if name in settings:
+            y0.append(number(settings[name], f"initial value of {name}"))
+        elif name in initial_by_name:
+            y0.append(float(sympy.sympify(initial_by_name[name]).xreplace(values)) if not missing else 0.0)
+        else:
+            y0.append(0.0)
+    if problems:
+        raise ModelError(problems)
+    return RunValues(tuple(params), tuple(y0))
