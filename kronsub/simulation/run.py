@@ -107,8 +107,9 @@ def simulate(system: KnownSystem, values: RunValues, t_end: float, dt: float, me
 
         try:
             source = {g.name: g.text for g in emit_c(system, "model")}
-            library = compile_library([source["model.h"], source["model.c"]], "model")
-            native = NativeModel(library)
+            unit = source["model.c"].replace('#include "model.h"', source["model.h"])
+            library = compile_library([unit], "model")
+            native = NativeModel(library, len(system.coordinates), len(system.parameters))
         except CompilerNotFound:
             warnings.warn("no C compiler found: using the generated numpy module (slower)")
     except ImportError:  # pragma: no cover - the native driver ships with kronsub
@@ -125,14 +126,28 @@ def simulate(system: KnownSystem, values: RunValues, t_end: float, dt: float, me
     bar = _Progress(t_end, progress)
     try:
         if spec.engine == "c":
-            traj = _run_native(native, spec.name, grid, y0, param, rtol, atol, dt, chunks, bar)
+            traj = _run_native(native, spec.name, grid, y0, param, rtol, atol, dt, chunks, bar, system)
         else:
-            rhs = native.scipy_rhs(param) if native is not None else _numpy_rhs(system, param)
-            traj = _run_scipy(rhs, spec.name, grid, y0, rtol, atol, chunks, bar)
+            rhs = _native_rhs(native, param) if native is not None else _numpy_rhs(system, param)
+            traj = _run_scipy(rhs, spec.name, grid, y0, rtol, atol, chunks, bar, system)
     finally:
         bar.close()
     traj.backend = "C" if native is not None else "numpy"
     return traj
+
+
+def _native_rhs(native, param):
+    from .native import SingularMassMatrix
+
+    rhs = native.scipy_rhs(param)
+
+    def f(t, y):
+        try:
+            return rhs(t, y)
+        except SingularMassMatrix as exc:
+            raise _Singular(t, y) from exc
+
+    return f
 
 
 def _numpy_rhs(system, param):
@@ -160,12 +175,20 @@ def _chunks(grid: np.ndarray, count: int):
     return list(zip(edges[:-1], edges[1:]))
 
 
-def _run_native(native, method, grid, y0, param, rtol, atol, dt, chunks, bar) -> Trajectory:
+def _where(system, y) -> str:
+    """The configuration at a failure, for the message."""
+    if y is None:
+        return ""
+    return " at " + ", ".join(f"{q.name}={v:.6g}" for q, v in zip(system.coordinates, y))
+
+
+def _run_native(native, method, grid, y0, param, rtol, atol, dt, chunks, bar, system) -> Trajectory:
     times, rows = [grid[0]], [y0]
     stats = {"steps": 0, "rejected": 0, "evaluations": 0}
     y = y0
     for a, b in _chunks(grid, chunks):
-        t, Y, result = native.integrate(method, grid[a], y, grid[b], dt, param, rtol=rtol, atol=atol, h=dt)
+        t, Y, result = native.integrate(method, grid[a], y, grid[b], dt, param, rtol=rtol, atol=atol,
+                                        h=dt if method == "gauss4" else None)
         stats["steps"] += result.n_steps
         stats["rejected"] += result.n_rejected
         stats["evaluations"] += result.n_evals
@@ -173,13 +196,14 @@ def _run_native(native, method, grid, y0, param, rtol, atol, dt, chunks, bar) ->
         times.extend(t[keep])
         rows.extend(Y[keep])
         if result.status != 0:
-            return Trajectory(np.array(times), np.array(rows), method, False, result.message, result.t_fail, stats)
+            message = result.message + (_where(system, result.y_fail) if result.status in (1, 2) else "")
+            return Trajectory(np.array(times), np.array(rows), method, False, message, result.t_fail, stats)
         y = Y[-1]
         bar.update(grid[b])
     return Trajectory(np.array(times), np.array(rows), method, True, "", None, stats)
 
 
-def _run_scipy(rhs, method, grid, y0, rtol, atol, chunks, bar) -> Trajectory:
+def _run_scipy(rhs, method, grid, y0, rtol, atol, chunks, bar, system) -> Trajectory:
     from scipy.integrate import solve_ivp
 
     times, rows = [grid[0]], [y0]
@@ -192,7 +216,7 @@ def _run_scipy(rhs, method, grid, y0, rtol, atol, chunks, bar) -> Trajectory:
                                 rtol=rtol, atol=atol)
         except _Singular as exc:
             return Trajectory(np.array(times), np.array(rows), method, False,
-                              "the mass matrix is not positive definite", exc.t, stats)
+                              "the mass matrix is not positive definite" + _where(system, exc.y), exc.t, stats)
         except (ValueError, RuntimeError) as exc:
             return Trajectory(np.array(times), np.array(rows), method, False, str(exc), times[-1], stats)
         stats["evaluations"] += int(sol.nfev)
