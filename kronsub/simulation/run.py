@@ -39,6 +39,8 @@ METHODS = {
         Method("DOP853", "scipy", "scipy's DOP853 calling the compiled right-hand side"),
         Method("Radau", "scipy", "scipy's implicit Radau IIA (order 5): stiff problems (stiff springs, dampers)"),
         Method("LSODA", "scipy", "scipy's LSODA: switches between stiff and non-stiff automatically"),
+        Method("heyoka", "heyoka", "heyoka's Taylor integrator (optional extra kronsub[heyoka]): the "
+                                   "high-accuracy end, for small systems; tolerance --rtol"),
     )
 }
 
@@ -101,6 +103,9 @@ def simulate(system: KnownSystem, values: RunValues, t_end: float, dt: float, me
         raise SimulationError("--t and --dt must be positive")
     param = np.array(values.parameters, dtype=float)
     y0 = np.array(values.y0, dtype=float)
+    grid = _grid(t_end, dt)
+    if METHODS[method].engine == "heyoka":
+        return _run_heyoka(system, param, y0, grid, rtol)
     native = None
     try:
         from .native import CompilerNotFound, NativeModel, compile_library
@@ -119,10 +124,6 @@ def simulate(system: KnownSystem, values: RunValues, t_end: float, dt: float, me
         fallback = "DOP853"
         warnings.warn(f"method '{method}' runs in compiled C; using scipy's {fallback} instead")
         spec = METHODS[fallback]
-    grid = np.arange(0.0, t_end + 0.5 * dt, dt)
-    grid[-1] = t_end if abs(grid[-1] - t_end) < 0.5 * dt else grid[-1]
-    if grid[-1] < t_end:
-        grid = np.append(grid, t_end)
     bar = _Progress(t_end, progress)
     try:
         if spec.engine == "c":
@@ -134,6 +135,27 @@ def simulate(system: KnownSystem, values: RunValues, t_end: float, dt: float, me
         bar.close()
     traj.backend = "C" if native is not None else "numpy"
     return traj
+
+
+def _grid(t_end: float, dt: float) -> np.ndarray:
+    """Output times 0, dt, 2 dt, ... and exactly t_end."""
+    grid = np.arange(0.0, t_end + 0.5 * dt, dt)
+    if abs(grid[-1] - t_end) < 0.5 * dt:
+        grid[-1] = t_end
+    if grid[-1] < t_end:
+        grid = np.append(grid, t_end)
+    return grid
+
+
+def _run_heyoka(system, param, y0, grid, tol) -> Trajectory:
+    try:
+        from . import heyoka_backend
+    except ImportError:
+        heyoka_backend = None
+    if heyoka_backend is None or not heyoka_backend.available():
+        raise SimulationError("method 'heyoka' needs heyoka: pip install 'kronsub[heyoka]'")
+    t, Y, complete, message = heyoka_backend.integrate(system, param, y0, grid, tol)
+    return Trajectory(t, Y, "heyoka", complete, message, None if complete else float(t[-1]), {}, "heyoka")
 
 
 def _native_rhs(native, param):
