@@ -1,0 +1,486 @@
+"""Compiled models: C sources built with kronsub's C integrators and called through ctypes.
+
+A model's C file provides the ABI of ``templates/model.h.j2`` (``ks_rhs``, ``ks_rhs_canonical``,
+``ks_momentum``, ``ks_velocity``, ``ks_kinetic_energy``, ``ks_potential_energy``), with the state
+``y = [q; qdot]`` of ``2 nq`` entries, the canonical state ``z = [q; p]``, ``p = Mbar qdot``, and the
+parameters as a flat array. :func:`compile_library` builds it together with ``csrc/integrators.c``
+into one shared library, cached by content hash; :class:`NativeModel` loads it and runs
+
+- ``dop853``: Dormand-Prince 8(5,3), adaptive, with 7th-order dense output at the requested times:
+  the default for accuracy (rtol = atol = 1e-10 keeps energy to about 1e-10 over a few periods);
+- ``gauss4``: the 2-stage Gauss-Legendre method with a fixed step on ``z = [q; p]``, symplectic, so
+  the energy error stays bounded over long conservative runs (order 4: error ~ h^4);
+- ``rk4``: the classical Runge-Kutta method with a fixed step, the cheap baseline.
+
+The whole integration runs in C: no Python per step.
+"""
+from __future__ import annotations
+
+import atexit
+import ctypes
+import hashlib
+import math
+import os
+import re
+import shlex
+import shutil
+import subprocess
+import tempfile
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Callable, Sequence
+
+import numpy as np
+
+from kronsub.errors import KronsubError
+from kronsub.model.derive import cache_dir
+
+CSRC = Path(__file__).resolve().parent / "csrc"
+INTEGRATOR_FILES = ("integrators.h", "integrators.c")
+FLAGS = ("-std=c99", "-O2", "-fPIC", "-shared", "-Wall", "-Wextra", "-Werror")
+LIBS = ("-lm",)
+COMPILE_TIMEOUT = 600.0
+
+METHODS = ("dop853", "gauss4", "rk4")
+
+
+class NativeError(KronsubError):
+    """A compiled model could not be built, loaded or evaluated."""
+
+
+class CompilerNotFound(NativeError):
+    """No C compiler: ``$CC`` (default ``gcc``) is not on the PATH."""
+
+
+class CompileError(NativeError):
+    """The C compiler rejected the sources; ``stderr`` holds its messages."""
+
+    def __init__(self, message: str, stderr: str = ""):
+        self.stderr = stderr
+        super().__init__(message)
+
+
+class SingularMassMatrix(NativeError):
+    """The right-hand side returned 1: ``Mbar(q)`` is not positive definite at this state."""
+
+
+# ---------------------------------------------------------------------------------------------
+# Building
+# ---------------------------------------------------------------------------------------------
+
+def compiler_command() -> list[str]:
+    """The compiler command, ``$CC`` split as a shell would (default ``gcc``).
+
+    Raises :class:`CompilerNotFound` when its program is not on the PATH.
+    """
+    text = os.environ.get("CC", "").strip() or "gcc"
+    command = shlex.split(text)
+    if shutil.which(command[0]) is None:
+        raise CompilerNotFound(
+            f"C compiler {command[0]!r} not found; set CC to a C compiler (such as gcc or cc)"
+        )
+    return command
+
+
+def _named_sources(sources: Sequence[str | tuple[str, str]], stem: str) -> list[tuple[str, str]]:
+    """``(file name, text)`` for every source: plain texts become ``{stem}_{i}.c``."""
+    named = []
+    for i, item in enumerate(sources):
+        if isinstance(item, str):
+            named.append((f"{stem}_{i}.c", item))
+        else:
+            name, text = item
+            if Path(name).name != name or name in INTEGRATOR_FILES:
+                raise ValueError(f"source file name {name!r} must be a plain name, not one of "
+                                 f"{', '.join(INTEGRATOR_FILES)}")
+            named.append((name, text))
+    names = [name for name, _ in named]
+    if len(set(names)) != len(names):
+        raise ValueError(f"source file names must be distinct: {names}")
+    return named
+
+
+def _write_atomic(path: Path, data: bytes) -> None:
+    """Write ``data`` to ``path`` through a temporary file and a rename."""
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
+    try:
+        with os.fdopen(fd, "wb") as handle:
+            handle.write(data)
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+
+
+_SCRATCH: list[Path] = []
+
+
+def _scratch_root() -> Path:
+    """One temporary folder per process, removed at exit."""
+    if not _SCRATCH:
+        scratch = Path(tempfile.mkdtemp(prefix="kronsub-native-"))
+        atexit.register(shutil.rmtree, scratch, True)
+        _SCRATCH.append(scratch)
+    return _SCRATCH[0]
+
+
+def _build_root() -> Path:
+    """``<kronsub cache>/native``; a temporary folder when the cache is off or not writable."""
+    folder = cache_dir()
+    if folder is not None:
+        try:
+            (folder / "native").mkdir(parents=True, exist_ok=True)
+            return folder / "native"
+        except OSError:
+            pass
+    return _scratch_root()
+
+
+def _run_compiler(command: list[str], cwd: Path) -> subprocess.CompletedProcess:
+    """Run the compiler (its own function, so tests can count the calls)."""
+    return subprocess.run(command, cwd=cwd, capture_output=True, text=True,
+                          timeout=COMPILE_TIMEOUT, check=False)
+
+
+def compile_library(sources: Sequence[str | tuple[str, str]], name_hint: str = "model") -> Path:
+    """Build ``sources`` with the integrators into a shared library and return its path.
+
+    ``sources`` are C texts, or ``(file name, text)`` pairs for files that must keep their
+    names (a header the C file includes); every ``.c`` file is compiled, with the build folder
+    on the include path. The folder ``<cache>/native/<name_hint>-<key>`` is keyed by the sha256
+    of every file's name and text, the resolved compiler command and the flags, so an existing
+    library is reused and a changed input never meets a stale one; the library is compiled
+    under a temporary name and renamed into place.
+    """
+    command = compiler_command()
+    stem = re.sub(r"[^A-Za-z0-9_]+", "_", name_hint).strip("_") or "model"
+    files = _named_sources(sources, stem)
+    files += [(name, (CSRC / name).read_text()) for name in INTEGRATOR_FILES]
+
+    digest = hashlib.sha256()
+    for name, text in files:
+        digest.update(name.encode() + b"\0" + text.encode() + b"\0")
+    resolved = [shutil.which(command[0]) or command[0], *command[1:]]
+    digest.update("\0".join([*resolved, *FLAGS, *LIBS]).encode())
+    key = digest.hexdigest()
+
+    folder = _build_root() / f"{stem}-{key[:24]}"
+    library = folder / f"lib{stem}.so"
+    if library.is_file():
+        return library
+    folder.mkdir(parents=True, exist_ok=True)
+    for name, text in files:
+        _write_atomic(folder / name, text.encode())
+
+    fd, tmp_name = tempfile.mkstemp(prefix=f".lib{stem}.", suffix=".so", dir=folder)
+    os.close(fd)
+    tmp = Path(tmp_name)
+    c_files = [name for name, _ in files if name.endswith(".c")]
+    full = [*command, *FLAGS, "-I", str(folder), "-o", str(tmp), *c_files, *LIBS]
+    try:
+        try:
+            proc = _run_compiler(full, folder)
+        except OSError as exc:
+            raise CompilerNotFound(f"C compiler {command[0]!r} could not be run: {exc}") from exc
+        except subprocess.TimeoutExpired as exc:
+            raise CompileError(f"compiling {stem} took longer than {COMPILE_TIMEOUT:.0f} s") from exc
+        if proc.returncode != 0:
+            stderr = (proc.stderr or proc.stdout or "").strip()
+            raise CompileError(
+                f"compiling {stem} failed ({shlex.join(full)}):\n{stderr}", stderr
+            )
+        os.replace(tmp, library)
+    finally:
+        tmp.unlink(missing_ok=True)
+    return library
+
+
+# ---------------------------------------------------------------------------------------------
+# Calling
+# ---------------------------------------------------------------------------------------------
+
+class _CResult(ctypes.Structure):
+    """The C ``ks_result`` of ``integrators.h``."""
+
+    _fields_ = [
+        ("status", ctypes.c_int),
+        ("t_fail", ctypes.c_double),
+        ("n_steps", ctypes.c_long),
+        ("n_rejected", ctypes.c_long),
+        ("n_evals", ctypes.c_long),
+        ("n_rows", ctypes.c_long),
+    ]
+
+
+@dataclass(frozen=True)
+class IntegrationResult:
+    """What one integration did. ``status`` as in ``integrators.h``: 0 reached ``t_end``,
+    1 right-hand side failed (singular mass matrix), 2 non-finite state, 3 step size underflow
+    (gauss4: stage iteration did not converge), 4 too many steps, 5 output buffer full,
+    6 invalid argument. On statuses 1 and 2, ``y_fail`` is the state ``[q; qdot]`` at which
+    the right-hand side failed (``qdot`` NaN when it cannot be recovered) and ``t_fail`` its time."""
+
+    method: str
+    status: int
+    message: str
+    t_fail: float
+    n_steps: int
+    n_rejected: int
+    n_evals: int
+    n_rows: int
+    y_fail: np.ndarray | None = None
+
+    @property
+    def ok(self) -> bool:
+        return self.status == 0
+
+
+_D = ctypes.c_double
+_P = ctypes.c_void_p
+_I = ctypes.c_int
+_L = ctypes.c_long
+
+_SIGNATURES = {
+    "ks_rhs": (_I, [_D, _P, _P, _P]),
+    "ks_rhs_canonical": (_I, [_D, _P, _P, _P]),
+    "ks_kinetic_energy": (_D, [_P, _P]),
+    "ks_potential_energy": (_D, [_D, _P, _P]),
+    "ks_momentum": (None, [_P, _P, _P]),
+    "ks_velocity": (_I, [_P, _P, _P]),
+    "ks_status_message": (ctypes.c_char_p, [_I]),
+    "ks_dop853": (_I, [_P, _I, _P, _D, _P, _D, _D, _D, _D, _D, _L, _P, _L, _P, _P]),
+    "ks_gauss4": (_I, [_P, _I, _P, _D, _P, _D, _D, _L, _P, _L, _P, _P]),
+    "ks_rk4": (_I, [_P, _I, _P, _D, _P, _D, _D, _L, _P, _L, _P, _P]),
+    "ks_map_rows": (_L, [_P, _I, _P, _P, _L, _P]),
+    "ks_energy_rows": (None, [_P, _P, _I, _P, _P, _L, _P, _P]),
+}
+_REQUIRED = ("ks_rhs", "ks_status_message", "ks_dop853", "ks_gauss4", "ks_rk4", "ks_map_rows",
+             "ks_energy_rows")
+
+# scratch sizes in doubles, KS_*_WORK(dim) of integrators.h
+_WORK = {"dop853": 27, "gauss4": 7, "rk4": 6}
+
+
+def _ptr(array: np.ndarray) -> int:
+    return array.ctypes.data
+
+
+def _address(fn) -> int:
+    """The C address of a ctypes function, to pass as a function pointer."""
+    return ctypes.cast(fn, ctypes.c_void_p).value
+
+
+class NativeModel:
+    """A compiled model with ``nq`` coordinates and ``nparam`` parameters, loaded with ctypes."""
+
+    def __init__(self, library: str | Path, nq: int, nparam: int):
+        if nq < 1 or nparam < 0:
+            raise ValueError(f"nq must be >= 1 and nparam >= 0 (got nq={nq}, nparam={nparam})")
+        self.path = Path(library)
+        self.nq = nq
+        self.ny = 2 * nq
+        self.nparam = nparam
+        self._lib = ctypes.CDLL(str(self.path))
+        self._fn = {}
+        for name, (restype, argtypes) in _SIGNATURES.items():
+            try:
+                fn = getattr(self._lib, name)
+            except AttributeError:
+                continue
+            fn.restype = restype
+            fn.argtypes = argtypes
+            self._fn[name] = fn
+        missing = [name for name in _REQUIRED if name not in self._fn]
+        if missing:
+            raise NativeError(f"{self.path} lacks {', '.join(missing)}; build it with compile_library")
+
+    @classmethod
+    def build(cls, sources: Sequence[str | tuple[str, str]], name_hint: str, nq: int,
+              nparam: int) -> "NativeModel":
+        """:func:`compile_library` then load."""
+        return cls(compile_library(sources, name_hint), nq, nparam)
+
+    # -- helpers -----------------------------------------------------------------------------
+
+    def _function(self, name: str):
+        try:
+            return self._fn[name]
+        except KeyError:
+            raise NativeError(f"{self.path} does not define {name}") from None
+
+    def _param(self, param) -> np.ndarray:
+        values = np.ascontiguousarray(param if param is not None else [], dtype=float).ravel()
+        if values.size != self.nparam:
+            raise ValueError(f"param must have {self.nparam} entries (got {values.size})")
+        return values if values.size else np.zeros(1)
+
+    def _state(self, y, name: str = "y") -> np.ndarray:
+        values = np.ascontiguousarray(y, dtype=float)
+        if values.shape != (self.ny,):
+            raise ValueError(f"{name} must be 1-dimensional with {self.ny} entries "
+                             f"(got shape {values.shape})")
+        return values
+
+    def _singular(self, t: float | None, y: np.ndarray) -> SingularMassMatrix:
+        when = f" at t = {t:.17g}" if t is not None else ""
+        q = ", ".join(f"{v:.17g}" for v in y[: self.nq])
+        return SingularMassMatrix(f"the mass matrix Mbar is not positive definite{when}, q = [{q}]")
+
+    # -- the model's functions ---------------------------------------------------------------
+
+    def rhs(self, t: float, y, param) -> np.ndarray:
+        """``ydot = [qdot; Mbar^-1 (fbar - hbar)]``."""
+        y, p = self._state(y), self._param(param)
+        ydot = np.empty(self.ny)
+        if self._function("ks_rhs")(t, _ptr(y), _ptr(p), _ptr(ydot)):
+            raise self._singular(t, y)
+        return ydot
+
+    def rhs_canonical(self, t: float, z, param) -> np.ndarray:
+        """``zdot = [Mbar^-1 p; dT/dq + fbar]`` for ``z = [q; p]``."""
+        z, p = self._state(z, "z"), self._param(param)
+        zdot = np.empty(self.ny)
+        if self._function("ks_rhs_canonical")(t, _ptr(z), _ptr(p), _ptr(zdot)):
+            raise self._singular(t, z)
+        return zdot
+
+    def kinetic_energy(self, y, param) -> float:
+        """``T = 1/2 qdot^T Mbar qdot``."""
+        y, p = self._state(y), self._param(param)
+        return float(self._function("ks_kinetic_energy")(_ptr(y), _ptr(p)))
+
+    def potential_energy(self, t: float, y, param) -> float:
+        """``V`` of the model's conservative effects."""
+        y, p = self._state(y), self._param(param)
+        return float(self._function("ks_potential_energy")(t, _ptr(y), _ptr(p)))
+
+    def energies(self, t, Y, param) -> tuple[np.ndarray, np.ndarray]:
+        """Kinetic and potential energy at every row ``(t_r, Y_r)`` of a trajectory (in C)."""
+        t = np.asarray(t, dtype=float).ravel()
+        Y = np.asarray(Y, dtype=float).reshape(-1, self.ny)
+        if len(t) != len(Y):
+            raise ValueError(f"t and Y must have as many rows (got {len(t)} and {len(Y)})")
+        rows = np.ascontiguousarray(np.column_stack([t, Y]))
+        T, V, p = np.empty(len(t)), np.empty(len(t)), self._param(param)
+        self._fn["ks_energy_rows"](
+            _address(self._function("ks_kinetic_energy")),
+            _address(self._function("ks_potential_energy")),
+            self.ny, _ptr(p), _ptr(rows), len(t), _ptr(T), _ptr(V))
+        return T, V
+
+    def momentum(self, y, param) -> np.ndarray:
+        """``z = [q; Mbar qdot]``."""
+        y, p = self._state(y), self._param(param)
+        z = np.empty(self.ny)
+        self._function("ks_momentum")(_ptr(y), _ptr(p), _ptr(z))
+        return z
+
+    def velocity(self, z, param) -> np.ndarray:
+        """``y = [q; Mbar^-1 p]``."""
+        z, p = self._state(z, "z"), self._param(param)
+        y = np.empty(self.ny)
+        if self._function("ks_velocity")(_ptr(z), _ptr(p), _ptr(y)):
+            raise self._singular(None, z)
+        return y
+
+    def scipy_rhs(self, param) -> Callable[[float, np.ndarray], np.ndarray]:
+        """``f(t, y)`` for ``scipy.integrate.solve_ivp``, calling ``ks_rhs`` with preallocated
+        buffers (the returned array is a fresh copy, as solvers keep references to it)."""
+        p = self._param(param)
+        ydot = np.empty(self.ny)
+        fn, p_ptr, out_ptr, ny = self._function("ks_rhs"), _ptr(p), _ptr(ydot), self.ny
+
+        def f(t, y):
+            y = np.ascontiguousarray(y, dtype=float)
+            if y.shape != (ny,):
+                raise ValueError(f"y must be 1-dimensional with {ny} entries (got shape {y.shape})")
+            if fn(t, _ptr(y), p_ptr, out_ptr):
+                raise self._singular(t, y)
+            return ydot.copy()
+
+        f.param = p  # keeps the parameter buffer alive with the callable
+        return f
+
+    # -- integration -------------------------------------------------------------------------
+
+    def integrate(self, method: str, t0: float, y0, t_end: float, dt_out: float, param, *,
+                  rtol: float = 1e-10, atol: float = 1e-10, h: float | None = None,
+                  max_steps: int = 10_000_000) -> tuple[np.ndarray, np.ndarray, IntegrationResult]:
+        """Integrate from ``y0 = [q; qdot]`` at ``t0`` to ``t_end`` wholly in C.
+
+        Returns the row times ``t``, the states ``Y`` (rows ``[q; qdot]``) and the result. Rows
+        are at ``t0, t0 + dt_out, ...`` and exactly at ``t_end``; ``dt_out <= 0`` gives a row at
+        every step. ``dop853`` is adaptive (``rtol``, ``atol``; ``h`` the first step, automatic
+        when None; ``max_steps`` bounds the step attempts, <= 0 for no bound). ``gauss4`` and ``rk4`` use the fixed
+        step ``h`` (default ``dt_out``), shortened so that ``dt_out`` is a whole number of steps;
+        ``gauss4`` integrates ``z = [q; p]`` and its rows are converted back to ``[q; qdot]``.
+        A failure does not raise: the rows computed so far are returned with ``result.status``.
+        """
+        if method not in METHODS:
+            raise ValueError(f"unknown method {method!r}; valid methods: {', '.join(METHODS)}")
+        if not (math.isfinite(t0) and math.isfinite(t_end) and t_end >= t0):
+            raise ValueError(f"need finite t0 <= t_end (got t0={t0}, t_end={t_end})")
+        y0, p = self._state(y0, "y0"), self._param(param)
+        span = t_end - t0
+        canonical = method == "gauss4"
+        start = self.momentum(y0, param) if canonical else y0
+        rhs_address = _address(self._function("ks_rhs_canonical" if canonical else "ks_rhs"))
+        work = np.empty(_WORK[method] * self.ny)
+        cres = _CResult()
+
+        if method == "dop853":
+            if dt_out > 0:
+                capacity = [math.floor(span / dt_out) + 3]
+            else:  # rows unknown in advance: grow, rerunning on a full buffer
+                limit = max_steps + 2 if max_steps > 0 else 4096 * 16**5
+                capacity = [4096 * 16**k for k in range(5) if 4096 * 16**k < limit] + [limit]
+
+            def run(out, rows):
+                return self._fn["ks_dop853"](
+                    rhs_address, self.ny, _ptr(p), t0, _ptr(start), t_end, dt_out, rtol, atol,
+                    h if h is not None else 0.0, max_steps, _ptr(out), rows, _ptr(work),
+                    ctypes.byref(cres))
+        else:
+            if h is None:
+                h = dt_out if dt_out > 0 else span / 1000.0
+            if not (h > 0 and math.isfinite(h)):
+                raise ValueError(f"the step h must be positive (got {h})")
+            out_every = 1
+            if dt_out > 0:
+                out_every = max(1, math.ceil(dt_out / h - 1e-9))
+                h = dt_out / out_every
+            n_steps = max(1, math.ceil(span / h * (1 - 1e-12))) if span > 0 else 0
+            capacity = [n_steps // out_every + 3]
+            fixed = self._fn[f"ks_{method}"]
+            step = h
+
+            def run(out, rows):
+                return fixed(rhs_address, self.ny, _ptr(p), t0, _ptr(start), t_end, step,
+                             out_every, _ptr(out), rows, _ptr(work), ctypes.byref(cres))
+
+        for rows in capacity:
+            out = np.empty((rows, self.ny + 1))
+            run(out, rows)
+            if cres.status != 5:
+                break
+        out = out[: cres.n_rows]
+        y_fail = work[: self.ny].copy() if cres.status in (1, 2) else None
+        if canonical:  # rows [t, q, p] -> [t, q, qdot]
+            bad = self._fn["ks_map_rows"](_address(self._function("ks_velocity")), self.ny,
+                                          _ptr(p), _ptr(out), cres.n_rows, _ptr(work))
+            if bad >= 0:
+                raise self._singular(float(out[bad, 0]), out[bad, 1:])
+            if y_fail is not None:
+                try:
+                    y_fail = self.velocity(y_fail, param)
+                except SingularMassMatrix:
+                    y_fail = np.concatenate([y_fail[: self.nq], np.full(self.nq, np.nan)])
+        t, Y = out[:, 0].copy(), np.ascontiguousarray(out[:, 1:])
+        message = self._fn["ks_status_message"](cres.status).decode()
+        result = IntegrationResult(
+            method=method, status=cres.status, message=message,
+            t_fail=cres.t_fail if cres.status else math.nan,
+            n_steps=cres.n_steps, n_rejected=cres.n_rejected, n_evals=cres.n_evals,
+            n_rows=cres.n_rows, y_fail=y_fail,
+        )
+        return t, Y, result
