@@ -196,3 +196,12 @@ def test_without_a_compiler_the_numpy_module_is_used(monkeypatch, tmp_path):
     assert result.exit_code == 0, result.output
     assert "no C compiler" in result.output
     assert "numpy right-hand side" in result.stdout
+
+
+def test_plot_writes_a_png(tmp_path):
+    pytest.importorskip("matplotlib")
+    png = tmp_path / "traj.png"
+    result = run_cli(MODELS / "hoffmann" / "system1.yaml", "--t", "1", "--dt", "0.05", "--plot", png,
+                     "--output", tmp_path / "t.csv")
+    assert result.exit_code == 0, result.output
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
