@@ -142,3 +142,21 @@ def test_codegen_command_writes_byte_identical_files(tmp_path):
     assert set(outs[0]) == {"system1.c", "system1.h", "system1.py"}
     header = outs[0]["system1.h"].decode()
     assert "y[0] = theta" in header and "param[6] = g" in header and "Mbar(q) qddot" in header
+
+
+@pytest.mark.parametrize("lang", ["c", "python"])
+def test_generated_code_is_byte_identical_under_different_hash_seeds(lang, tmp_path):
+    import os
+    import subprocess
+    import sys
+
+    texts = []
+    for seed in ("1", "777"):
+        out = tmp_path / seed
+        out.mkdir()
+        env = dict(os.environ, PYTHONHASHSEED=seed, KRONSUB_CACHE_DIR="off")
+        proc = subprocess.run([sys.executable, "-m", "kronsub", "codegen", str(MODELS / "examples" / "watt_governor.yaml"),
+                               "--lang", lang, "--output", str(out)], capture_output=True, env=env)
+        assert proc.returncode == 0, proc.stderr.decode()
+        texts.append({p.name: p.read_bytes() for p in sorted(out.iterdir())})
+    assert texts[0] == texts[1]
