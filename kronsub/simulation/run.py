@@ -125,6 +125,8 @@ def simulate(system: KnownSystem, values: RunValues, t_end: float, dt: float, me
         warnings.warn(f"method '{method}' runs in compiled C; using scipy's {fallback} instead")
         spec = METHODS[fallback]
     bar = _Progress(t_end, progress)
+    if not bar.enabled:
+        chunks = 1  # one call: no restarts of the step-size control
     try:
         if spec.engine == "c":
             traj = _run_native(native, spec.name, grid, y0, param, rtol, atol, dt, chunks, bar, system)
