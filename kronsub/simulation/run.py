@@ -61,6 +61,7 @@ class Trajectory:
     t_fail: float | None = None
     stats: dict = field(default_factory=dict)
     backend: str = ""
+    energies: tuple[np.ndarray, np.ndarray] | None = None  # (T, V) per row, when computed in C
 
 
 def _numpy_module(system: KnownSystem):
@@ -136,6 +137,8 @@ def simulate(system: KnownSystem, values: RunValues, t_end: float, dt: float, me
     finally:
         bar.close()
     traj.backend = "C" if native is not None else "numpy"
+    if native is not None and len(traj.t):
+        traj.energies = native.energies(traj.t, traj.y, param)
     return traj
 
 

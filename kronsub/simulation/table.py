@@ -18,6 +18,9 @@ from .values import RunValues
 
 
 def energies(system: KnownSystem, traj: Trajectory, param) -> tuple[np.ndarray, np.ndarray]:
+    """Kinetic and potential energy per row (from the run when it computed them in C)."""
+    if traj.energies is not None:
+        return traj.energies
     module = _numpy_module(system)
     T = np.array([module["kinetic_energy"](y, param) for y in traj.y]) if len(traj.y) else np.zeros(0)
     V = np.array([module["potential_energy"](t, y, param) for t, y in zip(traj.t, traj.y)]) if len(traj.y) \
@@ -55,8 +58,7 @@ def to_csv(system: KnownSystem, model_path: str, traj: Trajectory, values: RunVa
     out.write("# columns: t [s]; coordinates and velocities in the model's units (per s); energies in the "
               "model's energy unit" + ("; points in the model's length unit" if with_points else "") + "\n")
     out.write(",".join(columns) + "\n")
-    for row in table:
-        out.write(",".join(repr(float(v)) for v in row) + "\n")
+    np.savetxt(out, table, fmt="%.17g", delimiter=",")
     if not traj.complete:
         out.write(f"# incomplete: stopped at t = {traj.t_fail!r}: {traj.message}\n")
     return out.getvalue()
