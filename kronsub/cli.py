@@ -160,7 +160,8 @@ def _writable(path: Path | None, what: str) -> None:
 @click.option("--t", "t_end", type=float, default=10.0, show_default=True, help="End time.")
 @click.option("--dt", type=float, default=0.01, show_default=True, help="Output interval (and step of fixed-step methods).")
 @click.option("--method", default="dop853", show_default=True,
-              help="dop853 (C, adaptive), gauss4 (C, symplectic, fixed step), RK45, DOP853, Radau, LSODA (scipy).")
+              help="dop853 (C, adaptive), gauss4 (C, symplectic, fixed step), RK45, DOP853, Radau, LSODA "
+                   "(scipy), heyoka (optional extra).")
 @click.option("--rtol", type=float, default=1e-10, show_default=True, help="Relative tolerance (adaptive methods).")
 @click.option("--atol", type=float, default=1e-10, show_default=True, help="Absolute tolerance (adaptive methods).")
 @click.option("--set", "settings", multiple=True, metavar="NAME=VALUE",
@@ -171,7 +172,7 @@ def _writable(path: Path | None, what: str) -> None:
 @click.option("--plot", type=click.Path(dir_okay=False, path_type=Path), help="Write a PNG of coordinates and energy.")
 def simulate(model: Path, t_end: float, dt: float, method: str, rtol: float, atol: float,
              settings: tuple[str, ...], output: Path | None, with_points: bool, plot: Path | None):
-    """Simulate MODEL from t = 0 to --t and print (or write) the trajectory as CSV."""
+    """Simulate MODEL from t = 0 to --t; the trajectory is CSV."""
     from .model.loader import load_model
     from .simulation.run import METHODS
     from .simulation.run import simulate as run

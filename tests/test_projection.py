@@ -8,6 +8,7 @@ import pytest
 import sympy
 
 import kronsub
+import kronsub.errors
 from conftest import MODELS
 from kronsub.core.primitive import christoffel_terms
 from kronsub.core.trigpoly import TrigAlgebra
@@ -110,3 +111,23 @@ def test_trig_algebra_derivative_matches_sympy():
         for va, vb in ((0.3, -1.1), (1.7, 0.4)):
             vals = {a: va, b: vb, k: 1.3}
             assert abs(float(got.xreplace(vals)) - float(want.xreplace(vals))) < 1e-12
+
+
+def test_points_fixed_in_a_body_take_forces(tmp_path):
+    """A force F at 3L/4 from the pivot of a pinned rod: generalized force 3 F L cos(q) / 4."""
+    path = tmp_path / "m.yaml"
+    path.write_text("name: p\nparameters: {m: 1, L: 1, F: 1}\ncomponents:\n  rod:\n    type: pinned_rod\n"
+                    "    parameters: {mass: m, length: L}\n    coordinates: [q]\n    points: {quarter: [L/4, 0]}\n"
+                    "coordinates: [q]\neffects:\n  push: {type: force, point: rod.quarter, vector: [F, 0]}\n")
+    system = kronsub.load(path).derive()
+    F, L, q = (sympy.Symbol(n, real=True) for n in ("F", "L", "q"))
+    assert sympy.simplify(system.forces[0] - 3 * F * L * sympy.cos(q) / 4) == 0
+    assert "rod.quarter" in system.points
+
+
+def test_points_need_a_rigid_body(tmp_path):
+    path = tmp_path / "m.yaml"
+    path.write_text("name: p\nparameters: {m: 1}\ncomponents:\n  p:\n    type: particle2d\n"
+                    "    parameters: {mass: m}\n    points: {q: [1, 0]}\ncoordinates: [p_x, p_y]\n")
+    with pytest.raises(kronsub.errors.ModelError, match="not a rigid body"):
+        kronsub.load(path)

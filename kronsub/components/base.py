@@ -51,9 +51,11 @@ class Component:
     coordinates: ClassVar[tuple[str, ...]] = ()
     parameters: ClassVar[tuple[ParameterSpec, ...]] = ()
     dimension: ClassVar[int] = 0  # dimension of the world its points live in
+    rigid: ClassVar[bool] = False  # a rigid body: model files may fix points in it (``points:``)
 
     x: Mapping[str, sympy.Symbol] = field(default_factory=dict)
     p: Mapping[str, sympy.Expr] = field(default_factory=dict)
+    extra_points: Mapping[str, tuple[sympy.Expr, ...]] = field(default_factory=dict)  # body-frame offsets
 
     # -- to be declared by each component --------------------------------
     def metric(self) -> sympy.Matrix:
@@ -69,6 +71,17 @@ class Component:
         return ()
 
     # -- derived ---------------------------------------------------------
+    def all_points(self) -> dict[str, tuple[sympy.Expr, ...]]:
+        """The declared points and the model's own points fixed in the (first) body:
+        ``centre + R offset`` for each body-frame offset in ``extra_points``."""
+        points = dict(self.points())
+        if self.extra_points:
+            body = self.bodies()[0]
+            centre = sympy.Matrix(body.centre)
+            for name, offset in self.extra_points.items():
+                points[name] = tuple(centre + body.rotation * sympy.Matrix(offset))
+        return points
+
     @property
     def coordinate_symbols(self) -> tuple[sympy.Symbol, ...]:
         return tuple(self.x[name] for name in self.coordinates)

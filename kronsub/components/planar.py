@@ -21,6 +21,7 @@ class PlanarBody(Component):
     coordinates = ("x", "y", "angle")
     parameters = (MASS, ParameterSpec("inertia", "moment of inertia about the mass centre", unit="kg m^2"))
     dimension = 2
+    rigid = True
 
     def inertia(self) -> sympy.Expr:
         return self.p["inertia"]
@@ -86,6 +87,7 @@ class PinnedRod(Component):
                   ParameterSpec("pivot_x", "x of the fixed pivot", "0", "m"),
                   ParameterSpec("pivot_y", "y of the fixed pivot", "0", "m"))
     dimension = 2
+    rigid = True
 
     def metric(self):
         m, L = self.p["mass"], self.p["length"]

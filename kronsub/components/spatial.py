@@ -37,6 +37,7 @@ class RigidBody3D(Component):
         ParameterSpec("Ixz", "product of inertia", "0", "kg m^2"),
     )
     dimension = 3
+    rigid = True
 
     def inertia(self) -> sympy.Matrix:
         p = self.p

@@ -61,7 +61,7 @@ def part_from_component(name: str, component: Component) -> Part:
     coords = component.coordinate_symbols
     metric = sympy.Matrix(component.metric())
     h = christoffel_terms(metric, coords, [velocity_symbol(q) for q in coords])
-    return Part(name, coords, metric, h, dict(component.points()), tuple(component.bodies()),
+    return Part(name, coords, metric, h, component.all_points(), tuple(component.bodies()),
                 component.dimension, type_name=component.type_name)
 
 

@@ -230,7 +230,7 @@ class _Loader:
                 self.failed_components = True
 
     def _library_component(self, cname: str, spec: Node) -> Part | None:
-        self.check_keys(spec, ("type", "parameters", "coordinates", "description"), f"component '{cname}'")
+        self.check_keys(spec, ("type", "parameters", "coordinates", "points", "description"), f"component '{cname}'")
         tnode = spec.get("type")
         if tnode is None:
             self.error(spec, f"component '{cname}' has no `type:`",
@@ -257,8 +257,34 @@ class _Loader:
         names = self._coordinate_names(cname, spec.get("coordinates"), cls.coordinates, f"{cname}_{{}}")
         if names is None:
             return None
-        component = cls(x={local: symbol(n) for local, n in zip(cls.coordinates, names)}, p=params)
+        extra = self._body_points(cname, cls, spec.get("points"), params)
+        if extra is None:
+            return None
+        component = cls(x={local: symbol(n) for local, n in zip(cls.coordinates, names)}, p=params,
+                        extra_points=extra)
         return part_from_component(cname, component)
+
+    def _body_points(self, cname: str, cls, node: Node | None, params: dict):
+        """Points a model fixes in a rigid body: ``name: [offsets in body axes]``."""
+        if node is None:
+            return {}
+        if not cls.rigid:
+            self.error(node, f"component '{cname}' ({cls.type_name}) is not a rigid body: it takes no `points:`",
+                       "add points to a rod, disc, planar_body, pinned_rod or rigid_body3d")
+            return None
+        entries = self.mapping(node, f"{cname}.points", "write `points: {tip: [0.5, 0]}` (body axes)")
+        points = {}
+        for pname, vnode in entries.items():
+            if not self.identifier(pname, node.key_locations[pname], "point"):
+                continue
+            if not vnode.is_sequence or len(vnode.value) != cls.dimension:
+                self.error(vnode, f"point '{cname}.{pname}' needs {cls.dimension} body-frame offsets",
+                           "e.g. `[0.5, 0]` in the plane, `[0, 0, 0.1]` in space")
+                continue
+            values = [self.expr(v, self.parameter_names(), what=f"offset of point '{pname}'") for v in vnode.value]
+            if all(v is not None for v in values):
+                points[pname] = tuple(values)
+        return points
 
     def _component_parameters(self, cname: str, node: Node | None, allowed) -> dict[str, sympy.Expr | None]:
         values: dict[str, sympy.Expr | None] = {}
