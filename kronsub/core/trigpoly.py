@@ -205,6 +205,7 @@ class TrigAlgebra:
         self._atom_diff: dict[tuple[int, int], TrigPoly] = {}
         self._cache: dict[sympy.Expr, TrigPoly] = {}
         self._trig_cache: dict[tuple[int, Freq], sympy.Expr] = {}
+        self._mono_cache: dict[Mono, sympy.Expr] = {}
 
     # ----------------------------------------------------------- construction
     def constant(self, value: int | Fraction) -> TrigPoly:
@@ -348,12 +349,16 @@ class TrigAlgebra:
         return hit
 
     # -------------------------------------------------------------- back out
+    def monomial_expr(self, mono: Mono) -> sympy.Expr:
+        """The product of atoms of a monomial (cached: the same ones recur across entries)."""
+        hit = self._mono_cache.get(mono)
+        if hit is None:
+            hit = sympy.Mul(*[self._atoms[i] ** _rational(e) for i, e in mono])
+            self._mono_cache[mono] = hit
+        return hit
+
     def coefficient_expr(self, coef: Coef) -> sympy.Expr:
-        terms = []
-        for mono, c in coef.items():
-            factors = [self._atoms[i] ** _rational(e) for i, e in mono]
-            terms.append(sympy.Mul(_rational(c), *factors))
-        return sympy.Add(*terms)
+        return sympy.Add(*[_rational(c) * self.monomial_expr(mono) for mono, c in coef.items()])
 
     def trig_expr(self, kind: int, freq: Freq) -> sympy.Expr:
         key = (kind, freq)
