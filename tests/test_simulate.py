@@ -1,10 +1,7 @@
 """``kronsub simulate``: trajectories against independent references, energy, CSV, faults."""
 from __future__ import annotations
 
-import io
 import json
-import math
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -16,7 +13,7 @@ import mechanics_reference as ref
 from conftest import MODELS, ROOT
 from kronsub.cli import main
 from kronsub.simulation.run import simulate
-from kronsub.simulation.values import RunValues, resolve
+from kronsub.simulation.values import resolve
 
 SHARED_REFERENCE = ROOT.parent / "shared" / "reference" / "double-pendulum-rods.json"
 
