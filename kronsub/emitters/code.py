@@ -55,7 +55,8 @@ class GeneratedFile:
 
 def _context(model: NumericModel, show, declare: str, end: str) -> dict:
     blocks = {name: _lines(getattr(model, name), show, declare, end)
-              for name in ("mass", "velocity_terms", "forces", "equations", "canonical", "potential", "positions")}
+              for name in ("mass", "velocity_terms", "forces", "equations", "canonical", "prepare", "potential",
+                           "positions")}
     return {"m": model, "b": blocks, "version": __version__,
             "n_points": sum(d for _, d in model.points)}
 

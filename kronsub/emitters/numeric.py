@@ -38,8 +38,10 @@ class NumericModel:
     mass: Block  # Mbar (row-major, full) into M[]
     velocity_terms: Block  # hbar into h[]
     forces: Block  # fbar into f[]
-    equations: Block  # Mbar into M[] and fbar - hbar into r[], sharing subexpressions
-    canonical: Block  # dT/dq + fbar into r[]
+    equations: Block  # Mbar into M[] and fbar - hbar into r[], sharing subexpressions (in pre[])
+    canonical: Block  # dT/dq + fbar into r[] (in pre[])
+    prepare: Block  # the derived constants pre[n_param:] from param[]
+    n_pre: int  # length of pre = [param; derived constants]
     potential: Block  # V
     positions: Block  # named points into out[]
 
@@ -65,7 +67,71 @@ def _default(value) -> str:
     return repr(float(value))
 
 
-def _block(targets: list[str], exprs: list[sympy.Expr], prefix: str) -> Block:
+def _single_angles(exprs: list[sympy.Expr], coordinates) -> list[sympy.Expr]:
+    """Rewrite ``cos(q1 - q2)``, ``sin(2 q1)``... through sines and cosines of single
+    coordinates: n sine/cosine pairs then serve every entry (common subexpressions)
+    instead of one library call per angle combination."""
+    coords = set(coordinates)
+    mapping = {}
+    for expr in exprs:
+        for atom in expr.atoms(sympy.sin, sympy.cos):
+            terms = sympy.Add.make_args(atom.args[0])
+            parts = [t.as_coeff_Mul() for t in terms]
+            if not all(c.is_Integer and q in coords for c, q in parts):
+                continue
+            if len(parts) > 1 or abs(int(parts[0][0])) > 1:
+                mapping[atom] = sympy.expand_trig(atom)
+    return [e.xreplace(mapping) if mapping else e for e in exprs]
+
+
+class _Constants:
+    """Moves what depends on the parameters alone out of the right-hand side.
+
+    ``pre = [param; derived]``: products and sums of parameters (``l1*l2*(m2 + 2*m3)/2``)
+    are computed once per parameter set by ``prepare``, not at every evaluation.
+    """
+
+    def __init__(self, params: list[sympy.Symbol]):
+        self.params = set(params)
+        self.names = {p: sympy.Symbol(f"pre[{i}]") for i, p in enumerate(params)}
+        self.derived: dict[sympy.Expr, sympy.Symbol] = {}
+        self.count = len(params)
+
+    def _constant(self, e: sympy.Expr) -> bool:
+        return e.free_symbols <= self.params
+
+    def _name(self, e: sympy.Expr) -> sympy.Expr:
+        if e in self.names:
+            return self.names[e]
+        if e not in self.derived:
+            self.derived[e] = sympy.Symbol(f"pre[{self.count}]")
+            self.count += 1
+        return self.derived[e]
+
+    def __call__(self, e: sympy.Expr) -> sympy.Expr:
+        if e.is_Number:
+            return e
+        if e.is_Atom:
+            return self.names.get(e, e)
+        if self._constant(e):
+            return self._name(e)
+        if e.is_Mul or e.is_Add:
+            const = [a for a in e.args if self._constant(a)]
+            rest = [self(a) for a in e.args if not self._constant(a)]
+            if any(not a.is_Number for a in const):
+                group = e.func(*const)
+                rest.insert(0, self._name(group) if not group.is_Number else group)
+            else:
+                rest = const + rest
+            return e.func(*rest)
+        return e.func(*[self(a) for a in e.args])
+
+    def definitions(self) -> tuple[list[str], list[sympy.Expr]]:
+        return [s.name for s in self.derived.values()], list(self.derived)
+
+
+def _block(targets: list[str], exprs: list[sympy.Expr], prefix: str, coordinates=()) -> Block:
+    exprs = _single_angles(exprs, coordinates)
     symbols = sympy.numbered_symbols(prefix)
     replacements, reduced = sympy.cse(exprs, symbols=symbols, optimizations="basic", order="canonical")
     return Block(tuple(replacements), tuple(zip(targets, reduced)))
@@ -96,10 +162,12 @@ def prepare(system: KnownSystem, source: str = "") -> NumericModel:
     targets = [f"M[{i * n + j}]" for i in range(n) for j in range(n)]
     exprs = [slot(M[i, j]) for i in range(n) for j in range(n)]
     r_targets = [f"r[{i}]" for i in range(n)]
-    equations = _block(targets + r_targets, exprs + [slot(e) for e in r], "x")
-    mass = _block(targets, exprs, "x")
-    velocity_terms = _block([f"h[{i}]" for i in range(n)], [slot(e) for e in system.velocity_terms], "x")
-    forces = _block([f"f[{i}]" for i in range(n)], [slot(e) for e in system.forces], "x")
+    qs = tuple(q_slots.values())
+    constants = _Constants(list(p_slots.values()))
+    equations = _block(targets + r_targets, [constants(e) for e in exprs + [slot(e) for e in r]], "x", qs)
+    mass = _block(targets, exprs, "x", qs)
+    velocity_terms = _block([f"h[{i}]" for i in range(n)], [slot(e) for e in system.velocity_terms], "x", qs)
+    forces = _block([f"f[{i}]" for i in range(n)], [slot(e) for e in system.forces], "x", qs)
 
     qd = list(system.velocities)
     dTdq = []
@@ -111,9 +179,10 @@ def prepare(system: KnownSystem, source: str = "") -> NumericModel:
                 if d != 0:
                     total += d * qd[i] * qd[j] / 2
         dTdq.append(total + system.forces[k])
-    canonical = _block(r_targets, [slot(e) for e in dTdq], "x")
+    canonical = _block(r_targets, [constants(slot(e)) for e in dTdq], "x", qs)
+    prepare = _block(*constants.definitions(), "c")
 
-    potential = _block(["V"], [slot(system.potential_energy)], "x")
+    potential = _block(["V"], [slot(system.potential_energy)], "x", qs)
     labels = sorted(system.points)
     pos_targets, pos_exprs, dims = [], [], []
     offset = 0
@@ -124,7 +193,7 @@ def prepare(system: KnownSystem, source: str = "") -> NumericModel:
             pos_targets.append(f"out[{offset}]")
             pos_exprs.append(slot(c))
             offset += 1
-    positions = _block(pos_targets, pos_exprs, "x")
+    positions = _block(pos_targets, pos_exprs, "x", qs)
     return NumericModel(
         name=system.name,
         source=source,
@@ -136,6 +205,8 @@ def prepare(system: KnownSystem, source: str = "") -> NumericModel:
         forces=forces,
         equations=equations,
         canonical=canonical,
+        prepare=prepare,
+        n_pre=constants.count,
         potential=potential,
         positions=positions,
     )

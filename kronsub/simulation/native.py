@@ -242,6 +242,10 @@ _L = ctypes.c_long
 
 _SIGNATURES = {
     "ks_rhs": (_I, [_D, _P, _P, _P]),
+    "ks_rhs_pre": (_I, [_D, _P, _P, _P]),
+    "ks_rhs_canonical_pre": (_I, [_D, _P, _P, _P]),
+    "ks_prepare": (None, [_P, _P]),
+    "ks_npre": (_I, []),
     "ks_rhs_canonical": (_I, [_D, _P, _P, _P]),
     "ks_kinetic_energy": (_D, [_P, _P]),
     "ks_potential_energy": (_D, [_D, _P, _P]),
@@ -383,12 +387,22 @@ class NativeModel:
             raise self._singular(None, z)
         return y
 
+    def _prepared(self, param, name: str) -> tuple[np.ndarray, object]:
+        """The parameter block and right-hand side to call repeatedly: ``pre = [param; derived
+        constants]`` with ``<name>_pre`` when the model has ``ks_prepare``, else ``param``."""
+        p = self._param(param)
+        if "ks_prepare" in self._fn and "ks_npre" in self._fn and f"{name}_pre" in self._fn:
+            pre = np.empty(max(int(self._fn["ks_npre"]()), self.nparam) + 1)
+            self._fn["ks_prepare"](_ptr(p), _ptr(pre))
+            return pre, self._fn[f"{name}_pre"]
+        return p, self._function(name)
+
     def scipy_rhs(self, param) -> Callable[[float, np.ndarray], np.ndarray]:
         """``f(t, y)`` for ``scipy.integrate.solve_ivp``, calling ``ks_rhs`` with preallocated
         buffers (the returned array is a fresh copy, as solvers keep references to it)."""
-        p = self._param(param)
+        p, fn = self._prepared(param, "ks_rhs")
         ydot = np.empty(self.ny)
-        fn, p_ptr, out_ptr, ny = self._function("ks_rhs"), _ptr(p), _ptr(ydot), self.ny
+        p_ptr, out_ptr, ny = _ptr(p), _ptr(ydot), self.ny
 
         def f(t, y):
             y = np.ascontiguousarray(y, dtype=float)
@@ -420,11 +434,12 @@ class NativeModel:
             raise ValueError(f"unknown method {method!r}; valid methods: {', '.join(METHODS)}")
         if not (math.isfinite(t0) and math.isfinite(t_end) and t_end >= t0):
             raise ValueError(f"need finite t0 <= t_end (got t0={t0}, t_end={t_end})")
-        y0, p = self._state(y0, "y0"), self._param(param)
+        y0 = self._state(y0, "y0")
         span = t_end - t0
         canonical = method == "gauss4"
         start = self.momentum(y0, param) if canonical else y0
-        rhs_address = _address(self._function("ks_rhs_canonical" if canonical else "ks_rhs"))
+        p, rhs = self._prepared(param, "ks_rhs_canonical" if canonical else "ks_rhs")
+        rhs_address = _address(rhs)
         work = np.empty(_WORK[method] * self.ny)
         cres = _CResult()
 
