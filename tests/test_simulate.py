@@ -202,3 +202,14 @@ def test_plot_writes_a_png(tmp_path):
                      "--output", tmp_path / "t.csv")
     assert result.exit_code == 0, result.output
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_heyoka_method_agrees_with_dop853():
+    pytest.importorskip("heyoka")
+    a = run_cli(MODELS / "hoffmann" / "system1.yaml", "--t", "1", "--dt", "0.5", "--method", "heyoka",
+                "--rtol", "1e-14")
+    b = run_cli(MODELS / "hoffmann" / "system1.yaml", "--t", "1", "--dt", "0.5", "--rtol", "1e-13", "--atol", "1e-13")
+    assert a.exit_code == 0 and b.exit_code == 0, a.output + b.output
+    ha, da = read_csv(a.stdout)
+    hb, db = read_csv(b.stdout)
+    assert ha == hb and np.allclose(da, db, rtol=1e-9, atol=1e-9)
