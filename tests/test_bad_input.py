@@ -215,8 +215,6 @@ def test_unknown_symbol_in_component_parameter(tmp_path):
     assert_error(derive(path), path, line, column, "unknown name 'mm'")
 
 
-@pytest.mark.xfail(strict=True, reason="a plain scalar folded over two lines is located as if it were "
-                   "on one line: 'kk' on line 7 col 5 is reported at 6:14")
 def test_unknown_symbol_in_multiline_expression(tmp_path):
     text = HEAD + "coordinates: [q]\nconnection:\n  p_x: 2*q +\n    kk\n"
     path = write(tmp_path, text)
@@ -224,8 +222,6 @@ def test_unknown_symbol_in_multiline_expression(tmp_path):
     assert_error(derive(path), path, line, column, "unknown name 'kk'")
 
 
-@pytest.mark.xfail(strict=True, reason="columns inside a double-quoted scalar ignore escape sequences: "
-                   "'kk' after a '\\t' escape at col 17 is reported at col 16")
 def test_unknown_symbol_after_escape_in_quoted_expression(tmp_path):
     text = HEAD + 'coordinates: [q]\nconnection:\n  p_x: "\\t2*q + kk"\n'
     path = write(tmp_path, text)

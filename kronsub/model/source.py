@@ -199,6 +199,59 @@ def _location_of_mark(name: str, mark: yaml.Mark) -> Location:
     return Location(name, mark.line + 1, mark.column + 1)
 
 
+def _line_col(text: str, index: int) -> tuple[int, int]:
+    index = max(0, min(index, len(text)))
+    return text.count("\n", 0, index) + 1, index - (text.rfind("\n", 0, index) + 1) + 1
+
+
+_ESCAPE_LENGTH = {"x": 4, "u": 6, "U": 10}
+
+
+def _text_indices(value: str, raw: str, escapes: bool) -> list[int] | None:
+    """For each character of a scalar's value, its index in the raw text (or None when the
+    two cannot be matched): folded line breaks, indentation and escapes are skipped."""
+    indices, j = [], 0
+    for ch in value:
+        while j < len(raw):
+            if raw[j] == ch and not (escapes and ch == "\\"):
+                break
+            if escapes and raw[j] == "\\":
+                if j + 1 < len(raw) and raw[j + 1] == "\n":  # escaped line break
+                    j += 2
+                    continue
+                break
+            if raw[j] in " \t\r\n" or (raw[j] == "'" and raw[j:j + 2] == "''"):
+                if ch in " \n" and raw[j] in "\r\n":
+                    break
+                j += 1
+                continue
+            return None
+        if j >= len(raw):
+            return None
+        indices.append(j)
+        if escapes and raw[j] == "\\":
+            j += _ESCAPE_LENGTH.get(raw[j + 1] if j + 1 < len(raw) else "", 2)
+        elif raw[j] in "\r\n":
+            while j < len(raw) and raw[j] in " \t\r\n":
+                j += 1
+        else:
+            j += 1 + (raw[j] == "'" and raw[j:j + 2] == "''")
+    return indices
+
+
+@dataclass(frozen=True)
+class TextLocation(Location):
+    """Where a scalar's text starts, with the file position of each of its characters."""
+
+    source: str = field(default="", repr=False, compare=False)
+    indices: tuple[int, ...] = field(default=(), repr=False, compare=False)
+
+    def shifted(self, columns: int) -> Location:
+        if 0 <= columns < len(self.indices):
+            return Location(self.file, *_line_col(self.source, self.indices[columns]))
+        return Location(self.file, self.line, self.column + columns)
+
+
 def _location_of_index(name: str, text: str, index: int) -> Location:
     """The location of character ``index`` of ``text``."""
     index = max(0, min(index, len(text)))
@@ -263,7 +316,20 @@ class _Converter:
         return Node(value, node.value, location, text_location=text_location)
 
     def _text_location(self, node: ScalarNode, location: Location) -> Location:
-        """Where the scalar's text starts (after a quote or a block header)."""
+        """Where the scalar's text starts (after a quote or a block header).
+
+        For a plain scalar folded over lines, or a quoted one with escapes or line
+        breaks, the text does not run on with the file: its characters are mapped
+        one by one (`TextLocation`), so an error inside it is placed exactly."""
+        if node.style in (None, "", "'", '"'):  # plain is None in PyYAML, "" in libyaml
+            start = node.start_mark.index + (1 if node.style else 0)
+            end = node.end_mark.index - (1 if node.style else 0)
+            raw = self.text[start:end]
+            if raw != node.value:
+                indices = _text_indices(node.value, raw, node.style == '"')
+                if indices is not None:
+                    return TextLocation(location.file, *_line_col(self.text, start),
+                                        source=self.text, indices=tuple(start + i for i in indices))
         if node.style in ("'", '"'):
             return location.shifted(1)
         if node.style not in ("|", ">"):
