@@ -1,6 +1,7 @@
 """Deriving a model, with derived known systems cached on disk by content hash."""
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import os
 import pickle
@@ -57,37 +58,57 @@ def content_key(*parts: str) -> str:
     return digest.hexdigest()
 
 
-def _cache_file(key: str) -> Path | None:
+def _cache_file(key: str, part: str) -> Path | None:
     folder = cache_dir()
     if folder is None or not key:
         return None
-    return folder / f"{key}.pickle"
+    return folder / f"{key}.{part}.pickle"
 
 
-def load_cached(key: str) -> KnownSystem | None:
-    """The derived known system stored under ``key``, if any."""
-    path = _cache_file(key)
+def _load(path: Path | None):
     if path is None or not path.exists():
         return None
     try:
         # the stored expressions are canonical already: rebuild them as they are
         with open(path, "rb") as fh, evaluate(False):
-            system = pickle.load(fh)
+            return pickle.load(fh)
     except Exception:  # a damaged or stale cache entry is rebuilt
         return None
-    return system if isinstance(system, KnownSystem) else None
+
+
+def load_cached(key: str, *, transition: bool = True) -> KnownSystem | None:
+    """The derived known system stored under ``key``, if any.
+
+    The transition (primitive, ``C``) is kept apart and read only when asked for:
+    a known system used as a component does not need it.
+    """
+    system = _load(_cache_file(key, "system"))
+    if not isinstance(system, KnownSystem):
+        return None
+    if transition:
+        steps = _load(_cache_file(key, "transition"))
+        if steps is None:
+            return None
+        system = dataclasses.replace(system, transition=steps)
+    return system
+
+
+def _store(path: Path, value) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, suffix=".tmp")
+    with os.fdopen(fd, "wb") as fh:
+        pickle.dump(value, fh, protocol=pickle.HIGHEST_PROTOCOL)
+    os.replace(tmp, path)
 
 
 def store_cached(key: str, system: KnownSystem) -> None:
-    path = _cache_file(key)
+    """Store a derived system (and, apart, its transition) under ``key``."""
+    path = _cache_file(key, "system")
     if path is None:
         return
     try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(dir=path.parent, suffix=".tmp")
-        with os.fdopen(fd, "wb") as fh:
-            pickle.dump(system, fh, protocol=pickle.HIGHEST_PROTOCOL)
-        os.replace(tmp, path)
+        _store(_cache_file(key, "transition"), system.transition)
+        _store(path, dataclasses.replace(system, transition=None))
     except OSError:
         pass  # the cache is an optimisation only
 
@@ -123,7 +144,11 @@ def check_rank(model, C: sympy.Matrix, samples: int = 3) -> None:
     symbols = sorted(C.free_symbols - set(coords), key=lambda s: s.name)
     values = model.parameter_values()
     rng = np.random.default_rng(20261121)
-    f = sympy.lambdify([list(coords), symbols], C.tolist(), modules="math")
+    if C.free_symbols:
+        f = sympy.lambdify([list(coords), symbols], C.tolist(), modules="math")
+    else:  # a constant C (a linear connection): one look suffices
+        constant = [[float(e) for e in row] for row in C.tolist()]
+        f, samples = (lambda q, p: constant), 1
     for _ in range(samples):
         q = [float(v) for v in rng.uniform(-1.0, 1.0, len(coords))]
         p = [float(values[s]) if s in values and sympy.sympify(values[s]).is_number else float(rng.uniform(0.5, 1.5))

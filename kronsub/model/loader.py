@@ -350,7 +350,7 @@ class _Loader:
             return None
         try:
             key = model_key(sub_path, self.stack)
-            system = load_cached(key) if self.cache else None
+            system = load_cached(key, transition=False) if self.cache else None
             if system is None:
                 sub = load_model(sub_path, cache=self.cache, _stack=self.stack)
                 system = derive_model(sub, cache=self.cache)
