@@ -35,9 +35,9 @@ class PlanarBody(Component):
         return sympy.diag(m, m, self.inertia())
 
     def points(self):
-        R = rotation2(self.x["angle"])
-        c = sympy.Matrix([self.x["x"], self.x["y"]])
-        return {name: tuple(c + R * sympy.Matrix(off)) for name, off in self.body_points().items()}
+        x, y, a = self.x["x"], self.x["y"], self.x["angle"]
+        c, s = sympy.cos(a), sympy.sin(a)
+        return {name: (x + u * c - v * s, y + u * s + v * c) for name, (u, v) in self.body_points().items()}
 
     def bodies(self):
         return (Body(self.p["mass"], (self.x["x"], self.x["y"]), rotation2(self.x["angle"]),

@@ -106,7 +106,8 @@ class Primitive:
 
     def gradient(self, expr: sympy.Expr) -> list[sympy.Expr]:
         """``d expr / d x^a`` over the primitive coordinates."""
-        return [sympy.diff(expr, q) for q in self.coordinates]
+        present = sympy.sympify(expr).free_symbols
+        return [sympy.diff(expr, q) if q in present else sympy.Integer(0) for q in self.coordinates]
 
     def rate(self, expr: sympy.Expr) -> sympy.Expr:
         """Time derivative of a function of the coordinates: ``(d expr/d x^a) xdot^a``."""

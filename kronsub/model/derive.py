@@ -145,7 +145,14 @@ def check_rank(model, C: sympy.Matrix, samples: int = 3) -> None:
     values = model.parameter_values()
     rng = np.random.default_rng(20261121)
     if C.free_symbols:
-        f = sympy.lambdify([list(coords), symbols], C.tolist(), modules="math")
+        cells = [(i, j) for i in range(C.rows) for j in range(C.cols) if C[i, j] != 0]
+        g = sympy.lambdify([list(coords), symbols], [C[i, j] for i, j in cells], modules="math")
+
+        def f(q, p):
+            m = np.zeros(C.shape)
+            for (i, j), v in zip(cells, g(q, p)):
+                m[i, j] = v
+            return m
     else:  # a constant C (a linear connection): one look suffices
         constant = [[float(e) for e in row] for row in C.tolist()]
         f, samples = (lambda q, p: constant), 1
