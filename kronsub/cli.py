@@ -127,7 +127,9 @@ def derive(model: Path, fmt: str, output: Path | None, check: Path | None, no_ca
 @click.option("--output", "-o", "outdir", type=click.Path(file_okay=False, path_type=Path), default=Path("."),
               show_default=True, help="Directory to write the files into.")
 @click.option("--name", help="Stem of the file names (default: the model file's stem).")
-def codegen(model: Path, lang: str, outdir: Path, name: str | None):
+@click.option("--prefix", default="ks", show_default=True,
+              help="Prefix of the C functions and macros, so several models can share a program.")
+def codegen(model: Path, lang: str, outdir: Path, name: str | None, prefix: str):
     """Generate C (header + source) or a numpy module for MODEL."""
     from .emitters.code import LANGUAGES
     from .model.loader import load_model
@@ -137,7 +139,7 @@ def codegen(model: Path, lang: str, outdir: Path, name: str | None):
             _fail(f"Error: {outdir}: no such directory\n  hint: create it first, or choose another --output")
         system = load_model(model).derive()
         stem = name or model.stem
-        for generated in LANGUAGES[lang](system, stem, source=model.as_posix()):
+        for generated in LANGUAGES[lang](system, stem, source=model.as_posix(), prefix=prefix):
             write_atomically(outdir / generated.name, generated.text)
             click.echo(f"wrote {outdir / generated.name}", err=True)
 

@@ -160,3 +160,24 @@ def test_generated_code_is_byte_identical_under_different_hash_seeds(lang, tmp_p
         assert proc.returncode == 0, proc.stderr.decode()
         texts.append({p.name: p.read_bytes() for p in sorted(out.iterdir())})
     assert texts[0] == texts[1]
+
+
+@needs_cc
+def test_two_models_with_prefixes_link_into_one_program(tmp_path):
+    """--prefix keeps the names of several generated models apart."""
+    for path, prefix in (("hoffmann/system1.yaml", "sys1"), ("examples/double_pendulum.yaml", "dp")):
+        system = kronsub.load(MODELS / path).derive()
+        for generated in emit_c(system, prefix, prefix=prefix):
+            (tmp_path / generated.name).write_text(generated.text)
+    (tmp_path / "main.c").write_text(
+        '#include <stdio.h>\n#include "sys1.h"\n#include "dp.h"\n'
+        "int main(void) {\n"
+        "    double y1[SYS1_NY] = {0.5, -0.2, 0.0, 0.0}, p1[SYS1_NPARAM] = {1, 1, 0.5, 0.5, 1.0/12, 1.0/12, 9.81, 0};\n"
+        "    double y2[DP_NY] = {0.5, -0.2, 0.0, 0.0}, p2[DP_NPARAM] = {1, 1, 1, 1, 9.81};\n"
+        "    double d1[SYS1_NY], d2[DP_NY];\n"
+        "    if (sys1_rhs(0.0, y1, p1, d1) || dp_rhs(0.0, y2, p2, d2)) return 1;\n"
+        '    printf("%.17g %.17g\\n", d1[2], d2[2]);\n    return 0;\n}\n')
+    subprocess.run(["gcc", *CFLAGS, "main.c", "sys1.c", "dp.c", "-o", "main", "-lm"], cwd=tmp_path, check=True,
+                   capture_output=True, text=True)
+    out = subprocess.run([str(tmp_path / "main")], capture_output=True, text=True, check=True).stdout.split()
+    assert all(np.isfinite(float(v)) for v in out)

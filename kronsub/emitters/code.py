@@ -61,18 +61,21 @@ def _context(model: NumericModel, show, declare: str, end: str) -> dict:
             "n_points": sum(d for _, d in model.points)}
 
 
-def emit_c(system: KnownSystem, stem: str, source: str = "") -> list[GeneratedFile]:
-    """``<stem>.h`` and ``<stem>.c``: C99, libc and libm only."""
+def emit_c(system: KnownSystem, stem: str, source: str = "", prefix: str = "ks") -> list[GeneratedFile]:
+    """``<stem>.h`` and ``<stem>.c``: C99, libc and libm only; names start with ``<prefix>_``
+    (macros with ``<PREFIX>_``), so several models can live in one program."""
     model = prepare(system, source)
     printer = _CPrinter()
     ctx = _context(model, printer.doprint, "const double ", ";")
     ctx["stem"] = identifier(stem)
+    ctx["p"] = identifier(prefix)
+    ctx["P"] = identifier(prefix).upper()
     env = _environment()
     return [GeneratedFile(f"{stem}.h", env.get_template("model.h.j2").render(**ctx)),
             GeneratedFile(f"{stem}.c", env.get_template("model.c.j2").render(**ctx))]
 
 
-def emit_python(system: KnownSystem, stem: str, source: str = "") -> list[GeneratedFile]:
+def emit_python(system: KnownSystem, stem: str, source: str = "", prefix: str = "ks") -> list[GeneratedFile]:
     """``<stem>.py``: a numpy module that does not import sympy."""
     model = prepare(system, source)
     printer = _PyPrinter({"fully_qualified_modules": False})
