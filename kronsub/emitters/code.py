@@ -2,7 +2,7 @@
 
 Both compute the same functions from :mod:`.numeric`: ``Mbar``, ``hbar``,
 ``fbar``, the first-order right-hand side ``ydot = [qdot; Mbar^-1 (fbar - hbar)]``
-(in-place Cholesky: ``Mbar`` is symmetric positive definite), its canonical
+(in-place ``L D L^T``: ``Mbar`` is symmetric positive definite), its canonical
 form, the energies and the named points. No timestamps: output is byte-identical.
 """
 from __future__ import annotations
