@@ -532,6 +532,21 @@ static int fixed_steps(double t0, double t_end, double h, long *n, double *step)
 }
 
 /* After step k of n, at t: the row if k is a multiple of out_every, or the last. */
+#define KS_CONTINUE (-1)
+
+/* The common start of the fixed-step methods: y = y0, the first row, n steps of `step`.
+   Returns KS_CONTINUE, or the status to return (KS_OK when t_end == t0). */
+static int fixed_begin(ks_run *run, double *y, const double *y0, double t0, double t_end, double h,
+                       long *n, double *step)
+{
+    memcpy(y, y0, (size_t)run->dim * sizeof(double));
+    if (!all_finite(y, run->dim)) return stop(run, KS_NOT_FINITE, t0, y);
+    if (write_row(run, t0, y)) return run->res->status;
+    if (t_end == t0) return KS_OK;
+    if (fixed_steps(t0, t_end, h, n, step)) return stop(run, KS_BAD_ARGUMENT, t0, NULL);
+    return KS_CONTINUE;
+}
+
 static int fixed_row(ks_run *run, long k, long n, long out_every, double t, const double *y)
 {
     if (k == n || (out_every > 0 && k % out_every == 0)) return write_row(run, t, y);
@@ -579,11 +594,8 @@ int ks_gauss4(ks_fn f, int dim, const double *param, double t0, const double *y0
     K2 = work + 4L * dim;
     F1 = work + 5L * dim;
     F2 = work + 6L * dim;
-    memcpy(y, y0, (size_t)dim * sizeof(double));
-    if (!all_finite(y, dim)) return stop(&run, KS_NOT_FINITE, t0, y);
-    if (write_row(&run, t0, y)) return res->status;
-    if (t_end == t0) return KS_OK;
-    if (fixed_steps(t0, t_end, h, &n, &step)) return stop(&run, KS_BAD_ARGUMENT, t0, NULL);
+    status = fixed_begin(&run, y, y0, t0, t_end, h, &n, &step);
+    if (status != KS_CONTINUE) return status;
     for (i = 0; i < dim; ++i) comp[i] = 0.0;
     if (eval(&run, t0, y, K1)) return res->status;
     memcpy(K2, K1, (size_t)dim * sizeof(double));
@@ -648,11 +660,8 @@ int ks_rk4(ks_fn f, int dim, const double *param, double t0, const double *y0, d
     k2 = work + 3L * dim;
     k3 = work + 4L * dim;
     k4 = work + 5L * dim;
-    memcpy(y, y0, (size_t)dim * sizeof(double));
-    if (!all_finite(y, dim)) return stop(&run, KS_NOT_FINITE, t0, y);
-    if (write_row(&run, t0, y)) return res->status;
-    if (t_end == t0) return KS_OK;
-    if (fixed_steps(t0, t_end, h, &n, &step)) return stop(&run, KS_BAD_ARGUMENT, t0, NULL);
+    status = fixed_begin(&run, y, y0, t0, t_end, h, &n, &step);
+    if (status != KS_CONTINUE) return status;
 
     for (k = 0; k < n; ++k) {
         const double t = t0 + (double)k * step;
