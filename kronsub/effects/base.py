@@ -19,8 +19,6 @@ class Effect:
 
     name: str
 
-    conservative = False
-
     def potential(self, primitive: Primitive) -> sympy.Expr:
         """``V(x)``; zero for non-conservative effects."""
         return sympy.Integer(0)

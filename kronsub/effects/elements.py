@@ -22,8 +22,6 @@ class Spring(Effect):
     stiffness: sympy.Expr = sympy.Integer(0)
     length: sympy.Expr = sympy.Integer(0)
 
-    conservative = True
-
     def potential(self, primitive):
         d = _separation(primitive, self.ends)
         square = sympy.Add(*[c**2 for c in d])
@@ -56,8 +54,6 @@ class TorsionalSpring(Effect):
     angle: sympy.Expr = sympy.Integer(0)
     stiffness: sympy.Expr = sympy.Integer(0)
     rest: sympy.Expr = sympy.Integer(0)
-
-    conservative = True
 
     def potential(self, primitive):
         return self.stiffness * (self.angle - self.rest) ** 2 / 2

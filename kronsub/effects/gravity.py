@@ -18,8 +18,6 @@ class Gravity(Effect):
     g: sympy.Expr = sympy.Integer(0)
     parts: tuple[tuple[str, tuple[sympy.Expr, ...]], ...] = ()
 
-    conservative = True
-
     def potential(self, primitive):
         total = sympy.Integer(0)
         for name, direction in self.parts:

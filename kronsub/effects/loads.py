@@ -64,7 +64,5 @@ class Potential(Effect):
 
     value: sympy.Expr = sympy.Integer(0)
 
-    conservative = True
-
     def potential(self, primitive):
         return self.value

@@ -18,6 +18,7 @@ import numpy as np
 from ..core.known_system import KnownSystem
 from ..emitters.code import emit_c, emit_python
 from ..errors import KronsubError
+from .native import CompilerNotFound, NativeModel, compile_library
 from .values import RunValues
 
 
@@ -109,17 +110,10 @@ def simulate(system: KnownSystem, values: RunValues, t_end: float, dt: float, me
         return _run_heyoka(system, param, y0, grid, rtol)
     native = None
     try:
-        from .native import CompilerNotFound, NativeModel, compile_library
-
-        try:
-            source = {g.name: g.text for g in emit_c(system, "model")}
-            unit = source["model.c"].replace('#include "model.h"', source["model.h"])
-            library = compile_library([unit], "model")
-            native = NativeModel(library, len(system.coordinates), len(system.parameters))
-        except CompilerNotFound:
-            warnings.warn("no C compiler found: using the generated numpy module (slower)")
-    except ImportError:  # pragma: no cover - the native driver ships with kronsub
-        native = None
+        generated = [(g.name, g.text) for g in emit_c(system, "model")]
+        native = NativeModel(compile_library(generated, "model"), len(system.coordinates), len(system.parameters))
+    except CompilerNotFound:
+        warnings.warn("no C compiler found: using the generated numpy module (slower)")
     spec = METHODS[method]
     if native is None and spec.engine == "c":
         fallback = "DOP853"

@@ -52,7 +52,9 @@ def to_csv(system: KnownSystem, model_path: str, traj: Trajectory, values: RunVa
     table = np.hstack(data) if len(traj.t) else np.zeros((0, len(columns)))
     out = io.StringIO()
     out.write(f"# kronsub simulate: {system.name} ({model_path})\n")
-    out.write(f"# method {traj.method} ({traj.backend} right-hand side), rtol {rtol:g}, atol {atol:g}\n")
+    cost = ", ".join(f"{v} {k}" for k, v in traj.stats.items())
+    out.write(f"# method {traj.method} ({traj.backend} right-hand side), rtol {rtol:g}, atol {atol:g}"
+              + (f"; {cost}" if cost else "") + "\n")
     out.write("# parameters: " + ", ".join(f"{p.name}={v!r}" for p, v in zip(system.parameters, values.parameters))
               + "\n")
     out.write("# columns: t [s]; coordinates and velocities in the model's units (per s); energies in the "
