@@ -6,6 +6,7 @@ and exits with code 1; nothing here ever leaks a traceback.
 """
 from __future__ import annotations
 
+import difflib
 from dataclasses import dataclass, field
 
 
@@ -76,3 +77,11 @@ class ProblemCollector:
     def raise_if_any(self) -> None:
         if self.problems:
             raise ModelError(self.problems)
+
+
+def close_matches(name: str, options) -> str:
+    """A hint for an unknown name: the nearest valid ones, else all of them."""
+    near = difflib.get_close_matches(name, sorted(options), n=3)
+    if near:
+        return "did you mean " + ", ".join(f"'{n}'" for n in near) + "?"
+    return "valid names: " + ", ".join(sorted(options)) if options else "none are defined"

@@ -7,6 +7,7 @@ from ..effects.base import Effect
 from ..effects.elements import Damper, Spring, TorsionalDamper, TorsionalSpring
 from ..effects.gravity import Gravity
 from ..effects.loads import Force, GeneralizedForce, Potential, Torque
+from ..errors import close_matches
 from .source import Node
 
 DEFAULT_DOWN = {1: (-1,), 2: (0, -1), 3: (0, 0, -1)}
@@ -34,7 +35,6 @@ def _point(loader, node: Node, primitive, ename: str):
     name = str(node.value)
     points = primitive.points()
     if name not in points:
-        from .loader import close_matches
 
         loader.error(node, f"unknown point '{name}' in effect '{ename}'", close_matches(name, points))
         return None
@@ -48,7 +48,6 @@ def _gravity(loader, ename, spec, primitive):
     Without ``direction:`` each component falls "down" in its own world
     (-x on a line, -y in the plane, -z in space).
     """
-    from .loader import close_matches
 
     if spec.get("g") is not None:
         g = loader.expr(spec.get("g"), what="g")
@@ -132,7 +131,6 @@ def _torque(loader, ename, spec, primitive):
         return None
     names = [p.name for p in primitive.parts]
     if str(cnode.value) not in names:
-        from .loader import close_matches
 
         loader.error(cnode, f"unknown component '{cnode.value}'", close_matches(str(cnode.value), names))
         return None
@@ -202,7 +200,6 @@ def _generalized(loader, ename, spec, primitive):
         return None
     q = loader.primitive_names.get(str(cnode.value))
     if q is None:
-        from .loader import close_matches
 
         loader.error(cnode, f"'{cnode.value}' is not a primitive coordinate", close_matches(str(cnode.value), loader.primitive_names))
         return None
@@ -233,7 +230,6 @@ BUILDERS = {
 
 def build_effect(loader, ename: str, spec: Node, primitive) -> Effect | None:
     """Build one named effect from its YAML mapping (problems go to the loader)."""
-    from .loader import close_matches
 
     if not spec.is_mapping:
         loader.error(spec, f"effect '{ename}' must be a mapping", "e.g. `{type: gravity, g: g}`")

@@ -6,7 +6,6 @@ Expressions go through the whitelisted parser only.
 """
 from __future__ import annotations
 
-import difflib
 import re
 from pathlib import Path
 
@@ -16,7 +15,7 @@ from ..components import REGISTRY
 from ..core.known_system import KnownSystem, ParameterInfo
 from ..core.primitive import Part, Primitive, part_from_component
 from ..core.symbols import TIME, symbol, velocity_symbol
-from ..errors import Location, ModelError, ProblemCollector
+from ..errors import Location, ModelError, ProblemCollector, close_matches
 from .derive import content_key, derive_model, load_cached
 from .effects import build_effect
 from .expressions import parse_expression
@@ -64,13 +63,6 @@ def model_key(path: Path, stack: tuple[str, ...] = ()) -> str:
 
 def _read(path: Path) -> str:
     return path.read_text(encoding="utf-8")
-
-
-def close_matches(name: str, options) -> str:
-    near = difflib.get_close_matches(name, sorted(options), n=3)
-    if near:
-        return "did you mean " + ", ".join(f"'{n}'" for n in near) + "?"
-    return "valid names: " + ", ".join(sorted(options)) if options else "none are defined"
 
 
 class _Loader:
