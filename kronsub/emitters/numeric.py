@@ -44,6 +44,9 @@ class NumericModel:
     n_pre: int  # length of pre = [param; derived constants]
     potential: Block  # V
     positions: Block  # named points into out[]
+    energies: bool = True  # emit T and V (a scene may not ask for them)
+    with_points: bool = True  # emit the named points' positions
+
 
     @property
     def n(self) -> int:
@@ -137,8 +140,13 @@ def _block(targets: list[str], exprs: list[sympy.Expr], prefix: str, coordinates
     return Block(tuple(replacements), tuple(zip(targets, reduced)))
 
 
-def prepare(system: KnownSystem, source: str = "") -> NumericModel:
-    """Map the system's symbols to array slots and eliminate common subexpressions."""
+def prepare(system: KnownSystem, source: str = "", outputs=None) -> NumericModel:
+    """Map the system's symbols to array slots and eliminate common subexpressions.
+
+    ``outputs`` (a scene's :class:`~kronsub.model.scenes.Outputs`; None: everything) leaves
+    out the energies and the named points when they are not asked for."""
+    energies = outputs is None or outputs.energies
+    with_points = outputs is None or bool(outputs.points)
     n = len(system.coordinates)
     params = [p for p in system.parameters]
     q_slots = {q: sympy.Symbol(f"q[{i}]") for i, q in enumerate(system.coordinates)}
@@ -182,8 +190,8 @@ def prepare(system: KnownSystem, source: str = "") -> NumericModel:
     canonical = _block(r_targets, [constants(slot(e)) for e in dTdq], "x", qs)
     prepare = _block(*constants.definitions(), "c")
 
-    potential = _block(["V"], [slot(system.potential_energy)], "x", qs)
-    labels = sorted(system.points)
+    potential = _block(["V"], [slot(system.potential_energy)], "x", qs) if energies else Block((), ())
+    labels = sorted(system.points) if with_points else []
     pos_targets, pos_exprs, dims = [], [], []
     offset = 0
     for label in labels:
@@ -209,4 +217,6 @@ def prepare(system: KnownSystem, source: str = "") -> NumericModel:
         n_pre=constants.count,
         potential=potential,
         positions=positions,
+        energies=energies,
+        with_points=with_points,
     )

@@ -20,6 +20,7 @@ from .derive import content_key, derive_model, load_cached
 from .effects import build_effect
 from .expressions import parse_expression
 from .model import Model
+from .scenes import build_scenes
 from .source import Node, load_yaml
 
 TOP_LEVEL = ("name", "description", "parameters", "components", "coordinates", "connection",
@@ -135,9 +136,6 @@ class _Loader:
         if "constraints" in root.value:
             self.error(root.key_locations["constraints"], "`constraints:` (implicit g(x) = 0) is not supported yet",
                        "express the subspace in parametric form under `connection:` (eqs. 19, 26)")
-        if "scenes" in root.value:
-            self.error(root.key_locations["scenes"], "`scenes:` is not supported yet",
-                       "remove it; every effect of the model is applied")
         name = self._string(root.get("name"), self.path.stem)
         description = self._string(root.get("description"), "")
         self._parameters(root.get("parameters"))
@@ -148,6 +146,9 @@ class _Loader:
         connection = self._connection(root.get("connection"), primitive, coords)
         effects = self._effects(root.get("effects"), primitive, coords)
         initial = self._initial(root.get("initial"), coords)
+        declared = root.get("effects")
+        scenes = build_scenes(self, root.get("scenes"), list(declared.value) if declared is not None and
+                              declared.is_mapping else [], primitive, coords)
         self.problems.raise_if_any()
         return Model(
             name=name,
@@ -159,6 +160,7 @@ class _Loader:
             connection=connection,
             effects=tuple(effects),
             initial=initial,
+            scenes=scenes,
             content_hash=content_key(self.text, *self.sub_hashes) if self.text is not None else "",
             locations=self.locations,
         )
@@ -514,7 +516,7 @@ def known_system_part(name: str, system: KnownSystem, overrides: dict, renames: 
     if not sub:
         return Part(name, tuple(system.coordinates), system.mass_matrix, system.velocity_terms,
                     dict(system.points), tuple(system.bodies), system.dimension,
-                    dict(system.effect_forces), system.potential_energy, "")
+                    dict(system.effect_forces), system.potential_energy, "", dict(system.effect_potentials))
 
     def s(e):
         return sympy.sympify(e).xreplace(sub)
@@ -535,6 +537,7 @@ def known_system_part(name: str, system: KnownSystem, overrides: dict, renames: 
         forces={label: f.xreplace(sub) for label, f in system.effect_forces.items()},
         potential=s(system.potential_energy),
         type_name="",
+        potentials={label: s(v) for label, v in system.effect_potentials.items()},
     )
 
 

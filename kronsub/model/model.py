@@ -31,6 +31,7 @@ class Model:
     initial: Mapping[sympy.Symbol, sympy.Expr] = field(default_factory=dict)
     content_hash: str = ""
     locations: Mapping[str, Location] = field(default_factory=dict)
+    scenes: tuple = ()  # of :class:`~kronsub.model.scenes.Scene`, in file order
 
     def derive(self, *, cache: bool = True) -> KnownSystem:
         """The equations of motion by projection onto the subspace (9'), (E), (F)."""

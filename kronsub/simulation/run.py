@@ -65,10 +65,10 @@ class Trajectory:
     energies: tuple[np.ndarray, np.ndarray] | None = None  # (T, V) per row, when computed in C
 
 
-def _numpy_module(system: KnownSystem):
+def _numpy_module(system: KnownSystem, outputs=None):
     """The generated numpy module, loaded from its text (our own generated code)."""
     namespace: dict = {}
-    (generated,) = emit_python(system, "model")
+    (generated,) = emit_python(system, "model", outputs=outputs)
     exec(compile(generated.text, f"<kronsub model {system.name}>", "exec"), namespace)
     return namespace
 
@@ -97,8 +97,11 @@ class _Progress:
 
 
 def simulate(system: KnownSystem, values: RunValues, t_end: float, dt: float, method: str = "dop853",
-             rtol: float = 1e-10, atol: float = 1e-10, chunks: int = 20, progress: bool | None = None) -> Trajectory:
-    """Integrate from t = 0 to ``t_end`` with rows every ``dt``."""
+             rtol: float = 1e-10, atol: float = 1e-10, chunks: int = 20, progress: bool | None = None,
+             outputs=None) -> Trajectory:
+    """Integrate from t = 0 to ``t_end`` with rows every ``dt``.
+
+    ``outputs`` (a scene's; None: everything) decides whether the energies are computed."""
     if method not in METHODS:
         raise SimulationError(f"unknown method '{method}'; choose one of: {', '.join(METHODS)}")
     if not (t_end > 0 and dt > 0):
@@ -110,7 +113,7 @@ def simulate(system: KnownSystem, values: RunValues, t_end: float, dt: float, me
         return _run_heyoka(system, param, y0, grid, rtol)
     native = None
     try:
-        generated = [(g.name, g.text) for g in emit_c(system, "model")]
+        generated = [(g.name, g.text) for g in emit_c(system, "model", outputs=outputs)]
         native = NativeModel(compile_library(generated, "model"), len(system.coordinates), len(system.parameters))
     except CompilerNotFound:
         warnings.warn("no C compiler found: using the generated numpy module (slower)")
@@ -126,12 +129,12 @@ def simulate(system: KnownSystem, values: RunValues, t_end: float, dt: float, me
         if spec.engine == "c":
             traj = _run_native(native, spec.name, grid, y0, param, rtol, atol, dt, chunks, bar, system)
         else:
-            rhs = _native_rhs(native, param) if native is not None else _numpy_rhs(system, param)
+            rhs = _native_rhs(native, param) if native is not None else _numpy_rhs(system, param, outputs)
             traj = _run_scipy(rhs, spec.name, grid, y0, rtol, atol, chunks, bar, system)
     finally:
         bar.close()
     traj.backend = "C" if native is not None else "numpy"
-    if native is not None and len(traj.t):
+    if native is not None and len(traj.t) and (outputs is None or outputs.energies):
         traj.energies = native.energies(traj.t, traj.y, param)
     return traj
 
@@ -171,8 +174,8 @@ def _native_rhs(native, param):
     return f
 
 
-def _numpy_rhs(system, param):
-    module = _numpy_module(system)
+def _numpy_rhs(system, param, outputs=None):
+    module = _numpy_module(system, outputs)
     rhs = module["rhs"]
 
     def f(t, y):
