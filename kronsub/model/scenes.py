@@ -248,6 +248,6 @@ def _effect_symbols(model, label: str) -> set:
 def _symbols(value) -> set:
     if isinstance(value, (list, tuple)):
         return set().union(*(_symbols(v) for v in value)) if value else set()
-    if isinstance(value, sympy.Basic):
+    if isinstance(value, (sympy.Basic, sympy.MatrixBase)):
         return set(value.free_symbols)
     return set()
