@@ -13,6 +13,7 @@ Every product is formed in the trigonometric-polynomial algebra
 from __future__ import annotations
 
 import dataclasses
+import functools
 from typing import Mapping, Sequence
 
 import sympy
@@ -40,16 +41,24 @@ class Subspace:
         # C^a_alpha = dx^a / dxbar^alpha  (7'), (21)
         self.C = [[algebra.diff(img, j) for j in range(self.n)] for img in images]
         self.nonzero = [[j for j in range(self.n) if not row[j].is_zero()] for row in self.C]
-        # xdot^a = C^a_alpha xbardot^alpha; the substitution x -> x(xbar), xdot -> C xbardot
+        self.velocities = primitive.velocities
+        # xdot^a = C^a_alpha xbardot^alpha
         self.velocity = [_sum(self.C[a][j] * self.qdots[j] for j in self.nonzero[a]) for a in range(len(self.x))]
-        substitution = {x: connection[x] for x in self.x}
-        substitution.update({v: algebra.to_expr(vel) for v, vel in zip(primitive.velocities, self.velocity)})
-        self.substitution = {k: v for k, v in substitution.items() if k != v}  # identities would only rebuild
-        # Cdot xbardot = d(xdot)/dxbar^k xbardot^k: the convective acceleration
-        self.convective = [
-            _sum(algebra.diff(vel, k) * self.qdots[k] for k in sorted(algebra.depends_on(vel)))
-            for vel in self.velocity
-        ]
+
+    @functools.cached_property
+    def substitution(self) -> dict:
+        """x -> x(xbar), xdot -> C xbardot (identities left out: they would only rebuild)."""
+        substitution = {x: self.connection[x] for x in self.x}
+        substitution.update({v: self.algebra.to_expr(vel) for v, vel in zip(self.velocities, self.velocity)})
+        return {k: v for k, v in substitution.items() if k != v}
+
+    @functools.cached_property
+    def convective(self) -> list[TrigPoly]:
+        """``Cdot xbardot = d(xdot)/dxbar^k xbardot^k``: the convective acceleration (the
+        inertia needs it, an effect does not)."""
+        algebra = self.algebra
+        return [_sum(algebra.diff(vel, k) * self.qdots[k] for k in sorted(algebra.depends_on(vel)))
+                for vel in self.velocity]
 
     def image(self, expr: sympy.Expr) -> TrigPoly:
         """``expr(x(xbar), C xbardot)`` in the algebra."""
