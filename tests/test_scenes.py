@@ -300,3 +300,22 @@ def test_scenes_share_the_cached_inertia_and_effects(tmp_path, monkeypatch):
         assert a.mass_matrix == b.mass_matrix and a.velocity_terms == b.velocity_terms
     assert full.forces == fresh.forces and full.potential_energy == fresh.potential_energy
     assert pushed.forces == fresh.forces
+
+
+def test_editing_a_scene_keeps_the_cached_derivation(tmp_path):
+    text = SYSTEM1.read_text(encoding="utf-8")
+    a, b = tmp_path / "a.yaml", tmp_path / "b.yaml"
+    a.write_text(text, encoding="utf-8")
+    b.write_text(text.replace("parameters: {F: 2}", "parameters: {F: 3}\n    t_end: 4"), encoding="utf-8")
+    assert load_model(a).content_hash == load_model(b).content_hash
+    c = tmp_path / "c.yaml"
+    c.write_text(text.replace("vector: [F, 0]", "vector: [0, F]"), encoding="utf-8")
+    assert load_model(c).content_hash != load_model(a).content_hash
+    d = tmp_path / "d.yaml"  # scenes before another section: that section still counts
+    document = yaml.safe_load(text)
+    document = {"scenes": document.pop("scenes"), **document}
+    _write(d, document)
+    e = tmp_path / "e.yaml"
+    document["initial"] = {"theta": 0.1}
+    _write(e, document)
+    assert load_model(d).content_hash != load_model(e).content_hash

@@ -59,7 +59,19 @@ def model_key(path: Path, stack: tuple[str, ...] = ()) -> str:
                 sub_path = path.parent / mnode.value
                 if sub_path.exists():
                     subs.append(model_key(sub_path, stack + (resolved,)))
-    return content_key(text, *subs)
+    return content_key(derivation_text(root, text), *subs)
+
+
+def derivation_text(root: Node, text: str) -> str:
+    """The text a derivation depends on: the file without its ``scenes:`` section, so
+    editing a scene keeps the cached inertia and effects that every scene shares."""
+    if not root.is_mapping or "scenes" not in root.key_locations:
+        return text
+    lines = text.splitlines(keepends=True)
+    start = root.key_locations["scenes"].line
+    after = [loc.line for loc in root.key_locations.values() if loc.line > start]
+    end = min(after) if after else len(lines) + 1
+    return "".join(lines[:start - 1] + lines[end - 1:])
 
 
 def _read(path: Path) -> str:
@@ -161,7 +173,8 @@ class _Loader:
             effects=tuple(effects),
             initial=initial,
             scenes=scenes,
-            content_hash=content_key(self.text, *self.sub_hashes) if self.text is not None else "",
+            content_hash=content_key(derivation_text(self.root, self.text), *self.sub_hashes)
+            if self.text is not None else "",
             locations=self.locations,
         )
 

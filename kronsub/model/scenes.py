@@ -215,6 +215,8 @@ def derive_scene(model, scene: Scene | None, *, cache: bool = True) -> KnownSyst
     for pos in points.values():
         for c in pos:
             used |= sympy.sympify(c).free_symbols
+    for value in initial_values(model, scene).values():  # initial values may name parameters
+        used |= sympy.sympify(value).free_symbols
     parameters = tuple(
         dataclasses.replace(p, value=scene.parameters.get(p.name, p.value))
         for p in system.parameters if p.symbol in used or p.symbol not in off_symbols)
