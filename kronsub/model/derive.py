@@ -128,8 +128,9 @@ def derive_model(model, *, cache: bool = True, effects=None) -> KnownSystem:
             return hit
     labels = effect_labels(model.primitive, model.effects)
     chosen = labels if effects is None else tuple(label for label in labels if label in set(effects))
-    inertia = _load_inertia(key)
-    pieces = {label: _load(_cache_file(key, f"effect.{label}")) for label in chosen}
+    with evaluate(False):  # one switch for every read: each switch clears sympy's caches
+        inertia = _load_inertia(key)
+        pieces = {label: _load(_cache_file(key, f"effect.{label}")) for label in chosen}
     missing = {label for label, piece in pieces.items() if not isinstance(piece, ProjectedEffect)}
     if inertia is None or missing:
         sub = Subspace(model.primitive, model.coordinates, model.connection)
