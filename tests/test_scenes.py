@@ -170,6 +170,9 @@ def test_the_symbol_of_a_switched_off_force_appears_in_no_output(tmp_path):
             text = text.replace(" ".join(model.description.split()), "")
         assert "F" not in _tokens(text), fmt
         assert "push" not in _tokens(text), fmt
+    run = runner.invoke(main, ["simulate", str(SYSTEM1), "--scene", "free", "--t", "0.1", "--dt", "0.1", "--points"])
+    assert run.exit_code == 0, run.output
+    assert "F" not in _tokens(run.stdout), "the trajectory CSV"
     generated = emit_c(system, "free") + emit_python(system, "free")
     for g in generated:
         assert "F" not in _tokens(g.text), g.name
