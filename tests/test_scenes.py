@@ -19,7 +19,6 @@ import sympy
 import yaml
 from click.testing import CliRunner
 
-import kronsub
 from conftest import MODELS
 from kronsub.cli import main
 from kronsub.effects.loads import Force
