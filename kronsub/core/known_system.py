@@ -54,6 +54,7 @@ class KnownSystem:
     parameters: tuple[ParameterInfo, ...] = ()
     transition: Transition | None = None
     description: str = ""
+    implicit: object | None = None  # core.constraints.ImplicitSubspace: the named intermediates (26)-(29)
 
     @property
     def velocities(self) -> tuple[sympy.Symbol, ...]:

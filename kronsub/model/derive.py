@@ -119,19 +119,35 @@ def derive_model(model, *, cache: bool = True) -> KnownSystem:
         hit = load_cached(model.content_hash)
         if hit is not None:
             return hit
-    system = project(
-        model.primitive,
-        model.coordinates,
-        model.connection,
-        model.effects,
-        name=model.name,
-        parameters=model.parameters,
-        description=model.description,
-    )
-    check_rank(model, system.transition.transformation)
+    if model.implicit is not None:
+        system = derive_implicit(model)
+    else:
+        system = project(
+            model.primitive,
+            model.coordinates,
+            model.connection,
+            model.effects,
+            name=model.name,
+            parameters=model.parameters,
+            description=model.description,
+        )
+        check_rank(model, system.transition.transformation)
     if cache:
         store_cached(model.content_hash, system)
     return system
+
+
+def derive_implicit(model) -> KnownSystem:
+    """Two steps, the paper's resting place between (13) and its group property: the primitive
+    onto ``y`` (the explicit connection), then ``y`` onto ``g(y) = 0`` (25)-(29)."""
+    from ..core.constraints import project_implicit
+
+    spec = model.implicit
+    intermediate = project(model.primitive, spec.intermediate, model.connection, model.effects,
+                           name=model.name, parameters=model.parameters, description=model.description)
+    taken = {q.name for q in model.primitive.coordinates}
+    return project_implicit(intermediate, spec.independent, spec.dependent, spec.constraints,
+                            closed_form=spec.closed_form, branch=spec.branch, choice=spec.choice, taken=taken)
 
 
 class RankWarning(UserWarning):
