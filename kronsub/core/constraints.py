@@ -298,25 +298,39 @@ class NumericConstraints:
                                 f"{abs(r[worst]):.3g} in {self.names([worst])}", y)
 
     def redundant_rows(self, y, tol: float = 1e-9) -> list[int]:
-        """Constraints whose gradients depend on the others' (pivoted QR of ``G^T``)."""
-        import scipy.linalg
-
+        """Constraints whose gradients depend on the others' (pivoted Gram-Schmidt on ``G^T``)."""
         G = self.jacobian(y)
-        if G.size == 0:
+        if G.size == 0 or not np.all(np.isfinite(G)):
             return []
-        _, R, piv = scipy.linalg.qr(G.T, pivoting=True, mode="economic")
-        diag = np.abs(np.diag(R))
-        scale = max(diag[0], 1.0) if len(diag) else 1.0
-        rank = int(np.sum(diag > tol * scale))
-        return sorted(int(i) for i in piv[rank:])
+        order, norms = _pivoted(G.T)
+        scale = max(norms[0], 1.0) if len(norms) else 1.0
+        rank = int(np.sum(np.array(norms) > tol * scale))
+        return sorted(order[rank:])
 
-    def pivot(self, y, tol: float = 1e-9) -> list[int]:
+    def pivot(self, y) -> list[int]:
         """The ``k`` best-conditioned columns of ``G`` (pivoted QR): the dependent coordinates."""
-        import scipy.linalg
+        order, _ = _pivoted(self.jacobian(y))
+        return sorted(order[: self.k])
 
-        G = self.jacobian(y)
-        _, _, piv = scipy.linalg.qr(G, pivoting=True, mode="economic")
-        return sorted(int(i) for i in piv[: self.k])
+
+def _pivoted(A: np.ndarray):
+    """Column order of a QR factorization with column pivoting (modified Gram-Schmidt, the
+    largest remaining column first; ties to the first) and the diagonal of ``R``."""
+    A = np.array(A, dtype=float)
+    cols = list(range(A.shape[1]))
+    order, norms = [], []
+    while cols and len(order) < A.shape[0]:
+        lengths = [np.linalg.norm(A[:, j]) for j in cols]
+        best = cols[int(np.argmax(lengths))]
+        length = max(lengths)
+        order.append(best)
+        norms.append(length)
+        cols.remove(best)
+        if length > 0:
+            u = A[:, best] / length
+            for j in cols:
+                A[:, j] -= u * (u @ A[:, j])
+    return order + cols, norms + [0.0] * len(cols)
 
 
 def closed_forms(constraints, independent, dependent, branch: dict, parameters: dict):
