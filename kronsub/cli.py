@@ -98,6 +98,7 @@ def derive(model: Path, fmt: str, output: Path | None, check: Path | None, no_ca
             _fail(f"Error: {output}: the directory {output.resolve().parent} does not exist\n"
                   "  hint: create it first, or choose another --output path")
         system = load_model(model, cache=not no_cache).derive(cache=not no_cache)
+        _note_choice(system)
         text = EMITTERS[fmt](system)
         if check is not None:
             try:
@@ -144,6 +145,15 @@ def codegen(model: Path, lang: str, outdir: Path, name: str | None, prefix: str)
             click.echo(f"wrote {outdir / generated.name}", err=True)
 
     _run(job)
+
+
+def _note_choice(system) -> None:
+    """Say on stderr which coordinates `coordinates: auto` picked as independent."""
+    imp = getattr(system, "implicit", None)
+    if imp is not None and imp.choice == "auto":
+        click.echo(f"note: coordinates: auto picked {', '.join(q.name for q in imp.independent)} as independent "
+                   f"({', '.join(q.name for q in imp.dependent)} dependent; pivoted QR of dg/dy at the initial "
+                   "configuration)", err=True)
 
 
 def _writable(path: Path | None, what: str) -> None:

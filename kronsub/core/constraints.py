@@ -298,14 +298,23 @@ class NumericConstraints:
                                 f"{abs(r[worst]):.3g} in {self.names([worst])}", y)
 
     def redundant_rows(self, y, tol: float = 1e-9) -> list[int]:
-        """Constraints whose gradients depend on the others' (pivoted Gram-Schmidt on ``G^T``)."""
+        """Constraints whose gradient lies in the span of the gradients listed before them
+        (Gram-Schmidt on the rows of ``G`` in the order written)."""
         G = self.jacobian(y)
         if G.size == 0 or not np.all(np.isfinite(G)):
             return []
-        order, norms = _pivoted(G.T)
-        scale = max(norms[0], 1.0) if len(norms) else 1.0
-        rank = int(np.sum(np.array(norms) > tol * scale))
-        return sorted(order[rank:])
+        scale = max(np.max(np.abs(G)), 1.0)
+        basis, bad = [], []
+        for i, row in enumerate(G):
+            r = row.astype(float).copy()
+            for u in basis:
+                r -= u * (u @ r)
+            norm = np.linalg.norm(r)
+            if norm <= tol * scale:
+                bad.append(i)
+            else:
+                basis.append(r / norm)
+        return bad
 
     def pivot(self, y) -> list[int]:
         """The ``k`` best-conditioned columns of ``G`` (pivoted QR): the dependent coordinates."""

@@ -244,13 +244,9 @@ def analyse(loader, constraints, y, independent, auto: bool, initial: dict, wher
         return None
     y0 = np.array([float(sympy.sympify(initial.get(q, 0)).xreplace(values)) for q in y])
     free = list(range(ny)) if auto else [i for i, q in enumerate(y) if q not in independent]
-    bad = numeric.redundant_rows(y0)
     try:
         y1 = numeric.solve(y0, free)
     except ConstraintFailure as exc:
-        if bad:
-            _redundant(loader, where, numeric, bad, constraints)
-            return None
         loader.error(where, f"inconsistent constraints ({listed}): no configuration near the initial one "
                             f"satisfies them ({exc.message})",
                      "check the constraints and the initial values (`initial:`), which pick the branch")
