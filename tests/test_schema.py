@@ -73,7 +73,9 @@ def test_there_are_bundled_models():
 
 @pytest.mark.parametrize("document", [
     pytest.param(with_changes(frames={}), id="unknown top-level key"),
-    pytest.param(with_changes(constraints={"c": "x"}), id="reserved constraints"),
+    pytest.param(with_changes(constraints={"c": {"hinge": ["p.centre", [0]]}}), id="unknown joint"),
+    pytest.param(with_changes(constraints={"c": {"pin": ["p.centre"]}}), id="pin of one point"),
+    pytest.param(with_changes(coordinates="all"), id="coordinates neither a list nor auto"),
     pytest.param(with_changes(scenes={}), id="reserved scenes"),
     pytest.param({"components": MINIMAL["components"]}, id="no coordinates"),
     pytest.param({"coordinates": ["x"]}, id="no components"),
