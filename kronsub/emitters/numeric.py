@@ -44,6 +44,7 @@ class NumericModel:
     n_pre: int  # length of pre = [param; derived constants]
     potential: Block  # V
     positions: Block  # named points into out[]
+    implicit: object | None = None  # numeric_implicit.ImplicitCode: the dependent-coordinate solve
 
     @property
     def n(self) -> int:
@@ -145,6 +146,10 @@ def prepare(system: KnownSystem, source: str = "") -> NumericModel:
     qd_slots = {v: sympy.Symbol(f"qd[{i}]") for i, v in enumerate(system.velocities)}
     p_slots = {p.symbol: sympy.Symbol(f"param[{i}]") for i, p in enumerate(params)}
     slots = {**q_slots, **qd_slots, **p_slots, TIME: sympy.Symbol("t")}
+    if system.implicit is not None:  # y_d, lambda, gamma: the named intermediates in w[]
+        from .numeric_implicit import intermediate_slots
+
+        slots.update(intermediate_slots(system))
 
     def slot(expr) -> sympy.Expr:
         expr = sympy.sympify(expr)
@@ -194,6 +199,12 @@ def prepare(system: KnownSystem, source: str = "") -> NumericModel:
             pos_exprs.append(slot(c))
             offset += 1
     positions = _block(pos_targets, pos_exprs, "x", qs)
+    implicit = None
+    if system.implicit is not None:
+        from .numeric_implicit import implicit_code
+
+        implicit = implicit_code(system, slot, lambda t, e, c: _block(t, e, "x", qs))
+        canonical = _block(r_targets, [sympy.Integer(0)] * n, "x", qs)  # unused: no canonical form here
     return NumericModel(
         name=system.name,
         source=source,
@@ -209,4 +220,5 @@ def prepare(system: KnownSystem, source: str = "") -> NumericModel:
         n_pre=constants.count,
         potential=potential,
         positions=positions,
+        implicit=implicit,
     )
