@@ -203,8 +203,21 @@ def simulate(model: Path, t_end: float, dt: float, method: str, rtol: float, ato
                 _fail("Error: --plot needs matplotlib\n  hint: pip install 'kronsub[plot]'")
         loaded = load_model(model)
         system = loaded.derive()
-        values = resolve(system, dict(loaded.initial), parse_assignments(settings))
-        traj = run(system, values, t_end, dt, method, rtol, atol)
+        _note_choice(system)
+        assignments = parse_assignments(settings)
+        constrained = None
+        if system.implicit is not None:  # initial conditions onto the constraints (simulation/constrained.py)
+            from .simulation.constrained import newton_tolerance, project_initial, split_settings
+
+            assignments, dependent_settings = split_settings(system, assignments)
+            values = resolve(system, dict(loaded.initial), assignments)
+            values, notes, constrained = project_initial(system, dict(loaded.initial), dependent_settings, values,
+                                                         newton_tolerance(rtol, atol))
+            for note in notes:
+                click.echo(f"note: initial conditions projected onto the constraints: {note}", err=True)
+        else:
+            values = resolve(system, dict(loaded.initial), assignments)
+        traj = run(system, values, t_end, dt, method, rtol, atol, constrained=constrained)
         text = to_csv(system, model.as_posix(), traj, values, rtol, atol, with_points)
         if output is not None:
             write_atomically(output, text)
