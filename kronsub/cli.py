@@ -88,7 +88,9 @@ def main():
 @click.option("--check", type=click.Path(dir_okay=False, path_type=Path),
               help="Compare with FILE; exit 1 with a unified diff when they differ.")
 @click.option("--no-cache", is_flag=True, help="Derive from scratch, ignoring the known-system cache.")
-def derive(model: Path, fmt: str, output: Path | None, check: Path | None, no_cache: bool):
+@click.option("--reactions", "with_reactions", is_flag=True,
+              help="Add the workless reactions (viewpoint (alpha)) as functions of the state.")
+def derive(model: Path, fmt: str, output: Path | None, check: Path | None, no_cache: bool, with_reactions: bool):
     """Derive the equations of motion of MODEL (a YAML file)."""
     from .emitters import EMITTERS
     from .model.loader import load_model
@@ -100,6 +102,10 @@ def derive(model: Path, fmt: str, output: Path | None, check: Path | None, no_ca
         system = load_model(model, cache=not no_cache).derive(cache=not no_cache)
         _note_choice(system)
         text = EMITTERS[fmt](system)
+        if with_reactions:
+            from .emitters.reactions import with_reactions as add_reactions
+
+            text = add_reactions(text, system, fmt)
         if check is not None:
             try:
                 expected = check.read_text(encoding="utf-8")
@@ -156,6 +162,32 @@ def _note_choice(system) -> None:
                    "configuration)", err=True)
 
 
+def _reaction_csv(text: str, system, traj, values, constrained) -> str:
+    """The CSV with the reaction columns appended to the header and to every row."""
+    import io
+
+    import numpy as np
+
+    from .simulation.reactions import reaction_columns
+    from .simulation.run import _numpy_module
+
+    names, data = reaction_columns(system, traj, np.array(values.parameters), _numpy_module(system), constrained)
+    out, row = [], 0
+    header_done = False
+    for line in text.splitlines():
+        if line.startswith("#"):
+            out.append(line)
+        elif not header_done:
+            out.append(line + "," + ",".join(names))
+            header_done = True
+        else:
+            buf = io.StringIO()
+            np.savetxt(buf, data[row:row + 1], fmt="%.17g", delimiter=",")
+            out.append(line + "," + buf.getvalue().strip())
+            row += 1
+    return "\n".join(out) + "\n"
+
+
 def _writable(path: Path | None, what: str) -> None:
     """Fail before any work when an output file could not be written."""
     if path is None:
@@ -182,8 +214,11 @@ def _writable(path: Path | None, what: str) -> None:
               help="Write the CSV to FILE (atomically) instead of standard output.")
 @click.option("--points", "with_points", is_flag=True, help="Add the named points' positions to the CSV.")
 @click.option("--plot", type=click.Path(dir_okay=False, path_type=Path), help="Write a PNG of coordinates and energy.")
+@click.option("--reactions", "with_reactions", is_flag=True,
+              help="Add the workless reactions (viewpoint (alpha)) to the CSV.")
 def simulate(model: Path, t_end: float, dt: float, method: str, rtol: float, atol: float,
-             settings: tuple[str, ...], output: Path | None, with_points: bool, plot: Path | None):
+             settings: tuple[str, ...], output: Path | None, with_points: bool, plot: Path | None,
+             with_reactions: bool = False):
     """Simulate MODEL from t = 0 to --t; the trajectory is CSV."""
     from .model.loader import load_model
     from .simulation.run import METHODS
@@ -219,6 +254,8 @@ def simulate(model: Path, t_end: float, dt: float, method: str, rtol: float, ato
             values = resolve(system, dict(loaded.initial), assignments)
         traj = run(system, values, t_end, dt, method, rtol, atol, constrained=constrained)
         text = to_csv(system, model.as_posix(), traj, values, rtol, atol, with_points)
+        if with_reactions:
+            text = _reaction_csv(text, system, traj, values, constrained)
         if output is not None:
             write_atomically(output, text)
             click.echo(f"wrote {output} ({len(traj.t)} rows)", err=True)

@@ -68,6 +68,10 @@ class ImplicitSubspace:
     choice: str = "given"  # "given" (coordinates listed) or "auto" (pivoted at the initial configuration)
     definitions: tuple[tuple[sympy.Symbol, sympy.Expr], ...] = field(default=())  # printed closed forms
     intermediate: tuple[sympy.Symbol, ...] = ()  # y, in the order of the connection's C columns
+    # the system on y before the constraints (for the reactions of viewpoint (alpha))
+    metric: sympy.Matrix | None = None
+    velocity_terms: sympy.Matrix | None = None
+    forces: sympy.Matrix | None = None
 
     @property
     def intermediates(self) -> tuple[sympy.Symbol, ...]:
@@ -208,7 +212,8 @@ def project_implicit(system: KnownSystem, independent, dependent, constraints, *
         independent=independent, dependent=dependent, constraints=tuple(constraints),
         jacobian_dependent=G_d, jacobian_independent=G_i, sensitivities=lam, convective=gamma,
         quadratic=tuple(quadratic), closed_form=tuple(closed_form), branch=tuple(branch), choice=choice,
-        definitions=tuple(definitions), intermediate=y)
+        definitions=tuple(definitions), intermediate=y, metric=system.mass_matrix,
+        velocity_terms=system.velocity_terms, forces=system.forces)
     return KnownSystem(
         name=system.name,
         coordinates=independent,
