@@ -270,6 +270,9 @@ def analyse(loader, constraints, y, independent, auto: bool, initial: dict, wher
                          f"choose other independent coordinates, e.g. `coordinates: [{', '.join(better)}]`, "
                          "or `coordinates: auto`")
             return None
+    # 12 significant digits: the branch only selects the root, and its printed value stays
+    # byte-identical whatever the order of the floating-point sums
+    y1 = np.array([float(f"{v:.12g}") for v in y1])
     branch = tuple((y[i], float(y1[i])) for i in dep_idx)
     point = {q: float(v) for q, v in zip(y, y1)}
     closed = closed_forms(constraints, independent, dependent, point, values)
