@@ -25,14 +25,20 @@ def _values(system, params: dict):
     return {p.symbol: params[p.name] for p in system.parameters if p.name in params}
 
 
+_LAMBDIFIED: dict = {}
+
+
 def _numeric(system, params: dict):
     """``(Mbar, hbar, fbar, T)`` at ``(q, qdot)``, intermediates by Newton on the branch."""
     values = _values(system, params)
     ev = Intermediates(system.implicit, values) if system.implicit is not None else None
-    exprs = [system.mass_matrix, system.velocity_terms, system.forces, sympy.Matrix([system.kinetic_energy])]
     inter = list(system.implicit.intermediates) if ev else []
-    args = list(system.coordinates) + list(system.velocities) + inter
-    fn = sympy.lambdify(args, [e.xreplace(values) for e in exprs], "numpy")
+    symbols = [p.symbol for p in system.parameters]
+    if id(system) not in _LAMBDIFIED:
+        exprs = [system.mass_matrix, system.velocity_terms, system.forces, sympy.Matrix([system.kinetic_energy])]
+        args = list(system.coordinates) + list(system.velocities) + inter + symbols
+        _LAMBDIFIED[id(system)] = (system, sympy.lambdify(args, exprs, "numpy"))
+    fn = _LAMBDIFIED[id(system)][1]
     n = len(system.coordinates)
 
     def at(q, qdot, guess=None):
@@ -42,10 +48,11 @@ def _numeric(system, params: dict):
                 ev.guess = np.array(guess, dtype=float)
             w = ev.at(q, qdot)
             extra = [w[s] for s in inter]
-        M, h, f, T = fn(*q, *qdot, *extra)
+        M, h, f, T = fn(*q, *qdot, *extra, *[float(values.get(s, 0.0)) for s in symbols])
         return (np.array(M, float).reshape(n, n), np.array(h, float).reshape(n), np.array(f, float).reshape(n),
                 float(np.array(T, float).ravel()[0]))
 
+    at.evaluator = ev
     return at
 
 
@@ -121,7 +128,7 @@ def test_closed_loop_matches_kane_with_configuration_constraints(path):
         M, h, f, T = ours(q_ind, u_ind, guess=guess)
         # the same dependent coordinates on the same branch
         solved = dict(zip(reference.dependent, q[len(q_ind):]))
-        ev = Intermediates(imp, _values(system, params))
+        ev = ours.evaluator
         ev.guess = np.array(guess)
         for d, v in zip(imp.dependent, ev.dependent(q_ind)):
             assert abs(v - solved[d.name]) < 1e-9, (d, v, solved)
