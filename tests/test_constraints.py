@@ -163,3 +163,38 @@ def test_auto_picks_and_reports_the_independent_coordinate():
     from kronsub.emitters import emit_markdown
 
     assert "picked by `coordinates: auto`" in emit_markdown(system)
+
+
+JOINT_HEAD = """name: bead
+parameters: {m: 0.7, M: 1.3, L: 1.2, g: 9.81}
+components:
+  rod: {type: pinned_rod, parameters: {mass: M, length: L}, coordinates: {angle: th}}
+  bead: {type: particle2d, parameters: {mass: m}, coordinates: [bx, by]}
+coordinates: [th, bx]
+effects:
+  gravity: {type: gravity, g: g, direction: [0, -1]}
+"""
+
+
+@pytest.mark.parametrize("joint", [
+    "  s: {slider: {point: bead.centre, body: rod}}",  # the rod's own axis, through its centre
+    "  s: {slider: {point: bead.centre, body: rod, through: [0.3, 0], direction: [2, 0]}}",
+    "  s: {point_on_line: {point: bead.centre, through: rod.pivot, direction: [sin(th), -cos(th)]}}",
+])
+def test_joints_equal_the_parametric_form(tmp_path, joint):
+    """A bead on a pinned rod: `slider` (a line fixed in the body) and `point_on_line` (a moving
+    line) against the parametric connection by = -bx cot(th) of the same line."""
+    implicit_path = tmp_path / "implicit.yaml"
+    implicit_path.write_text(JOINT_HEAD + "constraints:\n" + joint + "\ninitial: {th: 0.8, bx: 0.4, by: -0.3}\n")
+    explicit_path = tmp_path / "explicit.yaml"
+    explicit_path.write_text(JOINT_HEAD + "connection:\n  by: -bx*cos(th)/sin(th)\n")
+    implicit = kronsub.load(implicit_path).derive()
+    explicit = kronsub.load(explicit_path).derive()
+    assert [d.name for d in implicit.implicit.dependent] == ["by"]
+    rng = np.random.default_rng(8)
+    params = {p.name: float(p.value) for p in implicit.parameters}
+    a_at, b_at = _numeric(explicit, params), _numeric(implicit, params)
+    for _ in range(10):
+        q, qd = [rng.uniform(0.4, 1.2), rng.uniform(0.2, 1.0)], rng.uniform(-1.5, 1.5, 2)
+        for x, y, what in zip(a_at(q, qd), b_at(q, qd, guess=[-q[1] / np.tan(q[0])]), ("M", "h", "f", "T")):
+            assert np.allclose(x, y, rtol=1e-11, atol=1e-11), (joint, what, x, y)

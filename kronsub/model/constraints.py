@@ -144,7 +144,7 @@ def _point_on_line(loader, cname, node, primitive, names):
     p = _point(loader, node.get("point"), primitive, cname, names)
     through = node.get("through")
     q = _point(loader, through, primitive, cname, names) if through is not None else None
-    d = _vector(loader, node.get("direction"), cname, "direction", names)
+    d = _vector(loader, node.get("direction") or node, cname, "direction", names)
     if through is None:
         loader.error(node, f"point_on_line '{cname}' needs `through:`", "a named point or a fixed place [x, y]")
     if p is None or q is None or d is None:

@@ -150,6 +150,7 @@ class _Loader:
         if auto and not constrained:
             self.error(coords_node, "`coordinates: auto` needs `constraints:`",
                        "list the generalized coordinates, e.g. `coordinates: [theta, phi]`")
+            self.problems.raise_if_any()  # without coordinates every later check would mislead
         coords = () if auto else self._coordinates(coords_node)
         if auto:
             self.locations["coordinates"] = coords_node.location
