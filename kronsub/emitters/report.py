@@ -21,9 +21,17 @@ def plain(expr) -> str:
     return sympy.sstr(expr, order="lex")
 
 
-def latex_printer(coordinates) -> Printer:
-    """LaTeX with velocities as dots: ``theta_dot`` -> ``\\dot{\\theta}``."""
+def latex_printer(coordinates, implicit=None) -> Printer:
+    """LaTeX with velocities as dots: ``theta_dot`` -> ``\\dot{\\theta}``; with implicit constraints
+    ``lambda_phi_theta`` -> ``\\lambda_{\\phi\\theta}`` and ``gamma_phi`` -> ``\\gamma_{\\phi}``."""
     names = {}
+    if implicit is not None:
+        for a, d in enumerate(implicit.dependent):
+            for j, q in enumerate(implicit.independent):
+                s = implicit.sensitivities[a, j]
+                names[s] = r"\lambda" if s.name == "lambda" else rf"\lambda_{{{sympy.latex(d)}{sympy.latex(q)}}}"
+            g = implicit.convective[a]
+            names[g] = r"\gamma" if g.name == "gamma" else rf"\gamma_{{{sympy.latex(d)}}}"
     for q in coordinates:
         base = sympy.latex(q)
         names[velocity_symbol(q)] = rf"\dot{{{base}}}"

@@ -24,7 +24,7 @@ def emit_markdown(system: KnownSystem) -> str:
 def emit_latex(system: KnownSystem) -> str:
     """A standalone LaTeX document of the derivation."""
     show = latex_printer(tuple(system.coordinates) + tuple(
-        system.transition.primitive_coordinates if system.transition else ()))
+        system.transition.primitive_coordinates if system.transition else ()), system.implicit)
     return _environment().get_template("derive.tex.j2").render(r=build_report(system, show))
 
 
