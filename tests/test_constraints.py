@@ -198,3 +198,30 @@ def test_joints_equal_the_parametric_form(tmp_path, joint):
         q, qd = [rng.uniform(0.4, 1.2), rng.uniform(0.2, 1.0)], rng.uniform(-1.5, 1.5, 2)
         for x, y, what in zip(a_at(q, qd), b_at(q, qd, guess=[-q[1] / np.tan(q[0])]), ("M", "h", "f", "T")):
             assert np.allclose(x, y, rtol=1e-11, atol=1e-11), (joint, what, x, y)
+
+
+def test_pivot_on_a_pivoted_rod_matches_the_rod_chain(tmp_path):
+    """pivot: on a part that itself hangs from a moving point (the connection is composed)."""
+    text = ["name: chain3", "parameters: {m1: 1.1, m2: 0.9, m3: 1.3, l1: 0.7, l2: 1.1, l3: 0.5, g: 9.81}",
+            "components:",
+            "  r1: {type: pinned_rod, parameters: {mass: m1, length: l1}, coordinates: {angle: q1}}",
+            "  r2: {type: pinned_rod, parameters: {mass: m2, length: l2}, coordinates: {angle: q2}, pivot: r1.tip}",
+            "  r3: {type: pinned_rod, parameters: {mass: m3, length: l3}, coordinates: {angle: q3}, pivot: r2.tip}",
+            "coordinates: [q1, q2, q3]",
+            "effects:", "  gravity: {type: gravity, g: g, direction: [0, -1]}"]
+    path = tmp_path / "chain3.yaml"
+    path.write_text("\n".join(text) + "\n")
+    system = kronsub.load(path).derive()
+    reference = ref.rod_chain(3)
+    exprs = [system.mass_matrix, system.velocity_terms, system.forces]
+    syms = sorted(set().union(*(e.free_symbols for e in exprs)), key=lambda s: s.name)
+    fn = sympy.lambdify(syms, exprs, "numpy")
+    rng = np.random.default_rng(9)
+    for _ in range(10):
+        values = {n: rng.uniform(0.3, 1.7) for n in ("m1", "m2", "m3", "l1", "l2", "l3", "g")}
+        values.update({f"q{i}{s}": rng.uniform(-1.5, 1.5) for i in (1, 2, 3) for s in ("", "_dot")})
+        M, h, f = (np.array(a, float) for a in fn(*[values[s.name] for s in syms]))
+        Mr, hr, fr = ref.numeric(reference, values)
+        assert np.allclose(M, Mr, rtol=1e-12, atol=1e-12)
+        assert np.allclose(h.ravel(), hr, rtol=1e-12, atol=1e-12)
+        assert np.allclose(f.ravel(), fr, rtol=1e-12, atol=1e-12)
