@@ -272,7 +272,8 @@ def analyse(loader, constraints, y, independent, auto: bool, initial: dict, wher
             return None
     # 12 significant digits: the branch only selects the root, and its printed value stays
     # byte-identical whatever the order of the floating-point sums
-    y1 = np.array([float(f"{v:.12g}") for v in y1])
+    size = 1.0 + float(np.max(np.abs(y1)))
+    y1 = np.array([0.0 if abs(v) < 1e-13 * size else float(f"{v:.12g}") for v in y1])
     branch = tuple((y[i], float(y1[i])) for i in dep_idx)
     point = {q: float(v) for q, v in zip(y, y1)}
     closed = closed_forms(constraints, independent, dependent, point, values)
