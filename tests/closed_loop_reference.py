@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import sympy
-from sympy import Symbol, cos, sin
+from sympy import Symbol
 from sympy.physics.mechanics import KanesMethod, Particle, Point, ReferenceFrame, RigidBody, dynamicsymbols, inertia
 from sympy.physics.mechanics import kinetic_energy as kinetic
 
@@ -177,4 +177,4 @@ def system2():
     return _reference(["theta"], ["phi"], [m1, m2, a1, a2, I1, I2, g, F, c], build)
 
 
-__all__ = ["four_bar", "slider_crank", "system3", "system2", "cos", "sin"]
+__all__ = ["four_bar", "slider_crank", "system3", "system2"]

@@ -18,7 +18,6 @@ import kronsub
 import mechanics_reference as ref
 from conftest import MODELS
 from kronsub.core.constraints import Intermediates
-from kronsub.core.symbols import velocity_symbol
 
 
 def _values(system, params: dict):

@@ -20,9 +20,9 @@ from __future__ import annotations
 import sympy
 
 from .known_system import KnownSystem
-from .symbols import acceleration_symbol, symbol, velocity_symbol
-from .trigpoly import TrigAlgebra
+from .symbols import acceleration_symbol, velocity_symbol
 from .simplify import compact
+from .trigpoly import TrigAlgebra
 
 SYMBOLIC_INVERSE = 3
 
@@ -102,4 +102,4 @@ def _multipliers(system: KnownSystem):
     return out
 
 
-__all__ = ["reactions", "symbol"]
+__all__ = ["reactions"]

@@ -11,8 +11,6 @@ from dataclasses import dataclass
 
 import sympy
 
-from ..core.symbols import velocity_symbol
-
 
 @dataclass(frozen=True)
 class ImplicitCode:
@@ -59,4 +57,4 @@ def implicit_code(system, slot, block) -> ImplicitCode:
                         closed_form=closed_block, residual=residual, sensitivity=sensitivity, quadratic=quadratic)
 
 
-__all__ = ["ImplicitCode", "implicit_code", "intermediate_slots", "velocity_symbol"]
+__all__ = ["ImplicitCode", "implicit_code", "intermediate_slots"]
