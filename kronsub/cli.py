@@ -112,7 +112,10 @@ def main():
               help="Compare with FILE; exit 1 with a unified diff when they differ.")
 @click.option("--no-cache", is_flag=True, help="Derive from scratch, ignoring the known-system cache.")
 @scene_option
-def derive(model: Path, fmt: str, output: Path | None, check: Path | None, no_cache: bool, scene_name: str | None):
+@click.option("--reactions", "with_reactions", is_flag=True,
+              help="Add the workless reactions (viewpoint (alpha)) as functions of the state.")
+def derive(model: Path, fmt: str, output: Path | None, check: Path | None, no_cache: bool, scene_name: str | None,
+           with_reactions: bool):
     """Derive the equations of motion of MODEL (a YAML file)."""
     from .emitters import EMITTERS
 
@@ -121,7 +124,12 @@ def derive(model: Path, fmt: str, output: Path | None, check: Path | None, no_ca
             _fail(f"Error: {output}: the directory {output.resolve().parent} does not exist\n"
                   "  hint: create it first, or choose another --output path")
         _, _, system = scene_system(model, scene_name, cache=not no_cache)
+        _note_choice(system)
         text = EMITTERS[fmt](system)
+        if with_reactions:
+            from .emitters.reactions import with_reactions as add_reactions
+
+            text = add_reactions(text, system, fmt)
         if check is not None:
             try:
                 expected = check.read_text(encoding="utf-8")
@@ -170,6 +178,41 @@ def codegen(model: Path, lang: str, outdir: Path, name: str | None, prefix: str,
     _run(job)
 
 
+def _note_choice(system) -> None:
+    """Say on stderr which coordinates `coordinates: auto` picked as independent."""
+    imp = getattr(system, "implicit", None)
+    if imp is not None and imp.choice == "auto":
+        click.echo(f"note: coordinates: auto picked {', '.join(q.name for q in imp.independent)} as independent "
+                   f"({', '.join(q.name for q in imp.dependent)} dependent; pivoted QR of dg/dy at the initial "
+                   "configuration)", err=True)
+
+
+def _reaction_csv(text: str, system, traj, values, constrained) -> str:
+    """The CSV with the reaction columns appended to the header and to every row."""
+    import io
+
+    import numpy as np
+
+    from .simulation.reactions import reaction_columns
+    from .simulation.run import _numpy_module
+
+    names, data = reaction_columns(system, traj, np.array(values.parameters), _numpy_module(system), constrained)
+    out, row = [], 0
+    header_done = False
+    for line in text.splitlines():
+        if line.startswith("#"):
+            out.append(line)
+        elif not header_done:
+            out.append(line + "," + ",".join(names))
+            header_done = True
+        else:
+            buf = io.StringIO()
+            np.savetxt(buf, data[row:row + 1], fmt="%.17g", delimiter=",")
+            out.append(line + "," + buf.getvalue().strip())
+            row += 1
+    return "\n".join(out) + "\n"
+
+
 def _writable(path: Path | None, what: str) -> None:
     """Fail before any work when an output file could not be written."""
     if path is None:
@@ -198,9 +241,11 @@ def _writable(path: Path | None, what: str) -> None:
 @click.option("--points", "with_points", is_flag=True, help="Add the named points' positions to the CSV.")
 @click.option("--plot", type=click.Path(dir_okay=False, path_type=Path), help="Write a PNG of coordinates and energy.")
 @scene_option
+@click.option("--reactions", "with_reactions", is_flag=True,
+              help="Add the workless reactions (viewpoint (alpha)) to the CSV.")
 def simulate(model: Path, t_end: float | None, dt: float | None, method: str | None, rtol: float, atol: float,
              settings: tuple[str, ...], output: Path | None, with_points: bool, plot: Path | None,
-             scene_name: str | None):
+             scene_name: str | None, with_reactions: bool = False):
     """Simulate MODEL from t = 0 to --t; the trajectory is CSV."""
     from .model.scenes import initial_values
     from .simulation.run import METHODS
@@ -219,13 +264,29 @@ def simulate(model: Path, t_end: float | None, dt: float | None, method: str | N
             except ImportError:
                 _fail("Error: --plot needs matplotlib\n  hint: pip install 'kronsub[plot]'")
         loaded, scene, system = scene_system(model, scene_name, all_points=with_points)
+        _note_choice(system)
         outputs = scene.outputs if scene is not None else None
         span = _pick(t_end, scene and scene.t_end, 10.0)
         step = _pick(dt, scene and scene.dt, 0.01)
-        values = resolve(system, initial_values(loaded, scene), parse_assignments(settings))
+        initial = initial_values(loaded, scene)
+        assignments = parse_assignments(settings)
+        constrained = None
+        if system.implicit is not None:  # initial conditions onto the constraints (simulation/constrained.py)
+            from .simulation.constrained import newton_tolerance, project_initial, split_settings
+
+            assignments, dependent_settings = split_settings(system, assignments)
+            values = resolve(system, initial, assignments)
+            values, notes, constrained = project_initial(system, initial, dependent_settings, values,
+                                                         newton_tolerance(rtol, atol))
+            for note in notes:
+                click.echo(f"note: initial conditions projected onto the constraints: {note}", err=True)
+        else:
+            values = resolve(system, initial, assignments)
         traj = run(system, values, span, step, _pick(method, scene and scene.method, "dop853"), rtol, atol,
-                   outputs=outputs)
+                   outputs=outputs, constrained=constrained)
         text = to_csv(system, model.as_posix(), traj, values, rtol, atol, with_points, outputs=outputs)
+        if with_reactions:
+            text = _reaction_csv(text, system, traj, values, constrained)
         if output is not None:
             write_atomically(output, text)
             click.echo(f"wrote {output} ({len(traj.t)} rows)", err=True)

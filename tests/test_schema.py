@@ -73,12 +73,14 @@ def test_there_are_bundled_models():
 
 @pytest.mark.parametrize("document", [
     pytest.param(with_changes(frames={}), id="unknown top-level key"),
-    pytest.param(with_changes(constraints={"c": "x"}), id="reserved constraints"),
     pytest.param(with_changes(scenes={"s": {"effects": ["g"], "without": ["f"]}}), id="scene with effects and without"),
     pytest.param(with_changes(scenes={"s": {"switch": ["g"]}}), id="unknown scene key"),
     pytest.param(with_changes(scenes={"s": {"method": "euler"}}), id="unknown scene method"),
     pytest.param(with_changes(scenes={"s": {"outputs": ["speed"]}}), id="unknown scene output"),
     pytest.param(with_changes(scenes={"t": {}}), id="reserved scene name"),
+    pytest.param(with_changes(constraints={"c": {"hinge": ["p.centre", [0]]}}), id="unknown joint"),
+    pytest.param(with_changes(constraints={"c": {"pin": ["p.centre"]}}), id="pin of one point"),
+    pytest.param(with_changes(coordinates="all"), id="coordinates neither a list nor auto"),
     pytest.param({"components": MINIMAL["components"]}, id="no coordinates"),
     pytest.param({"coordinates": ["x"]}, id="no components"),
     pytest.param(with_changes(coordinates=[]), id="empty coordinates"),

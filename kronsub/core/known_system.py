@@ -70,6 +70,7 @@ class KnownSystem:
     transition: Transition | None = None
     description: str = ""
     effect_potentials: Mapping[str, sympy.Expr] = field(default_factory=dict)  # V per effect
+    implicit: object | None = None  # core.constraints.ImplicitSubspace: the named intermediates (26)-(29)
 
     @property
     def velocities(self) -> tuple[sympy.Symbol, ...]:

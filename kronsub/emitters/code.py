@@ -57,6 +57,9 @@ def _context(model: NumericModel, show, declare: str, end: str) -> dict:
     blocks = {name: _lines(getattr(model, name), show, declare, end)
               for name in ("mass", "velocity_terms", "forces", "equations", "canonical", "prepare", "potential",
                            "positions")}
+    if model.implicit is not None:  # the dependent-coordinate solve (numeric_implicit)
+        blocks.update({f"implicit_{name}": _lines(getattr(model.implicit, name), show, declare, end)
+                       for name in ("closed_form", "residual", "sensitivity", "quadratic")})
     return {"m": model, "b": blocks, "version": __version__,
             "n_points": sum(d for _, d in model.points)}
 

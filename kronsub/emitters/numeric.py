@@ -47,6 +47,7 @@ class NumericModel:
     energies: bool = True  # emit T and V (a scene may not ask for them)
     with_points: bool = True  # emit the named points' positions
 
+    implicit: object | None = None  # numeric_implicit.ImplicitCode: the dependent-coordinate solve
 
     @property
     def n(self) -> int:
@@ -153,6 +154,10 @@ def prepare(system: KnownSystem, source: str = "", outputs=None) -> NumericModel
     qd_slots = {v: sympy.Symbol(f"qd[{i}]") for i, v in enumerate(system.velocities)}
     p_slots = {p.symbol: sympy.Symbol(f"param[{i}]") for i, p in enumerate(params)}
     slots = {**q_slots, **qd_slots, **p_slots, TIME: sympy.Symbol("t")}
+    if system.implicit is not None:  # y_d, lambda, gamma: the named intermediates in w[]
+        from .numeric_implicit import intermediate_slots
+
+        slots.update(intermediate_slots(system))
 
     def slot(expr) -> sympy.Expr:
         expr = sympy.sympify(expr)
@@ -202,6 +207,12 @@ def prepare(system: KnownSystem, source: str = "", outputs=None) -> NumericModel
             pos_exprs.append(slot(c))
             offset += 1
     positions = _block(pos_targets, pos_exprs, "x", qs)
+    implicit = None
+    if system.implicit is not None:
+        from .numeric_implicit import implicit_code
+
+        implicit = implicit_code(system, slot, lambda t, e, c: _block(t, e, "x", qs))
+        canonical = _block(r_targets, [sympy.Integer(0)] * n, "x", qs)  # unused: no canonical form here
     return NumericModel(
         name=system.name,
         source=source,
@@ -219,4 +230,5 @@ def prepare(system: KnownSystem, source: str = "", outputs=None) -> NumericModel
         positions=positions,
         energies=energies,
         with_points=with_points,
+        implicit=implicit,
     )

@@ -126,6 +126,9 @@ def derive_model(model, *, cache: bool = True, effects=None) -> KnownSystem:
         hit = load_cached(key)
         if hit is not None:
             return hit
+    implicit = model.implicit
+    # with implicit constraints, the explicit step goes to the intermediate coordinates y first
+    coordinates = implicit.intermediate if implicit is not None else model.coordinates
     labels = effect_labels(model.primitive, model.effects)
     chosen = labels if effects is None else tuple(label for label in labels if label in set(effects))
     with evaluate(False):  # one switch for every read: each switch clears sympy's caches
@@ -133,20 +136,35 @@ def derive_model(model, *, cache: bool = True, effects=None) -> KnownSystem:
         pieces = {label: _load(_cache_file(key, f"effect.{label}")) for label in chosen}
     missing = {label for label, piece in pieces.items() if not isinstance(piece, ProjectedEffect)}
     if inertia is None or missing:
-        sub = Subspace(model.primitive, model.coordinates, model.connection)
+        sub = Subspace(model.primitive, coordinates, model.connection)
         if inertia is None:
             inertia = project_inertia(sub, model.primitive, name=model.name, parameters=model.parameters,
                                       description=model.description)
-            check_rank(model, inertia.transition.transformation)
+            if implicit is None:
+                check_rank(model, inertia.transition.transformation)
             _store_parts(key, {"inertia": dataclasses.replace(inertia, transition=None),
                                "inertia-transition": inertia.transition})
         for piece in project_effects(sub, model.primitive, model.effects, only=missing):
             pieces[piece.label] = piece
             _store_parts(key, {f"effect.{piece.label}": piece})
     system = assemble(inertia, [pieces[label] for label in chosen])
+    if implicit is not None:
+        system = derive_implicit(model, system)
     if key and effects is None:
         store_cached(key, system)
     return system
+
+
+def derive_implicit(model, intermediate: KnownSystem) -> KnownSystem:
+    """The second of two steps, the paper's resting place between (13) and its group property:
+    the primitive onto ``y`` (the explicit connection, ``intermediate``), then ``y`` onto
+    ``g(y) = 0`` (25)-(29)."""
+    from ..core.constraints import project_implicit
+
+    spec = model.implicit
+    taken = {q.name for q in model.primitive.coordinates}
+    return project_implicit(intermediate, spec.independent, spec.dependent, spec.constraints,
+                            closed_form=spec.closed_form, branch=spec.branch, choice=spec.choice, taken=taken)
 
 
 def _load_inertia(key: str) -> KnownSystem | None:

@@ -54,6 +54,9 @@ def to_csv(system: KnownSystem, model_path: str, traj: Trajectory, values: RunVa
         T, V = energies(system, traj, param, outputs)
         columns += ["kinetic_energy", "potential_energy", "total_energy"]
         data += [T.reshape(-1, 1), V.reshape(-1, 1), (T + V).reshape(-1, 1)]
+    if traj.dependent is not None and system.implicit is not None:  # implicit constraints
+        columns += [d.name for d in system.implicit.dependent]
+        data.append(traj.dependent)
     with_points = with_points if outputs is None else bool(outputs.points)
     if with_points:
         names, pts = point_columns(system, traj, param, outputs)
@@ -65,6 +68,10 @@ def to_csv(system: KnownSystem, model_path: str, traj: Trajectory, values: RunVa
     cost = ", ".join(f"{v} {k}" for k, v in traj.stats.items())
     out.write(f"# method {traj.method} ({traj.backend} right-hand side), rtol {rtol:g}, atol {atol:g}"
               + (f"; {cost}" if cost else "") + "\n")
+    if system.implicit is not None:
+        out.write("# dependent coordinates " + ", ".join(d.name for d in system.implicit.dependent)
+                  + " from the constraints " + ", ".join(c.name for c in system.implicit.constraints)
+                  + " (Newton's method on the branch of the initial configuration)\n")
     out.write("# parameters: " + ", ".join(f"{p.name}={v!r}" for p, v in zip(system.parameters, values.parameters))
               + "\n")
     out.write("# columns: t [s]; coordinates and velocities in the model's units (per s); energies in the "
