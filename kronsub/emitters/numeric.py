@@ -9,6 +9,7 @@ Common subexpressions are eliminated per function, deterministically.
 """
 from __future__ import annotations
 
+import math
 import re
 from dataclasses import dataclass
 
@@ -61,10 +62,11 @@ def identifier(text: str) -> str:
 
 
 def _default(value) -> str:
-    """A parameter's default as a decimal literal ("" when it has none)."""
+    """A parameter's default as a decimal literal ("" when it has none or it is not finite)."""
     if value is None or not sympy.sympify(value).is_number:
         return ""
-    return repr(float(value))
+    number = float(value)
+    return repr(number) if math.isfinite(number) else ""
 
 
 def _single_angles(exprs: list[sympy.Expr], coordinates) -> list[sympy.Expr]:
