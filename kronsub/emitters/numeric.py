@@ -147,6 +147,13 @@ def prepare(system: KnownSystem, source: str = "") -> NumericModel:
     qd_slots = {v: sympy.Symbol(f"qd[{i}]") for i, v in enumerate(system.velocities)}
     p_slots = {p.symbol: sympy.Symbol(f"param[{i}]") for i, p in enumerate(params)}
     slots = {**q_slots, **qd_slots, **p_slots, TIME: sympy.Symbol("t")}
+    if len(slots) != len(q_slots) + len(qd_slots) + len(p_slots) + 1:
+        from ..errors import KronsubError
+
+        shared = sorted(s.name for s in set(q_slots) & set(qd_slots) | set(p_slots) & (set(q_slots) | set(qd_slots))
+                        | {TIME} & (set(q_slots) | set(qd_slots) | set(p_slots)))
+        raise KronsubError(f"cannot generate code: {', '.join(shared)} would be two things at once (a parameter, "
+                           "a coordinate, a velocity or t); rename the model's name")
 
     def slot(expr) -> sympy.Expr:
         expr = sympy.sympify(expr)
