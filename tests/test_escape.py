@@ -14,11 +14,9 @@ import ast
 import ctypes
 import importlib.util
 import json
-import os
 import re
 import shutil
 import subprocess
-import sys
 from pathlib import Path
 
 import jinja2
@@ -305,13 +303,19 @@ def test_hostile_text_changes_no_generated_code(key, tmp_path, benign):
     assert not canary.exists()
 
 
-def _cli(args, cwd: Path, **env):
-    return subprocess.run([sys.executable, "-m", "kronsub", *args], cwd=cwd, capture_output=True, text=True,
-                          env={**os.environ, **env}, timeout=600)
+def _cli(args, cwd: Path, monkeypatch, **env):
+    """The command line, in this process (a payload that ran would create the canary all the same)."""
+    monkeypatch.chdir(cwd)
+    for key, value in env.items():
+        monkeypatch.setenv(key, value)
+    result = CliRunner().invoke(main, args)
+    for key in env:
+        monkeypatch.delenv(key)
+    return result
 
 
 @pytest.mark.parametrize("payload", ["c", "python"])
-def test_the_issue_attacks_run_nothing(payload, tmp_path):
+def test_the_issue_attacks_run_nothing(payload, tmp_path, monkeypatch):
     """The reproducers of issue 6: `*/` or `\"\"\"` in the name and the unit, then codegen,
     simulate (compiled, and on the no-compiler fallback with --points) and import."""
     canary = tmp_path / "canary"
@@ -329,26 +333,25 @@ def test_the_issue_attacks_run_nothing(payload, tmp_path):
     spec = importlib.util.spec_from_file_location(f"attack_{payload}", out / "model.py")
     spec.loader.exec_module(importlib.util.module_from_spec(spec))
     for env in ({}, {"CC": "kronsub-no-such-compiler"}):
-        proc = _cli(["simulate", str(path), "--t", "0.05", "--points"], tmp_path,
-                    KRONSUB_CACHE_DIR=str(tmp_path / "cache"), **env)
-        assert proc.returncode == 0, proc.stderr
-        assert "Traceback" not in proc.stderr
+        result = _cli(["simulate", str(path), "--t", "0.05", "--points"], tmp_path, monkeypatch,
+                      KRONSUB_CACHE_DIR=str(tmp_path / "cache"), **env)
+        assert result.exit_code == 0, result.output
+        assert "Traceback" not in result.output
     assert not canary.exists()
 
 
 @pytest.mark.parametrize("filename", ['x"""; open("canary", "w").write("x"); """.yaml',
                                       "X*/\n#include <stdio.h>\n__attribute__((constructor)) static void c(void) "
                                       '{ FILE *f = fopen("canary", "w"); if (f) fclose(f); }\n/*y.yaml'])
-def test_a_hostile_file_name_runs_nothing(filename, tmp_path):
+def test_a_hostile_file_name_runs_nothing(filename, tmp_path, monkeypatch):
     """The model's path goes into the generated code's comments and docstring."""
     parts = filename.split("/")
     folder = tmp_path.joinpath(*parts[:-1])
     path = _write_models(folder, "pendulum", parts[-1])
     relative = path.relative_to(tmp_path)
     for lang in ("c", "python"):
-        proc = _cli(["codegen", str(relative), "--lang", lang, "--output", "."], tmp_path,
-                    KRONSUB_CACHE_DIR=str(tmp_path / "cache"))
-        assert proc.returncode == 0, proc.stderr
+        result = _cli(["codegen", str(relative), "--lang", lang, "--output", "."], tmp_path, monkeypatch)
+        assert result.exit_code == 0, result.output
     stem = file_stem(Path(relative).stem)
     assert (tmp_path / f"{stem}.c").is_file() and (tmp_path / f"{stem}.py").is_file()
     assert f'#include "{stem}.h"' in (tmp_path / f"{stem}.c").read_text()
@@ -356,5 +359,6 @@ def test_a_hostile_file_name_runs_nothing(filename, tmp_path):
         subprocess.run(["gcc", *CFLAGS, "-fPIC", "-shared", f"{stem}.c", "-o", "lib.so", "-lm"], cwd=tmp_path,
                        check=True, capture_output=True)
         ctypes.CDLL(str(tmp_path / "lib.so"))
-    subprocess.run([sys.executable, f"{stem}.py"], cwd=tmp_path, check=True, capture_output=True)
+    spec = importlib.util.spec_from_file_location("hostile_file_name", tmp_path / f"{stem}.py")
+    spec.loader.exec_module(importlib.util.module_from_spec(spec))
     assert not (tmp_path / "canary").exists()
