@@ -164,6 +164,8 @@ def prepare(system: KnownSystem, source: str = "") -> NumericModel:
             names = ", ".join(sorted(s.name for s in unknown))
             raise KronsubError(f"cannot generate code: {names} is neither a parameter, a coordinate, "
                                "a velocity nor t")
+        if expr.has(sympy.DiracDelta):  # d sign(x)/dx: zero wherever the derivative exists
+            expr = expr.replace(sympy.DiracDelta, lambda *args: sympy.Integer(0))
         return expr.xreplace(slots)
 
     M = system.mass_matrix
