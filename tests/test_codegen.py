@@ -17,7 +17,8 @@ from kronsub.cli import main
 from kronsub.emitters.code import emit_c, emit_python
 
 # every bundled model and every test model, relative to the repository
-ALL_MODELS = sorted(str(p.relative_to(ROOT)) for p in [*MODELS.rglob("*.yaml"), *(ROOT / "tests" / "models").glob("*.yaml")])
+ALL_MODELS = sorted(str(p.relative_to(ROOT))
+                    for p in [*MODELS.rglob("*.yaml"), *(ROOT / "tests" / "models").glob("*.yaml")])
 CFLAGS = ["-std=c99", "-Wall", "-Wextra", "-Werror", "-O2"]
 needs_cc = pytest.mark.skipif(shutil.which("gcc") is None, reason="no C compiler")
 DOUBLE_P = ctypes.POINTER(ctypes.c_double)

@@ -65,7 +65,8 @@ def test_c_string_is_read_back_by_the_compiler(tmp_path):
     texts = [t for t in every("canary") if "\ud800" not in t]
     body = "".join(f'static const char s{i}[] = "{c_string(t)}";\n' for i, t in enumerate(texts))
     calls = "".join(f"    fwrite(s{i}, 1, sizeof s{i} - 1, stdout); putchar(0xff);\n" for i in range(len(texts)))
-    (tmp_path / "main.c").write_text("#include <stdio.h>\n" + body + "int main(void)\n{\n" + calls + "    return 0;\n}\n")
+    (tmp_path / "main.c").write_text("#include <stdio.h>\n" + body + "int main(void)\n{\n" + calls
+                                     + "    return 0;\n}\n")
     subprocess.run(["gcc", *CFLAGS, "main.c", "-o", "main"], cwd=tmp_path, check=True, capture_output=True)
     out = subprocess.run([str(tmp_path / "main")], capture_output=True, check=True).stdout
     assert out.split(b"\xff")[:-1] == [t.encode() for t in texts]
