@@ -124,3 +124,19 @@ def test_a_name_must_be_a_whole_identifier(tmp_path, where):
     text = "\n".join(where if line.startswith(key + ":") else line for line in text.splitlines()) + "\n"
     problems = _problems(tmp_path, text)
     assert any("is not a valid name" in p for p in problems), problems
+
+
+def test_codegen_refuses_a_system_built_past_the_loader():
+    """A known system made in Python with a parameter ``q_dot`` beside ``q``: no code, an error."""
+    import sympy
+
+    from kronsub.core.known_system import KnownSystem, ParameterInfo
+    from kronsub.core.symbols import symbol
+    from kronsub.emitters.code import emit_c
+    from kronsub.errors import KronsubError
+
+    q, c = symbol("q"), symbol("q_dot")
+    system = KnownSystem("damped", (q,), sympy.Matrix([[1]]), sympy.Matrix([0]), {"drag": sympy.Matrix([-c])},
+                         parameters=(ParameterInfo("q_dot", c),))
+    with pytest.raises(KronsubError, match="q_dot"):
+        emit_c(system, "m")
