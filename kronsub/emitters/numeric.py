@@ -9,6 +9,7 @@ Common subexpressions are eliminated per function, deterministically.
 """
 from __future__ import annotations
 
+import math
 import re
 from dataclasses import dataclass
 
@@ -65,10 +66,11 @@ def identifier(text: str) -> str:
 
 
 def _default(value) -> str:
-    """A parameter's default as a decimal literal ("" when it has none)."""
+    """A parameter's default as a decimal literal ("" when it has none or it is not finite)."""
     if value is None or not sympy.sympify(value).is_number:
         return ""
-    return repr(float(value))
+    number = float(value)
+    return repr(number) if math.isfinite(number) else ""
 
 
 def _single_angles(exprs: list[sympy.Expr], coordinates) -> list[sympy.Expr]:
@@ -154,6 +156,13 @@ def prepare(system: KnownSystem, source: str = "", outputs=None) -> NumericModel
     qd_slots = {v: sympy.Symbol(f"qd[{i}]") for i, v in enumerate(system.velocities)}
     p_slots = {p.symbol: sympy.Symbol(f"param[{i}]") for i, p in enumerate(params)}
     slots = {**q_slots, **qd_slots, **p_slots, TIME: sympy.Symbol("t")}
+    if len(slots) != len(q_slots) + len(qd_slots) + len(p_slots) + 1:
+        from ..errors import KronsubError
+
+        shared = sorted(s.name for s in set(q_slots) & set(qd_slots) | set(p_slots) & (set(q_slots) | set(qd_slots))
+                        | {TIME} & (set(q_slots) | set(qd_slots) | set(p_slots)))
+        raise KronsubError(f"cannot generate code: {', '.join(shared)} would be two things at once (a parameter, "
+                           "a coordinate, a velocity or t); rename the model's name")
     if system.implicit is not None:  # y_d, lambda, gamma: the named intermediates in w[]
         from .numeric_implicit import intermediate_slots
 
@@ -168,6 +177,8 @@ def prepare(system: KnownSystem, source: str = "", outputs=None) -> NumericModel
             names = ", ".join(sorted(s.name for s in unknown))
             raise KronsubError(f"cannot generate code: {names} is neither a parameter, a coordinate, "
                                "a velocity nor t")
+        if expr.has(sympy.DiracDelta):  # d sign(x)/dx: zero wherever the derivative exists
+            expr = expr.replace(sympy.DiracDelta, lambda *args: sympy.Integer(0))
         return expr.xreplace(slots)
 
     M = system.mass_matrix

@@ -9,6 +9,7 @@ from __future__ import annotations
 from typing import Callable
 
 import sympy
+from markupsafe import Markup
 
 from ..core.known_system import KnownSystem
 from ..core.symbols import acceleration_symbol, velocity_symbol
@@ -103,17 +104,17 @@ def implicit_report(imp, show: Printer) -> dict:
     for d in imp.dependent:
         deps.append({"name": show(d), "plain": d.name,
                      "closed_form": show(closed[d]) if d in closed else "",
-                     "branch": repr(branch[d]) if d in branch else ""})
+                     "branch": Markup(repr(branch[d])) if d in branch else ""})
     lams = []
     for a, d in enumerate(imp.dependent):
         for j, q in enumerate(imp.independent):
             s = imp.sensitivities[a, j]
-            lams.append({"name": show(s), "plain": s.name, "of": d.name, "by": q.name,
+            lams.append({"name": show(s), "plain": s.name, "of": Markup(d.name), "by": Markup(q.name),
                          "definition": show(defined[s]) if s in defined else ""})
     gammas = []
     for a, d in enumerate(imp.dependent):
         s = imp.convective[a]
-        gammas.append({"name": show(s), "plain": s.name, "of": d.name,
+        gammas.append({"name": show(s), "plain": s.name, "of": Markup(d.name),
                        "definition": show(defined[s]) if s in defined else "",
                        "quadratic": show(imp.quadratic[a])})
     return {
@@ -121,7 +122,8 @@ def implicit_report(imp, show: Printer) -> dict:
         "independent": [show(q) for q in imp.independent],
         "independent_names": [q.name for q in imp.independent],
         "dependent": deps,
-        "constraints": [{"name": c.name, "expression": show(c.expression), "source": c.source}
+        # names are validated identifiers; the source is free text, escaped by each template
+        "constraints": [{"name": Markup(c.name), "expression": show(c.expression), "source": c.source}
                         for c in imp.constraints],
         "jacobian_dependent": matrix_rows(imp.jacobian_dependent, show),
         "jacobian_independent": matrix_rows(imp.jacobian_independent, show),

@@ -7,25 +7,31 @@ from importlib import resources
 import jinja2
 
 from ..core.known_system import KnownSystem
+from .escape import Markup, environment
 from .report import build_report, latex_printer, plain
 
 
 def _environment() -> jinja2.Environment:
+    """The templates' environment: free text reaches them only through an escaping filter."""
     loader = jinja2.FunctionLoader(lambda name: resources.files("kronsub.templates").joinpath(name).read_text("utf-8"))
-    return jinja2.Environment(loader=loader, autoescape=False, keep_trailing_newline=True,
-                              trim_blocks=True, lstrip_blocks=True, undefined=jinja2.StrictUndefined)
+    return environment(loader)
+
+
+def _trusted(show):
+    """Expressions printed by sympy (of validated names) are output as they are."""
+    return lambda expr: Markup(show(expr))
 
 
 def emit_markdown(system: KnownSystem) -> str:
     """Markdown: the derivation step by step, expressions in sympy's ``str`` form."""
-    return _environment().get_template("derive.md.j2").render(r=build_report(system, plain))
+    return _environment().get_template("derive.md.j2").render(r=build_report(system, _trusted(plain)))
 
 
 def emit_latex(system: KnownSystem) -> str:
     """A standalone LaTeX document of the derivation."""
     show = latex_printer(tuple(system.coordinates) + tuple(
         system.transition.primitive_coordinates if system.transition else ()), system.implicit)
-    return _environment().get_template("derive.tex.j2").render(r=build_report(system, show))
+    return _environment().get_template("derive.tex.j2").render(r=build_report(system, _trusted(show)))
 
 
 def emit_json(system: KnownSystem) -> str:

@@ -24,11 +24,12 @@ from .model import Model
 from .scenes import build_scenes
 from .constraints import analyse, read_constraints
 from .model import ImplicitSpec, Model
+from .names import Declared, generated_name_clashes
 from .source import Node, load_yaml
 
 TOP_LEVEL = ("name", "description", "parameters", "components", "coordinates", "connection",
              "constraints", "effects", "initial", "scenes")
-IDENTIFIER = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
+IDENTIFIER = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")  # whole names only: fullmatch
 RESERVED = {"t", "pi"}
 
 
@@ -133,8 +134,8 @@ class _Loader:
                            close_matches(key, allowed))
 
     def identifier(self, name: str, loc: Location, what: str) -> bool:
-        if not IDENTIFIER.match(name):
-            self.error(loc, f"{what} name '{name}' is not a valid name",
+        if not IDENTIFIER.fullmatch(name):
+            self.error(loc, f"{what} name {name!r} is not a valid name",
                        "use letters, digits and underscores, starting with a letter")
             return False
         if name in RESERVED:
@@ -172,10 +173,10 @@ class _Loader:
         if constrained:
             constraints = read_constraints(self, cnode, primitive)
             y = self._intermediate(root.get("connection"), primitive, coords)
-            connection = self._connection(root.get("connection"), primitive, y)
         else:
             y = coords
-            connection = self._connection(root.get("connection"), primitive, coords)
+        self._generated_names(y, primitive)
+        connection = self._connection(root.get("connection"), primitive, y)
         effects = self._effects(root.get("effects"), primitive, coords)
         initial = self._initial(root.get("initial"), y)
         declared = root.get("effects")
@@ -226,9 +227,11 @@ class _Loader:
             value = None
             if value_node is not None and value_node.value is not None:
                 value = self.expr(value_node, {}, what=f"value of parameter '{pname}'")
-            self.add_parameter(ParameterInfo(pname, symbol(pname), value, unit, description))
+            self.add_parameter(ParameterInfo(pname, symbol(pname), value, unit, description), location=loc)
 
-    def add_parameter(self, info: ParameterInfo, *, inherited: bool = False) -> None:
+    def add_parameter(self, info: ParameterInfo, *, inherited: bool = False, location: Location | None = None) -> None:
+        if location is not None and (not inherited or f"parameter:{info.name}" not in self.locations):
+            self.locations[f"parameter:{info.name}"] = location
         if info.name in self.parameters:
             if not inherited:
                 self.parameters[info.name] = info
@@ -402,7 +405,7 @@ class _Loader:
         overrides = self._component_parameters(cname, spec.get("parameters"), allowed)
         for info in system.parameters:
             if info.name not in overrides:
-                self.add_parameter(info, inherited=True)
+                self.add_parameter(info, inherited=True, location=spec.location)
         local = tuple(q.name for q in system.coordinates)
         names = self._coordinate_names(cname, spec.get("coordinates"), local, "{}")
         origin = self._origin(cname, spec.get("origin"), system.dimension)
@@ -447,6 +450,7 @@ class _Loader:
                 self.error(item, f"coordinate '{name}' is listed twice", "list each coordinate once")
                 continue
             coords.append(symbol(name))
+            self.locations[f"coordinate:{name}"] = item.location
         for q in coords:
             self.names[q.name] = q
             self.names[velocity_symbol(q).name] = velocity_symbol(q)
@@ -478,6 +482,17 @@ class _Loader:
         for key, q in self.primitive_names.items():
             self.names[key] = q
             self.names[f"{key}_dot"] = velocity_symbol(q)
+
+    def _generated_names(self, coords, primitive: Primitive) -> None:
+        """No model name may be the velocity or acceleration name of a coordinate (names.py)."""
+        coordinates = [Declared(q.name, "coordinate", self.locations.get(f"coordinate:{q.name}")) for q in coords]
+        for part in primitive.parts:
+            where = self.locations.get(f"component:{part.name}")
+            coordinates += [Declared(q.name, "coordinate", where, f"component '{part.name}'")
+                            for q in part.coordinates if q not in coords]
+        parameters = [Declared(name, "parameter", self.locations.get(f"parameter:{name}")) for name in self.parameters]
+        for problem in generated_name_clashes(parameters + coordinates, coordinates):
+            self.problems.add(problem.location, problem.message, problem.hint)
 
     def _local_names(self, part: Part) -> tuple[str, ...]:
         cls = REGISTRY.get(part.type_name)

@@ -1,10 +1,11 @@
 """Integrating the equations of motion: the method table and the run driver.
 
 The right-hand side ``ydot = [qdot; Mbar^-1 (fbar - hbar)]`` is the generated
-C, compiled once and cached by content hash; without a C compiler the
-generated numpy module stands in (with a one-line warning). A run is split
-into chunks so long runs can show progress; a non-finite state or a mass
-matrix that is not positive definite stops it, keeping the rows so far.
+C, compiled once and cached by content hash; without a C compiler, or when
+the compilation fails, the generated numpy module stands in (with a one-line
+warning). A run is split into chunks so long runs can show progress; a
+non-finite state or a mass matrix that is not positive definite stops it,
+keeping the rows so far.
 """
 from __future__ import annotations
 
@@ -18,7 +19,7 @@ import numpy as np
 from ..core.known_system import KnownSystem
 from ..emitters.code import emit_c, emit_python
 from ..errors import KronsubError
-from .native import CompilerNotFound, NativeModel, compile_library
+from .native import CompileError, CompilerNotFound, NativeModel, compile_library
 from .values import RunValues
 
 
@@ -129,6 +130,9 @@ def simulate(system: KnownSystem, values: RunValues, t_end: float, dt: float, me
         native = NativeModel(compile_library(generated, "model"), len(system.coordinates), len(system.parameters))
     except CompilerNotFound:
         warnings.warn("no C compiler found: using the generated numpy module (slower)")
+    except CompileError as exc:
+        first = next((line for line in exc.stderr.splitlines() if "error" in line), "") or str(exc).splitlines()[0]
+        warnings.warn(f"compiling the generated C failed ({first.strip()}): using the generated numpy module (slower)")
     if constrained is not None and native is not None:
         from .constrained import configure_native
 

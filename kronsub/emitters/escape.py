@@ -1,0 +1,200 @@
+"""Free text of a model made inert in generated code: one escaping function per target.
+
+A model's name, description, parameter units and descriptions, labels and file path are
+data. They reach generated C, Python, LaTeX and Markdown only through these functions:
+
+- :func:`c_comment`: text inside a ``/* ... */`` comment;
+- :func:`c_string`: the body of a C string literal ``"..."``;
+- :func:`python_string`: the body of a Python ``"..."`` literal or ``\"\"\"...\"\"\"`` docstring;
+- :func:`latex_text`: LaTeX text mode (``\\title{}``, paragraphs, ``\\texttt{}``);
+- :func:`markdown_text`: Markdown inline text (headings, paragraphs, table cells).
+
+Templates call them as filters (``c_comment``, ``c_string``, ``py_str``, ``latex``, ``md``).
+:func:`environment` makes forgetting one an error rather than a hole: with it, every
+``{{ ... }}`` must print a number or :class:`~markupsafe.Markup` (the mark of text already
+made safe for its target: the filters' output, or code the emitters generated themselves);
+any other string stops the rendering with :class:`UnescapedText`. The filters that would mark
+text safe without escaping it for the target (``safe``, ``tojson``, ``replace``, ``format``,
+``map``...) are not available; ``join`` joins only safe parts.
+"""
+from __future__ import annotations
+
+import re
+import unicodedata
+from typing import Callable
+
+import jinja2
+from markupsafe import Markup
+
+__all__ = ["c_comment", "c_string", "python_string", "latex_text", "markdown_text", "environment",
+           "UnescapedText", "Markup"]
+
+_NAMED = {"\n": "\\n", "\r": "\\r", "\t": "\\t", "\0": "\\0"}
+
+
+def _visible(ch: str) -> bool:
+    """Printable and not a line or paragraph separator (U+2028, U+2029) or a format character."""
+    return ch.isprintable() and unicodedata.category(ch) not in ("Zl", "Zp", "Cf")
+
+
+def _codepoint(ch: str) -> str:
+    code = ord(ch)
+    return f"\\x{code:02x}" if code < 0x100 else f"\\u{code:04x}" if code < 0x10000 else f"\\U{code:08x}"
+
+
+def c_comment(text: str) -> str:
+    """Text for a C block comment: printable ASCII only, on one line, that cannot end the comment.
+
+    Control and non-ASCII characters are shown as escapes (``\\n``, ``\\u2028``); ``*/`` and
+    ``/*`` get a space between their characters (so the comment neither ends nor nests:
+    ``-Wcomment``), and so does ``??`` (no trigraph such as ``??/``, a backslash, can form).
+    """
+    out = []
+    for ch in str(text):
+        if " " <= ch <= "~":
+            out.append(ch)
+        else:
+            out.append(_NAMED.get(ch) or _codepoint(ch))
+    s = "".join(out)
+    s = re.sub(r"\*(?=/)", "* ", s)
+    s = re.sub(r"/(?=\*)", "/ ", s)
+    return re.sub(r"\?(?=\?)", "? ", s)
+
+
+def c_string(text: str) -> str:
+    """The body of a C string literal whose bytes are the UTF-8 of ``text``.
+
+    ``\\`` and ``"`` are escaped, ``?`` is ``\\?`` (no trigraphs), and every byte outside
+    printable ASCII is a three-digit octal escape (which, unlike ``\\x``, cannot swallow the
+    digits that follow). A NUL in ``text`` becomes ``\\000``: C functions reading the string
+    stop there, ``sizeof`` still counts every byte.
+    """
+    out = []
+    for byte in str(text).encode("utf-8", "surrogatepass"):
+        ch = chr(byte)
+        if ch in '\\"?':
+            out.append("\\" + ch)
+        elif 0x20 <= byte <= 0x7E:
+            out.append(ch)
+        else:
+            out.append(f"\\{byte:03o}")
+    return "".join(out)
+
+
+def python_string(text: str) -> str:
+    """The body of a Python ``"..."`` literal or ``\"\"\"...\"\"\"`` docstring whose value is ``text``.
+
+    ``\\``, ``"`` and ``'`` are backslash-escaped (no quote can close the literal, nor touch its
+    closing quotes); characters that are not printable, or that some tools take for a line end
+    (U+2028, U+2029), are ``\\n``, ``\\x00``, ``\\u2028``... Printable non-ASCII is kept.
+    """
+    out = []
+    for ch in str(text):
+        if ch in "\\\"'":
+            out.append("\\" + ch)
+        elif _visible(ch):
+            out.append(ch)
+        else:
+            out.append({"\0": "\\x00"}.get(ch) or _NAMED.get(ch) or _codepoint(ch))
+    return "".join(out)
+
+
+_LATEX = {
+    "\\": r"\textbackslash{}", "{": r"\{", "}": r"\}", "$": r"\$", "&": r"\&", "#": r"\#", "%": r"\%",
+    "_": r"\_", "^": r"\textasciicircum{}", "~": r"\textasciitilde{}", "<": r"\textless{}",
+    ">": r"\textgreater{}", "|": r"\textbar{}",
+}
+LATEX_ESCAPES = frozenset(_LATEX.values())
+"""Everything :func:`latex_text` writes that starts with a backslash."""
+
+
+def latex_text(text: str) -> str:
+    """LaTeX text mode: the ten special characters (and ``< > |``) as their escapes.
+
+    Line breaks and every other invisible character become a space, so the text stays one
+    paragraph and cannot end a command or start a new one; no control sequence of the text
+    survives (``\\input{x}`` prints as ``\\textbackslash{}input\\{x\\}``).
+    """
+    out = []
+    for ch in str(text):
+        if ch in _LATEX:
+            out.append(_LATEX[ch])
+        elif _visible(ch):
+            out.append(ch)
+        else:
+            out.append(" ")
+    return "".join(out)
+
+
+_MARKDOWN_SPECIAL = set("\\`*_[]<>#|~&$")
+
+
+def markdown_text(text: str) -> str:
+    """Markdown inline text: every character that can start emphasis, a link, a code span,
+    HTML, an entity, a table cell or math is backslash-escaped (CommonMark shows ``\\*`` as
+    ``*``); line breaks and every other invisible character become a space, and a leading
+    ``-``, ``+``, ``=``, ``>`` or ``1.`` is escaped, so the text cannot start a block either.
+    """
+    out = []
+    for ch in str(text):
+        if ch in _MARKDOWN_SPECIAL:
+            out.append("\\" + ch)
+        elif _visible(ch):
+            out.append(ch)
+        else:
+            out.append(" ")
+    s = "".join(out).strip()
+    s = re.sub(r"^(\d+)([.)])", r"\1\\\2", s)
+    return "\\" + s if s[:1] in ("-", "+", "=", ">") else s
+
+
+class UnescapedText(jinja2.TemplateError):
+    """A template printed a string that went through no escaping filter."""
+
+
+def _finalize(value):
+    """What ``{{ ... }}`` may print: safe text or a number; anything else is a template bug."""
+    if isinstance(value, Markup):
+        return value
+    if isinstance(value, (int, float)) and not isinstance(value, bool):
+        return Markup(repr(value))
+    raise UnescapedText(f"template prints {value!r} without an escaping filter "
+                        "(c_comment, c_string, py_str, latex, md)")
+
+
+def _join(items, separator: str = "") -> Markup:
+    """``join`` of safe parts with a template-literal separator."""
+    parts = [_finalize(item) for item in items]
+    return Markup(str(separator).join(str(p) for p in parts))
+
+
+def _filter(escape: Callable[[str], str]) -> Callable[[object], Markup]:
+    def apply(value) -> Markup:
+        if isinstance(value, (int, float)) and not isinstance(value, bool):
+            value = repr(value)
+        if not isinstance(value, str):
+            raise UnescapedText(f"escaping filter {escape.__name__} expects text, got {value!r}")
+        return Markup(escape(value))
+
+    apply.__name__ = escape.__name__
+    return apply
+
+
+FILTERS = {
+    "c_comment": _filter(c_comment),
+    "c_string": _filter(c_string),
+    "py_str": _filter(python_string),
+    "latex": _filter(latex_text),
+    "md": _filter(markdown_text),
+}
+_KEPT_FILTERS = ("length", "upper", "indent")  # indent keeps safe text safe
+
+
+def environment(loader: jinja2.BaseLoader) -> jinja2.Environment:
+    """A Jinja environment in which text reaches the output only through an escaping filter."""
+    env = jinja2.Environment(loader=loader, autoescape=True, finalize=_finalize, keep_trailing_newline=True,
+                             trim_blocks=True, lstrip_blocks=True, undefined=jinja2.StrictUndefined)
+    env.filters = {name: env.filters[name] for name in _KEPT_FILTERS}
+    env.filters.update(FILTERS)
+    env.filters["join"] = _join
+    return env

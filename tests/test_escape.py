@@ -1,0 +1,369 @@
+"""Free text of a model never becomes code: hostile names, units, descriptions and file names
+through every template (issue 6, section 1).
+
+Independent routes: the C compiler and Python's own parser read the escaped text back
+(``sizeof``/``fwrite`` of a C string literal, ``ast.literal_eval``, a function's ``__doc__``);
+the preprocessed C and the Python syntax tree of a hostile model equal those of a benign one
+(free text changes comments and string constants only); the LaTeX and Markdown of a hostile
+model have exactly the control sequences and structure characters of the benign one; and a
+canary file that the payloads would create never appears.
+"""
+from __future__ import annotations
+
+import ast
+import ctypes
+import importlib.util
+import json
+import re
+import shutil
+import subprocess
+from pathlib import Path
+
+import jinja2
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+import kronsub
+from kronsub.cli import main
+from kronsub.emitters.code import emit_c, emit_python, file_stem
+from kronsub.emitters.escape import (LATEX_ESCAPES, UnescapedText, c_comment, c_string, environment, latex_text,
+                                     markdown_text, python_string)
+from kronsub.emitters.text import emit_json, emit_latex, emit_markdown
+
+CFLAGS = ["-std=c99", "-Wall", "-Wextra", "-Werror", "-O2"]
+needs_cc = pytest.mark.skipif(shutil.which("gcc") is None, reason="no C compiler (gcc) on the PATH")
+
+
+def c_payload(canary: str) -> str:
+    """Closes a C comment, defines a constructor that creates ``canary``, reopens the comment."""
+    return ("*/\n#include <stdio.h>\n#ifndef KS_CANARY_ONCE\n#define KS_CANARY_ONCE\n"
+            "__attribute__((constructor)) static void ks_canary(void) { FILE *f = fopen(\"" + canary
+            + "\", \"w\"); if (f) fclose(f); }\n#endif\n/*")
+
+
+def py_payload(canary: str) -> str:
+    """Closes a docstring (either quote), creates ``canary``, reopens the docstring."""
+    return ('"""\nopen("' + canary + '", "w").write("x")\n"""' + "'''\nopen('" + canary + "', 'w')\n'''")
+
+
+HOSTILE = ["*/", "/*", '"""', "'''", "\\", "\n", "\r", "\r\n", "\0", "??/", "??=", "\u2028", "\u2029",
+           r"\input{/etc/passwd}", r"\write18{touch canary}", "$", "#", "%", "{", "}", "&", "_", "^", "~",
+           "<script>alert(1)</script>", "[link](http://x)", "`code`", "| cell |", "1. item", "- item",
+           "\\\n", "x\\", "\t", "\x1b[31m", "é ü 漢", "\U0001F600", "\ud800"]
+
+
+def every(canary: str) -> list[str]:
+    return HOSTILE + [c_payload(canary), py_payload(canary), "".join(HOSTILE)]
+
+
+# -------------------------------------------------------------------- the escaping functions
+
+
+@needs_cc
+def test_c_string_is_read_back_by_the_compiler(tmp_path):
+    texts = [t for t in every("canary") if "\ud800" not in t]
+    body = "".join(f'static const char s{i}[] = "{c_string(t)}";\n' for i, t in enumerate(texts))
+    calls = "".join(f"    fwrite(s{i}, 1, sizeof s{i} - 1, stdout); putchar(0xff);\n" for i in range(len(texts)))
+    (tmp_path / "main.c").write_text("#include <stdio.h>\n" + body + "int main(void)\n{\n" + calls
+                                     + "    return 0;\n}\n")
+    subprocess.run(["gcc", *CFLAGS, "main.c", "-o", "main"], cwd=tmp_path, check=True, capture_output=True)
+    out = subprocess.run([str(tmp_path / "main")], capture_output=True, check=True).stdout
+    assert out.split(b"\xff")[:-1] == [t.encode() for t in texts]
+
+
+@needs_cc
+def test_c_comment_stays_one_comment(tmp_path):
+    canary = tmp_path / "canary"
+    texts = every(str(canary))
+    source = "".join(f"/* {c_comment(t)} */\n" for t in texts) + "int ks_only(void) { return 1; }\n"
+    for t in texts:
+        escaped = c_comment(t)
+        assert "*/" not in escaped and "/*" not in escaped and "??" not in escaped
+        assert all(" " <= ch <= "~" for ch in escaped)
+    (tmp_path / "x.c").write_text(source)
+    pre = subprocess.run(["gcc", "-std=c99", "-E", "-P", "x.c"], cwd=tmp_path, check=True, capture_output=True,
+                         text=True).stdout
+    assert pre.split() == "int ks_only(void) { return 1; }".split()
+    subprocess.run(["gcc", *CFLAGS, "-c", "x.c"], cwd=tmp_path, check=True, capture_output=True)
+    assert not canary.exists()
+
+
+def test_python_string_is_read_back_by_python():
+    for text in every("canary"):
+        body = python_string(text)
+        assert ast.literal_eval('"' + body + '"') == text
+        assert ast.literal_eval("'" + body + "'") == text
+        namespace = {}
+        exec(compile(f'def f():\n    """{body}"""\n', "doc", "exec"), namespace)  # our own escaped text
+        assert namespace["f"].__doc__ == text
+        assert "\n" not in body and "\r" not in body and "\0" not in body and "\u2028" not in body
+
+
+_CONTROL = re.compile(r"\\(?:[A-Za-z@]+|.)", re.S)
+
+
+def test_latex_text_has_no_control_sequence_of_its_own():
+    for text in every("canary"):
+        escaped = plain = latex_text(text)
+        for escape in sorted(LATEX_ESCAPES, key=len, reverse=True):
+            plain = plain.replace(escape, "")
+        for ch in "\\{}$&#%_^~\n\r\0\u2028":
+            assert ch not in plain, (text, escaped)
+
+
+def _unescaped(text: str, chars: str) -> int:
+    """Characters of ``chars`` not preceded by a backslash escape."""
+    return len(re.findall(r"(?<!\\)(?:\\\\)*[" + re.escape(chars) + "]", text))
+
+
+def test_markdown_text_is_inline_and_inert():
+    for text in every("canary"):
+        escaped = markdown_text(text)
+        assert "\n" not in escaped and "\r" not in escaped and "\u2028" not in escaped
+        assert _unescaped(escaped, "`*_[]<>|&$#~") == 0, escaped
+        assert not re.match(r"\s|[-+=>]|\d+[.)]", escaped), escaped
+
+
+def test_templates_refuse_text_that_skipped_the_escaping_filters():
+    env = environment(jinja2.DictLoader({
+        "raw": "/* {{ name }} */", "ok": "/* {{ name | c_comment }} {{ n }} */",
+        "joined": "{{ names | join(', ') }}", "safe": "{{ name | safe }}", "json": "{{ name | tojson }}",
+        "concat": "{{ name ~ '' }}"}))
+    assert env.get_template("ok").render(name="*/ x", n=3) == "/* * / x 3 */"
+    for name in ("raw", "joined", "concat"):
+        with pytest.raises(UnescapedText):
+            env.get_template(name).render(name="*/ x", names=["a"])
+    for name in ("safe", "json"):
+        with pytest.raises(jinja2.TemplateError):
+            env.get_template(name).render(name="*/ x")
+
+
+def test_file_stem_is_safe_to_write_and_include():
+    assert file_stem("DoublePendulum") == "DoublePendulum"
+    assert file_stem("my model") == "my_model"
+    assert file_stem("../../etc/x") == "etc_x"
+    assert file_stem('a"""*/') == "a"
+    assert file_stem("") == file_stem("///") == "model"
+
+
+# ------------------------------------------------------------------------ hostile models
+
+
+MODEL = """\
+name: {name}
+description: {description}
+parameters:
+  m: {{value: 1.5, unit: {unit}, description: {pdesc}}}
+  L: {{value: 0.7, unit: {unit}}}
+  g: {{value: 9.81, description: {pdesc}}}
+components:
+  bob: {{type: particle2d, parameters: {{mass: m}}, coordinates: [x, y], description: {pdesc}}}
+coordinates: [q]
+connection: {{x: L*sin(q), y: -L*cos(q)}}
+effects:
+  gravity: {{type: gravity, g: g, description: {pdesc}}}
+initial: {{q: 0.3}}
+"""
+
+PARENT = """\
+name: {name}
+description: {description}
+parameters:
+  k: {{value: 2, unit: {unit}, description: {pdesc}}}
+components:
+  arm: {{model: {sub}}}
+  spring: {{type: particle1d, parameters: {{mass: 0.1}}, coordinates: [s]}}
+coordinates: [q]
+connection: {{s: q}}
+effects:
+  hold: {{type: spring, between: [spring.centre, [0]], stiffness: k}}
+"""
+
+
+def _yaml_string(text: str) -> str:
+    """A YAML double-quoted scalar of ``text``: every character survives, printable ASCII as is."""
+    out = []
+    for ch in text:
+        code = ord(ch)
+        if ch in '\\"':
+            out.append("\\" + ch)
+        elif 0x20 <= code < 0x7F:
+            out.append(ch)
+        else:
+            out.append(f"\\x{code:02x}" if code < 0x100 else f"\\u{code:04x}" if code < 0x10000 else f"\\U{code:08x}")
+    return '"' + "".join(out) + '"'
+
+
+def _model_text(template: str, text: str, **extra) -> str:
+    q = _yaml_string
+    return template.format(name=q(text), description=q(text), unit=q(text), pdesc=q(text), **extra)
+
+
+def _write_models(folder: Path, text: str, filename: str = "model.yaml") -> Path:
+    folder.mkdir(parents=True, exist_ok=True)
+    (folder / "sub.yaml").write_text(_model_text(MODEL, text), encoding="utf-8")
+    path = folder / filename
+    path.write_text(_model_text(PARENT, text, sub="sub.yaml"), encoding="utf-8")
+    return path
+
+
+def _preprocessed(folder: Path) -> str:
+    return subprocess.run(["gcc", "-std=c99", "-E", "-P", "model.c"], cwd=folder, check=True, capture_output=True,
+                          text=True).stdout
+
+
+def _syntax(text: str) -> str:
+    """The Python syntax tree with every string constant emptied."""
+    tree = ast.parse(text)
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Constant) and isinstance(node.value, str):
+            node.value = ""
+    return ast.dump(tree)
+
+
+def _latex_shape(text: str) -> tuple:
+    """The control sequences and special characters of a document, less the text escapes."""
+    for escape in sorted(LATEX_ESCAPES, key=len, reverse=True):
+        text = text.replace(escape, "")
+    return sorted(m.group() for m in _CONTROL.finditer(text)), text.count("\n"), _unescaped(text, "{}$&#%^_~")
+
+
+def _markdown_shape(text: str) -> tuple:
+    return text.count("\n"), _unescaped(text, "`*_[]<>|&$#~")
+
+
+# each string above on its own through the escaping functions; through every template, these
+# (each in every free-text field at once) and all of them together
+HOSTILE_CASES = {f"h{i}": t for i, t in enumerate(["*/", '"""', "\\", "\n", "\r", "\0", "??/", "\u2028",
+                                                   r"\input{/etc/passwd}", "\U0001F600", "<c>", "<py>", "<all>"])}
+
+
+@pytest.fixture(scope="module")
+def benign(tmp_path_factory):
+    """The same models with plain text: its generated code, preprocessed C and documents."""
+    folder = tmp_path_factory.mktemp("benign")
+    system = kronsub.load(_write_models(folder, "x")).derive()
+    (py,) = emit_python(system, "model", source="x")
+    preprocessed = None
+    if shutil.which("gcc") is not None:
+        for generated in emit_c(system, "model", source="x"):
+            (folder / generated.name).write_text(generated.text, encoding="utf-8")
+        preprocessed = _preprocessed(folder)
+    return {"python": _syntax(py.text), "c": preprocessed, "latex": _latex_shape(emit_latex(system)),
+            "markdown": _markdown_shape(emit_markdown(system))}
+
+
+def _hostile_text(key: str, canary: Path) -> str:
+    text = HOSTILE_CASES[key]
+    return {"<c>": c_payload(str(canary)), "<py>": py_payload(str(canary)),
+            "<all>": "".join(every(str(canary))).replace("\ud800", "")}.get(text, text)  # no lone surrogate in UTF-8
+
+
+@pytest.mark.parametrize("key", sorted(HOSTILE_CASES))
+def test_hostile_text_changes_no_generated_code(key, tmp_path, benign):
+    canary = tmp_path / "canary"
+    text = _hostile_text(key, canary)
+    system = kronsub.load(_write_models(tmp_path / "m", text)).derive()
+    assert system.name == text and system.parameters[0].unit == text
+
+    # Python: only string constants differ, and they read back as the model's text
+    (py,) = emit_python(system, "model", source=text)
+    assert _syntax(py.text) == benign["python"]
+    (tmp_path / "gen.py").write_text(py.text, encoding="utf-8")
+    spec = importlib.util.spec_from_file_location(f"hostile_{key}", tmp_path / "gen.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    assert module.MODEL_NAME == text and module.__doc__.startswith(text + ":")
+    y = np.array([0.3, -0.4])
+    param = np.array([float(p.value) for p in system.parameters])
+    assert np.all(np.isfinite(module.rhs(0.0, y, param)))
+
+    # LaTeX and Markdown: the same commands and structure as the benign model's
+    assert _latex_shape(emit_latex(system)) == benign["latex"]
+    assert "\\input" not in emit_latex(system) and "\\write18" not in emit_latex(system)
+    lines, marks = _markdown_shape(emit_markdown(system))
+    no_description = 2 if not system.description.strip() else 0  # a blank description has no paragraph
+    assert (lines + no_description, marks) == benign["markdown"]
+    assert json.loads(emit_json(system))["name"] == text
+
+    if shutil.which("gcc") is not None:
+        # C: the preprocessed code is the benign model's; the name reads back from its macro
+        for generated in emit_c(system, "model", source=text):
+            (tmp_path / generated.name).write_text(generated.text, encoding="utf-8")
+        assert _preprocessed(tmp_path) == benign["c"]
+        values = ", ".join(repr(float(v)) for v in param)
+        (tmp_path / "main.c").write_text(
+            '#include <stdio.h>\n#include "model.h"\nint main(void)\n{\n'
+            f"    double y[KS_NY] = {{0.3, -0.4}}, param[KS_NPARAM] = {{{values}}}, ydot[KS_NY];\n"
+            "    if (ks_rhs(0.0, y, param, ydot)) return 1;\n"
+            '    fprintf(stderr, "%.17g %.17g", ydot[0], ydot[1]);\n'
+            "    fwrite(KS_MODEL_NAME, 1, sizeof KS_MODEL_NAME - 1, stdout);\n"
+            "    return 0;\n}\n")
+        subprocess.run(["gcc", *CFLAGS, "main.c", "model.c", "-o", "main", "-lm"], cwd=tmp_path, check=True,
+                       capture_output=True)
+        run = subprocess.run([str(tmp_path / "main")], capture_output=True, check=True)
+        assert run.stdout == text.encode()
+        assert np.allclose([float(v) for v in run.stderr.split()], module.rhs(0.0, y, param), rtol=1e-13)
+    assert not canary.exists()
+
+
+def _cli(args, cwd: Path, monkeypatch, **env):
+    """The command line, in this process (a payload that ran would create the canary all the same)."""
+    monkeypatch.chdir(cwd)
+    for key, value in env.items():
+        monkeypatch.setenv(key, value)
+    result = CliRunner().invoke(main, args)
+    for key in env:
+        monkeypatch.delenv(key)
+    return result
+
+
+@pytest.mark.parametrize("payload", ["c", "python"])
+def test_the_issue_attacks_run_nothing(payload, tmp_path, monkeypatch):
+    """The reproducers of issue 6: `*/` or `\"\"\"` in the name and the unit, then codegen,
+    simulate (compiled, and on the no-compiler fallback with --points) and import."""
+    canary = tmp_path / "canary"
+    text = c_payload(str(canary)) if payload == "c" else py_payload(str(canary))
+    path = _write_models(tmp_path, text)
+    out = tmp_path / "out"
+    out.mkdir()
+    for lang in ("c", "python"):
+        result = CliRunner().invoke(main, ["codegen", str(path), "--lang", lang, "--output", str(out)])
+        assert result.exit_code == 0, result.output
+    if shutil.which("gcc") is not None:
+        subprocess.run(["gcc", *CFLAGS, "-fPIC", "-shared", "model.c", "-o", "libmodel.so", "-lm"], cwd=out,
+                       check=True, capture_output=True)
+        ctypes.CDLL(str(out / "libmodel.so"))
+    spec = importlib.util.spec_from_file_location(f"attack_{payload}", out / "model.py")
+    spec.loader.exec_module(importlib.util.module_from_spec(spec))
+    for env in ({}, {"CC": "kronsub-no-such-compiler"}):
+        result = _cli(["simulate", str(path), "--t", "0.05", "--points"], tmp_path, monkeypatch,
+                      KRONSUB_CACHE_DIR=str(tmp_path / "cache"), **env)
+        assert result.exit_code == 0, result.output
+        assert "Traceback" not in result.output
+    assert not canary.exists()
+
+
+@pytest.mark.parametrize("filename", ['x"""; open("canary", "w").write("x"); """.yaml',
+                                      "X*/\n#include <stdio.h>\n__attribute__((constructor)) static void c(void) "
+                                      '{ FILE *f = fopen("canary", "w"); if (f) fclose(f); }\n/*y.yaml'])
+def test_a_hostile_file_name_runs_nothing(filename, tmp_path, monkeypatch):
+    """The model's path goes into the generated code's comments and docstring."""
+    parts = filename.split("/")
+    folder = tmp_path.joinpath(*parts[:-1])
+    path = _write_models(folder, "pendulum", parts[-1])
+    relative = path.relative_to(tmp_path)
+    for lang in ("c", "python"):
+        result = _cli(["codegen", str(relative), "--lang", lang, "--output", "."], tmp_path, monkeypatch)
+        assert result.exit_code == 0, result.output
+    stem = file_stem(Path(relative).stem)
+    assert (tmp_path / f"{stem}.c").is_file() and (tmp_path / f"{stem}.py").is_file()
+    assert f'#include "{stem}.h"' in (tmp_path / f"{stem}.c").read_text()
+    if shutil.which("gcc") is not None:
+        subprocess.run(["gcc", *CFLAGS, "-fPIC", "-shared", f"{stem}.c", "-o", "lib.so", "-lm"], cwd=tmp_path,
+                       check=True, capture_output=True)
+        ctypes.CDLL(str(tmp_path / "lib.so"))
+    spec = importlib.util.spec_from_file_location("hostile_file_name", tmp_path / f"{stem}.py")
+    spec.loader.exec_module(importlib.util.module_from_spec(spec))
+    assert not (tmp_path / "canary").exists()
