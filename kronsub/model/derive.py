@@ -4,32 +4,22 @@ from __future__ import annotations
 import dataclasses
 import hashlib
 import os
-import pickle
-import tempfile
 import warnings
 from pathlib import Path
 
 import numpy as np
 import sympy
-from sympy.core.parameters import evaluate
 
 from .. import __version__
-from ..core.known_system import KnownSystem
+from ..atomic import write_atomically
+from ..cache import CACHE_ENV, usable_cache_dir  # noqa: F401  (CACHE_ENV: kept importable here)
+from ..core.known_system import KnownSystem, Transition
 from ..core.subspace import project
-
-CACHE_ENV = "KRONSUB_CACHE_DIR"
-
+from . import cache_format
 
 def cache_dir() -> Path | None:
-    """Where derived known systems are kept (``$KRONSUB_CACHE_DIR``, else the user cache);
-    ``KRONSUB_CACHE_DIR=off`` turns the cache off."""
-    env = os.environ.get(CACHE_ENV)
-    if env == "off":
-        return None
-    if env:
-        return Path(env)
-    base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
-    return Path(base) / "kronsub"
+    """Where derived known systems are kept, when that folder is safe (see :mod:`kronsub.cache`)."""
+    return usable_cache_dir()
 
 
 def _code_fingerprint() -> str:
@@ -62,18 +52,21 @@ def _cache_file(key: str, part: str) -> Path | None:
     folder = cache_dir()
     if folder is None or not key:
         return None
-    return folder / f"{key}.{part}.pickle"
+    return folder / f"{key}.{part}.json"
 
 
-def _load(path: Path | None):
-    if path is None or not path.exists():
+def _load(path: Path | None, expected: type):
+    """The value stored at ``path``; None when it is missing, damaged, stale or not ours."""
+    if path is None:
         return None
     try:
-        # the stored expressions are canonical already: rebuild them as they are
-        with open(path, "rb") as fh, evaluate(False):
-            return pickle.load(fh)
-    except Exception:  # a damaged or stale cache entry is rebuilt
+        text = path.read_bytes()
+    except OSError:
         return None
+    try:
+        return cache_format.loads(text, expected)
+    except cache_format.CacheFormatError:
+        return None  # rebuilt by the caller
 
 
 def load_cached(key: str, *, transition: bool = True) -> KnownSystem | None:
@@ -82,23 +75,15 @@ def load_cached(key: str, *, transition: bool = True) -> KnownSystem | None:
     The transition (primitive, ``C``) is kept apart and read only when asked for:
     a known system used as a component does not need it.
     """
-    system = _load(_cache_file(key, "system"))
-    if not isinstance(system, KnownSystem):
+    system = _load(_cache_file(key, "system"), KnownSystem)
+    if system is None:
         return None
     if transition:
-        steps = _load(_cache_file(key, "transition"))
+        steps = _load(_cache_file(key, "transition"), Transition)
         if steps is None:
             return None
         system = dataclasses.replace(system, transition=steps)
     return system
-
-
-def _store(path: Path, value) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, suffix=".tmp")
-    with os.fdopen(fd, "wb") as fh:
-        pickle.dump(value, fh, protocol=pickle.HIGHEST_PROTOCOL)
-    os.replace(tmp, path)
 
 
 def store_cached(key: str, system: KnownSystem) -> None:
@@ -107,9 +92,11 @@ def store_cached(key: str, system: KnownSystem) -> None:
     if path is None:
         return
     try:
-        _store(_cache_file(key, "transition"), system.transition)
-        _store(path, dataclasses.replace(system, transition=None))
-    except OSError:
+        transition = cache_format.dumps(system.transition)
+        known = cache_format.dumps(dataclasses.replace(system, transition=None))
+        write_atomically(_cache_file(key, "transition"), transition)
+        write_atomically(path, known)
+    except (OSError, cache_format.CacheFormatError):
         pass  # the cache is an optimisation only
 
 
@@ -117,8 +104,8 @@ def derive_model(model, *, cache: bool = True) -> KnownSystem:
     """Project the model's primitive onto its subspace (cached by content hash)."""
     if cache:
         hit = load_cached(model.content_hash)
-        if hit is not None:
-            return hit
+        if hit is not None:  # the same text under another file name: name and source are this model's
+            return dataclasses.replace(hit, name=model.name, description=model.description)
     system = project(
         model.primitive,
         model.coordinates,
