@@ -1,40 +1,39 @@
 """The command line: ``kronsub derive MODEL``.
 
-Problems in a model print as ``Error: FILE:LINE:COL: message`` with a hint
-and exit with code 1 (usage errors: 2); never a traceback.
+Problems in a model print as ``Error: FILE:LINE:COL: message`` with a hint;
+never a traceback. Exit codes (see :data:`EXIT_CODES`): 0 success, 1 model or
+input error, 2 usage error, 3 numerical failure (rows so far kept), 4 internal
+error, 130 interrupted (rows so far kept).
 """
 from __future__ import annotations
 
 import difflib
 import os
 import sys
-import tempfile
 import warnings
 from pathlib import Path
 
 import click
 
 from . import __version__
+from .atomic import atomic_file, write_atomically
 from .errors import KronsubError, ModelError
 
-
-def write_atomically(path: Path, text: str) -> None:
-    """Write ``text`` to ``path`` through a temporary file and a rename."""
-    path = Path(path)
-    fd, tmp = tempfile.mkstemp(dir=path.parent or Path("."), prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8", newline="\n") as fh:
-            fh.write(text)
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
+OK, INPUT_ERROR, USAGE_ERROR, NUMERICAL_FAILURE, INTERNAL_ERROR, INTERRUPTED = 0, 1, 2, 3, 4, 130
+EXIT_CODES = {
+    OK: "success",
+    INPUT_ERROR: "model or input error (the message names the file, line and column)",
+    USAGE_ERROR: "usage error (an unknown command or option, an option value out of range)",
+    NUMERICAL_FAILURE: "numerical failure: the run stopped early; the rows so far are kept, marked incomplete",
+    INTERNAL_ERROR: "internal error: a bug in kronsub (KRONSUB_DEBUG=1 shows the traceback)",
+    INTERRUPTED: "interrupted (Ctrl-C); the rows so far are kept, marked incomplete",
+}
+DEBUG_ENV = "KRONSUB_DEBUG"
 
 
-def _fail(message: str) -> None:
+def _fail(message: str, code: int = INPUT_ERROR) -> None:
     click.echo(message, err=True)
-    sys.exit(1)
+    sys.exit(code)
 
 
 def _report_model_error(exc: ModelError) -> None:
@@ -65,12 +64,14 @@ def _run(job):
     except RecursionError:
         _fail("Error: the model is nested too deeply to derive\n  hint: split it into known systems")
     except KeyboardInterrupt:
-        _fail("Interrupted.")
+        _fail("Interrupted.", INTERRUPTED)
     except Exception as exc:  # never a traceback for users
-        if os.environ.get("KRONSUB_DEBUG"):
+        if os.environ.get(DEBUG_ENV):
             raise
-        _fail(f"Error: internal error: {type(exc).__name__}: {exc}\n"
-              "  hint: this is a bug in kronsub; run with KRONSUB_DEBUG=1 for the traceback and report it")
+        text = str(exc).splitlines()[0][:200] if str(exc) else ""
+        _fail(f"Error: internal error ({type(exc).__name__}{': ' + text if text else ''})\n"
+              f"  hint: this is a bug in kronsub {__version__}; please report it to the kronsub developers "
+              f"with the command and the model file; {DEBUG_ENV}=1 prints the traceback", INTERNAL_ERROR)
 
 
 @click.group(context_settings={"help_option_names": ["-h", "--help"]})
@@ -176,14 +177,17 @@ def simulate(model: Path, t_end: float, dt: float, method: str, rtol: float, ato
              settings: tuple[str, ...], output: Path | None, with_points: bool, plot: Path | None):
     """Simulate MODEL from t = 0 to --t; the trajectory is CSV."""
     from .model.loader import load_model
-    from .simulation.run import METHODS
-    from .simulation.run import simulate as run
-    from .simulation.table import to_csv
+    from .simulation.run import METHODS, SimulationError, collect, row_count, start
+    from .simulation.table import CsvWriter
     from .simulation.values import parse_assignments, resolve
 
     def job():
         if method not in METHODS:
-            _fail(f"Error: unknown method '{method}'\n  hint: choose one of {', '.join(METHODS)}")
+            _fail(f"Error: unknown method '{method}'\n  hint: choose one of {', '.join(METHODS)}", USAGE_ERROR)
+        try:
+            row_count(t_end, dt)
+        except SimulationError as exc:
+            _fail(f"Error: {exc}", USAGE_ERROR)
         _writable(output, "--output")
         _writable(plot, "--plot")
         if plot is not None:
@@ -194,21 +198,84 @@ def simulate(model: Path, t_end: float, dt: float, method: str, rtol: float, ato
         loaded = load_model(model)
         system = loaded.derive()
         values = resolve(system, dict(loaded.initial), parse_assignments(settings))
-        traj = run(system, values, t_end, dt, method, rtol, atol)
-        text = to_csv(system, model.as_posix(), traj, values, rtol, atol, with_points)
+        run = start(system, values, t_end, dt, method, rtol, atol)
+        kept = [] if plot is not None else None
+
+        def stream(out) -> CsvWriter:
+            writer = CsvWriter(out, system, model.as_posix(), values, run.method, run.backend, rtol, atol,
+                               with_points)
+            try:
+                writer.stream(run, kept.append if kept is not None else None)
+            except KeyboardInterrupt:
+                pass  # the file is kept, marked incomplete (writer.stopped)
+            return writer
+
         if output is not None:
-            write_atomically(output, text)
-            click.echo(f"wrote {output} ({len(traj.t)} rows)", err=True)
+            with atomic_file(output) as fh:
+                writer = stream(fh)
+            where = str(output)
+            click.echo(f"wrote {output} ({writer.rows} rows)", err=True)
         else:
-            click.echo(text, nl=False)
+            writer = stream(sys.stdout)
+            sys.stdout.flush()
+            where = "standard output"
+        if writer.stopped:
+            _fail(f"Interrupted after t = {writer.last_t!r}: the {writer.rows} rows computed so far are kept "
+                  f"in {where} (marked incomplete)", INTERRUPTED)
         if plot is not None:
             from .simulation.plot import plot_trajectory
 
-            plot_trajectory(system, traj, values, plot)
+            plot_trajectory(system, collect(run, kept, len(system.coordinates)), values, plot)
             click.echo(f"wrote {plot}", err=True)
-        if not traj.complete:
-            _fail(f"Error: the run stopped at t = {traj.t_fail:.6g}: {traj.message}; "
-                  f"the {len(traj.t)} rows computed so far are kept (marked incomplete)")
+        if not run.complete:
+            _fail(f"Error: the run stopped at t = {run.t_fail:.6g}: {run.message}; "
+                  f"the {writer.rows} rows computed so far are kept in {where} (marked incomplete)",
+                  NUMERICAL_FAILURE)
+
+    _run(job)
+
+
+@main.group()
+def cache():
+    """Show or clear kronsub's caches (derived known systems, compiled models)."""
+
+
+def _size(n: int) -> str:
+    for unit in ("B", "kB", "MB", "GB"):
+        if n < 1000 or unit == "GB":
+            return f"{n:.0f} {unit}" if unit == "B" else f"{n:.1f} {unit}"
+        n /= 1000
+    return ""
+
+
+@cache.command("info")
+def cache_info():
+    """Where the cache is, how many entries it holds and their sizes."""
+    from . import cache as store
+
+    def job():
+        found = store.info()
+        if found.folder is None:
+            click.echo(f"cache: off ({store.CACHE_ENV}=off)")
+            return
+        reason = store.unsafe_reason(found.folder) if found.folder.exists() else None
+        click.echo(f"cache: {found.folder}" + (f" (not used: {reason})" if reason else "")
+                   + ("" if found.folder.exists() else " (empty)"))
+        click.echo(f"derived known systems: {found.systems} ({_size(found.systems_bytes)})")
+        click.echo(f"compiled models: {found.libraries} ({_size(found.libraries_bytes)})")
+
+    _run(job)
+
+
+@cache.command("clear")
+def cache_clear():
+    """Remove kronsub's own entries from the cache (nothing else in the folder)."""
+    from . import cache as store
+
+    def job():
+        folder = store.cache_dir()
+        removed = store.clear()
+        click.echo(f"removed {removed} entries from {folder}" if folder is not None else "cache: off")
 
     _run(job)
 
