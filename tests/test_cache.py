@@ -107,6 +107,8 @@ def test_values_off_the_whitelist_are_not_stored():
             cache_format.dumps(ParameterInfo("p", x, bad))
     with pytest.raises(cache_format.CacheFormatError):
         cache_format.dumps({"a": object()})
+    with pytest.raises(cache_format.CacheFormatError):  # more digits than JSON integers may have
+        cache_format.dumps(ParameterInfo("p", x, sympy.Integer(10) ** 5000 + x))
 
 
 def _stored(system) -> dict:

@@ -118,9 +118,14 @@ def dumps(value) -> str:
     """The JSON text of ``value`` (a known system, a transition, ...); raises
     :class:`CacheFormatError` when it holds anything the format does not admit."""
     enc = _Encoder()
-    body = enc.value(value)
-    return json.dumps({"format": FORMAT, "nodes": enc.nodes, "value": body},
-                      separators=(",", ":"), ensure_ascii=True)
+    try:
+        body = enc.value(value)
+        return json.dumps({"format": FORMAT, "nodes": enc.nodes, "value": body},
+                          separators=(",", ":"), ensure_ascii=True)
+    except (ValueError, RecursionError) as exc:  # an integer too long for JSON, a tree too deep
+        if isinstance(exc, CacheFormatError):
+            raise
+        raise CacheFormatError(f"cannot store: {exc}") from None
 
 
 # ---------------------------------------------------------------------------------------------
