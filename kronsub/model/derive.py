@@ -3,7 +3,6 @@ from __future__ import annotations
 
 import dataclasses
 import hashlib
-import os
 import warnings
 from pathlib import Path
 
@@ -12,7 +11,7 @@ import sympy
 
 from .. import __version__
 from ..atomic import write_atomically
-from ..cache import CACHE_ENV, usable_cache_dir  # noqa: F401  (CACHE_ENV: kept importable here)
+from ..cache import usable_cache_dir
 from ..core.known_system import KnownSystem, Transition
 from ..core.subspace import project
 from . import cache_format

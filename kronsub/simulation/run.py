@@ -241,11 +241,6 @@ class _Grid:
         return self.t_end if i == self.n - 1 else i * self.dt
 
 
-def _grid(t_end: float, dt: float) -> np.ndarray:
-    """Output times 0, dt, 2 dt, ... and exactly t_end."""
-    return _Grid(t_end, dt)[:]
-
-
 def _heyoka_blocks(run, system, param, y0, grid, tol):
     try:
         from . import heyoka_backend
