@@ -59,6 +59,12 @@ def _run(job):
         _report_model_error(exc)
     except KronsubError as exc:
         _fail(f"Error: {exc}")
+    except BrokenPipeError:  # the reader of standard output went away (`| head`): nothing to say
+        try:
+            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        except (OSError, ValueError, AttributeError):
+            pass
+        sys.exit(INPUT_ERROR)
     except OSError as exc:
         _fail(f"Error: {exc.filename or ''}: {exc.strerror or exc}\n  hint: check the path and its permissions")
     except RecursionError:
