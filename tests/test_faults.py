@@ -273,3 +273,21 @@ def test_a_replaced_file_keeps_its_mode(tmp_path):
     out.chmod(0o640)
     assert cli("derive", SYSTEM1, "--output", out).exit_code == 0
     assert out.stat().st_mode & 0o777 == 0o640 and out.read_text().startswith("# System I")
+
+
+def test_heyoka_runs_are_streamed_in_blocks_too(monkeypatch):
+    pytest.importorskip("heyoka")
+    from kronsub.simulation.heyoka_backend import available
+
+    if not available():
+        pytest.skip("heyoka is not usable")
+    system = load_model(SYSTEM1).derive()
+    values = resolve(system, dict(load_model(SYSTEM1).initial), {})
+    whole = run_module.simulate(system, values, 1.0, 0.05, "heyoka", rtol=1e-14)
+    monkeypatch.setattr(run_module, "BLOCK_ROWS", 6)
+    run = run_module.start(system, values, 1.0, 0.05, "heyoka", rtol=1e-14)
+    blocks = list(run)
+    assert len(blocks) >= 3 and run.complete
+    t = np.concatenate([b.t for b in blocks])
+    assert np.array_equal(t, whole.t)
+    np.testing.assert_allclose(np.concatenate([b.y for b in blocks]), whole.y, rtol=1e-10, atol=1e-12)

@@ -248,11 +248,18 @@ def _heyoka_blocks(run, system, param, y0, grid, tol):
         heyoka_backend = None
     if heyoka_backend is None or not heyoka_backend.available():
         raise SimulationError("method 'heyoka' needs heyoka: pip install 'kronsub[heyoka]'")
-    t, Y, complete, message = heyoka_backend.integrate(system, param, y0, grid[:], tol)
-    if not complete:
-        run.stop(message, float(t[-1]) if len(t) else float(grid[0]))
-    if len(t):
-        yield Block(t, Y)
+    integrator = heyoka_backend.HeyokaIntegrator(system, tol)
+    y, first = y0, True
+    for a, b in _chunks(grid, math.ceil(len(grid) / BLOCK_ROWS)) if len(grid) > 1 else [(0, 0)]:
+        times = grid[a:b + 1]
+        t, Y, complete, message = integrator.run(param, y, times)
+        start = 0 if first else 1  # a chunk starts on the last row of the one before
+        if len(t) > start:
+            yield Block(t[start:], Y[start:])
+        if not complete:
+            run.stop(message, float(t[-1]) if len(t) else float(times[0]))
+            return
+        y, first = Y[-1], False
 
 
 def _native_rhs(native, param):
