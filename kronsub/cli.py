@@ -82,8 +82,11 @@ def _run(job):
 
 @click.group(context_settings={"help_option_names": ["-h", "--help"]})
 @click.version_option(__version__, prog_name="kronsub")
-def main():
+@click.option("--debug", is_flag=True, help=f"Show the traceback of an internal error (as {DEBUG_ENV}=1 does).")
+def main(debug: bool):
     """Equations of motion of interconnected systems by Kron's method of subspaces."""
+    if debug:
+        os.environ[DEBUG_ENV] = "1"
 
 
 @main.command()

@@ -76,6 +76,9 @@ def test_an_internal_error_exits_4_with_a_short_message(monkeypatch):
     assert "Traceback" not in result.output and "second line" not in result.output
     debug = cli("derive", SYSTEM1, "--format", "json", KRONSUB_DEBUG="1")
     assert isinstance(debug.exception, RuntimeError)  # the traceback is shown
+    monkeypatch.setenv("KRONSUB_DEBUG", "")  # off; restored (removed) after the test, which --debug sets
+    flag = cli("--debug", "derive", SYSTEM1, "--format", "json")
+    assert isinstance(flag.exception, RuntimeError)
 
 
 def test_a_numerical_failure_exits_3_and_keeps_the_rows(tmp_path):
