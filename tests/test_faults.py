@@ -207,6 +207,7 @@ def test_grid_matches_the_in_memory_grid():
         lazy = run_module._Grid(t_end, dt)
         assert len(lazy) == len(grid) and np.array_equal(lazy[:], grid)
         assert lazy[len(grid) - 1] == t_end and np.array_equal(lazy[3:len(grid)], grid[3:])
+    assert list(run_module._Grid(1.0, 5.0)[:]) == [0.0, 1.0]  # the first row is at t = 0, even when dt > t
 
 
 # ---------------------------------------------------------------------------------------------

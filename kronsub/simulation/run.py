@@ -225,7 +225,8 @@ class _Grid:
     def __init__(self, t_end: float, dt: float):
         self.t_end, self.dt = t_end, dt
         n = math.ceil((t_end + 0.5 * dt) / dt)  # the length of np.arange(0, t_end + dt/2, dt)
-        self.n = n + (1 if (n - 1) * dt < t_end and abs((n - 1) * dt - t_end) >= 0.5 * dt else 0)
+        n += 1 if (n - 1) * dt < t_end and abs((n - 1) * dt - t_end) >= 0.5 * dt else 0
+        self.n = max(n, 2)  # a run always starts at 0 (also when dt > t_end)
 
     def __len__(self) -> int:
         return self.n
