@@ -5,7 +5,8 @@ Two caches share one folder (``$KRONSUB_CACHE_DIR``, else ``$XDG_CACHE_HOME/kron
 ``<sha256>.system.json`` / ``<sha256>.transition.json`` beside it, and compiled models under
 ``native/<stem>-<key>/``. A folder that another user owns or that group or others may write is
 refused with a warning (someone else could plant entries there): the known-system cache is then
-off and compiled models go to a private temporary folder.
+off and compiled models go to a private temporary folder. A folder kronsub creates is private
+(mode 0700), so a permissive umask does not make it refused.
 """
 from __future__ import annotations
 
@@ -63,7 +64,9 @@ def safe_folder(folder: Path | None) -> Path | None:
     if folder is None:
         return None
     try:
-        folder.mkdir(parents=True, exist_ok=True)
+        if not folder.exists():  # ours: private, whatever the umask
+            folder.mkdir(parents=True, exist_ok=True)
+            folder.chmod(0o700)
     except OSError:
         return None
     reason = unsafe_reason(folder)

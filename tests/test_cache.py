@@ -243,6 +243,15 @@ def test_a_folder_others_may_write_is_refused(cache, monkeypatch):
     assert result.exit_code == 0 and "Warning: not using the cache folder" in result.output
 
 
+def test_a_new_cache_folder_is_private_whatever_the_umask(cache):
+    old = os.umask(0o002)
+    try:
+        load_model(SYSTEM1).derive()
+    finally:
+        os.umask(old)
+    assert cache.stat().st_mode & 0o777 == 0o700 and any(cache.iterdir())
+
+
 @pytest.mark.skipif(not hasattr(os, "geteuid") or os.geteuid() != 0, reason="needs root to give a folder away")
 def test_a_folder_of_another_user_is_refused(cache):
     cache.mkdir(mode=0o755)
