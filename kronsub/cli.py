@@ -1,40 +1,41 @@
 """The command line: ``kronsub derive MODEL``.
 
-Problems in a model print as ``Error: FILE:LINE:COL: message`` with a hint
-and exit with code 1 (usage errors: 2); never a traceback.
+Problems in a model print as ``Error: FILE:LINE:COL: message`` with a hint;
+never a traceback. Exit codes (see :data:`EXIT_CODES`): 0 success, 1 model or
+input error, 2 usage error, 3 numerical failure (rows so far kept), 4 internal
+error, 130 interrupted (rows so far kept).
 """
 from __future__ import annotations
 
 import difflib
+import io
+import math
 import os
 import sys
-import tempfile
 import warnings
 from pathlib import Path
 
 import click
 
 from . import __version__
+from .atomic import atomic_file, write_atomically
 from .errors import KronsubError, ModelError
 
-
-def write_atomically(path: Path, text: str) -> None:
-    """Write ``text`` to ``path`` through a temporary file and a rename."""
-    path = Path(path)
-    fd, tmp = tempfile.mkstemp(dir=path.parent or Path("."), prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8", newline="\n") as fh:
-            fh.write(text)
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
+OK, INPUT_ERROR, USAGE_ERROR, NUMERICAL_FAILURE, INTERNAL_ERROR, INTERRUPTED = 0, 1, 2, 3, 4, 130
+EXIT_CODES = {
+    OK: "success",
+    INPUT_ERROR: "model or input error (the message names the file, line and column)",
+    USAGE_ERROR: "usage error (an unknown command or option, an option value out of range)",
+    NUMERICAL_FAILURE: "numerical failure: the run stopped early; the rows so far are kept, marked incomplete",
+    INTERNAL_ERROR: "internal error: a bug in kronsub (KRONSUB_DEBUG=1 shows the traceback)",
+    INTERRUPTED: "interrupted (Ctrl-C); the rows so far are kept, marked incomplete",
+}
+DEBUG_ENV = "KRONSUB_DEBUG"
 
 
-def _fail(message: str) -> None:
+def _fail(message: str, code: int = INPUT_ERROR) -> None:
     click.echo(message, err=True)
-    sys.exit(1)
+    sys.exit(code)
 
 
 def _report_model_error(exc: ModelError) -> None:
@@ -60,17 +61,25 @@ def _run(job):
         _report_model_error(exc)
     except KronsubError as exc:
         _fail(f"Error: {exc}")
+    except BrokenPipeError:  # the reader of standard output went away (`| head`): nothing to say
+        try:
+            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        except (OSError, ValueError, AttributeError):
+            pass
+        sys.exit(INPUT_ERROR)
     except OSError as exc:
         _fail(f"Error: {exc.filename or ''}: {exc.strerror or exc}\n  hint: check the path and its permissions")
     except RecursionError:
         _fail("Error: the model is nested too deeply to derive\n  hint: split it into known systems")
     except KeyboardInterrupt:
-        _fail("Interrupted.")
+        _fail("Interrupted.", INTERRUPTED)
     except Exception as exc:  # never a traceback for users
-        if os.environ.get("KRONSUB_DEBUG"):
+        if os.environ.get(DEBUG_ENV):
             raise
-        _fail(f"Error: internal error: {type(exc).__name__}: {exc}\n"
-              "  hint: this is a bug in kronsub; run with KRONSUB_DEBUG=1 for the traceback and report it")
+        text = str(exc).splitlines()[0][:200] if str(exc) else ""
+        _fail(f"Error: internal error ({type(exc).__name__}{': ' + text if text else ''})\n"
+              f"  hint: this is a bug in kronsub {__version__}; please report it to the kronsub developers "
+              f"with the command and the model file; {DEBUG_ENV}=1 prints the traceback", INTERNAL_ERROR)
 
 
 def scene_option(command):
@@ -98,8 +107,11 @@ def scene_system(model: Path, scene_name: str | None, *, cache: bool = True, all
 
 @click.group(context_settings={"help_option_names": ["-h", "--help"]})
 @click.version_option(__version__, prog_name="kronsub")
-def main():
+@click.option("--debug", is_flag=True, help=f"Show the traceback of an internal error (as {DEBUG_ENV}=1 does).")
+def main(debug: bool):
     """Equations of motion of interconnected systems by Kron's method of subspaces."""
+    if debug:
+        os.environ[DEBUG_ENV] = "1"
 
 
 @main.command()
@@ -248,14 +260,17 @@ def simulate(model: Path, t_end: float | None, dt: float | None, method: str | N
              scene_name: str | None, with_reactions: bool = False):
     """Simulate MODEL from t = 0 to --t; the trajectory is CSV."""
     from .model.scenes import initial_values
-    from .simulation.run import METHODS
-    from .simulation.run import simulate as run
-    from .simulation.table import to_csv
+    from .simulation.run import METHODS, SimulationError, collect, row_count, start
+    from .simulation.table import CsvWriter, to_csv
     from .simulation.values import parse_assignments, resolve
 
     def job():
         if method is not None and method not in METHODS:
-            _fail(f"Error: unknown method '{method}'\n  hint: choose one of {', '.join(METHODS)}")
+            _fail(f"Error: unknown method '{method}'\n  hint: choose one of {', '.join(METHODS)}", USAGE_ERROR)
+        for flag, given in (("--t", t_end), ("--dt", dt)):  # before deriving; the row count once both are known
+            if given is not None and not (math.isfinite(given) and given > 0):
+                _fail(f"Error: {flag} must be a positive finite {'time' if flag == '--t' else 'interval'} "
+                      f"(got {given!r})", USAGE_ERROR)
         _writable(output, "--output")
         _writable(plot, "--plot")
         if plot is not None:
@@ -268,6 +283,10 @@ def simulate(model: Path, t_end: float | None, dt: float | None, method: str | N
         outputs = scene.outputs if scene is not None else None
         span = _pick(t_end, scene and scene.t_end, 10.0)
         step = _pick(dt, scene and scene.dt, 0.01)
+        try:
+            row_count(span, step)
+        except SimulationError as exc:
+            _fail(f"Error: {exc}", USAGE_ERROR)
         initial = initial_values(loaded, scene)
         assignments = parse_assignments(settings)
         constrained = None
@@ -282,24 +301,96 @@ def simulate(model: Path, t_end: float | None, dt: float | None, method: str | N
                 click.echo(f"note: initial conditions projected onto the constraints: {note}", err=True)
         else:
             values = resolve(system, initial, assignments)
-        traj = run(system, values, span, step, _pick(method, scene and scene.method, "dop853"), rtol, atol,
-                   outputs=outputs, constrained=constrained)
-        text = to_csv(system, model.as_posix(), traj, values, rtol, atol, with_points, outputs=outputs)
-        if with_reactions:
-            text = _reaction_csv(text, system, traj, values, constrained)
+        run = start(system, values, span, step, _pick(method, scene and scene.method, "dop853"), rtol, atol,
+                    outputs=outputs, constrained=constrained)
+        kept = [] if plot is not None or with_reactions else None
+
+        def stream(out) -> CsvWriter:
+            if with_reactions:  # the reactions need the whole run: computed, then written at once
+                traj = collect(run, list(run), len(system.coordinates))
+                kept.append(traj)
+                text = _reaction_csv(to_csv(system, model.as_posix(), traj, values, rtol, atol, with_points,
+                                            outputs=outputs), system, traj, values, constrained)
+                out.write(text)
+                writer = CsvWriter(io.StringIO(), system, model.as_posix(), values, run.method, run.backend, rtol,
+                                   atol, with_points, outputs)
+                writer.rows, writer.last_t = len(traj.t), (float(traj.t[-1]) if len(traj.t) else None)
+                return writer
+            writer = CsvWriter(out, system, model.as_posix(), values, run.method, run.backend, rtol, atol,
+                               with_points, outputs)
+            try:
+                writer.stream(run, kept.append if kept is not None else None)
+            except KeyboardInterrupt:
+                pass  # the file is kept, marked incomplete (writer.stopped)
+            return writer
+
         if output is not None:
-            write_atomically(output, text)
-            click.echo(f"wrote {output} ({len(traj.t)} rows)", err=True)
+            with atomic_file(output) as fh:
+                writer = stream(fh)
+            where = str(output)
+            click.echo(f"wrote {output} ({writer.rows} rows)", err=True)
         else:
-            click.echo(text, nl=False)
+            writer = stream(sys.stdout)
+            sys.stdout.flush()
+            where = "standard output"
+        if writer.stopped:
+            _fail(f"Interrupted after t = {writer.last_t!r}: the {writer.rows} rows computed so far are kept "
+                  f"in {where} (marked incomplete)", INTERRUPTED)
         if plot is not None:
             from .simulation.plot import plot_trajectory
 
+            traj = kept[0] if with_reactions else collect(run, kept, len(system.coordinates))
             plot_trajectory(system, traj, values, plot)
             click.echo(f"wrote {plot}", err=True)
-        if not traj.complete:
-            _fail(f"Error: the run stopped at t = {traj.t_fail:.6g}: {traj.message}; "
-                  f"the {len(traj.t)} rows computed so far are kept (marked incomplete)")
+        if not run.complete:
+            _fail(f"Error: the run stopped at t = {run.t_fail:.6g}: {run.message}; "
+                  f"the {writer.rows} rows computed so far are kept in {where} (marked incomplete)",
+                  NUMERICAL_FAILURE)
+
+    _run(job)
+
+
+@main.group()
+def cache():
+    """Show or clear kronsub's caches (derived known systems, compiled models)."""
+
+
+def _size(n: int) -> str:
+    for unit in ("B", "kB", "MB", "GB"):
+        if n < 1000 or unit == "GB":
+            return f"{n:.0f} {unit}" if unit == "B" else f"{n:.1f} {unit}"
+        n /= 1000
+    return ""
+
+
+@cache.command("info")
+def cache_info():
+    """Where the cache is, how many entries it holds and their sizes."""
+    from . import cache as store
+
+    def job():
+        found = store.info()
+        if found.folder is None:
+            click.echo(f"cache: off ({store.CACHE_ENV}=off)")
+            return
+        reason = store.unsafe_reason(found.folder) if found.folder.exists() else None
+        click.echo(f"cache: {found.folder}" + (f" (not used: {reason})" if reason else "")
+                   + ("" if found.folder.exists() else " (empty)"))
+        click.echo(f"derived known systems: {found.systems} ({_size(found.systems_bytes)})")
+        click.echo(f"compiled models: {found.libraries} ({_size(found.libraries_bytes)})")
+
+    _run(job)
+
+
+@cache.command("clear")
+def cache_clear():
+    """Remove kronsub's own entries from the cache (nothing else in the folder)."""
+    from . import cache as store
+
+    def job():
+        folder = store.cache_dir()
+        removed = store.clear()
+        click.echo(f"removed {removed} entries from {folder}" if folder is not None else "cache: off")
 
     _run(job)
 

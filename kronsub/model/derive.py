@@ -3,33 +3,23 @@ from __future__ import annotations
 
 import dataclasses
 import hashlib
-import os
-import pickle
-import tempfile
 import warnings
 from pathlib import Path
 
 import numpy as np
 import sympy
-from sympy.core.parameters import evaluate
 
 from .. import __version__
-from ..core.known_system import KnownSystem, ProjectedEffect
+from ..atomic import write_atomically
+from ..cache import usable_cache_dir
+from ..core.known_system import KnownSystem, ProjectedEffect, Transition
 from ..core.subspace import Subspace, assemble, effect_labels, project_effects, project_inertia
-
-CACHE_ENV = "KRONSUB_CACHE_DIR"
+from . import cache_format
 
 
 def cache_dir() -> Path | None:
-    """Where derived known systems are kept (``$KRONSUB_CACHE_DIR``, else the user cache);
-    ``KRONSUB_CACHE_DIR=off`` turns the cache off."""
-    env = os.environ.get(CACHE_ENV)
-    if env == "off":
-        return None
-    if env:
-        return Path(env)
-    base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
-    return Path(base) / "kronsub"
+    """Where derived known systems are kept, when that folder is safe (see :mod:`kronsub.cache`)."""
+    return usable_cache_dir()
 
 
 def _code_fingerprint() -> str:
@@ -62,18 +52,21 @@ def _cache_file(key: str, part: str) -> Path | None:
     folder = cache_dir()
     if folder is None or not key:
         return None
-    return folder / f"{key}.{part}.pickle"
+    return folder / f"{key}.{part}.json"
 
 
-def _load(path: Path | None):
-    if path is None or not path.exists():
+def _load(path: Path | None, expected: type):
+    """The value stored at ``path``; None when it is missing, damaged, stale or not ours."""
+    if path is None:
         return None
     try:
-        # the stored expressions are canonical already: rebuild them as they are
-        with open(path, "rb") as fh, evaluate(False):
-            return pickle.load(fh)
-    except Exception:  # a damaged or stale cache entry is rebuilt
+        text = path.read_bytes()
+    except OSError:
         return None
+    try:
+        return cache_format.loads(text, expected)
+    except cache_format.CacheFormatError:
+        return None  # rebuilt by the caller
 
 
 def load_cached(key: str, *, transition: bool = True) -> KnownSystem | None:
@@ -82,23 +75,15 @@ def load_cached(key: str, *, transition: bool = True) -> KnownSystem | None:
     The transition (primitive, ``C``) is kept apart and read only when asked for:
     a known system used as a component does not need it.
     """
-    system = _load(_cache_file(key, "system"))
-    if not isinstance(system, KnownSystem):
+    system = _load(_cache_file(key, "system"), KnownSystem)
+    if system is None:
         return None
     if transition:
-        steps = _load(_cache_file(key, "transition"))
+        steps = _load(_cache_file(key, "transition"), Transition)
         if steps is None:
             return None
         system = dataclasses.replace(system, transition=steps)
     return system
-
-
-def _store(path: Path, value) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, suffix=".tmp")
-    with os.fdopen(fd, "wb") as fh:
-        pickle.dump(value, fh, protocol=pickle.HIGHEST_PROTOCOL)
-    os.replace(tmp, path)
 
 
 def store_cached(key: str, system: KnownSystem) -> None:
@@ -107,9 +92,11 @@ def store_cached(key: str, system: KnownSystem) -> None:
     if path is None:
         return
     try:
-        _store(_cache_file(key, "transition"), system.transition)
-        _store(path, dataclasses.replace(system, transition=None))
-    except OSError:
+        transition = cache_format.dumps(system.transition)
+        known = cache_format.dumps(dataclasses.replace(system, transition=None))
+        write_atomically(_cache_file(key, "transition"), transition)
+        write_atomically(path, known)
+    except (OSError, cache_format.CacheFormatError):
         pass  # the cache is an optimisation only
 
 
@@ -119,22 +106,24 @@ def derive_model(model, *, cache: bool = True, effects=None) -> KnownSystem:
     ``effects`` (effect names, dotted for a known system's own) keeps only those: the
     others are left out before projection, so nothing of them is derived. ``fbar`` is the
     sum of the effects' projected forces (8'), (F), so ``Mbar``, ``hbar`` (the inertia) and
-    each effect are cached apart, and every selection of effects shares them.
+    each effect are cached apart, and every selection of effects shares them. The cache
+    holds data only (:mod:`.cache_format`); name and description always come from ``model``
+    (the same text may live under several file names).
     """
     key = model.content_hash if cache else ""
+    own = {"name": model.name, "description": model.description}
     if key and effects is None:
         hit = load_cached(key)
         if hit is not None:
-            return hit
+            return dataclasses.replace(hit, **own)
     implicit = model.implicit
     # with implicit constraints, the explicit step goes to the intermediate coordinates y first
     coordinates = implicit.intermediate if implicit is not None else model.coordinates
     labels = effect_labels(model.primitive, model.effects)
     chosen = labels if effects is None else tuple(label for label in labels if label in set(effects))
-    with evaluate(False):  # one switch for every read: each switch clears sympy's caches
-        inertia = _load_inertia(key)
-        pieces = {label: _load(_cache_file(key, f"effect.{label}")) for label in chosen}
-    missing = {label for label, piece in pieces.items() if not isinstance(piece, ProjectedEffect)}
+    inertia = _load_inertia(key)
+    pieces = {label: _load(_cache_file(key, f"effect.{label}"), ProjectedEffect) for label in chosen}
+    missing = {label for label, piece in pieces.items() if piece is None}
     if inertia is None or missing:
         sub = Subspace(model.primitive, coordinates, model.connection)
         if inertia is None:
@@ -147,7 +136,7 @@ def derive_model(model, *, cache: bool = True, effects=None) -> KnownSystem:
         for piece in project_effects(sub, model.primitive, model.effects, only=missing):
             pieces[piece.label] = piece
             _store_parts(key, {f"effect.{piece.label}": piece})
-    system = assemble(inertia, [pieces[label] for label in chosen])
+    system = dataclasses.replace(assemble(inertia, [pieces[label] for label in chosen]), **own)
     if implicit is not None:
         system = derive_implicit(model, system)
     if key and effects is None:
@@ -169,9 +158,9 @@ def derive_implicit(model, intermediate: KnownSystem) -> KnownSystem:
 
 def _load_inertia(key: str) -> KnownSystem | None:
     """The cached ``Mbar``, ``hbar`` and transition of a model, without effects."""
-    inertia = _load(_cache_file(key, "inertia"))
-    steps = _load(_cache_file(key, "inertia-transition"))
-    if not isinstance(inertia, KnownSystem) or steps is None:
+    inertia = _load(_cache_file(key, "inertia"), KnownSystem)
+    steps = _load(_cache_file(key, "inertia-transition"), Transition)
+    if inertia is None or steps is None:
         return None
     return dataclasses.replace(inertia, transition=steps)
 
@@ -182,8 +171,8 @@ def _store_parts(key: str, parts: dict) -> None:
         if path is None:
             return
         try:
-            _store(path, value)
-        except OSError:
+            write_atomically(path, cache_format.dumps(value))
+        except (OSError, cache_format.CacheFormatError):
             pass  # the cache is an optimisation only
 
 

@@ -153,7 +153,8 @@ class HeyokaIntegrator:
         keep = int(np.argmin(good)) if not np.all(good) else len(Y)
         cause = ("the state became NaN or infinite" if outcome == self._nonfinite
                  else f"heyoka outcome {outcome.name}")
-        return grid[:keep].copy(), Y[:keep], False, f"{cause} at t = {ta.time:.17g}"
+        when = ta.time if np.isfinite(ta.time) else grid[min(keep, len(grid) - 1)]
+        return grid[:keep].copy(), Y[:keep], False, f"{cause} at t = {when:.17g}"
 
 
 def integrate(system: KnownSystem, param: np.ndarray, y0: np.ndarray, grid: np.ndarray,

@@ -32,8 +32,9 @@ from typing import Callable, Sequence
 
 import numpy as np
 
+from kronsub.atomic import clean_stale, write_atomically
+from kronsub.cache import safe_folder, usable_cache_dir
 from kronsub.errors import KronsubError
-from kronsub.model.derive import cache_dir
 
 CSRC = Path(__file__).resolve().parent / "csrc"
 INTEGRATOR_FILES = ("integrators.h", "integrators.c")
@@ -102,14 +103,7 @@ def _named_sources(sources: Sequence[str | tuple[str, str]], stem: str) -> list[
 
 def _write_atomic(path: Path, data: bytes) -> None:
     """Write ``data`` to ``path`` through a temporary file and a rename."""
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
-    try:
-        with os.fdopen(fd, "wb") as handle:
-            handle.write(data)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+    write_atomically(path, data)
 
 
 _SCRATCH: list[Path] = []
@@ -125,15 +119,36 @@ def _scratch_root() -> Path:
 
 
 def _build_root() -> Path:
-    """``<kronsub cache>/native``; a temporary folder when the cache is off or not writable."""
-    folder = cache_dir()
-    if folder is not None:
-        try:
-            (folder / "native").mkdir(parents=True, exist_ok=True)
-            return folder / "native"
-        except OSError:
-            pass
-    return _scratch_root()
+    """``<kronsub cache>/native``; a private temporary folder when the cache is off, not
+    writable, or not safe (see :mod:`kronsub.cache`)."""
+    folder = usable_cache_dir()
+    native = safe_folder(folder / "native") if folder is not None else None
+    return native if native is not None else _scratch_root()
+
+
+def _digest_file(path: Path) -> str:
+    digest = hashlib.sha256()
+    with open(path, "rb") as fh:
+        for block in iter(lambda: fh.read(1 << 20), b""):
+            digest.update(block)
+    return digest.hexdigest()
+
+
+def sidecar(library: Path) -> Path:
+    """The file beside a library holding the sha256 of its bytes, written when it was built."""
+    return library.with_name(library.name + ".sha256")
+
+
+def verified(library: Path) -> bool:
+    """True when ``library`` is a regular file whose sha256 is the one its sidecar records
+    (a library planted without one, truncated, or changed since its build is not)."""
+    try:
+        if not library.is_file() or library.is_symlink():
+            return False
+        recorded = sidecar(library).read_text(encoding="ascii").strip()
+        return re.fullmatch(r"[0-9a-f]{64}", recorded) is not None and _digest_file(library) == recorded
+    except (OSError, UnicodeError):
+        return False
 
 
 def _run_compiler(command: list[str], cwd: Path) -> subprocess.CompletedProcess:
@@ -150,7 +165,9 @@ def compile_library(sources: Sequence[str | tuple[str, str]], name_hint: str = "
     on the include path. The folder ``<cache>/native/<name_hint>-<key>`` is keyed by the sha256
     of every file's name and text, the resolved compiler command and the flags, so an existing
     library is reused and a changed input never meets a stale one; the library is compiled
-    under a temporary name and renamed into place.
+    under a temporary name and renamed into place, and the sha256 of its bytes is written
+    beside it (:func:`sidecar`). A library is reused only when it matches that digest
+    (:func:`verified`); one planted without a sidecar, truncated or changed is rebuilt.
     """
     command = compiler_command()
     stem = re.sub(r"[^A-Za-z0-9_]+", "_", name_hint).strip("_") or "model"
@@ -166,13 +183,14 @@ def compile_library(sources: Sequence[str | tuple[str, str]], name_hint: str = "
 
     folder = _build_root() / f"{stem}-{key[:24]}"
     library = folder / f"lib{stem}.so"
-    if library.is_file():
+    if verified(library):
         return library
     folder.mkdir(parents=True, exist_ok=True)
     for name, text in files:
         _write_atomic(folder / name, text.encode())
 
-    fd, tmp_name = tempfile.mkstemp(prefix=f".lib{stem}.", suffix=".so", dir=folder)
+    clean_stale(library)  # left by a build that was killed
+    fd, tmp_name = tempfile.mkstemp(prefix=f".lib{stem}.so.", suffix=".tmp", dir=folder)
     os.close(fd)
     tmp = Path(tmp_name)
     c_files = [name for name, _ in files if name.endswith(".c")]
@@ -189,7 +207,9 @@ def compile_library(sources: Sequence[str | tuple[str, str]], name_hint: str = "
             raise CompileError(
                 f"compiling {stem} failed ({shlex.join(full)}):\n{stderr}", stderr
             )
+        digest = _digest_file(tmp)
         os.replace(tmp, library)
+        write_atomically(sidecar(library), digest + "\n")
     finally:
         tmp.unlink(missing_ok=True)
     return library

@@ -1,11 +1,11 @@
 """``--plot``: coordinates and energy against time, as a PNG (matplotlib, an optional extra)."""
 from __future__ import annotations
 
-import os
-import tempfile
 from pathlib import Path
 
 import numpy as np
+
+from ..atomic import atomic_file
 
 
 def plot_trajectory(system, traj, values, path: Path) -> None:
@@ -29,12 +29,8 @@ def plot_trajectory(system, traj, values, path: Path) -> None:
     bottom.legend(loc="upper right", fontsize="small")
     fig.suptitle(f"{system.name} ({traj.method})")
     fig.tight_layout()
-    fd, tmp = tempfile.mkstemp(dir=Path(path).resolve().parent, suffix=".png")
-    os.close(fd)
     try:
-        fig.savefig(tmp, dpi=100, format="png")
-        os.replace(tmp, path)
+        with atomic_file(Path(path), binary=True) as fh:
+            fig.savefig(fh, dpi=100, format="png")
     finally:
         plt.close(fig)
-        if os.path.exists(tmp):
-            os.unlink(tmp)

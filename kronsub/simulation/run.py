@@ -3,12 +3,15 @@
 The right-hand side ``ydot = [qdot; Mbar^-1 (fbar - hbar)]`` is the generated
 C, compiled once and cached by content hash; without a C compiler, or when
 the compilation fails, the generated numpy module stands in (with a one-line
-warning). A run is split into chunks so long runs can show progress; a
-non-finite state or a mass matrix that is not positive definite stops it,
-keeping the rows so far.
+warning). A run is split
+into chunks so long runs can show progress and stream their rows (:func:`start`
+yields blocks of at most :data:`BLOCK_ROWS` rows, so memory does not grow with
+the run); a non-finite state or a mass matrix that is not positive definite
+stops it, keeping the rows so far.
 """
 from __future__ import annotations
 
+import math
 import sys
 import time
 import warnings
@@ -99,10 +102,90 @@ class _Progress:
             sys.stderr.write("\n")
 
 
+MAX_ROWS = 10**8  # a run asking for more rows is a mistake (--dt far too small), not a plan
+BLOCK_ROWS = 100_000  # rows per block of a streamed run (bounds the memory of long runs)
+
+
+def row_count(t_end: float, dt: float) -> int:
+    """The number of output rows of a run from 0 to ``t_end`` every ``dt``; raises
+    :class:`SimulationError` when ``t_end`` or ``dt`` is not a positive finite number or the
+    run would have more than :data:`MAX_ROWS` rows."""
+    if not (math.isfinite(t_end) and t_end > 0):
+        raise SimulationError(f"--t must be a positive finite time (got {t_end!r})")
+    if not (math.isfinite(dt) and dt > 0):
+        raise SimulationError(f"--dt must be a positive finite interval (got {dt!r})")
+    ratio = t_end / dt
+    if not ratio < MAX_ROWS:
+        raise SimulationError(f"--t {t_end:g} with --dt {dt:g} asks for {ratio:.3g} rows, more than "
+                              f"{MAX_ROWS:.0e}; raise --dt or shorten --t")
+    return len(_Grid(t_end, dt))
+
+
+@dataclass
+class Block:
+    """Consecutive rows of a run: times, states ``[q; qdot]`` and, when computed in C, ``(T, V)``."""
+
+    t: np.ndarray
+    y: np.ndarray
+    energies: tuple[np.ndarray, np.ndarray] | None = None
+    dependent: np.ndarray | None = None  # implicit constraints: the dependent coordinates per row
+
+
+@dataclass
+class Run:
+    """A run in progress: iterate over it for its :class:`Block` s of rows, as they are
+    computed; once the iteration ends, ``complete``, ``message``, ``t_fail`` and ``stats``
+    say how the run ended."""
+
+    method: str
+    backend: str
+    blocks: object = None
+    complete: bool = True
+    message: str = ""
+    t_fail: float | None = None
+    stats: dict = field(default_factory=dict)
+    y_fail: np.ndarray | None = None  # the state at which the right-hand side failed, when known
+
+    def __iter__(self):
+        yield from self.blocks
+
+    def stop(self, message: str, t_fail: float | None, stats: dict | None = None, y_fail=None) -> None:
+        self.complete, self.message, self.t_fail = False, message, t_fail
+        if y_fail is not None:
+            self.y_fail = np.asarray(y_fail)
+        if stats is not None:
+            self.stats = stats
+
+
 def simulate(system: KnownSystem, values: RunValues, t_end: float, dt: float, method: str = "dop853",
              rtol: float = 1e-10, atol: float = 1e-10, chunks: int = 20, progress: bool | None = None,
              outputs=None, constrained=None) -> Trajectory:
-    """Integrate from t = 0 to ``t_end`` with rows every ``dt``.
+    """Integrate from t = 0 to ``t_end`` with rows every ``dt`` (all rows in memory); the
+    arguments as for :func:`start`."""
+    run = start(system, values, t_end, dt, method, rtol, atol, chunks, progress, outputs, constrained)
+    return collect(run, list(run), len(system.coordinates))
+
+
+def collect(run: Run, blocks: list[Block], nq: int) -> Trajectory:
+    """The trajectory of ``blocks`` of ``run`` (all of them, or those before an interrupt)."""
+    n = 2 * nq
+    t = np.concatenate([b.t for b in blocks]) if blocks else np.zeros(0)
+    y = np.concatenate([b.y.reshape(-1, n) for b in blocks]) if blocks else np.zeros((0, n))
+    energies = dependent = None
+    if blocks and all(b.energies is not None for b in blocks):
+        energies = (np.concatenate([b.energies[0] for b in blocks]), np.concatenate([b.energies[1] for b in blocks]))
+    if blocks and all(b.dependent is not None for b in blocks):
+        dependent = np.concatenate([b.dependent for b in blocks])
+    return Trajectory(t, y, run.method, run.complete, run.message, run.t_fail, run.stats, run.backend, energies,
+                      run.y_fail, dependent)
+
+
+def start(system: KnownSystem, values: RunValues, t_end: float, dt: float, method: str = "dop853",
+          rtol: float = 1e-10, atol: float = 1e-10, chunks: int = 20, progress: bool | None = None,
+          outputs=None, constrained=None) -> Run:
+    """A run from t = 0 to ``t_end`` with rows every ``dt``, streamed: the model is compiled
+    now, the rows are computed in blocks (at most :data:`BLOCK_ROWS` each) while the
+    :class:`Run` is iterated.
 
     ``outputs`` (a scene's; None: everything) decides whether the energies are computed. With
     implicit constraints, ``constrained`` is the :class:`~kronsub.core.constraints.Intermediates`
@@ -113,17 +196,18 @@ def simulate(system: KnownSystem, values: RunValues, t_end: float, dt: float, me
         raise SimulationError(f"method '{method}' needs the canonical form or explicit equations, which a "
                               "system with implicit constraints does not have; use dop853 (default), Radau or "
                               "LSODA")
+    row_count(t_end, dt)
     if system.implicit is not None and constrained is None:
         from .constrained import project_initial
 
         values, _, constrained = project_initial(system, {}, {}, values, _newton_tol(rtol, atol))
-    if not (t_end > 0 and dt > 0):
-        raise SimulationError("--t and --dt must be positive")
     param = np.array(values.parameters, dtype=float)
     y0 = np.array(values.y0, dtype=float)
-    grid = _grid(t_end, dt)
+    grid = _Grid(t_end, dt)
     if METHODS[method].engine == "heyoka":
-        return _run_heyoka(system, param, y0, grid, rtol)
+        run = Run("heyoka", "heyoka")
+        run.blocks = _heyoka_blocks(run, system, param, y0, grid, rtol)
+        return run
     native = None
     try:
         generated = [(g.name, g.text) for g in emit_c(system, "model", outputs=outputs)]
@@ -142,24 +226,20 @@ def simulate(system: KnownSystem, values: RunValues, t_end: float, dt: float, me
         fallback = "DOP853"
         warnings.warn(f"method '{method}' runs in compiled C; using scipy's {fallback} instead")
         spec = METHODS[fallback]
+    run = Run(spec.name, "C" if native is not None else "numpy")
     bar = _Progress(t_end, progress)
     if not bar.enabled:
         chunks = 1  # one call: no restarts of the step-size control
-    try:
-        if spec.engine == "c":
-            traj = _run_native(native, spec.name, grid, y0, param, rtol, atol, dt, chunks, bar, system)
-        else:
-            rhs = (_native_rhs(native, param) if native is not None else
-                   _numpy_rhs(system, param, outputs, constrained, _newton_tol(rtol, atol)))
-            traj = _run_scipy(rhs, spec.name, grid, y0, rtol, atol, chunks, bar, system)
-    finally:
-        bar.close()
-    traj.backend = "C" if native is not None else "numpy"
-    if native is not None and len(traj.t) and (outputs is None or outputs.energies):
-        traj.energies = native.energies(traj.t, traj.y, param)
-    if constrained is not None:
-        _constrained_rows(system, traj, constrained)
-    return traj
+    chunks = max(chunks, math.ceil(len(grid) / BLOCK_ROWS))
+    if spec.engine == "c":
+        rows = _native_blocks(run, native, spec.name, grid, y0, param, rtol, atol, dt, chunks, bar, system)
+    else:
+        rhs = (_native_rhs(native, param) if native is not None else
+               _numpy_rhs(system, param, outputs, constrained, _newton_tol(rtol, atol)))
+        rows = _scipy_blocks(run, rhs, spec.name, grid, y0, rtol, atol, chunks, bar, system)
+    with_energies = native is not None and (outputs is None or outputs.energies)
+    run.blocks = _finish(run, rows, bar, native if with_energies else None, param, system, constrained)
+    return run
 
 
 def _newton_tol(rtol: float, atol: float) -> float:
@@ -168,40 +248,74 @@ def _newton_tol(rtol: float, atol: float) -> float:
     return newton_tolerance(rtol, atol)
 
 
-def _constrained_rows(system, traj: Trajectory, constrained) -> None:
-    """The dependent coordinates per row and, after a failure, what failed (t, configuration,
-    constraints)."""
-    from .constrained import dependent_rows, diagnose
+def _finish(run, rows, bar, native, param, system, constrained):
+    """The blocks, with energies computed in C when ``native`` is given and, with implicit
+    constraints, the dependent coordinates per row (and, after a failure, what failed)."""
+    guess = constrained.guess.copy() if constrained is not None else None
+    last_y = None
+    try:
+        for t, y in rows:
+            if len(t):
+                energies = native.energies(t, y, param) if native is not None else None
+                dependent = None
+                if constrained is not None:
+                    from .constrained import dependent_rows
 
-    n = len(system.coordinates)
-    start = constrained.guess.copy()
-    traj.dependent = dependent_rows(constrained, traj.y, n, start) if len(traj.y) else None
-    if not traj.complete:
-        last = traj.dependent[-1] if traj.dependent is not None and len(traj.dependent) else start
-        y = traj.y_fail if traj.y_fail is not None and np.all(np.isfinite(traj.y_fail)) else traj.y[-1]
-        traj.message = diagnose(system, constrained, traj.t_fail if traj.t_fail is not None else traj.t[-1], y,
-                                last)
+                    dependent = dependent_rows(constrained, np.asarray(y), len(system.coordinates), guess)
+                    guess = dependent[-1] if len(dependent) else guess
+                last_y = np.asarray(y)[-1]
+                yield Block(np.asarray(t), np.asarray(y), energies, dependent)
+    finally:
+        bar.close()
+    if constrained is not None and not run.complete and last_y is not None:
+        from .constrained import diagnose
+
+        y = run.y_fail if run.y_fail is not None and np.all(np.isfinite(run.y_fail)) else last_y
+        run.message = diagnose(system, constrained, run.t_fail, y, guess)
 
 
-def _grid(t_end: float, dt: float) -> np.ndarray:
-    """Output times 0, dt, 2 dt, ... and exactly t_end."""
-    grid = np.arange(0.0, t_end + 0.5 * dt, dt)
-    if abs(grid[-1] - t_end) < 0.5 * dt:
-        grid[-1] = t_end
-    if grid[-1] < t_end:
-        grid = np.append(grid, t_end)
-    return grid
+class _Grid:
+    """Output times 0, dt, 2 dt, ... and exactly t_end, made a slice at a time."""
+
+    def __init__(self, t_end: float, dt: float):
+        self.t_end, self.dt = t_end, dt
+        n = math.ceil((t_end + 0.5 * dt) / dt)  # the length of np.arange(0, t_end + dt/2, dt)
+        n += 1 if (n - 1) * dt < t_end and abs((n - 1) * dt - t_end) >= 0.5 * dt else 0
+        self.n = max(n, 2)  # a run always starts at 0 (also when dt > t_end)
+
+    def __len__(self) -> int:
+        return self.n
+
+    def __getitem__(self, index):
+        if isinstance(index, slice):
+            a, b, _ = index.indices(self.n)
+            times = np.arange(a, b) * self.dt
+            if b == self.n and b > a:
+                times[-1] = self.t_end
+            return times
+        i = index + self.n if index < 0 else index
+        return self.t_end if i == self.n - 1 else i * self.dt
 
 
-def _run_heyoka(system, param, y0, grid, tol) -> Trajectory:
+def _heyoka_blocks(run, system, param, y0, grid, tol):
     try:
         from . import heyoka_backend
     except ImportError:
         heyoka_backend = None
     if heyoka_backend is None or not heyoka_backend.available():
         raise SimulationError("method 'heyoka' needs heyoka: pip install 'kronsub[heyoka]'")
-    t, Y, complete, message = heyoka_backend.integrate(system, param, y0, grid, tol)
-    return Trajectory(t, Y, "heyoka", complete, message, None if complete else float(t[-1]), {}, "heyoka")
+    integrator = heyoka_backend.HeyokaIntegrator(system, tol)
+    y, first = y0, True
+    for a, b in _chunks(grid, math.ceil(len(grid) / BLOCK_ROWS)) if len(grid) > 1 else [(0, 0)]:
+        times = grid[a:b + 1]
+        t, Y, complete, message = integrator.run(param, y, times)
+        start = 0 if first else 1  # a chunk starts on the last row of the one before
+        if len(t) > start:
+            yield Block(t[start:], Y[start:])
+        if not complete:
+            run.stop(message, float(t[-1]) if len(t) else float(times[0]))
+            return
+        y, first = Y[-1], False
 
 
 def _native_rhs(native, param):
@@ -241,7 +355,7 @@ class _Singular(Exception):
         self.t, self.y = t, y
 
 
-def _chunks(grid: np.ndarray, count: int):
+def _chunks(grid, count: int):
     """Index ranges of the output grid, one per chunk."""
     edges = np.unique(np.linspace(0, len(grid) - 1, min(count, len(grid) - 1) + 1).astype(int))
     return list(zip(edges[:-1], edges[1:]))
@@ -254,9 +368,11 @@ def _where(system, y) -> str:
     return " at " + ", ".join(f"{q.name}={v:.6g}" for q, v in zip(system.coordinates, y))
 
 
-def _run_native(native, method, grid, y0, param, rtol, atol, dt, chunks, bar, system) -> Trajectory:
-    times, rows = [grid[0]], [y0]
-    stats = {"steps": 0, "rejected": 0, "evaluations": 0}
+def _native_blocks(run, native, method, grid, y0, param, rtol, atol, dt, chunks, bar, system):
+    """Blocks ``(t, Y)`` of a run wholly in C, one per chunk of the grid."""
+    last = grid[0]
+    yield np.array([last]), np.array([y0])
+    stats = run.stats = {"steps": 0, "rejected": 0, "evaluations": 0}
     y = y0
     for a, b in _chunks(grid, chunks):
         t, Y, result = native.integrate(method, grid[a], y, grid[b], dt, param, rtol=rtol, atol=atol,
@@ -264,23 +380,25 @@ def _run_native(native, method, grid, y0, param, rtol, atol, dt, chunks, bar, sy
         stats["steps"] += result.n_steps
         stats["rejected"] += result.n_rejected
         stats["evaluations"] += result.n_evals
-        keep = t > times[-1] + 1e-12 * max(1.0, abs(times[-1]))
-        times.extend(t[keep])
-        rows.extend(Y[keep])
+        keep = t > last + 1e-12 * max(1.0, abs(last))
+        if np.any(keep):
+            last = t[keep][-1]
+            yield t[keep], Y[keep]
         if result.status != 0:
             message = result.message + (_where(system, result.y_fail) if result.status in (1, 2) else "")
-            return Trajectory(np.array(times), np.array(rows), method, False, message, result.t_fail, stats,
-                              y_fail=result.y_fail)
+            run.stop(message, result.t_fail, y_fail=result.y_fail)
+            return
         y = Y[-1]
         bar.update(grid[b])
-    return Trajectory(np.array(times), np.array(rows), method, True, "", None, stats)
 
 
-def _run_scipy(rhs, method, grid, y0, rtol, atol, chunks, bar, system) -> Trajectory:
+def _scipy_blocks(run, rhs, method, grid, y0, rtol, atol, chunks, bar, system):
+    """Blocks ``(t, Y)`` of a run with scipy's ``solve_ivp``, one per chunk of the grid."""
     from scipy.integrate import solve_ivp
 
-    times, rows = [grid[0]], [y0]
-    stats = {"evaluations": 0}
+    last = grid[0]
+    yield np.array([last]), np.array([y0])
+    stats = run.stats = {"evaluations": 0}
     y = y0
     for a, b in _chunks(grid, chunks):
         try:
@@ -288,24 +406,25 @@ def _run_scipy(rhs, method, grid, y0, rtol, atol, chunks, bar, system) -> Trajec
                 sol = solve_ivp(rhs, (grid[a], grid[b]), y, method=method, t_eval=grid[a:b + 1],
                                 rtol=rtol, atol=atol)
         except _Singular as exc:
-            return Trajectory(np.array(times), np.array(rows), method, False,
-                              "the mass matrix is not positive definite" + _where(system, exc.y), exc.t, stats,
-                              y_fail=np.asarray(exc.y))
+            run.stop("the mass matrix is not positive definite" + _where(system, exc.y), exc.t, y_fail=exc.y)
+            return
         except (ValueError, RuntimeError) as exc:
-            return Trajectory(np.array(times), np.array(rows), method, False, str(exc), times[-1], stats)
+            run.stop(str(exc), last)
+            return
         stats["evaluations"] += int(sol.nfev)
         good = np.all(np.isfinite(sol.y), axis=0)
         t_new, y_new = sol.t[1:], sol.y.T[1:]
         finite = good[1:]
         if not np.all(finite) or sol.status < 0:
             stop = int(np.argmin(finite)) if not np.all(finite) else len(t_new)
-            times.extend(t_new[:stop])
-            rows.extend(y_new[:stop])
+            if stop:
+                yield t_new[:stop], y_new[:stop]
             cause = "the state became NaN or infinite" if not np.all(finite) else sol.message
             t_fail = float(t_new[stop]) if stop < len(t_new) else float(sol.t[-1])
-            return Trajectory(np.array(times), np.array(rows), method, False, cause, t_fail, stats)
-        times.extend(t_new)
-        rows.extend(y_new)
+            run.stop(cause, t_fail)
+            return
+        if len(t_new):
+            last = t_new[-1]
+            yield t_new, y_new
         y = y_new[-1]
         bar.update(grid[b])
-    return Trajectory(np.array(times), np.array(rows), method, True, "", None, stats)

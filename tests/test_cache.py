@@ -1,0 +1,355 @@
+"""The caches hold data, never code: the known-system JSON format, compiled-library digests,
+the cache folder's safety checks and ``kronsub cache info|clear``."""
+from __future__ import annotations
+
+import dataclasses
+import json
+import os
+import pickle
+import shutil
+import subprocess
+import sys
+import warnings
+from pathlib import Path
+
+import pytest
+import sympy
+from click.testing import CliRunner
+
+from conftest import MODELS, ROOT
+from kronsub.cache import CacheWarning
+from kronsub.cli import main
+from kronsub.components.base import Body
+from kronsub.core.known_system import KnownSystem, ParameterInfo, Transition
+from kronsub.emitters import EMITTERS
+from kronsub.model import cache_format
+from kronsub.model.derive import load_cached, store_cached
+from kronsub.model.loader import load_model
+
+BUNDLED = sorted(MODELS.glob("*/*.yaml")) + sorted((ROOT / "tests" / "models").glob("*.yaml"))
+SYSTEM1 = MODELS / "hoffmann" / "system1.yaml"
+
+
+@pytest.fixture
+def cache(tmp_path, monkeypatch):
+    folder = tmp_path / "cache"
+    monkeypatch.setenv("KRONSUB_CACHE_DIR", str(folder))
+    return folder
+
+
+def _walk(value, path="system"):
+    """Every expression and matrix of a stored value, with where it sits (for exact comparison)."""
+    if isinstance(value, sympy.MatrixBase):
+        yield path, type(value).__name__ + sympy.srepr(list(value)) + str(value.shape)
+    elif isinstance(value, sympy.Basic):
+        yield path, sympy.srepr(value)
+    elif dataclasses.is_dataclass(value):
+        yield path, type(value).__name__
+        for f in dataclasses.fields(value):
+            yield from _walk(getattr(value, f.name), f"{path}.{f.name}")
+    elif isinstance(value, (tuple, list)):
+        for i, x in enumerate(value):
+            yield from _walk(x, f"{path}[{i}]")
+    elif isinstance(value, dict):
+        for k, x in value.items():
+            yield from _walk(x, f"{path}[{k!r}]")
+    else:
+        yield path, repr(value)
+
+
+# ---------------------------------------------------------------------------------------------
+# The known-system format
+# ---------------------------------------------------------------------------------------------
+
+_FRESH: dict = {}
+
+
+def fresh(path) -> KnownSystem:
+    """The model derived without any cache (once per test run)."""
+    if path not in _FRESH:
+        _FRESH[path] = load_model(path, cache=False).derive(cache=False)
+    return _FRESH[path]
+
+
+@pytest.mark.parametrize("path", BUNDLED, ids=lambda p: p.stem)
+def test_every_bundled_model_round_trips_exactly(path):
+    """derive -> store -> load gives the same tree, node for node (srepr), for the known
+    system and its transition, parameters and bodies."""
+    system = fresh(path)
+    assert system.bodies and system.parameters and system.transition is not None
+    back = cache_format.loads(cache_format.dumps(system), KnownSystem)
+    assert back == system
+    assert list(_walk(back)) == list(_walk(system))
+    for part, cls in ((system.transition, Transition), (system.parameters[0], ParameterInfo),
+                      (system.bodies[0], Body)):
+        again = cache_format.loads(cache_format.dumps(part), cls)
+        assert list(_walk(again)) == list(_walk(part))
+
+
+def test_every_number_kind_and_function_round_trips():
+    x, y = sympy.Symbol("x", real=True), sympy.Symbol("y", positive=True, integer=False)
+    exprs = [sympy.Float("0.1", 30) * x, sympy.Float(-2.5e-300), sympy.Rational(-7, 3) * sympy.pi,
+             sympy.Integer(10) ** 40 + x, sympy.E ** y, sympy.atan2(y, x) + sympy.Abs(x) * sympy.sign(y),
+             sympy.log(sympy.cosh(x)) - sympy.asin(x / 2) + sympy.acos(x) * sympy.atan(y),
+             sympy.tan(x) * sympy.tanh(y) / sympy.sinh(x), sympy.sqrt(x ** 2 + y)]
+    info = ParameterInfo("p", x, exprs[0], "kg", "a mass")
+    for e in exprs:
+        back = cache_format.loads(cache_format.dumps(ParameterInfo("p", x, e)), ParameterInfo)
+        assert sympy.srepr(back.value) == sympy.srepr(e)
+        assert back.value.free_symbols == e.free_symbols  # assumptions kept
+    assert cache_format.loads(cache_format.dumps(info)) == info
+
+
+def test_values_off_the_whitelist_are_not_stored():
+    x = sympy.Symbol("x")
+    for bad in (sympy.Function("f")(x), sympy.Dummy("d"), sympy.Integral(x, x), sympy.besselj(0, x)):
+        with pytest.raises(cache_format.CacheFormatError):
+            cache_format.dumps(ParameterInfo("p", x, bad))
+    with pytest.raises(cache_format.CacheFormatError):
+        cache_format.dumps({"a": object()})
+    with pytest.raises(cache_format.CacheFormatError):  # more digits than JSON integers may have
+        cache_format.dumps(ParameterInfo("p", x, sympy.Integer(10) ** 5000 + x))
+
+
+def _stored(system) -> dict:
+    return json.loads(cache_format.dumps(system))
+
+
+def _text(data: dict) -> str:
+    return json.dumps(data, separators=(",", ":"))
+
+
+def _mutations(data: dict):
+    """Damaged, foreign or hostile variants of a stored system's JSON."""
+    nodes = data["nodes"]
+    first_op = next(i for i, n in enumerate(nodes) if n[0] in ("Add", "Mul"))
+    yield "other version", {**data, "format": "kronsub-known-system/0"}
+    yield "extra key", {**data, "code": "print(1)"}
+    for head in ("Function", "Symbol", "eval", "__import__", "Integral", "Lambda", "os.system"):
+        bad = [list(n) for n in nodes]
+        bad[first_op] = [head, *bad[first_op][1:]]
+        yield f"head {head}", {**data, "nodes": bad}
+    forward = [list(n) for n in nodes]
+    forward[first_op] = [forward[first_op][0], len(nodes) - 1 + 5, *forward[first_op][2:]]
+    yield "reference to a later node", {**data, "nodes": forward}
+    self_ref = [list(n) for n in nodes]
+    self_ref[first_op] = [self_ref[first_op][0], first_op, *self_ref[first_op][2:]]
+    yield "reference to itself", {**data, "nodes": self_ref}
+    yield "unknown class", json.loads(_text(data).replace('"c":"Body"', '"c":"Popen"', 1))
+    value = json.loads(json.dumps(data["value"]))
+    value["f"]["__class__"] = None
+    yield "unknown field", {**data, "value": value}
+    value = json.loads(json.dumps(data["value"]))
+    del value["f"]["name"]
+    yield "missing field", {**data, "value": value}
+    symbols = [list(n) for n in nodes]
+    s = next(i for i, n in enumerate(symbols) if n[0] == "S")
+    symbols[s] = ["S", "x", "__import__('os')"]
+    yield "unknown assumption", {**data, "nodes": symbols}
+    yield "float", {**data, "nodes": nodes + [["F", 0, "zz", 1, 2, 53]]}
+    yield "matrix shape", json.loads(_text(data).replace('"m":["Matrix",', '"m":["Matrix",7,', 1))
+
+
+def test_damaged_foreign_or_hostile_files_are_misses():
+    system = load_model(SYSTEM1, cache=False).derive(cache=False)
+    data = _stored(dataclasses.replace(system, transition=None))
+    seen = 0
+    for why, variant in _mutations(data):
+        with pytest.raises(cache_format.CacheFormatError):
+            cache_format.loads(json.dumps(variant), KnownSystem)
+        seen += 1
+    assert seen > 15
+    text = cache_format.dumps(dataclasses.replace(system, transition=None))
+    for bad in (text[: len(text) // 2], "", "[" * 100_000, "null", '"x"', "\x00"):
+        with pytest.raises(cache_format.CacheFormatError):
+            cache_format.loads(bad, KnownSystem)
+    with pytest.raises(cache_format.CacheFormatError):  # a Transition is not a KnownSystem
+        cache_format.loads(cache_format.dumps(system.transition), KnownSystem)
+
+
+def test_a_damaged_cache_entry_is_rebuilt(cache):
+    model = load_model(SYSTEM1)
+    model.derive()
+    key = model.content_hash
+    entry = cache / f"{key}.system.json"
+    entry.write_text(entry.read_text()[:-40])
+    assert load_cached(key) is None
+    assert model.derive() == fresh(SYSTEM1)
+    assert load_cached(key) == fresh(SYSTEM1)  # stored again
+
+
+def test_a_planted_pickle_is_never_executed(cache, tmp_path):
+    """A pickle that would create a canary, under the old and the new cache file names."""
+    canary = tmp_path / "canary"
+
+    class Plant:
+        def __reduce__(self):
+            return (os.system, (f"touch {canary}",))
+
+    model = load_model(SYSTEM1)
+    cache.mkdir(parents=True)
+    payload = pickle.dumps(Plant())
+    for part in ("system", "transition"):
+        for ext in ("json", "pickle"):
+            (cache / f"{model.content_hash}.{part}.{ext}").write_bytes(payload)
+    system = model.derive()
+    assert not canary.exists()
+    assert system == fresh(SYSTEM1)
+
+
+@pytest.mark.parametrize("path", BUNDLED, ids=lambda p: p.stem)
+def test_output_is_identical_with_and_without_the_cache(cache, path):
+    """Every bundled model, every format: derived afresh and read from the cache, the same bytes."""
+    system = fresh(path)
+    model = load_model(path)
+    store_cached(model.content_hash, system)
+    hit = model.derive()
+    assert hit is not system and load_cached(model.content_hash) is not None
+    for fmt, emit in EMITTERS.items():
+        assert emit(hit) == emit(system), (path.name, fmt)
+
+
+def test_the_same_text_under_two_names_prints_each_name(cache, tmp_path):
+    """The model's name (its file's stem, when it has no `name:`) comes from the current file."""
+    text = "\n".join(line for line in SYSTEM1.read_text().splitlines() if not line.startswith(("name:",)))
+    for stem in ("first", "second"):
+        (tmp_path / f"{stem}.yaml").write_text(text)
+    runner = CliRunner()
+    one = runner.invoke(main, ["derive", str(tmp_path / "first.yaml")])
+    two = runner.invoke(main, ["derive", str(tmp_path / "second.yaml")])
+    assert one.exit_code == two.exit_code == 0, two.output
+    assert one.output.startswith("# first") and two.output.startswith("# second")
+    assert "first" not in two.output
+    assert two.output == runner.invoke(main, ["derive", str(tmp_path / "second.yaml"), "--no-cache"]).output
+
+
+# ---------------------------------------------------------------------------------------------
+# The cache folder
+# ---------------------------------------------------------------------------------------------
+
+def test_a_folder_others_may_write_is_refused(cache, monkeypatch):
+    import kronsub.cache
+
+    cache.mkdir()
+    cache.chmod(0o777)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        system = load_model(SYSTEM1).derive()
+    assert any(issubclass(w.category, CacheWarning) and "group or others" in str(w.message) for w in caught)
+    assert list(cache.iterdir()) == []
+    assert system == fresh(SYSTEM1)
+    monkeypatch.setattr(kronsub.cache, "_WARNED", set())  # warned once per process
+    result = CliRunner().invoke(main, ["derive", str(SYSTEM1)])
+    assert result.exit_code == 0 and "Warning: not using the cache folder" in result.output
+
+
+def test_a_new_cache_folder_is_private_whatever_the_umask(cache):
+    old = os.umask(0o002)
+    try:
+        load_model(SYSTEM1).derive()
+    finally:
+        os.umask(old)
+    assert cache.stat().st_mode & 0o777 == 0o700 and any(cache.iterdir())
+
+
+@pytest.mark.skipif(not hasattr(os, "geteuid") or os.geteuid() != 0, reason="needs root to give a folder away")
+def test_a_folder_of_another_user_is_refused(cache):
+    cache.mkdir(mode=0o755)
+    os.chown(cache, 65534, 65534)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        load_model(SYSTEM1).derive()
+    assert any("another user" in str(w.message) for w in caught)
+    assert list(cache.iterdir()) == []
+
+
+def test_cache_info_and_clear_touch_only_kronsub_entries(cache):
+    load_model(SYSTEM1).derive()
+    (cache / "notes.txt").write_text("mine")
+    (cache / "native").mkdir()
+    (cache / "native" / "keep-me").mkdir()
+    (cache / "native" / "model-0123456789abcdef01234567").mkdir()
+    (cache / "native" / "model-0123456789abcdef01234567" / "libmodel.so").write_bytes(b"x" * 10)
+    runner = CliRunner()
+    info = runner.invoke(main, ["cache", "info"])
+    assert info.exit_code == 0, info.output
+    assert str(cache) in info.output and "derived known systems: 1" in info.output
+    assert "compiled models: 1" in info.output
+    cleared = runner.invoke(main, ["cache", "clear"])
+    assert cleared.exit_code == 0, cleared.output
+    assert sorted(p.name for p in cache.rglob("*")) == ["keep-me", "native", "notes.txt"]
+    assert "derived known systems: 0" in runner.invoke(main, ["cache", "info"]).output
+
+
+# ---------------------------------------------------------------------------------------------
+# Compiled libraries
+# ---------------------------------------------------------------------------------------------
+
+needs_cc = pytest.mark.skipif(shutil.which(os.environ.get("CC", "gcc").split()[0] if os.environ.get("CC") else "gcc")
+                              is None, reason="no C compiler")
+
+
+def _library(system) -> Path:
+    from kronsub.emitters.code import emit_c
+    from kronsub.simulation.native import compile_library
+
+    return compile_library([(g.name, g.text) for g in emit_c(system, "model")], "model")
+
+
+def _simulate(cache_folder: Path, *args) -> subprocess.CompletedProcess:
+    """kronsub simulate in a fresh process (a crash there does not take the tests down)."""
+    env = {**os.environ, "KRONSUB_CACHE_DIR": str(cache_folder)}
+    return subprocess.run([sys.executable, "-m", "kronsub", "simulate", str(SYSTEM1), "--t", "0.5", "--dt", "0.25",
+                           *args], capture_output=True, text=True, env=env, timeout=300)
+
+
+@needs_cc
+def test_a_library_is_recorded_and_verified(cache):
+    from kronsub.simulation.native import sidecar, verified
+
+    library = _library(load_model(SYSTEM1).derive())
+    assert verified(library)
+    assert len(sidecar(library).read_text().strip()) == 64
+    assert not [p for p in library.parent.iterdir() if p.name.endswith(".tmp")]
+
+
+@needs_cc
+def test_a_planted_library_is_never_loaded(cache, tmp_path):
+    from kronsub.simulation.native import sidecar, verified
+
+    library = _library(load_model(SYSTEM1).derive())
+    canary = tmp_path / "canary"
+    plant = tmp_path / "plant.c"
+    plant.write_text('#include <stdio.h>\n__attribute__((constructor)) static void grow(void) {\n'
+                     f'  FILE *f = fopen("{canary}", "w"); if (f) fclose(f);\n}}\n')
+    subprocess.run(["gcc", "-shared", "-fPIC", "-o", str(library), str(plant)], check=True)
+    assert not verified(library)  # the sidecar records the real library's digest
+    result = _simulate(cache)
+    assert result.returncode == 0, result.stderr
+    assert not canary.exists()
+    assert verified(library)  # rebuilt
+    sidecar(library).unlink()  # a library without a sidecar is not trusted either
+    assert not verified(library)
+
+
+@needs_cc
+def test_a_truncated_library_is_rebuilt_instead_of_crashing(cache):
+    from kronsub.simulation.native import verified
+
+    library = _library(load_model(SYSTEM1).derive())
+    data = library.read_bytes()
+    library.write_bytes(data[: len(data) // 3])
+    result = _simulate(cache)
+    assert result.returncode == 0, (result.returncode, result.stderr)
+    assert verified(library) and library.stat().st_size == len(data)
+
+
+@needs_cc
+def test_compiled_models_go_to_a_private_folder_when_the_cache_is_unsafe(cache):
+    cache.mkdir()
+    cache.chmod(0o757)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", CacheWarning)
+        library = _library(load_model(SYSTEM1, cache=False).derive(cache=False))
+    assert cache not in library.parents
+    assert not (library.parent.parent.stat().st_mode & 0o077)
