@@ -355,7 +355,7 @@ class _Loader:
                        "paths are relative to this model file")
             return None
         try:
-            read_model_text(sub_path, mnode.location)
+            read_model_text(sub_path, mnode.text_location or mnode.location)
             key = model_key(sub_path, self.stack)
             system = load_cached(key, transition=False) if self.cache else None
             if system is None:
