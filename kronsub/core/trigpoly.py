@@ -51,19 +51,26 @@ def expansion_terms(terms: int, power: int) -> int:
     return math.comb(power + terms - 1, terms - 1) if terms > 0 else 0
 
 
-def expansion_problem(terms: int, power: int) -> str | None:
-    """Why ``(sum of terms)**power`` must not be expanded, or None if it may be."""
-    if power > MAX_EXPANDED_POWER:
+def expansion_problem(terms: int, power: int, width: int | None = None) -> str | None:
+    """Why ``(sum of terms)**power`` must not be expanded, or None if it may be.
+
+    ``width`` counts the terms as exponentials (a sine or cosine is two), which
+    makes `expansion_terms` an upper bound; it defaults to ``terms``. A single
+    term (``cos(x)**9``) is not a sum: only the count of terms limits it.
+    """
+    width = terms if width is None else width
+    if terms > 1 and power > MAX_EXPANDED_POWER:
         return f"a power of a sum higher than **{MAX_EXPANDED_POWER} is not expanded (it would take too long)"
-    count = expansion_terms(terms, power)
+    count = expansion_terms(width, power)
     if count > MAX_EXPANSION_TERMS:
-        return f"a power of a sum of {terms} terms would expand to {count} terms (more than {MAX_EXPANSION_TERMS})"
+        return f"the power would expand to {count} terms (more than {MAX_EXPANSION_TERMS})"
     return None
 
 
-def check_expansion(terms: int, power: int, shown: str = "a sum") -> None:
-    """Raise `ExpansionTooLarge` before expanding ``(sum of terms)**power`` if it is too large."""
-    problem = expansion_problem(terms, power)
+def check_expansion(p: "TrigPoly", power: int, shown: str = "a sum") -> None:
+    """Raise `ExpansionTooLarge` before expanding ``p**power`` if it is too large."""
+    terms = sum(len(coef) for coef in p.terms.values())
+    problem = expansion_problem(terms, power, _expansion_width(p))
     if problem is not None:
         raise ExpansionTooLarge(f"({shown})**{power}: {problem}")
 
@@ -316,7 +323,7 @@ class TrigAlgebra:
                 mono, c = single
                 return TrigPoly({(COS, ZERO_FREQ): {tuple((i, _num(Fraction(k) * n)) for i, k in mono): _num(Fraction(c) ** n)}})
             if n > 0:
-                check_expansion(_expansion_width(inner), n, _short(base))
+                check_expansion(inner, n, _short(base))
                 return _power(inner, n, self.constant(1))
         if single is not None:
             mono, c = single

@@ -516,13 +516,14 @@ class _Builder:
         """Refuse, here with its place, a power of a sum the algebra could not expand."""
         if not (exponent.is_Integer and exponent > 1 and base.free_symbols):
             return
-        width = 1
+        terms = width = 1
         for factor in sympy.Mul.make_args(base):
             if factor.is_Add:
+                terms *= len(factor.args)
                 width *= sum(2 if term.has(sympy.sin, sympy.cos) else 1 for term in factor.args)
-        if width == 1:
-            return  # a single term: a power of it is never expanded
-        problem = expansion_problem(width, int(exponent))
+        if terms == 1:
+            return  # not a sum: the algebra checks what a power of it expands to
+        problem = expansion_problem(terms, int(exponent), width)
         if problem is not None:
             self.fail(node, problem, EXPANSION_HINT,
                       at=self._operator_position(node, "**"))
