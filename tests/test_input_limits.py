@@ -339,3 +339,5 @@ def test_large_but_finite_constants_in_formulas_are_accepted():
     with pytest.raises(ModelError, match="'exp[(]1000[)]' is too large"):
         parse_expression("x*exp(1000)", {"x": x})
     assert math.isfinite(constant_value(parse_expression("1e308", {})))
+    with pytest.raises(ModelError, match="too large"):  # sympy makes x*exp(800) of it
+        parse_expression("x/exp(-800)", {"x": x})

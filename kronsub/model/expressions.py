@@ -426,8 +426,13 @@ class _Builder:
         value = getattr(self, method)(node, depth + 1)
         if value.bits > MAX_BITS:
             self.fail(node, "builds numbers that are too large", "use smaller numbers or exponents")
-        if not value.expr.free_symbols and not value.expr.has(*_UNDEFINED):  # those: build_all
-            self._check_constant(node, value.expr)
+        if not value.expr.has(*_UNDEFINED):  # those are reported by build_all
+            if not value.expr.free_symbols:
+                self._check_constant(node, value.expr)
+            else:  # constants sympy made in combining the parts: x/exp(-800) is x*exp(800)
+                for arg in value.expr.args:
+                    if not arg.free_symbols:
+                        self._check_constant(node, arg)
         return value
 
     def _check_constant(self, node: ast.AST, expr: sympy.Expr) -> None:
