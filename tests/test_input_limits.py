@@ -341,3 +341,12 @@ def test_large_but_finite_constants_in_formulas_are_accepted():
     assert math.isfinite(constant_value(parse_expression("1e308", {})))
     with pytest.raises(ModelError, match="too large"):  # sympy makes x*exp(800) of it
         parse_expression("x/exp(-800)", {"x": x})
+
+
+def test_a_special_file_two_levels_down_is_reported_in_the_file_that_names_it(tmp_path):
+    (tmp_path / "a.yaml").write_text("name: a\ncomponents:\n  sub: {model: b.yaml}\ncoordinates: [q]\n")
+    b_text = "name: b\ncomponents:\n  sub: {model: /dev/zero}\ncoordinates: [q]\n"
+    (tmp_path / "b.yaml").write_text(b_text)
+    err = error_of(run("derive", str(tmp_path / "a.yaml")))
+    assert err.startswith(f"Error: {tmp_path / 'b.yaml'}:{place(b_text, '/dev/zero')}: model file '/dev/zero': "
+                          "is a character device"), err

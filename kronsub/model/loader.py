@@ -59,7 +59,10 @@ def model_key(path: Path, stack: tuple[str, ...] = ()) -> str:
             mnode = spec.get("model") if spec.is_mapping else None
             if mnode is not None and isinstance(mnode.value, str) and mnode.value:
                 sub_path = path.parent / mnode.value
-                subs.append(model_key(sub_path, stack + (resolved,)))
+                try:
+                    subs.append(model_key(sub_path, stack + (resolved,)))
+                except ModelError:  # reported where `model:` names it, when the model is loaded
+                    subs.append("unreadable")
     return content_key(text, *subs)
 
 
