@@ -350,3 +350,14 @@ def test_a_special_file_two_levels_down_is_reported_in_the_file_that_names_it(tm
     err = error_of(run("derive", str(tmp_path / "a.yaml")))
     assert err.startswith(f"Error: {tmp_path / 'b.yaml'}:{place(b_text, '/dev/zero')}: model file '/dev/zero': "
                           "is a character device"), err
+
+
+def test_quoted_model_text_cannot_break_a_message_into_lines(tmp_path):
+    """A name holding a line break and a fake message is shown escaped, on its own line."""
+    text = SLIDER.replace("k: 2}", '"k\\nError: all is well\\r": 2}')
+    path = tmp_path / "m.yaml"
+    path.write_text(text)
+    err = error_of(run("derive", str(path)))
+    lines = err.strip().splitlines()
+    assert len(lines) == 2 and lines[1].startswith("  hint: "), err
+    assert "parameter name 'k\\nError: all is well\\r' is not a valid name" in lines[0], err
