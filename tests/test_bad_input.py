@@ -415,11 +415,11 @@ def test_several_problems_reported_together(tmp_path):
 
 
 def test_documented_example_of_errors(tmp_path):
-    text = "name: x\ncomponents:\n  p: {type: particel1d}\ncoordinates: [q]\nscenes: {}\n"
+    text = "name: x\ncomponents:\n  p: {type: particel1d}\ncoordinates: [q]\nscenes:\n  still: {effects: [gravity]}\n"
     path = write(tmp_path, text)
     result = derive(path)
-    assert_error(result, path, 5, 1, "`scenes:` is not supported yet")
-    assert_error(result, path, 3, 13, "unknown component type 'particel1d'", first=False)
+    assert_error(result, path, 3, 13, "unknown component type 'particel1d'")
+    assert_error(result, path, 6, 21, "unknown effect 'gravity' in `effects:` of scene 'still'", first=False)
     # no misleading follow-on error about 'q' once the component itself failed
     assert "generalized coordinate 'q'" not in stderr_of(result)
     assert stderr_of(result).rstrip("\n").splitlines()[-1] == "2 problems found."

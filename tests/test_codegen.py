@@ -12,11 +12,11 @@ import sympy
 from click.testing import CliRunner
 
 import kronsub
-from conftest import MODELS
+from conftest import MODELS, explicit_model_paths
 from kronsub.cli import main
 from kronsub.emitters.code import emit_c, emit_python
 
-ALL_MODELS = sorted(str(p.relative_to(MODELS)) for p in MODELS.rglob("*.yaml"))
+ALL_MODELS = explicit_model_paths()
 CFLAGS = ["-std=c99", "-Wall", "-Wextra", "-Werror", "-O2"]
 needs_cc = pytest.mark.skipif(shutil.which("gcc") is None, reason="no C compiler")
 DOUBLE_P = ctypes.POINTER(ctypes.c_double)

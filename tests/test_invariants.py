@@ -14,7 +14,7 @@ import pytest
 import sympy
 
 import kronsub
-from conftest import MODELS
+from conftest import MODELS, explicit_model_paths
 
 HERE = Path(__file__).resolve().parent / "models"
 # (model, its conservative effects, its dissipative effects)
@@ -47,7 +47,7 @@ def _states(system, rng, count=15):
 
 
 def _paths():
-    return sorted(CASES) + sorted(str(p.relative_to(MODELS)) for p in MODELS.rglob("*.yaml"))
+    return sorted(CASES) + explicit_model_paths()
 
 
 def _load(name):

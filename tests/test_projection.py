@@ -9,7 +9,7 @@ import sympy
 
 import kronsub
 import kronsub.errors
-from conftest import MODELS
+from conftest import MODELS, explicit_model_paths
 from kronsub.core.primitive import christoffel_terms
 from kronsub.core.trigpoly import TrigAlgebra
 
@@ -38,7 +38,7 @@ effects:
   push: {type: force, point: lower.centre, vector: [F, 0]}
 """
 
-ALL_MODELS = sorted(str(p.relative_to(MODELS)) for p in MODELS.rglob("*.yaml"))
+ALL_MODELS = explicit_model_paths()
 
 
 def _lambdified(system):

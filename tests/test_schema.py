@@ -73,8 +73,14 @@ def test_there_are_bundled_models():
 
 @pytest.mark.parametrize("document", [
     pytest.param(with_changes(frames={}), id="unknown top-level key"),
-    pytest.param(with_changes(constraints={"c": "x"}), id="reserved constraints"),
-    pytest.param(with_changes(scenes={}), id="reserved scenes"),
+    pytest.param(with_changes(scenes={"s": {"effects": ["g"], "without": ["f"]}}), id="scene with effects and without"),
+    pytest.param(with_changes(scenes={"s": {"switch": ["g"]}}), id="unknown scene key"),
+    pytest.param(with_changes(scenes={"s": {"method": "euler"}}), id="unknown scene method"),
+    pytest.param(with_changes(scenes={"s": {"outputs": ["speed"]}}), id="unknown scene output"),
+    pytest.param(with_changes(scenes={"t": {}}), id="reserved scene name"),
+    pytest.param(with_changes(constraints={"c": {"hinge": ["p.centre", [0]]}}), id="unknown joint"),
+    pytest.param(with_changes(constraints={"c": {"pin": ["p.centre"]}}), id="pin of one point"),
+    pytest.param(with_changes(coordinates="all"), id="coordinates neither a list nor auto"),
     pytest.param({"components": MINIMAL["components"]}, id="no coordinates"),
     pytest.param({"coordinates": ["x"]}, id="no components"),
     pytest.param(with_changes(coordinates=[]), id="empty coordinates"),
@@ -107,6 +113,24 @@ def test_invalid_document_is_rejected(validator, document):
 def test_known_system_component_is_valid(validator):
     validator.validate(with_changes(components={"sys1": {"model": "system1.yaml", "parameters": {"F": 0},
                                                          "coordinates": {"theta": "x"}}}))
+
+
+def test_scenes_are_valid(validator):
+    validator.validate(with_changes(scenes={
+        "free": {"effects": ["gravity", "sys1.push"], "parameters": {"m": 2}, "initial": {"x": 0.1},
+                 "t_end": 5, "dt": 0.01, "method": "gauss4", "outputs": ["coordinates", "energies", "p.centre"]},
+        "other": {"without": ["gravity"], "description": "no gravity"},
+        "empty": None}))
+
+
+def test_scene_keys_methods_and_outputs_follow_the_code(schema):
+    from kronsub.model.scenes import KEYS, OUTPUT_KINDS
+    from kronsub.simulation.run import METHODS
+
+    scene = schema["$defs"]["scene"]
+    assert sorted(scene["properties"]) == sorted(KEYS)
+    assert scene["properties"]["method"]["enum"] == list(METHODS)
+    assert scene["properties"]["outputs"]["items"]["pattern"].startswith("^(" + "|".join(OUTPUT_KINDS) + "|")
 
 
 def test_component_type_enum_is_the_registry(schema):

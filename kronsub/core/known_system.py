@@ -39,6 +39,21 @@ class Transition:
 
 
 @dataclass(frozen=True)
+class ProjectedEffect:
+    """One effect carried to the subspace: ``f`` on the primitive (17), ``fbar = C^T f`` (8'), (F)
+    and its potential ``V(x(xbar))`` (not yet simplified; zero for a non-conservative effect).
+
+    ``fbar`` is the sum of these over the effects, so each is derived and cached on its own
+    and a scene adds up only the ones it switches on.
+    """
+
+    label: str
+    primitive_force: sympy.Matrix
+    force: sympy.Matrix
+    potential: sympy.Expr = sympy.Integer(0)
+
+
+@dataclass(frozen=True)
 class KnownSystem:
     """The equations of motion of a derived system, ready to be a component of the next."""
 
@@ -54,6 +69,8 @@ class KnownSystem:
     parameters: tuple[ParameterInfo, ...] = ()
     transition: Transition | None = None
     description: str = ""
+    effect_potentials: Mapping[str, sympy.Expr] = field(default_factory=dict)  # V per effect
+    implicit: object | None = None  # core.constraints.ImplicitSubspace: the named intermediates (26)-(29)
 
     @property
     def velocities(self) -> tuple[sympy.Symbol, ...]:

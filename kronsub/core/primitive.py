@@ -50,6 +50,7 @@ class Part:
     forces: Mapping[str, sympy.Matrix] = field(default_factory=dict)  # a known system's own effects
     potential: sympy.Expr = sympy.Integer(0)
     type_name: str = ""
+    potentials: Mapping[str, sympy.Expr] = field(default_factory=dict)  # ``potential`` per own effect
 
     @property
     def velocities(self) -> tuple[sympy.Symbol, ...]:

@@ -12,20 +12,23 @@ Every product is formed in the trigonometric-polynomial algebra
 """
 from __future__ import annotations
 
+import dataclasses
+import functools
 from typing import Mapping, Sequence
 
 import sympy
 
 from ..components.base import Body
-from .known_system import KnownSystem, ParameterInfo, Transition
+from .known_system import KnownSystem, ParameterInfo, ProjectedEffect, Transition
 from .primitive import Primitive
 from .simplify import compact
 from .symbols import velocity_symbol
 from .trigpoly import TrigAlgebra, TrigPoly
 
 
-class _Subspace:
-    """The interconnection ``x = x(xbar)`` in the algebra: ``C``, ``xdot``, ``Cdot xbardot``."""
+class Subspace:
+    """The interconnection ``x = x(xbar)`` in the algebra: ``C``, ``xdot``, ``Cdot xbardot``;
+    shared by the projection of the inertia and of each effect."""
 
     def __init__(self, primitive: Primitive, coordinates, connection):
         self.coords = tuple(coordinates)
@@ -38,16 +41,24 @@ class _Subspace:
         # C^a_alpha = dx^a / dxbar^alpha  (7'), (21)
         self.C = [[algebra.diff(img, j) for j in range(self.n)] for img in images]
         self.nonzero = [[j for j in range(self.n) if not row[j].is_zero()] for row in self.C]
-        # xdot^a = C^a_alpha xbardot^alpha; the substitution x -> x(xbar), xdot -> C xbardot
+        self.velocities = primitive.velocities
+        # xdot^a = C^a_alpha xbardot^alpha
         self.velocity = [_sum(self.C[a][j] * self.qdots[j] for j in self.nonzero[a]) for a in range(len(self.x))]
-        substitution = {x: connection[x] for x in self.x}
-        substitution.update({v: algebra.to_expr(vel) for v, vel in zip(primitive.velocities, self.velocity)})
-        self.substitution = {k: v for k, v in substitution.items() if k != v}  # identities would only rebuild
-        # Cdot xbardot = d(xdot)/dxbar^k xbardot^k: the convective acceleration
-        self.convective = [
-            _sum(algebra.diff(vel, k) * self.qdots[k] for k in sorted(algebra.depends_on(vel)))
-            for vel in self.velocity
-        ]
+
+    @functools.cached_property
+    def substitution(self) -> dict:
+        """x -> x(xbar), xdot -> C xbardot (identities left out: they would only rebuild)."""
+        substitution = {x: self.connection[x] for x in self.x}
+        substitution.update({v: self.algebra.to_expr(vel) for v, vel in zip(self.velocities, self.velocity)})
+        return {k: v for k, v in substitution.items() if k != v}
+
+    @functools.cached_property
+    def convective(self) -> list[TrigPoly]:
+        """``Cdot xbardot = d(xdot)/dxbar^k xbardot^k``: the convective acceleration (the
+        inertia needs it, an effect does not)."""
+        algebra = self.algebra
+        return [_sum(algebra.diff(vel, k) * self.qdots[k] for k in sorted(algebra.depends_on(vel)))
+                for vel in self.velocity]
 
     def image(self, expr: sympy.Expr) -> TrigPoly:
         """``expr(x(xbar), C xbardot)`` in the algebra."""
@@ -64,6 +75,11 @@ class _Subspace:
                 for j in self.nonzero[a]:
                     out[j].add_product(self.C[a][j], fa)
         return out
+
+    def renamed_parts(self, primitive: Primitive) -> dict[str, list[int]]:
+        """A part whose coordinates are only renamed (C a permutation, Cdot = 0) is carried
+        over as it is: a cached known system then costs almost nothing."""
+        return {part.name: t for part in primitive.parts if (t := self.renaming(part)) is not None}
 
     def renaming(self, part) -> list[int] | None:
         """Indices of the new coordinates when the part's coordinates are only renamed."""
@@ -89,15 +105,28 @@ def project(
     ``connection`` maps every primitive coordinate to an expression in the new
     ``coordinates``; ``effects`` are applied on the primitive and projected.
     """
-    sub = _Subspace(primitive, coordinates, connection)
+    sub = Subspace(primitive, coordinates, connection)
+    inertia = project_inertia(sub, primitive, name=name, parameters=parameters, description=description)
+    return assemble(inertia, project_effects(sub, primitive, effects))
+
+
+def effect_labels(primitive: Primitive, effects: Sequence) -> tuple[str, ...]:
+    """The names of every effect, in the order of ``fbar``: a known system's own effects
+    first, as ``part.effect``, then the model's."""
+    labels = [f"{part.name}.{label}" for part in primitive.parts
+              for label in dict.fromkeys([*part.forces, *part.potentials])]
+    return tuple(labels) + tuple(e.name for e in effects)
+
+
+def project_inertia(sub: Subspace, primitive: Primitive, *, name: str = "",
+                    parameters: Sequence[ParameterInfo] = (), description: str = "") -> KnownSystem:
+    """``Mbar`` (9'), (D) and ``hbar`` (E): the part of the projection no effect changes.
+
+    The result has no effects; :func:`assemble` adds the ones a scene switches on.
+    """
     n, algebra = sub.n, sub.algebra
-
-    # A part whose coordinates are only renamed (C a permutation, Cdot = 0) is
-    # carried over as it is: a cached known system then costs almost nothing.
-    renamed = {part.name: t for part in primitive.parts if (t := sub.renaming(part)) is not None}
+    renamed = sub.renamed_parts(primitive)
     mass, velocity_terms, direct_mass, direct_h = _inertia(sub, primitive, renamed)
-    effect_forces, primitive_forces, potential = _forces(sub, primitive, effects, renamed)
-
     mass_matrix = sympy.zeros(n, n)
     for j in range(n):
         for k in range(j, n):
@@ -107,8 +136,8 @@ def project(
         primitive_coordinates=sub.x,
         primitive_metric=primitive.metric,
         primitive_velocity_terms=primitive.velocity_terms,
-        primitive_forces=primitive_forces,
-        connection=tuple((x, connection[x]) for x in sub.x),
+        primitive_forces={},
+        connection=tuple((x, sub.connection[x]) for x in sub.x),
         transformation=sympy.Matrix(len(sub.x), n, lambda a, j: compact(algebra, sub.C[a][j])),
         parts=tuple((p.name, p.type_name) for p in primitive.parts),
     )
@@ -125,8 +154,7 @@ def project(
         mass_matrix=mass_matrix,
         velocity_terms=sympy.Matrix([compact(algebra, p) + sympy.Add(*direct_h.get(j, ()))
                                      for j, p in enumerate(velocity_terms)]),
-        effect_forces=effect_forces,
-        potential_energy=compact(algebra, algebra.from_expr(potential)),
+        effect_forces={},
         points=points,
         bodies=bodies,
         dimension=max(dims) if len(dims) == 1 else 0,
@@ -136,7 +164,24 @@ def project(
     )
 
 
-def _inertia(sub: _Subspace, primitive: Primitive, renamed: dict[str, list[int]]):
+def assemble(inertia: KnownSystem, effects: Sequence[ProjectedEffect]) -> KnownSystem:
+    """``Mbar qddot + hbar = fbar`` with ``fbar`` the sum of the given effects' forces (8'), (F)
+    and ``V`` the sum of their potentials: the effects left out contribute nothing at all."""
+    algebra = TrigAlgebra(inertia.coordinates)
+    potential = sympy.Add(*[e.potential for e in effects])
+    transition = inertia.transition
+    if transition is not None:
+        transition = dataclasses.replace(transition, primitive_forces={e.label: e.primitive_force for e in effects})
+    return dataclasses.replace(
+        inertia,
+        effect_forces={e.label: e.force for e in effects},
+        effect_potentials={e.label: e.potential for e in effects},
+        potential_energy=compact(algebra, algebra.from_expr(potential)),
+        transition=transition,
+    )
+
+
+def _inertia(sub: Subspace, primitive: Primitive, renamed: dict[str, list[int]]):
     """``Mbar = C^T M C`` (9'), (D) and ``hbar = C^T (M Cdot xbardot + h)`` (E), block by block."""
     n, C, nonzero = sub.n, sub.C, sub.nonzero
     mass = [[TrigPoly() for _ in range(n)] for _ in range(n)]
@@ -175,37 +220,44 @@ def _inertia(sub: _Subspace, primitive: Primitive, renamed: dict[str, list[int]]
     return mass, sub.transpose_times(inertial), direct_mass, direct_h
 
 
-def _forces(sub: _Subspace, primitive: Primitive, effects, renamed: dict[str, list[int]]):
-    """``fbar = C^T f`` (8'), (F) per effect, and the potential ``V(x(xbar))``.
+def project_effects(sub: Subspace, primitive: Primitive, effects, only=None) -> list[ProjectedEffect]:
+    """``fbar = C^T f`` (8'), (F) and the potential ``V(x(xbar))``, effect by effect.
 
-    A known system's own effects come along, named ``part.effect``.
+    A known system's own effects come along, named ``part.effect``. ``only`` (a set of
+    labels) projects just those: an effect a scene switches off is never touched.
     """
-    primitive_forces: dict[str, sympy.Matrix] = {}
-    direct: dict[str, sympy.Matrix] = {}
-    potential = sympy.Integer(0)
+    renamed = sub.renamed_parts(primitive)
+    out: list[ProjectedEffect] = []
     for offset, part in primitive.blocks():
-        for label, f in part.forces.items():
+        labels = dict.fromkeys([*part.forces, *part.potentials])
+        for label in labels:
             key = f"{part.name}.{label}"
+            if only is not None and key not in only:
+                continue
+            f = part.forces.get(label, sympy.zeros(len(part.coordinates), 1))
+            full = [sympy.Integer(0)] * len(sub.x)
+            full[offset:offset + len(part.coordinates)] = list(f)
             if part.name in renamed:
                 vec = [sympy.Integer(0)] * sub.n
                 for i, j in enumerate(renamed[part.name]):
                     vec[j] = sub.moved(f[i])
-                direct[key] = sympy.Matrix(vec)
-            full = [sympy.Integer(0)] * len(sub.x)
-            full[offset:offset + len(part.coordinates)] = list(f)
-            primitive_forces[key] = sympy.Matrix(full)
-        potential += sub.moved(part.potential)
+                force = sympy.Matrix(vec)
+            else:
+                force = _projected(sub, full)
+            out.append(ProjectedEffect(key, sympy.Matrix(full), force,
+                                       sub.moved(part.potentials.get(label, sympy.Integer(0)))))
     for effect in effects:
-        primitive_forces[effect.name] = sympy.Matrix(effect.generalized_force(primitive))
-        potential += sub.moved(effect.potential(primitive))
-    effect_forces: dict[str, sympy.Matrix] = {}
-    for label, f in primitive_forces.items():
-        if label in direct:
-            effect_forces[label] = direct[label]
+        if only is not None and effect.name not in only:
             continue
-        fbar = sub.transpose_times([sub.image(fa) if fa != 0 else TrigPoly() for fa in f])
-        effect_forces[label] = sympy.Matrix([compact(sub.algebra, p) for p in fbar])
-    return effect_forces, primitive_forces, potential
+        f = effect.generalized_force(primitive)
+        out.append(ProjectedEffect(effect.name, sympy.Matrix(f), _projected(sub, f),
+                                   sub.moved(effect.potential(primitive))))
+    return out
+
+
+def _projected(sub: Subspace, f) -> sympy.Matrix:
+    fbar = sub.transpose_times([sub.image(fa) if fa != 0 else TrigPoly() for fa in f])
+    return sympy.Matrix([compact(sub.algebra, p) for p in fbar])
 
 
 def _sum(polys) -> TrigPoly:

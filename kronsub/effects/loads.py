@@ -23,9 +23,12 @@ def angular_velocity(primitive, rotation: sympy.Matrix):
     """World angular velocity of a rotation ``R(x)``: from ``Rdot R^T`` (skew)."""
     rdot = sympy.Matrix(rotation.shape[0], rotation.shape[1],
                         lambda i, j: primitive.rate(rotation[i, j]))
+    if rotation.shape == (2, 2):  # exact in the trigonometric algebra: cos^2 + sin^2 = 1 as formed
+        from ..core.trigpoly import TrigAlgebra
+
+        algebra = TrigAlgebra(primitive.coordinates)
+        return (algebra.to_expr(algebra.from_expr(sympy.expand((rdot * rotation.T)[1, 0]))),)
     w = (rdot * rotation.T).applyfunc(lambda e: sympy.simplify(sympy.expand(e)))
-    if rotation.shape == (2, 2):
-        return (w[1, 0],)
     return (w[2, 1], w[0, 2], w[1, 0])
 
 

@@ -57,14 +57,19 @@ def _context(model: NumericModel, show, declare: str, end: str) -> dict:
     blocks = {name: _lines(getattr(model, name), show, declare, end)
               for name in ("mass", "velocity_terms", "forces", "equations", "canonical", "prepare", "potential",
                            "positions")}
+    if model.implicit is not None:  # the dependent-coordinate solve (numeric_implicit)
+        blocks.update({f"implicit_{name}": _lines(getattr(model.implicit, name), show, declare, end)
+                       for name in ("closed_form", "residual", "sensitivity", "quadratic")})
     return {"m": model, "b": blocks, "version": __version__,
             "n_points": sum(d for _, d in model.points)}
 
 
-def emit_c(system: KnownSystem, stem: str, source: str = "", prefix: str = "ks") -> list[GeneratedFile]:
+def emit_c(system: KnownSystem, stem: str, source: str = "", prefix: str = "ks",
+           outputs=None) -> list[GeneratedFile]:
     """``<stem>.h`` and ``<stem>.c``: C99, libc and libm only; names start with ``<prefix>_``
-    (macros with ``<PREFIX>_``), so several models can live in one program."""
-    model = prepare(system, source)
+    (macros with ``<PREFIX>_``), so several models can live in one program. A scene's
+    ``outputs`` leave out the energy and point functions it does not ask for."""
+    model = prepare(system, source, outputs)
     printer = _CPrinter()
     ctx = _context(model, printer.doprint, "const double ", ";")
     ctx["stem"] = identifier(stem)
@@ -75,9 +80,10 @@ def emit_c(system: KnownSystem, stem: str, source: str = "", prefix: str = "ks")
             GeneratedFile(f"{stem}.c", env.get_template("model.c.j2").render(**ctx))]
 
 
-def emit_python(system: KnownSystem, stem: str, source: str = "", prefix: str = "ks") -> list[GeneratedFile]:
-    """``<stem>.py``: a numpy module that does not import sympy."""
-    model = prepare(system, source)
+def emit_python(system: KnownSystem, stem: str, source: str = "", prefix: str = "ks",
+                outputs=None) -> list[GeneratedFile]:
+    """``<stem>.py``: a numpy module that does not import sympy (``outputs`` as for C)."""
+    model = prepare(system, source, outputs)
     printer = _PyPrinter({"fully_qualified_modules": False})
     ctx = _context(model, printer.doprint, "", "")
     ctx["stem"] = identifier(stem)

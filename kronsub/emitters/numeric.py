@@ -44,6 +44,10 @@ class NumericModel:
     n_pre: int  # length of pre = [param; derived constants]
     potential: Block  # V
     positions: Block  # named points into out[]
+    energies: bool = True  # emit T and V (a scene may not ask for them)
+    with_points: bool = True  # emit the named points' positions
+
+    implicit: object | None = None  # numeric_implicit.ImplicitCode: the dependent-coordinate solve
 
     @property
     def n(self) -> int:
@@ -137,14 +141,23 @@ def _block(targets: list[str], exprs: list[sympy.Expr], prefix: str, coordinates
     return Block(tuple(replacements), tuple(zip(targets, reduced)))
 
 
-def prepare(system: KnownSystem, source: str = "") -> NumericModel:
-    """Map the system's symbols to array slots and eliminate common subexpressions."""
+def prepare(system: KnownSystem, source: str = "", outputs=None) -> NumericModel:
+    """Map the system's symbols to array slots and eliminate common subexpressions.
+
+    ``outputs`` (a scene's :class:`~kronsub.model.scenes.Outputs`; None: everything) leaves
+    out the energies and the named points when they are not asked for."""
+    energies = outputs is None or outputs.energies
+    with_points = outputs is None or bool(outputs.points)
     n = len(system.coordinates)
     params = [p for p in system.parameters]
     q_slots = {q: sympy.Symbol(f"q[{i}]") for i, q in enumerate(system.coordinates)}
     qd_slots = {v: sympy.Symbol(f"qd[{i}]") for i, v in enumerate(system.velocities)}
     p_slots = {p.symbol: sympy.Symbol(f"param[{i}]") for i, p in enumerate(params)}
     slots = {**q_slots, **qd_slots, **p_slots, TIME: sympy.Symbol("t")}
+    if system.implicit is not None:  # y_d, lambda, gamma: the named intermediates in w[]
+        from .numeric_implicit import intermediate_slots
+
+        slots.update(intermediate_slots(system))
 
     def slot(expr) -> sympy.Expr:
         expr = sympy.sympify(expr)
@@ -182,8 +195,8 @@ def prepare(system: KnownSystem, source: str = "") -> NumericModel:
     canonical = _block(r_targets, [constants(slot(e)) for e in dTdq], "x", qs)
     prepare = _block(*constants.definitions(), "c")
 
-    potential = _block(["V"], [slot(system.potential_energy)], "x", qs)
-    labels = sorted(system.points)
+    potential = _block(["V"], [slot(system.potential_energy)], "x", qs) if energies else Block((), ())
+    labels = sorted(system.points) if with_points else []
     pos_targets, pos_exprs, dims = [], [], []
     offset = 0
     for label in labels:
@@ -194,6 +207,12 @@ def prepare(system: KnownSystem, source: str = "") -> NumericModel:
             pos_exprs.append(slot(c))
             offset += 1
     positions = _block(pos_targets, pos_exprs, "x", qs)
+    implicit = None
+    if system.implicit is not None:
+        from .numeric_implicit import implicit_code
+
+        implicit = implicit_code(system, slot, lambda t, e, c: _block(t, e, "x", qs))
+        canonical = _block(r_targets, [sympy.Integer(0)] * n, "x", qs)  # unused: no canonical form here
     return NumericModel(
         name=system.name,
         source=source,
@@ -209,4 +228,7 @@ def prepare(system: KnownSystem, source: str = "") -> NumericModel:
         n_pre=constants.count,
         potential=potential,
         positions=positions,
+        energies=energies,
+        with_points=with_points,
+        implicit=implicit,
     )

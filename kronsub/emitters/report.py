@@ -21,9 +21,17 @@ def plain(expr) -> str:
     return sympy.sstr(expr, order="lex")
 
 
-def latex_printer(coordinates) -> Printer:
-    """LaTeX with velocities as dots: ``theta_dot`` -> ``\\dot{\\theta}``."""
+def latex_printer(coordinates, implicit=None) -> Printer:
+    """LaTeX with velocities as dots: ``theta_dot`` -> ``\\dot{\\theta}``; with implicit constraints
+    ``lambda_phi_theta`` -> ``\\lambda_{\\phi\\theta}`` and ``gamma_phi`` -> ``\\gamma_{\\phi}``."""
     names = {}
+    if implicit is not None:
+        for a, d in enumerate(implicit.dependent):
+            for j, q in enumerate(implicit.independent):
+                s = implicit.sensitivities[a, j]
+                names[s] = r"\lambda" if s.name == "lambda" else rf"\lambda_{{{sympy.latex(d)}{sympy.latex(q)}}}"
+            g = implicit.convective[a]
+            names[g] = r"\gamma" if g.name == "gamma" else rf"\gamma_{{{sympy.latex(d)}}}"
     for q in coordinates:
         base = sympy.latex(q)
         names[velocity_symbol(q)] = rf"\dot{{{base}}}"
@@ -72,5 +80,51 @@ def build_report(system: KnownSystem, show: Printer) -> dict:
             "forces": [{"name": k, "forces": [show(e) for e in f]} for k, f in tr.primitive_forces.items()],
             "connection": [{"coordinate": show(x), "expression": show(e)} for x, e in tr.connection],
             "transformation": matrix_rows(tr.transformation, show),
+            "columns": [show(q) for q in _columns(system)],
         }
+    if system.implicit is not None:
+        report["implicit"] = implicit_report(system.implicit, show)
     return report
+
+
+def _columns(system: KnownSystem):
+    """The coordinates ``C`` of the connection maps to: ``y`` when constraints follow."""
+    if system.implicit is not None:
+        return system.implicit.intermediate
+    return system.coordinates
+
+
+def implicit_report(imp, show: Printer) -> dict:
+    """The constraints (25) and the "where" block of the named intermediates (26)-(29)."""
+    closed = dict(imp.closed_form)
+    branch = dict(imp.branch)
+    defined = dict(imp.definitions)
+    deps = []
+    for d in imp.dependent:
+        deps.append({"name": show(d), "plain": d.name,
+                     "closed_form": show(closed[d]) if d in closed else "",
+                     "branch": repr(branch[d]) if d in branch else ""})
+    lams = []
+    for a, d in enumerate(imp.dependent):
+        for j, q in enumerate(imp.independent):
+            s = imp.sensitivities[a, j]
+            lams.append({"name": show(s), "plain": s.name, "of": d.name, "by": q.name,
+                         "definition": show(defined[s]) if s in defined else ""})
+    gammas = []
+    for a, d in enumerate(imp.dependent):
+        s = imp.convective[a]
+        gammas.append({"name": show(s), "plain": s.name, "of": d.name,
+                       "definition": show(defined[s]) if s in defined else "",
+                       "quadratic": show(imp.quadratic[a])})
+    return {
+        "choice": imp.choice,
+        "independent": [show(q) for q in imp.independent],
+        "independent_names": [q.name for q in imp.independent],
+        "dependent": deps,
+        "constraints": [{"name": c.name, "expression": show(c.expression), "source": c.source}
+                        for c in imp.constraints],
+        "jacobian_dependent": matrix_rows(imp.jacobian_dependent, show),
+        "jacobian_independent": matrix_rows(imp.jacobian_independent, show),
+        "sensitivities": lams,
+        "convective": gammas,
+    }

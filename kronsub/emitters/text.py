@@ -24,7 +24,7 @@ def emit_markdown(system: KnownSystem) -> str:
 def emit_latex(system: KnownSystem) -> str:
     """A standalone LaTeX document of the derivation."""
     show = latex_printer(tuple(system.coordinates) + tuple(
-        system.transition.primitive_coordinates if system.transition else ()))
+        system.transition.primitive_coordinates if system.transition else ()), system.implicit)
     return _environment().get_template("derive.tex.j2").render(r=build_report(system, show))
 
 
@@ -55,7 +55,33 @@ def emit_json(system: KnownSystem) -> str:
             "connection": {c["coordinate"]: c["expression"] for c in p["connection"]},
             "transformation": p["transformation"],
         }
+    if "implicit" in r:
+        data["implicit"] = _implicit_json(r["implicit"])
     return json.dumps(data, indent=2, ensure_ascii=False) + "\n"
+
+
+def _implicit_json(imp: dict) -> dict:
+    """The named intermediates as a self-contained contract: to evaluate an entry at a state,
+    find each dependent coordinate from its closed form or as the root of the constraints on
+    the branch through its initial value, then solve ``G_d lambda = -G_i`` and
+    ``G_d gamma = quadratic``."""
+    return {
+        "independent": imp["independent_names"],
+        "choice": imp["choice"],
+        "constraints": {c["name"]: c["expression"] for c in imp["constraints"]},
+        "dependent": {d["plain"]: ({"closed_form": d["closed_form"]} if d["closed_form"] else
+                                   {"root_of": [c["name"] for c in imp["constraints"]]}) | {"branch": d["branch"]}
+                      for d in imp["dependent"]},
+        "jacobian_dependent": imp["jacobian_dependent"],
+        "jacobian_independent": imp["jacobian_independent"],
+        "sensitivities": {s["plain"]: {"derivative": [s["of"], s["by"]], "expression": s["definition"] or None}
+                          for s in imp["sensitivities"]},
+        "convective": {g["plain"]: {"of": g["of"], "quadratic": g["quadratic"], "expression": g["definition"] or None}
+                       for g in imp["convective"]},
+        "evaluation": "dependent from closed_form, else Newton on constraints from branch; "
+                      "jacobian_dependent * [sensitivities] = -jacobian_independent; "
+                      "jacobian_dependent * [convective] = [quadratic]",
+    }
 
 
 EMITTERS = {"markdown": emit_markdown, "latex": emit_latex, "json": emit_json}

@@ -14,8 +14,8 @@ import sympy
 from sympy.core.parameters import evaluate
 
 from .. import __version__
-from ..core.known_system import KnownSystem
-from ..core.subspace import project
+from ..core.known_system import KnownSystem, ProjectedEffect
+from ..core.subspace import Subspace, assemble, effect_labels, project_effects, project_inertia
 
 CACHE_ENV = "KRONSUB_CACHE_DIR"
 
@@ -113,25 +113,78 @@ def store_cached(key: str, system: KnownSystem) -> None:
         pass  # the cache is an optimisation only
 
 
-def derive_model(model, *, cache: bool = True) -> KnownSystem:
-    """Project the model's primitive onto its subspace (cached by content hash)."""
-    if cache:
-        hit = load_cached(model.content_hash)
+def derive_model(model, *, cache: bool = True, effects=None) -> KnownSystem:
+    """Project the model's primitive onto its subspace (cached by content hash).
+
+    ``effects`` (effect names, dotted for a known system's own) keeps only those: the
+    others are left out before projection, so nothing of them is derived. ``fbar`` is the
+    sum of the effects' projected forces (8'), (F), so ``Mbar``, ``hbar`` (the inertia) and
+    each effect are cached apart, and every selection of effects shares them.
+    """
+    key = model.content_hash if cache else ""
+    if key and effects is None:
+        hit = load_cached(key)
         if hit is not None:
             return hit
-    system = project(
-        model.primitive,
-        model.coordinates,
-        model.connection,
-        model.effects,
-        name=model.name,
-        parameters=model.parameters,
-        description=model.description,
-    )
-    check_rank(model, system.transition.transformation)
-    if cache:
-        store_cached(model.content_hash, system)
+    implicit = model.implicit
+    # with implicit constraints, the explicit step goes to the intermediate coordinates y first
+    coordinates = implicit.intermediate if implicit is not None else model.coordinates
+    labels = effect_labels(model.primitive, model.effects)
+    chosen = labels if effects is None else tuple(label for label in labels if label in set(effects))
+    with evaluate(False):  # one switch for every read: each switch clears sympy's caches
+        inertia = _load_inertia(key)
+        pieces = {label: _load(_cache_file(key, f"effect.{label}")) for label in chosen}
+    missing = {label for label, piece in pieces.items() if not isinstance(piece, ProjectedEffect)}
+    if inertia is None or missing:
+        sub = Subspace(model.primitive, coordinates, model.connection)
+        if inertia is None:
+            inertia = project_inertia(sub, model.primitive, name=model.name, parameters=model.parameters,
+                                      description=model.description)
+            if implicit is None:
+                check_rank(model, inertia.transition.transformation)
+            _store_parts(key, {"inertia": dataclasses.replace(inertia, transition=None),
+                               "inertia-transition": inertia.transition})
+        for piece in project_effects(sub, model.primitive, model.effects, only=missing):
+            pieces[piece.label] = piece
+            _store_parts(key, {f"effect.{piece.label}": piece})
+    system = assemble(inertia, [pieces[label] for label in chosen])
+    if implicit is not None:
+        system = derive_implicit(model, system)
+    if key and effects is None:
+        store_cached(key, system)
     return system
+
+
+def derive_implicit(model, intermediate: KnownSystem) -> KnownSystem:
+    """The second of two steps, the paper's resting place between (13) and its group property:
+    the primitive onto ``y`` (the explicit connection, ``intermediate``), then ``y`` onto
+    ``g(y) = 0`` (25)-(29)."""
+    from ..core.constraints import project_implicit
+
+    spec = model.implicit
+    taken = {q.name for q in model.primitive.coordinates}
+    return project_implicit(intermediate, spec.independent, spec.dependent, spec.constraints,
+                            closed_form=spec.closed_form, branch=spec.branch, choice=spec.choice, taken=taken)
+
+
+def _load_inertia(key: str) -> KnownSystem | None:
+    """The cached ``Mbar``, ``hbar`` and transition of a model, without effects."""
+    inertia = _load(_cache_file(key, "inertia"))
+    steps = _load(_cache_file(key, "inertia-transition"))
+    if not isinstance(inertia, KnownSystem) or steps is None:
+        return None
+    return dataclasses.replace(inertia, transition=steps)
+
+
+def _store_parts(key: str, parts: dict) -> None:
+    for part, value in parts.items():
+        path = _cache_file(key, part)
+        if path is None:
+            return
+        try:
+            _store(path, value)
+        except OSError:
+            pass  # the cache is an optimisation only
 
 
 class RankWarning(UserWarning):

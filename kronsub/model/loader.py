@@ -13,6 +13,7 @@ from pathlib import Path
 import sympy
 
 from ..components import REGISTRY
+from ..core.constraints import Constraint
 from ..core.known_system import KnownSystem, ParameterInfo
 from ..core.primitive import Part, Primitive, part_from_component
 from ..core.symbols import TIME, symbol, velocity_symbol
@@ -20,7 +21,9 @@ from ..errors import Location, ModelError, ProblemCollector, close_matches
 from .derive import content_key, derive_model, load_cached
 from .effects import build_effect
 from .expressions import parse_expression
-from .model import Model
+from .scenes import build_scenes
+from .constraints import analyse, read_constraints
+from .model import ImplicitSpec, Model
 from .source import Node, excerpt, load_yaml, read_model_text
 
 TOP_LEVEL = ("name", "description", "parameters", "components", "coordinates", "connection",
@@ -63,7 +66,19 @@ def model_key(path: Path, stack: tuple[str, ...] = ()) -> str:
                     subs.append(model_key(sub_path, stack + (resolved,)))
                 except ModelError:  # reported where `model:` names it, when the model is loaded
                     subs.append("unreadable")
-    return content_key(text, *subs)
+    return content_key(derivation_text(root, text), *subs)
+
+
+def derivation_text(root: Node, text: str) -> str:
+    """The text a derivation depends on: the file without its ``scenes:`` section, so
+    editing a scene keeps the cached inertia and effects that every scene shares."""
+    if not root.is_mapping or "scenes" not in root.key_locations:
+        return text
+    lines = text.splitlines(keepends=True)
+    start = root.key_locations["scenes"].line
+    after = [loc.line for loc in root.key_locations.values() if loc.line > start]
+    end = min(after) if after else len(lines) + 1
+    return "".join(lines[:start - 1] + lines[end - 1:])
 
 
 def _resolved(path: Path) -> str:
@@ -86,6 +101,8 @@ class _Loader:
         self.sub_hashes: list[str] = []
         self.locations: dict[str, Location] = {}
         self.failed_components = False
+        self.pivots: list[tuple] = []  # pinned parts hanging from a moving point (`pivot:`)
+        self.auto_connection: dict[sympy.Symbol, tuple] = {}
 
     # ----------------------------------------------------------- utilities
     def error(self, node_or_loc, message: str, hint: str | None = None) -> None:
@@ -145,22 +162,41 @@ class _Loader:
                        "a model has `name:`, `components:`, `coordinates:` and `connection:`; check the path")
             self.problems.raise_if_any()
         self.check_keys(root, TOP_LEVEL, "the model")
-        if "constraints" in root.value:
-            self.error(root.key_locations["constraints"], "`constraints:` (implicit g(x) = 0) is not supported yet",
-                       "express the subspace in parametric form under `connection:` (eqs. 19, 26)")
-        if "scenes" in root.value:
-            self.error(root.key_locations["scenes"], "`scenes:` is not supported yet",
-                       "remove it; every effect of the model is applied")
         name = self._string(root.get("name"), self.path.stem)
         description = self._string(root.get("description"), "")
         self._parameters(root.get("parameters"))
         self._components(root.get("components"))
-        coords = self._coordinates(root.get("coordinates"))
+        cnode = root.get("constraints")
+        constrained = cnode is not None and cnode.value is not None
+        coords_node = root.get("coordinates")
+        auto = coords_node is not None and coords_node.is_scalar and coords_node.value == "auto"
+        if auto and not constrained:
+            self.error(coords_node, "`coordinates: auto` needs `constraints:`",
+                       "list the generalized coordinates, e.g. `coordinates: [theta, phi]`")
+            self.problems.raise_if_any()  # without coordinates every later check would mislead
+        coords = () if auto else self._coordinates(coords_node)
+        if auto:
+            self.locations["coordinates"] = coords_node.location
         primitive = Primitive(tuple(self.parts))
         self._primitive_names(primitive)
-        connection = self._connection(root.get("connection"), primitive, coords)
+        self._pivot_connection(primitive)
+        implicit = None
+        if constrained:
+            constraints = read_constraints(self, cnode, primitive)
+            y = self._intermediate(root.get("connection"), primitive, coords)
+            connection = self._connection(root.get("connection"), primitive, y)
+        else:
+            y = coords
+            connection = self._connection(root.get("connection"), primitive, coords)
         effects = self._effects(root.get("effects"), primitive, coords)
-        initial = self._initial(root.get("initial"), coords)
+        initial = self._initial(root.get("initial"), y)
+        declared = root.get("effects")
+        scenes = build_scenes(self, root.get("scenes"), list(declared.value) if declared is not None and
+                              declared.is_mapping else [], primitive, y)
+        if constrained and not self.problems:
+            implicit = self._implicit(cnode, constraints, connection, y, coords, auto, initial)
+            if implicit is not None:
+                coords = implicit.independent
         self.problems.raise_if_any()
         return Model(
             name=name,
@@ -172,8 +208,11 @@ class _Loader:
             connection=connection,
             effects=tuple(effects),
             initial=initial,
-            content_hash=content_key(self.text, *self.sub_hashes) if self.text is not None else "",
+            scenes=scenes,
+            content_hash=content_key(derivation_text(self.root, self.text), *self.sub_hashes)
+            if self.text is not None else "",
             locations=self.locations,
+            implicit=implicit,
         )
 
     def _string(self, node: Node | None, default: str) -> str:
@@ -235,7 +274,8 @@ class _Loader:
                 self.failed_components = True
 
     def _library_component(self, cname: str, spec: Node) -> Part | None:
-        self.check_keys(spec, ("type", "parameters", "coordinates", "points", "description"), f"component '{cname}'")
+        self.check_keys(spec, ("type", "parameters", "coordinates", "points", "pivot", "description"),
+                        f"component '{cname}'")
         tnode = spec.get("type")
         if tnode is None:
             self.error(spec, f"component '{cname}' has no `type:`",
@@ -265,6 +305,8 @@ class _Loader:
         extra = self._body_points(cname, cls, spec.get("points"), params)
         if extra is None:
             return None
+        if spec.get("pivot") is not None:
+            return self._pivoted(cname, cls, spec, params, names, extra)
         component = cls(x={local: symbol(n) for local, n in zip(cls.coordinates, names)}, p=params,
                         extra_points=extra)
         return part_from_component(cname, component)
@@ -341,7 +383,7 @@ class _Loader:
 
     def _known_system(self, cname: str, spec: Node) -> Part | None:
         """A derived model used as a component (examples II and III)."""
-        self.check_keys(spec, ("model", "parameters", "coordinates", "description"), f"component '{cname}'")
+        self.check_keys(spec, ("model", "parameters", "coordinates", "origin", "description"), f"component '{cname}'")
         mnode = spec.get("model")
         if not isinstance(mnode.value, str) or not mnode.value:
             self.error(mnode, f"`model:` of component '{cname}' must be a file name, found {_kind(mnode)}",
@@ -367,6 +409,10 @@ class _Loader:
         except ModelError as exc:
             self.problems.extend(exc)
             return None
+        if getattr(system, "implicit", None) is not None:
+            self.error(mnode, f"model '{mnode.value}' has implicit constraints: it cannot be a known system yet",
+                       "include its components and constraints in this model instead")
+            return None
         self.sub_hashes.append(key)
         # parameters: overrides, the rest inherited
         allowed = [p.name for p in system.parameters]
@@ -376,10 +422,23 @@ class _Loader:
                 self.add_parameter(info, inherited=True)
         local = tuple(q.name for q in system.coordinates)
         names = self._coordinate_names(cname, spec.get("coordinates"), local, "{}")
-        if names is None or any(v is None for v in overrides.values()):
+        origin = self._origin(cname, spec.get("origin"), system.dimension)
+        if names is None or any(v is None for v in overrides.values()) or origin is False:
             return None
-        return known_system_part(cname, system, {symbol(k): v for k, v in overrides.items()},
+        part = known_system_part(cname, system, {symbol(k): v for k, v in overrides.items()},
                                  dict(zip(local, names)))
+        return placed(part, origin) if origin else part
+
+    def _origin(self, cname: str, node: Node | None, dimension: int):
+        """``origin: [x, y]``: where a known system's own origin sits in this model's world."""
+        if node is None:
+            return None
+        if not node.is_sequence or len(node.value) != dimension:
+            self.error(node, f"`origin:` of '{cname}' needs {dimension or 'one entry per world axis'} entries",
+                       "e.g. `origin: [2*d, 0]`: the known system is moved there, unturned")
+            return False
+        values = [self.expr(v, self.parameter_names(), what=f"origin of '{cname}'") for v in node.value]
+        return False if any(v is None for v in values) else tuple(values)
 
     # --------------------------------------------------------- coordinates
     def _coordinates(self, node: Node | None) -> tuple[sympy.Symbol, ...]:
@@ -469,6 +528,18 @@ class _Loader:
                 continue
             connection[x] = sympy.sympify(value)
             where[x] = loc
+        for x, (expr, ploc) in self.auto_connection.items():
+            if x in connection:
+                self.error(where[x], f"primitive coordinate '{x}' is set by `pivot:` and cannot be connected",
+                           "remove it from `connection:`")
+                continue
+            connection[x] = expr
+        if self.auto_connection:  # a pivot on a connected point: compose until only xbar remains
+            for _ in range(len(self.auto_connection) + 1):
+                done = {x: e.xreplace(connection) for x, e in connection.items()}
+                if done == connection:
+                    break
+                connection = done
         for x in primitive.coordinates:
             if x in connection or x in attempted:
                 continue
@@ -492,6 +563,104 @@ class _Loader:
 
     def parameter_names(self) -> dict[str, sympy.Symbol]:
         return {k: v.symbol for k, v in self.parameters.items()}
+
+    # ------------------------------------------------------ pivots, constraints
+    def _pivoted(self, cname: str, cls, spec: Node, params: dict, names: list[str], extra: dict) -> Part | None:
+        """A pinned part hanging from a moving point: in the primitive a free rod whose centre and
+        axis the connection ties to the pivot point and the part's own angle (Kron's way)."""
+        from ..components.planar import PinnedRod, Rod
+
+        pnode = spec.get("pivot")
+        if cls is not PinnedRod:
+            self.error(pnode, f"component '{cname}' ({cls.type_name}) takes no `pivot:`",
+                       "only a pinned_rod hangs from a point")
+            return None
+        given = spec.get("parameters")
+        for key in ("pivot_x", "pivot_y"):
+            if given is not None and given.is_mapping and key in given.value:
+                self.error(given.key_locations[key], f"component '{cname}' has `pivot:`; `{key}` is not used",
+                           f"remove `{key}`")
+                return None
+        if not isinstance(pnode.value, str):
+            self.error(pnode, f"`pivot:` of '{cname}' must name a point, e.g. `pivot: cart.centre`",
+                       "a moving point `component.point`; a fixed pivot is `pivot_x`, `pivot_y`")
+            return None
+        hidden = {local: symbol(f"{cname}_{local if local != 'angle' else 'axis'}") for local in Rod.coordinates}
+        rod = Rod(x=hidden, p={"mass": params["mass"], "length": params["length"], "inertia": params["inertia"]},
+                  extra_points=extra)
+        part = part_from_component(cname, rod)
+        pts = dict(part.points)
+        points = {"pivot": pts.pop("a"), "centre": pts.pop("centre"), "tip": pts.pop("b"), **pts}
+        import dataclasses
+
+        angle = symbol(names[0])
+        self.pivots.append((cname, pnode, angle, params["length"], hidden))
+        return dataclasses.replace(part, points=points)
+
+    def _pivot_connection(self, primitive: Primitive) -> None:
+        """Connection lines of the pivoted parts: centre = pivot + L/2 (sin a, -cos a), axis = a - pi/2."""
+        points = primitive.points()
+        for cname, pnode, angle, length, hidden in self.pivots:
+            label = pnode.value
+            if label not in points or label.startswith(f"{cname}."):
+                self.error(pnode, f"unknown pivot point '{label}' of '{cname}'",
+                           close_matches(label, [p for p in points if not p.startswith(f"{cname}.")]))
+                continue
+            pos = tuple(points[label])
+            if len(pos) > 2:
+                self.error(pnode, f"pivot '{label}' of '{cname}' is a point in space", "a pinned_rod is planar")
+                continue
+            px, py = (tuple(pos) + (sympy.Integer(0),) * 2)[:2]
+            half = length / 2
+            self.auto_connection[hidden["x"]] = (px + half * sympy.sin(angle), pnode.location)
+            self.auto_connection[hidden["y"]] = (py - half * sympy.cos(angle), pnode.location)
+            self.auto_connection[hidden["angle"]] = (angle - sympy.pi / 2, pnode.location)
+
+    def _intermediate(self, node: Node | None, primitive: Primitive, coords) -> tuple[sympy.Symbol, ...]:
+        """The coordinates ``y`` the constraints act on: the primitive coordinates not given by
+        the connection (nor by a pivot), the pivoted parts' angles, then any other listed ones."""
+        connected = set(self.auto_connection)
+        for key in self.mapping(node, "connection", "write one `primitive_coordinate: expression` per line"):
+            if key in self.primitive_names:
+                connected.add(self.primitive_names[key])
+        y = [x for x in primitive.coordinates if x not in connected]
+        for _, _, angle, _, _ in self.pivots:
+            if angle not in y:
+                y.append(angle)
+        for q in coords:
+            if q not in y:
+                y.append(q)
+        for q in y:
+            self.names.setdefault(q.name, q)
+        return tuple(y)
+
+    def _implicit(self, node: Node, constraints, connection, y, coords, auto: bool, initial) -> ImplicitSpec | None:
+        """Constraints in ``y``, the dependent coordinates and the branch (25)-(27)."""
+        where = self.root.key_locations["constraints"]
+        if not constraints:
+            self.error(where, "`constraints:` is empty", "remove it, or write `name: expression` (= 0)")
+            return None
+        in_y = tuple(Constraint(c.name, sympy.sympify(c.expression).xreplace(connection), c.source)
+                     for c in constraints)
+        for c in in_y:
+            if not (c.expression.free_symbols & set(y)):
+                self.error(self.locations.get(f"constraint:{c.name.split('.')[0]}", where),
+                           f"constraint '{c.name}' does not involve any coordinate after the connection",
+                           "a constraint on connected coordinates only is already satisfied or never")
+                return None
+        for q in coords:
+            if q not in y:
+                self.error(self.locations.get("coordinates", where),
+                           f"independent coordinate '{q}' is not a coordinate of the constrained system",
+                           "choose among " + ", ".join(s.name for s in y))
+                return None
+        result = analyse(self, in_y, y, tuple(coords), auto, initial, where)
+        if result is None:
+            return None
+        independent, dependent, branch, closed, point = result
+        return ImplicitSpec(intermediate=tuple(y), independent=tuple(independent), dependent=tuple(dependent),
+                            constraints=in_y, branch=branch, closed_form=closed,
+                            choice="auto" if auto else "given", configuration=tuple(point.items()))
 
     # -------------------------------------------------------------- effects
     def _effects(self, node: Node | None, primitive: Primitive, coords):
@@ -532,7 +701,7 @@ def known_system_part(name: str, system: KnownSystem, overrides: dict, renames: 
     if not sub:
         return Part(name, tuple(system.coordinates), system.mass_matrix, system.velocity_terms,
                     dict(system.points), tuple(system.bodies), system.dimension,
-                    dict(system.effect_forces), system.potential_energy, "")
+                    dict(system.effect_forces), system.potential_energy, "", dict(system.effect_potentials))
 
     def s(e):
         return sympy.sympify(e).xreplace(sub)
@@ -553,7 +722,22 @@ def known_system_part(name: str, system: KnownSystem, overrides: dict, renames: 
         forces={label: f.xreplace(sub) for label, f in system.effect_forces.items()},
         potential=s(system.potential_energy),
         type_name="",
+        potentials={label: s(v) for label, v in system.effect_potentials.items()},
     )
+
+
+def placed(part: Part, origin) -> Part:
+    """A known system moved (not turned) to ``origin``: its points and mass centres shift; its
+    metric, velocity terms and forces do not change (a translation is an isometry)."""
+    import dataclasses
+
+    from ..components.base import Body
+
+    def shift(pos):
+        return tuple(sympy.sympify(c) + o for c, o in zip(pos, origin))
+
+    bodies = tuple(Body(b.mass, shift(b.centre), b.rotation, b.inertia) for b in part.bodies)
+    return dataclasses.replace(part, points={k: shift(v) for k, v in part.points.items()}, bodies=bodies)
 
 
 def _kind(node: Node) -> str:

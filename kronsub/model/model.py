@@ -17,6 +17,25 @@ from ..errors import Location
 
 
 @dataclass(frozen=True)
+class ImplicitSpec:
+    """What ``constraints:`` gave: the coordinates ``y`` the constraints ``g(y) = 0`` act on
+    (after the connection), split into independent and dependent ones (25), (26).
+
+    ``branch`` holds the dependent coordinates at the initial configuration ``configuration``
+    (found by Newton's method); ``closed_form`` the ones sympy solved uniquely on that branch.
+    """
+
+    intermediate: tuple[sympy.Symbol, ...]
+    independent: tuple[sympy.Symbol, ...]
+    dependent: tuple[sympy.Symbol, ...]
+    constraints: tuple  # core.constraints.Constraint, in y
+    branch: tuple[tuple[sympy.Symbol, float], ...] = ()
+    closed_form: tuple[tuple[sympy.Symbol, sympy.Expr], ...] = ()
+    choice: str = "given"
+    configuration: tuple[tuple[sympy.Symbol, float], ...] = ()
+
+
+@dataclass(frozen=True)
 class Model:
     """A model file, loaded: the primitive, the connection and the effects."""
 
@@ -31,6 +50,8 @@ class Model:
     initial: Mapping[sympy.Symbol, sympy.Expr] = field(default_factory=dict)
     content_hash: str = ""
     locations: Mapping[str, Location] = field(default_factory=dict)
+    scenes: tuple = ()  # of :class:`~kronsub.model.scenes.Scene`, in file order
+    implicit: ImplicitSpec | None = None  # constraints: g(y) = 0
 
     def derive(self, *, cache: bool = True) -> KnownSystem:
         """The equations of motion by projection onto the subspace (9'), (E), (F)."""

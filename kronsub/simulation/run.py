@@ -63,12 +63,14 @@ class Trajectory:
     stats: dict = field(default_factory=dict)
     backend: str = ""
     energies: tuple[np.ndarray, np.ndarray] | None = None  # (T, V) per row, when computed in C
+    y_fail: np.ndarray | None = None  # the state at which the right-hand side failed, when known
+    dependent: np.ndarray | None = None  # implicit constraints: the dependent coordinates per row
 
 
-def _numpy_module(system: KnownSystem):
+def _numpy_module(system: KnownSystem, outputs=None):
     """The generated numpy module, loaded from its text (our own generated code)."""
     namespace: dict = {}
-    (generated,) = emit_python(system, "model")
+    (generated,) = emit_python(system, "model", outputs=outputs)
     exec(compile(generated.text, f"<kronsub model {system.name}>", "exec"), namespace)
     return namespace
 
@@ -97,10 +99,23 @@ class _Progress:
 
 
 def simulate(system: KnownSystem, values: RunValues, t_end: float, dt: float, method: str = "dop853",
-             rtol: float = 1e-10, atol: float = 1e-10, chunks: int = 20, progress: bool | None = None) -> Trajectory:
-    """Integrate from t = 0 to ``t_end`` with rows every ``dt``."""
+             rtol: float = 1e-10, atol: float = 1e-10, chunks: int = 20, progress: bool | None = None,
+             outputs=None, constrained=None) -> Trajectory:
+    """Integrate from t = 0 to ``t_end`` with rows every ``dt``.
+
+    ``outputs`` (a scene's; None: everything) decides whether the energies are computed. With
+    implicit constraints, ``constrained`` is the :class:`~kronsub.core.constraints.Intermediates`
+    of the projected initial conditions (:func:`.constrained.project_initial`)."""
     if method not in METHODS:
         raise SimulationError(f"unknown method '{method}'; choose one of: {', '.join(METHODS)}")
+    if system.implicit is not None and method in ("gauss4", "heyoka"):
+        raise SimulationError(f"method '{method}' needs the canonical form or explicit equations, which a "
+                              "system with implicit constraints does not have; use dop853 (default), Radau or "
+                              "LSODA")
+    if system.implicit is not None and constrained is None:
+        from .constrained import project_initial
+
+        values, _, constrained = project_initial(system, {}, {}, values, _newton_tol(rtol, atol))
     if not (t_end > 0 and dt > 0):
         raise SimulationError("--t and --dt must be positive")
     param = np.array(values.parameters, dtype=float)
@@ -110,10 +125,14 @@ def simulate(system: KnownSystem, values: RunValues, t_end: float, dt: float, me
         return _run_heyoka(system, param, y0, grid, rtol)
     native = None
     try:
-        generated = [(g.name, g.text) for g in emit_c(system, "model")]
+        generated = [(g.name, g.text) for g in emit_c(system, "model", outputs=outputs)]
         native = NativeModel(compile_library(generated, "model"), len(system.coordinates), len(system.parameters))
     except CompilerNotFound:
         warnings.warn("no C compiler found: using the generated numpy module (slower)")
+    if constrained is not None and native is not None:
+        from .constrained import configure_native
+
+        configure_native(native, constrained.guess, _newton_tol(rtol, atol))
     spec = METHODS[method]
     if native is None and spec.engine == "c":
         fallback = "DOP853"
@@ -126,14 +145,38 @@ def simulate(system: KnownSystem, values: RunValues, t_end: float, dt: float, me
         if spec.engine == "c":
             traj = _run_native(native, spec.name, grid, y0, param, rtol, atol, dt, chunks, bar, system)
         else:
-            rhs = _native_rhs(native, param) if native is not None else _numpy_rhs(system, param)
+            rhs = (_native_rhs(native, param) if native is not None else
+                   _numpy_rhs(system, param, outputs, constrained, _newton_tol(rtol, atol)))
             traj = _run_scipy(rhs, spec.name, grid, y0, rtol, atol, chunks, bar, system)
     finally:
         bar.close()
     traj.backend = "C" if native is not None else "numpy"
-    if native is not None and len(traj.t):
+    if native is not None and len(traj.t) and (outputs is None or outputs.energies):
         traj.energies = native.energies(traj.t, traj.y, param)
+    if constrained is not None:
+        _constrained_rows(system, traj, constrained)
     return traj
+
+
+def _newton_tol(rtol: float, atol: float) -> float:
+    from .constrained import newton_tolerance
+
+    return newton_tolerance(rtol, atol)
+
+
+def _constrained_rows(system, traj: Trajectory, constrained) -> None:
+    """The dependent coordinates per row and, after a failure, what failed (t, configuration,
+    constraints)."""
+    from .constrained import dependent_rows, diagnose
+
+    n = len(system.coordinates)
+    start = constrained.guess.copy()
+    traj.dependent = dependent_rows(constrained, traj.y, n, start) if len(traj.y) else None
+    if not traj.complete:
+        last = traj.dependent[-1] if traj.dependent is not None and len(traj.dependent) else start
+        y = traj.y_fail if traj.y_fail is not None and np.all(np.isfinite(traj.y_fail)) else traj.y[-1]
+        traj.message = diagnose(system, constrained, traj.t_fail if traj.t_fail is not None else traj.t[-1], y,
+                                last)
 
 
 def _grid(t_end: float, dt: float) -> np.ndarray:
@@ -171,8 +214,12 @@ def _native_rhs(native, param):
     return f
 
 
-def _numpy_rhs(system, param):
-    module = _numpy_module(system)
+def _numpy_rhs(system, param, outputs=None, constrained=None, tol=1e-12):
+    module = _numpy_module(system, outputs)
+    if constrained is not None:
+        from .constrained import configure_module
+
+        configure_module(module, constrained.guess, tol)
     rhs = module["rhs"]
 
     def f(t, y):
@@ -218,7 +265,8 @@ def _run_native(native, method, grid, y0, param, rtol, atol, dt, chunks, bar, sy
         rows.extend(Y[keep])
         if result.status != 0:
             message = result.message + (_where(system, result.y_fail) if result.status in (1, 2) else "")
-            return Trajectory(np.array(times), np.array(rows), method, False, message, result.t_fail, stats)
+            return Trajectory(np.array(times), np.array(rows), method, False, message, result.t_fail, stats,
+                              y_fail=result.y_fail)
         y = Y[-1]
         bar.update(grid[b])
     return Trajectory(np.array(times), np.array(rows), method, True, "", None, stats)
@@ -237,7 +285,8 @@ def _run_scipy(rhs, method, grid, y0, rtol, atol, chunks, bar, system) -> Trajec
                                 rtol=rtol, atol=atol)
         except _Singular as exc:
             return Trajectory(np.array(times), np.array(rows), method, False,
-                              "the mass matrix is not positive definite" + _where(system, exc.y), exc.t, stats)
+                              "the mass matrix is not positive definite" + _where(system, exc.y), exc.t, stats,
+                              y_fail=np.asarray(exc.y))
         except (ValueError, RuntimeError) as exc:
             return Trajectory(np.array(times), np.array(rows), method, False, str(exc), times[-1], stats)
         stats["evaluations"] += int(sol.nfev)

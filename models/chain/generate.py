@@ -2,16 +2,20 @@
 
 Rod i has mass m<i>, length l<i>, centre (x<i>, y<i>) and axis angle a<i>; the
 generalized coordinates q<i> are the rods' angles from the downward vertical.
+With ``--hinges`` every hinge also has a torsional spring (stiffness k) and a
+torsional damper (coefficient c), and the model has the scenes ``full`` (every
+effect) and ``gravity_only``.
 
     python models/chain/generate.py 5 > models/chain/chain5.yaml
+    python models/chain/generate.py 10 --hinges > chain10_hinges.yaml
 """
 from __future__ import annotations
 
 import sys
 
 
-def chain_yaml(n: int) -> str:
-    """The YAML text of the n-link chain model."""
+def chain_yaml(n: int, hinges: bool = False) -> str:
+    """The YAML text of the n-link chain model (``hinges``: a spring and a damper at every hinge)."""
     if n < 1:
         raise ValueError("a chain needs at least one link")
     lines = [
@@ -22,6 +26,9 @@ def chain_yaml(n: int) -> str:
         "parameters:",
         "  g: {value: 9.81, unit: m/s^2}",
     ]
+    if hinges:
+        lines.append("  k: {value: 2, unit: N m/rad, description: stiffness of every hinge}")
+        lines.append("  c: {value: 0.1, unit: N m s/rad, description: damping of every hinge}")
     for i in range(1, n + 1):
         lines.append(f"  m{i}: {{value: 1, unit: kg}}")
         lines.append(f"  l{i}: {{value: 1, unit: m}}")
@@ -39,9 +46,19 @@ def chain_yaml(n: int) -> str:
         lines.append(f"  a{i}: q{i} - pi/2")
     lines.append("effects:")
     lines.append("  gravity: {type: gravity, g: g, direction: [0, -1]}")
+    if hinges:
+        for i in range(1, n + 1):
+            angle = f"a{i} - a{i - 1}" if i > 1 else "a1 + pi/2"
+            lines.append(f"  spring{i}: {{type: torsional_spring, angle: {angle}, stiffness: k}}")
+            lines.append(f"  damper{i}: {{type: torsional_damper, angle: {angle}, coefficient: c}}")
     lines.append("initial: {" + ", ".join(f"q{i}: 0.1" for i in range(1, n + 1)) + "}")
+    if hinges:
+        lines.append("scenes:")
+        lines.append("  full: {description: gravity and every hinge's spring and damper}")
+        lines.append("  gravity_only: {description: the hinges turn freely, effects: [gravity]}")
     return "\n".join(lines) + "\n"
 
 
 if __name__ == "__main__":
-    sys.stdout.write(chain_yaml(int(sys.argv[1]) if len(sys.argv) > 1 else 5))
+    args = [a for a in sys.argv[1:] if a != "--hinges"]
+    sys.stdout.write(chain_yaml(int(args[0]) if args else 5, hinges="--hinges" in sys.argv[1:]))

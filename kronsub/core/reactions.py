@@ -1,0 +1,105 @@
+"""Viewpoint (alpha): the workless reactions kept as unknowns (Hoffmann, "R and -R at A and A'").
+
+With the motion of the projected system known (``qddot = Mbar^-1 (fbar - hbar)``, viewpoint
+(beta)), the reactions are what the primitive needs on top of its own forces to move along
+the subspace:
+
+- an explicit connection ``x = x(q)``: ``r = M xddot + h - f`` on every primitive coordinate,
+  with ``xddot = C qddot + Cdot qdot``; ``C^T r = 0`` (the reactions do no work, (C)). For a
+  free body's centre coordinates this is the joint force on the body, for an angle the moment.
+- implicit constraints ``g(y) = 0``: the multipliers ``mu`` with ``M_y yddot + h_y = f_y + G^T mu``,
+  from the dependent rows ``G_d^T mu = (M_y yddot + h_y - f_y)_d``, ``yddot = [qddot; lambda qddot
+  + gamma]``. For a ``pin: [P, Q]`` the pair ``(mu_x, mu_y)`` is the force of the joint on the body
+  of ``P`` (and minus it on that of ``Q``).
+
+The expressions are in the state, the accelerations ``<q>_ddot`` (which the equations of
+motion give) and the named intermediates.
+"""
+from __future__ import annotations
+
+import sympy
+
+from .known_system import KnownSystem
+from .symbols import acceleration_symbol, velocity_symbol
+from .simplify import compact
+from .trigpoly import TrigAlgebra
+
+SYMBOLIC_INVERSE = 3
+
+
+def reactions(system: KnownSystem) -> list[tuple[str, sympy.Expr]]:
+    """``(name, expression)`` per reaction: ``R_<x>`` per primitive coordinate, or ``mu_<constraint>``."""
+    if system.implicit is not None:
+        return _multipliers(system)
+    return _connection_reactions(system)
+
+
+def _tidy(coords, expr):
+    algebra = TrigAlgebra(coords)
+    return compact(algebra, algebra.from_expr(sympy.expand(expr)))
+
+
+def _connection_reactions(system: KnownSystem):
+    tr = system.transition
+    if tr is None:
+        return []
+    q = system.coordinates
+    qd = [velocity_symbol(c) for c in q]
+    qdd = [acceleration_symbol(c) for c in q]
+    C = tr.transformation
+    connection = dict(tr.connection)
+    x = tr.primitive_coordinates
+    xdot = [sum((C[a, j] * qd[j] for j in range(len(q))), sympy.Integer(0)) for a in range(len(x))]
+    xddot = []
+    for a in range(len(x)):
+        total = sum((C[a, j] * qdd[j] for j in range(len(q))), sympy.Integer(0))
+        total += sum((sympy.diff(xdot[a], c) * v for c, v in zip(q, qd)), sympy.Integer(0))
+        xddot.append(total)
+    sub = {xa: connection[xa] for xa in x}
+    sub.update({velocity_symbol(xa): xdot[a] for a, xa in enumerate(x)})
+    f = sympy.zeros(len(x), 1)
+    for vec in tr.primitive_forces.values():
+        f += vec
+    M = tr.primitive_metric
+    out = []
+    for a, xa in enumerate(x):
+        r = sum((M[a, b] * xddot[b] for b in range(len(x)) if M[a, b] != 0), sympy.Integer(0))
+        r = sympy.sympify(r + tr.primitive_velocity_terms[a] - f[a]).xreplace(sub)
+        out.append((f"R_{xa.name}", _tidy(q, r)))
+    return out
+
+
+def _multipliers(system: KnownSystem):
+    imp = system.implicit
+    y = imp.intermediate
+    n = len(imp.independent)
+    qdd = [acceleration_symbol(c) for c in imp.independent]
+    qd = [velocity_symbol(c) for c in imp.independent]
+    lam, gam = imp.sensitivities, imp.convective
+    yddot, ydot = {}, {}
+    for j, c in enumerate(imp.independent):
+        yddot[c], ydot[velocity_symbol(c)] = qdd[j], qd[j]
+    for a, d in enumerate(imp.dependent):
+        yddot[d] = sum((lam[a, j] * qdd[j] for j in range(n)), sympy.Integer(0)) + gam[a]
+        ydot[velocity_symbol(d)] = sum((lam[a, j] * qd[j] for j in range(n)), sympy.Integer(0))
+    index = {c: i for i, c in enumerate(y)}
+    rows = []
+    for d in imp.dependent:
+        i = index[d]
+        r = sum((imp.metric[i, b] * yddot[c] for b, c in enumerate(y) if imp.metric[i, b] != 0), sympy.Integer(0))
+        rows.append(sympy.sympify(r + imp.velocity_terms[i] - imp.forces[i]).xreplace(ydot))
+    k = len(imp.dependent)
+    names = [f"mu_{c.name.replace('.', '_')}" for c in imp.constraints]
+    if k > SYMBOLIC_INVERSE:
+        return [(nm, sympy.Symbol(f"(G_d^-T r)[{a}]")) for a, nm in enumerate(names)]
+    Gt = imp.jacobian_dependent.T
+    inverse = Gt.adjugate() / Gt.det(method="berkowitz") if k > 1 else sympy.Matrix([[1 / Gt[0, 0]]])
+    mu = inverse * sympy.Matrix(rows)
+    out = []
+    for a, nm in enumerate(names):
+        num, den = sympy.fraction(sympy.together(mu[a]))
+        out.append((nm, sympy.factor_terms(_tidy(y, num) / _tidy(y, den))))
+    return out
+
+
+__all__ = ["reactions"]

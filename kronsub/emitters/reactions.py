@@ -1,0 +1,42 @@
+"""``derive --reactions``: the reactions of viewpoint (alpha) appended to the derivation."""
+from __future__ import annotations
+
+import json
+
+from ..core.known_system import KnownSystem
+from ..core.reactions import reactions
+from .report import latex_printer, plain
+
+NOTE = ("Viewpoint (alpha): the workless reactions kept as unknowns and found from the motion; "
+        "`<q>_ddot` are the accelerations the equations of motion give{where}. "
+        "{what}")
+
+
+def _what(system: KnownSystem) -> str:
+    if system.implicit is not None:
+        return ("`mu_<constraint>` are the multipliers of `M_y yddot + h_y = f_y + G^T mu`; for a pin [P, Q] the pair "
+                "is the force of the joint on the body of P (minus it on that of Q).")
+    return ("`R_<x>` = `M xddot + h - f` on each primitive coordinate x: on a body's centre coordinates the force "
+            "of the interconnection on it, on an angle its moment; `C^T R = 0`.")
+
+
+def with_reactions(text: str, system: KnownSystem, fmt: str) -> str:
+    """The derivation ``text`` in ``fmt`` with the reactions added."""
+    items = reactions(system)
+    where = " and the named intermediates above" if system.implicit is not None else ""
+    note = NOTE.format(where=where, what=_what(system))
+    if fmt == "json":
+        data = json.loads(text)
+        data["reactions"] = {"expressions": {name: plain(e) for name, e in items}, "note": note.replace("`", "")}
+        return json.dumps(data, indent=2, ensure_ascii=False) + "\n"
+    if fmt == "latex":
+        coords = tuple(system.coordinates) + (tuple(system.transition.primitive_coordinates)
+                                              if system.transition else ())
+        show = latex_printer(coords)
+        body = "\n".join(rf"\texttt{{{name.replace('_', chr(92) + '_')}}} &= {show(e)} \\" for name, e in items)
+        section = ("\\section*{Reactions}\n" + note.replace("`", "").replace("_", "\\_").replace("^", "\\^{}")
+                   + "\n\\begin{align*}\n" + body.rstrip(" \\") + "\n\\end{align*}\n")
+        return text.replace("\\end{document}", section + "\\end{document}")
+    lines = ["", "## Reactions (viewpoint (alpha))", "", note, ""]
+    lines += [f"- `{name} = {plain(e)}`" for name, e in items]
+    return text.rstrip("\n") + "\n" + "\n".join(lines) + "\n"

@@ -1,0 +1,288 @@
+"""Reading ``constraints:``: implicit constraints ``g(x) = 0`` (eq. 25) and joint shorthands.
+
+Each entry is named. An expression is one constraint ``g = 0`` on the primitive
+coordinates (``loop: a1*sin(theta) + a2*sin(phi) - c``); a joint is built from named
+points:
+
+- ``pin: [P, Q]``: the two points coincide (one equation per world axis, named
+  ``<name>.x``, ``<name>.y``...); ``Q`` may be a fixed place ``[x, y]``.
+- ``point_on_line: {point: P, through: Q, direction: [dx, dy]}``: ``P`` stays on the line
+  through ``Q`` (a named point or a fixed place) along ``direction`` (world axes; it may
+  depend on the coordinates, for a moving line). One equation in the plane.
+- ``slider: {point: P, body: B, through: [u, v], direction: [du, dv]}``: ``P`` stays on the
+  line fixed in component ``B`` through the body-frame offset ``through`` (default its
+  centre) along the body-frame ``direction`` (default its x axis). One equation.
+
+Then the analysis at the initial configuration (with the parameters' default values):
+Newton's method finds the configuration on the constraints nearest the one given, the
+rank of ``G = dg/dy`` is checked (redundant constraints are named), and the dependent
+coordinates are those not listed under ``coordinates:`` or, with ``coordinates: auto``,
+the best-conditioned columns of ``G`` by pivoted QR.
+"""
+from __future__ import annotations
+
+import numpy as np
+import sympy
+
+from ..core.constraints import Constraint, ConstraintFailure, NumericConstraints, closed_forms
+from ..errors import close_matches
+from .source import Node
+
+JOINTS = ("pin", "point_on_line", "slider")
+AXES = "xyz"
+
+
+def read_constraints(loader, node: Node, primitive) -> list[Constraint]:
+    """The constraints of the model, in primitive coordinates, each with its location kept."""
+    out: list[Constraint] = []
+    entries = loader.mapping(node, "constraints", "write `name: expression` (= 0) or `name: {pin: [P, Q]}`")
+    names = {k: v for k, v in loader.parameter_names().items()}
+    names.update(loader.primitive_names)
+    for cname, spec in entries.items():
+        loc = node.key_locations[cname]
+        if not loader.identifier(cname, loc, "constraint"):
+            continue
+        loader.locations[f"constraint:{cname}"] = loc
+        if spec.is_mapping:
+            keys = [k for k in spec.value if k != "description"]
+            if len(keys) != 1 or keys[0] not in JOINTS:
+                bad = next((k for k in keys if k not in JOINTS), keys[0] if keys else "")
+                loader.error(spec.key_locations.get(bad, spec.location) if bad else spec,
+                             f"constraint '{cname}' must be an expression or one joint ({', '.join(JOINTS)})",
+                             close_matches(bad, JOINTS) if bad else "e.g. `B: {pin: [left.b, right.b]}`")
+                continue
+            kind = keys[0]
+            built = _JOINT_BUILDERS[kind](loader, cname, spec.get(kind), primitive, names)
+            if built is not None:
+                out.extend(built)
+            continue
+        value = loader.expr(spec, names, what=f"constraint '{cname}'")
+        if value is None:
+            continue
+        value = sympy.sympify(value)
+        if not (value.free_symbols & set(primitive.coordinates)):
+            loader.error(spec, f"constraint '{cname}' does not involve any coordinate",
+                         "write g(x) with `g = 0`, e.g. `a1*sin(theta) + a2*sin(phi) - c`")
+            continue
+        out.append(Constraint(cname, value, "expression"))
+    return out
+
+
+def _point(loader, node: Node, primitive, cname: str, names):
+    """A named point (``component.point``) or a fixed place ``[x, y]``: its world position."""
+    if node is not None and node.is_sequence:
+        values = [loader.expr(v, names, what=f"fixed place in constraint '{cname}'") for v in node.value]
+        return None if any(v is None for v in values) else tuple(values)
+    points = primitive.points()
+    label = None if node is None else node.value
+    if not isinstance(label, str) or label not in points:
+        loader.error(node if node is not None else loader.root, f"unknown point '{label}' in constraint '{cname}'",
+                     close_matches(str(label), points))
+        return None
+    return points[label]
+
+
+def _vector(loader, node: Node, cname: str, what: str, names):
+    if node is None or not node.is_sequence or not node.value:
+        loader.error(node if node is not None else loader.root,
+                     f"{what} of constraint '{cname}' must be a list, e.g. `[0, 1]`", "one entry per world axis")
+        return None
+    values = [loader.expr(v, names, what=f"{what} of constraint '{cname}'") for v in node.value]
+    return None if any(v is None for v in values) else tuple(values)
+
+
+def _pad(point, dim: int):
+    """A point of a line (1 axis) is on the x axis of the plane."""
+    return tuple(point) + (sympy.Integer(0),) * (dim - len(point))
+
+
+def _pin(loader, cname, node, primitive, names):
+    if node is None or not node.is_sequence or len(node.value) != 2:
+        loader.error(node if node is not None else loader.root, f"pin '{cname}' needs two points",
+                     "e.g. `pin: [left.lower.end, right.lower.end]` or a fixed place `[0, 0]`")
+        return None
+    p = _point(loader, node.value[0], primitive, cname, names)
+    q = _point(loader, node.value[1], primitive, cname, names)
+    if p is None or q is None:
+        return None
+    dim = max(len(p), len(q))
+    p, q = _pad(p, dim), _pad(q, dim)
+    source = f"pin: [{_text(node.value[0])}, {_text(node.value[1])}]"
+    out = []
+    for axis in range(dim):
+        e = sympy.sympify(p[axis] - q[axis])
+        if e != 0:
+            out.append(Constraint(f"{cname}.{AXES[axis]}" if dim > 1 else cname, e, source))
+    return out
+
+
+def _line(loader, cname, node, names, what):
+    if node is None or not node.is_mapping:
+        loader.error(node if node is not None else loader.root, f"{what} '{cname}' needs a mapping",
+                     "e.g. `{point: lower.end, through: [1.2, 0], direction: [0, 1]}`")
+        return None
+    return node
+
+
+def _cross(d, v):
+    """``d x v`` in the plane (a scalar): zero when ``v`` is along ``d``."""
+    return sympy.sympify(d[0] * v[1] - d[1] * v[0])
+
+
+def _unit(d):
+    norm2 = sympy.sympify(sum(c**2 for c in d))
+    if norm2.is_number and norm2 != 0:
+        return tuple(c / sympy.sqrt(norm2) for c in d)
+    return d
+
+
+def _point_on_line(loader, cname, node, primitive, names):
+    node = _line(loader, cname, node, names, "point_on_line")
+    if node is None:
+        return None
+    loader.check_keys(node, ("point", "through", "direction"), f"point_on_line '{cname}'")
+    p = _point(loader, node.get("point"), primitive, cname, names)
+    through = node.get("through")
+    q = _point(loader, through, primitive, cname, names) if through is not None else None
+    d = _vector(loader, node.get("direction") or node, cname, "direction", names)
+    if through is None:
+        loader.error(node, f"point_on_line '{cname}' needs `through:`", "a named point or a fixed place [x, y]")
+    if p is None or q is None or d is None:
+        return None
+    if max(len(p), len(q), len(d)) != 2:
+        loader.error(node, f"point_on_line '{cname}' is planar only", "in space use two point_on_line or a pin")
+        return None
+    p, q, d = _pad(p, 2), _pad(q, 2), _unit(_pad(d, 2))
+    v = (p[0] - q[0], p[1] - q[1])
+    return [Constraint(cname, _cross(d, v), f"point_on_line: {_text(node.get('point'))}")]
+
+
+def _slider(loader, cname, node, primitive, names):
+    node = _line(loader, cname, node, names, "slider")
+    if node is None:
+        return None
+    loader.check_keys(node, ("point", "body", "through", "direction"), f"slider '{cname}'")
+    p = _point(loader, node.get("point"), primitive, cname, names)
+    bnode = node.get("body")
+    part = None
+    if bnode is None or not isinstance(bnode.value, str) or bnode.value not in [x.name for x in primitive.parts]:
+        loader.error(bnode if bnode is not None else node, f"slider '{cname}' needs `body:` a component",
+                     close_matches(str(bnode.value if bnode is not None else ""), [x.name for x in primitive.parts]))
+    else:
+        part = primitive.part(bnode.value)
+        if not part.bodies or part.bodies[0].rotation is None or part.dimension != 2:
+            loader.error(bnode, f"slider '{cname}': component '{part.name}' is not a planar rigid body",
+                         "use a rod, disc, planar_body or pinned_rod")
+            part = None
+    zero = sympy.Integer(0)
+    through = (_vector(loader, node.get("through"), cname, "through", loader.parameter_names())
+               if node.get("through") is not None else (zero, zero))
+    d = (_vector(loader, node.get("direction"), cname, "direction", loader.parameter_names())
+         if node.get("direction") is not None else (sympy.Integer(1), zero))
+    if p is None or part is None or through is None or d is None:
+        return None
+    body = part.bodies[0]
+    R = body.rotation
+    q = sympy.Matrix(body.centre) + R * sympy.Matrix(through)
+    dw = R * sympy.Matrix(_unit(d))
+    p = _pad(p, 2)
+    v = (p[0] - q[0], p[1] - q[1])
+    return [Constraint(cname, _cross(dw, v),
+                       f"slider: {_text(node.get('point'))} on {part.name}")]
+
+
+_JOINT_BUILDERS = {"pin": _pin, "point_on_line": _point_on_line, "slider": _slider}
+
+
+def _text(node: Node | None) -> str:
+    if node is None:
+        return ""
+    if node.is_sequence:
+        return "[" + ", ".join(_text(v) for v in node.value) + "]"
+    return str(node.text if node.text is not None else node.value)
+
+
+# --------------------------------------------------------------------------------------------
+# The analysis at the initial configuration
+# --------------------------------------------------------------------------------------------
+
+def analyse(loader, constraints, y, independent, auto: bool, initial: dict, where):
+    """Dependent coordinates, the branch (their values at the initial configuration) and the
+    closed forms; every problem reported at ``where`` naming the constraints involved.
+
+    Returns ``(independent, dependent, branch, closed_form, configuration)`` or None after a problem.
+    """
+    k, ny = len(constraints), len(y)
+    listed = ", ".join(f"'{c.name}'" for c in constraints)
+    if k >= ny:
+        loader.error(where, f"too many constraints: {k} ({listed}) on {ny} coordinates "
+                            f"({', '.join(q.name for q in y)})",
+                     "a system needs at least one degree of freedom: remove constraints or add components")
+        return None
+    if not auto:
+        dependent = tuple(q for q in y if q not in independent)
+        if k > len(dependent):
+            loader.error(where, f"more constraints ({k}: {listed}) than dependent coordinates "
+                                f"({len(dependent)}: {', '.join(q.name for q in dependent) or 'none'})",
+                         f"list {ny - k} independent coordinates under `coordinates:`, or `coordinates: auto`")
+            return None
+        if k < len(dependent):
+            loader.error(where, f"the independent coordinates do not determine the others: {len(dependent)} "
+                                f"dependent coordinates ({', '.join(q.name for q in dependent)}) but {k} "
+                                f"constraint{'s' if k != 1 else ''} ({listed})",
+                         f"list {ny - k} independent coordinates under `coordinates:`, or `coordinates: auto`")
+            return None
+    values = {}
+    for p in loader.parameters.values():
+        if p.value is not None and sympy.sympify(p.value).is_number:
+            values[p.symbol] = p.value
+    try:
+        numeric = NumericConstraints(constraints, y, values)
+    except ConstraintFailure as exc:
+        loader.error(where, f"the constraints ({listed}) need values of the parameters {exc.message} to fix "
+                            "the branch at the initial configuration", "give them a `value:`")
+        return None
+    y0 = np.array([float(sympy.sympify(initial.get(q, 0)).xreplace(values)) for q in y])
+    free = list(range(ny)) if auto else [i for i, q in enumerate(y) if q not in independent]
+    try:
+        y1 = numeric.solve(y0, free)
+    except ConstraintFailure as exc:
+        loader.error(where, f"inconsistent constraints ({listed}): no configuration near the initial one "
+                            f"satisfies them ({exc.message})",
+                     "check the constraints and the initial values (`initial:`), which pick the branch")
+        return None
+    bad = numeric.redundant_rows(y1)
+    if bad:
+        _redundant(loader, where, numeric, bad, constraints)
+        return None
+    if auto:
+        dep_idx = numeric.pivot(y1)
+        dependent = tuple(y[i] for i in dep_idx)
+        independent = tuple(q for i, q in enumerate(y) if i not in dep_idx)
+    else:
+        dep_idx = [i for i, q in enumerate(y) if q in dependent]
+        G = numeric.jacobian(y1)[:, dep_idx]
+        if np.linalg.matrix_rank(G) < k:
+            better = [y[i].name for i in range(ny) if i not in numeric.pivot(y1)]
+            loader.error(where, f"the independent coordinates do not determine the others: dg/d("
+                                f"{', '.join(q.name for q in dependent)}) is singular at the initial "
+                                f"configuration for the constraints {listed}",
+                         f"choose other independent coordinates, e.g. `coordinates: [{', '.join(better)}]`, "
+                         "or `coordinates: auto`")
+            return None
+    # 12 significant digits: the branch only selects the root, and its printed value stays
+    # byte-identical whatever the order of the floating-point sums
+    size = 1.0 + float(np.max(np.abs(y1)))
+    y1 = np.array([0.0 if abs(v) < 1e-13 * size else float(f"{v:.12g}") for v in y1])
+    branch = tuple((y[i], float(y1[i])) for i in dep_idx)
+    point = {q: float(v) for q, v in zip(y, y1)}
+    closed = closed_forms(constraints, independent, dependent, point, values)
+    return independent, dependent, branch, closed, point
+
+
+def _redundant(loader, where, numeric, bad, constraints):
+    names = numeric.names(bad)
+    others = numeric.names([i for i in range(len(constraints)) if i not in bad])
+    loader.error(where, f"redundant constraints: {names} {'depends' if len(bad) == 1 else 'depend'} on "
+                        f"{others or 'the others'} (the Jacobian dg/dx is rank-deficient at the initial "
+                        "configuration)", f"remove {names}")

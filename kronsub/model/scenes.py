@@ -1,0 +1,255 @@
+"""Scenes: named selections of a model's effects, values and outputs.
+
+A scene switches effects on (``effects:``) or off (``without:``). Since
+``fbar = C^T f`` is a sum over the effects (8'), (F), a scene's equations are
+the model's with the switched-off effects left out *before* projection: no
+term, symbol or parameter of them reaches the derived equations or the
+generated code. A scene also gives parameter and initial values, the time span
+and step, the method, and the outputs it wants; outputs not asked for are not
+computed.
+"""
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass, field
+from typing import Mapping
+
+import sympy
+
+from ..core.known_system import KnownSystem
+from ..core.subspace import effect_labels
+from ..errors import ModelError, Problem, close_matches
+from .source import Node
+
+KEYS = ("description", "effects", "without", "parameters", "initial", "t_end", "dt", "method", "outputs")
+OUTPUT_KINDS = ("coordinates", "velocities", "energies", "points")
+
+
+@dataclass(frozen=True)
+class Outputs:
+    """What a run reports: ``points`` None means every named point (on request)."""
+
+    coordinates: bool = True
+    velocities: bool = True
+    energies: bool = True
+    points: tuple[str, ...] | None = None
+
+
+@dataclass(frozen=True)
+class Scene:
+    """A named scene of a model; ``effects`` are the labels switched on, in model order."""
+
+    name: str
+    effects: tuple[str, ...]
+    description: str = ""
+    parameters: Mapping[str, sympy.Expr] = field(default_factory=dict)
+    initial: Mapping[sympy.Symbol, sympy.Expr] = field(default_factory=dict)
+    t_end: float | None = None
+    dt: float | None = None
+    method: str | None = None
+    outputs: Outputs = Outputs(points=())
+
+
+# ------------------------------------------------------------------------------------ reading
+def build_scenes(loader, node: Node | None, declared_effects, primitive, coords) -> tuple[Scene, ...]:
+    """Read ``scenes:``; problems go to the loader. ``declared_effects`` are the names under
+    ``effects:``; a known system's own effects are named ``part.effect``."""
+    labels = [label for label in effect_labels(primitive, ()) if "." in label] + list(declared_effects)
+    points = sorted(primitive.points())
+    scenes = []
+    for sname, spec in loader.mapping(node, "scenes", "write `scenes: {free: {effects: [gravity]}}`").items():
+        if not loader.identifier(sname, node.key_locations[sname], "scene"):
+            continue
+        if spec.value is None:
+            spec = Node({}, None, spec.location)
+        if not spec.is_mapping:
+            loader.error(spec, f"scene '{sname}' must be a mapping", "e.g. `free: {effects: [gravity]}`")
+            continue
+        loader.check_keys(spec, KEYS, f"scene '{sname}'")
+        scene = _scene(loader, sname, spec, labels, points, coords)
+        if scene is not None:
+            scenes.append(scene)
+    if node is not None and node.is_mapping:
+        loader.locations["scenes"] = node.location
+    return tuple(scenes)
+
+
+def _scene(loader, sname: str, spec: Node, labels, points, coords) -> Scene | None:
+    on, off = spec.get("effects"), spec.get("without")
+    if on is not None and off is not None:
+        loader.error(spec.key_locations["without"], f"scene '{sname}' has both `effects:` and `without:`",
+                     "list the effects it switches on, or those it switches off, not both")
+        return None
+    chosen = set(labels)
+    for what, listed in (("effects", on), ("without", off)):
+        if listed is None:
+            continue
+        names = _names(loader, listed, labels, f"`{what}:` of scene '{sname}'", "effect")
+        if names is None:
+            return None
+        chosen = set(names) if what == "effects" else chosen - set(names)
+    parameters = {}
+    allowed = loader.parameter_names()
+    pnode = spec.get("parameters")
+    for pname, vnode in loader.mapping(pnode, f"{sname}.parameters", "write `parameters: {F: 2}`").items():
+        if pname not in allowed:
+            loader.error(pnode.key_locations[pname], f"scene '{sname}' sets '{pname}', which is not a parameter",
+                         close_matches(pname, allowed))
+            continue
+        value = loader.expr(vnode, {}, what=f"value of parameter '{pname}' in scene '{sname}'")
+        if value is not None:
+            parameters[pname] = value
+    initial = loader._initial(spec.get("initial"), coords)
+    t_end = _positive(loader, spec.get("t_end"), f"`t_end:` of scene '{sname}'")
+    dt = _positive(loader, spec.get("dt"), f"`dt:` of scene '{sname}'")
+    method = _method(loader, spec.get("method"), sname)
+    outputs = _outputs(loader, spec.get("outputs"), points, sname)
+    return Scene(
+        name=sname,
+        effects=tuple(label for label in labels if label in chosen),
+        description=loader._string(spec.get("description"), ""),
+        parameters=parameters,
+        initial=initial,
+        t_end=t_end,
+        dt=dt,
+        method=method,
+        outputs=outputs,
+    )
+
+
+def _names(loader, node: Node, valid, what: str, kind: str) -> list[str] | None:
+    """A list of names, each one of ``valid`` (an unknown name lists the valid ones)."""
+    if node.value is None:
+        return []
+    if not node.is_sequence:
+        loader.error(node, f"{what} must be a list of names", f"e.g. `[{valid[0] if valid else 'gravity'}]`")
+        return None
+    names, ok = [], True
+    for item in node.value:
+        name = item.value
+        if not isinstance(name, str) or name not in valid:
+            ok = False
+            shown = item.text if item.text is not None else str(name)
+            hint = close_matches(shown, valid)
+            if hint.startswith("did you mean"):
+                hint += f" (valid {kind}s: {', '.join(valid) or 'none'})"
+            loader.error(item, f"unknown {kind} '{shown}' in {what}", hint)
+            continue
+        names.append(name)
+    return names if ok else None
+
+
+def _positive(loader, node: Node | None, what: str) -> float | None:
+    if node is None:
+        return None
+    value = loader.expr(node, {}, what=what)
+    if value is None:
+        return None
+    if not value.is_number or not value.is_real or not value > 0:
+        loader.error(node, f"{what} must be a positive number", "e.g. `t_end: 10` and `dt: 0.01`")
+        return None
+    return float(value)
+
+
+def _method(loader, node: Node | None, sname: str) -> str | None:
+    if node is None:
+        return None
+    from ..simulation.run import METHODS  # the method table lives with the integrators
+
+    if not isinstance(node.value, str) or node.value not in METHODS:
+        shown = node.text if node.text is not None else str(node.value)
+        loader.error(node, f"unknown method '{shown}' in scene '{sname}'", close_matches(shown, METHODS))
+        return None
+    return node.value
+
+
+def _outputs(loader, node: Node | None, points, sname: str) -> Outputs:
+    """``outputs: [coordinates, velocities, energies, points | <named point>...]``."""
+    if node is None:
+        return Outputs(points=())
+    valid = list(OUTPUT_KINDS) + list(points)
+    names = _names(loader, node, valid, f"`outputs:` of scene '{sname}'", "output") or []
+    chosen = [n for n in names if n in points]
+    if "points" in names:
+        chosen = list(points)
+    return Outputs(
+        coordinates="coordinates" in names,
+        velocities="velocities" in names,
+        energies="energies" in names,
+        points=tuple(p for p in points if p in chosen),
+    )
+
+
+# ---------------------------------------------------------------------------------- choosing
+def select_scene(model, name: str | None) -> Scene | None:
+    """The scene called ``name``; without a name the model's only scene, if it has exactly one
+    (else None: the whole model). An unknown name is an error listing the valid ones."""
+    scenes = {s.name: s for s in model.scenes}
+    if name is None:
+        return next(iter(scenes.values())) if len(scenes) == 1 else None
+    if name in scenes:
+        return scenes[name]
+    if not scenes:
+        raise ModelError([Problem(None, f"--scene {name}: the model {model.path} has no scenes",
+                                  "add a `scenes:` section (docs/model-format.md), or leave out --scene")])
+    hint = close_matches(name, scenes)
+    if hint.startswith("did you mean"):
+        hint += f" (valid scenes: {', '.join(scenes)})"
+    raise ModelError([Problem(None, f"--scene {name}: {model.path} has no scene of that name", hint)])
+
+
+def derive_scene(model, scene: Scene | None, *, cache: bool = True) -> KnownSystem:
+    """The equations of a scene: only its effects are projected (and cached apart, shared
+    with every other scene), parameters only of switched-off effects are dropped, the
+    scene's values become the defaults, and only the named points it asks for are kept."""
+    if scene is None:
+        return model.derive(cache=cache)
+    from .derive import derive_model
+
+    system = derive_model(model, cache=cache, effects=scene.effects)
+    off = [label for label in effect_labels(model.primitive, model.effects) if label not in scene.effects]
+    off_symbols = set().union(*(_effect_symbols(model, label) for label in off)) if off else set()
+    points = {label: system.points[label] for label in (scene.outputs.points or ()) if label in system.points}
+    used = set(system.mass_matrix.free_symbols) | set(system.velocity_terms.free_symbols) \
+        | set(system.forces.free_symbols) | set(sympy.sympify(system.potential_energy).free_symbols)
+    for pos in points.values():
+        for c in pos:
+            used |= sympy.sympify(c).free_symbols
+    for value in initial_values(model, scene).values():  # initial values may name parameters
+        used |= sympy.sympify(value).free_symbols
+    parameters = tuple(
+        dataclasses.replace(p, value=scene.parameters.get(p.name, p.value))
+        for p in system.parameters if p.symbol in used or p.symbol not in off_symbols)
+    description = system.description.rstrip()
+    if scene.description:
+        description = (description + "\n\n" if description else "") + f"Scene {scene.name}: {scene.description}"
+    return dataclasses.replace(system, name=f"{system.name} (scene {scene.name})", description=description,
+                               parameters=parameters, points=points)
+
+
+def initial_values(model, scene: Scene | None) -> dict:
+    """The model's ``initial:``, overridden by the scene's."""
+    values = dict(model.initial)
+    if scene is not None:
+        values.update(scene.initial)
+    return values
+
+
+def _effect_symbols(model, label: str) -> set:
+    """The symbols an effect is written with (its definition, not its projection)."""
+    for effect in model.effects:
+        if effect.name == label:
+            return _symbols([getattr(effect, f.name) for f in dataclasses.fields(effect)])
+    part, _, own = label.partition(".")
+    for p in model.primitive.parts:
+        if p.name == part:
+            return _symbols([p.forces.get(own), p.potentials.get(own)])
+    return set()
+
+
+def _symbols(value) -> set:
+    if isinstance(value, (list, tuple)):
+        return set().union(*(_symbols(v) for v in value)) if value else set()
+    if isinstance(value, (sympy.Basic, sympy.MatrixBase)):
+        return set(value.free_symbols)
+    return set()
