@@ -37,11 +37,21 @@ class Problem:
     hint: str | None = None
 
     def format(self) -> str:
+        """``where: message`` and ``  hint: ...``, each on one line (see `printable`)."""
         where = f"{self.location}: " if self.location is not None else ""
-        text = f"{where}{self.message}"
+        text = printable(f"{where}{self.message}")
         if self.hint:
-            text += f"\n  hint: {self.hint}"
+            text += f"\n  hint: {printable(self.hint)}"
         return text
+
+
+def printable(text: str) -> str:
+    """``text`` with control and direction characters escaped (``\\n``, ``\\u202e``), so
+    that text quoted from a model cannot break a message into lines or reorder it."""
+    if text.isprintable():
+        return text
+    return "".join(ch if ch.isprintable() or ch == " " else ch.encode("unicode_escape").decode("ascii")
+                   for ch in text)
 
 
 class KronsubError(Exception):

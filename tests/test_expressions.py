@@ -368,34 +368,64 @@ LEAVES = st.one_of(
         lambda p: (f"{p[0] // 10 ** p[1]}.{p[0] % 10 ** p[1]:0{p[1]}d}", sympy.Rational(*p[:1], 10 ** p[1]))),
     st.tuples(st.integers(1, 999), st.integers(-5, 5)).map(
         lambda p: (f"{p[0]}e{p[1]}", sympy.Integer(p[0]) * sympy.Rational(10) ** p[1])),
-)
+).map(lambda leaf: (*leaf, False))
 BINARY = {"+": lambda a, b: a + b, "-": lambda a, b: a - b,
           "*": lambda a, b: a * b, "/": lambda a, b: a / b}
 UNARY_FUNCTIONS = sorted(name for name, (_, arity) in FUNCTIONS.items() if arity == 1)
+DOUBLE_MAX = 1.7976931348623157e308
+
+
+def _not_a_double(expr: sympy.Expr) -> bool:
+    """A constant that is not a finite real double (mpmath at 30 digits)."""
+    import mpmath
+
+    if expr.free_symbols or expr.has(sympy.zoo, sympy.nan, sympy.oo, -sympy.oo, sympy.I):
+        return False
+    with mpmath.workdps(30):
+        try:
+            value = mpmath.mpc(sympy.lambdify([], expr, "mpmath")())
+        except (ValueError, ZeroDivisionError, OverflowError):
+            return True
+        return bool(value.imag != 0 or not mpmath.isfinite(value.real) or abs(value.real) > DOUBLE_MAX)
+
+
+def _node(text: str, value, *children) -> tuple[str, sympy.Expr, bool]:
+    """(text, value, refused): refused when a part, or a constant the parts combine into
+    (the value itself, or a constant factor or term of it), is not a finite real double.
+    ``value()`` builds the value from the children's; it is not built after a refusal
+    (as the parser stops there; sympy can take minutes on ``atan2(acos(pi), 0)``)."""
+    if any(c[2] for c in children):
+        return text, sympy.Integer(0), True
+    try:
+        expr = value(*(c[1] for c in children))
+    except TypeError:  # sympy itself fails (atan2 of some constants): the parser reports it
+        return text, sympy.Integer(0), True
+    parts = [expr] if not expr.free_symbols else [a for a in expr.args if not a.free_symbols]
+    return text, expr, any(_not_a_double(p) for p in parts)
 
 
 def _extend(children):
     binary = st.tuples(children, st.sampled_from(sorted(BINARY)), children, st.sampled_from(["", " "])).map(
-        lambda p: (f"({p[0][0]}{p[3]}{p[1]}{p[3]}{p[2][0]})", BINARY[p[1]](p[0][1], p[2][1])))
+        lambda p: _node(f"({p[0][0]}{p[3]}{p[1]}{p[3]}{p[2][0]})", BINARY[p[1]], p[0], p[2]))
     chain = st.tuples(children, st.sampled_from(["+", "-", "*", "/"]), children, children).map(
-        lambda p: (f"({p[0][0]} {p[1]} {p[2][0]} {p[1]} {p[3][0]})",
-                   BINARY[p[1]](BINARY[p[1]](p[0][1], p[2][1]), p[3][1])))
+        lambda p: _node(f"({p[0][0]} {p[1]} {p[2][0]} {p[1]} {p[3][0]})",
+                        lambda a, b, c: BINARY[p[1]](BINARY[p[1]](a, b), c), p[0], p[2], p[3]))
     power = st.tuples(children, st.integers(-2, 3)).map(
-        lambda p: (f"({p[0][0]})**{p[1]}" if p[1] >= 0 else f"({p[0][0]})**({p[1]})",
-                   p[0][1] ** sympy.Integer(p[1])))
-    negate = children.map(lambda c: (f"-({c[0]})", -c[1]))
+        lambda p: _node(f"({p[0][0]})**{p[1]}" if p[1] >= 0 else f"({p[0][0]})**({p[1]})",
+                        lambda a: a ** sympy.Integer(p[1]), p[0]))
+    negate = children.map(lambda c: _node(f"-({c[0]})", lambda a: -a, c))
     call = st.tuples(st.sampled_from(UNARY_FUNCTIONS), children).map(
-        lambda p: (f"{p[0]}({p[1][0]})", FUNCTIONS[p[0]][0](p[1][1])))
+        lambda p: _node(f"{p[0]}({p[1][0]})", FUNCTIONS[p[0]][0], p[1]))
     atan2 = st.tuples(children, children).map(
-        lambda p: (f"atan2({p[0][0]}, {p[1][0]})", sympy.atan2(p[0][1], p[1][1])))
+        lambda p: _node(f"atan2({p[0][0]}, {p[1][0]})", sympy.atan2, p[0], p[1]))
     return st.one_of(binary, chain, power, negate, call, atan2)
 
 
 @settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(st.recursive(LEAVES, _extend, max_leaves=8))
 def test_well_formed_expressions_round_trip(pair):
-    text, built = pair
-    if built.has(sympy.zoo, sympy.nan, sympy.oo, -sympy.oo, sympy.I):
+    text, built, refused = pair
+    if refused or built.has(sympy.zoo, sympy.nan, sympy.oo, -sympy.oo, sympy.I):
         with pytest.raises(ModelError):
             parse_expression(text, NAMES)
     else:

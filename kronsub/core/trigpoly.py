@@ -21,6 +21,60 @@ from typing import Iterable, Iterator
 
 import sympy
 
+from ..errors import Location, ModelError, Problem
+
+MAX_EXPANDED_POWER = 8
+"""Highest integer power of a sum that is expanded (``(x + y)**8``); a higher one is an error."""
+MAX_EXPANSION_TERMS = 120
+"""Most terms a power of a sum may expand to, by the multinomial count (`expansion_terms`)."""
+
+
+class ExpansionTooLarge(ModelError):
+    """A power of a sum that would expand beyond `MAX_EXPANDED_POWER` or `MAX_EXPANSION_TERMS`."""
+
+    def __init__(self, message: str, location: Location | None = None):
+        self.message = message
+        super().__init__([Problem(location, message, EXPANSION_HINT)])
+
+    def at(self, location: Location) -> "ExpansionTooLarge":
+        """The same error, placed at ``location`` (the model file it arose in)."""
+        return ExpansionTooLarge(self.message, location)
+
+
+EXPANSION_HINT = (f"powers of sums are expanded up to **{MAX_EXPANDED_POWER} and {MAX_EXPANSION_TERMS} terms: "
+                   "write a lower power, or fewer terms inside the parentheses")
+
+
+def expansion_terms(terms: int, power: int) -> int:
+    """The most terms ``(a_1 + ... + a_terms)**power`` can expand to: the multinomial
+    count ``C(power + terms - 1, terms - 1)`` of the distinct products."""
+    return math.comb(power + terms - 1, terms - 1) if terms > 0 else 0
+
+
+def expansion_problem(terms: int, power: int, width: int | None = None) -> str | None:
+    """Why ``(sum of terms)**power`` must not be expanded, or None if it may be.
+
+    ``width`` counts the terms as exponentials (a sine or cosine is two), which
+    makes `expansion_terms` an upper bound; it defaults to ``terms``. A single
+    term (``cos(x)**9``) is not a sum: only the count of terms limits it.
+    """
+    width = terms if width is None else width
+    if terms > 1 and power > MAX_EXPANDED_POWER:
+        return f"a power of a sum higher than **{MAX_EXPANDED_POWER} is not expanded (it would take too long)"
+    count = expansion_terms(width, power)
+    if count > MAX_EXPANSION_TERMS:
+        return f"the power would expand to {count} terms (more than {MAX_EXPANSION_TERMS})"
+    return None
+
+
+def check_expansion(p: "TrigPoly", power: int, shown: str = "a sum") -> None:
+    """Raise `ExpansionTooLarge` before expanding ``p**power`` if it is too large."""
+    terms = sum(len(coef) for coef in p.terms.values())
+    problem = expansion_problem(terms, power, _expansion_width(p))
+    if problem is not None:
+        raise ExpansionTooLarge(f"({shown})**{power}: {problem}")
+
+
 # A frequency vector: sorted tuple of (coordinate index, nonzero rational).
 Freq = tuple[tuple[int, int | Fraction], ...]
 # A monomial in atoms: sorted tuple of (atom index, nonzero rational exponent).
@@ -269,6 +323,7 @@ class TrigAlgebra:
                 mono, c = single
                 return TrigPoly({(COS, ZERO_FREQ): {tuple((i, _num(Fraction(k) * n)) for i, k in mono): _num(Fraction(c) ** n)}})
             if n > 0:
+                check_expansion(inner, n, _short(base))
                 return _power(inner, n, self.constant(1))
         if single is not None:
             mono, c = single
@@ -457,6 +512,17 @@ def _single_monomial(p: TrigPoly):
         return None
     (mono, c), = coef.items()
     return mono, c
+
+
+def _expansion_width(p: TrigPoly) -> int:
+    """Terms of ``p`` counted as exponentials (``cos f = (e^{if} + e^{-if})/2``), so that
+    `expansion_terms` bounds the terms of a power of ``p`` (product-to-sum included)."""
+    return sum(len(coef) * (2 if freq else 1) for (_, freq), coef in p.terms.items())
+
+
+def _short(expr: sympy.Expr, limit: int = 40) -> str:
+    text = sympy.sstr(expr)
+    return text if len(text) <= limit else text[:limit - 3] + "..."
 
 
 def _power(p: TrigPoly, n: int, one: TrigPoly) -> TrigPoly:

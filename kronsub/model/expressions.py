@@ -13,6 +13,7 @@ from __future__ import annotations
 import ast
 import difflib
 import keyword
+import math
 import operator
 import re
 import unicodedata
@@ -22,6 +23,7 @@ from typing import Mapping, NamedTuple, NoReturn
 
 import sympy
 
+from kronsub.core.trigpoly import EXPANSION_HINT, expansion_problem
 from kronsub.errors import Location, ModelError, Problem
 
 MAX_LENGTH = 10_000
@@ -198,6 +200,101 @@ def _exact_decimal(literal: str) -> sympy.Rational | None:
     return -value if sign == "-" else value
 
 
+class NumericProblem(ValueError):
+    """A constant that is not a finite real double: what is wrong and a hint."""
+
+    def __init__(self, message: str, hint: str):
+        super().__init__(message)
+        self.message, self.hint = message, hint
+
+
+_TOO_LARGE = ("is too large for a double-precision number (more than 1.8e308)",
+              "use smaller numbers or other units")
+_NOT_REAL = ("is not a real number", "check the arguments of sqrt, log, asin, acos and powers of negative numbers")
+_MATH_FUNCTIONS = {
+    sympy.sin: math.sin, sympy.cos: math.cos, sympy.tan: math.tan, sympy.asin: math.asin,
+    sympy.acos: math.acos, sympy.atan: math.atan, sympy.exp: math.exp, sympy.log: math.log,
+    sympy.sinh: math.sinh, sympy.cosh: math.cosh, sympy.tanh: math.tanh, sympy.Abs: abs,
+    sympy.sign: lambda x: float((x > 0) - (x < 0)), sympy.atan2: math.atan2,
+}
+
+
+def approximate(expr: sympy.Expr, memo: dict | None = None) -> float:
+    """A double-precision value of a constant expression, every intermediate checked.
+
+    Evaluated bottom-up in floating point, so the effort is bounded by the size
+    of the expression whatever its value; raises `NumericProblem` when a part
+    overflows a double, is not real, or divides by zero. (A guard: the value
+    used is `constant_value`.)
+    """
+    memo = {} if memo is None else memo
+    hit = memo.get(expr)
+    if hit is not None:
+        return hit
+    try:
+        value = _approximate(expr, memo)
+    except OverflowError:
+        raise NumericProblem(*_TOO_LARGE) from None
+    except ZeroDivisionError:
+        raise NumericProblem("divides by zero", "check the divisions") from None
+    except (ValueError, TypeError) as exc:
+        if isinstance(exc, NumericProblem):
+            raise
+        raise NumericProblem(*_NOT_REAL) from None
+    if isinstance(value, complex) or math.isnan(value):
+        raise NumericProblem(*_NOT_REAL)
+    if math.isinf(value):
+        raise NumericProblem(*_TOO_LARGE)
+    memo[expr] = value
+    return value
+
+
+def _approximate(expr: sympy.Expr, memo: dict) -> float:
+    if expr.is_Rational:
+        return int(expr.p) / int(expr.q)
+    if expr.is_Float or isinstance(expr, sympy.NumberSymbol):
+        return float(expr)
+    if expr.is_Add:
+        return math.fsum(approximate(arg, memo) for arg in expr.args)
+    if expr.is_Mul:
+        return math.prod(approximate(arg, memo) for arg in expr.args)
+    if expr.is_Pow:
+        base, exponent = (approximate(arg, memo) for arg in expr.args)
+        if base == 0 and exponent < 0:
+            raise ZeroDivisionError
+        return math.pow(base, exponent)
+    function = _MATH_FUNCTIONS.get(type(expr))
+    if function is not None and not expr.free_symbols:
+        return float(function(*(approximate(arg, memo) for arg in expr.args)))
+    if expr.has(*_UNDEFINED):
+        raise NumericProblem("is undefined or not a real number (division by zero?)", _NOT_REAL[1])
+    raise NumericProblem("cannot be evaluated as a number", "write a number or a formula of numbers")
+
+
+def constant_value(expr: sympy.Expr, location: Location | None = None, *, what: str = "value") -> float:
+    """The value of a constant expression as the nearest double, with bounded effort.
+
+    `approximate` first checks every part is a finite real double; only then is
+    the expression evaluated exactly (correctly rounded), which the check keeps
+    cheap. Raises `ModelError` at ``location`` for anything else.
+    """
+    base = location or _DEFAULT_LOCATION
+    shown = sympy.sstr(expr)
+    if expr.free_symbols:
+        raise _error(base, what, shown, "is not a constant",
+                     "write a number or a formula of numbers and parameters with values")
+    try:
+        approximate(expr)
+        value = complex(expr.evalf(17))
+    except NumericProblem as problem:
+        raise _error(base, what, shown, problem.message, problem.hint) from None
+    except (TypeError, ValueError, ArithmeticError):
+        raise _error(base, what, shown, _NOT_REAL[0], _NOT_REAL[1]) from None
+    if value.imag or not math.isfinite(value.real):
+        raise _error(base, what, shown, *_NOT_REAL)
+    return value.real
+
+
 def _error(where: Location, what: str, text: str, message: str, hint: str) -> ModelError:
     return ModelError([Problem(where, f"in {what} '{_shorten(text)}': {message}", hint)])
 
@@ -230,6 +327,7 @@ class _Builder:
         self.names.setdefault("pi", sympy.pi)
         self.known = sorted(names)
         self.name_bits: dict[str, int] = {}
+        self.approximations: dict[sympy.Basic, float] = {}
 
     # -- locations and problems -------------------------------------------
     def _column(self, line: int, byte_offset: int) -> int:
@@ -328,7 +426,23 @@ class _Builder:
         value = getattr(self, method)(node, depth + 1)
         if value.bits > MAX_BITS:
             self.fail(node, "builds numbers that are too large", "use smaller numbers or exponents")
+        if not value.expr.has(*_UNDEFINED):  # those are reported by build_all
+            if not value.expr.free_symbols:
+                self._check_constant(node, value.expr)
+            else:  # constants sympy made in combining the parts: x/exp(-800) is x*exp(800)
+                for arg in value.expr.args:
+                    if not arg.free_symbols:
+                        self._check_constant(node, arg)
         return value
+
+    def _check_constant(self, node: ast.AST, expr: sympy.Expr) -> None:
+        """A constant must be a finite real double: checked here, before anything
+        evaluates it exactly (``exp(exp(20))`` has 200 million digits)."""
+        try:
+            approximate(expr, self.approximations)
+        except NumericProblem as problem:
+            segment = _shorten(ast.get_source_segment(self.body, node) or "")
+            self.fail(node, f"'{segment}' {problem.message}", problem.hint)
 
     def _reject(self, node: ast.AST) -> NoReturn:
         what = _REJECTED.get(type(node), f"'{type(node).__name__}' constructs")
@@ -400,7 +514,24 @@ class _Builder:
         if estimate > MAX_BITS:
             self.fail(node, "builds numbers that are too large", "use smaller numbers or exponents",
                       at=self._operator_position(node, "**"))
+        self._check_expansion(node, base.expr, exponent.expr)
         return _Value(sympy.Pow(base.expr, exponent.expr), estimate)
+
+    def _check_expansion(self, node: ast.BinOp, base: sympy.Expr, exponent: sympy.Expr) -> None:
+        """Refuse, here with its place, a power of a sum the algebra could not expand."""
+        if not (exponent.is_Integer and exponent > 1 and base.free_symbols):
+            return
+        terms = width = 1
+        for factor in sympy.Mul.make_args(base):
+            if factor.is_Add:
+                terms *= len(factor.args)
+                width *= sum(2 if term.has(sympy.sin, sympy.cos) else 1 for term in factor.args)
+        if terms == 1:
+            return  # not a sum: the algebra checks what a power of it expands to
+        problem = expansion_problem(terms, int(exponent), width)
+        if problem is not None:
+            self.fail(node, problem, EXPANSION_HINT,
+                      at=self._operator_position(node, "**"))
 
     def _chain(self, node: ast.BinOp, depth: int) -> _Value:
         """``a + b - c`` or ``a * b / c``, with the value Python's left fold gives.

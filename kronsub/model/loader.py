@@ -6,6 +6,7 @@ Expressions go through the whitelisted parser only.
 """
 from __future__ import annotations
 
+import os
 import re
 from pathlib import Path
 
@@ -20,12 +21,11 @@ from ..errors import Location, ModelError, ProblemCollector, close_matches
 from .derive import content_key, derive_model, load_cached
 from .effects import build_effect
 from .expressions import parse_expression
-from .model import Model
 from .scenes import build_scenes
 from .constraints import analyse, read_constraints
 from .model import ImplicitSpec, Model
 from .names import Declared, generated_name_clashes
-from .source import Node, load_yaml
+from .source import Node, excerpt, load_yaml, read_model_text
 
 TOP_LEVEL = ("name", "description", "parameters", "components", "coordinates", "connection",
              "constraints", "effects", "initial", "scenes")
@@ -39,8 +39,10 @@ def load_model(path, *, text: str | None = None, cache: bool = True, _stack: tup
     ``cache=False`` derives sub-models from scratch instead of reading the cache.
     """
     path = Path(path)
+    if text is None:
+        text = read_model_text(path)
     root = load_yaml(path, text)
-    return _Loader(path, root, text if text is not None else _read(path), _stack, cache).build()
+    return _Loader(path, root, text, _stack, cache).build()
 
 
 def model_key(path: Path, stack: tuple[str, ...] = ()) -> str:
@@ -49,20 +51,22 @@ def model_key(path: Path, stack: tuple[str, ...] = ()) -> str:
     Cheap next to loading: it reads the YAML but builds nothing, so a cached
     known system is found without deriving or even constructing its model.
     """
-    resolved = str(path.resolve())
+    resolved = _resolved(path)
     if resolved in stack:
         return ""  # the cycle is reported when the model is loaded
-    text = _read(path)
+    text = read_model_text(path)
     root = load_yaml(path, text)
     subs = []
     comps = root.get("components")
     if comps is not None and comps.is_mapping:
         for spec in comps.value.values():
             mnode = spec.get("model") if spec.is_mapping else None
-            if mnode is not None and isinstance(mnode.value, str):
+            if mnode is not None and isinstance(mnode.value, str) and mnode.value:
                 sub_path = path.parent / mnode.value
-                if sub_path.exists():
+                try:
                     subs.append(model_key(sub_path, stack + (resolved,)))
+                except ModelError:  # reported where `model:` names it, when the model is loaded
+                    subs.append("unreadable")
     return content_key(derivation_text(root, text), *subs)
 
 
@@ -78,8 +82,9 @@ def derivation_text(root: Node, text: str) -> str:
     return "".join(lines[:start - 1] + lines[end - 1:])
 
 
-def _read(path: Path) -> str:
-    return path.read_text(encoding="utf-8")
+def _resolved(path: Path) -> str:
+    """The absolute path with symbolic links followed; a loop is left for reading to report."""
+    return os.path.realpath(path)
 
 
 class _Loader:
@@ -89,7 +94,7 @@ class _Loader:
         self.file = str(path)
         self.root = root
         self.text = text
-        self.stack = stack + (str(path.resolve()),)
+        self.stack = stack + (_resolved(path),)
         self.problems = ProblemCollector()
         self.names: dict[str, sympy.Basic] = {"t": TIME}
         self.parameters: dict[str, ParameterInfo] = {}
@@ -147,8 +152,15 @@ class _Loader:
     def build(self) -> Model:
         root = self.root
         if not root.is_mapping:
-            self.error(root, f"a model file must be a mapping of sections, found {_kind(root)}",
+            found = "a single value" if root.is_scalar and root.value is not None else _kind(root)
+            self.error(root, f"a model file must be a mapping of sections, found {found}",
                        "start with `name:`, `components:`, `coordinates:` and `connection:`")
+            self.problems.raise_if_any()
+        if root.value and not any(key in TOP_LEVEL for key in root.value):
+            first = next(iter(root.value))  # not a model: echo no more than one key of it
+            self.error(root.key_locations[first], f"this is not a kronsub model: no key is a model section "
+                                                  f"(the first is '{excerpt(first)}')",
+                       "a model has `name:`, `components:`, `coordinates:` and `connection:`; check the path")
             self.problems.raise_if_any()
         self.check_keys(root, TOP_LEVEL, "the model")
         name = self._string(root.get("name"), self.path.stem)
@@ -376,17 +388,22 @@ class _Loader:
         """A derived model used as a component (examples II and III)."""
         self.check_keys(spec, ("model", "parameters", "coordinates", "origin", "description"), f"component '{cname}'")
         mnode = spec.get("model")
-        sub_path = (self.path.parent / str(mnode.value))
-        resolved = str(sub_path.resolve())
+        if not isinstance(mnode.value, str) or not mnode.value:
+            self.error(mnode, f"`model:` of component '{cname}' must be a file name, found {_kind(mnode)}",
+                       "write e.g. `model: system1.yaml` (relative to this model file)")
+            return None
+        sub_path = (self.path.parent / mnode.value)
+        resolved = _resolved(sub_path)
         if resolved in self.stack:
             chain = " -> ".join(Path(p).name for p in self.stack + (resolved,))
             self.error(mnode, f"model files form a cycle: {chain}", "a model cannot contain itself")
             return None
-        if not sub_path.exists():
+        if not os.path.lexists(sub_path):
             self.error(mnode, f"model file '{mnode.value}' not found (looked at {sub_path})",
                        "paths are relative to this model file")
             return None
         try:
+            read_model_text(sub_path, mnode.text_location or mnode.location)
             key = model_key(sub_path, self.stack)
             system = load_cached(key, transition=False) if self.cache else None
             if system is None:
@@ -745,4 +762,4 @@ def _kind(node: Node) -> str:
         return "a list"
     if node.value is None:
         return "nothing"
-    return f"'{node.text if node.text is not None else node.value}'"
+    return f"'{excerpt(node.text if node.text is not None else str(node.value))}'"

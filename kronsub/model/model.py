@@ -55,9 +55,13 @@ class Model:
 
     def derive(self, *, cache: bool = True) -> KnownSystem:
         """The equations of motion by projection onto the subspace (9'), (E), (F)."""
+        from ..core.trigpoly import ExpansionTooLarge
         from .derive import derive_model
 
-        return derive_model(self, cache=cache)
+        try:
+            return derive_model(self, cache=cache)
+        except ExpansionTooLarge as exc:
+            raise exc.at(Location(self.path)) from None
 
     def parameter_values(self) -> dict[sympy.Symbol, sympy.Expr]:
         """Default values of the parameters that have one."""

@@ -7,6 +7,9 @@ with (so ``9.81`` can later become the exact rational 981/100).
 """
 from __future__ import annotations
 
+import errno
+import os
+import stat
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable
@@ -91,7 +94,7 @@ def load_yaml(path: str | Path, text: str | None = None) -> Node:
     """
     name = str(path)
     if text is None:
-        text = _read_text(Path(path))
+        text = read_model_text(Path(path))
     root = _compose(text, name)
     if root is None:
         raise ModelError([Problem(
@@ -106,17 +109,42 @@ def load_yaml(path: str | Path, text: str | None = None) -> Node:
     return node
 
 
-def _read_text(path: Path) -> str:
-    """The file's text, or a `ModelError` saying why it cannot be read."""
+MAX_MODEL_BYTES = 1 << 20
+"""Largest model file read, in bytes (1 MiB); checked before the file is parsed."""
+
+_PSEUDO_FILESYSTEMS = ("/proc", "/sys")
+_KIND_OF_MODE = ((stat.S_ISDIR, "a directory"), (stat.S_ISCHR, "a character device"),
+                 (stat.S_ISBLK, "a block device"), (stat.S_ISFIFO, "a named pipe (FIFO)"),
+                 (stat.S_ISSOCK, "a socket"))
+
+
+def read_model_text(path: Path, where: Location | None = None) -> str:
+    """The text of a model file, read only if it is a regular file of at most
+    `MAX_MODEL_BYTES`; else a `ModelError` at ``where`` (default: the file itself).
+
+    The file is checked with ``stat`` before it is opened, opened non-blocking
+    and checked again on the open descriptor, so a device, FIFO, socket or
+    ``/proc`` file is never read and nothing here can block.
+    """
+    where = where or Location(str(path))
     try:
-        data = path.read_bytes()
-    except FileNotFoundError:
-        raise _file_error(path, "file not found", "check the file name and the current directory")
-    except IsADirectoryError:
-        raise _file_error(path, "is a directory, not a file", "give the path of a .yaml model file")
+        info = os.stat(path)
+        _check_regular(path, info, where)
+        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK | getattr(os, "O_NOCTTY", 0)
+                     | getattr(os, "O_CLOEXEC", 0))
+        try:
+            info = os.fstat(fd)  # the file opened is the one checked
+            _check_regular(path, info, where)
+            data = _read_at_most(fd, MAX_MODEL_BYTES + 1)
+        finally:
+            os.close(fd)
     except OSError as exc:
-        raise _file_error(path, f"cannot read the file: {exc.strerror or exc}",
-                          "check the file's permissions")
+        raise _os_error(path, exc, where) from None
+    if len(data) > MAX_MODEL_BYTES:
+        raise _too_large(path, len(data), where)
+    if data and info.st_size == 0:
+        raise _file_error(where, path, "reports a size of 0 but has content: it is not a regular model file",
+                          "give the path of a .yaml model file on disk")
     try:
         return data.decode("utf-8-sig")
     except UnicodeDecodeError as exc:
@@ -128,8 +156,79 @@ def _read_text(path: Path) -> str:
             "save the file with UTF-8 encoding")])
 
 
-def _file_error(path: Path, message: str, hint: str) -> ModelError:
-    return ModelError([Problem(Location(str(path)), message, hint)])
+def _check_regular(path: Path, info: os.stat_result, where: Location) -> None:
+    """Refuse anything but a regular file of at most `MAX_MODEL_BYTES` outside /proc and /sys."""
+    for test, kind in _KIND_OF_MODE:
+        if test(info.st_mode):
+            hint = "give the path of a .yaml model file" if kind == "a directory" \
+                else "a model must be a regular file: save it to disk first"
+            raise _file_error(where, path, f"is {kind}, not a regular file", hint)
+    if not stat.S_ISREG(info.st_mode):
+        raise _file_error(where, path, "is not a regular file", "give the path of a .yaml model file")
+    for root in _PSEUDO_FILESYSTEMS:
+        try:
+            if os.stat(root).st_dev == info.st_dev:
+                raise _file_error(where, path, f"is a system file under {root}, not a model file",
+                                  "give the path of a .yaml model file")
+        except OSError:
+            continue
+    if info.st_size > MAX_MODEL_BYTES:
+        raise _too_large(path, info.st_size, where)
+
+
+def _read_at_most(fd: int, limit: int) -> bytes:
+    chunks, size = [], 0
+    while size < limit:
+        try:
+            chunk = os.read(fd, min(1 << 16, limit - size))
+        except BlockingIOError:  # a file that would block is no model file
+            break
+        if not chunk:
+            break
+        chunks.append(chunk)
+        size += len(chunk)
+    return b"".join(chunks)
+
+
+def _too_large(path: Path, size: int, where: Location) -> ModelError:
+    return _file_error(where, path, f"is too large ({size:,} bytes; a model file may have at most "
+                                    f"{MAX_MODEL_BYTES:,} bytes)",
+                       "split the model into known systems (`model:` files), or check the path")
+
+
+_OS_ERRORS = {
+    errno.ENOENT: ("file not found", "check the file name and the current directory"),
+    errno.EACCES: ("permission denied", "check the file's permissions (it must be readable)"),
+    errno.EPERM: ("permission denied", "check the file's permissions (it must be readable)"),
+    errno.ELOOP: ("is a loop of symbolic links", "point the link at a real model file"),
+    errno.ENOTDIR: ("a part of the path is not a directory", "check the path"),
+    errno.ENAMETOOLONG: ("the file name is too long", "check the path"),
+    errno.EISDIR: ("is a directory, not a file", "give the path of a .yaml model file"),
+}
+
+
+def _os_error(path: Path, exc: OSError, where: Location) -> ModelError:
+    message, hint = _OS_ERRORS.get(exc.errno, (f"cannot read the file: {exc.strerror or exc}",
+                                               "check the file's permissions"))
+    return _file_error(where, path, message, hint)
+
+
+def excerpt(text: str, limit: int = 40) -> str:
+    """At most the first ``limit`` characters of the first line of ``text``, for
+    messages: a file that is not a model is never echoed further than that."""
+    lines = text.splitlines() or [""]
+    first = lines[0]
+    if len(first) > limit or len(lines) > 1:
+        return first[:limit].rstrip() + "..."
+    return first
+
+
+def _file_error(where: Location, path: Path, message: str, hint: str) -> ModelError:
+    """A problem with the file ``path``, reported at ``where`` (naming the path
+    when ``where`` is a place in another file)."""
+    if where.file != str(path) or where.line:
+        message = f"model file '{path}': {message}"
+    return ModelError([Problem(where, message, hint)])
 
 
 # libyaml's composer when present (same nodes and marks, several times faster)
@@ -310,7 +409,7 @@ class _Converter:
             value = construct(node)
         except (ValueError, KeyError, TypeError, yaml.YAMLError):
             tag = node.tag[len(_TAG):]
-            self.problems.add(location, f"'{node.value}' is not a valid {tag}",
+            self.problems.add(location, f"'{excerpt(node.value)}' is not a valid {tag}",
                               "remove the explicit tag or fix the value")
             value = node.value
         return Node(value, node.value, location, text_location=text_location)
@@ -381,8 +480,9 @@ class _Converter:
             return None
         key = self._scalar(key_node, location).value
         if not isinstance(key, str):
-            self.problems.add(location, f"key {key_node.value!r} is not a string (YAML reads it as {key!r})",
-                              f"quote the key: '\"{key_node.value}\": ...'")
+            shown = excerpt(key_node.value)
+            self.problems.add(location, f"key '{shown}' is not a string (YAML reads it as {excerpt(repr(key))})",
+                              f"quote the key: '\"{shown}\": ...'")
             return None
         return key
 

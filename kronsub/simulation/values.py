@@ -12,8 +12,8 @@ from dataclasses import dataclass
 import sympy
 
 from ..core.known_system import KnownSystem
-from ..errors import ModelError, Problem
-from ..model.expressions import parse_expression
+from ..errors import Location, ModelError, Problem
+from ..model.expressions import constant_value, parse_expression
 
 
 @dataclass(frozen=True)
@@ -53,21 +53,28 @@ def resolve(system: KnownSystem, initial: dict, settings: dict[str, str]) -> Run
                 "parameters: " + ", ".join(sorted(known)) + "; state: " + ", ".join(state)
             problems.append(Problem(None, f"--set {name}: no parameter, coordinate or velocity of that name", hint))
 
-    def number(text: str, what: str) -> float | None:
+    def number(text: str, what: str, name: str) -> float | None:
+        where = Location(f"--set {name}")
         try:
-            value = parse_expression(text, {}, None, what=what)
+            return constant_value(parse_expression(text, {}, where, what=what), where, what=what)
         except ModelError as exc:
             problems.extend(exc.problems)
             return None
-        return float(value)
+
+    def value_of(expr, what: str) -> float | None:
+        try:
+            return constant_value(sympy.sympify(expr), None, what=what)
+        except ModelError as exc:
+            problems.extend(exc.problems)
+            return None
 
     params: list[float] = []
     missing = []
     for p in system.parameters:
         if p.name in settings:
-            params.append(number(settings[p.name], f"value of {p.name}"))
+            params.append(number(settings[p.name], f"value of {p.name}", p.name))
         elif p.value is not None and sympy.sympify(p.value).is_number:
-            params.append(float(p.value))
+            params.append(value_of(p.value, f"value of parameter {p.name}"))
         else:
             missing.append(p.name)
     if missing:
@@ -79,9 +86,10 @@ def resolve(system: KnownSystem, initial: dict, settings: dict[str, str]) -> Run
     initial_by_name = {k.name: v for k, v in initial.items()}
     for name in state:
         if name in settings:
-            y0.append(number(settings[name], f"initial value of {name}"))
+            y0.append(number(settings[name], f"initial value of {name}", name))
         elif name in initial_by_name:
-            y0.append(float(sympy.sympify(initial_by_name[name]).xreplace(values)) if not missing else 0.0)
+            y0.append(value_of(sympy.sympify(initial_by_name[name]).xreplace(values), f"initial value of {name}")
+                      if not missing and None not in params else 0.0)
         else:
             y0.append(0.0)
     if problems:
