@@ -213,5 +213,64 @@ def simulate(model: Path, t_end: float, dt: float, method: str, rtol: float, ato
     _run(job)
 
 
+@main.command()
+@click.argument("model", type=click.Path(dir_okay=False, path_type=Path))
+@click.option("--t", "t_end", type=float, default=10.0, show_default=True, help="End time.")
+@click.option("--methods", default="all", show_default=True,
+              help="Comma-separated: dop853, gauss4, rk4 (C), RK45, DOP853, Radau, LSODA (scipy), heyoka.")
+@click.option("--tolerances", default="1e-4:1e-14", show_default=True,
+              help="Every decade of a range (1e-4:1e-14, or 1e-4:1e-14:2 for every second) or a list "
+                   "(1e-6,1e-9). Fixed-step methods take the step tol^(1/4).")
+@click.option("--target", type=float, help="Name the cheapest method and tolerance reaching this error.")
+@click.option("--output", "-o", type=click.Path(dir_okay=False, path_type=Path), help="Write the CSV to FILE.")
+@click.option("--plot", type=click.Path(dir_okay=False, path_type=Path),
+              help="Write the work-precision PNG (error against time, log-log) to FILE.")
+@click.option("--quick", is_flag=True, help="A coarse grid (every third tolerance), few repeats, a cheaper reference.")
+@click.option("--digits", type=click.IntRange(12, 200), default=None,
+              help="Digits of the reference's cross-check run (default 20; --quick 16); the reference runs at 8 more.")
+@click.option("--set", "settings", multiple=True, metavar="NAME=VALUE",
+              help="Set a parameter or an initial coordinate/velocity (repeatable).")
+def accuracy(model: Path, t_end: float, methods: str, tolerances: str, target: float | None,
+             output: Path | None, plot: Path | None, quick: bool, digits: int | None, settings: tuple[str, ...]):
+    """What accuracy costs in time: error against a high-precision reference, per method and tolerance."""
+    from .model.loader import load_model
+    from .simulation import accuracy as acc
+    from .simulation.values import parse_assignments, resolve
+
+    def job():
+        chosen = acc.parse_methods(methods)
+        grid = acc.parse_tolerances(tolerances)
+        if quick:
+            grid = acc.quick_tolerances(grid)
+        if target is not None and not target > 0:
+            _fail("Error: --target must be a positive error, e.g. --target 1e-8")
+        _writable(output, "--output")
+        _writable(plot, "--plot")
+        if plot is not None:
+            try:
+                import matplotlib  # noqa: F401
+            except ImportError:
+                _fail("Error: --plot needs matplotlib\n  hint: pip install 'kronsub[plot]'")
+        loaded = load_model(model)
+        system = loaded.derive()
+        values = resolve(system, dict(loaded.initial), parse_assignments(settings))
+        click.echo(f"computing the reference to t = {t_end:g} ...", err=True)
+        wp = acc.measure(system, values, t_end, chosen, grid, digits=digits or (16 if quick else 20), quick=quick)
+        click.echo(acc.markdown(wp, target), nl=False)
+        if output is not None:
+            write_atomically(output, acc.to_csv(wp))
+            click.echo(f"wrote {output} ({len(wp.points)} points)", err=True)
+        if not wp.reference_sufficient():
+            _fail(f"Error: the reference's estimated error {wp.reference.error:.1e} is not "
+                  f"{acc.REFERENCE_MARGIN:g}x below the best point's error {wp.best_error():.1e}: the errors "
+                  "near it are not measured" + (", so no plot was written" if plot is not None else "")
+                  + "\n  hint: raise --digits")
+        if plot is not None:
+            acc.plot(wp, plot, target)
+            click.echo(f"wrote {plot}", err=True)
+
+    _run(job)
+
+
 if __name__ == "__main__":
     main()
