@@ -155,6 +155,10 @@ class _Tape:
 
 def _fixed(value, bits: int) -> int:
     """``round(value 2^bits)`` of an mpf."""
+    if not isinstance(value, mpmath.mpf) or not mpmath.isfinite(value):
+        raise ReferenceError_(f"the equations leave the real numbers ({mpmath.nstr(value, 6)}) on the "
+                              "reference trajectory: a square root or logarithm of a negative number, or a "
+                              "division by zero")
     return int(mpmath.nint(mpmath.ldexp(value, bits)))
 
 
