@@ -129,7 +129,9 @@ def derive(model: Path, fmt: str, output: Path | None, check: Path | None, no_ca
 @click.option("--name", help="Stem of the file names (default: the model file's stem).")
 @click.option("--prefix", default="ks", show_default=True,
               help="Prefix of the C functions and macros, so several models can share a program.")
-def codegen(model: Path, lang: str, outdir: Path, name: str | None, prefix: str):
+@click.option("--precision", type=click.Choice(["double", "long", "quad"]), default="double", show_default=True,
+              help="The C's real type: double, long double, or _Float128 (glibc's libm; typedef ks_real).")
+def codegen(model: Path, lang: str, outdir: Path, name: str | None, prefix: str, precision: str):
     """Generate C (header + source) or a numpy module for MODEL."""
     from .emitters.code import LANGUAGES
     from .model.loader import load_model
@@ -137,10 +139,17 @@ def codegen(model: Path, lang: str, outdir: Path, name: str | None, prefix: str)
     def job():
         if not outdir.is_dir():
             _fail(f"Error: {outdir}: no such directory\n  hint: create it first, or choose another --output")
+        if precision != "double" and lang != "c":
+            _fail("Error: --precision long|quad is for --lang c\n  hint: drop --precision, or use --lang c")
         system = load_model(model).derive()
         stem = name or model.stem
         for generated in LANGUAGES[lang](system, stem, source=model.as_posix(), prefix=prefix):
-            write_atomically(outdir / generated.name, generated.text)
+            text = generated.text
+            if precision != "double":
+                from .simulation.extended import prelude, retype
+
+                text = prelude(precision) + retype(text, precision)
+            write_atomically(outdir / generated.name, text)
             click.echo(f"wrote {outdir / generated.name}", err=True)
 
     _run(job)
@@ -217,7 +226,8 @@ def simulate(model: Path, t_end: float, dt: float, method: str, rtol: float, ato
 @click.argument("model", type=click.Path(dir_okay=False, path_type=Path))
 @click.option("--t", "t_end", type=float, default=10.0, show_default=True, help="End time.")
 @click.option("--methods", default="all", show_default=True,
-              help="Comma-separated: dop853, gauss4, rk4 (C), RK45, DOP853, Radau, LSODA (scipy), heyoka.")
+              help="Comma-separated: dop853, gauss4, rk4 (C), RK45, DOP853, Radau, LSODA (scipy), heyoka; "
+                   "gbs-long, gbs-quad (extended precision, see --precision).")
 @click.option("--tolerances", default="1e-4:1e-14", show_default=True,
               help="Every decade of a range (1e-4:1e-14, or 1e-4:1e-14:2 for every second) or a list "
                    "(1e-6,1e-9). Fixed-step methods take the step tol^(1/4).")
@@ -228,10 +238,14 @@ def simulate(model: Path, t_end: float, dt: float, method: str, rtol: float, ato
 @click.option("--quick", is_flag=True, help="A coarse grid (every third tolerance), few repeats, a cheaper reference.")
 @click.option("--digits", type=click.IntRange(12, 200), default=None,
               help="Digits of the reference's cross-check run (default 20; --quick 16); the reference runs at 8 more.")
+@click.option("--precision", type=click.Choice(["double", "long", "quad"]), default="double", show_default=True,
+              help="long / quad: add extrapolation in the generated C in long double (gbs-long) or _Float128 "
+                   "(gbs-quad); quad raises the reference's default --digits to 34.")
 @click.option("--set", "settings", multiple=True, metavar="NAME=VALUE",
               help="Set a parameter or an initial coordinate/velocity (repeatable).")
 def accuracy(model: Path, t_end: float, methods: str, tolerances: str, target: float | None,
-             output: Path | None, plot: Path | None, quick: bool, digits: int | None, settings: tuple[str, ...]):
+             output: Path | None, plot: Path | None, quick: bool, digits: int | None, precision: str,
+             settings: tuple[str, ...]):
     """What accuracy costs in time: error against a high-precision reference, per method and tolerance."""
     from .model.loader import load_model
     from .simulation import accuracy as acc
@@ -239,6 +253,8 @@ def accuracy(model: Path, t_end: float, methods: str, tolerances: str, target: f
 
     def job():
         chosen = acc.parse_methods(methods)
+        if precision != "double" and f"gbs-{precision}" not in chosen:
+            chosen = chosen + (f"gbs-{precision}",)
         grid = acc.parse_tolerances(tolerances)
         if quick:
             grid = acc.quick_tolerances(grid)
@@ -255,7 +271,8 @@ def accuracy(model: Path, t_end: float, methods: str, tolerances: str, target: f
         system = loaded.derive()
         values = resolve(system, dict(loaded.initial), parse_assignments(settings))
         click.echo(f"computing the reference to t = {t_end:g} ...", err=True)
-        wp = acc.measure(system, values, t_end, chosen, grid, digits=digits or (16 if quick else 20), quick=quick)
+        default_digits = 34 if "gbs-quad" in chosen else (16 if quick else 20)
+        wp = acc.measure(system, values, t_end, chosen, grid, digits=digits or default_digits, quick=quick)
         click.echo(acc.markdown(wp, target), nl=False)
         if output is not None:
             write_atomically(output, acc.to_csv(wp))

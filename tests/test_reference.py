@@ -138,19 +138,85 @@ def test_reference_matches_exact_solution(name, exact):
     assert ref.error < 1e-12  # the estimate: the 16-digit run against the 24-digit one
 
 
-def test_reference_matches_independent_40_digit_double_pendulum():
-    """The benchmark problem from the exact inputs against ``tests/data/double_pendulum_rods.json``
-    (hand Lagrangian, the data script's own extrapolation in mpmath at 55 digits)."""
+def benchmark_problem():
+    """System I as the benchmark's double pendulum of two rods, from exact inputs, and the
+    40-digit state at t = 10 of ``tests/data/double_pendulum_rods.json``."""
     data = json.loads((DATA / "double_pendulum_rods.json").read_text())
-    want = [mpmath.mpf(data["state_at_t_end"][k]) for k in ("q1", "q2", "u1", "u2")]
+    with mpmath.workdps(50):
+        want = [mpmath.mpf(data["state_at_t_end"][k]) for k in ("q1", "q2", "u1", "u2")]
     system = kronsub.load(MODELS / "hoffmann" / "system1.yaml").derive()
     half, twelfth = sympy.Rational(1, 2), sympy.Rational(1, 12)
     exact = {"m1": 1, "m2": 1, "a1": half, "a2": half, "I1": twelfth, "I2": twelfth,
              "g": sympy.Rational(981, 100), "F": 0}
-    param = [exact[p.name] for p in system.parameters]
-    y0 = [2 * sympy.pi / 3, -sympy.pi / 18, 0, 0]
+    return system, [exact[p.name] for p in system.parameters], [2 * sympy.pi / 3, -sympy.pi / 18, 0, 0], want
+
+
+def test_reference_matches_independent_40_digit_double_pendulum():
+    """The benchmark problem from the exact inputs against ``tests/data/double_pendulum_rods.json``
+    (hand Lagrangian, the data script's own extrapolation in mpmath at 55 digits)."""
+    system, param, y0, want = benchmark_problem()
     ref = R.reference(system, param, y0, [2.5, 10.0], digits=16)
     with mpmath.workdps(40):
         actual = float(max(abs(a - b) for a, b in zip(ref.states[-1], want)))
     assert actual <= max(ref.error, 1e-22), (actual, ref.error)
     assert actual < 1e-16
+
+
+# ---------------------------------------------------------------------------------------------
+# extended precision: the generated C in long double and _Float128
+# ---------------------------------------------------------------------------------------------
+
+def test_quad_precision_reaches_1e15_on_the_benchmark_problem():
+    """Section 3 of issue 9: error <= 1e-15 at t = 10 against the 40-digit reference."""
+    from kronsub.simulation.extended import ExtendedError, ExtendedModel
+
+    system, param, y0, want = benchmark_problem()
+    try:
+        model = ExtendedModel(system, "quad")
+    except ExtendedError as exc:
+        pytest.skip(f"no _Float128 here: {exc}")
+    result = model.integrate(param, y0, 10, tol=1e-24, stages=10)
+    assert result.status == 0
+    with mpmath.workdps(50):
+        error = float(max(abs(a - b) for a, b in zip(result.state, want)))
+    assert error <= 1e-15, error
+
+
+@pytest.mark.parametrize("precision, floor", [("long", 1e-16), ("quad", 1e-26)])
+def test_extended_precision_beats_float64_on_the_pendulum(precision, floor):
+    """Against Jacobi's elliptic functions, where float64 cannot go below ~1e-15."""
+    from kronsub.simulation.extended import ExtendedError, ExtendedModel
+
+    system, values = loaded(TEST_MODELS / "pendulum.yaml")
+    try:
+        model = ExtendedModel(system, precision)
+    except ExtendedError as exc:
+        pytest.skip(f"no {precision} here: {exc}")
+    exact = [sympy.Integer(1), sympy.Rational(4, 5), sympy.Rational(981, 100)]
+    with mpmath.workdps(50):
+        want = pendulum_exact(type(values)(tuple(mpmath.mpf(str(v)) for v in exact), (mpmath.mpf("2.5"), 0)),
+                              [2.0], digits=40)[0]
+    result = model.integrate(exact, [sympy.Rational(5, 2), 0], 2)
+    with mpmath.workdps(50):
+        error = float(max(abs(a - b) for a, b in zip(result.state, want)))
+    assert result.status == 0 and error < floor, error
+
+
+@pytest.mark.parametrize("precision", ["long", "quad"])
+def test_retyped_c_builds_with_warnings_as_errors(tmp_path, precision):
+    import subprocess
+
+    from kronsub.simulation.extended import sources
+    from kronsub.simulation.native import compiler_command
+
+    system, _ = loaded(MODELS / "examples" / "watt_governor.yaml")
+    for name, text in sources(system, precision):
+        (tmp_path / name).write_text(text)
+    text = (tmp_path / "model.c").read_text()
+    # every real is ks_real: double only in the typedef of long double
+    assert [line for line in text.splitlines() if "double" in line and "typedef" not in line] == []
+    proc = subprocess.run([*compiler_command(), "-std=c99", "-Wall", "-Wextra", "-Werror", "-O2", "-c",
+                           "model.c", "extended.c"], cwd=tmp_path, capture_output=True, text=True)
+    if proc.returncode and precision == "quad" and "_Float128" in proc.stderr:
+        pytest.skip("no _Float128 in this compiler")
+    assert proc.returncode == 0, proc.stderr

@@ -10,7 +10,8 @@ Gragg-Bulirsch-Stoer routes in mpmath, cross-checked). A point records
 - ``seconds``: the median wall time of repeated integrations (compilation apart);
 - right-hand-side evaluations and steps.
 
-Adaptive methods take ``rtol = atol = tol``. The fixed-step methods (``gauss4``, ``rk4``, both of
+Adaptive methods take ``rtol = atol = tol``; ``gbs-long`` and ``gbs-quad`` (extrapolation in the
+generated C in long double and ``_Float128``, :mod:`.extended`) take ``tol`` as their tolerance. The fixed-step methods (``gauss4``, ``rk4``, both of
 order 4) take the step ``h = tol^(1/4)`` (at most ``t_end / 8``), so their error also scales
 like ``tol``.
 """
@@ -24,6 +25,7 @@ import warnings
 from dataclasses import dataclass, field
 from typing import Callable
 
+import mpmath
 import numpy as np
 
 from ..core.known_system import KnownSystem
@@ -35,10 +37,13 @@ from .values import RunValues
 NATIVE = ("dop853", "gauss4", "rk4")
 SCIPY = ("RK45", "DOP853", "Radau", "LSODA")
 HEYOKA = ("heyoka",)
-ALL_METHODS = NATIVE + SCIPY + HEYOKA
+EXTENDED = {"gbs-long": "long", "gbs-quad": "quad"}  # extrapolation in long double / _Float128 C
+ALL_METHODS = NATIVE + SCIPY + HEYOKA  # "all"; the extended ones are asked for by name
+KNOWN_METHODS = ALL_METHODS + tuple(EXTENDED)
 FIXED_STEP_ORDER = {"gauss4": 4, "rk4": 4}
 REFERENCE_MARGIN = 100.0  # the reference must be this much more accurate than the best point
 SLOW_SECONDS = 5.0  # a method whose run took longer skips its tighter tolerances
+FLOAT64_FLOOR = 1e-15  # float64 methods skip tighter tolerances
 
 
 class AccuracyError(KronsubError):
@@ -142,10 +147,10 @@ def parse_methods(text: str | None) -> tuple[str, ...]:
     if text is None or text.strip() == "all":
         return ALL_METHODS
     names = [m.strip() for m in text.split(",") if m.strip()]
-    unknown = [m for m in names if m not in ALL_METHODS]
+    unknown = [m for m in names if m not in KNOWN_METHODS]
     if unknown or not names:
         raise AccuracyError(f"unknown method{'s' if len(unknown) > 1 else ''} {', '.join(unknown) or '(none)'}\n"
-                            f"  hint: choose from {', '.join(ALL_METHODS)} (comma-separated), or all")
+                            f"  hint: choose from {', '.join(KNOWN_METHODS)} (comma-separated), or all")
     return tuple(dict.fromkeys(names))
 
 
@@ -213,6 +218,8 @@ class _Runners:
             self.rhs = lambda t, y: module["rhs"](t, y, param)
         self._heyoka = None
         self.heyoka_compile: dict[float, float] = {}
+        self.extended: dict[str, object] = {}
+        self.extended_compile: dict[str, float] = {}
 
     def available(self, method: str) -> str:
         """Why ``method`` cannot run, or ''."""
@@ -223,6 +230,20 @@ class _Runners:
 
             if not heyoka_backend.available():
                 return f"heyoka is not installed ({heyoka_backend.INSTALL_HINT})"
+        if method in EXTENDED:
+            from .extended import ExtendedError, ExtendedModel
+
+            precision = EXTENDED[method]
+            if precision not in self.extended:
+                t0 = time.perf_counter()
+                try:
+                    self.extended[precision] = ExtendedModel(self.system, precision)
+                except (ExtendedError, native_module.NativeError) as exc:
+                    self.extended[precision] = None
+                    self.skipped[method] = str(exc).splitlines()[0]
+                self.extended_compile[precision] = time.perf_counter() - t0
+            if self.extended[precision] is None:
+                return self.skipped[method]
         return ""
 
     def prepare(self, method: str, tol: float) -> Callable[[], tuple]:
@@ -259,6 +280,15 @@ class _Runners:
                         return np.full(len(y0), np.nan), solver.nfev, steps, str(exc) or type(exc).__name__
                     status = "" if solver.status == "finished" else (message or "failed")
                     return solver.y.copy(), solver.nfev, steps, status
+            return run
+        if method in EXTENDED:
+            model = self.extended[EXTENDED[method]]
+            param_list, y0_list = [float(v) for v in param], [float(v) for v in y0]
+
+            def run():
+                r = model.integrate(param_list, y0_list, t_end, tol=tol)
+                status = "" if r.status == 0 else f"extrapolation status {r.status}"
+                return r.state, r.evaluations, r.steps, status
             return run
         if method == "heyoka":
             from .heyoka_backend import HeyokaIntegrator
@@ -334,21 +364,29 @@ def measure(system: KnownSystem, values: RunValues, t_end: float, methods: tuple
     try:
         for method, tol in plan:
             bar.step(f"{method} {tol:.0e}")
+            if method not in EXTENDED and tol < FLOAT64_FLOOR:
+                skipped.setdefault(method, f"tolerances below {FLOAT64_FLOOR:.0e} skipped (float64 cannot meet them)")
+                continue
             if method in slow:
                 skipped.setdefault(method, f"tolerances {tol:.0e} and tighter skipped: one run took "
                                            f"{slow[method]:.1f} s (over {SLOW_SECONDS:g} s)")
                 continue
             run = runners.prepare(method, tol)
             (y_end, evals, steps, status), seconds, repeats = _timed(run, budget, max_repeats)
-            y_end = np.asarray(y_end, dtype=float)
-            error = float(np.max(np.abs(y_end - want))) if np.all(np.isfinite(y_end)) else math.nan
+            if method in EXTENDED:  # the error in the type's precision, before rounding to float64
+                with mpmath.workdps(50):
+                    error = float(max(abs(a - b) for a, b in zip(y_end, ref.states[-1])))
+            y_end = np.array([float(v) for v in y_end])
+            if method not in EXTENDED:
+                error = float(np.max(np.abs(y_end - want))) if np.all(np.isfinite(y_end)) else math.nan
             drift = None
-            if conservative and np.all(np.isfinite(y_end)):
+            if conservative and method not in EXTENDED and np.all(np.isfinite(y_end)):
                 E = runners.energy(y_end)
                 drift = None if E is None else abs(E - E0) / scale
             setting = f"h {fixed_step(method, tol, t_end):.3g}" if method in FIXED_STEP_ORDER else f"tol {tol:.0e}"
-            points.append(Point(method, tol, setting, error, drift, seconds, evals, steps, repeats,
-                                runners.heyoka_compile.get(tol) if method == "heyoka" else None, status))
+            compiled = runners.heyoka_compile.get(tol) if method == "heyoka" else \
+                runners.extended_compile.get(EXTENDED.get(method))
+            points.append(Point(method, tol, setting, error, drift, seconds, evals, steps, repeats, compiled, status))
             if seconds > SLOW_SECONDS:
                 slow[method] = seconds
     finally:

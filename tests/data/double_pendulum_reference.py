@@ -21,7 +21,7 @@ so with d = q2 - q1 the equations M u' = r are
     r = [ 2 m a^2 u2^2 sin d - 3 m g a sin q1,  -2 m a^2 u1^2 sin d - m g a sin q2].
 
 Usage: python tests/data/double_pendulum_reference.py [--digits 40] [--shared PATH]
-(about ten minutes).
+(about twenty minutes on one core).
 """
 from __future__ import annotations
 
