@@ -442,18 +442,23 @@ def target_sentence(wp: WorkPrecision, target: float) -> str:
 
 def to_csv(wp: WorkPrecision) -> str:
     """One row per point; ``#`` comment lines name the model and the reference."""
+    import csv
+    import io
+
     ref = wp.reference
-    rows = [f"# kronsub accuracy: {wp.system}, t_end {wp.t_end!r}",
-            f"# reference: {ref.routes[0]}; estimated error {ref.error:.3e} ({'; '.join(ref.routes[1:])})",
-            "method,tolerance,setting,error,energy_drift,seconds,compile_seconds,evaluations,steps,repeats,status"]
+    out = io.StringIO()
+    out.write(f"# kronsub accuracy: {wp.system}, t_end {wp.t_end!r}\n")
+    out.write(f"# reference: {ref.routes[0]}; estimated error {ref.error:.3e} ({'; '.join(ref.routes[1:])})\n")
+    writer = csv.writer(out, lineterminator="\n")
+    writer.writerow(["method", "tolerance", "setting", "error", "energy_drift", "seconds", "compile_seconds",
+                     "evaluations", "steps", "repeats", "status"])
     for p in wp.points:
-        status = p.status.replace('"', "'")
-        rows.append(",".join([p.method, repr(p.tolerance), p.setting, repr(p.error),
-                              "" if p.energy_drift is None else repr(p.energy_drift), repr(p.seconds),
-                              "" if p.compile_seconds is None else repr(p.compile_seconds),
-                              "" if p.evaluations is None else str(p.evaluations),
-                              "" if p.steps is None else str(p.steps), str(p.repeats), f'"{status}"']))
-    return "\n".join(rows) + "\n"
+        writer.writerow([p.method, repr(p.tolerance), p.setting, repr(p.error),
+                         "" if p.energy_drift is None else repr(p.energy_drift), repr(p.seconds),
+                         "" if p.compile_seconds is None else repr(p.compile_seconds),
+                         "" if p.evaluations is None else p.evaluations, "" if p.steps is None else p.steps,
+                         p.repeats, p.status])
+    return out.getvalue()
 
 
 def plot(wp: WorkPrecision, path, target: float | None = None) -> None:

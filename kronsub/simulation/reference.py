@@ -29,11 +29,11 @@ from ..core.symbols import TIME
 from ..errors import KronsubError
 
 
-class ReferenceError_(KronsubError):
+class ReferenceFailure(KronsubError):
     """A reference solution could not be computed."""
 
 
-class Unsupported(ReferenceError_):
+class Unsupported(ReferenceFailure):
     """An expression the Taylor route has no recurrence for."""
 
 
@@ -156,7 +156,7 @@ class _Tape:
 def _fixed(value, bits: int) -> int:
     """``round(value 2^bits)`` of an mpf."""
     if not isinstance(value, mpmath.mpf) or not mpmath.isfinite(value):
-        raise ReferenceError_(f"the equations leave the real numbers ({mpmath.nstr(value, 6)}) on the "
+        raise ReferenceFailure(f"the equations leave the real numbers ({mpmath.nstr(value, 6)}) on the "
                               "reference trajectory: a square root or logarithm of a negative number, or a "
                               "division by zero")
     return int(mpmath.nint(mpmath.ldexp(value, bits)))
@@ -273,7 +273,7 @@ def _lu(A):
     for j in range(n):
         p = max(range(j, n), key=lambda i: abs(A[i][j]))
         if A[p][j] == 0:
-            raise ReferenceError_("the mass matrix Mbar is singular on the reference trajectory")
+            raise ReferenceFailure("the mass matrix Mbar is singular on the reference trajectory")
         A[j], A[p] = A[p], A[j]
         perm[j], perm[p] = perm[p], perm[j]
         for i in range(j + 1, n):
@@ -400,7 +400,7 @@ def extrapolation(system: KnownSystem, param, y0, times, digits: int = 30) -> Ro
                     steps += 1
                 h = int(step * factor)
                 if h < (1 << P) // 10 ** (digits // 2):
-                    raise ReferenceError_(f"the extrapolation route's step underflowed at t = {float(_real(t, P)):.6g}")
+                    raise ReferenceFailure(f"the extrapolation route's step underflowed at t = {float(_real(t, P)):.6g}")
             out.append([_real(v, P) for v in y])
         return RouteResult(out, steps, f"Gragg-Bulirsch-Stoer extrapolation, {K} stages")
 
