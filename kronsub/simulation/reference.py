@@ -12,8 +12,9 @@ derived sympy expressions, at ``digits`` significant digits:
   its own step control; the right-hand side is the tape's first coefficient.
 
 Both compute in fixed point (a number ``x`` is the integer ``round(x 2^bits)``), which makes the
-convolutions exact integer sums. :func:`reference` runs both and takes their largest difference
-as the estimated error. The tape itself is checked against ``sympy.lambdify`` in the tests.
+convolutions exact integer sums. :func:`reference` runs the Taylor route at two precisions (their
+difference estimates the error) and the extrapolation route as a cross-check up to the first
+sample time. The tape itself is checked against ``sympy.lambdify`` in the tests.
 """
 from __future__ import annotations
 
@@ -150,7 +151,9 @@ class _Tape:
                 v = self.value(arg)
                 return self.const(abs(v) if kind == "abs" else mpmath.sign(v))
             return self._add(kind, (arg,))
-        raise Unsupported(f"the Taylor route has no rule for {type(e).__name__}")
+        raise Unsupported(f"the high-precision reference has no Taylor rule for {type(e).__name__}\n"
+                          "  hint: rules exist for + * / **, sin cos tan asin acos atan sinh cosh tanh exp log "
+                          "sqrt abs sign")
 
 
 def _fixed(value, bits: int) -> int:
