@@ -226,7 +226,7 @@ def simulate(model: Path, t_end: float, dt: float, method: str, rtol: float, ato
 @click.argument("model", type=click.Path(dir_okay=False, path_type=Path))
 @click.option("--t", "t_end", type=float, default=10.0, show_default=True, help="End time.")
 @click.option("--methods", default="all", show_default=True,
-              help="Comma-separated: dop853, gauss4, rk4 (C), RK45, DOP853, Radau, LSODA (scipy), heyoka; "
+              help="Comma-separated: dop853, gauss4, rk4, taylor (C), RK45, DOP853, Radau, LSODA (scipy), heyoka; "
                    "gbs-long, gbs-quad (extended precision, see --precision).")
 @click.option("--tolerances", default="1e-4:1e-14", show_default=True,
               help="Every decade of a range (1e-4:1e-14, or 1e-4:1e-14:2 for every second) or a list "

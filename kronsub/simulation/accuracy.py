@@ -10,7 +10,8 @@ Gragg-Bulirsch-Stoer routes in mpmath, cross-checked). A point records
 - ``seconds``: the median wall time of repeated integrations (compilation apart);
 - right-hand-side evaluations and steps.
 
-Adaptive methods take ``rtol = atol = tol``; ``gbs-long`` and ``gbs-quad`` (extrapolation in the
+Adaptive methods take ``rtol = atol = tol``; ``taylor`` is a Taylor integrator generated as C for
+the model (:mod:`.taylor_c`), of order ``ceil(ln(1/tol)/2) + 1``; ``gbs-long`` and ``gbs-quad`` (extrapolation in the
 generated C in long double and ``_Float128``, :mod:`.extended`) take ``tol`` as their tolerance. The fixed-step methods (``gauss4``, ``rk4``, both of
 order 4) take the step ``h = tol^(1/4)`` (at most ``t_end / 8``), so their error also scales
 like ``tol``.
@@ -37,8 +38,9 @@ from .values import RunValues
 NATIVE = ("dop853", "gauss4", "rk4")
 SCIPY = ("RK45", "DOP853", "Radau", "LSODA")
 HEYOKA = ("heyoka",)
+GENERATED = ("taylor",)  # a Taylor integrator generated as C for the model (.taylor_c)
 EXTENDED = {"gbs-long": "long", "gbs-quad": "quad"}  # extrapolation in long double / _Float128 C
-ALL_METHODS = NATIVE + SCIPY + HEYOKA  # "all"; the extended ones are asked for by name
+ALL_METHODS = NATIVE + GENERATED + SCIPY + HEYOKA  # "all"; the extended ones are asked for by name
 KNOWN_METHODS = ALL_METHODS + tuple(EXTENDED)
 FIXED_STEP_ORDER = {"gauss4": 4, "rk4": 4}
 REFERENCE_MARGIN = 100.0  # the reference must be this much more accurate than the best point
@@ -230,6 +232,18 @@ class _Runners:
 
             if not heyoka_backend.available():
                 return f"heyoka is not installed ({heyoka_backend.INSTALL_HINT})"
+        if method == "taylor" and "taylor" not in self.extended:
+            from .taylor_c import TaylorC
+
+            t0 = time.perf_counter()
+            try:
+                self.extended["taylor"] = TaylorC(self.system)
+            except native_module.NativeError as exc:
+                self.extended["taylor"] = None
+                self.skipped[method] = str(exc).splitlines()[0]
+            self.extended_compile["taylor"] = time.perf_counter() - t0
+        if method == "taylor" and self.extended["taylor"] is None:
+            return self.skipped[method]
         if method in EXTENDED:
             from .extended import ExtendedError, ExtendedModel
 
@@ -280,6 +294,13 @@ class _Runners:
                         return np.full(len(y0), np.nan), solver.nfev, steps, str(exc) or type(exc).__name__
                     status = "" if solver.status == "finished" else (message or "failed")
                     return solver.y.copy(), solver.nfev, steps, status
+            return run
+        if method == "taylor":
+            taylor = self.extended["taylor"]
+
+            def run():
+                y_end, status, steps, order = taylor.integrate(param, y0, t_end, tol)
+                return y_end, None, steps, "" if status == 0 else f"Taylor status {status}"
             return run
         if method in EXTENDED:
             model = self.extended[EXTENDED[method]]
@@ -385,7 +406,7 @@ def measure(system: KnownSystem, values: RunValues, t_end: float, methods: tuple
                 drift = None if E is None else abs(E - E0) / scale
             setting = f"h {fixed_step(method, tol, t_end):.3g}" if method in FIXED_STEP_ORDER else f"tol {tol:.0e}"
             compiled = runners.heyoka_compile.get(tol) if method == "heyoka" else \
-                runners.extended_compile.get(EXTENDED.get(method))
+                runners.extended_compile.get(EXTENDED.get(method, method))
             points.append(Point(method, tol, setting, error, drift, seconds, evals, steps, repeats, compiled, status))
             if seconds > SLOW_SECONDS:
                 slow[method] = seconds

@@ -45,13 +45,15 @@ class Unsupported(ReferenceFailure):
 class _Tape:
     """Nodes in topological order: ``(kind, args, data)``; inputs first."""
 
-    def __init__(self, state: list[sympy.Symbol], constants: dict):
+    def __init__(self, state: list[sympy.Symbol], constants: dict, parameters: tuple = ()):
         self.nodes: list[tuple[str, tuple, object]] = []
         self.memo: dict = {}
         self.constants = constants  # parameter symbol -> mpf
         for i, s in enumerate(state):
             self.memo[s] = self._add("state", (), i)
         self.memo[TIME] = self._add("time", (), None)
+        for i, s in enumerate(parameters):  # parameters known only at run time (generated C)
+            self.memo[s] = self._add("param", (), i)
 
     def _add(self, kind, args, data=None) -> int:
         self.nodes.append((kind, tuple(args), data))
@@ -143,7 +145,7 @@ class _Tape:
                 if self.is_const(arg):
                     return self.const(getattr(mpmath, fn.__name__)(self.value(arg)))
                 return self._add("integral", (arg, self.node(derivative(e.args[0]))),
-                                 getattr(mpmath, fn.__name__))
+                                 fn.__name__)
         if isinstance(e, (sympy.Abs, sympy.sign)):
             arg = self.node(e.args[0])
             kind = "abs" if isinstance(e, sympy.Abs) else "sign"
@@ -238,7 +240,7 @@ class _Series:
                             w = [((data * j - ((k - j) << P)) * a[j]) >> P for j in range(1, k + 1)]
                             v = sum(map(mul, w, c[i][k - 1::-1])) // (k * a[0])
                     elif kind == "integral":  # v' = g(a) a'
-                        v = _fixed(data(_real(a[0], P)), P) if k == 0 else \
+                        v = _fixed(getattr(mpmath, data)(_real(a[0], P)), P) if k == 0 else \
                             sum(map(mul, scaled(args[0], k)[1:k + 1], c[args[1]][k - 1::-1])) // k >> P
                     elif kind == "abs":
                         v = a[k] if a[0] >= 0 else -a[k]
@@ -436,9 +438,13 @@ def reference(system: KnownSystem, param, y0, times, digits: int = 20) -> Refere
     higher run is far better. The extrapolation route at ``digits`` digits cross-checks it up
     to the first time (where it is cheap); a worse agreement raises the estimate."""
     with mpmath.workdps(digits + 20):
-        high = taylor(system, param, y0, times, digits + 8)
-        low = taylor(system, param, y0, times, digits)
-        check = extrapolation(system, param, y0, times[:1], digits)
+        try:
+            high = taylor(system, param, y0, times, digits + 8)
+            low = taylor(system, param, y0, times, digits)
+            check = extrapolation(system, param, y0, times[:1], digits)
+        except ZeroDivisionError:
+            raise ReferenceFailure("the equations divide by zero on the reference trajectory (a singular "
+                                   "configuration?)\n  hint: start elsewhere with --set") from None
         error = _difference(high.states, low.states)
         agreement = _difference(high.states[:1], check.states)
     first = float(times[0])
