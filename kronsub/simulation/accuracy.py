@@ -455,9 +455,9 @@ def target_sentence(wp: WorkPrecision, target: float) -> str:
     best = wp.cheapest(target)
     if best is None:
         closest = wp.best_error()
-        return (f"Target {target:.0e}: no method met it" +
+        return (f"Target {target:.2g}: no method met it" +
                 (f" (best error {closest:.1e})." if closest is not None else "."))
-    return (f"Target {target:.0e}: cheapest is {best.method} at {best.setting}: error {best.error:.1e} "
+    return (f"Target {target:.2g}: cheapest is {best.method} at {best.setting}: error {best.error:.1e} "
             f"in {1e3 * best.seconds:.3f} ms.")
 
 
@@ -500,7 +500,7 @@ def plot(wp: WorkPrecision, path, target: float | None = None) -> None:
             ax.loglog([1e3 * p.seconds for p in pts], [p.error for p in pts], "o-", label=method)
     ax.axhline(wp.reference.error, color="grey", linestyle=":", label="reference error")
     if target is not None:
-        ax.axhline(target, color="red", linestyle="--", label=f"target {target:.0e}")
+        ax.axhline(target, color="red", linestyle="--", label=f"target {target:.2g}")
     ax.set_xlabel("integration time [ms]")
     ax.set_ylabel(f"max |error| at t = {wp.t_end:g}")
     ax.set_title(f"Work-precision: {wp.system}")

@@ -5,7 +5,8 @@ one array of Taylor coefficients per operation, filled order by order with the r
 automatic differentiation, ``Mbar_0 x_k = r_k - sum_{j>=1} Mbar_j x_{k-j}`` solved by
 ``L D L^T`` of ``Mbar_0`` once per step, then ``q_{k+1} = qdot_k / (k+1)``,
 ``qdot_{k+1} = x_k / (k+1)``. Order ``N = ceil(ln(1/tol) / 2) + 1`` and step
-``h = min_{k = N-1, N} (tol max(1, |y|) / |y_k|)^(1/k)`` (Jorba and Zou) are chosen at run time.
+``h = rho / e^2 exp(-0.7 / (N - 1))``, ``rho = min_{k = N-1, N} (max(1, |y|) / |y_k|)^(1/k)``
+(Jorba and Zou's choice, as heyoka makes it) are chosen at run time.
 Parameters stay run-time inputs. The C is plain C99 with libc and libm, in ``double``; like the
 model's C it can be retyped to ``long double`` or ``_Float128`` (:func:`.extended.retype`).
 """
@@ -188,14 +189,15 @@ int ks_taylor(const double *param, double t0, const double *y0, double t_end, do
         }}
         if (status) break;
         for (i = 0; i < TNY; ++i) if (fabs(y[i]) > scale) scale = fabs(y[i]);
-        for (k = order - 1; k <= order; ++k) {{
+        for (k = order - 1; k <= order; ++k) {{  /* rho = min_k (|y| / |y_k|)^(1/k) */
             size = 0;
             for (i = 0; i < TNY; ++i) if (fabs(Y[i][k]) > size) size = fabs(Y[i][k]);
             if (size > 0) {{
-                double hk = pow(tol * scale / size, 1.0 / k);
+                double hk = pow(scale / size, 1.0 / k);
                 if (h < 0 || hk < h) h = hk;
             }}
         }}
+        if (h > 0) h *= exp(-2.0 - 0.7 / (order - 1));  /* rho / e^2 exp(-0.7 / (N - 1)) */
         if (h < 0 || t + h >= t_end) h = t_end - t;
         for (i = 0; i < TNY; ++i) {{  /* Horner */
             double s = Y[i][order];
