@@ -372,6 +372,22 @@ def section_pendulum(quick: bool, scratch: Path) -> None:
         _, Y, res = out["r"]
         row("kronsub C gauss4", f"h {h:g}", seconds, Y[-1], res.n_evals, f"{res.n_steps} steps")
 
+    from kronsub.simulation.taylor_c import TaylorC
+
+    t0 = time.perf_counter()
+    taylor = TaylorC(system)
+    built = time.perf_counter() - t0
+    for tol in (1e-6, 1e-9, 1e-12, 1e-15):
+        out = {}
+
+        def run():
+            out["r"] = taylor.integrate(param, y0, t_end, tol)
+
+        seconds = best_of(run, c_repeats)
+        final, _, steps, order = out["r"]
+        row("kronsub C taylor", f"tol {tol:.0e}", seconds, final, "-",
+            f"{steps} steps, order {order}; generated C, build {built:.1f} s")
+
     rhs = native.scipy_rhs(param)
     scipy_runs = [("RK45", 1e-6), ("RK45", 1e-9), ("DOP853", 1e-9), ("DOP853", 1e-12),
                   ("LSODA", 1e-6), ("LSODA", 1e-9), ("Radau", 1e-6), ("Radau", 1e-9)]
