@@ -50,6 +50,8 @@ import sympy
 
 REPO = Path(__file__).resolve().parent.parent
 REFERENCE = REPO.parent / "shared" / "reference" / "double-pendulum-rods.json"
+if not REFERENCE.exists():  # the repository's own copy (tests/data/double_pendulum_reference.py)
+    REFERENCE = REPO / "tests" / "data" / "double_pendulum_rods.json"
 SIZES = (2, 5, 10)
 RHS_TARGET_NS = 500.0
 RHS_TARGET_RATIO = 100.0
@@ -370,6 +372,22 @@ def section_pendulum(quick: bool, scratch: Path) -> None:
         _, Y, res = out["r"]
         row("kronsub C gauss4", f"h {h:g}", seconds, Y[-1], res.n_evals, f"{res.n_steps} steps")
 
+    from kronsub.simulation.taylor_c import TaylorC
+
+    t0 = time.perf_counter()
+    taylor = TaylorC(system)
+    built = time.perf_counter() - t0
+    for tol in (1e-6, 1e-9, 1e-12, 1e-15):
+        out = {}
+
+        def run():
+            out["r"] = taylor.integrate(param, y0, t_end, tol)
+
+        seconds = best_of(run, c_repeats)
+        final, _, steps, order = out["r"]
+        row("kronsub C taylor", f"tol {tol:.0e}", seconds, final, "-",
+            f"{steps} steps, order {order}; generated C, build {built:.1f} s")
+
     rhs = native.scipy_rhs(param)
     scipy_runs = [("RK45", 1e-6), ("RK45", 1e-9), ("DOP853", 1e-9), ("DOP853", 1e-12),
                   ("LSODA", 1e-6), ("LSODA", 1e-9), ("Radau", 1e-6), ("Radau", 1e-9)]
@@ -408,6 +426,37 @@ def section_pendulum(quick: bool, scratch: Path) -> None:
             outcome, _, _, steps, _, Y = out["r"]
             row("heyoka " + heyoka.__version__, f"tol {tol:.0e}", best, Y[-1], "-",
                 f"{steps} steps, order {ta.order}; compile {compiled:.2f} s")
+
+    # extended precision: extrapolation in the generated C in long double and _Float128
+    from kronsub.simulation.extended import ExtendedError, ExtendedModel
+
+    exact_param = [sympy.Integer(1), sympy.Integer(1), sympy.Rational(1, 2), sympy.Rational(1, 2),
+                   sympy.Rational(1, 12), sympy.Rational(1, 12), sympy.Rational(981, 100), sympy.Integer(0)]
+    exact_y0 = [2 * sympy.pi / 3, -sympy.pi / 18, 0, 0]
+    import mpmath
+
+    with mpmath.workdps(50):
+        want_mp = [mpmath.mpf(data["state_at_t_end"][k]) for k in ("q1", "q2", "u1", "u2")]
+    for precision, tols in (("long", (1e-12, 1e-16)), ("quad", (1e-20, 1e-24, 1e-28))):
+        try:
+            t0 = time.perf_counter()
+            ext = ExtendedModel(system, precision)
+            built = time.perf_counter() - t0
+        except ExtendedError as exc:
+            print(f"  {'kronsub C gbs-' + precision:<22} not available ({exc})")
+            continue
+        for tol in tols:
+            out = {}
+
+            def run():
+                out["r"] = ext.integrate(exact_param, exact_y0, t_end, tol=tol)
+
+            seconds = best_of(run, 1 if quick or precision == "quad" else 3)
+            r = out["r"]
+            with mpmath.workdps(50):
+                err = float(max(abs(a - b) for a, b in zip(r.state, want_mp)))
+            print(f"  {'kronsub C gbs-' + precision:<22} {'tol ' + format(tol, '.0e'):<13} {1e3 * seconds:>10.3f} "
+                  f"{err:>9.1e} {r.evaluations:>8}  {r.steps} steps, exact inputs; build {built:.1f} s")
 
     # c. where the dop853 time goes
     print()

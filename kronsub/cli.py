@@ -173,18 +173,28 @@ def derive(model: Path, fmt: str, output: Path | None, check: Path | None, no_ca
 @click.option("--prefix", default="ks", show_default=True,
               help="Prefix of the C functions and macros, so several models can share a program.")
 @scene_option
-def codegen(model: Path, lang: str, outdir: Path, name: str | None, prefix: str, scene_name: str | None):
+@click.option("--precision", type=click.Choice(["double", "long", "quad"]), default="double", show_default=True,
+              help="The C's real type: double, long double, or _Float128 (glibc's libm; typedef ks_real).")
+def codegen(model: Path, lang: str, outdir: Path, name: str | None, prefix: str, scene_name: str | None,
+            precision: str):
     """Generate C (header + source) or a numpy module for MODEL."""
     from .emitters.code import LANGUAGES
 
     def job():
         if not outdir.is_dir():
             _fail(f"Error: {outdir}: no such directory\n  hint: create it first, or choose another --output")
+        if precision != "double" and lang != "c":
+            _fail("Error: --precision long|quad is for --lang c\n  hint: drop --precision, or use --lang c")
         _, scene, system = scene_system(model, scene_name)
         stem = name or model.stem
         outputs = scene.outputs if scene is not None else None
         for generated in LANGUAGES[lang](system, stem, source=model.as_posix(), prefix=prefix, outputs=outputs):
-            write_atomically(outdir / generated.name, generated.text)
+            text = generated.text
+            if precision != "double":
+                from .simulation.extended import prelude, retype
+
+                text = prelude(precision) + retype(text, precision)
+            write_atomically(outdir / generated.name, text)
             click.echo(f"wrote {outdir / generated.name}", err=True)
 
     _run(job)
@@ -346,6 +356,76 @@ def simulate(model: Path, t_end: float | None, dt: float | None, method: str | N
             _fail(f"Error: the run stopped at t = {run.t_fail:.6g}: {run.message}; "
                   f"the {writer.rows} rows computed so far are kept in {where} (marked incomplete)",
                   NUMERICAL_FAILURE)
+
+    _run(job)
+
+
+@main.command()
+@click.argument("model", type=click.Path(dir_okay=False, path_type=Path))
+@click.option("--t", "t_end", type=float, default=10.0, show_default=True, help="End time.")
+@click.option("--methods", default="all", show_default=True,
+              help="Comma-separated: dop853, gauss4, rk4, taylor (C), RK45, DOP853, Radau, LSODA (scipy), heyoka; "
+                   "gbs-long, gbs-quad (extended precision, see --precision).")
+@click.option("--tolerances", default="1e-4:1e-14", show_default=True,
+              help="Every decade of a range (1e-4:1e-14, or 1e-4:1e-14:2 for every second) or a list "
+                   "(1e-6,1e-9). Fixed-step methods take the step tol^(1/4).")
+@click.option("--target", type=float, help="Name the cheapest method and tolerance reaching this error.")
+@click.option("--output", "-o", type=click.Path(dir_okay=False, path_type=Path), help="Write the CSV to FILE.")
+@click.option("--plot", type=click.Path(dir_okay=False, path_type=Path),
+              help="Write the work-precision PNG (error against time, log-log) to FILE.")
+@click.option("--quick", is_flag=True, help="A coarse grid (every third tolerance), few repeats, a cheaper reference.")
+@click.option("--digits", type=click.IntRange(12, 200), default=None,
+              help="Digits of the reference's cross-check run (default 20; --quick 16); the reference runs at 8 more.")
+@click.option("--precision", type=click.Choice(["double", "long", "quad"]), default="double", show_default=True,
+              help="long / quad: add extrapolation in the generated C in long double (gbs-long) or _Float128 "
+                   "(gbs-quad); quad raises the reference's default --digits to 34.")
+@click.option("--set", "settings", multiple=True, metavar="NAME=VALUE",
+              help="Set a parameter or an initial coordinate/velocity (repeatable).")
+@scene_option
+def accuracy(model: Path, t_end: float, methods: str, tolerances: str, target: float | None,
+             output: Path | None, plot: Path | None, quick: bool, digits: int | None, precision: str,
+             settings: tuple[str, ...], scene_name: str | None):
+    """What accuracy costs in time: error against a high-precision reference, per method and tolerance."""
+    from .model.scenes import initial_values
+    from .simulation import accuracy as acc
+    from .simulation.values import parse_assignments, resolve
+
+    def job():
+        chosen = acc.parse_methods(methods)
+        if precision != "double" and f"gbs-{precision}" not in chosen:
+            chosen = chosen + (f"gbs-{precision}",)
+        grid = acc.parse_tolerances(tolerances)
+        if quick:
+            grid = acc.quick_tolerances(grid)
+        if target is not None and not target > 0:
+            _fail("Error: --target must be a positive error, e.g. --target 1e-8")
+        _writable(output, "--output")
+        _writable(plot, "--plot")
+        if plot is not None:
+            try:
+                import matplotlib  # noqa: F401
+            except ImportError:
+                _fail("Error: --plot needs matplotlib\n  hint: pip install 'kronsub[plot]'")
+        loaded, scene, system = scene_system(model, scene_name)
+        if system.implicit is not None:
+            _fail("Error: kronsub accuracy does not take closed loops (constraints:) yet\n"
+                  "  hint: compare methods with kronsub simulate --method ... on this model")
+        values = resolve(system, initial_values(loaded, scene), parse_assignments(settings))
+        click.echo(f"computing the reference to t = {t_end:g} ...", err=True)
+        default_digits = 34 if "gbs-quad" in chosen else (16 if quick else 20)
+        wp = acc.measure(system, values, t_end, chosen, grid, digits=digits or default_digits, quick=quick)
+        click.echo(acc.markdown(wp, target), nl=False)
+        if output is not None:
+            write_atomically(output, acc.to_csv(wp))
+            click.echo(f"wrote {output} ({len(wp.points)} points)", err=True)
+        if not wp.reference_sufficient():
+            _fail(f"Error: the reference's estimated error {wp.reference.error:.1e} is not "
+                  f"{acc.REFERENCE_MARGIN:g}x below the best point's error {wp.best_error():.1e}: the errors "
+                  "near it are not measured" + (", so no plot was written" if plot is not None else "")
+                  + "\n  hint: raise --digits")
+        if plot is not None:
+            acc.plot(wp, plot, target)
+            click.echo(f"wrote {plot}", err=True)
 
     _run(job)
 

@@ -1,0 +1,518 @@
+"""What accuracy costs in time: a work-precision table of every integration method.
+
+Each method runs from t = 0 to ``t_end`` at each tolerance; its state at ``t_end`` is compared
+with a high-precision reference (:mod:`kronsub.simulation.reference`: Taylor series and
+Gragg-Bulirsch-Stoer routes in mpmath, cross-checked). A point records
+
+- ``error``: ``max_i |y_i(t_end) - y_ref,i(t_end)|`` over the state ``y = [q; qdot]``;
+- ``energy_drift``: ``|E(t_end) - E(0)| / |E|``, ``E = T + V`` (24), when the model conserves
+  energy (judged on the reference trajectory);
+- ``seconds``: the median wall time of repeated integrations (compilation apart);
+- right-hand-side evaluations and steps.
+
+Adaptive methods take ``rtol = atol = tol``; ``taylor`` is a Taylor integrator generated as C for
+the model (:mod:`.taylor_c`), of order ``ceil(ln(1/tol)/2) + 1``; ``gbs-long`` and ``gbs-quad`` (extrapolation in the
+generated C in long double and ``_Float128``, :mod:`.extended`) take ``tol`` as their tolerance. The fixed-step methods (``gauss4``, ``rk4``, both of
+order 4) take the step ``h = tol^(1/4)`` (at most ``t_end / 8``), so their error also scales
+like ``tol``.
+"""
+from __future__ import annotations
+
+import math
+import statistics
+import sys
+import time
+import warnings
+from dataclasses import dataclass, field
+from typing import Callable
+
+import mpmath
+import numpy as np
+
+from ..core.known_system import KnownSystem
+from ..errors import KronsubError
+from . import native as native_module
+from .reference import Reference, reference as compute_reference
+from .values import RunValues
+
+NATIVE = ("dop853", "gauss4", "rk4")
+SCIPY = ("RK45", "DOP853", "Radau", "LSODA")
+HEYOKA = ("heyoka",)
+GENERATED = ("taylor",)  # a Taylor integrator generated as C for the model (.taylor_c)
+EXTENDED = {"gbs-long": "long", "gbs-quad": "quad"}  # extrapolation in long double / _Float128 C
+ALL_METHODS = NATIVE + GENERATED + SCIPY + HEYOKA  # "all"; the extended ones are asked for by name
+KNOWN_METHODS = ALL_METHODS + tuple(EXTENDED)
+FIXED_STEP_ORDER = {"gauss4": 4, "rk4": 4}
+REFERENCE_MARGIN = 100.0  # the reference must be this much more accurate than the best point
+SLOW_SECONDS = 5.0  # a method whose run took longer skips its tighter tolerances
+FLOAT64_FLOOR = 1e-15  # float64 methods skip tighter tolerances
+
+
+class AccuracyError(KronsubError):
+    """A work-precision measurement that could not be made."""
+
+
+@dataclass(frozen=True)
+class Point:
+    """One method at one tolerance."""
+
+    method: str
+    tolerance: float
+    setting: str
+    error: float
+    energy_drift: float | None
+    seconds: float
+    evaluations: int | None
+    steps: int | None
+    repeats: int
+    compile_seconds: float | None = None
+    status: str = ""
+
+    @property
+    def ok(self) -> bool:
+        return not self.status and math.isfinite(self.error)
+
+
+@dataclass
+class WorkPrecision:
+    """Every point, the reference they were measured against, and what was skipped."""
+
+    system: str
+    t_end: float
+    points: list[Point]
+    reference: Reference
+    compile_seconds: float | None
+    conservative: bool
+    skipped: dict[str, str] = field(default_factory=dict)
+
+    def best_error(self) -> float | None:
+        errors = [p.error for p in self.points if p.ok]
+        return min(errors) if errors else None
+
+    def reference_sufficient(self) -> bool:
+        """Whether the reference is at least 100x more accurate than the best point."""
+        best = self.best_error()
+        return best is None or self.reference.error * REFERENCE_MARGIN <= best
+
+    def cheapest(self, target: float) -> Point | None:
+        """The fastest point whose error is at most ``target``."""
+        meeting = [p for p in self.points if p.ok and p.error <= target]
+        return min(meeting, key=lambda p: (p.seconds, p.error)) if meeting else None
+
+
+# ---------------------------------------------------------------------------------------------
+# Tolerances
+# ---------------------------------------------------------------------------------------------
+
+def parse_tolerances(text: str) -> tuple[float, ...]:
+    """``1e-4:1e-14`` (every decade between, both ends included), ``1e-4:1e-14:2`` (every
+    second decade) or a list ``1e-6,1e-9``."""
+    hint = "write e.g. --tolerances 1e-4:1e-14, 1e-4:1e-14:2 or 1e-6,1e-9,1e-12"
+    try:
+        if ":" in text:
+            parts = text.split(":")
+            if len(parts) not in (2, 3):
+                raise ValueError
+            first, last = float(parts[0]), float(parts[1])
+            every = int(parts[2]) if len(parts) == 3 else 1
+            if not (first > 0 and last > 0 and every >= 1):
+                raise ValueError
+            a, b = math.log10(first), math.log10(last)
+            count = int(math.floor(abs(b - a) / every + 1e-9)) + 1
+            sign = -1 if b < a else 1
+            values = [first * 10.0 ** (sign * every * i) for i in range(count)]
+        else:
+            values = [float(v) for v in text.split(",") if v.strip()]
+    except ValueError:
+        raise AccuracyError(f"--tolerances '{text}' is not a range or list of positive numbers\n  hint: {hint}") \
+            from None
+    if not values or not all(v > 0 and math.isfinite(v) for v in values):
+        raise AccuracyError(f"--tolerances '{text}' must give positive numbers\n  hint: {hint}")
+    return tuple(float(f"{v:.6g}") for v in values)
+
+
+def quick_tolerances(tolerances: tuple[float, ...]) -> tuple[float, ...]:
+    """A coarse grid: every third tolerance, and the last."""
+    picked = list(tolerances[::3])
+    if tolerances[-1] not in picked:
+        picked.append(tolerances[-1])
+    return tuple(picked)
+
+
+def fixed_step(method: str, tol: float, t_end: float) -> float:
+    """The step of a fixed-step method of order p at tolerance ``tol``: ``tol^(1/p)``."""
+    return min(tol ** (1.0 / FIXED_STEP_ORDER[method]), t_end / 8)
+
+
+def parse_methods(text: str | None) -> tuple[str, ...]:
+    """``dop853,RK45`` or ``all`` (the default)."""
+    if text is None or text.strip() == "all":
+        return ALL_METHODS
+    names = [m.strip() for m in text.split(",") if m.strip()]
+    unknown = [m for m in names if m not in KNOWN_METHODS]
+    if unknown or not names:
+        raise AccuracyError(f"unknown method{'s' if len(unknown) > 1 else ''} {', '.join(unknown) or '(none)'}\n"
+                            f"  hint: choose from {', '.join(KNOWN_METHODS)} (comma-separated), or all")
+    return tuple(dict.fromkeys(names))
+
+
+# ---------------------------------------------------------------------------------------------
+# Measuring
+# ---------------------------------------------------------------------------------------------
+
+class Progress:
+    """A progress bar on stderr, shown only on a terminal."""
+
+    def __init__(self, total: int, enabled: bool | None = None):
+        self.total, self.done = total, 0
+        self.enabled = sys.stderr.isatty() if enabled is None else enabled
+
+    def step(self, label: str) -> None:
+        self.done += 1
+        if self.enabled:
+            frac = self.done / max(1, self.total)
+            sys.stderr.write(f"\r[{'#' * int(30 * frac):<30}] {self.done}/{self.total} {label:<24}")
+            sys.stderr.flush()
+
+    def close(self) -> None:
+        if self.enabled:
+            sys.stderr.write("\n")
+
+
+def _timed(run: Callable[[], tuple], budget: float, max_repeats: int) -> tuple[tuple, float, int]:
+    """Run until ``budget`` seconds are spent or ``max_repeats`` runs: (result, median, runs)."""
+    times, result = [], None
+    spent = 0.0
+    while len(times) < max_repeats and (not times or spent < budget):
+        t0 = time.perf_counter()
+        result = run()
+        times.append(time.perf_counter() - t0)
+        spent += times[-1]
+    return result, statistics.median(times), len(times)
+
+
+class _Runners:
+    """Integrations of one system with one parameter set: ``run(method, tol) -> (y_end,
+    evaluations, steps, status)`` and what compiling cost."""
+
+    def __init__(self, system: KnownSystem, param: np.ndarray, y0: np.ndarray, t_end: float):
+        self.system, self.param, self.y0, self.t_end = system, param, y0, t_end
+        self.native = None
+        self.compile_seconds = None
+        self.skipped: dict[str, str] = {}
+        from ..emitters.code import emit_c
+
+        t0 = time.perf_counter()
+        try:
+            generated = [(g.name, g.text) for g in emit_c(system, "model")]
+            library = native_module.compile_library(generated, "model")
+            self.native = native_module.NativeModel(library, len(system.coordinates), len(system.parameters))
+            self.compile_seconds = time.perf_counter() - t0
+        except native_module.CompilerNotFound as exc:
+            for m in NATIVE:
+                self.skipped[m] = f"no C compiler ({exc})"
+        if self.native is not None:
+            self.rhs = self.native.scipy_rhs(param)
+        else:
+            from .run import _numpy_module
+
+            module = _numpy_module(system)
+            self.rhs = lambda t, y: module["rhs"](t, y, param)
+        self._heyoka = None
+        self.heyoka_compile: dict[float, float] = {}
+        self.extended: dict[str, object] = {}
+        self.extended_compile: dict[str, float] = {}
+
+    def available(self, method: str) -> str:
+        """Why ``method`` cannot run, or ''."""
+        if method in self.skipped:
+            return self.skipped[method]
+        if method == "heyoka":
+            from . import heyoka_backend
+
+            if not heyoka_backend.available():
+                return f"heyoka is not installed ({heyoka_backend.INSTALL_HINT})"
+        if method == "taylor" and "taylor" not in self.extended:
+            from .taylor_c import TaylorC
+
+            t0 = time.perf_counter()
+            try:
+                self.extended["taylor"] = TaylorC(self.system)
+            except native_module.NativeError as exc:
+                self.extended["taylor"] = None
+                self.skipped[method] = str(exc).splitlines()[0]
+            self.extended_compile["taylor"] = time.perf_counter() - t0
+        if method == "taylor" and self.extended["taylor"] is None:
+            return self.skipped[method]
+        if method in EXTENDED:
+            from .extended import ExtendedError, ExtendedModel
+
+            precision = EXTENDED[method]
+            if precision not in self.extended:
+                t0 = time.perf_counter()
+                try:
+                    self.extended[precision] = ExtendedModel(self.system, precision)
+                except (ExtendedError, native_module.NativeError) as exc:
+                    self.extended[precision] = None
+                    self.skipped[method] = str(exc).splitlines()[0]
+                self.extended_compile[precision] = time.perf_counter() - t0
+            if self.extended[precision] is None:
+                return self.skipped[method]
+        return ""
+
+    def prepare(self, method: str, tol: float) -> Callable[[], tuple]:
+        t_end, y0, param = self.t_end, self.y0, self.param
+        if method in NATIVE:
+            native = self.native
+            if method == "dop853":
+                def run():
+                    _, Y, res = native.integrate("dop853", 0.0, y0, t_end, t_end, param, rtol=tol, atol=tol)
+                    return Y[-1], res.n_evals, res.n_steps, "" if res.ok else res.message
+            else:
+                h = fixed_step(method, tol, t_end)
+
+                def run():
+                    _, Y, res = native.integrate(method, 0.0, y0, t_end, t_end, param, h=h)
+                    return Y[-1], res.n_evals, res.n_steps, "" if res.ok else res.message
+            return run
+        if method in SCIPY:
+            import scipy.integrate
+
+            solver_class = getattr(scipy.integrate, method)
+            rhs = self.rhs
+
+            def run():
+                with warnings.catch_warnings(), np.errstate(all="ignore"):
+                    warnings.simplefilter("ignore")
+                    solver = solver_class(rhs, 0.0, y0.copy(), t_end, rtol=tol, atol=tol)
+                    steps = 0
+                    try:
+                        while solver.status == "running":
+                            message = solver.step()
+                            steps += 1
+                    except Exception as exc:  # a singular mass matrix, a failing step
+                        return np.full(len(y0), np.nan), solver.nfev, steps, str(exc) or type(exc).__name__
+                    status = "" if solver.status == "finished" else (message or "failed")
+                    return solver.y.copy(), solver.nfev, steps, status
+            return run
+        if method == "taylor":
+            taylor = self.extended["taylor"]
+
+            def run():
+                y_end, status, steps, order = taylor.integrate(param, y0, t_end, tol)
+                return y_end, None, steps, "" if status == 0 else f"Taylor status {status}"
+            return run
+        if method in EXTENDED:
+            model = self.extended[EXTENDED[method]]
+            param_list, y0_list = [float(v) for v in param], [float(v) for v in y0]
+
+            def run():
+                r = model.integrate(param_list, y0_list, t_end, tol=tol)
+                status = "" if r.status == 0 else f"extrapolation status {r.status}"
+                return r.state, r.evaluations, r.steps, status
+            return run
+        if method == "heyoka":
+            from .heyoka_backend import HeyokaIntegrator
+
+            t0 = time.perf_counter()
+            integrator = HeyokaIntegrator(self.system, tol)
+            self.heyoka_compile[tol] = time.perf_counter() - t0
+            ta, grid = integrator.ta, np.array([0.0, t_end])
+
+            def run():
+                ta.time, ta.state[:], ta.pars[:] = 0.0, y0, param
+                outcome, _, _, steps, _, Y = ta.propagate_grid(grid)
+                ok = outcome == integrator._ok
+                return np.asarray(Y)[-1], None, int(steps), "" if ok else f"heyoka outcome {outcome.name}"
+            return run
+        raise AccuracyError(f"unknown method '{method}'")
+
+    def energy(self, y: np.ndarray) -> float | None:
+        if self.native is None:
+            return None
+        try:
+            return self.native.kinetic_energy(y, self.param) + self.native.potential_energy(self.t_end, y, self.param)
+        except native_module.NativeError:
+            return None
+
+
+def _conservative(runners: _Runners, ref: Reference) -> tuple[bool, float | None, float]:
+    """Whether energy is conserved along the reference (to 1e-9 relative): (flag, E(0), scale)."""
+    E0 = runners.energy(runners.y0)
+    if E0 is None:
+        return False, None, 1.0
+    energies = [runners.energy(np.array(ref.at(i))) for i in range(len(ref.times))]
+    kinetic = [runners.native.kinetic_energy(np.array(ref.at(i)), runners.param) for i in range(len(ref.times))]
+    scale = max([abs(E0), *map(abs, kinetic), 1e-300])
+    conserved = all(e is not None and abs(e - E0) <= 1e-9 * scale for e in energies)
+    return conserved, E0, scale
+
+
+def sample_times(t_end: float, count: int = 4) -> list[float]:
+    """The reference's times: ``t_end / count, 2 t_end / count, ..., t_end``."""
+    return [t_end * (i + 1) / count for i in range(count)]
+
+
+def measure(system: KnownSystem, values: RunValues, t_end: float, methods: tuple[str, ...],
+            tolerances: tuple[float, ...], *, ref: Reference | None = None, digits: int = 20,
+            quick: bool = False, progress: bool | None = None, budget: float | None = None,
+            max_repeats: int | None = None) -> WorkPrecision:
+    """Every method at every tolerance, against ``ref`` (computed at ``digits`` digits when
+    not given; its last time must be ``t_end``)."""
+    if not (t_end > 0 and math.isfinite(t_end)):
+        raise AccuracyError("--t must be a positive number")
+    param, y0 = np.array(values.parameters, dtype=float), np.array(values.y0, dtype=float)
+    if ref is None:
+        ref = compute_reference(system, values.parameters, values.y0, sample_times(t_end), digits)
+    if abs(ref.times[-1] - t_end) > 1e-12 * t_end:
+        raise AccuracyError(f"the reference ends at t = {ref.times[-1]}, not at {t_end}")
+    want = np.array(ref.at(len(ref.times) - 1))
+    runners = _Runners(system, param, y0, t_end)
+    conservative, E0, scale = _conservative(runners, ref)
+    budget = (0.05 if quick else 0.3) if budget is None else budget
+    max_repeats = (3 if quick else 9) if max_repeats is None else max_repeats
+    skipped = {}
+    plan = []
+    for method in methods:
+        why = runners.available(method)
+        if why:
+            skipped[method] = why
+        else:
+            plan.extend((method, tol) for tol in tolerances)
+    bar = Progress(len(plan), progress)
+    points = []
+    slow: dict[str, float] = {}
+    try:
+        for method, tol in plan:
+            bar.step(f"{method} {tol:.0e}")
+            if method not in EXTENDED and tol < FLOAT64_FLOOR:
+                skipped.setdefault(method, f"tolerances below {FLOAT64_FLOOR:.0e} skipped (float64 cannot meet them)")
+                continue
+            if method in slow:
+                skipped.setdefault(method, f"tolerances {tol:.0e} and tighter skipped: one run took "
+                                           f"{slow[method]:.1f} s (over {SLOW_SECONDS:g} s)")
+                continue
+            run = runners.prepare(method, tol)
+            (y_end, evals, steps, status), seconds, repeats = _timed(run, budget, max_repeats)
+            if method in EXTENDED:  # the error in the type's precision, before rounding to float64
+                with mpmath.workdps(50):
+                    error = float(max(abs(a - b) for a, b in zip(y_end, ref.states[-1])))
+            y_end = np.array([float(v) for v in y_end])
+            if method not in EXTENDED:
+                error = float(np.max(np.abs(y_end - want))) if np.all(np.isfinite(y_end)) else math.nan
+            drift = None
+            if conservative and method not in EXTENDED and np.all(np.isfinite(y_end)):
+                E = runners.energy(y_end)
+                drift = None if E is None else abs(E - E0) / scale
+            setting = f"h {fixed_step(method, tol, t_end):.3g}" if method in FIXED_STEP_ORDER else f"tol {tol:.0e}"
+            compiled = runners.heyoka_compile.get(tol) if method == "heyoka" else \
+                runners.extended_compile.get(EXTENDED.get(method, method))
+            points.append(Point(method, tol, setting, error, drift, seconds, evals, steps, repeats, compiled, status))
+            if seconds > SLOW_SECONDS:
+                slow[method] = seconds
+    finally:
+        bar.close()
+    return WorkPrecision(system.name, t_end, points, ref, runners.compile_seconds, conservative,
+                         {**runners.skipped, **skipped})
+
+
+# ---------------------------------------------------------------------------------------------
+# Output
+# ---------------------------------------------------------------------------------------------
+
+def _number(value, fmt: str) -> str:
+    return "" if value is None or (isinstance(value, float) and math.isnan(value)) else format(value, fmt)
+
+
+def markdown(wp: WorkPrecision, target: float | None = None) -> str:
+    """The table, the reference and the cheapest point meeting ``target``."""
+    ref = wp.reference
+    lines = [f"# Work-precision: {wp.system}, t = 0 .. {wp.t_end:g}", "",
+             f"Reference at t = {', '.join(f'{t:g}' for t in ref.times)}: {ref.routes[0]}; estimated "
+             f"error {ref.error:.1e} ({'; '.join(ref.routes[1:])}).", ""]
+    if wp.compile_seconds is not None:
+        lines += [f"Compiling the C right-hand side and integrators: {wp.compile_seconds:.2f} s (apart from "
+                  "the times below; cached after the first run).", ""]
+    lines += ["| method | setting | error at t_end | energy drift | time [ms] | f evals | steps | note |",
+              "|---|---|---:|---:|---:|---:|---:|---|"]
+    for p in wp.points:
+        note = p.status or (f"compile {p.compile_seconds:.2f} s" if p.compile_seconds is not None else "")
+        lines.append(f"| {p.method} | {p.setting} | {_number(p.error, '.2e')} | {_number(p.energy_drift, '.1e')} | "
+                     f"{1e3 * p.seconds:.3f} | {_number(p.evaluations, 'd')} | {_number(p.steps, 'd')} | {note} |")
+    lines.append("")
+    lines.append("Error: max over the state [q; qdot] at t_end; time: median of repeated integrations; "
+                 + ("energy drift: |E(t_end) - E(0)| / |E| (the model conserves energy)."
+                    if wp.conservative else "energy drift: not reported (the model does not conserve energy)."))
+    for method, why in wp.skipped.items():
+        lines.append(f"- {method}: skipped, {why}")
+    if target is not None:
+        lines.append("")
+        lines.append(target_sentence(wp, target))
+    return "\n".join(lines) + "\n"
+
+
+def target_sentence(wp: WorkPrecision, target: float) -> str:
+    best = wp.cheapest(target)
+    if best is None:
+        closest = wp.best_error()
+        return (f"Target {target:.2g}: no method met it" +
+                (f" (best error {closest:.1e})." if closest is not None else "."))
+    return (f"Target {target:.2g}: cheapest is {best.method} at {best.setting}: error {best.error:.1e} "
+            f"in {1e3 * best.seconds:.3f} ms.")
+
+
+def to_csv(wp: WorkPrecision) -> str:
+    """One row per point; ``#`` comment lines name the model and the reference."""
+    import csv
+    import io
+
+    ref = wp.reference
+    out = io.StringIO()
+    out.write(f"# kronsub accuracy: {wp.system}, t_end {wp.t_end!r}\n")
+    out.write(f"# reference: {ref.routes[0]}; estimated error {ref.error:.3e} ({'; '.join(ref.routes[1:])})\n")
+    writer = csv.writer(out, lineterminator="\n")
+    writer.writerow(["method", "tolerance", "setting", "error", "energy_drift", "seconds", "compile_seconds",
+                     "evaluations", "steps", "repeats", "status"])
+    for p in wp.points:
+        writer.writerow([p.method, repr(p.tolerance), p.setting, repr(p.error),
+                         "" if p.energy_drift is None else repr(p.energy_drift), repr(p.seconds),
+                         "" if p.compile_seconds is None else repr(p.compile_seconds),
+                         "" if p.evaluations is None else p.evaluations, "" if p.steps is None else p.steps,
+                         p.repeats, p.status])
+    return out.getvalue()
+
+
+def plot(wp: WorkPrecision, path, target: float | None = None) -> None:
+    """Error against time, log-log, one line per method (matplotlib); written atomically."""
+    import os
+    import tempfile
+    from pathlib import Path
+
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(8, 5.5))
+    for method in dict.fromkeys(p.method for p in wp.points):
+        pts = [p for p in wp.points if p.method == method and p.ok and p.error > 0]
+        if pts:
+            ax.loglog([1e3 * p.seconds for p in pts], [p.error for p in pts], "o-", label=method)
+    ax.axhline(wp.reference.error, color="grey", linestyle=":", label="reference error")
+    if target is not None:
+        ax.axhline(target, color="red", linestyle="--", label=f"target {target:.2g}")
+    ax.set_xlabel("integration time [ms]")
+    ax.set_ylabel(f"max |error| at t = {wp.t_end:g}")
+    ax.set_title(f"Work-precision: {wp.system}")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize="small")
+    fig.tight_layout()
+    fd, tmp = tempfile.mkstemp(dir=Path(path).resolve().parent, suffix=".png")
+    os.close(fd)
+    try:
+        fig.savefig(tmp, dpi=100, format="png")
+        os.replace(tmp, path)
+    finally:
+        plt.close(fig)
+        if os.path.exists(tmp):
+            os.unlink(tmp)

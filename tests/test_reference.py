@@ -1,0 +1,222 @@
+"""The high-precision reference: its tape against lambdify, its routes against exact solutions
+and against an independent 40-digit solution of the double pendulum (``tests/data``)."""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import mpmath
+import numpy as np
+import pytest
+import sympy
+
+import kronsub
+from conftest import MODELS, ROOT
+from kronsub.core.known_system import KnownSystem, ParameterInfo
+from kronsub.core.symbols import TIME, symbol
+from kronsub.simulation import reference as R
+from kronsub.simulation.values import resolve
+
+DATA = Path(__file__).resolve().parent / "data"
+TEST_MODELS = ROOT / "tests" / "models"
+
+
+def lambdified_rhs(system, param):
+    """``[qdot; Mbar^-1 (fbar - hbar)]`` by sympy.lambdify and numpy: the independent evaluation."""
+    n = len(system.coordinates)
+    args = [list(system.coordinates), list(system.velocities), TIME, [p.symbol for p in system.parameters]]
+    M = sympy.lambdify(args, system.mass_matrix, "numpy")
+    r = sympy.lambdify(args, system.forces - system.velocity_terms, "numpy")
+
+    def f(t, y):
+        q, u = list(y[:n]), list(y[n:])
+        return np.concatenate([y[n:], np.linalg.solve(np.array(M(q, u, t, param), dtype=float),
+                                                      np.ravel(np.array(r(q, u, t, param), dtype=float)))])
+
+    return f
+
+
+def loaded(path, settings=None):
+    model = kronsub.load(path)
+    system = model.derive()
+    return system, resolve(system, dict(model.initial), settings or {})
+
+
+@pytest.mark.parametrize("path", [
+    MODELS / "hoffmann" / "system1.yaml", MODELS / "hoffmann" / "system2.yaml",
+    MODELS / "examples" / "double_pendulum.yaml", MODELS / "examples" / "cart_pole.yaml",
+    MODELS / "examples" / "watt_governor.yaml", MODELS / "examples" / "particle_on_sphere.yaml",
+    TEST_MODELS / "polar_spring.yaml", TEST_MODELS / "body_on_springs.yaml",
+    TEST_MODELS / "spring_chain.yaml", TEST_MODELS / "pendulum.yaml",
+], ids=lambda p: p.stem)
+def test_tape_right_hand_side_matches_lambdify(path):
+    system, values = loaded(path)
+    param = np.array(values.parameters)
+    bits = 200
+    with mpmath.workdps(60):
+        series = R._series_of(system, values.parameters, bits)
+    expected = lambdified_rhs(system, param)
+    rng = np.random.default_rng(3)
+    n = len(system.coordinates)
+    for _ in range(5):
+        y = np.array(values.y0) + np.concatenate([rng.uniform(-0.05, 0.05, n), rng.uniform(-2, 2, n)])
+        t = float(rng.uniform(0, 2))
+        with mpmath.workdps(60):
+            coeff = series.coefficients(R._fixed(mpmath.mpf(t), bits), [R._fixed(mpmath.mpf(v), bits) for v in y], 1)
+            got = np.array([float(R._real(c[1], bits)) for c in coeff])
+        want = expected(t, y)
+        assert np.allclose(got, want, rtol=1e-12, atol=1e-12), (got, want)
+
+
+def _functions_system():
+    """A one-coordinate system whose equation uses every function the tape has a rule for."""
+    q, c = symbol("q"), symbol("c")
+    qd = kronsub.core.symbols.velocity_symbol(q)
+    force = (-sympy.sin(q) + sympy.exp(-q ** 2) * sympy.cos(TIME) - c * sympy.atan(qd) + sympy.log(2 + q ** 2) / 5
+             + sympy.asin(q / 4) * sympy.tan(q / 3) + sympy.tanh(qd) * sympy.sinh(q / 2) - sympy.cosh(q / 5)
+             + sympy.sqrt(3 + q) / (1 + qd ** 2) + sympy.acos(qd / 5) / 7 + sympy.Abs(q - 5) / 10
+             + sympy.sign(q - 4) * qd ** 3 / 20)
+    mass = sympy.Matrix([[1 + sympy.cos(q) ** 2 / 2]])
+    return KnownSystem("functions", (q,), mass, sympy.zeros(1, 1), {"f": sympy.Matrix([force])},
+                       parameters=(ParameterInfo("c", c, sympy.Rational(3, 10)),))
+
+
+def test_taylor_and_extrapolation_agree_on_every_function_rule():
+    system = _functions_system()
+    y0 = [0.4, -0.3]
+    taylor = R.taylor(system, [0.3], y0, [0.5, 1.0], digits=16)
+    gbs = R.extrapolation(system, [0.3], y0, [0.5, 1.0], digits=16)
+    assert R._difference(taylor.states, gbs.states) < 1e-14
+    # and both against scipy at float64 on the lambdified equations
+    from scipy.integrate import solve_ivp
+
+    sol = solve_ivp(lambdified_rhs(system, np.array([0.3])), (0, 1.0), y0, method="DOP853", rtol=1e-13,
+                    atol=1e-13, t_eval=[0.5, 1.0])
+    assert np.allclose(sol.y.T, [[float(v) for v in s] for s in taylor.states], rtol=0, atol=1e-10)
+
+
+def spring_chain_exact(values, times, digits=30):
+    """``y(t) = expm(A t) y0``, A = [[0, I], [-M^-1 K, 0]], K from the four springs by hand."""
+    m1, m2, m3, k1, k2, k3, k4 = [mpmath.mpf(v) for v in values.parameters]
+    with mpmath.workdps(digits + 10):
+        K = mpmath.matrix([[k1 + k2, -k2, 0], [-k2, k2 + k3, -k3], [0, -k3, k3 + k4]])
+        Minv = mpmath.diag([1 / m1, 1 / m2, 1 / m3])
+        A = mpmath.zeros(6, 6)
+        for i in range(3):
+            A[i, 3 + i] = 1
+        B = -Minv * K
+        for i in range(3):
+            for j in range(3):
+                A[3 + i, j] = B[i, j]
+        y0 = mpmath.matrix([mpmath.mpf(v) for v in values.y0])
+        return [[v for v in mpmath.expm(A * mpmath.mpf(t)) * y0] for t in times]
+
+
+def pendulum_exact(values, times, digits=30):
+    """Released from rest at q0: ``q = 2 asin(k sn(K - w t | k^2))``, ``qdot = -2 k w cn(K - w t | k^2)``,
+    ``k = sin(q0 / 2)``, ``w = sqrt(g / l)``."""
+    m, l, g = [mpmath.mpf(v) for v in values.parameters]
+    with mpmath.workdps(digits + 10):
+        k = mpmath.sin(mpmath.mpf(values.y0[0]) / 2)
+        w, K = mpmath.sqrt(g / l), mpmath.ellipk(k ** 2)
+        out = []
+        for t in times:
+            u = K - w * mpmath.mpf(t)
+            out.append([2 * mpmath.asin(k * mpmath.ellipfun("sn", u, m=k ** 2)),
+                        -2 * k * w * mpmath.ellipfun("cn", u, m=k ** 2)])
+        return out
+
+
+@pytest.mark.parametrize("name, exact", [("spring_chain", spring_chain_exact), ("pendulum", pendulum_exact)])
+def test_reference_matches_exact_solution(name, exact):
+    system, values = loaded(TEST_MODELS / f"{name}.yaml")
+    times = [1.0, 3.0]
+    ref = R.reference(system, values.parameters, values.y0, times, digits=16)
+    want = exact(values, times)
+    actual = R._difference(ref.states, want)
+    assert actual < 1e-20
+    assert ref.error < 1e-12  # the estimate: the 16-digit run against the 24-digit one
+
+
+def benchmark_problem():
+    """System I as the benchmark's double pendulum of two rods, from exact inputs, and the
+    40-digit state at t = 10 of ``tests/data/double_pendulum_rods.json``."""
+    data = json.loads((DATA / "double_pendulum_rods.json").read_text())
+    with mpmath.workdps(50):
+        want = [mpmath.mpf(data["state_at_t_end"][k]) for k in ("q1", "q2", "u1", "u2")]
+    system = kronsub.load(MODELS / "hoffmann" / "system1.yaml").derive()
+    half, twelfth = sympy.Rational(1, 2), sympy.Rational(1, 12)
+    exact = {"m1": 1, "m2": 1, "a1": half, "a2": half, "I1": twelfth, "I2": twelfth,
+             "g": sympy.Rational(981, 100), "F": 0}
+    return system, [exact[p.name] for p in system.parameters], [2 * sympy.pi / 3, -sympy.pi / 18, 0, 0], want
+
+
+def test_reference_matches_independent_40_digit_double_pendulum():
+    """The benchmark problem from the exact inputs against ``tests/data/double_pendulum_rods.json``
+    (hand Lagrangian, the data script's own extrapolation in mpmath at 55 digits)."""
+    system, param, y0, want = benchmark_problem()
+    ref = R.reference(system, param, y0, [1.0, 10.0], digits=16)
+    with mpmath.workdps(40):
+        actual = float(max(abs(a - b) for a, b in zip(ref.states[-1], want)))
+    assert actual <= max(ref.error, 1e-22), (actual, ref.error)
+    assert actual < 1e-16
+
+
+# ---------------------------------------------------------------------------------------------
+# extended precision: the generated C in long double and _Float128
+# ---------------------------------------------------------------------------------------------
+
+def test_quad_precision_reaches_1e15_on_the_benchmark_problem():
+    """Section 3 of issue 9: error <= 1e-15 at t = 10 against the 40-digit reference."""
+    from kronsub.simulation.extended import ExtendedError, ExtendedModel
+
+    system, param, y0, want = benchmark_problem()
+    try:
+        model = ExtendedModel(system, "quad")
+    except ExtendedError as exc:
+        pytest.skip(f"no _Float128 here: {exc}")
+    result = model.integrate(param, y0, 10, tol=1e-24, stages=10)
+    assert result.status == 0
+    with mpmath.workdps(50):
+        error = float(max(abs(a - b) for a, b in zip(result.state, want)))
+    assert error <= 1e-15, error
+
+
+@pytest.mark.parametrize("precision, floor", [("long", 1e-16), ("quad", 1e-26)])
+def test_extended_precision_beats_float64_on_the_pendulum(precision, floor):
+    """Against Jacobi's elliptic functions, where float64 cannot go below ~1e-15."""
+    from kronsub.simulation.extended import ExtendedError, ExtendedModel
+
+    system, values = loaded(TEST_MODELS / "pendulum.yaml")
+    try:
+        model = ExtendedModel(system, precision)
+    except ExtendedError as exc:
+        pytest.skip(f"no {precision} here: {exc}")
+    exact = [sympy.Integer(1), sympy.Rational(4, 5), sympy.Rational(981, 100)]
+    with mpmath.workdps(50):
+        want = pendulum_exact(type(values)(tuple(mpmath.mpf(str(v)) for v in exact), (mpmath.mpf("2.5"), 0)),
+                              [2.0], digits=40)[0]
+    result = model.integrate(exact, [sympy.Rational(5, 2), 0], 2)
+    with mpmath.workdps(50):
+        error = float(max(abs(a - b) for a, b in zip(result.state, want)))
+    assert result.status == 0 and error < floor, error
+
+
+@pytest.mark.parametrize("precision", ["long", "quad"])
+def test_retyped_c_builds_with_warnings_as_errors(tmp_path, precision):
+    import subprocess
+
+    from kronsub.simulation.extended import sources
+    from kronsub.simulation.native import compiler_command
+
+    system, _ = loaded(MODELS / "examples" / "watt_governor.yaml")
+    for name, text in sources(system, precision):
+        (tmp_path / name).write_text(text)
+    text = (tmp_path / "model.c").read_text()
+    # every real is ks_real: double only in the typedef of long double
+    assert [line for line in text.splitlines() if "double" in line and "typedef" not in line] == []
+    proc = subprocess.run([*compiler_command(), "-std=c99", "-Wall", "-Wextra", "-Werror", "-O2", "-c",
+                           "model.c", "extended.c"], cwd=tmp_path, capture_output=True, text=True)
+    if proc.returncode and precision == "quad" and "_Float128" in proc.stderr:
+        pytest.skip("no _Float128 in this compiler")
+    assert proc.returncode == 0, proc.stderr
