@@ -566,6 +566,21 @@ static void add_compensated(int dim, double *y, double *comp, const double *inc_
     }
 }
 
+/* The scales of the two halves of the state, [q; p]: s = max_i max(|y_i|, |h K_1i|, |h K_2i|)
+   over each half (the whole state when its dimension is odd). */
+static void gauss_block_scales(int dim, const double *y, const double *K1, const double *K2,
+                               double h, double *scale)
+{
+    int i;
+    scale[0] = scale[1] = 0.0;
+    for (i = 0; i < dim; ++i) {
+        const double s = fmax(fabs(y[i]), h * fmax(fabs(K1[i]), fabs(K2[i])));
+        const int b = (dim % 2 == 0 && 2 * i >= dim) ? 1 : 0;
+        scale[b] = fmax(scale[b], s);
+    }
+    if (dim % 2) scale[1] = scale[0];
+}
+
 /*
  * 2-stage Gauss-Legendre (Hairer, Lubich & Wanner, Geometric Numerical Integration, II.1.3):
  *   c = 1/2 -+ sqrt(3)/6,  A = [[1/4, 1/4 - sqrt(3)/6], [1/4 + sqrt(3)/6, 1/4]],  b = [1/2, 1/2].
@@ -603,7 +618,7 @@ int ks_gauss4(ks_fn f, int dim, const double *param, double t0, const double *y0
     for (k = 0; k < n; ++k) {
         const double t = t0 + (double)k * step;
         const double t_new = k + 1 == n ? t_end : t0 + (double)(k + 1) * step;
-        double d_prev = HUGE_VAL;
+        double d_prev = HUGE_VAL, block_scale[2];
         int it, converged = 0;
         if (k > 0) {
             const double e1 = (1.0 + c1 - c1) / (c2 - c1), e2 = (1.0 + c2 - c1) / (c2 - c1);
@@ -619,9 +634,12 @@ int ks_gauss4(ks_fn f, int dim, const double *param, double t0, const double *y0
             if (eval(&run, t + c1 * step, ytmp, F1)) return res->status;
             for (i = 0; i < dim; ++i) ytmp[i] = y[i] + step * (a21 * K1[i] + a22 * K2[i]);
             if (eval(&run, t + c2 * step, ytmp, F2)) return res->status;
-            /* d = max_i |h (F - K)| / scale_i, scale_i = max(|y_i|, |h K_1i|, |h K_2i|) */
+            /* d = max_i |h (F - K)_i| / s_B(i): relative to the norm of the block B(i) the
+               component belongs to (the coordinates, or the momenta), so a momentum passing
+               through zero is not measured against its own round-off. */
+            gauss_block_scales(dim, y, K1, K2, step, block_scale);
             for (i = 0; i < dim; ++i) {
-                const double scale = fmax(fabs(y[i]), step * fmax(fabs(K1[i]), fabs(K2[i])));
+                const double scale = block_scale[2 * i < dim ? 0 : 1];
                 const double diff = step * fmax(fabs(F1[i] - K1[i]), fabs(F2[i] - K2[i]));
                 if (diff > 0.0) d = fmax(d, scale > 0.0 ? diff / scale : HUGE_VAL);
             }
