@@ -209,6 +209,8 @@ class _CResult(ctypes.Structure):
         ("n_rejected", ctypes.c_long),
         ("n_evals", ctypes.c_long),
         ("n_rows", ctypes.c_long),
+        ("n_stiff", ctypes.c_long),
+        ("t_stiff", ctypes.c_double),
     ]
 
 
@@ -229,6 +231,7 @@ class IntegrationResult:
     n_evals: int
     n_rows: int
     y_fail: np.ndarray | None = None
+    t_stiff: float | None = None  # dop853: when Hairer's test first found the problem stiff
 
     @property
     def ok(self) -> bool:
@@ -497,5 +500,6 @@ class NativeModel:
             t_fail=cres.t_fail if cres.status else math.nan,
             n_steps=cres.n_steps, n_rejected=cres.n_rejected, n_evals=cres.n_evals,
             n_rows=cres.n_rows, y_fail=y_fail,
+            t_stiff=cres.t_stiff if cres.n_stiff > 0 else None,
         )
         return t, Y, result

@@ -46,6 +46,10 @@ METHODS = {
 }
 
 
+class StiffnessWarning(UserWarning):
+    """An explicit method found the problem stiff (Hairer's test): an implicit one would be cheaper."""
+
+
 class SimulationError(KronsubError):
     """A run that could not start."""
 
@@ -131,9 +135,32 @@ def simulate(system: KnownSystem, values: RunValues, t_end: float, dt: float, me
     finally:
         bar.close()
     traj.backend = "C" if native is not None else "numpy"
+    stiff = _stiffness(traj.stats)
+    if stiff:
+        warnings.warn(StiffnessWarning(
+            f"the problem is stiff ({stiff}): {method}'s step size is held by stability, not accuracy "
+            f"({traj.stats['steps']} steps, {traj.stats['rejected']} rejected, mean step "
+            f"{traj.t[-1] / max(traj.stats['steps'], 1):.3g}); an implicit method is far cheaper here: "
+            "use --method Radau"))
     if native is not None and len(traj.t):
         traj.energies = native.energies(traj.t, traj.y, param)
     return traj
+
+
+def _stiffness(stats: dict) -> str:
+    """Why an explicit adaptive run looks stiff, or "": Hairer's test (|h lambda| at the stability
+    limit of a real eigenvalue), or, for the oscillatory kind it misses, a step size bouncing on
+    the stability boundary, seen as a large share of rejected steps over many steps."""
+    if "stiff_from" in stats:
+        return f"from t = {stats['stiff_from']:.6g}, by Hairer's test"
+    steps, rejected = stats.get("steps", 0), stats.get("rejected", 0)
+    if steps + rejected >= STIFF_MIN_STEPS and rejected >= STIFF_REJECTED_SHARE * (steps + rejected):
+        return f"{100 * rejected / (steps + rejected):.0f} % of its steps rejected"
+    return ""
+
+
+STIFF_MIN_STEPS = 5000        # fewer steps are cheap whatever the cause
+STIFF_REJECTED_SHARE = 0.25   # accuracy-limited smooth runs reject a few per cent
 
 
 def _grid(t_end: float, dt: float) -> np.ndarray:
@@ -213,6 +240,8 @@ def _run_native(native, method, grid, y0, param, rtol, atol, dt, chunks, bar, sy
         stats["steps"] += result.n_steps
         stats["rejected"] += result.n_rejected
         stats["evaluations"] += result.n_evals
+        if result.t_stiff is not None and "stiff_from" not in stats:
+            stats["stiff_from"] = result.t_stiff
         keep = t > times[-1] + 1e-12 * max(1.0, abs(times[-1]))
         times.extend(t[keep])
         rows.extend(Y[keep])

@@ -52,7 +52,7 @@ def to_csv(system: KnownSystem, model_path: str, traj: Trajectory, values: RunVa
     table = np.hstack(data) if len(traj.t) else np.zeros((0, len(columns)))
     out = io.StringIO()
     out.write(f"# kronsub simulate: {system.name} ({model_path})\n")
-    cost = ", ".join(f"{v} {k}" for k, v in traj.stats.items())
+    cost = ", ".join(f"{v} {k}" if k != "stiff_from" else f"stiff from t = {v:.6g}" for k, v in traj.stats.items())
     out.write(f"# method {traj.method} ({traj.backend} right-hand side), rtol {rtol:g}, atol {atol:g}"
               + (f"; {cost}" if cost else "") + "\n")
     out.write("# parameters: " + ", ".join(f"{p.name}={v!r}" for p, v in zip(system.parameters, values.parameters))

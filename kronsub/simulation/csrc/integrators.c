@@ -378,6 +378,36 @@ static double output_time(double t0, double dt_out, double t_end, long k, int *i
     return *is_final ? t_end : tk;
 }
 
+/*
+ * Hairer's stiffness test of DOP853 (Solving ODEs II, Sec. IV.2): with the last stage taken at
+ * c = 1, |h| ||f(ynew) - f(y_12)|| / ||ynew - y_12|| estimates |h lambda| of the dominant
+ * eigenvalue; beyond 6.1 (the boundary of the method's stability region) in 15 tests with no 6
+ * quiet ones between, the step size is set by stability rather than accuracy: the problem is
+ * stiff there, and res->t_stiff records when this was first seen.
+ */
+#define DP_NSTIFF 100
+static void dp_stiffness_test(int dim, double h, const double *ynew, const double *y12,
+                              const double *f_new, const double *f12, int *stiff_count,
+                              int *nonstiff_count, double t, ks_result *res)
+{
+    double num = 0.0, den = 0.0;
+    int i;
+    for (i = 0; i < dim; ++i) {
+        num += (f_new[i] - f12[i]) * (f_new[i] - f12[i]);
+        den += (ynew[i] - y12[i]) * (ynew[i] - y12[i]);
+    }
+    if (!(den > 0.0)) return;
+    if (fabs(h) * sqrt(num / den) > 6.1) {
+        *nonstiff_count = 0;
+        if (++*stiff_count >= 15) {
+            if (res->n_stiff == 0) res->t_stiff = t;
+            res->n_stiff++;
+        }
+    } else if (++*nonstiff_count == 6) {
+        *stiff_count = 0;
+    }
+}
+
 int ks_dop853(ks_fn f, int dim, const double *param, double t0, const double *y0, double t_end,
               double dt_out, double rtol, double atol, double h0, long max_steps,
               double *out, long max_rows, double *work, ks_result *res)
@@ -387,6 +417,7 @@ int ks_dop853(ks_fn f, int dim, const double *param, double t0, const double *y0
     double t = t0, h, hmax = t_end - t0;
     long attempts = 0, k_out = 1;
     int status, reject = 0, last = 0, final_written = 0, i, j, s;
+    int stiff_count = 0, nonstiff_count = 0;
 
     status = start(&run, f, dim, param, t0, y0, t_end, out, max_rows, work, res);
     if (status) return status;
@@ -466,6 +497,9 @@ int ks_dop853(ks_fn f, int dim, const double *param, double t0, const double *y0
             const double t_new = last ? t_end : t + h;
             res->n_steps++;
             if (eval(&run, t_new, ynew, K12)) return res->status;
+            if (res->n_steps % DP_NSTIFF == 0 || stiff_count > 0)
+                dp_stiffness_test(dim, h, ynew, ytmp, K12, K + 11L * dim, &stiff_count,
+                                  &nonstiff_count, t_new, res);
 
             if (dt_out > 0.0) {
                 int is_final, dense_ready = 0;
