@@ -135,32 +135,55 @@ def simulate(system: KnownSystem, values: RunValues, t_end: float, dt: float, me
     finally:
         bar.close()
     traj.backend = "C" if native is not None else "numpy"
-    stiff = _stiffness(traj.stats)
-    if stiff:
-        warnings.warn(StiffnessWarning(
-            f"the problem is stiff ({stiff}): {method}'s step size is held by stability, not accuracy "
-            f"({traj.stats['steps']} steps, {traj.stats['rejected']} rejected, mean step "
-            f"{traj.t[-1] / max(traj.stats['steps'], 1):.3g}); an implicit method is far cheaper here: "
-            "use --method Radau"))
+    if native is not None and _stiffness(traj.stats) and len(traj.t):
+        warnings.warn(StiffnessWarning(_stiffness_advice(native, param, traj, method)))
     if native is not None and len(traj.t):
         traj.energies = native.energies(traj.t, traj.y, param)
     return traj
 
 
-def _stiffness(stats: dict) -> str:
-    """Why an explicit adaptive run looks stiff, or "": Hairer's test (|h lambda| at the stability
-    limit of a real eigenvalue), or, for the oscillatory kind it misses, a step size bouncing on
-    the stability boundary, seen as a large share of rejected steps over many steps."""
-    if "stiff_from" in stats:
-        return f"from t = {stats['stiff_from']:.6g}, by Hairer's test"
+def _stiffness(stats: dict) -> bool:
+    """Whether an explicit adaptive run's step size was held by stability: Hairer's test fired, or
+    the step size bounced on the stability boundary (a large share of rejected steps over many)."""
     steps, rejected = stats.get("steps", 0), stats.get("rejected", 0)
-    if steps + rejected >= STIFF_MIN_STEPS and rejected >= STIFF_REJECTED_SHARE * (steps + rejected):
-        return f"{100 * rejected / (steps + rejected):.0f} % of its steps rejected"
-    return ""
+    return "stiff_from" in stats or (steps + rejected >= STIFF_MIN_STEPS
+                                     and rejected >= STIFF_REJECTED_SHARE * (steps + rejected))
+
+
+def _fastest_mode(native, param, t: float, y: np.ndarray) -> complex:
+    """The eigenvalue of largest modulus of the Jacobian of the right-hand side at ``y``
+    (central differences)."""
+    n = len(y)
+    J = np.empty((n, n))
+    for j in range(n):
+        e = np.zeros(n)
+        e[j] = 1e-6 * max(1.0, abs(y[j]))
+        J[:, j] = (native.rhs(t, y + e, param) - native.rhs(t, y - e, param)) / (2 * e[j])
+    lam = np.linalg.eigvals(J)
+    return complex(lam[np.argmax(np.abs(lam))])
+
+
+def _stiffness_advice(native, param, traj, method: str) -> str:
+    """What to do about a stiff run: an implicit method when its fastest mode is damped; when
+    it is an undamped oscillation, every method has to follow it, so say that instead."""
+    steps, rejected = traj.stats["steps"], traj.stats["rejected"]
+    cost = f"{steps} steps, {rejected} rejected, mean step {(traj.t[-1] - traj.t[0]) / max(steps, 1):.3g}"
+    try:
+        lam = _fastest_mode(native, param, float(traj.t[-1]), np.asarray(traj.y[-1], dtype=float))
+    except Exception:  # noqa: BLE001 - the advice is a courtesy; a failed evaluation must not stop the run
+        lam = complex("nan")
+    mode = f"fastest mode lambda = {lam.real:.3g}{lam.imag:+.3g}i"
+    if np.isfinite(lam.real) and -lam.real >= STIFF_DAMPED_SHARE * abs(lam):
+        return (f"the problem is stiff: {method}'s step size is held by stability, not accuracy ({cost}; {mode}); "
+                "an implicit method is far cheaper here: use --method Radau")
+    return (f"a fast oscillation holds {method}'s step size ({cost}; {mode}, period "
+            f"{2 * np.pi / max(abs(lam.imag), 1e-300):.3g}): it is undamped, so every method must follow it; "
+            "an implicit method (--method Radau) pays off only where the fast mode is damped")
 
 
 STIFF_MIN_STEPS = 5000        # fewer steps are cheap whatever the cause
 STIFF_REJECTED_SHARE = 0.25   # accuracy-limited smooth runs reject a few per cent
+STIFF_DAMPED_SHARE = 0.05     # a fast mode that decays by e within 20 radians counts as damped
 
 
 def _grid(t_end: float, dt: float) -> np.ndarray:
