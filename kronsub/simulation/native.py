@@ -331,7 +331,7 @@ class NativeModel:
     def _singular(self, t: float | None, y: np.ndarray) -> SingularMassMatrix:
         when = f" at t = {t:.17g}" if t is not None else ""
         q = ", ".join(f"{v:.17g}" for v in y[: self.nq])
-        return SingularMassMatrix(f"the mass matrix Mbar is not positive definite{when}, q = [{q}]")
+        return SingularMassMatrix(f"the mass matrix Mbar is singular or not positive definite{when}, q = [{q}]")
 
     # -- the model's functions ---------------------------------------------------------------
 

@@ -289,7 +289,7 @@ def _run_scipy(rhs, method, grid, y0, rtol, atol, chunks, bar, system) -> Trajec
                                 rtol=rtol, atol=atol)
         except _Singular as exc:
             return Trajectory(np.array(times), np.array(rows), method, False,
-                              "the mass matrix is not positive definite" + _where(system, exc.y), exc.t, stats)
+                              "the mass matrix is singular or not positive definite" + _where(system, exc.y), exc.t, stats)
         except (ValueError, RuntimeError) as exc:
             return Trajectory(np.array(times), np.array(rows), method, False, str(exc), times[-1], stats)
         stats["evaluations"] += int(sol.nfev)

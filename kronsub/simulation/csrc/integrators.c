@@ -19,7 +19,7 @@ const char *ks_status_message(int status)
     switch (status) {
     case KS_OK: return "reached the end time";
     case KS_RHS_FAILED:
-        return "the right-hand side could not be evaluated (mass matrix not positive definite)";
+        return "the right-hand side could not be evaluated (mass matrix singular or not positive definite)";
     case KS_NOT_FINITE: return "the state or its derivative became NaN or infinite";
     case KS_STEP_UNDERFLOW:
         return "the step size fell below round-off, or the implicit stage iteration failed";
