@@ -22,12 +22,14 @@ from sympy.matrices.dense import MutableDenseMatrix
 from sympy.matrices.immutable import ImmutableDenseMatrix
 
 from ..components.base import Body
+from ..core.constraints import Constraint, ImplicitSubspace
 from ..core.known_system import KnownSystem, ParameterInfo, ProjectedEffect, Transition
 
 FORMAT = "kronsub-known-system/1"
 
 #: the dataclasses a cache file may hold, by name
-CLASSES = {cls.__name__: cls for cls in (KnownSystem, Transition, ParameterInfo, Body, ProjectedEffect)}
+CLASSES = {cls.__name__: cls for cls in (KnownSystem, Transition, ParameterInfo, Body, ProjectedEffect,
+                                          ImplicitSubspace, Constraint)}
 
 #: the functions an expression may apply (those of the parser, kronsub/model/expressions.py)
 FUNCTIONS = {cls.__name__: cls for cls in (
@@ -97,6 +99,8 @@ class _Encoder:
             return v
         if isinstance(v, int):
             return int(v)
+        if isinstance(v, float):
+            return {"r": repr(v)}
         if isinstance(v, sympy.MatrixBase):
             name = _MATRIX_NAMES.get(type(v))
             if name is None:
@@ -225,6 +229,11 @@ class _Decoder:
             _fail("malformed value")
         if "x" in v:
             return self.expr(v["x"])
+        if "r" in v and isinstance(v["r"], str):
+            try:
+                return float(v["r"])
+            except ValueError:
+                _fail("malformed number")
         if "t" in v and isinstance(v["t"], list):
             return tuple(self.value(x) for x in v["t"])
         if "d" in v and isinstance(v["d"], list):

@@ -229,6 +229,8 @@ class _CResult(ctypes.Structure):
         ("n_rejected", ctypes.c_long),
         ("n_evals", ctypes.c_long),
         ("n_rows", ctypes.c_long),
+        ("n_stiff", ctypes.c_long),
+        ("t_stiff", ctypes.c_double),
     ]
 
 
@@ -249,6 +251,7 @@ class IntegrationResult:
     n_evals: int
     n_rows: int
     y_fail: np.ndarray | None = None
+    t_stiff: float | None = None  # dop853: when Hairer's test first found the problem stiff
 
     @property
     def ok(self) -> bool:
@@ -348,7 +351,7 @@ class NativeModel:
     def _singular(self, t: float | None, y: np.ndarray) -> SingularMassMatrix:
         when = f" at t = {t:.17g}" if t is not None else ""
         q = ", ".join(f"{v:.17g}" for v in y[: self.nq])
-        return SingularMassMatrix(f"the mass matrix Mbar is not positive definite{when}, q = [{q}]")
+        return SingularMassMatrix(f"the mass matrix Mbar is singular or not positive definite{when}, q = [{q}]")
 
     # -- the model's functions ---------------------------------------------------------------
 
@@ -517,5 +520,6 @@ class NativeModel:
             t_fail=cres.t_fail if cres.status else math.nan,
             n_steps=cres.n_steps, n_rejected=cres.n_rejected, n_evals=cres.n_evals,
             n_rows=cres.n_rows, y_fail=y_fail,
+            t_stiff=cres.t_stiff if cres.n_stiff > 0 else None,
         )
         return t, Y, result

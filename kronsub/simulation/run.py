@@ -50,6 +50,10 @@ METHODS = {
 }
 
 
+class StiffnessWarning(UserWarning):
+    """An explicit method found the problem stiff (Hairer's test): an implicit one would be cheaper."""
+
+
 class SimulationError(KronsubError):
     """A run that could not start."""
 
@@ -237,8 +241,8 @@ def start(system: KnownSystem, values: RunValues, t_end: float, dt: float, metho
         rhs = (_native_rhs(native, param) if native is not None else
                _numpy_rhs(system, param, outputs, constrained, _newton_tol(rtol, atol)))
         rows = _scipy_blocks(run, rhs, spec.name, grid, y0, rtol, atol, chunks, bar, system)
-    with_energies = native is not None and (outputs is None or outputs.energies)
-    run.blocks = _finish(run, rows, bar, native if with_energies else None, param, system, constrained)
+    with_energies = outputs is None or outputs.energies
+    run.blocks = _finish(run, rows, bar, native, param, system, constrained, with_energies)
     return run
 
 
@@ -248,22 +252,24 @@ def _newton_tol(rtol: float, atol: float) -> float:
     return newton_tolerance(rtol, atol)
 
 
-def _finish(run, rows, bar, native, param, system, constrained):
-    """The blocks, with energies computed in C when ``native`` is given and, with implicit
-    constraints, the dependent coordinates per row (and, after a failure, what failed)."""
+def _finish(run, rows, bar, native, param, system, constrained, with_energies=True):
+    """The blocks, with energies computed in C when there is a compiled model (and they are
+    wanted) and, with implicit constraints, the dependent coordinates per row (and, after a
+    failure, what failed); at the end, a warning when an explicit run was held by stiffness."""
     guess = constrained.guess.copy() if constrained is not None else None
-    last_y = None
+    first_t = last_t = last_y = None
     try:
         for t, y in rows:
             if len(t):
-                energies = native.energies(t, y, param) if native is not None else None
+                energies = native.energies(t, y, param) if native is not None and with_energies else None
                 dependent = None
                 if constrained is not None:
                     from .constrained import dependent_rows
 
                     dependent = dependent_rows(constrained, np.asarray(y), len(system.coordinates), guess)
                     guess = dependent[-1] if len(dependent) else guess
-                last_y = np.asarray(y)[-1]
+                last_y, last_t = np.asarray(y)[-1], float(np.asarray(t)[-1])
+                first_t = float(np.asarray(t)[0]) if first_t is None else first_t
                 yield Block(np.asarray(t), np.asarray(y), energies, dependent)
     finally:
         bar.close()
@@ -272,6 +278,54 @@ def _finish(run, rows, bar, native, param, system, constrained):
 
         y = run.y_fail if run.y_fail is not None and np.all(np.isfinite(run.y_fail)) else last_y
         run.message = diagnose(system, constrained, run.t_fail, y, guess)
+    if native is not None and last_y is not None and _stiffness(run.stats):
+        warnings.warn(StiffnessWarning(_stiffness_advice(native, param, run.stats, last_t - first_t, last_t, last_y,
+                                                         run.method)))
+
+
+def _stiffness(stats: dict) -> bool:
+    """Whether an explicit adaptive run's step size was held by stability: Hairer's test fired, or
+    the step size bounced on the stability boundary (a large share of rejected steps over many)."""
+    steps, rejected = stats.get("steps", 0), stats.get("rejected", 0)
+    return "stiff_from" in stats or (steps + rejected >= STIFF_MIN_STEPS
+                                     and rejected >= STIFF_REJECTED_SHARE * (steps + rejected))
+
+
+def _fastest_mode(native, param, t: float, y: np.ndarray) -> complex:
+    """The eigenvalue of largest modulus of the Jacobian of the right-hand side at ``y``
+    (central differences)."""
+    n = len(y)
+    J = np.empty((n, n))
+    for j in range(n):
+        e = np.zeros(n)
+        e[j] = 1e-6 * max(1.0, abs(y[j]))
+        J[:, j] = (native.rhs(t, y + e, param) - native.rhs(t, y - e, param)) / (2 * e[j])
+    lam = np.linalg.eigvals(J)
+    return complex(lam[np.argmax(np.abs(lam))])
+
+
+def _stiffness_advice(native, param, stats: dict, span: float, t: float, y, method: str) -> str:
+    """What to do about a stiff run: an implicit method when its fastest mode (at the last state
+    ``y`` at time ``t``) is damped; when it is an undamped oscillation, every method has to
+    follow it, so say that instead."""
+    steps, rejected = stats["steps"], stats["rejected"]
+    cost = f"{steps} steps, {rejected} rejected, mean step {span / max(steps, 1):.3g}"
+    try:
+        lam = _fastest_mode(native, param, t, np.asarray(y, dtype=float))
+    except Exception:  # noqa: BLE001 - the advice is a courtesy; a failed evaluation must not stop the run
+        lam = complex("nan")
+    mode = f"fastest mode lambda = {lam.real:.3g}{lam.imag:+.3g}i"
+    if np.isfinite(lam.real) and -lam.real >= STIFF_DAMPED_SHARE * abs(lam):
+        return (f"the problem is stiff: {method}'s step size is held by stability, not accuracy ({cost}; {mode}); "
+                "an implicit method is far cheaper here: use --method Radau")
+    return (f"a fast oscillation holds {method}'s step size ({cost}; {mode}, period "
+            f"{2 * np.pi / max(abs(lam.imag), 1e-300):.3g}): it is undamped, so every method must follow it; "
+            "an implicit method (--method Radau) pays off only where the fast mode is damped")
+
+
+STIFF_MIN_STEPS = 5000        # fewer steps are cheap whatever the cause
+STIFF_REJECTED_SHARE = 0.25   # accuracy-limited smooth runs reject a few per cent
+STIFF_DAMPED_SHARE = 0.05     # a fast mode that decays by e within 20 radians counts as damped
 
 
 class _Grid:
@@ -380,6 +434,8 @@ def _native_blocks(run, native, method, grid, y0, param, rtol, atol, dt, chunks,
         stats["steps"] += result.n_steps
         stats["rejected"] += result.n_rejected
         stats["evaluations"] += result.n_evals
+        if result.t_stiff is not None and "stiff_from" not in stats:
+            stats["stiff_from"] = result.t_stiff
         keep = t > last + 1e-12 * max(1.0, abs(last))
         if np.any(keep):
             last = t[keep][-1]
@@ -406,7 +462,8 @@ def _scipy_blocks(run, rhs, method, grid, y0, rtol, atol, chunks, bar, system):
                 sol = solve_ivp(rhs, (grid[a], grid[b]), y, method=method, t_eval=grid[a:b + 1],
                                 rtol=rtol, atol=atol)
         except _Singular as exc:
-            run.stop("the mass matrix is not positive definite" + _where(system, exc.y), exc.t, y_fail=exc.y)
+            run.stop("the mass matrix is singular or not positive definite" + _where(system, exc.y), exc.t,
+                     y_fail=exc.y)
             return
         except (ValueError, RuntimeError) as exc:
             run.stop(str(exc), last)

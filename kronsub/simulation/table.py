@@ -123,7 +123,7 @@ class CsvWriter:
         self.last_t = float(block.t[-1]) if n else self.last_t
 
     def end(self, stats: dict, complete: bool, t_fail: float | None = None, message: str = "") -> None:
-        cost = ", ".join(f"{v} {k}" for k, v in stats.items())
+        cost = ", ".join(f"{v} {k}" if k != "stiff_from" else f"stiff from t = {v:.6g}" for k, v in stats.items())
         if cost:
             self.out.write(f"# cost: {cost}\n")
         if not complete:

@@ -19,7 +19,7 @@ const char *ks_status_message(int status)
     switch (status) {
     case KS_OK: return "reached the end time";
     case KS_RHS_FAILED:
-        return "the right-hand side could not be evaluated (mass matrix not positive definite)";
+        return "the right-hand side could not be evaluated (mass matrix singular or not positive definite)";
     case KS_NOT_FINITE: return "the state or its derivative became NaN or infinite";
     case KS_STEP_UNDERFLOW:
         return "the step size fell below round-off, or the implicit stage iteration failed";
@@ -378,6 +378,36 @@ static double output_time(double t0, double dt_out, double t_end, long k, int *i
     return *is_final ? t_end : tk;
 }
 
+/*
+ * Hairer's stiffness test of DOP853 (Solving ODEs II, Sec. IV.2): with the last stage taken at
+ * c = 1, |h| ||f(ynew) - f(y_12)|| / ||ynew - y_12|| estimates |h lambda| of the dominant
+ * eigenvalue; beyond 6.1 (the boundary of the method's stability region) in 15 tests with no 6
+ * quiet ones between, the step size is set by stability rather than accuracy: the problem is
+ * stiff there, and res->t_stiff records when this was first seen.
+ */
+#define DP_NSTIFF 100
+static void dp_stiffness_test(int dim, double h, const double *ynew, const double *y12,
+                              const double *f_new, const double *f12, int *stiff_count,
+                              int *nonstiff_count, double t, ks_result *res)
+{
+    double num = 0.0, den = 0.0;
+    int i;
+    for (i = 0; i < dim; ++i) {
+        num += (f_new[i] - f12[i]) * (f_new[i] - f12[i]);
+        den += (ynew[i] - y12[i]) * (ynew[i] - y12[i]);
+    }
+    if (!(den > 0.0)) return;
+    if (fabs(h) * sqrt(num / den) > 6.1) {
+        *nonstiff_count = 0;
+        if (++*stiff_count >= 15) {
+            if (res->n_stiff == 0) res->t_stiff = t;
+            res->n_stiff++;
+        }
+    } else if (++*nonstiff_count == 6) {
+        *stiff_count = 0;
+    }
+}
+
 int ks_dop853(ks_fn f, int dim, const double *param, double t0, const double *y0, double t_end,
               double dt_out, double rtol, double atol, double h0, long max_steps,
               double *out, long max_rows, double *work, ks_result *res)
@@ -387,6 +417,7 @@ int ks_dop853(ks_fn f, int dim, const double *param, double t0, const double *y0
     double t = t0, h, hmax = t_end - t0;
     long attempts = 0, k_out = 1;
     int status, reject = 0, last = 0, final_written = 0, i, j, s;
+    int stiff_count = 0, nonstiff_count = 0;
 
     status = start(&run, f, dim, param, t0, y0, t_end, out, max_rows, work, res);
     if (status) return status;
@@ -466,6 +497,9 @@ int ks_dop853(ks_fn f, int dim, const double *param, double t0, const double *y0
             const double t_new = last ? t_end : t + h;
             res->n_steps++;
             if (eval(&run, t_new, ynew, K12)) return res->status;
+            if (res->n_steps % DP_NSTIFF == 0 || stiff_count > 0)
+                dp_stiffness_test(dim, h, ynew, ytmp, K12, K + 11L * dim, &stiff_count,
+                                  &nonstiff_count, t_new, res);
 
             if (dt_out > 0.0) {
                 int is_final, dense_ready = 0;
@@ -566,6 +600,21 @@ static void add_compensated(int dim, double *y, double *comp, const double *inc_
     }
 }
 
+/* The scales of the two halves of the state, [q; p]: s = max_i max(|y_i|, |h K_1i|, |h K_2i|)
+   over each half (the whole state when its dimension is odd). */
+static void gauss_block_scales(int dim, const double *y, const double *K1, const double *K2,
+                               double h, double *scale)
+{
+    int i;
+    scale[0] = scale[1] = 0.0;
+    for (i = 0; i < dim; ++i) {
+        const double s = fmax(fabs(y[i]), h * fmax(fabs(K1[i]), fabs(K2[i])));
+        const int b = (dim % 2 == 0 && 2 * i >= dim) ? 1 : 0;
+        scale[b] = fmax(scale[b], s);
+    }
+    if (dim % 2) scale[1] = scale[0];
+}
+
 /*
  * 2-stage Gauss-Legendre (Hairer, Lubich & Wanner, Geometric Numerical Integration, II.1.3):
  *   c = 1/2 -+ sqrt(3)/6,  A = [[1/4, 1/4 - sqrt(3)/6], [1/4 + sqrt(3)/6, 1/4]],  b = [1/2, 1/2].
@@ -603,7 +652,7 @@ int ks_gauss4(ks_fn f, int dim, const double *param, double t0, const double *y0
     for (k = 0; k < n; ++k) {
         const double t = t0 + (double)k * step;
         const double t_new = k + 1 == n ? t_end : t0 + (double)(k + 1) * step;
-        double d_prev = HUGE_VAL;
+        double d_prev = HUGE_VAL, block_scale[2];
         int it, converged = 0;
         if (k > 0) {
             const double e1 = (1.0 + c1 - c1) / (c2 - c1), e2 = (1.0 + c2 - c1) / (c2 - c1);
@@ -619,9 +668,12 @@ int ks_gauss4(ks_fn f, int dim, const double *param, double t0, const double *y0
             if (eval(&run, t + c1 * step, ytmp, F1)) return res->status;
             for (i = 0; i < dim; ++i) ytmp[i] = y[i] + step * (a21 * K1[i] + a22 * K2[i]);
             if (eval(&run, t + c2 * step, ytmp, F2)) return res->status;
-            /* d = max_i |h (F - K)| / scale_i, scale_i = max(|y_i|, |h K_1i|, |h K_2i|) */
+            /* d = max_i |h (F - K)_i| / s_B(i): relative to the norm of the block B(i) the
+               component belongs to (the coordinates, or the momenta), so a momentum passing
+               through zero is not measured against its own round-off. */
+            gauss_block_scales(dim, y, K1, K2, step, block_scale);
             for (i = 0; i < dim; ++i) {
-                const double scale = fmax(fabs(y[i]), step * fmax(fabs(K1[i]), fabs(K2[i])));
+                const double scale = block_scale[2 * i < dim ? 0 : 1];
                 const double diff = step * fmax(fabs(F1[i] - K1[i]), fabs(F2[i] - K2[i]));
                 if (diff > 0.0) d = fmax(d, scale > 0.0 ? diff / scale : HUGE_VAL);
             }

@@ -35,6 +35,8 @@ typedef struct {
     long n_rejected;   /* rejected steps (dop853 only) */
     long n_evals;      /* calls to f */
     long n_rows;       /* rows written to out */
+    long n_stiff;      /* dop853: stiffness tests that found |h lambda| at the stability limit */
+    double t_stiff;    /* dop853: when the problem was first found stiff (0 when never) */
 } ks_result;
 
 /* A one-line English description of a status code. */
