@@ -2,7 +2,8 @@
 
 Two caches share one folder (``$KRONSUB_CACHE_DIR``, else ``$XDG_CACHE_HOME/kronsub``, else
 ``~/.cache/kronsub``; ``KRONSUB_CACHE_DIR=off`` turns both off): derived known systems as
-``<sha256>.system.json`` / ``<sha256>.transition.json`` beside it, and compiled models under
+``<sha256>.system.json`` / ``<sha256>.transition.json`` (and, per scene's share,
+``.inertia``, ``.inertia-transition``, ``.effect.<name>``) beside it, and compiled models under
 ``native/<stem>-<key>/``. A folder that another user owns or that group or others may write is
 refused with a warning (someone else could plant entries there): the known-system cache is then
 off and compiled models go to a private temporary folder. A folder kronsub creates is private
@@ -21,9 +22,10 @@ from pathlib import Path
 CACHE_ENV = "KRONSUB_CACHE_DIR"
 
 #: names of kronsub's own entries
-SYSTEM_FILE = re.compile(r"[0-9a-f]{64}\.(system|transition)\.(json|pickle)")
+_PART = r"(system|transition|inertia|inertia-transition|effect\.[A-Za-z_][A-Za-z0-9_.]*)"  # derive.py's parts
+SYSTEM_FILE = re.compile(r"[0-9a-f]{64}\." + _PART + r"\.(json|pickle)")
 NATIVE_DIR = re.compile(r"[A-Za-z0-9_]+-[0-9a-f]{24}")
-TEMPORARY = re.compile(r"\.[0-9a-f]{64}\.(system|transition)\.json\.[a-z0-9_]{8}\.tmp")
+TEMPORARY = re.compile(r"\.[0-9a-f]{64}\." + _PART + r"\.json\.[a-z0-9_]{8}\.tmp")
 
 
 class CacheWarning(UserWarning):
