@@ -311,5 +311,14 @@ def _pick(given, from_scene, default):
     return from_scene if from_scene is not None else default
 
 
+def _register_commands() -> None:
+    """Commands kept in modules of their own (kronsub/commands/)."""
+    from .commands.linearize import linearize
+
+    main.add_command(linearize)
+
+
+_register_commands()
+
 if __name__ == "__main__":
     main()

@@ -55,9 +55,12 @@ class Model:
 
     def derive(self, *, cache: bool = True) -> KnownSystem:
         """The equations of motion by projection onto the subspace (9'), (E), (F)."""
+        import dataclasses
+
         from .derive import derive_model
 
-        return derive_model(self, cache=cache)
+        system = derive_model(self, cache=cache)
+        return dataclasses.replace(system, initial=dict(self.initial)) if self.initial else system
 
     def parameter_values(self) -> dict[sympy.Symbol, sympy.Expr]:
         """Default values of the parameters that have one."""
