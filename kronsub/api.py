@@ -19,7 +19,7 @@ from .core.symbols import TIME
 from .errors import KronsubError, ModelError, Problem
 
 
-class NameError_(KronsubError):
+class UnknownName(KronsubError):
     """A name that is not a coordinate, velocity or parameter of the system."""
 
 
@@ -40,7 +40,7 @@ def symbol(system: KnownSystem, name: str) -> sympy.Symbol:
         near = difflib.get_close_matches(name, sorted(known), n=3)
         hint = ("did you mean " + ", ".join(f"'{n}'" for n in near) + "?") if near else \
             "names: " + ", ".join(sorted(known))
-        raise NameError_(f"{system.name} has no symbol '{name}'; {hint}")
+        raise UnknownName(f"{system.name} has no symbol '{name}'; {hint}")
     return known[name]
 
 
@@ -186,6 +186,10 @@ def simulate(system: KnownSystem, t: float = 10.0, dt: float = 0.01, method: str
 
     values = _run_values(system, set)
     traj = run(system, values, t, dt, method, rtol, atol, progress=False)
+    if not traj.complete:
+        import warnings
+
+        warnings.warn(f"the run stopped at t = {traj.t_fail:.6g}: {traj.message}; the rows so far are kept")
     T, V = energies(system, traj, np.array(values.parameters))
     columns = tuple(s.name for s in system.coordinates) + tuple(s.name for s in system.velocities)
     result = Run(traj.t, traj.y.reshape(len(traj.t), len(columns)), columns, T, V, traj.complete,
