@@ -313,9 +313,11 @@ def _pick(given, from_scene, default):
 
 def _register_commands() -> None:
     """Commands kept in modules of their own (kronsub/commands/)."""
+    from .commands.discovery import check, components, new
     from .commands.linearize import linearize
 
-    main.add_command(linearize)
+    for command in (components, new, check, linearize):
+        main.add_command(command)
 
 
 _register_commands()
