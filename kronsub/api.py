@@ -171,6 +171,8 @@ def _run_values(system: KnownSystem, settings: Mapping[str, object] | None):
         if isinstance(value, bool) or not isinstance(value, (str, int, float, np.integer, np.floating)):
             raise ModelError([Problem(None, f"set {name}: expected a number or an expression as text, "
                                             f"got {value!r}")])
+        if not isinstance(value, str) and not np.isfinite(value):
+            raise ModelError([Problem(None, f"set {name}: {value!r} is not a finite number")])
         text[name] = value if isinstance(value, str) else repr(float(value))
     return resolve(system, dict(system.initial), text)
 

@@ -188,8 +188,9 @@ def test_cli_formats():
     assert data["equilibrium"] is True and len(data["A"]) == 4 and len(data["B"][0]) == 1
     assert sum(e["re"] > 0 for e in data["eigenvalues"]) == 1
     tex = runner.invoke(main, ["linearize", str(CART_POLE), "--symbolic", "--format", "latex"])
-    assert tex.exit_code == 0 and tex.output.startswith("\\documentclass") and "\\end{document}" in tex.output
-    assert "Cart-pole" not in tex.output  # no free text of the model in LaTeX
+    assert tex.exit_code == 0 and tex.stdout.startswith("\\documentclass") and "\\end{document}" in tex.stdout
+    assert "Cart-pole" not in tex.stdout  # no free text of the model in LaTeX
+    assert "values of u and depends on them" in tex.stderr  # u kept a symbol, the equilibrium needs u = 0
 
 
 def test_cli_reports_every_bad_name_at_once():
@@ -215,3 +216,20 @@ def test_json_output_is_byte_identical_under_different_hash_seeds():
         assert proc.returncode == 0, proc.stderr.decode()
         outputs.append(proc.stdout)
     assert outputs[0] == outputs[1]
+
+
+def test_symbolic_equilibrium_that_depends_on_the_parameters_is_flagged(tmp_path):
+    """A hanging spring-mass rests at x* = -m g / k: found with the values, so the
+    symbolic A holds at those values only, and says so; the frequency is sqrt(k/m)."""
+    path = tmp_path / "hanging.yaml"
+    path.write_text("parameters: {m: 2, k: 50, g: 9.81}\ncomponents:\n  p: {type: particle1d, parameters: "
+                    "{mass: m}, coordinates: [x]}\ncoordinates: [x]\neffects:\n  gravity: {type: gravity}\n"
+                    "  spring: {type: spring, between: [p.centre, [0]], stiffness: k}\n")
+    system = kronsub.load(path).derive()
+    lin = system.linearize()
+    assert float(dict(lin.point)[system.symbol("x")]) == pytest.approx(-2 * 9.81 / 50, rel=1e-12)
+    np.testing.assert_allclose(sorted(e.imag for e in lin.eigenvalues), [-5.0, 5.0], rtol=1e-12)
+    assert lin.notes == ()
+    symbolic = system.linearize(symbolic=True)
+    assert symbolic.notes and "values of g, k, m and depends on them" in symbolic.notes[0]
+    assert sympy.simplify(symbolic.A[1, 0] + system.symbol("k") / system.symbol("m")) == 0

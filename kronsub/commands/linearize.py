@@ -40,6 +40,8 @@ def linearize(model: Path, at: tuple[str, ...], inputs: str, symbolic: bool, fmt
             click.echo("Warning: the operating point is not an equilibrium (qddot = "
                        + ", ".join(f"{a:.6g}" for a in lin.acceleration) + "): A describes the motion "
                        "near it, not about a rest state", err=True)
+        for note in lin.notes:
+            click.echo(f"Warning: {note}", err=True)
         text = EMITTERS[fmt](lin, system.name)
         if output is not None:
             write_atomically(output, text)

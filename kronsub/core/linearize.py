@@ -59,6 +59,7 @@ class Linearization:
     equilibrium: bool
     found: tuple[sympy.Symbol, ...]  # coordinates solved for (not given)
     symbolic: bool = False
+    notes: tuple[str, ...] = ()  # caveats to show with the result
 
     @property
     def stable(self) -> bool | None:
@@ -198,9 +199,15 @@ def linearize(system: KnownSystem, *, inputs: Sequence[sympy.Symbol] = (),
             op_state[s] = _exact(numeric_values[s]) if symbolic else sympy.Float(numeric_values[s], 17)
     op_inputs = {u: sympy.sympify(values.get(u, defaults.get(u, u))) for u in inputs}
 
+    notes = []
     if symbolic:
         subs = {**op_state, TIME: t0, **{p: sympy.sympify(v) for p, v in values.items()}, **op_inputs}
         A, B = _symbolic_matrices(M, r, K0, D0, G0, dM, subs, n, len(inputs))
+        left = [sympy.simplify(e.xreplace(subs)) for e in r] if free and equilibrium else []
+        depends = sorted({s.name for e in left if e != 0 for s in e.free_symbols})
+        if depends:
+            notes.append(f"the equilibrium was found with the values of {', '.join(depends)} and depends on "
+                         "them: A and B hold at those values only")
         eig = None
         if not missing:
             An = np.array(A.xreplace({s: sympy.Float(v) for s, v in numbers.items()}).evalf(), dtype=float)
@@ -226,7 +233,7 @@ def linearize(system: KnownSystem, *, inputs: Sequence[sympy.Symbol] = (),
         state=tuple(q + qd), inputs=inputs,
         point=tuple(list(op_state.items()) + list(op_inputs.items())), time=t0,
         parameters=substituted, A=A, B=B, eigenvalues=eig, acceleration=acceleration,
-        equilibrium=equilibrium, found=tuple(free), symbolic=symbolic,
+        equilibrium=equilibrium, found=tuple(free), symbolic=symbolic, notes=tuple(notes),
     )
 
 

@@ -68,7 +68,9 @@ def emit_markdown(lin: Linearization, name: str) -> str:
     lines = [f"# Linearisation of {name}", "",
              "`ydot ~ A (y - y*) + B (u - u*)` with `y = [q; qdot]` and "
              "`ydot = [qdot; Mbar^-1 (fbar - hbar)]`.", ""]
-    lines += ["## Operating point", "", f"The point is {_summary(lin)}.", "",
+    lines += ["## Operating point", "", f"The point is {_summary(lin)}."]
+    lines += [f"Note: {note}." for note in lin.notes]
+    lines += ["",
               "| name | value |", "|---|---|"]
     for s, v in lin.point:
         lines.append(f"| `{s.name}` | `{_entry(v, show)}` |")
@@ -130,6 +132,7 @@ def emit_json(lin: Linearization, name: str) -> str:
         "acceleration": [None if not np.isfinite(a) else float(a) for a in lin.acceleration],
         "parameters": {p.name: cell(v) for p, v in lin.parameters},
         "symbolic": lin.symbolic,
+        "notes": list(lin.notes),
         "A": matrix(lin.A),
         "B": matrix(lin.B),
         "eigenvalues": None if lin.eigenvalues is None else
