@@ -295,7 +295,7 @@ def simulate(model: Path, t_end: float | None, dt: float | None, method: str | N
         if plot is not None:
             from .simulation.plot import plot_trajectory
 
-            plot_trajectory(system, traj, values, plot)
+            plot_trajectory(system, traj, values, plot, with_points)
             click.echo(f"wrote {plot}", err=True)
         if not traj.complete:
             _fail(f"Error: the run stopped at t = {traj.t_fail:.6g}: {traj.message}; "
@@ -313,10 +313,11 @@ def _pick(given, from_scene, default):
 
 def _register_commands() -> None:
     """Commands kept in modules of their own (kronsub/commands/)."""
+    from .commands.animate import animate
     from .commands.discovery import check, components, new
     from .commands.linearize import linearize
 
-    for command in (components, new, check, linearize):
+    for command in (components, new, check, linearize, animate):
         main.add_command(command)
 
 
