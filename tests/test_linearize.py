@@ -18,6 +18,7 @@ import mechanics_reference as mr
 from conftest import MODELS, ROOT
 from helpers import by_name
 from kronsub.cli import main
+from kronsub.errors import KronsubError
 
 CART_POLE = MODELS / "examples" / "cart_pole.yaml"
 DOUBLE_PENDULUM = MODELS / "examples" / "double_pendulum.yaml"
@@ -233,3 +234,20 @@ def test_symbolic_equilibrium_that_depends_on_the_parameters_is_flagged(tmp_path
     symbolic = system.linearize(symbolic=True)
     assert symbolic.notes and "values of g, k, m and depends on them" in symbolic.notes[0]
     assert sympy.simplify(symbolic.A[1, 0] + system.symbol("k") / system.symbol("m")) == 0
+
+
+def test_parameters_without_values(tmp_path):
+    """Numeric linearisation names them; symbolic needs the point, checks it exactly."""
+    path = tmp_path / "compound.yaml"
+    path.write_text(COMPOUND.replace("g: {value: 9.81}", "g:"))
+    system = kronsub.load(path).derive()
+    with pytest.raises(KronsubError, match="no value for parameter g"):
+        system.linearize(at={"theta": 0})
+    with pytest.raises(KronsubError, match="cannot find an equilibrium without values for g"):
+        system.linearize(symbolic=True)
+    lin = system.linearize(at={"theta": "pi"}, symbolic=True)
+    assert lin.equilibrium and lin.eigenvalues is None
+    m, L, I, g = (system.symbol(n) for n in ("m", "L", "I", "g"))
+    assert sympy.simplify(lin.A[1, 0] - m * g * (L / 2) / (I + m * L**2 / 4)) == 0  # upright: unstable sign
+    moving = system.linearize(at={"theta": "pi/2"}, symbolic=True)
+    assert not moving.equilibrium

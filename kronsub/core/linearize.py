@@ -112,9 +112,10 @@ def linearize(system: KnownSystem, *, inputs: Sequence[sympy.Symbol] = (),
     it leaves out are solved for an equilibrium starting from ``initial`` (else 0),
     velocities left out are 0. With no ``point`` at all, failing to find an
     equilibrium is an error; a given point that is not one is linearised about
-    anyway and reported (``equilibrium`` false, ``acceleration`` there). ``values`` overrides the parameters' defaults (an
-    input's value is its operating value ``u*``). ``symbolic`` keeps the parameters
-    not in ``values`` as symbols in ``A`` and ``B``.
+    anyway and reported (``equilibrium`` false, ``acceleration`` there).
+    ``values`` overrides the parameters' defaults (an input's value is its operating
+    value ``u*``). ``symbolic`` keeps the parameters not in ``values`` as symbols in
+    ``A`` and ``B``.
     """
     point = dict(point or {})
     values = dict(values or {})
@@ -168,19 +169,17 @@ def linearize(system: KnownSystem, *, inputs: Sequence[sympy.Symbol] = (),
     numeric_values = {**state_values, TIME: _numeric(t0, numbers), **numbers}
     if missing:  # symbolic without values: the point must be given, it cannot be solved for
         if free:
-            raise LinearizationError(
-                "cannot find an equilibrium without values for " + ", ".join(missing),
-                )
-        acceleration, residual_ok = (float("nan"),) * n, None
+            raise LinearizationError("cannot find an equilibrium without values for " + ", ".join(missing)
+                                     + "; give them, or every coordinate, with --at NAME=VALUE")
+        acceleration = (float("nan"),) * n
     else:
         evaluate = _Evaluator([M, r, K0], symbols)
         if free:
             numeric_values = _solve_equilibrium(evaluate, numeric_values, q, free)
         Mn, rn, _ = evaluate(numeric_values)
         acceleration = tuple(float(a) for a in _solve(Mn, rn.ravel(), numeric_values, q))
-        residual_ok = True
     velocities_zero = all(_numeric(fixed.get(v, 0), numbers) == 0 for v in qd)
-    if residual_ok is None:
+    if missing:  # no numbers to check with: check exactly
         equilibrium = velocities_zero and _exact_equilibrium(r, q, qd, fixed, t0, values)
     else:
         equilibrium = velocities_zero and max((abs(a) for a in acceleration), default=0.0) <= EQUILIBRIUM_TOLERANCE
@@ -193,8 +192,10 @@ def linearize(system: KnownSystem, *, inputs: Sequence[sympy.Symbol] = (),
 
     op_state = {}
     for s in q + qd:
-        if s in fixed:
+        if s in fixed and (symbolic or sympy.sympify(fixed[s]).is_number):
             op_state[s] = sympy.sympify(fixed[s])
+        elif s in fixed:
+            op_state[s] = sympy.Float(state_values[s], 17)
         else:
             op_state[s] = _exact(numeric_values[s]) if symbolic else sympy.Float(numeric_values[s], 17)
     op_inputs = {u: sympy.sympify(values.get(u, defaults.get(u, u))) for u in inputs}
