@@ -159,14 +159,16 @@ def test_check_reports_every_problem_and_exits_1(tmp_path):
 
 def test_check_does_not_derive(monkeypatch):
     import kronsub.model.derive as derive
+    import kronsub.model.loader as loader
 
     def fail(*args, **kwargs):
         raise AssertionError("check derived the model")
 
-    monkeypatch.setattr(derive, "project", fail)
+    monkeypatch.setattr(derive, "derive_model", fail)
+    monkeypatch.setattr(loader, "derive_model", fail)
     result = invoke("check", MODELS / "examples" / "cart_pole.yaml")
     assert result.exit_code == 0, result.output
-    assert "OK (2 generalized coordinates, 2 components, 3 effects)" in result.output
+    assert "OK (2 generalized coordinates, 2 components, 3 effects, 2 scenes)" in result.output
 
 
 def test_check_warns_when_the_coordinates_are_not_independent(tmp_path):

@@ -251,3 +251,13 @@ def test_parameters_without_values(tmp_path):
     assert sympy.simplify(lin.A[1, 0] - m * g * (L / 2) / (I + m * L**2 / 4)) == 0  # upright: unstable sign
     moving = system.linearize(at={"theta": "pi/2"}, symbolic=True)
     assert not moving.equilibrium
+
+
+def test_cli_scene_leaves_the_damper_out():
+    """The cart-pole's scene `undamped`: eigenvalues 0, 0, +-lambda (as with b = 0 above)."""
+    result = CliRunner().invoke(main, ["linearize", str(CART_POLE), "--scene", "undamped", "--format", "json"])
+    assert result.exit_code == 0, result.output
+    data = json.loads(result.stdout)
+    assert "b" not in data["parameters"]
+    real = sorted(e["re"] for e in data["eigenvalues"])
+    assert real[0] == pytest.approx(-real[-1]) and real[-1] > 3 and real[1] == real[2] == 0

@@ -95,10 +95,10 @@ def check(model: Path):
     def job():
         loaded = load_model(model)
         _check_rank(loaded)
-        parts = len(loaded.primitive.parts)
-        click.echo(f"{model}: OK ({len(loaded.coordinates)} generalized coordinate"
-                   f"{'s' if len(loaded.coordinates) != 1 else ''}, {parts} component{'s' if parts != 1 else ''}, "
-                   f"{len(loaded.effects)} effect{'s' if len(loaded.effects) != 1 else ''})")
+        counts = [(len(loaded.coordinates), "generalized coordinate"), (len(loaded.primitive.parts), "component"),
+                  (len(loaded.effects), "effect"), (len(getattr(loaded, "scenes", ())), "scene")]
+        shown = [f"{n} {what}{'s' if n != 1 else ''}" for n, what in counts if n or what != "scene"]
+        click.echo(f"{model}: OK ({', '.join(shown)})")
 
     _run(job)
 

@@ -18,24 +18,29 @@ import click
               show_default=True, help="Output format.")
 @click.option("--output", "-o", type=click.Path(dir_okay=False, path_type=Path),
               help="Write to FILE (atomically) instead of standard output.")
-def linearize(model: Path, at: tuple[str, ...], inputs: str, symbolic: bool, fmt: str, output: Path | None):
+@click.option("--scene", "scene_name", metavar="NAME", default=None,
+              help="Use the model's scene NAME: only its effects, its values and initial values.")
+def linearize(model: Path, at: tuple[str, ...], inputs: str, symbolic: bool, fmt: str, output: Path | None,
+              scene_name: str | None):
     """Linearise MODEL: ydot ~ A (y - y*) + B (u - u*), y = [q; qdot], with the eigenvalues of A.
 
     The operating point is an equilibrium (qdot = 0, qddot = 0), found numerically from the
     model's initial values, or checked when given with --at; a point that is not an
     equilibrium is linearised about anyway and reported as such.
     """
-    from ..cli import _run, _writable, write_atomically
+    from ..api import linearize as linearize_system
+    from ..cli import _run, _writable, scene_system, write_atomically
     from ..emitters.linearization import EMITTERS
-    from ..model.loader import load_model
+    from ..model.scenes import initial_values
     from ..simulation.values import parse_assignments
 
     def job():
         _writable(output, "--output")
         assignments = parse_assignments(at)
         names = [n.strip() for n in inputs.split(",") if n.strip()]
-        system = load_model(model).derive()
-        lin = system.linearize(assignments, names, symbolic=symbolic)
+        loaded, scene, system = scene_system(model, scene_name)
+        lin = linearize_system(system, assignments, names, symbolic=symbolic,
+                               initial=initial_values(loaded, scene))
         if not lin.equilibrium:
             click.echo("Warning: the operating point is not an equilibrium (qddot = "
                        + ", ".join(f"{a:.6g}" for a in lin.acceleration) + "): A describes the motion "
