@@ -22,11 +22,11 @@ def invoke(*args):
 def test_system1_gif_has_the_frames_and_size_asked_for(tmp_path):
     Image = pytest.importorskip("PIL.Image")
     gif = tmp_path / "motion.gif"
-    result = invoke("animate", SYSTEM1, "--output", gif, "--t", 1, "--dt", 0.05, "--fps", 20, "--size", 320)
+    result = invoke("animate", SYSTEM1, "--output", gif, "--t", 1, "--dt", 0.05, "--fps", 20, "--size", 200)
     assert result.exit_code == 0, result.output
     assert "21 frames" in result.output
     with Image.open(gif) as image:
-        assert image.size == (320, 320)
+        assert image.size == (200, 200)
         assert image.n_frames == 21  # rows 0, 0.05, ..., 1: one frame each at 20 per second
     assert sorted(p.name for p in tmp_path.iterdir()) == ["motion.gif"]  # no temporary file left
 
@@ -34,12 +34,12 @@ def test_system1_gif_has_the_frames_and_size_asked_for(tmp_path):
 def test_animate_a_trajectory_csv_in_real_time(tmp_path):
     Image = pytest.importorskip("PIL.Image")
     csv = tmp_path / "run.csv"
-    assert invoke("simulate", CART_POLE, "--t", 1, "--dt", 0.01, "--points", "--output", csv).exit_code == 0
+    assert invoke("simulate", CART_POLE, "--t", 0.5, "--dt", 0.01, "--points", "--output", csv).exit_code == 0
     gif = tmp_path / "run.gif"
-    result = invoke("animate", csv, "--output", gif, "--fps", 25)
+    result = invoke("animate", csv, "--output", gif, "--fps", 25, "--size", 160)
     assert result.exit_code == 0, result.output
     with Image.open(gif) as image:
-        assert image.n_frames == 26  # 101 rows every 0.01 s, every 4th at 25 frames per second
+        assert image.n_frames == 13  # 51 rows every 0.01 s, every 4th at 25 frames per second
 
 
 def test_animate_needs_point_columns(tmp_path):
