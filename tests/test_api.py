@@ -131,3 +131,13 @@ def test_the_core_does_not_import_the_simulation():
     out = subprocess.run([sys.executable, "-c", code, str(DOUBLE_PENDULUM)], capture_output=True, text=True,
                          cwd=ROOT, check=True).stdout
     assert out.strip() == "['kronsub.api']"
+
+
+def test_simulate_a_model_with_implicit_constraints():
+    """System II written with its constraint (25): the run keeps its energy (F = 0)."""
+    system = kronsub.load(MODELS / "hoffmann" / "system2_implicit.yaml").derive()
+    run = system.simulate(t=1.0, dt=0.1, dataframe=False)
+    assert run.columns == ("theta", "theta_dot") and run.complete
+    assert run["theta"][0] == pytest.approx(0.3)
+    energy = run["total_energy"]
+    assert np.ptp(energy) < 1e-7 * max(1.0, abs(energy[0]))

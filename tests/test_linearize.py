@@ -261,3 +261,10 @@ def test_cli_scene_leaves_the_damper_out():
     assert "b" not in data["parameters"]
     real = sorted(e["re"] for e in data["eigenvalues"])
     assert real[0] == pytest.approx(-real[-1]) and real[-1] > 3 and real[1] == real[2] == 0
+
+
+def test_implicit_constraints_are_refused_clearly():
+    result = CliRunner().invoke(main, ["linearize", str(MODELS / "hoffmann" / "system2_implicit.yaml")])
+    assert result.exit_code == 1
+    assert "implicit constraints" in result.output and "connection:" in result.output
+    assert "internal error" not in result.output

@@ -117,6 +117,11 @@ def linearize(system: KnownSystem, *, inputs: Sequence[sympy.Symbol] = (),
     value ``u*``). ``symbolic`` keeps the parameters not in ``values`` as symbols in
     ``A`` and ``B``.
     """
+    if getattr(system, "implicit", None) is not None:
+        raise LinearizationError(
+            f"{system.name} has implicit constraints (its equations hold the dependent coordinates as "
+            "named intermediates): linearising it is not supported yet\n  hint: write the subspace in "
+            "parametric form under `connection:` (eq. 26) to linearise it")
     point = dict(point or {})
     values = dict(values or {})
     initial = dict(initial or {})
