@@ -350,7 +350,7 @@ def simulate(model: Path, t_end: float | None, dt: float | None, method: str | N
             from .simulation.plot import plot_trajectory
 
             traj = kept[0] if with_reactions else collect(run, kept, len(system.coordinates))
-            plot_trajectory(system, traj, values, plot)
+            plot_trajectory(system, traj, values, plot, with_points)
             click.echo(f"wrote {plot}", err=True)
         if not run.complete:
             _fail(f"Error: the run stopped at t = {run.t_fail:.6g}: {run.message}; "
@@ -481,6 +481,18 @@ def _pick(given, from_scene, default):
         return given
     return from_scene if from_scene is not None else default
 
+
+def _register_commands() -> None:
+    """Commands kept in modules of their own (kronsub/commands/)."""
+    from .commands.animate import animate
+    from .commands.discovery import check, components, new
+    from .commands.linearize import linearize
+
+    for command in (components, new, check, linearize, animate):
+        main.add_command(command)
+
+
+_register_commands()
 
 if __name__ == "__main__":
     main()

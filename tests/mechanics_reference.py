@@ -64,6 +64,7 @@ __all__ = [
     "rod_chain_raw",
     "three_particles",
     "to_plain",
+    "linearized",
 ]
 
 T_SYMBOL = dynamicsymbols._t  # == sympy.Symbol("t")
@@ -328,8 +329,8 @@ def system2() -> Reference:
 # --------------------------------------------------------------------------
 
 
-def double_pendulum() -> Reference:
-    m1, m2, l1, l2, g = sympy.symbols("m1 m2 l1 l2 g")
+def _double_pendulum_build(params):
+    m1, m2, l1, l2, g = params
 
     def build(q, u, N, O):
         A = N.orientnew("A", "Axis", (q[0], N.z))
@@ -345,7 +346,11 @@ def double_pendulum() -> Reference:
             g=g,
         )
 
-    return _kane_reference("q1 q2", build)
+    return build
+
+
+def double_pendulum() -> Reference:
+    return _kane_reference("q1 q2", _double_pendulum_build(sympy.symbols("m1 m2 l1 l2 g")))
 
 
 # --------------------------------------------------------------------------
@@ -353,8 +358,8 @@ def double_pendulum() -> Reference:
 # --------------------------------------------------------------------------
 
 
-def cart_pole() -> Reference:
-    mc, mp, l, g, b, u_force = sympy.symbols("mc mp l g b u")
+def _cart_pole_build(params):
+    mc, mp, l, g, b, u_force = params
 
     def build(q, u, N, O):
         x, theta = q
@@ -374,7 +379,11 @@ def cart_pole() -> Reference:
             loads=[(C, (u_force - b * x_dot) * N.x)],
         )
 
-    return _kane_reference("x theta", build)
+    return build
+
+
+def cart_pole() -> Reference:
+    return _kane_reference("x theta", _cart_pole_build(sympy.symbols("mc mp l g b u")))
 
 
 # --------------------------------------------------------------------------
@@ -553,3 +562,55 @@ def three_particles() -> Reference:
         )
 
     return _kane_reference("x1 x2", build)
+
+
+# --------------------------------------------------------------------------
+# 9. Linearisations by sympy.physics.mechanics (KanesMethod.linearize)
+# --------------------------------------------------------------------------
+
+_LINEARIZABLE = {
+    # name: (coordinates, parameter names, build factory); inputs are parameters made dynamicsymbols
+    "double_pendulum": ("q1 q2", "m1 m2 l1 l2 g", _double_pendulum_build),
+    "cart_pole": ("x theta", "mc mp l g b u", _cart_pole_build),
+}
+
+
+def linearized(name: str, op_point: dict, inputs: Sequence[str] = ()) -> tuple[Matrix, Matrix]:
+    """``A``, ``B`` of ``d/dt [q; u] = A [q; u] + B r`` from :meth:`KanesMethod.linearize`
+    (u_i = q_i'), independent of kronsub.
+
+    ``op_point`` maps coordinate names and ``<coordinate>_dot`` names to values (the
+    speeds), and input names to their operating values; missing ones are 0. ``inputs``
+    are parameters (such as ``u`` of the cart-pole) made functions of time, the columns
+    of ``B`` in the order given. Everything else stays a plain symbol.
+    """
+    coordinates, parameter_names, factory = _LINEARIZABLE[name]
+    names = _names(coordinates)
+    params = [dynamicsymbols(p) if p in inputs else Symbol(p) for p in parameter_names.split()]
+    q = [dynamicsymbols(nm) for nm in names]
+    u = [dynamicsymbols(f"{nm}_dot") for nm in names]
+    N = ReferenceFrame("N")
+    O = Point("O")
+    O.set_vel(N, 0)
+    model = factory(params)(q, u, N, O)
+    loads = [(P, -m * model.g * model.up) for m, P in model.gravity] + list(model.loads)
+    kd = [qi.diff(T_SYMBOL) - ui for qi, ui in zip(q, u)]
+    kane = KanesMethod(N, q_ind=q, u_ind=u, kd_eqs=kd)
+    kane.kanes_equations(model.bodies, loads)
+    point = {}
+    for qi, ui, nm in zip(q, u, names):
+        point[qi] = op_point.get(nm, 0)
+        point[ui] = op_point.get(f"{nm}_dot", 0)
+        point[qi.diff(T_SYMBOL)] = op_point.get(f"{nm}_dot", 0)
+    r = [params[parameter_names.split().index(nm)] for nm in inputs]
+    for ri, nm in zip(r, inputs):
+        point[ri] = op_point.get(nm, 0)
+    # away from an equilibrium A holds the accelerations u' too: Kane's own, at the point
+    accelerations = kane.mass_matrix.LUsolve(kane.forcing).subs(point)
+    point.update({ui.diff(T_SYMBOL): a for ui, a in zip(u, accelerations)})
+    A, B, found_r = kane.linearize(A_and_B=True, op_point=point, new_method=True)
+    if r:
+        B = Matrix.hstack(*[B[:, list(found_r).index(ri)] for ri in r])
+    else:
+        B = sympy.zeros(2 * len(q), 0)
+    return to_plain(A, q, u), to_plain(B, q, u)

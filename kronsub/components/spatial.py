@@ -6,6 +6,10 @@ from sympy import cos, sin
 
 from .base import Body, Component, ParameterSpec
 
+# the products of inertia enter the tensor with a plus sign (SymPy's inertia())
+PRODUCT_OF_INERTIA = ("product of inertia, the tensor entry as given in [[Ixx, Ixy, Ixz], [Ixy, Iyy, Iyz], "
+                      "[Ixz, Iyz, Izz]] (SymPy's inertia() convention); for P = integral of {} dm give -P")
+
 
 def euler_zyx(psi, theta, phi) -> sympy.Matrix:
     """World-from-body rotation ``Rz(psi) Ry(theta) Rx(phi)`` (yaw, pitch, roll)."""
@@ -22,6 +26,12 @@ class RigidBody3D(Component):
     ``E = [[-sin th, 0, 1], [cos th sin ph, cos ph, 0], [cos th cos ph, -sin ph, 0]]``,
     so the metric is ``diag(m, m, m) (+) E^T I E``; it is singular at
     ``theta = +-pi/2`` (gimbal lock).
+
+    The inertia tensor about the mass centre in body axes is, as given,
+    ``I = [[Ixx, Ixy, Ixz], [Ixy, Iyy, Iyz], [Ixz, Iyz, Izz]]`` (SymPy's ``inertia()``
+    convention): the products of inertia enter with a plus sign. A textbook product of
+    inertia defined as the integral ``P_xy = int x y dm`` is the entry ``-P_xy``: give
+    ``Ixy: -P_xy``.
     """
 
     type_name = "rigid_body3d"
@@ -32,9 +42,9 @@ class RigidBody3D(Component):
         ParameterSpec("Ixx", "moment of inertia about body x", unit="kg m^2"),
         ParameterSpec("Iyy", "moment of inertia about body y", unit="kg m^2"),
         ParameterSpec("Izz", "moment of inertia about body z", unit="kg m^2"),
-        ParameterSpec("Ixy", "product of inertia", "0", "kg m^2"),
-        ParameterSpec("Iyz", "product of inertia", "0", "kg m^2"),
-        ParameterSpec("Ixz", "product of inertia", "0", "kg m^2"),
+        ParameterSpec("Ixy", PRODUCT_OF_INERTIA.format("x y"), "0", "kg m^2"),
+        ParameterSpec("Iyz", PRODUCT_OF_INERTIA.format("y z"), "0", "kg m^2"),
+        ParameterSpec("Ixz", PRODUCT_OF_INERTIA.format("x z"), "0", "kg m^2"),
     )
     dimension = 3
     rigid = True

@@ -71,6 +71,7 @@ class KnownSystem:
     description: str = ""
     effect_potentials: Mapping[str, sympy.Expr] = field(default_factory=dict)  # V per effect
     implicit: object | None = None  # core.constraints.ImplicitSubspace: the named intermediates (26)-(29)
+    initial: Mapping[sympy.Symbol, sympy.Expr] = field(default_factory=dict)  # the model's initial values
 
     @property
     def velocities(self) -> tuple[sympy.Symbol, ...]:
@@ -98,3 +99,40 @@ class KnownSystem:
         """``Mbar qddot + hbar = fbar``, one equation per coordinate."""
         lhs = self.mass_matrix * sympy.Matrix(self.accelerations) + self.velocity_terms
         return [sympy.Eq(lhs[i], self.forces[i]) for i in range(len(self.coordinates))]
+
+    # -- conveniences for notebooks: thin delegations to kronsub.api, imported when called,
+    #    so this module stays pure data and never imports the simulation ----------------------
+
+    def symbol(self, name: str) -> sympy.Symbol:
+        """The system's symbol called ``name`` (kronsub's symbols are ``real=True``)."""
+        from ..api import symbol
+
+        return symbol(self, name)
+
+    def simulate(self, t: float = 10.0, dt: float = 0.01, method: str = "dop853", set=None, **options):
+        """Simulate from the model's initial values; see :func:`kronsub.api.simulate`."""
+        from ..api import simulate
+
+        return simulate(self, t, dt, method, set, **options)
+
+    def numeric(self, set=None):
+        """Compiled ``rhs``, ``mass_matrix``, energies...; see :func:`kronsub.api.numeric`."""
+        from ..api import numeric
+
+        return numeric(self, set)
+
+    def linearize(self, at=None, inputs=(), *, symbolic: bool = False):
+        """``A``, ``B`` about an operating point; see :func:`kronsub.api.linearize`."""
+        from ..api import linearize
+
+        return linearize(self, at, inputs, symbolic=symbolic)
+
+    def _repr_markdown_(self) -> str:
+        from ..api import repr_markdown
+
+        return repr_markdown(self)
+
+    def _repr_latex_(self) -> str:
+        from ..api import repr_latex
+
+        return repr_latex(self)

@@ -55,13 +55,16 @@ class Model:
 
     def derive(self, *, cache: bool = True) -> KnownSystem:
         """The equations of motion by projection onto the subspace (9'), (E), (F)."""
+        import dataclasses
+
         from ..core.trigpoly import ExpansionTooLarge
         from .derive import derive_model
 
         try:
-            return derive_model(self, cache=cache)
+            system = derive_model(self, cache=cache)
         except ExpansionTooLarge as exc:
             raise exc.at(Location(self.path)) from None
+        return dataclasses.replace(system, initial=dict(self.initial)) if self.initial else system
 
     def parameter_values(self) -> dict[sympy.Symbol, sympy.Expr]:
         """Default values of the parameters that have one."""

@@ -484,11 +484,11 @@ def to_csv(wp: WorkPrecision) -> str:
 
 def plot(wp: WorkPrecision, path, target: float | None = None) -> None:
     """Error against time, log-log, one line per method (matplotlib); written atomically."""
-    import os
-    import tempfile
     from pathlib import Path
 
     import matplotlib
+
+    from ..atomic import atomic_file
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -507,12 +507,8 @@ def plot(wp: WorkPrecision, path, target: float | None = None) -> None:
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize="small")
     fig.tight_layout()
-    fd, tmp = tempfile.mkstemp(dir=Path(path).resolve().parent, suffix=".png")
-    os.close(fd)
     try:
-        fig.savefig(tmp, dpi=100, format="png")
-        os.replace(tmp, path)
+        with atomic_file(Path(path), binary=True) as fh:  # the user's umask, no stray temporary file
+            fig.savefig(fh, dpi=100, format="png")
     finally:
         plt.close(fig)
-        if os.path.exists(tmp):
-            os.unlink(tmp)

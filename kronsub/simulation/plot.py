@@ -1,36 +1,111 @@
-"""``--plot``: coordinates and energy against time, as a PNG (matplotlib, an optional extra)."""
+"""``--plot``: a run as a PNG (matplotlib, an optional extra).
+
+One panel per kind of quantity, so that no axis mixes units: angles, lengths,
+velocities, and the energy change ``E - E(0)``; legends sit outside the axes.
+With ``--points``, a last panel draws the named points' paths in the plane.
+A generalized coordinate is an angle when it enters the system only through the
+arguments of sines and cosines (of the named points, the metric and the potential).
+"""
 from __future__ import annotations
 
 from pathlib import Path
 
 import numpy as np
+import sympy
 
 from ..atomic import atomic_file
 
 
-def plot_trajectory(system, traj, values, path: Path) -> None:
+def angle_coordinates(system) -> set:
+    """The generalized coordinates that appear in arguments of trigonometric functions."""
+    exprs = [c for point in system.points.values() for c in point]
+    exprs += list(system.mass_matrix) + [system.potential_energy]
+    angles = set()
+    for expr in exprs:
+        for atom in sympy.sympify(expr).atoms(sympy.sin, sympy.cos, sympy.tan):
+            angles |= atom.args[0].free_symbols & set(system.coordinates)
+    return angles
+
+
+def plane(position: np.ndarray) -> np.ndarray:
+    """World positions (rows) in the drawing plane: a line on x, the plane as it is,
+    space seen along y (x horizontal, z up)."""
+    if position.shape[1] == 1:
+        return np.column_stack([position[:, 0], np.zeros(len(position))])
+    if position.shape[1] == 2:
+        return position
+    return position[:, [0, 2]]
+
+
+def _panels(system, traj, T, V) -> list[tuple[str, list[tuple[str, np.ndarray]]]]:
+    n = len(system.coordinates)
+    angles = angle_coordinates(system)
+    angle_rows = [(q.name, traj.y[:, i]) for i, q in enumerate(system.coordinates) if q in angles]
+    length_rows = [(q.name, traj.y[:, i]) for i, q in enumerate(system.coordinates) if q not in angles]
+    velocity_rows = [(v.name, traj.y[:, n + i]) for i, v in enumerate(system.velocities)]
+    E = T + V
+    energy_rows = [("E - E(0)", E - E[0] if len(E) else E)]
+    panels = [("angles [rad]", angle_rows), ("lengths", length_rows),
+              ("velocities [per s]", velocity_rows), ("energy change", energy_rows)]
+    return [(label, rows) for label, rows in panels if rows]
+
+
+def plot_trajectory(system, traj, values, path: Path, with_points: bool = False) -> None:
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from .table import energies
+    from .table import energies, point_columns
 
-    T, V = energies(system, traj, np.array(values.parameters))
-    fig, (top, bottom) = plt.subplots(2, 1, sharex=True, figsize=(8, 6))
-    for i, q in enumerate(system.coordinates):
-        top.plot(traj.t, traj.y[:, i], label=q.name)
-    top.set_ylabel("coordinates")
-    top.legend(loc="upper right", fontsize="small")
-    E = T + V
-    bottom.plot(traj.t, E - E[0] if len(E) else E, label="E - E(0)")
-    bottom.set_ylabel("energy change")
-    bottom.set_xlabel("t")
-    bottom.legend(loc="upper right", fontsize="small")
+    param = np.array(values.parameters)
+    T, V = energies(system, traj, param)
+    panels = _panels(system, traj, T, V)
+    paths = point_paths(*point_columns(system, traj, param)) if with_points and len(traj.t) else {}
+    rows = len(panels) + (1 if paths else 0)
+    fig = plt.figure(figsize=(9, 2.3 * len(panels) + (4 if paths else 0)), layout="constrained")
+    heights = [1] * len(panels) + ([2] if paths else [])
+    grid = fig.add_gridspec(rows, 1, height_ratios=heights)
+    axes = []
+    for k, (label, curves) in enumerate(panels):
+        ax = fig.add_subplot(grid[k], sharex=axes[0] if axes else None)
+        axes.append(ax)
+        for name, data in curves:
+            ax.plot(traj.t, data, label=name)
+        ax.set_ylabel(label)
+        ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize="small", borderaxespad=0)
+        if k < len(panels) - 1:
+            ax.tick_params(labelbottom=False)
+    axes[-1].set_xlabel("t")
+    if paths:
+        ax = fig.add_subplot(grid[len(panels)])
+        for label, xy in paths.items():
+            ax.plot(xy[:, 0], xy[:, 1], label=label)
+        ax.set_aspect("equal", adjustable="datalim")
+        ax.set_xlabel("x")
+        ax.set_ylabel("height")
+        ax.set_title("paths of the named points", fontsize="small")
+        ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize="small", borderaxespad=0)
     fig.suptitle(f"{system.name} ({traj.method})")
-    fig.tight_layout()
+    save_figure(fig, path, "png")
+
+
+def point_paths(names: list[str], values: np.ndarray) -> dict[str, np.ndarray]:
+    """``label.x``, ``label.y``... columns as ``{label: rows of (x, height)}``."""
+    groups: dict[str, list[int]] = {}
+    for j, name in enumerate(names):
+        label, _, axis = name.rpartition(".")
+        if axis in ("x", "y", "z") and label:
+            groups.setdefault(label, []).append(j)
+    return {label: plane(values[:, cols]) for label, cols in groups.items()}
+
+
+def save_figure(fig, path: Path, fmt: str) -> None:
+    """Save through a temporary file and a rename (the output is written atomically)."""
+    import matplotlib.pyplot as plt
+
     try:
-        with atomic_file(Path(path), binary=True) as fh:
-            fig.savefig(fh, dpi=100, format="png")
+        with atomic_file(Path(path), binary=True) as fh:  # the user's umask, no stray temporary file
+            fig.savefig(fh, dpi=100, format=fmt, bbox_inches="tight")
     finally:
         plt.close(fig)

@@ -1,0 +1,316 @@
+"""The notebook face of a derived system: names to symbols, simulation, numeric functions.
+
+:class:`~kronsub.core.known_system.KnownSystem` stays a frozen dataclass of pure data;
+its convenience methods (``simulate``, ``numeric``, ``linearize``, ``symbol``) are
+one-line delegations to the functions here, imported only when called, so the core
+never imports the simulation (data flows one way).
+"""
+from __future__ import annotations
+
+import difflib
+from dataclasses import dataclass
+from typing import Callable, Mapping, Sequence
+
+import numpy as np
+import sympy
+
+from .core.known_system import KnownSystem
+from .core.symbols import TIME
+from .errors import KronsubError, ModelError, Problem
+
+
+class UnknownName(KronsubError):
+    """A name that is not a coordinate, velocity or parameter of the system."""
+
+
+def names(system: KnownSystem) -> dict[str, sympy.Symbol]:
+    """Every name of the system: coordinates, velocities, accelerations, parameters, ``t``."""
+    out = {"t": TIME}
+    for group in (system.coordinates, system.velocities, system.accelerations):
+        out.update({s.name: s for s in group})
+    out.update({p.name: p.symbol for p in system.parameters})
+    return out
+
+
+def symbol(system: KnownSystem, name: str) -> sympy.Symbol:
+    """The system's own symbol called ``name`` (they are ``real=True``: a plain
+    ``sympy.Symbol(name)`` is a different symbol)."""
+    known = names(system)
+    if name not in known:
+        near = difflib.get_close_matches(name, sorted(known), n=3)
+        hint = ("did you mean " + ", ".join(f"'{n}'" for n in near) + "?") if near else \
+            "names: " + ", ".join(sorted(known))
+        raise UnknownName(f"{system.name} has no symbol '{name}'; {hint}")
+    return known[name]
+
+
+def _value(system: KnownSystem, name: str, value, *, constant: bool) -> sympy.Expr:
+    """A value given as a number or as text read by the whitelisted parser (never sympify
+    of raw text); ``constant`` forbids names."""
+    from .model.expressions import parse_expression
+
+    if isinstance(value, sympy.Basic):
+        return value
+    if isinstance(value, bool):
+        raise ModelError([Problem(None, f"value of {name}: expected a number, got {value!r}")])
+    if isinstance(value, (int, float, np.integer, np.floating)):
+        return sympy.Float(float(value)) if isinstance(value, (float, np.floating)) else sympy.Integer(int(value))
+    allowed = {} if constant else {p.name: p.symbol for p in system.parameters}
+    return parse_expression(str(value), allowed, None, what=f"value of {name}")
+
+
+def split_assignments(system: KnownSystem, at: Mapping[str, object] | None):
+    """``{name: value}`` into the state/time part and the parameter part, all problems at once."""
+    point, values, problems = {}, {}, []
+    params = {p.name: p.symbol for p in system.parameters}
+    state = {s.name: s for s in tuple(system.coordinates) + tuple(system.velocities)}
+    for name, raw in (at or {}).items():
+        try:
+            if name in state:
+                point[state[name]] = _value(system, name, raw, constant=False)
+            elif name in params:
+                values[params[name]] = _value(system, name, raw, constant=True)
+            elif name == "t":
+                point[TIME] = _value(system, name, raw, constant=False)
+            else:
+                known = sorted({*params, *state, "t"})
+                near = difflib.get_close_matches(name, known, n=3)
+                problems.append(Problem(None, f"'{name}' is not a coordinate, velocity or parameter of "
+                                              f"{system.name}",
+                                        ("did you mean " + ", ".join(near) + "?") if near else
+                                        "names: " + ", ".join(known)))
+        except ModelError as exc:
+            problems.extend(exc.problems)
+    if problems:
+        raise ModelError(problems)
+    return point, values
+
+
+def linearize(system: KnownSystem, at: Mapping[str, object] | None = None, inputs: Sequence[str] = (),
+              *, symbolic: bool = False, initial: Mapping | None = None):
+    """:func:`kronsub.core.linearize.linearize` with names: ``at={"theta": "pi", "b": 0}``
+    fixes coordinates, velocities, ``t`` and parameter values; ``inputs=["u"]`` names the
+    parameters that are inputs. ``initial`` (default: the model's initial values carried
+    by the system) starts the search for an equilibrium."""
+    from .core.linearize import linearize as core_linearize
+
+    problems = []
+    try:
+        point, values = split_assignments(system, at)
+    except ModelError as exc:
+        problems.extend(exc.problems)
+    params = {p.name: p.symbol for p in system.parameters}
+    chosen = []
+    for name in inputs:
+        if name not in params:
+            near = difflib.get_close_matches(name, sorted(params), n=3)
+            problems.append(Problem(None, f"input '{name}' is not a parameter of {system.name}",
+                                    ("did you mean " + ", ".join(near) + "?") if near else
+                                    "inputs are parameters: " + ", ".join(sorted(params))))
+        else:
+            chosen.append(params[name])
+    if problems:
+        raise ModelError(problems)
+    start = dict(system.initial) if initial is None else {symbol(system, k) if isinstance(k, str) else k: v
+                                                           for k, v in initial.items()}
+    return core_linearize(system, inputs=chosen, point=point, values=values, initial=start, symbolic=symbolic)
+
+
+# ------------------------------------------------------------------------------------------
+# Simulation and numeric functions
+# ------------------------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class Run:
+    """A simulated trajectory as arrays: ``t``, ``y = [q; qdot]`` per row, energies."""
+
+    t: np.ndarray
+    y: np.ndarray
+    columns: tuple[str, ...]  # names of the columns of y
+    kinetic_energy: np.ndarray
+    potential_energy: np.ndarray
+    complete: bool
+    message: str
+    parameters: dict[str, float]
+
+    @property
+    def q(self) -> np.ndarray:
+        return self.y[:, : self.y.shape[1] // 2]
+
+    @property
+    def qdot(self) -> np.ndarray:
+        return self.y[:, self.y.shape[1] // 2:]
+
+    def __getitem__(self, name: str) -> np.ndarray:
+        """A column by name: ``run["theta"]``, ``run["t"]``, ``run["total_energy"]``."""
+        if name == "t":
+            return self.t
+        if name in self.columns:
+            return self.y[:, self.columns.index(name)]
+        extra = {"kinetic_energy": self.kinetic_energy, "potential_energy": self.potential_energy,
+                 "total_energy": self.kinetic_energy + self.potential_energy}
+        if name in extra:
+            return extra[name]
+        raise KeyError(f"no column '{name}'; columns: t, {', '.join(self.columns)}, {', '.join(extra)}")
+
+    def to_dataframe(self):
+        """A pandas DataFrame indexed by ``t`` (pandas is optional: ImportError without it)."""
+        import pandas
+
+        data = {name: self.y[:, i] for i, name in enumerate(self.columns)}
+        data.update(kinetic_energy=self.kinetic_energy, potential_energy=self.potential_energy,
+                    total_energy=self.kinetic_energy + self.potential_energy)
+        return pandas.DataFrame(data, index=pandas.Index(self.t, name="t"))
+
+
+def _run_values(system: KnownSystem, settings: Mapping[str, object] | None):
+    from .simulation.values import resolve
+
+    text = {}
+    for name, value in (settings or {}).items():
+        if isinstance(value, bool) or not isinstance(value, (str, int, float, np.integer, np.floating)):
+            raise ModelError([Problem(None, f"set {name}: expected a number or an expression as text, "
+                                            f"got {value!r}")])
+        if not isinstance(value, str) and not np.isfinite(value):
+            raise ModelError([Problem(None, f"set {name}: {value!r} is not a finite number")])
+        text[name] = value if isinstance(value, str) else repr(float(value))
+    return resolve(system, dict(system.initial), text)
+
+
+def simulate(system: KnownSystem, t: float = 10.0, dt: float = 0.01, method: str = "dop853",
+             set: Mapping[str, object] | None = None, rtol: float = 1e-10, atol: float = 1e-10,
+             dataframe: bool | None = None):
+    """Integrate from the model's initial values (``set`` overrides parameters and the
+    initial state by name) to ``t``, rows every ``dt``: the arrays of a :class:`Run`, or
+    its pandas DataFrame when ``dataframe`` is true (default: when pandas is installed)."""
+    from .simulation.run import simulate as run
+    from .simulation.table import energies
+
+    values = _run_values(system, set)
+    traj = run(system, values, t, dt, method, rtol, atol, progress=False)
+    if not traj.complete:
+        import warnings
+
+        warnings.warn(f"the run stopped at t = {traj.t_fail:.6g}: {traj.message}; the rows so far are kept")
+    T, V = energies(system, traj, np.array(values.parameters))
+    columns = tuple(s.name for s in system.coordinates) + tuple(s.name for s in system.velocities)
+    result = Run(traj.t, traj.y.reshape(len(traj.t), len(columns)), columns, T, V, traj.complete,
+                 traj.message, {p.name: v for p, v in zip(system.parameters, values.parameters)})
+    if dataframe is None:
+        try:
+            import pandas  # noqa: F401
+            dataframe = True
+        except ImportError:
+            dataframe = False
+    return result.to_dataframe() if dataframe else result
+
+
+@dataclass(frozen=True)
+class NumericSystem:
+    """Compiled functions of a system at fixed parameter values (the cached C library of
+    :mod:`kronsub.simulation.native`; the generated numpy module without a C compiler).
+
+    ``rhs(t, y)`` is ``[qdot; Mbar^-1 (fbar - hbar)]``; ``mass_matrix(q)``, ``forces(t, y)``,
+    ``velocity_terms(y)``, ``kinetic_energy(y)``, ``potential_energy(t, y)``.
+    """
+
+    rhs: Callable
+    mass_matrix: Callable
+    velocity_terms: Callable
+    forces: Callable
+    kinetic_energy: Callable
+    potential_energy: Callable
+    parameters: dict[str, float]
+    state: tuple[str, ...]
+    backend: str
+
+
+def numeric(system: KnownSystem, set: Mapping[str, object] | None = None) -> NumericSystem:
+    """Compiled numeric functions with the parameters' values (``set`` overrides them)."""
+    import warnings
+
+    from .emitters.code import emit_c
+    from .simulation.native import CompilerNotFound, NativeModel, compile_library
+    from .simulation.run import _numpy_module
+
+    values = _run_values(system, set)
+    param = np.array(values.parameters, dtype=float)
+    n = len(system.coordinates)
+    module = _numpy_module(system)  # mass matrix, forces, velocity terms (numpy)
+    native = None
+    try:
+        generated = [(g.name, g.text) for g in emit_c(system, "model")]
+        native = NativeModel(compile_library(generated, "model"), n, len(system.parameters))
+    except CompilerNotFound:
+        warnings.warn("no C compiler found: using the generated numpy module (slower)")
+
+    def state(y):
+        y = np.asarray(y, dtype=float).ravel()
+        if y.shape != (2 * n,):
+            raise ValueError(f"y must have {2 * n} entries [q; qdot] (got {y.size})")
+        return y
+
+    def coordinates(q):
+        q = np.asarray(q, dtype=float).ravel()
+        if q.shape == (2 * n,):
+            return q
+        if q.shape != (n,):
+            raise ValueError(f"q must have {n} entries (got {q.size})")
+        return np.concatenate([q, np.zeros(n)])
+
+    def mass_matrix(q):
+        return np.asarray(module["mass_matrix"](coordinates(q)[:n], param), dtype=float).reshape(n, n)
+
+    def forces(t, y):
+        y = state(y)
+        return np.asarray(module["forces"](t, y[:n], y[n:], param), dtype=float).ravel()
+
+    def velocity_terms(y):
+        y = state(y)
+        return np.asarray(module["velocity_terms"](y[:n], y[n:], param), dtype=float).ravel()
+
+    if native is not None:
+        def rhs(t, y):
+            return native.rhs(t, state(y), param)
+
+        def kinetic(y):
+            return native.kinetic_energy(state(y), param)
+
+        def potential(t, y):
+            return native.potential_energy(t, state(y), param)
+    else:
+        def rhs(t, y):
+            return np.asarray(module["rhs"](t, state(y), param), dtype=float)
+
+        def kinetic(y):
+            return float(module["kinetic_energy"](state(y), param))
+
+        def potential(t, y):
+            return float(module["potential_energy"](t, state(y), param))
+
+    return NumericSystem(rhs, mass_matrix, velocity_terms, forces, kinetic, potential,
+                         {p.name: v for p, v in zip(system.parameters, values.parameters)},
+                         tuple(s.name for s in system.coordinates) + tuple(s.name for s in system.velocities),
+                         "C" if native is not None else "numpy")
+
+
+# ------------------------------------------------------------------------------------------
+# Display in Jupyter
+# ------------------------------------------------------------------------------------------
+
+def repr_markdown(system: KnownSystem) -> str:
+    """The Markdown of ``kronsub derive`` (Jupyter's ``_repr_markdown_``)."""
+    from .emitters.text import emit_markdown
+
+    return emit_markdown(system)
+
+
+def repr_latex(system: KnownSystem) -> str:
+    """``Mbar qddot + hbar = fbar`` as one display-math block (Jupyter's ``_repr_latex_``).
+
+    Only symbols reach it (never the model's free text)."""
+    from .emitters.report import latex_printer
+
+    show = latex_printer(system.coordinates)
+    rows = " \\\\ ".join(f"{show(eq.lhs)} &= {show(eq.rhs)}" for eq in system.equations())
+    return "$$\\begin{aligned} " + rows + " \\end{aligned}$$"

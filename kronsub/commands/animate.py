@@ -1,0 +1,65 @@
+"""``kronsub animate MODEL|TRAJ.csv --output motion.gif``: the mechanism drawn over time."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import click
+
+
+@click.command()
+@click.argument("source", type=click.Path(dir_okay=False, path_type=Path))
+@click.option("--output", "-o", type=click.Path(dir_okay=False, path_type=Path), required=True,
+              help="The animation: a .gif (pillow) or .mp4 (ffmpeg).")
+@click.option("--t", "t_end", type=float, default=5.0, show_default=True, help="End time (MODEL only).")
+@click.option("--dt", type=float, default=0.02, show_default=True, help="Output interval (MODEL only).")
+@click.option("--method", default="dop853", show_default=True, help="Integration method (MODEL only).")
+@click.option("--set", "settings", multiple=True, metavar="NAME=VALUE",
+              help="Set a parameter or an initial coordinate/velocity (MODEL only; repeatable).")
+@click.option("--fps", type=click.IntRange(1, 120), default=30, show_default=True,
+              help="Frames per second; rows are skipped so that the animation plays in real time.")
+@click.option("--size", type=click.IntRange(64, 4096), default=480, show_default=True,
+              help="Width and height of the frames in pixels.")
+def animate(source: Path, output: Path, t_end: float, dt: float, method: str, settings: tuple[str, ...],
+            fps: int, size: int):
+    """Draw the mechanism of SOURCE over time: a MODEL (simulated first) or a trajectory CSV
+    written with `kronsub simulate --points`. Bodies are segments between their named
+    points, discs are circles; needs matplotlib (pip install 'kronsub[plot]')."""
+    from ..cli import _fail, _run, _writable
+
+    def job():
+        _writable(output, "--output")
+        try:
+            import matplotlib  # noqa: F401
+        except ImportError:
+            _fail("Error: animate needs matplotlib\n  hint: pip install 'kronsub[plot]'")
+        from ..simulation.animate import animate as draw
+        from ..simulation.animate import read_points_csv
+
+        if source.suffix.lower() == ".csv":
+            t, names, values = read_points_csv(source)
+            title = ""
+        else:
+            t, names, values, title = _simulate(source, t_end, dt, method, settings)
+        frames = draw(t, names, values, output, fps=fps, size=size, title=title)
+        click.echo(f"wrote {output} ({frames} frames)", err=True)
+
+    _run(job)
+
+
+def _simulate(model: Path, t_end: float, dt: float, method: str, settings):
+    import numpy as np
+
+    from ..model.loader import load_model
+    from ..simulation.run import simulate
+    from ..simulation.table import point_columns
+    from ..simulation.values import parse_assignments, resolve
+
+    loaded = load_model(model)
+    system = loaded.derive()
+    values = resolve(system, dict(loaded.initial), parse_assignments(settings))
+    traj = simulate(system, values, t_end, dt, method)
+    if not traj.complete:
+        click.echo(f"Warning: the run stopped at t = {traj.t_fail:.6g}: {traj.message}; "
+                   f"animating the {len(traj.t)} rows computed", err=True)
+    names, pts = point_columns(system, traj, np.array(values.parameters))
+    return traj.t, names, pts, system.name

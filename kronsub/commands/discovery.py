@@ -1,0 +1,113 @@
+"""Discovery: ``kronsub components [TYPE]``, ``kronsub new NAME``, ``kronsub check MODEL``."""
+from __future__ import annotations
+
+import json
+import os
+import tempfile
+from pathlib import Path
+
+import click
+
+from .starters import STARTERS
+
+
+@click.command()
+@click.argument("type_name", metavar="[TYPE]", required=False)
+@click.option("--format", "fmt", type=click.Choice(["text", "json"]), default="text", show_default=True,
+              help="Output format.")
+def components(type_name: str | None, fmt: str):
+    """The component library and the effect types; with TYPE, the details of one
+    (coordinates, parameters with defaults and units, named points, conventions; or
+    an effect's keys)."""
+    from ..cli import _run
+    from ..errors import KronsubError, close_matches
+    from . import catalogue
+
+    def job():
+        if type_name is None:
+            text = (json.dumps(catalogue.catalogue(), indent=2) + "\n") if fmt == "json" else catalogue.overview_text()
+        elif type_name not in catalogue.names():
+            raise KronsubError(f"no component or effect type '{type_name}'\n  hint: "
+                               + close_matches(type_name, catalogue.names()))
+        elif fmt == "json":
+            data = catalogue.component(type_name) if type_name in catalogue.REGISTRY else \
+                catalogue.effect(type_name)
+            text = json.dumps(data, indent=2) + "\n"
+        else:
+            text = catalogue.detail_text(type_name)
+        click.echo(text, nl=False)
+
+    _run(job)
+
+
+def _create(path: Path, text: str) -> None:
+    """Write a new file atomically; an existing file is never replaced (FileExistsError)."""
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8", newline="\n") as fh:
+            fh.write(text)
+        os.chmod(tmp, 0o666 & ~_umask())
+        os.link(tmp, path)  # fails when path exists: no overwrite, no race
+    finally:
+        os.unlink(tmp)
+
+
+def _umask() -> int:
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask
+
+
+@click.command()
+@click.argument("name")
+@click.option("--from", "kind", type=click.Choice(sorted(STARTERS)), default="pendulum", show_default=True,
+              help="The starter model.")
+@click.option("--links", type=click.IntRange(1, 50), default=3, show_default=True,
+              help="Number of rods (--from chain).")
+def new(name: str, kind: str, links: int):
+    """Write a starter model NAME.yaml that derives (never overwrites a file)."""
+    from ..cli import _fail, _run
+    from .starters import starter
+
+    def job():
+        path = Path(name if name.endswith((".yaml", ".yml")) else name + ".yaml")
+        if not path.resolve().parent.is_dir():
+            _fail(f"Error: {path}: the directory {path.resolve().parent} does not exist\n"
+                  "  hint: create it first, or choose another NAME")
+        if path.exists():
+            _fail(f"Error: {path} exists; kronsub new never overwrites a file\n  hint: choose another NAME")
+        try:
+            _create(path, starter(kind, path.stem, links))
+        except FileExistsError:
+            _fail(f"Error: {path} exists; kronsub new never overwrites a file\n  hint: choose another NAME")
+        click.echo(f"wrote {path} (from {kind}); next: kronsub check {path} && kronsub derive {path}", err=True)
+
+    _run(job)
+
+
+@click.command()
+@click.argument("model", type=click.Path(dir_okay=False, path_type=Path))
+def check(model: Path):
+    """Validate MODEL without deriving it: every problem at once, exit 1 when there are any."""
+    from ..cli import _run
+    from ..model.loader import load_model
+
+    def job():
+        loaded = load_model(model)
+        _check_rank(loaded)
+        counts = [(len(loaded.coordinates), "generalized coordinate"), (len(loaded.primitive.parts), "component"),
+                  (len(loaded.effects), "effect"), (len(getattr(loaded, "scenes", ())), "scene")]
+        shown = [f"{n} {what}{'s' if n != 1 else ''}" for n, what in counts if n or what != "scene"]
+        click.echo(f"{model}: OK ({', '.join(shown)})")
+
+    _run(job)
+
+
+def _check_rank(model) -> None:
+    """Warn, as deriving would, when ``C = dx/dxbar`` (21) loses rank at sample configurations."""
+    import sympy
+
+    from ..model.derive import check_rank
+
+    x = sympy.Matrix([model.connection.get(c, c) for c in model.primitive.coordinates])
+    check_rank(model, x.jacobian(sympy.Matrix(model.coordinates)))

@@ -1,0 +1,57 @@
+"""``kronsub linearize MODEL``: ``A``, ``B`` and eigenvalues about an operating point."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import click
+
+
+@click.command()
+@click.argument("model", type=click.Path(dir_okay=False, path_type=Path))
+@click.option("--at", "at", multiple=True, metavar="NAME=VALUE",
+              help="Fix a coordinate, velocity, t or parameter value at the operating point (repeatable); "
+                   "coordinates not given are solved for an equilibrium from the model's initial values.")
+@click.option("--inputs", default="", metavar="NAME,...", help="Parameters that are inputs u (columns of B).")
+@click.option("--symbolic", is_flag=True,
+              help="A and B in the parameters' symbols (those not fixed with --at) instead of numbers.")
+@click.option("--format", "fmt", type=click.Choice(["markdown", "json", "latex"]), default="markdown",
+              show_default=True, help="Output format.")
+@click.option("--output", "-o", type=click.Path(dir_okay=False, path_type=Path),
+              help="Write to FILE (atomically) instead of standard output.")
+@click.option("--scene", "scene_name", metavar="NAME", default=None,
+              help="Use the model's scene NAME: only its effects, its values and initial values.")
+def linearize(model: Path, at: tuple[str, ...], inputs: str, symbolic: bool, fmt: str, output: Path | None,
+              scene_name: str | None):
+    """Linearise MODEL: ydot ~ A (y - y*) + B (u - u*), y = [q; qdot], with the eigenvalues of A.
+
+    The operating point is an equilibrium (qdot = 0, qddot = 0), found numerically from the
+    model's initial values, or checked when given with --at; a point that is not an
+    equilibrium is linearised about anyway and reported as such.
+    """
+    from ..api import linearize as linearize_system
+    from ..cli import _run, _writable, scene_system, write_atomically
+    from ..emitters.linearization import EMITTERS
+    from ..model.scenes import initial_values
+    from ..simulation.values import parse_assignments
+
+    def job():
+        _writable(output, "--output")
+        assignments = parse_assignments(at)
+        names = [n.strip() for n in inputs.split(",") if n.strip()]
+        loaded, scene, system = scene_system(model, scene_name)
+        lin = linearize_system(system, assignments, names, symbolic=symbolic,
+                               initial=initial_values(loaded, scene))
+        if not lin.equilibrium:
+            click.echo("Warning: the operating point is not an equilibrium (qddot = "
+                       + ", ".join(f"{a:.6g}" for a in lin.acceleration) + "): A describes the motion "
+                       "near it, not about a rest state", err=True)
+        for note in lin.notes:
+            click.echo(f"Warning: {note}", err=True)
+        text = EMITTERS[fmt](lin, system.name)
+        if output is not None:
+            write_atomically(output, text)
+            click.echo(f"wrote {output}", err=True)
+        else:
+            click.echo(text, nl=False)
+
+    _run(job)

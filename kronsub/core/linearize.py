@@ -1,0 +1,324 @@
+"""Linearisation of the equations of motion about an operating point.
+
+With ``r(q, qdot, t, u) = fbar - hbar`` the equations (10') read ``Mbar qddot = r``;
+as a first-order system in ``y = [q; qdot]``, ``ydot = [qdot; a]`` with
+``a = Mbar^-1 r``. Differentiating ``Mbar a = r`` at the point ``(q*, qdot*, u*)``:
+
+    Mbar da/dq_k = dr/dq_k - (dMbar/dq_k) a*,    Mbar da/dqdot = dr/dqdot,    Mbar da/du = dr/du,
+
+so ``ydot ~ A (y - y*) + B (u - u*)`` with
+
+    A = [[0, I], [Mbar^-1 K, Mbar^-1 D]],   B = [[0], [Mbar^-1 G]],
+    K = dr/dq - [(dMbar/dq_k) a*]_k,   D = dr/dqdot,   G = dr/du.
+
+At an equilibrium (``qdot* = 0``, ``a* = 0``) the ``dMbar/dq`` term vanishes, and so does
+``hbar``'s contribution to ``D`` (``hbar`` is quadratic in the velocities, the bracket
+of (E)): only ``fbar``'s dependence on the velocities (dampers) is left in ``D``.
+
+The operating point is an equilibrium by default: ``r(q, 0, t, u) = 0`` (``Mbar`` is
+positive definite, so ``a = 0`` exactly when ``r = 0``) is solved numerically for the
+coordinates not given, from the model's initial values.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Mapping, Sequence
+
+import numpy as np
+import sympy
+
+from ..errors import KronsubError
+from .known_system import KnownSystem
+from .symbols import TIME
+
+EQUILIBRIUM_TOLERANCE = 1e-8  # largest |qddot| at a point called an equilibrium
+
+
+class LinearizationError(KronsubError):
+    """The operating point cannot be found or the system cannot be linearised there."""
+
+
+@dataclass(frozen=True)
+class Linearization:
+    """``ydot ~ A (y - y*) + B (u - u*)`` about the operating point, ``y = [q; qdot]``.
+
+    ``A`` and ``B`` are numpy arrays, or sympy matrices in the parameters when
+    ``symbolic``; ``eigenvalues`` are those of ``A`` with the parameters' values
+    (None when some parameter has no value).
+    """
+
+    state: tuple[sympy.Symbol, ...]
+    inputs: tuple[sympy.Symbol, ...]
+    point: tuple[tuple[sympy.Symbol, sympy.Expr], ...]  # q*, qdot*, then u*
+    time: sympy.Expr
+    parameters: tuple[tuple[sympy.Symbol, sympy.Expr], ...]  # values substituted
+    A: object
+    B: object
+    eigenvalues: tuple[complex, ...] | None
+    acceleration: tuple[float, ...]  # qddot at the point (zero at an equilibrium)
+    equilibrium: bool
+    found: tuple[sympy.Symbol, ...]  # coordinates solved for (not given)
+    symbolic: bool = False
+    notes: tuple[str, ...] = ()  # caveats to show with the result
+
+    @property
+    def stable(self) -> bool | None:
+        """Every eigenvalue in the open left half plane (None when unknown)."""
+        if self.eigenvalues is None:
+            return None
+        return all(e.real < 0 for e in self.eigenvalues)
+
+
+def _residual(system: KnownSystem) -> sympy.Matrix:
+    """``r = fbar - hbar`` (10')."""
+    return system.forces - system.velocity_terms
+
+
+def _numeric(expr: sympy.Expr, values: Mapping[sympy.Symbol, float]) -> float:
+    value = sympy.sympify(expr).xreplace(values)
+    try:
+        return float(value.evalf(30)) if value.free_symbols == set() else float("nan")
+    except TypeError:  # complex: outside the expression's real domain
+        return float("nan")
+
+
+class _Evaluator:
+    """Numeric matrices of symbolic ones at given values (lambdified once)."""
+
+    def __init__(self, matrices: Sequence[sympy.Matrix], symbols: Sequence[sympy.Symbol]):
+        self.shapes = [m.shape for m in matrices]
+        flat = [e for m in matrices for e in m]
+        self.symbols = list(symbols)
+        self.fn = sympy.lambdify([self.symbols], flat, modules=["numpy"])
+
+    def __call__(self, values: Mapping[sympy.Symbol, float]) -> list[np.ndarray]:
+        with np.errstate(all="ignore"):
+            flat = np.array(self.fn([values[s] for s in self.symbols]), dtype=float).ravel()
+        out, start = [], 0
+        for rows, cols in self.shapes:
+            out.append(flat[start:start + rows * cols].reshape(rows, cols))
+            start += rows * cols
+        return out
+
+
+def linearize(system: KnownSystem, *, inputs: Sequence[sympy.Symbol] = (),
+              point: Mapping[sympy.Symbol, sympy.Expr] | None = None,
+              values: Mapping[sympy.Symbol, sympy.Expr] | None = None,
+              initial: Mapping[sympy.Symbol, sympy.Expr] | None = None,
+              symbolic: bool = False) -> Linearization:
+    """``A``, ``B`` of the first-order system about an operating point.
+
+    ``point`` fixes coordinates, velocities and ``t`` (default 0); the coordinates
+    it leaves out are solved for an equilibrium starting from ``initial`` (else 0),
+    velocities left out are 0. With no ``point`` at all, failing to find an
+    equilibrium is an error; a given point that is not one is linearised about
+    anyway and reported (``equilibrium`` false, ``acceleration`` there).
+    ``values`` overrides the parameters' defaults (an input's value is its operating
+    value ``u*``). ``symbolic`` keeps the parameters not in ``values`` as symbols in
+    ``A`` and ``B``.
+    """
+    if getattr(system, "implicit", None) is not None:
+        raise LinearizationError(
+            f"{system.name} has implicit constraints (its equations hold the dependent coordinates as "
+            "named intermediates): linearising it is not supported yet\n  hint: write the subspace in "
+            "parametric form under `connection:` (eq. 26) to linearise it")
+    point = dict(point or {})
+    values = dict(values or {})
+    initial = dict(initial or {})
+    q = list(system.coordinates)
+    qd = list(system.velocities)
+    n = len(q)
+    inputs = tuple(inputs)
+    known = {p.symbol for p in system.parameters}
+    for u in inputs:
+        if u not in known:
+            raise LinearizationError(f"input '{u}' is not a parameter of {system.name}")
+    t0 = sympy.sympify(point.pop(TIME, 0))
+
+    defaults = {p.symbol: p.value for p in system.parameters if p.value is not None}
+    numbers: dict[sympy.Symbol, float] = {}
+    missing = []
+    for p in system.parameters:
+        given = values.get(p.symbol, defaults.get(p.symbol))
+        number = _numeric(given, {}) if given is not None else float("nan")
+        if not np.isfinite(number):
+            missing.append(p.name)
+        numbers[p.symbol] = number
+    if missing and not symbolic:
+        raise LinearizationError("no value for parameter" + ("s " if len(missing) > 1 else " ")
+                                 + ", ".join(missing) + "; give it with --at NAME=VALUE "
+                                 "(or linearise symbolically)")
+
+    r = _residual(system)
+    M = system.mass_matrix
+    x_q = sympy.Matrix(q)
+    K0 = r.jacobian(x_q)
+    D0 = r.jacobian(sympy.Matrix(qd)) if n else sympy.zeros(n, 0)
+    G0 = r.jacobian(sympy.Matrix(inputs)) if inputs else sympy.zeros(n, 0)
+    dM = [M.diff(qk) for qk in q]
+
+    # the operating point, numerically
+    start = {qk: _numeric(initial.get(qk, 0), numbers) for qk in q}
+    fixed = {}
+    for s, v in point.items():
+        if s not in q and s not in qd:
+            raise LinearizationError(f"'{s}' is not a coordinate or velocity of {system.name}")
+        fixed[s] = v
+    free = [qk for qk in q if qk not in fixed]
+    state_values = {**{v: 0.0 for v in qd}, **start}
+    for s, v in fixed.items():
+        state_values[s] = _numeric(v, numbers)
+        if not np.isfinite(state_values[s]):
+            raise LinearizationError(f"the operating value of '{s}' is not a real number")
+    symbols = q + qd + [TIME] + [p.symbol for p in system.parameters]
+    numeric_values = {**state_values, TIME: _numeric(t0, numbers), **numbers}
+    if missing:  # symbolic without values: the point must be given, it cannot be solved for
+        if free:
+            raise LinearizationError("cannot find an equilibrium without values for " + ", ".join(missing)
+                                     + "; give them, or every coordinate, with --at NAME=VALUE")
+        acceleration = (float("nan"),) * n
+    else:
+        evaluate = _Evaluator([M, r, K0], symbols)
+        if free:
+            numeric_values = _solve_equilibrium(evaluate, numeric_values, q, free)
+        Mn, rn, _ = evaluate(numeric_values)
+        acceleration = tuple(float(a) for a in _solve(Mn, rn.ravel(), numeric_values, q))
+    velocities_zero = all(_numeric(fixed.get(v, 0), numbers) == 0 for v in qd)
+    if missing:  # no numbers to check with: check exactly
+        equilibrium = velocities_zero and _exact_equilibrium(r, q, qd, fixed, t0, values)
+    else:
+        equilibrium = velocities_zero and max((abs(a) for a in acceleration), default=0.0) <= EQUILIBRIUM_TOLERANCE
+    if free and not fixed and not equilibrium:
+        worst = max(abs(a) for a in acceleration)
+        where = ", ".join(f"{s}={numeric_values[s]:.6g}" for s in q)
+        raise LinearizationError(f"no equilibrium found near the initial values (at {where} the largest "
+                                 f"acceleration is {worst:.3g}); give the operating point with --at "
+                                 "NAME=VALUE for every coordinate")
+
+    op_state = {}
+    for s in q + qd:
+        if s in fixed and (symbolic or sympy.sympify(fixed[s]).is_number):
+            op_state[s] = sympy.sympify(fixed[s])
+        elif s in fixed:
+            op_state[s] = sympy.Float(state_values[s], 17)
+        else:
+            op_state[s] = _exact(numeric_values[s]) if symbolic else sympy.Float(numeric_values[s], 17)
+    op_inputs = {u: sympy.sympify(values.get(u, defaults.get(u, u))) for u in inputs}
+
+    notes = []
+    if symbolic:
+        subs = {**op_state, TIME: t0, **{p: sympy.sympify(v) for p, v in values.items()}, **op_inputs}
+        A, B = _symbolic_matrices(M, r, K0, D0, G0, dM, subs, n, len(inputs))
+        left = [sympy.simplify(e.xreplace(subs)) for e in r] if free and equilibrium else []
+        depends = sorted({s.name for e in left if e != 0 for s in e.free_symbols})
+        if depends:
+            notes.append(f"the equilibrium was found with the values of {', '.join(depends)} and depends on "
+                         "them: A and B hold at those values only")
+        eig = None
+        if not missing:
+            An = np.array(A.xreplace({s: sympy.Float(v) for s, v in numbers.items()}).evalf(), dtype=float)
+            eig = _eigenvalues(An)
+        substituted = tuple((p.symbol, sympy.sympify(values[p.symbol])) for p in system.parameters
+                            if p.symbol in values)
+    else:
+        evaluate = _Evaluator([M, r, K0, D0, G0] + dM, symbols)
+        Mn, rn, Kn, Dn, Gn, *dMn = evaluate(numeric_values)
+        a = np.array(acceleration)
+        if n:
+            Kn = Kn - np.column_stack([dMk @ a for dMk in dMn])
+        lower = _solve(Mn, np.hstack([Kn, Dn, Gn]), numeric_values, q)
+        A = np.zeros((2 * n, 2 * n))
+        A[:n, n:] = np.eye(n)
+        A[n:, :] = lower[:, :2 * n]
+        B = np.zeros((2 * n, len(inputs)))
+        B[n:, :] = lower[:, 2 * n:]
+        eig = _eigenvalues(A)
+        substituted = tuple((p.symbol, sympy.sympify(values.get(p.symbol, defaults.get(p.symbol))))
+                            for p in system.parameters)
+    return Linearization(
+        state=tuple(q + qd), inputs=inputs,
+        point=tuple(list(op_state.items()) + list(op_inputs.items())), time=t0,
+        parameters=substituted, A=A, B=B, eigenvalues=eig, acceleration=acceleration,
+        equilibrium=equilibrium, found=tuple(free), symbolic=symbolic, notes=tuple(notes),
+    )
+
+
+def _solve(Mn: np.ndarray, rhs: np.ndarray, values, q) -> np.ndarray:
+    try:
+        np.linalg.cholesky(Mn)
+    except np.linalg.LinAlgError:
+        where = ", ".join(f"{s}={values[s]:.6g}" for s in q)
+        raise LinearizationError(f"the mass matrix is not positive definite at {where}") from None
+    return np.linalg.solve(Mn, rhs)
+
+
+def _solve_equilibrium(evaluate: _Evaluator, values: dict, q, free) -> dict:
+    """Solve ``r(q, 0) = 0`` for the free coordinates (Levenberg-Marquardt, which copes with
+    coordinates the equilibrium does not fix, such as a cart's position)."""
+    from scipy.optimize import least_squares
+
+    columns = [q.index(s) for s in free]
+    values = dict(values)
+
+    def at(x):
+        current = dict(values)
+        current.update(zip(free, (float(v) for v in x)))
+        return current
+
+    def fun(x):
+        _, r, _ = evaluate(at(x))
+        return r.ravel()
+
+    def jac(x):
+        _, _, K = evaluate(at(x))
+        return K[:, columns]
+
+    x0 = np.array([values[s] for s in free], dtype=float)
+    if not np.all(np.isfinite(fun(x0))):
+        raise LinearizationError("the equations cannot be evaluated at the initial values; give the "
+                                 "operating point with --at NAME=VALUE")
+    solution = least_squares(fun, x0, jac=jac, method="lm", xtol=1e-15, ftol=1e-15, gtol=1e-15)
+    return at(solution.x)
+
+
+def _exact(value: float) -> sympy.Expr:
+    """A found coordinate as an exact number when it is a simple multiple of pi or a
+    rational (``3.14159...`` -> ``pi``), else a Float."""
+    guess = sympy.nsimplify(value, [sympy.pi], tolerance=1e-10, rational=False)
+    if abs(float(guess) - value) <= 1e-10 * max(1.0, abs(value)) and sympy.count_ops(guess) <= 6:
+        return guess
+    return sympy.Float(value, 17)
+
+
+def _exact_equilibrium(r, q, qd, fixed, t0, values) -> bool:
+    subs = {**{v: 0 for v in qd}, **{s: sympy.sympify(v) for s, v in fixed.items()}, TIME: t0,
+            **{p: sympy.sympify(v) for p, v in values.items()}}
+    return all(sympy.simplify(e.xreplace(subs)) == 0 for e in r)
+
+
+def _symbolic_matrices(M, r, K0, D0, G0, dM, subs, n, m):
+    Ms = M.xreplace(subs)
+    a = Ms.LUsolve(r.xreplace(subs)).applyfunc(sympy.simplify)
+    K = K0.xreplace(subs)
+    if n and any(e != 0 for e in a):
+        K = K - sympy.Matrix.hstack(*[dMk.xreplace(subs) * a for dMk in dM])
+    rhs = sympy.Matrix.hstack(K, D0.xreplace(subs), G0.xreplace(subs))
+    lower = Ms.LUsolve(rhs).applyfunc(lambda e: sympy.factor(sympy.simplify(e)))
+    A = sympy.zeros(2 * n, 2 * n)
+    A[:n, n:] = sympy.eye(n)
+    A[n:, :] = lower[:, :2 * n]
+    B = sympy.zeros(2 * n, m)
+    if m:
+        B[n:, :] = lower[:, 2 * n:]
+    return A, B
+
+
+def _eigenvalues(A: np.ndarray) -> tuple[complex, ...]:
+    """Eigenvalues of ``A`` in a fixed order (by real part, then imaginary part)."""
+    if A.size == 0:
+        return ()
+    values = np.linalg.eigvals(A)
+    scale = max(1.0, float(np.max(np.abs(values))))
+    cleaned = [complex(v.real if abs(v.real) > 1e-12 * scale else 0.0,
+                       v.imag if abs(v.imag) > 1e-12 * scale else 0.0) for v in values]
+    return tuple(sorted(cleaned, key=lambda c: (round(c.real, 9), round(c.imag, 9))))

@@ -1,0 +1,175 @@
+"""Markdown, JSON and LaTeX of a linearisation: ``ydot ~ A (y - y*) + B (u - u*)``.
+
+Numbers are printed in their shortest round-trip form (``repr``), symbolic entries
+in sympy's ``str`` (Markdown, JSON) or LaTeX form; eigenvalues with 12 significant
+digits. No free text of the model reaches the LaTeX: only symbols and numbers.
+"""
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import sympy
+
+from ..core.linearize import Linearization
+from .report import latex_printer, plain
+
+
+def _number(x: float) -> str:
+    x = float(x)
+    if x == 0:
+        return "0"
+    return str(int(x)) if x.is_integer() and abs(x) < 1e15 else repr(x)
+
+
+def _entry(value, show) -> str:
+    if isinstance(value, (float, np.floating, int)):
+        return _number(value)
+    value = sympy.sympify(value)
+    if value.is_Float:
+        return _number(float(value))
+    return show(value)
+
+
+def _rows(matrix, show) -> list[list[str]]:
+    if isinstance(matrix, np.ndarray):
+        return [[_number(v) for v in row] for row in matrix]
+    return [[_entry(matrix[i, j], show) for j in range(matrix.cols)] for i in range(matrix.rows)]
+
+
+def _eigenvalue(c: complex) -> str:
+    re, im = float(f"{c.real:.12g}"), float(f"{c.imag:.12g}")
+    if im == 0:
+        return _number(re)
+    sign = "+" if im > 0 else "-"
+    return f"{_number(re)} {sign} {_number(abs(im))}i" if re != 0 else f"{_number(im)}i"
+
+
+def _summary(lin: Linearization) -> str:
+    if lin.equilibrium:
+        how = "an equilibrium, found from the initial values" if lin.found else "an equilibrium"
+    else:
+        how = "NOT an equilibrium (the first-order term is kept: ydot* = [qdot*; qddot*] != 0)"
+    return how
+
+
+def _stability(lin: Linearization) -> str:
+    if lin.eigenvalues is None:
+        return "unknown (parameters without values)"
+    if any(e.real > 1e-9 for e in lin.eigenvalues):
+        return "unstable (an eigenvalue with positive real part)"
+    if all(e.real < -1e-9 for e in lin.eigenvalues):
+        return "asymptotically stable"
+    return "marginal (eigenvalues on the imaginary axis): the linearisation does not decide"
+
+
+def emit_markdown(lin: Linearization, name: str) -> str:
+    show = plain
+    lines = [f"# Linearisation of {name}", "",
+             "`ydot ~ A (y - y*) + B (u - u*)` with `y = [q; qdot]` and "
+             "`ydot = [qdot; Mbar^-1 (fbar - hbar)]`.", ""]
+    lines += ["## Operating point", "", f"The point is {_summary(lin)}."]
+    lines += [f"Note: {note}." for note in lin.notes]
+    lines += ["",
+              "| name | value |", "|---|---|"]
+    for s, v in lin.point:
+        lines.append(f"| `{s.name}` | `{_entry(v, show)}` |")
+    if lin.time != 0:
+        lines.append(f"| `t` | `{_entry(lin.time, show)}` |")
+    if not lin.equilibrium and all(np.isfinite(lin.acceleration)):
+        lines += ["", "Accelerations there: " + ", ".join(
+            f"`{s.name}_ddot = {_number(a)}`" for s, a in zip(lin.state, lin.acceleration)) + "."]
+    if lin.parameters:
+        lines += ["", "Parameter values: " + ", ".join(f"`{p.name} = {_entry(v, show)}`" for p, v in lin.parameters)
+                  + "."]
+    lines += ["", "## State and inputs", "",
+              "State `y = [" + ", ".join(s.name for s in lin.state) + "]`; inputs `u = ["
+              + ", ".join(u.name for u in lin.inputs) + "]`.", ""]
+    lines += ["## A", ""] + _md_matrix(_rows(lin.A, show), [s.name for s in lin.state],
+                                       [s.name for s in lin.state])
+    lines += ["", "## B", ""]
+    if lin.inputs:
+        lines += _md_matrix(_rows(lin.B, show), [s.name for s in lin.state], [u.name for u in lin.inputs])
+    else:
+        lines.append("No inputs (give them with `--inputs NAME,...`).")
+    lines += ["", "## Eigenvalues of A", ""]
+    if lin.eigenvalues is None:
+        lines.append("Not computed: some parameters have no value.")
+    else:
+        lines += [f"- `{_eigenvalue(e)}`" for e in lin.eigenvalues]
+        lines += ["", f"Stability: {_stability(lin)}."]
+    return "\n".join(lines) + "\n"
+
+
+def _md_matrix(rows, row_names, col_names) -> list[str]:
+    out = ["| | " + " | ".join(f"`{c}`" for c in col_names) + " |",
+           "|---|" + "---|" * len(col_names)]
+    for name, row in zip(row_names, rows):
+        out.append(f"| d/dt `{name}` | " + " | ".join(f"`{v}`" for v in row) + " |")
+    return out
+
+
+def emit_json(lin: Linearization, name: str) -> str:
+    def cell(v):
+        if lin.symbolic:
+            return _entry(v, plain)
+        try:
+            return float(v)
+        except (TypeError, ValueError):
+            return _entry(v, plain)
+
+    def matrix(m):
+        return [[cell(v) for v in row] for row in (m.tolist() if not isinstance(m, np.ndarray) else m)]
+
+    data = {
+        "name": name,
+        "state": [s.name for s in lin.state],
+        "inputs": [u.name for u in lin.inputs],
+        "operating_point": {s.name: cell(v) for s, v in lin.point},
+        "time": cell(lin.time),
+        "equilibrium": lin.equilibrium,
+        "found": [s.name for s in lin.found],
+        "acceleration": [None if not np.isfinite(a) else float(a) for a in lin.acceleration],
+        "parameters": {p.name: cell(v) for p, v in lin.parameters},
+        "symbolic": lin.symbolic,
+        "notes": list(lin.notes),
+        "A": matrix(lin.A),
+        "B": matrix(lin.B),
+        "eigenvalues": None if lin.eigenvalues is None else
+        [{"re": float(f"{e.real:.12g}"), "im": float(f"{e.imag:.12g}")} for e in lin.eigenvalues],
+        "form": "d/dt [q; qdot] = A ([q; qdot] - point) + B (inputs - point)",
+    }
+    return json.dumps(data, indent=2, ensure_ascii=False) + "\n"
+
+
+def emit_latex(lin: Linearization, name: str) -> str:
+    """A standalone document; ``name`` is not printed (free text never reaches LaTeX)."""
+    coords = [s for s in lin.state[: len(lin.state) // 2]]
+    show = latex_printer(coords)
+
+    def bmatrix(rows) -> str:
+        if not rows or not rows[0]:
+            return r"\varnothing"
+        return "\\begin{bmatrix}\n" + " \\\\\n".join(" & ".join(r) for r in rows) + "\n\\end{bmatrix}"
+
+    def cell(v) -> str:
+        return _entry(v, show)
+
+    state = bmatrix([[show(s)] for s in lin.state])
+    lines = [r"\documentclass{article}", r"\usepackage{amsmath}", r"\begin{document}",
+             r"\section*{Linearisation}",
+             r"$\dot{y} \approx A\,(y - y^*) + B\,(u - u^*)$ with $y = " + state + "$"
+             + (r", $u = " + bmatrix([[show(u)] for u in lin.inputs]) + "$" if lin.inputs else "") + ".",
+             "", r"Operating point" + (" (an equilibrium)" if lin.equilibrium else " (not an equilibrium)") + ":",
+             r"\[ " + ",\\quad ".join(f"{show(s)} = {cell(v)}" for s, v in lin.point) + r" \]",
+             r"\[ A = " + bmatrix(_rows(lin.A, show)) + r" \]"]
+    if lin.inputs:
+        lines.append(r"\[ B = " + bmatrix(_rows(lin.B, show)) + r" \]")
+    if lin.eigenvalues is not None:
+        lines.append(r"Eigenvalues of $A$: $" + ",\\ ".join(_eigenvalue(e).replace("i", r"\,i")
+                                                             for e in lin.eigenvalues) + "$.")
+    lines += [r"\end{document}", ""]
+    return "\n".join(lines)
+
+
+EMITTERS = {"markdown": emit_markdown, "json": emit_json, "latex": emit_latex}

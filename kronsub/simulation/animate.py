@@ -1,0 +1,151 @@
+"""``kronsub animate``: the mechanism drawn over time (matplotlib's animation; an optional extra).
+
+The drawing needs only the named points' world positions per row (the ``--points``
+columns ``label.x``, ``label.y``...). Points are grouped by their component (the label
+up to its last dot); a component with one point is a dot, with several a set of
+segments from its first point (a rod from its centre or pivot to its ends; a lone
+point, such as a particle, is a larger square), and a
+component with a ``rim`` is a disc about its ``centre``. Positions in space are seen
+along y (x horizontal, z up). GIF is written with pillow, mp4 with ffmpeg where present.
+"""
+from __future__ import annotations
+
+import csv
+import os
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+from ..atomic import _final_mode
+from ..errors import KronsubError
+from .plot import point_paths
+
+FORMATS = (".gif", ".mp4")
+
+
+class AnimationError(KronsubError):
+    """The animation cannot be written (format, writer or input)."""
+
+
+def read_points_csv(path: Path) -> tuple[np.ndarray, list[str], np.ndarray]:
+    """``t``, the point column names and their values from a trajectory CSV (lines
+    starting with ``#`` are skipped, so files with and without comment lines are read)."""
+    with open(path, newline="", encoding="utf-8") as fh:
+        rows = [row for row in csv.reader(line for line in fh if not line.startswith("#") and line.strip())]
+    if not rows or "t" not in rows[0]:
+        raise AnimationError(f"{path}: not a kronsub trajectory (no header row with a column 't')")
+    header, body = rows[0], rows[1:]
+    try:
+        data = np.array([[float(v) for v in row] for row in body], dtype=float).reshape(len(body), len(header))
+    except ValueError as exc:
+        raise AnimationError(f"{path}: a row is not all numbers ({exc})") from None
+    columns = [j for j, name in enumerate(header) if name.rpartition(".")[2] in ("x", "y", "z")
+               and "." in name]
+    if not columns:
+        raise AnimationError(f"{path} has no columns of named points\n  hint: write it with "
+                             "`kronsub simulate MODEL --points --output FILE.csv`, or animate the model itself")
+    return data[:, header.index("t")], [header[j] for j in columns], data[:, columns]
+
+
+def _groups(labels) -> dict[str, list[str]]:
+    groups: dict[str, list[str]] = {}
+    for label in labels:
+        groups.setdefault(label.rpartition(".")[0] or label, []).append(label)
+    return groups
+
+
+def frame_rows(t: np.ndarray, fps: int) -> np.ndarray:
+    """Rows to draw so the animation plays in real time at ``fps`` frames per second
+    (every row when the rows are sparser than the frames)."""
+    if len(t) < 2:
+        return np.arange(len(t))
+    dt = float(np.median(np.diff(t)))
+    stride = max(1, int(round(1.0 / (fps * dt)))) if dt > 0 else 1
+    return np.arange(0, len(t), stride)
+
+
+def animate(t: np.ndarray, names: list[str], values: np.ndarray, path: Path, *, fps: int = 30,
+            size: int = 480, title: str = "") -> int:
+    """Write the animation to ``path`` (.gif or .mp4); returns the number of frames."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from matplotlib import animation
+    from matplotlib.patches import Circle
+
+    path = Path(path)
+    suffix = path.suffix.lower()
+    if suffix not in FORMATS:
+        raise AnimationError(f"{path}: cannot write '{path.suffix}' animations\n  hint: use a .gif or .mp4 name")
+    if suffix == ".mp4" and not animation.writers.is_available("ffmpeg"):
+        raise AnimationError("writing .mp4 needs ffmpeg, which is not on the PATH\n"
+                             "  hint: install ffmpeg, or write a .gif (pillow)")
+    if len(t) == 0:
+        raise AnimationError("the trajectory has no rows to animate")
+    paths = point_paths(names, values)
+    groups = _groups(paths)
+    rows = frame_rows(t, fps)
+
+    dpi = 80
+    fig = plt.figure(figsize=(size / dpi, size / dpi), dpi=dpi)
+    ax = fig.add_axes((0.1, 0.08, 0.85, 0.84))
+    everything = np.vstack(list(paths.values()))
+    low, high = everything.min(axis=0), everything.max(axis=0)
+    centre, half = (low + high) / 2, max(float(np.max(high - low)) / 2, 1e-9) * 1.15
+    ax.set_xlim(centre[0] - half, centre[0] + half)
+    ax.set_ylim(centre[1] - half, centre[1] + half)
+    ax.set_aspect("equal")
+    ax.set_xlabel("x")
+    ax.set_ylabel("height")
+    artists = []
+    for k, (group, labels) in enumerate(sorted(groups.items())):
+        colour = f"C{k % 10}"
+        base = labels[0]
+        rim = next((lab for lab in labels if lab.endswith(".rim")), None)
+        hub = next((lab for lab in labels if lab.endswith(".centre")), base)
+        disc = Circle((0, 0), 0, fill=False, color=colour, lw=2) if rim else None
+        if disc is not None:
+            ax.add_patch(disc)
+        spokes = [ax.plot([], [], "-", color=colour, lw=3, solid_capstyle="round")[0] for _ in labels[1:]]
+        alone = len(labels) == 1  # a particle (or a body with one point): a larger square
+        dots = ax.plot([], [], "s" if alone else "o", color=colour, ms=11 if alone else 5,
+                       zorder=1 if alone else 2)[0]
+        artists.append((labels, hub, rim, disc, spokes, dots))
+    clock = ax.set_title("")
+    shown = title.replace("$", r"\$")  # plain text, never mathtext
+
+    def draw(frame: int):
+        row = rows[frame]
+        changed = []
+        for labels, hub, rim, disc, spokes, dots in artists:
+            first = paths[labels[0]][row]
+            for line, other in zip(spokes, labels[1:]):
+                end = paths[other][row]
+                line.set_data([first[0], end[0]], [first[1], end[1]])
+                changed.append(line)
+            xy = np.array([paths[lab][row] for lab in labels])
+            dots.set_data(xy[:, 0], xy[:, 1])
+            changed.append(dots)
+            if disc is not None:
+                c, r = paths[hub][row], paths[rim][row]
+                disc.center = (c[0], c[1])
+                disc.set_radius(float(np.hypot(*(r - c))))
+                changed.append(disc)
+        clock.set_text(f"{shown}  t = {t[row]:.2f}".strip())
+        return changed + [clock]
+
+    movie = animation.FuncAnimation(fig, draw, frames=len(rows), blit=False)
+    writer = animation.PillowWriter(fps=fps) if suffix == ".gif" else animation.FFMpegWriter(fps=fps)
+    fd, tmp = tempfile.mkstemp(dir=path.resolve().parent, prefix=f".{path.stem}.", suffix=suffix)
+    os.close(fd)
+    try:
+        movie.save(tmp, writer=writer, dpi=dpi)
+        os.chmod(tmp, _final_mode(path))  # the mode an ordinary open would give (mkstemp makes 0600)
+        os.replace(tmp, path)
+    finally:
+        plt.close(fig)
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+    return len(rows)

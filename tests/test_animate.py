@@ -1,0 +1,100 @@
+"""Plots split by unit and ``kronsub animate`` (matplotlib, pillow)."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+import kronsub
+from conftest import MODELS
+from kronsub.cli import main
+
+pytest.importorskip("matplotlib")
+
+SYSTEM1 = MODELS / "hoffmann" / "system1.yaml"
+CART_POLE = MODELS / "examples" / "cart_pole.yaml"
+
+
+def invoke(*args):
+    return CliRunner().invoke(main, [str(a) for a in args])
+
+
+def test_system1_gif_has_the_frames_and_size_asked_for(tmp_path):
+    Image = pytest.importorskip("PIL.Image")
+    gif = tmp_path / "motion.gif"
+    result = invoke("animate", SYSTEM1, "--output", gif, "--t", 1, "--dt", 0.05, "--fps", 20, "--size", 200)
+    assert result.exit_code == 0, result.output
+    assert "21 frames" in result.output
+    with Image.open(gif) as image:
+        assert image.size == (200, 200)
+        assert image.n_frames == 21  # rows 0, 0.05, ..., 1: one frame each at 20 per second
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["motion.gif"]  # no temporary file left
+
+
+def test_animate_a_trajectory_csv_in_real_time(tmp_path):
+    Image = pytest.importorskip("PIL.Image")
+    csv = tmp_path / "run.csv"
+    assert invoke("simulate", CART_POLE, "--t", 0.5, "--dt", 0.01, "--points", "--output", csv).exit_code == 0
+    gif = tmp_path / "run.gif"
+    result = invoke("animate", csv, "--output", gif, "--fps", 25, "--size", 160)
+    assert result.exit_code == 0, result.output
+    with Image.open(gif) as image:
+        assert image.n_frames == 13  # 51 rows every 0.01 s, every 4th at 25 frames per second
+
+
+def test_animate_needs_point_columns(tmp_path):
+    csv = tmp_path / "run.csv"
+    assert invoke("simulate", CART_POLE, "--t", 0.1, "--output", csv).exit_code == 0
+    result = invoke("animate", csv, "--output", tmp_path / "run.gif")
+    assert result.exit_code == 1 and "--points" in result.output and "Traceback" not in result.output
+
+
+def test_animate_formats(tmp_path, monkeypatch):
+    csv = tmp_path / "run.csv"
+    assert invoke("simulate", CART_POLE, "--t", 0.1, "--points", "--output", csv).exit_code == 0
+    other = invoke("animate", csv, "--output", tmp_path / "run.avi")
+    assert other.exit_code == 1 and ".gif or .mp4" in other.output
+    from matplotlib import animation
+
+    monkeypatch.setattr(animation.writers, "is_available", lambda name: False)
+    mp4 = invoke("animate", csv, "--output", tmp_path / "run.mp4")
+    assert mp4.exit_code == 1 and "needs ffmpeg" in mp4.output and not (tmp_path / "run.mp4").exists()
+
+
+def test_frame_rows_keep_real_time():
+    from kronsub.simulation.animate import frame_rows
+
+    t = np.linspace(0, 2, 201)
+    assert list(frame_rows(t, 25)[:3]) == [0, 4, 8]
+    assert len(frame_rows(t[::20], 25)) == 11  # sparser rows than frames: every row
+
+
+def test_angles_are_told_from_lengths():
+    from kronsub.simulation.plot import angle_coordinates
+
+    cart_pole = kronsub.load(CART_POLE).derive()
+    assert angle_coordinates(cart_pole) == {cart_pole.symbol("theta")}
+    sphere = kronsub.load(MODELS / "examples" / "particle_on_sphere.yaml").derive()
+    assert angle_coordinates(sphere) == set(sphere.coordinates)
+
+
+def test_plot_has_one_panel_per_unit_and_legends_outside(tmp_path, monkeypatch):
+    from kronsub.simulation import plot
+
+    figures = []
+    monkeypatch.setattr(plot, "save_figure", lambda fig, path, fmt: figures.append(fig))
+    result = invoke("simulate", CART_POLE, "--t", 0.5, "--points", "--plot", tmp_path / "run.png",
+                    "--output", tmp_path / "run.csv")
+    assert result.exit_code == 0, result.output
+    (fig,) = figures
+    labels = [ax.get_ylabel() for ax in fig.axes]
+    assert labels == ["angles [rad]", "lengths", "velocities [per s]", "energy change", "height"]
+    for ax in fig.axes:
+        legend = ax.get_legend()
+        anchor = legend.get_bbox_to_anchor().transformed(ax.transAxes.inverted())
+        assert anchor.x0 > 1.0  # to the right of the axes, over no curve
+    angles, lengths = fig.axes[0], fig.axes[1]
+    assert [line.get_label() for line in angles.get_lines()] == ["theta"]
+    assert [line.get_label() for line in lengths.get_lines()] == ["x"]
+    assert {line.get_label() for line in fig.axes[4].get_lines()} == {"cart.centre", "pole.a", "pole.b",
+                                                                     "pole.centre"}
