@@ -33,6 +33,15 @@ EXIT_CODES = {
 DEBUG_ENV = "KRONSUB_DEBUG"
 
 
+def emit_text(text: str, output: Path | None) -> None:
+    """A command's text: to ``output`` (atomically), else to standard output."""
+    if output is not None:
+        write_atomically(output, text)
+        click.echo(f"wrote {output}", err=True)
+    else:
+        click.echo(text, nl=False)
+
+
 def _fail(message: str, code: int = INPUT_ERROR) -> None:
     click.echo(message, err=True)
     sys.exit(code)
@@ -154,11 +163,7 @@ def derive(model: Path, fmt: str, output: Path | None, check: Path | None, no_ca
                 _fail(f"Error: {check} differs from the derived equations")
             click.echo(f"{check}: up to date", err=True)
             return
-        if output is not None:
-            write_atomically(output, text)
-            click.echo(f"wrote {output}", err=True)
-        else:
-            click.echo(text, nl=False)
+        emit_text(text, output)
 
     _run(job)
 

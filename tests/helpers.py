@@ -41,3 +41,20 @@ def evaluate(expr, values: dict[str, float]) -> float:
 
 def close(a: float, b: float, rel=1e-12, abs_=1e-12) -> bool:
     return bool(np.isclose(a, b, rtol=rel, atol=abs_))
+
+
+# A compound pendulum (a pinned rod with its own inertia), for the API and linearisation tests.
+COMPOUND = """
+name: compound pendulum
+parameters:
+  m: {value: 2, unit: kg}
+  L: {value: 1.5, unit: m}
+  I: {value: 0.3, unit: kg m^2}
+  g: {value: 9.81}
+components:
+  rod: {type: pinned_rod, parameters: {mass: m, length: L, inertia: I}, coordinates: [theta]}
+coordinates: [theta]
+effects:
+  gravity: {type: gravity}
+initial: {theta: 0.4}
+"""

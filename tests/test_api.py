@@ -12,24 +12,11 @@ import sympy
 import kronsub
 import mechanics_reference as mr
 from conftest import MODELS, ROOT
+from helpers import COMPOUND
 from kronsub.errors import KronsubError, ModelError
 
 DOUBLE_PENDULUM = MODELS / "examples" / "double_pendulum.yaml"
 
-COMPOUND = """
-name: compound pendulum
-parameters:
-  m: {value: 2, unit: kg}
-  L: {value: 1.5, unit: m}
-  I: {value: 0.3, unit: kg m^2}
-  g: {value: 9.81}
-components:
-  rod: {type: pinned_rod, parameters: {mass: m, length: L, inertia: I}, coordinates: [theta]}
-coordinates: [theta]
-effects:
-  gravity: {type: gravity}
-initial: {theta: 0.4}
-"""
 
 
 @pytest.fixture(scope="module")

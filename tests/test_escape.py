@@ -367,3 +367,24 @@ def test_a_hostile_file_name_runs_nothing(filename, tmp_path, monkeypatch):
     spec = importlib.util.spec_from_file_location("hostile_file_name", tmp_path / f"{stem}.py")
     spec.loader.exec_module(importlib.util.module_from_spec(spec))
     assert not (tmp_path / "canary").exists()
+
+
+@pytest.mark.parametrize("key", sorted(HOSTILE_CASES))
+def test_hostile_text_keeps_the_trajectory_csv_one_comment_line(key, tmp_path):
+    """The model's name and path stand on the CSV's first comment line: nothing in them can
+    start a row or another line."""
+    from kronsub.simulation.run import simulate
+    from kronsub.simulation.table import to_csv
+    from kronsub.simulation.values import resolve
+
+    text = _hostile_text(key, tmp_path / "canary")
+    model = kronsub.load(_write_models(tmp_path / "m", text))
+    system = model.derive()
+    values = resolve(system, dict(model.initial), {})
+    traj = simulate(system, values, 0.02, 0.01, "dop853", progress=False)
+    csv = to_csv(system, text, traj, values, 1e-10, 1e-10)
+    lines = csv.split("\n")
+    assert lines[0].startswith("# kronsub simulate: ")
+    header = next(i for i, line in enumerate(lines) if not line.startswith("#"))
+    assert lines[header].startswith("t,") and all(line.startswith("#") for line in lines[:header])
+    assert not any(ch in lines[0] for ch in "\r\0\u2028\u2029")

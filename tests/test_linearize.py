@@ -16,27 +16,13 @@ from click.testing import CliRunner
 import kronsub
 import mechanics_reference as mr
 from conftest import MODELS, ROOT
-from helpers import by_name
+from helpers import COMPOUND, by_name
 from kronsub.cli import main
 from kronsub.errors import KronsubError
 
 CART_POLE = MODELS / "examples" / "cart_pole.yaml"
 DOUBLE_PENDULUM = MODELS / "examples" / "double_pendulum.yaml"
 
-COMPOUND = """
-name: compound pendulum
-parameters:
-  m: {value: 2, unit: kg}
-  L: {value: 1.5, unit: m}
-  I: {value: 0.3, unit: kg m^2}
-  g: {value: 9.81}
-components:
-  rod: {type: pinned_rod, parameters: {mass: m, length: L, inertia: I}, coordinates: [theta]}
-coordinates: [theta]
-effects:
-  gravity: {type: gravity}
-initial: {theta: 0.4}
-"""
 
 
 @pytest.fixture(scope="module")

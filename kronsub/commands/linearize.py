@@ -29,7 +29,7 @@ def linearize(model: Path, at: tuple[str, ...], inputs: str, symbolic: bool, fmt
     equilibrium is linearised about anyway and reported as such.
     """
     from ..api import linearize as linearize_system
-    from ..cli import _run, _writable, scene_system, write_atomically
+    from ..cli import _run, _writable, emit_text, scene_system
     from ..emitters.linearization import EMITTERS
     from ..model.scenes import initial_values
     from ..simulation.values import parse_assignments
@@ -48,10 +48,6 @@ def linearize(model: Path, at: tuple[str, ...], inputs: str, symbolic: bool, fmt
         for note in lin.notes:
             click.echo(f"Warning: {note}", err=True)
         text = EMITTERS[fmt](lin, system.name)
-        if output is not None:
-            write_atomically(output, text)
-            click.echo(f"wrote {output}", err=True)
-        else:
-            click.echo(text, nl=False)
+        emit_text(text, output)
 
     _run(job)

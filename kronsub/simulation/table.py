@@ -15,6 +15,7 @@ import io
 import numpy as np
 
 from ..core.known_system import KnownSystem
+from ..errors import printable
 from .run import Block, Run, Trajectory, _numpy_module
 from .values import RunValues
 
@@ -86,7 +87,8 @@ class CsvWriter:
             columns += [d.name for d in system.implicit.dependent]
         if self.with_points:
             columns += _point_names(self.module)
-        out.write(f"# kronsub simulate: {system.name} ({model_path})\n")
+        # free text of the model on one comment line: a newline in the name cannot start a row
+        out.write(f"# kronsub simulate: {printable(system.name)} ({printable(model_path)})\n")
         out.write(f"# method {method} ({backend} right-hand side), rtol {rtol:g}, atol {atol:g}\n")
         if system.implicit is not None:
             out.write("# dependent coordinates " + ", ".join(d.name for d in system.implicit.dependent)
