@@ -107,11 +107,11 @@ def derive_model(model, *, cache: bool = True, effects=None) -> KnownSystem:
     others are left out before projection, so nothing of them is derived. ``fbar`` is the
     sum of the effects' projected forces (8'), (F), so ``Mbar``, ``hbar`` (the inertia) and
     each effect are cached apart, and every selection of effects shares them. The cache
-    holds data only (:mod:`.cache_format`); name and description always come from ``model``
-    (the same text may live under several file names).
+    holds data only (:mod:`.cache_format`); name, description and initial values always come
+    from ``model`` (the same text may live under several file names).
     """
     key = model.content_hash if cache else ""
-    own = {"name": model.name, "description": model.description}
+    own = {"name": model.name, "description": model.description, "initial": dict(model.initial)}
     if key and effects is None:
         hit = load_cached(key)
         if hit is not None:
@@ -138,7 +138,7 @@ def derive_model(model, *, cache: bool = True, effects=None) -> KnownSystem:
             _store_parts(key, {f"effect.{piece.label}": piece})
     system = dataclasses.replace(assemble(inertia, [pieces[label] for label in chosen]), **own)
     if implicit is not None:
-        system = derive_implicit(model, system)
+        system = dataclasses.replace(derive_implicit(model, system), **own)
     if key and effects is None:
         store_cached(key, system)
     return system
