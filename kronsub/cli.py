@@ -186,8 +186,13 @@ def codegen(model: Path, lang: str, outdir: Path, name: str | None, prefix: str,
     from .emitters.code import LANGUAGES
 
     def job():
-        if not outdir.is_dir():
-            _fail(f"Error: {outdir}: no such directory\n  hint: create it first, or choose another --output")
+        if outdir.exists() and not outdir.is_dir():
+            _fail(f"Error: {outdir}: not a directory\n  hint: choose a directory for --output")
+        try:
+            outdir.mkdir(parents=True, exist_ok=True)  # the README's `--output build/` in a fresh clone
+        except OSError as exc:
+            _fail(f"Error: {outdir}: cannot create the directory ({exc.strerror})\n"
+                  "  hint: choose another --output")
         if precision != "double" and lang != "c":
             _fail("Error: --precision long|quad is for --lang c\n  hint: drop --precision, or use --lang c")
         _, scene, system = scene_system(model, scene_name)

@@ -271,3 +271,24 @@ def test_every_function_builds_and_its_force_is_minus_the_gradient(tmp_path):
         ydot = (ctypes.c_double * 2)()
         assert lib.ks_rhs(ctypes.c_double(0.0), y, pc, ydot) == 0
         assert np.allclose(ydot[:], ns["rhs"](0.0, np.array([q, 0.3]), param), rtol=1e-13)
+
+
+@pytest.mark.skipif(shutil.which("g++") is None or shutil.which("gcc") is None, reason="needs gcc and g++")
+def test_header_indexes_the_state_and_parameters_and_links_from_cpp(tmp_path):
+    """codegen creates its --output folder; KS_Y_<name> / KS_P_<name> index the arrays in the
+    order the header comment documents; a C++ program includes the header and links."""
+    out = tmp_path / "new" / "folder"
+    result = CliRunner().invoke(main, ["codegen", str(MODELS / "hoffmann/system1.yaml"), "--output", str(out)])
+    assert result.exit_code == 0, result.output
+    system = kronsub.load(MODELS / "hoffmann/system1.yaml").derive()
+    names = [q.name for q in system.coordinates] + [v.name for v in system.velocities]
+    # print each macro's value from C++, and compare with the order of the state and parameters
+    prints = " ".join(f'std::printf("%d ", KS_Y_{n});' for n in names)
+    prints += " ".join(f'std::printf("%d ", KS_P_{p.name});' for p in system.parameters)
+    (out / "main.cpp").write_text('#include <cstdio>\n#include "system1.h"\n'
+                                  f"int main() {{ {prints} return 0; }}\n")
+    subprocess.run(["gcc", "-std=c99", "-Wall", "-Wextra", "-Werror", "-O2", "-c", "system1.c"], cwd=out, check=True)
+    subprocess.run(["g++", "-Wall", "-Wextra", "-Werror", "main.cpp", "system1.o", "-lm", "-o", "main"], cwd=out,
+                   check=True)
+    shown = subprocess.run([str(out / "main")], capture_output=True, text=True, check=True).stdout.split()
+    assert [int(v) for v in shown] == list(range(len(names))) + list(range(len(system.parameters)))

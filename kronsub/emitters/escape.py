@@ -180,12 +180,24 @@ def _filter(escape: Callable[[str], str]) -> Callable[[object], Markup]:
     return apply
 
 
+_C_IDENTIFIER = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
+
+
+def c_identifier(text: str) -> str:
+    """A model name as part of a C identifier (an index macro); names are validated identifiers
+    already, so anything else is a bug and is refused rather than mangled."""
+    if not _C_IDENTIFIER.fullmatch(str(text)):
+        raise UnescapedText(f"{text!r} is not a C identifier")
+    return str(text)
+
+
 FILTERS = {
     "c_comment": _filter(c_comment),
     "c_string": _filter(c_string),
     "py_str": _filter(python_string),
     "latex": _filter(latex_text),
     "md": _filter(markdown_text),
+    "c_ident": _filter(c_identifier),
 }
 _KEPT_FILTERS = ("length", "upper", "indent")  # indent keeps safe text safe
 
