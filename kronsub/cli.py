@@ -42,6 +42,18 @@ def emit_text(text: str, output: Path | None) -> None:
         click.echo(text, nl=False)
 
 
+def _writable_outputs(output: Path | None, plot: Path | None) -> None:
+    """Before a long run: ``--output`` and ``--plot`` can be written, and matplotlib is there
+    for a plot."""
+    _writable(output, "--output")
+    _writable(plot, "--plot")
+    if plot is not None:
+        try:
+            import matplotlib  # noqa: F401
+        except ImportError:
+            _fail("Error: --plot needs matplotlib\n  hint: pip install 'kronsub[plot]'")
+
+
 def _fail(message: str, code: int = INPUT_ERROR) -> None:
     click.echo(message, err=True)
     sys.exit(code)
@@ -291,13 +303,7 @@ def simulate(model: Path, t_end: float | None, dt: float | None, method: str | N
             if given is not None and not (math.isfinite(given) and given > 0):
                 _fail(f"Error: {flag} must be a positive finite {'time' if flag == '--t' else 'interval'} "
                       f"(got {given!r})", USAGE_ERROR)
-        _writable(output, "--output")
-        _writable(plot, "--plot")
-        if plot is not None:
-            try:
-                import matplotlib  # noqa: F401
-            except ImportError:
-                _fail("Error: --plot needs matplotlib\n  hint: pip install 'kronsub[plot]'")
+        _writable_outputs(output, plot)
         loaded, scene, system = scene_system(model, scene_name, all_points=with_points)
         _note_choice(system)
         outputs = scene.outputs if scene is not None else None
@@ -409,13 +415,7 @@ def accuracy(model: Path, t_end: float, methods: str, tolerances: str, target: f
             grid = acc.quick_tolerances(grid)
         if target is not None and not target > 0:
             _fail("Error: --target must be a positive error, e.g. --target 1e-8")
-        _writable(output, "--output")
-        _writable(plot, "--plot")
-        if plot is not None:
-            try:
-                import matplotlib  # noqa: F401
-            except ImportError:
-                _fail("Error: --plot needs matplotlib\n  hint: pip install 'kronsub[plot]'")
+        _writable_outputs(output, plot)
         loaded, scene, system = scene_system(model, scene_name)
         if system.implicit is not None:
             _fail("Error: kronsub accuracy does not take closed loops (constraints:) yet\n"
