@@ -523,3 +523,35 @@ def test_mutated_models_never_crash(edits):
                   if not line.startswith("Warning: invalid decimal literal")]
         assert errors and errors[0].startswith(f"Error: {path}"), (text, stderr_of(result))
         assert "\n  hint: " in stderr_of(result), (text, stderr_of(result))
+
+
+def test_one_typo_gives_one_error(tmp_path):
+    """A misspelt component type is reported once: references to that component's coordinates
+    and points are consequences, not further problems."""
+    path = tmp_path / "typo.yaml"
+    path.write_text(
+        "name: typo\nparameters: {m: 1, l: 1, g: 9.81}\ncomponents:\n"
+        "  link1: {type: pined_rod, parameters: {mass: m, length: l}, coordinates: {angle: q1}}\n"
+        "  link2: {type: pinned_rod, parameters: {mass: m, length: l}, coordinates: {angle: q2}}\n"
+        "coordinates: [q1, q2]\neffects:\n  gravity: {type: gravity, g: g}\n"
+        "  spring: {type: torsional_spring, angle: q1 - q2, stiffness: 2}\n"
+        "  push: {type: force, point: link1.tip, vector: [1, 0]}\n")
+    result = CliRunner().invoke(main, ["check", str(path)])
+    assert result.exit_code == 1
+    errors = [line for line in result.output.splitlines() if line.startswith("Error:")]
+    assert len(errors) == 1 and "unknown component type 'pined_rod'" in errors[0], result.output
+    assert "did you mean 'pinned_rod'?" in result.output
+
+
+def test_an_effect_in_a_generalized_coordinate_says_so(tmp_path):
+    path = tmp_path / "generalized.yaml"
+    path.write_text(
+        "name: gen\nparameters: {m: 1, l: 1}\ncomponents:\n"
+        "  link1: {type: pinned_rod, parameters: {mass: m, length: l}, coordinates: {angle: a1}}\n"
+        "  link2: {type: pinned_rod, parameters: {mass: m, length: l}, coordinates: {angle: a2}}\n"
+        "coordinates: [q1, q2]\nconnection: {a1: q1, a2: q2}\n"
+        "effects:\n  spring: {type: torsional_spring, angle: q1 - q2, stiffness: 2}\n")
+    result = CliRunner().invoke(main, ["check", str(path)])
+    assert result.exit_code == 1
+    assert "unknown name 'q1'" in result.output and "'q1' is a generalized coordinate" in result.output
+    assert "primitive coordinates" in result.output and "declare it under" not in result.output

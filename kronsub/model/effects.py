@@ -34,6 +34,8 @@ def _point(loader, node: Node, primitive, ename: str):
         return _vector(loader, node, f"fixed point of '{ename}'")
     name = str(node.value)
     points = primitive.points()
+    if name not in points and loader.is_broken(name):
+        return None  # its component's problem is reported already
     if name not in points:
 
         loader.error(node, f"unknown point '{name}' in effect '{ename}'", close_matches(name, points))

@@ -6,6 +6,7 @@ Expressions go through the whitelisted parser only.
 """
 from __future__ import annotations
 
+import dataclasses
 import os
 import re
 from pathlib import Path
@@ -29,6 +30,7 @@ from .source import Node, excerpt, load_yaml, read_model_text
 
 TOP_LEVEL = ("name", "description", "parameters", "components", "coordinates", "connection",
              "constraints", "effects", "initial", "scenes")
+_UNKNOWN_NAME = re.compile(r"unknown name '([^']+)'")
 IDENTIFIER = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")  # whole names only: fullmatch
 RESERVED = {"t", "pi"}
 
@@ -102,6 +104,11 @@ class _Loader:
         self.sub_hashes: list[str] = []
         self.locations: dict[str, Location] = {}
         self.failed_components = False
+        # one typo, one error: names of components that failed, and the coordinate names their
+        # `coordinates:` renames declared, so later references to them report nothing more
+        self.broken_parts: set[str] = set()
+        self.broken_names: set[str] = set()
+        self.generalized_names: set[str] = set()
         self.pivots: list[tuple] = []  # pinned parts hanging from a moving point (`pivot:`)
         self.auto_connection: dict[sympy.Symbol, tuple] = {}
 
@@ -121,7 +128,16 @@ class _Loader:
             return parse_expression(text, names if names is not None else self.names,
                                     node.text_location or node.location, what=what)
         except ModelError as exc:
-            self.problems.extend(exc)
+            for problem in exc.problems:
+                unknown = _UNKNOWN_NAME.search(problem.message)
+                if unknown and self.is_broken(unknown.group(1)):
+                    continue  # a consequence of a component reported already
+                if unknown and unknown.group(1) in self.generalized_names:
+                    problem = dataclasses.replace(problem, hint=(
+                        f"'{unknown.group(1)}' is a generalized coordinate; effects are written in the primitive "
+                        "coordinates (the components' own, as renamed under their `coordinates:`), e.g. the one "
+                        f"the connection maps '{unknown.group(1)}' to"))
+                self.problems.problems.append(problem)
             return None
 
     def mapping(self, node: Node | None, what: str, hint: str) -> dict[str, Node]:
@@ -176,6 +192,7 @@ class _Loader:
                        "list the generalized coordinates, e.g. `coordinates: [theta, phi]`")
             self.problems.raise_if_any()  # without coordinates every later check would mislead
         coords = () if auto else self._coordinates(coords_node)
+        self.generalized_names = {q.name for q in coords}
         if auto:
             self.locations["coordinates"] = coords_node.location
         primitive = Primitive(tuple(self.parts))
@@ -275,6 +292,20 @@ class _Loader:
                 self.locations[f"component:{cname}"] = loc
             else:
                 self.failed_components = True
+                self._mark_broken(cname, spec)
+
+    def _mark_broken(self, cname: str, spec: Node) -> None:
+        """Remember a component that failed (its problem is reported already)."""
+        self.broken_parts.add(cname)
+        renames = spec.get("coordinates")
+        if renames is not None and renames.is_mapping:
+            self.broken_names.update(str(v.value) for v in renames.value.values() if v.is_scalar)
+        elif renames is not None and renames.is_sequence:
+            self.broken_names.update(str(v.value) for v in renames.value if v.is_scalar)
+
+    def is_broken(self, name: str) -> bool:
+        """Whether ``name`` (plain or dotted) belongs to a component that failed to load."""
+        return name in self.broken_names or name.split(".", 1)[0] in self.broken_parts
 
     def _library_component(self, cname: str, spec: Node) -> Part | None:
         self.check_keys(spec, ("type", "parameters", "coordinates", "points", "pivot", "description"),
