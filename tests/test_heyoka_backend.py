@@ -14,7 +14,8 @@ from kronsub.simulation import heyoka_backend
 from kronsub.simulation.run import simulate
 from kronsub.simulation.values import resolve
 
-SHARED_REFERENCE = ROOT.parent / "shared" / "reference" / "double-pendulum-rods.json"
+# the 40-digit solution, recomputed independently by tests/data/double_pendulum_reference.py
+REFERENCE = ROOT / "tests" / "data" / "double_pendulum_rods.json"
 
 
 @pytest.fixture
@@ -24,9 +25,7 @@ def heyoka():
 
 def test_double_pendulum_of_rods_against_the_high_precision_reference(heyoka):
     """System I with its defaults is two uniform unit rods; 120 deg / -10 deg, rest, t = 10."""
-    if not SHARED_REFERENCE.exists():
-        pytest.skip("shared reference solutions not present")
-    data = json.loads(SHARED_REFERENCE.read_text())
+    data = json.loads(REFERENCE.read_text())
     system = kronsub.load(MODELS / "hoffmann" / "system1.yaml").derive()
     values = resolve(system, {}, {"theta": "2*pi/3", "phi": "-pi/18"})
     t, Y, complete, message = heyoka_backend.integrate(

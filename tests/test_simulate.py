@@ -15,7 +15,8 @@ from kronsub.cli import main
 from kronsub.simulation.run import simulate
 from kronsub.simulation.values import resolve
 
-SHARED_REFERENCE = ROOT.parent / "shared" / "reference" / "double-pendulum-rods.json"
+# the 40-digit solution, recomputed independently by tests/data/double_pendulum_reference.py
+REFERENCE = ROOT / "tests" / "data" / "double_pendulum_rods.json"
 
 
 def run_cli(*args):
@@ -61,10 +62,8 @@ def test_trajectory_matches_mechanics_and_scipy(path, make_reference, method):
 
 
 def test_double_pendulum_of_rods_against_the_high_precision_reference():
-    """System I with uniform unit rods is the shared reference problem (40-digit solution)."""
-    if not SHARED_REFERENCE.exists():
-        pytest.skip("shared reference solutions not present")
-    data = json.loads(SHARED_REFERENCE.read_text())
+    """System I with uniform unit rods is the reference problem (40-digit solution in tests/data)."""
+    data = json.loads(REFERENCE.read_text())
     model = kronsub.load(MODELS / "hoffmann" / "system1.yaml")
     system = model.derive()
     values = resolve(system, {}, {"theta": "2*pi/3", "phi": "-pi/18", "F": "0"})
