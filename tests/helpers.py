@@ -39,6 +39,17 @@ def evaluate(expr, values: dict[str, float]) -> float:
     return float(expr.xreplace(subs).evalf(30))
 
 
+def constraint_residual(system, header: list[str], data: np.ndarray) -> float:
+    """The largest |g| of a closed-loop run's CSV rows, with the constraint expressions
+    lambdified apart from the generated code (the dependent coordinates as the run reports them)."""
+    col = {name: i for i, name in enumerate(header)}
+    imp = system.implicit
+    values = {p.symbol: p.value for p in system.parameters}
+    y = list(imp.independent) + list(imp.dependent)
+    g = sympy.lambdify(y, [c.expression.xreplace(values) for c in imp.constraints], "numpy")
+    return float(np.max(np.abs(np.array(g(*[data[:, col[q.name]] for q in y]), dtype=float))))
+
+
 def close(a: float, b: float, rel=1e-12, abs_=1e-12) -> bool:
     return bool(np.isclose(a, b, rtol=rel, atol=abs_))
 
