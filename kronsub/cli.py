@@ -8,12 +8,12 @@ error, 130 interrupted (rows so far kept).
 from __future__ import annotations
 
 import difflib
-import io
 import math
 import os
 import sys
 import warnings
 from pathlib import Path
+from types import SimpleNamespace
 
 import click
 
@@ -331,17 +331,15 @@ def simulate(model: Path, t_end: float | None, dt: float | None, method: str | N
                     outputs=outputs, constrained=constrained)
         kept = [] if plot is not None or with_reactions else None
 
-        def stream(out) -> CsvWriter:
+        def stream(out):
+            """Write the CSV; what is returned tells ``rows``, ``last_t`` and ``stopped``."""
             if with_reactions:  # the reactions need the whole run: computed, then written at once
                 traj = collect(run, list(run), len(system.coordinates))
                 kept.append(traj)
-                text = _reaction_csv(to_csv(system, model.as_posix(), traj, values, rtol, atol, with_points,
-                                            outputs=outputs), system, traj, values, constrained)
-                out.write(text)
-                writer = CsvWriter(io.StringIO(), system, model.as_posix(), values, run.method, run.backend, rtol,
-                                   atol, with_points, outputs)
-                writer.rows, writer.last_t = len(traj.t), (float(traj.t[-1]) if len(traj.t) else None)
-                return writer
+                out.write(_reaction_csv(to_csv(system, model.as_posix(), traj, values, rtol, atol, with_points,
+                                               outputs=outputs), system, traj, values, constrained))
+                return SimpleNamespace(rows=len(traj.t), last_t=float(traj.t[-1]) if len(traj.t) else None,
+                                       stopped=False)
             writer = CsvWriter(out, system, model.as_posix(), values, run.method, run.backend, rtol, atol,
                                with_points, outputs)
             try:

@@ -4,10 +4,8 @@ from __future__ import annotations
 
 import csv
 import io
-from pathlib import Path
 
 import mpmath
-import numpy as np
 import pytest
 from click.testing import CliRunner
 

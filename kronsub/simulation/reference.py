@@ -331,7 +331,6 @@ def _series_of(system: KnownSystem, param, bits: int) -> _Series:
 
 def taylor(system: KnownSystem, param, y0, times, digits: int = 30) -> RouteResult:
     """The Taylor series route: states at ``times`` (from ``y0`` at t = 0), ``digits`` digits."""
-    n = len(system.coordinates)
     with mpmath.workdps(digits + 10):
         eps = mpmath.mpf(10) ** -(digits + 2)
         order = int(math.ceil(0.5 * (digits + 2) * math.log(10))) + 2
@@ -367,7 +366,6 @@ def extrapolation(system: KnownSystem, param, y0, times, digits: int = 30) -> Ro
     """The Gragg-Bulirsch-Stoer route: the explicit midpoint rule with n = 2, 4, ..., 2K
     substeps, Aitken-Neville extrapolation in h^2 and step control on the last two columns,
     in fixed point; the right-hand side is the tape's order-1 coefficient."""
-    n = len(system.coordinates)
     with mpmath.workdps(digits + 10):
         P = int((digits + 10) * math.log2(10)) + 16
         series = _series_of(system, param, P)
