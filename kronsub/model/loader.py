@@ -24,11 +24,12 @@ from .effects import build_effect
 from .expressions import parse_expression
 from .scenes import build_scenes
 from .constraints import analyse, read_constraints
+from .definitions import definition_names, read_definitions, substitute_definitions
 from .model import ImplicitSpec, Model
 from .names import Declared, generated_name_clashes
 from .source import Node, excerpt, load_yaml, read_model_text
 
-TOP_LEVEL = ("name", "description", "parameters", "components", "coordinates", "connection",
+TOP_LEVEL = ("name", "description", "parameters", "components", "coordinates", "definitions", "connection",
              "constraints", "effects", "initial", "scenes")
 _UNKNOWN_NAME = re.compile(r"unknown name '([^']+)'")
 IDENTIFIER = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")  # whole names only: fullmatch
@@ -111,6 +112,8 @@ class _Loader:
         self.generalized_names: set[str] = set()
         self.pivots: list[tuple] = []  # pinned parts hanging from a moving point (`pivot:`)
         self.auto_connection: dict[sympy.Symbol, tuple] = {}
+        # `definitions:` (definitions.py): name -> (placeholder, expansion; None when it failed)
+        self.definitions: dict[str, tuple[sympy.Symbol, sympy.Expr | None]] = {}
 
     # ----------------------------------------------------------- utilities
     def error(self, node_or_loc, message: str, hint: str | None = None) -> None:
@@ -124,9 +127,10 @@ class _Loader:
                        "write e.g. `2*a1*sin(theta)`")
             return None
         text = node.text if node.text is not None else str(node.value)
+        table = names if names is not None else self.names
         try:
-            return parse_expression(text, names if names is not None else self.names,
-                                    node.text_location or node.location, what=what)
+            value = parse_expression(text, {**table, **definition_names(self)},
+                                     node.text_location or node.location, what=what)
         except ModelError as exc:
             for problem in exc.problems:
                 unknown = _UNKNOWN_NAME.search(problem.message)
@@ -139,6 +143,7 @@ class _Loader:
                         f"the connection maps '{unknown.group(1)}' to"))
                 self.problems.problems.append(problem)
             return None
+        return substitute_definitions(self, value, table, node, what)
 
     def mapping(self, node: Node | None, what: str, hint: str) -> dict[str, Node]:
         if node is None or node.value is None:
@@ -197,6 +202,7 @@ class _Loader:
             self.locations["coordinates"] = coords_node.location
         primitive = Primitive(tuple(self.parts))
         self._primitive_names(primitive)
+        read_definitions(self, root.get("definitions"), coords, primitive)
         self._pivot_connection(primitive)
         implicit = None
         if constrained:
