@@ -202,8 +202,13 @@ def _generalized(loader, ename, spec, primitive):
         return None
     q = loader.primitive_names.get(str(cnode.value))
     if q is None:
-
-        loader.error(cnode, f"'{cnode.value}' is not a primitive coordinate", close_matches(str(cnode.value), loader.primitive_names))
+        name = str(cnode.value)
+        if loader.generalized_name(name) == "coordinate":
+            loader.error(cnode, f"'{name}' is a generalized coordinate, and a generalized_force acts on a "
+                                "primitive coordinate", loader.primitive_hint(name)
+                         + "; name one of those, or use a force or torque at a point")
+        else:
+            loader.error(cnode, f"'{name}' is not a primitive coordinate", close_matches(name, loader.primitive_names))
         return None
     value = loader.expr(vnode, what="generalized force")
     return None if value is None else GeneralizedForce(ename, coordinate=q, value=value)

@@ -18,7 +18,7 @@ from ..core.constraints import Constraint
 from ..core.known_system import KnownSystem, ParameterInfo
 from ..core.primitive import Part, Primitive, part_from_component
 from ..core.symbols import TIME, symbol, velocity_symbol
-from ..errors import Location, ModelError, ProblemCollector, close_matches
+from ..errors import Location, ModelError, ProblemCollector, close_matches, near_names
 from .derive import content_key, derive_model, load_cached
 from .effects import build_effect
 from .expressions import parse_expression
@@ -110,6 +110,8 @@ class _Loader:
         self.broken_parts: set[str] = set()
         self.broken_names: set[str] = set()
         self.generalized_names: set[str] = set()
+        self.primitive_names: dict[str, sympy.Symbol] = {}
+        self.connection: dict[sympy.Symbol, sympy.Expr] = {}  # for hints, once it is read
         self.pivots: list[tuple] = []  # pinned parts hanging from a moving point (`pivot:`)
         self.auto_connection: dict[sympy.Symbol, tuple] = {}
         # `definitions:` (definitions.py): name -> (placeholder, expansion; None when it failed)
@@ -136,14 +138,44 @@ class _Loader:
                 unknown = _UNKNOWN_NAME.search(problem.message)
                 if unknown and self.is_broken(unknown.group(1)):
                     continue  # a consequence of a component reported already
-                if unknown and unknown.group(1) in self.generalized_names:
-                    problem = dataclasses.replace(problem, hint=(
-                        f"'{unknown.group(1)}' is a generalized coordinate; effects are written in the primitive "
-                        "coordinates (the components' own, as renamed under their `coordinates:`), e.g. the one "
-                        f"the connection maps '{unknown.group(1)}' to"))
+                generalized = unknown and self.generalized_name(unknown.group(1))
+                if generalized:
+                    problem = self._generalized_problem(problem, unknown.group(1), generalized,
+                                                        in_effect=names is None and bool(self.primitive_names))
                 self.problems.problems.append(problem)
             return None
-        return substitute_definitions(self, value, table, node, what)
+        return substitute_definitions(self, value, table, node, what,
+                                      in_effect=names is None and bool(self.primitive_names))
+
+    def generalized_name(self, name: str) -> str | None:
+        """"coordinate" or "velocity" when ``name`` is a generalized coordinate (or its velocity)
+        that is not also a primitive one; else None."""
+        if name in self.generalized_names and name not in self.primitive_names:
+            return "coordinate"
+        base = name[:-4] if name.endswith("_dot") else None
+        if base and base in self.generalized_names and base not in self.primitive_names:
+            return "velocity"
+        return None
+
+    def primitive_hint(self, name: str) -> str:
+        """Which primitive coordinates there are, and how the connection writes them in ``name``."""
+        plain = [k for k in self.primitive_names if "." not in k]
+        base = name[:-4] if name.endswith("_dot") else name
+        uses = [f"{x} = {_short(e)}" for x, e in self.connection.items()
+                if any(s.name == base for s in sympy.sympify(e).free_symbols)][:3]
+        return ("the primitive coordinates are " + ", ".join(plain) + " (velocities: "
+                + ", ".join(f"{k}_dot" for k in plain) + ")"
+                + ("; the connection gives " + "; ".join(uses) if uses else ""))
+
+    def _generalized_problem(self, problem, name: str, kind: str, in_effect: bool):
+        """The unknown-name problem for a generalized coordinate or velocity, said as such."""
+        if not in_effect:
+            return dataclasses.replace(problem, hint=f"'{name}' is a generalized {kind}, which cannot appear here")
+        message = problem.message.replace(
+            f"unknown name '{name}'",
+            f"'{name}' is a generalized {kind}, and effects take primitive coordinates")
+        return dataclasses.replace(problem, message=message, hint=self.primitive_hint(name)
+                                   + "; write the effect in those")
 
     def mapping(self, node: Node | None, what: str, hint: str) -> dict[str, Node]:
         if node is None or node.value is None:
@@ -211,7 +243,7 @@ class _Loader:
         else:
             y = coords
         self._generated_names(y, primitive)
-        connection = self._connection(root.get("connection"), primitive, y)
+        connection = self.connection = self._connection(root.get("connection"), primitive, y)
         effects = self._effects(root.get("effects"), primitive, coords)
         initial = self._initial(root.get("initial"), y)
         declared = root.get("effects")
@@ -558,6 +590,7 @@ class _Loader:
         where: dict[sympy.Symbol, Location] = {}
         generalized = {q.name: q for q in coords}
         attempted: set[sympy.Symbol] = set()
+        unknown_keys: list[str] = []
         entries = self.mapping(node, "connection", "write one `primitive_coordinate: expression` per line")
         if node is not None:
             self.locations["connection"] = node.location
@@ -565,6 +598,7 @@ class _Loader:
             loc = node.key_locations[key]
             x = self.primitive_names.get(key)
             if x is None:
+                unknown_keys.append(key)
                 self.error(loc, f"'{key}' is not a coordinate of the primitive system",
                            close_matches(key, [k for k in self.primitive_names if "." in k] +
                                          [q.name for q in primitive.coordinates]))
@@ -599,12 +633,14 @@ class _Loader:
                 connection[x] = x  # identity maps may be written short
             else:
                 owner = next(p.name for p in primitive.parts if x in p.coordinates)
+                if any(near_names(key, [x.name, f"{owner}.{x.name}"]) for key in unknown_keys):
+                    continue  # the misspelt key reported above was meant for it: one typo, one error
                 self.error(node.location if node is not None else self.locations[f"component:{owner}"],
                            f"primitive coordinate '{owner}.{x}' is not connected",
                            f"add `{x}: <expression in {', '.join(generalized)}>` under `connection:`, "
                            "or name it like a generalized coordinate for an identity map")
         used = set().union(*(e.free_symbols for e in connection.values())) if connection else set()
-        if attempted - set(connection) or self.failed_components or not coords:
+        if attempted - set(connection) or unknown_keys or self.failed_components or not coords:
             return connection  # after another error this check would only mislead
         for q in coords:
             if q not in used:
@@ -800,3 +836,8 @@ def _kind(node: Node) -> str:
     if node.value is None:
         return "nothing"
     return f"'{excerpt(node.text if node.text is not None else str(node.value))}'"
+
+
+def _short(expr) -> str:
+    text = " ".join(str(expr).split())
+    return text if len(text) <= 50 else text[:47] + "..."
