@@ -188,8 +188,12 @@ class _Loader:
     def check_keys(self, node: Node, allowed, what: str) -> None:
         for key in node.value:
             if key not in allowed:
+                split = isinstance(key, str) and not IDENTIFIER.fullmatch(key.strip()) and any(
+                    c in key for c in ")]*/+-")
                 self.error(node.key_locations.get(key, node.location), f"unknown key '{key}' in {what}",
-                           close_matches(key, allowed))
+                           "this looks like the rest of an expression: in a `{...}` mapping a comma ends the "
+                           "value, so quote an expression with commas, e.g. `value: \"atan2(y, x)\"`"
+                           if split else close_matches(key, allowed))
 
     def identifier(self, name: str, loc: Location, what: str) -> bool:
         if not IDENTIFIER.fullmatch(name):
