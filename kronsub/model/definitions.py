@@ -63,7 +63,7 @@ def read_definitions(loader, node: Node | None, coords, primitive) -> None:
     loader.definitions = {name: (placeholders[name], expanded.get(name)) for name in placeholders}
 
 
-def substitute_definitions(loader, value, table: dict, node: Node, what: str, in_effect: bool = False):
+def substitute_definitions(loader, value, table: dict, node: Node, what: str):
     """``value`` (parsed with the definitions' placeholders) with each definition put in its
     place; a definition using a name that ``table`` (what this place may use) lacks is a problem."""
     if value is None or not loader.definitions:
@@ -84,9 +84,7 @@ def substitute_definitions(loader, value, table: dict, node: Node, what: str, in
             shown = ", ".join(can[:16]) + (", ..." if len(can) > 16 else "") if can else "none: numbers only"
             loader.error(node, f"in {what}: definition '{name}' uses {', '.join(repr(f) for f in foreign)}, "
                                "which cannot appear here",
-                         f"names usable here: {shown}"
-                         + ("; effects are written in the primitive coordinates"
-                            if in_effect and any(loader.generalized_name(f) for f in foreign) else ""))
+                         f"names usable here: {shown}")
     if not ok:
         return None
     return value.xreplace({ph: expansion for _, ph, expansion in used})

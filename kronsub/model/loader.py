@@ -111,7 +111,7 @@ class _Loader:
         self.broken_names: set[str] = set()
         self.generalized_names: set[str] = set()
         self.primitive_names: dict[str, sympy.Symbol] = {}
-        self.connection: dict[sympy.Symbol, sympy.Expr] = {}  # for hints, once it is read
+        self.subspace_names: dict[str, sympy.Symbol] = {}  # the connection's coordinates, for effects
         self.pivots: list[tuple] = []  # pinned parts hanging from a moving point (`pivot:`)
         self.auto_connection: dict[sympy.Symbol, tuple] = {}
         # `definitions:` (definitions.py): name -> (placeholder, expansion; None when it failed)
@@ -140,12 +140,10 @@ class _Loader:
                     continue  # a consequence of a component reported already
                 generalized = unknown and self.generalized_name(unknown.group(1))
                 if generalized:
-                    problem = self._generalized_problem(problem, unknown.group(1), generalized,
-                                                        in_effect=names is None and bool(self.primitive_names))
+                    problem = self._generalized_problem(problem, unknown.group(1), generalized)
                 self.problems.problems.append(problem)
             return None
-        return substitute_definitions(self, value, table, node, what,
-                                      in_effect=names is None and bool(self.primitive_names))
+        return substitute_definitions(self, value, table, node, what)
 
     def generalized_name(self, name: str) -> str | None:
         """"coordinate" or "velocity" when ``name`` is a generalized coordinate (or its velocity)
@@ -157,25 +155,9 @@ class _Loader:
             return "velocity"
         return None
 
-    def primitive_hint(self, name: str) -> str:
-        """Which primitive coordinates there are, and how the connection writes them in ``name``."""
-        plain = [k for k in self.primitive_names if "." not in k]
-        base = name[:-4] if name.endswith("_dot") else name
-        uses = [f"{x} = {_short(e)}" for x, e in self.connection.items()
-                if any(s.name == base for s in sympy.sympify(e).free_symbols)][:3]
-        return ("the primitive coordinates are " + ", ".join(plain) + " (velocities: "
-                + ", ".join(f"{k}_dot" for k in plain) + ")"
-                + ("; the connection gives " + "; ".join(uses) if uses else ""))
-
-    def _generalized_problem(self, problem, name: str, kind: str, in_effect: bool):
+    def _generalized_problem(self, problem, name: str, kind: str):
         """The unknown-name problem for a generalized coordinate or velocity, said as such."""
-        if not in_effect:
-            return dataclasses.replace(problem, hint=f"'{name}' is a generalized {kind}, which cannot appear here")
-        message = problem.message.replace(
-            f"unknown name '{name}'",
-            f"'{name}' is a generalized {kind}, and effects take primitive coordinates")
-        return dataclasses.replace(problem, message=message, hint=self.primitive_hint(name)
-                                   + "; write the effect in those")
+        return dataclasses.replace(problem, hint=f"'{name}' is a generalized {kind}, which cannot appear here")
 
     def mapping(self, node: Node | None, what: str, hint: str) -> dict[str, Node]:
         if node is None or node.value is None:
@@ -247,8 +229,8 @@ class _Loader:
         else:
             y = coords
         self._generated_names(y, primitive)
-        connection = self.connection = self._connection(root.get("connection"), primitive, y)
-        effects = self._effects(root.get("effects"), primitive, coords)
+        connection = self._connection(root.get("connection"), primitive, y)
+        effects = self._effects(root.get("effects"), primitive, y)
         initial = self._initial(root.get("initial"), y)
         declared = root.get("effects")
         scenes = build_scenes(self, root.get("scenes"), list(declared.value) if declared is not None and
@@ -756,6 +738,12 @@ class _Loader:
 
     # -------------------------------------------------------------- effects
     def _effects(self, node: Node | None, primitive: Primitive, coords):
+        """The effects, written in the primitive coordinates or in the subspace's ``coords``
+        (those are applied directly in the subspace: core/subspace.py)."""
+        for q in coords:
+            self.subspace_names[q.name] = q
+            self.names.setdefault(q.name, q)
+            self.names.setdefault(velocity_symbol(q).name, velocity_symbol(q))
         effects = []
         for ename, spec in self.mapping(node, "effects", "write `gravity: {type: gravity, g: g}`").items():
             loc = node.key_locations[ename]
@@ -841,7 +829,3 @@ def _kind(node: Node) -> str:
         return "nothing"
     return f"'{excerpt(node.text if node.text is not None else str(node.value))}'"
 
-
-def _short(expr) -> str:
-    text = " ".join(str(expr).split())
-    return text if len(text) <= 50 else text[:47] + "..."
