@@ -98,6 +98,7 @@ def test_output_times_are_the_decimals_of_the_grid(dt, t_end):
     for k, t in enumerate(times[:-1]):
         assert t == float(Decimal(repr(dt)) * k)  # the double nearest the decimal k dt
     assert times[-1] == t_end
+    assert np.array_equal(_Grid(np.float64(t_end), np.float64(dt))[0:len(grid)], times)  # numpy scalars too
     assert np.array_equal(grid.snap(times + 1e-9 * dt * np.sign(np.arange(len(times)) % 2 - 0.5)), times)
 
 

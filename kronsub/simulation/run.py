@@ -375,7 +375,7 @@ def _decimal(dt: float, n: int) -> tuple[int, float] | None:
     grid times are then correctly rounded decimals); else None."""
     from decimal import Decimal
 
-    sign, digits, exponent = Decimal(repr(dt)).as_tuple()
+    sign, digits, exponent = Decimal(repr(float(dt))).as_tuple()
     if not isinstance(exponent, int) or exponent > 0 or -exponent > 22:
         return None
     m = int("".join(map(str, digits)))
