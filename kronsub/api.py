@@ -71,6 +71,10 @@ def split_assignments(system: KnownSystem, at: Mapping[str, object] | None):
                 values[params[name]] = _value(system, name, raw, constant=True)
             elif name == "t":
                 point[TIME] = _value(system, name, raw, constant=False)
+            elif system.implicit is not None and name in {d.name for d in system.implicit.dependent}:
+                problems.append(Problem(None, f"'{name}' is a dependent coordinate of {system.name}: the "
+                                              "constraints set it", "fix the independent coordinates ("
+                                        + ", ".join(q.name for q in system.coordinates) + ") instead"))
             else:
                 known = sorted({*params, *state, "t"})
                 near = near_names(name, known)

@@ -78,3 +78,13 @@ def test_away_from_equilibrium_the_velocity_terms_are_linearised_too(path, at):
     A, _, ydot = _rhs_jacobian(system, lin)
     np.testing.assert_allclose(lin.acceleration, ydot[len(ydot) // 2:], rtol=1e-9, atol=1e-9)
     np.testing.assert_allclose(lin.A, A, rtol=1e-6, atol=1e-6 * max(1.0, np.max(np.abs(A))))
+
+
+def test_a_dependent_coordinate_cannot_be_fixed():
+    from click.testing import CliRunner
+
+    from kronsub.cli import main
+
+    result = CliRunner().invoke(main, ["linearize", str(MODELS / "examples" / "four_bar.yaml"), "--at", "theta2=1"])
+    assert result.exit_code == 1
+    assert "'theta2' is a dependent coordinate" in result.output and "(theta1) instead" in result.output
