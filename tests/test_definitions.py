@@ -182,3 +182,13 @@ def test_a_definition_may_use_primitive_coordinates_in_effects(tmp_path):
         assert float((a.forces[0] - b.forces[0]).subs(theta, value).subs(
             {a.symbol(n): v for n, v in (("r", 0.1), ("l", 0.3), ("k", 10), ("s0", 0.35))})) == \
             pytest.approx(0, abs=1e-12)
+
+
+def test_a_definition_in_a_component_parameter_says_why_not(tmp_path):
+    text = SLIDER.replace("definitions:\n", "definitions:\n  crank_mass: 2*m\n").replace(
+        "parameters: {mass: m, length: r}", "parameters: {mass: crank_mass, length: r}")
+    result = _check(tmp_path, text)
+    assert result.exit_code == 1
+    assert "unknown name 'crank_mass'" in result.output
+    assert "definitions are read after the parameters and components" in result.output
+    assert result.output.count("Error:") == 1

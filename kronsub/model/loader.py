@@ -116,6 +116,7 @@ class _Loader:
         self.auto_connection: dict[sympy.Symbol, tuple] = {}
         # `definitions:` (definitions.py): name -> (placeholder, expansion; None when it failed)
         self.definitions: dict[str, tuple[sympy.Symbol, sympy.Expr | None]] = {}
+        self.definition_keys: set[str] = set()  # their names, known before they are read
 
     # ----------------------------------------------------------- utilities
     def error(self, node_or_loc, message: str, hint: str | None = None) -> None:
@@ -139,7 +140,12 @@ class _Loader:
                 if unknown and self.is_broken(unknown.group(1)):
                     continue  # a consequence of a component reported already
                 generalized = unknown and self.generalized_name(unknown.group(1))
-                if generalized:
+                if unknown and unknown.group(1) in self.definition_keys and unknown.group(1) not in self.definitions:
+                    problem = dataclasses.replace(problem, hint=(
+                        f"'{unknown.group(1)}' is a definition; definitions are read after the parameters and "
+                        "components, so they cannot be used in parameter values, component parameters or "
+                        "points: write the expression here, or make it a parameter"))
+                elif generalized:
                     problem = self._generalized_problem(problem, unknown.group(1), generalized)
                 self.problems.problems.append(problem)
             return None
@@ -202,6 +208,8 @@ class _Loader:
                        "a model has `name:`, `components:`, `coordinates:` and `connection:`; check the path")
             self.problems.raise_if_any()
         self.check_keys(root, TOP_LEVEL, "the model")
+        dnode = root.get("definitions")
+        self.definition_keys = set(dnode.value) if dnode is not None and dnode.is_mapping else set()
         name = self._string(root.get("name"), self.path.stem)
         description = self._string(root.get("description"), "")
         self._parameters(root.get("parameters"))
