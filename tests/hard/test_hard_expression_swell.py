@@ -34,7 +34,64 @@ sys.path.insert(0, str(MODELS / "chain"))
 from generate import chain_yaml  # noqa: E402
 
 HERE = ROOT / "tests" / "hard" / "models"
+CHAIN = 30
+MEASURED_OPS = {10: 641, 20: 2391, 50: 14241}  # benchmarks/derive_chain.py, joint cse of M, h, f
+
+
+def growth_law(n: int) -> float:
+    """The quadratic through the benchmark's measured rows (exact at n = 10, 20, 50)."""
+    return 5.5 * n * n + 10 * n - 9
+
+
 TOP_PARAMETERS = {"m": 1.0, "l": 0.3, "A": 0.02, "B": 0.025, "C": 0.01, "g": 9.81}
+
+
+# ---------------------------------------------------------------- the chain
+@pytest.fixture(scope="module")
+def chain():
+    """The derived chain and one joint ``cse`` of its ``Mbar``, ``hbar``, ``fbar`` entries."""
+    model = kronsub.load(f"chain{CHAIN}.yaml", text=chain_yaml(CHAIN))
+    system = model.derive()
+    entries = [*system.mass_matrix, *system.velocity_terms, *system.forces]
+    return model, system, entries, sympy.cse(entries)
+
+
+def test_growth_law_fits_the_benchmark_rows():
+    assert all(growth_law(n) == ops for n, ops in MEASURED_OPS.items())
+
+
+def test_chain_of_30_derives_with_the_operation_count_of_the_growth_law(chain):
+    _, _, _, (replacements, reduced) = chain
+    ops = sum(sympy.count_ops(e) for _, e in replacements) + sum(sympy.count_ops(e) for e in reduced)
+    assert abs(ops - growth_law(CHAIN)) <= 0.1 * growth_law(CHAIN), ops
+    print(f"n = {CHAIN}: {ops} operations after cse (growth law {growth_law(CHAIN):.0f})")
+
+
+def test_chain_of_30_moves_as_kane_says_for_one_second(chain):
+    """The derived equations integrated by scipy (lambdified from the cse above: kronsub's own
+    code generation for 30 links takes minutes, see the report in docs/numerical-stability.md)."""
+    from scipy.integrate import solve_ivp
+
+    model, system, entries, cse = chain
+    ref = json.loads((ROOT / "tests/data/chain30_rods.json").read_text(encoding="utf-8"))
+    settings = {f"q{i + 1}": repr(q) for i, q in enumerate(ref["initial"]["q"])}
+    values = resolve(system, dict(model.initial), settings)
+    q, u = list(system.coordinates), list(system.velocities)
+    params = [p.symbol for p in system.parameters]
+    numeric = sympy.lambdify([q, u, params], entries, modules="numpy", cse=lambda _: cse)
+    n = len(q)
+
+    def rhs(_t, y):
+        out = np.array(numeric(y[:n], y[n:], values.parameters), dtype=float)
+        M, h, f = out[:n * n].reshape(n, n), out[n * n:n * n + n], out[n * n + n:]
+        return np.concatenate([y[n:], np.linalg.solve(M, f - h)])
+
+    sol = solve_ivp(rhs, (0, 1.0), np.array(values.y0, dtype=float), method="DOP853", rtol=1e-12, atol=1e-12,
+                    t_eval=ref["times"])
+    assert sol.success
+    for t, row, state in zip(ref["times"], sol.y.T, ref["states"]):
+        err = np.max(np.abs(row - np.array(state)))
+        assert err <= 1e-8, f"t = {t}: largest difference {err:.3g} (reference error ~{ref['estimated_error']:.1g})"
 
 
 # ------------------------------------------------------------------ the top
