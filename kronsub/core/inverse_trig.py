@@ -36,17 +36,23 @@ MAX_DIVISIONS = 8
 
 
 class Radicands:
-    """Radicands and denominators of one algebra, each trigonometric polynomial once."""
+    """Radicands and denominators of one algebra, each trigonometric polynomial once.
 
-    def __init__(self, algebra: TrigAlgebra):
+    Active only for a connection that holds an inverse function or a radical of the
+    coordinates (:func:`needed`); otherwise :meth:`rewrite` returns its argument.
+    """
+
+    def __init__(self, algebra: TrigAlgebra, connection=()):
         self.algebra = algebra
-        algebra.prepare = self.rewrite  # the derivatives of atoms too (d atan2, d asin)
+        self.active = needed(connection, algebra.index)
+        if self.active:
+            algebra.prepare = self.rewrite  # the derivatives of atoms too (d atan2, d asin)
         self._seen: dict[tuple, sympy.Expr] = {}
         self._memo: dict[sympy.Expr, sympy.Expr] = {}
 
     def rewrite(self, expr: sympy.Expr) -> sympy.Expr:
         """``expr`` with every coordinate-dependent radicand or denominator made canonical."""
-        if not self.algebra.coordinates or not expr.has(sympy.Pow, *INVERSE):
+        if not self.active or not expr.has(sympy.Pow, *INVERSE):
             return expr
         return self._walk(expr)
 
@@ -77,6 +83,19 @@ class Radicands:
         key = _frozen(self.algebra.from_expr(base))
         first = self._seen.setdefault(key, base)
         return first
+
+
+def needed(connection, coordinates) -> bool:
+    """Whether a connection holds an inverse trigonometric function, or a radical or a
+    denominator that depends on the coordinates."""
+    for expr in connection:
+        expr = sympy.sympify(expr)
+        if expr.has(*INVERSE):
+            return True
+        for p in expr.atoms(sympy.Pow):
+            if _radical(p.exp) and any(s in coordinates for s in p.base.free_symbols):
+                return True
+    return False
 
 
 def _radical(exp: sympy.Expr) -> bool:

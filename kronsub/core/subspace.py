@@ -38,7 +38,7 @@ class Subspace:
         self.qdots = [algebra.atom(velocity_symbol(q)) for q in self.coords]
         self.x = primitive.coordinates
         self.connection = connection
-        self.radicands = Radicands(algebra)  # atan2/asin in the connection (inverse_trig)
+        self.radicands = Radicands(algebra, connection.values())  # atan2/asin in it (inverse_trig)
         images = [algebra.from_expr(self.radicands.rewrite(connection[x])) for x in self.x]
         # C^a_alpha = dx^a / dxbar^alpha  (7'), (21)
         self.C = [[algebra.diff(img, j) for j in range(self.n)] for img in images]
