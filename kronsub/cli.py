@@ -357,6 +357,8 @@ def simulate(model: Path, t_end: float | None, dt: float | None, method: str | N
             writer = stream(sys.stdout)
             sys.stdout.flush()
             where = "standard output"
+        for _, what in run.switches:
+            click.echo(f"note: coordinates: auto switched at {what}", err=True)
         if writer.stopped:
             _fail(f"Interrupted after t = {writer.last_t!r}: the {writer.rows} rows computed so far are kept "
                   f"in {where} (marked incomplete)", INTERRUPTED)

@@ -398,7 +398,7 @@ class Intermediates:
         imp = self.implicit = implicit
         self.tol = tol
         y = imp.independent + imp.dependent
-        params = {k: v for k, v in parameters.items()}
+        params = self.numeric_parameters = {k: v for k, v in parameters.items()}
         self.numeric = NumericConstraints(imp.constraints, y, params)
         n, k = len(imp.independent), len(imp.dependent)
         self.n, self.k = n, k

@@ -124,7 +124,10 @@ class CsvWriter:
         self.rows += n
         self.last_t = float(block.t[-1]) if n else self.last_t
 
-    def end(self, stats: dict, complete: bool, t_fail: float | None = None, message: str = "") -> None:
+    def end(self, stats: dict, complete: bool, t_fail: float | None = None, message: str = "",
+            switches=()) -> None:
+        for _, what in switches:  # coordinates: auto chose other independent coordinates
+            self.out.write(f"# coordinates switched at {printable(what)}\n")
         cost = ", ".join(f"{v} {k}" if k != "stiff_from" else f"stiff from t = {v:.6g}" for k, v in stats.items())
         if cost:
             self.out.write(f"# cost: {cost}\n")
@@ -148,7 +151,7 @@ class CsvWriter:
         except KeyboardInterrupt:
             self.interrupted()
             raise
-        self.end(run.stats, run.complete, run.t_fail, run.message)
+        self.end(run.stats, run.complete, run.t_fail, run.message, run.switches)
 
 
 def write_csv(out, system: KnownSystem, model_path: str, run: Run, values: RunValues, rtol: float,
