@@ -495,7 +495,9 @@ class NativeModel:
             raise ValueError(f"need finite t0 <= t_end (got t0={t0}, t_end={t_end})")
         y0 = self._state(y0, "y0")
         span = t_end - t0
-        canonical = method == "gauss4"
+        # gauss4 in (q, p = Mbar qdot); with implicit constraints, which have no canonical form,
+        # in (q, qdot): fourth order still, the dependent coordinates by Newton in every stage
+        canonical = method == "gauss4" and not self.nstate
         start = self.momentum(y0, param) if canonical else y0
         p, rhs = self._prepared(param, "ks_rhs_canonical" if canonical else "ks_rhs")
         rhs_address = _address(rhs)

@@ -39,7 +39,8 @@ METHODS = {
         Method("dop853", "c", "Dormand-Prince 8(5,3), adaptive, dense output at --dt; wholly in C (default: "
                               "accurate and fast for smooth non-stiff problems)"),
         Method("gauss4", "c", "2-stage Gauss-Legendre, fixed step --dt, symplectic in (q, p = Mbar qdot); for "
-                              "long conservative runs: energy error stays bounded instead of drifting"),
+                              "long conservative runs: energy error stays bounded instead of drifting (with "
+                              "implicit constraints: order 4 in (q, qdot))"),
         Method("RK45", "scipy", "scipy's Dormand-Prince 5(4) calling the compiled right-hand side"),
         Method("DOP853", "scipy", "scipy's DOP853 calling the compiled right-hand side"),
         Method("Radau", "scipy", "scipy's implicit Radau IIA (order 5): stiff problems (stiff springs, dampers)"),
@@ -198,10 +199,9 @@ def start(system: KnownSystem, values: RunValues, t_end: float, dt: float, metho
     of the projected initial conditions (:func:`.constrained.project_initial`)."""
     if method not in METHODS:
         raise SimulationError(f"unknown method '{method}'; choose one of: {', '.join(METHODS)}")
-    if system.implicit is not None and method in ("gauss4", "heyoka"):
-        raise SimulationError(f"method '{method}' needs the canonical form or explicit equations, which a "
-                              "system with implicit constraints does not have; use dop853 (default), Radau or "
-                              "LSODA")
+    if system.implicit is not None and method == "heyoka":
+        raise SimulationError("method 'heyoka' needs explicit equations (its Taylor series), which a system "
+                              "with implicit constraints does not have; use dop853 (default), gauss4, Radau or LSODA")
     row_count(t_end, dt)
     if system.implicit is not None and constrained is None:
         from .constrained import project_initial
