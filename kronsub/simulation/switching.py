@@ -95,10 +95,13 @@ def watch(split: Split, y: np.ndarray) -> list[int] | None:
     G = split.numeric.jacobian(y)
     if not np.all(np.isfinite(G)):
         return None
+    current = conditioning(G, split.dependent_idx)
+    if current >= SWITCH_RATIO:  # the best one's is at most 1: no switch (the common, cheap case)
+        return None
     best = split.numeric.pivot(y)
     if sorted(best) == sorted(split.dependent_idx):
         return None
-    if conditioning(G, split.dependent_idx) < SWITCH_RATIO * conditioning(G, best):
+    if current < SWITCH_RATIO * conditioning(G, best):
         return best
     return None
 
