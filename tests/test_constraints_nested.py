@@ -2,7 +2,7 @@
 
 models/examples/geared_four_bar.yaml uses four_bar.yaml whole (`model:`) and connects its
 crank explicitly to a motor through a gear; the linkage brings its constraints and branch.
-Independent routes: the same mechanism written in one step (tests/models/
+Independent routes: the same mechanism written in one step (tests/data/
 geared_four_bar_one_step.yaml) at 20 random states (Mbar, hbar, fbar, T); the kinetic
 energy and the generalized forces against sympy.physics.mechanics' KanesMethod with
 configuration constraints (closed_loop_reference.four_bar), the gear and the motor's
@@ -24,7 +24,7 @@ from helpers import constraint_residual, implicit_numeric
 from kronsub.cli import main
 
 NESTED = MODELS / "examples" / "geared_four_bar.yaml"
-ONE_STEP = ROOT / "tests" / "models" / "geared_four_bar_one_step.yaml"
+ONE_STEP = ROOT / "tests" / "data" / "geared_four_bar_one_step.yaml"
 
 
 def _systems():
