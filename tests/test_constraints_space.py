@@ -65,7 +65,8 @@ effects:
 CASES["slider on a rigid_body3d"] = (
     BODY_HEAD + "constraints:\n  s: {slider: {point: bead.centre, body: body}}\n"
     "initial: {psi: 0.2, theta: 0.3, phi: 0.1, bx: 0.5, by: 0.1, bz: -0.15}\n",
-    BODY_HEAD + "connection:\n  by: y + sin(psi)/cos(psi)*(bx - x)\n  bz: z - sin(theta)/(cos(theta)*cos(psi))*(bx - x)\n",
+    BODY_HEAD + "connection:\n  by: y + sin(psi)/cos(psi)*(bx - x)\n"
+    "  bz: z - sin(theta)/(cos(theta)*cos(psi))*(bx - x)\n",
     ["by", "bz"], lambda q: [q[1] + np.tan(q[3]) * (q[6] - q[0]), q[2] - np.tan(q[4]) / np.cos(q[3]) * (q[6] - q[0])],
     [(-0.5, 0.5), (-0.5, 0.5), (-0.5, 0.5), (-0.6, 0.6), (-0.6, 0.6), (-1, 1), (-0.5, 0.5)])
 
