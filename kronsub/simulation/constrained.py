@@ -123,17 +123,8 @@ def _names(imp) -> str:
 
 
 def configure_native(native, dependent, tol: float) -> None:
-    """Warm start and tolerance of the compiled Newton's method."""
-    import ctypes
-
-    lib = native._lib
-    buf = (ctypes.c_double * len(dependent))(*map(float, dependent))
-    lib.ks_set_dependent.argtypes = [ctypes.c_void_p]
-    lib.ks_set_dependent.restype = None
-    lib.ks_set_dependent(ctypes.cast(buf, ctypes.c_void_p))
-    lib.ks_set_newton_tolerance.argtypes = [ctypes.c_double]
-    lib.ks_set_newton_tolerance.restype = None
-    lib.ks_set_newton_tolerance(tol)
+    """Warm start and tolerance of the compiled Newton's method (state owned by ``native``)."""
+    native.set_newton(dependent, tol)
 
 
 def energies_on_branch(native, t, Y, param, dependent) -> tuple[np.ndarray, np.ndarray]:
