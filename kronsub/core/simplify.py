@@ -400,3 +400,15 @@ def _content(values) -> Fraction:
 def _rational(v) -> sympy.Rational:
     v = Fraction(v)
     return sympy.Rational(v.numerator, v.denominator)
+
+
+def recompact(expr: sympy.Expr, coordinates) -> sympy.Expr:
+    """``expr`` (a sum of entries compacted one by one, such as ``fbar`` over several
+    effects) compacted as a whole, if that is shorter: ``F*a2*cos(phi) - a2*g*m2*sin(phi)``
+    is ``a2*(F*cos(phi) - g*m2*sin(phi))``."""
+    algebra = TrigAlgebra(coordinates)
+    try:
+        whole = compact(algebra, algebra.from_expr(expr))
+    except Exception:  # too large to expand: it keeps its form
+        return expr
+    return min((expr, whole, sympy.factor_terms(whole)), key=_key)
