@@ -10,13 +10,15 @@ from __future__ import annotations
 
 import re
 
+import sympy
 from sympy.printing.latex import LatexPrinter as _SympyLatex
 
 BREAK = "\x00"
 """Between the terms of a top-level sum; removed or turned into a line break by `lines`."""
-WIDTH = 62.0
+WIDTH = 50.0
 """Widest line, in estimated ems (the text width is about 73 ems; the rest is the margin
-of the estimate and the ``\\bar{M}_{12} &= \\quad`` before the line)."""
+of the estimate, which a line of System III showed to be 25 % low, and the
+``\\bar{M}_{12} &= \\quad`` before the line)."""
 
 
 class LatexPrinter(_SympyLatex):
@@ -25,15 +27,34 @@ class LatexPrinter(_SympyLatex):
     def doprint(self, expr):
         if getattr(expr, "is_Add", False):
             terms = self._as_ordered_terms(expr, order=self._settings["order"])
-            out = self._print(terms[0])
+            out = self._term(terms[0])
             for term in terms[1:]:
-                text = self._print(term)
+                text = self._term(term)
                 if text.startswith("-"):
-                    out += BREAK + " - " + text[1:]
+                    out += BREAK + " - " + text[1:].lstrip()
                 else:
                     out += BREAK + " + " + text
             return out
-        return super().doprint(expr)
+        return self._term(expr)
+
+    def _term(self, expr) -> str:
+        """A product too wide for a line with its widest sum opened up:
+        ``\\frac{a}{b} \\Bigl(t_1 + t_2 ...\\Bigr)``, breakable between the ``t``."""
+        text = self._print(expr)
+        if not getattr(expr, "is_Mul", False) or measure(text) <= WIDTH:
+            return text
+        numer, denom = expr.as_numer_denom()
+        sums = [f for f in sympy.Mul.make_args(numer) if f.is_Add]
+        if not sums:
+            return text
+        widest = max(sums, key=lambda f: len(self._print(f)))
+        rest = (numer / widest) / denom
+        inner = self.doprint(widest)
+        if rest == 1:
+            return rf"\Bigl({inner}\Bigr)"
+        if rest == -1:
+            return rf"- \Bigl({inner}\Bigr)"
+        return rf"{self._print(rest)} \Bigl({inner}\Bigr)"
 
 
 def unbroken(text: str) -> str:
