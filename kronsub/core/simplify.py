@@ -47,19 +47,29 @@ def compact(algebra: TrigAlgebra, p: TrigPoly) -> sympy.Expr:
             best, best_key = candidate, key
 
     groups, rest = _angle_groups(p) if multiple else ({}, dict(p.terms))
-    chosen: dict = {}
+    chosen: dict = {}  # base -> (variant, terms kept as multiple angles)
     for base in sorted(groups):
+        without = _key(view.render(groups, chosen, rest))
         trial_best = None
         for variant in (SIN, COS):
             trial = dict(chosen)
-            trial[base] = variant
-            candidate = view.render(groups, trial, rest)
-            key = _key(candidate)
+            trial[base] = (variant, frozenset())
+            key = _key(view.render(groups, trial, rest))
             if trial_best is None or key < trial_best[0]:
-                trial_best = (key, variant, candidate)
-        without = view.render(groups, chosen, rest)
-        if trial_best[0] < _key(without):
-            chosen[base] = trial_best[1]
+                trial_best = (key, variant)
+        if not trial_best[0] < without:
+            continue
+        key, variant = trial_best
+        kept: frozenset = frozenset()
+        for term in sorted(groups[base]):  # a term may print shorter as it was: 2 sin(2b)
+            if term[1] < 2:
+                continue
+            trial = dict(chosen)
+            trial[base] = (variant, kept | {term})
+            k = _key(view.render(groups, trial, rest))
+            if k < key:
+                key, kept = k, kept | {term}
+        chosen[base] = (variant, kept)
     offer(view.render(groups, chosen, rest))
     if _mixed(p):
         offer(_products(view, p))
@@ -277,12 +287,19 @@ class _View:
                     freq = tuple((i, s * k) for i, s in base)
                     parts.append(self.coefficient(coef) * algebra.trig_expr(kind, freq))
                 continue
+            variant, kept = chosen[base]
+            for (kind, k), coef in sorted(terms.items()):
+                if (kind, k) in kept:
+                    freq = tuple((i, s * k) for i, s in base)
+                    parts.append(self.coefficient(coef) * algebra.trig_expr(kind, freq))
             poly: dict[tuple[int, int], dict] = {}
             constant = rest.pop((COS, ()), None)
             if constant:
                 poly[(0, 0)] = dict(constant)
             for (kind, k), coef in terms.items():
-                for m, n in _reduced(_chebyshev(kind, k), chosen[base]).items():
+                if (kind, k) in kept:
+                    continue
+                for m, n in _reduced(_chebyshev(kind, k), variant).items():
                     _add_into(poly.setdefault(m, {}), coef, n)
             s, c = algebra.trig_expr(SIN, base), algebra.trig_expr(COS, base)
             for (i, j), coef in sorted(poly.items()):
