@@ -36,7 +36,7 @@ def compact(algebra: TrigAlgebra, p: TrigPoly) -> sympy.Expr:
     expr = algebra.to_expr(p)
     view = _view(algebra)
     multiple = algebra.has_multiple_angles(p)
-    if not multiple and not _mixed(p) and not view.touches(p):
+    if not multiple and not _mixed(p) and not view.touches(p) and not view.varying_in(p):
         return expr
     best, best_key = expr, _key(expr)
 
@@ -48,31 +48,32 @@ def compact(algebra: TrigAlgebra, p: TrigPoly) -> sympy.Expr:
 
     groups, rest = _angle_groups(p) if multiple else ({}, dict(p.terms))
     chosen: dict = {}  # base -> (variant, terms kept as multiple angles)
+
+    def measure(trial) -> tuple:
+        return _key(_factored(view.render(groups, trial, rest)))
+
     for base in sorted(groups):
-        without = _key(view.render(groups, chosen, rest))
-        trial_best = None
+        best_here = (measure(chosen), None)
+        multiples = [t for t in sorted(groups[base]) if t[1] >= 2]
         for variant in (SIN, COS):
-            trial = dict(chosen)
-            trial[base] = (variant, frozenset())
-            key = _key(view.render(groups, trial, rest))
-            if trial_best is None or key < trial_best[0]:
-                trial_best = (key, variant)
-        if not trial_best[0] < without:
-            continue
-        key, variant = trial_best
-        kept: frozenset = frozenset()
-        for term in sorted(groups[base]):  # a term may print shorter as it was: 2 sin(2b)
-            if term[1] < 2:
-                continue
-            trial = dict(chosen)
-            trial[base] = (variant, kept | {term})
-            k = _key(view.render(groups, trial, rest))
-            if k < key:
-                key, kept = k, kept | {term}
-        chosen[base] = (variant, kept)
-    offer(view.render(groups, chosen, rest))
+            for start in (frozenset(), frozenset(multiples)):
+                kept = start
+                key = measure({**chosen, base: (variant, kept)})
+                for term in multiples:  # greedily flip one term at a time
+                    flipped = kept ^ {term}
+                    k = measure({**chosen, base: (variant, flipped)})
+                    if k < key:
+                        key, kept = k, flipped
+                if key < best_here[0]:
+                    best_here = (key, (variant, kept))
+        if best_here[1] is not None:
+            chosen[base] = best_here[1]
+    offer(_factored(view.render(groups, chosen, rest)))
     if _mixed(p):
         offer(_products(view, p))
+    collected = _collected(view, p)
+    if collected is not None:
+        offer(collected)
     if best_key[0] <= SMALL:
         offer(sympy.factor_terms(best))
     return best
@@ -93,6 +94,13 @@ def _mixed(p: TrigPoly) -> bool:
             if supports.setdefault(support, signs) != signs:
                 return True
     return False
+
+
+def _factored(expr: sympy.Expr) -> sympy.Expr:
+    """``expr`` or, for a small one, its common factors pulled out if that is shorter."""
+    if sympy.count_ops(expr) > SMALL:
+        return expr
+    return min((expr, sympy.factor_terms(expr)), key=_key)
 
 
 def _key(expr: sympy.Expr) -> tuple[int, int]:
@@ -196,6 +204,25 @@ def _products(view: "_View", p: TrigPoly) -> sympy.Expr:
     return view.render_products(_reduce_products(poly, chosen))
 
 
+def _collected(view: "_View", p: TrigPoly) -> sympy.Expr | None:
+    """Terms sharing their factors that vary with the coordinates other than by sines and
+    cosines (``1/sqrt(1 - u^2)`` in System II) collected, the rest compacted inside:
+    ``a1 g m2 cos(theta) (c - a1 sin(theta)) / sqrt(...)`` as in the paper's (29)."""
+    groups: dict = {}
+    for key, coef in p.terms.items():
+        for mono, n in coef.items():
+            varying = tuple((a, e) for a, e in mono if view.varies(a))
+            fixed = tuple((a, e) for a, e in mono if not view.varies(a))
+            groups.setdefault(varying, {}).setdefault(key, {})[fixed] = n
+    if all(len(g) < 2 for v, g in groups.items() if v):
+        return None
+    parts = []
+    for varying, terms in sorted(groups.items()):
+        inner = compact(view.algebra, TrigPoly(terms))
+        parts.append(view.monomial(varying) * inner)
+    return sympy.Add(*parts)
+
+
 def _reduce_products(poly: dict, chosen: dict[int, int]) -> dict:
     out: dict = {}
     for mono, coef in poly.items():
@@ -244,6 +271,13 @@ class _View:
         if any(c in used and s in used for c, s in pairs.items()):
             return True
         return any(self.atom(a) is not self.algebra._atoms[a] for a in used)
+
+    def varies(self, i: int) -> bool:
+        """Whether atom ``i`` depends on the coordinates (``sqrt(1 - (c - a1 sin(theta))^2)``)."""
+        return bool(self.algebra._atoms[i].free_symbols & set(self.algebra.coordinates))
+
+    def varying_in(self, p: TrigPoly) -> bool:
+        return any(self.varies(a) for coef in p.terms.values() for mono in coef for a, _ in mono)
 
     # expressions ---------------------------------------------------------
     def monomial(self, mono) -> sympy.Expr:
