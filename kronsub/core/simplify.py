@@ -74,8 +74,7 @@ def compact(algebra: TrigAlgebra, p: TrigPoly) -> sympy.Expr:
     collected = _collected(view, p)
     if collected is not None:
         offer(collected)
-    if best_key[0] <= SMALL:
-        offer(sympy.factor_terms(best))
+    offer(sympy.factor_terms(best))
     return best
 
 
@@ -451,6 +450,12 @@ def _content(values) -> Fraction:
 def _rational(v) -> sympy.Rational:
     v = Fraction(v)
     return sympy.Rational(v.numerator, v.denominator)
+
+
+def tidy(expr: sympy.Expr) -> sympy.Expr:
+    """A printed entry with the factors common to its terms (a sign, a length) pulled out
+    when that is shorter: ``-(P*lambda + g*r*sin(theta)/2)``. Small entries only."""
+    return _factored(expr)
 
 
 def recompact(expr: sympy.Expr, coordinates) -> sympy.Expr:

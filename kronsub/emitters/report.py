@@ -14,7 +14,7 @@ from markupsafe import Markup
 from sympy.printing.str import StrPrinter
 
 from ..core.known_system import KnownSystem
-from ..core.simplify import recompact
+from ..core.simplify import recompact, tidy
 from .latex_layout import LatexPrinter, unbroken
 from ..core.symbols import acceleration_symbol, velocity_symbol
 
@@ -164,10 +164,10 @@ def build_report(system: KnownSystem, show: Printer, named: bool = True) -> dict
     tr = system.transition
     n = len(system.coordinates)
     effects = list(system.effect_forces.items())
-    forces = [recompact(f, system.coordinates) if sum(e[i] != 0 for _, e in effects) > 1 else f
+    forces = [recompact(f, system.coordinates) if sum(e[i] != 0 for _, e in effects) > 1 else tidy(f)
               for i, f in enumerate(system.forces)]
     upper = [(i, j) for i in range(n) for j in range(i, n)]
-    exprs = [*[system.mass_matrix[i, j] for i, j in upper], *system.velocity_terms, *forces]
+    exprs = [*[tidy(system.mass_matrix[i, j]) for i, j in upper], *[tidy(h) for h in system.velocity_terms], *forces]
     where: list = []
     if named:
         where, exprs = named_subexpressions(exprs, model_names(system), system.coordinates)
