@@ -24,7 +24,10 @@ from .trigpoly import TrigAlgebra, TrigPoly
 
 COS, SIN = 0, 1
 SMALL = 40
-"""Operations up to which ``factor_terms`` of the whole entry is also tried."""
+"""Operations up to which ``factor_terms`` of a candidate is also tried."""
+FACTORED = 60
+"""Operations up to which the polynomial factorization of the chosen form is tried (an entry
+of multiple angles or varying factors only: ``(a1 sin(theta) - c)^2`` in System II)."""
 
 
 def compact(algebra: TrigAlgebra, p: TrigPoly) -> sympy.Expr:
@@ -75,6 +78,12 @@ def compact(algebra: TrigAlgebra, p: TrigPoly) -> sympy.Expr:
     if collected is not None:
         offer(collected)
     offer(sympy.factor_terms(best))
+    if best_key[0] <= FACTORED:
+        offer(_factor(best))
+        for variant in (SIN, COS):  # all powers: a polynomial in sin and cos to factor
+            powers = view.render(groups, {b: (variant, frozenset()) for b in groups}, rest)
+            if groups and sympy.count_ops(powers) <= 2 * FACTORED:
+                offer(_factor(powers))
     return best
 
 
@@ -93,6 +102,15 @@ def _mixed(p: TrigPoly) -> bool:
             if supports.setdefault(support, signs) != signs:
                 return True
     return False
+
+
+def _factor(expr: sympy.Expr) -> sympy.Expr:
+    """``sympy.factor``, with ``(sin(a) - 1)(sin(a) + 1)`` read back as ``-cos(a)^2``."""
+    out = sympy.factor(expr)
+    for t in sorted(out.atoms(sympy.sin, sympy.cos), key=sympy.default_sort_key):
+        other = (sympy.cos if isinstance(t, sympy.sin) else sympy.sin)(t.args[0])
+        out = out.subs((t - 1) * (t + 1), -other**2)
+    return out
 
 
 def _factored(expr: sympy.Expr) -> sympy.Expr:
