@@ -52,7 +52,7 @@ def compact(algebra: TrigAlgebra, p: TrigPoly) -> sympy.Expr:
     groups, rest = _angle_groups(p) if multiple else ({}, dict(p.terms))
     chosen: dict = {}  # base -> (variant, terms kept as multiple angles)
 
-    def measure(trial) -> tuple:
+    def measure(trial) -> _Key:
         return _key(_factored(view.render(groups, trial, rest)))
 
     for base in sorted(groups):
@@ -78,11 +78,10 @@ def compact(algebra: TrigAlgebra, p: TrigPoly) -> sympy.Expr:
     if collected is not None:
         offer(collected)
     offer(sympy.factor_terms(best))
-    if best_key[0] <= FACTORED:
-        offer(_factor(best))
+    if groups and best_key.ops <= FACTORED:
         for variant in (SIN, COS):  # all powers: a polynomial in sin and cos to factor
             powers = view.render(groups, {b: (variant, frozenset()) for b in groups}, rest)
-            if groups and sympy.count_ops(powers) <= 2 * FACTORED:
+            if sympy.count_ops(powers) <= 2 * FACTORED:
                 offer(_factor(powers))
     return best
 
@@ -109,7 +108,8 @@ def _factor(expr: sympy.Expr) -> sympy.Expr:
     out = sympy.factor(expr)
     for t in sorted(out.atoms(sympy.sin, sympy.cos), key=sympy.default_sort_key):
         other = (sympy.cos if isinstance(t, sympy.sin) else sympy.sin)(t.args[0])
-        out = out.subs((t - 1) * (t + 1), -other**2)
+        if out.has(t - 1) and out.has(t + 1):
+            out = out.subs((t - 1) * (t + 1), -other**2)
     return out
 
 
@@ -120,8 +120,30 @@ def _factored(expr: sympy.Expr) -> sympy.Expr:
     return min((expr, sympy.factor_terms(expr)), key=_key)
 
 
-def _key(expr: sympy.Expr) -> tuple[int, int]:
-    return sympy.count_ops(expr), len(sympy.sstr(expr, order="lex"))
+class _Key:
+    """``(count_ops, printed length)``, the length computed only to break a tie."""
+
+    __slots__ = ("expr", "ops", "_length")
+
+    def __init__(self, expr: sympy.Expr):
+        self.expr, self.ops, self._length = expr, sympy.count_ops(expr), None
+
+    def length(self) -> int:
+        if self._length is None:
+            self._length = len(sympy.sstr(self.expr, order="lex"))
+        return self._length
+
+    def __lt__(self, other: "_Key") -> bool:
+        if self.ops != other.ops:
+            return self.ops < other.ops
+        return self.length() < other.length()
+
+    def __getitem__(self, i: int) -> int:
+        return (self.ops, self.length())[i]
+
+
+def _key(expr: sympy.Expr) -> _Key:
+    return _Key(expr)
 
 
 # ------------------------------------------------------------------ angle groups
@@ -261,6 +283,7 @@ class _View:
         self.algebra = algebra
         self._atom: dict[int, sympy.Expr] = {}
         self._mono: dict = {}
+        self._varies: dict[int, bool] = {}
         self._pairs: dict[int, int] | None = None
         self._seen = 0
 
@@ -291,7 +314,10 @@ class _View:
 
     def varies(self, i: int) -> bool:
         """Whether atom ``i`` depends on the coordinates (``sqrt(1 - (c - a1 sin(theta))^2)``)."""
-        return bool(self.algebra._atoms[i].free_symbols & set(self.algebra.coordinates))
+        hit = self._varies.get(i)
+        if hit is None:
+            hit = self._varies[i] = bool(self.algebra._atoms[i].free_symbols & set(self.algebra.coordinates))
+        return hit
 
     def varying_in(self, p: TrigPoly) -> bool:
         return any(self.varies(a) for coef in p.terms.values() for mono in coef for a, _ in mono)
