@@ -83,8 +83,21 @@ NAME_PREFIX = "w"
 """Named subexpressions are ``w1``, ``w2``... skipping any name the model uses."""
 MIN_NAMED_OPS = 4
 """Operations a repeated subexpression of the coordinates needs to be named (``sqrt(1 - u**2)``)."""
-MIN_NAMED_CONSTANT_OPS = 12
-"""Operations a repeated subexpression of the parameters alone needs (``m1 + 2*m2`` stays inline)."""
+
+
+def _repeats(exprs, coordinates) -> bool:
+    """Whether a root, a non-integer power or a function other than sine and cosine of
+    the coordinates occurs twice: the subexpressions worth a name (a chain has none)."""
+    seen = set()
+    for e in exprs:
+        for sub in sympy.preorder_traversal(e):
+            if ((sub.is_Pow and not sub.exp.is_Integer)
+                    or (isinstance(sub, sympy.Function) and not isinstance(sub, (sympy.sin, sympy.cos)))):
+                if sub.free_symbols & coordinates and sympy.count_ops(sub) >= MIN_NAMED_OPS:
+                    if sub in seen:
+                        return True
+                    seen.add(sub)
+    return False
 
 
 def named_subexpressions(exprs: list, taken: Iterable[str], coordinates) -> tuple[list, list]:
@@ -92,10 +105,13 @@ def named_subexpressions(exprs: list, taken: Iterable[str], coordinates) -> tupl
 
     ``sympy.cse`` finds every repeated subexpression; the small ones are put back, so a
     name stands for something worth reading once (``sqrt(1 - (c - a1*sin(theta))**2/a2**2)``
-    in System II). Names are ``w1, w2...`` in order of definition, skipping ``taken``.
+    in System II); only what varies with the coordinates is named, so ``m1 + 2*m2`` stays
+    inline. Names are ``w1, w2...`` in order of definition, skipping ``taken``.
     """
     taken = frozenset(taken)
     coordinates = frozenset(coordinates)
+    if not _repeats(exprs, coordinates):
+        return [], list(exprs)
     names = (sympy.Symbol(f"{NAME_PREFIX}{i}") for i in count(1) if f"{NAME_PREFIX}{i}" not in taken)
     replacements, reduced = sympy.cse(exprs, symbols=names, order="canonical")
     entries = set(reduced)
@@ -108,7 +124,7 @@ def named_subexpressions(exprs: list, taken: Iterable[str], coordinates) -> tupl
             ops = sympy.count_ops(expr)
             varying = bool(expr.free_symbols & coordinates)
             uses = sum(e.has(sym) for e in reduced) + sum(e.has(sym) for _, e in pending)
-            if ops < (MIN_NAMED_OPS if varying else MIN_NAMED_CONSTANT_OPS) or sym in entries or uses < 2:
+            if ops < MIN_NAMED_OPS or not varying or sym in entries or uses < 2:
                 dropped[sym] = expr
             else:
                 kept.append((sym, expr))
