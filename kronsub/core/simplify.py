@@ -6,11 +6,15 @@ power form may be shorter: ``l^2 m (1 - cos 2 alpha)`` is ``2 l^2 m sin(alpha)^2
 :func:`compact` offers, angle by angle, the polynomial in ``sin`` and ``cos`` of
 the single angle (``cos 2b = 1 - 2 sin(b)^2`` or ``2 cos(b)^2 - 1``, chosen by
 counting operations), collapses ``sin(a)^2 + cos(a)^2`` among the other factors
-(an incline's angle ``alpha``), and re-expresses the insides of those factors
-through the same algebra (``sqrt(r^2 sin(a)^2 + r^2 cos(a)^2)`` is ``sqrt(r^2)``).
-Every rule is arithmetic on the algebra's terms, never a call of sympy's
-simplifiers, so long chains stay cheap; an entry without multiple angles or
-such factors keeps the algebra's own form.
+(an incline's angle ``alpha``), re-expresses the insides of those factors
+through the same algebra (``sqrt(r^2 sin(a)^2 + r^2 cos(a)^2)`` is ``sqrt(r^2)``),
+writes sums and differences of angles as products where that is shorter (a top's
+``cos(2 phi - 2 theta)``), and collects terms over factors that vary with the
+coordinates (System II's ``1/sqrt(1 - u^2)``, as in the paper's (29)).
+The rules are arithmetic on the algebra's terms; of sympy only ``factor_terms`` and,
+for entries up to `FACTORED` operations, ``factor`` are called, never ``trigsimp``
+or ``fu``. An entry with none of the above (every entry of a chain) keeps the
+algebra's own form at no cost.
 """
 from __future__ import annotations
 
