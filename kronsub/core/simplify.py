@@ -56,8 +56,13 @@ def compact(algebra: TrigAlgebra, p: TrigPoly) -> sympy.Expr:
     groups, rest = _angle_groups(p) if multiple else ({}, dict(p.terms))
     chosen: dict = {}  # base -> (variant, terms kept as multiple angles)
 
+    seen: dict = {}
+
     def measure(trial) -> _Key:
-        return _key(_factored(view.render(groups, trial, rest)))
+        rendered = view.render(groups, trial, rest)
+        if rendered not in seen:
+            seen[rendered] = _key(_factored(rendered))
+        return seen[rendered]
 
     for base in sorted(groups):
         best_here = (measure(chosen), None)
