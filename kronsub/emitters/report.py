@@ -6,25 +6,145 @@ Like the paper: the primitive metric and forces (16), (17), the connection
 """
 from __future__ import annotations
 
-from typing import Callable
+from itertools import count
+from typing import Callable, Iterable
 
 import sympy
 from markupsafe import Markup
+from sympy.printing.str import StrPrinter
 
 from ..core.known_system import KnownSystem
+from ..core.simplify import recompact, tidy
+from .latex_layout import LatexPrinter, unbroken
 from ..core.symbols import acceleration_symbol, velocity_symbol
 
 Printer = Callable[[sympy.Expr], str]
 
 
+class ModelStrPrinter(StrPrinter):
+    """sympy's ``str`` form in the words of the model's expression parser
+    (:mod:`kronsub.model.expressions`), so that every printed expression reads back to
+    the same value: ``Abs`` is ``abs``, Euler's number ``exp(1)``; ``pi`` is ``acos(-1)``
+    when the model has a name ``pi`` of its own."""
+
+    def __init__(self, reserved: Iterable[str] = ()):
+        super().__init__({"order": "lex"})
+        self.reserved = frozenset(reserved)
+
+    def _call(self, name: str, *args) -> str:
+        return f"{name}({', '.join(self._print(a) for a in args)})"
+
+    def _print_Abs(self, expr):
+        return self._call("abs", expr.args[0])
+
+    def _print_Exp1(self, expr):
+        return "exp(1)"
+
+    def _print_Pi(self, expr):
+        return "acos(-1)" if "pi" in self.reserved else "pi"
+
+    def _print_Heaviside(self, expr):  # sympy's Heaviside(0) is 1/2, as (sign(0) + 1)/2
+        return f"((sign({self._print(expr.args[0])}) + 1)/2)"
+
+    def _print_cot(self, expr):
+        return f"(1/tan({self._print(expr.args[0])}))"
+
+    def _print_sec(self, expr):
+        return f"(1/cos({self._print(expr.args[0])}))"
+
+    def _print_csc(self, expr):
+        return f"(1/sin({self._print(expr.args[0])}))"
+
+
+def plain_printer(reserved: Iterable[str] = ()) -> Printer:
+    """The ``str`` form for a model whose own names are ``reserved``."""
+    printer = ModelStrPrinter(reserved)
+    return printer.doprint
+
+
 def plain(expr) -> str:
-    """sympy's ``str`` form: the JSON contract and the Markdown tables."""
-    return sympy.sstr(expr, order="lex")
+    """sympy's ``str`` form, readable by the model's parser: the JSON contract and the Markdown tables."""
+    return _PLAIN.doprint(expr)
 
 
-def latex_printer(coordinates, implicit=None) -> Printer:
+_PLAIN = ModelStrPrinter()
+
+
+def model_names(system: KnownSystem) -> frozenset[str]:
+    """Every name the system's expressions may use: parameters, coordinates, velocities..."""
+    names = {p.name for p in system.parameters}
+    for e in (*system.mass_matrix, *system.velocity_terms, *system.forces, system.kinetic_energy,
+              system.potential_energy):
+        names.update(s.name for s in e.free_symbols)
+    return frozenset(names)
+
+
+NAME_PREFIX = "w"
+"""Named subexpressions are ``w1``, ``w2``... skipping any name the model uses."""
+MIN_NAMED_OPS = 4
+"""Operations a repeated subexpression of the coordinates needs to be named (``sqrt(1 - u**2)``)."""
+
+
+def _repeats(exprs, coordinates) -> bool:
+    """Whether a root, a non-integer power or a function other than sine and cosine of
+    the coordinates occurs twice: the subexpressions worth a name (a chain has none)."""
+    seen = set()
+    for e in exprs:
+        for sub in sympy.preorder_traversal(e):
+            if ((sub.is_Pow and not sub.exp.is_Integer)
+                    or (isinstance(sub, sympy.Function) and not isinstance(sub, (sympy.sin, sympy.cos)))):
+                if sub.free_symbols & coordinates and sympy.count_ops(sub) >= MIN_NAMED_OPS:
+                    if sub in seen:
+                        return True
+                    seen.add(sub)
+    return False
+
+
+def named_subexpressions(exprs: list, taken: Iterable[str], coordinates) -> tuple[list, list]:
+    """Repeated subexpressions named once (a "where" block): ``([(name, expr)...], reduced)``.
+
+    ``sympy.cse`` finds every repeated subexpression; the small ones are put back, so a
+    name stands for something worth reading once (``sqrt(1 - (c - a1*sin(theta))**2/a2**2)``
+    in System II); only what varies with the coordinates is named, so ``m1 + 2*m2`` stays
+    inline. Names are ``w1, w2...`` in order of definition, skipping ``taken``.
+    """
+    taken = frozenset(taken)
+    coordinates = frozenset(coordinates)
+    if not _repeats(exprs, coordinates):
+        return [], list(exprs)
+    names = (sympy.Symbol(f"{NAME_PREFIX}{i}") for i in count(1) if f"{NAME_PREFIX}{i}" not in taken)
+    replacements, reduced = sympy.cse(exprs, symbols=names, order="canonical")
+    entries = set(reduced)
+    pending = list(replacements)
+    while True:  # put back the small ones, whole entries and those used once
+        dropped: dict = {}
+        kept = []
+        for sym, expr in pending:
+            expr = expr.xreplace(dropped)
+            ops = sympy.count_ops(expr)
+            varying = bool(expr.free_symbols & coordinates)
+            uses = sum(e.has(sym) for e in reduced) + sum(e.has(sym) for _, e in pending)
+            if ops < MIN_NAMED_OPS or not varying or sym in entries or uses < 2:
+                dropped[sym] = expr
+            else:
+                kept.append((sym, expr))
+        reduced = [e.xreplace(dropped) for e in reduced]
+        entries = set(reduced)
+        if not dropped:
+            break
+        pending = kept
+    # renumber what is kept: w1, w2... without gaps
+    fresh = (sympy.Symbol(f"{NAME_PREFIX}{i}") for i in count(1) if f"{NAME_PREFIX}{i}" not in taken)
+    rename = {sym: next(fresh) for sym, _ in kept}
+    kept = [(rename[s], e.xreplace(rename)) for s, e in kept]
+    reduced = [e.xreplace(rename) for e in reduced]
+    return kept, reduced
+
+
+def latex_printer(coordinates, implicit=None, breaks: bool = False) -> Printer:
     """LaTeX with velocities as dots: ``theta_dot`` -> ``\\dot{\\theta}``; with implicit constraints
-    ``lambda_phi_theta`` -> ``\\lambda_{\\phi\\theta}`` and ``gamma_phi`` -> ``\\gamma_{\\phi}``."""
+    ``lambda_phi_theta`` -> ``\\lambda_{\\phi\\theta}`` and ``gamma_phi`` -> ``\\gamma_{\\phi}``.
+    With ``breaks``, the terms of a top-level sum are separated by `BREAK` (for `lines`)."""
     names = {}
     if implicit is not None:
         for a, d in enumerate(implicit.dependent):
@@ -38,8 +158,11 @@ def latex_printer(coordinates, implicit=None) -> Printer:
         names[velocity_symbol(q)] = rf"\dot{{{base}}}"
         names[acceleration_symbol(q)] = rf"\ddot{{{base}}}"
 
+    printer = LatexPrinter({"symbol_names": names, "order": "lex"})
+
     def show(expr) -> str:
-        return sympy.latex(expr, symbol_names=names, order="lex")
+        text = printer.doprint(expr)
+        return text if breaks else unbroken(text)
 
     return show
 
@@ -48,9 +171,33 @@ def matrix_rows(matrix: sympy.Matrix, show: Printer) -> list[list[str]]:
     return [[show(matrix[i, j]) for j in range(matrix.cols)] for i in range(matrix.rows)]
 
 
-def build_report(system: KnownSystem, show: Printer) -> dict:
-    """The derivation as nested lists of printed strings, in a fixed order."""
+def build_report(system: KnownSystem, show: Printer, named: bool = True) -> dict:
+    """The derivation as nested lists of printed strings, in a fixed order.
+
+    With ``named``, subexpressions repeated across the projected system and the equations
+    are printed once, in ``where`` (:func:`named_subexpressions`).
+    """
     tr = system.transition
+    n = len(system.coordinates)
+    effects = list(system.effect_forces.items())
+    forces = [recompact(f, system.coordinates) if sum(e[i] != 0 for _, e in effects) > 1 else tidy(f)
+              for i, f in enumerate(system.forces)]
+    upper = [(i, j) for i in range(n) for j in range(i, n)]
+    exprs = [*[tidy(system.mass_matrix[i, j]) for i, j in upper], *[tidy(h) for h in system.velocity_terms], *forces]
+    where: list = []
+    if named:
+        where, exprs = named_subexpressions(exprs, model_names(system), system.coordinates)
+    mass = sympy.zeros(n, n)
+    for (i, j), e in zip(upper, exprs):
+        mass[i, j] = mass[j, i] = e
+    hbar, fbar = exprs[len(upper):len(upper) + n], exprs[len(upper) + n:]
+    named_as = {e: s for s, e in where}
+    others = [e.xreplace(named_as) for e in (system.kinetic_energy, system.potential_energy,
+                                              *[e for _, f in effects for e in f])]
+    it = iter(others[2:])
+    take = lambda k: [next(it) for _ in range(k)]  # noqa: E731
+    accelerations = sympy.Matrix(system.accelerations)
+    lhs = mass * accelerations + sympy.Matrix(hbar)
     report = {
         "name": system.name,
         "description": system.description.strip(),
@@ -61,16 +208,16 @@ def build_report(system: KnownSystem, show: Printer) -> dict:
              "unit": p.unit, "description": p.description}
             for p in system.parameters
         ],
-        "mass_matrix": matrix_rows(system.mass_matrix, show),
-        "velocity_terms": [show(e) for e in system.velocity_terms],
-        "forces": [show(e) for e in system.forces],
-        "effects": [{"name": k, "forces": [show(e) for e in f]} for k, f in system.effect_forces.items()],
-        "kinetic_energy": show(system.kinetic_energy),
-        "potential_energy": show(system.potential_energy),
-        "equations": [],
+        "mass_matrix": matrix_rows(mass, show),
+        "velocity_terms": [show(e) for e in hbar],
+        "forces": [show(e) for e in fbar],
+        "effects": [{"name": k, "forces": [show(e) for e in take(len(f))]} for k, f in effects],
+        "kinetic_energy": show(others[0]),
+        "potential_energy": show(others[1]),
+        "accelerations": [show(a) for a in system.accelerations],
+        "equations": [{"lhs": show(lhs[i]), "rhs": show(fbar[i])} for i in range(n)],
+        "where": [{"name": show(s), "plain": s.name, "expression": show(e)} for s, e in where],
     }
-    for eq in system.equations():
-        report["equations"].append({"lhs": show(eq.lhs), "rhs": show(eq.rhs)})
     if tr is not None:
         prim_coords = list(tr.primitive_coordinates)
         report["primitive"] = {

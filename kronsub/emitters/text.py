@@ -8,13 +8,37 @@ import jinja2
 
 from ..core.known_system import KnownSystem
 from .escape import Markup, environment
-from .report import build_report, latex_printer, plain
+from .latex_layout import WIDTH, lines, measure, unbroken
+from .report import build_report, latex_printer, model_names, plain_printer
 
 
 def _environment() -> jinja2.Environment:
     """The templates' environment: free text reaches them only through an escaping filter."""
     loader = jinja2.FunctionLoader(lambda name: resources.files("kronsub.templates").joinpath(name).read_text("utf-8"))
     return environment(loader)
+
+
+def _fits(rows) -> bool:
+    """Whether a matrix (rows of cells) or a column (cells) fits the page whole."""
+    rows = [[cell] if isinstance(cell, str) else list(cell) for cell in rows]
+    if not rows:
+        return True
+    columns = max(len(row) for row in rows)
+    widths = [max((measure(row[j]) for row in rows if j < len(row)), default=0.0) for j in range(columns)]
+    return sum(widths) + 1.5 * columns <= WIDTH
+
+
+def _broken(text) -> Markup:
+    """A formula over as many lines as it needs, continued with ``&\\quad`` in an ``align*``."""
+    return Markup(" \\\\\n&\\quad ".join(lines(text)))
+
+
+_SYMBOLS = {"M": "M", "C": "C", "h": "h", "f": "f", "Mbar": r"\bar{M}", "fbar": r"\bar{f}", "hbar": r"\bar{h}"}
+
+
+def _symbol(name: str) -> Markup:
+    """The LaTeX of one of the paper's matrices, named in the template (``Mbar`` -> ``\\bar{M}``)."""
+    return Markup(_SYMBOLS[name])
 
 
 def _trusted(show):
@@ -24,19 +48,24 @@ def _trusted(show):
 
 def emit_markdown(system: KnownSystem) -> str:
     """Markdown: the derivation step by step, expressions in sympy's ``str`` form."""
-    return _environment().get_template("derive.md.j2").render(r=build_report(system, _trusted(plain)))
+    show = plain_printer(model_names(system))
+    return _environment().get_template("derive.md.j2").render(r=build_report(system, _trusted(show)))
 
 
 def emit_latex(system: KnownSystem) -> str:
     """A standalone LaTeX document of the derivation."""
     show = latex_printer(tuple(system.coordinates) + tuple(
-        system.transition.primitive_coordinates if system.transition else ()), system.implicit)
-    return _environment().get_template("derive.tex.j2").render(r=build_report(system, _trusted(show)))
+        system.transition.primitive_coordinates if system.transition else ()), system.implicit, breaks=True)
+    env = _environment()
+    env.filters["fits"] = _fits
+    env.filters["broken"] = _broken
+    env.filters["symbol"] = _symbol
+    return unbroken(env.get_template("derive.tex.j2").render(r=build_report(system, _trusted(show))))
 
 
 def emit_json(system: KnownSystem) -> str:
     """The machine contract: ``Mbar qddot + hbar = fbar`` with sympy ``str`` expressions."""
-    r = build_report(system, plain)
+    r = build_report(system, plain_printer(model_names(system)), named=False)
     data = {
         "name": r["name"],
         "coordinates": r["coordinate_names"],
