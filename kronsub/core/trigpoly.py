@@ -22,6 +22,7 @@ from typing import Iterable, Iterator
 import sympy
 
 from ..errors import Location, ModelError, Problem
+from . import canonical
 
 MAX_EXPANDED_POWER = 8
 """Highest integer power of a sum that is expanded (``(x + y)**8``); a higher one is an error."""
@@ -260,6 +261,7 @@ class TrigAlgebra:
         self._cache: dict[sympy.Expr, TrigPoly] = {}
         self._trig_cache: dict[tuple[int, Freq], sympy.Expr] = {}
         self._mono_cache: dict[Mono, sympy.Expr] = {}
+        self._power_cache: dict[tuple[int, int | Fraction], sympy.Expr] = {}
 
     # ----------------------------------------------------------- construction
     def constant(self, value: int | Fraction) -> TrigPoly:
@@ -448,11 +450,72 @@ class TrigAlgebra:
         return sympy.Mul(_rational(_num(Fraction(content))), *outer, self.coefficient_expr(inner))
 
     def to_expr(self, p: TrigPoly) -> sympy.Expr:
-        """A compact sympy expression: common factors of each coefficient pulled out."""
+        """A compact sympy expression: common factors of each coefficient pulled out.
+
+        Built in canonical form directly (:mod:`.canonical`): the same expression as
+        `evaluated_expr`, without sympy collecting terms the algebra has already collected.
+        """
+        parts = []
+        for (kind, freq), coef in _sorted_terms(p):
+            sign, trig = self._trig_factor(kind, freq)
+            if len(coef) == 1:
+                (mono, c), = coef.items()
+                powers = self._powers(mono)
+                if len(powers) == 1 and powers[0].is_Add:  # c*(a + b) distributes before trig joins
+                    parts.append(canonical.mul(sign, [canonical.mul(_rational(c), powers), *trig]))
+                else:
+                    parts.append(canonical.mul(_rational(c) * sign, [*powers, *trig]))
+                continue
+            common = _common_monomial(coef)
+            if not common:
+                parts.append(canonical.mul(sign, [self._coefficient(coef), *trig]))
+                continue
+            content = _content(coef.values())
+            inner = {_mono_mul(m, tuple((i, -e) for i, e in common)): c / content for m, c in coef.items()}
+            parts.append(canonical.mul(_rational(_num(Fraction(content))) * sign,
+                                       [*self._powers(common), self._coefficient(inner), *trig]))
+        return canonical.add(parts)
+
+    def evaluated_expr(self, p: TrigPoly) -> sympy.Expr:
+        """`to_expr` through sympy's own evaluating constructors (the reference it must equal)."""
         parts = []
         for (kind, freq), coef in _sorted_terms(p):
             parts.append(self.factored_coefficient(coef) * self.trig_expr(kind, freq))
         return sympy.Add(*parts)
+
+    def _powers(self, mono: Mono) -> list[sympy.Expr]:
+        out = []
+        for i, e in mono:
+            key = (i, e)
+            hit = self._power_cache.get(key)
+            if hit is None:
+                hit = self._power_cache[key] = self._atoms[i] ** _rational(e)
+            out.append(hit)
+        return out
+
+    def _coefficient(self, coef: Coef) -> sympy.Expr:
+        """`coefficient_expr`, built in canonical form."""
+        return canonical.add([canonical.mul(_rational(c), self._powers(mono)) for mono, c in coef.items()])
+
+    def _trig_factor(self, kind: int, freq: Freq) -> tuple[sympy.Integer, list[sympy.Expr]]:
+        """``trig_expr`` as (sign, [function value]): ``[]`` for ``cos(0)``."""
+        expr = self.trig_expr(kind, freq)
+        if expr == 1:
+            return sympy.S.One, []
+        if expr.is_Mul:
+            sign, rest = expr.as_coeff_Mul()
+            return sign, [rest]
+        return sympy.S.One, [expr]
+
+    def numeric(self, values: dict) -> "NumericPoint":
+        """The algebra at a point (``values``: every coordinate and the atoms' other
+        symbols as floats), for evaluating many of its polynomials there."""
+        return NumericPoint(self, values)
+
+    def atoms_of(self, p: TrigPoly) -> list[sympy.Expr]:
+        """The atoms ``p``'s coefficients are made of, in the order met."""
+        used = {i for coef in p.terms.values() for mono in coef for i, _ in mono}
+        return [self._atoms[i] for i in sorted(used)]
 
     def depends_on(self, p: TrigPoly) -> frozenset[int]:
         """Indices of the coordinates that ``p`` depends on."""
@@ -540,3 +603,36 @@ def _rational(v: int | Fraction) -> sympy.Rational:
     if isinstance(v, Fraction):
         return sympy.Rational(v.numerator, v.denominator)
     return sympy.Integer(v)
+
+
+class NumericPoint:
+    """Polynomials of an algebra evaluated at one point, in floating point: the atoms are
+    evaluated once, then each term is ``coefficient(atoms) * trig(freq . q)``."""
+
+    def __init__(self, algebra: TrigAlgebra, values: dict):
+        self.q = [float(values[c]) for c in algebra.coordinates]
+        self.algebra = algebra
+        self.values = {k: sympy.Float(v) for k, v in values.items()}
+        self.atoms: dict[int, complex] = {}
+
+    def _atom(self, i: int) -> complex:
+        hit = self.atoms.get(i)
+        if hit is None:
+            hit = self.atoms[i] = complex(self.algebra._atoms[i].xreplace(self.values).evalf())
+        return hit
+
+    def __call__(self, p: TrigPoly) -> float:
+        total = 0.0
+        for (kind, freq), coef in p.terms.items():
+            angle = sum(float(v) * self.q[i] for i, v in freq)
+            trig = math.cos(angle) if kind == COS else math.sin(angle)
+            for mono, c in coef.items():
+                term = float(c) * trig
+                for i, e in mono:
+                    term *= self._atom(i) ** float(e)
+                total += term
+        if isinstance(total, complex):
+            if abs(total.imag) > 1e-9 * max(1.0, abs(total.real)):
+                raise ValueError("complex value: outside the domain")
+            total = total.real
+        return total

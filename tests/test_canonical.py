@@ -1,0 +1,73 @@
+"""The algebra's sympy expressions are built in canonical form directly
+(:mod:`kronsub.core.canonical`); they must be the very expressions sympy's evaluating
+constructors build, so printed output does not change."""
+import glob
+import random
+import warnings
+
+import pytest
+import sympy
+
+import kronsub
+from kronsub.core import trigpoly
+from kronsub.core.trigpoly import TrigAlgebra
+
+q1, q2, q3 = sympy.symbols("q1 q2 q3")
+a, b, c, u = sympy.symbols("a b c u", positive=True)
+x = sympy.Symbol("x")
+PIECES = [q1, q2, q3, a, b, c, x, sympy.Integer(2), sympy.Rational(1, 3), sympy.sqrt(2), sympy.pi,
+          sympy.sqrt(1 - a * sympy.sin(q1)), sympy.asin(c * sympy.sin(q2)), sympy.Abs(x + 1), sympy.exp(x),
+          sympy.exp(2 * x), sympy.sign(x + 1), x + 1, sympy.sin(a), sympy.cos(q1 ** 2)]
+
+
+def _random_expr(rng: random.Random, depth: int = 3) -> sympy.Expr:
+    if depth == 0:
+        return rng.choice(PIECES)
+    op = rng.choice(["add", "mul", "pow", "sin", "cos", "leaf"])
+    if op == "leaf":
+        return rng.choice(PIECES)
+    if op in ("sin", "cos"):
+        arg = rng.choice([q1, q2, q1 - q2, 2 * q3, q1 + q2 / 2, q1 + a])
+        return getattr(sympy, op)(arg) * _random_expr(rng, depth - 1)
+    if op == "pow":
+        return _random_expr(rng, depth - 1) ** rng.choice([2, 3, -1, sympy.Rational(1, 2)])
+    parts = [_random_expr(rng, depth - 1) for _ in range(rng.randint(2, 4))]
+    return sympy.Add(*parts) if op == "add" else sympy.Mul(*parts)
+
+
+@pytest.mark.parametrize("seed", range(12))
+def test_random_expressions_build_as_sympy_would(seed):
+    rng = random.Random(seed)
+    algebra = TrigAlgebra((q1, q2, q3))
+    checked = 0
+    for _ in range(40):
+        try:
+            p = algebra.from_expr(_random_expr(rng))
+        except trigpoly.ExpansionTooLarge:
+            continue
+        assert sympy.srepr(algebra.to_expr(p)) == sympy.srepr(algebra.evaluated_expr(p))
+        for j in range(3):
+            d = algebra.diff(p, j)
+            assert sympy.srepr(algebra.to_expr(d)) == sympy.srepr(algebra.evaluated_expr(d))
+        checked += 1
+    assert checked > 20
+
+
+def test_every_bundled_model_builds_as_sympy_would(monkeypatch, tmp_path):
+    monkeypatch.setenv("KRONSUB_CACHE_DIR", str(tmp_path / "none"))
+    seen = []
+    fast = TrigAlgebra.to_expr
+
+    def both(self, p):
+        expr = fast(self, p)
+        seen.append(sympy.srepr(expr) == sympy.srepr(self.evaluated_expr(p)))
+        return expr
+
+    monkeypatch.setattr(TrigAlgebra, "to_expr", both)
+    files = sorted(glob.glob("models/**/*.yaml", recursive=True))
+    assert len(files) > 8
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        for path in files:
+            kronsub.load(path).derive(cache=False)
+    assert len(seen) > 200 and all(seen)
