@@ -17,6 +17,11 @@ from __future__ import annotations
 
 import math
 from fractions import Fraction
+
+try:  # exact rationals in C when gmpy2 is installed (the `fast` extra); Python's otherwise
+    from gmpy2 import mpq as _Q
+except ImportError:  # pragma: no cover - depends on the installation
+    _Q = Fraction
 from typing import Iterable, Iterator
 
 import sympy
@@ -87,7 +92,7 @@ ONE: Mono = ()
 
 
 def _num(value: Fraction) -> int | Fraction:
-    return value.numerator if value.denominator == 1 else value
+    return int(value.numerator) if value.denominator == 1 else value
 
 
 def _freq_combine(a: Freq, b: Freq, sign: int) -> Freq:
@@ -217,7 +222,7 @@ def _trig_key(kind: int, freq: Freq, scale: int | Fraction) -> tuple[tuple[int, 
     return (kind, freq), scale
 
 
-_HALF = Fraction(1, 2)
+_HALF = _Q(1, 2)
 
 
 def _product_to_sum(ka: int, fa: Freq, kb: int, fb: Freq):
@@ -291,7 +296,7 @@ class TrigAlgebra:
 
     def _convert(self, e: sympy.Expr) -> TrigPoly:
         if e.is_Rational:
-            return self.constant(_num(Fraction(int(e.p), int(e.q))))
+            return self.constant(_num(_Q(int(e.p), int(e.q))))
         if e.is_Add:
             out = TrigPoly()
             for a in e.args:
@@ -323,7 +328,7 @@ class TrigAlgebra:
             n = int(exp)
             if single is not None:
                 mono, c = single
-                return TrigPoly({(COS, ZERO_FREQ): {tuple((i, _num(Fraction(k) * n)) for i, k in mono): _num(Fraction(c) ** n)}})
+                return TrigPoly({(COS, ZERO_FREQ): {tuple((i, _num(_Q(k) * n)) for i, k in mono): _num(_Q(c) ** n)}})
             if n > 0:
                 check_expansion(inner, n, _short(base))
                 return _power(inner, n, self.constant(1))
@@ -332,8 +337,8 @@ class TrigAlgebra:
             if c == 1 and len(mono) == 1:  # (atom**k)**r -> atom**(k r) only for k = 1
                 (i, k), = mono
                 if k == 1:
-                    return TrigPoly({(COS, ZERO_FREQ): {((i, _num(Fraction(int(exp.p), int(exp.q)))),): 1}})
-        return self.atom(base, _num(Fraction(int(exp.p), int(exp.q))))
+                    return TrigPoly({(COS, ZERO_FREQ): {((i, _num(_Q(int(exp.p), int(exp.q)))),): 1}})
+        return self.atom(base, _num(_Q(int(exp.p), int(exp.q))))
 
     def _convert_trig(self, e: sympy.Expr) -> TrigPoly:
         arg = e.args[0]
@@ -343,7 +348,7 @@ class TrigAlgebra:
             coeff, sym = term.as_coeff_Mul()
             if sym in self.index and coeff.is_Rational:
                 i = self.index[sym]
-                linear[i] = linear.get(i, 0) + Fraction(int(coeff.p), int(coeff.q))
+                linear[i] = linear.get(i, 0) + _Q(int(coeff.p), int(coeff.q))
             else:
                 rest.append(term)
         freq = tuple(sorted((i, _num(v)) for i, v in linear.items() if v))
@@ -447,7 +452,7 @@ class TrigAlgebra:
         content = _content(coef.values())
         inner = {_mono_mul(m, tuple((i, -e) for i, e in common)): c / content for m, c in coef.items()}
         outer = [self._atoms[i] ** _rational(e) for i, e in common]
-        return sympy.Mul(_rational(_num(Fraction(content))), *outer, self.coefficient_expr(inner))
+        return sympy.Mul(_rational(_num(_Q(content))), *outer, self.coefficient_expr(inner))
 
     def to_expr(self, p: TrigPoly) -> sympy.Expr:
         """A compact sympy expression: common factors of each coefficient pulled out.
@@ -472,7 +477,7 @@ class TrigAlgebra:
                 continue
             content = _content(coef.values())
             inner = {_mono_mul(m, tuple((i, -e) for i, e in common)): c / content for m, c in coef.items()}
-            parts.append(canonical.mul(_rational(_num(Fraction(content))) * sign,
+            parts.append(canonical.mul(_rational(_num(_Q(content))) * sign,
                                        [*self._powers(common), self._coefficient(inner), *trig]))
         return canonical.add(parts)
 
@@ -548,13 +553,13 @@ def _common_monomial(coef: Coef) -> Mono:
 
 def _content(values) -> Fraction:
     """Rational content of the coefficients, signed like the first."""
-    values = [Fraction(v) for v in values]
+    values = [_Q(v) for v in values]
     num = 0
     den = 1
     for v in values:
         num = math.gcd(num, v.numerator)
         den = den * v.denominator // math.gcd(den, v.denominator)
-    content = Fraction(num, den)
+    content = _Q(num, den)
     return -content if values[0] < 0 else content
 
 
@@ -600,9 +605,9 @@ def _power(p: TrigPoly, n: int, one: TrigPoly) -> TrigPoly:
 
 
 def _rational(v: int | Fraction) -> sympy.Rational:
-    if isinstance(v, Fraction):
-        return sympy.Rational(v.numerator, v.denominator)
-    return sympy.Integer(v)
+    if isinstance(v, int):
+        return sympy.Integer(v)
+    return sympy.Rational(int(v.numerator), int(v.denominator))
 
 
 class NumericPoint:
