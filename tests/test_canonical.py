@@ -71,3 +71,19 @@ def test_every_bundled_model_builds_as_sympy_would(monkeypatch, tmp_path):
         for path in files:
             kronsub.load(path).derive(cache=False)
     assert len(seen) > 200 and all(seen)
+
+
+def test_monomial_products_merge_like_a_dictionary_would():
+    from kronsub.core.trigpoly import _mono_mul
+
+    def reference(a, b):
+        out = dict(a)
+        for i, e in b:
+            out[i] = out.get(i, 0) + e
+        return tuple(sorted((i, e) for i, e in out.items() if e))
+
+    rng = random.Random(7)
+    for _ in range(3000):
+        a, b = (tuple(sorted({rng.randint(0, 6): rng.choice([1, 2, -1, -2, sympy.Rational(1, 2)])
+                              for _ in range(rng.randint(0, 4))}.items())) for _ in range(2))
+        assert _mono_mul(a, b) == reference(a, b), (a, b)

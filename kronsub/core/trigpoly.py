@@ -118,18 +118,41 @@ def _freq_neg(f: Freq) -> Freq:
 
 
 def _mono_mul(a: Mono, b: Mono) -> Mono:
+    """The product of two monomials: a merge of their (atom, exponent) lists, both sorted."""
     if not a:
         return b
     if not b:
         return a
-    out = dict(a)
-    for i, e in b:
-        w = out.get(i, 0) + e
-        if w:
-            out[i] = w
+    if len(b) == 1:
+        (i, e), = b
+        for pos, (j, f) in enumerate(a):
+            if j == i:
+                w = f + e
+                return a[:pos] + ((i, w),) + a[pos + 1:] if w else a[:pos] + a[pos + 1:]
+            if j > i:
+                return a[:pos] + (b[0],) + a[pos:]
+        return a + b
+    if len(a) == 1:
+        return _mono_mul(b, a)
+    out = []
+    x = y = 0
+    while x < len(a) and y < len(b):
+        i, e = a[x]
+        j, f = b[y]
+        if i < j:
+            out.append(a[x])
+            x += 1
+        elif j < i:
+            out.append(b[y])
+            y += 1
         else:
-            del out[i]
-    return tuple(sorted(out.items()))
+            if e + f:
+                out.append((i, e + f))
+            x += 1
+            y += 1
+    out.extend(a[x:])
+    out.extend(b[y:])
+    return tuple(out)
 
 
 def _coef_mul(a: Coef, b: Coef) -> Coef:
@@ -164,6 +187,10 @@ class TrigPoly:
 
     def is_zero(self) -> bool:
         return not self.terms
+
+    def key(self) -> tuple:
+        """A hashable value equal for equal polynomials (for grouping equal entries)."""
+        return tuple(sorted((k, tuple(sorted(c.items()))) for k, c in self.terms.items()))
 
     def copy(self) -> "TrigPoly":
         return TrigPoly({k: dict(v) for k, v in self.terms.items()})

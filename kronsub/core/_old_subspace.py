@@ -1,0 +1,267 @@
+"""The transition to a subspace: Kron's projection of a primitive system.
+
+Given the interconnection ``x^a = x^a(xbar)`` (19), (20), (26) and
+``C^a_alpha = dx^a / dxbar^alpha`` (7'), (21):
+
+    Mbar = C^T M C                                  (9'), (D)
+    hbar = C^T (M Cdot xbardot + h(x(xbar), C xbardot))    (E)
+    fbar = C^T f(x(xbar), C xbardot, t)             (8'), (F)
+
+Every product is formed in the trigonometric-polynomial algebra
+(:mod:`.trigpoly`), so the results are compact as they are built.
+"""
+from __future__ import annotations
+
+import dataclasses
+import functools
+from typing import Mapping, Sequence
+
+import sympy
+
+from ..components.base import Body
+from .known_system import KnownSystem, ParameterInfo, ProjectedEffect, Transition
+from .primitive import Primitive
+from .simplify import compact
+from .symbols import velocity_symbol
+from .trigpoly import TrigAlgebra, TrigPoly
+
+
+class Subspace:
+    """The interconnection ``x = x(xbar)`` in the algebra: ``C``, ``xdot``, ``Cdot xbardot``;
+    shared by the projection of the inertia and of each effect."""
+
+    def __init__(self, primitive: Primitive, coordinates, connection):
+        self.coords = tuple(coordinates)
+        self.n = len(self.coords)
+        self.algebra = algebra = TrigAlgebra(self.coords)
+        self.qdots = [algebra.atom(velocity_symbol(q)) for q in self.coords]
+        self.x = primitive.coordinates
+        self.connection = connection
+        images = [algebra.from_expr(connection[x]) for x in self.x]
+        # C^a_alpha = dx^a / dxbar^alpha  (7'), (21)
+        self.C = [[algebra.diff(img, j) for j in range(self.n)] for img in images]
+        self.nonzero = [[j for j in range(self.n) if not row[j].is_zero()] for row in self.C]
+        self.velocities = primitive.velocities
+        # xdot^a = C^a_alpha xbardot^alpha
+        self.velocity = [_sum(self.C[a][j] * self.qdots[j] for j in self.nonzero[a]) for a in range(len(self.x))]
+
+    @functools.cached_property
+    def substitution(self) -> dict:
+        """x -> x(xbar), xdot -> C xbardot (identities left out: they would only rebuild)."""
+        substitution = {x: self.connection[x] for x in self.x}
+        substitution.update({v: self.algebra.to_expr(vel) for v, vel in zip(self.velocities, self.velocity)})
+        return {k: v for k, v in substitution.items() if k != v}
+
+    @functools.cached_property
+    def convective(self) -> list[TrigPoly]:
+        """``Cdot xbardot = d(xdot)/dxbar^k xbardot^k``: the convective acceleration (the
+        inertia needs it, an effect does not)."""
+        algebra = self.algebra
+        return [_sum(algebra.diff(vel, k) * self.qdots[k] for k in sorted(algebra.depends_on(vel)))
+                for vel in self.velocity]
+
+    def image(self, expr: sympy.Expr) -> TrigPoly:
+        """``expr(x(xbar), C xbardot)`` in the algebra."""
+        return self.algebra.from_expr(sympy.sympify(expr).xreplace(self.substitution))
+
+    def moved(self, expr: sympy.Expr) -> sympy.Expr:
+        return sympy.sympify(expr).xreplace(self.substitution)
+
+    def transpose_times(self, f: list[TrigPoly]) -> list[TrigPoly]:
+        """``C^T f`` (8'), (F)."""
+        out = [TrigPoly() for _ in range(self.n)]
+        for a, fa in enumerate(f):
+            if not fa.is_zero():
+                for j in self.nonzero[a]:
+                    out[j].add_product(self.C[a][j], fa)
+        return out
+
+    def renamed_parts(self, primitive: Primitive) -> dict[str, list[int]]:
+        """A part whose coordinates are only renamed (C a permutation, Cdot = 0) is carried
+        over as it is: a cached known system then costs almost nothing."""
+        return {part.name: t for part in primitive.parts if (t := self.renaming(part)) is not None}
+
+    def renaming(self, part) -> list[int] | None:
+        """Indices of the new coordinates when the part's coordinates are only renamed."""
+        index = {q: j for j, q in enumerate(self.coords)}
+        targets = [index.get(self.connection[x]) for x in part.coordinates]
+        if None in targets or len(set(targets)) != len(targets):
+            return None
+        return targets
+
+
+def project(
+    primitive: Primitive,
+    coordinates: Sequence[sympy.Symbol],
+    connection: Mapping[sympy.Symbol, sympy.Expr],
+    effects: Sequence,
+    *,
+    name: str = "",
+    parameters: Sequence[ParameterInfo] = (),
+    description: str = "",
+) -> KnownSystem:
+    """Project ``primitive`` onto the subspace ``x = connection(xbar)``.
+
+    ``connection`` maps every primitive coordinate to an expression in the new
+    ``coordinates``; ``effects`` are applied on the primitive and projected.
+    """
+    sub = Subspace(primitive, coordinates, connection)
+    inertia = project_inertia(sub, primitive, name=name, parameters=parameters, description=description)
+    return assemble(inertia, project_effects(sub, primitive, effects))
+
+
+def effect_labels(primitive: Primitive, effects: Sequence) -> tuple[str, ...]:
+    """The names of every effect, in the order of ``fbar``: a known system's own effects
+    first, as ``part.effect``, then the model's."""
+    labels = [f"{part.name}.{label}" for part in primitive.parts
+              for label in dict.fromkeys([*part.forces, *part.potentials])]
+    return tuple(labels) + tuple(e.name for e in effects)
+
+
+def project_inertia(sub: Subspace, primitive: Primitive, *, name: str = "",
+                    parameters: Sequence[ParameterInfo] = (), description: str = "") -> KnownSystem:
+    """``Mbar`` (9'), (D) and ``hbar`` (E): the part of the projection no effect changes.
+
+    The result has no effects; :func:`assemble` adds the ones a scene switches on.
+    """
+    n, algebra = sub.n, sub.algebra
+    renamed = sub.renamed_parts(primitive)
+    mass, velocity_terms, direct_mass, direct_h = _inertia(sub, primitive, renamed)
+    mass_matrix = sympy.zeros(n, n)
+    for j in range(n):
+        for k in range(j, n):
+            mass_matrix[j, k] = mass_matrix[k, j] = compact(algebra, mass[j][k]) + sympy.Add(
+                *direct_mass.get((j, k), ()))
+    transition = Transition(
+        primitive_coordinates=sub.x,
+        primitive_metric=primitive.metric,
+        primitive_velocity_terms=primitive.velocity_terms,
+        primitive_forces={},
+        connection=tuple((x, sub.connection[x]) for x in sub.x),
+        transformation=sympy.Matrix(len(sub.x), n, lambda a, j: compact(algebra, sub.C[a][j])),
+        parts=tuple((p.name, p.type_name) for p in primitive.parts),
+    )
+    points = {f"{part.name}.{label}": tuple(sub.moved(c) for c in pos)
+              for part in primitive.parts for label, pos in part.points.items()}
+    bodies = tuple(
+        Body(body.mass, tuple(sub.moved(c) for c in body.centre),
+             None if body.rotation is None else body.rotation.applyfunc(sub.moved), body.inertia)
+        for part in primitive.parts for body in part.bodies)
+    dims = {part.dimension for part in primitive.parts if part.dimension}
+    return KnownSystem(
+        name=name,
+        coordinates=sub.coords,
+        mass_matrix=mass_matrix,
+        velocity_terms=sympy.Matrix([compact(algebra, p) + sympy.Add(*direct_h.get(j, ()))
+                                     for j, p in enumerate(velocity_terms)]),
+        effect_forces={},
+        points=points,
+        bodies=bodies,
+        dimension=max(dims) if len(dims) == 1 else 0,
+        parameters=tuple(parameters),
+        transition=transition,
+        description=description,
+    )
+
+
+def assemble(inertia: KnownSystem, effects: Sequence[ProjectedEffect]) -> KnownSystem:
+    """``Mbar qddot + hbar = fbar`` with ``fbar`` the sum of the given effects' forces (8'), (F)
+    and ``V`` the sum of their potentials: the effects left out contribute nothing at all."""
+    algebra = TrigAlgebra(inertia.coordinates)
+    potential = sympy.Add(*[e.potential for e in effects])
+    transition = inertia.transition
+    if transition is not None:
+        transition = dataclasses.replace(transition, primitive_forces={e.label: e.primitive_force for e in effects})
+    return dataclasses.replace(
+        inertia,
+        effect_forces={e.label: e.force for e in effects},
+        effect_potentials={e.label: e.potential for e in effects},
+        potential_energy=compact(algebra, algebra.from_expr(potential)),
+        transition=transition,
+    )
+
+
+def _inertia(sub: Subspace, primitive: Primitive, renamed: dict[str, list[int]]):
+    """``Mbar = C^T M C`` (9'), (D) and ``hbar = C^T (M Cdot xbardot + h)`` (E), block by block."""
+    n, C, nonzero = sub.n, sub.C, sub.nonzero
+    mass = [[TrigPoly() for _ in range(n)] for _ in range(n)]
+    inertial = [TrigPoly() for _ in range(len(sub.x))]  # M Cdot xbardot + h
+    direct_mass: dict[tuple[int, int], list[sympy.Expr]] = {}
+    direct_h: dict[int, list[sympy.Expr]] = {}
+    for offset, part in primitive.blocks():
+        size = len(part.coordinates)
+        targets = renamed.get(part.name)
+        if targets is not None:
+            for i, j in enumerate(targets):
+                if part.velocity_terms[i] != 0:
+                    direct_h.setdefault(j, []).append(sub.moved(part.velocity_terms[i]))
+                for i2, k in enumerate(targets):
+                    if j <= k and part.metric[i, i2] != 0:
+                        direct_mass.setdefault((j, k), []).append(sub.moved(part.metric[i, i2]))
+            continue
+        block = [[sub.image(part.metric[i, j]) for j in range(size)] for i in range(size)]
+        for i in range(size):
+            a = offset + i
+            mc: dict[int, TrigPoly] = {}  # (M C)_a,k within the block
+            acc = sub.image(part.velocity_terms[i]).copy()
+            for j in range(size):
+                if block[i][j].is_zero():
+                    continue
+                b = offset + j
+                for k in nonzero[b]:
+                    mc.setdefault(k, TrigPoly()).add_product(block[i][j], C[b][k])
+                if not sub.convective[b].is_zero():
+                    acc.add_product(block[i][j], sub.convective[b])
+            inertial[a] = acc
+            for j in nonzero[a]:
+                for k, mck in mc.items():
+                    if k >= j:
+                        mass[j][k].add_product(C[a][j], mck)
+    return mass, sub.transpose_times(inertial), direct_mass, direct_h
+
+
+def project_effects(sub: Subspace, primitive: Primitive, effects, only=None) -> list[ProjectedEffect]:
+    """``fbar = C^T f`` (8'), (F) and the potential ``V(x(xbar))``, effect by effect.
+
+    A known system's own effects come along, named ``part.effect``. ``only`` (a set of
+    labels) projects just those: an effect a scene switches off is never touched.
+    """
+    renamed = sub.renamed_parts(primitive)
+    out: list[ProjectedEffect] = []
+    for offset, part in primitive.blocks():
+        labels = dict.fromkeys([*part.forces, *part.potentials])
+        for label in labels:
+            key = f"{part.name}.{label}"
+            if only is not None and key not in only:
+                continue
+            f = part.forces.get(label, sympy.zeros(len(part.coordinates), 1))
+            full = [sympy.Integer(0)] * len(sub.x)
+            full[offset:offset + len(part.coordinates)] = list(f)
+            if part.name in renamed:
+                vec = [sympy.Integer(0)] * sub.n
+                for i, j in enumerate(renamed[part.name]):
+                    vec[j] = sub.moved(f[i])
+                force = sympy.Matrix(vec)
+            else:
+                force = _projected(sub, full)
+            out.append(ProjectedEffect(key, sympy.Matrix(full), force,
+                                       sub.moved(part.potentials.get(label, sympy.Integer(0)))))
+    for effect in effects:
+        if only is not None and effect.name not in only:
+            continue
+        f = effect.generalized_force(primitive)
+        out.append(ProjectedEffect(effect.name, sympy.Matrix(f), _projected(sub, f),
+                                   sub.moved(effect.potential(primitive))))
+    return out
+
+
+def _projected(sub: Subspace, f) -> sympy.Matrix:
+    fbar = sub.transpose_times([sub.image(fa) if fa != 0 else TrigPoly() for fa in f])
+    return sympy.Matrix([compact(sub.algebra, p) for p in fbar])
+
+
+def _sum(polys) -> TrigPoly:
+    total = TrigPoly()
+    for p in polys:
+        total.add(p)
+    return total
