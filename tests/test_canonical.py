@@ -87,3 +87,15 @@ def test_monomial_products_merge_like_a_dictionary_would():
         a, b = (tuple(sorted({rng.randint(0, 6): rng.choice([1, 2, -1, -2, sympy.Rational(1, 2)])
                               for _ in range(rng.randint(0, 4))}.items())) for _ in range(2))
         assert _mono_mul(a, b) == reference(a, b), (a, b)
+
+
+def test_the_order_key_sorts_as_sympy_compares():
+    from functools import cmp_to_key
+
+    from kronsub.core.canonical import order_key
+
+    rng = random.Random(3)
+    exprs = [_random_expr(rng, 2) for _ in range(150)] + PIECES + [sympy.Float(0.5), sympy.Float(-2.25), x ** 2]
+    for _ in range(40):
+        sample = rng.sample(exprs, 12)
+        assert sorted(sample, key=order_key) == sorted(sample, key=cmp_to_key(sympy.Basic.compare))

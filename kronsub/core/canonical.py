@@ -9,7 +9,10 @@ printed output stays byte-identical, only cheaper to make.
 """
 from __future__ import annotations
 
+import functools
+
 import sympy
+from sympy.core import basic
 from sympy.core.basic import _args_sortkey
 
 _ONE, _ZERO = sympy.S.One, sympy.S.Zero
@@ -27,6 +30,44 @@ def _plain(factor: sympy.Expr) -> bool:
 def _atomic(factor: sympy.Expr) -> bool:
     """A symbol or a function value other than ``exp`` (which ``Mul`` treats as a power)."""
     return factor.is_Symbol or (isinstance(factor, sympy.Function) and factor.func is not sympy.exp)
+
+
+class _Unkeyed(Exception):
+    """An expression whose canonical order the tuple key does not reproduce."""
+
+
+@functools.lru_cache(maxsize=None)
+def _class_key(cls: type) -> tuple:
+    """The class part of ``Basic.compare``: the place in sympy's ``ordering_of_classes``,
+    then the name (``_cmp_name``)."""
+    order = basic.ordering_of_classes
+    unknown = len(order) + 1
+    name = cls.__name__
+    return (order.index(name) if name in order else unknown, name if name not in order else "")
+
+
+@functools.lru_cache(maxsize=1 << 17)
+def order_key(expr: sympy.Basic) -> tuple:
+    """A tuple that sorts as ``Basic.compare`` does: class, length of the hashable content,
+    then its items, recursively (computed once per expression, compared in C)."""
+    content = expr._hashable_content()
+    items = []
+    for item in content:
+        if isinstance(item, basic.Basic):
+            items.append(order_key(item))
+        elif isinstance(item, (frozenset, set)):
+            raise _Unkeyed
+        else:
+            items.append(item)
+    return (_class_key(type(expr)), len(content), tuple(items))
+
+
+def _sorted(args: list[sympy.Expr]) -> list[sympy.Expr]:
+    """``args`` in sympy's canonical order (``_args_sortkey``), by `order_key` when it applies."""
+    try:
+        return sorted(args, key=order_key)
+    except (_Unkeyed, TypeError):
+        return sorted(args, key=_args_sortkey)
 
 
 def mul(coefficient: sympy.Rational, factors: list[sympy.Expr]) -> sympy.Expr:
@@ -50,7 +91,7 @@ def mul(coefficient: sympy.Rational, factors: list[sympy.Expr]) -> sympy.Expr:
         return factors[0]
     if len(factors) == 1 and factors[0].is_Add:
         return sympy.Mul(coefficient, *factors)  # the 2*(a + b) distribution
-    args = sorted(factors, key=_args_sortkey)
+    args = _sorted(factors)
     if coefficient != 1:
         args.insert(0, coefficient)
     return sympy.Mul._from_args(args)
@@ -77,7 +118,7 @@ def add(terms: list[sympy.Expr]) -> sympy.Expr:
         seen.add(key)
     if len(flat) == 1 and number == 0:
         return flat[0]
-    flat.sort(key=_args_sortkey)
+    flat = _sorted(flat)
     if number != 0:
         flat.insert(0, number)
     return sympy.Add._from_args(flat)
