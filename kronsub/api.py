@@ -7,7 +7,6 @@ never imports the simulation (data flows one way).
 """
 from __future__ import annotations
 
-import difflib
 from dataclasses import dataclass
 from typing import Callable, Mapping, Sequence
 
@@ -16,7 +15,7 @@ import sympy
 
 from .core.known_system import KnownSystem
 from .core.symbols import TIME
-from .errors import KronsubError, ModelError, Problem
+from .errors import KronsubError, ModelError, Problem, near_names
 
 
 class UnknownName(KronsubError):
@@ -37,7 +36,7 @@ def symbol(system: KnownSystem, name: str) -> sympy.Symbol:
     ``sympy.Symbol(name)`` is a different symbol)."""
     known = names(system)
     if name not in known:
-        near = difflib.get_close_matches(name, sorted(known), n=3)
+        near = near_names(name, sorted(known))
         hint = ("did you mean " + ", ".join(f"'{n}'" for n in near) + "?") if near else \
             "names: " + ", ".join(sorted(known))
         raise UnknownName(f"{system.name} has no symbol '{name}'; {hint}")
@@ -72,9 +71,13 @@ def split_assignments(system: KnownSystem, at: Mapping[str, object] | None):
                 values[params[name]] = _value(system, name, raw, constant=True)
             elif name == "t":
                 point[TIME] = _value(system, name, raw, constant=False)
+            elif system.implicit is not None and name in {d.name for d in system.implicit.dependent}:
+                problems.append(Problem(None, f"'{name}' is a dependent coordinate of {system.name}: the "
+                                              "constraints set it", "fix the independent coordinates ("
+                                        + ", ".join(q.name for q in system.coordinates) + ") instead"))
             else:
                 known = sorted({*params, *state, "t"})
-                near = difflib.get_close_matches(name, known, n=3)
+                near = near_names(name, known)
                 problems.append(Problem(None, f"'{name}' is not a coordinate, velocity or parameter of "
                                               f"{system.name}",
                                         ("did you mean " + ", ".join(near) + "?") if near else
@@ -103,7 +106,7 @@ def linearize(system: KnownSystem, at: Mapping[str, object] | None = None, input
     chosen = []
     for name in inputs:
         if name not in params:
-            near = difflib.get_close_matches(name, sorted(params), n=3)
+            near = near_names(name, sorted(params))
             problems.append(Problem(None, f"input '{name}' is not a parameter of {system.name}",
                                     ("did you mean " + ", ".join(near) + "?") if near else
                                     "inputs are parameters: " + ", ".join(sorted(params))))

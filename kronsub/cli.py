@@ -26,9 +26,9 @@ EXIT_CODES = {
     OK: "success",
     INPUT_ERROR: "model or input error (the message names the file, line and column)",
     USAGE_ERROR: "usage error (an unknown command or option, an option value out of range)",
-    NUMERICAL_FAILURE: "numerical failure: the run stopped early; the rows so far are kept, marked incomplete",
+    NUMERICAL_FAILURE: "numerical failure: the run stopped early; the rows so far are kept, the metadata says where",
     INTERNAL_ERROR: "internal error: a bug in kronsub (KRONSUB_DEBUG=1 shows the traceback)",
-    INTERRUPTED: "interrupted (Ctrl-C); the rows so far are kept, marked incomplete",
+    INTERRUPTED: "interrupted (Ctrl-C); the rows so far are kept, the metadata says where",
 }
 DEBUG_ENV = "KRONSUB_DEBUG"
 
@@ -231,32 +231,6 @@ def _note_choice(system) -> None:
                    "configuration)", err=True)
 
 
-def _reaction_csv(text: str, system, traj, values, constrained) -> str:
-    """The CSV with the reaction columns appended to the header and to every row."""
-    import io
-
-    import numpy as np
-
-    from .simulation.reactions import reaction_columns
-    from .simulation.run import _numpy_module
-
-    names, data = reaction_columns(system, traj, np.array(values.parameters), _numpy_module(system), constrained)
-    out, row = [], 0
-    header_done = False
-    for line in text.splitlines():
-        if line.startswith("#"):
-            out.append(line)
-        elif not header_done:
-            out.append(line + "," + ",".join(names))
-            header_done = True
-        else:
-            buf = io.StringIO()
-            np.savetxt(buf, data[row:row + 1], fmt="%.17g", delimiter=",")
-            out.append(line + "," + buf.getvalue().strip())
-            row += 1
-    return "\n".join(out) + "\n"
-
-
 def _writable(path: Path | None, what: str) -> None:
     """Fail before any work when an output file could not be written."""
     if path is None:
@@ -281,19 +255,25 @@ def _writable(path: Path | None, what: str) -> None:
 @click.option("--set", "settings", multiple=True, metavar="NAME=VALUE",
               help="Set a parameter or an initial coordinate/velocity (repeatable).")
 @click.option("--output", "-o", type=click.Path(dir_okay=False, path_type=Path),
-              help="Write the CSV to FILE (atomically) instead of standard output.")
+              help="Write the CSV to FILE (atomically) instead of standard output; the run's metadata "
+                   "goes beside it as JSON (out.csv -> out.json).")
+@click.option("--meta", type=click.Path(dir_okay=False, path_type=Path),
+              help="Write the run's metadata (JSON: model and hash, method, tolerances, parameters, initial "
+                   "state, cost, complete or where it stopped) to FILE (default: beside --output; none for "
+                   "standard output).")
 @click.option("--points", "with_points", is_flag=True, help="Add the named points' positions to the CSV.")
 @click.option("--plot", type=click.Path(dir_okay=False, path_type=Path), help="Write a PNG of coordinates and energy.")
 @scene_option
 @click.option("--reactions", "with_reactions", is_flag=True,
               help="Add the workless reactions (viewpoint (alpha)) to the CSV.")
 def simulate(model: Path, t_end: float | None, dt: float | None, method: str | None, rtol: float, atol: float,
-             settings: tuple[str, ...], output: Path | None, with_points: bool, plot: Path | None,
-             scene_name: str | None, with_reactions: bool = False):
-    """Simulate MODEL from t = 0 to --t; the trajectory is CSV."""
+             settings: tuple[str, ...], output: Path | None, meta: Path | None, with_points: bool,
+             plot: Path | None, scene_name: str | None, with_reactions: bool = False):
+    """Simulate MODEL from t = 0 to --t; the trajectory is plain CSV (a header row, then numbers),
+    its metadata JSON (--meta, or beside --output)."""
     from .model.scenes import initial_values
     from .simulation.run import METHODS, SimulationError, collect, row_count, start
-    from .simulation.table import CsvWriter, to_csv
+    from .simulation.table import CsvWriter, file_sha256, metadata_json, sidecar_path, trajectory_csv
     from .simulation.values import parse_assignments, resolve
 
     def job():
@@ -303,7 +283,11 @@ def simulate(model: Path, t_end: float | None, dt: float | None, method: str | N
             if given is not None and not (math.isfinite(given) and given > 0):
                 _fail(f"Error: {flag} must be a positive finite {'time' if flag == '--t' else 'interval'} "
                       f"(got {given!r})", USAGE_ERROR)
+        meta_path = meta if meta is not None else (sidecar_path(output) if output is not None else None)
+        if output is not None and meta_path.resolve() == output.resolve():
+            _fail(f"Error: --meta {meta_path} is the CSV file itself\n  hint: choose another --meta", USAGE_ERROR)
         _writable_outputs(output, plot)
+        _writable(meta_path, "--meta")
         loaded, scene, system = scene_system(model, scene_name, all_points=with_points)
         _note_choice(system)
         outputs = scene.outputs if scene is not None else None
@@ -330,22 +314,31 @@ def simulate(model: Path, t_end: float | None, dt: float | None, method: str | N
         run = start(system, values, span, step, _pick(method, scene and scene.method, "dop853"), rtol, atol,
                     outputs=outputs, constrained=constrained)
         kept = [] if plot is not None or with_reactions else None
+        run_info = dict(t_end=span, dt=step, scene=scene.name if scene is not None else None,
+                        model_sha256=file_sha256(model))
 
         def stream(out):
-            """Write the CSV; what is returned tells ``rows``, ``last_t`` and ``stopped``."""
+            """Write the CSV; what is returned tells ``rows``, ``last_t``, ``stopped`` and the metadata."""
             if with_reactions:  # the reactions need the whole run: computed, then written at once
+                import numpy as np
+
+                from .simulation.reactions import reaction_columns
+                from .simulation.run import _numpy_module
+
                 traj = collect(run, list(run), len(system.coordinates))
                 kept.append(traj)
-                out.write(_reaction_csv(to_csv(system, model.as_posix(), traj, values, rtol, atol, with_points,
-                                               outputs=outputs), system, traj, values, constrained))
+                extra = reaction_columns(system, traj, np.array(values.parameters), _numpy_module(system), constrained)
+                text, info = trajectory_csv(system, model.as_posix(), traj, values, rtol, atol, with_points,
+                                            outputs, extra, **run_info)
+                out.write(text)
                 return SimpleNamespace(rows=len(traj.t), last_t=float(traj.t[-1]) if len(traj.t) else None,
-                                       stopped=False)
+                                       stopped=False, metadata=lambda: info)
             writer = CsvWriter(out, system, model.as_posix(), values, run.method, run.backend, rtol, atol,
-                               with_points, outputs)
+                               with_points, outputs, **run_info)
             try:
                 writer.stream(run, kept.append if kept is not None else None)
             except KeyboardInterrupt:
-                pass  # the file is kept, marked incomplete (writer.stopped)
+                pass  # the file is kept, its metadata says interrupted (writer.stopped)
             return writer
 
         if output is not None:
@@ -357,9 +350,17 @@ def simulate(model: Path, t_end: float | None, dt: float | None, method: str | N
             writer = stream(sys.stdout)
             sys.stdout.flush()
             where = "standard output"
+        if meta_path is not None:
+            info = writer.metadata()
+            info["csv"] = output.name if output is not None and output.parent.resolve() == meta_path.parent.resolve() \
+                else (str(output) if output is not None else None)
+            write_atomically(meta_path, metadata_json(info))
+            click.echo(f"wrote {meta_path}", err=True)
+        marked = f" (marked {'interrupted' if writer.stopped else 'incomplete'} in {meta_path})" \
+            if meta_path is not None else ""
         if writer.stopped:
             _fail(f"Interrupted after t = {writer.last_t!r}: the {writer.rows} rows computed so far are kept "
-                  f"in {where} (marked incomplete)", INTERRUPTED)
+                  f"in {where}{marked}", INTERRUPTED)
         if plot is not None:
             from .simulation.plot import plot_trajectory
 
@@ -368,7 +369,7 @@ def simulate(model: Path, t_end: float | None, dt: float | None, method: str | N
             click.echo(f"wrote {plot}", err=True)
         if not run.complete:
             _fail(f"Error: the run stopped at t = {run.t_fail:.6g}: {run.message}; "
-                  f"the {writer.rows} rows computed so far are kept in {where} (marked incomplete)",
+                  f"the {writer.rows} rows computed so far are kept in {where}{marked}",
                   NUMERICAL_FAILURE)
 
     _run(job)

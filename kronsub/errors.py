@@ -89,9 +89,32 @@ class ProblemCollector:
             raise ModelError(self.problems)
 
 
+def _one_edit(a: str, b: str) -> bool:
+    """Whether ``b`` is ``a`` with one character changed, added, removed, or two neighbours swapped."""
+    if a == b or abs(len(a) - len(b)) > 1:
+        return False
+    if len(a) == len(b):
+        diff = [i for i, (x, y) in enumerate(zip(a, b)) if x != y]
+        return len(diff) == 1 or (len(diff) == 2 and diff[1] == diff[0] + 1
+                                  and a[diff[0]] == b[diff[1]] and a[diff[1]] == b[diff[0]])
+    short, long = (a, b) if len(a) < len(b) else (b, a)
+    i = next((k for k, (x, y) in enumerate(zip(short, long)) if x != y), len(short))
+    return short[i:] == long[i + 1:]
+
+
+def near_names(name: str, options, n: int = 3) -> list[str]:
+    """The valid names nearest to ``name``: difflib's close matches, then the names one edit
+    away (``q2`` for ``q1``, which difflib's ratio misses in short names); at most ``n``."""
+    options = sorted(set(options))
+    near = difflib.get_close_matches(name, options, n=n)
+    if len(name) >= 2:
+        near += [o for o in options if o not in near and _one_edit(name, o)]
+    return near[:n]
+
+
 def close_matches(name: str, options) -> str:
     """A hint for an unknown name: the nearest valid ones, else all of them."""
-    near = difflib.get_close_matches(name, sorted(options), n=3)
+    near = near_names(name, options)
     if near:
         return "did you mean " + ", ".join(f"'{n}'" for n in near) + "?"
     return "valid names: " + ", ".join(sorted(options)) if options else "none are defined"

@@ -543,15 +543,20 @@ def test_one_typo_gives_one_error(tmp_path):
     assert "did you mean 'pinned_rod'?" in result.output
 
 
-def test_an_effect_in_a_generalized_coordinate_says_so(tmp_path):
+def test_an_effect_in_a_generalized_coordinate_is_applied_in_the_subspace(tmp_path):
+    """Effects may name generalized coordinates (tests/test_subspace_effects.py checks the
+    physics); only a name that is neither primitive nor generalized is an error."""
     path = tmp_path / "generalized.yaml"
     path.write_text(
-        "name: gen\nparameters: {m: 1, l: 1}\ncomponents:\n"
-        "  link1: {type: pinned_rod, parameters: {mass: m, length: l}, coordinates: {angle: a1}}\n"
-        "  link2: {type: pinned_rod, parameters: {mass: m, length: l}, coordinates: {angle: a2}}\n"
-        "coordinates: [q1, q2]\nconnection: {a1: q1, a2: q2}\n"
-        "effects:\n  spring: {type: torsional_spring, angle: q1 - q2, stiffness: 2}\n")
+        "name: gen\nparameters: {m: 1, L: 1}\ncomponents:\n"
+        "  bob: {type: particle2d, parameters: {mass: m}, coordinates: [x, y]}\n"
+        "coordinates: [q]\nconnection: {x: L*sin(q), y: -L*cos(q)}\n"
+        "effects:\n  drive: {type: generalized_force, coordinate: q, value: 1}\n"
+        "  drag: {type: torsional_damper, angle: q, coefficient: 1}\n"
+        "  spring: {type: torsional_spring, angle: qq, stiffness: 2}\n"
+        "initial: {qq: 1}\n")
     result = CliRunner().invoke(main, ["check", str(path)])
     assert result.exit_code == 1
-    assert "unknown name 'q1'" in result.output and "'q1' is a generalized coordinate" in result.output
-    assert "primitive coordinates" in result.output and "declare it under" not in result.output
+    assert "10:43: in angle 'qq': unknown name 'qq'\n  hint: did you mean 'q'" in result.output
+    assert "11:11: 'qq' is not a coordinate or velocity of this model\n  hint: did you mean 'q'?" in result.output
+    assert result.output.count("Error:") == 2

@@ -9,6 +9,7 @@ over 10 s of the undriven mechanisms.
 from __future__ import annotations
 
 import io
+import json
 
 import numpy as np
 import pytest
@@ -33,7 +34,7 @@ def _run(path, *extra):
 
 
 def _table(text: str):
-    lines = [ln for ln in text.splitlines() if not ln.startswith("#") and ln.strip()]
+    lines = text.splitlines()
     header = lines[0].split(",")
     data = np.loadtxt(io.StringIO("\n".join(lines[1:])), delimiter=",", ndmin=2)
     return header, data
@@ -76,11 +77,14 @@ def test_correction_is_printed():
     assert "initial conditions projected onto the constraints: theta2 0.345 -> 0.3441845" in result.stderr
 
 
-def test_singular_configuration_stops_with_rows_kept():
+def test_singular_configuration_stops_with_rows_kept(tmp_path):
+    meta = tmp_path / "run.json"
     result = CliRunner().invoke(main, ["simulate", str(MODELS / "hoffmann/system2_implicit.yaml"), "--t", "2",
-                                       "--set", "theta_dot=-2"])
+                                       "--set", "theta_dot=-2", "--meta", str(meta)])
     assert result.exit_code == 3  # numerical failure, rows kept
-    assert "# incomplete: stopped at t = " in result.stdout
+    info = json.loads(meta.read_text())
+    assert info["status"] == "stopped" and "toggle position" in info["stop_reason"]
+    assert info["dependent_coordinates"]["names"] and info["rows"] == len(result.stdout.splitlines()) - 1
     assert "toggle position" in result.output and "'line'" in result.output and "theta=" in result.output
     header, data = _table(result.stdout)
     assert len(data) > 5

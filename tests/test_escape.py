@@ -370,11 +370,11 @@ def test_a_hostile_file_name_runs_nothing(filename, tmp_path, monkeypatch):
 
 
 @pytest.mark.parametrize("key", sorted(HOSTILE_CASES))
-def test_hostile_text_keeps_the_trajectory_csv_one_comment_line(key, tmp_path):
-    """The model's name and path stand on the CSV's first comment line: nothing in them can
-    start a row or another line."""
+def test_hostile_text_stays_in_the_trajectory_metadata(key, tmp_path):
+    """The model's name and path go only to the JSON metadata, which reads back as the same
+    text; the CSV is its header row and rows of numbers."""
     from kronsub.simulation.run import simulate
-    from kronsub.simulation.table import to_csv
+    from kronsub.simulation.table import metadata_json, trajectory_csv
     from kronsub.simulation.values import resolve
 
     text = _hostile_text(key, tmp_path / "canary")
@@ -382,9 +382,9 @@ def test_hostile_text_keeps_the_trajectory_csv_one_comment_line(key, tmp_path):
     system = model.derive()
     values = resolve(system, dict(model.initial), {})
     traj = simulate(system, values, 0.02, 0.01, "dop853", progress=False)
-    csv = to_csv(system, text, traj, values, 1e-10, 1e-10)
+    csv, meta = trajectory_csv(system, text, traj, values, 1e-10, 1e-10)
     lines = csv.split("\n")
-    assert lines[0].startswith("# kronsub simulate: ")
-    header = next(i for i, line in enumerate(lines) if not line.startswith("#"))
-    assert lines[header].startswith("t,") and all(line.startswith("#") for line in lines[:header])
-    assert not any(ch in lines[0] for ch in "\r\0\u2028\u2029")
+    assert lines[0].startswith("t,") and lines[-1] == "" and len(lines) == len(traj.t) + 2
+    assert all(float(v) == float(v) for line in lines[1:-1] for v in line.split(","))  # numbers only
+    back = json.loads(metadata_json(meta))
+    assert back["model"] == {"name": system.name, "file": text, "sha256": None}

@@ -3,6 +3,8 @@ stale temporaries, file modes), and rows streamed as they are computed."""
 from __future__ import annotations
 
 import errno
+from decimal import Decimal
+import json
 import os
 import signal
 import subprocess
@@ -29,7 +31,7 @@ def cli(*args, **env):
 
 
 def rows_of(text: str) -> np.ndarray:
-    lines = [line for line in text.splitlines() if line and not line.startswith("#")][1:]
+    lines = text.splitlines()[1:]
     return np.array([[float(v) for v in line.split(",")] for line in lines])
 
 
@@ -90,7 +92,8 @@ def test_a_numerical_failure_exits_3_and_keeps_the_rows(tmp_path):
     result = cli("simulate", path, "--t", "1", "--dt", "0.1", "--output", out)
     assert result.exit_code == 3, result.output
     text = out.read_text()
-    assert text.rstrip().splitlines()[-1].startswith("# incomplete: stopped at t = ")
+    meta = json.loads(out.with_suffix(".json").read_text())
+    assert meta["status"] == "stopped" and meta["complete"] is False and meta["rows"] == len(rows_of(text))
     assert len(rows_of(text)) >= 5 and f"kept in {out}" in result.output
 
 
@@ -104,7 +107,7 @@ def test_heyoka_at_the_singular_angle_is_a_numerical_failure():
     result = cli("simulate", SYSTEM2, "--method", "heyoka", "--t", "1", "--dt", "0.5",
                  "--set", "theta=asin((0.6-0.5)/0.5)")
     assert result.exit_code == 3, result.output
-    assert "# incomplete: stopped at t = " in result.output and "Traceback" not in result.output
+    assert "the run stopped at t = " in result.output and "Traceback" not in result.output
     assert "at t = nan" not in result.output
 
 
@@ -134,8 +137,10 @@ def test_ctrl_c_keeps_the_rows_so_far_marked_incomplete(tmp_path, monkeypatch):
     assert result.exit_code == 130, result.output
     assert "Interrupted after t = " in result.output and "rows computed so far are kept" in result.output
     text = out.read_text()
-    assert text.rstrip().splitlines()[-1].startswith("# incomplete: interrupted after t = ")
-    kept, reference = rows_of(text), rows_of(full.output)
+    meta = json.loads(out.with_suffix(".json").read_text())
+    assert meta["status"] == "interrupted" and meta["rows"] == len(rows_of(text))
+    assert meta["stopped_at"] == rows_of(text)[-1, 0] and str(out.with_suffix(".json")) in result.output
+    kept, reference = rows_of(text), rows_of(full.stdout)
     assert 50 <= len(kept) < len(reference)
     np.testing.assert_allclose(kept, reference[: len(kept)], rtol=1e-9, atol=1e-12)
     assert not list(tmp_path.glob(".*.tmp"))
@@ -158,8 +163,8 @@ def test_a_real_sigint_keeps_the_rows(tmp_path):
     _, err = proc.communicate(timeout=120)
     assert proc.returncode == 130, err
     text = out.read_text()
-    assert text.rstrip().splitlines()[-1].startswith("# incomplete: interrupted after t = ")
-    assert len(rows_of(text)) > 1000
+    meta = json.loads(out.with_suffix(".json").read_text())
+    assert meta["status"] == "interrupted" and meta["rows"] == len(rows_of(text)) > 1000
     assert not list(tmp_path.glob(".*.tmp"))
 
 
@@ -205,8 +210,11 @@ def test_grid_matches_the_in_memory_grid():
         if grid[-1] < t_end:
             grid = np.append(grid, t_end)
         lazy = run_module._Grid(t_end, dt)
-        assert len(lazy) == len(grid) and np.array_equal(lazy[:], grid)
-        assert lazy[len(grid) - 1] == t_end and np.array_equal(lazy[3:len(grid)], grid[3:])
+        # the same times, each the double nearest k dt in decimal (arange's k * dt may be an ulp off)
+        ulps = 2 * np.spacing(np.maximum(np.abs(grid), dt))
+        assert len(lazy) == len(grid) and np.all(np.abs(lazy[:] - grid) <= ulps)
+        assert lazy[len(grid) - 1] == t_end and np.array_equal(lazy[3:len(grid)], lazy[:][3:])
+        assert all(lazy[k] == float(Decimal(repr(dt)) * k) for k in range(0, len(grid) - 1, 7))
     assert list(run_module._Grid(1.0, 5.0)[:]) == [0.0, 1.0]  # the first row is at t = 0, even when dt > t
 
 

@@ -205,19 +205,21 @@ def test_outputs_not_asked_for_are_not_generated(tmp_path):
     assert "#define KS_NPOINTS 6" in header and "ks_potential_energy" in header
 
 
-def test_simulate_writes_the_columns_the_scene_asks_for():
+def test_simulate_writes_the_columns_the_scene_asks_for(tmp_path):
     runner = CliRunner()
     result = runner.invoke(main, ["simulate", str(MODELS / "examples" / "cart_pole.yaml"), "--scene", "damped",
                                   "--t", "0.5", "--dt", "0.25"])
     assert result.exit_code == 0, result.output
-    rows = [line for line in result.stdout.splitlines() if not line.startswith("#")]
+    rows = result.stdout.splitlines()
     assert rows[0] == "t,x,theta,x_dot,theta_dot"
     assert len(rows) == 4
-    result = runner.invoke(main, ["simulate", str(SYSTEM1), "--scene", "pushed", "--t", "0.1", "--dt", "0.1"])
+    result = runner.invoke(main, ["simulate", str(SYSTEM1), "--scene", "pushed", "--t", "0.1", "--dt", "0.1",
+                                  "--meta", str(tmp_path / "run.json")])
     assert result.exit_code == 0, result.output
-    header = [line for line in result.stdout.splitlines() if not line.startswith("#")][0].split(",")
+    header = result.stdout.splitlines()[0].split(",")
     assert header[-2:] == ["lower.centre.x", "lower.centre.y"]
-    assert "F=2.0" in result.stdout  # the scene's value of F
+    meta = json.loads((tmp_path / "run.json").read_text())
+    assert meta["parameters"]["F"] == 2.0 and meta["scene"] == "pushed"  # the scene's value of F
 
 
 def test_a_model_with_one_scene_uses_it_by_default(tmp_path):
@@ -226,12 +228,12 @@ def test_a_model_with_one_scene_uses_it_by_default(tmp_path):
                                     "initial": {"theta": 0.25}, "outputs": ["coordinates"]}}
     path = tmp_path / "one.yaml"
     _write(path, document)
-    result = CliRunner().invoke(main, ["simulate", str(path)])
+    result = CliRunner().invoke(main, ["simulate", str(path), "--meta", str(tmp_path / "run.json")])
     assert result.exit_code == 0, result.output
-    rows = [line for line in result.stdout.splitlines() if not line.startswith("#")]
+    rows = result.stdout.splitlines()
     assert rows[0] == "t,theta,phi" and len(rows) == 4
     assert rows[1].split(",")[1] == "0.25"
-    assert "method gauss4" in result.stdout
+    assert json.loads((tmp_path / "run.json").read_text())["method"] == "gauss4"
     derived = CliRunner().invoke(main, ["derive", str(path), "--format", "json"])
     assert "F" not in json.loads(derived.stdout)["parameters"]
 

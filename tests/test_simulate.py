@@ -24,7 +24,7 @@ def run_cli(*args):
 
 
 def read_csv(text: str):
-    lines = [line for line in text.splitlines() if not line.startswith("#")]
+    lines = text.splitlines()
     header = lines[0].split(",")
     data = np.array([[float(v) for v in line.split(",")] for line in lines[1:]])
     return header, data
@@ -102,8 +102,11 @@ def test_csv_columns_are_as_documented(tmp_path):
     result = run_cli(MODELS / "hoffmann" / "system1.yaml", "--t", "1", "--dt", "0.1", "--output", out, "--points")
     assert result.exit_code == 0, result.output
     text = out.read_text()
-    assert text.startswith("# kronsub simulate: System I")
+    assert text.startswith("t,theta,phi,") and "#" not in text
+    meta = json.loads(out.with_suffix(".json").read_text())
+    assert meta["model"]["name"] == "System I" and meta["status"] == "complete" and meta["rows"] == 11
     header, data = read_csv(text)
+    assert meta["columns"] == header
     assert header[:5] == ["t", "theta", "phi", "theta_dot", "phi_dot"]
     assert header[5:8] == ["kinetic_energy", "potential_energy", "total_energy"]
     assert "lower.centre.x" in header and "upper.tip.y" in header
@@ -112,11 +115,13 @@ def test_csv_columns_are_as_documented(tmp_path):
     assert np.allclose(data[:, 7], data[:, 5] + data[:, 6])
 
 
-def test_set_overrides_parameters_and_initial_state():
+def test_set_overrides_parameters_and_initial_state(tmp_path):
+    meta = tmp_path / "run.json"
     result = run_cli(MODELS / "hoffmann" / "system1.yaml", "--t", "0.1", "--dt", "0.1",
-                     "--set", "theta=0", "--set", "phi=0", "--set", "m2=3")
+                     "--set", "theta=0", "--set", "phi=0", "--set", "m2=3", "--meta", meta)
     assert result.exit_code == 0, result.output
-    assert "m2=3.0" in result.stdout
+    info = json.loads(meta.read_text())
+    assert info["parameters"]["m2"] == 3.0 and info["initial_state"]["theta"] == 0.0
     header, data = read_csv(result.stdout)
     assert np.allclose(data[:, 1:5], 0.0)  # hanging at rest stays at rest
 
@@ -151,7 +156,9 @@ def test_nan_stops_the_run_and_keeps_the_rows(tmp_path):
     assert result.exit_code == 3  # numerical failure, rows kept
     assert "stopped at t" in result.output and "Traceback" not in result.output
     text = out.read_text()
-    assert "# incomplete:" in text
+    meta = json.loads(out.with_suffix(".json").read_text())
+    assert meta["status"] == "stopped" and not meta["complete"] and 0.4 < meta["stopped_at"] <= 0.5
+    assert meta["stop_reason"] and meta["rows"] == text.count("\n") - 1
     header, data = read_csv(text)
     assert 1 <= len(data) <= 6 and np.all(np.isfinite(data))
 
@@ -188,10 +195,11 @@ def test_singular_mass_matrix_reports_the_configuration(tmp_path):
 def test_without_a_compiler_the_numpy_module_is_used(monkeypatch, tmp_path):
     monkeypatch.setenv("CC", str(tmp_path / "no-such-compiler"))
     monkeypatch.setenv("KRONSUB_CACHE_DIR", str(tmp_path / "cache"))
-    result = run_cli(MODELS / "examples" / "double_pendulum.yaml", "--t", "0.2", "--dt", "0.1")
+    result = run_cli(MODELS / "examples" / "double_pendulum.yaml", "--t", "0.2", "--dt", "0.1",
+                     "--meta", tmp_path / "run.json")
     assert result.exit_code == 0, result.output
     assert "no C compiler" in result.output
-    assert "numpy right-hand side" in result.stdout
+    assert json.loads((tmp_path / "run.json").read_text())["right_hand_side"] == "numpy"
 
 
 def test_plot_writes_a_png(tmp_path):

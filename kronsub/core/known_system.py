@@ -36,6 +36,7 @@ class Transition:
     connection: tuple[tuple[sympy.Symbol, sympy.Expr], ...]
     transformation: sympy.Matrix  # C = dx/dxbar (7'), (21)
     parts: tuple[tuple[str, str], ...] = ()  # (part name, type) in primitive order
+    direct_effects: tuple[str, ...] = ()  # effects applied in the subspace: no force on the primitive
 
 
 @dataclass(frozen=True)
@@ -51,6 +52,7 @@ class ProjectedEffect:
     primitive_force: sympy.Matrix
     force: sympy.Matrix
     potential: sympy.Expr = sympy.Integer(0)
+    direct: bool = False  # written in generalized coordinates: fbar formed in the subspace, f is zero
 
 
 @dataclass(frozen=True)

@@ -60,6 +60,7 @@ class Linearization:
     found: tuple[sympy.Symbol, ...]  # coordinates solved for (not given)
     symbolic: bool = False
     notes: tuple[str, ...] = ()  # caveats to show with the result
+    dependent: tuple[tuple[sympy.Symbol, float], ...] = ()  # implicit constraints: y_d at the point
 
     @property
     def stable(self) -> bool | None:
@@ -117,11 +118,11 @@ def linearize(system: KnownSystem, *, inputs: Sequence[sympy.Symbol] = (),
     value ``u*``). ``symbolic`` keeps the parameters not in ``values`` as symbols in
     ``A`` and ``B``.
     """
-    if getattr(system, "implicit", None) is not None:
-        raise LinearizationError(
-            f"{system.name} has implicit constraints (its equations hold the dependent coordinates as "
-            "named intermediates): linearising it is not supported yet\n  hint: write the subspace in "
-            "parametric form under `connection:` (eq. 26) to linearise it")
+    if getattr(system, "implicit", None) is not None:  # the reduced equations (linearize_implicit.py)
+        from .linearize_implicit import linearize_implicit
+
+        return linearize_implicit(system, inputs=inputs, point=point, values=values, initial=initial,
+                                  symbolic=symbolic)
     point = dict(point or {})
     values = dict(values or {})
     initial = dict(initial or {})

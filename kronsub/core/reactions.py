@@ -19,12 +19,17 @@ from __future__ import annotations
 
 import sympy
 
+from ..errors import KronsubError
 from .known_system import KnownSystem
 from .symbols import acceleration_symbol, velocity_symbol
 from .simplify import compact
 from .trigpoly import TrigAlgebra
 
 SYMBOLIC_INVERSE = 3
+
+
+class ReactionsUnavailable(KronsubError):
+    """The reactions of viewpoint (alpha) need every effect's force on the primitive."""
 
 
 def reactions(system: KnownSystem) -> list[tuple[str, sympy.Expr]]:
@@ -43,6 +48,12 @@ def _connection_reactions(system: KnownSystem):
     tr = system.transition
     if tr is None:
         return []
+    if tr.direct_effects:
+        raise ReactionsUnavailable(
+            f"the reactions of {system.name} are not defined: the effects "
+            + ", ".join(f"'{e}'" for e in tr.direct_effects) + " are written in generalized coordinates and "
+            "act in the subspace only, with no force on the primitive for R = M xddot + h - f\n"
+            "  hint: write them in the primitive coordinates (through the connection) to get the reactions")
     q = system.coordinates
     qd = [velocity_symbol(c) for c in q]
     qdd = [acceleration_symbol(c) for c in q]

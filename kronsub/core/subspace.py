@@ -182,7 +182,8 @@ def assemble(inertia: KnownSystem, effects: Sequence[ProjectedEffect]) -> KnownS
     potential = sympy.Add(*[e.potential for e in effects])
     transition = inertia.transition
     if transition is not None:
-        transition = dataclasses.replace(transition, primitive_forces={e.label: e.primitive_force for e in effects})
+        transition = dataclasses.replace(transition, primitive_forces={e.label: e.primitive_force for e in effects},
+                                         direct_effects=tuple(e.label for e in effects if e.direct))
     return dataclasses.replace(
         inertia,
         effect_forces={e.label: e.force for e in effects},
@@ -270,13 +271,27 @@ def project_effects(sub: Subspace, primitive: Primitive, effects, only=None) -> 
                 force = _projected(sub, full)
             out.append(ProjectedEffect(key, sympy.Matrix(full), force,
                                        sub.moved(part.potentials.get(label, sympy.Integer(0)))))
+    generalized = _generalized_only(sub, primitive)
     for effect in effects:
         if only is not None and effect.name not in only:
             continue
-        f = effect.generalized_force(primitive)
-        out.append(ProjectedEffect(effect.name, sympy.Matrix(f), _projected(sub, f),
-                                   sub.moved(effect.potential(primitive))))
+        f, V = effect.generalized_force(primitive), effect.potential(primitive)
+        direct = None
+        if generalized and effect.symbols() & generalized:
+            direct = effect.direct_force(primitive, sub.coords, sub.moved)  # written in xbar
+        if direct is not None:
+            out.append(ProjectedEffect(effect.name, sympy.zeros(len(sub.x), 1), sympy.Matrix(direct),
+                                       sub.moved(V), direct=True))
+            continue
+        out.append(ProjectedEffect(effect.name, sympy.Matrix(f), _projected(sub, f), sub.moved(V)))
     return out
+
+
+def _generalized_only(sub: Subspace, primitive: Primitive) -> set:
+    """The subspace's coordinates and velocities that are not the primitive's: an effect
+    naming one is applied in the subspace (``Effect.direct_force``)."""
+    own = set(primitive.coordinates) | set(primitive.velocities)
+    return {s for q in sub.coords for s in (q, velocity_symbol(q)) if s not in own}
 
 
 def _projected(sub: Subspace, f) -> sympy.Matrix:

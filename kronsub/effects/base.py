@@ -2,10 +2,12 @@
 
 An effect contributes a generalized force ``f_a`` on the primitive coordinates
 (the force vector of (17)); a conservative effect also has a potential ``V``
-with ``f_a = -dV/dx^a``. Every effect has a name so a scene can switch it.
+with ``f_a = -dV/dx^a``. Every effect has a name so a scene can switch it. An effect
+written in generalized coordinates is applied in the subspace instead (:meth:`Effect.direct_force`).
 """
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import sympy
@@ -26,6 +28,33 @@ class Effect:
     def generalized_force(self, primitive: Primitive) -> list[sympy.Expr]:
         """``f_a`` over the primitive coordinates (default: ``-dV/dx^a``)."""
         return [-g for g in primitive.gradient(self.potential(primitive))]
+
+    def symbols(self) -> set:
+        """Every symbol in the effect's own fields (its angle, stiffness, vector, coordinate...)."""
+        found: set = set()
+
+        def walk(value):
+            if isinstance(value, sympy.Basic):
+                found.update(value.free_symbols)
+            elif isinstance(value, (tuple, list)):
+                for item in value:
+                    walk(item)
+
+        for f in dataclasses.fields(self):
+            walk(getattr(self, f.name))
+        return found
+
+    def direct_force(self, primitive: Primitive, coordinates, moved) -> list[sympy.Expr] | None:
+        """``fbar`` applied directly in the subspace, for an effect written (partly) in the
+        generalized coordinates ``xbar``; ``moved`` carries an expression to the subspace
+        (``x -> x(xbar)``, ``xdot -> C xbardot``). A conservative effect gives
+        ``fbar = -dV(x(xbar), xbar)/dxbar``, which is ``C^T f`` (8') when ``V`` is in ``x`` alone.
+        None: the effect is projected as usual, ``fbar = C^T f`` (its force acts on the
+        primitive; ``xbar`` only in its magnitude)."""
+        if type(self).generalized_force is not Effect.generalized_force:
+            return None
+        V = moved(self.potential(primitive))
+        return [-sympy.diff(V, q) for q in coordinates]
 
 
 def dot(u, v) -> sympy.Expr:

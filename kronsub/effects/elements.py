@@ -69,3 +69,12 @@ class TorsionalDamper(Effect):
     def generalized_force(self, primitive):
         rate = primitive.rate(self.angle)
         return [sympy.expand(-self.coefficient * rate * g) for g in primitive.gradient(self.angle)]
+
+    def direct_force(self, primitive, coordinates, moved):
+        """In the subspace: ``fbar = -c angledot d angle/dxbar``, ``angle`` carried to ``xbar``."""
+        from ..core.symbols import velocity_symbol
+
+        angle, c = moved(self.angle), moved(self.coefficient)
+        gradient = [sympy.diff(angle, q) for q in coordinates]
+        rate = sympy.Add(*[g * velocity_symbol(q) for g, q in zip(gradient, coordinates)])
+        return [sympy.expand(-c * rate * g) for g in gradient]

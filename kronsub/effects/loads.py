@@ -52,13 +52,20 @@ class Torque(Effect):
 
 @dataclass(frozen=True)
 class GeneralizedForce(Effect):
-    """A force acting directly on one primitive coordinate."""
+    """A force acting directly on one primitive coordinate (or on a generalized one: a row of ``fbar``)."""
 
     coordinate: sympy.Symbol | None = None
     value: sympy.Expr = sympy.Integer(0)
 
     def generalized_force(self, primitive):
         return [self.value if q == self.coordinate else sympy.Integer(0) for q in primitive.coordinates]
+
+    def direct_force(self, primitive, coordinates, moved):
+        """On a generalized coordinate: ``value`` is that row of ``fbar`` (Hoffmann's eq. (4)
+        one level up); on a primitive one, projected as usual."""
+        if self.coordinate in primitive.coordinates:
+            return None
+        return [moved(self.value) if q == self.coordinate else sympy.Integer(0) for q in coordinates]
 
 
 @dataclass(frozen=True)

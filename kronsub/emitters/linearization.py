@@ -76,6 +76,9 @@ def emit_markdown(lin: Linearization, name: str) -> str:
         lines.append(f"| `{s.name}` | `{_entry(v, show)}` |")
     if lin.time != 0:
         lines.append(f"| `t` | `{_entry(lin.time, show)}` |")
+    if lin.dependent:
+        lines += ["", "Dependent coordinates there (from the constraints; the state is the reduced one): "
+                  + ", ".join(f"`{s.name} = {_number(v)}`" for s, v in lin.dependent) + "."]
     if not lin.equilibrium and all(np.isfinite(lin.acceleration)):
         lines += ["", "Accelerations there: " + ", ".join(
             f"`{s.name}_ddot = {_number(a)}`" for s, a in zip(lin.state, lin.acceleration)) + "."]
@@ -133,6 +136,7 @@ def emit_json(lin: Linearization, name: str) -> str:
         "parameters": {p.name: cell(v) for p, v in lin.parameters},
         "symbolic": lin.symbolic,
         "notes": list(lin.notes),
+        "dependent": {s.name: float(v) for s, v in lin.dependent},
         "A": matrix(lin.A),
         "B": matrix(lin.B),
         "eigenvalues": None if lin.eigenvalues is None else

@@ -78,7 +78,9 @@ def build_report(system: KnownSystem, show: Printer) -> dict:
             "coordinates": [show(x) for x in prim_coords],
             "metric": matrix_rows(tr.primitive_metric, show),
             "velocity_terms": [show(e) for e in tr.primitive_velocity_terms],
-            "forces": [{"name": k, "forces": [show(e) for e in f]} for k, f in tr.primitive_forces.items()],
+            "forces": [{"name": k, "forces": [show(e) for e in f]} for k, f in tr.primitive_forces.items()
+                       if k not in tr.direct_effects],
+            "applied_in_subspace": list(tr.direct_effects),
             "connection": [{"coordinate": show(x), "expression": show(e)} for x, e in tr.connection],
             "transformation": matrix_rows(tr.transformation, show),
             "columns": [show(q) for q in _columns(system)],

@@ -200,10 +200,11 @@ def _generalized(loader, ename, spec, primitive):
     vnode = _required(loader, spec, "value", ename, "e.g. `value: -c*phi_dot`")
     if cnode is None or vnode is None:
         return None
-    q = loader.primitive_names.get(str(cnode.value))
+    name = str(cnode.value)
+    q = loader.primitive_names.get(name, loader.subspace_names.get(name))
     if q is None:
-
-        loader.error(cnode, f"'{cnode.value}' is not a primitive coordinate", close_matches(str(cnode.value), loader.primitive_names))
+        loader.error(cnode, f"'{name}' is not a primitive or generalized coordinate",
+                     close_matches(name, [*loader.primitive_names, *loader.subspace_names]))
         return None
     value = loader.expr(vnode, what="generalized force")
     return None if value is None else GeneralizedForce(ename, coordinate=q, value=value)

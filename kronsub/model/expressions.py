@@ -24,7 +24,7 @@ from typing import Mapping, NamedTuple, NoReturn
 import sympy
 
 from kronsub.core.trigpoly import EXPANSION_HINT, expansion_problem
-from kronsub.errors import Location, ModelError, Problem
+from kronsub.errors import Location, ModelError, Problem, near_names
 
 MAX_LENGTH = 10_000
 """Longest expression text accepted, in characters."""
@@ -310,7 +310,7 @@ def _rational_bits(value: sympy.Rational) -> int:
 
 def _name_hint(name: str, known: list[str]) -> str:
     """Suggest the closest known names, or how to declare a new one."""
-    close = difflib.get_close_matches(name, known, n=3)
+    close = near_names(name, known)
     if close:
         return "did you mean " + " or ".join(f"'{c}'" for c in close) + "?"
     return "declare it under `parameters:` (or check the spelling)"

@@ -18,17 +18,18 @@ from ..core.constraints import Constraint
 from ..core.known_system import KnownSystem, ParameterInfo
 from ..core.primitive import Part, Primitive, part_from_component
 from ..core.symbols import TIME, symbol, velocity_symbol
-from ..errors import Location, ModelError, ProblemCollector, close_matches
+from ..errors import Location, ModelError, ProblemCollector, close_matches, near_names
 from .derive import content_key, derive_model, load_cached
 from .effects import build_effect
 from .expressions import parse_expression
 from .scenes import build_scenes
 from .constraints import analyse, read_constraints
+from .definitions import definition_names, read_definitions, substitute_definitions
 from .model import ImplicitSpec, Model
 from .names import Declared, generated_name_clashes
 from .source import Node, excerpt, load_yaml, read_model_text
 
-TOP_LEVEL = ("name", "description", "parameters", "components", "coordinates", "connection",
+TOP_LEVEL = ("name", "description", "parameters", "components", "coordinates", "definitions", "connection",
              "constraints", "effects", "initial", "scenes")
 _UNKNOWN_NAME = re.compile(r"unknown name '([^']+)'")
 IDENTIFIER = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")  # whole names only: fullmatch
@@ -109,8 +110,13 @@ class _Loader:
         self.broken_parts: set[str] = set()
         self.broken_names: set[str] = set()
         self.generalized_names: set[str] = set()
+        self.primitive_names: dict[str, sympy.Symbol] = {}
+        self.subspace_names: dict[str, sympy.Symbol] = {}  # the connection's coordinates, for effects
         self.pivots: list[tuple] = []  # pinned parts hanging from a moving point (`pivot:`)
         self.auto_connection: dict[sympy.Symbol, tuple] = {}
+        # `definitions:` (definitions.py): name -> (placeholder, expansion; None when it failed)
+        self.definitions: dict[str, tuple[sympy.Symbol, sympy.Expr | None]] = {}
+        self.definition_keys: set[str] = set()  # their names, known before they are read
 
     # ----------------------------------------------------------- utilities
     def error(self, node_or_loc, message: str, hint: str | None = None) -> None:
@@ -124,21 +130,40 @@ class _Loader:
                        "write e.g. `2*a1*sin(theta)`")
             return None
         text = node.text if node.text is not None else str(node.value)
+        table = names if names is not None else self.names
         try:
-            return parse_expression(text, names if names is not None else self.names,
-                                    node.text_location or node.location, what=what)
+            value = parse_expression(text, {**table, **definition_names(self)},
+                                     node.text_location or node.location, what=what)
         except ModelError as exc:
             for problem in exc.problems:
                 unknown = _UNKNOWN_NAME.search(problem.message)
                 if unknown and self.is_broken(unknown.group(1)):
                     continue  # a consequence of a component reported already
-                if unknown and unknown.group(1) in self.generalized_names:
+                generalized = unknown and self.generalized_name(unknown.group(1))
+                if unknown and unknown.group(1) in self.definition_keys and unknown.group(1) not in self.definitions:
                     problem = dataclasses.replace(problem, hint=(
-                        f"'{unknown.group(1)}' is a generalized coordinate; effects are written in the primitive "
-                        "coordinates (the components' own, as renamed under their `coordinates:`), e.g. the one "
-                        f"the connection maps '{unknown.group(1)}' to"))
+                        f"'{unknown.group(1)}' is a definition; definitions are read after the parameters and "
+                        "components, so they cannot be used in parameter values, component parameters or "
+                        "points: write the expression here, or make it a parameter"))
+                elif generalized:
+                    problem = self._generalized_problem(problem, unknown.group(1), generalized)
                 self.problems.problems.append(problem)
             return None
+        return substitute_definitions(self, value, table, node, what)
+
+    def generalized_name(self, name: str) -> str | None:
+        """"coordinate" or "velocity" when ``name`` is a generalized coordinate (or its velocity)
+        that is not also a primitive one; else None."""
+        if name in self.generalized_names and name not in self.primitive_names:
+            return "coordinate"
+        base = name[:-4] if name.endswith("_dot") else None
+        if base and base in self.generalized_names and base not in self.primitive_names:
+            return "velocity"
+        return None
+
+    def _generalized_problem(self, problem, name: str, kind: str):
+        """The unknown-name problem for a generalized coordinate or velocity, said as such."""
+        return dataclasses.replace(problem, hint=f"'{name}' is a generalized {kind}, which cannot appear here")
 
     def mapping(self, node: Node | None, what: str, hint: str) -> dict[str, Node]:
         if node is None or node.value is None:
@@ -151,8 +176,12 @@ class _Loader:
     def check_keys(self, node: Node, allowed, what: str) -> None:
         for key in node.value:
             if key not in allowed:
+                split = isinstance(key, str) and not IDENTIFIER.fullmatch(key.strip()) and any(
+                    c in key for c in ")]*/+-")
                 self.error(node.key_locations.get(key, node.location), f"unknown key '{key}' in {what}",
-                           close_matches(key, allowed))
+                           "this looks like the rest of an expression: in a `{...}` mapping a comma ends the "
+                           "value, so quote an expression with commas, e.g. `value: \"atan2(y, x)\"`"
+                           if split else close_matches(key, allowed))
 
     def identifier(self, name: str, loc: Location, what: str) -> bool:
         if not IDENTIFIER.fullmatch(name):
@@ -179,6 +208,8 @@ class _Loader:
                        "a model has `name:`, `components:`, `coordinates:` and `connection:`; check the path")
             self.problems.raise_if_any()
         self.check_keys(root, TOP_LEVEL, "the model")
+        dnode = root.get("definitions")
+        self.definition_keys = set(dnode.value) if dnode is not None and dnode.is_mapping else set()
         name = self._string(root.get("name"), self.path.stem)
         description = self._string(root.get("description"), "")
         self._parameters(root.get("parameters"))
@@ -197,6 +228,7 @@ class _Loader:
             self.locations["coordinates"] = coords_node.location
         primitive = Primitive(tuple(self.parts))
         self._primitive_names(primitive)
+        read_definitions(self, root.get("definitions"), coords, primitive)
         self._pivot_connection(primitive)
         implicit = None
         if constrained:
@@ -206,7 +238,7 @@ class _Loader:
             y = coords
         self._generated_names(y, primitive)
         connection = self._connection(root.get("connection"), primitive, y)
-        effects = self._effects(root.get("effects"), primitive, coords)
+        effects = self._effects(root.get("effects"), primitive, y)
         initial = self._initial(root.get("initial"), y)
         declared = root.get("effects")
         scenes = build_scenes(self, root.get("scenes"), list(declared.value) if declared is not None and
@@ -552,6 +584,7 @@ class _Loader:
         where: dict[sympy.Symbol, Location] = {}
         generalized = {q.name: q for q in coords}
         attempted: set[sympy.Symbol] = set()
+        unknown_keys: list[str] = []
         entries = self.mapping(node, "connection", "write one `primitive_coordinate: expression` per line")
         if node is not None:
             self.locations["connection"] = node.location
@@ -559,6 +592,7 @@ class _Loader:
             loc = node.key_locations[key]
             x = self.primitive_names.get(key)
             if x is None:
+                unknown_keys.append(key)
                 self.error(loc, f"'{key}' is not a coordinate of the primitive system",
                            close_matches(key, [k for k in self.primitive_names if "." in k] +
                                          [q.name for q in primitive.coordinates]))
@@ -593,12 +627,14 @@ class _Loader:
                 connection[x] = x  # identity maps may be written short
             else:
                 owner = next(p.name for p in primitive.parts if x in p.coordinates)
+                if any(near_names(key, [x.name, f"{owner}.{x.name}"]) for key in unknown_keys):
+                    continue  # the misspelt key reported above was meant for it: one typo, one error
                 self.error(node.location if node is not None else self.locations[f"component:{owner}"],
                            f"primitive coordinate '{owner}.{x}' is not connected",
                            f"add `{x}: <expression in {', '.join(generalized)}>` under `connection:`, "
                            "or name it like a generalized coordinate for an identity map")
         used = set().union(*(e.free_symbols for e in connection.values())) if connection else set()
-        if attempted - set(connection) or self.failed_components or not coords:
+        if attempted - set(connection) or unknown_keys or self.failed_components or not coords:
             return connection  # after another error this check would only mislead
         for q in coords:
             if q not in used:
@@ -710,6 +746,12 @@ class _Loader:
 
     # -------------------------------------------------------------- effects
     def _effects(self, node: Node | None, primitive: Primitive, coords):
+        """The effects, written in the primitive coordinates or in the subspace's ``coords``
+        (those are applied directly in the subspace: core/subspace.py)."""
+        for q in coords:
+            self.subspace_names[q.name] = q
+            self.names.setdefault(q.name, q)
+            self.names.setdefault(velocity_symbol(q).name, velocity_symbol(q))
         effects = []
         for ename, spec in self.mapping(node, "effects", "write `gravity: {type: gravity, g: g}`").items():
             loc = node.key_locations[ename]
@@ -794,3 +836,4 @@ def _kind(node: Node) -> str:
     if node.value is None:
         return "nothing"
     return f"'{excerpt(node.text if node.text is not None else str(node.value))}'"
+

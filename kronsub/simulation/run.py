@@ -242,7 +242,7 @@ def start(system: KnownSystem, values: RunValues, t_end: float, dt: float, metho
                _numpy_rhs(system, param, outputs, constrained, _newton_tol(rtol, atol)))
         rows = _scipy_blocks(run, rhs, spec.name, grid, y0, rtol, atol, chunks, bar, system)
     with_energies = outputs is None or outputs.energies
-    run.blocks = _finish(run, rows, bar, native, param, system, constrained, with_energies)
+    run.blocks = _finish(run, rows, bar, native, param, system, constrained, with_energies, grid)
     return run
 
 
@@ -252,7 +252,7 @@ def _newton_tol(rtol: float, atol: float) -> float:
     return newton_tolerance(rtol, atol)
 
 
-def _finish(run, rows, bar, native, param, system, constrained, with_energies=True):
+def _finish(run, rows, bar, native, param, system, constrained, with_energies=True, grid=None):
     """The blocks, with energies computed in C when there is a compiled model (and they are
     wanted) and, with implicit constraints, the dependent coordinates per row (and, after a
     failure, what failed); at the end, a warning when an explicit run was held by stiffness."""
@@ -270,7 +270,7 @@ def _finish(run, rows, bar, native, param, system, constrained, with_energies=Tr
                     guess = dependent[-1] if len(dependent) else guess
                 last_y, last_t = np.asarray(y)[-1], float(np.asarray(t)[-1])
                 first_t = float(np.asarray(t)[0]) if first_t is None else first_t
-                yield Block(np.asarray(t), np.asarray(y), energies, dependent)
+                yield Block(grid.snap(t) if grid is not None else np.asarray(t), np.asarray(y), energies, dependent)
     finally:
         bar.close()
     if constrained is not None and not run.complete and last_y is not None:
@@ -329,26 +329,57 @@ STIFF_DAMPED_SHARE = 0.05     # a fast mode that decays by e within 20 radians c
 
 
 class _Grid:
-    """Output times 0, dt, 2 dt, ... and exactly t_end, made a slice at a time."""
+    """Output times 0, dt, 2 dt, ... and exactly t_end, made a slice at a time.
+
+    When ``dt`` is a short decimal ``m / 10**k`` (as ``repr`` writes it), the k-th time is the
+    double nearest to the decimal ``k m / 10**k`` (``0.03``, not ``3 * 0.01 = 0.030000000000000002``),
+    so times print in their short form; :meth:`snap` puts an integrator's own times on the grid."""
 
     def __init__(self, t_end: float, dt: float):
         self.t_end, self.dt = t_end, dt
         n = math.ceil((t_end + 0.5 * dt) / dt)  # the length of np.arange(0, t_end + dt/2, dt)
         n += 1 if (n - 1) * dt < t_end and abs((n - 1) * dt - t_end) >= 0.5 * dt else 0
         self.n = max(n, 2)  # a run always starts at 0 (also when dt > t_end)
+        self.decimal = _decimal(dt, self.n)
 
     def __len__(self) -> int:
         return self.n
 
+    def _times(self, index: np.ndarray) -> np.ndarray:
+        if self.decimal is None:
+            return index * self.dt
+        m, scale = self.decimal  # index * m < 2**53: exact; the division rounds once
+        return (index * float(m)) / scale
+
     def __getitem__(self, index):
         if isinstance(index, slice):
             a, b, _ = index.indices(self.n)
-            times = np.arange(a, b) * self.dt
+            times = self._times(np.arange(a, b, dtype=float))
             if b == self.n and b > a:
                 times[-1] = self.t_end
             return times
         i = index + self.n if index < 0 else index
-        return self.t_end if i == self.n - 1 else i * self.dt
+        return self.t_end if i == self.n - 1 else float(self._times(np.array([float(i)]))[0])
+
+    def snap(self, t: np.ndarray) -> np.ndarray:
+        """Times within a millionth of ``dt`` of a grid time replaced by that grid time."""
+        t = np.asarray(t, dtype=float)
+        k = np.clip(np.rint(t / self.dt), 0, self.n - 1)
+        grid = self._times(k)
+        grid[k == self.n - 1] = self.t_end
+        return np.where(np.abs(t - grid) <= 1e-6 * self.dt, grid, t)
+
+
+def _decimal(dt: float, n: int) -> tuple[int, float] | None:
+    """``(m, 10.0**k)`` with ``repr(dt)`` the decimal ``m / 10**k``, when ``n m < 2**53`` (the
+    grid times are then correctly rounded decimals); else None."""
+    from decimal import Decimal
+
+    sign, digits, exponent = Decimal(repr(float(dt))).as_tuple()
+    if not isinstance(exponent, int) or exponent > 0 or -exponent > 22:
+        return None
+    m = int("".join(map(str, digits)))
+    return (m, float(10 ** -exponent)) if n * m < 2**53 else None
 
 
 def _heyoka_blocks(run, system, param, y0, grid, tol):

@@ -1,25 +1,93 @@
-"""The trajectory as CSV: columns documented in a header, rows written as they are computed.
+"""The trajectory as plain CSV, and the run's metadata as a JSON sidecar.
 
-Lines starting with ``#`` are comments: the model, the method and tolerances,
-the parameter values, and the units of the columns. Then one header row and
-one row per output time: ``t``, each coordinate, each velocity, the kinetic,
-potential and total energy, and (on request) the named points. The rows are
-written block by block as the run produces them, and a last comment gives the
-integration cost (steps, evaluations). A run that stopped early, or was
-interrupted, keeps its rows and ends with a ``# incomplete: ...`` line.
+The CSV is one header row of column names, then one row of numbers per output
+time: ``t``, each coordinate, each velocity, the kinetic, potential and total
+energy, the dependent coordinates of implicit constraints and (on request) the
+named points. Every number is written in its shortest round-trip form
+(``repr(float)``: ``0.03``, not ``0.029999999999999999``), so ``float(text)``
+gives back the very double computed. No comment lines: ``numpy.genfromtxt``,
+``csv.DictReader`` and ``pandas.read_csv`` read it without options.
+
+Everything else (the model and its hash, method, tolerances, parameter values,
+initial state, integration cost, complete or where it stopped) goes in the
+metadata (:meth:`CsvWriter.metadata`), which the command line writes as JSON
+beside the CSV (:func:`sidecar_path`). Rows are written block by block as the
+run produces them; a run that stops early, or is interrupted, keeps its rows and
+its metadata says so.
 """
 from __future__ import annotations
 
+import contextlib
+import hashlib
 import io
+import json
+import math
+import signal
+import threading
+from pathlib import Path
 
 import numpy as np
 
 from ..core.known_system import KnownSystem
-from ..errors import printable
 from .run import Block, Run, Trajectory, _numpy_module
 from .values import RunValues
 
+METADATA_FORMAT = "kronsub-trajectory-metadata/1"
 
+
+def format_rows(data: np.ndarray) -> str:
+    """Rows of numbers as CSV lines, each number in its shortest round-trip form."""
+    return "".join(",".join(map(repr, row)) + "\n" for row in np.asarray(data, dtype=float).tolist())
+
+
+@contextlib.contextmanager
+def _whole_rows():
+    """Hold off Ctrl-C (SIGINT) while rows are written, then deliver it: a file interrupted
+    mid-write still ends with a whole row, counted in the metadata."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    caught = []
+    try:
+        previous = signal.signal(signal.SIGINT, lambda signum, frame: caught.append((signum, frame)))
+    except (ValueError, OSError):  # no signals here (an embedded interpreter)
+        yield
+        return
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
+        if caught and callable(previous):
+            previous(*caught[0])
+
+
+def sidecar_path(csv_path: Path) -> Path:
+    """The metadata file of a CSV: ``out.csv`` -> ``out.json``; other names get ``.json`` added."""
+    csv_path = Path(csv_path)
+    if csv_path.suffix.lower() == ".csv":
+        return csv_path.with_suffix(".json")
+    return csv_path.with_name(csv_path.name + ".json")
+
+
+def file_sha256(path: Path) -> str | None:
+    """The SHA-256 of a file's bytes (None when it cannot be read)."""
+    try:
+        return hashlib.sha256(Path(path).read_bytes()).hexdigest()
+    except OSError:
+        return None
+
+
+def _json_number(value):
+    """A float for JSON: non-finite values (which JSON lacks) as null."""
+    if value is None:
+        return None
+    value = float(value)
+    return value if math.isfinite(value) else None
+
+
+def metadata_json(meta: dict) -> str:
+    """The metadata as JSON text (key order as built; deterministic)."""
+    return json.dumps(meta, indent=2, ensure_ascii=False, allow_nan=False) + "\n"
 class _Module:
     """The generated numpy module, made on first use."""
 
@@ -65,11 +133,16 @@ def point_columns(system: KnownSystem, traj: Trajectory, param, outputs=None) ->
 
 
 class CsvWriter:
-    """Writes a run's CSV to ``out`` block by block; ``rows`` and ``last_t`` say how far it got."""
+    """Writes a run's CSV to ``out`` block by block; ``rows`` and ``last_t`` say how far it got,
+    :meth:`metadata` everything about the run (how it ended once :meth:`end` or
+    :meth:`interrupted` was called)."""
 
     def __init__(self, out, system: KnownSystem, model_path: str, values: RunValues, method: str,
-                 backend: str, rtol: float, atol: float, with_points: bool = False, outputs=None):
-        """``outputs`` (a scene's; None: everything) choose the columns (and the points)."""
+                 backend: str, rtol: float, atol: float, with_points: bool = False, outputs=None, *,
+                 t_end: float | None = None, dt: float | None = None, scene: str | None = None,
+                 model_sha256: str | None = None, extra_columns: tuple[str, ...] = ()):
+        """``outputs`` (a scene's; None: everything) choose the columns (and the points);
+        ``extra_columns`` are appended (their values passed to :meth:`block`)."""
         self.out, self.system, self.outputs = out, system, outputs
         self.with_points = with_points if outputs is None else bool(outputs.points)
         self.param = np.array(values.parameters)
@@ -87,20 +160,49 @@ class CsvWriter:
             columns += [d.name for d in system.implicit.dependent]
         if self.with_points:
             columns += _point_names(self.module)
-        # free text of the model on one comment line: a newline in the name cannot start a row
-        out.write(f"# kronsub simulate: {printable(system.name)} ({printable(model_path)})\n")
-        out.write(f"# method {method} ({backend} right-hand side), rtol {rtol:g}, atol {atol:g}\n")
-        if system.implicit is not None:
-            out.write("# dependent coordinates " + ", ".join(d.name for d in system.implicit.dependent)
-                      + " from the constraints " + ", ".join(c.name for c in system.implicit.constraints)
-                      + " (Newton's method on the branch of the initial configuration)\n")
-        out.write("# parameters: " + ", ".join(f"{p.name}={v!r}" for p, v in zip(system.parameters,
-                                                                                 values.parameters)) + "\n")
-        out.write("# columns: t [s]; coordinates and velocities in the model's units (per s); energies in the "
-                  "model's energy unit" + ("; points in the model's length unit" if with_points else "") + "\n")
+        columns += list(extra_columns)
+        self.columns = columns
+        self._meta = self._start_metadata(model_path, values, method, backend, rtol, atol, t_end, dt, scene,
+                                          model_sha256)
         out.write(",".join(columns) + "\n")
 
-    def block(self, block: Block) -> None:
+    def _start_metadata(self, model_path, values, method, backend, rtol, atol, t_end, dt, scene, sha) -> dict:
+        from .. import __version__
+
+        system = self.system
+        state = [q.name for q in system.coordinates] + [v.name for v in system.velocities]
+        meta = {
+            "format": METADATA_FORMAT,
+            "kronsub": __version__,
+            "csv": None,
+            "model": {"name": system.name, "file": model_path, "sha256": sha},
+            "scene": scene,
+            "method": method,
+            "right_hand_side": backend,
+            "rtol": _json_number(rtol),
+            "atol": _json_number(atol),
+            "t_end": _json_number(t_end),
+            "dt": _json_number(dt),
+            "parameters": {p.name: _json_number(v) for p, v in zip(system.parameters, values.parameters)},
+            "initial_state": {name: _json_number(v) for name, v in zip(state, values.y0)},
+        }
+        if system.implicit is not None:
+            meta["dependent_coordinates"] = {
+                "names": [d.name for d in system.implicit.dependent],
+                "constraints": [c.name for c in system.implicit.constraints],
+                "how": "Newton's method on the constraints, on the branch of the initial configuration",
+            }
+        meta["columns"] = list(self.columns)
+        meta["units"] = ("t in s; coordinates and velocities in the model's units (per s); energies in the "
+                         "model's energy unit" + ("; points in the model's length unit" if self.with_points else ""))
+        meta.update(status="running", complete=False, rows=0, last_t=None, cost={})
+        return meta
+
+    def metadata(self) -> dict:
+        """The run's metadata: what it ran and, so far, how it went (a copy)."""
+        return json.loads(json.dumps(self._meta))
+
+    def block(self, block: Block, extra: np.ndarray | None = None) -> None:
         n = len(block.t)
         Y = block.y.reshape(n, -1)
         nq = Y.shape[1] // 2
@@ -118,43 +220,56 @@ class CsvWriter:
             data.append(dependent.reshape(n, -1))
         if self.with_points:
             data.append(np.array([self.module["points"](y, self.param) for y in block.y]).reshape(n, -1))
-        text = io.StringIO()
-        np.savetxt(text, np.hstack(data), fmt="%.17g", delimiter=",")
-        self.out.write(text.getvalue())  # whole rows only, should an interrupt come
-        self.rows += n
-        self.last_t = float(block.t[-1]) if n else self.last_t
+        if extra is not None:
+            data.append(np.asarray(extra, dtype=float).reshape(n, -1))
+        text = format_rows(np.hstack(data))
+        with _whole_rows():
+            self.out.write(text)
+            self.rows += n
+            self.last_t = float(block.t[-1]) if n else self.last_t
+            self._meta.update(rows=self.rows, last_t=_json_number(self.last_t))
 
     def end(self, stats: dict, complete: bool, t_fail: float | None = None, message: str = "") -> None:
-        cost = ", ".join(f"{v} {k}" if k != "stiff_from" else f"stiff from t = {v:.6g}" for k, v in stats.items())
-        if cost:
-            self.out.write(f"# cost: {cost}\n")
-        if not complete:
-            self.out.write(f"# incomplete: stopped at t = {t_fail!r}: {message}\n")
+        """Record how the run ended: its cost, and where and why it stopped when it did."""
+        self._cost(stats)
+        self._meta["complete"] = bool(complete)
+        if complete:
+            self._meta["status"] = "complete"
+        else:
+            self._meta.update(status="stopped", stopped_at=_json_number(t_fail), stop_reason=message)
 
-    def interrupted(self) -> None:
-        """Mark the file incomplete after an interrupt (Ctrl-C)."""
+    def _cost(self, stats: dict) -> None:
+        self._meta["cost"] = {k: (_json_number(v) if k == "stiff_from" else int(v)) for k, v in stats.items()}
+
+    def interrupted(self, stats: dict | None = None) -> None:
+        """Record an interrupt (Ctrl-C): the rows so far, to ``last_t``, are all there is."""
         self.stopped = True
-        self.out.write(f"# incomplete: interrupted after t = {self.last_t!r}\n")
+        if stats is not None:
+            self._cost(stats)
+        self._meta.update(status="interrupted", complete=False, stopped_at=_json_number(self.last_t),
+                          stop_reason="interrupted (Ctrl-C)")
 
     def stream(self, run: Run, keep=None) -> None:
-        """Write the blocks of ``run`` as they are computed, then how it ended; ``keep(block)``,
-        when given, sees every block too (for a plot). An interrupt (KeyboardInterrupt) marks
-        the file incomplete and is raised again, so the caller keeps the file and reports it."""
+        """Write the blocks of ``run`` as they are computed, then record how it ended; ``keep(block)``,
+        when given, sees every block too (for a plot). An interrupt (KeyboardInterrupt) is
+        recorded (:meth:`interrupted`) and raised again, so the caller keeps the file and reports it."""
         try:
             for block in run:
                 self.block(block)
                 if keep is not None:
                     keep(block)
         except KeyboardInterrupt:
-            self.interrupted()
+            self.interrupted(run.stats)
             raise
         self.end(run.stats, run.complete, run.t_fail, run.message)
 
 
 def write_csv(out, system: KnownSystem, model_path: str, run: Run, values: RunValues, rtol: float,
-              atol: float, with_points: bool = False, keep=None, outputs=None) -> CsvWriter:
-    """Stream the CSV of ``run`` to ``out`` (see :meth:`CsvWriter.stream`)."""
-    writer = CsvWriter(out, system, model_path, values, run.method, run.backend, rtol, atol, with_points, outputs)
+              atol: float, with_points: bool = False, keep=None, outputs=None, **run_info) -> CsvWriter:
+    """Stream the CSV of ``run`` to ``out`` (see :meth:`CsvWriter.stream`); ``run_info`` are
+    :class:`CsvWriter`'s keyword arguments for the metadata."""
+    writer = CsvWriter(out, system, model_path, values, run.method, run.backend, rtol, atol, with_points, outputs,
+                       **run_info)
     writer.stream(run, keep)
     return writer
 
@@ -162,9 +277,18 @@ def write_csv(out, system: KnownSystem, model_path: str, run: Run, values: RunVa
 def to_csv(system: KnownSystem, model_path: str, traj: Trajectory, values: RunValues,
            rtol: float, atol: float, with_points: bool = False, outputs=None) -> str:
     """The CSV text of a whole trajectory."""
-    block = Block(traj.t, traj.y, traj.energies, traj.dependent)
-    run = Run(traj.method, traj.backend, [block] if len(traj.t) else [],
-              traj.complete, traj.message, traj.t_fail, traj.stats)
+    return trajectory_csv(system, model_path, traj, values, rtol, atol, with_points, outputs)[0]
+
+
+def trajectory_csv(system: KnownSystem, model_path: str, traj: Trajectory, values: RunValues, rtol: float,
+                   atol: float, with_points: bool = False, outputs=None, extra=None, **run_info) -> tuple[str, dict]:
+    """The CSV text of a whole trajectory and its metadata; ``extra`` is ``(names, values)`` of
+    columns to append (the reactions)."""
+    names, data = extra if extra is not None else ((), None)
     out = io.StringIO()
-    write_csv(out, system, model_path, run, values, rtol, atol, with_points, outputs=outputs)
-    return out.getvalue()
+    writer = CsvWriter(out, system, model_path, values, traj.method, traj.backend, rtol, atol, with_points, outputs,
+                       extra_columns=tuple(names), **run_info)
+    if len(traj.t):
+        writer.block(Block(traj.t, traj.y, traj.energies, traj.dependent), data)
+    writer.end(traj.stats, traj.complete, traj.t_fail, traj.message)
+    return out.getvalue(), writer.metadata()

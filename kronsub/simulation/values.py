@@ -12,7 +12,7 @@ from dataclasses import dataclass
 import sympy
 
 from ..core.known_system import KnownSystem
-from ..errors import Location, ModelError, Problem
+from ..errors import Location, ModelError, Problem, near_names
 from ..model.expressions import constant_value, parse_expression
 
 
@@ -46,9 +46,7 @@ def resolve(system: KnownSystem, initial: dict, settings: dict[str, str]) -> Run
     state = [q.name for q in system.coordinates] + [v.name for v in system.velocities]
     for name in settings:
         if name not in known and name not in state:
-            import difflib
-
-            near = difflib.get_close_matches(name, sorted(known | set(state)), n=3)
+            near = near_names(name, known | set(state))
             hint = ("did you mean " + ", ".join(near) + "?") if near else \
                 "parameters: " + ", ".join(sorted(known)) + "; state: " + ", ".join(state)
             problems.append(Problem(None, f"--set {name}: no parameter, coordinate or velocity of that name", hint))

@@ -24,7 +24,7 @@ def test_system3_stays_closed_for_100_seconds():
     path = MODELS / "hoffmann/system3.yaml"
     result = CliRunner().invoke(main, ["simulate", str(path), "--t", "100", "--dt", "0.1", "--points"])
     assert result.exit_code == 0, result.output
-    lines = [ln for ln in result.stdout.splitlines() if not ln.startswith("#") and ln.strip()]
+    lines = result.stdout.splitlines()
     header = lines[0].split(",")
     data = np.loadtxt(io.StringIO("\n".join(lines[1:])), delimiter=",", ndmin=2)
     assert len(data) == 1001
