@@ -99,3 +99,22 @@ def test_the_order_key_sorts_as_sympy_compares():
     for _ in range(40):
         sample = rng.sample(exprs, 12)
         assert sorted(sample, key=order_key) == sorted(sample, key=cmp_to_key(sympy.Basic.compare))
+
+
+def test_sines_and_cosines_are_the_objects_sympy_evaluates_to():
+    from kronsub.core.trigpoly import COS, SIN
+
+    rng = random.Random(11)
+    names = ["q1", "q2", "q10", "q9", "theta", "phi", "a_b", "Z", "x_dot"]
+    coords = [sympy.Symbol(n) for n in names] + [sympy.Symbol("r", real=True)]
+    algebra = TrigAlgebra(coords)
+    for _ in range(400):
+        picked = rng.sample(range(len(coords)), rng.randint(1, 4))
+        freq = tuple(sorted((i, sympy.Integer(rng.choice([1, -1, 2, -2, 3])) / rng.choice([1, 1, 2]))
+                            for i in picked))
+        arg = sympy.Add(*[c * coords[i] for i, c in freq])
+        freq = tuple((i, int(c) if c.is_Integer else trigpoly._Q(int(c.p), int(c.q))) for i, c in freq)
+        if freq[0][1] < 0:
+            continue  # the algebra keeps the first frequency positive
+        assert sympy.srepr(algebra.trig_expr(COS, freq)) == sympy.srepr(sympy.cos(arg))
+        assert sympy.srepr(algebra.trig_expr(SIN, freq)) == sympy.srepr(sympy.sin(arg))

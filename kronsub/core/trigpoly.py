@@ -460,7 +460,7 @@ class TrigAlgebra:
                 # result is the very object ``cos(arg)`` would evaluate to.
                 arg = sympy.Add(*[_rational(v) * self.coordinates[i] for i, v in freq])
                 sign = 1
-                if arg.could_extract_minus_sign():
+                if _could_extract_minus_sign(arg):
                     arg, sign = -arg, -1
                 if kind == COS:
                     hit = sympy.cos(arg, evaluate=False)
@@ -561,6 +561,24 @@ class TrigAlgebra:
 
     def has_multiple_angles(self, p: TrigPoly) -> bool:
         return any(abs(v) != 1 for (_, freq) in p.terms for _, v in freq)
+
+
+_SIGN_PATTERNS: dict[sympy.Expr, bool] = {}
+
+
+def _could_extract_minus_sign(arg: sympy.Expr) -> bool:
+    """``arg.could_extract_minus_sign()`` for a linear combination of coordinates, decided
+    once per pattern: sympy breaks the tie between ``q1 - q2`` and ``q2 - q1`` by sort keys,
+    which depend on the symbols only through the order of their names, so the answer for
+    ``arg`` with its symbols renamed to placeholders in the same order is the answer."""
+    symbols = sorted(arg.free_symbols, key=lambda s: s.name)
+    if not all(type(s) is sympy.Symbol for s in symbols):
+        return arg.could_extract_minus_sign()
+    pattern = arg.xreplace({s: sympy.Symbol(f"x{i:06d}") for i, s in enumerate(symbols)})
+    hit = _SIGN_PATTERNS.get(pattern)
+    if hit is None:
+        hit = _SIGN_PATTERNS[pattern] = bool(pattern.could_extract_minus_sign())
+    return hit
 
 
 def _common_monomial(coef: Coef) -> Mono:
