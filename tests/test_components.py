@@ -18,6 +18,7 @@ from hypothesis import strategies as st
 
 from kronsub.components import REGISTRY
 from kronsub.components.base import Component
+from kronsub.components.spatial import SEQUENCES, euler_rates, euler_rotation
 from kronsub.core.primitive import part_from_component
 from kronsub.core.symbols import acceleration_symbol, symbol, velocity_symbol
 
@@ -357,3 +358,19 @@ def test_particle_spherical_metric():
 def test_registry_covers_library():
     assert {"particle1d", "particle2d", "particle3d", "particle_polar", "particle_spherical",
             "planar_body", "rod", "disc", "pinned_rod", "flywheel", "rigid_body3d"} <= set(REGISTRY)
+
+
+@pytest.mark.parametrize("sequence", SEQUENCES)
+def test_euler_rates_give_the_body_angular_velocity_of_every_sequence(sequence):
+    """``E qdot = (R^T Rdot)^vee`` for each of the twelve sequences, with ``R`` differentiated
+    along a path (numerically, at random angles and rates)."""
+    t = sympy.Symbol("t")
+    rng = np.random.default_rng(len(sequence) + sum(map(ord, sequence)))
+    angles0, rates = rng.uniform(-1.2, 1.2, 3), rng.uniform(-2, 2, 3)
+    path = [a + r * t for a, r in zip(angles0, rates)]
+    R = euler_rotation(sequence, *path)
+    W = (R.T * R.diff(t)).subs(t, 0)
+    omega = np.array([W[2, 1], W[0, 2], W[1, 0]], dtype=float)
+    E = np.array(euler_rates(sequence, *path[1:]).subs(t, 0), dtype=float)
+    assert np.allclose(E @ rates, omega, atol=1e-12)
+    assert np.allclose(np.array(W + W.T, dtype=float), 0, atol=1e-12)

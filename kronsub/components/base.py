@@ -23,6 +23,15 @@ class ParameterSpec:
 
 
 @dataclass(frozen=True)
+class OptionSpec:
+    """A choice a component offers among fixed names (``euler: ZXZ``); the first is the default."""
+
+    name: str
+    description: str
+    values: tuple[str, ...]
+
+
+@dataclass(frozen=True)
 class Body:
     """A rigid body (or particle) of a component, for gravity and energy checks.
 
@@ -52,10 +61,12 @@ class Component:
     parameters: ClassVar[tuple[ParameterSpec, ...]] = ()
     dimension: ClassVar[int] = 0  # dimension of the world its points live in
     rigid: ClassVar[bool] = False  # a rigid body: model files may fix points in it (``points:``)
+    options: ClassVar[tuple[OptionSpec, ...]] = ()  # choices among names, keys beside ``type:``
 
     x: Mapping[str, sympy.Symbol] = field(default_factory=dict)
     p: Mapping[str, sympy.Expr] = field(default_factory=dict)
     extra_points: Mapping[str, tuple[sympy.Expr, ...]] = field(default_factory=dict)  # body-frame offsets
+    choices: Mapping[str, str] = field(default_factory=dict)  # option name -> chosen value
 
     # -- to be declared by each component --------------------------------
     def metric(self) -> sympy.Matrix:

@@ -1,31 +1,64 @@
-"""A rigid body in space, parametrised by its centre and Z-Y-X Euler angles."""
+"""A rigid body in space, parametrised by its centre and three Euler angles (Z-Y-X unless
+the model chooses another of the twelve sequences with ``euler:``)."""
 from __future__ import annotations
+
+from typing import ClassVar
 
 import sympy
 from sympy import cos, sin
 
-from .base import Body, Component, ParameterSpec
+from .base import Body, Component, OptionSpec, ParameterSpec
+
+SEQUENCES = ("ZYX", "ZXY", "YXZ", "YZX", "XYZ", "XZY",  # Tait-Bryan: three different axes
+             "ZXZ", "ZYZ", "XYX", "XZX", "YXY", "YZY")  # proper Euler: first axis repeated
+"""The twelve Euler sequences of rotations about body axes (intrinsic), first rotation first."""
 
 # the products of inertia enter the tensor with a plus sign (SymPy's inertia())
 PRODUCT_OF_INERTIA = ("product of inertia, the tensor entry as given in [[Ixx, Ixy, Ixz], [Ixy, Iyy, Iyz], "
                       "[Ixz, Iyz, Izz]] (SymPy's inertia() convention); for P = integral of {} dm give -P")
 
 
+def axis_rotation(axis: str, angle) -> sympy.Matrix:
+    """Rotation by ``angle`` about the coordinate axis ``X``, ``Y`` or ``Z``."""
+    c, s = cos(angle), sin(angle)
+    if axis == "X":
+        return sympy.Matrix([[1, 0, 0], [0, c, -s], [0, s, c]])
+    if axis == "Y":
+        return sympy.Matrix([[c, 0, s], [0, 1, 0], [-s, 0, c]])
+    return sympy.Matrix([[c, -s, 0], [s, c, 0], [0, 0, 1]])
+
+
+def euler_rotation(sequence: str, psi, theta, phi) -> sympy.Matrix:
+    """World-from-body rotation ``R_a(psi) R_b(theta) R_c(phi)`` for the sequence ``abc``."""
+    a, b, c = sequence
+    return axis_rotation(a, psi) * axis_rotation(b, theta) * axis_rotation(c, phi)
+
+
+def euler_rates(sequence: str, theta, phi) -> sympy.Matrix:
+    """``E`` with body angular velocity ``omega = E (psidot, thetadot, phidot)``: the columns
+    are the three rotation axes seen in the body, ``R_c(phi)^T R_b(theta)^T e_a``,
+    ``R_c(phi)^T e_b`` and ``e_c``."""
+    a, b, c = sequence
+    unit = {k: sympy.Matrix([int(k == "X"), int(k == "Y"), int(k == "Z")]) for k in "XYZ"}
+    rc, rb = axis_rotation(c, phi).T, axis_rotation(b, theta).T
+    return sympy.Matrix.hstack(rc * rb * unit[a], rc * unit[b], unit[c])
+
+
 def euler_zyx(psi, theta, phi) -> sympy.Matrix:
     """World-from-body rotation ``Rz(psi) Ry(theta) Rx(phi)`` (yaw, pitch, roll)."""
-    rz = sympy.Matrix([[cos(psi), -sin(psi), 0], [sin(psi), cos(psi), 0], [0, 0, 1]])
-    ry = sympy.Matrix([[cos(theta), 0, sin(theta)], [0, 1, 0], [-sin(theta), 0, cos(theta)]])
-    rx = sympy.Matrix([[1, 0, 0], [0, cos(phi), -sin(phi)], [0, sin(phi), cos(phi)]])
-    return rz * ry * rx
+    return euler_rotation("ZYX", psi, theta, phi)
 
 
 class RigidBody3D(Component):
-    """Rigid body in space: centre (x, y, z) and Z-Y-X Euler angles (psi, theta, phi).
+    """Rigid body in space: centre (x, y, z) and Euler angles (psi, theta, phi).
 
-    Body angular velocity ``omega = E (psidot, thetadot, phidot)`` with
-    ``E = [[-sin th, 0, 1], [cos th sin ph, cos ph, 0], [cos th cos ph, -sin ph, 0]]``,
-    so the metric is ``diag(m, m, m) (+) E^T I E``; it is singular at
-    ``theta = +-pi/2`` (gimbal lock).
+    The rotation is ``R_a(psi) R_b(theta) R_c(phi)`` for the sequence ``abc`` chosen by
+    ``euler:`` (default ``ZYX``: yaw, pitch, roll). Body angular velocity
+    ``omega = E (psidot, thetadot, phidot)`` (:func:`euler_rates`); for Z-Y-X
+    ``E = [[-sin th, 0, 1], [cos th sin ph, cos ph, 0], [cos th cos ph, -sin ph, 0]]``.
+    The metric is ``diag(m, m, m) (+) E^T I E``; it is singular where ``E`` is (gimbal
+    lock): ``theta = +-pi/2`` for the six sequences of three different axes, ``theta = 0, pi``
+    for the six with the first axis repeated (Z-X-Z...).
 
     The inertia tensor about the mass centre in body axes is, as given,
     ``I = [[Ixx, Ixy, Ixz], [Ixy, Iyy, Iyz], [Ixz, Iyz, Izz]]`` (SymPy's ``inertia()``
@@ -35,7 +68,7 @@ class RigidBody3D(Component):
     """
 
     type_name = "rigid_body3d"
-    summary = "rigid body in space (x, y, z, Z-Y-X Euler angles psi, theta, phi)"
+    summary = "rigid body in space (x, y, z, Euler angles psi, theta, phi; Z-Y-X unless `euler:` says)"
     coordinates = ("x", "y", "z", "psi", "theta", "phi")
     parameters = (
         ParameterSpec("mass", "mass", unit="kg"),
@@ -46,8 +79,15 @@ class RigidBody3D(Component):
         ParameterSpec("Iyz", PRODUCT_OF_INERTIA.format("y z"), "0", "kg m^2"),
         ParameterSpec("Ixz", PRODUCT_OF_INERTIA.format("x z"), "0", "kg m^2"),
     )
+    options: ClassVar[tuple[OptionSpec, ...]] = (
+        OptionSpec("euler", "the Euler sequence of (psi, theta, phi), rotations about body axes", SEQUENCES),
+    )
     dimension = 3
     rigid = True
+
+    @property
+    def sequence(self) -> str:
+        return self.choices.get("euler", SEQUENCES[0])
 
     def inertia(self) -> sympy.Matrix:
         p = self.p
@@ -56,15 +96,12 @@ class RigidBody3D(Component):
                              [p["Ixz"], p["Iyz"], p["Izz"]]])
 
     def metric(self):
-        th, ph = self.x["theta"], self.x["phi"]
-        E = sympy.Matrix([[-sin(th), 0, 1],
-                          [cos(th) * sin(ph), cos(ph), 0],
-                          [cos(th) * cos(ph), -sin(ph), 0]])
+        E = euler_rates(self.sequence, self.x["theta"], self.x["phi"])
         rot = (E.T * self.inertia() * E).applyfunc(sympy.expand)
         return sympy.diag(self.p["mass"] * sympy.eye(3), rot)
 
     def rotation(self) -> sympy.Matrix:
-        return euler_zyx(self.x["psi"], self.x["theta"], self.x["phi"])
+        return euler_rotation(self.sequence, self.x["psi"], self.x["theta"], self.x["phi"])
 
     def points(self):
         return {"centre": (self.x["x"], self.x["y"], self.x["z"])}

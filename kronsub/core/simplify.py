@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import sympy
 
+from .inverse_trig import divide_out
 from .trigpoly import TrigAlgebra, TrigPoly
 
 SMALL = 40  # operations; larger entries keep their trigonometric-polynomial form
@@ -16,6 +17,7 @@ SMALL = 40  # operations; larger entries keep their trigonometric-polynomial for
 
 def compact(algebra: TrigAlgebra, p: TrigPoly) -> sympy.Expr:
     """The shortest of a few equivalent forms of ``p`` (deterministic)."""
+    p = divide_out(algebra, p)
     expr = algebra.to_expr(p)
     if not algebra.has_multiple_angles(p):
         return expr

@@ -19,6 +19,7 @@ from typing import Mapping, Sequence
 import sympy
 
 from ..components.base import Body
+from .inverse_trig import Radicands
 from .known_system import KnownSystem, ParameterInfo, ProjectedEffect, Transition
 from .primitive import Primitive
 from .simplify import compact
@@ -37,7 +38,8 @@ class Subspace:
         self.qdots = [algebra.atom(velocity_symbol(q)) for q in self.coords]
         self.x = primitive.coordinates
         self.connection = connection
-        images = [algebra.from_expr(connection[x]) for x in self.x]
+        self.radicands = Radicands(algebra, connection.values())  # atan2/asin in it (inverse_trig)
+        images = [algebra.from_expr(self.radicands.rewrite(connection[x])) for x in self.x]
         # C^a_alpha = dx^a / dxbar^alpha  (7'), (21)
         self.C = [[algebra.diff(img, j) for j in range(self.n)] for img in images]
         self.nonzero = [[j for j in range(self.n) if not row[j].is_zero()] for row in self.C]
@@ -65,7 +67,7 @@ class Subspace:
 
     def image(self, expr: sympy.Expr) -> TrigPoly:
         """``expr(x(xbar), C xbardot)`` in the algebra."""
-        return self.algebra.from_expr(sympy.sympify(expr).xreplace(self.substitution))
+        return self.algebra.from_expr(self.radicands.rewrite(sympy.sympify(expr).xreplace(self.substitution)))
 
     def moved(self, expr: sympy.Expr) -> sympy.Expr:
         return sympy.sympify(expr).xreplace(self.substitution)

@@ -294,6 +294,8 @@ class TrigAlgebra:
         self._trig_cache: dict[tuple[int, Freq], sympy.Expr] = {}
         self._mono_cache: dict[Mono, sympy.Expr] = {}
         self._power_cache: dict[tuple[int, int | Fraction], sympy.Expr] = {}
+        self.prepare = None
+        """A rewrite applied to an atom's derivative before it is converted (see inverse_trig)."""
 
     # ----------------------------------------------------------- construction
     def constant(self, value: int | Fraction) -> TrigPoly:
@@ -311,6 +313,14 @@ class TrigAlgebra:
             deps = frozenset(self.index[s] for s in expr.free_symbols if s in self.index)
             self._atom_deps.append(deps)
         return idx
+
+    def atom_expr(self, atom: int) -> sympy.Expr:
+        """The expression of an atom (by its index in the monomials)."""
+        return self._atoms[atom]
+
+    def atom_depends(self, atom: int) -> bool:
+        """Whether an atom depends on the coordinates."""
+        return bool(self._atom_deps[atom])
 
     def from_expr(self, expr: sympy.Expr) -> TrigPoly:
         """The trigonometric-polynomial form of a sympy expression."""
@@ -433,7 +443,8 @@ class TrigAlgebra:
         key = (atom, coordinate)
         hit = self._atom_diff.get(key)
         if hit is None:
-            hit = self.from_expr(sympy.diff(self._atoms[atom], self.coordinates[coordinate]))
+            d = sympy.diff(self._atoms[atom], self.coordinates[coordinate])
+            hit = self.from_expr(d if self.prepare is None else self.prepare(d))
             self._atom_diff[key] = hit
         return hit
 

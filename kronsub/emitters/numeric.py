@@ -74,9 +74,14 @@ def _default(value) -> str:
 
 
 def _single_angles(exprs: list[sympy.Expr], coordinates) -> list[sympy.Expr]:
-    """Rewrite ``cos(q1 - q2)``, ``sin(2 q1)``... through sines and cosines of single
-    coordinates: n sine/cosine pairs then serve every entry (common subexpressions)
-    instead of one library call per angle combination."""
+    """Rewrite multiple angles of one coordinate (``sin(2 q1) = 2 sin(q1) cos(q1)``) through
+    its sine and cosine, which then serve every entry (common subexpressions).
+
+    An angle of several coordinates (``sin(q1 - q2)``) stays as it is: through single-angle
+    sines and cosines, ``sin(q1) cos(q2) - cos(q1) sin(q2)`` loses the digits the two products
+    share when ``q1`` is close to ``q2``, while ``q1 - q2`` is then exact (Sterbenz) and so is
+    its sine, to one rounding (tests/hard/test_hard_cancellation.py).
+    """
     coords = set(coordinates)
     mapping = {}
     for expr in exprs:
@@ -85,7 +90,7 @@ def _single_angles(exprs: list[sympy.Expr], coordinates) -> list[sympy.Expr]:
             parts = [t.as_coeff_Mul() for t in terms]
             if not all(c.is_Integer and q in coords for c, q in parts):
                 continue
-            if len(parts) > 1 or abs(int(parts[0][0])) > 1:
+            if len(parts) == 1 and abs(int(parts[0][0])) > 1:
                 mapping[atom] = sympy.expand_trig(atom)
     return [e.xreplace(mapping) if mapping else e for e in exprs]
 

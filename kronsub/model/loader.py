@@ -340,9 +340,11 @@ class _Loader:
         return name in self.broken_names or name.split(".", 1)[0] in self.broken_parts
 
     def _library_component(self, cname: str, spec: Node) -> Part | None:
-        self.check_keys(spec, ("type", "parameters", "coordinates", "points", "pivot", "description"),
-                        f"component '{cname}'")
         tnode = spec.get("type")
+        cls = REGISTRY.get(tnode.value) if tnode is not None and isinstance(tnode.value, str) else None
+        options = tuple(o.name for o in cls.options) if cls is not None else ()
+        self.check_keys(spec, ("type", "parameters", "coordinates", "points", "pivot", "description", *options),
+                        f"component '{cname}'")
         if tnode is None:
             self.error(spec, f"component '{cname}' has no `type:`",
                        "valid types: " + ", ".join(sorted(REGISTRY)) + " (or `model: file.yaml`)")
@@ -369,13 +371,29 @@ class _Loader:
         if names is None:
             return None
         extra = self._body_points(cname, cls, spec.get("points"), params)
-        if extra is None:
+        choices = self._choices(cname, cls, spec)
+        if extra is None or choices is None:
             return None
         if spec.get("pivot") is not None:
             return self._pivoted(cname, cls, spec, params, names, extra)
         component = cls(x={local: symbol(n) for local, n in zip(cls.coordinates, names)}, p=params,
-                        extra_points=extra)
+                        extra_points=extra, choices=choices)
         return part_from_component(cname, component)
+
+    def _choices(self, cname: str, cls, spec: Node) -> dict[str, str] | None:
+        """The component's options (``euler: ZXZ``): each one of its fixed names."""
+        choices: dict[str, str] = {}
+        for option in cls.options:
+            node = spec.get(option.name)
+            if node is None:
+                continue
+            if not isinstance(node.value, str) or node.value not in option.values:
+                self.error(node, f"`{option.name}:` of component '{cname}' ({cls.type_name}) must be one of "
+                           f"{', '.join(option.values)}, found {_kind(node)}",
+                           f"{option.description}; " + close_matches(str(node.value), option.values))
+                return None
+            choices[option.name] = node.value
+        return choices
 
     def _body_points(self, cname: str, cls, node: Node | None, params: dict):
         """Points a model fixes in a rigid body: ``name: [offsets in body axes]``."""

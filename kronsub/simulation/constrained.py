@@ -136,6 +136,38 @@ def configure_native(native, dependent, tol: float) -> None:
     lib.ks_set_newton_tolerance(tol)
 
 
+def energies_on_branch(native, t, Y, param, dependent) -> tuple[np.ndarray, np.ndarray]:
+    """Kinetic and potential energy per row, each row's Newton's method started from its own
+    dependent coordinates (``dependent_rows``): the compiled warm start is the integrator's,
+    left wherever the run stopped (at a toggle, next to the other branch), so it is kept aside
+    and put back."""
+    import ctypes
+
+    lib = native._lib
+    nd = len(dependent[0]) if len(dependent) else 0
+    saved = (ctypes.c_double * nd)()
+    lib.ks_get_dependent.argtypes = [ctypes.c_void_p]
+    lib.ks_get_dependent.restype = None
+    lib.ks_get_dependent(ctypes.cast(saved, ctypes.c_void_p))
+    T, V = np.empty(len(t)), np.empty(len(t))
+    try:
+        for i, row in enumerate(dependent):
+            configure_native_guess(lib, row)
+            T[i:i + 1], V[i:i + 1] = native.energies(np.asarray(t)[i:i + 1], np.asarray(Y)[i:i + 1], param)
+    finally:
+        configure_native_guess(lib, list(saved))
+    return T, V
+
+
+def configure_native_guess(lib, dependent) -> None:
+    import ctypes
+
+    buf = (ctypes.c_double * len(dependent))(*map(float, dependent))
+    lib.ks_set_dependent.argtypes = [ctypes.c_void_p]
+    lib.ks_set_dependent.restype = None
+    lib.ks_set_dependent(ctypes.cast(buf, ctypes.c_void_p))
+
+
 def configure_module(module: dict, dependent, tol: float) -> None:
     module["set_dependent"](dependent)
     module["NEWTON"]["tolerance"] = tol
@@ -151,19 +183,29 @@ def diagnose(system, evaluator: Intermediates, t: float, y, guess) -> str:
     try:
         evaluator.at(y[:n], y[n:])
     except ConstraintFailure as exc:
-        kind = ("a singular configuration (toggle position): " if exc.kind == "singular"
-                else "no solution of the constraints near the last one: ")
-        last = np.concatenate([np.asarray(y[:n], dtype=float), np.asarray(guess, dtype=float)])
-        G = evaluator.numeric.jacobian(last)
-        if exc.kind != "singular" and np.all(np.isfinite(G)):
-            # near a toggle the dependent block loses rank against the whole Jacobian
-            ratio = np.linalg.svd(G[:, n:], compute_uv=False)[-1] / max(np.linalg.norm(G, 2), 1e-300)
-            if ratio < 0.1:
-                kind = ("a singular configuration (toggle position) is reached: dg/d("
-                        + ", ".join(d.name for d in imp.dependent) + f") is nearly singular (relative size "
-                        f"{ratio:.2g}) at the last configuration, and ")
+        if exc.kind == "singular":
+            kind = "a singular configuration (toggle position): "
+        else:
+            kind = _toggle(evaluator, imp, y, guess) or "no solution of the constraints near the last one: "
         return f"{kind}{exc.message}; constraints {_names(imp)} at t = {t:.6g}, {where}"
-    return f"the constraints {_names(imp)} could not be solved in the generated code at t = {t:.6g}, {where}"
+    return (f"{_toggle(evaluator, imp, y, guess)}the constraints {_names(imp)} could not be solved in the "
+            f"generated code at t = {t:.6g}, {where}")
+
+
+def _toggle(evaluator: Intermediates, imp, y, guess) -> str:
+    """The start of the message when the last configuration is next to a toggle position: the
+    dependent block of the Jacobian nearly loses rank against the whole (else empty)."""
+    n = len(imp.independent)
+    last = np.concatenate([np.asarray(y[:n], dtype=float), np.asarray(guess, dtype=float)])
+    G = evaluator.numeric.jacobian(last)
+    if not np.all(np.isfinite(G)):
+        return ""
+    ratio = np.linalg.svd(G[:, n:], compute_uv=False)[-1] / max(np.linalg.norm(G, 2), 1e-300)
+    if ratio >= 0.1:
+        return ""
+    return ("a singular configuration (toggle position) is reached: dg/d("
+            + ", ".join(d.name for d in imp.dependent) + f") is nearly singular (relative size "
+            f"{ratio:.2g}) at the last configuration, and ")
 
 
 def dependent_rows(evaluator: Intermediates, Y: np.ndarray, n: int, start) -> np.ndarray:

@@ -261,13 +261,20 @@ def _finish(run, rows, bar, native, param, system, constrained, with_energies=Tr
     try:
         for t, y in rows:
             if len(t):
-                energies = native.energies(t, y, param) if native is not None and with_energies else None
                 dependent = None
                 if constrained is not None:
                     from .constrained import dependent_rows
 
                     dependent = dependent_rows(constrained, np.asarray(y), len(system.coordinates), guess)
                     guess = dependent[-1] if len(dependent) else guess
+                energies = None
+                if native is not None and with_energies:
+                    if dependent is None:
+                        energies = native.energies(t, y, param)
+                    else:  # on each row's own branch, not from the integrator's warm start
+                        from .constrained import energies_on_branch
+
+                        energies = energies_on_branch(native, t, y, param, dependent)
                 last_y, last_t = np.asarray(y)[-1], float(np.asarray(t)[-1])
                 first_t = float(np.asarray(t)[0]) if first_t is None else first_t
                 yield Block(grid.snap(t) if grid is not None else np.asarray(t), np.asarray(y), energies, dependent)

@@ -6,8 +6,11 @@ local error made at time s grows by the flow's sensitivity Phi(10, s), so what a
 promises is about ``kappa * tol``, with ``kappa`` the largest singular value of the flow map
 Phi(10, 0) (about 7e4 here; measured in the test by finite differences of tight runs).
 Criteria, for every adaptive method at several tolerances: error at t = 10 (max over the
-state) at most ``10 kappa tol`` (LSODA, whose error control is known to be looser, ``1000 kappa
-tol``), falling as the tolerance falls; energy drift at most ``1000 tol |E|``.
+state) at most ``10 kappa tol`` (LSODA ``100 kappa tol``: its error control is looser -- a
+weighted root-mean-square norm of an error estimate from its predictor-corrector difference,
+over methods of changing order -- and measured at 5-43 ``kappa tol`` for tol from 1e-6 to
+1e-11, 15 and 31 at the two tolerances run here), falling as the tolerance falls; energy
+drift at most ``1000 tol |E|``.
 The reference is ``tests/data/double_pendulum_rods.json`` (recomputed independently by
 ``tests/data/double_pendulum_reference.py``).
 """
@@ -28,7 +31,7 @@ from kronsub.simulation.values import resolve
 REFERENCE = ROOT / "tests/data/double_pendulum_rods.json"
 TOLERANCES = {"dop853": (1e-8, 1e-10, 1e-12), "heyoka": (1e-8, 1e-10, 1e-12), "RK45": (1e-8, 1e-10),
               "DOP853": (1e-8, 1e-10), "LSODA": (1e-8, 1e-10), "Radau": (1e-8,)}
-LOOSE = {"LSODA": 1000.0}
+LOOSE = {"LSODA": 100.0}
 
 
 @pytest.fixture(scope="module")
