@@ -358,6 +358,8 @@ def simulate(model: Path, t_end: float | None, dt: float | None, method: str | N
             click.echo(f"wrote {meta_path}", err=True)
         marked = f" (marked {'interrupted' if writer.stopped else 'incomplete'} in {meta_path})" \
             if meta_path is not None else ""
+        for _, what in run.switches:
+            click.echo(f"note: coordinates: auto switched at {what}", err=True)
         if writer.stopped:
             _fail(f"Interrupted after t = {writer.last_t!r}: the {writer.rows} rows computed so far are kept "
                   f"in {where}{marked}", INTERRUPTED)

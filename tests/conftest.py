@@ -23,9 +23,18 @@ def explicit_model_paths() -> list[str]:
     equations; the closed loops have their own (tests/test_constraints*.py)."""
     import yaml
 
-    out = []
-    for p in MODELS.rglob("*.yaml"):
-        data = yaml.safe_load(p.read_text(encoding="utf-8"))
-        if not (isinstance(data, dict) and data.get("constraints")):
-            out.append(str(p.relative_to(MODELS)))
-    return sorted(out)
+    def constrained(path: Path, seen=()) -> bool:
+        """`constraints:` in the file or in a known system it uses (which brings its own)."""
+        data = yaml.safe_load(path.read_text(encoding="utf-8"))
+        if not isinstance(data, dict):
+            return False
+        if data.get("constraints"):
+            return True
+        for spec in (data.get("components") or {}).values():
+            sub = isinstance(spec, dict) and spec.get("model")
+            if isinstance(sub, str) and (path.parent / sub).is_file() and (path.parent / sub) not in seen:
+                if constrained(path.parent / sub, seen + (path,)):
+                    return True
+        return False
+
+    return sorted(str(p.relative_to(MODELS)) for p in MODELS.rglob("*.yaml") if not constrained(p))

@@ -50,6 +50,43 @@ def constraint_residual(system, header: list[str], data: np.ndarray) -> float:
     return float(np.max(np.abs(np.array(g(*[data[:, col[q.name]] for q in y]), dtype=float))))
 
 
+def _values(system, params: dict):
+    return {p.symbol: params[p.name] for p in system.parameters if p.name in params}
+
+
+_LAMBDIFIED: dict = {}
+
+
+def implicit_numeric(system, params: dict):
+    """Numbers of a derived system (with implicit constraints or not): ``(Mbar, hbar, fbar, T)`` at ``(q, qdot)``, intermediates by Newton on the branch."""
+    values = _values(system, params)
+    from kronsub.core.constraints import Intermediates
+
+    ev = Intermediates(system.implicit, values) if system.implicit is not None else None
+    inter = list(system.implicit.intermediates) if ev else []
+    symbols = [p.symbol for p in system.parameters]
+    if id(system) not in _LAMBDIFIED:
+        exprs = [system.mass_matrix, system.velocity_terms, system.forces, sympy.Matrix([system.kinetic_energy])]
+        args = list(system.coordinates) + list(system.velocities) + inter + symbols
+        _LAMBDIFIED[id(system)] = (system, sympy.lambdify(args, exprs, "numpy"))
+    fn = _LAMBDIFIED[id(system)][1]
+    n = len(system.coordinates)
+
+    def at(q, qdot, guess=None):
+        extra = []
+        if ev is not None:
+            if guess is not None:
+                ev.guess = np.array(guess, dtype=float)
+            w = ev.at(q, qdot)
+            extra = [w[s] for s in inter]
+        M, h, f, T = fn(*q, *qdot, *extra, *[float(values.get(s, 0.0)) for s in symbols])
+        return (np.array(M, float).reshape(n, n), np.array(h, float).reshape(n), np.array(f, float).reshape(n),
+                float(np.array(T, float).ravel()[0]))
+
+    at.evaluator = ev
+    return at
+
+
 def close(a: float, b: float, rel=1e-12, abs_=1e-12) -> bool:
     return bool(np.isclose(a, b, rtol=rel, atol=abs_))
 

@@ -28,7 +28,9 @@ def _symbolic(system):
                         "numpy")
     ev = Intermediates(system.implicit, values)
 
-    def acc(q, qd):
+    def acc(q, qd, guess=None):
+        if guess is not None:
+            ev.guess = np.array(guess, dtype=float)
         w = ev.at(q, qd)
         M, r = fn(*q, *qd, *[w[s] for s in inter])
         return np.linalg.solve(np.array(M, float), np.array(r, float).ravel())
@@ -104,3 +106,45 @@ def test_json_alone_evaluates_the_equations(path):
     acc_json = np.array((M.inv() * (f - h)).evalf(), dtype=float).ravel()
     acc = _symbolic(system)([q[s] for s in indep], [0.7] * len(indep))
     assert np.allclose(acc_json, acc, rtol=1e-9, atol=1e-9)
+
+
+def test_c_newton_state_belongs_to_the_caller():
+    """Two callers of one compiled four-bar on its two assembly modes, interleaved: each keeps
+    its own warm start (the state after the parameters), so each stays on its own branch; the
+    accelerations equal the symbolic ones with the intermediates by Newton on that branch."""
+    model = kronsub.load(MODELS / "examples/four_bar.yaml")
+    system = model.derive()
+    imp = system.implicit
+    params = np.array([float(p.value) for p in system.parameters])
+    try:
+        library = compile_library([(g.name, g.text) for g in emit_c(system, "model")], "model")
+    except CompilerNotFound:
+        pytest.skip("no C compiler")
+    first, second = (NativeModel(library, 1, len(params)) for _ in range(2))
+    assert first.nstate == 3
+    values = {p.symbol: float(p.value) for p in system.parameters}
+    evaluator = Intermediates(imp, values)
+    q = np.array([2.0])
+    branch = evaluator.dependent(q)
+    other = None
+    for guess in ([2.5, 1.5], [-2.0, 2.0], [1.5, -2.5], [3.0, 0.5]):  # the other assembly mode
+        evaluator.guess = np.array(guess)
+        try:
+            found = evaluator.dependent(q)
+        except Exception:
+            continue
+        if np.max(np.abs(found - branch)) > 0.1:
+            other = found
+            break
+    assert other is not None
+    first.set_newton(branch, 1e-13)
+    second.set_newton(other, 1e-13)
+    acc = _symbolic(system)
+    rng = np.random.default_rng(5)
+    for _ in range(5):
+        for native, start in ((first, branch), (second, other)):
+            qd = rng.uniform(-1, 1, 1)
+            got = native.rhs(0.0, np.concatenate([q, qd]), params)[1:]
+            evaluator.guess = np.array(start)
+            assert np.max(np.abs(native.dependent - evaluator.dependent(q))) < 1e-9
+            assert np.allclose(got, acc(q, qd, guess=start), rtol=1e-9, atol=1e-9)

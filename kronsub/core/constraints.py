@@ -23,6 +23,7 @@ branch of the initial configuration.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Mapping
 
 import numpy as np
 import sympy
@@ -72,6 +73,7 @@ class ImplicitSubspace:
     metric: sympy.Matrix | None = None
     velocity_terms: sympy.Matrix | None = None
     forces: sympy.Matrix | None = None
+    effect_forces: Mapping[str, sympy.Matrix] = field(default_factory=dict)  # f per effect, on y
 
     @property
     def intermediates(self) -> tuple[sympy.Symbol, ...]:
@@ -213,7 +215,7 @@ def project_implicit(system: KnownSystem, independent, dependent, constraints, *
         jacobian_dependent=G_d, jacobian_independent=G_i, sensitivities=lam, convective=gamma,
         quadratic=tuple(quadratic), closed_form=tuple(closed_form), branch=tuple(branch), choice=choice,
         definitions=tuple(definitions), intermediate=y, metric=system.mass_matrix,
-        velocity_terms=system.velocity_terms, forces=system.forces)
+        velocity_terms=system.velocity_terms, forces=system.forces, effect_forces=dict(system.effect_forces))
     return KnownSystem(
         name=system.name,
         coordinates=independent,
@@ -396,7 +398,7 @@ class Intermediates:
         imp = self.implicit = implicit
         self.tol = tol
         y = imp.independent + imp.dependent
-        params = {k: v for k, v in parameters.items()}
+        params = self.numeric_parameters = {k: v for k, v in parameters.items()}
         self.numeric = NumericConstraints(imp.constraints, y, params)
         n, k = len(imp.independent), len(imp.dependent)
         self.n, self.k = n, k

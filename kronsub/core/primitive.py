@@ -51,6 +51,10 @@ class Part:
     potential: sympy.Expr = sympy.Integer(0)
     type_name: str = ""
     potentials: Mapping[str, sympy.Expr] = field(default_factory=dict)  # ``potential`` per own effect
+    # a constrained known system placed on its coordinates y before the constraints: the
+    # constraints g(y) = 0 it carries (core.constraints.Constraint) and its branch (y_d values)
+    constraints: tuple = ()
+    branch: Mapping[sympy.Symbol, float] = field(default_factory=dict)
 
     @property
     def velocities(self) -> tuple[sympy.Symbol, ...]:

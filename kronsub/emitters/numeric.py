@@ -42,7 +42,7 @@ class NumericModel:
     equations: Block  # Mbar into M[] and fbar - hbar into r[], sharing subexpressions (in pre[])
     canonical: Block  # dT/dq + fbar into r[] (in pre[])
     prepare: Block  # the derived constants pre[n_param:] from param[]
-    n_pre: int  # length of pre = [param; derived constants]
+    n_pre: int  # length of pre = [param; derived constants; the Newton state of implicit constraints]
     potential: Block  # V
     positions: Block  # named points into out[]
     energies: bool = True  # emit T and V (a scene may not ask for them)
@@ -241,7 +241,7 @@ def prepare(system: KnownSystem, source: str = "", outputs=None) -> NumericModel
         equations=equations,
         canonical=canonical,
         prepare=prepare,
-        n_pre=constants.count,
+        n_pre=constants.count + (len(system.implicit.dependent) + 1 if system.implicit is not None else 0),
         potential=potential,
         positions=positions,
         energies=energies,

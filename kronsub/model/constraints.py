@@ -8,10 +8,12 @@ points:
   ``<name>.x``, ``<name>.y``...); ``Q`` may be a fixed place ``[x, y]``.
 - ``point_on_line: {point: P, through: Q, direction: [dx, dy]}``: ``P`` stays on the line
   through ``Q`` (a named point or a fixed place) along ``direction`` (world axes; it may
-  depend on the coordinates, for a moving line). One equation in the plane.
+  depend on the coordinates, for a moving line). One equation in the plane, two in space
+  (``<name>.1``, ``<name>.2``).
 - ``slider: {point: P, body: B, through: [u, v], direction: [du, dv]}``: ``P`` stays on the
   line fixed in component ``B`` through the body-frame offset ``through`` (default its
-  centre) along the body-frame ``direction`` (default its x axis). One equation.
+  centre) along the body-frame ``direction`` (default its x axis). One equation in the
+  plane, two in space (a ``rigid_body3d``).
 
 Then the analysis at the initial configuration (with the parameters' default values):
 Newton's method finds the configuration on the constraints nearest the one given, the
@@ -136,6 +138,53 @@ def _unit(d):
     return d
 
 
+def _complement(d):
+    """Two vectors orthogonal to a constant ``d`` in space and to each other: ``d x e_a`` with
+    ``e_a`` the axis along which ``d`` is smallest, then ``d x (d x e_a)``."""
+    d = sympy.Matrix(d)
+    a = min(range(3), key=lambda i: (abs(float(d[i])), i))
+    e1 = d.cross(sympy.Matrix([1 if i == a else 0 for i in range(3)]))
+    e2 = d.cross(e1)
+    return tuple(sympy.simplify(c) for c in e1), tuple(sympy.simplify(c) for c in e2)
+
+
+def _on_line(v, d, values) -> list[sympy.Expr]:
+    """``v`` along ``d``: one equation in the plane (``d x v``), two in space.
+
+    In space, a constant ``d`` gives ``e1 . v = e2 . v = 0`` with ``e1``, ``e2`` spanning its
+    complement; a moving ``d`` the two components of ``v x d`` across the axis ``k`` along which
+    ``d`` is largest with the parameters' values and the coordinates at zero (both vanish, with
+    ``d_k != 0``, only when ``v`` is along ``d``)."""
+    if len(d) == 2:
+        return [_cross(d, v)]
+    d = [sympy.sympify(c) for c in d]
+    if all(c.is_number for c in d):
+        return [sympy.sympify(sum(e * w for e, w in zip(basis, v))) for basis in _complement(d)]
+    numbers = []
+    for c in d:
+        value = c.xreplace(values)
+        value = value.xreplace({s: 0 for s in value.free_symbols})
+        try:
+            numbers.append(abs(float(value)))
+        except (TypeError, ValueError):
+            numbers.append(0.0)
+    k = max(range(3), key=lambda i: (numbers[i], -i))
+    cross = sympy.Matrix(v).cross(sympy.Matrix(d))
+    return [sympy.sympify(cross[i]) for i in range(3) if i != k]
+
+
+def _values(loader) -> dict:
+    return {p.symbol: p.value for p in loader.parameters.values()
+            if p.value is not None and sympy.sympify(p.value).is_number}
+
+
+def _named(cname: str, equations, source: str) -> list[Constraint]:
+    """``cname`` for one equation; ``cname.1``, ``cname.2`` for the two of a line in space."""
+    if len(equations) == 1:
+        return [Constraint(cname, equations[0], source)]
+    return [Constraint(f"{cname}.{i + 1}", e, source) for i, e in enumerate(equations)]
+
+
 def _point_on_line(loader, cname, node, primitive, names):
     node = _line(loader, cname, node, names, "point_on_line")
     if node is None:
@@ -149,12 +198,15 @@ def _point_on_line(loader, cname, node, primitive, names):
         loader.error(node, f"point_on_line '{cname}' needs `through:`", "a named point or a fixed place [x, y]")
     if p is None or q is None or d is None:
         return None
-    if max(len(p), len(q), len(d)) != 2:
-        loader.error(node, f"point_on_line '{cname}' is planar only", "in space use two point_on_line or a pin")
+    dim = max(len(p), len(q), 2)
+    if dim > 3 or len(d) != dim:
+        loader.error(node.get("direction") or node, f"direction of point_on_line '{cname}' needs {dim} entries "
+                     f"(one per world axis of its points), found {len(d)}",
+                     "e.g. `direction: [0, 1]` in the plane, `[0, 0, 1]` in space")
         return None
-    p, q, d = _pad(p, 2), _pad(q, 2), _unit(_pad(d, 2))
-    v = (p[0] - q[0], p[1] - q[1])
-    return [Constraint(cname, _cross(d, v), f"point_on_line: {_text(node.get('point'))}")]
+    p, q, d = _pad(p, dim), _pad(q, dim), _unit(d)
+    v = tuple(a - b for a, b in zip(p, q))
+    return _named(cname, _on_line(v, d, _values(loader)), f"point_on_line: {_text(node.get('point'))}")
 
 
 def _slider(loader, cname, node, primitive, names):
@@ -170,25 +222,42 @@ def _slider(loader, cname, node, primitive, names):
                      close_matches(str(bnode.value if bnode is not None else ""), [x.name for x in primitive.parts]))
     else:
         part = primitive.part(bnode.value)
-        if not part.bodies or part.bodies[0].rotation is None or part.dimension != 2:
-            loader.error(bnode, f"slider '{cname}': component '{part.name}' is not a planar rigid body",
-                         "use a rod, disc, planar_body or pinned_rod")
+        if not part.bodies or part.bodies[0].rotation is None or part.dimension not in (2, 3):
+            loader.error(bnode, f"slider '{cname}': component '{part.name}' is not a rigid body",
+                         "use a rod, disc, planar_body, pinned_rod or rigid_body3d")
             part = None
-    zero = sympy.Integer(0)
+    if part is None:
+        return None
+    dim = part.dimension
+    zero, one = sympy.Integer(0), sympy.Integer(1)
     through = (_vector(loader, node.get("through"), cname, "through", loader.parameter_names())
-               if node.get("through") is not None else (zero, zero))
+               if node.get("through") is not None else (zero,) * dim)
     d = (_vector(loader, node.get("direction"), cname, "direction", loader.parameter_names())
-         if node.get("direction") is not None else (sympy.Integer(1), zero))
-    if p is None or part is None or through is None or d is None:
+         if node.get("direction") is not None else (one,) + (zero,) * (dim - 1))
+    if p is None or through is None or d is None:
+        return None
+    for what, vec in (("through", through), ("direction", d)):
+        if len(vec) != dim:
+            loader.error(node.get(what), f"{what} of slider '{cname}' needs {dim} entries (body axes of "
+                         f"'{part.name}'), found {len(vec)}", "one entry per body axis")
+            return None
+    if len(p) > dim:
+        loader.error(node.get("point"), f"slider '{cname}': the point is in space but '{part.name}' is planar",
+                     "slide on a rigid_body3d, or use a planar point")
         return None
     body = part.bodies[0]
     R = body.rotation
     q = sympy.Matrix(body.centre) + R * sympy.Matrix(through)
-    dw = R * sympy.Matrix(_unit(d))
-    p = _pad(p, 2)
-    v = (p[0] - q[0], p[1] - q[1])
-    return [Constraint(cname, _cross(dw, v),
-                       f"slider: {_text(node.get('point'))} on {part.name}")]
+    v = sympy.Matrix(_pad(p, dim)) - q
+    source = f"slider: {_text(node.get('point'))} on {part.name}"
+    if dim == 2:
+        return [Constraint(cname, _cross(R * sympy.Matrix(_unit(d)), v), source)]
+    # in space: v in the body's axes is along the (constant) body-frame direction
+    if not all(sympy.sympify(c).is_number for c in d):
+        loader.error(node.get("direction"), f"direction of slider '{cname}' must be numbers in space",
+                     "the line is fixed in the body: give its body-frame direction, e.g. `[1, 0, 0]`")
+        return None
+    return _named(cname, _on_line(tuple(R.T * v), _unit(d), {}), source)
 
 
 _JOINT_BUILDERS = {"pin": _pin, "point_on_line": _point_on_line, "slider": _slider}

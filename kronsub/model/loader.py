@@ -215,7 +215,8 @@ class _Loader:
         self._parameters(root.get("parameters"))
         self._components(root.get("components"))
         cnode = root.get("constraints")
-        constrained = cnode is not None and cnode.value is not None
+        carried = [c for part in self.parts for c in part.constraints]  # of constrained known systems
+        constrained = (cnode is not None and cnode.value is not None) or bool(carried)
         coords_node = root.get("coordinates")
         auto = coords_node is not None and coords_node.is_scalar and coords_node.value == "auto"
         if auto and not constrained:
@@ -232,7 +233,7 @@ class _Loader:
         self._pivot_connection(primitive)
         implicit = None
         if constrained:
-            constraints = read_constraints(self, cnode, primitive)
+            constraints = (read_constraints(self, cnode, primitive) if cnode is not None else []) + carried
             y = self._intermediate(root.get("connection"), primitive, coords)
         else:
             y = coords
@@ -493,10 +494,6 @@ class _Loader:
         except ModelError as exc:
             self.problems.extend(exc)
             return None
-        if getattr(system, "implicit", None) is not None:
-            self.error(mnode, f"model '{mnode.value}' has implicit constraints: it cannot be a known system yet",
-                       "include its components and constraints in this model instead")
-            return None
         self.sub_hashes.append(key)
         # parameters: overrides, the rest inherited
         allowed = [p.name for p in system.parameters]
@@ -504,7 +501,9 @@ class _Loader:
         for info in system.parameters:
             if info.name not in overrides:
                 self.add_parameter(info, inherited=True, location=spec.location)
-        local = tuple(q.name for q in system.coordinates)
+        # a constrained system is placed on y: its dependent coordinates can be renamed too
+        local = tuple(q.name for q in (system.implicit.intermediate if system.implicit is not None
+                                       else system.coordinates))
         names = self._coordinate_names(cname, spec.get("coordinates"), local, "{}")
         origin = self._origin(cname, spec.get("origin"), system.dimension)
         if names is None or any(v is None for v in overrides.values()) or origin is False:
@@ -736,7 +735,7 @@ class _Loader:
 
     def _implicit(self, node: Node, constraints, connection, y, coords, auto: bool, initial) -> ImplicitSpec | None:
         """Constraints in ``y``, the dependent coordinates and the branch (25)-(27)."""
-        where = self.root.key_locations["constraints"]
+        where = self.root.key_locations.get("constraints") or self.root.key_locations["components"]
         if not constraints:
             self.error(where, "`constraints:` is empty", "remove it, or write `name: expression` (= 0)")
             return None
@@ -754,7 +753,10 @@ class _Loader:
                            f"independent coordinate '{q}' is not a coordinate of the constrained system",
                            "choose among " + ", ".join(s.name for s in y))
                 return None
-        result = analyse(self, in_y, y, tuple(coords), auto, initial, where)
+        # the branch of a constrained known system is the first guess of its dependent coordinates
+        guesses = {q: v for part in self.parts for q, v in part.branch.items() if q in set(y)}
+        guesses.update(initial)
+        result = analyse(self, in_y, y, tuple(coords), auto, guesses, where)
         if result is None:
             return None
         independent, dependent, branch, closed, point = result
@@ -796,18 +798,32 @@ class _Loader:
 
 
 def known_system_part(name: str, system: KnownSystem, overrides: dict, renames: dict[str, str]) -> Part:
-    """A derived system placed as a component: parameters overridden, coordinates renamed."""
+    """A derived system placed as a component: parameters overridden, coordinates renamed.
+
+    A constrained system (``implicit``) is placed on its coordinates ``y`` before the
+    constraints, with the metric, velocity terms and forces it carries there, and it brings
+    its constraints ``g(y) = 0`` and their branch along: the model using it adds them to its
+    own, so its subspace is the one-step projection of the group property (13) whatever
+    else it connects or constrains (and the dependent coordinates' points stay usable)."""
+    imp = system.implicit
+    if imp is not None:
+        coordinates, metric, velocity_terms = tuple(imp.intermediate), imp.metric, imp.velocity_terms
+        forces = dict(imp.effect_forces)
+        constraints, branch = tuple(imp.constraints), dict(imp.branch)
+    else:
+        coordinates, metric, velocity_terms = tuple(system.coordinates), system.mass_matrix, system.velocity_terms
+        forces, constraints, branch = dict(system.effect_forces), (), {}
     sub = dict(overrides)
-    for q in system.coordinates:
+    for q in coordinates:
         new = symbol(renames.get(q.name, q.name))
         sub[q] = new
         sub[velocity_symbol(q)] = velocity_symbol(new)
 
     sub = {k: v for k, v in sub.items() if k != v}
     if not sub:
-        return Part(name, tuple(system.coordinates), system.mass_matrix, system.velocity_terms,
-                    dict(system.points), tuple(system.bodies), system.dimension,
-                    dict(system.effect_forces), system.potential_energy, "", dict(system.effect_potentials))
+        return Part(name, coordinates, metric, velocity_terms, dict(system.points), tuple(system.bodies),
+                    system.dimension, forces, system.potential_energy, "", dict(system.effect_potentials),
+                    tuple(Constraint(f"{name}.{c.name}", c.expression, c.source) for c in constraints), branch)
 
     def s(e):
         return sympy.sympify(e).xreplace(sub)
@@ -819,16 +835,18 @@ def known_system_part(name: str, system: KnownSystem, overrides: dict, renames: 
                         b.inertia.xreplace(sub) if b.inertia is not None else None) for b in system.bodies)
     return Part(
         name=name,
-        coordinates=tuple(sub.get(q, q) for q in system.coordinates),
-        metric=system.mass_matrix.xreplace(sub),
-        velocity_terms=system.velocity_terms.xreplace(sub),
+        coordinates=tuple(sub.get(q, q) for q in coordinates),
+        metric=metric.xreplace(sub),
+        velocity_terms=velocity_terms.xreplace(sub),
         points={label: tuple(s(c) for c in pos) for label, pos in system.points.items()},
         bodies=bodies,
         dimension=system.dimension,
-        forces={label: f.xreplace(sub) for label, f in system.effect_forces.items()},
+        forces={label: f.xreplace(sub) for label, f in forces.items()},
         potential=s(system.potential_energy),
         type_name="",
         potentials={label: s(v) for label, v in system.effect_potentials.items()},
+        constraints=tuple(Constraint(f"{name}.{c.name}", s(c.expression), c.source) for c in constraints),
+        branch={sub.get(q, q): v for q, v in branch.items()},
     )
 
 

@@ -123,17 +123,8 @@ def _names(imp) -> str:
 
 
 def configure_native(native, dependent, tol: float) -> None:
-    """Warm start and tolerance of the compiled Newton's method."""
-    import ctypes
-
-    lib = native._lib
-    buf = (ctypes.c_double * len(dependent))(*map(float, dependent))
-    lib.ks_set_dependent.argtypes = [ctypes.c_void_p]
-    lib.ks_set_dependent.restype = None
-    lib.ks_set_dependent(ctypes.cast(buf, ctypes.c_void_p))
-    lib.ks_set_newton_tolerance.argtypes = [ctypes.c_double]
-    lib.ks_set_newton_tolerance.restype = None
-    lib.ks_set_newton_tolerance(tol)
+    """Warm start and tolerance of the compiled Newton's method (state owned by ``native``)."""
+    native.set_newton(dependent, tol)
 
 
 def energies_on_branch(native, t, Y, param, dependent) -> tuple[np.ndarray, np.ndarray]:
@@ -141,31 +132,15 @@ def energies_on_branch(native, t, Y, param, dependent) -> tuple[np.ndarray, np.n
     dependent coordinates (``dependent_rows``): the compiled warm start is the integrator's,
     left wherever the run stopped (at a toggle, next to the other branch), so it is kept aside
     and put back."""
-    import ctypes
-
-    lib = native._lib
-    nd = len(dependent[0]) if len(dependent) else 0
-    saved = (ctypes.c_double * nd)()
-    lib.ks_get_dependent.argtypes = [ctypes.c_void_p]
-    lib.ks_get_dependent.restype = None
-    lib.ks_get_dependent(ctypes.cast(saved, ctypes.c_void_p))
+    saved = native.dependent
     T, V = np.empty(len(t)), np.empty(len(t))
     try:
         for i, row in enumerate(dependent):
-            configure_native_guess(lib, row)
+            native.set_newton(row)
             T[i:i + 1], V[i:i + 1] = native.energies(np.asarray(t)[i:i + 1], np.asarray(Y)[i:i + 1], param)
     finally:
-        configure_native_guess(lib, list(saved))
+        native.set_newton(saved)
     return T, V
-
-
-def configure_native_guess(lib, dependent) -> None:
-    import ctypes
-
-    buf = (ctypes.c_double * len(dependent))(*map(float, dependent))
-    lib.ks_set_dependent.argtypes = [ctypes.c_void_p]
-    lib.ks_set_dependent.restype = None
-    lib.ks_set_dependent(ctypes.cast(buf, ctypes.c_void_p))
 
 
 def configure_module(module: dict, dependent, tol: float) -> None:

@@ -280,6 +280,8 @@ _SIGNATURES = {
     "ks_rk4": (_I, [_P, _I, _P, _D, _P, _D, _D, _L, _P, _L, _P, _P]),
     "ks_map_rows": (_L, [_P, _I, _P, _P, _L, _P]),
     "ks_energy_rows": (None, [_P, _P, _I, _P, _P, _L, _P, _P]),
+    "ks_nstate": (_I, []),
+    "ks_newton_init": (None, [_P]),
 }
 _REQUIRED = ("ks_rhs", "ks_status_message", "ks_dop853", "ks_gauss4", "ks_rk4", "ks_map_rows",
              "ks_energy_rows")
@@ -320,6 +322,30 @@ class NativeModel:
         missing = [name for name in _REQUIRED if name not in self._fn]
         if missing:
             raise NativeError(f"{self.path} lacks {', '.join(missing)}; build it with compile_library")
+        # implicit constraints: the Newton state [y_d; tolerance] after the parameters, owned here
+        self.nstate = int(self._fn["ks_nstate"]()) if "ks_nstate" in self._fn else 0
+        self._buffer = np.zeros(max(self.nparam + self.nstate, 1))
+        if self.nstate:
+            self._fn["ks_newton_init"](_ptr(self._buffer[self.nparam:]))
+
+    def set_newton(self, dependent, tol: float | None = None) -> None:
+        """Warm start (the dependent coordinates) and tolerance of the compiled Newton's method."""
+        if not self.nstate:
+            raise NativeError(f"{self.path} has no implicit constraints")
+        state = self._buffer[self.nparam:]
+        state[: self.nstate - 1] = np.asarray(dependent, dtype=float).ravel()
+        if tol is not None:
+            state[-1] = tol
+
+    @property
+    def dependent(self) -> np.ndarray:
+        """The last solution of the compiled Newton's method (a copy)."""
+        return self._buffer[self.nparam:self.nparam + max(self.nstate - 1, 0)].copy()
+
+    def _keep(self, pre: np.ndarray) -> None:
+        """Keep the Newton state a ``pre`` block ends with (after a run on it)."""
+        if self.nstate and pre is not self._buffer:
+            self._buffer[self.nparam:] = pre[int(self._fn["ks_npre"]()) - self.nstate:int(self._fn["ks_npre"]())]
 
     @classmethod
     def build(cls, sources: Sequence[str | tuple[str, str]], name_hint: str, nq: int,
@@ -336,10 +362,15 @@ class NativeModel:
             raise NativeError(f"{self.path} does not define {name}") from None
 
     def _param(self, param) -> np.ndarray:
+        """``param``, followed by the Newton state with implicit constraints (one buffer, whose
+        state the C functions update: the warm start carries over from call to call)."""
         values = np.ascontiguousarray(param if param is not None else [], dtype=float).ravel()
         if values.size != self.nparam:
             raise ValueError(f"param must have {self.nparam} entries (got {values.size})")
-        return values if values.size else np.zeros(1)
+        if not self.nstate:
+            return values if values.size else np.zeros(1)
+        self._buffer[:self.nparam] = values
+        return self._buffer
 
     def _state(self, y, name: str = "y") -> np.ndarray:
         values = np.ascontiguousarray(y, dtype=float)
@@ -415,7 +446,7 @@ class NativeModel:
         constants]`` with ``<name>_pre`` when the model has ``ks_prepare``, else ``param``."""
         p = self._param(param)
         if "ks_prepare" in self._fn and "ks_npre" in self._fn and f"{name}_pre" in self._fn:
-            pre = np.empty(max(int(self._fn["ks_npre"]()), self.nparam) + 1)
+            pre = np.empty(max(int(self._fn["ks_npre"]()), self.nparam + self.nstate) + 1)
             self._fn["ks_prepare"](_ptr(p), _ptr(pre))
             return pre, self._fn[f"{name}_pre"]
         return p, self._function(name)
@@ -427,11 +458,16 @@ class NativeModel:
         ydot = np.empty(self.ny)
         p_ptr, out_ptr, ny = _ptr(p), _ptr(ydot), self.ny
 
+        keep = self._keep if self.nstate else None
+
         def f(t, y):
             y = np.ascontiguousarray(y, dtype=float)
             if y.shape != (ny,):
                 raise ValueError(f"y must be 1-dimensional with {ny} entries (got shape {y.shape})")
-            if fn(t, _ptr(y), p_ptr, out_ptr):
+            status = fn(t, _ptr(y), p_ptr, out_ptr)
+            if keep is not None:
+                keep(p)
+            if status:
                 raise self._singular(t, y)
             return ydot.copy()
 
@@ -459,7 +495,9 @@ class NativeModel:
             raise ValueError(f"need finite t0 <= t_end (got t0={t0}, t_end={t_end})")
         y0 = self._state(y0, "y0")
         span = t_end - t0
-        canonical = method == "gauss4"
+        # gauss4 in (q, p = Mbar qdot); with implicit constraints, which have no canonical form,
+        # in (q, qdot): fourth order still, the dependent coordinates by Newton in every stage
+        canonical = method == "gauss4" and not self.nstate
         start = self.momentum(y0, param) if canonical else y0
         p, rhs = self._prepared(param, "ks_rhs_canonical" if canonical else "ks_rhs")
         rhs_address = _address(rhs)
@@ -501,6 +539,7 @@ class NativeModel:
             run(out, rows)
             if cres.status != 5:
                 break
+        self._keep(p)
         out = out[: cres.n_rows]
         y_fail = work[: self.ny].copy() if cres.status in (1, 2) else None
         if canonical:  # rows [t, q, p] -> [t, q, qdot]

@@ -40,7 +40,8 @@ METHODS = {
         Method("dop853", "c", "Dormand-Prince 8(5,3), adaptive, dense output at --dt; wholly in C (default: "
                               "accurate and fast for smooth non-stiff problems)"),
         Method("gauss4", "c", "2-stage Gauss-Legendre, fixed step --dt, symplectic in (q, p = Mbar qdot); for "
-                              "long conservative runs: energy error stays bounded instead of drifting"),
+                              "long conservative runs: energy error stays bounded instead of drifting (with "
+                              "implicit constraints: order 4 in (q, qdot))"),
         Method("RK45", "scipy", "scipy's Dormand-Prince 5(4) calling the compiled right-hand side"),
         Method("DOP853", "scipy", "scipy's DOP853 calling the compiled right-hand side"),
         Method("Radau", "scipy", "scipy's implicit Radau IIA (order 5): stiff problems (stiff springs, dampers)"),
@@ -150,6 +151,8 @@ class Run:
     t_fail: float | None = None
     stats: dict = field(default_factory=dict)
     y_fail: np.ndarray | None = None  # the state at which the right-hand side failed, when known
+    switches: list = field(default_factory=list)  # coordinates: auto: (t, old, new) independent coordinates
+    pending: tuple | None = None  # (t, y) where scipy's toggle event stopped a segment
 
     def __iter__(self):
         yield from self.blocks
@@ -197,10 +200,9 @@ def start(system: KnownSystem, values: RunValues, t_end: float, dt: float, metho
     of the projected initial conditions (:func:`.constrained.project_initial`)."""
     if method not in METHODS:
         raise SimulationError(f"unknown method '{method}'; choose one of: {', '.join(METHODS)}")
-    if system.implicit is not None and method in ("gauss4", "heyoka"):
-        raise SimulationError(f"method '{method}' needs the canonical form or explicit equations, which a "
-                              "system with implicit constraints does not have; use dop853 (default), Radau or "
-                              "LSODA")
+    if system.implicit is not None and method == "heyoka":
+        raise SimulationError("method 'heyoka' needs explicit equations (its Taylor series), which a system "
+                              "with implicit constraints does not have; use dop853 (default), gauss4, Radau or LSODA")
     row_count(t_end, dt)
     if system.implicit is not None and constrained is None:
         from .constrained import project_initial
@@ -213,14 +215,7 @@ def start(system: KnownSystem, values: RunValues, t_end: float, dt: float, metho
         run = Run("heyoka", "heyoka")
         run.blocks = _heyoka_blocks(run, system, param, y0, grid, rtol)
         return run
-    native = None
-    try:
-        native = NativeModel(compiled_library(system, outputs), len(system.coordinates), len(system.parameters))
-    except CompilerNotFound:
-        warnings.warn("no C compiler found: using the generated numpy module (slower)")
-    except CompileError as exc:
-        first = next((line for line in exc.stderr.splitlines() if "error" in line), "") or str(exc).splitlines()[0]
-        warnings.warn(f"compiling the generated C failed ({first.strip()}): using the generated numpy module (slower)")
+    native = _compiled(system, outputs)
     if constrained is not None and native is not None:
         from .constrained import configure_native
 
@@ -235,15 +230,182 @@ def start(system: KnownSystem, values: RunValues, t_end: float, dt: float, metho
     if not bar.enabled:
         chunks = 1  # one call: no restarts of the step-size control
     chunks = max(chunks, math.ceil(len(grid) / BLOCK_ROWS))
+    with_energies = outputs is None or outputs.energies
+    if system.implicit is not None and system.implicit.choice == "auto":  # may switch coordinates
+        run.blocks = _auto_blocks(run, system, spec, native, constrained, grid, y0, param, rtol, atol, dt, chunks, bar,
+                                  outputs, with_energies)
+        return run
     if spec.engine == "c":
         rows = _native_blocks(run, native, spec.name, grid, y0, param, rtol, atol, dt, chunks, bar, system)
     else:
         rhs = (_native_rhs(native, param) if native is not None else
                _numpy_rhs(system, param, outputs, constrained, _newton_tol(rtol, atol)))
         rows = _scipy_blocks(run, rhs, spec.name, grid, y0, rtol, atol, chunks, bar, system)
-    with_energies = outputs is None or outputs.energies
     run.blocks = _finish(run, rows, bar, native, param, system, constrained, with_energies, grid)
     return run
+
+
+def _compiled(system, outputs):
+    """The model compiled from its generated C, or None (with a warning) to use the numpy module."""
+    try:
+        return NativeModel(compiled_library(system, outputs), len(system.coordinates), len(system.parameters))
+    except CompilerNotFound:
+        warnings.warn("no C compiler found: using the generated numpy module (slower)")
+    except CompileError as exc:
+        first = next((line for line in exc.stderr.splitlines() if "error" in line), "") or str(exc).splitlines()[0]
+        warnings.warn(f"compiling the generated C failed ({first.strip()}): using the generated numpy module (slower)")
+    return None
+
+
+class _Tail:
+    """The output grid from row ``offset`` on (a run going on after a switch of coordinates),
+    after a first time ``start`` between two rows when given."""
+
+    def __init__(self, grid, offset: int, start: float | None = None):
+        self.grid, self.offset, self.start = grid, offset, start
+        self.shift = offset - (1 if start is not None else 0)  # tail index -> grid index
+
+    def __len__(self) -> int:
+        return len(self.grid) - self.shift
+
+    def __getitem__(self, index):
+        if isinstance(index, slice):
+            a, b, _ = index.indices(len(self))
+            if self.start is not None and a == 0 and b > 0:
+                return np.concatenate([[self.start], self.grid[self.offset:b + self.shift]])
+            return self.grid[a + self.shift:b + self.shift]
+        i = index + len(self) if index < 0 else index
+        return self.start if (self.start is not None and i == 0) else self.grid[i + self.shift]
+
+
+def _auto_blocks(run, system, spec, native, constrained, grid, y0, param, rtol, atol, dt, chunks, bar, outputs,
+                 with_energies):
+    """The blocks of a run with ``coordinates: auto``, switching the independent coordinates where
+    ``G_d`` nears singular (:mod:`.switching`); rows in the layout of the first choice."""
+    from ..core.constraints import ConstraintFailure
+    from . import switching as sw
+    from .constrained import configure_module, configure_native, diagnose
+
+    tol = _newton_tol(rtol, atol)
+    first = split = sw.Split(system, constrained)
+    offset, start, total = 0, None, {}
+    last = None  # (t, y, ydot) of the last row written
+    try:
+        while True:
+            if offset:
+                native = _compiled(split.system, outputs)
+                if native is None and spec.engine == "c":
+                    spec = METHODS["DOP853"]
+            module = None
+            if native is not None:
+                configure_native(native, split.evaluator.guess, tol)
+            else:
+                module = _numpy_module(split.system, outputs)
+                configure_module(module, split.evaluator.guess, tol)
+            if spec.engine == "c":  # (start() made it a scipy method when nothing compiled)
+                rows = _native_blocks(run, native, spec.name, _Tail(grid, offset, start), y0, param, rtol, atol, dt,
+                                      chunks, bar, split.system)
+            else:
+                rhs = _native_rhs(native, param) if native is not None else _numpy_rhs_of(module, param)
+                rows = _scipy_blocks(run, rhs, spec.name, _Tail(grid, offset, start), y0, rtol, atol, chunks, bar,
+                                     split.system, events=_toggle_event(split))
+            switch = None
+            for index, (t, Y) in enumerate(rows):
+                if (offset or start is not None) and index == 0:
+                    continue  # the row of the switch, written already (or between two rows)
+                Y = np.asarray(Y).reshape(len(t), -1)
+                out, dependent, cut = [], [], len(t)
+                for i, row in enumerate(Y):
+                    try:
+                        y, ydot = split.full(row)
+                    except ConstraintFailure:
+                        out.append(np.full(2 * len(first.independent_idx), np.nan))
+                        dependent.append(np.full(len(first.dependent_idx), np.nan))
+                        continue
+                    out.append(first.row(y, ydot))
+                    dependent.append(y[first.dependent_idx])
+                    last = (float(t[i]), y, ydot)
+                    best = sw.watch(split, y) if len(run.switches) < sw.MAX_SWITCHES else None
+                    if best is not None:
+                        switch, cut = best, i + 1
+                        break
+                energies = None
+                if with_energies:
+                    energies = (native.energies(t[:cut], Y[:cut], param) if native is not None else
+                                _module_energies(module, t[:cut], Y[:cut], param))
+                yield Block(np.asarray(t[:cut]), np.array(out), energies, np.array(dependent))
+                if switch is not None:
+                    rows.close()
+                    break
+            for k, v in run.stats.items():
+                total[k] = total.get(k, v) if k == "stiff_from" else total.get(k, 0) + v
+            if run.pending is not None:  # scipy's event: the switch where it fired
+                t_event, y_event = run.pending
+                run.pending = None
+                y, ydot = split.full(y_event)
+                switch = split.numeric.pivot(y)
+                last = (t_event, y, ydot)
+            if switch is None and not run.complete and last is not None:
+                # stopped in Newton's method or at a singular G_d: another choice from the last row
+                best = split.numeric.pivot(last[1])
+                if sorted(best) != sorted(split.dependent_idx) and len(run.switches) < sw.MAX_SWITCHES:
+                    switch = best
+                    run.complete, run.message, run.t_fail, run.y_fail = True, "", None, None
+            if switch is None:
+                break
+            t_switch, y, ydot = last
+            new = sw.switched_split(split, switch, y, tol)
+            run.switches.append((t_switch, sw.describe(t_switch, split, new)))
+            split, y0 = new, new.row(y, ydot)
+            # go on from the switch: the grid rows after it (a switch between rows starts off the grid)
+            offset = min(int(round(t_switch / grid.dt)), len(grid) - 1)
+            if abs(grid[offset] - t_switch) <= 1e-9 * max(1.0, abs(t_switch)):
+                start = None
+            else:
+                offset = next((i for i in range(max(offset - 1, 0), len(grid)) if grid[i] > t_switch), len(grid) - 1)
+                start = t_switch
+    finally:
+        bar.close()
+    run.stats = total
+    if not run.complete and last is not None:
+        guess = split.evaluator.guess.copy()
+        state = run.y_fail if run.y_fail is not None and np.all(np.isfinite(run.y_fail)) else split.row(*last[1:])
+        run.message = diagnose(split.system, split.evaluator, run.t_fail, state, guess)
+
+
+def _toggle_event(split):
+    """A terminal event of scipy's integration: the sign turns where the current independent
+    coordinates near a toggle (an implicit method would otherwise creep towards it)."""
+    from ..core.constraints import ConstraintFailure
+    from .switching import watch
+
+    def event(t, y):
+        try:
+            full, _ = split.full(y)
+        except ConstraintFailure:
+            return -1.0
+        return -1.0 if watch(split, full) is not None else 1.0
+
+    event.terminal = True
+    return event
+
+
+def _numpy_rhs_of(module, param):
+    rhs = module["rhs"]
+
+    def f(t, y):
+        try:
+            return rhs(t, y, param)
+        except np.linalg.LinAlgError as exc:
+            raise _Singular(t, y) from exc
+
+    return f
+
+
+def _module_energies(module, t, Y, param):
+    T = np.array([module["kinetic_energy"](y, param) for y in Y])
+    V = np.array([module["potential_energy"](ti, y, param) for ti, y in zip(t, Y)])
+    return T, V
 
 
 def _newton_tol(rtol: float, atol: float) -> float:
@@ -486,8 +648,9 @@ def _native_blocks(run, native, method, grid, y0, param, rtol, atol, dt, chunks,
         bar.update(grid[b])
 
 
-def _scipy_blocks(run, rhs, method, grid, y0, rtol, atol, chunks, bar, system):
-    """Blocks ``(t, Y)`` of a run with scipy's ``solve_ivp``, one per chunk of the grid."""
+def _scipy_blocks(run, rhs, method, grid, y0, rtol, atol, chunks, bar, system, events=None):
+    """Blocks ``(t, Y)`` of a run with scipy's ``solve_ivp``, one per chunk of the grid; a
+    terminal ``events`` function that fires ends the blocks with ``run.pending = (t, y)``."""
     from scipy.integrate import solve_ivp
 
     last = grid[0]
@@ -498,7 +661,7 @@ def _scipy_blocks(run, rhs, method, grid, y0, rtol, atol, chunks, bar, system):
         try:
             with np.errstate(all="ignore"):
                 sol = solve_ivp(rhs, (grid[a], grid[b]), y, method=method, t_eval=grid[a:b + 1],
-                                rtol=rtol, atol=atol)
+                                rtol=rtol, atol=atol, events=events)
         except _Singular as exc:
             run.stop("the mass matrix is singular or not positive definite" + _where(system, exc.y), exc.t,
                      y_fail=exc.y)
@@ -521,5 +684,8 @@ def _scipy_blocks(run, rhs, method, grid, y0, rtol, atol, chunks, bar, system):
         if len(t_new):
             last = t_new[-1]
             yield t_new, y_new
+        if sol.status == 1:  # the terminal event
+            run.pending = (float(sol.t_events[0][0]), np.asarray(sol.y_events[0][0], dtype=float))
+            return
         y = y_new[-1]
         bar.update(grid[b])

@@ -229,10 +229,14 @@ class CsvWriter:
             self.last_t = float(block.t[-1]) if n else self.last_t
             self._meta.update(rows=self.rows, last_t=_json_number(self.last_t))
 
-    def end(self, stats: dict, complete: bool, t_fail: float | None = None, message: str = "") -> None:
-        """Record how the run ended: its cost, and where and why it stopped when it did."""
+    def end(self, stats: dict, complete: bool, t_fail: float | None = None, message: str = "",
+            switches=()) -> None:
+        """Record how the run ended: its cost, where and why it stopped when it did, and the
+        times ``coordinates: auto`` chose other independent coordinates."""
         self._cost(stats)
         self._meta["complete"] = bool(complete)
+        if switches:
+            self._meta["coordinate_switches"] = [{"t": _json_number(t), "what": str(what)} for t, what in switches]
         if complete:
             self._meta["status"] = "complete"
         else:
@@ -261,7 +265,7 @@ class CsvWriter:
         except KeyboardInterrupt:
             self.interrupted(run.stats)
             raise
-        self.end(run.stats, run.complete, run.t_fail, run.message)
+        self.end(run.stats, run.complete, run.t_fail, run.message, run.switches)
 
 
 def write_csv(out, system: KnownSystem, model_path: str, run: Run, values: RunValues, rtol: float,
