@@ -29,6 +29,7 @@ import importlib.util
 import json
 import os
 import signal
+import statistics
 import subprocess
 import sys
 import tempfile
@@ -37,7 +38,8 @@ from pathlib import Path
 
 REPO = Path(__file__).resolve().parent.parent
 TOOLS = ("kronsub", "kane", "lagrange")
-TARGETS = {20: (1.0, 3000), 50: (10.0, None)}  # n: (max seconds, max joint-cse ops)
+TARGETS = {20: (0.25, 2391), 50: (2.0, None), 100: (20.0, None)}  # n: (max seconds, max joint-cse ops), issue 11
+CACHE_TARGET = 5.0  # % of deriving the chain, for a model whose only component is the cached chain
 
 
 # ---------------------------------------------------------------------------
@@ -115,7 +117,7 @@ class _Unavailable(Exception):
     pass
 
 
-def worker(tool: str, n: int) -> None:
+def worker(tool: str, n: int, ops: bool = True) -> None:
     try:
         if tool == "kronsub":
             seconds, groups = _derive_kronsub(n)
@@ -125,6 +127,8 @@ def worker(tool: str, n: int) -> None:
         _emit(event="unavailable", reason=str(exc))
         return
     _emit(event="derived", seconds=seconds)
+    if not ops:
+        return
     present = {k: v for k, v in groups.items() if v is not None}
     raw = {k: _count_ops(v) for k, v in present.items()}
     _emit(event="raw_ops", ops=raw, total=sum(raw.values()))
@@ -138,9 +142,9 @@ def worker(tool: str, n: int) -> None:
 # ---------------------------------------------------------------------------
 
 
-def run_worker(tool: str, n: int, timeout: float) -> dict:
+def run_worker(tool: str, n: int, timeout: float, ops: bool = True) -> dict:
     """Run one derivation in a subprocess; collect whatever it reported."""
-    cmd = [sys.executable, str(Path(__file__).resolve()), "--worker", tool, str(n)]
+    cmd = [sys.executable, str(Path(__file__).resolve()), "--worker", tool, str(n)] + ([] if ops else ["--no-ops"])
     proc = subprocess.Popen(
         cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True
     )
@@ -183,6 +187,8 @@ def _fmt_groups(res: dict, key: str) -> str:
 def _row_time(res: dict) -> str:
     if "unavailable" in res:
         return "n/a"
+    if "repeats" in res:
+        return f"{min(res['repeats']):.3f}/{statistics.median(res['repeats']):.3f}"
     if "derived" in res:
         return f"{res['derived']['seconds']:.3f}"
     return "timeout"
@@ -195,7 +201,7 @@ def _targets_note(n: int, res: dict) -> str:
     want = f"target: <= {max_s:g} s" + (f", <= {max_ops:,} ops" if max_ops else "")
     if "derived" not in res:
         return want
-    ok_t = res["derived"]["seconds"] <= max_s
+    ok_t = statistics.median(res.get("repeats", [res["derived"]["seconds"]])) <= max_s  # the median, not the best
     total = res.get("cse_total", {}).get("total")
     ok_ops = True if max_ops is None else (total is not None and total <= max_ops)
     return f"{want} -> {'OK' if ok_t and ok_ops else 'MISS'}"
@@ -240,7 +246,7 @@ def cache_section(sizes, timeout) -> None:
     """Known-system cache: a model whose only component is the chain as a known system.
 
     Compares deriving the chain from scratch with deriving the wrapper model
-    when the chain is already in the cache (target: <= 10 %), and with a
+    when the chain is already in the cache (target: <= CACHE_TARGET %), and with a
     wrapper that is itself cached; best of three runs each, after a warm-up.
     """
     print("\n== known-system cache (model whose component is the chain as a known system) ==")
@@ -257,7 +263,8 @@ def cache_section(sizes, timeout) -> None:
         warm = Path(tmp) / "warm.yaml"
         warm.write_text(gen.chain_yaml(2))
         kronsub.load(warm, cache=False).derive(cache=False)
-    print(f"{'n':>4} {'scratch [s]':>12} {'sub cached [s]':>15} {'ratio':>7} {'all cached [s]':>15}  target <= 10 %")
+    print(f"{'n':>4} {'scratch [s] min/med':>20} {'sub cached [s] min/med':>23} {'ratio (med)':>11} "
+          f"{'all cached [s]':>15}  target <= {CACHE_TARGET:g} %")
     for n in [k for k in sizes if k <= 20] or [5]:
         with tempfile.TemporaryDirectory() as tmp:
             os.environ["KRONSUB_CACHE_DIR"] = str(Path(tmp) / "cache")
@@ -266,13 +273,13 @@ def cache_section(sizes, timeout) -> None:
             wrapper = Path(tmp) / "wrapper.yaml"
             wrapper.write_text("name: chain as a known system\ncomponents:\n  chain: {model: chain.yaml}\n"
                                "coordinates: [" + ", ".join(f"q{i}" for i in range(1, n + 1)) + "]\n")
-            def best(job, repeats=3):
+            def best(job, repeats=5):
                 times = []
                 for _ in range(repeats):
                     start = time.perf_counter()
                     job()
                     times.append(time.perf_counter() - start)
-                return min(times)
+                return min(times), statistics.median(times)
 
             scratch = best(lambda: kronsub.load(chain, cache=False).derive(cache=False))
             kronsub.load(chain).derive()  # fill the cache
@@ -280,7 +287,10 @@ def cache_section(sizes, timeout) -> None:
             kronsub.load(wrapper).derive()
             cached = best(lambda: kronsub.load(wrapper).derive())
             os.environ.pop("KRONSUB_CACHE_DIR", None)
-        print(f"{n:>4} {scratch:>12.3f} {warm:>15.3f} {100 * warm / scratch:>6.1f}% {cached:>15.3f}", flush=True)
+        ratio = 100 * warm[1] / scratch[1]
+        verdict = "OK" if ratio <= CACHE_TARGET else "MISS"
+        print(f"{n:>4} {scratch[0]:>9.3f}/{scratch[1]:<10.3f} {warm[0]:>11.3f}/{warm[1]:<11.3f} {ratio:>10.1f}% "
+              f"{cached[1]:>15.3f}  {verdict}", flush=True)
 
 
 def main(argv=None) -> int:
@@ -289,11 +299,13 @@ def main(argv=None) -> int:
     ap.add_argument("--peer-timeout", type=float, default=300.0, help="seconds per peer derivation")
     ap.add_argument("--kronsub-timeout", type=float, default=None, help="seconds for kronsub (default: peer timeout)")
     ap.add_argument("--tools", default=",".join(TOOLS), help="subset of kronsub,kane,lagrange")
+    ap.add_argument("--repeats", type=int, default=3, help="kronsub derivations per size, each in a fresh process")
     ap.add_argument("--worker", nargs=2, metavar=("TOOL", "N"), help=argparse.SUPPRESS)
+    ap.add_argument("--no-ops", action="store_true", help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
 
     if args.worker:
-        worker(args.worker[0], int(args.worker[1]))
+        worker(args.worker[0], int(args.worker[1]), ops=not args.no_ops)
         return 0
 
     sizes = [int(s) for s in args.sizes.split(",") if s.strip()]
@@ -301,7 +313,8 @@ def main(argv=None) -> int:
     kron_timeout = args.kronsub_timeout if args.kronsub_timeout is not None else args.peer_timeout
     print(f"== n-rod chain derivation (peer timeout {args.peer_timeout:g} s) ==")
     print("peers (kane, lagrange): h column '-', f column = mechanics' forcing (= f - h)")
-    print("targets: n=20 <= 1 s and <= 3,000 ops (joint cse total); n=50 <= 10 s")
+    print("targets (median of the repeats): n=20 <= 0.25 s and <= 2,391 ops (joint cse total); n=50 <= 2 s; "
+          "n=100 <= 20 s; kronsub time column: min/median of --repeats fresh processes")
     print(HEADER, flush=True)
     results = []
     for n in sizes:
@@ -310,6 +323,12 @@ def main(argv=None) -> int:
             res = run_worker(tool, n, kron_timeout if tool == "kronsub" else args.peer_timeout)
             if tool == "kronsub":
                 kron = res if "derived" in res else None
+                if kron is not None:
+                    res["repeats"] = [res["derived"]["seconds"]]
+                    for _ in range(args.repeats - 1):
+                        again = run_worker(tool, n, kron_timeout, ops=False)
+                        if "derived" in again:
+                            res["repeats"].append(again["derived"]["seconds"])
             results.append(res)
             print_row(res, kron)
     cache_section(sizes, args.peer_timeout)

@@ -232,8 +232,8 @@ def numeric(system: KnownSystem, set: Mapping[str, object] | None = None) -> Num
     """Compiled numeric functions with the parameters' values (``set`` overrides them)."""
     import warnings
 
-    from .emitters.code import emit_c
-    from .simulation.native import CompilerNotFound, NativeModel, compile_library
+    from .simulation.compiled import compiled_library
+    from .simulation.native import CompilerNotFound, NativeModel
     from .simulation.run import _numpy_module
 
     values = _run_values(system, set)
@@ -242,8 +242,7 @@ def numeric(system: KnownSystem, set: Mapping[str, object] | None = None) -> Num
     module = _numpy_module(system)  # mass matrix, forces, velocity terms (numpy)
     native = None
     try:
-        generated = [(g.name, g.text) for g in emit_c(system, "model")]
-        native = NativeModel(compile_library(generated, "model"), n, len(system.parameters))
+        native = NativeModel(compiled_library(system), n, len(system.parameters))
     except CompilerNotFound:
         warnings.warn("no C compiler found: using the generated numpy module (slower)")
 

@@ -25,6 +25,7 @@ CACHE_ENV = "KRONSUB_CACHE_DIR"
 _PART = r"(system|transition|inertia|inertia-transition|effect\.[A-Za-z_][A-Za-z0-9_.]*)"  # derive.py's parts
 SYSTEM_FILE = re.compile(r"[0-9a-f]{64}\." + _PART + r"\.(json|pickle)")
 NATIVE_DIR = re.compile(r"[A-Za-z0-9_]+-[0-9a-f]{24}")
+INDEX_FILE = re.compile(r"[0-9a-f]{64}\.json")
 TEMPORARY = re.compile(r"\.[0-9a-f]{64}\." + _PART + r"\.json\.[a-z0-9_]{8}\.tmp")
 
 
@@ -136,6 +137,15 @@ def clear() -> int:
     for lib in libraries:
         shutil.rmtree(lib, ignore_errors=True)
         removed += 1
+    index = folder / "native" / "index"  # compiled models by fingerprint (simulation/compiled.py)
+    if index.is_dir() and not index.is_symlink():
+        for path in index.iterdir():
+            if INDEX_FILE.fullmatch(path.name) and path.is_file():
+                path.unlink(missing_ok=True)
+        try:
+            index.rmdir()
+        except OSError:
+            pass
     try:
         (folder / "native").rmdir()
     except OSError:

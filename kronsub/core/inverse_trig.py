@@ -28,7 +28,7 @@ import sympy
 from sympy.polys.domains import QQ, QQ_I
 from sympy.polys.rings import ring
 
-from .trigpoly import COS, SIN, TrigAlgebra, TrigPoly
+from .trigpoly import COS, SIN, TrigAlgebra, TrigPoly, _Q
 
 INVERSE = (sympy.asin, sympy.acos, sympy.atan, sympy.atan2)
 MAX_DIVISIONS = 8
@@ -150,7 +150,7 @@ def _divide_atom(p: TrigPoly, atom: int, poly: TrigPoly) -> TrigPoly:
             if e == 0:
                 rest.add(TrigPoly({key: {mono: c}}))
                 continue
-            e = Fraction(e)
+            e = _fraction(e)
             frac = e - math.floor(e)
             others = tuple((i, x) for i, x in mono if i != atom)
             classes.setdefault(frac, {}).setdefault(e, []).append((key, others, c))
@@ -175,6 +175,11 @@ def _divide_atom(p: TrigPoly, atom: int, poly: TrigPoly) -> TrigPoly:
             total, e = quotient, e + 1
         rest.add(_times_atom(total, atom, e))
     return rest
+
+
+def _fraction(value) -> Fraction:
+    """A rational of the algebra (int, Fraction or gmpy2's mpq) as a Fraction."""
+    return Fraction(int(value.numerator), int(value.denominator))
 
 
 def _times_atom(p: TrigPoly, atom: int, e: Fraction) -> TrigPoly:
@@ -213,7 +218,7 @@ def exact_quotient(num: TrigPoly, den: TrigPoly) -> TrigPoly | None:
 def _lcm(values) -> int:
     out = 1
     for v in values:
-        d = Fraction(v).denominator
+        d = _fraction(v).denominator
         out = out * d // math.gcd(out, d)
     return out
 
@@ -232,13 +237,13 @@ def _laurent(p: TrigPoly, place, scale, ascale, size):
     for (kind, freq), coef in p.terms.items():
         k = [0] * size
         for i, v in freq:
-            k[place[("z", i)]] = int(Fraction(v) * scale[i])
+            k[place[("z", i)]] = int(_fraction(v) * scale[i])
         minus = [-x for x in k]
         for mono, c in coef.items():
             base = [0] * size
             for a, e in mono:
-                base[place[("a", a)]] = int(Fraction(e) * ascale[a])
-            cc = QQ_I(QQ(Fraction(c).numerator, Fraction(c).denominator), 0)
+                base[place[("a", a)]] = int(_fraction(e) * ascale[a])
+            cc = QQ_I(QQ(_fraction(c).numerator, _fraction(c).denominator), 0)
             if not freq:
                 put(tuple(base), cc)
             elif kind == COS:  # cos x = (e^ix + e^-ix) / 2
@@ -258,7 +263,7 @@ def _from_laurent(q, shift, coords, atoms, scale, ascale) -> TrigPoly | None:
     for exps, c in q.items():
         exps = [x + s for x, s in zip(exps, shift)]
         k = tuple(exps[:nz])
-        mono = tuple((a, _num(Fraction(exps[nz + j], ascale[a]))) for j, a in enumerate(atoms) if exps[nz + j])
+        mono = tuple((a, _num(_Q(int(exps[nz + j]), int(ascale[a])))) for j, a in enumerate(atoms) if exps[nz + j])
         neg = next((x < 0 for x in k if x), False)
         canon = tuple(-x for x in k) if neg else k
         slot = pairs.setdefault((canon, mono), {"plus": QQ_I.zero, "minus": QQ_I.zero})
@@ -266,7 +271,7 @@ def _from_laurent(q, shift, coords, atoms, scale, ascale) -> TrigPoly | None:
     out: dict[tuple, dict] = {}
     for (k, mono), slot in pairs.items():
         cp, cm = slot["plus"], slot["minus"]
-        freq = tuple((coords[j], _num(Fraction(x, scale[coords[j]]))) for j, x in enumerate(k) if x)
+        freq = tuple((coords[j], _num(_Q(int(x), int(scale[coords[j]])))) for j, x in enumerate(k) if x)
         if not freq:
             if cp.y != 0:
                 return None
@@ -282,7 +287,7 @@ def _from_laurent(q, shift, coords, atoms, scale, ascale) -> TrigPoly | None:
 
 def _put(out, key, mono, value) -> None:
     if value:
-        out.setdefault(key, {})[mono] = _num(Fraction(int(value.numerator), int(value.denominator)))
+        out.setdefault(key, {})[mono] = _num(_Q(int(value.numerator), int(value.denominator)))
 
 
 def _num(value: Fraction):

@@ -43,6 +43,9 @@ class Subspace:
         # C^a_alpha = dx^a / dxbar^alpha  (7'), (21)
         self.C = [[algebra.diff(img, j) for j in range(self.n)] for img in images]
         self.nonzero = [[j for j in range(self.n) if not row[j].is_zero()] for row in self.C]
+        # rows of C equal within a column share their products: C^T y = sum over the distinct
+        # values u of column j of u * (sum of y over the rows where C_aj = u)
+        self.shape_of = [{j: row[j].key() for j in nz} for row, nz in zip(self.C, self.nonzero)]
         self.velocities = primitive.velocities
         # xdot^a = C^a_alpha xbardot^alpha
         self.velocity = [_sum(self.C[a][j] * self.qdots[j] for j in self.nonzero[a]) for a in range(len(self.x))]
@@ -70,12 +73,20 @@ class Subspace:
         return sympy.sympify(expr).xreplace(self.substitution)
 
     def transpose_times(self, f: list[TrigPoly]) -> list[TrigPoly]:
-        """``C^T f`` (8'), (F)."""
-        out = [TrigPoly() for _ in range(self.n)]
+        """``C^T f`` (8'), (F): rows with equal ``C_aj`` are summed before the product."""
+        groups: list[dict] = [{} for _ in range(self.n)]  # j -> {C_aj key: [C_aj, sum of f_a]}
         for a, fa in enumerate(f):
             if not fa.is_zero():
                 for j in self.nonzero[a]:
-                    out[j].add_product(self.C[a][j], fa)
+                    group = groups[j].get(self.shape_of[a][j])
+                    if group is None:
+                        groups[j][self.shape_of[a][j]] = [self.C[a][j], fa.copy()]
+                    else:
+                        group[1].add(fa)
+        out = [TrigPoly() for _ in range(self.n)]
+        for j, group in enumerate(groups):
+            for u, total in group.values():
+                out[j].add_product(u, total)
         return out
 
     def renamed_parts(self, primitive: Primitive) -> dict[str, list[int]]:
@@ -186,8 +197,10 @@ def assemble(inertia: KnownSystem, effects: Sequence[ProjectedEffect]) -> KnownS
 
 def _inertia(sub: Subspace, primitive: Primitive, renamed: dict[str, list[int]]):
     """``Mbar = C^T M C`` (9'), (D) and ``hbar = C^T (M Cdot xbardot + h)`` (E), block by block."""
-    n, C, nonzero = sub.n, sub.C, sub.nonzero
+    n, C, nonzero, shape_of = sub.n, sub.C, sub.nonzero, sub.shape_of
     mass = [[TrigPoly() for _ in range(n)] for _ in range(n)]
+    # sum_a C_aj (M C)_ak, with the rows of equal C_aj summed first (see Subspace.shape_of)
+    sums: list[dict] = [{} for _ in range(n)]  # j -> {C_aj key: (C_aj, {k: sum of (M C)_ak})}
     inertial = [TrigPoly() for _ in range(len(sub.x))]  # M Cdot xbardot + h
     direct_mass: dict[tuple[int, int], list[sympy.Expr]] = {}
     direct_h: dict[int, list[sympy.Expr]] = {}
@@ -217,9 +230,20 @@ def _inertia(sub: Subspace, primitive: Primitive, renamed: dict[str, list[int]])
                     acc.add_product(block[i][j], sub.convective[b])
             inertial[a] = acc
             for j in nonzero[a]:
+                group = sums[j].get(shape_of[a][j])
+                if group is None:
+                    group = sums[j][shape_of[a][j]] = (C[a][j], {})
                 for k, mck in mc.items():
                     if k >= j:
-                        mass[j][k].add_product(C[a][j], mck)
+                        total = group[1].get(k)
+                        if total is None:
+                            group[1][k] = mck.copy()
+                        else:
+                            total.add(mck)
+    for j in range(n):
+        for u, row in sums[j].values():
+            for k, total in row.items():
+                mass[j][k].add_product(u, total)
     return mass, sub.transpose_times(inertial), direct_mass, direct_h
 
 

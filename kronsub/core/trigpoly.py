@@ -17,11 +17,17 @@ from __future__ import annotations
 
 import math
 from fractions import Fraction
+
+try:  # exact rationals in C when gmpy2 is installed (the `fast` extra); Python's otherwise
+    from gmpy2 import mpq as _Q
+except ImportError:  # pragma: no cover - depends on the installation
+    _Q = Fraction
 from typing import Iterable, Iterator
 
 import sympy
 
 from ..errors import Location, ModelError, Problem
+from . import canonical
 
 MAX_EXPANDED_POWER = 8
 """Highest integer power of a sum that is expanded (``(x + y)**8``); a higher one is an error."""
@@ -86,7 +92,7 @@ ONE: Mono = ()
 
 
 def _num(value: Fraction) -> int | Fraction:
-    return value.numerator if value.denominator == 1 else value
+    return int(value.numerator) if value.denominator == 1 else value
 
 
 def _freq_combine(a: Freq, b: Freq, sign: int) -> Freq:
@@ -112,18 +118,41 @@ def _freq_neg(f: Freq) -> Freq:
 
 
 def _mono_mul(a: Mono, b: Mono) -> Mono:
+    """The product of two monomials: a merge of their (atom, exponent) lists, both sorted."""
     if not a:
         return b
     if not b:
         return a
-    out = dict(a)
-    for i, e in b:
-        w = out.get(i, 0) + e
-        if w:
-            out[i] = w
+    if len(b) == 1:
+        (i, e), = b
+        for pos, (j, f) in enumerate(a):
+            if j == i:
+                w = f + e
+                return a[:pos] + ((i, w),) + a[pos + 1:] if w else a[:pos] + a[pos + 1:]
+            if j > i:
+                return a[:pos] + (b[0],) + a[pos:]
+        return a + b
+    if len(a) == 1:
+        return _mono_mul(b, a)
+    out = []
+    x = y = 0
+    while x < len(a) and y < len(b):
+        i, e = a[x]
+        j, f = b[y]
+        if i < j:
+            out.append(a[x])
+            x += 1
+        elif j < i:
+            out.append(b[y])
+            y += 1
         else:
-            del out[i]
-    return tuple(sorted(out.items()))
+            if e + f:
+                out.append((i, e + f))
+            x += 1
+            y += 1
+    out.extend(a[x:])
+    out.extend(b[y:])
+    return tuple(out)
 
 
 def _coef_mul(a: Coef, b: Coef) -> Coef:
@@ -158,6 +187,10 @@ class TrigPoly:
 
     def is_zero(self) -> bool:
         return not self.terms
+
+    def key(self) -> tuple:
+        """A hashable value equal for equal polynomials (for grouping equal entries)."""
+        return tuple(sorted((k, tuple(sorted(c.items()))) for k, c in self.terms.items()))
 
     def copy(self) -> "TrigPoly":
         return TrigPoly({k: dict(v) for k, v in self.terms.items()})
@@ -216,7 +249,7 @@ def _trig_key(kind: int, freq: Freq, scale: int | Fraction) -> tuple[tuple[int, 
     return (kind, freq), scale
 
 
-_HALF = Fraction(1, 2)
+_HALF = _Q(1, 2)
 
 
 def _product_to_sum(ka: int, fa: Freq, kb: int, fb: Freq):
@@ -260,6 +293,7 @@ class TrigAlgebra:
         self._cache: dict[sympy.Expr, TrigPoly] = {}
         self._trig_cache: dict[tuple[int, Freq], sympy.Expr] = {}
         self._mono_cache: dict[Mono, sympy.Expr] = {}
+        self._power_cache: dict[tuple[int, int | Fraction], sympy.Expr] = {}
         self.prepare = None
         """A rewrite applied to an atom's derivative before it is converted (see inverse_trig)."""
 
@@ -299,7 +333,7 @@ class TrigAlgebra:
 
     def _convert(self, e: sympy.Expr) -> TrigPoly:
         if e.is_Rational:
-            return self.constant(_num(Fraction(int(e.p), int(e.q))))
+            return self.constant(_num(_Q(int(e.p), int(e.q))))
         if e.is_Add:
             out = TrigPoly()
             for a in e.args:
@@ -331,7 +365,7 @@ class TrigAlgebra:
             n = int(exp)
             if single is not None:
                 mono, c = single
-                return TrigPoly({(COS, ZERO_FREQ): {tuple((i, _num(Fraction(k) * n)) for i, k in mono): _num(Fraction(c) ** n)}})
+                return TrigPoly({(COS, ZERO_FREQ): {tuple((i, _num(_Q(k) * n)) for i, k in mono): _num(_Q(c) ** n)}})
             if n > 0:
                 check_expansion(inner, n, _short(base))
                 return _power(inner, n, self.constant(1))
@@ -340,8 +374,8 @@ class TrigAlgebra:
             if c == 1 and len(mono) == 1:  # (atom**k)**r -> atom**(k r) only for k = 1
                 (i, k), = mono
                 if k == 1:
-                    return TrigPoly({(COS, ZERO_FREQ): {((i, _num(Fraction(int(exp.p), int(exp.q)))),): 1}})
-        return self.atom(base, _num(Fraction(int(exp.p), int(exp.q))))
+                    return TrigPoly({(COS, ZERO_FREQ): {((i, _num(_Q(int(exp.p), int(exp.q)))),): 1}})
+        return self.atom(base, _num(_Q(int(exp.p), int(exp.q))))
 
     def _convert_trig(self, e: sympy.Expr) -> TrigPoly:
         arg = e.args[0]
@@ -351,7 +385,7 @@ class TrigAlgebra:
             coeff, sym = term.as_coeff_Mul()
             if sym in self.index and coeff.is_Rational:
                 i = self.index[sym]
-                linear[i] = linear.get(i, 0) + Fraction(int(coeff.p), int(coeff.q))
+                linear[i] = linear.get(i, 0) + _Q(int(coeff.p), int(coeff.q))
             else:
                 rest.append(term)
         freq = tuple(sorted((i, _num(v)) for i, v in linear.items() if v))
@@ -437,7 +471,7 @@ class TrigAlgebra:
                 # result is the very object ``cos(arg)`` would evaluate to.
                 arg = sympy.Add(*[_rational(v) * self.coordinates[i] for i, v in freq])
                 sign = 1
-                if arg.could_extract_minus_sign():
+                if _could_extract_minus_sign(arg):
                     arg, sign = -arg, -1
                 if kind == COS:
                     hit = sympy.cos(arg, evaluate=False)
@@ -456,14 +490,75 @@ class TrigAlgebra:
         content = _content(coef.values())
         inner = {_mono_mul(m, tuple((i, -e) for i, e in common)): c / content for m, c in coef.items()}
         outer = [self._atoms[i] ** _rational(e) for i, e in common]
-        return sympy.Mul(_rational(_num(Fraction(content))), *outer, self.coefficient_expr(inner))
+        return sympy.Mul(_rational(_num(_Q(content))), *outer, self.coefficient_expr(inner))
 
     def to_expr(self, p: TrigPoly) -> sympy.Expr:
-        """A compact sympy expression: common factors of each coefficient pulled out."""
+        """A compact sympy expression: common factors of each coefficient pulled out.
+
+        Built in canonical form directly (:mod:`.canonical`): the same expression as
+        `evaluated_expr`, without sympy collecting terms the algebra has already collected.
+        """
+        parts = []
+        for (kind, freq), coef in _sorted_terms(p):
+            sign, trig = self._trig_factor(kind, freq)
+            if len(coef) == 1:
+                (mono, c), = coef.items()
+                powers = self._powers(mono)
+                if len(powers) == 1 and powers[0].is_Add:  # c*(a + b) distributes before trig joins
+                    parts.append(canonical.mul(sign, [canonical.mul(_rational(c), powers), *trig]))
+                else:
+                    parts.append(canonical.mul(_rational(c) * sign, [*powers, *trig]))
+                continue
+            common = _common_monomial(coef)
+            if not common:
+                parts.append(canonical.mul(sign, [self._coefficient(coef), *trig]))
+                continue
+            content = _content(coef.values())
+            inner = {_mono_mul(m, tuple((i, -e) for i, e in common)): c / content for m, c in coef.items()}
+            parts.append(canonical.mul(_rational(_num(_Q(content))) * sign,
+                                       [*self._powers(common), self._coefficient(inner), *trig]))
+        return canonical.add(parts)
+
+    def evaluated_expr(self, p: TrigPoly) -> sympy.Expr:
+        """`to_expr` through sympy's own evaluating constructors (the reference it must equal)."""
         parts = []
         for (kind, freq), coef in _sorted_terms(p):
             parts.append(self.factored_coefficient(coef) * self.trig_expr(kind, freq))
         return sympy.Add(*parts)
+
+    def _powers(self, mono: Mono) -> list[sympy.Expr]:
+        out = []
+        for i, e in mono:
+            key = (i, e)
+            hit = self._power_cache.get(key)
+            if hit is None:
+                hit = self._power_cache[key] = self._atoms[i] ** _rational(e)
+            out.append(hit)
+        return out
+
+    def _coefficient(self, coef: Coef) -> sympy.Expr:
+        """`coefficient_expr`, built in canonical form."""
+        return canonical.add([canonical.mul(_rational(c), self._powers(mono)) for mono, c in coef.items()])
+
+    def _trig_factor(self, kind: int, freq: Freq) -> tuple[sympy.Integer, list[sympy.Expr]]:
+        """``trig_expr`` as (sign, [function value]): ``[]`` for ``cos(0)``."""
+        expr = self.trig_expr(kind, freq)
+        if expr == 1:
+            return sympy.S.One, []
+        if expr.is_Mul:
+            sign, rest = expr.as_coeff_Mul()
+            return sign, [rest]
+        return sympy.S.One, [expr]
+
+    def numeric(self, values: dict) -> "NumericPoint":
+        """The algebra at a point (``values``: every coordinate and the atoms' other
+        symbols as floats), for evaluating many of its polynomials there."""
+        return NumericPoint(self, values)
+
+    def atoms_of(self, p: TrigPoly) -> list[sympy.Expr]:
+        """The atoms ``p``'s coefficients are made of, in the order met."""
+        used = {i for coef in p.terms.values() for mono in coef for i, _ in mono}
+        return [self._atoms[i] for i in sorted(used)]
 
     def depends_on(self, p: TrigPoly) -> frozenset[int]:
         """Indices of the coordinates that ``p`` depends on."""
@@ -477,6 +572,24 @@ class TrigAlgebra:
 
     def has_multiple_angles(self, p: TrigPoly) -> bool:
         return any(abs(v) != 1 for (_, freq) in p.terms for _, v in freq)
+
+
+_SIGN_PATTERNS: dict[sympy.Expr, bool] = {}
+
+
+def _could_extract_minus_sign(arg: sympy.Expr) -> bool:
+    """``arg.could_extract_minus_sign()`` for a linear combination of coordinates, decided
+    once per pattern: sympy breaks the tie between ``q1 - q2`` and ``q2 - q1`` by sort keys,
+    which depend on the symbols only through the order of their names, so the answer for
+    ``arg`` with its symbols renamed to placeholders in the same order is the answer."""
+    symbols = sorted(arg.free_symbols, key=lambda s: s.name)
+    if not all(type(s) is sympy.Symbol for s in symbols):
+        return arg.could_extract_minus_sign()
+    pattern = arg.xreplace({s: sympy.Symbol(f"x{i:06d}") for i, s in enumerate(symbols)})
+    hit = _SIGN_PATTERNS.get(pattern)
+    if hit is None:
+        hit = _SIGN_PATTERNS[pattern] = bool(pattern.could_extract_minus_sign())
+    return hit
 
 
 def _common_monomial(coef: Coef) -> Mono:
@@ -496,13 +609,13 @@ def _common_monomial(coef: Coef) -> Mono:
 
 def _content(values) -> Fraction:
     """Rational content of the coefficients, signed like the first."""
-    values = [Fraction(v) for v in values]
+    values = [_Q(v) for v in values]
     num = 0
     den = 1
     for v in values:
         num = math.gcd(num, v.numerator)
         den = den * v.denominator // math.gcd(den, v.denominator)
-    content = Fraction(num, den)
+    content = _Q(num, den)
     return -content if values[0] < 0 else content
 
 
@@ -548,6 +661,39 @@ def _power(p: TrigPoly, n: int, one: TrigPoly) -> TrigPoly:
 
 
 def _rational(v: int | Fraction) -> sympy.Rational:
-    if isinstance(v, Fraction):
-        return sympy.Rational(v.numerator, v.denominator)
-    return sympy.Integer(v)
+    if isinstance(v, int):
+        return sympy.Integer(v)
+    return sympy.Rational(int(v.numerator), int(v.denominator))
+
+
+class NumericPoint:
+    """Polynomials of an algebra evaluated at one point, in floating point: the atoms are
+    evaluated once, then each term is ``coefficient(atoms) * trig(freq . q)``."""
+
+    def __init__(self, algebra: TrigAlgebra, values: dict):
+        self.q = [float(values[c]) for c in algebra.coordinates]
+        self.algebra = algebra
+        self.values = {k: sympy.Float(v) for k, v in values.items()}
+        self.atoms: dict[int, complex] = {}
+
+    def _atom(self, i: int) -> complex:
+        hit = self.atoms.get(i)
+        if hit is None:
+            hit = self.atoms[i] = complex(self.algebra._atoms[i].xreplace(self.values).evalf())
+        return hit
+
+    def __call__(self, p: TrigPoly) -> float:
+        total = 0.0
+        for (kind, freq), coef in p.terms.items():
+            angle = sum(float(v) * self.q[i] for i, v in freq)
+            trig = math.cos(angle) if kind == COS else math.sin(angle)
+            for mono, c in coef.items():
+                term = float(c) * trig
+                for i, e in mono:
+                    term *= self._atom(i) ** float(e)
+                total += term
+        if isinstance(total, complex):
+            if abs(total.imag) > 1e-9 * max(1.0, abs(total.real)):
+                raise ValueError("complex value: outside the domain")
+            total = total.real
+        return total

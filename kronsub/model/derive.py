@@ -130,7 +130,7 @@ def derive_model(model, *, cache: bool = True, effects=None) -> KnownSystem:
             inertia = project_inertia(sub, model.primitive, name=model.name, parameters=model.parameters,
                                       description=model.description)
             if implicit is None:
-                check_rank(model, inertia.transition.transformation)
+                check_subspace_rank(model, sub)
             _store_parts(key, {"inertia": dataclasses.replace(inertia, transition=None),
                                "inertia-transition": inertia.transition})
         for piece in project_effects(sub, model.primitive, model.effects, only=missing):
@@ -180,12 +180,24 @@ class RankWarning(UserWarning):
     """``C`` lost rank at a sample configuration: the coordinates are not independent there."""
 
 
+def check_subspace_rank(model, sub: Subspace, samples: int = 3) -> None:
+    """`check_rank` of the subspace's ``C``, evaluated straight from the algebra's form."""
+    algebra = sub.algebra
+    atoms = [a for row in sub.C for entry in row for a in algebra.atoms_of(entry)]
+    symbols = sorted(set().union(*(a.free_symbols for a in atoms)) - set(sub.coords), key=lambda s: s.name)
+
+    def f(q, p):
+        at = algebra.numeric({**dict(zip(sub.coords, q)), **dict(zip(symbols, p))})
+        return [[at(entry) for entry in row] for row in sub.C]
+
+    _sample_rank(model, f, symbols, samples, constant=not symbols and not any(
+        freq for row in sub.C for entry in row for (_, freq) in entry.terms))
+
+
 def check_rank(model, C: sympy.Matrix, samples: int = 3) -> None:
     """Warn when ``C = dx/dxbar`` (21) is rank-deficient at sample configurations."""
     coords = model.coordinates
     symbols = sorted(C.free_symbols - set(coords), key=lambda s: s.name)
-    values = model.parameter_values()
-    rng = np.random.default_rng(20261121)
     if C.free_symbols:
         cells = [(i, j) for i in range(C.rows) for j in range(C.cols) if C[i, j] != 0]
         g = sympy.lambdify([list(coords), symbols], [C[i, j] for i, j in cells], modules="math")
@@ -198,7 +210,16 @@ def check_rank(model, C: sympy.Matrix, samples: int = 3) -> None:
     else:  # a constant C (a linear connection): one look suffices
         constant = [[float(e) for e in row] for row in C.tolist()]
         f, samples = (lambda q, p: constant), 1
-    for _ in range(samples):
+    _sample_rank(model, f, symbols, samples, constant=not C.free_symbols)
+
+
+def _sample_rank(model, f, symbols, samples: int, constant: bool) -> None:
+    """Warn at the first of ``samples`` random configurations where ``f(q, p)`` (``C``) has
+    rank below the number of coordinates."""
+    coords = model.coordinates
+    values = model.parameter_values()
+    rng = np.random.default_rng(20261121)
+    for _ in range(1 if constant else samples):
         q = [float(v) for v in rng.uniform(-1.0, 1.0, len(coords))]
         p = [float(values[s]) if s in values and sympy.sympify(values[s]).is_number else float(rng.uniform(0.5, 1.5))
              for s in symbols]

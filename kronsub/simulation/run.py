@@ -20,9 +20,10 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..core.known_system import KnownSystem
-from ..emitters.code import emit_c, emit_python
+from ..emitters.code import emit_python
 from ..errors import KronsubError
-from .native import CompileError, CompilerNotFound, NativeModel, compile_library
+from .compiled import compiled_library
+from .native import CompileError, CompilerNotFound, NativeModel
 from .values import RunValues
 
 
@@ -247,8 +248,7 @@ def start(system: KnownSystem, values: RunValues, t_end: float, dt: float, metho
 def _compiled(system, outputs):
     """The model compiled from its generated C, or None (with a warning) to use the numpy module."""
     try:
-        generated = [(g.name, g.text) for g in emit_c(system, "model", outputs=outputs)]
-        return NativeModel(compile_library(generated, "model"), len(system.coordinates), len(system.parameters))
+        return NativeModel(compiled_library(system, outputs), len(system.coordinates), len(system.parameters))
     except CompilerNotFound:
         warnings.warn("no C compiler found: using the generated numpy module (slower)")
     except CompileError as exc:

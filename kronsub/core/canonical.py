@@ -1,0 +1,124 @@
+"""Sympy expressions built straight in canonical form, without sympy re-simplifying them.
+
+The algebra's terms are already collected (distinct monomials, distinct trigonometric
+keys), so what sympy's ``Add`` and ``Mul`` would do on construction reduces to sorting
+the arguments. These builders do just that and fall back to sympy's own construction
+whenever its rules could do more (numbers, repeated bases, nested products, the
+``2*(a + b)`` distribution), so the result is the very expression sympy would build:
+printed output stays byte-identical, only cheaper to make.
+"""
+from __future__ import annotations
+
+import functools
+
+import sympy
+from sympy.core import basic
+from sympy.core.basic import _args_sortkey
+
+_ONE, _ZERO = sympy.S.One, sympy.S.Zero
+
+
+def _plain(factor: sympy.Expr) -> bool:
+    """A factor ``Mul`` keeps as it is: a symbol, a function value, or a power of one,
+    or a power of a sum with a non-unit exponent."""
+    if factor.is_Pow:
+        base, exp = factor.args
+        return exp.is_Rational and (_atomic(base) or base.is_Add)
+    return _atomic(factor)
+
+
+def _atomic(factor: sympy.Expr) -> bool:
+    """A symbol or a function value other than ``exp`` (which ``Mul`` treats as a power)."""
+    return factor.is_Symbol or (isinstance(factor, sympy.Function) and factor.func is not sympy.exp)
+
+
+class _Unkeyed(Exception):
+    """An expression whose canonical order the tuple key does not reproduce."""
+
+
+@functools.lru_cache(maxsize=None)
+def _class_key(cls: type) -> tuple:
+    """The class part of ``Basic.compare``: the place in sympy's ``ordering_of_classes``,
+    then the name (``_cmp_name``)."""
+    order = basic.ordering_of_classes
+    unknown = len(order) + 1
+    name = cls.__name__
+    return (order.index(name) if name in order else unknown, name if name not in order else "")
+
+
+@functools.lru_cache(maxsize=1 << 17)
+def order_key(expr: sympy.Basic) -> tuple:
+    """A tuple that sorts as ``Basic.compare`` does: class, length of the hashable content,
+    then its items, recursively (computed once per expression, compared in C)."""
+    content = expr._hashable_content()
+    items = []
+    for item in content:
+        if isinstance(item, basic.Basic):
+            items.append(order_key(item))
+        elif isinstance(item, (frozenset, set)):
+            raise _Unkeyed
+        else:
+            items.append(item)
+    return (_class_key(type(expr)), len(content), tuple(items))
+
+
+def _sorted(args: list[sympy.Expr]) -> list[sympy.Expr]:
+    """``args`` in sympy's canonical order (``_args_sortkey``), by `order_key` when it applies."""
+    try:
+        return sorted(args, key=order_key)
+    except (_Unkeyed, TypeError):
+        return sorted(args, key=_args_sortkey)
+
+
+def mul(coefficient: sympy.Rational, factors: list[sympy.Expr]) -> sympy.Expr:
+    """``coefficient * prod(factors)`` as ``sympy.Mul`` would build it."""
+    if coefficient == 0:
+        return _ZERO
+    if not factors:
+        return coefficient
+    bases = set()
+    for f in factors:
+        if f.is_Add:
+            base = f
+        elif _plain(f):
+            base = f.base if f.is_Pow else f
+        else:
+            return sympy.Mul(coefficient, *factors)
+        if base in bases:
+            return sympy.Mul(coefficient, *factors)
+        bases.add(base)
+    if len(factors) == 1 and coefficient == 1:
+        return factors[0]
+    if len(factors) == 1 and factors[0].is_Add:
+        return sympy.Mul(coefficient, *factors)  # the 2*(a + b) distribution
+    args = _sorted(factors)
+    if coefficient != 1:
+        args.insert(0, coefficient)
+    return sympy.Mul._from_args(args)
+
+
+def add(terms: list[sympy.Expr]) -> sympy.Expr:
+    """The sum of ``terms`` as ``sympy.Add`` would build it, for terms whose non-numeric
+    parts are distinct (collected like terms); nested sums are flattened first."""
+    flat: list[sympy.Expr] = []
+    number = _ZERO
+    for t in terms:
+        for u in (t.args if t.is_Add else (t,)):
+            if u.is_Number:
+                number += u
+            else:
+                flat.append(u)
+    if not flat:
+        return number
+    seen = set()
+    for u in flat:
+        key = u.as_coeff_Mul()[1]
+        if key in seen or not u.is_commutative:
+            return sympy.Add(*terms)
+        seen.add(key)
+    if len(flat) == 1 and number == 0:
+        return flat[0]
+    flat = _sorted(flat)
+    if number != 0:
+        flat.insert(0, number)
+    return sympy.Add._from_args(flat)

@@ -1,0 +1,120 @@
+"""The algebra's sympy expressions are built in canonical form directly
+(:mod:`kronsub.core.canonical`); they must be the very expressions sympy's evaluating
+constructors build, so printed output does not change."""
+import glob
+import random
+import warnings
+
+import pytest
+import sympy
+
+import kronsub
+from kronsub.core import trigpoly
+from kronsub.core.trigpoly import TrigAlgebra
+
+q1, q2, q3 = sympy.symbols("q1 q2 q3")
+a, b, c, u = sympy.symbols("a b c u", positive=True)
+x = sympy.Symbol("x")
+PIECES = [q1, q2, q3, a, b, c, x, sympy.Integer(2), sympy.Rational(1, 3), sympy.sqrt(2), sympy.pi,
+          sympy.sqrt(1 - a * sympy.sin(q1)), sympy.asin(c * sympy.sin(q2)), sympy.Abs(x + 1), sympy.exp(x),
+          sympy.exp(2 * x), sympy.sign(x + 1), x + 1, sympy.sin(a), sympy.cos(q1 ** 2)]
+
+
+def _random_expr(rng: random.Random, depth: int = 3) -> sympy.Expr:
+    if depth == 0:
+        return rng.choice(PIECES)
+    op = rng.choice(["add", "mul", "pow", "sin", "cos", "leaf"])
+    if op == "leaf":
+        return rng.choice(PIECES)
+    if op in ("sin", "cos"):
+        arg = rng.choice([q1, q2, q1 - q2, 2 * q3, q1 + q2 / 2, q1 + a])
+        return getattr(sympy, op)(arg) * _random_expr(rng, depth - 1)
+    if op == "pow":
+        return _random_expr(rng, depth - 1) ** rng.choice([2, 3, -1, sympy.Rational(1, 2)])
+    parts = [_random_expr(rng, depth - 1) for _ in range(rng.randint(2, 4))]
+    return sympy.Add(*parts) if op == "add" else sympy.Mul(*parts)
+
+
+@pytest.mark.parametrize("seed", range(12))
+def test_random_expressions_build_as_sympy_would(seed):
+    rng = random.Random(seed)
+    algebra = TrigAlgebra((q1, q2, q3))
+    checked = 0
+    for _ in range(40):
+        try:
+            p = algebra.from_expr(_random_expr(rng))
+        except trigpoly.ExpansionTooLarge:
+            continue
+        assert sympy.srepr(algebra.to_expr(p)) == sympy.srepr(algebra.evaluated_expr(p))
+        for j in range(3):
+            d = algebra.diff(p, j)
+            assert sympy.srepr(algebra.to_expr(d)) == sympy.srepr(algebra.evaluated_expr(d))
+        checked += 1
+    assert checked > 20
+
+
+def test_every_bundled_model_builds_as_sympy_would(monkeypatch, tmp_path):
+    monkeypatch.setenv("KRONSUB_CACHE_DIR", str(tmp_path / "none"))
+    seen = []
+    fast = TrigAlgebra.to_expr
+
+    def both(self, p):
+        expr = fast(self, p)
+        seen.append(sympy.srepr(expr) == sympy.srepr(self.evaluated_expr(p)))
+        return expr
+
+    monkeypatch.setattr(TrigAlgebra, "to_expr", both)
+    files = sorted(glob.glob("models/**/*.yaml", recursive=True))
+    assert len(files) > 8
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        for path in files:
+            kronsub.load(path).derive(cache=False)
+    assert len(seen) > 200 and all(seen)
+
+
+def test_monomial_products_merge_like_a_dictionary_would():
+    from kronsub.core.trigpoly import _mono_mul
+
+    def reference(a, b):
+        out = dict(a)
+        for i, e in b:
+            out[i] = out.get(i, 0) + e
+        return tuple(sorted((i, e) for i, e in out.items() if e))
+
+    rng = random.Random(7)
+    for _ in range(3000):
+        a, b = (tuple(sorted({rng.randint(0, 6): rng.choice([1, 2, -1, -2, sympy.Rational(1, 2)])
+                              for _ in range(rng.randint(0, 4))}.items())) for _ in range(2))
+        assert _mono_mul(a, b) == reference(a, b), (a, b)
+
+
+def test_the_order_key_sorts_as_sympy_compares():
+    from functools import cmp_to_key
+
+    from kronsub.core.canonical import order_key
+
+    rng = random.Random(3)
+    exprs = [_random_expr(rng, 2) for _ in range(150)] + PIECES + [sympy.Float(0.5), sympy.Float(-2.25), x ** 2]
+    for _ in range(40):
+        sample = rng.sample(exprs, 12)
+        assert sorted(sample, key=order_key) == sorted(sample, key=cmp_to_key(sympy.Basic.compare))
+
+
+def test_sines_and_cosines_are_the_objects_sympy_evaluates_to():
+    from kronsub.core.trigpoly import COS, SIN
+
+    rng = random.Random(11)
+    names = ["q1", "q2", "q10", "q9", "theta", "phi", "a_b", "Z", "x_dot"]
+    coords = [sympy.Symbol(n) for n in names] + [sympy.Symbol("r", real=True)]
+    algebra = TrigAlgebra(coords)
+    for _ in range(400):
+        picked = rng.sample(range(len(coords)), rng.randint(1, 4))
+        freq = tuple(sorted((i, sympy.Integer(rng.choice([1, -1, 2, -2, 3])) / rng.choice([1, 1, 2]))
+                            for i in picked))
+        arg = sympy.Add(*[c * coords[i] for i, c in freq])
+        freq = tuple((i, int(c) if c.is_Integer else trigpoly._Q(int(c.p), int(c.q))) for i, c in freq)
+        if freq[0][1] < 0:
+            continue  # the algebra keeps the first frequency positive
+        assert sympy.srepr(algebra.trig_expr(COS, freq)) == sympy.srepr(sympy.cos(arg))
+        assert sympy.srepr(algebra.trig_expr(SIN, freq)) == sympy.srepr(sympy.sin(arg))

@@ -1,0 +1,105 @@
+"""A compiled model is found by its equations' fingerprint without emitting C again
+(:mod:`kronsub.simulation.compiled`), and the index never makes an unverified library load."""
+from __future__ import annotations
+
+import dataclasses
+import json
+import os
+import shutil
+
+import numpy as np
+import pytest
+
+from conftest import MODELS
+from kronsub.emitters import code
+from kronsub.model.loader import load_model
+from kronsub.simulation import compiled, native
+from kronsub.api import simulate
+
+pytestmark = pytest.mark.skipif(shutil.which("gcc") is None, reason="no C compiler")
+SYSTEM1 = MODELS / "hoffmann" / "system1.yaml"
+
+
+@pytest.fixture
+def cache(tmp_path, monkeypatch):
+    folder = tmp_path / "cache"
+    monkeypatch.setenv("KRONSUB_CACHE_DIR", str(folder))
+    return folder
+
+
+@pytest.fixture
+def emissions(monkeypatch):
+    """Counts the C emissions (the costly step the index skips)."""
+    calls = []
+    real = code.emit_c
+
+    def counted(*args, **kwargs):
+        calls.append(args[0].name)
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(code, "emit_c", counted)
+    return calls
+
+
+def _run(system):
+    return simulate(system, t=0.5, dt=0.25, dataframe=False)
+
+
+def test_a_second_run_loads_the_library_without_emitting_c(cache, emissions):
+    system = load_model(SYSTEM1).derive()
+    first = _run(system)
+    assert emissions == [system.name]
+    again = _run(load_model(SYSTEM1).derive())
+    assert emissions == [system.name]  # no second emission
+    np.testing.assert_array_equal(first.y, again.y)
+
+
+def test_other_parameter_values_share_the_library_other_equations_do_not(cache, emissions):
+    system = load_model(SYSTEM1).derive()
+    key = compiled.fingerprint(system)
+    other_values = dataclasses.replace(system, name="renamed", parameters=tuple(
+        dataclasses.replace(p, value=None) for p in system.parameters))
+    assert compiled.fingerprint(other_values) == key
+    fewer_effects = dataclasses.replace(system, effect_forces={k: v for k, v in list(system.effect_forces.items())[:1]})
+    assert compiled.fingerprint(fewer_effects) != key
+    free = load_model(MODELS / "hoffmann" / "system2.yaml").derive()
+    assert compiled.fingerprint(free) != key
+    from kronsub.model.scenes import Outputs
+    assert compiled.fingerprint(system, Outputs(energies=False)) != key
+
+
+@pytest.mark.parametrize("tamper", ["digest", "folder", "traversal", "garbage", "library"])
+def test_a_tampered_index_never_loads_an_unverified_library(cache, emissions, tamper):
+    system = load_model(SYSTEM1).derive()
+    _run(system)
+    key = compiled.fingerprint(system)
+    index = compiled._index_file(key)
+    entry = json.loads(index.read_text())
+    library = native._build_root() / entry["folder"] / entry["library"]
+    if tamper == "digest":
+        entry["sha256"] = "0" * 64
+    elif tamper == "folder":
+        entry["folder"] = "model-" + "0" * 24
+    elif tamper == "traversal":
+        entry["folder"] = "../../elsewhere"
+    elif tamper == "library":
+        changed = library.with_name("changed.tmp")  # a new file: this process has the old one mapped
+        changed.write_bytes(library.read_bytes()[:100])
+        os.replace(changed, library)  # the sidecar no longer matches
+    if tamper == "garbage":
+        index.write_text("{not json")
+    else:
+        index.write_text(json.dumps(entry))
+    assert compiled.lookup(key) is None
+    _run(system)  # emitted and built again, then indexed afresh
+    assert len(emissions) == 2
+    assert compiled.lookup(key) is not None and native.verified(compiled.lookup(key))
+
+
+def test_cache_clear_removes_the_index(cache):
+    from kronsub import cache as kcache
+
+    _run(load_model(SYSTEM1).derive())
+    assert list((cache / "native" / "index").iterdir())
+    kcache.clear()
+    assert not (cache / "native").exists()
