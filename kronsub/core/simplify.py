@@ -46,7 +46,7 @@ def compact(algebra: TrigAlgebra, p: TrigPoly) -> sympy.Expr:
     view = _view(algebra)
     multiple = algebra.has_multiple_angles(p)
     if not multiple and not _mixed(p) and not view.touches(p) and not view.varying_in(p):
-        return expr
+        return _atom_angles(algebra, p, expr)
     best, best_key = expr, _key(expr)
 
     def offer(candidate: sympy.Expr) -> None:
@@ -94,7 +94,19 @@ def compact(algebra: TrigAlgebra, p: TrigPoly) -> sympy.Expr:
             powers = view.render(groups, {b: (variant, frozenset()) for b in groups}, rest)
             if sympy.count_ops(powers) <= 2 * FACTORED:
                 offer(_factor(powers))
-    return best
+    return _atom_angles(algebra, p, best)
+
+
+def _atom_angles(algebra: TrigAlgebra, p: TrigPoly, best: sympy.Expr) -> sympy.Expr:
+    """Sines and cosines the algebra holds as atoms (of an argument not a rational
+    combination of coordinates, a gear's ``alpha/n``) miss the product-to-sum identities
+    as products are formed; a small entry with them is also offered to ``trigsimp``."""
+    if not any(isinstance(a, (sympy.sin, sympy.cos)) for a in algebra.atoms_of(p)):
+        return best
+    if sympy.count_ops(best) > FACTORED:
+        return best
+    candidate = sympy.trigsimp(best)
+    return candidate if _key(candidate) < _key(best) else best
 
 
 def _mixed(p: TrigPoly) -> bool:
