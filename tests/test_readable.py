@@ -25,9 +25,7 @@ from kronsub.emitters.text import emit_latex
 from kronsub.model.expressions import parse_expression
 
 BUNDLED = sorted(str(p.relative_to(MODELS)) for p in MODELS.rglob("*.yaml"))
-LAMBDA = pytest.mark.xfail(strict=True, reason="System II's implicit form names its sensitivity `lambda`, "
-                           "a Python keyword the model parser rejects (named in kronsub/core/constraints.py)")
-PARSEABLE = [pytest.param(n, marks=LAMBDA) if n == "hoffmann/system2_implicit.yaml" else n for n in BUNDLED]
+PARSEABLE = list(BUNDLED)
 EXTRA = ["disc_on_incline.yaml", "polar_spring.yaml", "internal_names.yaml"]
 _SYSTEMS: dict = {}
 
@@ -115,6 +113,10 @@ def test_abs_and_euler_number_print_in_the_model_language():
         assert same_value(parse_expression(show(e), names), e)
 
 
+YARDSTICK_OPS = 120
+"""Entries up to this many operations are measured against ``trigsimp`` and ``fu``."""
+
+
 def _yardsticks(expr):
     return sympy.count_ops(sympy.trigsimp(expr)), sympy.count_ops(sympy.fu(expr))
 
@@ -124,11 +126,16 @@ def test_no_printed_entry_is_shortened_by_sympys_simplifiers(name):
     """The printed entry (named subexpressions as the names they are printed as) against
     ``sympy.trigsimp`` and ``sympy.fu`` of it."""
     _, report, names = printed(name)
+    checked = 0
     for label, text in entries(report):
         expr = parse_expression(text, names)
         ops = sympy.count_ops(expr)
+        if ops > YARDSTICK_OPS:
+            continue  # fu factorises: on a large entry it runs for minutes (the next test still applies)
         trig, fu = _yardsticks(expr)
         assert ops <= min(trig, fu), f"{name} {label}: {text} ({ops} ops; trigsimp {trig}, fu {fu})"
+        checked += 1
+    assert checked, f"{name}: no entry small enough for the yardsticks"
 
 
 @pytest.mark.parametrize("name", PARSEABLE + ["disc_on_incline.yaml", "top_3d.yaml"])

@@ -90,7 +90,7 @@ class ImplicitSubspace:
 # --------------------------------------------------------------------------------------------
 
 def intermediate_symbols(independent, dependent, taken: set[str]):
-    """``lambda`` (one entry) or ``lambda_<dep>_<indep>``, and ``gamma[_<dep>]``: names that
+    """``lambda_<dep>_<indep>`` (the paper's lambda of (26)-(29)) and ``gamma[_<dep>]``: names that
     clash with the model's own get a trailing underscore."""
 
     def fresh(name: str) -> sympy.Symbol:
@@ -99,11 +99,9 @@ def intermediate_symbols(independent, dependent, taken: set[str]):
         taken.add(name)
         return symbol(name)
 
-    k, n = len(dependent), len(independent)
-    if k == 1 and n == 1:
-        lam = sympy.Matrix([[fresh("lambda")]])
-    else:
-        lam = sympy.Matrix(k, n, lambda a, j: fresh(f"lambda_{dependent[a].name}_{independent[j].name}"))
+    k = len(dependent)
+    # never a bare ``lambda``: a Python keyword, so a printed entry would not parse back
+    lam = sympy.Matrix(k, len(independent), lambda a, j: fresh(f"lambda_{dependent[a].name}_{independent[j].name}"))
     gamma = tuple(fresh("gamma" if k == 1 else f"gamma_{d.name}") for d in dependent)
     return lam, gamma
 

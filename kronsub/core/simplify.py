@@ -25,7 +25,8 @@ from fractions import Fraction
 import sympy
 
 from .inverse_trig import divide_out
-from .trigpoly import TrigAlgebra, TrigPoly
+from . import trigpoly
+from .trigpoly import TrigAlgebra, TrigPoly, _common_monomial
 
 COS, SIN = 0, 1
 SMALL = 40
@@ -480,20 +481,6 @@ def _add_into(target: dict, src: dict, scale) -> None:
             target.pop(m, None)
 
 
-def _common_monomial(coef: dict):
-    monos = list(coef)
-    exps = dict(monos[0])
-    for mono in monos[1:]:
-        here = dict(mono)
-        for i in list(exps):
-            e, f = exps[i], here.get(i)
-            if f is None or (e > 0) != (f > 0):
-                del exps[i]
-            else:
-                exps[i] = min(e, f) if e > 0 else max(e, f)
-    return tuple(sorted(exps.items()))
-
-
 def _divide(mono, common):
     exps = dict(mono)
     for i, e in common:
@@ -509,14 +496,8 @@ def _fraction(value) -> Fraction:
 
 
 def _content(values) -> Fraction:
-    """Rational content of the coefficients, signed like the first."""
-    values = [_fraction(v) for v in values]
-    num, den = 0, 1
-    for v in values:
-        num = math.gcd(num, v.numerator)
-        den = den * v.denominator // math.gcd(den, v.denominator)
-    content = Fraction(num, den)
-    return -content if values[0] < 0 else content
+    """Rational content of the coefficients, signed like the first (as a Fraction)."""
+    return _fraction(trigpoly._content(values))
 
 
 def _rational(v) -> sympy.Rational:

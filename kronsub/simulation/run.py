@@ -592,15 +592,7 @@ def _numpy_rhs(system, param, outputs=None, constrained=None, tol=1e-12):
         from .constrained import configure_module
 
         configure_module(module, constrained.guess, tol)
-    rhs = module["rhs"]
-
-    def f(t, y):
-        try:
-            return rhs(t, y, param)
-        except np.linalg.LinAlgError as exc:
-            raise _Singular(t, y) from exc
-
-    return f
+    return _numpy_rhs_of(module, param)
 
 
 class _Singular(Exception):
