@@ -38,3 +38,11 @@ def explicit_model_paths() -> list[str]:
         return False
 
     return sorted(str(p.relative_to(MODELS)) for p in MODELS.rglob("*.yaml") if not constrained(p))
+
+
+@pytest.fixture
+def cache(tmp_path, monkeypatch):
+    """A fresh kronsub cache folder (not yet created) for one test."""
+    folder = tmp_path / "cache"
+    monkeypatch.setenv("KRONSUB_CACHE_DIR", str(folder))
+    return folder

@@ -30,13 +30,6 @@ BUNDLED = sorted(MODELS.glob("*/*.yaml")) + sorted((ROOT / "tests" / "models").g
 SYSTEM1 = MODELS / "hoffmann" / "system1.yaml"
 
 
-@pytest.fixture
-def cache(tmp_path, monkeypatch):
-    folder = tmp_path / "cache"
-    monkeypatch.setenv("KRONSUB_CACHE_DIR", str(folder))
-    return folder
-
-
 def _walk(value, path="system"):
     """Every expression and matrix of a stored value, with where it sits (for exact comparison)."""
     if isinstance(value, sympy.MatrixBase):

@@ -21,13 +21,6 @@ SYSTEM1 = MODELS / "hoffmann" / "system1.yaml"
 
 
 @pytest.fixture
-def cache(tmp_path, monkeypatch):
-    folder = tmp_path / "cache"
-    monkeypatch.setenv("KRONSUB_CACHE_DIR", str(folder))
-    return folder
-
-
-@pytest.fixture
 def emissions(monkeypatch):
     """Counts the C emissions (the costly step the index skips)."""
     calls = []

@@ -102,6 +102,35 @@ class _Evaluator:
         return out
 
 
+def checked_inputs(system: KnownSystem, inputs) -> tuple:
+    """The inputs, each one a parameter of ``system`` (else a :class:`LinearizationError`)."""
+    inputs = tuple(inputs)
+    known = {p.symbol for p in system.parameters}
+    for u in inputs:
+        if u not in known:
+            raise LinearizationError(f"input '{u}' is not a parameter of {system.name}")
+    return inputs
+
+
+def parameter_defaults(system: KnownSystem) -> dict:
+    """The parameters' default values, where they have one."""
+    return {p.symbol: p.value for p in system.parameters if p.value is not None}
+
+
+def parameter_numbers(system: KnownSystem, values: Mapping) -> tuple[dict, list[str]]:
+    """Every parameter's value (``values`` over the defaults) as a float, NaN where none is
+    known; and the names of those without one."""
+    defaults = parameter_defaults(system)
+    numbers: dict[sympy.Symbol, float] = {}
+    missing = []
+    for p in system.parameters:
+        given = values.get(p.symbol, defaults.get(p.symbol))
+        numbers[p.symbol] = _numeric(given, {}) if given is not None else float("nan")
+        if not np.isfinite(numbers[p.symbol]):
+            missing.append(p.name)
+    return numbers, missing
+
+
 def linearize(system: KnownSystem, *, inputs: Sequence[sympy.Symbol] = (),
               point: Mapping[sympy.Symbol, sympy.Expr] | None = None,
               values: Mapping[sympy.Symbol, sympy.Expr] | None = None,
@@ -129,22 +158,10 @@ def linearize(system: KnownSystem, *, inputs: Sequence[sympy.Symbol] = (),
     q = list(system.coordinates)
     qd = list(system.velocities)
     n = len(q)
-    inputs = tuple(inputs)
-    known = {p.symbol for p in system.parameters}
-    for u in inputs:
-        if u not in known:
-            raise LinearizationError(f"input '{u}' is not a parameter of {system.name}")
+    inputs = checked_inputs(system, inputs)
     t0 = sympy.sympify(point.pop(TIME, 0))
-
-    defaults = {p.symbol: p.value for p in system.parameters if p.value is not None}
-    numbers: dict[sympy.Symbol, float] = {}
-    missing = []
-    for p in system.parameters:
-        given = values.get(p.symbol, defaults.get(p.symbol))
-        number = _numeric(given, {}) if given is not None else float("nan")
-        if not np.isfinite(number):
-            missing.append(p.name)
-        numbers[p.symbol] = number
+    numbers, missing = parameter_numbers(system, values)
+    defaults = parameter_defaults(system)
     if missing and not symbolic:
         raise LinearizationError("no value for parameter" + ("s " if len(missing) > 1 else " ")
                                  + ", ".join(missing) + "; give it with --at NAME=VALUE "

@@ -24,7 +24,8 @@ import sympy
 from .constraints import ConstraintFailure, Intermediates
 from .known_system import KnownSystem
 from .linearize import (EQUILIBRIUM_TOLERANCE, Linearization, LinearizationError, _Evaluator, _eigenvalues,
-                        _numeric, _residual, _solve)
+                        _numeric, _residual, _solve, checked_inputs, parameter_defaults,
+                        parameter_numbers)
 from .symbols import TIME
 
 
@@ -110,21 +111,12 @@ def linearize_implicit(system: KnownSystem, *, inputs: Sequence[sympy.Symbol] = 
                                  "dependent coordinates are found by Newton's method)\n  hint: leave out "
                                  "--symbolic, or write the subspace in parametric form (eq. 26)")
     point, values, initial = dict(point or {}), dict(values or {}), dict(initial or {})
-    inputs = tuple(inputs)
+    inputs = checked_inputs(system, inputs)
     q, qd = list(system.coordinates), list(system.velocities)
     n = len(q)
-    known = {p.symbol for p in system.parameters}
-    for u in inputs:
-        if u not in known:
-            raise LinearizationError(f"input '{u}' is not a parameter of {system.name}")
     t0 = sympy.sympify(point.pop(TIME, 0))
-    defaults = {p.symbol: p.value for p in system.parameters if p.value is not None}
-    numbers, missing = {}, []
-    for p in system.parameters:
-        given = values.get(p.symbol, defaults.get(p.symbol))
-        numbers[p.symbol] = _numeric(given, {}) if given is not None else float("nan")
-        if not np.isfinite(numbers[p.symbol]):
-            missing.append(p.name)
+    numbers, missing = parameter_numbers(system, values)
+    defaults = parameter_defaults(system)
     if missing:
         raise LinearizationError("no value for parameter" + ("s " if len(missing) > 1 else " ")
                                  + ", ".join(missing) + "; give it with --at NAME=VALUE")

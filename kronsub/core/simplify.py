@@ -26,7 +26,7 @@ import sympy
 
 from .inverse_trig import divide_out
 from . import trigpoly
-from .trigpoly import TrigAlgebra, TrigPoly, _common_monomial
+from .trigpoly import TrigAlgebra, TrigPoly, _coef_add_into, _common_monomial
 
 COS, SIN = 0, 1
 SMALL = 40
@@ -252,7 +252,7 @@ def _products(view: "_View", p: TrigPoly) -> sympy.Expr:
         for mono, (re, im) in expansion.items():
             n = re if kind == COS else im
             if n:
-                _add_into(poly.setdefault(mono, {}), coef, n)
+                _coef_add_into(poly.setdefault(mono, {}), coef, n)
     coordinates = sorted({i for mono in poly for i, _, _ in mono})
     chosen: dict[int, int] = {}
     for i in coordinates:
@@ -295,7 +295,7 @@ def _reduce_products(poly: dict, chosen: dict[int, int]) -> dict:
             terms = {t + ((i, x, y),): n * m for t, n in terms.items() for (x, y), m in single.items()}
         for t, n in terms.items():
             key = tuple(e for e in t if e[1] or e[2])
-            _add_into(out.setdefault(key, {}), coef, n)
+            _coef_add_into(out.setdefault(key, {}), coef, n)
     return {k: v for k, v in out.items() if v}
 
 
@@ -401,7 +401,7 @@ class _View:
                 if (kind, k) in kept:
                     continue
                 for m, n in _reduced(_chebyshev(kind, k), variant).items():
-                    _add_into(poly.setdefault(m, {}), coef, n)
+                    _coef_add_into(poly.setdefault(m, {}), coef, n)
             s, c = algebra.trig_expr(SIN, base), algebra.trig_expr(COS, base)
             for (i, j), coef in sorted(poly.items()):
                 if coef:
@@ -470,15 +470,6 @@ def _collapse(coef: dict, c: int, s: int, keep: int) -> dict:
         else:
             out[mono] = out.get(mono, 0) + n
     return {m: n for m, n in out.items() if n}
-
-
-def _add_into(target: dict, src: dict, scale) -> None:
-    for m, n in src.items():
-        v = target.get(m, 0) + scale * n
-        if v:
-            target[m] = v
-        else:
-            target.pop(m, None)
 
 
 def _divide(mono, common):
