@@ -36,12 +36,25 @@ FACTORED = 60
 of multiple angles or varying factors only: ``(a1 sin(theta) - c)^2`` in System II)."""
 
 
+ATOM_SYMBOLS = 24
+"""Free symbols up to which an entry with trigonometric atoms is offered to ``trigsimp``
+(whose ``factor`` grows steeply with them)."""
+
+
 def compact(algebra: TrigAlgebra, p: TrigPoly) -> sympy.Expr:
     """The shortest of a few equivalent forms of ``p`` (deterministic).
 
     Shortest by ``sympy.count_ops``, ties broken by the printed length, so that
     ``2*l**2*m*sin(alpha)**2`` wins over ``l**2*m*(1 - cos(2*alpha))``.
     """
+    memo = algebra.__dict__.setdefault("_compacted", {}) if hasattr(algebra, "__dict__") else {}
+    key = p.key()
+    if key not in memo:
+        memo[key] = _compact(algebra, p)
+    return memo[key]
+
+
+def _compact(algebra: TrigAlgebra, p: TrigPoly) -> sympy.Expr:
     p = divide_out(algebra, p)
     expr = algebra.to_expr(p)
     view = _view(algebra)
@@ -102,10 +115,11 @@ def _atom_angles(algebra: TrigAlgebra, p: TrigPoly, best: sympy.Expr) -> sympy.E
     """Sines and cosines the algebra holds as atoms (of an argument not a rational
     combination of coordinates, a gear's ``alpha/n``) miss the product-to-sum identities
     as products are formed; a small entry with them is also offered to ``trigsimp``."""
-    if not any(isinstance(a, (sympy.sin, sympy.cos)) for a in algebra.atoms_of(p)):
-        return best
-    if sympy.count_ops(best) > FACTORED:
-        return best
+    coordinates = set(algebra.coordinates)
+    held = [a for a in algebra.atoms_of(p)
+            if isinstance(a, (sympy.sin, sympy.cos)) and a.args[0].free_symbols & coordinates]
+    if not held or sympy.count_ops(best) > FACTORED or len(best.free_symbols) > ATOM_SYMBOLS:
+        return best  # sin(t), cos(pi/7): no identity of a coordinate; many symbols: factor's cost
     candidate = sympy.trigsimp(best)
     return candidate if _key(candidate) < _key(best) else best
 
