@@ -211,6 +211,19 @@ def test_plot_writes_a_png(tmp_path):
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
+def test_plot_title_is_text_not_mathtext(tmp_path):
+    """A model named like broken mathtext is printed as it is: no parse error, no lost plot."""
+    pytest.importorskip("matplotlib")
+    text = (MODELS / "hoffmann" / "system1.yaml").read_text()
+    model = tmp_path / "dollars.yaml"
+    model.write_text("\n".join(ln for ln in text.splitlines() if not ln.startswith("name:"))
+                     + "\nname: '$\\frac{a}{ cost 5$ ^_'\n")
+    png = tmp_path / "traj.png"
+    result = run_cli(model, "--t", "0.2", "--dt", "0.05", "--plot", png, "--output", tmp_path / "t.csv")
+    assert result.exit_code == 0, result.output
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
 def test_heyoka_method_agrees_with_dop853():
     pytest.importorskip("heyoka")
     a = run_cli(MODELS / "hoffmann" / "system1.yaml", "--t", "1", "--dt", "0.5", "--method", "heyoka",

@@ -503,7 +503,7 @@ def plot(wp: WorkPrecision, path, target: float | None = None) -> None:
         ax.axhline(target, color="red", linestyle="--", label=f"target {target:.2g}")
     ax.set_xlabel("integration time [ms]")
     ax.set_ylabel(f"max |error| at t = {wp.t_end:g}")
-    ax.set_title(f"Work-precision: {wp.system}")
+    ax.set_title(f"Work-precision: {wp.system}", parse_math=False)  # a name is text, never mathtext
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize="small")
     fig.tight_layout()

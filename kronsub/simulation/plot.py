@@ -86,7 +86,7 @@ def plot_trajectory(system, traj, values, path: Path, with_points: bool = False)
         ax.set_ylabel("height")
         ax.set_title("paths of the named points", fontsize="small")
         ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize="small", borderaxespad=0)
-    fig.suptitle(f"{system.name} ({traj.method})")
+    fig.suptitle(f"{system.name} ({traj.method})", parse_math=False)  # a name is text, never mathtext
     save_figure(fig, path, "png")
 
 
