@@ -125,6 +125,17 @@ def test_points_fixed_in_a_body_take_forces(tmp_path):
     assert "rod.quarter" in system.points
 
 
+def test_system1_rod_ends_are_the_hinge_and_the_free_end():
+    """System I's lower rod, `axis: down`: its end a is the upper rod's tip A' (2 a1 from O),
+    its end b lies 2 a2 further along the angle phi from the downward vertical (Fig. 1)."""
+    system = kronsub.load(MODELS / "hoffmann" / "system1.yaml").derive()
+    a1, a2, theta, phi = (sympy.Symbol(n, real=True) for n in ("a1", "a2", "theta", "phi"))
+    tip = (2 * a1 * sympy.sin(theta), -2 * a1 * sympy.cos(theta))
+    end = (tip[0] + 2 * a2 * sympy.sin(phi), tip[1] - 2 * a2 * sympy.cos(phi))
+    for name, where in (("lower.a", tip), ("lower.hinge", tip), ("lower.b", end), ("lower.end", end)):
+        assert all(sympy.simplify(u - v) == 0 for u, v in zip(system.points[name], where)), name
+
+
 def test_points_need_a_rigid_body(tmp_path):
     path = tmp_path / "m.yaml"
     path.write_text("name: p\nparameters: {m: 1}\ncomponents:\n  p:\n    type: particle2d\n"

@@ -8,7 +8,7 @@ from __future__ import annotations
 import sympy
 from sympy import Rational, cos, sin
 
-from .base import Body, Component, ParameterSpec, rotation2
+from .base import Body, Component, OptionSpec, ParameterSpec, rotation2
 
 MASS = ParameterSpec("mass", "mass of the body", unit="kg")
 
@@ -45,16 +45,25 @@ class PlanarBody(Component):
 
 
 class Rod(PlanarBody):
-    """A rod along its body x axis, ends ``a`` (at -length/2) and ``b`` (at +length/2)."""
+    """A rod, ends ``a`` (at -length/2 along its axis) and ``b`` (at +length/2).
+
+    Its axis is the body x axis, so ``angle`` is the axis' angle from the world x axis; with
+    ``axis: down`` it is the body -y axis, so ``angle`` is measured from the downward vertical
+    as a ``pinned_rod``'s (Hoffmann's System I): ``a`` is then the upper end at rest.
+    """
 
     type_name = "rod"
     summary = "planar rod (x, y of its centre, angle of its axis); ends a, b"
     parameters = (MASS, ParameterSpec("length", "length", unit="m"),
                   ParameterSpec("inertia", "moment of inertia about the centre", "mass*length**2/12", "kg m^2"))
+    options = (OptionSpec("axis", "the rod's axis in its body frame: body x (its angle from the world x axis) "
+                                  "or down, body -y (its angle from the downward vertical)", ("x", "down")),)
 
     def body_points(self):
         h = self.p["length"] / 2
         z = sympy.Integer(0)
+        if self.choices.get("axis", "x") == "down":
+            return {"centre": (z, z), "a": (z, h), "b": (z, -h)}
         return {"centre": (z, z), "a": (-h, z), "b": (h, z)}
 
 
