@@ -120,15 +120,54 @@ FU_OPS = 40
 II's 70-operation ``hbar`` in a full run (seconds alone: it depends on sympy's caches)."""
 
 
-def _yardsticks(expr):
+YARDSTICKS = ROOT / "tests" / "data" / "yardsticks.json"
+"""The yardsticks of the entries printed when it was written (``python tests/data/yardsticks.py``
+rewrites it), keyed by model, label and printed text, for the sympy version that measured them.
+An entry printed otherwise, or another sympy, is measured afresh: the file only saves time."""
+
+
+def _stored_yardsticks() -> dict:
+    import json
+
+    if not YARDSTICKS.is_file():
+        return {}
+    data = json.loads(YARDSTICKS.read_text(encoding="utf-8"))
+    return data["entries"] if data.get("sympy") == sympy.__version__ else {}
+
+
+_STORED = _stored_yardsticks()
+
+
+def yardstick_key(name: str, label: str, text: str) -> str:
+    return f"{name} {label} {text}"
+
+
+def _yardsticks(expr, key: str | None = None):
+    if key is not None and key in _STORED:
+        return tuple(_STORED[key])
     trig = sympy.count_ops(sympy.trigsimp(expr))
     return trig, (sympy.count_ops(sympy.fu(expr)) if sympy.count_ops(expr) <= FU_OPS else trig)
 
 
-@pytest.mark.parametrize("name", PARSEABLE + ["disc_on_incline.yaml"])
+def measured_yardsticks(name: str) -> dict:
+    """``{key: (trigsimp ops, fu ops)}`` of the model's entries the test measures, afresh."""
+    _, report, names = printed(name)
+    out = {}
+    for label, text in entries(report):
+        expr = parse_expression(text, names)
+        if sympy.count_ops(expr) <= YARDSTICK_OPS:
+            out[yardstick_key(name, label, text)] = list(_yardsticks(expr))
+    return out
+
+
+YARDSTICK_MODELS = PARSEABLE + ["disc_on_incline.yaml"]
+
+
+@pytest.mark.parametrize("name", YARDSTICK_MODELS)
 def test_no_printed_entry_is_shortened_by_sympys_simplifiers(name):
     """The printed entry (named subexpressions as the names they are printed as) against
-    ``sympy.trigsimp`` and ``sympy.fu`` of it."""
+    ``sympy.trigsimp`` and ``sympy.fu`` of it (as stored in ``tests/data/yardsticks.json`` for
+    this very text and sympy version, else measured now)."""
     _, report, names = printed(name)
     checked = 0
     for label, text in entries(report):
@@ -136,7 +175,7 @@ def test_no_printed_entry_is_shortened_by_sympys_simplifiers(name):
         ops = sympy.count_ops(expr)
         if ops > YARDSTICK_OPS:
             continue  # fu factorises: on a large entry it runs for minutes (the next test still applies)
-        trig, fu = _yardsticks(expr)
+        trig, fu = _yardsticks(expr, yardstick_key(name, label, text))
         assert ops <= min(trig, fu), f"{name} {label}: {text} ({ops} ops; trigsimp {trig}, fu {fu})"
         checked += 1
     assert checked, f"{name}: no entry small enough for the yardsticks"
