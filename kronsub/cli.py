@@ -273,6 +273,7 @@ def simulate(model: Path, t_end: float | None, dt: float | None, method: str | N
     its metadata JSON (--meta, or beside --output)."""
     from .model.scenes import initial_values
     from .simulation.run import METHODS, SimulationError, collect, row_count, start
+    from .model.loader import model_files
     from .simulation.table import CsvWriter, file_sha256, metadata_json, sidecar_path, trajectory_csv
     from .simulation.values import parse_assignments, resolve
 
@@ -315,7 +316,8 @@ def simulate(model: Path, t_end: float | None, dt: float | None, method: str | N
                     outputs=outputs, constrained=constrained)
         kept = [] if plot is not None or with_reactions else None
         run_info = dict(t_end=span, dt=step, scene=scene.name if scene is not None else None,
-                        model_sha256=file_sha256(model))
+                        model_sha256=file_sha256(model),
+                        model_uses=tuple((str(f), file_sha256(f)) for f in model_files(model)))
 
         def stream(out):
             """Write the CSV; what is returned tells ``rows``, ``last_t``, ``stopped`` and the metadata."""

@@ -5,6 +5,7 @@ from __future__ import annotations
 import csv
 import io
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -143,3 +144,24 @@ def test_sidecar_names():
     assert sidecar_path(Path("d/out.CSV")) == Path("d/out.json")
     assert sidecar_path(Path("out.txt")) == Path("out.txt.json")
     assert sidecar_path(Path("out.json")) == Path("out.json.json")
+
+
+def test_the_sidecar_hashes_the_model_files_a_model_uses(tmp_path):
+    """A model built on a known system: the run depends on both files, so both are hashed."""
+    import hashlib
+    import shutil
+
+    shutil.copy(SYSTEM1, tmp_path / "system1.yaml")
+    (tmp_path / "outer.yaml").write_text(
+        "name: outer\ncomponents:\n  sys1: {model: system1.yaml}\ncoordinates: [theta, phi]\n")
+    (tmp_path / "outer2.yaml").write_text(
+        "name: outer2\ncomponents:\n  o: {model: outer.yaml}\ncoordinates: [theta, phi]\n")
+    out = tmp_path / "run.csv"
+    result = CliRunner().invoke(main, ["simulate", str(tmp_path / "outer2.yaml"), "--t", "0.02", "-o", str(out)])
+    assert result.exit_code == 0, result.output
+    meta = json.loads(sidecar_path(out).read_text())
+    uses = meta["model"]["uses"]
+    assert [Path(u["file"]).name for u in uses] == ["outer.yaml", "system1.yaml"]
+    for u in uses:
+        assert u["sha256"] == hashlib.sha256(Path(u["file"]).read_bytes()).hexdigest()
+

@@ -73,6 +73,30 @@ def model_key(path: Path, stack: tuple[str, ...] = ()) -> str:
     return content_key(derivation_text(root, text), *subs)
 
 
+def model_files(path: Path, stack: tuple[str, ...] = ()) -> list[Path]:
+    """The model files a model uses as components (``model:``), recursively, each once, in the
+    order they are named; the model's own file is not among them. Unreadable ones are left out
+    (loading the model reports them)."""
+    resolved = _resolved(path)
+    if resolved in stack:
+        return []
+    try:
+        root = load_yaml(path, read_model_text(path))
+    except ModelError:
+        return []
+    out: list[Path] = []
+    comps = root.get("components")
+    if comps is not None and comps.is_mapping:
+        for spec in comps.value.values():
+            mnode = spec.get("model") if spec.is_mapping else None
+            if mnode is not None and isinstance(mnode.value, str) and mnode.value:
+                sub_path = path.parent / mnode.value
+                for found in [sub_path, *model_files(sub_path, stack + (resolved,))]:
+                    if found.is_file() and _resolved(found) not in {_resolved(p) for p in out}:
+                        out.append(found)
+    return out
+
+
 def derivation_text(root: Node, text: str) -> str:
     """The text a derivation depends on: the file without its ``scenes:`` section, so
     editing a scene keeps the cached inertia and effects that every scene shares."""

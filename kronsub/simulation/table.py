@@ -8,7 +8,8 @@ named points. Every number is written in its shortest round-trip form
 gives back the very double computed. No comment lines: ``numpy.genfromtxt``,
 ``csv.DictReader`` and ``pandas.read_csv`` read it without options.
 
-Everything else (the model and its hash, method, tolerances, parameter values,
+Everything else (the model and its hash, with those of the model files it uses as known
+systems, method, tolerances, parameter values,
 initial state, integration cost, complete or where it stopped) goes in the
 metadata (:meth:`CsvWriter.metadata`), which the command line writes as JSON
 beside the CSV (:func:`sidecar_path`). Rows are written block by block as the
@@ -140,7 +141,8 @@ class CsvWriter:
     def __init__(self, out, system: KnownSystem, model_path: str, values: RunValues, method: str,
                  backend: str, rtol: float, atol: float, with_points: bool = False, outputs=None, *,
                  t_end: float | None = None, dt: float | None = None, scene: str | None = None,
-                 model_sha256: str | None = None, extra_columns: tuple[str, ...] = ()):
+                 model_sha256: str | None = None, extra_columns: tuple[str, ...] = (),
+                 model_uses: tuple[tuple[str, str | None], ...] = ()):
         """``outputs`` (a scene's; None: everything) choose the columns (and the points);
         ``extra_columns`` are appended (their values passed to :meth:`block`)."""
         self.out, self.system, self.outputs = out, system, outputs
@@ -164,6 +166,8 @@ class CsvWriter:
         self.columns = columns
         self._meta = self._start_metadata(model_path, values, method, backend, rtol, atol, t_end, dt, scene,
                                           model_sha256)
+        if model_uses:  # the known systems' model files: the run depends on their text too
+            self._meta["model"]["uses"] = [{"file": f, "sha256": sha} for f, sha in model_uses]
         out.write(",".join(columns) + "\n")
 
     def _start_metadata(self, model_path, values, method, backend, rtol, atol, t_end, dt, scene, sha) -> dict:
