@@ -97,3 +97,15 @@ def test_reactions_need_forces_on_the_primitive(tmp_path):
     assert result.exit_code == 1
     assert "'spring', 'drag', 'drive' are written in generalized coordinates" in result.output
     assert "Traceback" not in result.output
+
+
+@pytest.mark.parametrize("fmt,mark", [("markdown", "spring"), ("latex", r"\texttt{spring}")])
+def test_the_report_names_the_effects_applied_in_the_subspace(tmp_path, fmt, mark):
+    """Markdown and LaTeX both say which effects act in the subspace (they have no primitive force)."""
+    path = tmp_path / "m.yaml"
+    path.write_text(PENDULUM.replace("ANGLE", "q"))
+    result = CliRunner().invoke(main, ["derive", str(path), "--format", fmt, "--no-cache"])
+    assert result.exit_code == 0, result.output
+    line = " ".join(result.output.split("applied directly in the subspace")[1].split("\n")[:3])
+    for name in ("spring", "drag", "drive"):
+        assert mark.replace("spring", name) in line, (fmt, line)
