@@ -30,7 +30,7 @@ from .native import compile_library
 from .reference import Unsupported, _Tape
 
 MIN_ORDER, MAX_ORDER = 4, 40
-UNROLL_TERMS = 30_000  # unroll every order while the convolutions have at most this many products
+UNROLL_TERMS = 1_200  # unroll every order while the convolutions have at most this many products (gcc -O2 time)
 _INTEGRALS = {"atan": "atan", "asin": "asin", "acos": "acos"}
 STATUS = {0: "", 1: "the mass matrix is not positive definite, or the state became NaN or infinite",
           4: "the step limit was reached", 6: "bad arguments"}
