@@ -7,13 +7,17 @@ differentiation, ``Mbar_0 x_k = r_k - sum_{j>=1} Mbar_j x_{k-j}`` solved by ``L 
 
 The order ``N = ceil(ln(1/tol) / 2) + 1`` is a compile-time constant: one library per order
 used. Operations on parameters and constants alone are computed once per call, and a product
-with such a factor costs one multiplication per order instead of a convolution. Small systems
-get every order unrolled, the convolutions written as pairwise sums (independent products gcc
-can overlap); large ones loop over the orders with a four-accumulator convolution. The step
-``h = rho / e^2 exp(-0.7 / (N - 1))``, ``rho = min_{k = N-1, N} (max(1, |y|) / |y_k|)^(1/k)``, is
-Jorba and Zou's choice, as heyoka makes it; the states at the requested output times come from
-the step's polynomial (dense output at no extra evaluation). Parameters stay run-time inputs.
-Plain C99 with libc and libm, in ``double``; no allocation per step.
+with such a factor costs one multiplication per order instead of a convolution; ``1/D`` and
+``1/k`` are multiplications. Small systems at low orders get every order written out, the
+convolutions as pairwise sums; otherwise the orders are a loop over a four-accumulator
+convolution (as fast here, and much quicker to compile). The step is
+``h = rho tol^(1/(N-1)) exp(-0.7 / (N - 1))``, ``rho = min_{k = N-1, N} (max(1, |y|) / |y_k|)^(1/k)``:
+Jorba and Zou's ``rho / e^2 exp(-0.7 / (N - 1))`` (heyoka's) when ``tol = e^(-2 (N - 1))``, and
+between two orders a step that still keeps ``(h / rho)^N`` below ``tol``. The states at the
+requested output times come from the step's polynomial (dense output at no extra evaluation).
+Parameters stay run-time inputs. Plain C99 with libc and libm, in ``double``; no allocation per
+step (large systems allocate their coefficients once per call). Systems with implicit
+constraints are refused (:class:`TaylorUnavailable`).
 """
 from __future__ import annotations
 
