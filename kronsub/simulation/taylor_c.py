@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import ctypes
 import math
+import re
 
 import mpmath
 import numpy as np
@@ -34,7 +35,7 @@ from .native import compile_library
 from .reference import Unsupported, _Tape
 
 MIN_ORDER, MAX_ORDER = 4, 40
-UNROLL_TERMS = 600  # unroll every order while the convolutions have at most this many products (gcc -O2 time)
+UNROLL_TERMS = 2_500  # write every order out while products + statements stay below this (gcc's time)
 _INTEGRALS = {"atan": "atan", "asin": "asin", "acos": "acos"}
 STATUS = {0: "", 1: "the mass matrix is not positive definite, or the state became NaN or infinite",
           4: "the step limit was reached", 6: "bad arguments"}
@@ -93,14 +94,22 @@ class _Emitter:
                 self.var.append(False)
             else:
                 self.var.append(any(self.var[a] for a in args))
+        self.needed = set()  # the nodes Mbar and fbar - hbar depend on
+        stack = [x for row in self.M for x in row] + list(self.r)
+        while stack:
+            i = stack.pop()
+            if i not in self.needed:
+                self.needed.add(i)
+                stack.extend(self.nodes[i][1])
         # derivative arrays d_j = j a_j of the nodes whose recurrences need them
         self.scaled = set()
         for kind, args, _ in self.nodes:
-            if kind in ("sincos", "exp", "integral", "pow") and self.var[args[0]]:
+            if kind in ("sincos", "exp", "integral", "pow") and self.var[args[0]] and args[0] in self.needed:
                 self.scaled.add(args[0])
         terms = sum(1 for kind, args, _ in self.nodes if kind in ("mul", "sincos", "exp", "log", "pow", "integral")
                     and self.var[args[0]]) + sum(1 for row in self.M for x in row if self.var[x])
-        self.unrolled = terms * order * order // 2 <= UNROLL_TERMS
+        statements = sum(1 for i in self.needed if self.var[i]) * order
+        self.unrolled = terms * order * order // 2 + statements <= UNROLL_TERMS
 
     # names -------------------------------------------------------------------------------
 
@@ -222,7 +231,7 @@ class _Emitter:
         n, N, nodes = self.n, self.N, self.nodes
         consts, arrays = [], []
         for i, (kind, args, _) in enumerate(nodes):
-            if kind == "state" or (kind in ("sin", "cos") and self.var[i]):
+            if kind == "state" or (kind in ("sin", "cos") and self.var[i]) or i not in self.needed:
                 continue
             if not self.var[i]:
                 consts += [f"s{i}", f"c{i}"] if kind == "sincos" else [f"c{i}"]
@@ -231,21 +240,21 @@ class _Emitter:
             else:
                 arrays.append(f"v{i}")
         arrays += [f"d{i}" for i in sorted(self.scaled | {i for i, (kind, _, _) in enumerate(nodes)
-                                                          if kind == "log" and self.var[i]})]
+                                                          if kind == "log" and self.var[i] and i in self.needed})]
         arrays += [f"Y{j}" for j in range(2 * n)] + [f"X{a}" for a in range(n)]
         prologue = []
         for i, (kind, args, data) in enumerate(nodes):
-            if not self.var[i]:
+            if not self.var[i] and i in self.needed:
                 prologue += self.first(i, "c")
         step = []  # order 0, then 1 .. N - 1
 
         def emit_order(k) -> list[str]:
             lines = []
             for i in range(len(nodes)):
-                if not self.var[i]:
+                if not self.var[i] or i not in self.needed:
                     continue
                 lines += self.first(i, "v") if k == 0 else self.coefficient(i, k)
-                if i in self.scaled or (nodes[i][0] == "log" and self.var[i]):
+                if i in self.scaled or nodes[i][0] == "log":
                     lines.append(f"d{i}[{k}] = {k} * {self.name(i)}[{k}];" if k != 0 else f"d{i}[0] = 0.0;")
             return lines
 
@@ -277,8 +286,9 @@ class _Emitter:
                 for b in range(a + 1, n):
                     lines.append(f"X{a}[{k}] -= L{b}_{a} * X{b}[{k}];")
             inv = _literal(mpmath.mpf(1) / (k + 1)) if isinstance(k, int) else "ks_inv[k + 1]"
+            k1 = k + 1 if isinstance(k, int) else "k + 1"
             for a in range(n):
-                lines.append(f"Y{a}[{k} + 1] = {inv} * Y{n + a}[{k}]; Y{n + a}[{k} + 1] = {inv} * X{a}[{k}];")
+                lines.append(f"Y{a}[{k1}] = {inv} * Y{n + a}[{k}]; Y{n + a}[{k1}] = {inv} * X{a}[{k}];")
             return lines
 
         step += emit_order(0) + solve(0)
@@ -296,22 +306,51 @@ class _Emitter:
             decl.append("double " + ", ".join(consts) + ";")
         if ldl:
             decl.append("double " + ", ".join(f"{x} = 0" for x in ldl) + ";")
-        if self.unrolled:
-            storage = [f"double {x}[TN_ORDER + 1];" for x in arrays]
-            zero = [f"memset({x}, 0, sizeof {x});" for x in arrays]
+        ny = 2 * n
+        if self.unrolled:  # every coefficient a scalar Y0_3 (registers, no store-to-load chains)
+            pattern = re.compile(r"\b(" + "|".join(arrays) + r")\[(\d+)\]")
+            step = [pattern.sub(lambda m: f"{m[1]}_{m[2]}", line) for line in step]
+            used = set(re.findall(r"\b(?:" + "|".join(arrays) + r")_\d+\b", "\n".join(step)))
+            scalars = sorted(used | {f"Y{j}_{k}" for j in range(ny) for k in range(N + 1)},
+                             key=lambda x: (x[0], [int(p) for p in re.findall(r"\d+", x)]))
+            storage = ["double " + ", ".join(scalars) + ";"]
+            zero = []
+            consts_void = scalars
+            load = " ".join(f"Y{j}_0 = y[{j}];" for j in range(ny))
+            sizes = "\n        ".join(f"if (fabs(Y{j}_{N - 1 + e}) > size[{e}]) size[{e}] = fabs(Y{j}_{N - 1 + e});"
+                                      for j in range(ny) for e in (0, 1))
+
+            def horner(tau: str, out: str) -> str:
+                def poly(j):
+                    text = f"Y{j}_{N}"
+                    for k in range(N - 1, -1, -1):
+                        text = f"({text} * {tau} + Y{j}_{k})" if k else f"{text} * {tau} + Y{j}_0"
+                    return text
+                return " ".join(f"{out}[{j}] = {poly(j)};" for j in range(ny))
+
+            dense = "{ double tau = t_out[row] - t, *o = y_out + row * TN_NY; " + horner("tau", "o") + " }"
+            advance = horner("h", "y")
+            helpers = ""
         else:
             storage = ["double *W = calloc((size_t)" + str(len(arrays)) + " * (TN_ORDER + 1), sizeof(double));"]
             storage += [f"double *{x} = W + {j} * (TN_ORDER + 1);" for j, x in enumerate(arrays)]
+            storage += ["double *Y[TN_NY] = {" + ", ".join(f"Y{j}" for j in range(ny)) + "};"]
             zero = ["if (W == NULL) return 1;"]
-        inverses = ", ".join(["0.0"] + [_literal(mpmath.mpf(1) / k) for k in range(1, N + 2)])
+            consts_void = arrays
+            load = "for (i = 0; i < TN_NY; ++i) Y[i][0] = y[i];"
+            sizes = ("for (i = 0; i < TN_NY; ++i) {\n"
+                     "            if (fabs(Y[i][TN_ORDER - 1]) > size[0]) size[0] = fabs(Y[i][TN_ORDER - 1]);\n"
+                     "            if (fabs(Y[i][TN_ORDER]) > size[1]) size[1] = fabs(Y[i][TN_ORDER]);\n"
+                     "        }")
+            dense = "ks_horner(Y, t_out[row] - t, y_out + row * TN_NY);"
+            advance = "ks_horner(Y, h, y);"
+            inverses = ", ".join(["0.0"] + [_literal(mpmath.mpf(1) / k) for k in range(1, N + 2)])
+            helpers = CONV + "\nstatic const double ks_inv[TN_ORDER + 2] = {" + inverses + "};  /* 1 / k */\n"
         text = TEMPLATE.format(
-            name=name.replace("*/", "* /"), n=n, ny=2 * n, order=N,
-            decl="\n    ".join(decl + storage),
-            zero="\n    ".join(zero + [f"(void){x};" for x in arrays + consts]),
-            prologue="\n    ".join(prologue), conv="" if self.unrolled else CONV + (
-                "\nstatic const double ks_inv[TN_ORDER + 2] = {" + inverses + "};  /* 1 / k */\n"),
-            step="\n            ".join(step), Y=", ".join(f"Y{j}" for j in range(2 * n)),
-            free="free(W);" if not self.unrolled else "")
+            name=name.replace("*/", "* /"), n=n, ny=ny, order=N, decl="\n    ".join(decl + storage),
+            zero="\n    ".join(zero + [f"(void){x};" for x in consts_void + consts]),
+            prologue="\n    ".join(prologue), helpers=helpers, load=load, sizes=sizes, dense=dense,
+            advance=advance, step="\n            ".join(step), free="free(W);" if not self.unrolled else "")
         return text
 
 
@@ -319,23 +358,10 @@ TEMPLATE = r"""/* A Taylor integrator of order {order} generated by kronsub for 
    see kronsub/simulation/taylor_c.py. */
 #include <math.h>
 #include <stdlib.h>
-#include <string.h>
 
 #define TN_ORDER {order}
 #define TN_NY {ny}
-
-/* out_i = sum_k Y_i[k] tau^k, the components side by side (independent chains) */
-static void ks_horner(double *const *Y, double tau, double *out)
-{{
-    double s[TN_NY];
-    int i, k;
-    for (i = 0; i < TN_NY; ++i) s[i] = Y[i][TN_ORDER];
-    for (k = TN_ORDER - 1; k >= 0; --k)
-        for (i = 0; i < TN_NY; ++i) s[i] = s[i] * tau + Y[i][k];
-    for (i = 0; i < TN_NY; ++i) out[i] = s[i];
-}}
-
-{conv}
+{helpers}
 /* Integrate y' = [qdot; Mbar^-1 (fbar - hbar)] from y0 at t0 through the n_out increasing times
    t_out (>= t0), writing the state at each into rows of y_out. counts: [steps, rows written];
    t_last: the time of the last state reached.
@@ -349,16 +375,11 @@ int ks_taylor(const double *param, double t0, const double *y0, long n_out, cons
     /* h = rho tol^(1/(N-1)) exp(-0.7 / (N - 1)): Jorba and Zou's rho / e^2 exp(-0.7 / (N - 1)) when
        tol = e^(-2 (N - 1)), taking the tolerance between two orders into account (tol <= 0: e^-2) */
     const double factor = exp(((tol > 0 ? log(tol) : -2.0 * (TN_ORDER - 1)) - 0.7) / (TN_ORDER - 1));
-    double *Y[TN_NY];
     int i, k, status = 0;
     long steps = 0, row = 0;
     {zero}
     (void)k;
     (void)param;
-    {{
-        double *ys[TN_NY] = {{{Y}}};
-        for (i = 0; i < TN_NY; ++i) Y[i] = ys[i];
-    }}
     counts[0] = counts[1] = 0;
     *t_last = t0;
     if (n_out < 1 || !(t_out[0] >= t0)) {{ {free} return 6; }}
@@ -369,28 +390,26 @@ int ks_taylor(const double *param, double t0, const double *y0, long n_out, cons
         ++row;
     }}
     while (row < n_out) {{
-        double h = -1, scale = 1, size, t_end = t_out[n_out - 1];
+        double h = -1, scale = 1, size[2] = {{0, 0}}, t_end = t_out[n_out - 1];
         if (max_steps > 0 && steps >= max_steps) {{ status = 4; break; }}
-        for (i = 0; i < TN_NY; ++i) Y[i][0] = y[i];
+        {load}
         {{
             {step}
         }}
         for (i = 0; i < TN_NY; ++i) if (fabs(y[i]) > scale) scale = fabs(y[i]);
-        for (k = TN_ORDER - 1; k <= TN_ORDER; ++k) {{  /* rho = min_k (max(1, |y|) / |y_k|)^(1/k) */
-            size = 0;
-            for (i = 0; i < TN_NY; ++i) if (fabs(Y[i][k]) > size) size = fabs(Y[i][k]);
-            if (size > 0) {{
-                double hk = pow(scale / size, 1.0 / k);
+        {sizes}
+        for (k = 0; k < 2; ++k)  /* rho = min_k (max(1, |y|) / |y_k|)^(1/k), k = N - 1, N */
+            if (size[k] > 0) {{
+                double hk = pow(scale / size[k], 1.0 / (TN_ORDER - 1 + k));
                 if (h < 0 || hk < h) h = hk;
             }}
-        }}
         if (h > 0) h *= factor;
         if (h < 0 || t + h >= t_end) h = t_end - t;
         while (row < n_out && t_out[row] < t + h) {{  /* dense output: the step's polynomial */
-            ks_horner(Y, t_out[row] - t, y_out + row * TN_NY);
+            {dense}
             ++row;
         }}
-        ks_horner(Y, h, y);
+        {advance}
         t = (t + h >= t_end) ? t_end : t + h;
         ++steps;
         for (i = 0; i < TN_NY; ++i) if (!isfinite(y[i])) {{ status = 1; goto done; }}
@@ -410,6 +429,17 @@ done:
 
 
 CONV = r"""
+/* out_i = sum_k Y_i[k] tau^k, the components side by side (independent chains) */
+static void ks_horner(double *const *Y, double tau, double *out)
+{
+    double s[TN_NY];
+    int i, k;
+    for (i = 0; i < TN_NY; ++i) s[i] = Y[i][TN_ORDER];
+    for (k = TN_ORDER - 1; k >= 0; --k)
+        for (i = 0; i < TN_NY; ++i) s[i] = s[i] * tau + Y[i][k];
+    for (i = 0; i < TN_NY; ++i) out[i] = s[i];
+}
+
 static double ks_conv(const double *restrict a, const double *restrict b, int lo, int hi, int k)
 {
     double s0 = 0, s1 = 0, s2 = 0, s3 = 0;
