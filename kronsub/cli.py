@@ -272,7 +272,7 @@ def simulate(model: Path, t_end: float | None, dt: float | None, method: str | N
     """Simulate MODEL from t = 0 to --t; the trajectory is plain CSV (a header row, then numbers),
     its metadata JSON (--meta, or beside --output)."""
     from .model.scenes import initial_values
-    from .simulation.run import METHODS, SimulationError, collect, row_count, start
+    from .simulation.run import METHODS, SimulationError, collect, explicit_only, row_count, start
     from .simulation.table import CsvWriter, file_sha256, metadata_json, sidecar_path, trajectory_csv
     from .simulation.values import parse_assignments, resolve
 
@@ -297,6 +297,10 @@ def simulate(model: Path, t_end: float | None, dt: float | None, method: str | N
             row_count(span, step)
         except SimulationError as exc:
             _fail(f"Error: {exc}", USAGE_ERROR)
+        try:  # before the initial values are projected onto the constraints
+            explicit_only(system, _pick(method, scene and scene.method, "dop853"))
+        except SimulationError as exc:
+            _fail(f"Error: {exc}")
         initial = initial_values(loaded, scene)
         assignments = parse_assignments(settings)
         constrained = None

@@ -191,6 +191,14 @@ def collect(run: Run, blocks: list[Block], nq: int) -> Trajectory:
                       run.y_fail, dependent)
 
 
+def explicit_only(system: KnownSystem, method: str) -> None:
+    """Raise :class:`SimulationError` when ``method`` needs explicit equations (a Taylor series) and
+    ``system`` has implicit constraints."""
+    if system.implicit is not None and method in ("heyoka", "taylor"):
+        raise SimulationError(f"method '{method}' needs explicit equations (its Taylor series), which a system "
+                              "with implicit constraints does not have; use dop853 (default), gauss4, Radau or LSODA")
+
+
 def start(system: KnownSystem, values: RunValues, t_end: float, dt: float, method: str = "dop853",
           rtol: float = 1e-10, atol: float = 1e-10, chunks: int = 20, progress: bool | None = None,
           outputs=None, constrained=None) -> Run:
@@ -203,9 +211,7 @@ def start(system: KnownSystem, values: RunValues, t_end: float, dt: float, metho
     of the projected initial conditions (:func:`.constrained.project_initial`)."""
     if method not in METHODS:
         raise SimulationError(f"unknown method '{method}'; choose one of: {', '.join(METHODS)}")
-    if system.implicit is not None and method in ("heyoka", "taylor"):
-        raise SimulationError(f"method '{method}' needs explicit equations (its Taylor series), which a system "
-                              "with implicit constraints does not have; use dop853 (default), gauss4, Radau or LSODA")
+    explicit_only(system, method)
     row_count(t_end, dt)
     if system.implicit is not None and constrained is None:
         from .constrained import project_initial
