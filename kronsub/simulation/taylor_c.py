@@ -30,6 +30,7 @@ import numpy as np
 import sympy
 
 from ..core.known_system import KnownSystem
+from ..emitters.escape import c_comment
 from ..errors import KronsubError
 from .native import compile_library
 from .reference import Unsupported, _Tape
@@ -103,8 +104,8 @@ class _Emitter:
                 stack.extend(self.nodes[i][1])
         # derivative arrays d_j = j a_j of the nodes whose recurrences need them
         self.scaled = set()
-        for kind, args, _ in self.nodes:
-            if kind in ("sincos", "exp", "integral", "pow") and self.var[args[0]] and args[0] in self.needed:
+        for i, (kind, args, _) in enumerate(self.nodes):
+            if kind in ("sincos", "exp", "integral", "pow") and self.var[args[0]] and i in self.needed:
                 self.scaled.add(args[0])
         terms = sum(1 for kind, args, _ in self.nodes if kind in ("mul", "sincos", "exp", "log", "pow", "integral")
                     and self.var[args[0]]) + sum(1 for row in self.M for x in row if self.var[x])
@@ -347,7 +348,7 @@ class _Emitter:
             inverses = ", ".join(["0.0"] + [_literal(mpmath.mpf(1) / k) for k in range(1, N + 2)])
             helpers = CONV + "\nstatic const double ks_inv[TN_ORDER + 2] = {" + inverses + "};  /* 1 / k */\n"
         text = TEMPLATE.format(
-            name=name.replace("*/", "* /"), n=n, ny=ny, order=N, decl="\n    ".join(decl + storage),
+            name=c_comment(name), n=n, ny=ny, order=N, decl="\n    ".join(decl + storage),
             zero="\n    ".join(zero + [f"(void){x};" for x in consts_void + consts]),
             prologue="\n    ".join(prologue), helpers=helpers, load=load, sizes=sizes, dense=dense,
             advance=advance, step="\n            ".join(step), free="free(W);" if not self.unrolled else "")
