@@ -271,9 +271,9 @@ def simulate(model: Path, t_end: float | None, dt: float | None, method: str | N
              plot: Path | None, scene_name: str | None, with_reactions: bool = False):
     """Simulate MODEL from t = 0 to --t; the trajectory is plain CSV (a header row, then numbers),
     its metadata JSON (--meta, or beside --output)."""
-    from .model.scenes import initial_values
-    from .simulation.run import METHODS, SimulationError, collect, row_count, start
     from .model.loader import model_files
+    from .model.scenes import initial_values
+    from .simulation.run import METHODS, SimulationError, collect, explicit_only, row_count, start
     from .simulation.table import CsvWriter, file_sha256, metadata_json, sidecar_path, trajectory_csv
     from .simulation.values import parse_assignments, resolve
 
@@ -298,6 +298,10 @@ def simulate(model: Path, t_end: float | None, dt: float | None, method: str | N
             row_count(span, step)
         except SimulationError as exc:
             _fail(f"Error: {exc}", USAGE_ERROR)
+        try:  # before the initial values are projected onto the constraints
+            explicit_only(system, _pick(method, scene and scene.method, "dop853"))
+        except SimulationError as exc:
+            _fail(f"Error: {exc}")
         initial = initial_values(loaded, scene)
         assignments = parse_assignments(settings)
         constrained = None

@@ -11,7 +11,8 @@ Gragg-Bulirsch-Stoer routes in mpmath, cross-checked). A point records
 - right-hand-side evaluations and steps.
 
 Adaptive methods take ``rtol = atol = tol``; ``taylor`` is a Taylor integrator generated as C for
-the model (:mod:`.taylor_c`), of order ``ceil(ln(1/tol)/2) + 1``; ``gbs-long`` and ``gbs-quad`` (extrapolation in the
+the model (:mod:`.taylor_c`), of order ``ceil(ln(1/tol)/2) + 1`` (one library per order, its
+compile time reported apart); ``gbs-long`` and ``gbs-quad`` (extrapolation in the
 generated C in long double and ``_Float128``, :mod:`.extended`) take ``tol`` as their tolerance. The fixed-step methods (``gauss4``, ``rk4``, both of
 order 4) take the step ``h = tol^(1/4)`` (at most ``t_end / 8``), so their error also scales
 like ``tol``.
@@ -222,6 +223,7 @@ class _Runners:
         self.heyoka_compile: dict[float, float] = {}
         self.extended: dict[str, object] = {}
         self.extended_compile: dict[str, float] = {}
+        self.taylor_compile: dict[float, float] = {}  # per tolerance: generating and compiling its order
 
     def available(self, method: str) -> str:
         """Why ``method`` cannot run, or ''."""
@@ -233,12 +235,12 @@ class _Runners:
             if not heyoka_backend.available():
                 return f"heyoka is not installed ({heyoka_backend.INSTALL_HINT})"
         if method == "taylor" and "taylor" not in self.extended:
-            from .taylor_c import TaylorC
+            from .taylor_c import TaylorC, TaylorUnavailable
 
             t0 = time.perf_counter()
             try:
                 self.extended["taylor"] = TaylorC(self.system)
-            except native_module.NativeError as exc:
+            except (native_module.NativeError, TaylorUnavailable) as exc:
                 self.extended["taylor"] = None
                 self.skipped[method] = str(exc).splitlines()[0]
             self.extended_compile["taylor"] = time.perf_counter() - t0
@@ -296,7 +298,12 @@ class _Runners:
                     return solver.y.copy(), solver.nfev, steps, status
             return run
         if method == "taylor":
+            from .taylor_c import order_for
+
             taylor = self.extended["taylor"]
+            t0 = time.perf_counter()
+            taylor.build(order_for(tol))  # one library per order, compiled apart from the timing
+            self.taylor_compile[tol] = time.perf_counter() - t0
 
             def run():
                 y_end, status, steps, order = taylor.integrate(param, y0, t_end, tol)
@@ -406,6 +413,7 @@ def measure(system: KnownSystem, values: RunValues, t_end: float, methods: tuple
                 drift = None if E is None else abs(E - E0) / scale
             setting = f"h {fixed_step(method, tol, t_end):.3g}" if method in FIXED_STEP_ORDER else f"tol {tol:.0e}"
             compiled = runners.heyoka_compile.get(tol) if method == "heyoka" else \
+                runners.taylor_compile.get(tol) if method == "taylor" else \
                 runners.extended_compile.get(EXTENDED.get(method, method))
             points.append(Point(method, tol, setting, error, drift, seconds, evals, steps, repeats, compiled, status))
             if seconds > SLOW_SECONDS:

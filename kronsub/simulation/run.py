@@ -46,6 +46,9 @@ METHODS = {
         Method("DOP853", "scipy", "scipy's DOP853 calling the compiled right-hand side"),
         Method("Radau", "scipy", "scipy's implicit Radau IIA (order 5): stiff problems (stiff springs, dampers)"),
         Method("LSODA", "scipy", "scipy's LSODA: switches between stiff and non-stiff automatically"),
+        Method("taylor", "taylor", "a Taylor integrator generated as C for the model, order ceil(ln(1/rtol)/2)+1 "
+                                   "(compiled per order): the high-accuracy end, explicit equations only; "
+                                   "tolerance --rtol"),
         Method("heyoka", "heyoka", "heyoka's Taylor integrator (optional extra kronsub[heyoka]): the "
                                    "high-accuracy end, for small systems; tolerance --rtol"),
     )
@@ -188,6 +191,14 @@ def collect(run: Run, blocks: list[Block], nq: int) -> Trajectory:
                       run.y_fail, dependent)
 
 
+def explicit_only(system: KnownSystem, method: str) -> None:
+    """Raise :class:`SimulationError` when ``method`` needs explicit equations (a Taylor series) and
+    ``system`` has implicit constraints."""
+    if system.implicit is not None and method in ("heyoka", "taylor"):
+        raise SimulationError(f"method '{method}' needs explicit equations (its Taylor series), which a system "
+                              "with implicit constraints does not have; use dop853 (default), gauss4, Radau or LSODA")
+
+
 def start(system: KnownSystem, values: RunValues, t_end: float, dt: float, method: str = "dop853",
           rtol: float = 1e-10, atol: float = 1e-10, chunks: int = 20, progress: bool | None = None,
           outputs=None, constrained=None) -> Run:
@@ -200,9 +211,7 @@ def start(system: KnownSystem, values: RunValues, t_end: float, dt: float, metho
     of the projected initial conditions (:func:`.constrained.project_initial`)."""
     if method not in METHODS:
         raise SimulationError(f"unknown method '{method}'; choose one of: {', '.join(METHODS)}")
-    if system.implicit is not None and method == "heyoka":
-        raise SimulationError("method 'heyoka' needs explicit equations (its Taylor series), which a system "
-                              "with implicit constraints does not have; use dop853 (default), gauss4, Radau or LSODA")
+    explicit_only(system, method)
     row_count(t_end, dt)
     if system.implicit is not None and constrained is None:
         from .constrained import project_initial
@@ -214,6 +223,10 @@ def start(system: KnownSystem, values: RunValues, t_end: float, dt: float, metho
     if METHODS[method].engine == "heyoka":
         run = Run("heyoka", "heyoka")
         run.blocks = _heyoka_blocks(run, system, param, y0, grid, rtol)
+        return run
+    if METHODS[method].engine == "taylor":
+        run = Run("taylor", "C")
+        run.blocks = _taylor_blocks(run, system, param, y0, grid, rtol)
         return run
     native = _compiled(system, outputs)
     if constrained is not None and native is not None:
@@ -568,6 +581,32 @@ def _heyoka_blocks(run, system, param, y0, grid, tol):
             yield Block(t[start:], Y[start:])
         if not complete:
             run.stop(message, float(t[-1]) if len(t) else float(times[0]))
+            return
+        y, first = Y[-1], False
+
+
+def _taylor_blocks(run, system, param, y0, grid, tol):
+    from .native import NativeError
+    from .taylor_c import TaylorC, TaylorUnavailable, order_for
+
+    try:
+        integrator = TaylorC(system)
+        integrator.build(order_for(tol))
+    except (TaylorUnavailable, NativeError) as exc:
+        raise SimulationError(str(exc)) from None
+    except ValueError as exc:
+        raise SimulationError(f"--rtol: {exc}") from None
+    stats = run.stats = {"steps": 0, "order": order_for(tol)}
+    y, first = y0, True
+    for a, b in _chunks(grid, math.ceil(len(grid) / BLOCK_ROWS)) if len(grid) > 1 else [(0, 0)]:
+        times = grid[a:b + 1]
+        t, Y, complete, message = integrator.solve(param, y, times, tol)
+        stats["steps"] += integrator.last_steps
+        start = 0 if first else 1  # a chunk starts on the last row of the one before
+        if len(t) > start:
+            yield Block(t[start:], Y[start:])
+        if not complete:
+            run.stop(message + _where(system, Y[-1] if len(Y) else None), float(t[-1]) if len(t) else float(times[0]))
             return
         y, first = Y[-1], False
 

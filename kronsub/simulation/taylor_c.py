@@ -1,28 +1,56 @@
 """A Taylor integrator generated as C for the model (issue 9, section 2).
 
-The tape of :mod:`.reference` (the equations as elementary operations) is written out as C:
-one array of Taylor coefficients per operation, filled order by order with the recurrences of
-automatic differentiation, ``Mbar_0 x_k = r_k - sum_{j>=1} Mbar_j x_{k-j}`` solved by
-``L D L^T`` of ``Mbar_0`` once per step, then ``q_{k+1} = qdot_k / (k+1)``,
-``qdot_{k+1} = x_k / (k+1)``. Order ``N = ceil(ln(1/tol) / 2) + 1`` and step
-``h = rho / e^2 exp(-0.7 / (N - 1))``, ``rho = min_{k = N-1, N} (max(1, |y|) / |y_k|)^(1/k)``
-(Jorba and Zou's choice, as heyoka makes it) are chosen at run time.
-Parameters stay run-time inputs. The C is plain C99 with libc and libm, in ``double``; like the
-model's C it can be retyped to ``long double`` or ``_Float128`` (:func:`.extended.retype`).
+The tape of :mod:`.reference` (the equations (10') as elementary operations) is written out as
+C: Taylor coefficients per operation, filled order by order with the recurrences of automatic
+differentiation, ``Mbar_0 x_k = r_k - sum_{j>=1} Mbar_j x_{k-j}`` solved by ``L D L^T`` of
+``Mbar_0`` once per step, then ``q_{k+1} = qdot_k / (k+1)``, ``qdot_{k+1} = x_k / (k+1)``.
+
+The order ``N = ceil(ln(1/tol) / 2) + 1`` is a compile-time constant: one library per order
+used. Operations on parameters and constants alone are computed once per call, and a product
+with such a factor costs one multiplication per order instead of a convolution; ``1/D`` and
+``1/k`` are multiplications. Small systems at low orders get every order written out, the
+convolutions as pairwise sums; otherwise the orders are a loop over a four-accumulator
+convolution (as fast here, and much quicker to compile). The step is
+``h = rho tol^(1/(N-1)) exp(-0.7 / (N - 1))``, ``rho = min_{k = N-1, N} (max(1, |y|) / |y_k|)^(1/k)``:
+Jorba and Zou's ``rho / e^2 exp(-0.7 / (N - 1))`` (heyoka's) when ``tol = e^(-2 (N - 1))``, and
+between two orders a step that still keeps ``(h / rho)^N`` below ``tol``. The states at the
+requested output times come from the step's polynomial (dense output at no extra evaluation).
+Parameters stay run-time inputs. Plain C99 with libc and libm, in ``double``; no allocation per
+step (large systems allocate their coefficients once per call). Systems with implicit
+constraints are refused (:class:`TaylorUnavailable`).
 """
 from __future__ import annotations
 
 import ctypes
+import math
+import re
 
 import mpmath
+import numpy as np
 import sympy
 
 from ..core.known_system import KnownSystem
+from ..emitters.escape import c_comment
+from ..errors import KronsubError
 from .native import compile_library
-from .reference import _Tape
+from .reference import Unsupported, _Tape
 
-MAX_ORDER = 60
+MIN_ORDER, MAX_ORDER = 4, 40
+UNROLL_TERMS = 2_500  # write every order out while products + statements stay below this (gcc's time)
 _INTEGRALS = {"atan": "atan", "asin": "asin", "acos": "acos"}
+STATUS = {0: "", 1: "the mass matrix is not positive definite, or the state became NaN or infinite",
+          4: "the step limit was reached", 6: "bad arguments"}
+
+
+class TaylorUnavailable(KronsubError):
+    """A system the generated Taylor integrator cannot integrate."""
+
+
+def order_for(tol: float) -> int:
+    """The order ``ceil(ln(1/tol) / 2) + 1`` (Jorba and Zou), within ``[MIN_ORDER, MAX_ORDER]``."""
+    if not (tol > 0 and math.isfinite(tol)):
+        raise ValueError(f"the tolerance must be a positive number (got {tol!r})")
+    return min(MAX_ORDER, max(MIN_ORDER, math.ceil(-0.5 * math.log(tol)) + 1))
 
 
 def _literal(value) -> str:
@@ -31,214 +59,462 @@ def _literal(value) -> str:
     return text if ("." in text or "e" in text) else text + ".0"
 
 
-def emit_taylor_c(system: KnownSystem) -> str:
-    """The C source of ``ks_taylor`` for ``system`` (see the module docstring)."""
-    n = len(system.coordinates)
-    tape = _Tape([*system.coordinates, *system.velocities], {}, tuple(p.symbol for p in system.parameters))
-    M, r = system.mass_matrix, system.forces - system.velocity_terms
-    M_nodes = [[tape.node(sympy.sympify(M[a, b])) for b in range(n)] for a in range(n)]
-    r_nodes = [tape.node(sympy.sympify(r[a])) for a in range(n)]
-    nodes = tape.nodes
+def _tree(terms: list[str]) -> str:
+    """``terms`` summed pairwise: ``((a + b) + (c + d))``, a short dependency chain."""
+    if not terms:
+        return "0.0"
+    while len(terms) > 1:
+        terms = [f"({terms[i]} + {terms[i + 1]})" if i + 1 < len(terms) else terms[i]
+                 for i in range(0, len(terms), 2)]
+    return terms[0]
 
-    def name(i: int) -> str:
-        kind, args, data = nodes[i]
+
+class _Emitter:
+    """The C of one system at one order."""
+
+    def __init__(self, system: KnownSystem, order: int):
+        if system.implicit is not None:
+            raise TaylorUnavailable("method 'taylor' needs explicit equations (its Taylor series), which a system "
+                                    "with implicit constraints does not have\n  hint: use dop853 (default), gauss4, "
+                                    "Radau or LSODA")
+        self.n = n = len(system.coordinates)
+        self.N = order
+        tape = _Tape([*system.coordinates, *system.velocities], {}, tuple(p.symbol for p in system.parameters))
+        M, r = system.mass_matrix, system.forces - system.velocity_terms
+        try:
+            self.M = [[tape.node(sympy.sympify(M[a, b])) for b in range(n)] for a in range(n)]
+            self.r = [tape.node(sympy.sympify(r[a])) for a in range(n)]
+        except Unsupported as exc:
+            raise TaylorUnavailable(str(exc).replace("the high-precision reference", "method 'taylor'")) from None
+        self.nodes = tape.nodes
+        self.var = []  # does node i vary along the trajectory (else: parameters and constants only)
+        for kind, args, _ in self.nodes:
+            if kind in ("state", "time"):
+                self.var.append(True)
+            elif kind in ("const", "param"):
+                self.var.append(False)
+            else:
+                self.var.append(any(self.var[a] for a in args))
+        self.needed = set()  # the nodes Mbar and fbar - hbar depend on
+        stack = [x for row in self.M for x in row] + list(self.r)
+        while stack:
+            i = stack.pop()
+            if i not in self.needed:
+                self.needed.add(i)
+                stack.extend(self.nodes[i][1])
+        # derivative arrays d_j = j a_j of the nodes whose recurrences need them
+        self.scaled = set()
+        for i, (kind, args, _) in enumerate(self.nodes):
+            if kind in ("sincos", "exp", "integral", "pow") and self.var[args[0]] and i in self.needed:
+                self.scaled.add(args[0])
+        terms = sum(1 for kind, args, _ in self.nodes if kind in ("mul", "sincos", "exp", "log", "pow", "integral")
+                    and self.var[args[0]]) + sum(1 for row in self.M for x in row if self.var[x])
+        statements = sum(1 for i in self.needed if self.var[i]) * order
+        self.unrolled = terms * order * order // 2 + statements <= UNROLL_TERMS
+
+    # names -------------------------------------------------------------------------------
+
+    def name(self, i: int) -> str:
+        kind, args, data = self.nodes[i]
         if kind == "state":
             return f"Y{data}"
-        if kind == "sin":
-            return f"S{args[0]}"
-        if kind == "cos":
-            return f"C{args[0]}"
+        if kind in ("sin", "cos"):
+            return f"{kind[0].upper()}{args[0]}"
         return f"v{i}"
 
-    arrays, init, body = [], [], []
-    for i, (kind, args, data) in enumerate(nodes):
-        a = name(args[0]) if args else ""
+    def at(self, i: int, k) -> str:
+        """Coefficient ``k`` of node ``i`` (a constant node has only coefficient 0)."""
+        if not self.var[i]:
+            return f"c{i}" if k == 0 else "0.0"
+        return f"{self.name(i)}[{k}]"
+
+    def conv(self, a: str, b: str, lo, hi, k) -> str:
+        """``sum_{j=lo}^{hi} a[j] b[k-j]`` (``hi`` may be ``k`` or ``k - 1`` in loop form)."""
+        if isinstance(k, int):
+            return _tree([f"{a}[{j}] * {b}[{k - j}]" for j in range(lo, hi + 1)])
+        return f"ks_conv({a}, {b}, {lo}, {hi}, k)"
+
+    # one coefficient of one node ---------------------------------------------------------
+
+    def coefficient(self, i: int, k) -> list[str]:
+        """C statements computing coefficient ``k >= 1`` (an int, or the loop variable "k")."""
+        kind, args, data = self.nodes[i]
+        v = self.name(i)
+        a = self.name(args[0]) if args else ""
+        inv_k = _literal(mpmath.mpf(1) / k) if isinstance(k, int) else "ks_inv[k]"
+        km1 = k - 1 if isinstance(k, int) else "k - 1"
         if kind in ("state", "sin", "cos"):
-            continue
+            return []
+        if kind == "time":
+            return [f"{v}[{k}] = {k} == 1 ? 1.0 : 0.0;"]
+        if kind == "add":
+            return [f"{v}[{k}] = " + " + ".join(self.at(x, k) for x in args if self.var[x]) + ";"]
+        if kind == "scale":
+            return [f"{v}[{k}] = {_literal(data)} * {a}[{k}];"]
+        if kind == "mul":
+            x, y = args
+            if not self.var[x] or not self.var[y]:
+                c, s = (x, y) if not self.var[x] else (y, x)
+                return [f"{v}[{k}] = c{c} * {self.name(s)}[{k}];"]
+            b = self.name(y)
+            if x == y and isinstance(k, int):  # a square: each cross product once
+                half = [f"{a}[{j}] * {a}[{k - j}]" for j in range((k + 1) // 2)]
+                s = f"2.0 * {_tree(half)}"
+                if k % 2 == 0:
+                    s += f" + {a}[{k // 2}] * {a}[{k // 2}]"
+                return [f"{v}[{k}] = {s};"]
+            return [f"{v}[{k}] = {self.conv(a, b, 0, k, k)};"]
+        d = f"d{args[0]}" if args else ""
         if kind == "sincos":
-            arrays += [f"S{i}", f"C{i}"]
-            body.append(f"if (k == 0) {{ S{i}[0] = sin({a}[0]); C{i}[0] = cos({a}[0]); }} else {{ "
-                        f"double s = 0, c = 0; for (j = 1; j <= k; ++j) {{ double ja = j * {a}[j]; "
-                        f"s += ja * C{i}[k - j]; c += ja * S{i}[k - j]; }} S{i}[k] = s / k; C{i}[k] = -c / k; }}")
-            continue
-        v = f"v{i}"
-        arrays.append(v)
+            return [f"S{i}[{k}] = {inv_k} * ({self.conv(d, f'C{i}', 1, k, k)});",
+                    f"C{i}[{k}] = -{inv_k} * ({self.conv(d, f'S{i}', 1, k, k)});"]
+        if kind == "exp":
+            return [f"{v}[{k}] = {inv_k} * ({self.conv(d, v, 1, k, k)});"]
+        if kind == "log":  # a v' = a'
+            return [f"{v}[{k}] = ({a}[{k}] - {inv_k} * ({self.conv(f'd{i}', a, 1, km1, k)})) / {a}[0];"]
+        if kind == "pow":  # a v' = p v a': sum_j ((p+1) j - k) a_j v_{k-j} / (k a_0)
+            p1 = _literal(mpmath.mpf(data) + 1)
+            return [f"{v}[{k}] = ({p1} * ({self.conv(d, v, 1, k, k)}) - {k} * ({self.conv(a, v, 1, k, k)}))"
+                    f" * {inv_k} / {a}[0];"]
+        if kind == "integral":  # v' = g(a) a'
+            g = args[1]
+            if not self.var[g]:
+                return [f"{v}[{k}] = c{g} * {a}[{k}];"]
+            return [f"{v}[{k}] = {inv_k} * ({self.conv(d, self.name(g), 1, k, k)});"]
+        if kind == "abs":
+            return [f"{v}[{k}] = {a}[0] >= 0 ? {a}[{k}] : -{a}[{k}];"]
+        if kind == "sign":
+            return [f"{v}[{k}] = 0.0;"]
+        raise AssertionError(kind)
+
+    def first(self, i: int, target: str) -> list[str]:
+        """C statements computing coefficient 0 of node ``i`` (into ``c{i}`` or ``v{i}[0]``)."""
+        kind, args, data = self.nodes[i]
+        out = f"c{i}" if target == "c" else f"{self.name(i)}[0]"
+        a = self.at(args[0], 0) if args else ""
+        if kind in ("sin", "cos") and target == "c":
+            return [f"c{i} = {kind[0]}{args[0]};"]
+        if kind in ("state", "sin", "cos"):
+            return []
         if kind == "const":
-            init.append(f"{v}[0] = {_literal(data)};")
-        elif kind == "param":
-            init.append(f"{v}[0] = param[{data}];")
-        elif kind == "time":
-            init.append(f"{v}[1] = 1;")
-            body.append(f"if (k == 0) {v}[0] = t;")
-        elif kind == "add":
-            body.append(f"{v}[k] = " + " + ".join(f"{name(x)}[k]" for x in args) + ";")
-        elif kind == "scale":
-            body.append(f"{v}[k] = {_literal(data)} * {a}[k];")
-        elif kind == "mul":
-            b = name(args[1])
-            body.append(f"{{ double s = 0; for (j = 0; j <= k; ++j) s += {a}[j] * {b}[k - j]; {v}[k] = s; }}")
-        elif kind == "exp":
-            body.append(f"if (k == 0) {v}[0] = exp({a}[0]); else {{ double s = 0; for (j = 1; j <= k; ++j) "
-                        f"s += j * {a}[j] * {v}[k - j]; {v}[k] = s / k; }}")
-        elif kind == "log":
-            body.append(f"if (k == 0) {v}[0] = log({a}[0]); else {{ double s = 0; for (j = 1; j < k; ++j) "
-                        f"s += j * {v}[j] * {a}[k - j]; {v}[k] = ({a}[k] - s / k) / {a}[0]; }}")
-        elif kind == "pow":
-            p = _literal(data)
-            body.append(f"if (k == 0) {v}[0] = pow({a}[0], {p}); else {{ double s = 0; for (j = 1; j <= k; ++j) "
-                        f"s += ({p} * j - (k - j)) * {a}[j] * {v}[k - j]; {v}[k] = s / (k * {a}[0]); }}")
-        elif kind == "integral":
-            g, fn = name(args[1]), _INTEGRALS[data]
-            body.append(f"if (k == 0) {v}[0] = {fn}({a}[0]); else {{ double s = 0; for (j = 1; j <= k; ++j) "
-                        f"s += j * {a}[j] * {g}[k - j]; {v}[k] = s / k; }}")
-        elif kind == "abs":
-            body.append(f"{v}[k] = {a}[0] >= 0 ? {a}[k] : -{a}[k];")
-        elif kind == "sign":
-            body.append(f"if (k == 0) {v}[0] = ({a}[0] > 0) - ({a}[0] < 0);")
+            return [f"c{i} = {_literal(data)};"]
+        if kind == "param":
+            return [f"c{i} = param[{data}];"]
+        if kind == "time":
+            return [f"{out} = t;"]
+        if kind == "add":
+            return [f"{out} = " + " + ".join(self.at(x, 0) for x in args) + ";"]
+        if kind == "scale":
+            return [f"{out} = {_literal(data)} * {a};"]
+        if kind == "mul":
+            return [f"{out} = {a} * {self.at(args[1], 0)};"]
+        if kind == "sincos":
+            if target == "c":
+                return [f"s{i} = sin({a}); c{i} = cos({a});"]
+            return [f"S{i}[0] = sin({a}); C{i}[0] = cos({a});"]
+        if kind == "exp":
+            return [f"{out} = exp({a});"]
+        if kind == "log":
+            return [f"{out} = log({a});"]
+        if kind == "pow":
+            return [f"{out} = pow({a}, {_literal(data)});"]
+        if kind == "integral":
+            return [f"{out} = {_INTEGRALS[data]}({a});"]
+        if kind == "abs":
+            return [f"{out} = fabs({a});"]
+        if kind == "sign":
+            return [f"{out} = ({a} > 0) - ({a} < 0);"]
+        raise AssertionError(kind)
+
+    # the whole file ----------------------------------------------------------------------
+
+    def source(self, name: str) -> str:
+        n, N, nodes = self.n, self.N, self.nodes
+        consts, arrays = [], []
+        for i, (kind, args, _) in enumerate(nodes):
+            if kind == "state" or (kind in ("sin", "cos") and self.var[i]) or i not in self.needed:
+                continue
+            if not self.var[i]:
+                consts += [f"s{i}", f"c{i}"] if kind == "sincos" else [f"c{i}"]
+            elif kind == "sincos":
+                arrays += [f"S{i}", f"C{i}"]
+            else:
+                arrays.append(f"v{i}")
+        arrays += [f"d{i}" for i in sorted(self.scaled | {i for i, (kind, _, _) in enumerate(nodes)
+                                                          if kind == "log" and self.var[i] and i in self.needed})]
+        arrays += [f"Y{j}" for j in range(2 * n)] + [f"X{a}" for a in range(n)]
+        prologue = []
+        for i, (kind, args, data) in enumerate(nodes):
+            if not self.var[i] and i in self.needed:
+                prologue += self.first(i, "c")
+        step = []  # order 0, then 1 .. N - 1
+
+        def emit_order(k) -> list[str]:
+            lines = []
+            for i in range(len(nodes)):
+                if not self.var[i] or i not in self.needed:
+                    continue
+                lines += self.first(i, "v") if k == 0 else self.coefficient(i, k)
+                if i in self.scaled or nodes[i][0] == "log":
+                    lines.append(f"d{i}[{k}] = {k} * {self.name(i)}[{k}];" if k != 0 else f"d{i}[0] = 0.0;")
+            return lines
+
+        def solve(k) -> list[str]:
+            lines = []
+            if k == 0:  # Mbar_0 = L D L^T, L unit lower triangular
+                for a in range(n):
+                    for b in range(a + 1):
+                        s = " - ".join([self.at(self.M[a][b], 0)] + [f"L{a}_{j} * L{b}_{j} * D{j}" for j in range(b)])
+                        if a == b:
+                            lines.append(f"D{a} = {s};")
+                            lines.append(f"if (!(D{a} > 0)) {{ status = 1; goto done; }}")
+                            lines.append(f"R{a} = 1.0 / D{a};")
+                        else:
+                            lines.append(f"L{a}_{b} = ({s}) / D{b};")
+            for a in range(n):  # r_k - sum_{j>=1} Mbar_j x_{k-j}
+                terms = [self.at(self.r[a], k)] if (k == 0 or self.var[self.r[a]]) else ["0.0"]
+                for b in range(n):
+                    m = self.M[a][b]
+                    if self.var[m] and k != 0:
+                        terms.append(f"({self.conv(self.name(m), f'X{b}', 1, k, k)})")
+                lines.append(f"X{a}[{k}] = {' - '.join(terms)};")
+            for a in range(n):
+                for b in range(a):
+                    lines.append(f"X{a}[{k}] -= L{a}_{b} * X{b}[{k}];")
+            for a in range(n):
+                lines.append(f"X{a}[{k}] *= R{a};")
+            for a in reversed(range(n)):
+                for b in range(a + 1, n):
+                    lines.append(f"X{a}[{k}] -= L{b}_{a} * X{b}[{k}];")
+            inv = _literal(mpmath.mpf(1) / (k + 1)) if isinstance(k, int) else "ks_inv[k + 1]"
+            k1 = k + 1 if isinstance(k, int) else "k + 1"
+            for a in range(n):
+                lines.append(f"Y{a}[{k1}] = {inv} * Y{n + a}[{k}]; Y{n + a}[{k1}] = {inv} * X{a}[{k}];")
+            return lines
+
+        step += emit_order(0) + solve(0)
+        if self.unrolled:
+            for k in range(1, N):
+                step += emit_order(k) + solve(k)
         else:
-            raise AssertionError(kind)
-    M_names = ", ".join(name(M_nodes[a][b]) for a in range(n) for b in range(n))
-    r_names = ", ".join(name(x) for x in r_nodes)
-    count = len(arrays) + 2 * n + 2 * n  # node arrays, Y, and X (+ spare)
-    declare = "\n".join(f"    double *{x} = W + {k} * L;" for k, x in enumerate(arrays))
-    declare += "\n    " + " ".join(f"(void){x};" for x in arrays)
-    ydecl = "\n".join(f"    double *Y{j} = W + {len(arrays) + j} * L;" for j in range(2 * n))
-    return TEMPLATE.format(
-        n=n, ny=2 * n, nparam=len(system.parameters), max_order=MAX_ORDER, count=count,
-        declare=declare, ydecl=ydecl, init="\n".join("    " + x for x in init),
-        body="\n".join("            " + x for x in body), M_names=M_names, r_names=r_names,
-        n_arrays=len(arrays), name=system.name.replace("*/", "* /"),
-        ylist=", ".join(f"Y{j}" for j in range(2 * n)))
+            step.append("for (k = 1; k < TN_ORDER; ++k) {")
+            step += ["    " + x for x in emit_order("k") + solve("k")]
+            step.append("}")
+        ldl = [f"L{a}_{b}" for a in range(n) for b in range(a)] + [f"D{a}" for a in range(n)] + \
+            [f"R{a}" for a in range(n)]  # R = 1 / D: no division on the chain from order to order
+        decl = []
+        if consts:
+            decl.append("double " + ", ".join(consts) + ";")
+        if ldl:
+            decl.append("double " + ", ".join(f"{x} = 0" for x in ldl) + ";")
+        ny = 2 * n
+        if self.unrolled:  # every coefficient a scalar Y0_3 (registers, no store-to-load chains)
+            pattern = re.compile(r"\b(" + "|".join(arrays) + r")\[(\d+)\]")
+            step = [pattern.sub(lambda m: f"{m[1]}_{m[2]}", line) for line in step]
+            used = set(re.findall(r"\b(?:" + "|".join(arrays) + r")_\d+\b", "\n".join(step)))
+            scalars = sorted(used | {f"Y{j}_{k}" for j in range(ny) for k in range(N + 1)},
+                             key=lambda x: (x[0], [int(p) for p in re.findall(r"\d+", x)]))
+            storage = ["double " + ", ".join(scalars) + ";"]
+            zero = []
+            consts_void = scalars
+            load = " ".join(f"Y{j}_0 = y[{j}];" for j in range(ny))
+            sizes = "\n        ".join(f"if (fabs(Y{j}_{N - 1 + e}) > size[{e}]) size[{e}] = fabs(Y{j}_{N - 1 + e});"
+                                      for j in range(ny) for e in (0, 1))
+
+            def horner(tau: str, out: str) -> str:
+                def poly(j):
+                    text = f"Y{j}_{N}"
+                    for k in range(N - 1, -1, -1):
+                        text = f"({text} * {tau} + Y{j}_{k})" if k else f"{text} * {tau} + Y{j}_0"
+                    return text
+                return " ".join(f"{out}[{j}] = {poly(j)};" for j in range(ny))
+
+            dense = "{ double tau = t_out[row] - t, *o = y_out + row * TN_NY; " + horner("tau", "o") + " }"
+            advance = horner("h", "y")
+            helpers = ""
+        else:
+            storage = ["double *W = calloc((size_t)" + str(len(arrays)) + " * (TN_ORDER + 1), sizeof(double));"]
+            storage += [f"double *{x} = W + {j} * (TN_ORDER + 1);" for j, x in enumerate(arrays)]
+            storage += ["double *Y[TN_NY] = {" + ", ".join(f"Y{j}" for j in range(ny)) + "};"]
+            zero = ["if (W == NULL) return 1;"]
+            consts_void = arrays
+            load = "for (i = 0; i < TN_NY; ++i) Y[i][0] = y[i];"
+            sizes = ("for (i = 0; i < TN_NY; ++i) {\n"
+                     "            if (fabs(Y[i][TN_ORDER - 1]) > size[0]) size[0] = fabs(Y[i][TN_ORDER - 1]);\n"
+                     "            if (fabs(Y[i][TN_ORDER]) > size[1]) size[1] = fabs(Y[i][TN_ORDER]);\n"
+                     "        }")
+            dense = "ks_horner(Y, t_out[row] - t, y_out + row * TN_NY);"
+            advance = "ks_horner(Y, h, y);"
+            inverses = ", ".join(["0.0"] + [_literal(mpmath.mpf(1) / k) for k in range(1, N + 2)])
+            helpers = CONV + "\nstatic const double ks_inv[TN_ORDER + 2] = {" + inverses + "};  /* 1 / k */\n"
+        text = TEMPLATE.format(
+            name=c_comment(name), n=n, ny=ny, order=N, decl="\n    ".join(decl + storage),
+            zero="\n    ".join(zero + [f"(void){x};" for x in consts_void + consts]),
+            prologue="\n    ".join(prologue), helpers=helpers, load=load, sizes=sizes, dense=dense,
+            advance=advance, step="\n            ".join(step), free="free(W);" if not self.unrolled else "")
+        return text
 
 
-TEMPLATE = r"""/* A Taylor integrator generated by kronsub for {name}: see kronsub/simulation/taylor_c.py. */
+TEMPLATE = r"""/* A Taylor integrator of order {order} generated by kronsub for {name}:
+   see kronsub/simulation/taylor_c.py. */
 #include <math.h>
 #include <stdlib.h>
-#include <string.h>
 
-#define TN {n}
-#define TNY {ny}
-#define TMAX {max_order}
-
-/* Integrate y' = [qdot; Mbar^-1 (fbar - hbar)] from y0 at t0 to t_end with tolerance tol
-   (order chosen from it, or given by order > 0). counts: [steps, highest order used].
-   Returns 0, 1 (Mbar_0 not positive definite or no memory), 4 (max_steps reached),
-   6 (bad argument). */
-int ks_taylor(const double *param, double t0, const double *y0, double t_end, double tol, int order,
-              long max_steps, double *y_out, long *counts)
+#define TN_ORDER {order}
+#define TN_NY {ny}
+{helpers}
+/* Integrate y' = [qdot; Mbar^-1 (fbar - hbar)] from y0 at t0 through the n_out increasing times
+   t_out (>= t0), writing the state at each into rows of y_out. counts: [steps, rows written];
+   t_last: the time of the last state reached.
+   Returns 0, 1 (Mbar_0 not positive definite, a non-finite state, or no memory),
+   4 (max_steps reached), 6 (bad argument). */
+int ks_taylor(const double *param, double t0, const double *y0, long n_out, const double *t_out,
+              double tol, long max_steps, double *y_out, long *counts, double *t_last)
 {{
-    const long L = TMAX + 2;
-    double *W = calloc((size_t)({count}) * (size_t)L, sizeof(double));
-    double *X[TN], *M[TN * TN], *R[TN], *Y[TNY], D[TN] = {{0}}, LL[TN * TN] = {{0}}, t = t0, y[TNY];
-    int i, j, k, a, b, status = 0;
-    long steps = 0;
-    if (W == NULL) return 1;
-{declare}
-{ydecl}
-    {{
-        double *ys[TNY] = {{{ylist}}};
-        for (i = 0; i < TNY; ++i) Y[i] = ys[i];
-    }}
-    for (i = 0; i < TN; ++i) X[i] = W + ({n_arrays} + TNY + i) * L;
-    {{
-        double *ms[TN * TN] = {{{M_names}}}, *rs[TN] = {{{r_names}}};
-        for (i = 0; i < TN * TN; ++i) M[i] = ms[i];
-        for (i = 0; i < TN; ++i) R[i] = rs[i];
-    }}
-{init}
+    {decl}
+    double y[TN_NY], t = t0;
+    /* h = rho tol^(1/(N-1)) exp(-0.7 / (N - 1)): Jorba and Zou's rho / e^2 exp(-0.7 / (N - 1)) when
+       tol = e^(-2 (N - 1)), taking the tolerance between two orders into account (tol <= 0: e^-2) */
+    const double factor = exp(((tol > 0 ? log(tol) : -2.0 * (TN_ORDER - 1)) - 0.7) / (TN_ORDER - 1));
+    int i, k, status = 0;
+    long steps = 0, row = 0;
+    {zero}
+    (void)k;
     (void)param;
-    if (!(tol > 0) || !(t_end >= t0)) {{ free(W); return 6; }}
-    if (order <= 0) order = (int)ceil(-0.5 * log(tol)) + 1;
-    if (order < 4) order = 4;
-    if (order > TMAX) order = TMAX;
-    counts[0] = 0;
-    counts[1] = order;
-    for (i = 0; i < TNY; ++i) y[i] = y0[i];
-    while (t < t_end) {{
-        double h = -1, scale = 1, size;
+    counts[0] = counts[1] = 0;
+    *t_last = t0;
+    if (n_out < 1 || !(t_out[0] >= t0)) {{ {free} return 6; }}
+    {prologue}
+    for (i = 0; i < TN_NY; ++i) y[i] = y0[i];
+    while (row < n_out && t_out[row] <= t) {{
+        for (i = 0; i < TN_NY; ++i) y_out[row * TN_NY + i] = y[i];
+        ++row;
+    }}
+    while (row < n_out) {{
+        double h = -1, scale = 1, size[2] = {{0, 0}}, t_end = t_out[n_out - 1];
         if (max_steps > 0 && steps >= max_steps) {{ status = 4; break; }}
-        for (i = 0; i < TNY; ++i) Y[i][0] = y[i];
-        for (k = 0; k < order; ++k) {{
-{body}
-            if (k == 0) {{  /* Mbar_0 = L D L^T */
-                for (a = 0; a < TN; ++a)
-                    for (b = 0; b <= a; ++b) {{
-                        double s = M[a * TN + b][0];
-                        for (j = 0; j < b; ++j) s -= LL[a * TN + j] * LL[b * TN + j] * D[j];
-                        if (a == b) {{ D[a] = s; LL[a * TN + a] = 1; }}
-                        else LL[a * TN + b] = s / D[b];
-                    }}
-                for (a = 0; a < TN; ++a) if (!(D[a] > 0)) {{ status = 1; break; }}
-                if (status) break;
-            }}
-            for (a = 0; a < TN; ++a) {{  /* r_k - sum_{{j>=1}} Mbar_j x_{{k-j}} */
-                double s = R[a][k];
-                for (b = 0; b < TN; ++b)
-                    for (j = 1; j <= k; ++j) s -= M[a * TN + b][j] * X[b][k - j];
-                X[a][k] = s;
-            }}
-            for (a = 0; a < TN; ++a)
-                for (b = 0; b < a; ++b) X[a][k] -= LL[a * TN + b] * X[b][k];
-            for (a = 0; a < TN; ++a) X[a][k] /= D[a];
-            for (a = TN - 1; a >= 0; --a)
-                for (b = a + 1; b < TN; ++b) X[a][k] -= LL[b * TN + a] * X[b][k];
-            for (a = 0; a < TN; ++a) {{
-                Y[a][k + 1] = Y[TN + a][k] / (k + 1);
-                Y[TN + a][k + 1] = X[a][k] / (k + 1);
-            }}
+        {load}
+        {{
+            {step}
         }}
-        if (status) break;
-        for (i = 0; i < TNY; ++i) if (fabs(y[i]) > scale) scale = fabs(y[i]);
-        for (k = order - 1; k <= order; ++k) {{  /* rho = min_k (|y| / |y_k|)^(1/k) */
-            size = 0;
-            for (i = 0; i < TNY; ++i) if (fabs(Y[i][k]) > size) size = fabs(Y[i][k]);
-            if (size > 0) {{
-                double hk = pow(scale / size, 1.0 / k);
+        for (i = 0; i < TN_NY; ++i) if (fabs(y[i]) > scale) scale = fabs(y[i]);
+        {sizes}
+        for (k = 0; k < 2; ++k)  /* rho = min_k (max(1, |y|) / |y_k|)^(1/k), k = N - 1, N */
+            if (size[k] > 0) {{
+                double hk = pow(scale / size[k], 1.0 / (TN_ORDER - 1 + k));
                 if (h < 0 || hk < h) h = hk;
             }}
-        }}
-        if (h > 0) h *= exp(-2.0 - 0.7 / (order - 1));  /* rho / e^2 exp(-0.7 / (N - 1)) */
+        if (h > 0) h *= factor;
         if (h < 0 || t + h >= t_end) h = t_end - t;
-        for (i = 0; i < TNY; ++i) {{  /* Horner */
-            double s = Y[i][order];
-            for (k = order - 1; k >= 0; --k) s = s * h + Y[i][k];
-            y[i] = s;
+        while (row < n_out && t_out[row] < t + h) {{  /* dense output: the step's polynomial */
+            {dense}
+            ++row;
         }}
+        {advance}
         t = (t + h >= t_end) ? t_end : t + h;
         ++steps;
-        if (!(y[0] == y[0])) {{ status = 1; break; }}
+        for (i = 0; i < TN_NY; ++i) if (!isfinite(y[i])) {{ status = 1; goto done; }}
+        while (row < n_out && t_out[row] <= t) {{
+            for (i = 0; i < TN_NY; ++i) y_out[row * TN_NY + i] = y[i];
+            ++row;
+        }}
     }}
+done:
+    *t_last = t;
     counts[0] = steps;
-    for (i = 0; i < TNY; ++i) y_out[i] = y[i];
-    free(W);
+    counts[1] = row;
+    {free}
     return status;
 }}
 """
 
 
+CONV = r"""
+/* out_i = sum_k Y_i[k] tau^k, the components side by side (independent chains) */
+static void ks_horner(double *const *Y, double tau, double *out)
+{
+    double s[TN_NY];
+    int i, k;
+    for (i = 0; i < TN_NY; ++i) s[i] = Y[i][TN_ORDER];
+    for (k = TN_ORDER - 1; k >= 0; --k)
+        for (i = 0; i < TN_NY; ++i) s[i] = s[i] * tau + Y[i][k];
+    for (i = 0; i < TN_NY; ++i) out[i] = s[i];
+}
+
+static double ks_conv(const double *restrict a, const double *restrict b, int lo, int hi, int k)
+{
+    double s0 = 0, s1 = 0, s2 = 0, s3 = 0;
+    int j = lo;
+    for (; j + 3 <= hi; j += 4) {
+        s0 += a[j] * b[k - j]; s1 += a[j + 1] * b[k - j - 1];
+        s2 += a[j + 2] * b[k - j - 2]; s3 += a[j + 3] * b[k - j - 3];
+    }
+    for (; j <= hi; ++j) s0 += a[j] * b[k - j];
+    return (s0 + s1) + (s2 + s3);
+}
+"""
+
+
+def emit_taylor_c(system: KnownSystem, order: int) -> str:
+    """The C source of ``ks_taylor`` of order ``order`` for ``system`` (see the module docstring)."""
+    return _Emitter(system, order).source(system.name)
+
+
 class TaylorC:
-    """The generated Taylor integrator of one system, compiled (``precision`` double only)."""
+    """The generated Taylor integrator of one system, compiled per order when first used."""
 
     def __init__(self, system: KnownSystem):
+        self.system = system
         self.ny = 2 * len(system.coordinates)
         self.nparam = len(system.parameters)
-        library = compile_library([("taylor.c", emit_taylor_c(system))], "taylor")
-        self._lib = ctypes.CDLL(str(library))
-        fn = self._lib.ks_taylor
-        D, P = ctypes.c_double, ctypes.c_void_p
-        fn.restype = ctypes.c_int
-        fn.argtypes = [P, D, P, D, D, ctypes.c_int, ctypes.c_long, P, P]
-        self._fn = fn
+        self._fns: dict[int, object] = {}
+        self.last_steps = 0
+        _Emitter(system, MIN_ORDER)  # refuse an unsupported system now
+
+    def build(self, order: int):
+        """The compiled ``ks_taylor`` of ``order`` (built and cached on first use)."""
+        if order not in self._fns:
+            library = compile_library([("taylor.c", emit_taylor_c(self.system, order))], f"taylor{order}")
+            fn = ctypes.CDLL(str(library)).ks_taylor
+            P = ctypes.c_void_p
+            fn.restype = ctypes.c_int
+            fn.argtypes = [P, ctypes.c_double, P, ctypes.c_long, P, ctypes.c_double, ctypes.c_long, P, P, P]
+            self._fns[order] = fn
+        return self._fns[order]
+
+    def run(self, param, y0, times, tol: float, order: int = 0, max_steps: int = 10_000_000, t0: float = 0.0):
+        """``(Y, status, steps, rows, t_last)``: the states at the increasing ``times`` (>= t0)
+        from ``y0`` at ``t0``; rows after a failure are not written (``rows`` says how many
+        were; ``t_last`` is the time of the last state reached)."""
+        fn = self.build(order or order_for(tol))
+        p = np.ascontiguousarray(param, dtype=float).ravel() if self.nparam else np.zeros(1)
+        y = np.ascontiguousarray(y0, dtype=float).ravel()
+        ts = np.ascontiguousarray(times, dtype=float).ravel()
+        if p.size != max(1, self.nparam) or y.size != self.ny:
+            raise ValueError(f"expected {self.nparam} parameters and {self.ny} initial values "
+                             f"(got {p.size} and {y.size})")
+        out = np.full((len(ts), self.ny), np.nan)
+        counts, t_last = (ctypes.c_long * 2)(), ctypes.c_double()
+        status = fn(p.ctypes.data, float(t0), y.ctypes.data, len(ts), ts.ctypes.data, float(tol), int(max_steps),
+                    out.ctypes.data, counts, ctypes.byref(t_last))
+        return out, int(status), int(counts[0]), int(counts[1]), float(t_last.value)
+
+    def solve(self, param, y0, grid, tol: float) -> tuple[np.ndarray, np.ndarray, bool, str]:
+        """``(t, Y, complete, message)`` as :meth:`.heyoka_backend.HeyokaIntegrator.run`: rows
+        ``Y = [q; qdot]`` at the ``grid`` times from ``y0`` at ``grid[0]``; on a failure, the
+        rows before it. The steps taken are left in ``last_steps``."""
+        grid = np.asarray(grid, dtype=float).ravel()
+        if grid.size < 1 or not np.all(np.isfinite(grid)) or np.any(np.diff(grid) < 0):
+            raise ValueError("grid must be a non-empty, finite, non-decreasing array of times")
+        if not np.all(np.isfinite(np.asarray(y0, dtype=float))):
+            raise ValueError(f"y0 must be finite (got {y0})")
+        Y, status, self.last_steps, rows, t_last = self.run(param, y0, grid, tol, t0=float(grid[0]))
+        if status == 0:
+            return grid.copy(), Y, True, ""
+        return grid[:rows].copy(), Y[:rows], False, f"{STATUS.get(status, f'status {status}')} at t = {t_last:.17g}"
 
     def integrate(self, param, y0, t_end: float, tol: float, order: int = 0, max_steps: int = 10_000_000):
         """``(y_end, status, steps, order)`` from ``y0`` at t = 0."""
-        import numpy as np
-
-        p = np.ascontiguousarray(param, dtype=float) if self.nparam else np.zeros(1)
-        y = np.ascontiguousarray(y0, dtype=float)
-        out = np.empty(self.ny)
-        counts = (ctypes.c_long * 2)()
-        status = self._fn(p.ctypes.data, 0.0, y.ctypes.data, float(t_end), float(tol), int(order),
-                          int(max_steps), out.ctypes.data, counts)
-        return out, int(status), int(counts[0]), int(counts[1])
-
+        order = order or order_for(tol)
+        out, status, steps, _, _ = self.run(param, y0, [float(t_end)], tol, order, max_steps)
+        return out[-1], status, steps, order
