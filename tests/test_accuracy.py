@@ -15,7 +15,9 @@ from kronsub.cli import main
 from kronsub.simulation import accuracy as A
 from kronsub.simulation.reference import Reference
 from kronsub.simulation.values import resolve
-from test_reference import pendulum_exact, spring_chain_exact
+from conftest import MODELS
+from kronsub.simulation import reference as R
+from test_reference import closed_loop, loaded, pendulum_exact, spring_chain_exact
 
 TEST_MODELS = ROOT / "tests" / "models"
 TOLERANCES = (1e-3, 1e-6, 1e-9)
@@ -51,6 +53,34 @@ def test_error_falls_with_tolerance_for_every_method(name, exact, t_end):
         assert p.energy_drift is not None and p.energy_drift < 1.0
 
 
+def test_closed_loop_error_falls_with_tolerance_against_the_explicit_twin():
+    """System II with the constraint (25), measured against a reference of System II in the
+    parametric form (26) (another derivation, no constraints): the error over the independent
+    state falls with the tolerance; the residuals of g and of G ydot stay at Newton's level;
+    methods without a Newton's method are skipped with the reason."""
+    settings = {"theta": "0.55", "theta_dot": "0.5"}  # an oscillation clear of the toggle at theta = 0.2
+    system, values, dependent = closed_loop(MODELS / "hoffmann" / "system2_implicit.yaml", settings)
+    explicit, twin = loaded(MODELS / "hoffmann" / "system2.yaml", settings)
+    t_end = 1.0
+    ref = R.reference(explicit, twin.parameters, twin.y0, [t_end], digits=12)
+    methods = ("dop853", "rk4", "RK45", "taylor", "heyoka", "gbs-quad")
+    wp = A.measure(system, values, t_end, methods, TOLERANCES, ref=ref, dependent=dependent,
+                   progress=False, budget=0.0, max_repeats=1)
+    assert wp.constraints == ("line",) and wp.conservative
+    for method in ("dop853", "rk4", "RK45"):
+        points = [p for p in wp.points if p.method == method]
+        errors = [p.error for p in points]
+        assert all(p.ok for p in points) and len(points) == len(TOLERANCES), method
+        assert errors[0] > errors[1] > errors[2] and errors[2] < 1e-7, (method, errors)
+        for p in points:
+            assert 0 <= p.constraint_residual < 1e-10 and 0 <= p.velocity_residual < 1e-10, p
+            assert p.energy_drift is not None and p.energy_drift < 10 * p.error + 1e-12, p
+    for method in ("taylor", "heyoka", "gbs-quad"):
+        assert "explicit equations only" in wp.skipped[method]
+    table = A.markdown(wp)
+    assert "max \\|g\\|" in table and "Closed loop (line)" in table
+
+
 def run_cli(*args):
     return CliRunner().invoke(main, ["accuracy", *map(str, args)])
 
@@ -74,7 +104,7 @@ def test_cli_writes_table_csv_png_and_names_the_target(tmp_path):
 
 
 def test_cli_refuses_to_plot_against_a_coarse_reference(tmp_path, monkeypatch):
-    def coarse(system, param, y0, times, digits):
+    def coarse(system, param, y0, times, digits, dependent=None):
         with mpmath.workdps(30):
             states = pendulum_exact(resolve(system, {}, {"q": "2.5"}), times)
         return Reference(list(times), states, 1e-3, digits, ("a deliberately coarse reference",))
