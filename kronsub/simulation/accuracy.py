@@ -16,6 +16,9 @@ Gragg-Bulirsch-Stoer routes in mpmath, cross-checked). A point records
   (27). The state is ``[xbar; xbardot]`` (the independent coordinates): the error is measured
   there, and the residuals show how well each method's run keeps the loop closed.
 
+The points go to a plain CSV (:func:`to_csv`), everything else (model, reference, skipped
+methods, failures) to JSON metadata beside it (:func:`metadata`).
+
 Adaptive methods take ``rtol = atol = tol``; ``taylor`` is a Taylor integrator generated as C for
 the model (:mod:`.taylor_c`), of order ``ceil(ln(1/tol)/2) + 1``; ``gbs-long`` and ``gbs-quad`` (extrapolation in the
 generated C in long double and ``_Float128``, :mod:`.extended`) take ``tol`` as their tolerance. The fixed-step methods (``gauss4``, ``rk4``, both of
@@ -95,6 +98,9 @@ class WorkPrecision:
     conservative: bool
     skipped: dict[str, str] = field(default_factory=dict)
     constraints: tuple[str, ...] = ()  # the names of implicit constraints (a closed loop)
+    parameters: dict[str, float] = field(default_factory=dict)  # name -> value, as run
+    initial_state: dict[str, float] = field(default_factory=dict)  # [q; qdot] at t = 0, by name
+    dependent: dict[str, float] = field(default_factory=dict)  # a closed loop's y_d at t = 0
 
     def best_error(self) -> float | None:
         errors = [p.error for p in self.points if p.ok]
@@ -550,9 +556,14 @@ def measure(system: KnownSystem, values: RunValues, t_end: float, methods: tuple
                 slow[method] = seconds
     finally:
         bar.close()
+    state = [q.name for q in system.coordinates] + [v.name for v in system.velocities]
     return WorkPrecision(system.name, t_end, points, ref, runners.compile_seconds, conservative,
                          {**runners.skipped, **skipped},
-                         tuple(c.name for c in implicit.constraints) if implicit is not None else ())
+                         tuple(c.name for c in implicit.constraints) if implicit is not None else (),
+                         {p.name: float(v) for p, v in zip(system.parameters, param)},
+                         dict(zip(state, map(float, y0))),
+                         {d.name: float(v) for d, v in zip(implicit.dependent, dependent)} if implicit is not None
+                         else {})
 
 
 # ---------------------------------------------------------------------------------------------
@@ -608,25 +619,92 @@ def target_sentence(wp: WorkPrecision, target: float) -> str:
             f"in {1e3 * best.seconds:.3f} ms.")
 
 
+def _json_number(value):
+    """A float for JSON, None for a missing or non-finite one (JSON has no NaN)."""
+    return None if value is None or not math.isfinite(float(value)) else float(value)
+
+
+CSV_COLUMNS = ("method", "tolerance", "setting", "error", "energy_drift", "constraint_residual",
+               "velocity_residual", "seconds", "compile_seconds", "evaluations", "steps", "repeats", "status")
+METADATA_FORMAT = "kronsub-accuracy-metadata/1"
+
+
 def to_csv(wp: WorkPrecision) -> str:
-    """One row per point; ``#`` comment lines name the model and the reference."""
-    import csv
-    import io
+    """One header row (:data:`CSV_COLUMNS`), then one row per point: plain CSV that
+    ``numpy.genfromtxt``, ``csv.DictReader`` and ``pandas.read_csv`` read without options.
+    Numbers in their shortest round-trip form, ``nan`` where a value does not apply (no energy
+    drift for a model that does not conserve energy, no residuals without constraints, no
+    evaluation count from a method that does not report it); ``status`` is ``ok`` or ``failed``
+    (the message is in the metadata, :func:`metadata`)."""
+    def number(value) -> str:
+        return "nan" if value is None else repr(float(value)) if not isinstance(value, int) else str(value)
+
+    lines = [",".join(CSV_COLUMNS)]
+    for p in wp.points:
+        lines.append(",".join([p.method, repr(p.tolerance), p.setting, number(p.error), number(p.energy_drift),
+                               number(p.constraint_residual), number(p.velocity_residual), number(p.seconds),
+                               number(p.compile_seconds), number(p.evaluations), number(p.steps), str(p.repeats),
+                               "ok" if p.ok else "failed"]))
+    return "\n".join(lines) + "\n"
+
+
+def metadata(wp: WorkPrecision, *, model_file: str | None = None, model_sha256: str | None = None,
+             scene: str | None = None, methods: tuple[str, ...] = (), tolerances: tuple[float, ...] = (),
+             target: float | None = None, csv: str | None = None) -> dict:
+    """Everything about a measurement that is not a point: the model, the reference (its routes,
+    estimated error and state at the end time, 30 digits), what was skipped and why, the
+    failures' messages, the target's choice. Written as JSON beside the CSV."""
+    from .. import __version__
 
     ref = wp.reference
-    out = io.StringIO()
-    out.write(f"# kronsub accuracy: {wp.system}, t_end {wp.t_end!r}\n")
-    out.write(f"# reference: {ref.routes[0]}; estimated error {ref.error:.3e} ({'; '.join(ref.routes[1:])})\n")
-    writer = csv.writer(out, lineterminator="\n")
-    writer.writerow(["method", "tolerance", "setting", "error", "energy_drift", "seconds", "compile_seconds",
-                     "evaluations", "steps", "repeats", "status"])
-    for p in wp.points:
-        writer.writerow([p.method, repr(p.tolerance), p.setting, repr(p.error),
-                         "" if p.energy_drift is None else repr(p.energy_drift), repr(p.seconds),
-                         "" if p.compile_seconds is None else repr(p.compile_seconds),
-                         "" if p.evaluations is None else p.evaluations, "" if p.steps is None else p.steps,
-                         p.repeats, p.status])
-    return out.getvalue()
+    names = list(wp.initial_state) or [f"y{i}" for i in range(len(ref.states[-1]))]
+    with mpmath.workdps(max(ref.digits, 30) + 5):
+        end_state = {name: mpmath.nstr(v, 30, strip_zeros=False) for name, v in zip(names, ref.states[-1])}
+    meta = {
+        "format": METADATA_FORMAT,
+        "kronsub": __version__,
+        "csv": csv,
+        "model": {"name": wp.system, "file": model_file, "sha256": model_sha256},
+        "scene": scene,
+        "t_end": _json_number(wp.t_end),
+        "parameters": {k: _json_number(v) for k, v in wp.parameters.items()},
+        "initial_state": {k: _json_number(v) for k, v in wp.initial_state.items()},
+    }
+    if wp.constraints:
+        meta["closed_loop"] = {"constraints": list(wp.constraints),
+                               "dependent_at_t0": {k: _json_number(v) for k, v in wp.dependent.items()},
+                               "state": "the independent coordinates and their velocities"}
+    best = wp.best_error()
+    meta.update({
+        "methods": list(methods),
+        "tolerances": [_json_number(t) for t in tolerances],
+        "reference": {
+            "times": [_json_number(t) for t in ref.times],
+            "route": ref.routes[0],
+            "cross_checks": list(ref.routes[1:]),
+            "estimated_error": _json_number(ref.error),
+            "digits": ref.digits,
+            "state_at_t_end": end_state,
+            "sufficient": wp.reference_sufficient(),
+            "required_margin": REFERENCE_MARGIN,
+            "best_point_error": _json_number(best),
+        },
+        "compile_seconds": _json_number(wp.compile_seconds),
+        "conservative": wp.conservative,
+        "skipped": dict(wp.skipped),
+        "failures": [{"method": p.method, "setting": p.setting, "message": p.status or "non-finite state"}
+                     for p in wp.points if not p.ok],
+        "columns": list(CSV_COLUMNS),
+        "units": ("error and residuals in the state's units (max over its entries); energy_drift relative to the "
+                  "largest |E| or T; seconds: median wall time of repeated integrations, compile_seconds apart"),
+    })
+    if target is not None:
+        chosen = wp.cheapest(target)
+        meta["target"] = {"error": _json_number(target),
+                          "cheapest": None if chosen is None else
+                          {"method": chosen.method, "setting": chosen.setting, "error": _json_number(chosen.error),
+                           "seconds": _json_number(chosen.seconds)}}
+    return meta
 
 
 def plot(wp: WorkPrecision, path, target: float | None = None) -> None:
