@@ -427,6 +427,10 @@ def section_pendulum(quick: bool, scratch: Path) -> None:
             row("heyoka " + heyoka.__version__, f"tol {tol:.0e}", best, Y[-1], "-",
                 f"{steps} steps, order {ta.order}; compile {compiled:.2f} s")
 
+    import peer_mujoco  # MuJoCo's Euler and RK4 at several steps, where mujoco installs (benchmarks/peer_mujoco.py)
+
+    peer_mujoco.table_rows(row, native, system, values, y0, t_end, c_repeats, quick)
+
     # extended precision: extrapolation in the generated C in long double and _Float128
     from kronsub.simulation.extended import ExtendedError, ExtendedModel
 
