@@ -342,7 +342,8 @@ def print_frontier(points) -> None:
     print("   frontier: the fastest row (min time) at or below each error; ratio = peer time / kronsub's")
     for err, goal_ms in FRONTIER:
         own = best("kronsub", err)
-        peers = {name: best(prefix, err) for name, prefix in (("heyoka", "heyoka"), ("scipy", "scipy"))}
+        peers = {name: best(prefix, err) for name, prefix in (("heyoka", "heyoka"), ("scipy", "scipy"),
+                                                               ("MuJoCo", "MuJoCo"))}
         shown = (f"kronsub {own[0][8:]} {own[1]} {own[2]:.3f} ms ({own[3]:.1e})" if own else "kronsub: none")
         for name, p in peers.items():
             if p is not None:
@@ -469,6 +470,9 @@ def section_pendulum(quick: bool, scratch: Path) -> None:
             row("heyoka " + heyoka.__version__, f"tol {tol:.0e}", seconds, Y[-1], "-",
                 f"{steps} steps, order {ta.order}; compile {compiled:.2f} s")
 
+    import peer_mujoco  # MuJoCo's Euler and RK4 at several steps, where mujoco installs (benchmarks/peer_mujoco.py)
+
+    peer_mujoco.table_rows(row, native, system, values, y0, t_end, c_repeats, quick)
     print_frontier(points)
 
     # extended precision: extrapolation in the generated C in long double and _Float128

@@ -393,7 +393,12 @@ def simulate(model: Path, t_end: float | None, dt: float | None, method: str | N
               help="Every decade of a range (1e-4:1e-14, or 1e-4:1e-14:2 for every second) or a list "
                    "(1e-6,1e-9). Fixed-step methods take the step tol^(1/4).")
 @click.option("--target", type=float, help="Name the cheapest method and tolerance reaching this error.")
-@click.option("--output", "-o", type=click.Path(dir_okay=False, path_type=Path), help="Write the CSV to FILE.")
+@click.option("--output", "-o", type=click.Path(dir_okay=False, path_type=Path),
+              help="Write the CSV (a header row, one row per method and tolerance) to FILE; its metadata goes "
+                   "beside it as JSON (wp.csv -> wp.json).")
+@click.option("--meta", type=click.Path(dir_okay=False, path_type=Path),
+              help="Write the metadata (JSON: model, reference routes and estimated error, t_end, skipped methods, "
+                   "failures, target) to FILE (default: beside --output).")
 @click.option("--plot", type=click.Path(dir_okay=False, path_type=Path),
               help="Write the work-precision PNG (error against time, log-log) to FILE.")
 @click.option("--quick", is_flag=True, help="A coarse grid (every third tolerance), few repeats, a cheaper reference.")
@@ -406,11 +411,12 @@ def simulate(model: Path, t_end: float | None, dt: float | None, method: str | N
               help="Set a parameter or an initial coordinate/velocity (repeatable).")
 @scene_option
 def accuracy(model: Path, t_end: float, methods: str, tolerances: str, target: float | None,
-             output: Path | None, plot: Path | None, quick: bool, digits: int | None, precision: str,
-             settings: tuple[str, ...], scene_name: str | None):
+             output: Path | None, meta: Path | None, plot: Path | None, quick: bool, digits: int | None,
+             precision: str, settings: tuple[str, ...], scene_name: str | None):
     """What accuracy costs in time: error against a high-precision reference, per method and tolerance."""
     from .model.scenes import initial_values
     from .simulation import accuracy as acc
+    from .simulation.table import file_sha256, metadata_json, sidecar_path
     from .simulation.values import parse_assignments, resolve
 
     def job():
@@ -422,19 +428,41 @@ def accuracy(model: Path, t_end: float, methods: str, tolerances: str, target: f
             grid = acc.quick_tolerances(grid)
         if target is not None and not target > 0:
             _fail("Error: --target must be a positive error, e.g. --target 1e-8")
+        meta_path = meta if meta is not None else (sidecar_path(output) if output is not None else None)
+        if output is not None and meta_path.resolve() == output.resolve():
+            _fail(f"Error: --meta {meta_path} is the CSV file itself\n  hint: choose another --meta", USAGE_ERROR)
         _writable_outputs(output, plot)
+        _writable(meta_path, "--meta")
         loaded, scene, system = scene_system(model, scene_name)
-        if system.implicit is not None:
-            _fail("Error: kronsub accuracy does not take closed loops (constraints:) yet\n"
-                  "  hint: compare methods with kronsub simulate --method ... on this model")
-        values = resolve(system, initial_values(loaded, scene), parse_assignments(settings))
+        initial, assignments = initial_values(loaded, scene), parse_assignments(settings)
+        dependent = None
+        if system.implicit is not None:  # initial conditions onto the constraints, as simulate does
+            from .simulation.constrained import project_initial, split_settings
+
+            assignments, dependent_settings = split_settings(system, assignments)
+            values = resolve(system, initial, assignments)
+            values, notes, closure = project_initial(system, initial, dependent_settings, values, 1e-14)
+            dependent = closure.guess
+            for note in notes:
+                click.echo(f"note: initial conditions projected onto the constraints: {note}", err=True)
+        else:
+            values = resolve(system, initial, assignments)
         click.echo(f"computing the reference to t = {t_end:g} ...", err=True)
         default_digits = 34 if "gbs-quad" in chosen else (16 if quick else 20)
-        wp = acc.measure(system, values, t_end, chosen, grid, digits=digits or default_digits, quick=quick)
+        wp = acc.measure(system, values, t_end, chosen, grid, digits=digits or default_digits, quick=quick,
+                         dependent=dependent)
         click.echo(acc.markdown(wp, target), nl=False)
         if output is not None:
             write_atomically(output, acc.to_csv(wp))
             click.echo(f"wrote {output} ({len(wp.points)} points)", err=True)
+        if meta_path is not None:
+            csv_name = None if output is None else (
+                output.name if output.parent.resolve() == meta_path.parent.resolve() else str(output))
+            info = acc.metadata(wp, model_file=model.as_posix(), model_sha256=file_sha256(model),
+                                scene=scene.name if scene is not None else None, methods=chosen, tolerances=grid,
+                                target=target, csv=csv_name)
+            write_atomically(meta_path, metadata_json(info))
+            click.echo(f"wrote {meta_path}", err=True)
         if not wp.reference_sufficient():
             _fail(f"Error: the reference's estimated error {wp.reference.error:.1e} is not "
                   f"{acc.REFERENCE_MARGIN:g}x below the best point's error {wp.best_error():.1e}: the errors "

@@ -15,7 +15,9 @@ from kronsub.cli import main
 from kronsub.simulation import accuracy as A
 from kronsub.simulation.reference import Reference
 from kronsub.simulation.values import resolve
-from test_reference import pendulum_exact, spring_chain_exact
+from conftest import MODELS
+from kronsub.simulation import reference as R
+from test_reference import closed_loop, loaded, pendulum_exact, spring_chain_exact
 
 TEST_MODELS = ROOT / "tests" / "models"
 TOLERANCES = (1e-3, 1e-6, 1e-9)
@@ -51,30 +53,126 @@ def test_error_falls_with_tolerance_for_every_method(name, exact, t_end):
         assert p.energy_drift is not None and p.energy_drift < 1.0
 
 
+def test_closed_loop_error_falls_with_tolerance_against_the_explicit_twin():
+    """System II with the constraint (25), measured against a reference of System II in the
+    parametric form (26) (another derivation, no constraints): the error over the independent
+    state falls with the tolerance; the residuals of g and of G ydot stay at Newton's level;
+    methods without a Newton's method are skipped with the reason."""
+    settings = {"theta": "0.55", "theta_dot": "0.5"}  # an oscillation clear of the toggle at theta = 0.2
+    system, values, dependent = closed_loop(MODELS / "hoffmann" / "system2_implicit.yaml", settings)
+    explicit, twin = loaded(MODELS / "hoffmann" / "system2.yaml", settings)
+    t_end = 1.0
+    ref = R.reference(explicit, twin.parameters, twin.y0, [t_end], digits=12)
+    methods = ("dop853", "rk4", "RK45", "taylor", "heyoka", "gbs-quad")
+    wp = A.measure(system, values, t_end, methods, TOLERANCES, ref=ref, dependent=dependent,
+                   progress=False, budget=0.0, max_repeats=1)
+    assert wp.constraints == ("line",) and wp.conservative
+    for method in ("dop853", "rk4", "RK45"):
+        points = [p for p in wp.points if p.method == method]
+        errors = [p.error for p in points]
+        assert all(p.ok for p in points) and len(points) == len(TOLERANCES), method
+        assert errors[0] > errors[1] > errors[2] and errors[2] < 1e-7, (method, errors)
+        for p in points:
+            assert 0 <= p.constraint_residual < 1e-10 and 0 <= p.velocity_residual < 1e-10, p
+            assert p.energy_drift is not None and p.energy_drift < 10 * p.error + 1e-12, p
+    for method in ("taylor", "heyoka", "gbs-quad"):
+        assert "explicit equations only" in wp.skipped[method]
+    table = A.markdown(wp)
+    assert "max \\|g\\|" in table and "Closed loop (line)" in table
+
+
 def run_cli(*args):
     return CliRunner().invoke(main, ["accuracy", *map(str, args)])
 
 
+def read_csv_every_way(text: str) -> dict[str, dict]:
+    """The accuracy CSV read by each standard reader without options beyond the delimiter:
+    reader -> column -> values."""
+    import numpy as np
+
+    out = {}
+    table = np.genfromtxt(io.StringIO(text), names=True, delimiter=",", dtype=None, encoding="utf-8")
+    out["numpy"] = {name: np.atleast_1d(table[name]).tolist() for name in table.dtype.names}
+    rows = list(csv.DictReader(io.StringIO(text)))
+    out["csv"] = {name: [r[name] for r in rows] for name in rows[0]}
+    try:
+        import pandas
+    except ImportError:
+        return out
+    frame = pandas.read_csv(io.StringIO(text))
+    out["pandas"] = {name: frame[name].tolist() for name in frame.columns}
+    return out
+
+
 def test_cli_writes_table_csv_png_and_names_the_target(tmp_path):
+    import json
+    import math
+
     out, png = tmp_path / "wp.csv", tmp_path / "wp.png"
-    result = run_cli(TEST_MODELS / "pendulum.yaml", "--t", 2, "--methods", "dop853,rk4,RK45",
+    result = run_cli(TEST_MODELS / "pendulum.yaml", "--t", 2, "--methods", "dop853,rk4,RK45,heyoka",
                      "--tolerances", "1e-3:1e-9:3", "--target", 1e-6, "--quick", "--output", out, "--plot", png)
     assert result.exit_code == 0, result.output
     assert "| dop853 | tol 1e-03 |" in result.output and "| rk4 | h " in result.output
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
-    rows = list(csv.DictReader(io.StringIO("".join(l for l in out.read_text().splitlines(True)
-                                                   if not l.startswith("#")))))
-    assert len(rows) == 6  # --quick: the first and the last of the three tolerances
+    text = out.read_text()
+    assert text.startswith("method,tolerance,setting,error,") and "#" not in text  # one header row, then rows
+    readers = read_csv_every_way(text)
+    for reader, columns in readers.items():
+        assert list(columns) == list(A.CSV_COLUMNS), reader
+        assert all(float(v) > 0 for v in columns["error"]), reader
+        assert all(math.isnan(float(v)) for v in columns["constraint_residual"]), reader  # no constraints here
+    rows = list(csv.DictReader(io.StringIO(text)))
+    methods = {r["method"] for r in rows}
+    assert len(rows) == 2 * len(methods) and methods >= {"dop853", "rk4", "RK45"}  # --quick: first and last
     line = next(l for l in result.output.splitlines() if l.startswith("Target 1e-06: cheapest is"))
     method, setting = line.split("cheapest is ")[1].split(":")[0].split(" at ")
     chosen = next(r for r in rows if r["method"] == method and r["setting"] == setting)
     assert float(chosen["error"]) <= 1e-6
-    meeting = [r for r in rows if float(r["error"]) <= 1e-6 and not r["status"]]
+    meeting = [r for r in rows if float(r["error"]) <= 1e-6 and r["status"] == "ok"]
     assert float(chosen["seconds"]) == min(float(r["seconds"]) for r in meeting)
+    # the metadata beside the CSV: the model, the reference and its estimated error, the target
+    meta = json.loads((tmp_path / "wp.json").read_text())
+    assert meta["format"] == A.METADATA_FORMAT and meta["csv"] == "wp.csv" and meta["t_end"] == 2.0
+    assert meta["model"]["name"] == "Simple pendulum" and meta["model"]["file"].endswith("tests/models/pendulum.yaml")
+    assert meta["model"]["sha256"] and meta["columns"] == list(A.CSV_COLUMNS)
+    reference = meta["reference"]
+    assert reference["times"][-1] == 2.0 and reference["sufficient"] is True
+    assert 0 <= reference["estimated_error"] < 1e-12 and "Taylor series" in reference["route"]
+    model = kronsub.load(TEST_MODELS / "pendulum.yaml")
+    exact = pendulum_exact(resolve(model.derive(), dict(model.initial), {}), [2.0])[0]
+    with mpmath.workdps(40):
+        assert abs(mpmath.mpf(reference["state_at_t_end"]["q"]) - exact[0]) < 1e-20
+        assert abs(mpmath.mpf(reference["state_at_t_end"]["q_dot"]) - exact[1]) < 1e-20
+    assert meta["target"]["cheapest"] == {"method": method, "setting": setting,
+                                          "error": float(chosen["error"]), "seconds": float(chosen["seconds"])}
+    if "heyoka" not in methods:
+        assert "heyoka" in meta["skipped"]
+
+
+def test_cli_closed_loop_csv_and_meta(tmp_path):
+    """A closed loop through the command line: the residual columns filled, the metadata names the
+    constraints and the dependent coordinates at t = 0; --meta chooses the metadata's file."""
+    import json
+
+    out, meta_file = tmp_path / "loop.csv", tmp_path / "info" / "loop-meta.json"
+    meta_file.parent.mkdir()
+    result = run_cli(MODELS / "hoffmann" / "system2_implicit.yaml", "--set", "theta=0.55", "--set", "theta_dot=0.5",
+                     "--t", 0.5, "--methods", "dop853,taylor", "--tolerances", "1e-4,1e-8", "--quick",
+                     "--output", out, "--meta", meta_file)
+    assert result.exit_code == 0, result.output
+    assert "max \\|g\\|" in result.output
+    rows = list(csv.DictReader(io.StringIO(out.read_text())))
+    assert [r["method"] for r in rows] == ["dop853", "dop853"]
+    assert all(0 <= float(r["constraint_residual"]) < 1e-10 and r["status"] == "ok" for r in rows)
+    assert float(rows[1]["error"]) < float(rows[0]["error"])
+    meta = json.loads(meta_file.read_text())
+    assert meta["csv"] == str(out) and not (tmp_path / "loop.json").exists()
+    assert meta["closed_loop"]["constraints"] == ["line"] and set(meta["closed_loop"]["dependent_at_t0"]) == {"phi"}
+    assert "explicit equations only" in meta["skipped"]["taylor"]
 
 
 def test_cli_refuses_to_plot_against_a_coarse_reference(tmp_path, monkeypatch):
-    def coarse(system, param, y0, times, digits):
+    def coarse(system, param, y0, times, digits, dependent=None):
         with mpmath.workdps(30):
             states = pendulum_exact(resolve(system, {}, {"q": "2.5"}), times)
         return Reference(list(times), states, 1e-3, digits, ("a deliberately coarse reference",))

@@ -220,3 +220,69 @@ def test_retyped_c_builds_with_warnings_as_errors(tmp_path, precision):
     if proc.returncode and precision == "quad" and "_Float128" in proc.stderr:
         pytest.skip("no _Float128 in this compiler")
     assert proc.returncode == 0, proc.stderr
+
+
+# ---------------------------------------------------------------------------------------------
+# closed loops: the dependent coordinates as series (y_d' = Lambda qdot) and by Newton's method
+# ---------------------------------------------------------------------------------------------
+
+def closed_loop(path, settings=None):
+    """A closed-loop model's system, initial values projected onto its constraints, and y_d there."""
+    from kronsub.simulation.constrained import project_initial
+
+    model = kronsub.load(path)
+    system = model.derive()
+    values = resolve(system, dict(model.initial), settings or {})
+    values, _, closure = project_initial(system, dict(model.initial), {}, values, 1e-14)
+    return system, values, [float(v) for v in closure.guess]
+
+
+def test_closed_loop_reference_equals_its_explicit_twin():
+    """System II written with the constraint (25) against System II in the parametric form (26):
+    the same motion from two derivations; phi against its closed form asin((c - a1 sin theta)/a2)."""
+    settings = {"theta": "0.55", "theta_dot": "0.5"}  # an oscillation clear of the toggle at theta = 0.2
+    implicit, values, dependent = closed_loop(MODELS / "hoffmann" / "system2_implicit.yaml", settings)
+    explicit, twin = loaded(MODELS / "hoffmann" / "system2.yaml", settings)
+    assert twin.y0 == values.y0 and twin.parameters == values.parameters
+    times = [0.5, 1.0]
+    ref = R.reference(implicit, values.parameters, values.y0, times, digits=12, dependent=dependent)
+    want = R.reference(explicit, twin.parameters, twin.y0, times, digits=12)
+    assert ref.error < 1e-11 and want.error < 1e-11
+    assert R._difference(ref.states, want.states) < 1e-17
+    names = [p.name for p in implicit.parameters]
+    c, a1, a2 = (mpmath.mpf(values.parameters[names.index(k)]) for k in ("c", "a1", "a2"))
+    with mpmath.workdps(40):
+        for state, (phi,) in zip(want.states, ref.dependent):
+            assert abs(phi - mpmath.asin((c - a1 * mpmath.sin(state[0])) / a2)) < 1e-17
+
+
+def test_closed_loop_series_matches_kane_and_the_newton_route():
+    """The four-bar (two dependent coordinates): the tape's accelerations at consistent states
+    against sympy.physics.mechanics' KanesMethod with configuration constraints; then the Taylor
+    route (all orders of y_d, Lambda, gamma) against Gragg-Bulirsch-Stoer with Newton's method in
+    every evaluation."""
+    import closed_loop_reference as loops
+
+    system, values, dependent = closed_loop(MODELS / "examples" / "four_bar.yaml", {"tau": "0.7"})
+    kane = loops.four_bar()
+    params = {p.name: v for p, v in zip(system.parameters, values.parameters)}
+    bits, n = 200, len(system.coordinates)
+    rng = np.random.default_rng(11)
+    with mpmath.workdps(60):
+        series = R._series_of(system, values.parameters, bits)
+        closure = R._Closure(system, values.parameters, bits, dependent)
+        for _ in range(4):
+            y = np.array(values.y0) + np.concatenate([rng.uniform(-0.05, 0.05, n), rng.uniform(-2, 2, n)])
+            fixed = [R._fixed(mpmath.mpf(v), bits) for v in y]
+            yd = closure.dependent(fixed[:n])
+            coeff = series.coefficients(0, fixed + yd, 1)
+            got = np.array([float(R._real(coeff[n + a][1], bits)) for a in range(n)])
+            ours = dict(zip((d.name for d in system.implicit.dependent), (float(R._real(v, bits)) for v in yd)))
+            q, u = kane.state(y[:n], y[n:], [ours[name] for name in kane.dependent], params)
+            assert np.allclose([ours[name] for name in kane.dependent], q[n:], atol=1e-12)
+            _, _, want = kane.evaluate(q, u, params)
+            assert np.allclose(got, want, rtol=1e-10, atol=1e-10), (got, want)
+    taylor = R.taylor(system, values.parameters, values.y0, [0.25], digits=12, dependent=dependent)
+    gbs = R.extrapolation(system, values.parameters, values.y0, [0.25], digits=12, dependent=dependent)
+    assert R._difference(taylor.states, gbs.states) < 1e-12
+    assert R._difference(taylor.dependent, gbs.dependent) < 1e-12

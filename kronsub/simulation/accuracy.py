@@ -8,7 +8,16 @@ Gragg-Bulirsch-Stoer routes in mpmath, cross-checked). A point records
 - ``energy_drift``: ``|E(t_end) - E(0)| / |E|``, ``E = T + V`` (24), when the model conserves
   energy (judged on the reference trajectory);
 - ``seconds``: the median wall time of repeated integrations (compilation apart);
-- right-hand-side evaluations and steps.
+- right-hand-side evaluations and steps;
+- with implicit constraints (a closed loop, (25)-(29)): ``constraint_residual``, the largest
+  ``|g(y)|`` over the run's steps, ``y = [xbar; y_d]`` with ``y_d`` found as the run finds it
+  (Newton's method at the run's tolerance, from the last solution), and
+  ``velocity_residual``, the largest ``|G ydot|`` with ``ydot = [xbardot; Lambda xbardot]``
+  (27). The state is ``[xbar; xbardot]`` (the independent coordinates): the error is measured
+  there, and the residuals show how well each method's run keeps the loop closed.
+
+The points go to a plain CSV (:func:`to_csv`), everything else (model, reference, skipped
+methods, failures) to JSON metadata beside it (:func:`metadata`).
 
 Adaptive methods take ``rtol = atol = tol``; ``taylor`` is a Taylor integrator generated as C for
 the model (:mod:`.taylor_c`), of order ``ceil(ln(1/tol)/2) + 1`` (one library per order, its
@@ -42,11 +51,13 @@ HEYOKA = ("heyoka",)
 GENERATED = ("taylor",)  # a Taylor integrator generated as C for the model (.taylor_c)
 EXTENDED = {"gbs-long": "long", "gbs-quad": "quad"}  # extrapolation in long double / _Float128 C
 ALL_METHODS = NATIVE + GENERATED + SCIPY + HEYOKA  # "all"; the extended ones are asked for by name
+CLOSED_LOOP = NATIVE + SCIPY  # the compiled right-hand side, which finds y_d by Newton's method
 KNOWN_METHODS = ALL_METHODS + tuple(EXTENDED)
 FIXED_STEP_ORDER = {"gauss4": 4, "rk4": 4}
 REFERENCE_MARGIN = 100.0  # the reference must be this much more accurate than the best point
 SLOW_SECONDS = 5.0  # a method whose run took longer skips its tighter tolerances
 FLOAT64_FLOOR = 1e-15  # float64 methods skip tighter tolerances
+RESIDUAL_ROWS = 2000  # the constraint residuals are evaluated at most at this many steps of a run
 
 
 class AccuracyError(KronsubError):
@@ -68,6 +79,8 @@ class Point:
     repeats: int
     compile_seconds: float | None = None
     status: str = ""
+    constraint_residual: float | None = None  # max |g(y)| over the run (closed loops)
+    velocity_residual: float | None = None  # max |G ydot| over the run (closed loops)
 
     @property
     def ok(self) -> bool:
@@ -85,6 +98,10 @@ class WorkPrecision:
     compile_seconds: float | None
     conservative: bool
     skipped: dict[str, str] = field(default_factory=dict)
+    constraints: tuple[str, ...] = ()  # the names of implicit constraints (a closed loop)
+    parameters: dict[str, float] = field(default_factory=dict)  # name -> value, as run
+    initial_state: dict[str, float] = field(default_factory=dict)  # [q; qdot] at t = 0, by name
+    dependent: dict[str, float] = field(default_factory=dict)  # a closed loop's y_d at t = 0
 
     def best_error(self) -> float | None:
         errors = [p.error for p in self.points if p.ok]
@@ -194,10 +211,12 @@ def _timed(run: Callable[[], tuple], budget: float, max_repeats: int) -> tuple[t
 
 class _Runners:
     """Integrations of one system with one parameter set: ``run(method, tol) -> (y_end,
-    evaluations, steps, status)`` and what compiling cost."""
+    evaluations, steps, status)`` and what compiling cost. With implicit constraints,
+    ``dependent`` is ``y_d`` at ``y0``: every run starts its Newton's method from it."""
 
-    def __init__(self, system: KnownSystem, param: np.ndarray, y0: np.ndarray, t_end: float):
+    def __init__(self, system: KnownSystem, param: np.ndarray, y0: np.ndarray, t_end: float, dependent=None):
         self.system, self.param, self.y0, self.t_end = system, param, y0, t_end
+        self.dependent = None if system.implicit is None else np.array(dependent, dtype=float)
         self.native = None
         self.compile_seconds = None
         self.skipped: dict[str, str] = {}
@@ -217,7 +236,7 @@ class _Runners:
         else:
             from .run import _numpy_module
 
-            module = _numpy_module(system)
+            module = self.module = _numpy_module(system)
             self.rhs = lambda t, y: module["rhs"](t, y, param)
         self._heyoka = None
         self.heyoka_compile: dict[float, float] = {}
@@ -225,10 +244,26 @@ class _Runners:
         self.extended_compile: dict[str, float] = {}
         self.taylor_compile: dict[float, float] = {}  # per tolerance: generating and compiling its order
 
+    def _fresh_rhs(self, tol: float) -> Callable:
+        """The right-hand side for one run: with implicit constraints, Newton's method starts
+        afresh from ``y_d(0)`` at the run's tolerance (``min(rtol, atol) / 100``)."""
+        if self.dependent is None:
+            return self.rhs
+        from .constrained import configure_module, newton_tolerance
+
+        if self.native is not None:
+            self.native.set_newton(self.dependent, newton_tolerance(tol, tol))
+            return self.native.scipy_rhs(self.param)
+        configure_module(self.module, self.dependent, newton_tolerance(tol, tol))
+        return self.rhs
+
     def available(self, method: str) -> str:
         """Why ``method`` cannot run, or ''."""
         if method in self.skipped:
             return self.skipped[method]
+        if self.dependent is not None and method not in CLOSED_LOOP:
+            return ("it runs explicit equations only, and a closed loop's dependent coordinates come from "
+                    "Newton's method on the constraints (methods here: " + ", ".join(CLOSED_LOOP) + ")")
         if method == "heyoka":
             from . import heyoka_backend
 
@@ -266,14 +301,17 @@ class _Runners:
         t_end, y0, param = self.t_end, self.y0, self.param
         if method in NATIVE:
             native = self.native
+            restart = (lambda: self._fresh_rhs(tol)) if self.dependent is not None else (lambda: None)
             if method == "dop853":
                 def run():
+                    restart()
                     _, Y, res = native.integrate("dop853", 0.0, y0, t_end, t_end, param, rtol=tol, atol=tol)
                     return Y[-1], res.n_evals, res.n_steps, "" if res.ok else res.message
             else:
                 h = fixed_step(method, tol, t_end)
 
                 def run():
+                    restart()
                     _, Y, res = native.integrate(method, 0.0, y0, t_end, t_end, param, h=h)
                     return Y[-1], res.n_evals, res.n_steps, "" if res.ok else res.message
             return run
@@ -281,9 +319,9 @@ class _Runners:
             import scipy.integrate
 
             solver_class = getattr(scipy.integrate, method)
-            rhs = self.rhs
 
             def run():
+                rhs = self._fresh_rhs(tol)
                 with warnings.catch_warnings(), np.errstate(all="ignore"):
                     warnings.simplefilter("ignore")
                     solver = solver_class(rhs, 0.0, y0.copy(), t_end, rtol=tol, atol=tol)
@@ -334,22 +372,114 @@ class _Runners:
             return run
         raise AccuracyError(f"unknown method '{method}'")
 
-    def energy(self, y: np.ndarray) -> float | None:
+    def intermediates(self):
+        """The constraints' numbers at this run's parameters (:class:`~kronsub.core.constraints.Intermediates`)."""
+        if getattr(self, "_intermediates", None) is None:
+            from ..core.constraints import Intermediates
+
+            values = {p.symbol: v for p, v in zip(self.system.parameters, self.param)}
+            self._intermediates = Intermediates(self.system.implicit, values)
+        return self._intermediates
+
+    def energy(self, y: np.ndarray, dependent=None) -> float | None:
+        """``E = T + V`` at ``y``; with constraints, Newton's method starts from ``dependent``
+        (from ``y_d(0)`` when not given)."""
         if self.native is None:
             return None
         try:
+            if self.dependent is not None:
+                if dependent is None:
+                    from ..core.constraints import ConstraintFailure
+
+                    closure = self.intermediates()
+                    closure.tol, closure.guess = 1e-14, self.dependent.copy()
+                    try:
+                        dependent = closure.dependent(np.asarray(y)[:len(self.system.coordinates)])
+                    except ConstraintFailure:
+                        return None
+                self.native.set_newton(dependent, 1e-14)
             return self.native.kinetic_energy(y, self.param) + self.native.potential_energy(self.t_end, y, self.param)
         except native_module.NativeError:
             return None
 
+    def trace(self, method: str, tol: float) -> tuple[np.ndarray, np.ndarray]:
+        """One more (untimed) run of ``method`` at ``tol``: the times and states of its steps."""
+        t_end, y0, param = self.t_end, self.y0, self.param
+        if method in NATIVE:
+            self._fresh_rhs(tol)
+            if method == "dop853":
+                T, Y, _ = self.native.integrate("dop853", 0.0, y0, t_end, 0.0, param, rtol=tol, atol=tol)
+            else:  # the step of the timed run: t_end over a whole number of steps
+                h = t_end / max(1, math.ceil(t_end / fixed_step(method, tol, t_end) - 1e-9))
+                T, Y, _ = self.native.integrate(method, 0.0, y0, t_end, h, param, h=h)
+            return T, Y
+        import scipy.integrate
+
+        rhs = self._fresh_rhs(tol)
+        times, states = [0.0], [y0.copy()]
+        with warnings.catch_warnings(), np.errstate(all="ignore"):
+            warnings.simplefilter("ignore")
+            solver = getattr(scipy.integrate, method)(rhs, 0.0, y0.copy(), t_end, rtol=tol, atol=tol)
+            try:
+                while solver.status == "running":
+                    solver.step()
+                    times.append(solver.t)
+                    states.append(solver.y.copy())
+            except Exception:  # the timed run reports the failure
+                pass
+        return np.array(times), np.array(states)
+
+    def residuals(self, method: str, tol: float) -> tuple[float, float, np.ndarray | None]:
+        """The largest ``|g(y)|`` and ``|G ydot|`` over the steps of a run (at most
+        :data:`RESIDUAL_ROWS` of them, evenly spread, the last included), ``y_d`` found at
+        each from the one before by Newton's method at the run's tolerance, as the run finds
+        it; and ``y_d`` at the last step."""
+        from ..core.constraints import ConstraintFailure
+        from .constrained import newton_tolerance
+
+        T, Y = self.trace(method, tol)
+        if len(Y) > RESIDUAL_ROWS:
+            pick = np.unique(np.linspace(0, len(Y) - 1, RESIDUAL_ROWS).round().astype(int))
+            T, Y = T[pick], Y[pick]
+        imp, n = self.system.implicit, len(self.system.coordinates)
+        ntol = newton_tolerance(tol, tol)
+        closure = self.intermediates()
+        closure.tol, guess = ntol, self.dependent.copy()
+        worst_g = worst_v = 0.0
+        for t, y in zip(T, Y):
+            try:
+                if self.native is not None:  # the compiled Newton's method, as in the run
+                    self.native.set_newton(guess, ntol)
+                    self.native.rhs(float(t), y, self.param)
+                    dep = self.native.dependent
+                else:
+                    closure.guess = guess
+                    dep = closure.dependent(y[:n])
+            except (ConstraintFailure, native_module.NativeError, np.linalg.LinAlgError):
+                return math.nan, math.nan, None
+            full = np.concatenate([y[:n], dep])
+            G = closure.numeric.jacobian(full)
+            qdot = y[n:]
+            try:
+                dep_dot = np.linalg.solve(G[:, n:], -G[:, :n] @ qdot)
+            except np.linalg.LinAlgError:
+                return math.nan, math.nan, None
+            worst_g = max(worst_g, float(np.max(np.abs(closure.numeric.residual(full)))))
+            worst_v = max(worst_v, float(np.max(np.abs(G[:, :n] @ qdot + G[:, n:] @ dep_dot))))
+            guess = dep
+        return worst_g, worst_v, guess
+
 
 def _conservative(runners: _Runners, ref: Reference) -> tuple[bool, float | None, float]:
     """Whether energy is conserved along the reference (to 1e-9 relative): (flag, E(0), scale)."""
-    E0 = runners.energy(runners.y0)
+    E0 = runners.energy(runners.y0, runners.dependent)
     if E0 is None:
         return False, None, 1.0
-    energies = [runners.energy(np.array(ref.at(i))) for i in range(len(ref.times))]
-    kinetic = [runners.native.kinetic_energy(np.array(ref.at(i)), runners.param) for i in range(len(ref.times))]
+    dependent = [[float(v) for v in d] for d in ref.dependent] or [None] * len(ref.times)
+    energies, kinetic = [], []
+    for i in range(len(ref.times)):
+        energies.append(runners.energy(np.array(ref.at(i)), dependent[i]))
+        kinetic.append(runners.native.kinetic_energy(np.array(ref.at(i)), runners.param))  # at that y_d
     scale = max([abs(E0), *map(abs, kinetic), 1e-300])
     conserved = all(e is not None and abs(e - E0) <= 1e-9 * scale for e in energies)
     return conserved, E0, scale
@@ -363,18 +493,27 @@ def sample_times(t_end: float, count: int = 4) -> list[float]:
 def measure(system: KnownSystem, values: RunValues, t_end: float, methods: tuple[str, ...],
             tolerances: tuple[float, ...], *, ref: Reference | None = None, digits: int = 20,
             quick: bool = False, progress: bool | None = None, budget: float | None = None,
-            max_repeats: int | None = None) -> WorkPrecision:
+            max_repeats: int | None = None, dependent=None) -> WorkPrecision:
     """Every method at every tolerance, against ``ref`` (computed at ``digits`` digits when
-    not given; its last time must be ``t_end``)."""
+    not given; its last time must be ``t_end``). With implicit constraints, ``values`` must be
+    on them and ``dependent`` is ``y_d`` there (:func:`.constrained.project_initial`; done
+    here when not given)."""
     if not (t_end > 0 and math.isfinite(t_end)):
         raise AccuracyError("--t must be a positive number")
+    implicit = system.implicit
+    if implicit is not None and dependent is None:
+        from .constrained import project_initial
+
+        values, _, closure = project_initial(system, {}, {}, values, 1e-14)
+        dependent = closure.guess
     param, y0 = np.array(values.parameters, dtype=float), np.array(values.y0, dtype=float)
     if ref is None:
-        ref = compute_reference(system, values.parameters, values.y0, sample_times(t_end), digits)
+        ref = compute_reference(system, values.parameters, values.y0, sample_times(t_end), digits,
+                                dependent=None if implicit is None else [float(v) for v in dependent])
     if abs(ref.times[-1] - t_end) > 1e-12 * t_end:
         raise AccuracyError(f"the reference ends at t = {ref.times[-1]}, not at {t_end}")
     want = np.array(ref.at(len(ref.times) - 1))
-    runners = _Runners(system, param, y0, t_end)
+    runners = _Runners(system, param, y0, t_end, dependent)
     conservative, E0, scale = _conservative(runners, ref)
     budget = (0.05 if quick else 0.3) if budget is None else budget
     max_repeats = (3 if quick else 9) if max_repeats is None else max_repeats
@@ -407,21 +546,32 @@ def measure(system: KnownSystem, values: RunValues, t_end: float, methods: tuple
             y_end = np.array([float(v) for v in y_end])
             if method not in EXTENDED:
                 error = float(np.max(np.abs(y_end - want))) if np.all(np.isfinite(y_end)) else math.nan
+            residual = velocity_residual = dependent_end = None
+            if implicit is not None:
+                residual, velocity_residual, dependent_end = runners.residuals(method, tol)
             drift = None
-            if conservative and method not in EXTENDED and np.all(np.isfinite(y_end)):
-                E = runners.energy(y_end)
+            if conservative and method not in EXTENDED and np.all(np.isfinite(y_end)) and \
+                    (implicit is None or dependent_end is not None):
+                E = runners.energy(y_end, dependent_end)
                 drift = None if E is None else abs(E - E0) / scale
             setting = f"h {fixed_step(method, tol, t_end):.3g}" if method in FIXED_STEP_ORDER else f"tol {tol:.0e}"
             compiled = runners.heyoka_compile.get(tol) if method == "heyoka" else \
                 runners.taylor_compile.get(tol) if method == "taylor" else \
                 runners.extended_compile.get(EXTENDED.get(method, method))
-            points.append(Point(method, tol, setting, error, drift, seconds, evals, steps, repeats, compiled, status))
+            points.append(Point(method, tol, setting, error, drift, seconds, evals, steps, repeats, compiled, status,
+                                residual, velocity_residual))
             if seconds > SLOW_SECONDS:
                 slow[method] = seconds
     finally:
         bar.close()
+    state = [q.name for q in system.coordinates] + [v.name for v in system.velocities]
     return WorkPrecision(system.name, t_end, points, ref, runners.compile_seconds, conservative,
-                         {**runners.skipped, **skipped})
+                         {**runners.skipped, **skipped},
+                         tuple(c.name for c in implicit.constraints) if implicit is not None else (),
+                         {p.name: float(v) for p, v in zip(system.parameters, param)},
+                         dict(zip(state, map(float, y0))),
+                         {d.name: float(v) for d, v in zip(implicit.dependent, dependent)} if implicit is not None
+                         else {})
 
 
 # ---------------------------------------------------------------------------------------------
@@ -441,16 +591,24 @@ def markdown(wp: WorkPrecision, target: float | None = None) -> str:
     if wp.compile_seconds is not None:
         lines += [f"Compiling the C right-hand side and integrators: {wp.compile_seconds:.2f} s (apart from "
                   "the times below; cached after the first run).", ""]
-    lines += ["| method | setting | error at t_end | energy drift | time [ms] | f evals | steps | note |",
-              "|---|---|---:|---:|---:|---:|---:|---|"]
+    loop = bool(wp.constraints)
+    extra_head = " max \\|g\\| | max \\|G ydot\\| |" if loop else ""
+    lines += ["| method | setting | error at t_end | energy drift |" + extra_head + " time [ms] | f evals | steps | note |",
+              "|---|---|---:|---:|" + ("---:|---:|" if loop else "") + "---:|---:|---:|---|"]
     for p in wp.points:
         note = p.status or (f"compile {p.compile_seconds:.2f} s" if p.compile_seconds is not None else "")
-        lines.append(f"| {p.method} | {p.setting} | {_number(p.error, '.2e')} | {_number(p.energy_drift, '.1e')} | "
-                     f"{1e3 * p.seconds:.3f} | {_number(p.evaluations, 'd')} | {_number(p.steps, 'd')} | {note} |")
+        extra = f" {_number(p.constraint_residual, '.1e')} | {_number(p.velocity_residual, '.1e')} |" if loop else ""
+        lines.append(f"| {p.method} | {p.setting} | {_number(p.error, '.2e')} | {_number(p.energy_drift, '.1e')} |"
+                     f"{extra} {1e3 * p.seconds:.3f} | {_number(p.evaluations, 'd')} | {_number(p.steps, 'd')} | {note} |")
     lines.append("")
-    lines.append("Error: max over the state [q; qdot] at t_end; time: median of repeated integrations; "
+    state = "[q; qdot] of the independent coordinates" if loop else "[q; qdot]"
+    lines.append(f"Error: max over the state {state} at t_end; time: median of repeated integrations; "
                  + ("energy drift: |E(t_end) - E(0)| / |E| (the model conserves energy)."
                     if wp.conservative else "energy drift: not reported (the model does not conserve energy)."))
+    if loop:
+        lines.append(f"Closed loop ({', '.join(wp.constraints)}): max |g| and max |G ydot| are the largest residuals "
+                     "of the constraints and of their velocity form over the run's steps, the dependent coordinates "
+                     "found as the run finds them (Newton's method to min(rtol, atol)/100, within 1e-14 .. 1e-8).")
     for method, why in wp.skipped.items():
         lines.append(f"- {method}: skipped, {why}")
     if target is not None:
@@ -469,25 +627,92 @@ def target_sentence(wp: WorkPrecision, target: float) -> str:
             f"in {1e3 * best.seconds:.3f} ms.")
 
 
+def _json_number(value):
+    """A float for JSON, None for a missing or non-finite one (JSON has no NaN)."""
+    return None if value is None or not math.isfinite(float(value)) else float(value)
+
+
+CSV_COLUMNS = ("method", "tolerance", "setting", "error", "energy_drift", "constraint_residual",
+               "velocity_residual", "seconds", "compile_seconds", "evaluations", "steps", "repeats", "status")
+METADATA_FORMAT = "kronsub-accuracy-metadata/1"
+
+
 def to_csv(wp: WorkPrecision) -> str:
-    """One row per point; ``#`` comment lines name the model and the reference."""
-    import csv
-    import io
+    """One header row (:data:`CSV_COLUMNS`), then one row per point: plain CSV that
+    ``numpy.genfromtxt``, ``csv.DictReader`` and ``pandas.read_csv`` read without options.
+    Numbers in their shortest round-trip form, ``nan`` where a value does not apply (no energy
+    drift for a model that does not conserve energy, no residuals without constraints, no
+    evaluation count from a method that does not report it); ``status`` is ``ok`` or ``failed``
+    (the message is in the metadata, :func:`metadata`)."""
+    def number(value) -> str:
+        return "nan" if value is None else repr(float(value)) if not isinstance(value, int) else str(value)
+
+    lines = [",".join(CSV_COLUMNS)]
+    for p in wp.points:
+        lines.append(",".join([p.method, repr(p.tolerance), p.setting, number(p.error), number(p.energy_drift),
+                               number(p.constraint_residual), number(p.velocity_residual), number(p.seconds),
+                               number(p.compile_seconds), number(p.evaluations), number(p.steps), str(p.repeats),
+                               "ok" if p.ok else "failed"]))
+    return "\n".join(lines) + "\n"
+
+
+def metadata(wp: WorkPrecision, *, model_file: str | None = None, model_sha256: str | None = None,
+             scene: str | None = None, methods: tuple[str, ...] = (), tolerances: tuple[float, ...] = (),
+             target: float | None = None, csv: str | None = None) -> dict:
+    """Everything about a measurement that is not a point: the model, the reference (its routes,
+    estimated error and state at the end time, 30 digits), what was skipped and why, the
+    failures' messages, the target's choice. Written as JSON beside the CSV."""
+    from .. import __version__
 
     ref = wp.reference
-    out = io.StringIO()
-    out.write(f"# kronsub accuracy: {wp.system}, t_end {wp.t_end!r}\n")
-    out.write(f"# reference: {ref.routes[0]}; estimated error {ref.error:.3e} ({'; '.join(ref.routes[1:])})\n")
-    writer = csv.writer(out, lineterminator="\n")
-    writer.writerow(["method", "tolerance", "setting", "error", "energy_drift", "seconds", "compile_seconds",
-                     "evaluations", "steps", "repeats", "status"])
-    for p in wp.points:
-        writer.writerow([p.method, repr(p.tolerance), p.setting, repr(p.error),
-                         "" if p.energy_drift is None else repr(p.energy_drift), repr(p.seconds),
-                         "" if p.compile_seconds is None else repr(p.compile_seconds),
-                         "" if p.evaluations is None else p.evaluations, "" if p.steps is None else p.steps,
-                         p.repeats, p.status])
-    return out.getvalue()
+    names = list(wp.initial_state) or [f"y{i}" for i in range(len(ref.states[-1]))]
+    with mpmath.workdps(max(ref.digits, 30) + 5):
+        end_state = {name: mpmath.nstr(v, 30, strip_zeros=False) for name, v in zip(names, ref.states[-1])}
+    meta = {
+        "format": METADATA_FORMAT,
+        "kronsub": __version__,
+        "csv": csv,
+        "model": {"name": wp.system, "file": model_file, "sha256": model_sha256},
+        "scene": scene,
+        "t_end": _json_number(wp.t_end),
+        "parameters": {k: _json_number(v) for k, v in wp.parameters.items()},
+        "initial_state": {k: _json_number(v) for k, v in wp.initial_state.items()},
+    }
+    if wp.constraints:
+        meta["closed_loop"] = {"constraints": list(wp.constraints),
+                               "dependent_at_t0": {k: _json_number(v) for k, v in wp.dependent.items()},
+                               "state": "the independent coordinates and their velocities"}
+    best = wp.best_error()
+    meta.update({
+        "methods": list(methods),
+        "tolerances": [_json_number(t) for t in tolerances],
+        "reference": {
+            "times": [_json_number(t) for t in ref.times],
+            "route": ref.routes[0],
+            "cross_checks": list(ref.routes[1:]),
+            "estimated_error": _json_number(ref.error),
+            "digits": ref.digits,
+            "state_at_t_end": end_state,
+            "sufficient": wp.reference_sufficient(),
+            "required_margin": REFERENCE_MARGIN,
+            "best_point_error": _json_number(best),
+        },
+        "compile_seconds": _json_number(wp.compile_seconds),
+        "conservative": wp.conservative,
+        "skipped": dict(wp.skipped),
+        "failures": [{"method": p.method, "setting": p.setting, "message": p.status or "non-finite state"}
+                     for p in wp.points if not p.ok],
+        "columns": list(CSV_COLUMNS),
+        "units": ("error and residuals in the state's units (max over its entries); energy_drift relative to the "
+                  "largest |E| or T; seconds: median wall time of repeated integrations, compile_seconds apart"),
+    })
+    if target is not None:
+        chosen = wp.cheapest(target)
+        meta["target"] = {"error": _json_number(target),
+                          "cheapest": None if chosen is None else
+                          {"method": chosen.method, "setting": chosen.setting, "error": _json_number(chosen.error),
+                           "seconds": _json_number(chosen.seconds)}}
+    return meta
 
 
 def plot(wp: WorkPrecision, path, target: float | None = None) -> None:

@@ -11,6 +11,14 @@ derived sympy expressions, at ``digits`` significant digits:
 - :func:`extrapolation`: Gragg-Bulirsch-Stoer extrapolation of the explicit midpoint rule, with
   its own step control; the right-hand side is the tape's first coefficient.
 
+With implicit constraints (a closed loop, (25)-(29)) ``Mbar``, ``hbar`` and ``fbar`` are written in the
+dependent coordinates ``y_d``, ``Lambda`` and ``gamma`` as well. The Taylor route carries ``y_d``
+as a series with ``y_d' = Lambda qdot`` and solves ``G_d Lambda = -G_i``, ``G_d gamma = -(ydot^T
+g'' ydot)`` order by order as it solves ``Mbar``; ``y_d``'s value is put back on ``g = 0`` by
+Newton's method in mpmath at every step. The extrapolation route finds ``y_d`` by Newton's method
+in every evaluation of the right-hand side. Both report the state ``[q; qdot]`` of the
+independent coordinates.
+
 Both compute in fixed point (a number ``x`` is the integer ``round(x 2^bits)``), which makes the
 convolutions exact integer sums. :func:`reference` runs the Taylor route at two precisions (their
 difference estimates the error) and the extrapolation route as a cross-check up to the first
@@ -20,7 +28,7 @@ from __future__ import annotations
 
 import math
 import operator
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import mpmath
 import sympy
@@ -61,6 +69,13 @@ class _Tape:
 
     def const(self, value) -> int:
         return self._add("const", (), mpmath.mpf(value))
+
+    def solve(self, A: list[list[int]], B: list[list[int]], what: str) -> list[list[int]]:
+        """Nodes of ``X`` with ``A X = B`` (``A`` m x m, ``B`` m x c nodes), solved order by
+        order: ``A_0 X_k = B_k - sum_{j>=1} A_j X_{k-j}``; ``what`` names ``A`` in errors."""
+        m, c = len(A), len(B[0]) if B else 0
+        block = self._add("solve", [a for row in A for a in row] + [b for row in B for b in row], (m, c, what))
+        return [[self._add("pick", (block,), r * c + j) for j in range(c)] for r in range(m)]
 
     def is_const(self, node: int) -> bool:
         return self.nodes[node][0] == "const"
@@ -175,8 +190,9 @@ class _Series:
     """Taylor coefficients of the solution, computed in fixed point: a number ``x`` is the
     integer ``round(x 2^bits)``, so a convolution is one exact integer sum of products."""
 
-    def __init__(self, tape: _Tape, M_nodes, r_nodes, n: int, bits: int):
-        self.tape, self.M_nodes, self.r_nodes, self.n, self.bits = tape, M_nodes, r_nodes, n, bits
+    def __init__(self, tape: _Tape, derivatives: list[int], bits: int):
+        """``derivatives[i]``: the node of the time derivative of the tape's state ``i``."""
+        self.tape, self.derivatives, self.bits = tape, list(derivatives), bits
         self.const = {i: _fixed(data, bits) for i, (kind, _, data) in enumerate(tape.nodes) if kind == "const"}
         self.program = [(i, kind, args, data if kind != "scale" and kind != "pow" else _fixed(data, bits))
                         for i, (kind, args, data) in enumerate(tape.nodes) if kind != "const"]
@@ -184,14 +200,14 @@ class _Series:
     def coefficients(self, t0: int, y0: list[int], order: int) -> list[list[int]]:
         """``y[i][k]``, k = 0..order, for the state ``y0`` at ``t0`` (fixed point); ``order = 1``
         gives the right-hand side ``y[i][1]``."""
-        P, n, mul = self.bits, self.n, operator.mul
+        P, mul = self.bits, operator.mul
         one = 1 << P
         c: list[list] = [None] * len(self.tape.nodes)
         for i, value in self.const.items():
             c[i] = [value] + [0] * order
         d: dict[int, list] = {}  # d[a] = [j a_j]: the scaled derivative of argument a
         y = [[v] for v in y0]
-        x: list[list] = [[] for _ in range(n)]
+        blocks: dict[int, tuple] = {}  # a solve node -> (LU, perm, the coefficients of X per entry)
         for i, *_ in self.program:
             c[i] = []
 
@@ -213,6 +229,10 @@ class _Series:
                     v = (data * c[args[0]][k]) >> P
                 elif kind == "mul":
                     v = sum(map(mul, c[args[0]][:k + 1], c[args[1]][k::-1])) >> P
+                elif kind == "pick":
+                    v = c[args[0]][k][data]
+                elif kind == "solve":
+                    v = self._solve(c, blocks, i, args, data, k)
                 elif kind == "sin":
                     v = c[args[0]][k][0]
                 elif kind == "cos":
@@ -249,28 +269,39 @@ class _Series:
                     else:
                         raise AssertionError(kind)
                 c[i].append(v)
-            if k == 0:
-                factors, perm = _lu([[_real(c[self.M_nodes[a][b]][0], P) for b in range(n)] for a in range(n)])
-                LU = [[_fixed(v, P) for v in row] for row in factors]
-            rhs = []
-            for a in range(n):
-                s = c[self.r_nodes[a]][k]
-                if k:
-                    s -= sum(sum(map(mul, c[self.M_nodes[a][b]][1:k + 1], x[b][k - 1::-1])) for b in range(n)) >> P
-                rhs.append(s)
-            sol = [rhs[p] for p in perm]
-            for a in range(n):
-                sol[a] -= sum(map(mul, LU[a][:a], sol[:a])) >> P
-            for a in reversed(range(n)):
-                sol[a] = ((sol[a] << P) - sum(map(mul, LU[a][a + 1:], sol[a + 1:]))) // LU[a][a]
-            for a, xa in enumerate(sol):
-                x[a].append(xa)
-                y[a].append(y[n + a][k] // (k + 1))
-                y[n + a].append(xa // (k + 1))
+            for state, node in zip(y, self.derivatives):
+                state.append(c[node][k] // (k + 1))
         return y
 
+    def _solve(self, c, blocks, i, args, data, k) -> tuple:
+        """Order ``k`` of ``X`` in ``A X = B``: ``A_0 X_k = B_k - sum_{j=1..k} A_j X_{k-j}``, with
+        ``A_0`` factored once (at order 0)."""
+        P, mul = self.bits, operator.mul
+        m, cols, what = data
+        A, B = args[:m * m], args[m * m:]
+        if k == 0:
+            factors, perm = _lu([[_real(c[A[a * m + b]][0], P) for b in range(m)] for a in range(m)], what)
+            blocks[i] = ([[_fixed(v, P) for v in row] for row in factors], perm, [[] for _ in range(m * cols)])
+        LU, perm, X = blocks[i]
+        for col in range(cols):
+            rhs = []
+            for a in range(m):
+                s = c[B[a * cols + col]][k]
+                if k:
+                    s -= sum(sum(map(mul, c[A[a * m + b]][1:k + 1], X[b * cols + col][k - 1::-1]))
+                             for b in range(m)) >> P
+                rhs.append(s)
+            sol = [rhs[p] for p in perm]
+            for a in range(m):
+                sol[a] -= sum(map(mul, LU[a][:a], sol[:a])) >> P
+            for a in reversed(range(m)):
+                sol[a] = ((sol[a] << P) - sum(map(mul, LU[a][a + 1:], sol[a + 1:]))) // LU[a][a]
+            for a in range(m):
+                X[a * cols + col].append(sol[a])
+        return tuple(X[e][k] for e in range(m * cols))
 
-def _lu(A):
+
+def _lu(A, what: str = "the mass matrix Mbar"):
     """Doolittle LU with partial pivoting of a small mpf matrix: (LU, perm)."""
     n = len(A)
     A = [row[:] for row in A]
@@ -278,7 +309,7 @@ def _lu(A):
     for j in range(n):
         p = max(range(j, n), key=lambda i: abs(A[i][j]))
         if A[p][j] == 0:
-            raise ReferenceFailure("the mass matrix Mbar is singular on the reference trajectory")
+            raise ReferenceFailure(f"{what} is singular on the reference trajectory")
         A[j], A[p] = A[p], A[j]
         perm[j], perm[p] = perm[p], perm[j]
         for i in range(j + 1, n):
@@ -310,6 +341,7 @@ class RouteResult:
     states: list[list]
     steps: int
     route: str
+    dependent: list[list] = field(default_factory=list)  # y_d (mpf) at the times, with constraints
 
 
 def _targets(times):
@@ -320,28 +352,108 @@ def _targets(times):
 
 
 def _series_of(system: KnownSystem, param, bits: int) -> _Series:
+    """The series of ``y = [q; qdot]`` and, with implicit constraints, of the dependent
+    coordinates ``y_d`` after them: ``y_d' = Lambda qdot`` (the derivative of ``g = 0``, (28)),
+    ``G_d Lambda = -G_i`` and ``G_d gamma = -(ydot^T g'' ydot)`` solved order by order as
+    ``Mbar qddot = fbar - hbar`` is. Only ``y_d``'s own value comes from ``g = 0`` itself
+    (:class:`_Closure`, at the start of every step)."""
     n = len(system.coordinates)
     constants = {p.symbol: _mpf(v) for p, v in zip(system.parameters, param)}
-    tape = _Tape([*system.coordinates, *system.velocities], constants)
+    imp = system.implicit
+    dependent = tuple(imp.dependent) if imp is not None else ()
+    tape = _Tape([*system.coordinates, *system.velocities, *dependent], constants)
+
+    def nodes(matrix) -> list[list[int]]:
+        return [[tape.node(sympy.sympify(matrix[a, b])) for b in range(matrix.cols)] for a in range(matrix.rows)]
+
+    if imp is not None:
+        k = len(dependent)
+        G_d = nodes(imp.jacobian_dependent)
+        lam = tape.solve(G_d, nodes(-imp.jacobian_independent), "dg/d(" + ", ".join(d.name for d in dependent) + ")")
+        for a in range(k):
+            for j in range(n):
+                tape.memo[imp.sensitivities[a, j]] = lam[a][j]
+        quadratic = sympy.Matrix([sympy.sympify(e) for e in imp.quadratic])
+        gamma = tape.solve(G_d, nodes(quadratic), "dg/d(" + ", ".join(d.name for d in dependent) + ")")
+        for a in range(k):
+            tape.memo[imp.convective[a]] = gamma[a][0]
     M, r = system.mass_matrix, system.forces - system.velocity_terms
-    M_nodes = [[tape.node(sympy.sympify(M[a, b])) for b in range(n)] for a in range(n)]
-    r_nodes = [tape.node(sympy.sympify(r[a])) for a in range(n)]
-    return _Series(tape, M_nodes, r_nodes, n, bits)
+    accelerations = tape.solve(nodes(M), nodes(sympy.Matrix(r)), "the mass matrix Mbar")
+    derivatives = [tape.node(v) for v in system.velocities] + [row[0] for row in accelerations]
+    if imp is not None:
+        derivatives += [tape.node(sympy.Add(*[imp.sensitivities[a, j] * system.velocities[j] for j in range(n)]))
+                        for a in range(len(dependent))]
+    return _Series(tape, derivatives, bits)
 
 
-def taylor(system: KnownSystem, param, y0, times, digits: int = 30) -> RouteResult:
-    """The Taylor series route: states at ``times`` (from ``y0`` at t = 0), ``digits`` digits."""
+class _Closure:
+    """The dependent coordinates on ``g(xbar, y_d) = 0`` (25) at given independent ones:
+    Newton's method in mpmath, ``G_d dy = -g``, warm-started from the last solution (the
+    branch of the initial configuration); nothing when the system has no constraints."""
+
+    def __init__(self, system: KnownSystem, param, bits: int, guess=None):
+        imp = system.implicit
+        self.bits, self.n = bits, len(system.coordinates)
+        self.k = len(imp.dependent) if imp is not None else 0
+        if not self.k:
+            return
+        y = [*imp.independent, *imp.dependent]
+        g = sympy.Matrix([sympy.sympify(e) for e in imp.residuals])
+        symbols = [p.symbol for p in system.parameters]
+        unknown = sorted((g.free_symbols - set(y) - set(symbols)), key=lambda v: v.name)
+        if unknown:
+            raise ReferenceFailure(f"the constraints use {', '.join(v.name for v in unknown)}, which is neither "
+                                   "a coordinate nor a parameter")
+        self._g = sympy.lambdify([y, symbols], list(g), modules="mpmath")
+        self._G = sympy.lambdify([y, symbols], imp.jacobian_dependent.tolist(), modules="mpmath")
+        self.param = [_mpf(v) for v in param]
+        self.names = ", ".join(f"'{c.name}'" for c in imp.constraints)
+        branch = dict(imp.branch)
+        start = guess if guess is not None else [branch.get(d, 0.0) for d in imp.dependent]
+        self.guess = [_mpf(v) for v in start]
+
+    def dependent(self, q_fixed: list[int]) -> list[int]:
+        """``y_d`` (fixed point) at the independent coordinates ``q_fixed`` (fixed point)."""
+        if not self.k:
+            return []
+        P = self.bits
+        q = [_real(v, P) for v in q_fixed]
+        yd = list(self.guess)
+        tol = mpmath.ldexp(1, 24 - P)
+        for _ in range(60):
+            r = [mpmath.mpf(v) for v in self._g([*q, *yd], self.param)]
+            G = [[mpmath.mpf(v) for v in row] for row in self._G([*q, *yd], self.param)]
+            LU, perm = _lu(G, "dg/d(dependent coordinates)")
+            step = [-r[p] for p in perm]
+            for a in range(self.k):
+                step[a] -= mpmath.fsum(LU[a][b] * step[b] for b in range(a))
+            for a in reversed(range(self.k)):
+                step[a] = (step[a] - mpmath.fsum(LU[a][b] * step[b] for b in range(a + 1, self.k))) / LU[a][a]
+            yd = [v + dv for v, dv in zip(yd, step)]
+            if max(abs(dv) for dv in step) <= tol * (1 + max(abs(v) for v in yd)):
+                self.guess = yd
+                return [_fixed(v, P) for v in yd]
+        raise ReferenceFailure(f"Newton's method on the constraints {self.names} does not converge on the "
+                               "reference trajectory (a toggle position?)")
+
+
+def taylor(system: KnownSystem, param, y0, times, digits: int = 30, dependent=None) -> RouteResult:
+    """The Taylor series route: states at ``times`` (from ``y0`` at t = 0), ``digits`` digits.
+    With implicit constraints, ``dependent`` (floats) picks the branch; the dependent coordinates
+    are series too (:func:`_series_of`), their value put back on ``g = 0`` at every step."""
     with mpmath.workdps(digits + 10):
         eps = mpmath.mpf(10) ** -(digits + 2)
         order = int(math.ceil(0.5 * (digits + 2) * math.log(10))) + 2
         P = int((digits + 10) * math.log2(10)) + 16
         series = _series_of(system, param, P)
-        t, y, steps, out = 0, [_fixed(_mpf(v), P) for v in y0], 0, []
+        closure = _Closure(system, param, P, dependent)
+        n = len(system.coordinates)
+        t, y, steps, out, deps = 0, [_fixed(_mpf(v), P) for v in y0], 0, [], []
         for target in _targets(times):
             target = _fixed(target, P)
             while t < target:
-                coeff = series.coefficients(t, y, order)
-                scale = max(1, _norm([_real(v, P) for v in y]))
+                coeff = series.coefficients(t, y + closure.dependent(y[:n]), order)
+                scale = max(1, _norm([_real(s[0], P) for s in coeff]))
                 h = None
                 for k in (order - 1, order):
                     size = _norm([_real(s[k], P) for s in coeff])
@@ -355,26 +467,34 @@ def taylor(system: KnownSystem, param, y0, times, digits: int = 30) -> RouteResu
                     for a in s[order - 1::-1]:
                         v = ((v * h) >> P) + a
                     new.append(v)
-                y = new
+                y = new[:2 * n]
+                if closure.k:  # the series' y_d at the step's end: the next warm start
+                    closure.guess = [_real(v, P) for v in new[2 * n:]]
                 t += h
                 steps += 1
             out.append([_real(v, P) for v in y])
-        return RouteResult(out, steps, f"Taylor series, order {order}")
+            if closure.k:
+                deps.append([_real(v, P) for v in closure.dependent(y[:n])])
+        return RouteResult(out, steps, f"Taylor series, order {order}", deps)
 
 
-def extrapolation(system: KnownSystem, param, y0, times, digits: int = 30) -> RouteResult:
+def extrapolation(system: KnownSystem, param, y0, times, digits: int = 30, dependent=None) -> RouteResult:
     """The Gragg-Bulirsch-Stoer route: the explicit midpoint rule with n = 2, 4, ..., 2K
     substeps, Aitken-Neville extrapolation in h^2 and step control on the last two columns,
-    in fixed point; the right-hand side is the tape's order-1 coefficient."""
+    in fixed point; the right-hand side is the tape's order-1 coefficient, with implicit
+    constraints at the dependent coordinates found by Newton's method in every evaluation."""
     with mpmath.workdps(digits + 10):
         P = int((digits + 10) * math.log2(10)) + 16
         series = _series_of(system, param, P)
+        closure = _Closure(system, param, P, dependent)
+        n = len(system.coordinates)
         K = max(6, (digits + 3) // 2)
         tol = mpmath.mpf(10) ** -(digits + 2)
         t, y, steps, out, h = 0, [_fixed(_mpf(v), P) for v in y0], 0, [], 1 << (P - 5)
+        deps = []
 
         def f(tt, z):
-            return [s[1] for s in series.coefficients(tt, z, 1)]
+            return [s[1] for s in series.coefficients(tt, z + closure.dependent(z[:n]), 1)[:2 * n]]
 
         for target in _targets(times):
             target = _fixed(target, P)
@@ -405,7 +525,9 @@ def extrapolation(system: KnownSystem, param, y0, times, digits: int = 30) -> Ro
                 if h < (1 << P) // 10 ** (digits // 2):
                     raise ReferenceFailure(f"the extrapolation route's step underflowed at t = {float(_real(t, P)):.6g}")
             out.append([_real(v, P) for v in y])
-        return RouteResult(out, steps, f"Gragg-Bulirsch-Stoer extrapolation, {K} stages")
+            if closure.k:
+                deps.append([_real(v, P) for v in closure.dependent(y[:n])])
+        return RouteResult(out, steps, f"Gragg-Bulirsch-Stoer extrapolation, {K} stages", deps)
 
 
 @dataclass
@@ -418,6 +540,7 @@ class Reference:
     error: float
     digits: int
     routes: tuple[str, ...]
+    dependent: list[list] = field(default_factory=list)  # y_d (mpf) at ``times``, with constraints
 
     def at(self, i: int):
         """The state at ``times[i]`` as float64."""
@@ -428,18 +551,21 @@ def _difference(a: list[list], b: list[list]) -> float:
     return float(max(abs(x - y) for sa, sb in zip(a, b) for x, y in zip(sa, sb)))
 
 
-def reference(system: KnownSystem, param, y0, times, digits: int = 20) -> Reference:
+def reference(system: KnownSystem, param, y0, times, digits: int = 20, dependent=None) -> Reference:
     """The Taylor route at ``digits + 8`` digits, at every time of ``times``.
 
     Its error is estimated by the Taylor route at ``digits`` digits (another order, other
     steps, less precision): their largest difference bounds the lower run's error, and the
     higher run is far better. The extrapolation route at ``digits`` digits cross-checks it up
-    to the first time (where it is cheap); a worse agreement raises the estimate."""
+    to the first time (where it is cheap); a worse agreement raises the estimate. With
+    implicit constraints, ``dependent`` picks the branch, and the two routes find the
+    dependent coordinates in two ways (series from ``y_d' = Lambda qdot``; Newton's method in
+    every evaluation)."""
     with mpmath.workdps(digits + 20):
         try:
-            high = taylor(system, param, y0, times, digits + 8)
-            low = taylor(system, param, y0, times, digits)
-            check = extrapolation(system, param, y0, times[:1], digits)
+            high = taylor(system, param, y0, times, digits + 8, dependent)
+            low = taylor(system, param, y0, times, digits, dependent)
+            check = extrapolation(system, param, y0, times[:1], digits, dependent)
         except ZeroDivisionError:
             raise ReferenceFailure("the equations divide by zero on the reference trajectory (a singular "
                                    "configuration?)\n  hint: start elsewhere with --set") from None
@@ -449,4 +575,5 @@ def reference(system: KnownSystem, param, y0, times, digits: int = 20) -> Refere
     return Reference([float(t) for t in times], high.states, max(error, agreement), digits + 8,
                      (f"{high.route} at {digits + 8} digits",
                       f"the same at {digits} digits: largest difference {error:.1e}",
-                      f"{check.route} at {digits} digits to t = {first:g}: agrees to {agreement:.1e}"))
+                      f"{check.route} at {digits} digits to t = {first:g}: agrees to {agreement:.1e}"),
+                     high.dependent)
