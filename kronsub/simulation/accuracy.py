@@ -441,7 +441,7 @@ class _Runners:
         if len(Y) > RESIDUAL_ROWS:
             pick = np.unique(np.linspace(0, len(Y) - 1, RESIDUAL_ROWS).round().astype(int))
             T, Y = T[pick], Y[pick]
-        imp, n = self.system.implicit, len(self.system.coordinates)
+        n = len(self.system.coordinates)
         ntol = newton_tolerance(tol, tol)
         closure = self.intermediates()
         closure.tol, guess = ntol, self.dependent.copy()
