@@ -201,7 +201,7 @@ class _Emitter:
         if kind == "param":
             return [f"c{i} = param[{data}];"]
         if kind == "time":
-            return [f"{out} = t;"]
+            return [f"{out} = t + tlo;"]
         if kind == "add":
             return [f"{out} = " + " + ".join(self.at(x, 0) for x in args) + ";"]
         if kind == "scale":
@@ -321,16 +321,16 @@ class _Emitter:
             sizes = "\n        ".join(f"if (fabs(Y{j}_{N - 1 + e}) > size[{e}]) size[{e}] = fabs(Y{j}_{N - 1 + e});"
                                       for j in range(ny) for e in (0, 1))
 
-            def horner(tau: str, out: str) -> str:
+            def horner(tau: str) -> str:  # the increment sum_{k>=1} Y_k tau^k
                 def poly(j):
                     text = f"Y{j}_{N}"
-                    for k in range(N - 1, -1, -1):
-                        text = f"({text} * {tau} + Y{j}_{k})" if k else f"{text} * {tau} + Y{j}_0"
-                    return text
-                return " ".join(f"{out}[{j}] = {poly(j)};" for j in range(ny))
+                    for k in range(N - 1, 0, -1):
+                        text = f"({text} * {tau} + Y{j}_{k})"
+                    return f"{text} * {tau}"
+                return " ".join(f"dy[{j}] = {poly(j)};" for j in range(ny))
 
-            dense = "{ double tau = t_out[row] - t, *o = y_out + row * TN_NY; " + horner("tau", "o") + " }"
-            advance = horner("h", "y")
+            dense = horner("tau")
+            advance = horner("h")
             helpers = ""
         else:
             storage = ["double *W = calloc((size_t)" + str(len(arrays)) + " * (TN_ORDER + 1), sizeof(double));"]
@@ -343,8 +343,8 @@ class _Emitter:
                      "            if (fabs(Y[i][TN_ORDER - 1]) > size[0]) size[0] = fabs(Y[i][TN_ORDER - 1]);\n"
                      "            if (fabs(Y[i][TN_ORDER]) > size[1]) size[1] = fabs(Y[i][TN_ORDER]);\n"
                      "        }")
-            dense = "ks_horner(Y, t_out[row] - t, y_out + row * TN_NY);"
-            advance = "ks_horner(Y, h, y);"
+            dense = "ks_horner(Y, tau, dy);"
+            advance = "ks_horner(Y, h, dy);"
             inverses = ", ".join(["0.0"] + [_literal(mpmath.mpf(1) / k) for k in range(1, N + 2)])
             helpers = CONV + "\nstatic const double ks_inv[TN_ORDER + 2] = {" + inverses + "};  /* 1 / k */\n"
         text = TEMPLATE.format(
@@ -372,7 +372,10 @@ int ks_taylor(const double *param, double t0, const double *y0, long n_out, cons
               double tol, long max_steps, double *y_out, long *counts, double *t_last)
 {{
     {decl}
-    double y[TN_NY], t = t0;
+    /* the state and the time are compensated sums y + ylo, t + tlo: each step adds its increment
+       (rounded to eps |dy|, not eps |y|) and the rounding error of that addition, found exactly
+       by TwoSum, is carried into the next step */
+    double y[TN_NY], ylo[TN_NY], dy[TN_NY], t = t0, tlo = 0;
     /* h = rho tol^(1/(N-1)) exp(-0.7 / (N - 1)): Jorba and Zou's rho / e^2 exp(-0.7 / (N - 1)) when
        tol = e^(-2 (N - 1)), taking the tolerance between two orders into account (tol <= 0: e^-2) */
     const double factor = exp(((tol > 0 ? log(tol) : -2.0 * (TN_ORDER - 1)) - 0.7) / (TN_ORDER - 1));
@@ -385,7 +388,7 @@ int ks_taylor(const double *param, double t0, const double *y0, long n_out, cons
     *t_last = t0;
     if (n_out < 1 || !(t_out[0] >= t0)) {{ {free} return 6; }}
     {prologue}
-    for (i = 0; i < TN_NY; ++i) y[i] = y0[i];
+    for (i = 0; i < TN_NY; ++i) {{ y[i] = y0[i]; ylo[i] = 0; }}
     while (row < n_out && t_out[row] <= t) {{
         for (i = 0; i < TN_NY; ++i) y_out[row * TN_NY + i] = y[i];
         ++row;
@@ -405,17 +408,29 @@ int ks_taylor(const double *param, double t0, const double *y0, long n_out, cons
                 if (h < 0 || hk < h) h = hk;
             }}
         if (h > 0) h *= factor;
-        if (h < 0 || t + h >= t_end) h = t_end - t;
-        while (row < n_out && t_out[row] < t + h) {{  /* dense output: the step's polynomial */
+        if (h < 0 || (t_end - t) - tlo <= h) h = (t_end - t) - tlo;
+        while (row < n_out && (t_out[row] - t) - tlo < h) {{  /* dense output: the step's polynomial */
+            double tau = (t_out[row] - t) - tlo, *o = y_out + row * TN_NY;
             {dense}
+            for (i = 0; i < TN_NY; ++i) o[i] = y[i] + (dy[i] + ylo[i]);
             ++row;
         }}
         {advance}
-        t = (t + h >= t_end) ? t_end : t + h;
+        for (i = 0; i < TN_NY; ++i) {{  /* y + ylo + dy = y' + ylo' exactly (TwoSum) */
+            double d = dy[i] + ylo[i], s = y[i] + d, b = s - y[i];
+            ylo[i] = (y[i] - (s - b)) + (d - b);
+            y[i] = s;
+        }}
+        if ((t_end - t) - tlo <= h) {{ t = t_end; tlo = 0; }}
+        else {{
+            double s = t + h, b = s - t;
+            tlo += (t - (s - b)) + (h - b);
+            t = s;
+        }}
         ++steps;
         for (i = 0; i < TN_NY; ++i) if (!isfinite(y[i])) {{ status = 1; goto done; }}
         while (row < n_out && t_out[row] <= t) {{
-            for (i = 0; i < TN_NY; ++i) y_out[row * TN_NY + i] = y[i];
+            for (i = 0; i < TN_NY; ++i) y_out[row * TN_NY + i] = y[i] + ylo[i];
             ++row;
         }}
     }}
@@ -430,15 +445,15 @@ done:
 
 
 CONV = r"""
-/* out_i = sum_k Y_i[k] tau^k, the components side by side (independent chains) */
+/* out_i = sum_{k>=1} Y_i[k] tau^k (the increment), the components side by side (independent chains) */
 static void ks_horner(double *const *Y, double tau, double *out)
 {
     double s[TN_NY];
     int i, k;
     for (i = 0; i < TN_NY; ++i) s[i] = Y[i][TN_ORDER];
-    for (k = TN_ORDER - 1; k >= 0; --k)
+    for (k = TN_ORDER - 1; k >= 1; --k)
         for (i = 0; i < TN_NY; ++i) s[i] = s[i] * tau + Y[i][k];
-    for (i = 0; i < TN_NY; ++i) out[i] = s[i];
+    for (i = 0; i < TN_NY; ++i) out[i] = s[i] * tau;
 }
 
 static double ks_conv(const double *restrict a, const double *restrict b, int lo, int hi, int k)
