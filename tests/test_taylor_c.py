@@ -120,3 +120,22 @@ def test_benchmark_double_pendulum_reaches_the_float64_end():
     with mpmath.workdps(50):
         error = max(abs(float(g - w)) for g, w in zip(got, want))
     assert status == 0 and error < 1e-9, error
+
+
+FLOOR_FACTOR = 6  # measured 4.3 at tol 1e-15 (7.5 before the state and time were compensated sums)
+
+
+def test_benchmark_double_pendulum_within_a_few_times_the_float64_floor():
+    """At tol 1e-15 the error at t = 10 is within FLOOR_FACTOR times the float64 floor: how far
+    rounding the inputs to float64 alone moves the exact state (the mpmath Taylor route from the
+    float64 inputs against the 40-digit state of the exact ones)."""
+    system, _, _, want = benchmark_problem()
+    values = resolve(system, {}, {"theta": "2*pi/3", "phi": "-pi/18"})
+    rounded = R.taylor(system, [float(v) for v in values.parameters], [float(v) for v in values.y0], [10.0],
+                       digits=18).states[-1]
+    got, status, _, order = TaylorC(system).integrate(values.parameters, values.y0, 10.0, 1e-15)
+    with mpmath.workdps(50):
+        floor = float(max(abs(r - w) for r, w in zip(rounded, want)))
+        error = float(max(abs(g - w) for g, w in zip(got, want)))
+    assert 5e-12 < floor < 5e-11, floor  # 1.3e-11: the chaotic motion amplifies the inputs' rounding
+    assert status == 0 and order == 19 and error <= FLOOR_FACTOR * floor, (error, floor)
