@@ -226,6 +226,54 @@ class _Emitter:
             return [f"{out} = ({a} > 0) - ({a} < 0);"]
         raise AssertionError(kind)
 
+    def lo(self, i: int):
+        """The C name of node ``i``'s first-order change under the state's low part, or None (constant)."""
+        kind, args, data = self.nodes[i]
+        if not self.var[i]:
+            return None
+        if kind == "state":
+            return f"ylo[{data}]"
+        if kind == "time":
+            return "tlo"
+        if kind in ("sin", "cos"):
+            return f"e{kind[0].upper()}{args[0]}"
+        return f"e{i}"
+
+    def tangent(self, i: int) -> list[str]:
+        """C statements of node ``i``'s change to first order in ``(ylo, tlo)`` at order 0: the
+        low parts the coefficients (evaluated at the high parts) leave out."""
+        kind, args, data = self.nodes[i]
+        e = self.lo(i)
+        a0 = self.at(args[0], 0) if args else ""
+        ea = self.lo(args[0]) if args else None
+        if kind in ("state", "time", "sin", "cos"):
+            return []
+        if kind == "add":
+            terms = [self.lo(x) for x in args if self.var[x]]
+            return [f"{e} = {' + '.join(terms)};"]
+        if kind == "mul":
+            x, y = args
+            terms = [f"{self.at(x, 0)} * {self.lo(y)}" if self.var[y] else None,
+                     f"{self.lo(x)} * {self.at(y, 0)}" if self.var[x] else None]
+            return [f"{e} = {' + '.join(t for t in terms if t)};"]
+        if kind == "scale":
+            return [f"{e} = {_literal(data)} * {ea};"]
+        if kind == "sincos":
+            return [f"eS{i} = C{i}[0] * {ea};", f"eC{i} = -S{i}[0] * {ea};"]
+        if kind == "exp":
+            return [f"{e} = {self.at(i, 0)} * {ea};"]
+        if kind == "log":
+            return [f"{e} = {ea} / {a0};"]
+        if kind == "pow":
+            return [f"{e} = {a0} != 0 ? {_literal(data)} * {self.at(i, 0)} / {a0} * {ea} : 0.0;"]
+        if kind == "integral":
+            return [f"{e} = {self.at(args[1], 0)} * {ea};"]
+        if kind == "abs":
+            return [f"{e} = {a0} >= 0 ? {ea} : -{ea};"]
+        if kind == "sign":
+            return [f"{e} = 0.0;"]
+        raise AssertionError(kind)
+
     # the whole file ----------------------------------------------------------------------
 
     def source(self, name: str) -> str:
@@ -292,7 +340,32 @@ class _Emitter:
                 lines.append(f"Y{a}[{k1}] = {inv} * Y{n + a}[{k}]; Y{n + a}[{k1}] = {inv} * X{a}[{k}];")
             return lines
 
-        step += emit_order(0) + solve(0)
+        # (Mbar_0 + dM)(x_0 + dx) = r_0 + dr to first order in the low parts: dx = Mbar_0^-1 (dr - dM x_0)
+        lows = []
+        for i in range(len(nodes)):
+            if self.var[i] and i in self.needed:
+                lows += self.tangent(i)
+        for a in range(n):
+            terms = [self.lo(self.r[a]) or "0.0"] + [f"{self.lo(self.M[a][b])} * X{b}[0]"
+                                                    for b in range(n) if self.var[self.M[a][b]]]
+            lows.append(f"EX{a} = {' - '.join(terms)};")
+        for a in range(n):
+            for b in range(a):
+                lows.append(f"EX{a} -= L{a}_{b} * EX{b};")
+        for a in range(n):
+            lows.append(f"EX{a} *= R{a};")
+        for a in reversed(range(n)):
+            for b in range(a + 1, n):
+                lows.append(f"EX{a} -= L{b}_{a} * EX{b};")
+        lo_name = re.compile(r"\b(?:e\d+|eS\d+|eC\d+)\b")
+        while True:  # only the changes something reads
+            read = {x for line in lows for x in lo_name.findall(line.split("=", 1)[1])}
+            kept = [line for line in lows if not lo_name.fullmatch(line.split(" ", 1)[0])
+                    or line.split(" ", 1)[0] in read]
+            if len(kept) == len(lows):
+                break
+            lows = kept
+        step += emit_order(0) + solve(0) + lows
         if self.unrolled:
             for k in range(1, N):
                 step += emit_order(k) + solve(k)
@@ -302,7 +375,9 @@ class _Emitter:
             step.append("}")
         ldl = [f"L{a}_{b}" for a in range(n) for b in range(a)] + [f"D{a}" for a in range(n)] + \
             [f"R{a}" for a in range(n)]  # R = 1 / D: no division on the chain from order to order
-        decl = []
+        lo_names = sorted(set(re.findall(r"\b(?:e\d+|eS\d+|eC\d+|EX\d+)\b", "\n".join(lows))),
+                          key=lambda x: (re.sub(r"\d", "", x), int(re.sub(r"\D", "", x))))
+        decl = ["double " + ", ".join(f"{x} = 0" for x in lo_names) + ";"]
         if consts:
             decl.append("double " + ", ".join(consts) + ";")
         if ldl:
@@ -347,6 +422,12 @@ class _Emitter:
             advance = "ks_horner(Y, h, dy);"
             inverses = ", ".join(["0.0"] + [_literal(mpmath.mpf(1) / k) for k in range(1, N + 2)])
             helpers = CONV + "\nstatic const double ks_inv[TN_ORDER + 2] = {" + inverses + "};  /* 1 / k */\n"
+        def first_order(v: str) -> str:  # the low parts carried through the step to first order
+            return " ".join(f"dy[{a}] += {v} * (ylo[{n + a}] + 0.5 * {v} * EX{a}); dy[{n + a}] += {v} * EX{a};"
+                            for a in range(n))
+
+        dense += " " + first_order("tau")
+        advance += " " + first_order("h")
         text = TEMPLATE.format(
             name=c_comment(name), n=n, ny=ny, order=N, decl="\n    ".join(decl + storage),
             zero="\n    ".join(zero + [f"(void){x};" for x in consts_void + consts]),
@@ -363,13 +444,13 @@ TEMPLATE = r"""/* A Taylor integrator of order {order} generated by kronsub for 
 #define TN_ORDER {order}
 #define TN_NY {ny}
 {helpers}
-/* Integrate y' = [qdot; Mbar^-1 (fbar - hbar)] from y0 at t0 through the n_out increasing times
+/* Integrate y' = [qdot; Mbar^-1 (fbar - hbar)] from y0 + y0_lo (y0_lo may be NULL) at t0 through the n_out increasing times
    t_out (>= t0), writing the state at each into rows of y_out. counts: [steps, rows written];
    t_last: the time of the last state reached.
    Returns 0, 1 (Mbar_0 not positive definite, a non-finite state, or no memory),
    4 (max_steps reached), 6 (bad argument). */
-int ks_taylor(const double *param, double t0, const double *y0, long n_out, const double *t_out,
-              double tol, long max_steps, double *y_out, long *counts, double *t_last)
+int ks_taylor(const double *param, double t0, const double *y0, const double *y0_lo, long n_out,
+              const double *t_out, double tol, long max_steps, double *y_out, long *counts, double *t_last)
 {{
     {decl}
     /* the state and the time are compensated sums y + ylo, t + tlo: each step adds its increment
@@ -388,7 +469,7 @@ int ks_taylor(const double *param, double t0, const double *y0, long n_out, cons
     *t_last = t0;
     if (n_out < 1 || !(t_out[0] >= t0)) {{ {free} return 6; }}
     {prologue}
-    for (i = 0; i < TN_NY; ++i) {{ y[i] = y0[i]; ylo[i] = 0; }}
+    for (i = 0; i < TN_NY; ++i) {{ y[i] = y0[i]; ylo[i] = y0_lo != NULL ? y0_lo[i] : 0; }}
     while (row < n_out && t_out[row] <= t) {{
         for (i = 0; i < TN_NY; ++i) y_out[row * TN_NY + i] = y[i];
         ++row;
@@ -493,14 +574,16 @@ class TaylorC:
             fn = ctypes.CDLL(str(library)).ks_taylor
             P = ctypes.c_void_p
             fn.restype = ctypes.c_int
-            fn.argtypes = [P, ctypes.c_double, P, ctypes.c_long, P, ctypes.c_double, ctypes.c_long, P, P, P]
+            fn.argtypes = [P, ctypes.c_double, P, P, ctypes.c_long, P, ctypes.c_double, ctypes.c_long, P, P, P]
             self._fns[order] = fn
         return self._fns[order]
 
-    def run(self, param, y0, times, tol: float, order: int = 0, max_steps: int = 10_000_000, t0: float = 0.0):
+    def run(self, param, y0, times, tol: float, order: int = 0, max_steps: int = 10_000_000, t0: float = 0.0,
+            y0_lo=None):
         """``(Y, status, steps, rows, t_last)``: the states at the increasing ``times`` (>= t0)
         from ``y0`` at ``t0``; rows after a failure are not written (``rows`` says how many
-        were; ``t_last`` is the time of the last state reached)."""
+        were; ``t_last`` is the time of the last state reached). ``y0_lo``: a low part of the
+        initial state (the state is ``y0 + y0_lo``), carried to first order."""
         fn = self.build(order or order_for(tol))
         p = np.ascontiguousarray(param, dtype=float).ravel() if self.nparam else np.zeros(1)
         y = np.ascontiguousarray(y0, dtype=float).ravel()
@@ -510,8 +593,11 @@ class TaylorC:
                              f"(got {p.size} and {y.size})")
         out = np.full((len(ts), self.ny), np.nan)
         counts, t_last = (ctypes.c_long * 2)(), ctypes.c_double()
-        status = fn(p.ctypes.data, float(t0), y.ctypes.data, len(ts), ts.ctypes.data, float(tol), int(max_steps),
-                    out.ctypes.data, counts, ctypes.byref(t_last))
+        lo = None if y0_lo is None else np.ascontiguousarray(y0_lo, dtype=float).ravel()
+        if lo is not None and lo.size != self.ny:
+            raise ValueError(f"expected {self.ny} low parts of the initial values (got {lo.size})")
+        status = fn(p.ctypes.data, float(t0), y.ctypes.data, None if lo is None else lo.ctypes.data, len(ts),
+                    ts.ctypes.data, float(tol), int(max_steps), out.ctypes.data, counts, ctypes.byref(t_last))
         return out, int(status), int(counts[0]), int(counts[1]), float(t_last.value)
 
     def solve(self, param, y0, grid, tol: float) -> tuple[np.ndarray, np.ndarray, bool, str]:
