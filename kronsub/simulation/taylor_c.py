@@ -15,6 +15,10 @@ convolution (as fast here, and much quicker to compile). The step is
 Jorba and Zou's ``rho / e^2 exp(-0.7 / (N - 1))`` (heyoka's) when ``tol = e^(-2 (N - 1))``, and
 between two orders a step that still keeps ``(h / rho)^N`` below ``tol``. The states at the
 requested output times come from the step's polynomial (dense output at no extra evaluation).
+The state and the time are compensated sums ``y + ylo``, ``t + tlo`` (issue 9, section 3): a step
+adds its increment ``sum_{k>=1} y_k h^k`` and keeps that addition's rounding exactly (TwoSum);
+the low part enters the next step to first order (each rule's change at order 0, then
+``dx = Mbar_0^-1 (dr - dM x_0)``), so ~500 steps no longer each round the state to eps ``|y|``.
 Parameters stay run-time inputs. Plain C99 with libc and libm, in ``double``; no allocation per
 step (large systems allocate their coefficients once per call). Systems with implicit
 constraints are refused (:class:`TaylorUnavailable`).
