@@ -122,23 +122,29 @@ def test_benchmark_double_pendulum_reaches_the_float64_end():
     assert status == 0 and error < 1e-9, error
 
 
-FLOOR_FACTOR = 6  # measured 4.1 at tol 1e-15 (7.5 before the state and time were compensated sums)
+FLOOR_FACTOR = 2  # issue 9, section 3; measured 0.3 at tol 1e-15 (7.5 before the compensated state)
 
 
-def test_benchmark_double_pendulum_within_a_few_times_the_float64_floor():
+def test_benchmark_double_pendulum_within_twice_the_float64_floor():
     """At tol 1e-15 the error at t = 10 is within FLOOR_FACTOR times the float64 floor: how far
     rounding the inputs to float64 alone moves the exact state (the mpmath Taylor route from the
-    float64 inputs against the 40-digit state of the exact ones)."""
+    float64 inputs against the 40-digit state of the exact ones). Not by chance: the median over
+    nine tolerances at the same order is within 3x (measured 1.2x; 20x before)."""
     system, _, _, want = benchmark_problem()
     values = resolve(system, {}, {"theta": "2*pi/3", "phi": "-pi/18"})
     rounded = R.taylor(system, [float(v) for v in values.parameters], [float(v) for v in values.y0], [10.0],
                        digits=18).states[-1]
-    got, status, _, order = TaylorC(system).integrate(values.parameters, values.y0, 10.0, 1e-15)
+    taylor = TaylorC(system)
+    got, status, _, order = taylor.integrate(values.parameters, values.y0, 10.0, 1e-15)
+    nearby = [taylor.integrate(values.parameters, values.y0, 10.0, tol, order=19)[0]
+              for tol in np.geomspace(1e-16, 1e-15, 9)]
     with mpmath.workdps(50):
         floor = float(max(abs(r - w) for r, w in zip(rounded, want)))
         error = float(max(abs(g - w) for g, w in zip(got, want)))
+        median = float(np.median([float(max(abs(g - w) for g, w in zip(y, want))) for y in nearby]))
     assert 5e-12 < floor < 5e-11, floor  # 1.3e-11: the chaotic motion amplifies the inputs' rounding
     assert status == 0 and order == 19 and error <= FLOOR_FACTOR * floor, (error, floor)
+    assert median <= 3 * floor, (median, floor)
 
 
 @pytest.mark.parametrize("which", ["functions", "benchmark"])
