@@ -15,6 +15,12 @@ convolution (as fast here, and much quicker to compile). The step is
 Jorba and Zou's ``rho / e^2 exp(-0.7 / (N - 1))`` (heyoka's) when ``tol = e^(-2 (N - 1))``, and
 between two orders a step that still keeps ``(h / rho)^N`` below ``tol``. The states at the
 requested output times come from the step's polynomial (dense output at no extra evaluation).
+The state and the time are compensated sums ``y + ylo``, ``t + tlo`` (issue 9, section 3): a step
+adds its increment ``sum_{k>=1} y_k h^k`` and keeps that addition's rounding exactly (TwoSum);
+at tol < 1e-13 the low part enters the next step to first order together with order 0's own
+roundings (each rule's change at order 0 plus the exact error of each addition and product,
+then ``dx = Mbar_0^-1 (dr - dM x_0 + r_0 - Mbar_0 x_0)``), so neither the ~500 roundings of the
+state to eps ``|y|`` nor those of order 0 limit the result: the float64 floor of the benchmark.
 Parameters stay run-time inputs. Plain C99 with libc and libm, in ``double``; no allocation per
 step (large systems allocate their coefficients once per call). Systems with implicit
 constraints are refused (:class:`TaylorUnavailable`).
@@ -57,6 +63,15 @@ def _literal(value) -> str:
     with mpmath.workdps(40):
         text = mpmath.nstr(mpmath.mpf(value), 36, min_fixed=-1, max_fixed=1, strip_zeros=False)
     return text if ("." in text or "e" in text) else text + ".0"
+
+
+def _sum_errors(terms: list[str]) -> list[str]:
+    """The exact rounding errors of ``terms[0] + terms[1] + ...`` summed left to right (C's order)."""
+    errors, partial = [], terms[0]
+    for term in terms[1:]:
+        errors.append(f"ks_sum_error({partial}, {term})")
+        partial = f"({partial} + {term})"
+    return errors or ["0.0"]
 
 
 def _tree(terms: list[str]) -> str:
@@ -201,7 +216,7 @@ class _Emitter:
         if kind == "param":
             return [f"c{i} = param[{data}];"]
         if kind == "time":
-            return [f"{out} = t;"]
+            return [f"{out} = t + tlo;"]
         if kind == "add":
             return [f"{out} = " + " + ".join(self.at(x, 0) for x in args) + ";"]
         if kind == "scale":
@@ -224,6 +239,55 @@ class _Emitter:
             return [f"{out} = fabs({a});"]
         if kind == "sign":
             return [f"{out} = ({a} > 0) - ({a} < 0);"]
+        raise AssertionError(kind)
+
+    def lo(self, i: int):
+        """The C name of node ``i``'s first-order change under the state's low part, or None (constant)."""
+        kind, args, data = self.nodes[i]
+        if not self.var[i]:
+            return None
+        if kind == "state":
+            return f"ylo[{data}]"
+        if kind == "time":
+            return "tlo"
+        if kind in ("sin", "cos"):
+            return f"e{kind[0].upper()}{args[0]}"
+        return f"e{i}"
+
+    def tangent(self, i: int) -> list[str]:
+        """C statements of node ``i``'s change to first order in ``(ylo, tlo)`` at order 0: the
+        low parts the coefficients (evaluated at the high parts) leave out."""
+        kind, args, data = self.nodes[i]
+        e = self.lo(i)
+        a0 = self.at(args[0], 0) if args else ""
+        ea = self.lo(args[0]) if args else None
+        if kind in ("state", "time", "sin", "cos"):
+            return []
+        if kind == "add":  # and the rounding of each addition, exactly (TwoSum)
+            terms = [self.lo(x) for x in args if self.var[x]] + _sum_errors([self.at(x, 0) for x in args])
+            return [f"{e} = {' + '.join(terms)};"]
+        if kind == "mul":  # and the rounding of the product, exactly (Dekker)
+            x, y = args
+            terms = [f"{self.at(x, 0)} * {self.lo(y)}" if self.var[y] else None,
+                     f"{self.lo(x)} * {self.at(y, 0)}" if self.var[x] else None,
+                     f"ks_mul_error({self.at(x, 0)}, {self.at(y, 0)})"]
+            return [f"{e} = {' + '.join(t for t in terms if t)};"]
+        if kind == "scale":
+            return [f"{e} = {_literal(data)} * {ea} + ks_mul_error({_literal(data)}, {a0});"]
+        if kind == "sincos":
+            return [f"eS{i} = C{i}[0] * {ea};", f"eC{i} = -S{i}[0] * {ea};"]
+        if kind == "exp":
+            return [f"{e} = {self.at(i, 0)} * {ea};"]
+        if kind == "log":
+            return [f"{e} = {ea} / {a0};"]
+        if kind == "pow":
+            return [f"{e} = {a0} != 0 ? {_literal(data)} * {self.at(i, 0)} / {a0} * {ea} : 0.0;"]
+        if kind == "integral":
+            return [f"{e} = {self.at(args[1], 0)} * {ea};"]
+        if kind == "abs":
+            return [f"{e} = {a0} >= 0 ? {ea} : -{ea};"]
+        if kind == "sign":
+            return [f"{e} = 0.0;"]
         raise AssertionError(kind)
 
     # the whole file ----------------------------------------------------------------------
@@ -292,7 +356,37 @@ class _Emitter:
                 lines.append(f"Y{a}[{k1}] = {inv} * Y{n + a}[{k}]; Y{n + a}[{k1}] = {inv} * X{a}[{k}];")
             return lines
 
-        step += emit_order(0) + solve(0)
+        # (Mbar_0 + dM)(x_0 + dx) = r_0 + dr to first order in the low parts: dx = Mbar_0^-1 (dr - dM x_0)
+        lows = []
+        for i in range(len(nodes)):
+            if self.var[i] and i in self.needed:
+                lows += self.tangent(i)
+        for a in range(n):
+            # and the residual r_0 - Mbar_0 x_0 of the rounded solution, its roundings kept exactly
+            products = [f"{self.at(self.M[a][b], 0)} * X{b}[0]" for b in range(n)]
+            chain = [self.at(self.r[a], 0)] + [f"-({x})" for x in products]
+            residual = " + ".join(chain) + " + " + " + ".join(_sum_errors(chain)) + " - " + " - ".join(
+                f"ks_mul_error({self.at(self.M[a][b], 0)}, X{b}[0])" for b in range(n))
+            terms = [self.lo(self.r[a]) or "0.0"] + [f"{self.lo(self.M[a][b])} * X{b}[0]"
+                                                    for b in range(n) if self.var[self.M[a][b]]]
+            lows.append(f"EX{a} = {' - '.join(terms)} + ({residual});")
+        for a in range(n):
+            for b in range(a):
+                lows.append(f"EX{a} -= L{a}_{b} * EX{b};")
+        for a in range(n):
+            lows.append(f"EX{a} *= R{a};")
+        for a in reversed(range(n)):
+            for b in range(a + 1, n):
+                lows.append(f"EX{a} -= L{b}_{a} * EX{b};")
+        lo_name = re.compile(r"\b(?:e\d+|eS\d+|eC\d+)\b")
+        while True:  # only the changes something reads
+            read = {x for line in lows for x in lo_name.findall(line.split("=", 1)[1])}
+            kept = [line for line in lows if not lo_name.fullmatch(line.split(" ", 1)[0])
+                    or line.split(" ", 1)[0] in read]
+            if len(kept) == len(lows):
+                break
+            lows = kept
+        step += emit_order(0) + solve(0) + ["if (fine) {"] + ["    " + x for x in lows] + ["}"]
         if self.unrolled:
             for k in range(1, N):
                 step += emit_order(k) + solve(k)
@@ -302,7 +396,9 @@ class _Emitter:
             step.append("}")
         ldl = [f"L{a}_{b}" for a in range(n) for b in range(a)] + [f"D{a}" for a in range(n)] + \
             [f"R{a}" for a in range(n)]  # R = 1 / D: no division on the chain from order to order
-        decl = []
+        lo_names = sorted(set(re.findall(r"\b(?:e\d+|eS\d+|eC\d+|EX\d+)\b", "\n".join(lows))),
+                          key=lambda x: (re.sub(r"\d", "", x), int(re.sub(r"\D", "", x))))
+        decl = ["double " + ", ".join(f"{x} = 0" for x in lo_names) + ";"]
         if consts:
             decl.append("double " + ", ".join(consts) + ";")
         if ldl:
@@ -321,16 +417,16 @@ class _Emitter:
             sizes = "\n        ".join(f"if (fabs(Y{j}_{N - 1 + e}) > size[{e}]) size[{e}] = fabs(Y{j}_{N - 1 + e});"
                                       for j in range(ny) for e in (0, 1))
 
-            def horner(tau: str, out: str) -> str:
+            def horner(tau: str) -> str:  # the increment sum_{k>=1} Y_k tau^k
                 def poly(j):
                     text = f"Y{j}_{N}"
-                    for k in range(N - 1, -1, -1):
-                        text = f"({text} * {tau} + Y{j}_{k})" if k else f"{text} * {tau} + Y{j}_0"
-                    return text
-                return " ".join(f"{out}[{j}] = {poly(j)};" for j in range(ny))
+                    for k in range(N - 1, 0, -1):
+                        text = f"({text} * {tau} + Y{j}_{k})"
+                    return f"{text} * {tau}"
+                return " ".join(f"dy[{j}] = {poly(j)};" for j in range(ny))
 
-            dense = "{ double tau = t_out[row] - t, *o = y_out + row * TN_NY; " + horner("tau", "o") + " }"
-            advance = horner("h", "y")
+            dense = horner("tau")
+            advance = horner("h")
             helpers = ""
         else:
             storage = ["double *W = calloc((size_t)" + str(len(arrays)) + " * (TN_ORDER + 1), sizeof(double));"]
@@ -343,10 +439,16 @@ class _Emitter:
                      "            if (fabs(Y[i][TN_ORDER - 1]) > size[0]) size[0] = fabs(Y[i][TN_ORDER - 1]);\n"
                      "            if (fabs(Y[i][TN_ORDER]) > size[1]) size[1] = fabs(Y[i][TN_ORDER]);\n"
                      "        }")
-            dense = "ks_horner(Y, t_out[row] - t, y_out + row * TN_NY);"
-            advance = "ks_horner(Y, h, y);"
+            dense = "ks_horner(Y, tau, dy);"
+            advance = "ks_horner(Y, h, dy);"
             inverses = ", ".join(["0.0"] + [_literal(mpmath.mpf(1) / k) for k in range(1, N + 2)])
             helpers = CONV + "\nstatic const double ks_inv[TN_ORDER + 2] = {" + inverses + "};  /* 1 / k */\n"
+        def first_order(v: str) -> str:  # the low parts carried through the step to first order
+            return " ".join(f"dy[{a}] += {v} * (ylo[{n + a}] + 0.5 * {v} * EX{a}); dy[{n + a}] += {v} * EX{a};"
+                            for a in range(n))
+
+        dense += " if (fine) { " + first_order("tau") + " }"
+        advance += " if (fine) { " + first_order("h") + " }"
         text = TEMPLATE.format(
             name=c_comment(name), n=n, ny=ny, order=N, decl="\n    ".join(decl + storage),
             zero="\n    ".join(zero + [f"(void){x};" for x in consts_void + consts]),
@@ -363,29 +465,51 @@ TEMPLATE = r"""/* A Taylor integrator of order {order} generated by kronsub for 
 #define TN_ORDER {order}
 #define TN_NY {ny}
 {helpers}
-/* Integrate y' = [qdot; Mbar^-1 (fbar - hbar)] from y0 at t0 through the n_out increasing times
-   t_out (>= t0), writing the state at each into rows of y_out. counts: [steps, rows written];
-   t_last: the time of the last state reached.
+/* the rounding error of a + b and of a * b, exactly (TwoSum; Dekker's product, no fma needed) */
+static double ks_sum_error(double a, double b)
+{{
+    double s = a + b, c = s - a;
+    return (a - (s - c)) + (b - c);
+}}
+
+static double ks_mul_error(double a, double b)
+{{
+    double p = a * b, ca = 134217729.0 * a, cb = 134217729.0 * b;
+    double ah = ca - (ca - a), al = a - ah, bh = cb - (cb - b), bl = b - bh;
+    return ((ah * bh - p) + ah * bl + al * bh) + al * bl;
+}}
+
+/* Integrate y' = [qdot; Mbar^-1 (fbar - hbar)] from y0 + y0_lo (y0_lo may be NULL) at t0 through
+   the n_out increasing times t_out (>= t0), writing the state at each into rows of y_out.
+   counts: [steps, rows written]; t_last: the time of the last state reached.
    Returns 0, 1 (Mbar_0 not positive definite, a non-finite state, or no memory),
    4 (max_steps reached), 6 (bad argument). */
-int ks_taylor(const double *param, double t0, const double *y0, long n_out, const double *t_out,
-              double tol, long max_steps, double *y_out, long *counts, double *t_last)
+int ks_taylor(const double *param, double t0, const double *y0, const double *y0_lo, long n_out,
+              const double *t_out, double tol, long max_steps, double *y_out, long *counts, double *t_last)
 {{
     {decl}
-    double y[TN_NY], t = t0;
+    /* the state and the time are compensated sums y + ylo, t + tlo: each step adds its increment
+       (rounded to eps |dy|, not eps |y|) and the rounding error of that addition, found exactly
+       by TwoSum, is carried into the next step */
+    double y[TN_NY], ylo[TN_NY], dy[TN_NY], t = t0, tlo = 0;
     /* h = rho tol^(1/(N-1)) exp(-0.7 / (N - 1)): Jorba and Zou's rho / e^2 exp(-0.7 / (N - 1)) when
        tol = e^(-2 (N - 1)), taking the tolerance between two orders into account (tol <= 0: e^-2) */
     const double factor = exp(((tol > 0 ? log(tol) : -2.0 * (TN_ORDER - 1)) - 0.7) / (TN_ORDER - 1));
+    /* the low part enters each step (to first order, with order 0's own roundings) only at
+       tolerances below 1e-13, where rounding rather than truncation limits the error: ~10 % */
+    const int fine = tol < 1e-13;
     int i, k, status = 0;
     long steps = 0, row = 0;
     {zero}
     (void)k;
     (void)param;
+    (void)ks_sum_error;
+    (void)ks_mul_error;
     counts[0] = counts[1] = 0;
     *t_last = t0;
     if (n_out < 1 || !(t_out[0] >= t0)) {{ {free} return 6; }}
     {prologue}
-    for (i = 0; i < TN_NY; ++i) y[i] = y0[i];
+    for (i = 0; i < TN_NY; ++i) {{ y[i] = y0[i]; ylo[i] = y0_lo != NULL ? y0_lo[i] : 0; }}
     while (row < n_out && t_out[row] <= t) {{
         for (i = 0; i < TN_NY; ++i) y_out[row * TN_NY + i] = y[i];
         ++row;
@@ -405,17 +529,29 @@ int ks_taylor(const double *param, double t0, const double *y0, long n_out, cons
                 if (h < 0 || hk < h) h = hk;
             }}
         if (h > 0) h *= factor;
-        if (h < 0 || t + h >= t_end) h = t_end - t;
-        while (row < n_out && t_out[row] < t + h) {{  /* dense output: the step's polynomial */
+        if (h < 0 || (t_end - t) - tlo <= h) h = (t_end - t) - tlo;
+        while (row < n_out && (t_out[row] - t) - tlo < h) {{  /* dense output: the step's polynomial */
+            double tau = (t_out[row] - t) - tlo, *o = y_out + row * TN_NY;
             {dense}
+            for (i = 0; i < TN_NY; ++i) o[i] = y[i] + (dy[i] + ylo[i]);
             ++row;
         }}
         {advance}
-        t = (t + h >= t_end) ? t_end : t + h;
+        for (i = 0; i < TN_NY; ++i) {{  /* y + ylo + dy = y' + ylo' exactly (TwoSum) */
+            double d = dy[i] + ylo[i], s = y[i] + d, b = s - y[i];
+            ylo[i] = (y[i] - (s - b)) + (d - b);
+            y[i] = s;
+        }}
+        if ((t_end - t) - tlo <= h) {{ t = t_end; tlo = 0; }}
+        else {{
+            double s = t + h, b = s - t;
+            tlo += (t - (s - b)) + (h - b);
+            t = s;
+        }}
         ++steps;
         for (i = 0; i < TN_NY; ++i) if (!isfinite(y[i])) {{ status = 1; goto done; }}
         while (row < n_out && t_out[row] <= t) {{
-            for (i = 0; i < TN_NY; ++i) y_out[row * TN_NY + i] = y[i];
+            for (i = 0; i < TN_NY; ++i) y_out[row * TN_NY + i] = y[i] + ylo[i];
             ++row;
         }}
     }}
@@ -430,15 +566,15 @@ done:
 
 
 CONV = r"""
-/* out_i = sum_k Y_i[k] tau^k, the components side by side (independent chains) */
+/* out_i = sum_{k>=1} Y_i[k] tau^k (the increment), the components side by side (independent chains) */
 static void ks_horner(double *const *Y, double tau, double *out)
 {
     double s[TN_NY];
     int i, k;
     for (i = 0; i < TN_NY; ++i) s[i] = Y[i][TN_ORDER];
-    for (k = TN_ORDER - 1; k >= 0; --k)
+    for (k = TN_ORDER - 1; k >= 1; --k)
         for (i = 0; i < TN_NY; ++i) s[i] = s[i] * tau + Y[i][k];
-    for (i = 0; i < TN_NY; ++i) out[i] = s[i];
+    for (i = 0; i < TN_NY; ++i) out[i] = s[i] * tau;
 }
 
 static double ks_conv(const double *restrict a, const double *restrict b, int lo, int hi, int k)
@@ -478,14 +614,16 @@ class TaylorC:
             fn = ctypes.CDLL(str(library)).ks_taylor
             P = ctypes.c_void_p
             fn.restype = ctypes.c_int
-            fn.argtypes = [P, ctypes.c_double, P, ctypes.c_long, P, ctypes.c_double, ctypes.c_long, P, P, P]
+            fn.argtypes = [P, ctypes.c_double, P, P, ctypes.c_long, P, ctypes.c_double, ctypes.c_long, P, P, P]
             self._fns[order] = fn
         return self._fns[order]
 
-    def run(self, param, y0, times, tol: float, order: int = 0, max_steps: int = 10_000_000, t0: float = 0.0):
+    def run(self, param, y0, times, tol: float, order: int = 0, max_steps: int = 10_000_000, t0: float = 0.0,
+            y0_lo=None):
         """``(Y, status, steps, rows, t_last)``: the states at the increasing ``times`` (>= t0)
         from ``y0`` at ``t0``; rows after a failure are not written (``rows`` says how many
-        were; ``t_last`` is the time of the last state reached)."""
+        were; ``t_last`` is the time of the last state reached). ``y0_lo``: a low part of the
+        initial state (the state is ``y0 + y0_lo``), carried to first order."""
         fn = self.build(order or order_for(tol))
         p = np.ascontiguousarray(param, dtype=float).ravel() if self.nparam else np.zeros(1)
         y = np.ascontiguousarray(y0, dtype=float).ravel()
@@ -495,8 +633,11 @@ class TaylorC:
                              f"(got {p.size} and {y.size})")
         out = np.full((len(ts), self.ny), np.nan)
         counts, t_last = (ctypes.c_long * 2)(), ctypes.c_double()
-        status = fn(p.ctypes.data, float(t0), y.ctypes.data, len(ts), ts.ctypes.data, float(tol), int(max_steps),
-                    out.ctypes.data, counts, ctypes.byref(t_last))
+        lo = None if y0_lo is None else np.ascontiguousarray(y0_lo, dtype=float).ravel()
+        if lo is not None and lo.size != self.ny:
+            raise ValueError(f"expected {self.ny} low parts of the initial values (got {lo.size})")
+        status = fn(p.ctypes.data, float(t0), y.ctypes.data, None if lo is None else lo.ctypes.data, len(ts),
+                    ts.ctypes.data, float(tol), int(max_steps), out.ctypes.data, counts, ctypes.byref(t_last))
         return out, int(status), int(counts[0]), int(counts[1]), float(t_last.value)
 
     def solve(self, param, y0, grid, tol: float) -> tuple[np.ndarray, np.ndarray, bool, str]:
