@@ -60,17 +60,24 @@ def model_key(path: Path, stack: tuple[str, ...] = ()) -> str:
     text = read_model_text(path)
     root = load_yaml(path, text)
     subs = []
+    for sub_path in _component_models(root, path):
+        try:
+            subs.append(model_key(sub_path, stack + (resolved,)))
+        except ModelError:  # reported where `model:` names it, when the model is loaded
+            subs.append("unreadable")
+    return content_key(derivation_text(root, text), *subs)
+
+
+def _component_models(root: Node, path: Path) -> list[Path]:
+    """The files named by the ``model:`` of the components in ``root`` (the model at ``path``)."""
+    out = []
     comps = root.get("components")
     if comps is not None and comps.is_mapping:
         for spec in comps.value.values():
             mnode = spec.get("model") if spec.is_mapping else None
             if mnode is not None and isinstance(mnode.value, str) and mnode.value:
-                sub_path = path.parent / mnode.value
-                try:
-                    subs.append(model_key(sub_path, stack + (resolved,)))
-                except ModelError:  # reported where `model:` names it, when the model is loaded
-                    subs.append("unreadable")
-    return content_key(derivation_text(root, text), *subs)
+                out.append(path.parent / mnode.value)
+    return out
 
 
 def model_files(path: Path, stack: tuple[str, ...] = ()) -> list[Path]:
@@ -85,15 +92,10 @@ def model_files(path: Path, stack: tuple[str, ...] = ()) -> list[Path]:
     except ModelError:
         return []
     out: list[Path] = []
-    comps = root.get("components")
-    if comps is not None and comps.is_mapping:
-        for spec in comps.value.values():
-            mnode = spec.get("model") if spec.is_mapping else None
-            if mnode is not None and isinstance(mnode.value, str) and mnode.value:
-                sub_path = path.parent / mnode.value
-                for found in [sub_path, *model_files(sub_path, stack + (resolved,))]:
-                    if found.is_file() and _resolved(found) not in {_resolved(p) for p in out}:
-                        out.append(found)
+    for sub_path in _component_models(root, path):
+        for found in [sub_path, *model_files(sub_path, stack + (resolved,))]:
+            if found.is_file() and _resolved(found) not in {_resolved(p) for p in out}:
+                out.append(found)
     return out
 
 
