@@ -10,6 +10,7 @@ from __future__ import annotations
 import re
 from dataclasses import dataclass
 
+from sympy import S
 from sympy.printing.c import C99CodePrinter
 from sympy.printing.numpy import NumPyPrinter
 
@@ -43,6 +44,16 @@ class _CPrinter(C99CodePrinter):
         if exp == -1:
             return f"(1.0/{self.parenthesize(base, 100)})"
         return super()._print_Pow(expr)
+
+    def _print_Piecewise(self, expr):
+        """A guarded angle (numeric.py) as one conditional expression on one line."""
+        if expr.args[-1].cond is not S.true:
+            return super()._print_Piecewise(expr)  # no default: sympy's printer says so
+        parts = [(self._print(e), self._print(c)) for e, c in expr.args]
+        text = parts[-1][0]
+        for e, c in reversed(parts[:-1]):
+            text = f"(({c}) ? ({e}) : ({text}))"
+        return text
 
 
 class _PyPrinter(NumPyPrinter):
@@ -95,7 +106,7 @@ def emit_c(system: KnownSystem, stem: str, source: str = "", prefix: str = "ks",
     libm only; names start with ``<prefix>_`` (macros with ``<PREFIX>_``), so several models
     can live in one program. A scene's ``outputs`` leave out the energy and point functions
     it does not ask for."""
-    model = prepare(system, source, outputs)
+    model = prepare(system, source, outputs, guarded_angles=True)
     printer = _CPrinter()
     ctx = _context(model, printer.doprint, "const double ", ";")
     stem = file_stem(stem)

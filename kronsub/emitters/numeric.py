@@ -73,14 +73,36 @@ def _default(value) -> str:
     return repr(number) if math.isfinite(number) else ""
 
 
-def _single_angles(exprs: list[sympy.Expr], coordinates) -> list[sympy.Expr]:
+GUARD = sympy.Rational(1, 8)
+"""Below this magnitude a sine or cosine of several coordinates is not taken from products."""
+
+
+def _guarded(atom: sympy.Expr) -> sympy.Expr:
+    """``sin(L)`` or ``cos(L)`` of several coordinates through single-angle sines and cosines
+    (shared by every entry), except where those products lose relative accuracy: a sine of
+    ``|L| < 1/8`` by its Taylor polynomial in ``L`` (to ``L^9``: within eps/4), any other value
+    of magnitude below 1/8 (``L`` near a multiple of pi, or a cosine near pi/2) by libm on ``L``."""
+    angle = atom.args[0]
+    products = sympy.expand(sympy.expand_trig(atom))
+    libm = (atom, sympy.Abs(products) < GUARD)
+    if isinstance(atom, sympy.cos):
+        return sympy.Piecewise(libm, (products, True))
+    x2 = angle**2
+    series = angle * (1 + x2 * (sympy.Rational(-1, 6) + x2 * (sympy.Rational(1, 120) + x2 * (
+        sympy.Rational(-1, 5040) + x2 * sympy.Rational(1, 362880)))))
+    return sympy.Piecewise((series, sympy.Abs(angle) < GUARD), libm, (products, True))
+
+
+def _single_angles(exprs: list[sympy.Expr], coordinates, guarded: bool = False) -> list[sympy.Expr]:
     """Rewrite multiple angles of one coordinate (``sin(2 q1) = 2 sin(q1) cos(q1)``) through
     its sine and cosine, which then serve every entry (common subexpressions).
 
-    An angle of several coordinates (``sin(q1 - q2)``) stays as it is: through single-angle
-    sines and cosines, ``sin(q1) cos(q2) - cos(q1) sin(q2)`` loses the digits the two products
-    share when ``q1`` is close to ``q2``, while ``q1 - q2`` is then exact (Sterbenz) and so is
-    its sine, to one rounding (tests/hard/test_hard_cancellation.py).
+    An angle of several coordinates (``sin(q1 - q2)``) needs care: through single-angle sines
+    and cosines, ``sin(q1) cos(q2) - cos(q1) sin(q2)`` loses the digits the two products share
+    when ``q1`` is close to ``q2``, while ``q1 - q2`` is then exact (Sterbenz) and so is its
+    sine, to one rounding (tests/hard/test_hard_cancellation.py). Unguarded it stays as it is,
+    one libm call per angle; ``guarded`` (the C right-hand sides), :func:`_guarded`: a chain
+    of n links then calls ``sincos`` n times, not n^2 / 2 times.
     """
     coords = set(coordinates)
     mapping = {}
@@ -92,6 +114,8 @@ def _single_angles(exprs: list[sympy.Expr], coordinates) -> list[sympy.Expr]:
                 continue
             if len(parts) == 1 and abs(int(parts[0][0])) > 1:
                 mapping[atom] = sympy.expand_trig(atom)
+            elif len(parts) > 1 and guarded:
+                mapping[atom] = _guarded(atom)
     return [e.xreplace(mapping) if mapping else e for e in exprs]
 
 
@@ -141,18 +165,20 @@ class _Constants:
         return [s.name for s in self.derived.values()], list(self.derived)
 
 
-def _block(targets: list[str], exprs: list[sympy.Expr], prefix: str, coordinates=()) -> Block:
-    exprs = _single_angles(exprs, coordinates)
+def _block(targets: list[str], exprs: list[sympy.Expr], prefix: str, coordinates=(), guarded: bool = False) -> Block:
+    exprs = _single_angles(exprs, coordinates, guarded)
     symbols = sympy.numbered_symbols(prefix)
     replacements, reduced = sympy.cse(exprs, symbols=symbols, optimizations="basic", order="canonical")
     return Block(tuple(replacements), tuple(zip(targets, reduced)))
 
 
-def prepare(system: KnownSystem, source: str = "", outputs=None) -> NumericModel:
+def prepare(system: KnownSystem, source: str = "", outputs=None, guarded_angles: bool = False) -> NumericModel:
     """Map the system's symbols to array slots and eliminate common subexpressions.
 
     ``outputs`` (a scene's :class:`~kronsub.model.scenes.Outputs`; None: everything) leaves
-    out the energies and the named points when they are not asked for."""
+    out the energies and the named points when they are not asked for. ``guarded_angles``
+    (the C): the right-hand sides take sines and cosines of several coordinates from
+    single-angle ones where that keeps their accuracy (:func:`_guarded`)."""
     energies = outputs is None or outputs.energies
     with_points = outputs is None or bool(outputs.points)
     n = len(system.coordinates)
@@ -193,7 +219,8 @@ def prepare(system: KnownSystem, source: str = "", outputs=None) -> NumericModel
     r_targets = [f"r[{i}]" for i in range(n)]
     qs = tuple(q_slots.values())
     constants = _Constants(list(p_slots.values()))
-    equations = _block(targets + r_targets, [constants(e) for e in exprs + [slot(e) for e in r]], "x", qs)
+    equations = _block(targets + r_targets, [constants(e) for e in exprs + [slot(e) for e in r]], "x", qs,
+                       guarded_angles)
     mass = _block(targets, exprs, "x", qs)
     velocity_terms = _block([f"h[{i}]" for i in range(n)], [slot(e) for e in system.velocity_terms], "x", qs)
     forces = _block([f"f[{i}]" for i in range(n)], [slot(e) for e in system.forces], "x", qs)
@@ -208,7 +235,7 @@ def prepare(system: KnownSystem, source: str = "", outputs=None) -> NumericModel
                 if d != 0:
                     total += d * qd[i] * qd[j] / 2
         dTdq.append(total + system.forces[k])
-    canonical = _block(r_targets, [constants(slot(e)) for e in dTdq], "x", qs)
+    canonical = _block(r_targets, [constants(slot(e)) for e in dTdq], "x", qs, guarded_angles)
     prepare = _block(*constants.definitions(), "c")
 
     potential = _block(["V"], [slot(system.potential_energy)], "x", qs) if energies else Block((), ())
