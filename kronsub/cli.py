@@ -271,10 +271,9 @@ def simulate(model: Path, t_end: float | None, dt: float | None, method: str | N
              plot: Path | None, scene_name: str | None, with_reactions: bool = False):
     """Simulate MODEL from t = 0 to --t; the trajectory is plain CSV (a header row, then numbers),
     its metadata JSON (--meta, or beside --output)."""
-    from .model.loader import model_files
     from .model.scenes import initial_values
     from .simulation.run import METHODS, SimulationError, collect, explicit_only, row_count, start
-    from .simulation.table import CsvWriter, file_sha256, metadata_json, sidecar_path, trajectory_csv
+    from .simulation.table import CsvWriter, metadata_json, sidecar_path, trajectory_csv
     from .simulation.values import parse_assignments, resolve
 
     def job():
@@ -320,8 +319,7 @@ def simulate(model: Path, t_end: float | None, dt: float | None, method: str | N
                     outputs=outputs, constrained=constrained)
         kept = [] if plot is not None or with_reactions else None
         run_info = dict(t_end=span, dt=step, scene=scene.name if scene is not None else None,
-                        model_sha256=file_sha256(model),
-                        model_uses=tuple((str(f), file_sha256(f)) for f in model_files(model)))
+                        model_file=model)
 
         def stream(out):
             """Write the CSV; what is returned tells ``rows``, ``last_t``, ``stopped`` and the metadata."""
@@ -416,7 +414,7 @@ def accuracy(model: Path, t_end: float, methods: str, tolerances: str, target: f
     """What accuracy costs in time: error against a high-precision reference, per method and tolerance."""
     from .model.scenes import initial_values
     from .simulation import accuracy as acc
-    from .simulation.table import file_sha256, metadata_json, sidecar_path
+    from .simulation.table import metadata_json, sidecar_path
     from .simulation.values import parse_assignments, resolve
 
     def job():
@@ -458,7 +456,7 @@ def accuracy(model: Path, t_end: float, methods: str, tolerances: str, target: f
         if meta_path is not None:
             csv_name = None if output is None else (
                 output.name if output.parent.resolve() == meta_path.parent.resolve() else str(output))
-            info = acc.metadata(wp, model_file=model.as_posix(), model_sha256=file_sha256(model),
+            info = acc.metadata(wp, model_file=model.as_posix(), model_path=model,
                                 scene=scene.name if scene is not None else None, methods=chosen, tolerances=grid,
                                 target=target, csv=csv_name)
             write_atomically(meta_path, metadata_json(info))

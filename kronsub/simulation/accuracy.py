@@ -627,11 +627,6 @@ def target_sentence(wp: WorkPrecision, target: float) -> str:
             f"in {1e3 * best.seconds:.3f} ms.")
 
 
-def _json_number(value):
-    """A float for JSON, None for a missing or non-finite one (JSON has no NaN)."""
-    return None if value is None or not math.isfinite(float(value)) else float(value)
-
-
 CSV_COLUMNS = ("method", "tolerance", "setting", "error", "energy_drift", "constraint_residual",
                "velocity_residual", "seconds", "compile_seconds", "evaluations", "steps", "repeats", "status")
 METADATA_FORMAT = "kronsub-accuracy-metadata/1"
@@ -656,13 +651,14 @@ def to_csv(wp: WorkPrecision) -> str:
     return "\n".join(lines) + "\n"
 
 
-def metadata(wp: WorkPrecision, *, model_file: str | None = None, model_sha256: str | None = None,
+def metadata(wp: WorkPrecision, *, model_file: str | None = None, model_path=None,
              scene: str | None = None, methods: tuple[str, ...] = (), tolerances: tuple[float, ...] = (),
              target: float | None = None, csv: str | None = None) -> dict:
     """Everything about a measurement that is not a point: the model, the reference (its routes,
     estimated error and state at the end time, 30 digits), what was skipped and why, the
     failures' messages, the target's choice. Written as JSON beside the CSV."""
     from .. import __version__
+    from .table import _json_number, model_record
 
     ref = wp.reference
     names = list(wp.initial_state) or [f"y{i}" for i in range(len(ref.states[-1]))]
@@ -672,7 +668,7 @@ def metadata(wp: WorkPrecision, *, model_file: str | None = None, model_sha256: 
         "format": METADATA_FORMAT,
         "kronsub": __version__,
         "csv": csv,
-        "model": {"name": wp.system, "file": model_file, "sha256": model_sha256},
+        "model": model_record(wp.system, model_file, model_path),
         "scene": scene,
         "t_end": _json_number(wp.t_end),
         "parameters": {k: _json_number(v) for k, v in wp.parameters.items()},

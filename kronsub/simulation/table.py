@@ -78,6 +78,19 @@ def file_sha256(path: Path) -> str | None:
         return None
 
 
+def model_record(name: str, file: str | None, path: Path | None = None) -> dict:
+    """The ``model`` entry of a sidecar: its name, the file as given and, when ``path`` can be
+    read, its SHA-256, with under ``uses`` the file and SHA-256 of each model it takes as a
+    known system (the results depend on their text too)."""
+    from ..model.loader import model_files
+
+    record = {"name": name, "file": file, "sha256": file_sha256(path) if path is not None else None}
+    uses = model_files(Path(path)) if path is not None else []
+    if uses:
+        record["uses"] = [{"file": str(f), "sha256": file_sha256(f)} for f in uses]
+    return record
+
+
 def _json_number(value):
     """A float for JSON: non-finite values (which JSON lacks) as null."""
     if value is None:
@@ -141,8 +154,7 @@ class CsvWriter:
     def __init__(self, out, system: KnownSystem, model_path: str, values: RunValues, method: str,
                  backend: str, rtol: float, atol: float, with_points: bool = False, outputs=None, *,
                  t_end: float | None = None, dt: float | None = None, scene: str | None = None,
-                 model_sha256: str | None = None, extra_columns: tuple[str, ...] = (),
-                 model_uses: tuple[tuple[str, str | None], ...] = ()):
+                 model_file: Path | None = None, extra_columns: tuple[str, ...] = ()):
         """``outputs`` (a scene's; None: everything) choose the columns (and the points);
         ``extra_columns`` are appended (their values passed to :meth:`block`)."""
         self.out, self.system, self.outputs = out, system, outputs
@@ -165,12 +177,10 @@ class CsvWriter:
         columns += list(extra_columns)
         self.columns = columns
         self._meta = self._start_metadata(model_path, values, method, backend, rtol, atol, t_end, dt, scene,
-                                          model_sha256)
-        if model_uses:  # the known systems' model files: the run depends on their text too
-            self._meta["model"]["uses"] = [{"file": f, "sha256": sha} for f, sha in model_uses]
+                                          model_file)
         out.write(",".join(columns) + "\n")
 
-    def _start_metadata(self, model_path, values, method, backend, rtol, atol, t_end, dt, scene, sha) -> dict:
+    def _start_metadata(self, model_path, values, method, backend, rtol, atol, t_end, dt, scene, file) -> dict:
         from .. import __version__
 
         system = self.system
@@ -179,7 +189,7 @@ class CsvWriter:
             "format": METADATA_FORMAT,
             "kronsub": __version__,
             "csv": None,
-            "model": {"name": system.name, "file": model_path, "sha256": sha},
+            "model": model_record(system.name, model_path, file),
             "scene": scene,
             "method": method,
             "right_hand_side": backend,
