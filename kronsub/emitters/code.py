@@ -30,8 +30,15 @@ def _number(self, expr) -> str:
 class _CPrinter(C99CodePrinter):
     """C99 with small integer powers written as products, constants as numbers (no ``M_PI``)."""
 
-    def __init__(self):
+    def __init__(self, prefix: str = "ks"):
         super().__init__({"math_macros": {}})
+        self.prefix = prefix
+        self.near_axis = False  # whether a guarded angle needs <prefix>_near_axis
+
+    def _print_NearAxis(self, expr):
+        self.near_axis = True
+        angle, kind, product = expr.args
+        return f"{self.prefix}_near_axis({self._print(angle)}, {int(kind)}, {self._print(product)})"
 
     _print_NumberSymbol = _print_Pi = _print_Exp1 = _print_EulerGamma = _print_GoldenRatio = \
         _print_Catalan = _print_TribonacciConstant = _number
@@ -88,6 +95,29 @@ class GeneratedFile:
     text: str
 
 
+WRITTEN_OUT = 12
+"""Up to this many coordinates the ``L D L^T`` solve is written out in scalars (n^3/6 lines)."""
+
+
+def ldlt_lines(n: int) -> list[Markup]:
+    """The ``L D L^T`` solve of ``M x = r`` for ``n`` coordinates written out, in the loops'
+    order of operations (the same roundings, so the same result to the last bit): no loop
+    bounds, indices or array stores, every intermediate in a register the compiler schedules."""
+    out = []
+    for j in range(n):
+        out += [f"const double w{j}_{k} = l{j}_{k} * d{k};" for k in range(j)]
+        out.append(f"const double d{j} = M[{j * n + j}]" + "".join(f" - l{j}_{k} * w{j}_{k}" for k in range(j)) + ";")
+        out.append(f"if (!(d{j} > 1e-12 * M[{j * n + j}])) return 1;")
+        out.append(f"const double inv{j} = 1.0 / d{j};")
+        out += [f"const double l{i}_{j} = (M[{i * n + j}]" + "".join(f" - l{i}_{k} * w{j}_{k}" for k in range(j))
+                + f") * inv{j};" for i in range(j + 1, n)]
+    out += [f"const double y{i} = r[{i}]" + "".join(f" - l{i}_{k} * y{k}" for k in range(i)) + ";" for i in range(n)]
+    out += [f"const double x{i} = y{i} * inv{i}" + "".join(f" - l{k}_{i} * x{k}" for k in range(i + 1, n)) + ";"
+            for i in reversed(range(n))]
+    out += [f"r[{i}] = x{i};" for i in range(n)]
+    return [Markup(line) for line in out]
+
+
 def _context(model: NumericModel, show, declare: str, end: str) -> dict:
     blocks = {name: _lines(getattr(model, name), show, declare, end)
               for name in ("mass", "velocity_terms", "forces", "equations", "canonical", "prepare", "potential",
@@ -107,11 +137,11 @@ def emit_c(system: KnownSystem, stem: str, source: str = "", prefix: str = "ks",
     can live in one program. A scene's ``outputs`` leave out the energy and point functions
     it does not ask for."""
     model = prepare(system, source, outputs, guarded_angles=True)
-    printer = _CPrinter()
+    p = identifier(prefix)
+    printer = _CPrinter(p)
     ctx = _context(model, printer.doprint, "const double ", ";")
     stem = file_stem(stem)
-    p = identifier(prefix)
-    ctx.update(p=Markup(p), P=Markup(p.upper()), header=Markup(f"{stem}.h"),
+    ctx.update(near_axis=printer.near_axis, ldlt=ldlt_lines(model.n) if 0 < model.n <= WRITTEN_OUT else None, p=Markup(p), P=Markup(p.upper()), header=Markup(f"{stem}.h"),
                guard=Markup(f"{p.upper()}_{identifier(stem).upper()}_H"))
     env = _environment()
     return [GeneratedFile(f"{stem}.h", env.get_template("model.h.j2").render(**ctx)),

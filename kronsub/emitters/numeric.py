@@ -77,20 +77,36 @@ GUARD = sympy.Rational(1, 8)
 """Below this magnitude a sine or cosine of several coordinates is not taken from products."""
 
 
+class NearAxis(sympy.Function):
+    """``NearAxis(L, 0, P)`` is ``sin(L)``, ``NearAxis(L, 1, P)`` is ``cos(L)``, a value below
+    1/8 whose single-angle products ``P`` lost digits: the generated C's call-free evaluation
+    (``<p>_near_axis`` in ``model.c.j2``: ``L`` less the nearest multiple of pi/2, taken in three
+    parts, then a Taylor polynomial; ``P`` where ``|L|`` is beyond 2^20)."""
+
+    nargs = 3
+
+    def _eval_evalf(self, prec):
+        angle, kind, _ = self.args
+        return (sympy.cos if kind else sympy.sin)(angle)._eval_evalf(prec)
+
+
 def _guarded(atom: sympy.Expr) -> sympy.Expr:
     """``sin(L)`` or ``cos(L)`` of several coordinates through single-angle sines and cosines
     (shared by every entry), except where those products lose relative accuracy: a sine of
     ``|L| < 1/8`` by its Taylor polynomial in ``L`` (to ``L^9``: within eps/4), any other value
-    of magnitude below 1/8 (``L`` near a multiple of pi, or a cosine near pi/2) by libm on ``L``."""
+    of magnitude below 1/8 (``L`` near a multiple of pi, or a cosine near pi/2) by
+    :class:`NearAxis`, which calls no libm function: a call in the right-hand side would keep
+    every double it holds on the stack (no vector register survives a call)."""
     angle = atom.args[0]
     products = sympy.expand(sympy.expand_trig(atom))
-    libm = (atom, sympy.Abs(products) < GUARD)
-    if isinstance(atom, sympy.cos):
-        return sympy.Piecewise(libm, (products, True))
+    cosine = isinstance(atom, sympy.cos)
+    near = (NearAxis(angle, sympy.Integer(int(cosine)), products), sympy.Abs(products) < GUARD)
+    if cosine:
+        return sympy.Piecewise(near, (products, True))
     x2 = angle**2
     series = angle * (1 + x2 * (sympy.Rational(-1, 6) + x2 * (sympy.Rational(1, 120) + x2 * (
         sympy.Rational(-1, 5040) + x2 * sympy.Rational(1, 362880)))))
-    return sympy.Piecewise((series, sympy.Abs(angle) < GUARD), libm, (products, True))
+    return sympy.Piecewise((series, sympy.Abs(angle) < GUARD), near, (products, True))
 
 
 def _single_angles(exprs: list[sympy.Expr], coordinates, guarded: bool = False) -> list[sympy.Expr]:
