@@ -141,7 +141,8 @@ def emit_c(system: KnownSystem, stem: str, source: str = "", prefix: str = "ks",
     printer = _CPrinter(p)
     ctx = _context(model, printer.doprint, "const double ", ";")
     stem = file_stem(stem)
-    ctx.update(near_axis=printer.near_axis, ldlt=ldlt_lines(model.n) if 0 < model.n <= WRITTEN_OUT else None, p=Markup(p), P=Markup(p.upper()), header=Markup(f"{stem}.h"),
+    ctx.update(near_axis=printer.near_axis, ldlt=ldlt_lines(model.n) if 0 < model.n <= WRITTEN_OUT else None,
+               p=Markup(p), P=Markup(p.upper()), header=Markup(f"{stem}.h"),
                guard=Markup(f"{p.upper()}_{identifier(stem).upper()}_H"))
     env = _environment()
     return [GeneratedFile(f"{stem}.h", env.get_template("model.h.j2").render(**ctx)),

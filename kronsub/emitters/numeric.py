@@ -92,21 +92,14 @@ class NearAxis(sympy.Function):
 
 def _guarded(atom: sympy.Expr) -> sympy.Expr:
     """``sin(L)`` or ``cos(L)`` of several coordinates through single-angle sines and cosines
-    (shared by every entry), except where those products lose relative accuracy: a sine of
-    ``|L| < 1/8`` by its Taylor polynomial in ``L`` (to ``L^9``: within eps/4), any other value
-    of magnitude below 1/8 (``L`` near a multiple of pi, or a cosine near pi/2) by
-    :class:`NearAxis`, which calls no libm function: a call in the right-hand side would keep
+    (shared by every entry), except where those products lose relative accuracy: a value of
+    magnitude below 1/8 (``L`` near a multiple of pi, or a cosine's near pi/2) is taken by
+    :class:`NearAxis` from ``L`` (whose remainder near 0 is ``L`` itself, exact when the angles
+    are close: Sterbenz). It calls no libm function: a call in the right-hand side would keep
     every double it holds on the stack (no vector register survives a call)."""
-    angle = atom.args[0]
     products = sympy.expand(sympy.expand_trig(atom))
-    cosine = isinstance(atom, sympy.cos)
-    near = (NearAxis(angle, sympy.Integer(int(cosine)), products), sympy.Abs(products) < GUARD)
-    if cosine:
-        return sympy.Piecewise(near, (products, True))
-    x2 = angle**2
-    series = angle * (1 + x2 * (sympy.Rational(-1, 6) + x2 * (sympy.Rational(1, 120) + x2 * (
-        sympy.Rational(-1, 5040) + x2 * sympy.Rational(1, 362880)))))
-    return sympy.Piecewise((series, sympy.Abs(angle) < GUARD), near, (products, True))
+    kind = sympy.Integer(int(isinstance(atom, sympy.cos)))
+    return sympy.Piecewise((NearAxis(atom.args[0], kind, products), sympy.Abs(products) < GUARD), (products, True))
 
 
 def _single_angles(exprs: list[sympy.Expr], coordinates, guarded: bool = False) -> list[sympy.Expr]:
