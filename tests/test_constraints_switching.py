@@ -68,3 +68,23 @@ def test_given_coordinates_stop_at_the_same_toggle_with_a_clear_error(auto_model
                                        "--set", "F=0"])
     assert result.exit_code == 3, result.output
     assert "toggle position" in result.output and "'line'" in result.output and "t = " in result.output
+
+
+@pytest.mark.parametrize("method", ["RK45", "Radau", "LSODA"])
+def test_scipy_methods_stop_at_the_toggle_and_keep_the_rows_before(auto_model, method, tmp_path):
+    """scipy's solvers are stepped one step at a time: the rows before the failure are kept (not
+    lost with the whole call), an implicit method creeping towards the toggle in steps of 1e-12
+    stops (run.STALL_STEPS) instead of running for ever, and the configuration named is the last
+    one reached, not an integrator's trial stage."""
+    text = auto_model.read_text(encoding="utf-8").replace("coordinates: auto", "coordinates: [phi]")
+    auto_model.write_text(text, encoding="utf-8")
+    out = tmp_path / "run.csv"
+    result = CliRunner().invoke(main, ["simulate", str(auto_model), "--t", "1.5", "--set", "phi_dot=-15",
+                                       "--set", "F=0", "--method", method, "-o", str(out)])
+    assert result.exit_code == 3, result.output
+    assert "toggle position" in result.output and "the run stopped at t = 0.16" in result.output
+    phi = float(result.output.split("phi=")[1].split(",")[0])
+    assert abs(phi) < 1.0, result.output
+    header, data = _table(out.read_text())
+    assert len(data) >= 15 and np.all(np.isfinite(data)) and data[-1, 0] >= 0.15
+    assert json.loads(out.with_suffix(".json").read_text())["complete"] is False

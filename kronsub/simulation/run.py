@@ -382,8 +382,18 @@ def _auto_blocks(run, system, spec, native, constrained, grid, y0, param, rtol, 
     run.stats = total
     if not run.complete and last is not None:
         guess = split.evaluator.guess.copy()
-        state = run.y_fail if run.y_fail is not None and np.all(np.isfinite(run.y_fail)) else split.row(*last[1:])
-        run.message = diagnose(split.system, split.evaluator, run.t_fail, state, guess)
+        run.message = diagnose(split.system, split.evaluator, run.t_fail, _failed_state(run, split.row(*last[1:])),
+                               guess)
+
+
+def _failed_state(run, last_row: np.ndarray) -> np.ndarray:
+    """The state to explain a failure at: where the right-hand side failed when that is near the
+    last row written (an integrator's trial stage can be far off: phi = -1e31), else that row."""
+    y, last = run.y_fail, np.asarray(last_row, dtype=float)
+    if y is None or y.shape != last.shape or not np.all(np.isfinite(y)):
+        return last
+    n = len(last) // 2
+    return y if np.max(np.abs(y[:n] - last[:n])) <= 0.5 * (1.0 + np.max(np.abs(last[:n]))) else last
 
 
 def _toggle_event(split):
@@ -458,8 +468,7 @@ def _finish(run, rows, bar, native, param, system, constrained, with_energies=Tr
     if constrained is not None and not run.complete and last_y is not None:
         from .constrained import diagnose
 
-        y = run.y_fail if run.y_fail is not None and np.all(np.isfinite(run.y_fail)) else last_y
-        run.message = diagnose(system, constrained, run.t_fail, y, guess)
+        run.message = diagnose(system, constrained, run.t_fail, _failed_state(run, last_y), guess)
     if native is not None and last_y is not None and _stiffness(run.stats):
         warnings.warn(StiffnessWarning(_stiffness_advice(native, param, run.stats, last_t - first_t, last_t, last_y,
                                                          run.method)))
@@ -679,44 +688,107 @@ def _native_blocks(run, native, method, grid, y0, param, rtol, atol, dt, chunks,
         bar.update(grid[b])
 
 
-def _scipy_blocks(run, rhs, method, grid, y0, rtol, atol, chunks, bar, system, events=None):
-    """Blocks ``(t, Y)`` of a run with scipy's ``solve_ivp``, one per chunk of the grid; a
-    terminal ``events`` function that fires ends the blocks with ``run.pending = (t, y)``."""
-    from scipy.integrate import solve_ivp
+STALL_STEPS = 1000
+"""A scipy run whose last this many steps advanced time by less than `STALL_SPAN` of ``max(1, |t|)``
+has stalled (an implicit method creeping towards a singular configuration takes steps of 1e-12)."""
+STALL_SPAN = 1e-8
 
-    last = grid[0]
-    yield np.array([last]), np.array([y0])
-    stats = run.stats = {"evaluations": 0}
-    y = y0
-    for a, b in _chunks(grid, chunks):
+
+class _Cursor:
+    """The output times not yet written, read from the grid a block at a time."""
+
+    BLOCK = 4096
+
+    def __init__(self, grid):
+        self.grid, self.i, self.start = grid, 1, 1
+        self.block = grid[1:min(1 + self.BLOCK, len(grid))]
+
+    def done(self) -> bool:
+        return self.i >= len(self.grid)
+
+    def upto(self, t: float) -> np.ndarray:
+        """The times ``<= t`` not yet taken, now taken."""
+        out = []
+        while self.i < len(self.grid):
+            k = self.i - self.start
+            if k >= len(self.block):
+                self.start = self.i
+                self.block = self.grid[self.i:min(self.i + self.BLOCK, len(self.grid))]
+                continue
+            j = int(np.searchsorted(self.block, t, side="right"))
+            if j > k:
+                out.append(self.block[k:j])
+                self.i += j - k
+            if j < len(self.block):
+                break
+        return np.concatenate(out) if out else np.empty(0)
+
+
+def _scipy_blocks(run, rhs, method, grid, y0, rtol, atol, chunks, bar, system, events=None):
+    """Blocks ``(t, Y)`` of a run with one of scipy's solvers, stepped here: the rows of each
+    step are written as it is taken (from its dense output), so a run that fails keeps every
+    row before the failure, and a run whose steps stall (:data:`STALL_STEPS`) stops with the
+    reason instead of creeping. A terminal ``events`` function (its sign turns) ends the
+    blocks with ``run.pending = (t, y)`` where it turned. ``chunks`` is not needed: the progress
+    bar follows the steps."""
+    from collections import deque
+
+    from scipy import integrate
+    from scipy.optimize import brentq
+
+    yield np.array([grid[0]]), np.array([y0])
+    stats = run.stats = {"evaluations": 0, "steps": 0}
+    cursor = _Cursor(grid)
+    recent: deque = deque(maxlen=STALL_STEPS)
+    solver = None
+    with np.errstate(all="ignore"):
         try:
-            with np.errstate(all="ignore"):
-                sol = solve_ivp(rhs, (grid[a], grid[b]), y, method=method, t_eval=grid[a:b + 1],
-                                rtol=rtol, atol=atol, events=events)
+            solver = getattr(integrate, method)(rhs, grid[0], np.array(y0, dtype=float), grid[len(grid) - 1],
+                                                rtol=rtol, atol=atol)
+            before = events(solver.t, solver.y) if events is not None else None
+            while not cursor.done():
+                t_old = solver.t
+                message = solver.step()
+                stats["evaluations"] = int(solver.nfev)
+                stats["steps"] += 1
+                if solver.status == "failed":
+                    run.stop(message or "the step failed", solver.t, y_fail=solver.y)
+                    return
+                if not np.all(np.isfinite(solver.y)):
+                    run.stop("the state became NaN or infinite", solver.t)
+                    return
+                t_new, dense = solver.t, None
+                if events is not None:
+                    after = events(t_new, solver.y)
+                    if after != before:
+                        dense = solver.dense_output()
+                        try:
+                            t_event = brentq(lambda t: events(t, dense(t)), t_old, t_new,
+                                             xtol=4 * np.finfo(float).eps * max(1.0, abs(t_new)))
+                        except ValueError:
+                            t_event = t_new
+                        times = cursor.upto(t_event)
+                        if len(times):
+                            yield times, dense(times).T
+                        run.pending = (float(t_event), np.asarray(dense(t_event), dtype=float))
+                        return
+                    before = after
+                times = cursor.upto(t_new)
+                if len(times):
+                    dense = solver.dense_output() if dense is None else dense
+                    yield times, dense(times).T
+                    bar.update(float(times[-1]))
+                recent.append(t_new)
+                if len(recent) == STALL_STEPS and t_new - recent[0] < STALL_SPAN * max(1.0, abs(t_new)):
+                    run.stop(f"the steps stalled: {STALL_STEPS} steps of {method} advanced t by only "
+                             f"{t_new - recent[0]:.2g} (steps of {solver.step_size:.1e}: a singular "
+                             f"configuration nearby, or a problem too stiff for the method)"
+                             + _where(system, solver.y), t_new, y_fail=solver.y)
+                    return
         except _Singular as exc:
             run.stop("the mass matrix is singular or not positive definite" + _where(system, exc.y), exc.t,
                      y_fail=exc.y)
             return
-        except (ValueError, RuntimeError) as exc:
-            run.stop(str(exc), last)
+        except (ValueError, RuntimeError, ArithmeticError, np.linalg.LinAlgError) as exc:
+            run.stop(str(exc), solver.t if solver is not None else grid[0])
             return
-        stats["evaluations"] += int(sol.nfev)
-        good = np.all(np.isfinite(sol.y), axis=0)
-        t_new, y_new = sol.t[1:], sol.y.T[1:]
-        finite = good[1:]
-        if not np.all(finite) or sol.status < 0:
-            stop = int(np.argmin(finite)) if not np.all(finite) else len(t_new)
-            if stop:
-                yield t_new[:stop], y_new[:stop]
-            cause = "the state became NaN or infinite" if not np.all(finite) else sol.message
-            t_fail = float(t_new[stop]) if stop < len(t_new) else float(sol.t[-1])
-            run.stop(cause, t_fail)
-            return
-        if len(t_new):
-            last = t_new[-1]
-            yield t_new, y_new
-        if sol.status == 1:  # the terminal event
-            run.pending = (float(sol.t_events[0][0]), np.asarray(sol.y_events[0][0], dtype=float))
-            return
-        y = y_new[-1]
-        bar.update(grid[b])
