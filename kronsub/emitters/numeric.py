@@ -9,6 +9,7 @@ Common subexpressions are eliminated per function, deterministically.
 """
 from __future__ import annotations
 
+import functools
 import math
 import re
 from dataclasses import dataclass
@@ -90,6 +91,21 @@ class NearAxis(sympy.Function):
         return (sympy.cos if kind else sympy.sin)(angle)._eval_evalf(prec)
 
 
+def _angle_sum(atom: sympy.Expr) -> sympy.Expr:
+    """``sin(L)`` or ``cos(L)`` expanded into single-angle sines and cosines (``expand_trig``,
+    written out directly for the common ``L = +-a +- b``)."""
+    terms = sympy.Add.make_args(atom.args[0])
+    if len(terms) == 2:
+        (c1, a), (c2, b) = (t.as_coeff_Mul() for t in terms)
+        if abs(c1) == 1 and abs(c2) == 1 and a.is_Symbol and b.is_Symbol:
+            sa, ca, sb, cb = sympy.sin(a), sympy.cos(a), sympy.sin(b), sympy.cos(b)
+            if isinstance(atom, sympy.sin):
+                return sympy.Add(c1 * sa * cb, c2 * ca * sb)
+            return sympy.Add(ca * cb, -c1 * c2 * sa * sb)
+    return sympy.expand(sympy.expand_trig(atom))
+
+
+@functools.lru_cache(maxsize=4096)
 def _guarded(atom: sympy.Expr) -> sympy.Expr:
     """``sin(L)`` or ``cos(L)`` of several coordinates through single-angle sines and cosines
     (shared by every entry), except where those products lose relative accuracy: a value of
@@ -97,7 +113,7 @@ def _guarded(atom: sympy.Expr) -> sympy.Expr:
     :class:`NearAxis` from ``L`` (whose remainder near 0 is ``L`` itself, exact when the angles
     are close: Sterbenz). It calls no libm function: a call in the right-hand side would keep
     every double it holds on the stack (no vector register survives a call)."""
-    products = sympy.expand(sympy.expand_trig(atom))
+    products = _angle_sum(atom)
     kind = sympy.Integer(int(isinstance(atom, sympy.cos)))
     return sympy.Piecewise((NearAxis(atom.args[0], kind, products), sympy.Abs(products) < GUARD), (products, True))
 
