@@ -439,3 +439,24 @@ def test_four_bar_free_coupler_conserves_energy():
     run = derived("four_bar_free_coupler.yaml").simulate(t=1.5, dt=0.5, set={"c": 0}, dataframe=False)
     energy = run["total_energy"]
     assert run.complete and np.max(np.abs(energy - energy[0])) < 1e-6 * np.max(np.abs(energy))
+
+
+def test_geared_free_coupler_closed_loop_as_known_system():
+    """four_bar_free_coupler.yaml as a known system (its 4 dependent coordinates and constraints
+    brought along), driven through a gear: the full mechanism in (alpha, cx, cy, a2, a3), a1 = alpha/n."""
+    al, cx, cy, a2, a3 = y = list(S("alpha cx cy a2 a3"))
+    m1, m2, m3, l1, l2, l3, d, h, k, c, g, Jm, n, kk = params = S("m1 m2 m3 l1 l2 l3 d h k c g Jm n kk")
+    a1 = al / n
+    M = sp.diag(m1 * l1 ** 2 / 3 / n ** 2 + Jm, m2, m2, m2 * l2 ** 2 / 12, m3 * l3 ** 2 / 3)
+    down = lambda a: sp.Matrix([sp.sin(a), -sp.cos(a)])  # noqa: E731
+    half = l2 / 2 * sp.Matrix([sp.cos(a2), sp.sin(a2)])
+    centre, rocker_tip = sp.Matrix([cx, cy]), sp.Matrix([d, h]) + l3 * down(a3)
+    g_ = [*(l1 * down(a1) - (centre - half)), *(centre + half - rocker_tip)]
+    gap = rocker_tip - sp.Matrix([sp.Rational(6, 5), 0])
+    V = (g * (-m1 * l1 / 2 * sp.cos(a1) + m2 * cy + m3 * (h - l3 / 2 * sp.cos(a3)))
+         + k * (a3 + sp.Rational(1, 5)) ** 2 / 2 + kk * gap.dot(gap) / 2)
+    f = sp.Matrix([-V.diff(a) - c * dots(y)[0] / n ** 2 * int(a == al) for a in y])
+    ref = Constrained(y, M, sp.zeros(5, 1), f, g_, [al], params)
+    rows = walk_constrained(derived("geared_free_coupler.yaml"), ref, 6.0, [6.0, 0.66, -0.22, -0.82, 0.2], 13,
+                            step=0.3)
+    assert worst(p for row in rows for p in row[:4]) < TOL
