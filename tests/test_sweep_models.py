@@ -483,3 +483,39 @@ def test_arm_in_task_space():
         return {"X": r * np.cos(a), "Y": r * np.sin(a)}
 
     assert compare_explicit(derived("arm_in_task_space.yaml"), (M, h, f), 14, jitter=0.05, fixed=reachable) < TOL
+
+
+def test_ball_joint_pendulum():
+    """A 3-D pin to a fixed place makes the body a compound pendulum about it: compared with the
+    explicit pendulum (centre = -R (0, 0, h)) by virtual power, Mbar, hbar, fbar and the
+    accelerations of the compiled right-hand side."""
+    a, b, c = q = list(S("a b c"))
+    m, A, B, C, h, g = params = S("m A B C h g")
+
+    def Rx(u):
+        return sp.Matrix([[1, 0, 0], [0, sp.cos(u), -sp.sin(u)], [0, sp.sin(u), sp.cos(u)]])
+
+    def Ry(u):
+        return sp.Matrix([[sp.cos(u), 0, sp.sin(u)], [0, 1, 0], [-sp.sin(u), 0, sp.cos(u)]])
+
+    def Rz(u):
+        return sp.Matrix([[sp.cos(u), -sp.sin(u), 0], [sp.sin(u), sp.cos(u), 0], [0, 0, 1]])
+
+    R = Rx(a) * Ry(b) * Rz(c)
+    centre = -R * sp.Matrix([0, 0, h])
+    M, hh = virtual_power([(m, centre, R, sp.diag(A, B, C))], q)
+    f = sp.Matrix([-(m * g * centre[2]).diff(u) for u in q])
+    fns = [sp.lambdify([*q, *dots(q), *params], e, "numpy") for e in (M, hh, f)]
+    num = derived("ball_joint_pendulum.yaml").numeric()
+    pv = [num.parameters[s.name] for s in params]
+    rng = np.random.default_rng(15)
+    qv, pairs = np.array([0.3, 0.2, 0.1]), []
+    for _ in range(10):
+        qv = qv + rng.uniform(-0.2, 0.2, 3)  # a walk: the branch of the centre is followed
+        uv = rng.uniform(-2, 2, 3)
+        st = np.concatenate([qv, uv])
+        Mr, hr, fr = (np.array(fn(*qv, *uv, *pv), dtype=float) for fn in fns)
+        hr, fr = hr.ravel(), fr.ravel()
+        pairs += [(num.mass_matrix(qv), Mr), (num.velocity_terms(st), hr), (num.forces(0.0, st), fr),
+                  (num.rhs(0.0, st)[3:], np.linalg.solve(Mr, fr - hr))]
+    assert worst(pairs) < TOL
