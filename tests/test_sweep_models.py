@@ -551,3 +551,18 @@ def test_offset_slider_crank_reactions(tmp_path):
     mu = -np.linalg.solve(K, np.concatenate([f, -Gdy]))[6:]  # M yddot + G^T (-mu) = f
     printed = [row[name] for name in ("mu_A_x", "mu_A_y", "mu_B_x", "mu_B_y", "mu_line")]
     assert np.allclose(printed, mu, rtol=1e-9, atol=1e-9)
+
+
+def test_pendulum_on_wheel_rim():
+    phi, th = q = list(S("phi th"))
+    M_, R, m, L, tau, b, k, c, g = S("M R m L tau b k c g")
+    phid, _ = dots(q)
+    rim = R * sp.Matrix([sp.cos(phi), sp.sin(phi)])
+    down = sp.Matrix([sp.sin(th), -sp.cos(th)])
+    centre, tip = rim + L / 2 * down, rim + L * down
+    M, h = virtual_power([(M_, [0, 0], phi, M_ * R ** 2 / 2), (m, centre, th, m * L ** 2 / 12)], q)
+    V = m * g * centre[1] + k * (th - phi - sp.Rational(6, 5)) ** 2 / 2
+    gap = tip - sp.Matrix([sp.Rational(1, 5), -sp.Rational(3, 2)])
+    length = sp.sqrt(gap.dot(gap))
+    f = sp.Matrix([-V.diff(a) + (tau - b * phid) * int(a == phi) - c * rate_of(length, q) * length.diff(a) for a in q])
+    assert compare_explicit(derived("pendulum_on_wheel_rim.yaml"), (M, h, f), 16) < TOL
