@@ -566,3 +566,17 @@ def test_pendulum_on_wheel_rim():
     length = sp.sqrt(gap.dot(gap))
     f = sp.Matrix([-V.diff(a) + (tau - b * phid) * int(a == phi) - c * rate_of(length, q) * length.diff(a) for a in q])
     assert compare_explicit(derived("pendulum_on_wheel_rim.yaml"), (M, h, f), 16) < TOL
+
+
+def test_quick_return_slider_joint():
+    """A `slider` joint: the crank's tip on the slotted arm's axis, (tip x e_arm) = 0."""
+    b, a = y = list(S("b a"))
+    m1, L1, m2, r, d, tau, k, g = params = S("m1 L1 m2 r d tau k g")
+    M = sp.diag(m2 * r ** 2 / 3, m1 * L1 ** 2 / 3)
+    tip = sp.Matrix([r * sp.sin(b), -d - r * sp.cos(b)])
+    along = sp.Matrix([sp.sin(a), -sp.cos(a)])
+    V = g * (-m1 * L1 / 2 * sp.cos(a) + m2 * (-d - r / 2 * sp.cos(b))) + k * a ** 2 / 2
+    f = sp.Matrix([-V.diff(v) + tau * int(v == b) for v in y])
+    ref = Constrained(y, M, sp.zeros(2, 1), f, [tip[0] * along[1] - tip[1] * along[0]], [b], params)
+    rows = walk_constrained(derived("quick_return.yaml"), ref, 0.8, [0.8, 0.3], 17, step=0.5)
+    assert worst(p for row in rows for p in row) < TOL
