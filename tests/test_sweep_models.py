@@ -580,3 +580,21 @@ def test_quick_return_slider_joint():
     ref = Constrained(y, M, sp.zeros(2, 1), f, [tip[0] * along[1] - tip[1] * along[0]], [b], params)
     rows = walk_constrained(derived("quick_return.yaml"), ref, 0.8, [0.8, 0.3], 17, step=0.5)
     assert worst(p for row in rows for p in row) < TOL
+
+
+def test_four_bar_rocker_flywheel():
+    """A connection in a dependent coordinate (w = n theta3) beside the constraints."""
+    t1, t2, t3 = y = list(S("theta1 theta2 theta3"))
+    m1, m2, m3, l1, l2, l3, d, J, n, cw, tau, g = params = S("m1 m2 m3 l1 l2 l3 d J n cw tau g")
+    down = lambda a: sp.Matrix([sp.sin(a), -sp.cos(a)])  # noqa: E731
+    c1, tip1 = l1 / 2 * down(t1), l1 * down(t1)
+    c2, tip2 = tip1 + l2 / 2 * down(t2), tip1 + l2 * down(t2)
+    D = sp.Matrix([d, 0])
+    c3, tip3 = D + l3 / 2 * down(t3), D + l3 * down(t3)
+    M, h = virtual_power([(m1, c1, t1, m1 * l1 ** 2 / 12), (m2, c2, t2, m2 * l2 ** 2 / 12),
+                          (m3, c3, t3, m3 * l3 ** 2 / 12), (0, [0, 0], n * t3, J)], y)
+    V = g * (m1 * c1[1] + m2 * c2[1] + m3 * c3[1])
+    f = sp.Matrix([-V.diff(a) + tau * int(a == t1) - cw * n ** 2 * dots(y)[2] * int(a == t3) for a in y])
+    ref = Constrained(y, M, h, f, list(tip2 - tip3), [t1], params)
+    rows = walk_constrained(derived("four_bar_rocker_flywheel.yaml"), ref, 2.0, [2.0, 0.34, -0.25], 18, step=0.3)
+    assert worst(p for row in rows for p in row) < TOL
