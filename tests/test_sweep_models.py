@@ -598,3 +598,18 @@ def test_four_bar_rocker_flywheel():
     ref = Constrained(y, M, h, f, list(tip2 - tip3), [t1], params)
     rows = walk_constrained(derived("four_bar_rocker_flywheel.yaml"), ref, 2.0, [2.0, 0.34, -0.25], 18, step=0.3)
     assert worst(p for row in rows for p in row) < TOL
+
+
+def test_double_spherical_pendulum():
+    t1, p1, t2, p2 = q = list(S("t1 p1 t2 p2"))
+    m1, m2, L1, L2, cd, g = S("m1 m2 L1 L2 cd g")
+
+    def unit(th, ph):
+        return sp.Matrix([sp.sin(th) * sp.cos(ph), sp.sin(th) * sp.sin(ph), -sp.cos(th)])
+
+    b1 = L1 * unit(t1, p1)
+    b2 = b1 + L2 * unit(t2, p2)
+    M, h = virtual_power([(m1, b1), (m2, b2)], q)
+    V = g * (m1 * b1[2] + m2 * b2[2])
+    f = sp.Matrix([-V.diff(a) - cd * rate_of(b2, q).dot(b2.diff(a)) for a in q])
+    assert compare_explicit(derived("double_spherical_pendulum.yaml"), (M, h, f), 19) < TOL
