@@ -613,3 +613,27 @@ def test_double_spherical_pendulum():
     V = g * (m1 * b1[2] + m2 * b2[2])
     f = sp.Matrix([-V.diff(a) - cd * rate_of(b2, q).dot(b2.diff(a)) for a in q])
     assert compare_explicit(derived("double_spherical_pendulum.yaml"), (M, h, f), 19) < TOL
+
+
+def test_bead_on_turning_rod_moving_line():
+    """point_on_line with a direction that turns with a coordinate; two independent coordinates."""
+    a, x, y_ = y = list(S("a x y"))
+    J, m, k, tau, g = params = S("J m k tau g")
+    bead = sp.Matrix([x, y_])
+    length = sp.sqrt(bead.dot(bead))
+    V = m * g * y_ + k * (length - sp.Rational(1, 5)) ** 2 / 2
+    f = sp.Matrix([-V.diff(v) + tau * int(v == a) for v in y])
+    ref = Constrained(y, sp.diag(J, m, m), sp.zeros(3, 1), f, [x * sp.sin(a) - y_ * sp.cos(a)], [a, x], params)
+    num = derived("bead_on_turning_rod.yaml").numeric()
+    pv = [num.parameters[s.name] for s in params]
+    rng = np.random.default_rng(20)
+    pairs = []
+    for _ in range(10):
+        qa, qx = 0.3 + rng.uniform(-0.8, 0.8), rng.uniform(0.2, 1.0)
+        ua, ux = rng.uniform(-2, 2, 2)
+        yv, ydv = ref.consistent([qa, qx], [ua, ux], [qa, qx, qx * np.tan(qa)], pv)
+        Mb, hb, fb, acc = ref.evaluate(0.0, yv, ydv, pv)
+        st = [qa, qx, ua, ux]
+        pairs += [(num.mass_matrix([qa, qx]), Mb), (num.velocity_terms(st), hb), (num.forces(0.0, st), fb),
+                  (num.rhs(0.0, st)[2:], acc)]
+    assert worst(pairs) < TOL
