@@ -401,10 +401,6 @@ def test_offset_slider_crank_projection():
     assert worst(p for row in rows for p in row[:4]) < TOL
 
 
-@pytest.mark.xfail(strict=True, reason="generated C: ks_lu_solve (templates/model.c.j2) applies the row swaps "
-                   "of partial pivoting interleaved with forward substitution although ks_lu swaps whole "
-                   "rows (multipliers included): wrong lambda and gamma with 3+ dependent coordinates "
-                   "once a pivot swap happens after the first column; see SWEEP_REPORT.md")
 def test_offset_slider_crank_compiled_rhs():
     rows = slider_crank_rows()
     assert worst(row[4] for row in rows) < TOL
@@ -432,15 +428,11 @@ def test_four_bar_free_coupler_projection():
     assert worst(p for row in rows for p in row[:4]) < TOL
 
 
-@pytest.mark.xfail(strict=True, reason="generated C: ks_lu_solve of templates/model.c.j2 (4 dependent "
-                   "coordinates here); see test_offset_slider_crank_compiled_rhs and SWEEP_REPORT.md")
 def test_four_bar_free_coupler_compiled_rhs():
     rows = four_bar_rows()
     assert worst(row[4] for row in rows) < TOL
 
 
-@pytest.mark.xfail(strict=True, reason="generated C: ks_lu_solve of templates/model.c.j2; the conservative "
-                   "four-bar (damper off) gains energy in `simulate`; see SWEEP_REPORT.md")
 def test_four_bar_free_coupler_conserves_energy():
     run = derived("four_bar_free_coupler.yaml").simulate(t=1.5, dt=0.5, set={"c": 0}, dataframe=False)
     energy = run["total_energy"]
