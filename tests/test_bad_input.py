@@ -560,3 +560,31 @@ def test_an_effect_in_a_generalized_coordinate_is_applied_in_the_subspace(tmp_pa
     assert "10:43: in angle 'qq': unknown name 'qq'\n  hint: did you mean 'q'" in result.output
     assert "11:11: 'qq' is not a coordinate or velocity of this model\n  hint: did you mean 'q'?" in result.output
     assert result.output.count("Error:") == 2
+
+
+def test_known_system_override_in_t_only_where_it_drives_an_effect(tmp_path):
+    """A known system's parameter that enters its effects alone (System I's push F) may be given
+    in t: the force then varies in time, correctly. One in its metric (m2) may not: the equations
+    are those of a constant mass, so the override is refused where it is written."""
+    import shutil
+
+    import sympy
+
+    import kronsub
+    from conftest import MODELS
+
+    shutil.copy(MODELS / "hoffmann" / "system1.yaml", tmp_path / "system1.yaml")
+    good = tmp_path / "driven.yaml"
+    good.write_text("name: driven\nparameters: {F0: 2, w: 3}\ncomponents:\n"
+                    "  s1: {model: system1.yaml, parameters: {F: F0*sin(w*t)}}\ncoordinates: [theta, phi]\n")
+    system = kronsub.load(good, cache=False).derive(cache=False)
+    t = sympy.Symbol("t", real=True)
+    assert any(f.has(sympy.sin(sympy.Symbol("w") * t)) or f.has(t) for f in system.forces)
+    bad = tmp_path / "heavier.yaml"
+    text = ("name: heavier\nparameters: {m0: 1}\ncomponents:\n"
+            "  s1: {model: system1.yaml, parameters: {m2: m0*(1 + t)}}\ncoordinates: [theta, phi]\n")
+    bad.write_text(text)
+    result = derive(bad)
+    assert result.exit_code == 1 and "Traceback" not in result.output
+    col = text.splitlines()[3].index("m0*(1 + t)") + 1
+    assert f"heavier.yaml:4:{col}: parameter 'm2' of 's1' depends on t" in result.output

@@ -444,7 +444,12 @@ class _Loader:
                 points[pname] = tuple(values)
         return points
 
-    def _component_parameters(self, cname: str, node: Node | None, allowed) -> dict[str, sympy.Expr | None]:
+    def _component_parameters(self, cname: str, node: Node | None, allowed,
+                              inertial=lambda key: True) -> dict[str, sympy.Expr | None]:
+        """The values given under a component's ``parameters:``. Those for which ``inertial(key)``
+        (they shape the component's metric, velocity terms or points) must not depend on ``t``:
+        the component's equations are those of constant parameters, so the motion a value in
+        ``t`` would prescribe (a shaken pivot, a growing mass) would be silently left out."""
         values: dict[str, sympy.Expr | None] = {}
         params = self.mapping(node, f"{cname}.parameters", "write `parameters: {mass: m1, length: 2*a1}`")
         for key, vnode in params.items():
@@ -452,7 +457,15 @@ class _Loader:
                 self.error(node.key_locations[key], f"component '{cname}' has no parameter '{key}'",
                            close_matches(key, allowed))
                 continue
-            values[key] = self.expr(vnode, what=f"parameter '{key}' of '{cname}'")
+            value = values[key] = self.expr(vnode, what=f"parameter '{key}' of '{cname}'")
+            if value is not None and TIME in value.free_symbols and inertial(key):
+                self.error(vnode, f"parameter '{key}' of '{cname}' depends on t, but a component's "
+                           "parameters are constants of its inertia (its metric and points): the motion "
+                           "a value in t prescribes would be missing from its equations",
+                           "give it a constant value; a support moving with the system is a component of "
+                           "its own (hang a pinned_rod from it with `pivot:`); a motion prescribed in t is "
+                           "not supported (connections have no t either); a force in t goes under `effects:`")
+                values[key] = None
         return values
 
     def _coordinate_names(self, cname: str, node: Node | None, local: tuple[str, ...], default: str):
@@ -523,7 +536,8 @@ class _Loader:
         self.sub_hashes.append(key)
         # parameters: overrides, the rest inherited
         allowed = [p.name for p in system.parameters]
-        overrides = self._component_parameters(cname, spec.get("parameters"), allowed)
+        overrides = self._component_parameters(cname, spec.get("parameters"), allowed,
+                                               inertial=_inertial_parameters(system).__contains__)
         for info in system.parameters:
             if info.name not in overrides:
                 self.add_parameter(info, inherited=True, location=spec.location)
@@ -821,6 +835,19 @@ class _Loader:
             if value is not None:
                 initial[allowed[key]] = value
         return initial
+
+
+def _inertial_parameters(system: KnownSystem) -> set[str]:
+    """Names of a known system's parameters in its metric, velocity terms, points or bodies
+    (those an override in ``t`` would move without their inertial terms); the others enter its
+    effects alone."""
+    imp = system.implicit
+    exprs = [imp.metric, imp.velocity_terms] if imp is not None else [system.mass_matrix, system.velocity_terms]
+    exprs += [c for pos in system.points.values() for c in pos]
+    for b in system.bodies:
+        exprs += [b.mass, *b.centre] + [m for m in (b.rotation, b.inertia) if m is not None]
+    used = set().union(*(sympy.sympify(e).free_symbols for e in exprs))
+    return {p.name for p in system.parameters if p.symbol in used}
 
 
 def known_system_part(name: str, system: KnownSystem, overrides: dict, renames: dict[str, str]) -> Part:
