@@ -588,3 +588,25 @@ def test_known_system_override_in_t_only_where_it_drives_an_effect(tmp_path):
     assert result.exit_code == 1 and "Traceback" not in result.output
     col = text.splitlines()[3].index("m0*(1 + t)") + 1
     assert f"heavier.yaml:4:{col}: parameter 'm2' of 's1' depends on t" in result.output
+
+
+@pytest.mark.parametrize("effect, key", [
+    ("effects:\n  gravity: {type: gravity, g: 9.81, direction: [0, 0]}\n", "direction of gravity"),
+    ("effects:\n  push: {type: force, point: bob.centre, direction: [0, 0*L], magnitude: 1}\n",
+     "direction of 'push'"),
+    ("constraints:\n  rail: {point_on_line: {point: bob.tip, through: [0, -1], direction: [0, 0]}}\n",
+     "direction of point_on_line 'rail'"),
+])
+def test_zero_direction_is_refused(tmp_path, effect, key):
+    """A direction is divided by its length: the zero vector gave NaN forces or no gravity at all."""
+    text = ("name: zero\nparameters: {m: 1, L: 1}\ncomponents:\n"
+            "  bob: {type: pinned_rod, parameters: {mass: m, length: L}, coordinates: {angle: q}}\n"
+            + ("coordinates: auto\n" if "constraints" in effect else "coordinates: [q]\n") + effect)
+    path = tmp_path / "zero.yaml"
+    path.write_text(text)
+    result = derive(path)
+    assert result.exit_code == 1 and "Traceback" not in result.output, result.output
+    line = len(text.splitlines())
+    col = text.splitlines()[-1].index("direction: [") + len("direction: ") + 1
+    assert f"zero.yaml:{line}:{col}: {key} is the zero vector" in result.output, result.output
+    assert "hint:" in result.output

@@ -28,6 +28,16 @@ def _vector(loader, node: Node, what: str):
     return None if any(v is None for v in values) else tuple(values)
 
 
+def _direction(loader, node: Node, what: str):
+    """A direction: a vector that is not zero (it is divided by its length)."""
+    d = _vector(loader, node, what)
+    if d is not None and sympy.Add(*[c**2 for c in d]).is_zero:
+        loader.error(node, f"{what} is the zero vector, which points nowhere",
+                     "give a direction with a nonzero entry, e.g. `[0, -1]` (its length does not matter)")
+        return None
+    return d
+
+
 def _point(loader, node: Node, primitive, ename: str):
     """A named point ``component.point``, or a fixed place given as a list."""
     if node.is_sequence:
@@ -74,7 +84,7 @@ def _gravity(loader, ename, spec, primitive):
                 chosen.append(str(n.value))
     direction = None
     if spec.get("direction") is not None:
-        direction = _vector(loader, spec.get("direction"), "direction of gravity")
+        direction = _direction(loader, spec.get("direction"), "direction of gravity")
         if direction is None:
             return None
     parts = []
@@ -103,7 +113,7 @@ def _force(loader, ename, spec, primitive):
     if "vector" in spec.value:
         vector = _vector(loader, spec.get("vector"), f"force vector of '{ename}'")
     elif "direction" in spec.value and "magnitude" in spec.value:
-        d = _vector(loader, spec.get("direction"), f"direction of '{ename}'")
+        d = _direction(loader, spec.get("direction"), f"direction of '{ename}'")
         mag = loader.expr(spec.get("magnitude"), what=f"magnitude of '{ename}'")
         vector = None
         if d is not None and mag is not None:
