@@ -32,8 +32,9 @@ class ReactionsUnavailable(KronsubError):
     """The reactions of viewpoint (alpha) need every effect's force on the primitive."""
 
 
-def reactions(system: KnownSystem) -> list[tuple[str, sympy.Expr]]:
-    """``(name, expression)`` per reaction: ``R_<x>`` per primitive coordinate, or ``mu_<constraint>``."""
+def reactions(system: KnownSystem) -> list[tuple[str, sympy.Expr]] | "MultiplierSystem":
+    """``(name, expression)`` per reaction: ``R_<x>`` per primitive coordinate, or ``mu_<constraint>``;
+    a :class:`MultiplierSystem` for a closed loop of more than `SYMBOLIC_INVERSE` dependent coordinates."""
     if system.implicit is not None:
         return _multipliers(system)
     return _connection_reactions(system)
@@ -80,7 +81,18 @@ def _connection_reactions(system: KnownSystem):
     return out
 
 
-def _multipliers(system: KnownSystem):
+class MultiplierSystem:
+    """The multipliers' linear system ``G_d^T mu = r`` (``r = (M_y yddot + h_y - f_y)_d``), for
+    more than `SYMBOLIC_INVERSE` dependent coordinates, where the closed form of the inverse
+    would swell: printed as it stands and solved numerically at each row."""
+
+    def __init__(self, names, matrix: sympy.Matrix, rows: sympy.Matrix):
+        self.names, self.matrix, self.rows = list(names), matrix, rows
+
+
+def multiplier_system(system: KnownSystem) -> MultiplierSystem:
+    """``G_d^T mu = r`` from the dependent rows of ``M_y yddot + h_y = f_y + G^T mu``, with
+    ``yddot = [qddot; lambda qddot + gamma]`` (Hoffmann (27)-(28))."""
     imp = system.implicit
     y = imp.intermediate
     n = len(imp.independent)
@@ -99,18 +111,26 @@ def _multipliers(system: KnownSystem):
         i = index[d]
         r = sum((imp.metric[i, b] * yddot[c] for b, c in enumerate(y) if imp.metric[i, b] != 0), sympy.Integer(0))
         rows.append(sympy.sympify(r + imp.velocity_terms[i] - imp.forces[i]).xreplace(ydot))
-    k = len(imp.dependent)
     names = [f"mu_{c.name.replace('.', '_')}" for c in imp.constraints]
+    return MultiplierSystem(names, imp.jacobian_dependent.T, sympy.Matrix(rows))
+
+
+def _multipliers(system: KnownSystem):
+    """``mu = G_d^-T r`` in closed form, or (beyond `SYMBOLIC_INVERSE` dependent coordinates)
+    the :class:`MultiplierSystem` to solve."""
+    eqs = multiplier_system(system)
+    k = len(eqs.names)
     if k > SYMBOLIC_INVERSE:
-        return [(nm, sympy.Symbol(f"(G_d^-T r)[{a}]")) for a, nm in enumerate(names)]
-    Gt = imp.jacobian_dependent.T
+        return eqs
+    Gt = eqs.matrix
     inverse = Gt.adjugate() / Gt.det(method="berkowitz") if k > 1 else sympy.Matrix([[1 / Gt[0, 0]]])
-    mu = inverse * sympy.Matrix(rows)
+    mu = inverse * eqs.rows
+    y = system.implicit.intermediate
     out = []
-    for a, nm in enumerate(names):
+    for a, nm in enumerate(eqs.names):
         num, den = sympy.fraction(sympy.together(mu[a]))
         out.append((nm, sympy.factor_terms(_tidy(y, num) / _tidy(y, den))))
     return out
 
 
-__all__ = ["reactions"]
+__all__ = ["MultiplierSystem", "multiplier_system", "reactions"]

@@ -3,8 +3,10 @@ from __future__ import annotations
 
 import json
 
+import sympy
+
 from ..core.known_system import KnownSystem
-from ..core.reactions import reactions
+from ..core.reactions import MultiplierSystem, reactions
 from .report import latex_printer, plain
 
 NOTE = ("Viewpoint (alpha): the workless reactions kept as unknowns and found from the motion; "
@@ -25,6 +27,8 @@ def with_reactions(text: str, system: KnownSystem, fmt: str) -> str:
     items = reactions(system)
     where = " and the named intermediates above" if system.implicit is not None else ""
     note = NOTE.format(where=where, what=_what(system))
+    if isinstance(items, MultiplierSystem):
+        return _with_linear_system(text, system, fmt, items, note)
     if fmt == "json":
         data = json.loads(text)
         data["reactions"] = {"expressions": {name: plain(e) for name, e in items}, "note": note.replace("`", "")}
@@ -39,4 +43,36 @@ def with_reactions(text: str, system: KnownSystem, fmt: str) -> str:
         return text.replace("\\end{document}", section + "\\end{document}")
     lines = ["", "## Reactions (viewpoint (alpha))", "", note, ""]
     lines += [f"- `{name} = {plain(e)}`" for name, e in items]
+    return text.rstrip("\n") + "\n" + "\n".join(lines) + "\n"
+
+
+def _with_linear_system(text: str, system: KnownSystem, fmt: str, eqs: MultiplierSystem, note: str) -> str:
+    """The multipliers of a closed loop with more than three dependent coordinates: their linear
+    system ``G_d^T mu = r``, row by row (its closed-form inverse would swell; ``simulate
+    --reactions`` solves it at each row)."""
+    k = len(eqs.names)
+    note += (f" With {k} dependent coordinates the multipliers are given by their linear system "
+             "`G_d^T mu = r`, row by row (`simulate --reactions` solves it at each row).")
+    if fmt == "json":
+        data = json.loads(text)
+        data["reactions"] = {"linear_system": {
+            "unknowns": eqs.names,
+            "matrix": [[plain(eqs.matrix[a, b]) for b in range(k)] for a in range(k)],
+            "right_hand_side": [plain(e) for e in eqs.rows]}, "note": note.replace("`", "")}
+        return json.dumps(data, indent=2, ensure_ascii=False) + "\n"
+
+    unknowns = [sympy.Symbol(nm) for nm in eqs.names]
+
+    def row(a, show):
+        return show(sympy.Add(*[eqs.matrix[a, b] * unknowns[b] for b in range(k)])), show(eqs.rows[a])
+
+    if fmt == "latex":
+        coords = tuple(system.coordinates) + tuple(system.implicit.intermediates)
+        show = latex_printer(coords)
+        body = "\n".join(rf"{lhs} &= {rhs} \\" for lhs, rhs in (row(a, show) for a in range(k)))
+        section = ("\\section*{Reactions}\n" + note.replace("`", "").replace("_", "\\_").replace("^", "\\^{}")
+                   + "\n\\begin{align*}\n" + body.rstrip(" \\") + "\n\\end{align*}\n")
+        return text.replace("\\end{document}", section + "\\end{document}")
+    lines = ["", "## Reactions (viewpoint (alpha))", "", note, ""]
+    lines += [f"- `{lhs} = {rhs}`" for lhs, rhs in (row(a, plain) for a in range(k))]
     return text.rstrip("\n") + "\n" + "\n".join(lines) + "\n"

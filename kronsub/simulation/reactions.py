@@ -4,7 +4,7 @@ from __future__ import annotations
 import numpy as np
 import sympy
 
-from ..core.reactions import reactions
+from ..core.reactions import MultiplierSystem, reactions
 from ..core.symbols import acceleration_symbol
 
 
@@ -17,7 +17,18 @@ def reaction_columns(system, traj, param, module, constrained=None) -> tuple[lis
     inter = list(system.implicit.intermediates) if system.implicit is not None else []
     args = (list(system.coordinates) + list(system.velocities) + [acceleration_symbol(q) for q in system.coordinates]
             + inter + [sympy.Symbol("t", real=True)])
-    fn = sympy.lambdify(args, [sympy.sympify(e).xreplace(values) for _, e in items], "math")
+    if isinstance(items, MultiplierSystem):  # G_d^T mu = r, solved at each row
+        k = len(items.names)
+        parts = sympy.lambdify(args, [sympy.sympify(e).xreplace(values) for e in [*items.matrix, *items.rows]],
+                               "math")
+
+        def fn(*a):
+            flat = parts(*a)
+            return np.linalg.solve(np.array(flat[:k * k], dtype=float).reshape(k, k), np.array(flat[k * k:], dtype=float))
+
+        items = [(name, None) for name in items.names]
+    else:
+        fn = sympy.lambdify(args, [sympy.sympify(e).xreplace(values) for _, e in items], "math")
     rows = []
     if constrained is not None and traj.dependent is not None and len(traj.dependent):
         constrained.guess = np.array(traj.dependent[0], dtype=float)
