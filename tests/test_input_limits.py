@@ -361,3 +361,20 @@ def test_quoted_model_text_cannot_break_a_message_into_lines(tmp_path):
     lines = err.strip().splitlines()
     assert len(lines) == 2 and lines[1].startswith("  hint: "), err
     assert "parameter name 'k\\nError: all is well\\r' is not a valid name" in lines[0], err
+
+
+def test_a_square_may_expand_further_than_a_higher_power():
+    """A square's terms grow only as the square of the sum's: kronsub's own |p_b - p_a|^2 of a
+    spring at a corner of a turning 3-D body needs some 500 (tests/models/sweep/box_on_springs_3d.yaml);
+    the square's own limit still holds, and a cube keeps the general one."""
+    from kronsub.core.trigpoly import MAX_SQUARE_TERMS
+
+    xs = sympy.symbols("x0:70")
+    algebra = TrigAlgebra(xs)
+    fits = next(n for n in range(2, 200) if expansion_terms(n + 1, 2) > MAX_SQUARE_TERMS)
+    assert expansion_terms(fits, 2) > MAX_EXPANSION_TERMS  # beyond the general limit, within the square's
+    assert len(algebra.from_expr(sympy.Add(*xs[:fits]) ** 2).terms[(0, ())]) == expansion_terms(fits, 2)
+    with pytest.raises(ExpansionTooLarge, match=f"more than {MAX_SQUARE_TERMS}"):
+        algebra.from_expr(sympy.Add(*xs[:fits + 1]) ** 2)
+    with pytest.raises(ExpansionTooLarge, match=f"more than {MAX_EXPANSION_TERMS}"):
+        algebra.from_expr(sympy.Add(*xs[:12]) ** 3)

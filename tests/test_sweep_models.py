@@ -25,7 +25,6 @@ import pytest
 import sympy as sp
 
 import kronsub
-from kronsub.core.trigpoly import ExpansionTooLarge
 from kronsub.errors import ModelError
 
 SWEEP = Path(__file__).resolve().parent / "models" / "sweep"
@@ -347,10 +346,6 @@ def test_bead_on_hoop():
     assert compare_explicit(derived("bead_on_hoop.yaml"), lagrange(T, V, q, [tau - b * psid, -cb * ald]), 9) < TOL
 
 
-@pytest.mark.xfail(strict=True, raises=ExpansionTooLarge,
-                   reason="a spring at a point of a rigid_body3d offset along two or more body axes: the "
-                   "projection of its force stops with 'the power would expand to 435 terms (more than "
-                   "120)', a limit on the user's text applied to kronsub's own expression; see SWEEP_REPORT.md")
 def test_box_on_springs_3d():
     x, y, z, psi, th, phi = q = list(S("x y z psi theta phi"))
     m, A, B, C, k, l0, g = S("m A B C k l0 g")

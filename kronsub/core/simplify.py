@@ -158,8 +158,14 @@ def _factored(expr: sympy.Expr) -> sympy.Expr:
     return min((expr, sympy.factor_terms(expr)), key=_key)
 
 
+TIE_OPS = 200
+"""Above this many operations a tie in `count_ops` is left unbroken (the first form offered
+stays): printing a large entry to measure it costs seconds, and no reader weighs its length."""
+
+
 class _Key:
-    """``(count_ops, printed length)``, the length computed only to break a tie."""
+    """``(count_ops, printed length)``, the length computed only to break a tie between
+    entries of at most `TIE_OPS` operations."""
 
     __slots__ = ("expr", "ops", "_length")
 
@@ -174,7 +180,7 @@ class _Key:
     def __lt__(self, other: "_Key") -> bool:
         if self.ops != other.ops:
             return self.ops < other.ops
-        return self.length() < other.length()
+        return self.ops <= TIE_OPS and self.length() < other.length()
 
     def __getitem__(self, i: int) -> int:
         return (self.ops, self.length())[i]

@@ -33,6 +33,9 @@ MAX_EXPANDED_POWER = 8
 """Highest integer power of a sum that is expanded (``(x + y)**8``); a higher one is an error."""
 MAX_EXPANSION_TERMS = 120
 """Most terms a power of a sum may expand to, by the multinomial count (`expansion_terms`)."""
+MAX_SQUARE_TERMS = 2000
+"""The same for a square, whose terms grow only as the square of the sum's: kronsub's own
+``|p_b - p_a|^2`` of a spring at a point of a turning 3-D body counts some 500."""
 
 
 class ExpansionTooLarge(ModelError):
@@ -47,8 +50,9 @@ class ExpansionTooLarge(ModelError):
         return ExpansionTooLarge(self.message, location)
 
 
-EXPANSION_HINT = (f"powers of sums are expanded up to **{MAX_EXPANDED_POWER} and {MAX_EXPANSION_TERMS} terms: "
-                   "write a lower power, or fewer terms inside the parentheses")
+EXPANSION_HINT = (f"powers of sums are expanded up to **{MAX_EXPANDED_POWER} and {MAX_EXPANSION_TERMS} terms "
+                  f"({MAX_SQUARE_TERMS} for a square): "
+                  "write a lower power, or fewer terms inside the parentheses")
 
 
 def expansion_terms(terms: int, power: int) -> int:
@@ -68,8 +72,9 @@ def expansion_problem(terms: int, power: int, width: int | None = None) -> str |
     if terms > 1 and power > MAX_EXPANDED_POWER:
         return f"a power of a sum higher than **{MAX_EXPANDED_POWER} is not expanded (it would take too long)"
     count = expansion_terms(width, power)
-    if count > MAX_EXPANSION_TERMS:
-        return f"the power would expand to {count} terms (more than {MAX_EXPANSION_TERMS})"
+    limit = MAX_SQUARE_TERMS if power == 2 else MAX_EXPANSION_TERMS
+    if count > limit:
+        return f"the power would expand to {count} terms (more than {limit})"
     return None
 
 
