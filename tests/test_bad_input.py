@@ -610,3 +610,20 @@ def test_zero_direction_is_refused(tmp_path, effect, key):
     col = text.splitlines()[-1].index("direction: [") + len("direction: ") + 1
     assert f"zero.yaml:{line}:{col}: {key} is the zero vector" in result.output, result.output
     assert "hint:" in result.output
+
+
+def test_time_and_parameters_where_they_cannot_appear_are_named_as_such(tmp_path):
+    """`t` in a connection and a parameter in another parameter's value are known names used
+    where they are not allowed: the hint says so (not "declare it under parameters:")."""
+    text = ("name: pv\nparameters: {m: 1, k: 2*m}\ncomponents:\n"
+            "  s: {type: particle1d, parameters: {mass: m}, coordinates: [x]}\n"
+            "coordinates: [q]\nconnection:\n  x: q + t\n")
+    path = tmp_path / "pv.yaml"
+    path.write_text(text)
+    result = derive(path)
+    assert result.exit_code == 1 and "Traceback" not in result.output
+    assert "pv.yaml:2:25: in value of parameter 'k' '2*m': unknown name 'm'" in result.output
+    assert "'m' is a parameter, and a parameter's value is a constant" in result.output
+    assert "pv.yaml:7:10: in connection of 'x' 'q + t': unknown name 't'" in result.output
+    assert "`t` (time) cannot appear here" in result.output
+    assert "declare it under" not in result.output

@@ -173,6 +173,15 @@ class _Loader:
                         "points: write the expression here, or make it a parameter"))
                 elif generalized:
                     problem = self._generalized_problem(problem, unknown.group(1), generalized)
+                elif unknown and unknown.group(1) == "t":
+                    problem = dataclasses.replace(problem, hint=(
+                        "`t` (time) cannot appear here: the effects (and a known system's parameters that "
+                        "drive its effects alone) may depend on time; connections, constraints, component "
+                        "parameters and values may not"))
+                elif unknown and unknown.group(1) in self.parameters:
+                    problem = dataclasses.replace(problem, hint=(
+                        f"'{unknown.group(1)}' is a parameter, and a parameter's value is a constant: write a "
+                        "number (or an expression of numbers), and the formula where the value is used"))
                 self.problems.problems.append(problem)
             return None
         return substitute_definitions(self, value, table, node, what)
