@@ -627,3 +627,18 @@ def test_time_and_parameters_where_they_cannot_appear_are_named_as_such(tmp_path
     assert "pv.yaml:7:10: in connection of 'x' 'q + t': unknown name 't'" in result.output
     assert "`t` (time) cannot appear here" in result.output
     assert "declare it under" not in result.output
+
+
+def test_a_failed_component_reports_once(tmp_path):
+    """The connection lines and gravity's `components:` naming a component that failed to load
+    are not reported again (as "not a coordinate of the primitive system", "unknown component")."""
+    text = ("name: casc\nparameters: {m: 1, L: 1}\ncomponents:\n"
+            "  arm: {type: rod, parameters: {mass: m, length: L}, coordinates: [xc, yc]}\n"
+            "coordinates: [q]\nconnection:\n  xc: L/2*sin(q)\n  yc: -L/2*cos(q)\n  a: q\n"
+            "effects:\n  gravity: {type: gravity, g: 9.81, components: [arm]}\n")
+    path = tmp_path / "casc.yaml"
+    path.write_text(text)
+    result = derive(path)
+    assert result.exit_code == 1 and "Traceback" not in result.output
+    assert result.output.count("Error:") == 1, result.output
+    assert "casc.yaml:4:" in result.output and "2 names given" in result.output

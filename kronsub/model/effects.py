@@ -78,6 +78,8 @@ def _gravity(loader, ename, spec, primitive):
     else:
         chosen = []
         for n in cnode.value:
+            if str(n.value) not in names and loader.is_broken(str(n.value)):
+                continue  # its component's problem is reported already
             if str(n.value) not in names:
                 loader.error(n, f"unknown component '{n.value}' in gravity '{ename}'", close_matches(str(n.value), names))
             else:

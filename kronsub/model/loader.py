@@ -659,6 +659,8 @@ class _Loader:
             x = self.primitive_names.get(key)
             if x is None:
                 unknown_keys.append(key)
+                if self.is_broken(key) or self.failed_components:
+                    continue  # most likely a coordinate of the component that failed, reported already
                 self.error(loc, f"'{key}' is not a coordinate of the primitive system",
                            close_matches(key, [k for k in self.primitive_names if "." in k] +
                                          [q.name for q in primitive.coordinates]))
