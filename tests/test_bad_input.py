@@ -642,3 +642,16 @@ def test_a_failed_component_reports_once(tmp_path):
     assert result.exit_code == 1 and "Traceback" not in result.output
     assert result.output.count("Error:") == 1, result.output
     assert "casc.yaml:4:" in result.output and "2 names given" in result.output
+
+
+def test_gravity_whose_direction_reaches_no_component(tmp_path):
+    """A 3-D gravity direction in a planar model acted on nothing, silently."""
+    text = ("name: g3\nparameters: {m: 1, L: 1}\ncomponents:\n"
+            "  bob: {type: pinned_rod, parameters: {mass: m, length: L}, coordinates: {angle: q}}\n"
+            "coordinates: [q]\neffects:\n  gravity: {type: gravity, g: 9.81, direction: [0, 0, -1]}\n")
+    path = tmp_path / "g3.yaml"
+    path.write_text(text)
+    result = derive(path)
+    assert result.exit_code == 1 and "Traceback" not in result.output
+    col = text.splitlines()[6].index("[0, 0, -1]") + 1
+    assert f"g3.yaml:7:{col}: gravity 'gravity' acts on no component" in result.output, result.output

@@ -102,6 +102,13 @@ def _gravity(loader, ename, spec, primitive):
                              "give a direction with one entry per world axis of the component")
             continue
         parts.append((name, tuple(d)))
+    worlds = sorted({primitive.part(n).dimension for n in chosen if primitive.part(n).dimension})
+    if direction is not None and not parts and worlds and cnode is None:
+        loader.error(spec.get("direction"), f"gravity '{ename}' acts on no component: its direction has "
+                     f"{len(direction)} entries, but the components live in "
+                     + " and ".join(f"{w}-D" for w in worlds),
+                     "give a direction with one entry per world axis, e.g. `[0, -1]` in the plane")
+        return None
     if g is None:
         return None
     return Gravity(ename, g=g, parts=tuple(parts))
