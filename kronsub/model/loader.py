@@ -21,7 +21,7 @@ from ..core.symbols import TIME, symbol, velocity_symbol
 from ..errors import Location, ModelError, ProblemCollector, close_matches, near_names
 from .derive import content_key, derive_model, load_cached
 from .effects import build_effect
-from .expressions import parse_expression
+from .expressions import FUNCTIONS, parse_expression
 from .scenes import build_scenes
 from .constraints import analyse, read_constraints
 from .definitions import definition_names, read_definitions, substitute_definitions
@@ -225,6 +225,10 @@ class _Loader:
             return False
         if name in RESERVED:
             self.error(loc, f"{what} name '{name}' is reserved", "'t' is time and 'pi' is the constant")
+            return False
+        if name in FUNCTIONS:
+            self.error(loc, f"{what} name '{name}' is the name of a function", "choose another name: "
+                       "expressions call " + ", ".join(FUNCTIONS) + " (a name `sin` would print as `sin(sin)`)")
             return False
         return True
 
@@ -500,13 +504,19 @@ class _Loader:
             self.error(node, "`coordinates:` of a component must map its coordinates to new names",
                        f"e.g. `coordinates: {{{local[0]}: q1}}`")
             return None
+        failed = False
         for key, vnode in items:
             if not isinstance(vnode.value, str):
                 self.error(vnode, f"coordinate name of '{cname}.{key}' must be a name, found {_kind(vnode)}",
                            "use letters, digits and underscores")
+                failed = True
                 continue
             if self.identifier(vnode.value, vnode.location, "coordinate"):
                 names[local.index(key)] = vnode.value
+            else:
+                failed = True
+        if failed:
+            return None  # the component fails: no default name stands in for the one refused
         for i, n in enumerate(names):
             if n in names[:i]:
                 self.error(node, f"component '{cname}' gives two coordinates the name '{n}'",
