@@ -12,7 +12,6 @@ against an independent derivation written here in plain sympy, never with kronsu
   method and the dependent velocities from ``G ydot = 0``; compared with kronsub's projected
   ``Mbar``, ``hbar``, ``fbar`` and its accelerations (numpy module and compiled C).
 
-Tests marked ``xfail(strict=True)`` reproduce kronsub bugs (see SWEEP_REPORT.md).
 """
 from __future__ import annotations
 
@@ -222,14 +221,6 @@ def test_spring_pendulum():
     err = compare_explicit(derived("spring_pendulum.yaml"), lagrange(T, V, [r, q], Q), 1,
                            fixed=lambda rng: {"r": rng.uniform(0.3, 2)})
     assert err < TOL
-
-
-def shaken_pendulum_reference():
-    q, m, L, A, B, w, g = S("q m L A B w g")
-    pivot = sp.Matrix([A * sp.sin(w * t), B * sp.cos(2 * w * t)])
-    centre = pivot + L / 2 * sp.Matrix([sp.sin(q), -sp.cos(q)])
-    M, h = virtual_power([(m, centre, q, m * L ** 2 / 12)], [q])
-    return M, h, sp.Matrix([-(m * g * centre[1]).diff(q)])
 
 
 @pytest.mark.parametrize("name, key", [("shaken_pendulum.yaml", "pivot_x"), ("growing_mass.yaml", "mass")])
@@ -453,7 +444,7 @@ def test_geared_free_coupler_closed_loop_as_known_system():
 
 
 @pytest.mark.skipif(not os.environ.get("KRONSUB_SWEEP_SLOW"), reason="kronsub takes 70-120 s to derive it "
-                    "(SWEEP_REPORT.md); KRONSUB_SWEEP_SLOW=1 runs it")
+                    "(inverse kinematics through atan2 and acos); KRONSUB_SWEEP_SLOW=1 runs it")
 def test_arm_in_task_space():
     """Joint angles from the hand's position by atan2 and acos (elbow down) in the connection."""
     X, Y = q = list(S("X Y"))

@@ -21,7 +21,7 @@ from ..core.symbols import TIME, symbol, velocity_symbol
 from ..errors import Location, ModelError, ProblemCollector, close_matches, near_names
 from .derive import content_key, derive_model, load_cached
 from .effects import build_effect
-from .expressions import FUNCTIONS, parse_expression
+from .expressions import parse_expression
 from .scenes import build_scenes
 from .constraints import analyse, read_constraints
 from .definitions import definition_names, read_definitions, substitute_definitions
@@ -225,10 +225,6 @@ class _Loader:
             return False
         if name in RESERVED:
             self.error(loc, f"{what} name '{name}' is reserved", "'t' is time and 'pi' is the constant")
-            return False
-        if name in FUNCTIONS:
-            self.error(loc, f"{what} name '{name}' is the name of a function", "choose another name: "
-                       "expressions call " + ", ".join(FUNCTIONS) + " (a name `sin` would print as `sin(sin)`)")
             return False
         return True
 
