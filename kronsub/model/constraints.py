@@ -339,6 +339,15 @@ def analyse(loader, constraints, y, independent, auto: bool, initial: dict, wher
         return None
     if auto:
         dep_idx = numeric.pivot(y1)
+        # the branch at the initial configuration: the independent coordinates as given, not
+        # where the search over every coordinate left them (when they can be held there)
+        start = np.array([y1[i] if i in dep_idx else y0[i] for i in range(ny)])
+        try:
+            y2 = numeric.solve(start, list(dep_idx))
+            if np.linalg.matrix_rank(numeric.jacobian(y2)[:, list(dep_idx)]) == k:
+                y1 = y2
+        except ConstraintFailure:
+            pass
         dependent = tuple(y[i] for i in dep_idx)
         independent = tuple(q for i, q in enumerate(y) if i not in dep_idx)
     else:
