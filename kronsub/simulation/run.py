@@ -528,8 +528,9 @@ class _Grid:
 
     def __init__(self, t_end: float, dt: float):
         self.t_end, self.dt = t_end, dt
-        n = math.ceil((t_end + 0.5 * dt) / dt)  # the length of np.arange(0, t_end + dt/2, dt)
-        n += 1 if (n - 1) * dt < t_end and abs((n - 1) * dt - t_end) >= 0.5 * dt else 0
+        # every multiple of dt before t_end (one within 1e-9 dt of it is t_end), then t_end: the
+        # rows the C integrators' dense output writes, whatever the remainder
+        n = math.ceil(t_end / dt - 1e-9) + 1
         self.n = max(n, 2)  # a run always starts at 0 (also when dt > t_end)
         self.decimal = _decimal(dt, self.n)
 
@@ -662,15 +663,30 @@ def _where(system, y) -> str:
     return " at " + ", ".join(f"{q.name}={v:.6g}" for q, v in zip(system.coordinates, y))
 
 
+def _fixed_pieces(t0: float, t1: float, dt: float) -> list[tuple[float, float]]:
+    """``t0 .. t1`` cut at multiples of ``dt`` (counted from t = 0) for a fixed-step method: whole
+    steps of ``dt`` between them, a shorter step only up to the first multiple (a run going on
+    after a switch of coordinates) and from the last one to ``t1`` (a ``t_end`` that is not a
+    multiple), so its rows fall on the ``--dt`` grid as every other method's do."""
+    tiny = 1e-9 * dt
+    first, last = math.ceil(t0 / dt - 1e-9) * dt, math.floor(t1 / dt + 1e-9) * dt
+    cuts = [t0] + [m for m in (first, last) if t0 + tiny < m < t1 - tiny] + [t1]
+    cuts = sorted(set(cuts))
+    return list(zip(cuts[:-1], cuts[1:]))
+
+
 def _native_blocks(run, native, method, grid, y0, param, rtol, atol, dt, chunks, bar, system):
     """Blocks ``(t, Y)`` of a run wholly in C, one per chunk of the grid."""
     last = grid[0]
     yield np.array([last]), np.array([y0])
     stats = run.stats = {"steps": 0, "rejected": 0, "evaluations": 0}
     y = y0
-    for a, b in _chunks(grid, chunks):
-        t, Y, result = native.integrate(method, grid[a], y, grid[b], dt, param, rtol=rtol, atol=atol,
-                                        h=dt if method == "gauss4" else None)
+    fixed = method in ("gauss4", "rk4")
+    pieces = [p for a, b in _chunks(grid, chunks)
+              for p in (_fixed_pieces(grid[a], grid[b], dt) if fixed else [(grid[a], grid[b])])]
+    for t0, t1 in pieces:
+        t, Y, result = native.integrate(method, t0, y, t1, dt, param, rtol=rtol, atol=atol,
+                                        h=dt if fixed else None)
         stats["steps"] += result.n_steps
         stats["rejected"] += result.n_rejected
         stats["evaluations"] += result.n_evals
@@ -685,7 +701,7 @@ def _native_blocks(run, native, method, grid, y0, param, rtol, atol, dt, chunks,
             run.stop(message, result.t_fail, y_fail=result.y_fail)
             return
         y = Y[-1]
-        bar.update(grid[b])
+        bar.update(t1)
 
 
 STALL_STEPS = 1000
