@@ -67,7 +67,8 @@ class Reference:
         sub = {sp.Symbol(k): v for k, v in values.items()}
         args = [t, *self.q, *self.qd]
         fn = lambda e: sp.lambdify(args, sp.sympify(e).subs(sub), "numpy")  # noqa: E731
-        self.fM, self.fh, self.ff, self.fT, self.fV = map(fn, (M, h, f, T, V))
+        dTdq = sp.Matrix([T.diff(a) for a in q])
+        self.fM, self.fh, self.ff, self.fT, self.fV, self.fTq = map(fn, (M, h, f, T, V, dTdq))
         self.points = {name: fn(sp.Matrix(p)) for name, p in (points or {}).items()}
 
     def M(self, tt, y):
@@ -78,6 +79,9 @@ class Reference:
 
     def f(self, tt, y):
         return np.array(self.ff(tt, *y), dtype=float).ravel()
+
+    def dTdq(self, tt, y):
+        return np.array(self.fTq(tt, *y), dtype=float).ravel()
 
     def rhs(self, tt, y):
         n = len(self.q)
@@ -234,3 +238,119 @@ def test_gauss4_rows_on_the_dt_grid(tmp_path):
     run_cli("simulate", SYSTEM1, "--t", "0.35", "--dt", "0.1", "--method", "gauss4", "-o", out)
     tab = read_csv(out)
     assert np.allclose(tab["t"], [0, 0.1, 0.2, 0.3, 0.35], rtol=0, atol=1e-12), tab["t"]
+
+
+# ------------------------------------------------------------------------------------------
+# 2. codegen: the generated C (gcc -std=c99 -Wall -Wextra -Werror -O2) and numpy module
+# ------------------------------------------------------------------------------------------
+
+CODEGEN = [(SYSTEM1, system1_reference, {"F": 0.8}), (SPRING, spring_reference, {"c": 0.45})]
+
+
+def random_states(n, seed, spread=2.0):
+    rng = np.random.default_rng(seed)
+    return [(rng.uniform(0, 3), rng.uniform(-spread, spread, 2 * n)) for _ in range(6)]
+
+
+def header_order(header, prefix):
+    """Parameter names by their ``KS_P_`` index and the points by their ``out[]`` slots."""
+    params, points = {}, []
+    for line in header.splitlines():
+        if line.startswith(f"#define {prefix}_P_"):
+            _, name, index = line.split()
+            params[int(index)] = name[len(prefix) + 3:]
+        if line.strip().startswith("*   out["):
+            points.append(line.split("=")[1].strip())
+    return [params[i] for i in sorted(params)], points
+
+
+def fix_state(y, name):
+    """Keep the spring pendulum's rod length positive."""
+    if name == "spring_pendulum":
+        y = y.copy()
+        y[0] = 0.5 + abs(y[0])
+    return y
+
+
+@pytest.mark.skipif(shutil.which("gcc") is None, reason="needs gcc")
+@pytest.mark.parametrize("model, make_ref, overrides", CODEGEN, ids=["system1", "spring_pendulum"])
+def test_generated_c(tmp_path, model, make_ref, overrides):
+    run_cli("codegen", model, "--lang", "c", "--prefix", "sw", "-o", tmp_path)
+    stem = model.stem
+    lib = tmp_path / f"lib{stem}.so"
+    subprocess.run(["gcc", "-std=c99", "-Wall", "-Wextra", "-Werror", "-O2", "-shared", "-fPIC",
+                    str(tmp_path / f"{stem}.c"), "-o", str(lib), "-lm"], check=True, capture_output=True)
+    names, point_names = header_order((tmp_path / f"{stem}.h").read_text(), "SW")
+    ref = make_ref(**overrides)
+    c = ctypes.CDLL(str(lib))
+    D = ctypes.POINTER(ctypes.c_double)
+    for fn in ("sw_kinetic_energy", "sw_potential_energy"):
+        getattr(c, fn).restype = ctypes.c_double
+    c.sw_potential_energy.argtypes = [ctypes.c_double, D, D]
+    c.sw_forces.argtypes = [ctypes.c_double, D, D, D, D]
+    c.sw_rhs.argtypes = c.sw_rhs_canonical.argtypes = c.sw_rhs_pre.argtypes = [ctypes.c_double, D, D, D]
+    param = np.array([float(ref.values[name]) for name in names])
+    pre = np.zeros(c.sw_npre())
+    ptr = lambda a: a.ctypes.data_as(D)  # noqa: E731
+    c.sw_prepare(ptr(param), ptr(pre))
+    n = len(ref.q)
+    for tt, y in random_states(n, 3):
+        y = fix_state(y, stem)
+        q, qd = y[:n].copy(), y[n:].copy()
+        M, h, f = np.zeros(n * n), np.zeros(n), np.zeros(n)
+        c.sw_mass_matrix(ptr(q), ptr(param), ptr(M))
+        c.sw_velocity_terms(ptr(q), ptr(qd), ptr(param), ptr(h))
+        c.sw_forces(tt, ptr(q), ptr(qd), ptr(param), ptr(f))
+        assert np.allclose(M.reshape(n, n), ref.M(tt, y), rtol=1e-12, atol=1e-12)
+        assert np.allclose(h, ref.h(tt, y), rtol=1e-12, atol=1e-12)
+        assert np.allclose(f, ref.f(tt, y), rtol=1e-12, atol=1e-12)
+        for fn, args in (("sw_rhs", param), ("sw_rhs_pre", pre)):
+            ydot = np.zeros(2 * n)
+            assert getattr(c, fn)(tt, ptr(y), ptr(args), ptr(ydot)) == 0
+            assert np.allclose(ydot, ref.rhs(tt, y), rtol=1e-11, atol=1e-11), fn
+        z, zdot = np.zeros(2 * n), np.zeros(2 * n)
+        c.sw_momentum(ptr(y), ptr(param), ptr(z))
+        assert np.allclose(z[n:], ref.M(tt, y) @ qd, rtol=1e-12, atol=1e-12)
+        assert c.sw_rhs_canonical(tt, ptr(z), ptr(param), ptr(zdot)) == 0
+        assert np.allclose(zdot, np.concatenate([qd, ref.dTdq(tt, y) + ref.f(tt, y)]), rtol=1e-11, atol=1e-11)
+        T, V = ref.energies([tt], [y])
+        assert np.isclose(c.sw_kinetic_energy(ptr(y), ptr(param)), T[0], rtol=1e-12, atol=1e-12)
+        assert np.isclose(c.sw_potential_energy(tt, ptr(y), ptr(param)), V[0], rtol=1e-12, atol=1e-12)
+        out = np.zeros(2 * len(point_names))
+        c.sw_points(ptr(y), ptr(param), ptr(out))
+        for i, name in enumerate(point_names):
+            if name in ref.points:
+                want = np.array(ref.points[name](tt, *y), dtype=float).ravel()
+                assert np.allclose(out[2 * i:2 * i + 2], want, rtol=1e-12, atol=1e-12), name
+
+
+@pytest.mark.parametrize("model, make_ref, overrides", CODEGEN, ids=["system1", "spring_pendulum"])
+def test_generated_numpy_module(tmp_path, model, make_ref, overrides):
+    import importlib.util
+
+    run_cli("codegen", model, "--lang", "python", "-o", tmp_path)
+    spec = importlib.util.spec_from_file_location(f"sweep_{model.stem}", tmp_path / f"{model.stem}.py")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    ref = make_ref(**overrides)
+    assert mod.STATE == [s.name for s in ref.q + ref.qd]
+    param = np.array([float(ref.values[name]) for name in mod.PARAMETERS])
+    n = len(ref.q)
+    slots = {name: 2 * i for i, (name, _) in enumerate(mod.POINTS)}
+    for tt, y in random_states(n, 4):
+        y = fix_state(y, model.stem)
+        q, qd = y[:n], y[n:]
+        assert np.allclose(mod.mass_matrix(q, param), ref.M(tt, y), rtol=1e-12, atol=1e-12)
+        assert np.allclose(mod.velocity_terms(q, qd, param), ref.h(tt, y), rtol=1e-12, atol=1e-12)
+        assert np.allclose(mod.forces(tt, q, qd, param), ref.f(tt, y), rtol=1e-12, atol=1e-12)
+        assert np.allclose(mod.rhs(tt, y, param), ref.rhs(tt, y), rtol=1e-11, atol=1e-11)
+        z = mod.momentum(y, param)
+        assert np.allclose(mod.rhs_canonical(tt, z, param), np.concatenate([qd, ref.dTdq(tt, y) + ref.f(tt, y)]),
+                           rtol=1e-11, atol=1e-11)
+        T, V = ref.energies([tt], [y])
+        assert np.isclose(mod.kinetic_energy(y, param), T[0], rtol=1e-12, atol=1e-12)
+        assert np.isclose(mod.potential_energy(tt, y, param), V[0], rtol=1e-12, atol=1e-12)
+        out = np.asarray(mod.points(y, param)).ravel()
+        for name, fn in ref.points.items():
+            want = np.array(fn(tt, *y), dtype=float).ravel()
+            assert np.allclose(out[slots[name]:slots[name] + 2], want, rtol=1e-12, atol=1e-12), name
