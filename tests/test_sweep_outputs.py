@@ -354,3 +354,75 @@ def test_generated_numpy_module(tmp_path, model, make_ref, overrides):
         for name, fn in ref.points.items():
             want = np.array(fn(tt, *y), dtype=float).ravel()
             assert np.allclose(out[slots[name]:slots[name] + 2], want, rtol=1e-12, atol=1e-12), name
+
+
+# ------------------------------------------------------------------------------------------
+# 3. linearize: the equilibrium, A, B and eigenvalues against finite differences of our own
+# ------------------------------------------------------------------------------------------
+
+def jacobian(fn, x, eps=1e-6):
+    x = np.asarray(x, dtype=float)
+    cols = []
+    for i in range(len(x)):
+        d = np.zeros(len(x))
+        d[i] = eps * max(1.0, abs(x[i]))
+        cols.append((fn(x + d) - fn(x - d)) / (2 * d[i]))
+    return np.column_stack(cols)
+
+
+def evaluate_text(entry, values):
+    """A linearisation entry: a number, or (``--symbolic``) an expression in the model's language."""
+    if isinstance(entry, (int, float)):
+        return float(entry)
+    expr = sp.parse_expr(entry, local_dict={name: sp.Symbol(name) for name in values})
+    return float(expr.subs({sp.Symbol(k): v for k, v in values.items()}))
+
+
+def test_linearize_system1_pushed_equilibrium_and_input(tmp_path):
+    """Scene `pushed` (F = 2): the tilted equilibrium of f(q) = 0, A and the input column B of F."""
+    out = tmp_path / "lin.json"
+    run_cli("linearize", SYSTEM1, "--scene", "pushed", "--inputs", "F", "--format", "json", "-o", out)
+    lin = json.loads(out.read_text())
+    ref = system1_reference(2.0)
+    q_star = fsolve(lambda q: ref.f(0.0, [*q, 0, 0]), [0.1, 0.1], xtol=1e-14)
+    assert lin["equilibrium"] and lin["state"] == STATE1
+    point = [lin["operating_point"][name] for name in STATE1]
+    assert np.allclose(point, [*q_star, 0, 0], rtol=0, atol=1e-10)
+    y_star = np.array([*q_star, 0.0, 0.0])
+    A = jacobian(lambda y: ref.rhs(0.0, y), y_star)
+    assert np.allclose(np.array(lin["A"], dtype=float), A, rtol=1e-6, atol=1e-6)
+    B = (system1_reference(2.0 + 1e-3).rhs(0.0, y_star) - system1_reference(2.0 - 1e-3).rhs(0.0, y_star)) / 2e-3
+    assert np.allclose(np.array(lin["B"], dtype=float).ravel(), B, rtol=1e-6, atol=1e-6)
+    key = lambda z: (round(z.real, 6), round(z.imag, 6))  # noqa: E731
+    eig = sorted((complex(e["re"], e["im"]) for e in lin["eigenvalues"]), key=key)
+    assert np.allclose(eig, sorted(np.linalg.eigvals(A), key=key), atol=1e-5)
+
+
+def test_linearize_system1_inverted_symbolic(tmp_path):
+    """`--at theta=pi --at phi=pi --symbolic`: A in the parameters' symbols, evaluated at their
+    values, is the finite-difference Jacobian there; the eigenvalues are real, two positive."""
+    out = tmp_path / "lin.json"
+    run_cli("linearize", SYSTEM1, "--scene", "free", "--at", "theta=pi", "--at", "phi=pi", "--symbolic",
+            "--format", "json", "-o", out)
+    lin = json.loads(out.read_text())
+    ref = system1_reference(0.0)
+    y_star = np.array([np.pi, np.pi, 0.0, 0.0])
+    values = {k: v for k, v in SYSTEM1_VALUES.items()}
+    A = np.array([[evaluate_text(e, values) for e in row] for row in lin["A"]])
+    assert np.allclose(A, jacobian(lambda y: ref.rhs(0.0, y), y_star), rtol=1e-6, atol=1e-6)
+    eig = np.array([complex(e["re"], e["im"]) for e in lin["eigenvalues"]])
+    assert np.allclose(sorted(eig.real), sorted(np.linalg.eigvals(A).real), atol=1e-6)
+    assert sum(e.real > 0 for e in eig) == 2
+
+
+def test_linearize_spring_pendulum_damped(tmp_path):
+    """The spring pendulum hangs at r = L0 + m g / k; its damping enters A's velocity columns."""
+    out = tmp_path / "lin.json"
+    run_cli("linearize", SPRING, "--format", "json", "-o", out)
+    lin = json.loads(out.read_text())
+    ref = spring_reference()
+    v = SPRING_VALUES
+    y_star = np.array([v["L0"] + v["m"] * v["g"] / v["k"], 0.0, 0.0, 0.0])
+    assert np.allclose([lin["operating_point"][n] for n in ("r", "q", "r_dot", "q_dot")], y_star, atol=1e-10)
+    A = jacobian(lambda y: ref.rhs(0.0, y), y_star)
+    assert np.allclose(np.array(lin["A"], dtype=float), A, rtol=1e-6, atol=1e-6)
