@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import ctypes
 import json
+import re
 import shutil
 import subprocess
 from functools import lru_cache
@@ -29,7 +30,7 @@ ROOT = Path(__file__).resolve().parent.parent
 SWEEP = ROOT / "tests" / "models" / "sweep"
 SYSTEM1 = ROOT / "models" / "hoffmann" / "system1.yaml"
 SPRING = SWEEP / "spring_pendulum.yaml"
-BOX = SWEEP / "box_on_springs_3d.yaml"
+COUPLED = SWEEP / "coupled_spring_pendulums.yaml"
 t = sp.Symbol("t")
 
 
@@ -426,3 +427,89 @@ def test_linearize_spring_pendulum_damped(tmp_path):
     assert np.allclose([lin["operating_point"][n] for n in ("r", "q", "r_dot", "q_dot")], y_star, atol=1e-10)
     A = jacobian(lambda y: ref.rhs(0.0, y), y_star)
     assert np.allclose(np.array(lin["A"], dtype=float), A, rtol=1e-6, atol=1e-6)
+
+
+# ------------------------------------------------------------------------------------------
+# 4. derive --format json (its expressions evaluated) and --format latex (built by pdflatex)
+# ------------------------------------------------------------------------------------------
+
+@pytest.mark.parametrize("model, make_ref", [(SYSTEM1, system1_reference), (SPRING, spring_reference)],
+                         ids=["system1", "spring_pendulum"])
+def test_derive_json_evaluates_to_the_reference(model, make_ref):
+    data = json.loads(run_cli("derive", model, "--format", "json").output)
+    ref = make_ref()
+    names = [*data["coordinates"], *data["velocities"], *data["parameters"], "t"]
+    assert data["coordinates"] == [s.name for s in ref.q] and data["velocities"] == [s.name for s in ref.qd]
+    local = {name: sp.Symbol(name) for name in names}
+    for name, entry in data["parameters"].items():
+        assert float(sp.Rational(entry["value"])) == pytest.approx(ref.values[name], rel=1e-15)
+
+    def value(text, tt, y):
+        expr = sp.parse_expr(text, local_dict=local)
+        sub = {local[k]: v for k, v in ref.values.items()}
+        sub.update({local[s.name]: v for s, v in zip(ref.q + ref.qd, y)})
+        sub[local["t"]] = tt
+        return float(expr.subs(sub))
+
+    n = len(ref.q)
+    for tt, y in random_states(n, 5)[:3]:
+        y = fix_state(y, model.stem)
+        M = np.array([[value(e, tt, y) for e in row] for row in data["mass_matrix"]])
+        h = np.array([value(e, tt, y) for e in data["velocity_terms"]])
+        f = np.array([value(e, tt, y) for e in data["forces"]])
+        assert np.allclose(M, ref.M(tt, y), rtol=1e-12, atol=1e-12)
+        assert np.allclose(h, ref.h(tt, y), rtol=1e-12, atol=1e-12)
+        assert np.allclose(f, ref.f(tt, y), rtol=1e-12, atol=1e-12)
+        effects = sum(np.array([value(e, tt, y) for e in column]) for column in data["effects"].values())
+        assert np.allclose(effects, f, rtol=1e-12, atol=1e-12)
+        T, V = ref.energies([tt], [y])
+        assert value(data["kinetic_energy"], tt, y) == pytest.approx(T[0], rel=1e-12, abs=1e-12)
+        assert value(data["potential_energy"], tt, y) == pytest.approx(V[0], rel=1e-12, abs=1e-12)
+
+
+def pdflatex(tmp_path, tex):
+    path = tmp_path / "doc.tex"
+    path.write_text(tex, encoding="utf-8")
+    result = subprocess.run(["pdflatex", "-interaction=nonstopmode", "-halt-on-error", path.name], cwd=tmp_path,
+                            capture_output=True, text=True, timeout=120)
+    return result.returncode, result.stdout
+
+
+needs_pdflatex = pytest.mark.skipif(shutil.which("pdflatex") is None, reason="needs pdflatex")
+
+
+@needs_pdflatex
+@pytest.mark.parametrize("args", [(SYSTEM1, "--reactions"), (SPRING,), (COUPLED,)], ids=["system1", "spring", "coupled"])
+def test_derive_latex_builds(tmp_path, args):
+    tex = run_cli("derive", *args, "--format", "latex").output
+    code, log = pdflatex(tmp_path, tex)
+    assert code == 0, log[-2000:]
+    assert (tmp_path / "doc.pdf").is_file()
+
+
+def overfull_lines(log):
+    """Source lines of the overfull boxes pdflatex reports."""
+    return [int(m) for m in re.findall(r"Overfull \\hbox \(.*?too wide\) (?:detected at line|in paragraph at lines) (\d+)", log)]
+
+
+@needs_pdflatex
+@pytest.mark.xfail(strict=True, reason="the Reactions section of `derive --format latex --reactions` is one "
+                   "unbroken align* line per reaction (kronsub/emitters/reactions.py, no latex_layout): it runs "
+                   "1320 pt off the page here; the 3-D box's 11 716-character line stops pdflatex (Dimension too large)")
+def test_derive_latex_reactions_stay_on_the_page(tmp_path):
+    tex = run_cli("derive", COUPLED, "--format", "latex", "--reactions").output
+    code, _ = pdflatex(tmp_path, tex)
+    assert code == 0
+    start = next(i for i, line in enumerate(tex.splitlines(), 1) if line.startswith("\\section*{Reactions}"))
+    log = (tmp_path / "doc.log").read_text(errors="replace")
+    assert [n for n in overfull_lines(log) if n > start] == []
+
+
+@pytest.mark.xfail(strict=True, reason="the reactions note is LaTeX text with raw '<q>', '<x>' "
+                   "(kronsub/emitters/reactions.py escapes only _ and ^, not through emitters/escape.py): "
+                   "the default OT1 encoding prints them as inverted exclamation and question marks")
+def test_derive_latex_reactions_note_has_no_raw_angle_brackets():
+    tex = run_cli("derive", SYSTEM1, "--format", "latex", "--reactions").output
+    section = tex[tex.index("\\section*{Reactions}"):]
+    prose = section[:section.index("\\begin{align*}")]
+    assert "<" not in prose and ">" not in prose, prose
