@@ -575,3 +575,35 @@ def test_simulate_to_a_closed_pipe_keeps_its_metadata(tmp_path):
     proc.stderr.close()
     assert meta.is_file()
     assert json.loads(meta.read_text())["status"] in ("stopped", "interrupted")
+
+
+def test_linearize_closed_loop_against_multipliers(tmp_path):
+    """A closed loop (tests/models/sweep/offset_slider_crank.yaml, five dependent coordinates):
+    the equilibrium, A and B (input tau) against finite differences of the accelerations of the
+    Lagrange-multiplier reference of test_sweep_models.py (which never forms C)."""
+    from test_sweep_models import slider_crank_reference
+
+    out = tmp_path / "lin.json"
+    run_cli("linearize", SWEEP / "offset_slider_crank.yaml", "--inputs", "tau", "--format", "json", "-o", out)
+    lin = json.loads(out.read_text())
+    ref = slider_crank_reference()
+    pv = np.array([0.8, 0.5, 0.3, 0.2, 0.7, -0.1, 20, 0.3, 0.4, 0.5, 9.81])  # the model's values, ref.params order
+    guess = [0.5, 0.44, -0.14, 0.11, 0.79, -0.1]
+
+    def acc(state, params=pv):
+        yv, ydv = ref.consistent([state[0]], [state[1]], guess, params)
+        return ref.evaluate(0.0, yv, ydv, params)[3][0]
+
+    theta = fsolve(lambda x: [acc([x[0], 0.0])], [0.5], xtol=1e-14)[0]
+    assert lin["equilibrium"] and lin["operating_point"]["theta"] == pytest.approx(theta, abs=1e-9)
+    yv, _ = ref.consistent([theta], [0.0], guess, pv)
+    dependent = dict(zip(["rx", "ry", "ra", "px", "py"], yv[1:]))
+    assert all(lin["dependent"][k] == pytest.approx(v, abs=1e-9) for k, v in dependent.items())
+    row = jacobian(lambda s: np.array([acc(s)]), [theta, 0.0])[0]
+    assert np.allclose(lin["A"], [[0, 1], row], rtol=1e-6, atol=1e-6)
+    tau = list(ref.params).index("tau")
+    up, down = pv.copy(), pv.copy()
+    up[tau] += 1e-4
+    down[tau] -= 1e-4
+    b = (acc([theta, 0.0], up) - acc([theta, 0.0], down)) / 2e-4
+    assert np.allclose(np.array(lin["B"], dtype=float).ravel(), [0, b], rtol=1e-6, atol=1e-6)
