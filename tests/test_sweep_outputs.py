@@ -607,3 +607,52 @@ def test_linearize_closed_loop_against_multipliers(tmp_path):
     down[tau] -= 1e-4
     b = (acc([theta, 0.0], up) - acc([theta, 0.0], down)) / 2e-4
     assert np.allclose(np.array(lin["B"], dtype=float).ravel(), [0, b], rtol=1e-6, atol=1e-6)
+
+
+@lru_cache(maxsize=None)
+def slider_crank_trajectory(times):
+    from test_sweep_models import slider_crank_reference
+
+    ref = slider_crank_reference()
+    pv = np.array([0.8, 0.5, 0.3, 0.2, 0.7, -0.1, 20, 0.3, 0.4, 0.5, 9.81])
+    guess = [[0.5, 0.44, -0.14, 0.11, 0.79, -0.1]]
+
+    def rhs(tt, s):
+        yv, ydv = ref.consistent([s[0]], [s[1]], guess[0], pv)
+        guess[0] = yv
+        return [s[1], ref.evaluate(tt, yv, ydv, pv)[3][0]]
+
+    sol = solve_ivp(rhs, (0, times[-1]), [0.5, 1.5], t_eval=list(times), method="DOP853", rtol=1e-12, atol=1e-12)
+    dependent = [ref.consistent([q], [0.0], [0.5, 0.44, -0.14, 0.11, 0.79, -0.1], pv)[0][1:] for q in sol.y[0]]
+    return sol.y.T, np.array(dependent)
+
+
+@pytest.mark.parametrize("method, tol", [("dop853", 1e-8), ("Radau", 1e-7)])
+def test_closed_loop_trajectory(tmp_path, method, tol):
+    """offset_slider_crank.yaml simulated: the independent state, the dependent coordinates written
+    after the energies, and the pinned points, against the multiplier reference integrated here."""
+    out = tmp_path / "run.csv"
+    run_cli("simulate", SWEEP / "offset_slider_crank.yaml", "--t", "0.5", "--dt", "0.125", "--method", method,
+            "--points", "-o", out)
+    tab = read_csv(out)
+    assert np.allclose(tab["t"], [0, 0.125, 0.25, 0.375, 0.5], rtol=0, atol=1e-12)
+    Y, dep = slider_crank_trajectory(tuple(tab["t"]))
+    assert np.max(np.abs(np.column_stack([tab["theta"], tab["theta_dot"]]) - Y)) < tol
+    got = np.column_stack([tab[n] for n in ("rx", "ry", "ra", "px", "py")])
+    assert np.max(np.abs(got - dep)) < tol
+    assert np.allclose(tab["crank.tip.x"], tab["rod.a.x"], atol=1e-9)
+    assert np.allclose(tab["rod.b.y"], tab["piston.centre.y"], atol=1e-9)
+    assert np.allclose(tab["piston.centre.y"], -0.1, atol=1e-9)
+
+
+def test_closed_loop_gauss4_fourth_order(tmp_path):
+    """gauss4 on a closed loop, in (q, qdot) with Newton's method in every stage: order 4."""
+    errors = []
+    Y, _ = slider_crank_trajectory((0.0, 0.5))
+    for dt in ("0.0625", "0.03125"):
+        out = tmp_path / f"g{dt}.csv"
+        run_cli("simulate", SWEEP / "offset_slider_crank.yaml", "--t", "0.5", "--dt", dt, "--method", "gauss4",
+                "-o", out)
+        tab = read_csv(out)
+        errors.append(np.max(np.abs([tab["theta"][-1] - Y[-1][0], tab["theta_dot"][-1] - Y[-1][1]])))
+    assert 10 < errors[0] / errors[1] < 25, errors
