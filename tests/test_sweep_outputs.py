@@ -169,8 +169,12 @@ def system1_reactions(ref, times, Y):
     return np.array(rows)
 
 
+HEYOKA = pytest.param("heyoka", 1e-8, marks=pytest.mark.skipif(
+    __import__("importlib").util.find_spec("heyoka") is None, reason="needs heyoka"))
+
+
 @pytest.mark.parametrize("method, tol", [("dop853", 1e-8), ("RK45", 1e-7), ("Radau", 1e-7), ("LSODA", 1e-7),
-                                         ("DOP853", 1e-7)])
+                                         ("DOP853", 1e-7), HEYOKA])
 def test_system1_pushed_scene_csv(tmp_path, method, tol):
     """`--scene pushed` (F = 2 from the scene), `--set` an expression and a velocity, `--dt` that
     does not divide `--t`: rows at the grid and at t_end, state, energies, points, reactions."""
@@ -656,3 +660,36 @@ def test_closed_loop_gauss4_fourth_order(tmp_path):
         tab = read_csv(out)
         errors.append(np.max(np.abs([tab["theta"][-1] - Y[-1][0], tab["theta_dot"][-1] - Y[-1][1]])))
     assert 10 < errors[0] / errors[1] < 25, errors
+
+
+def test_generated_numpy_module_of_a_closed_loop(tmp_path):
+    """`codegen --lang python` of offset_slider_crank.yaml: its rhs (Newton for the dependent
+    coordinates inside), potential energy and points along a walk of the crank angle."""
+    import importlib.util
+
+    from test_sweep_models import slider_crank_reference
+
+    run_cli("codegen", SWEEP / "offset_slider_crank.yaml", "--lang", "python", "-o", tmp_path)
+    spec = importlib.util.spec_from_file_location("sweep_osc", tmp_path / "offset_slider_crank.py")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    ref = slider_crank_reference()
+    param = np.array([mod.DEFAULTS[name] for name in mod.PARAMETERS])
+    pv = np.array([mod.DEFAULTS[name] for name in ref.params])
+    slots = {name: 2 * i for i, (name, _) in enumerate(mod.POINTS)}
+    rng = np.random.default_rng(6)
+    q, guess = 0.5, [0.5, 0.44, -0.14, 0.11, 0.79, -0.1]
+    r, e, m1, m2, mp, g, k, l0 = (mod.DEFAULTS[n] for n in ("r", "e", "m1", "m2", "mp", "g", "k", "l0"))
+    for _ in range(8):
+        q += rng.uniform(-0.2, 0.2)
+        u, tt = rng.uniform(-2, 2), rng.uniform(0, 2)
+        yv, ydv = ref.consistent([q], [u], guess, pv)
+        guess = yv
+        acc = ref.evaluate(tt, yv, ydv, pv)[3]
+        assert np.allclose(mod.rhs(tt, np.array([q, u]), param), [u, acc[0]], rtol=1e-9, atol=1e-9)
+        _, rx, ry, ra, px, py = yv
+        V = g * (-m1 * r / 2 * np.cos(q) + m2 * ry + mp * py) + k * (np.hypot(px - 1.3, py - e) - l0) ** 2 / 2
+        assert mod.potential_energy(tt, np.array([q, u]), param) == pytest.approx(V, abs=1e-9)
+        out = np.asarray(mod.points(np.array([q, u]), param)).ravel()
+        assert np.allclose(out[slots["piston.centre"]:slots["piston.centre"] + 2], [px, py], atol=1e-9)
+        assert np.allclose(out[slots["rod.centre"]:slots["rod.centre"] + 2], [rx, ry], atol=1e-9)
