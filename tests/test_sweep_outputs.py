@@ -235,9 +235,6 @@ def test_spring_pendulum_taylor_and_gauss4_converge(tmp_path):
     assert 10 < errors[0] / errors[1] < 25, errors
 
 
-@pytest.mark.xfail(strict=True, reason="gauss4 (and rk4) spread the steps evenly over [0, t_end] when --dt does "
-                   "not divide --t: rows at 0.0875, 0.175... for --dt 0.1 --t 0.35 instead of the --dt grid "
-                   "(kronsub/simulation/native.py integrate -> csrc/integrators.c fixed_begin)")
 def test_gauss4_rows_on_the_dt_grid(tmp_path):
     out = tmp_path / "g.csv"
     run_cli("simulate", SYSTEM1, "--t", "0.35", "--dt", "0.1", "--method", "gauss4", "-o", out)
@@ -497,9 +494,6 @@ def overfull_lines(log):
 
 
 @needs_pdflatex
-@pytest.mark.xfail(strict=True, reason="the Reactions section of `derive --format latex --reactions` is one "
-                   "unbroken align* line per reaction (kronsub/emitters/reactions.py, no latex_layout): it runs "
-                   "1320 pt off the page here; the 3-D box's 11 716-character line stops pdflatex (Dimension too large)")
 def test_derive_latex_reactions_stay_on_the_page(tmp_path):
     tex = run_cli("derive", COUPLED, "--format", "latex", "--reactions").output
     code, _ = pdflatex(tmp_path, tex)
@@ -509,9 +503,6 @@ def test_derive_latex_reactions_stay_on_the_page(tmp_path):
     assert [n for n in overfull_lines(log) if n > start] == []
 
 
-@pytest.mark.xfail(strict=True, reason="the reactions note is LaTeX text with raw '<q>', '<x>' "
-                   "(kronsub/emitters/reactions.py escapes only _ and ^, not through emitters/escape.py): "
-                   "the default OT1 encoding prints them as inverted exclamation and question marks")
 def test_derive_latex_reactions_note_has_no_raw_angle_brackets():
     tex = run_cli("derive", SYSTEM1, "--format", "latex", "--reactions").output
     section = tex[tex.index("\\section*{Reactions}"):]

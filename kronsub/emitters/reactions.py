@@ -7,6 +7,8 @@ import sympy
 
 from ..core.known_system import KnownSystem
 from ..core.reactions import MultiplierSystem, reactions
+from .escape import latex_text
+from .latex_layout import lines as layout_lines, unbroken
 from .report import latex_printer, plain
 
 NOTE = ("Viewpoint (alpha): the workless reactions kept as unknowns and found from the motion; "
@@ -36,11 +38,8 @@ def with_reactions(text: str, system: KnownSystem, fmt: str) -> str:
     if fmt == "latex":
         coords = tuple(system.coordinates) + (tuple(system.transition.primitive_coordinates)
                                               if system.transition else ())
-        show = latex_printer(coords)
-        body = "\n".join(rf"\texttt{{{name.replace('_', chr(92) + '_')}}} &= {show(e)} \\" for name, e in items)
-        section = ("\\section*{Reactions}\n" + note.replace("`", "").replace("_", "\\_").replace("^", "\\^{}")
-                   + "\n\\begin{align*}\n" + body.rstrip(" \\") + "\n\\end{align*}\n")
-        return text.replace("\\end{document}", section + "\\end{document}")
+        show = latex_printer(coords, system.implicit, breaks=True)
+        return _latex_section(text, note, [(rf"\texttt{{{latex_text(name)}}}", show(e)) for name, e in items])
     lines = ["", "## Reactions (viewpoint (alpha))", "", note, ""]
     lines += [f"- `{name} = {plain(e)}`" for name, e in items]
     return text.rstrip("\n") + "\n" + "\n".join(lines) + "\n"
@@ -68,11 +67,18 @@ def _with_linear_system(text: str, system: KnownSystem, fmt: str, eqs: Multiplie
 
     if fmt == "latex":
         coords = tuple(system.coordinates) + tuple(system.implicit.intermediates)
-        show = latex_printer(coords)
-        body = "\n".join(rf"{lhs} &= {rhs} \\" for lhs, rhs in (row(a, show) for a in range(k)))
-        section = ("\\section*{Reactions}\n" + note.replace("`", "").replace("_", "\\_").replace("^", "\\^{}")
-                   + "\n\\begin{align*}\n" + body.rstrip(" \\") + "\n\\end{align*}\n")
-        return text.replace("\\end{document}", section + "\\end{document}")
+        show = latex_printer(coords, system.implicit, breaks=True)
+        return _latex_section(text, note, [(unbroken(lhs), rhs) for lhs, rhs in (row(a, show) for a in range(k))])
     lines = ["", "## Reactions (viewpoint (alpha))", "", note, ""]
     lines += [f"- `{lhs} = {rhs}`" for lhs, rhs in (row(a, plain) for a in range(k))]
     return text.rstrip("\n") + "\n" + "\n".join(lines) + "\n"
+
+
+def _latex_section(text: str, note: str, rows) -> str:
+    """The document ``text`` with a Reactions section before its end: the note as text (escaped),
+    each ``(left, right)`` an ``align*`` line, long right sides broken over lines as the
+    equations are (`latex_layout.lines`)."""
+    body = " \\\\\n".join(f"{left} &= " + " \\\\\n&\\quad ".join(layout_lines(right)) for left, right in rows)
+    section = ("\\section*{Reactions}\n" + latex_text(note.replace("`", "")) + "\n\\begin{align*}\n" + body
+               + "\n\\end{align*}\n")
+    return text.replace("\\end{document}", section + "\\end{document}")
