@@ -61,12 +61,16 @@ def test_animate_formats(tmp_path, monkeypatch):
     assert mp4.exit_code == 1 and "needs ffmpeg" in mp4.output and not (tmp_path / "run.mp4").exists()
 
 
-def test_frame_rows_keep_real_time():
-    from kronsub.simulation.animate import frame_rows
+def test_frames_keep_real_time():
+    from kronsub.simulation.animate import frame_times
 
     t = np.linspace(0, 2, 201)
-    assert list(frame_rows(t, 25)[:3]) == [0, 4, 8]
-    assert len(frame_rows(t[::20], 25)) == 11  # sparser rows than frames: every row
+    times, interval = frame_times(t, 25)
+    assert interval == 0.04 and len(times) == 51 and times[-1] == pytest.approx(2.0)
+    times, interval = frame_times(t[::20], 25)  # sparser rows than frames: frames between them
+    assert len(times) == 51
+    times, interval = frame_times(t, 30, gif=True)  # GIF delays in hundredths of a second
+    assert interval == 0.03 and len(times) == 67
 
 
 def test_angles_are_told_from_lengths():

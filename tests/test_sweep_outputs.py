@@ -527,10 +527,6 @@ def gif_seconds(path):
     return total / 1000
 
 
-@pytest.mark.xfail(strict=True, reason="`kronsub animate MODEL` with its own defaults (--dt 0.02, --fps 30) draws "
-                   "every 2nd row (0.04 s of motion) per 1/30 s frame: 1 s of motion plays in 0.78 s (a CSV at --dt 0.01 plays in 1.02 s), not in real "
-                   "time as the README says (kronsub/simulation/animate.py frame_rows rounds the stride, the "
-                   "frame rate stays --fps)")
 def test_animate_model_plays_in_real_time(tmp_path):
     pytest.importorskip("matplotlib")
     out = tmp_path / "motion.gif"

@@ -55,14 +55,18 @@ def _groups(labels) -> dict[str, list[str]]:
     return groups
 
 
-def frame_rows(t: np.ndarray, fps: int) -> np.ndarray:
-    """Rows to draw so the animation plays in real time at ``fps`` frames per second
-    (every row when the rows are sparser than the frames)."""
+def frame_times(t: np.ndarray, fps: int, gif: bool = False) -> tuple[np.ndarray, float]:
+    """The times of the frames, one every ``1/fps`` s of motion from the first row, and that
+    interval: the animation then plays in real time. A GIF stores its delays in hundredths of a
+    second, so there the interval is the nearest whole number of them (at least 2: viewers slow
+    shorter ones down)."""
+    interval = 1.0 / fps
+    if gif:
+        interval = max(2, round(100.0 / fps)) / 100.0
     if len(t) < 2:
-        return np.arange(len(t))
-    dt = float(np.median(np.diff(t)))
-    stride = max(1, int(round(1.0 / (fps * dt)))) if dt > 0 else 1
-    return np.arange(0, len(t), stride)
+        return np.asarray(t[:1], dtype=float), interval
+    count = int(np.floor((t[-1] - t[0]) / interval + 1e-9)) + 1
+    return t[0] + interval * np.arange(count), interval
 
 
 def animate(t: np.ndarray, names: list[str], values: np.ndarray, path: Path, *, fps: int = 30,
@@ -86,7 +90,11 @@ def animate(t: np.ndarray, names: list[str], values: np.ndarray, path: Path, *, 
         raise AnimationError("the trajectory has no rows to animate")
     paths = point_paths(names, values)
     groups = _groups(paths)
-    rows = frame_rows(t, fps)
+    times, interval = frame_times(t, fps, suffix == ".gif")
+    if len(t) > 1:  # the points at the frames' times, between the rows
+        paths = {label: np.column_stack([np.interp(times, t, xy[:, i]) for i in range(xy.shape[1])])
+                 for label, xy in paths.items()}
+    rows = range(len(times))
 
     dpi = 80
     fig = plt.figure(figsize=(size / dpi, size / dpi), dpi=dpi)
@@ -133,11 +141,14 @@ def animate(t: np.ndarray, names: list[str], values: np.ndarray, path: Path, *, 
                 disc.center = (c[0], c[1])
                 disc.set_radius(float(np.hypot(*(r - c))))
                 changed.append(disc)
-        clock.set_text(f"{shown}  t = {t[row]:.2f}".strip())
+        clock.set_text(f"{shown}  t = {times[row]:.2f}".strip())
         return changed + [clock]
 
     movie = animation.FuncAnimation(fig, draw, frames=len(rows), blit=False)
-    writer = animation.PillowWriter(fps=fps) if suffix == ".gif" else animation.FFMpegWriter(fps=fps)
+    # Pillow's writer takes int(1000 / fps) ms a frame and GIF keeps hundredths: a rate a hair
+    # below 1/interval keeps 30 ms from becoming 29, and so 20
+    rate = 1000.0 / (1000.0 * interval + 1e-6)
+    writer = animation.PillowWriter(fps=rate) if suffix == ".gif" else animation.FFMpegWriter(fps=1.0 / interval)
     fd, tmp = tempfile.mkstemp(dir=path.resolve().parent, prefix=f".{path.stem}.", suffix=suffix)
     os.close(fd)
     try:
