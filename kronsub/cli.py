@@ -352,7 +352,10 @@ def simulate(model: Path, t_end: float | None, dt: float | None, method: str | N
             click.echo(f"wrote {output} ({writer.rows} rows)", err=True)
         else:
             writer = stream(sys.stdout)
-            sys.stdout.flush()
+            if writer.reader_gone:  # nothing more goes to standard output
+                os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+            else:
+                sys.stdout.flush()
             where = "standard output"
         if meta_path is not None:
             info = writer.metadata()
@@ -360,10 +363,14 @@ def simulate(model: Path, t_end: float | None, dt: float | None, method: str | N
                 else (str(output) if output is not None else None)
             write_atomically(meta_path, metadata_json(info))
             click.echo(f"wrote {meta_path}", err=True)
-        marked = f" (marked {'interrupted' if writer.stopped else 'incomplete'} in {meta_path})" \
+        state = "stopped" if writer.reader_gone else "interrupted" if writer.stopped else "incomplete"
+        marked = f" (marked {state} in {meta_path})" \
             if meta_path is not None else ""
         for _, what in run.switches:
             click.echo(f"note: coordinates: auto switched at {what}", err=True)
+        if writer.reader_gone:
+            _fail(f"Stopped after t = {writer.last_t!r}: the reader of {where} closed it after "
+                  f"{writer.rows} rows{marked}", INTERRUPTED)
         if writer.stopped:
             _fail(f"Interrupted after t = {writer.last_t!r}: the {writer.rows} rows computed so far are kept "
                   f"in {where}{marked}", INTERRUPTED)

@@ -547,11 +547,6 @@ def test_accuracy_reference_state(tmp_path):
     assert float(np.atleast_1d(table["error"])[0]) < 1e-6
 
 
-@pytest.mark.xfail(strict=True, reason="a reader that stops early (`kronsub simulate ... --meta run.json | head`) "
-                   "ends the run by BrokenPipeError: exit 1 (documented as a model error) with no message and no "
-                   "metadata, where the README says the metadata is written also when a run stops early "
-                   "(kronsub/simulation/table.py CsvWriter.stream records KeyboardInterrupt only; the BrokenPipeError "
-                   "goes to kronsub/cli.py _run, past simulate's metadata write)")
 def test_simulate_to_a_closed_pipe_keeps_its_metadata(tmp_path):
     import os
     import sys

@@ -161,7 +161,7 @@ class CsvWriter:
         self.with_points = with_points if outputs is None else bool(outputs.points)
         self.param = np.array(values.parameters)
         self.module = _Module(system, outputs)
-        self.rows, self.last_t, self.stopped = 0, None, False
+        self.rows, self.last_t, self.stopped, self.reader_gone = 0, None, False, False
         self.want = {k: outputs is None or getattr(outputs, k) for k in ("coordinates", "velocities", "energies")}
         columns = ["t"]
         if self.want["coordinates"]:
@@ -279,6 +279,12 @@ class CsvWriter:
         except KeyboardInterrupt:
             self.interrupted(run.stats)
             raise
+        except BrokenPipeError:  # the reader went away (`| head`): the rows it took are all there is
+            self.stopped = self.reader_gone = True
+            self._cost(run.stats)
+            self._meta.update(status="stopped", complete=False, stopped_at=_json_number(self.last_t),
+                              stop_reason="the reader of the output closed it")
+            return
         self.end(run.stats, run.complete, run.t_fail, run.message, run.switches)
 
 
