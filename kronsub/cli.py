@@ -336,7 +336,7 @@ def simulate(model: Path, t_end: float | None, dt: float | None, method: str | N
                                             outputs, extra, **run_info)
                 out.write(text)
                 return SimpleNamespace(rows=len(traj.t), last_t=float(traj.t[-1]) if len(traj.t) else None,
-                                       stopped=False, metadata=lambda: info)
+                                       stopped=False, reader_gone=False, metadata=lambda: info)
             writer = CsvWriter(out, system, model.as_posix(), values, run.method, run.backend, rtol, atol,
                                with_points, outputs, **run_info)
             try:
