@@ -718,3 +718,114 @@ def test_coordinate_named_like_a_column(tmp_path):
     table = system.simulate(t=0.2, dt=0.1)
     assert isinstance(table, pd.DataFrame)
     assert any(np.allclose(table[c].to_numpy(), angle) for c in table.columns), table
+
+
+# ------------------------------------------------------------------------------------------
+# derive's Markdown read back: the named subexpressions (w1, ...) put back, every entry evaluated
+# ------------------------------------------------------------------------------------------
+
+def markdown_entries(text):
+    """``{"where": {w: expr}, "Mbar": rows, "fbar": rows, "hbar": rows, "T": expr, "V": expr}`` of
+    ``derive``'s Markdown, all as text."""
+    lines = text.splitlines()
+    out = {"where": {}}
+
+    def table_after(prefix):
+        start = next(i for i, line in enumerate(lines) if line.startswith(prefix))
+        rows, i = [], start + 1
+        while not lines[i].startswith("| **"):
+            i += 1
+        while i < len(lines) and lines[i].startswith("| **"):
+            rows.append(re.findall(r"`([^`]*)`", lines[i]))
+            i += 1
+        return rows
+
+    for line in lines:
+        m = re.match(r"- `(w\d+) = (.*)`$", line)
+        if m:
+            out["where"][m.group(1)] = m.group(2)
+    out["Mbar"] = table_after("Metric `Mbar")
+    out["fbar"] = [row[0] for row in table_after("Forces `fbar")]
+    out["hbar"] = [row[0] for row in table_after("Velocity terms `hbar")]
+    out["T"] = re.search(r"Kinetic energy \(24\): `T = (.*)`", text).group(1)
+    out["V"] = re.search(r"Potential energy: `V = (.*)`", text).group(1)
+    return out
+
+
+@lru_cache(maxsize=None)
+def coupled_reference():
+    """tests/models/sweep/coupled_spring_pendulums.yaml written by hand (as test_sweep_models.py's)."""
+    r1, q1, r2, q2 = q = list(sp.symbols("r1 q1 r2 q2"))
+    m, m2, d, e, kc, k, L0, c, cd, F0, w, g = sp.symbols("m m2 d e kc k L0 c cd F0 w g")
+    b1 = sp.Matrix([r1 * sp.sin(q1), -r1 * sp.cos(q1)])
+    b2 = sp.Matrix([d + r2 * sp.sin(q2), e - r2 * sp.cos(q2)])
+    qd = sp.Matrix(dots(q))
+    v1, v2 = b1.jacobian(q) * qd, b2.jacobian(q) * qd
+    T = m * v1.dot(v1) / 2 + m2 * v2.dot(v2) / 2
+    gap = b2 - b1
+    V = (g * (m * b1[1] + m2 * b2[1]) + k * (r1 - L0) ** 2 / 2 + (2 * k + 1) * (r2 - L0) ** 2 / 2
+         + kc * (sp.sqrt(gap.dot(gap)) - d) ** 2 / 2)
+    F1 = -cd * v1 + sp.Matrix([F0 * sp.sin(w * t), 0])
+    F2 = -cd * v2  # the right one's push is overridden to F0 = 0
+    Q = [F1.dot(b1.diff(a)) + F2.dot(b2.diff(a)) - c * qd[0] * int(a == r1) - c * qd[2] * int(a == r2) for a in q]
+    values = {**yaml_values(SPRING), **yaml_values(COUPLED)}  # `left` and `right` take spring_pendulum.yaml's
+    return Reference(q, T, V, Q, values)
+
+
+def yaml_values(path):
+    import yaml
+
+    data = yaml.safe_load(path.read_text())
+    return {name: float(sp.Rational(str(spec["value"]))) for name, spec in data["parameters"].items()}
+
+
+def test_derive_markdown_reads_back(tmp_path):
+    """Every printed entry, with its named subexpressions substituted, is the hand-derived one."""
+    text = run_cli("derive", COUPLED).output
+    md = markdown_entries(text)
+    assert md["where"], "expected named subexpressions in this model's Markdown"
+    ref = coupled_reference()
+    local = {s.name: s for s in ref.q + ref.qd}
+    local.update({name: sp.Symbol(name) for name in ref.values})
+    local["t"] = t
+    where = {}
+    for name, body in md["where"].items():
+        where[sp.Symbol(name)] = sp.parse_expr(body, local_dict={**local, **{k.name: k for k in where}})
+    local.update({k.name: k for k in where})
+
+    def value(body, tt, y):
+        expr = sp.parse_expr(body, local_dict=local)
+        for _ in range(len(where) + 1):
+            expr = expr.subs(where)
+        sub = {sp.Symbol(k): v for k, v in ref.values.items()}
+        sub.update({s: v for s, v in zip(ref.q + ref.qd, y)})
+        sub[t] = tt
+        return float(expr.subs(sub))
+
+    rng = np.random.default_rng(7)
+    offsets = []
+    for _ in range(3):
+        y = rng.uniform(-2, 2, 8)
+        y[0], y[2] = rng.uniform(0.3, 2, 2)
+        tt = rng.uniform(0, 3)
+        assert np.allclose([[value(e, tt, y) for e in row] for row in md["Mbar"]], ref.M(tt, y), rtol=1e-12, atol=1e-12)
+        assert np.allclose([value(e, tt, y) for e in md["fbar"]], ref.f(tt, y), rtol=1e-12, atol=1e-12)
+        assert np.allclose([value(e, tt, y) for e in md["hbar"]], ref.h(tt, y), rtol=1e-12, atol=1e-12)
+        T, V = ref.energies([tt], [y])
+        assert value(md["T"], tt, y) == pytest.approx(T[0], rel=1e-12, abs=1e-12)
+        offsets.append(value(md["V"], tt, y) - V[0])
+    assert np.ptp(offsets) < 1e-10  # V up to a constant here; the constant: test_potential_of_a_placed_known_system
+
+
+@pytest.mark.xfail(strict=True, reason="a known system placed with `origin: [d, e]` keeps its own gravity potential: "
+                   "V misses m2 g e (0.7848 J here), though its mass centres move (docs/model-format.md) and gravity "
+                   "is V = -sum m g (d . centre); a pinned_rod with pivot_y = e gets it (kronsub/model/loader.py placed() "
+                   "shifts the points and bodies, not the known system's own effects' V)")
+def test_potential_of_a_placed_known_system(tmp_path):
+    out = tmp_path / "run.csv"
+    run_cli("simulate", COUPLED, "--t", "0.1", "--dt", "0.1", "-o", out)
+    tab = read_csv(out)
+    ref = coupled_reference()
+    y = [tab[n][0] for n in ("r1", "q1", "r2", "q2", "r1_dot", "q1_dot", "r2_dot", "q2_dot")]
+    _, V = ref.energies([0.0], [y])
+    assert tab["potential_energy"][0] == pytest.approx(V[0], abs=1e-9)
