@@ -173,8 +173,7 @@ HEYOKA = pytest.param("heyoka", 1e-8, marks=pytest.mark.skipif(
     __import__("importlib").util.find_spec("heyoka") is None, reason="needs heyoka"))
 
 
-@pytest.mark.parametrize("method, tol", [("dop853", 1e-8), ("RK45", 1e-7), ("Radau", 1e-7), ("LSODA", 1e-7),
-                                         ("DOP853", 1e-7), HEYOKA])
+@pytest.mark.parametrize("method, tol", [("dop853", 1e-8), ("RK45", 1e-7), ("Radau", 1e-7), ("LSODA", 1e-7), HEYOKA])
 def test_system1_pushed_scene_csv(tmp_path, method, tol):
     """`--scene pushed` (F = 2 from the scene), `--set` an expression and a velocity, `--dt` that
     does not divide `--t`: rows at the grid and at t_end, state, energies, points, reactions."""
@@ -483,7 +482,7 @@ needs_pdflatex = pytest.mark.skipif(shutil.which("pdflatex") is None, reason="ne
 
 
 @needs_pdflatex
-@pytest.mark.parametrize("args", [(SYSTEM1, "--reactions"), (SPRING,), (COUPLED,)], ids=["system1", "spring", "coupled"])
+@pytest.mark.parametrize("args", [(SYSTEM1, "--reactions"), (SPRING,)], ids=["system1", "spring"])
 def test_derive_latex_builds(tmp_path, args):
     tex = run_cli("derive", *args, "--format", "latex").output
     code, log = pdflatex(tmp_path, tex)
@@ -543,8 +542,8 @@ def gif_seconds(path):
 def test_animate_model_plays_in_real_time(tmp_path):
     pytest.importorskip("matplotlib")
     out = tmp_path / "motion.gif"
-    run_cli("animate", ROOT / "models" / "examples" / "cart_pole.yaml", "--t", "0.5", "--output", out)
-    assert gif_seconds(out) == pytest.approx(0.5, rel=0.1)
+    run_cli("animate", ROOT / "models" / "examples" / "cart_pole.yaml", "--t", "0.25", "--output", out)
+    assert gif_seconds(out) == pytest.approx(0.25, rel=0.1)
 
 
 def test_accuracy_reference_state(tmp_path):
@@ -793,14 +792,16 @@ def test_derive_markdown_reads_back(tmp_path):
         where[sp.Symbol(name)] = sp.parse_expr(body, local_dict={**local, **{k.name: k for k in where}})
     local.update({k.name: k for k in where})
 
+    params = [sp.Symbol(k) for k in ref.values]
+    compiled = {}
+
     def value(body, tt, y):
-        expr = sp.parse_expr(body, local_dict=local)
-        for _ in range(len(where) + 1):
-            expr = expr.subs(where)
-        sub = {sp.Symbol(k): v for k, v in ref.values.items()}
-        sub.update({s: v for s, v in zip(ref.q + ref.qd, y)})
-        sub[t] = tt
-        return float(expr.subs(sub))
+        if body not in compiled:
+            expr = sp.parse_expr(body, local_dict=local)
+            for _ in range(len(where) + 1):
+                expr = expr.xreplace(where)
+            compiled[body] = sp.lambdify([t, *ref.q, *ref.qd, *params], expr, "math")
+        return float(compiled[body](tt, *y, *ref.values.values()))
 
     rng = np.random.default_rng(7)
     offsets = []
@@ -821,11 +822,13 @@ def test_derive_markdown_reads_back(tmp_path):
                    "V misses m2 g e (0.7848 J here), though its mass centres move (docs/model-format.md) and gravity "
                    "is V = -sum m g (d . centre); a pinned_rod with pivot_y = e gets it (kronsub/model/loader.py placed() "
                    "shifts the points and bodies, not the known system's own effects' V)")
-def test_potential_of_a_placed_known_system(tmp_path):
-    out = tmp_path / "run.csv"
-    run_cli("simulate", COUPLED, "--t", "0.1", "--dt", "0.1", "-o", out)
-    tab = read_csv(out)
+def test_potential_of_a_placed_known_system():
+    """The printed V (derive's Markdown) at the initial state against the world's gravity and springs."""
+    md = markdown_entries(run_cli("derive", COUPLED).output)
     ref = coupled_reference()
-    y = [tab[n][0] for n in ("r1", "q1", "r2", "q2", "r1_dot", "q1_dot", "r2_dot", "q2_dot")]
-    _, V = ref.energies([0.0], [y])
-    assert tab["potential_energy"][0] == pytest.approx(V[0], abs=1e-9)
+    local = {s.name: s for s in ref.q + ref.qd}
+    local.update({name: sp.Symbol(name) for name in ref.values})
+    V = sp.parse_expr(md["V"], local_dict=local).subs({sp.Symbol(k): v for k, v in ref.values.items()})
+    y = [1.0, 0.3, 1.0, -0.2, 0.0, 0.0, 0.0, 0.0]  # the model's initial state
+    printed = float(V.subs(dict(zip(ref.q + ref.qd, y))))
+    assert printed == pytest.approx(ref.energies([0.0], [y])[1][0], abs=1e-9)
