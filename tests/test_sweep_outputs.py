@@ -173,8 +173,7 @@ HEYOKA = pytest.param("heyoka", 1e-8, marks=pytest.mark.skipif(
     __import__("importlib").util.find_spec("heyoka") is None, reason="needs heyoka"))
 
 
-@pytest.mark.parametrize("method, tol", [("dop853", 1e-8), ("RK45", 1e-7), ("Radau", 1e-7), ("LSODA", 1e-7),
-                                         ("DOP853", 1e-7), HEYOKA])
+@pytest.mark.parametrize("method, tol", [("dop853", 1e-8), ("RK45", 1e-7), ("Radau", 1e-7), ("LSODA", 1e-7), HEYOKA])
 def test_system1_pushed_scene_csv(tmp_path, method, tol):
     """`--scene pushed` (F = 2 from the scene), `--set` an expression and a velocity, `--dt` that
     does not divide `--t`: rows at the grid and at t_end, state, energies, points, reactions."""
@@ -480,7 +479,7 @@ needs_pdflatex = pytest.mark.skipif(shutil.which("pdflatex") is None, reason="ne
 
 
 @needs_pdflatex
-@pytest.mark.parametrize("args", [(SYSTEM1, "--reactions"), (SPRING,), (COUPLED,)], ids=["system1", "spring", "coupled"])
+@pytest.mark.parametrize("args", [(SYSTEM1, "--reactions"), (SPRING,)], ids=["system1", "spring"])
 def test_derive_latex_builds(tmp_path, args):
     tex = run_cli("derive", *args, "--format", "latex").output
     code, log = pdflatex(tmp_path, tex)
@@ -530,8 +529,8 @@ def gif_seconds(path):
 def test_animate_model_plays_in_real_time(tmp_path):
     pytest.importorskip("matplotlib")
     out = tmp_path / "motion.gif"
-    run_cli("animate", ROOT / "models" / "examples" / "cart_pole.yaml", "--t", "0.5", "--output", out)
-    assert gif_seconds(out) == pytest.approx(0.5, rel=0.1)
+    run_cli("animate", ROOT / "models" / "examples" / "cart_pole.yaml", "--t", "0.25", "--output", out)
+    assert gif_seconds(out) == pytest.approx(0.25, rel=0.1)
 
 
 def test_accuracy_reference_state(tmp_path):
@@ -675,3 +674,165 @@ def test_generated_numpy_module_of_a_closed_loop(tmp_path):
         out = np.asarray(mod.points(np.array([q, u]), param)).ravel()
         assert np.allclose(out[slots["piston.centre"]:slots["piston.centre"] + 2], [px, py], atol=1e-9)
         assert np.allclose(out[slots["rod.centre"]:slots["rod.centre"] + 2], [rx, ry], atol=1e-9)
+
+
+@pytest.mark.xfail(strict=True, reason="a coordinate named like an output column (total_energy) is accepted, and "
+                   "then the CSV header repeats 'total_energy' (kronsub/simulation/table.py CsvWriter) and the "
+                   "API's DataFrame overwrites the angle with the energy (kronsub/api.py to_dataframe)")
+def test_coordinate_named_like_a_column(tmp_path):
+    """Either the name is refused with a model error, or every output keeps the angle apart."""
+    from kronsub.errors import ModelError
+
+    path = SWEEP / "pendulum_named_like_columns.yaml"
+    try:
+        system = kronsub.load(path).derive()
+    except ModelError:
+        return
+    out = tmp_path / "run.csv"
+    run_cli("simulate", path, "--t", "0.2", "--dt", "0.1", "-o", out)
+    header = out.read_text().splitlines()[0].split(",")
+    assert len(header) == len(set(header)), header
+    frame = system.simulate(t=0.2, dt=0.1, dataframe=False)
+    angle = frame["total_energy"]
+    assert angle[0] == 0.5
+    pd = pytest.importorskip("pandas")
+    table = system.simulate(t=0.2, dt=0.1)
+    assert isinstance(table, pd.DataFrame)
+    assert any(np.allclose(table[c].to_numpy(), angle) for c in table.columns), table
+
+
+# ------------------------------------------------------------------------------------------
+# derive's Markdown read back: the named subexpressions (w1, ...) put back, every entry evaluated
+# ------------------------------------------------------------------------------------------
+
+def markdown_entries(text):
+    """``{"where": {w: expr}, "Mbar": rows, "fbar": rows, "hbar": rows, "T": expr, "V": expr}`` of
+    ``derive``'s Markdown, all as text."""
+    lines = text.splitlines()
+    out = {"where": {}}
+
+    def table_after(prefix):
+        start = next(i for i, line in enumerate(lines) if line.startswith(prefix))
+        rows, i = [], start + 1
+        while not lines[i].startswith("| **"):
+            i += 1
+        while i < len(lines) and lines[i].startswith("| **"):
+            rows.append(re.findall(r"`([^`]*)`", lines[i]))
+            i += 1
+        return rows
+
+    for line in lines:
+        m = re.match(r"- `(w\d+) = (.*)`$", line)
+        if m:
+            out["where"][m.group(1)] = m.group(2)
+    out["Mbar"] = table_after("Metric `Mbar")
+    out["fbar"] = [row[0] for row in table_after("Forces `fbar")]
+    out["hbar"] = [row[0] for row in table_after("Velocity terms `hbar")]
+    out["T"] = re.search(r"Kinetic energy \(24\): `T = (.*)`", text).group(1)
+    out["V"] = re.search(r"Potential energy: `V = (.*)`", text).group(1)
+    return out
+
+
+@lru_cache(maxsize=None)
+def coupled_reference():
+    """tests/models/sweep/coupled_spring_pendulums.yaml written by hand (as test_sweep_models.py's)."""
+    r1, q1, r2, q2 = q = list(sp.symbols("r1 q1 r2 q2"))
+    m, m2, d, e, kc, k, L0, c, cd, F0, w, g = sp.symbols("m m2 d e kc k L0 c cd F0 w g")
+    b1 = sp.Matrix([r1 * sp.sin(q1), -r1 * sp.cos(q1)])
+    b2 = sp.Matrix([d + r2 * sp.sin(q2), e - r2 * sp.cos(q2)])
+    qd = sp.Matrix(dots(q))
+    v1, v2 = b1.jacobian(q) * qd, b2.jacobian(q) * qd
+    T = m * v1.dot(v1) / 2 + m2 * v2.dot(v2) / 2
+    gap = b2 - b1
+    V = (g * (m * b1[1] + m2 * b2[1]) + k * (r1 - L0) ** 2 / 2 + (2 * k + 1) * (r2 - L0) ** 2 / 2
+         + kc * (sp.sqrt(gap.dot(gap)) - d) ** 2 / 2)
+    F1 = -cd * v1 + sp.Matrix([F0 * sp.sin(w * t), 0])
+    F2 = -cd * v2  # the right one's push is overridden to F0 = 0
+    Q = [F1.dot(b1.diff(a)) + F2.dot(b2.diff(a)) - c * qd[0] * int(a == r1) - c * qd[2] * int(a == r2) for a in q]
+    values = {**yaml_values(SPRING), **yaml_values(COUPLED)}  # `left` and `right` take spring_pendulum.yaml's
+    return Reference(q, T, V, Q, values)
+
+
+def yaml_values(path):
+    import yaml
+
+    data = yaml.safe_load(path.read_text())
+    return {name: float(sp.Rational(str(spec["value"]))) for name, spec in data["parameters"].items()}
+
+
+def test_derive_markdown_reads_back(tmp_path):
+    """Every printed entry, with its named subexpressions substituted, is the hand-derived one."""
+    text = run_cli("derive", COUPLED).output
+    md = markdown_entries(text)
+    assert md["where"], "expected named subexpressions in this model's Markdown"
+    ref = coupled_reference()
+    local = {s.name: s for s in ref.q + ref.qd}
+    local.update({name: sp.Symbol(name) for name in ref.values})
+    local["t"] = t
+    where = {}
+    for name, body in md["where"].items():
+        where[sp.Symbol(name)] = sp.parse_expr(body, local_dict={**local, **{k.name: k for k in where}})
+    local.update({k.name: k for k in where})
+
+    params = [sp.Symbol(k) for k in ref.values]
+    compiled = {}
+
+    def value(body, tt, y):
+        if body not in compiled:
+            expr = sp.parse_expr(body, local_dict=local)
+            for _ in range(len(where) + 1):
+                expr = expr.xreplace(where)
+            compiled[body] = sp.lambdify([t, *ref.q, *ref.qd, *params], expr, "math")
+        return float(compiled[body](tt, *y, *ref.values.values()))
+
+    rng = np.random.default_rng(7)
+    offsets = []
+    for _ in range(3):
+        y = rng.uniform(-2, 2, 8)
+        y[0], y[2] = rng.uniform(0.3, 2, 2)
+        tt = rng.uniform(0, 3)
+        assert np.allclose([[value(e, tt, y) for e in row] for row in md["Mbar"]], ref.M(tt, y), rtol=1e-12, atol=1e-12)
+        assert np.allclose([value(e, tt, y) for e in md["fbar"]], ref.f(tt, y), rtol=1e-12, atol=1e-12)
+        assert np.allclose([value(e, tt, y) for e in md["hbar"]], ref.h(tt, y), rtol=1e-12, atol=1e-12)
+        T, V = ref.energies([tt], [y])
+        assert value(md["T"], tt, y) == pytest.approx(T[0], rel=1e-12, abs=1e-12)
+        offsets.append(value(md["V"], tt, y) - V[0])
+    assert np.ptp(offsets) < 1e-10  # V up to a constant here; the constant: test_potential_of_a_placed_known_system
+
+
+@pytest.mark.xfail(strict=True, reason="a known system placed with `origin: [d, e]` keeps its own gravity potential: "
+                   "V misses m2 g e (0.7848 J here), though its mass centres move (docs/model-format.md) and gravity "
+                   "is V = -sum m g (d . centre); a pinned_rod with pivot_y = e gets it (kronsub/model/loader.py placed() "
+                   "shifts the points and bodies, not the known system's own effects' V)")
+def test_potential_of_a_placed_known_system():
+    """The printed V (derive's Markdown) at the initial state against the world's gravity and springs."""
+    md = markdown_entries(run_cli("derive", COUPLED).output)
+    ref = coupled_reference()
+    local = {s.name: s for s in ref.q + ref.qd}
+    local.update({name: sp.Symbol(name) for name in ref.values})
+    V = sp.parse_expr(md["V"], local_dict=local).subs({sp.Symbol(k): v for k, v in ref.values.items()})
+    y = [1.0, 0.3, 1.0, -0.2, 0.0, 0.0, 0.0, 0.0]  # the model's initial state
+    printed = float(V.subs(dict(zip(ref.q + ref.qd, y))))
+    assert printed == pytest.approx(ref.energies([0.0], [y])[1][0], abs=1e-9)
+
+@needs_pdflatex
+@pytest.mark.xfail(strict=True, reason="free text passes to LaTeX with its non-ASCII characters as they are "
+                   "(kronsub/emitters/escape.py latex_text): pdflatex stops at a Greek letter or a math sign "
+                   "('Unicode character θ (U+03B8) not set up for use with LaTeX'), so no PDF")
+def test_derive_latex_builds_with_unicode_free_text(tmp_path):
+    model = tmp_path / "pendel.yaml"
+    model.write_text(
+        'name: "Pendel, Winkel θ ≥ 0"\n'
+        "description: the angle θ from the downward vertical, ½ m L² ω²\n"
+        "parameters:\n"
+        "  m: {value: 1, unit: kg}\n"
+        "  L: {value: 1, unit: m}\n"
+        "  g: {value: 9.81, unit: m/s²}\n"
+        "components:\n"
+        "  rod: {type: pinned_rod, parameters: {mass: m, length: L}, coordinates: [theta]}\n"
+        "coordinates: [theta]\n"
+        "effects:\n"
+        "  gravity: {type: gravity, g: g}\n", encoding="utf-8")
+    tex = run_cli("derive", model, "--format", "latex").output
+    code, log = pdflatex(tmp_path, tex)
+    assert code == 0, log[-1500:]
