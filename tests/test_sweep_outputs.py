@@ -816,9 +816,6 @@ def test_potential_of_a_placed_known_system():
     assert printed == pytest.approx(ref.energies([0.0], [y])[1][0], abs=1e-9)
 
 @needs_pdflatex
-@pytest.mark.xfail(strict=True, reason="free text passes to LaTeX with its non-ASCII characters as they are "
-                   "(kronsub/emitters/escape.py latex_text): pdflatex stops at a Greek letter or a math sign "
-                   "('Unicode character θ (U+03B8) not set up for use with LaTeX'), so no PDF")
 def test_derive_latex_builds_with_unicode_free_text(tmp_path):
     model = tmp_path / "pendel.yaml"
     model.write_text(

@@ -104,7 +104,45 @@ _LATEX = {
     "_": r"\_", "^": r"\textasciicircum{}", "~": r"\textasciitilde{}", "<": r"\textless{}",
     ">": r"\textgreater{}", "|": r"\textbar{}",
 }
-LATEX_ESCAPES = frozenset(_LATEX.values())
+_GREEK_COMMANDS = {"alpha", "beta", "gamma", "delta", "epsilon", "zeta", "eta", "theta", "iota", "kappa",
+                   "lambda", "mu", "nu", "xi", "pi", "rho", "sigma", "tau", "upsilon", "phi", "chi", "psi",
+                   "omega", "Gamma", "Delta", "Theta", "Lambda", "Xi", "Pi", "Sigma", "Upsilon", "Phi", "Psi",
+                   "Omega"}
+
+
+def _greek() -> dict[str, str]:
+    """Greek letters as math commands (``θ`` -> ``\\ensuremath{\\theta}``); a capital with no
+    command of its own as its Latin twin (``Α`` -> ``A``)."""
+    out = {}
+    for code in range(0x391, 0x3CA):
+        name = unicodedata.name(chr(code), "")
+        if not name.startswith("GREEK ") or " LETTER " not in name:
+            continue
+        word = name.split(" LETTER ")[1].lower().replace("lamda", "lambda")
+        if word == "final sigma":
+            out[chr(code)] = r"\ensuremath{\varsigma}"
+            continue
+        command = word.capitalize() if "CAPITAL" in name else word
+        if command in _GREEK_COMMANDS:
+            out[chr(code)] = rf"\ensuremath{{\{command}}}"
+        elif word == "omicron":
+            out[chr(code)] = "O" if "CAPITAL" in name else "o"
+        elif "CAPITAL" in name:
+            out[chr(code)] = unicodedata.lookup(f"LATIN CAPITAL LETTER {_LATIN_TWIN.get(word, 'X')}") \
+                if word in _LATIN_TWIN else "?"
+    return out
+
+
+_LATIN_TWIN = {"alpha": "A", "beta": "B", "epsilon": "E", "zeta": "Z", "eta": "H", "iota": "I", "kappa": "K",
+               "mu": "M", "nu": "N", "rho": "P", "tau": "T", "chi": "X"}
+_BEYOND_LATIN1 = {**_greek(), "\u2264": r"\ensuremath{\leq}", "\u2265": r"\ensuremath{\geq}",
+                  "\u2260": r"\ensuremath{\neq}", "\u2248": r"\ensuremath{\approx}",
+                  "\u221e": r"\ensuremath{\infty}", "\u2192": r"\ensuremath{\to}", "\u2212": "-",
+                  "\u2013": "--", "\u2014": "---", "\u2018": "`", "\u2019": "'", "\u201c": "``",
+                  "\u201d": "''", "\u201e": ",,", "\u201a": ",", "\u2026": "...", "\u2032": "'"}
+"""Characters past Latin-1 that pdflatex's default setup cannot print, as what it can; any
+other one prints as ``[U+XXXX]``."""
+LATEX_ESCAPES = frozenset(_LATEX.values()) | frozenset(v for v in _BEYOND_LATIN1.values() if v.startswith("\\"))
 """Everything :func:`latex_text` writes that starts with a backslash."""
 
 
@@ -119,10 +157,12 @@ def latex_text(text: str) -> str:
     for ch in str(text):
         if ch in _LATEX:
             out.append(_LATEX[ch])
-        elif _visible(ch):
-            out.append(ch)
-        else:
+        elif not _visible(ch):
             out.append(" ")
+        elif ord(ch) <= 0xFF:
+            out.append(ch)
+        else:  # past Latin-1: what pdflatex can print (a Greek letter once stopped the build)
+            out.append(_BEYOND_LATIN1.get(ch, f"[U+{ord(ch):04X}]"))
     return "".join(out)
 
 
