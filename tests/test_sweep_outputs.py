@@ -676,9 +676,6 @@ def test_generated_numpy_module_of_a_closed_loop(tmp_path):
         assert np.allclose(out[slots["rod.centre"]:slots["rod.centre"] + 2], [rx, ry], atol=1e-9)
 
 
-@pytest.mark.xfail(strict=True, reason="a coordinate named like an output column (total_energy) is accepted, and "
-                   "then the CSV header repeats 'total_energy' (kronsub/simulation/table.py CsvWriter) and the "
-                   "API's DataFrame overwrites the angle with the energy (kronsub/api.py to_dataframe)")
 def test_coordinate_named_like_a_column(tmp_path):
     """Either the name is refused with a model error, or every output keeps the angle apart."""
     from kronsub.errors import ModelError

@@ -34,6 +34,9 @@ TOP_LEVEL = ("name", "description", "parameters", "components", "coordinates", "
 _UNKNOWN_NAME = re.compile(r"unknown name '([^']+)'")
 IDENTIFIER = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")  # whole names only: fullmatch
 RESERVED = {"t", "pi"}
+OUTPUT_COLUMNS = ("kinetic_energy", "potential_energy", "total_energy")
+"""Columns of a trajectory beside the state (``kronsub/simulation/table.py``): a coordinate of
+one of these names would be written twice and lost from the DataFrame."""
 
 
 def load_model(path, *, text: str | None = None, cache: bool = True, _stack: tuple[str, ...] = ()) -> Model:
@@ -225,6 +228,10 @@ class _Loader:
             return False
         if name in RESERVED:
             self.error(loc, f"{what} name '{name}' is reserved", "'t' is time and 'pi' is the constant")
+            return False
+        if what == "coordinate" and name in OUTPUT_COLUMNS:
+            self.error(loc, f"{what} name '{name}' is the name of a column `simulate` writes",
+                       f"rename it: beside the state, the trajectory has the columns {', '.join(OUTPUT_COLUMNS)}")
             return False
         return True
 
