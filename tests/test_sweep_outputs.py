@@ -162,8 +162,10 @@ def system1_reactions(ref, times, Y):
     for tt, y in zip(times, Y):
         th, ph, thd, phd = y
         thdd, phdd = ref.rhs(tt, y)[2:]
-        ydd = 2 * v["a1"] * (np.cos(th) * thdd - np.sin(th) * thd ** 2) + v["a2"] * (np.cos(ph) * phdd - np.sin(ph) * phd ** 2)
-        zdd = 2 * v["a1"] * (np.sin(th) * thdd + np.cos(th) * thd ** 2) + v["a2"] * (np.sin(ph) * phdd + np.cos(ph) * phd ** 2)
+        ydd = (2 * v["a1"] * (np.cos(th) * thdd - np.sin(th) * thd ** 2)
+               + v["a2"] * (np.cos(ph) * phdd - np.sin(ph) * phd ** 2))
+        zdd = (2 * v["a1"] * (np.sin(th) * thdd + np.cos(th) * thd ** 2)
+               + v["a2"] * (np.sin(ph) * phdd + np.cos(ph) * phd ** 2))
         rows.append([(v["I1"] + v["m1"] * v["a1"] ** 2) * thdd + v["m1"] * v["g"] * v["a1"] * np.sin(th),
                      v["m2"] * ydd - v["F"], v["m2"] * zdd + v["m2"] * v["g"], v["I2"] * phdd])
     return np.array(rows)
@@ -492,13 +494,15 @@ def test_derive_latex_builds(tmp_path, args):
 
 def overfull_lines(log):
     """Source lines of the overfull boxes pdflatex reports."""
-    return [int(m) for m in re.findall(r"Overfull \\hbox \(.*?too wide\) (?:detected at line|in paragraph at lines) (\d+)", log)]
+    pattern = r"Overfull \\hbox \(.*?too wide\) (?:detected at line|in paragraph at lines) (\d+)"
+    return [int(m) for m in re.findall(pattern, log)]
 
 
 @needs_pdflatex
 @pytest.mark.xfail(strict=True, reason="the Reactions section of `derive --format latex --reactions` is one "
                    "unbroken align* line per reaction (kronsub/emitters/reactions.py, no latex_layout): it runs "
-                   "1320 pt off the page here; the 3-D box's 11 716-character line stops pdflatex (Dimension too large)")
+                   "1320 pt off the page here; the 3-D box's 11 716-character line stops pdflatex "
+                   "(Dimension too large)")
 def test_derive_latex_reactions_stay_on_the_page(tmp_path):
     tex = run_cli("derive", COUPLED, "--format", "latex", "--reactions").output
     code, _ = pdflatex(tmp_path, tex)
@@ -536,9 +540,9 @@ def gif_seconds(path):
 
 
 @pytest.mark.xfail(strict=True, reason="`kronsub animate MODEL` with its own defaults (--dt 0.02, --fps 30) draws "
-                   "every 2nd row (0.04 s of motion) per 1/30 s frame: 1 s of motion plays in 0.78 s (a CSV at --dt 0.01 plays in 1.02 s), not in real "
-                   "time as the README says (kronsub/simulation/animate.py frame_rows rounds the stride, the "
-                   "frame rate stays --fps)")
+                   "every 2nd row (0.04 s of motion) per 1/30 s frame: 1 s of motion plays in 0.78 s (a CSV "
+                   "at --dt 0.01 plays in 1.02 s), not in real time as the README says "
+                   "(kronsub/simulation/animate.py frame_rows rounds the stride, the frame rate stays --fps)")
 def test_animate_model_plays_in_real_time(tmp_path):
     pytest.importorskip("matplotlib")
     out = tmp_path / "motion.gif"
@@ -820,7 +824,8 @@ def test_derive_markdown_reads_back(tmp_path):
 
 @pytest.mark.xfail(strict=True, reason="a known system placed with `origin: [d, e]` keeps its own gravity potential: "
                    "V misses m2 g e (0.7848 J here), though its mass centres move (docs/model-format.md) and gravity "
-                   "is V = -sum m g (d . centre); a pinned_rod with pivot_y = e gets it (kronsub/model/loader.py placed() "
+                   "is V = -sum m g (d . centre); a pinned_rod with pivot_y = e gets it "
+                   "(kronsub/model/loader.py placed() "
                    "shifts the points and bodies, not the known system's own effects' V)")
 def test_potential_of_a_placed_known_system():
     """The printed V (derive's Markdown) at the initial state against the world's gravity and springs."""
