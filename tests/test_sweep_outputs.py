@@ -162,8 +162,10 @@ def system1_reactions(ref, times, Y):
     for tt, y in zip(times, Y):
         th, ph, thd, phd = y
         thdd, phdd = ref.rhs(tt, y)[2:]
-        ydd = 2 * v["a1"] * (np.cos(th) * thdd - np.sin(th) * thd ** 2) + v["a2"] * (np.cos(ph) * phdd - np.sin(ph) * phd ** 2)
-        zdd = 2 * v["a1"] * (np.sin(th) * thdd + np.cos(th) * thd ** 2) + v["a2"] * (np.sin(ph) * phdd + np.cos(ph) * phd ** 2)
+        ydd = (2 * v["a1"] * (np.cos(th) * thdd - np.sin(th) * thd ** 2)
+               + v["a2"] * (np.cos(ph) * phdd - np.sin(ph) * phd ** 2))
+        zdd = (2 * v["a1"] * (np.sin(th) * thdd + np.cos(th) * thd ** 2)
+               + v["a2"] * (np.sin(ph) * phdd + np.cos(ph) * phd ** 2))
         rows.append([(v["I1"] + v["m1"] * v["a1"] ** 2) * thdd + v["m1"] * v["g"] * v["a1"] * np.sin(th),
                      v["m2"] * ydd - v["F"], v["m2"] * zdd + v["m2"] * v["g"], v["I2"] * phdd])
     return np.array(rows)
@@ -489,7 +491,8 @@ def test_derive_latex_builds(tmp_path, args):
 
 def overfull_lines(log):
     """Source lines of the overfull boxes pdflatex reports."""
-    return [int(m) for m in re.findall(r"Overfull \\hbox \(.*?too wide\) (?:detected at line|in paragraph at lines) (\d+)", log)]
+    pattern = r"Overfull \\hbox \(.*?too wide\) (?:detected at line|in paragraph at lines) (\d+)"
+    return [int(m) for m in re.findall(pattern, log)]
 
 
 @needs_pdflatex
@@ -799,7 +802,8 @@ def test_derive_markdown_reads_back(tmp_path):
 
 @pytest.mark.xfail(strict=True, reason="a known system placed with `origin: [d, e]` keeps its own gravity potential: "
                    "V misses m2 g e (0.7848 J here), though its mass centres move (docs/model-format.md) and gravity "
-                   "is V = -sum m g (d . centre); a pinned_rod with pivot_y = e gets it (kronsub/model/loader.py placed() "
+                   "is V = -sum m g (d . centre); a pinned_rod with pivot_y = e gets it "
+                   "(kronsub/model/loader.py placed() "
                    "shifts the points and bodies, not the known system's own effects' V)")
 def test_potential_of_a_placed_known_system():
     """The printed V (derive's Markdown) at the initial state against the world's gravity and springs."""
@@ -830,3 +834,12 @@ def test_derive_latex_builds_with_unicode_free_text(tmp_path):
     tex = run_cli("derive", model, "--format", "latex").output
     code, log = pdflatex(tmp_path, tex)
     assert code == 0, log[-1500:]
+
+
+@pytest.mark.skipif(__import__("importlib").util.find_spec("heyoka") is None, reason="needs heyoka")
+def test_heyoka_on_the_spring_pendulum(tmp_path):
+    out = tmp_path / "run.csv"
+    run_cli("simulate", SPRING, "--t", "0.5", "--dt", "0.25", "--method", "heyoka", "-o", out)
+    tab = read_csv(out)
+    Y = spring_reference().trajectory([1.1, 0.6, 0.0, -0.4], tab["t"])
+    assert np.max(np.abs(np.column_stack([tab[n] for n in ("r", "q", "r_dot", "q_dot")]) - Y)) < 1e-8

@@ -55,6 +55,26 @@ def _float_rationals(expr: sympy.Expr) -> sympy.Expr:
     return expr.xreplace(swap) if swap else expr
 
 
+def _without_abs(hy, expr: sympy.Expr, names: dict) -> tuple[sympy.Expr, dict]:
+    """``expr`` and the names for ``hy.from_sympy`` with ``Abs(x)`` and ``sign(x)`` standing for
+    heyoka's ``sqrt(x**2)`` and ``x / sqrt(x**2)`` (heyoka has no ``abs``; a spring whose length
+    is a coordinate brings ``Abs``), innermost first."""
+    names = dict(names)
+    while True:
+        found = sorted(expr.atoms(sympy.Abs, sympy.sign), key=sympy.default_sort_key)
+        inner = [a for a in found if not a.args[0].has(sympy.Abs, sympy.sign)]
+        if not inner:
+            return expr, names
+        swap = {}
+        for k, atom in enumerate(inner):
+            x = hy.from_sympy(atom.args[0], names)
+            stand_in = sympy.Dummy(f"abs{len(names)}_{k}")
+            root = hy.sqrt(x * x)
+            names[stand_in] = root if isinstance(atom, sympy.Abs) else x / root
+            swap[atom] = stand_in
+        expr = expr.xreplace(swap)
+
+
 def ode(system: KnownSystem) -> list:
     """heyoka's ``[(y_i, ydot_i), ...]`` for ``y = [q; qdot]``, ``qddot = Mbar^-1 (fbar - hbar)``."""
     hy = _heyoka()
@@ -74,7 +94,7 @@ def ode(system: KnownSystem) -> list:
             raise KronsubError("heyoka backend: " + ", ".join(sorted(s.name for s in unknown))
                                + " is neither a parameter, a coordinate, a velocity nor t")
         try:
-            return hy.from_sympy(_float_rationals(expr), names)
+            return hy.from_sympy(*_without_abs(hy, _float_rationals(expr), names))
         except (TypeError, ValueError) as exc:
             raise KronsubError(f"heyoka backend cannot convert {expr}: {exc}") from None
 
