@@ -248,8 +248,9 @@ def _writable(path: Path | None, what: str) -> None:
 @click.option("--dt", type=float, default=None,
               help="Output interval (and step of fixed-step methods; default: the scene's, else 0.01).")
 @click.option("--method", default=None,
-              help="Default: the scene's, else dop853. dop853 (C, adaptive), gauss4 (C, symplectic, fixed step), RK45, DOP853, Radau, LSODA "
-                   "(scipy), heyoka (optional extra).")
+              help="Default: the scene's, else dop853. dop853 (C, adaptive), gauss4 (C, symplectic, fixed step), "
+                   "taylor (C, Taylor series, explicit equations only), RK45, DOP853, Radau, LSODA (scipy), "
+                   "heyoka (optional extra).")
 @click.option("--rtol", type=float, default=1e-10, show_default=True, help="Relative tolerance (adaptive methods).")
 @click.option("--atol", type=float, default=1e-10, show_default=True, help="Absolute tolerance (adaptive methods).")
 @click.option("--set", "settings", multiple=True, metavar="NAME=VALUE",
