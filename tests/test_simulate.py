@@ -233,3 +233,17 @@ def test_heyoka_method_agrees_with_dop853():
     ha, da = read_csv(a.stdout)
     hb, db = read_csv(b.stdout)
     assert ha == hb and np.allclose(da, db, rtol=1e-9, atol=1e-9)
+
+
+def test_a_start_outside_the_connections_domain_is_named(tmp_path):
+    """System II's (26) takes asin((c - a1 sin theta)/a2): with c = 0.9 it has no real value at the
+    start. The run says so, not "mass matrix singular" (its entries are NaN, not a singular matrix)."""
+    import shutil
+
+    for name in ("system1.yaml", "system2.yaml"):
+        shutil.copy(MODELS / "hoffmann" / name, tmp_path / name)
+    result = CliRunner().invoke(main, ["simulate", str(tmp_path / "system2.yaml"), "--set", "c=0.9", "--t", "0.1",
+                                       "-o", str(tmp_path / "run.csv")])
+    assert result.exit_code == 3, result.output
+    assert "no real value at this state" in result.output and "mass matrix singular" not in result.output
+    assert "theta=0.3" in result.output

@@ -697,7 +697,11 @@ def _native_blocks(run, native, method, grid, y0, param, rtol, atol, dt, chunks,
             last = t[keep][-1]
             yield t[keep], Y[keep]
         if result.status != 0:
-            message = result.message + (_where(system, result.y_fail) if result.status in (1, 2) else "")
+            message = result.message
+            if result.status in (1, 2) and not _real_at(native, t0, y, param):  # out of the domain at the start
+                message = ("the equations have no real value at this state (a square root, asin or acos of the "
+                           "connection outside its domain: check the initial values and the parameters)")
+            message += _where(system, result.y_fail) if result.status in (1, 2) else ""
             run.stop(message, result.t_fail, y_fail=result.y_fail)
             return
         y = Y[-1]
@@ -738,6 +742,17 @@ class _Cursor:
             if j < len(self.block):
                 break
         return np.concatenate(out) if out else np.empty(0)
+
+
+def _real_at(native, t: float, y, param) -> bool:
+    """Whether the energies have a real value at ``(t, y)`` (a connection through sqrt, asin or
+    acos has none outside its domain, where the mass matrix is NaN, not singular)."""
+    try:
+        with np.errstate(all="ignore"):
+            values = [native.kinetic_energy(y, param), native.potential_energy(t, y, param)]
+    except Exception:  # noqa: BLE001 - a model without energies, or one that fails otherwise: no verdict
+        return True
+    return bool(np.all(np.isfinite(values)))
 
 
 def _scipy_blocks(run, rhs, method, grid, y0, rtol, atol, chunks, bar, system, events=None):
