@@ -601,6 +601,7 @@ class _Loader:
                 self.error(item, f"a coordinate must be a name, found {_kind(item)}", "e.g. `coordinates: [theta, phi]`")
                 continue
             if not self.identifier(name, item.location, "coordinate"):
+                self.broken_names.update((name, f"{name}_dot"))  # reported once, not again where it is used
                 continue
             if name in self.parameters:
                 self.error(item, f"'{name}' is both a parameter and a coordinate", "rename one of them")
@@ -851,6 +852,8 @@ class _Loader:
         allowed = {q.name: q for q in coords}
         allowed.update({velocity_symbol(q).name: velocity_symbol(q) for q in coords})
         for key, vnode in self.mapping(node, "initial", "write `initial: {theta: 0.1, theta_dot: 0}`").items():
+            if key not in allowed and self.is_broken(key):
+                continue
             if key not in allowed:
                 self.error(node.key_locations[key], f"'{key}' is not a coordinate or velocity of this model",
                            close_matches(key, allowed))
