@@ -28,6 +28,7 @@ import sympy
 
 from ..core.constraints import Constraint, ConstraintFailure, NumericConstraints, closed_forms
 from ..errors import close_matches
+from .effects import zero_vector
 from .source import Node
 
 JOINTS = ("pin", "point_on_line", "slider")
@@ -204,20 +205,11 @@ def _point_on_line(loader, cname, node, primitive, names):
                      f"(one per world axis of its points), found {len(d)}",
                      "e.g. `direction: [0, 1]` in the plane, `[0, 0, 1]` in space")
         return None
-    if _zero(loader, node.get("direction") or node, d, f"direction of point_on_line '{cname}'"):
+    if zero_vector(loader, node.get("direction") or node, d, f"direction of point_on_line '{cname}'", "[0, 1]"):
         return None
     p, q, d = _pad(p, dim), _pad(q, dim), _unit(d)
     v = tuple(a - b for a, b in zip(p, q))
     return _named(cname, _on_line(v, d, _values(loader)), f"point_on_line: {_text(node.get('point'))}")
-
-
-def _zero(loader, node, d, what: str) -> bool:
-    """Whether the direction ``d`` is the zero vector (reported at ``node``)."""
-    if not sympy.Add(*[c**2 for c in d]).is_zero:
-        return False
-    loader.error(node, f"{what} is the zero vector, which points nowhere",
-                 "give a direction with a nonzero entry, e.g. `[0, 1]` (its length does not matter)")
-    return True
 
 
 def _slider(loader, cname, node, primitive, names):
@@ -247,7 +239,7 @@ def _slider(loader, cname, node, primitive, names):
          if node.get("direction") is not None else (one,) + (zero,) * (dim - 1))
     if p is None or through is None or d is None:
         return None
-    if _zero(loader, node.get("direction"), d, f"direction of slider '{cname}'"):
+    if zero_vector(loader, node.get("direction"), d, f"direction of slider '{cname}'", "[0, 1]"):
         return None
     for what, vec in (("through", through), ("direction", d)):
         if len(vec) != dim:

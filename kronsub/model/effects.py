@@ -28,14 +28,20 @@ def _vector(loader, node: Node, what: str):
     return None if any(v is None for v in values) else tuple(values)
 
 
+def zero_vector(loader, node: Node, d, what: str, example: str = "[0, -1]") -> bool:
+    """Whether the direction ``d`` is the zero vector, which is reported at ``node`` (a direction
+    is divided by its length: the zero one gave NaN forces or constraints)."""
+    if not sympy.Add(*[c**2 for c in d]).is_zero:
+        return False
+    loader.error(node, f"{what} is the zero vector, which points nowhere",
+                 f"give a direction with a nonzero entry, e.g. `{example}` (its length does not matter)")
+    return True
+
+
 def _direction(loader, node: Node, what: str):
-    """A direction: a vector that is not zero (it is divided by its length)."""
+    """A direction: a vector that is not zero."""
     d = _vector(loader, node, what)
-    if d is not None and sympy.Add(*[c**2 for c in d]).is_zero:
-        loader.error(node, f"{what} is the zero vector, which points nowhere",
-                     "give a direction with a nonzero entry, e.g. `[0, -1]` (its length does not matter)")
-        return None
-    return d
+    return None if d is None or zero_vector(loader, node, d, what) else d
 
 
 def _point(loader, node: Node, primitive, ename: str):

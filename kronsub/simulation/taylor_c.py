@@ -59,6 +59,14 @@ def order_for(tol: float) -> int:
     return min(MAX_ORDER, max(MIN_ORDER, math.ceil(-0.5 * math.log(tol)) + 1))
 
 
+def _ldl_substitution(n: int, x) -> list[str]:
+    """``x`` <- ``Mbar^-1 x`` by the factors ``L`` (``L{a}_{b}``) and ``1/D`` (``R{a}``) of
+    ``Mbar = L D L^T``: forward substitution, scaling, back substitution; ``x(a)`` names entry a."""
+    lines = [f"{x(a)} -= L{a}_{b} * {x(b)};" for a in range(n) for b in range(a)]
+    lines += [f"{x(a)} *= R{a};" for a in range(n)]
+    return lines + [f"{x(a)} -= L{b}_{a} * {x(b)};" for a in reversed(range(n)) for b in range(a + 1, n)]
+
+
 def _literal(value) -> str:
     with mpmath.workdps(40):
         text = mpmath.nstr(mpmath.mpf(value), 36, min_fixed=-1, max_fixed=1, strip_zeros=False)
@@ -342,14 +350,7 @@ class _Emitter:
                     if self.var[m] and k != 0:
                         terms.append(f"({self.conv(self.name(m), f'X{b}', 1, k, k)})")
                 lines.append(f"X{a}[{k}] = {' - '.join(terms)};")
-            for a in range(n):
-                for b in range(a):
-                    lines.append(f"X{a}[{k}] -= L{a}_{b} * X{b}[{k}];")
-            for a in range(n):
-                lines.append(f"X{a}[{k}] *= R{a};")
-            for a in reversed(range(n)):
-                for b in range(a + 1, n):
-                    lines.append(f"X{a}[{k}] -= L{b}_{a} * X{b}[{k}];")
+            lines += _ldl_substitution(n, lambda a: f"X{a}[{k}]")
             inv = _literal(mpmath.mpf(1) / (k + 1)) if isinstance(k, int) else "ks_inv[k + 1]"
             k1 = k + 1 if isinstance(k, int) else "k + 1"
             for a in range(n):
@@ -370,14 +371,7 @@ class _Emitter:
             terms = [self.lo(self.r[a]) or "0.0"] + [f"{self.lo(self.M[a][b])} * X{b}[0]"
                                                     for b in range(n) if self.var[self.M[a][b]]]
             lows.append(f"EX{a} = {' - '.join(terms)} + ({residual});")
-        for a in range(n):
-            for b in range(a):
-                lows.append(f"EX{a} -= L{a}_{b} * EX{b};")
-        for a in range(n):
-            lows.append(f"EX{a} *= R{a};")
-        for a in reversed(range(n)):
-            for b in range(a + 1, n):
-                lows.append(f"EX{a} -= L{b}_{a} * EX{b};")
+        lows += _ldl_substitution(n, lambda a: f"EX{a}")
         lo_name = re.compile(r"\b(?:e\d+|eS\d+|eC\d+)\b")
         while True:  # only the changes something reads
             read = {x for line in lows for x in lo_name.findall(line.split("=", 1)[1])}
