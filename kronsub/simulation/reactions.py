@@ -10,10 +10,23 @@ from ..core.symbols import acceleration_symbol
 
 def reaction_columns(system, traj, param, module, constrained=None) -> tuple[list[str], np.ndarray]:
     """Names and values: the accelerations from the generated right-hand side at each row, then
-    the reaction expressions (with the intermediates from Newton's method on implicit systems)."""
+    the reaction expressions (with the intermediates from Newton's method on implicit systems).
+
+    A run of ``coordinates: auto`` is evaluated stretch by stretch with the choice of
+    independent coordinates that computed it (``traj.segments``): the multipliers do not depend
+    on the choice, but the first choice's expressions are singular at its toggle position."""
+    if traj.segments:
+        return _switched_columns(traj, param)
+    names, fn = _reaction_function(system, param)
+    if constrained is not None and traj.dependent is not None and len(traj.dependent):
+        constrained.guess = np.array(traj.dependent[0], dtype=float)
+    return names, _rows(system, fn, len(names), traj.t, traj.y, param, module, constrained)
+
+
+def _reaction_function(system, param):
+    """The reactions' names and one function of (state, accelerations, intermediates, t)."""
     items = reactions(system)
     values = {p.symbol: float(v) for p, v in zip(system.parameters, param)}
-    n = len(system.coordinates)
     inter = list(system.implicit.intermediates) if system.implicit is not None else []
     args = (list(system.coordinates) + list(system.velocities) + [acceleration_symbol(q) for q in system.coordinates]
             + inter + [sympy.Symbol("t", real=True)])
@@ -26,19 +39,48 @@ def reaction_columns(system, traj, param, module, constrained=None) -> tuple[lis
             flat = parts(*a)
             return np.linalg.solve(np.array(flat[:k * k], dtype=float).reshape(k, k), np.array(flat[k * k:], dtype=float))
 
-        items = [(name, None) for name in items.names]
-    else:
-        fn = sympy.lambdify(args, [sympy.sympify(e).xreplace(values) for _, e in items], "math")
+        return list(items.names), fn
+    return [name for name, _ in items], sympy.lambdify(args, [sympy.sympify(e).xreplace(values) for _, e in items],
+                                                       "math")
+
+
+def _rows(system, fn, k, times, states, param, module, constrained) -> np.ndarray:
+    """The reactions at each ``(t, [q; qdot])``; a row that fails stays NaN."""
+    n = len(system.coordinates)
+    inter = list(system.implicit.intermediates) if system.implicit is not None else []
     rows = []
-    if constrained is not None and traj.dependent is not None and len(traj.dependent):
-        constrained.guess = np.array(traj.dependent[0], dtype=float)
-    for t, y in zip(traj.t, traj.y):
+    for t, y in zip(times, states):
         try:
             if constrained is not None:
                 module["set_dependent"](constrained.guess)
             ydot = module["rhs"](t, y, param)
             w = constrained.at(y[:n], y[n:]) if constrained is not None else {}
             rows.append(fn(*y[:n], *y[n:], *ydot[n:], *[w[s] for s in inter], t))
-        except (ArithmeticError, ValueError, np.linalg.LinAlgError, Exception):  # a failed row stays NaN
-            rows.append([float("nan")] * len(items))
-    return [name for name, _ in items], np.array(rows, dtype=float).reshape(len(traj.t), len(items))
+        except Exception:  # noqa: BLE001 - a failed row stays NaN, whatever failed in it
+            rows.append([float("nan")] * k)
+    return np.array(rows, dtype=float).reshape(len(times), k)
+
+
+def _switched_columns(traj, param) -> tuple[list[str], np.ndarray]:
+    """The rows of each stretch with its own choice's system, module and Newton's method, started
+    from the configuration the run recorded at the stretch's first row."""
+    from .run import _numpy_module
+
+    first = traj.segments[0][2]
+    n1 = len(first.independent_idx)
+    done: dict[int, tuple] = {}
+    names, out = None, np.full((len(traj.t), 0), np.nan)
+    for start, stop, split, own in traj.segments:
+        if id(split) not in done:
+            done[id(split)] = (*_reaction_function(split.system, param), _numpy_module(split.system))
+        split_names, fn, module = done[id(split)]
+        if names is None:
+            names, out = split_names, np.full((len(traj.t), len(split_names)), np.nan)
+        if stop == start:
+            continue
+        y = np.empty(len(first.y))
+        y[first.independent_idx] = traj.y[start, :n1]
+        y[first.dependent_idx] = traj.dependent[start]
+        split.evaluator.guess = np.array(y[split.dependent_idx], dtype=float)
+        out[start:stop] = _rows(split.system, fn, len(names), traj.t[start:stop], own, param, module, split.evaluator)
+    return names or [], out

@@ -78,6 +78,10 @@ class Trajectory:
     energies: tuple[np.ndarray, np.ndarray] | None = None  # (T, V) per row, when computed in C
     y_fail: np.ndarray | None = None  # the state at which the right-hand side failed, when known
     dependent: np.ndarray | None = None  # implicit constraints: the dependent coordinates per row
+    switches: list = field(default_factory=list)  # coordinates: auto: (t, what) per switch
+    # coordinates: auto: (first row, end row, split, its own rows [q; qdot] in its own layout) per
+    # stretch of rows computed with one choice of independent coordinates (switching.Split)
+    segments: list | None = None
 
 
 def _numpy_module(system: KnownSystem, outputs=None):
@@ -138,6 +142,8 @@ class Block:
     y: np.ndarray
     energies: tuple[np.ndarray, np.ndarray] | None = None
     dependent: np.ndarray | None = None  # implicit constraints: the dependent coordinates per row
+    split: object | None = None  # coordinates: auto: the choice (switching.Split) that computed these rows
+    own: np.ndarray | None = None  # ... and the rows in its own layout (the first choice's are in ``y``)
 
 
 @dataclass
@@ -187,8 +193,14 @@ def collect(run: Run, blocks: list[Block], nq: int) -> Trajectory:
         energies = (np.concatenate([b.energies[0] for b in blocks]), np.concatenate([b.energies[1] for b in blocks]))
     if blocks and all(b.dependent is not None for b in blocks):
         dependent = np.concatenate([b.dependent for b in blocks])
+    segments = None
+    if blocks and all(b.split is not None for b in blocks):
+        segments, start = [], 0
+        for b in blocks:
+            segments.append((start, start + len(b.t), b.split, b.own))
+            start += len(b.t)
     return Trajectory(t, y, run.method, run.complete, run.message, run.t_fail, run.stats, run.backend, energies,
-                      run.y_fail, dependent)
+                      run.y_fail, dependent, list(run.switches), segments)
 
 
 def explicit_only(system: KnownSystem, method: str) -> None:
@@ -346,7 +358,8 @@ def _auto_blocks(run, system, spec, native, constrained, grid, y0, param, rtol, 
                 if with_energies:
                     energies = (native.energies(t[:cut], Y[:cut], param) if native is not None else
                                 _module_energies(module, t[:cut], Y[:cut], param))
-                yield Block(np.asarray(t[:cut]), np.array(out), energies, np.array(dependent))
+                yield Block(np.asarray(t[:cut]), np.array(out), energies, np.array(dependent), split,
+                            np.array(Y[:cut], dtype=float))
                 if switch is not None:
                     rows.close()
                     break

@@ -314,5 +314,5 @@ def trajectory_csv(system: KnownSystem, model_path: str, traj: Trajectory, value
                        extra_columns=tuple(names), **run_info)
     if len(traj.t):
         writer.block(Block(traj.t, traj.y, traj.energies, traj.dependent), data)
-    writer.end(traj.stats, traj.complete, traj.t_fail, traj.message)
+    writer.end(traj.stats, traj.complete, traj.t_fail, traj.message, traj.switches)
     return out.getvalue(), writer.metadata()
