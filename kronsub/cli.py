@@ -350,7 +350,7 @@ def simulate(model: Path, t_end: float | None, dt: float | None, method: str | N
             with atomic_file(output) as fh:
                 writer = stream(fh)
             where = str(output)
-            click.echo(f"wrote {output} ({writer.rows} rows)", err=True)
+            click.echo(f"wrote {output} ({_rows(writer.rows)})", err=True)
         else:
             writer = stream(sys.stdout)
             if writer.reader_gone:  # nothing more goes to standard output
@@ -371,9 +371,9 @@ def simulate(model: Path, t_end: float | None, dt: float | None, method: str | N
             click.echo(f"note: coordinates: auto switched at {what}", err=True)
         if writer.reader_gone:
             _fail(f"Stopped after t = {writer.last_t!r}: the reader of {where} closed it after "
-                  f"{writer.rows} rows{marked}", INTERRUPTED)
+                  f"{_rows(writer.rows)}{marked}", INTERRUPTED)
         if writer.stopped:
-            _fail(f"Interrupted after t = {writer.last_t!r}: the {writer.rows} rows computed so far are kept "
+            _fail(f"Interrupted after t = {writer.last_t!r}: the {_rows(writer.rows)} computed so far are kept "
                   f"in {where}{marked}", INTERRUPTED)
         if plot is not None:
             from .simulation.plot import plot_trajectory
@@ -383,10 +383,29 @@ def simulate(model: Path, t_end: float | None, dt: float | None, method: str | N
             click.echo(f"wrote {plot}", err=True)
         if not run.complete:
             _fail(f"Error: the run stopped at t = {run.t_fail:.6g}: {run.message}; "
-                  f"the {writer.rows} rows computed so far are kept in {where}{marked}",
-                  NUMERICAL_FAILURE)
+                  f"the {_rows(writer.rows)} computed so far are kept in {where}{marked}"
+                  + _constraint_hints(system, run, step), NUMERICAL_FAILURE)
 
     _run(job)
+
+
+def _rows(count: int) -> str:
+    return f"{count} row" if count == 1 else f"{count} rows"
+
+
+def _constraint_hints(system, run, step: float) -> str:
+    """Hints after a closed-loop run stopped: a fixed step too coarse for the mechanism, a toggle
+    position that another choice of independent coordinates passes."""
+    if system.implicit is None:
+        return ""
+    hints = []
+    if run.method in ("gauss4", "rk4"):
+        hints.append(f"{run.method} takes fixed steps of --dt {step:g}: a smaller --dt keeps each step "
+                     "within the mechanism's reach")
+    if "toggle position" in run.message and system.implicit.choice != "auto":
+        hints.append("`coordinates: auto` changes the independent coordinates where this choice's dg/dy_d "
+                     "goes singular, and the run goes on")
+    return "".join(f"\n  hint: {h}" for h in hints)
 
 
 @main.command()

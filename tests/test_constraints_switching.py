@@ -129,3 +129,21 @@ def test_reactions_across_switches_match_the_multipliers_of_the_run(auto_model, 
         assert abs(data[i, mu] - expected) <= 2e-3 * scale, (data[i, 0], data[i, mu], expected)
         checked += 1
     assert checked >= 70
+
+
+@pytest.mark.parametrize("method, dt, hints", [("gauss4", "0.1", ["gauss4 takes fixed steps of --dt 0.1"]),
+                                               ("dop853", "0.05", ["`coordinates: auto` changes"])])
+def test_a_stopped_closed_loop_run_says_what_would_go_on(auto_model, method, dt, hints, tmp_path):
+    """A fixed step that jumps past what the mechanism can reach points to --dt; a toggle position
+    of given coordinates points to `coordinates: auto`; a configuration that still solves is not
+    called unsolvable (the step from it is)."""
+    text = auto_model.read_text(encoding="utf-8").replace("coordinates: auto", "coordinates: [phi]")
+    auto_model.write_text(text, encoding="utf-8")
+    result = CliRunner().invoke(main, ["simulate", str(auto_model), "--t", "1.5", "--dt", dt, "--method", method,
+                                       "--set", "phi_dot=-15", "--set", "F=0", "-o", str(tmp_path / "run.csv")])
+    assert result.exit_code == 3, result.output
+    for hint in hints:
+        assert f"hint: {hint}" in result.output
+    if "could not be solved" in result.output:
+        assert "where they still have a solution" in result.output
+    assert "1 rows" not in result.output

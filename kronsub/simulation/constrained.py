@@ -164,7 +164,8 @@ def diagnose(system, evaluator: Intermediates, t: float, y, guess) -> str:
             kind = _toggle(evaluator, imp, y, guess) or "no solution of the constraints near the last one: "
         return f"{kind}{exc.message}; constraints {_names(imp)} at t = {t:.6g}, {where}"
     return (f"{_toggle(evaluator, imp, y, guess)}the constraints {_names(imp)} could not be solved in the "
-            f"generated code at t = {t:.6g}, {where}")
+            f"generated code at t = {t:.6g}, in a step from {where}, where they still have a solution: the "
+            "step reached configurations the mechanism cannot take")
 
 
 def _toggle(evaluator: Intermediates, imp, y, guess) -> str:
