@@ -118,3 +118,37 @@ def test_sines_and_cosines_are_the_objects_sympy_evaluates_to():
             continue  # the algebra keeps the first frequency positive
         assert sympy.srepr(algebra.trig_expr(COS, freq)) == sympy.srepr(sympy.cos(arg))
         assert sympy.srepr(algebra.trig_expr(SIN, freq)) == sympy.srepr(sympy.sin(arg))
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_the_join_count_is_a_lower_bound_of_count_ops(seed):
+    """`simplify._joins_exceed` lets `tidy` skip a large entry without counting it: it may say
+    "more than k" only where `count_ops` says so too."""
+    from kronsub.core.simplify import _joins_exceed
+
+    rng = random.Random(seed)
+    told = 0
+    for _ in range(60):
+        e = sympy.expand(_random_expr(rng)) if rng.random() < 0.5 else _random_expr(rng)
+        ops = sympy.count_ops(e)
+        for limit in (0, 1, 3, 8, 20, 40):
+            if _joins_exceed(e, limit):
+                told += 1
+                assert ops > limit, (e, ops, limit)
+    assert told > 30
+
+
+def test_kinetic_energy_is_the_expanded_quadratic_form(monkeypatch, tmp_path):
+    """``T`` is built entry by entry (and once per system): the very expression of expanding
+    ``qdot^T Mbar qdot / 2`` whole, on every bundled model."""
+    monkeypatch.setenv("KRONSUB_CACHE_DIR", str(tmp_path / "none"))
+    models = sorted(glob.glob("models/*/*.yaml") + glob.glob("tests/models/*.yaml"))
+    assert len(models) > 10
+    for path in models:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            system = kronsub.load(path).derive()
+        qd = sympy.Matrix(system.velocities)
+        whole = sympy.expand((qd.T * system.mass_matrix * qd)[0, 0] / 2)
+        assert sympy.srepr(system.kinetic_energy) == sympy.srepr(whole), path
+        assert system.kinetic_energy is system.kinetic_energy

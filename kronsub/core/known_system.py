@@ -93,9 +93,19 @@ class KnownSystem:
 
     @property
     def kinetic_energy(self) -> sympy.Expr:
-        """``T = 1/2 Mbar_ab qdot^a qdot^b`` (24)."""
-        qd = sympy.Matrix(self.velocities)
-        return sympy.expand((qd.T * self.mass_matrix * qd)[0, 0] / 2)
+        """``T = 1/2 Mbar_ab qdot^a qdot^b`` (24), expanded; computed once per system (the
+        entries of the upper triangle expanded one by one: the same sum as expanding the
+        whole product, without forming it)."""
+        cached = self.__dict__.get("_kinetic_energy")
+        if cached is None:
+            qd, M, n = self.velocities, self.mass_matrix, len(self.coordinates)
+            half = sympy.Rational(1, 2)
+            terms = [sympy.expand(half * (M[i, j] + M[j, i]) * qd[i] * qd[j]) if i != j
+                     else sympy.expand(half * M[i, i] * qd[i] ** 2)
+                     for i in range(n) for j in range(i, n) if M[i, j] != 0 or M[j, i] != 0]
+            cached = sympy.Add(*terms)
+            object.__setattr__(self, "_kinetic_energy", cached)  # a frozen system: derived data only
+        return cached
 
     def equations(self) -> list[sympy.Eq]:
         """``Mbar qddot + hbar = fbar``, one equation per coordinate."""

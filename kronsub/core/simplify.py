@@ -153,9 +153,24 @@ def _factor(expr: sympy.Expr) -> sympy.Expr:
 
 def _factored(expr: sympy.Expr) -> sympy.Expr:
     """``expr`` or, for a small one, its common factors pulled out if that is shorter."""
-    if sympy.count_ops(expr) > SMALL:
+    if _joins_exceed(expr, SMALL) or sympy.count_ops(expr) > SMALL:
         return expr
     return min((expr, sympy.factor_terms(expr)), key=_key)
+
+
+def _joins_exceed(expr: sympy.Expr, limit: int) -> bool:
+    """Whether the terms of the sums in ``expr`` (``k - 1`` joins for ``k`` terms, a lower
+    bound of ``count_ops``) exceed ``limit``: a large entry is told in a walk that stops early,
+    without counting every operation of it."""
+    joins, stack = 0, [expr]
+    while stack:
+        node = stack.pop()
+        if node.is_Add:
+            joins += len(node.args) - 1
+            if joins > limit:
+                return True
+        stack.extend(node.args)
+    return False
 
 
 TIE_OPS = 200

@@ -72,9 +72,8 @@ _PLAIN = ModelStrPrinter()
 
 def model_names(system: KnownSystem) -> frozenset[str]:
     """Every name the system's expressions may use: parameters, coordinates, velocities..."""
-    names = {p.name for p in system.parameters}
-    for e in (*system.mass_matrix, *system.velocity_terms, *system.forces, system.kinetic_energy,
-              system.potential_energy):
+    names = {p.name for p in system.parameters} | {q.name for q in (*system.coordinates, *system.velocities)}
+    for e in (*system.mass_matrix, *system.velocity_terms, *system.forces, system.potential_energy):  # T: M's, qdot's
         names.update(s.name for s in e.free_symbols)
     return frozenset(names)
 
@@ -171,12 +170,28 @@ def matrix_rows(matrix: sympy.Matrix, show: Printer) -> list[list[str]]:
     return [[show(matrix[i, j]) for j in range(matrix.cols)] for i in range(matrix.rows)]
 
 
+def _once(show: Printer) -> Printer:
+    """``show`` printing each distinct expression once (``Mbar``'s entries appear in both of its
+    triangles and again in the equations' parts)."""
+    printed: dict = {}
+
+    def once(expr):
+        key = (type(expr), expr)
+        text = printed.get(key)
+        if text is None:
+            text = printed[key] = show(expr)
+        return text
+
+    return once
+
+
 def build_report(system: KnownSystem, show: Printer, named: bool = True) -> dict:
     """The derivation as nested lists of printed strings, in a fixed order.
 
     With ``named``, subexpressions repeated across the projected system and the equations
     are printed once, in ``where`` (:func:`named_subexpressions`).
     """
+    show = _once(show)
     tr = system.transition
     n = len(system.coordinates)
     effects = list(system.effect_forces.items())
