@@ -115,7 +115,10 @@ def _guarded(atom: sympy.Expr) -> sympy.Expr:
     every double it holds on the stack (no vector register survives a call)."""
     products = _angle_sum(atom)
     kind = sympy.Integer(int(isinstance(atom, sympy.cos)))
-    return sympy.Piecewise((NearAxis(atom.args[0], kind, products), sympy.Abs(products) < GUARD), (products, True))
+    # built as written: sympy's evaluation of |products| < 1/8 asks the assumptions system about
+    # the sign of a sum of products, which can only say "unknown" (seconds for a 20-link chain)
+    near = sympy.StrictLessThan(sympy.Abs(products, evaluate=False), GUARD, evaluate=False)
+    return sympy.Piecewise((NearAxis(atom.args[0], kind, products), near), (products, True))
 
 
 def _single_angles(exprs: list[sympy.Expr], coordinates, guarded: bool = False) -> list[sympy.Expr]:
