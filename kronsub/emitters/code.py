@@ -10,6 +10,7 @@ from __future__ import annotations
 import re
 from dataclasses import dataclass
 
+import sympy
 from sympy import S
 from sympy.printing.c import C99CodePrinter
 from sympy.printing.numpy import NumPyPrinter
@@ -17,7 +18,7 @@ from sympy.printing.numpy import NumPyPrinter
 from .. import __version__
 from ..core.known_system import KnownSystem
 from .escape import Markup
-from .numeric import Block, NumericModel, identifier, prepare
+from .numeric import GUARD, Block, NumericModel, identifier, prepare
 from .text import _environment
 
 
@@ -36,9 +37,12 @@ class _CPrinter(C99CodePrinter):
         self.near_axis = False  # whether a guarded angle needs <prefix>_near_axis
 
     def _print_NearAxis(self, expr):
+        """A guarded angle (numeric.py) as one conditional expression on one line."""
         self.near_axis = True
-        angle, kind, product = expr.args
-        return f"{self.prefix}_near_axis({self._print(angle)}, {int(kind)}, {self._print(product)})"
+        angle, kind, product = expr.args[:3]
+        p = self._print(product)
+        below = self._print(sympy.StrictLessThan(sympy.Abs(product, evaluate=False), GUARD, evaluate=False))
+        return f"(({below}) ? ({self.prefix}_near_axis({self._print(angle)}, {int(kind)}, {p})) : ({p}))"
 
     _print_NumberSymbol = _print_Pi = _print_Exp1 = _print_EulerGamma = _print_GoldenRatio = \
         _print_Catalan = _print_TribonacciConstant = _number
@@ -53,7 +57,7 @@ class _CPrinter(C99CodePrinter):
         return super()._print_Pow(expr)
 
     def _print_Piecewise(self, expr):
-        """A guarded angle (numeric.py) as one conditional expression on one line."""
+        """A ``Piecewise`` with a default as nested conditional expressions on one line."""
         if expr.args[-1].cond is not S.true:
             return super()._print_Piecewise(expr)  # no default: sympy's printer says so
         parts = [(self._print(e), self._print(c)) for e, c in expr.args]
