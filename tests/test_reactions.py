@@ -12,6 +12,7 @@ from __future__ import annotations
 import json
 
 import numpy as np
+import pytest
 import sympy
 from click.testing import CliRunner
 
@@ -109,3 +110,30 @@ def test_alpha_and_beta_give_the_same_motion():
         _, mu = alpha(t, a.y[:, i * 5])
         printed = [beta[i * 5, col[f"mu_{c.name.replace('.', '_')}"]] for c in imp.constraints]
         assert np.allclose(mu, printed, rtol=1e-6, atol=1e-6), (mu, printed)
+
+
+def test_a_reaction_named_like_a_coordinate_gets_its_own_column(tmp_path):
+    """A coordinate called ``R_x`` beside a primitive ``x``: the CSV keeps one column per
+    quantity (the coordinate's is ``R_x``, the reaction's ``reaction_R_x``), and the reaction
+    is the rod's pull on the bob, towards O: ``m (g cos R_x + L R_x_dot^2) (-sin R_x, cos R_x)``."""
+    model = tmp_path / "bob.yaml"
+    model.write_text(
+        "name: bob on a massless rod\n"
+        "parameters:\n  m: {value: 1.5, unit: kg}\n  L: {value: 0.8, unit: m}\n  g: {value: 9.81, unit: m/s^2}\n"
+        "components:\n  bob: {type: particle2d, parameters: {mass: m}, coordinates: [x, y]}\n"
+        "coordinates: [R_x]\n"
+        "connection: {x: L*sin(R_x), y: -L*cos(R_x)}\n"
+        "effects:\n  gravity: {type: gravity, g: g}\n"
+        "initial: {R_x: 0.7, R_x_dot: 1.1}\n", encoding="utf-8")
+    result = CliRunner().invoke(main, ["simulate", str(model), "--t", "0.2", "--dt", "0.1", "--reactions"])
+    assert result.exit_code == 0, result.output
+    lines = [ln for ln in result.stdout.splitlines() if not ln.startswith("#")]
+    header = lines[0].split(",")
+    assert len(header) == len(set(header)) and "reaction_R_x" in header and "R_y" in header, header
+    col = {n: i for i, n in enumerate(header)}
+    for line in lines[1:]:
+        row = [float(v) for v in line.split(",")]
+        angle, rate = row[col["R_x"]], row[col["R_x_dot"]]
+        tension = 1.5 * (9.81 * np.cos(angle) + 0.8 * rate ** 2)  # the rod pulls the bob towards O
+        assert row[col["reaction_R_x"]] == pytest.approx(-tension * np.sin(angle), rel=1e-6)
+        assert row[col["R_y"]] == pytest.approx(tension * np.cos(angle), rel=1e-6)

@@ -132,6 +132,21 @@ def energies(system: KnownSystem, traj: Trajectory, param, outputs=None) -> tupl
     return _energies(_Module(system, outputs), Block(traj.t, traj.y), param)
 
 
+def _distinct(columns: list[str], extra) -> list[str]:
+    """The appended columns (the reactions), each renamed ``reaction_<name>`` (then numbered)
+    where the model's own columns already use its name: a coordinate ``R_x`` beside a primitive
+    ``x`` keeps its column, and the reaction ``R_x`` is ``reaction_R_x``."""
+    taken, out = set(columns), []
+    for name in extra:
+        new, k = name, 1
+        while new in taken:
+            new = f"reaction_{name}" if k == 1 else f"reaction_{name}_{k}"
+            k += 1
+        taken.add(new)
+        out.append(new)
+    return out
+
+
 def _point_names(module) -> list[str]:
     names = []
     for label, dim in module["POINTS"]:
@@ -174,7 +189,7 @@ class CsvWriter:
             columns += [d.name for d in system.implicit.dependent]
         if self.with_points:
             columns += _point_names(self.module)
-        columns += list(extra_columns)
+        columns += _distinct(columns, extra_columns)
         self.columns = columns
         self._meta = self._start_metadata(model_path, values, method, backend, rtol, atol, t_end, dt, scene,
                                           model_file)
