@@ -203,3 +203,25 @@ def test_tolerance_grid():
     assert A.parse_tolerances("1e-4:1e-10:3") == (1e-4, 1e-7, 1e-10)
     assert A.parse_tolerances("1e-6,1e-9") == (1e-6, 1e-9)
     assert A.quick_tolerances(A.parse_tolerances("1e-4:1e-14")) == (1e-4, 1e-7, 1e-10, 1e-13, 1e-14)
+
+
+def test_accuracy_uses_the_library_simulate_built(tmp_path, monkeypatch):
+    """The compiled model is looked up by its equations' fingerprint (simulation/compiled.py):
+    after a first build, accuracy's runners emit no C at all."""
+    import numpy as np
+
+    import kronsub.emitters.code as code
+    from kronsub.simulation.compiled import compiled_library
+
+    monkeypatch.setenv("KRONSUB_CACHE_DIR", str(tmp_path / "cache"))
+    system, values = loaded(MODELS / "examples" / "double_pendulum.yaml")
+    compiled_library(system)
+
+    def refuse(*args, **kwargs):
+        raise AssertionError("emit_c called again")
+
+    monkeypatch.setattr(code, "emit_c", refuse)
+    runners = A._Runners(system, np.array(values.parameters), np.array(values.y0), 0.5)
+    assert runners.native is not None and runners.compile_seconds < 5
+    y = runners.prepare("dop853", 1e-10)()[0]
+    assert np.all(np.isfinite(y)) and len(y) == len(values.y0)

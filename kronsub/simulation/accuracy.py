@@ -220,12 +220,11 @@ class _Runners:
         self.native = None
         self.compile_seconds = None
         self.skipped: dict[str, str] = {}
-        from ..emitters.code import emit_c
+        from .compiled import compiled_library
 
         t0 = time.perf_counter()
-        try:
-            generated = [(g.name, g.text) for g in emit_c(system, "model")]
-            library = native_module.compile_library(generated, "model")
+        try:  # the library simulate built, when the equations are the same (compiled.fingerprint)
+            library = compiled_library(system)
             self.native = native_module.NativeModel(library, len(system.coordinates), len(system.parameters))
             self.compile_seconds = time.perf_counter() - t0
         except native_module.CompilerNotFound as exc:
