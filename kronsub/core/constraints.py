@@ -229,6 +229,7 @@ def project_implicit(system: KnownSystem, independent, dependent, constraints, *
         description=system.description,
         implicit=implicit,
         effect_potentials=dict(system.effect_potentials),
+        effect_translations=dict(system.effect_translations),
     )
 
 

@@ -53,6 +53,7 @@ class ProjectedEffect:
     force: sympy.Matrix
     potential: sympy.Expr = sympy.Integer(0)
     direct: bool = False  # written in generalized coordinates: fbar formed in the subspace, f is zero
+    translation: tuple = ()  # dV/do under a translation o of the whole system (Effect.translation)
 
 
 @dataclass(frozen=True)
@@ -72,6 +73,7 @@ class KnownSystem:
     transition: Transition | None = None
     description: str = ""
     effect_potentials: Mapping[str, sympy.Expr] = field(default_factory=dict)  # V per effect
+    effect_translations: Mapping[str, tuple] = field(default_factory=dict)  # dV/do per effect of a world field
     implicit: object | None = None  # core.constraints.ImplicitSubspace: the named intermediates (26)-(29)
     initial: Mapping[sympy.Symbol, sympy.Expr] = field(default_factory=dict)  # the model's initial values
 

@@ -55,6 +55,7 @@ class Part:
     # constraints g(y) = 0 it carries (core.constraints.Constraint) and its branch (y_d values)
     constraints: tuple = ()
     branch: Mapping[sympy.Symbol, float] = field(default_factory=dict)
+    translations: Mapping[str, tuple] = field(default_factory=dict)  # ``dV/do`` per own effect (gravity's)
 
     @property
     def velocities(self) -> tuple[sympy.Symbol, ...]:

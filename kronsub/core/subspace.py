@@ -190,6 +190,7 @@ def assemble(inertia: KnownSystem, effects: Sequence[ProjectedEffect]) -> KnownS
         inertia,
         effect_forces={e.label: e.force for e in effects},
         effect_potentials={e.label: e.potential for e in effects},
+        effect_translations={e.label: e.translation for e in effects if e.translation},
         potential_energy=compact(algebra, algebra.from_expr(potential)),
         transition=transition,
     )
@@ -272,7 +273,8 @@ def project_effects(sub: Subspace, primitive: Primitive, effects, only=None) -> 
             else:
                 force = _projected(sub, full)
             out.append(ProjectedEffect(key, sympy.Matrix(full), force,
-                                       sub.moved(part.potentials.get(label, sympy.Integer(0)))))
+                                       sub.moved(part.potentials.get(label, sympy.Integer(0))),
+                                       translation=tuple(part.translations.get(label, ()))))
     generalized = _generalized_only(sub, primitive)
     for effect in effects:
         if only is not None and effect.name not in only:
@@ -283,9 +285,10 @@ def project_effects(sub: Subspace, primitive: Primitive, effects, only=None) -> 
             direct = effect.direct_force(primitive, sub.coords, sub.moved)  # written in xbar
         if direct is not None:
             out.append(ProjectedEffect(effect.name, sympy.zeros(len(sub.x), 1), sympy.Matrix(direct),
-                                       sub.moved(V), direct=True))
+                                       sub.moved(V), direct=True, translation=effect.translation(primitive)))
             continue
-        out.append(ProjectedEffect(effect.name, sympy.Matrix(f), _projected(sub, f), sub.moved(V)))
+        out.append(ProjectedEffect(effect.name, sympy.Matrix(f), _projected(sub, f), sub.moved(V),
+                                   translation=effect.translation(primitive)))
     return out
 
 

@@ -25,6 +25,12 @@ class Effect:
         """``V(x)``; zero for non-conservative effects."""
         return sympy.Integer(0)
 
+    def translation(self, primitive: Primitive) -> tuple[sympy.Expr, ...]:
+        """``dV/do``, the change of ``V`` per unit of a translation ``o`` of the whole system
+        with everything of it (its points, bodies, anchors): nonzero only for a field fixed in
+        the world, gravity (a known system placed with ``origin:`` carries it, ``placed``)."""
+        return ()
+
     def generalized_force(self, primitive: Primitive) -> list[sympy.Expr]:
         """``f_a`` over the primitive coordinates (default: ``-dV/dx^a``)."""
         return [-g for g in primitive.gradient(self.potential(primitive))]

@@ -27,3 +27,14 @@ class Gravity(Effect):
                 if body.mass != 0:
                     total -= body.mass * self.g * dot(unit, body.centre)
         return sympy.expand(total)
+
+    def translation(self, primitive):
+        """``dV/do = -g sum m d``: the weight of the bodies it acts on, against ``d``."""
+        total: list = []
+        for name, direction in self.parts:
+            norm = sympy.sqrt(sum(c**2 for c in direction))
+            mass = sympy.Add(*[b.mass for b in primitive.part(name).bodies])
+            total += [sympy.Integer(0)] * (len(direction) - len(total))
+            for i, c in enumerate(direction):
+                total[i] -= mass * self.g * c / norm
+        return tuple(sympy.expand(t) for t in total)

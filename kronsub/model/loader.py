@@ -903,7 +903,8 @@ def known_system_part(name: str, system: KnownSystem, overrides: dict, renames: 
     if not sub:
         return Part(name, coordinates, metric, velocity_terms, dict(system.points), tuple(system.bodies),
                     system.dimension, forces, system.potential_energy, "", dict(system.effect_potentials),
-                    tuple(Constraint(f"{name}.{c.name}", c.expression, c.source) for c in constraints), branch)
+                    tuple(Constraint(f"{name}.{c.name}", c.expression, c.source) for c in constraints), branch,
+                    dict(system.effect_translations))
 
     def s(e):
         return sympy.sympify(e).xreplace(sub)
@@ -927,12 +928,15 @@ def known_system_part(name: str, system: KnownSystem, overrides: dict, renames: 
         potentials={label: s(v) for label, v in system.effect_potentials.items()},
         constraints=tuple(Constraint(f"{name}.{c.name}", s(c.expression), c.source) for c in constraints),
         branch={sub.get(q, q): v for q, v in branch.items()},
+        translations={label: tuple(s(c) for c in grad) for label, grad in system.effect_translations.items()},
     )
 
 
 def placed(part: Part, origin) -> Part:
     """A known system moved (not turned) to ``origin``: its points and mass centres shift; its
-    metric, velocity terms and forces do not change (a translation is an isometry)."""
+    metric, velocity terms and forces do not change (a translation is an isometry), nor does the
+    potential of anything that moves with it (its springs and anchors); its own gravity's
+    potential changes by ``dV/do . origin`` (``Effect.translation``), a constant."""
     import dataclasses
 
     from ..components.base import Body
@@ -940,8 +944,13 @@ def placed(part: Part, origin) -> Part:
     def shift(pos):
         return tuple(sympy.sympify(c) + o for c, o in zip(pos, origin))
 
+    potentials, changes = dict(part.potentials), []
+    for label, grad in part.translations.items():
+        changes.append(sympy.Add(*[g * o for g, o in zip(grad, origin)]))
+        potentials[label] = sympy.expand(potentials.get(label, sympy.Integer(0)) + changes[-1])
     bodies = tuple(Body(b.mass, shift(b.centre), b.rotation, b.inertia) for b in part.bodies)
-    return dataclasses.replace(part, points={k: shift(v) for k, v in part.points.items()}, bodies=bodies)
+    return dataclasses.replace(part, points={k: shift(v) for k, v in part.points.items()}, bodies=bodies,
+                               potentials=potentials, potential=sympy.expand(part.potential + sympy.Add(*changes)))
 
 
 def _kind(node: Node) -> str:

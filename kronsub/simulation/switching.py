@@ -42,7 +42,8 @@ def before_constraints(system: KnownSystem) -> KnownSystem:
                        velocity_terms=imp.velocity_terms, effect_forces=dict(imp.effect_forces),
                        potential_energy=system.potential_energy, points=dict(system.points), bodies=system.bodies,
                        dimension=system.dimension, parameters=system.parameters, description=system.description,
-                       effect_potentials=dict(system.effect_potentials))
+                       effect_potentials=dict(system.effect_potentials),
+                       effect_translations=dict(system.effect_translations))
 
 
 def resplit(system: KnownSystem, dependent_idx, point: dict, params: dict) -> KnownSystem:
