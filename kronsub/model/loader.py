@@ -567,19 +567,24 @@ class _Loader:
         local = tuple(q.name for q in (system.implicit.intermediate if system.implicit is not None
                                        else system.coordinates))
         names = self._coordinate_names(cname, spec.get("coordinates"), local, "{}")
-        origin = self._origin(cname, spec.get("origin"), system.dimension)
+        origin = self._origin(cname, spec.get("origin"), system.dimension, bool(system.points))
         if names is None or any(v is None for v in overrides.values()) or origin is False:
             return None
         part = known_system_part(cname, system, {symbol(k): v for k, v in overrides.items()},
                                  dict(zip(local, names)))
         return placed(part, origin) if origin else part
 
-    def _origin(self, cname: str, node: Node | None, dimension: int):
+    def _origin(self, cname: str, node: Node | None, dimension: int, has_points: bool = True):
         """``origin: [x, y]``: where a known system's own origin sits in this model's world."""
         if node is None:
             return None
+        if not dimension:
+            why = "its parts live in worlds of different dimensions" if has_points else "it has no points"
+            self.error(node, f"`origin:` of '{cname}': {why}, so there is no world to move it in",
+                       "leave `origin:` out; place the parts in the known system's own file instead")
+            return False
         if not node.is_sequence or len(node.value) != dimension:
-            self.error(node, f"`origin:` of '{cname}' needs {dimension or 'one entry per world axis'} entries",
+            self.error(node, f"`origin:` of '{cname}' needs {dimension} entries (one per world axis)",
                        "e.g. `origin: [2*d, 0]`: the known system is moved there, unturned")
             return False
         values = [self.expr(v, self.parameter_names(), what=f"origin of '{cname}'") for v in node.value]

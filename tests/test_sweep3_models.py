@@ -1,0 +1,177 @@
+"""Third robustness sweep: textbook models of kinds the first two sweeps did not cover
+(tests/models/sweep3/): known systems three levels deep, a known system reused twice and
+placed, a closed loop inside a known system carrying a pendulum, pulleys and gear trains by
+explicit connections, a planar body on spring-damper legs, a pendulum on a point of a
+rolling body, a body on a Cardan joint with products of inertia, linear implicit
+constraints (a rope over a pulley), a bead on a cone in spherical coordinates.
+
+Each is checked against an independent derivation written here in plain sympy (never with
+kronsub), with the reference helpers of test_sweep_models.py: Lagrange's equations of a hand
+``T`` and ``V``, virtual power over the bodies, and Lagrange multipliers on the full
+coordinates for closed loops. ``Mbar``, ``hbar``, ``fbar`` (and ``T``, ``V``) at random states
+and randomly perturbed parameters; for some, the accelerations of the compiled C and of the
+generated numpy module.
+"""
+from __future__ import annotations
+
+import importlib.util
+import shutil
+from functools import lru_cache
+from pathlib import Path
+
+import numpy as np
+import pytest
+import sympy as sp
+from click.testing import CliRunner
+
+import kronsub
+from kronsub.cli import main
+from test_sweep_models import (Constrained, _evaluator, compare_explicit, dots, lagrange, rate_of, virtual_power,
+                               walk_constrained, world_angular_velocity, worst)
+
+HERE = Path(__file__).resolve().parent / "models" / "sweep3"
+t = sp.Symbol("t")
+S = sp.symbols
+TOL = 1e-10
+
+
+@lru_cache(maxsize=None)
+def derived(name):
+    return kronsub.load(HERE / name).derive()
+
+
+def down(a):
+    return sp.Matrix([sp.sin(a), -sp.cos(a)])
+
+
+def compare_energies(system, T, V, seed, *, spread=3.0, jitter=0.3, states=6, fixed=None):
+    """Largest relative difference of kronsub's ``T`` (from ``Mbar``) and ``V`` from the hand ones."""
+    rng = np.random.default_rng(seed)
+    params = {p.name: float(p.value) for p in system.parameters if p.value is not None}
+    q = [s.name for s in system.coordinates] + [s.name for s in system.velocities]
+    names = ["t", *q, *sorted(params)]
+    ours = _evaluator([system.kinetic_energy, system.potential_energy], names)
+    theirs = _evaluator([sp.sympify(T), sp.sympify(V)], names)
+    err = 0.0
+    for _ in range(states):
+        values = {n: v * (1 + jitter * rng.uniform(-1, 1)) for n, v in params.items()}
+        values.update({n: rng.uniform(-spread, spread) for n in q})
+        values["t"] = rng.uniform(0, 3)
+        if fixed:
+            values.update(fixed(rng))
+        for a, b in zip(ours(values), theirs(values)):
+            err = max(err, float(np.max(np.abs(a - b)) / max(1.0, np.max(np.abs(b)))))
+    return err
+
+
+def kinetic(M, q):
+    qd = sp.Matrix(dots(q))
+    return (qd.T * M * qd)[0, 0] / 2
+
+
+def accelerations_agree(system, M, h, f, seed, *, states=5, spread=2.0, numpy_module=None):
+    """kronsub's compiled right-hand side (and optionally a generated numpy module's) against
+    ``M^-1 (f - h)`` of the reference at the model's parameter values."""
+    num = system.numeric()
+    q = list(system.coordinates)
+    params = {p.symbol: num.parameters[p.name] for p in system.parameters if p.name in num.parameters}
+    args = [t, *q, *dots(q)]
+    fns = [sp.lambdify(args, sp.Matrix(e).subs(params), "numpy") for e in (M, h, f)]
+    rng = np.random.default_rng(seed)
+    n, pairs = len(q), []
+    for _ in range(states):
+        tt, y = rng.uniform(0, 3), rng.uniform(-spread, spread, 2 * n)
+        Mr, hr, fr = (np.array(fn(tt, *y), dtype=float) for fn in fns)
+        want = np.linalg.solve(Mr, fr.ravel() - hr.ravel())
+        pairs.append((num.rhs(tt, y)[n:], want))
+        if numpy_module is not None:
+            pv = np.array([num.parameters[name] for name in numpy_module.PARAMETERS])
+            pairs.append((np.asarray(numpy_module.rhs(tt, y, pv))[n:], want))
+    return worst(pairs)
+
+
+def numpy_module(tmp_path, name):
+    result = CliRunner().invoke(main, ["codegen", str(HERE / name), "--lang", "python", "-o", str(tmp_path)])
+    assert result.exit_code == 0, result.output
+    stem = Path(name).stem
+    spec = importlib.util.spec_from_file_location(f"sweep3_{stem}", tmp_path / f"{stem}.py")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+# ------------------------------------------------------------------------------------------
+# Known systems: System I plus a rod, three levels, two copies placed
+# ------------------------------------------------------------------------------------------
+
+def test_triple_pendulum_on_system1():
+    """System I (with overridden m2, a2, F) as a known system and a rod hung from its end B."""
+    th, ph, ps = q = list(S("theta phi psi"))
+    m1, a1, I1, I2, g, m3, L3, c3 = S("m1 a1 I1 I2 g m3 L3 c3")
+    m2, a2, F = sp.Rational(13, 10), sp.Rational(7, 20), sp.Rational(3, 5)
+    c1 = a1 * down(th)
+    c2 = 2 * a1 * down(th) + a2 * down(ph)
+    end = c2 + a2 * down(ph)
+    c3p = end + L3 / 2 * down(ps)
+    M, h = virtual_power([(m1, c1, th, I1), (m2, c2, ph, I2), (m3, c3p, ps, m3 * L3 ** 2 / 12)], q)
+    V = g * (m1 * c1[1] + m2 * c2[1] + m3 * c3p[1])
+    rel = ps - ph
+    f = sp.Matrix([-V.diff(a) + F * c2[0].diff(a) - c3 * rate_of(rel, q) * rel.diff(a) for a in q])
+    system = derived("triple_pendulum.yaml")
+    assert compare_explicit(system, (M, h, f), 31) < TOL
+    assert compare_energies(system, kinetic(M, q), V, 31) < TOL
+
+
+def cart_pendulum_parts(x, th, origin=(0, 0), mb_factor=1):
+    """Bodies and potential of cart_pendulum.yaml (itself sprung_cart.yaml plus a rod and a bob)."""
+    mc, mp, L, mb, g = S("mc mp L mb g")
+    cart = sp.Matrix([x + origin[0], origin[1]])
+    rod = cart + L / 2 * down(th)
+    bob = cart + L * down(th)
+    bodies = [(mc, cart), (mp, rod, th, mp * L ** 2 / 10), (mb_factor * mb, bob)]
+    V = g * (mp * rod[1] + mb_factor * mb * bob[1])
+    return bodies, V, cart, bob
+
+
+def sprung_cart_force(x, q, push=True):
+    """The wall spring (rest length l0 from x = -w), damper and push of sprung_cart.yaml: ``-dV``
+    is the caller's, the potential is returned with the non-conservative forces."""
+    k, l0, w, c, P, om = S("k l0 w c P om")
+    V = k * (x + w - l0) ** 2 / 2  # the cart stays right of the wall
+    Q = sp.Matrix([(-c * rate_of(x, q) + (P * sp.cos(om * t) if push else 0)) * x.diff(a) for a in q])
+    return V, Q
+
+
+def test_cart_pendulum_two_levels():
+    x, th = q = list(S("x th"))
+    cp = S("cp")
+    bodies, V, _, _ = cart_pendulum_parts(x, th)
+    M, h = virtual_power(bodies, q)
+    Vs, Q = sprung_cart_force(x, q)
+    V = V + Vs
+    f = sp.Matrix([-V.diff(a) + Q[i] - cp * dots(q)[1] * int(a == th) for i, a in enumerate(q)])
+    system = derived("cart_pendulum.yaml")
+    fixed = lambda rng: {"x": rng.uniform(0, 1)}  # noqa: E731
+    assert compare_explicit(system, (M, h, f), 32, fixed=fixed) < TOL
+    assert compare_energies(system, kinetic(M, q), V, 32, fixed=fixed) < TOL
+
+
+def test_two_cart_pendulums_three_levels_placed():
+    """cart_pendulum.yaml twice (renamed, the right one placed at (d, 0) with a heavier bob and
+    no push), joined by a spring of rest length d and a damper, the right bob shoved."""
+    x1, th1, x2, th2 = q = list(S("x1 th1 x2 th2"))
+    d, kc, cc, Q0, cp = S("d kc cc Q cp")
+    b1, V1, cart1, _ = cart_pendulum_parts(x1, th1)
+    b2, V2, cart2, bob2 = cart_pendulum_parts(x2, th2, origin=(d, 0), mb_factor=2)
+    M, h = virtual_power(b1 + b2, q)
+    Vs1, Q1 = sprung_cart_force(x1, q)
+    Vs2, Q2 = sprung_cart_force(x2, q, push=False)  # the right copy's own wall is at x2 = -w
+    gap = cart2[0] - cart1[0]  # > 0: the right cart stays right of the left one
+    V = V1 + V2 + Vs1 + Vs2 + kc * (gap - d) ** 2 / 2
+    shove = Q0 * sp.Matrix([1, 2]) / sp.sqrt(5)
+    f = sp.Matrix([-V.diff(a) + Q1[i] + Q2[i] - cc * rate_of(gap, q) * gap.diff(a) + shove.dot(bob2.diff(a))
+                   - cp * dots(q)[i] * int(a in (th1, th2)) for i, a in enumerate(q)])
+    system = derived("two_cart_pendulums.yaml")
+    fixed = lambda rng: {"x1": rng.uniform(0, 0.5), "x2": rng.uniform(0, 0.5)}  # noqa: E731
+    assert compare_explicit(system, (M, h, f), 33, fixed=fixed) < TOL
+    assert compare_energies(system, kinetic(M, q), V, 33, fixed=fixed) < TOL
