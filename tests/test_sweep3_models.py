@@ -73,8 +73,8 @@ def accelerations_agree(system, M, h, f, seed, *, states=5, spread=2.0, numpy_mo
     """kronsub's compiled right-hand side (and optionally a generated numpy module's) against
     ``M^-1 (f - h)`` of the reference at the model's parameter values."""
     num = system.numeric()
-    q = list(system.coordinates)
-    params = {p.symbol: num.parameters[p.name] for p in system.parameters if p.name in num.parameters}
+    q = [sp.Symbol(s.name) for s in system.coordinates]
+    params = {sp.Symbol(p.name): num.parameters[p.name] for p in system.parameters if p.name in num.parameters}
     args = [t, *q, *dots(q)]
     fns = [sp.lambdify(args, sp.Matrix(e).subs(params), "numpy") for e in (M, h, f)]
     rng = np.random.default_rng(seed)
@@ -175,3 +175,131 @@ def test_two_cart_pendulums_three_levels_placed():
     fixed = lambda rng: {"x1": rng.uniform(0, 0.5), "x2": rng.uniform(0, 0.5)}  # noqa: E731
     assert compare_explicit(system, (M, h, f), 33, fixed=fixed) < TOL
     assert compare_energies(system, kinetic(M, q), V, 33, fixed=fixed) < TOL
+
+
+# ------------------------------------------------------------------------------------------
+# A closed loop inside a known system, reused with a pendulum on one of its points
+# ------------------------------------------------------------------------------------------
+
+def walk_independent(system, ref, start, guess, seed, *, step=0.1, states=8):
+    """Pairs (kronsub, reference) of ``Mbar, hbar, fbar`` and the accelerations (compiled C)
+    along a random walk of several independent coordinates (kept on one branch)."""
+    num = system.numeric()
+    pv = [num.parameters[name] for name in ref.params]
+    rng = np.random.default_rng(seed)
+    q, pairs = np.array(start, dtype=float), []
+    for _ in range(states):
+        q = q + rng.uniform(-step, step, len(q))
+        u, tt = rng.uniform(-2, 2, len(q)), rng.uniform(0, 2)
+        yv, ydv = ref.consistent(q, u, guess, pv)
+        guess = yv
+        Mb, hb, fb, acc = ref.evaluate(tt, yv, ydv, pv)
+        st = np.concatenate([q, u])
+        pairs += [(num.mass_matrix(q), Mb), (num.velocity_terms(st), hb), (num.forces(tt, st), fb),
+                  (num.rhs(tt, st)[len(q):], acc)]
+    return pairs
+
+
+def test_five_bar_known_system_carrying_a_pendulum():
+    """System III (two System I's pinned at B: four coordinates, two constraints) as a known
+    system; a rod hangs from the left hinge A, tied to the left lower rod by a torsional spring."""
+    t1, t2, ps, p1, p2 = y = list(S("theta1 theta2 psi phi1 phi2"))
+    m1, m2, a1, a2, I1, I2, g, F, d, mr, Lr, kr, tq = params = S("m1 m2 a1 a2 I1 I2 g F d mr Lr kr tq")
+    bodies, V, Q = [], 0, sp.zeros(5, 1)
+    A_left = None
+    for th, ph, O in ((t1, p1, sp.Matrix([0, 0])), (t2, p2, sp.Matrix([2 * d, 0]))):
+        c1, A = O + a1 * down(th), O + 2 * a1 * down(th)
+        c2, B = A + a2 * down(ph), A + 2 * a2 * down(ph)
+        bodies += [(m1, c1, th, I1), (m2, c2, ph, I2)]
+        V += g * (m1 * c1[1] + m2 * c2[1])
+        Q += sp.Matrix([F * c2[0].diff(a) for a in y])
+        A_left = A if A_left is None else A_left
+        ends = (B,) if th == t1 else ends + (B,)
+    ch = A_left + Lr / 2 * down(ps)
+    bodies.append((mr, ch, ps, mr * Lr ** 2 / 12))
+    V += g * mr * ch[1] + kr * (ps - p1 - sp.Rational(1, 10)) ** 2 / 2
+    M, h = virtual_power(bodies, y)
+    f = sp.Matrix([-V.diff(a) + Q[i] + tq * int(a == t2) for i, a in enumerate(y)])
+    ref = Constrained(y, M, h, f, list(ends[0] - ends[1]), [t1, t2, ps], params)
+    system = derived("five_bar_pendulum.yaml")
+    assert [s.name for s in system.coordinates] == ["theta1", "theta2", "psi"]
+    pairs = walk_independent(system, ref, [0.3, -0.2, 0.5], [0.3, -0.2, 0.5, 0.2, -0.3], 34)
+    assert worst(pairs) < TOL
+
+
+# ------------------------------------------------------------------------------------------
+# Pulleys and gears by explicit connections
+# ------------------------------------------------------------------------------------------
+
+def test_atwood_stepped_pulley():
+    (a,) = q = [S("a")]
+    J, r1, r2, m1, m2, x10, x20, k, l0, h, b, tm, g = S("J r1 r2 m1 m2 x10 x20 k l0 h b tm g")
+    x1, x2 = x10 + r1 * a, x20 - r2 * a
+    ad = dots(q)[0]
+    T = J * ad ** 2 / 2 + m1 * rate_of(x1, q) ** 2 / 2 + m2 * rate_of(x2, q) ** 2 / 2
+    V = g * (m1 * x1 + m2 * x2) + k * (x2 + h - l0) ** 2 / 2  # the right mass stays above the floor
+    system = derived("atwood_pulley.yaml")
+    fixed = lambda rng: {"a": rng.uniform(-2, 2)}  # noqa: E731
+    assert compare_explicit(system, lagrange(T, V, q, [tm - b * ad]), 35, fixed=fixed) < TOL
+    assert compare_energies(system, T, V, 35, fixed=fixed) < TOL
+
+
+def test_gear_train_with_belt_and_compliant_shaft(tmp_path):
+    a, b = q = list(S("a b"))
+    Jm, Jp, Jg, Jb, JL, rp, rg, rb1, rb2, ks, cs, T0, kw, TL, om = S("Jm Jp Jg Jb JL rp rg rb1 rb2 ks cs T0 kw TL om")
+    ad, bd = dots(q)
+    gear = -rp / rg * a
+    pulley = gear * rb1 / rb2
+    T = (Jm + Jp) * ad ** 2 / 2 + Jg * rate_of(gear, q) ** 2 / 2 + Jb * rate_of(pulley, q) ** 2 / 2 + JL * bd ** 2 / 2
+    twist = b - pulley
+    V = ks * twist ** 2 / 2
+    Q = [(T0 - kw * ad) * int(v == a) - TL * sp.cos(om * t) * int(v == b) - cs * rate_of(twist, q) * twist.diff(v)
+         for v in q]
+    M, h, f = lagrange(T, V, q, Q)
+    system = derived("gear_train.yaml")
+    assert compare_explicit(system, (M, h, f), 36) < TOL
+    assert compare_energies(system, T, V, 36) < TOL
+    assert accelerations_agree(system, M, h, f, 36, numpy_module=numpy_module(tmp_path, "gear_train.yaml")) < TOL
+
+
+# ------------------------------------------------------------------------------------------
+# Planar rigid bodies: a bar on spring-damper legs, a pendulum on a rolling wheel's peg
+# ------------------------------------------------------------------------------------------
+
+def test_half_car_bar_on_spring_damper_legs(tmp_path):
+    x, y, th = q = list(S("x y th"))
+    m, L, Iz, kf, kr, cr, l0, P, T0, om, g = S("m L Iz kf kr cr l0 P T0 om g")
+    e = sp.Matrix([sp.cos(th), sp.sin(th)])
+    centre = sp.Matrix([x, y])
+    end_a, end_b = centre - L / 2 * e, centre + L / 2 * e
+    mast = centre + L / 4 * e + sp.Rational(3, 10) * sp.Matrix([-sp.sin(th), sp.cos(th)])
+    front = end_a - sp.Matrix([-L / 2, -sp.Rational(1, 10)])
+    rear = sp.Matrix([L / 2, 0]) - end_b
+    lf, lr = sp.sqrt(front.dot(front)), sp.sqrt(rear.dot(rear))
+    M, h = virtual_power([(m, centre, th, Iz)], q)
+    V = m * g * y + kf * (lf - l0) ** 2 / 2 + kr * (lr - l0) ** 2 / 2
+    wind = sp.Matrix([P, -P / 3])
+    f = sp.Matrix([-V.diff(a) - cr * rate_of(lr, q) * lr.diff(a) + wind.dot(mast.diff(a))
+                   + T0 * sp.sin(om * t) * int(a == th) for a in q])
+    system = derived("half_car.yaml")
+    fixed = lambda rng: {"x": rng.uniform(-0.3, 0.3), "y": rng.uniform(0.2, 0.8), "th": rng.uniform(-0.5, 0.5)}  # noqa: E731
+    assert compare_explicit(system, (M, h, f), 37, fixed=fixed) < TOL
+    assert compare_energies(system, kinetic(M, q), V, 37, fixed=fixed) < TOL
+    assert accelerations_agree(system, M, h, f, 37, spread=0.4) < TOL
+
+
+def test_pendulum_on_the_peg_of_a_rolling_wheel():
+    a, th = q = list(S("a th"))
+    Mw, R, e, m, L, k, l0, cp, tw, g = S("M R e m L k l0 cp tw g")
+    centre = sp.Matrix([-R * a, R])
+    peg = centre + sp.Matrix([[sp.cos(a), -sp.sin(a)], [sp.sin(a), sp.cos(a)]]) * sp.Matrix([e, sp.Rational(1, 50)])
+    rod = peg + L / 2 * down(th)
+    M, h = virtual_power([(Mw, centre, a, Mw * R ** 2 / 2), (m, rod, th, m * L ** 2 / 12)], q)
+    stretch = centre[0] + 1  # the wall is at x = -1, level with the centre
+    V = g * (Mw * centre[1] + m * rod[1]) + k * (stretch - l0) ** 2 / 2
+    rel = th - a
+    f = sp.Matrix([-V.diff(v) + tw * int(v == a) - cp * rate_of(rel, q) * rel.diff(v) for v in q])
+    system = derived("wheel_pendulum.yaml")
+    fixed = lambda rng: {"a": rng.uniform(-2, 2)}  # noqa: E731  (the centre right of the wall)
+    assert compare_explicit(system, (M, h, f), 38, fixed=fixed) < TOL
+    assert compare_energies(system, kinetic(M, q), V, 38, fixed=fixed) < TOL
