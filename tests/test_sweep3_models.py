@@ -303,3 +303,79 @@ def test_pendulum_on_the_peg_of_a_rolling_wheel():
     fixed = lambda rng: {"a": rng.uniform(-2, 2)}  # noqa: E731  (the centre right of the wall)
     assert compare_explicit(system, (M, h, f), 38, fixed=fixed) < TOL
     assert compare_energies(system, kinetic(M, q), V, 38, fixed=fixed) < TOL
+
+
+# ------------------------------------------------------------------------------------------
+# Space: a body on a Cardan joint with products of inertia, a bead on a cone
+# ------------------------------------------------------------------------------------------
+
+def Rx(u):
+    return sp.Matrix([[1, 0, 0], [0, sp.cos(u), -sp.sin(u)], [0, sp.sin(u), sp.cos(u)]])
+
+
+def Ry(u):
+    return sp.Matrix([[sp.cos(u), 0, sp.sin(u)], [0, 1, 0], [-sp.sin(u), 0, sp.cos(u)]])
+
+
+def test_cardan_body_with_products_of_inertia(tmp_path):
+    """X-Y-Z angles (a, b, 0); the mass centre at (u, 0, -h) from the joint in body axes; the
+    tensor [[A, D, F], [D, B, E], [F, E, C]] (products as entries); slanted gravity, a world
+    torque vector, a spring with rest length and a force at points given from the centre."""
+    a, b = q = list(S("a b"))
+    m, h, u, A, B, C, D, E, F, k, l0, tx, tz, P, g = S("m h u A B C D E F k l0 tx tz P g")
+    R = Rx(a) * Ry(b)
+    centre = R * sp.Matrix([u, 0, -h])
+    I3 = sp.Matrix([[A, D, F], [D, B, E], [F, E, C]])
+    M, hh = virtual_power([(m, centre, R, I3)], q)
+    down_ = sp.Matrix([1, 0, -3]) / sp.sqrt(10)
+    tip = centre + R * sp.Matrix([0, sp.Rational(1, 10), -h])
+    side = centre + R * sp.Matrix([sp.Rational(1, 10), 0, 0])
+    gap = tip - sp.Matrix([sp.Rational(1, 5), sp.Rational(1, 10), -sp.Rational(7, 10)])
+    V = -m * g * down_.dot(centre) + k * (sp.sqrt(gap.dot(gap)) - l0) ** 2 / 2
+    omega = world_angular_velocity(R, q)
+    torque, push = sp.Matrix([tx, 0, tz]), sp.Matrix([0, P * sp.sin(t), P])
+    f = sp.Matrix([-V.diff(v) + torque.dot(omega.diff(vd)) + push.dot(side.diff(v)) for v, vd in zip(q, dots(q))])
+    system = derived("cardan_body.yaml")
+    assert compare_explicit(system, (M, hh, f), 39, spread=1.2) < TOL
+    assert compare_energies(system, kinetic(M, q), V, 39, spread=1.2) < TOL
+    assert accelerations_agree(system, M, hh, f, 39, spread=1.2,
+                               numpy_module=numpy_module(tmp_path, "cardan_body.yaml")) < TOL
+
+
+def test_bead_on_a_cone_in_spherical_coordinates():
+    r, ph = q = list(S("r ph"))
+    m, al, k, l0, cd, eps, g = S("m al k l0 cd eps g")
+    th = sp.pi - al
+    p = r * sp.Matrix([sp.sin(th) * sp.cos(ph), sp.sin(th) * sp.sin(ph), sp.cos(th)])
+    v = rate_of(p, q)
+    T = m * v.dot(v) / 2
+    V = m * g * p[2] + k * (r - l0) ** 2 / 2 + eps * sp.cos(2 * ph)  # r > 0: the distance from the apex
+    f = sp.Matrix([(-cd * v).dot(p.diff(a)) for a in q])
+    M, h, fc = lagrange(T, V, q, [0, 0])
+    system = derived("bead_in_cone.yaml")
+    fixed = lambda rng: {"r": rng.uniform(0.2, 2)}  # noqa: E731
+    assert compare_explicit(system, (M, h, fc + f), 40, fixed=fixed) < TOL
+    assert compare_energies(system, T, V, 40, fixed=fixed) < TOL
+
+
+# ------------------------------------------------------------------------------------------
+# Linear implicit constraints: a rope over a pulley joining blocks on a double wedge
+# ------------------------------------------------------------------------------------------
+
+def test_blocks_on_wedges_rope_over_pulley():
+    p, xA, yA, xB, yB = y = list(S("p xA yA xB yB"))
+    mA, mB, J, r, al, bt, Ls, k, l0, c, g = params = S("mA mB J r al bt Ls k l0 c g")
+    M = sp.diag(J, mA, mA, mB, mB)
+    sA = -xA * sp.cos(al) - yA * sp.sin(al)  # distances from the apex along the faces
+    sB = xB * sp.cos(bt) - yB * sp.sin(bt)
+    g_ = [xA * sp.sin(al) - yA * sp.cos(al), xB * sp.sin(bt) + yB * sp.cos(bt), sA + sB - Ls,
+          r * p + sA - sp.Rational(3, 5)]
+    down_ = sp.Matrix([sp.Rational(1, 10), -1]) / sp.sqrt(sp.Rational(101, 100))
+    foot = sp.Matrix([-sp.cos(al), -sp.sin(al)])
+    gap = sp.Matrix([xA, yA]) - foot
+    V = -g * down_.dot(mA * sp.Matrix([xA, yA]) + mB * sp.Matrix([xB, yB])) + k * (sp.sqrt(gap.dot(gap)) - l0) ** 2 / 2
+    yd = dots(y)
+    f = sp.Matrix([-V.diff(v) - c * yd[i] * int(v in (xB, yB)) for i, v in enumerate(y)])
+    ref = Constrained(y, M, sp.zeros(5, 1), f, g_, [p], params)
+    rows = walk_constrained(derived("blocks_on_wedges.yaml"), ref, 0.0, [0.0, -0.53, -0.29, 0.69, -0.58], 41)
+    assert worst(pair for row in rows for pair in row) < TOL
