@@ -202,20 +202,19 @@ def walk_independent(system, ref, start, guess, seed, *, step=0.1, states=8):
 
 def test_five_bar_known_system_carrying_a_pendulum():
     """System III (two System I's pinned at B: four coordinates, two constraints) as a known
-    system; a rod hangs from the left hinge A, tied to the left lower rod by a torsional spring."""
+    system; a rod hangs from the left lower rod's centre, tied to the left lower rod by a torsional spring."""
     t1, t2, ps, p1, p2 = y = list(S("theta1 theta2 psi phi1 phi2"))
     m1, m2, a1, a2, I1, I2, g, F, d, mr, Lr, kr, tq = params = S("m1 m2 a1 a2 I1 I2 g F d mr Lr kr tq")
-    bodies, V, Q = [], 0, sp.zeros(5, 1)
-    A_left = None
+    bodies, V, Q, ends, centres = [], 0, sp.zeros(5, 1), [], []
     for th, ph, O in ((t1, p1, sp.Matrix([0, 0])), (t2, p2, sp.Matrix([2 * d, 0]))):
         c1, A = O + a1 * down(th), O + 2 * a1 * down(th)
         c2, B = A + a2 * down(ph), A + 2 * a2 * down(ph)
         bodies += [(m1, c1, th, I1), (m2, c2, ph, I2)]
         V += g * (m1 * c1[1] + m2 * c2[1])
         Q += sp.Matrix([F * c2[0].diff(a) for a in y])
-        A_left = A if A_left is None else A_left
-        ends = (B,) if th == t1 else ends + (B,)
-    ch = A_left + Lr / 2 * down(ps)
+        ends.append(B)
+        centres.append(c2)
+    ch = centres[0] + Lr / 2 * down(ps)  # hung from the left lower rod's centre (phi1 dependent)
     bodies.append((mr, ch, ps, mr * Lr ** 2 / 12))
     V += g * mr * ch[1] + kr * (ps - p1 - sp.Rational(1, 10)) ** 2 / 2
     M, h = virtual_power(bodies, y)
@@ -379,3 +378,32 @@ def test_blocks_on_wedges_rope_over_pulley():
     ref = Constrained(y, M, sp.zeros(5, 1), f, g_, [p], params)
     rows = walk_constrained(derived("blocks_on_wedges.yaml"), ref, 0.0, [0.0, -0.53, -0.29, 0.69, -0.58], 41)
     assert worst(pair for row in rows for pair in row) < TOL
+
+
+def Rz(u):
+    return sp.Matrix([[sp.cos(u), -sp.sin(u), 0], [sp.sin(u), sp.cos(u), 0], [0, 0, 1]])
+
+
+def test_two_heavy_tops_placed_in_space_and_tied():
+    """heavy_top.yaml (Z-X-Z, a product of inertia, a motor about world z) twice, the second
+    placed at (D, 0, 0) in space with 3/2 the mass and no motor, crowns tied by a cord."""
+    psi1, th1, ph1, psi2, th2, ph2 = q = list(S("psi1 th1 ph1 psi2 th2 ph2"))
+    m, h, A, C, P, tm, g, D, kc, l0 = S("m h A C P tm g D kc l0")
+    I3 = sp.Matrix([[A, P, 0], [P, A, 0], [0, 0, C]])
+    bodies, V, crowns, f = [], 0, [], sp.zeros(6, 1)
+    for (psi, th, ph), mass, origin, motor in (((psi1, th1, ph1), m, 0, tm), ((psi2, th2, ph2), 3 * m / 2, D, 0)):
+        R = Rz(psi) * Rx(th) * Rz(ph)
+        centre = sp.Matrix([origin, 0, 0]) + R * sp.Matrix([0, 0, h])
+        bodies.append((mass, centre, R, I3))
+        crowns.append(centre + R * sp.Matrix([0, 0, h]))
+        V += mass * g * centre[2]
+        omega = world_angular_velocity(R, q)
+        f += sp.Matrix([motor * omega[2].diff(vd) for vd in dots(q)])
+    gap = crowns[1] - crowns[0]
+    V += kc * (sp.sqrt(gap.dot(gap)) - l0) ** 2 / 2
+    M, hh = virtual_power(bodies, q)
+    f += sp.Matrix([-V.diff(v) for v in q])
+    system = derived("two_tops.yaml")
+    fixed = lambda rng: {"th1": rng.uniform(0.2, 1.2), "th2": rng.uniform(0.2, 1.2)}  # noqa: E731  (off gimbal lock)
+    assert compare_explicit(system, (M, hh, f), 42, spread=2, fixed=fixed) < TOL
+    assert compare_energies(system, kinetic(M, q), V, 42, spread=2, fixed=fixed) < TOL
