@@ -156,7 +156,8 @@ def test_cart_pendulum_two_levels():
     assert compare_energies(system, kinetic(M, q), V, 32, fixed=fixed) < TOL
 
 
-def test_two_cart_pendulums_three_levels_placed():
+@lru_cache(maxsize=None)
+def two_cart_reference():
     """cart_pendulum.yaml twice (renamed, the right one placed at (d, 0) with a heavier bob and
     no push), joined by a spring of rest length d and a damper, the right bob shoved."""
     x1, th1, x2, th2 = q = list(S("x1 th1 x2 th2"))
@@ -171,10 +172,46 @@ def test_two_cart_pendulums_three_levels_placed():
     shove = Q0 * sp.Matrix([1, 2]) / sp.sqrt(5)
     f = sp.Matrix([-V.diff(a) + Q1[i] + Q2[i] - cc * rate_of(gap, q) * gap.diff(a) + shove.dot(bob2.diff(a))
                    - cp * dots(q)[i] * int(a in (th1, th2)) for i, a in enumerate(q)])
+    return q, M, h, f, V
+
+
+def test_two_cart_pendulums_three_levels_placed():
+    """Three levels of known systems; the second copy placed with `origin:` (its parts on a line
+    and in the plane: it was refused, 'needs one entry per world axis entries')."""
+    q, M, h, f, V = two_cart_reference()
     system = derived("two_cart_pendulums.yaml")
     fixed = lambda rng: {"x1": rng.uniform(0, 0.5), "x2": rng.uniform(0, 0.5)}  # noqa: E731
     assert compare_explicit(system, (M, h, f), 33, fixed=fixed) < TOL
     assert compare_energies(system, kinetic(M, q), V, 33, fixed=fixed) < TOL
+
+
+def test_linearize_through_springs_of_rest_length_on_a_line():
+    """`linearize` of a model whose springs on a line have a rest length (|x + w| - l0: the
+    derivative of sign) stopped with an internal error (DiracDelta). A against finite
+    differences of the hand equations at the equilibrium it finds."""
+    q, M, h, f, _ = two_cart_reference()
+    system = derived("two_cart_pendulums.yaml")
+    lin = system.linearize()
+    assert lin.equilibrium
+    point = {s.name: float(v) for s, v in lin.point}
+    values = {p.name: float(p.value) for p in system.parameters}
+    args = [t, *q, *dots(q)]
+    sub = {sp.Symbol(k): v for k, v in values.items()}
+    fM, fr = (sp.lambdify(args, e.subs(sub), "numpy") for e in (M, f - h))
+    n, tt = len(q), float(lin.time)
+
+    def rhs(y):
+        return np.concatenate([y[n:], np.linalg.solve(np.array(fM(tt, *y), dtype=float),
+                                                      np.array(fr(tt, *y), dtype=float).ravel())])
+
+    y0 = np.array([point[s.name] for s in q] + [point[f"{s.name}_dot"] for s in q])
+    assert np.max(np.abs(rhs(y0))) < 1e-9
+    eps, cols = 1e-6, []
+    for i in range(2 * n):
+        e = np.zeros(2 * n)
+        e[i] = eps
+        cols.append((rhs(y0 + e) - rhs(y0 - e)) / (2 * eps))
+    assert np.allclose(np.asarray(lin.A, dtype=float), np.column_stack(cols), rtol=1e-6, atol=1e-6)
 
 
 # ------------------------------------------------------------------------------------------
