@@ -444,3 +444,14 @@ def test_two_heavy_tops_placed_in_space_and_tied():
     fixed = lambda rng: {"th1": rng.uniform(0.2, 1.2), "th2": rng.uniform(0.2, 1.2)}  # noqa: E731  (off gimbal lock)
     assert compare_explicit(system, (M, hh, f), 42, spread=2, fixed=fixed) < TOL
     assert compare_energies(system, kinetic(M, q), V, 42, spread=2, fixed=fixed) < TOL
+
+
+def test_animate_a_model_without_points_says_so(tmp_path):
+    """gear_train.yaml (flywheels only) stopped `animate` with an internal error (exit 4,
+    numpy's 'need at least one array to concatenate'); it is a plain error now."""
+    pytest.importorskip("matplotlib")
+    result = CliRunner().invoke(main, ["animate", str(HERE / "gear_train.yaml"), "--t", "0.1", "-o",
+                                       str(tmp_path / "g.gif")])
+    assert result.exit_code == 1, result.output
+    assert "no named points" in result.output and "internal error" not in result.output
+    assert not (tmp_path / "g.gif").exists()
