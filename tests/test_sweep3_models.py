@@ -237,9 +237,10 @@ def walk_independent(system, ref, start, guess, seed, *, step=0.1, states=8):
     return pairs
 
 
-def test_five_bar_known_system_carrying_a_pendulum():
-    """System III (two System I's pinned at B: four coordinates, two constraints) as a known
-    system; a rod hangs from the left lower rod's centre, tied to the left lower rod by a torsional spring."""
+@lru_cache(maxsize=None)
+def five_bar_reference():
+    """System III (two System I's pinned at B: four coordinates, two constraints) with a rod
+    hung from the left lower rod's centre, tied to it by a torsional spring; B_left - B_right = 0."""
     t1, t2, ps, p1, p2 = y = list(S("theta1 theta2 psi phi1 phi2"))
     m1, m2, a1, a2, I1, I2, g, F, d, mr, Lr, kr, tq = params = S("m1 m2 a1 a2 I1 I2 g F d mr Lr kr tq")
     bodies, V, Q, ends, centres = [], 0, sp.zeros(5, 1), [], []
@@ -256,11 +257,46 @@ def test_five_bar_known_system_carrying_a_pendulum():
     V += g * mr * ch[1] + kr * (ps - p1 - sp.Rational(1, 10)) ** 2 / 2
     M, h = virtual_power(bodies, y)
     f = sp.Matrix([-V.diff(a) + Q[i] + tq * int(a == t2) for i, a in enumerate(y)])
-    ref = Constrained(y, M, h, f, list(ends[0] - ends[1]), [t1, t2, ps], params)
+    return Constrained(y, M, h, f, list(ends[0] - ends[1]), [t1, t2, ps], params)
+
+
+def test_five_bar_known_system_carrying_a_pendulum():
+    """System III as a known system (its constraints brought along) and a rod hung from a point
+    that moves with its dependent coordinate phi1: Mbar, hbar, fbar, compiled accelerations."""
     system = derived("five_bar_pendulum.yaml")
     assert [s.name for s in system.coordinates] == ["theta1", "theta2", "psi"]
-    pairs = walk_independent(system, ref, [0.3, -0.2, 0.5], [0.3, -0.2, 0.5, 0.2, -0.3], 34)
+    pairs = walk_independent(system, five_bar_reference(), [0.3, -0.2, 0.5], [0.3, -0.2, 0.5, 0.2, -0.3], 34)
     assert worst(pairs) < TOL
+
+
+def reactions_agree(tmp_path, name, ref, independent, guess, labels):
+    """`simulate --reactions`: the multipliers of ``M yddot + h = f + G^T mu`` in every row
+    against the reference's, solved at the row's state on the full coordinates."""
+    out = tmp_path / "run.csv"
+    result = CliRunner().invoke(main, ["simulate", str(HERE / name), "--t", "0.2", "--dt", "0.1", "--reactions",
+                                       "-o", str(out)])
+    assert result.exit_code == 0, result.output
+    table = np.genfromtxt(out, names=True, delimiter=",", comments="#")
+    values = {p.name: float(p.value) for p in derived(name).parameters}
+    pv = [values[n] for n in ref.params]
+    pairs = []
+    for row in table:
+        yv, ydv = ref.consistent([row[n] for n in independent], [row[f"{n}_dot"] for n in independent], guess, pv)
+        a = (row["t"], *yv, *ydv, *pv)
+        M, h, f = (np.array(fn(*a), dtype=float) for fn in (ref.fM, ref.fh, ref.ff))
+        G, Gdy = np.array(ref.fG(*a), dtype=float), np.array(ref.fGd(*a), dtype=float).ravel()
+        nc = G.shape[0]
+        K = np.block([[M, G.T], [G, np.zeros((nc, nc))]])
+        mu = -np.linalg.solve(K, np.concatenate([f.ravel() - h.ravel(), -Gdy]))[len(yv):]
+        pairs.append((np.array([row[n] for n in labels]), mu))
+    return worst(pairs)
+
+
+def test_five_bar_reactions_of_the_known_systems_pin(tmp_path):
+    """The pin B, a constraint the known system brought along (``loop.B``)."""
+    err = reactions_agree(tmp_path, "five_bar_pendulum.yaml", five_bar_reference(), ["theta1", "theta2", "psi"],
+                          [0.3, -0.2, 0.5, 0.2, -0.3], ["mu_loop_B_x", "mu_loop_B_y"])
+    assert err < 1e-8
 
 
 # ------------------------------------------------------------------------------------------
@@ -398,7 +434,8 @@ def test_bead_on_a_cone_in_spherical_coordinates():
 # Linear implicit constraints: a rope over a pulley joining blocks on a double wedge
 # ------------------------------------------------------------------------------------------
 
-def test_blocks_on_wedges_rope_over_pulley():
+@lru_cache(maxsize=None)
+def blocks_reference():
     p, xA, yA, xB, yB = y = list(S("p xA yA xB yB"))
     mA, mB, J, r, al, bt, Ls, k, l0, c, g = params = S("mA mB J r al bt Ls k l0 c g")
     M = sp.diag(J, mA, mA, mB, mB)
@@ -412,9 +449,21 @@ def test_blocks_on_wedges_rope_over_pulley():
     V = -g * down_.dot(mA * sp.Matrix([xA, yA]) + mB * sp.Matrix([xB, yB])) + k * (sp.sqrt(gap.dot(gap)) - l0) ** 2 / 2
     yd = dots(y)
     f = sp.Matrix([-V.diff(v) - c * yd[i] * int(v in (xB, yB)) for i, v in enumerate(y)])
-    ref = Constrained(y, M, sp.zeros(5, 1), f, g_, [p], params)
-    rows = walk_constrained(derived("blocks_on_wedges.yaml"), ref, 0.0, [0.0, -0.53, -0.29, 0.69, -0.58], 41)
+    return Constrained(y, M, sp.zeros(5, 1), f, g_, [p], params)
+
+
+def test_blocks_on_wedges_rope_over_pulley():
+    rows = walk_constrained(derived("blocks_on_wedges.yaml"), blocks_reference(), 0.0,
+                            [0.0, -0.53, -0.29, 0.69, -0.58], 41)
     assert worst(pair for row in rows for pair in row) < TOL
+
+
+def test_blocks_on_wedges_reactions(tmp_path):
+    """Rope tension and wedge normal forces: the faces are point_on_line joints written
+    (P - Q) x d, the rope and grip plain expressions; the reference's g are sign-matched."""
+    err = reactions_agree(tmp_path, "blocks_on_wedges.yaml", blocks_reference(), ["p"],
+                          [0.0, -0.53, -0.29, 0.69, -0.58], ["mu_faceA", "mu_faceB", "mu_rope", "mu_grip"])
+    assert err < 1e-8
 
 
 def Rz(u):
