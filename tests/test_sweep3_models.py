@@ -241,6 +241,12 @@ def walk_independent(system, ref, start, guess, seed, *, step=0.1, states=8):
 def five_bar_reference():
     """System III (two System I's pinned at B: four coordinates, two constraints) with a rod
     hung from the left lower rod's centre, tied to it by a torsional spring; B_left - B_right = 0."""
+    y, M, h, f, g_, params, _ = five_bar_pieces()
+    return Constrained(y, M, h, f, g_, y[:3], params)
+
+
+def five_bar_pieces():
+    """``y``, ``M``, ``h``, ``f``, ``g``, the parameters and the hung rod's tip."""
     t1, t2, ps, p1, p2 = y = list(S("theta1 theta2 psi phi1 phi2"))
     m1, m2, a1, a2, I1, I2, g, F, d, mr, Lr, kr, tq = params = S("m1 m2 a1 a2 I1 I2 g F d mr Lr kr tq")
     bodies, V, Q, ends, centres = [], 0, sp.zeros(5, 1), [], []
@@ -257,7 +263,26 @@ def five_bar_reference():
     V += g * mr * ch[1] + kr * (ps - p1 - sp.Rational(1, 10)) ** 2 / 2
     M, h = virtual_power(bodies, y)
     f = sp.Matrix([-V.diff(a) + Q[i] + tq * int(a == t2) for i, a in enumerate(y)])
-    return Constrained(y, M, h, f, list(ends[0] - ends[1]), [t1, t2, ps], params)
+    return y, M, h, f, list(ends[0] - ends[1]), params, ch + Lr / 2 * down(ps)
+
+
+def test_five_bar_slider_two_loops_at_two_levels():
+    """five_bar_pendulum.yaml as a known system (itself holding System III's loop) and a slider
+    on the hung rod's tip in this model; `coordinates: auto` picks theta2, psi."""
+    y, M, h, f, g_, params, tip = five_bar_pieces()
+    yf, cf = S("yf cf")
+    t1, t2, ps, p1, p2 = y
+    f = f - sp.Matrix([cf * dots(y)[0] * int(a == t1) for a in y])
+    order = [t2, ps, t1, p1, p2]
+    perm = [y.index(a) for a in order]
+    ref = Constrained(order, M.extract(perm, perm), h.extract(perm, [0]), f.extract(perm, [0]),
+                      [*g_, tip[1] + yf], [t2, ps], (*params, yf, cf))
+    system = derived("five_bar_slider.yaml")
+    assert [s.name for s in system.coordinates] == ["theta2", "psi"]
+    branch = {s.name: float(v) for s, v in system.implicit.branch}
+    guess = [-0.2, 0.2, branch["theta1"], branch["phi1"], branch["phi2"]]
+    pairs = walk_independent(system, ref, [-0.2, 0.2], guess, 43, step=0.03)
+    assert worst(pairs) < TOL
 
 
 def test_five_bar_known_system_carrying_a_pendulum():
