@@ -14,6 +14,7 @@ generated numpy module.
 """
 from __future__ import annotations
 
+import dataclasses
 import importlib.util
 import shutil
 from functools import lru_cache
@@ -108,7 +109,8 @@ def test_triple_pendulum_on_system1():
     """System I (with overridden m2, a2, F) as a known system and a rod hung from its end B."""
     th, ph, ps = q = list(S("theta phi psi"))
     m1, a1, I1, I2, g, m3, L3, c3 = S("m1 a1 I1 I2 g m3 L3 c3")
-    m2, a2, F = sp.Rational(13, 10), sp.Rational(7, 20), sp.Rational(3, 5)
+    Fa, w = S("Fa w")
+    m2, a2, F = sp.Rational(13, 10), sp.Rational(7, 20), Fa * sp.cos(w * t)
     c1 = a1 * down(th)
     c2 = 2 * a1 * down(th) + a2 * down(ph)
     end = c2 + a2 * down(ph)
@@ -529,3 +531,40 @@ def test_animate_a_model_without_points_says_so(tmp_path):
     assert result.exit_code == 1, result.output
     assert "no named points" in result.output and "internal error" not in result.output
     assert not (tmp_path / "g.gif").exists()
+
+
+def test_polar_bob_with_a_dashpot_to_a_corner():
+    r, a = q = list(S("r a"))
+    m, k, l0, c, P, g = S("m k l0 c P g")
+    p = r * sp.Matrix([sp.cos(a), sp.sin(a)])
+    v = rate_of(p, q)
+    T = m * v.dot(v) / 2
+    d = sp.Matrix([1, -4]) / sp.sqrt(17)
+    V = -m * g * d.dot(p) + k * (r - l0) ** 2 / 2  # r > 0
+    gap = p - sp.Matrix([sp.Rational(3, 5), -sp.Rational(3, 10)])
+    length = sp.sqrt(gap.dot(gap))
+    push = P * sp.Matrix([sp.cos(a), sp.sin(a)])
+    Q = [-c * rate_of(length, q) * length.diff(x) + push.dot(p.diff(x)) for x in q]
+    M, h, f = lagrange(T, V, q, Q)
+    system = derived("polar_bob_damped.yaml")
+    fixed = lambda rng: {"r": rng.uniform(0.1, 2)}  # noqa: E731
+    assert compare_explicit(system, (M, h, f), 44, fixed=fixed) < TOL
+    assert compare_energies(system, T, V, 44, fixed=fixed) < TOL
+
+
+def test_two_cart_pendulums_scene_switches_off_nested_effects():
+    """A scene switching off effects two levels down (`left.base.push`): the hand equations with
+    those loads zero, none of their parameters left, and the total energy kept in a run."""
+    from kronsub.model.scenes import derive_scene, select_scene
+
+    q, M, h, f, V = two_cart_reference()
+    model = kronsub.load(HERE / "two_cart_pendulums.yaml")
+    system = derive_scene(model, select_scene(model, "conservative"))
+    names = {p.name for p in system.parameters}
+    assert not names & {"c", "cp", "cc", "P", "om", "Q"}, names
+    off = {sp.Symbol(n): 0 for n in ("c", "cp", "cc", "P", "Q")}
+    fixed = lambda rng: {"x1": rng.uniform(0, 0.5), "x2": rng.uniform(0, 0.5)}  # noqa: E731
+    assert compare_explicit(system, (M, h, f.subs(off)), 45, fixed=fixed) < TOL
+    run = dataclasses.replace(system, initial=dict(model.initial)).simulate(t=2.0, dt=0.5, dataframe=False)
+    energy = run["total_energy"]
+    assert run.complete and np.ptp(energy) < 1e-8 * max(1.0, np.max(np.abs(energy)))
