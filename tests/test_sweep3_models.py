@@ -574,3 +574,29 @@ def test_two_cart_pendulums_scene_switches_off_nested_effects():
     run = dataclasses.replace(system, initial=dict(model.initial)).simulate(t=2.0, dt=0.5, dataframe=False)
     energy = run["total_energy"]
     assert run.complete and np.ptp(energy) < 1e-8 * max(1.0, np.max(np.abs(energy)))
+
+
+def test_twin_system2_closed_loops_renamed_and_placed():
+    """System II (a closed loop: phi dependent) twice, dependent coordinates renamed, the right
+    copy placed and overridden (m2, and its push F in t); a spring and a damper between them."""
+    th1, th2, ph1, ph2 = y = list(S("th1 th2 ph1 ph2"))
+    m1, m2, a1, a2, I1, I2, g, F, c, dx, ks, l0, cd, Fa, w = params = S("m1 m2 a1 a2 I1 I2 g F c dx ks l0 cd Fa w")
+    bodies, V, Q, lower, g_ = [], 0, sp.zeros(4, 1), [], []
+    for th, ph, O, mass, push in ((th1, ph1, 0, m2, F), (th2, ph2, dx, 3 * m2 / 2, Fa * sp.sin(w * t))):
+        c1 = sp.Matrix([O, 0]) + a1 * down(th)
+        c2 = sp.Matrix([O, 0]) + 2 * a1 * down(th) + a2 * down(ph)
+        bodies += [(m1, c1, th, I1), (mass, c2, ph, I2)]
+        V += g * (m1 * c1[1] + mass * c2[1])
+        Q += sp.Matrix([push * c2[0].diff(a) for a in y])
+        lower.append(c2)
+        g_.append(a1 * sp.sin(th) + a2 * sp.sin(ph) - c)
+    gap = lower[1] - lower[0]
+    V += ks * (sp.sqrt(gap.dot(gap)) - l0) ** 2 / 2
+    rel = th2 - th1
+    M, h = virtual_power(bodies, y)
+    f = sp.Matrix([-V.diff(a) + Q[i] - cd * rate_of(rel, y) * rel.diff(a) for i, a in enumerate(y)])
+    ref = Constrained(y, M, h, f, g_, [th1, th2], params)
+    system = derived("twin_system2.yaml")
+    assert [s.name for s in system.coordinates] == ["th1", "th2"]
+    pairs = walk_independent(system, ref, [0.3, 0.4], [0.3, 0.4, 1.1, 0.9], 46, step=0.05)
+    assert worst(pairs) < TOL
