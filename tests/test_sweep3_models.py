@@ -578,9 +578,10 @@ def test_two_cart_pendulums_scene_switches_off_nested_effects():
 
 def test_twin_system2_closed_loops_renamed_and_placed():
     """System II (a closed loop: phi dependent) twice, dependent coordinates renamed, the right
-    copy placed and overridden (m2, and its push F in t); a spring and a damper between them."""
+    copy placed and overridden (m2, and its push F in t); a spring and a damper between them, a
+    generalized force on a dependent coordinate and a force in a dependent velocity."""
     th1, th2, ph1, ph2 = y = list(S("th1 th2 ph1 ph2"))
-    m1, m2, a1, a2, I1, I2, g, F, c, dx, ks, l0, cd, Fa, w = params = S("m1 m2 a1 a2 I1 I2 g F c dx ks l0 cd Fa w")
+    m1, m2, a1, a2, I1, I2, g, F, c, dx, ks, l0, cd, Fa, w, cb = params = S("m1 m2 a1 a2 I1 I2 g F c dx ks l0 cd Fa w cb")
     bodies, V, Q, lower, g_ = [], 0, sp.zeros(4, 1), [], []
     for th, ph, O, mass, push in ((th1, ph1, 0, m2, F), (th2, ph2, dx, 3 * m2 / 2, Fa * sp.sin(w * t))):
         c1 = sp.Matrix([O, 0]) + a1 * down(th)
@@ -594,7 +595,10 @@ def test_twin_system2_closed_loops_renamed_and_placed():
     V += ks * (sp.sqrt(gap.dot(gap)) - l0) ** 2 / 2
     rel = th2 - th1
     M, h = virtual_power(bodies, y)
-    f = sp.Matrix([-V.diff(a) + Q[i] - cd * rate_of(rel, y) * rel.diff(a) for i, a in enumerate(y)])
+    end_left = 2 * a1 * down(th1) + 2 * a2 * down(ph1)
+    yd = dots(y)  # the brake on the dependent ph2 and the drag in ph1's velocity
+    f = sp.Matrix([-V.diff(a) + Q[i] - cd * rate_of(rel, y) * rel.diff(a) - cb * yd[3] * int(a == ph2)
+                   - cb * yd[2] * end_left[0].diff(a) for i, a in enumerate(y)])
     ref = Constrained(y, M, h, f, g_, [th1, th2], params)
     system = derived("twin_system2.yaml")
     assert [s.name for s in system.coordinates] == ["th1", "th2"]
