@@ -604,3 +604,19 @@ def test_twin_system2_closed_loops_renamed_and_placed():
     assert [s.name for s in system.coordinates] == ["th1", "th2"]
     pairs = walk_independent(system, ref, [0.3, 0.4], [0.3, 0.4, 1.1, 0.9], 46, step=0.05)
     assert worst(pairs) < TOL
+
+
+def test_auto_switch_between_coarse_rows():
+    """`coordinates: auto` watches G_d at the output rows; in C (dop853) with rows 0.5 s apart the
+    run reached the toggle between two rows and stopped at t = 0.298 ('a singular configuration
+    (toggle position) is reached ... relative size 0.075'), though a switch there goes on (rows
+    0.05 apart switch at t = 0.25). Now the stretch is run again with scipy's DOP853, whose event
+    stops where G_d nears singular; the rows agree with the fine run's and the energy is kept."""
+    system = derived("five_bar_slider.yaml")
+    quiet = {"cf": 0, "tq": 0}
+    coarse = system.simulate(t=1.0, dt=0.5, set=quiet, dataframe=False)
+    fine = system.simulate(t=1.0, dt=0.05, set=quiet, dataframe=False)
+    assert coarse.complete, coarse.message
+    assert np.allclose(coarse.y, fine.y[::10], rtol=1e-7, atol=1e-7)
+    energy = coarse["total_energy"]
+    assert np.ptp(energy) < 1e-8 * max(1.0, np.max(np.abs(energy)))
