@@ -192,6 +192,13 @@ def test_two_cart_pendulums_three_levels_placed():
     fixed = lambda rng: {"x1": rng.uniform(0, 0.5), "x2": rng.uniform(0, 0.5)}  # noqa: E731
     assert compare_explicit(system, (M, h, f), 33, fixed=fixed) < TOL
     assert compare_energies(system, kinetic(M, q), V, 33, fixed=fixed) < TOL
+    x1, th1, x2, th2 = (system.symbol(n) for n in ("x1", "th1", "x2", "th2"))
+    d, L = system.symbol("d"), system.symbol("L")
+    want = {"left.base.cart.centre": (x1, 0), "right.base.cart.centre": (x2 + d, 0),
+            "right.pole.tip": (x2 + d + L * sp.sin(th2), -L * sp.cos(th2))}
+    for label, (wx, wy) in want.items():  # the line's points are the plane's x axis, moved with the copy
+        px, py = system.points[label]
+        assert sp.simplify(px - wx) == 0 and sp.simplify(py - wy) == 0, (label, system.points[label])
 
 
 def test_linearize_through_springs_of_rest_length_on_a_line():
