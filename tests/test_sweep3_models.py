@@ -26,6 +26,7 @@ import sympy as sp
 from click.testing import CliRunner
 
 import kronsub
+from kronsub.errors import ModelError
 from kronsub.cli import main
 from test_sweep_models import (Constrained, _evaluator, compare_explicit, dots, lagrange, rate_of, virtual_power,
                                walk_constrained, world_angular_velocity, worst)
@@ -627,3 +628,25 @@ def test_auto_switch_between_coarse_rows():
     assert np.allclose(coarse.y, fine.y[::10], rtol=1e-7, atol=1e-7)
     energy = coarse["total_energy"]
     assert np.ptp(energy) < 1e-8 * max(1.0, np.max(np.abs(energy)))
+
+
+def test_known_systems_bringing_one_parameter_with_two_values():
+    """sprung_cart.yaml (k = 30, l0 = 0.4) and atwood_pulley.yaml (k = 40, l0 = 0.3) in one model:
+    the shared k, l0 took the cart's values, silently (the pulley's a_ddot coefficient of a
+    went from k r2^2 = 0.9 to 0.675). Now an error at the second `model:`; with overrides each
+    keeps its own spring."""
+    path = HERE / "cart_and_pulley.yaml"
+    with pytest.raises(ModelError) as info:
+        kronsub.load(path, cache=False)
+    text = str(info.value)
+    line = next(i for i, ln in enumerate(path.read_text().splitlines(), 1) if "pulley: {model:" in ln)
+    assert f"cart_and_pulley.yaml:{line}:" in text
+    assert "parameter 'k' is 40 in 'pulley' but 30 in 'cart'" in text and "'l0'" in text and "hint:" in text
+    system = derived("cart_and_pulley_fixed.yaml")
+    values = {p.name: float(p.value) for p in system.parameters}
+    row = system.forces[1].subs({system.symbol(k): v for k, v in values.items()})
+    row = row.subs({s: 0 for s in system.velocities} | {system.symbol("x"): 0, system.symbol("t"): 0})
+    a = system.symbol("a")
+    stiffness = float(row.subs(a, 0) - row.subs(a, sp.Rational(1, 100))) * 100  # the pulley's spring: k r2^2
+    assert stiffness == pytest.approx(values["kp"] * values["r2"] ** 2)
+    assert values["k"] == 30 and values["l0"] == pytest.approx(0.4)
