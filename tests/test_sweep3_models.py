@@ -650,3 +650,39 @@ def test_known_systems_bringing_one_parameter_with_two_values():
     stiffness = float(row.subs(a, 0) - row.subs(a, sp.Rational(1, 100))) * 100  # the pulley's spring: k r2^2
     assert stiffness == pytest.approx(values["kp"] * values["r2"] ** 2)
     assert values["k"] == 30 and values["l0"] == pytest.approx(0.4)
+
+
+def test_gravity_of_this_model_on_a_known_system_on_a_line_and_in_the_plane():
+    """A gravity effect naming a known system acts on its bodies; on one with parts on a line and
+    in the plane (no one world) it acted on nothing, silently (V = 0 from it: the pendulum
+    weightless on the Moon)."""
+    from kronsub.model.scenes import derive_scene, select_scene
+
+    x, th = q = list(S("x th"))
+    g_moon = S("g_moon")
+    q_, M, h, f, V = cart_pendulum_reference()
+    g = S("g")
+    earth = sp.Matrix([-(V - V.subs(g, 0)).diff(a) for a in q])  # the known system's own gravity
+    moon = (V - V.subs(g, 0)).subs(g, g_moon)
+    model = kronsub.load(HERE / "cart_pendulum_on_moon.yaml")
+    system = derive_scene(model, select_scene(model, "moon"))
+    fixed = lambda rng: {"x": rng.uniform(0, 1)}  # noqa: E731
+    f_moon = f - earth + sp.Matrix([-moon.diff(a) for a in q])
+    assert compare_explicit(system, (M, h, f_moon), 47, fixed=fixed) < TOL
+    assert compare_energies(system, kinetic(M, q), V.subs(g, 0) + moon, 47, fixed=fixed) < TOL
+
+
+def test_gravity_that_acts_on_no_component(tmp_path):
+    """Without `components:` a gravity acts on the library components with mass only (known
+    systems bring their own): over a known system alone it acted on nothing, silently, while
+    docs/model-format.md said it acted on the known system's bodies. Now an error that says
+    to name them."""
+    text = (HERE / "cart_pendulum_on_moon.yaml").read_text().replace(", components: [rig]", "")
+    path = tmp_path / "moon.yaml"
+    path.write_text(text.replace("model: cart_pendulum.yaml", f"model: {HERE / 'cart_pendulum.yaml'}"))
+    with pytest.raises(ModelError) as info:
+        kronsub.load(path, cache=False)
+    line = next(i for i, ln in enumerate(path.read_text().splitlines(), 1) if "moon: {type: gravity" in ln)
+    text = str(info.value)
+    assert f"moon.yaml:{line}:" in text and "gravity 'moon' acts on no component" in text
+    assert "components: [rig]" in text
