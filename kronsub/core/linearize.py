@@ -70,6 +70,14 @@ class Linearization:
         return all(e.real < 0 for e in self.eigenvalues)
 
 
+def derivative(m: sympy.Matrix, wrt) -> sympy.Matrix:
+    """``dm/dwrt`` (a Jacobian, or ``diff`` by one symbol) where it exists: ``d sign(x)/dx``
+    (a spring of rest length on a line, ``|x| - l0``) is zero away from ``x = 0``, never
+    ``DiracDelta``, which no numeric backend evaluates (the generated code does the same)."""
+    d = m.jacobian(sympy.Matrix(wrt)) if isinstance(wrt, (list, tuple, sympy.MatrixBase)) else m.diff(wrt)
+    return d.replace(sympy.DiracDelta, lambda *args: sympy.Integer(0)) if d.has(sympy.DiracDelta) else d
+
+
 def _residual(system: KnownSystem) -> sympy.Matrix:
     """``r = fbar - hbar`` (10')."""
     return system.forces - system.velocity_terms
@@ -170,10 +178,10 @@ def linearize(system: KnownSystem, *, inputs: Sequence[sympy.Symbol] = (),
     r = _residual(system)
     M = system.mass_matrix
     x_q = sympy.Matrix(q)
-    K0 = r.jacobian(x_q)
-    D0 = r.jacobian(sympy.Matrix(qd)) if n else sympy.zeros(n, 0)
-    G0 = r.jacobian(sympy.Matrix(inputs)) if inputs else sympy.zeros(n, 0)
-    dM = [M.diff(qk) for qk in q]
+    K0 = derivative(r, x_q)
+    D0 = derivative(r, list(qd)) if n else sympy.zeros(n, 0)
+    G0 = derivative(r, list(inputs)) if inputs else sympy.zeros(n, 0)
+    dM = [derivative(M, qk) for qk in q]
 
     # the operating point, numerically
     start = {qk: _numeric(initial.get(qk, 0), numbers) for qk in q}

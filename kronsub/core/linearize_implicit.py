@@ -24,7 +24,7 @@ import sympy
 from .constraints import ConstraintFailure, Intermediates
 from .known_system import KnownSystem
 from .linearize import (EQUILIBRIUM_TOLERANCE, Linearization, LinearizationError, _Evaluator, _eigenvalues,
-                        _numeric, _residual, _solve, checked_inputs, parameter_defaults,
+                        _numeric, _residual, _solve, checked_inputs, derivative, parameter_defaults,
                         parameter_numbers)
 from .symbols import TIME
 
@@ -47,7 +47,7 @@ class _Reduced:
         quad = sympy.Matrix(imp.quadratic)
 
         def jac(m, wrt):
-            return m.jacobian(sympy.Matrix(wrt)) if wrt else sympy.zeros(m.shape[0], 0)
+            return derivative(m, list(wrt)) if wrt else sympy.zeros(m.shape[0], 0)
 
         matrices = {
             "M": M, "r": r, "r_q": jac(r, self.q), "r_qd": jac(r, self.qd), "r_u": jac(r, list(inputs)),
@@ -57,7 +57,7 @@ class _Reduced:
         }
         for label, symbols in (("q", self.q), ("yd", yd), ("L", lam)):
             for i, s in enumerate(symbols):
-                matrices[f"M_{label}{i}"] = M.diff(s)
+                matrices[f"M_{label}{i}"] = derivative(M, s)
                 if label != "L":
                     matrices[f"Gd_{label}{i}"] = Gd.diff(s)
                     matrices[f"Gi_{label}{i}"] = Gi.diff(s)

@@ -154,13 +154,18 @@ def project_inertia(sub: Subspace, primitive: Primitive, *, name: str = "",
         transformation=sympy.Matrix(len(sub.x), n, lambda a, j: compact(algebra, sub.C[a][j])),
         parts=tuple((p.name, p.type_name) for p in primitive.parts),
     )
-    points = {f"{part.name}.{label}": tuple(sub.moved(c) for c in pos)
+    dimension = world_dimension(primitive)
+
+    def placed(pos):  # a point of a line, in a system that also has parts in the plane: (x, 0)
+        moved = tuple(sub.moved(c) for c in pos)
+        return moved + (sympy.Integer(0),) * (dimension - len(moved)) if dimension == 2 else moved
+
+    points = {f"{part.name}.{label}": placed(pos)
               for part in primitive.parts for label, pos in part.points.items()}
     bodies = tuple(
-        Body(body.mass, tuple(sub.moved(c) for c in body.centre),
+        Body(body.mass, placed(body.centre),
              None if body.rotation is None else body.rotation.applyfunc(sub.moved), body.inertia)
         for part in primitive.parts for body in part.bodies)
-    dims = {part.dimension for part in primitive.parts if part.dimension}
     return KnownSystem(
         name=name,
         coordinates=sub.coords,
@@ -170,11 +175,21 @@ def project_inertia(sub: Subspace, primitive: Primitive, *, name: str = "",
         effect_forces={},
         points=points,
         bodies=bodies,
-        dimension=max(dims) if len(dims) == 1 else 0,
+        dimension=dimension,
         parameters=tuple(parameters),
         transition=transition,
         description=description,
     )
+
+
+def world_dimension(primitive: Primitive) -> int:
+    """The world of the derived system: that of its parts; the plane when some parts live on a
+    line and the others in the plane (the line is the plane's x axis, as for `pivot:`); 0 (no
+    one world) for parts in the plane and in space."""
+    dims = {part.dimension for part in primitive.parts if part.dimension}
+    if dims == {1, 2}:
+        return 2
+    return max(dims) if len(dims) == 1 else 0
 
 
 def assemble(inertia: KnownSystem, effects: Sequence[ProjectedEffect]) -> KnownSystem:

@@ -20,16 +20,22 @@ class Force(Effect):
 
 
 def angular_velocity(primitive, rotation: sympy.Matrix):
-    """World angular velocity of a rotation ``R(x)``: from ``Rdot R^T`` (skew)."""
+    """World angular velocity of a rotation ``R(x)``: from ``Rdot R^T`` (skew), each entry
+    reduced in the trigonometric algebra of the coordinates, where ``cos^2 + sin^2 = 1`` holds
+    as the products are formed (exact, and far cheaper than ``simplify`` in space)."""
+    from ..core.trigpoly import TrigAlgebra
+
     rdot = sympy.Matrix(rotation.shape[0], rotation.shape[1],
                         lambda i, j: primitive.rate(rotation[i, j]))
-    if rotation.shape == (2, 2):  # exact in the trigonometric algebra: cos^2 + sin^2 = 1 as formed
-        from ..core.trigpoly import TrigAlgebra
+    algebra = TrigAlgebra(primitive.coordinates)
+    w = rdot * rotation.T
 
-        algebra = TrigAlgebra(primitive.coordinates)
-        return (algebra.to_expr(algebra.from_expr(sympy.expand((rdot * rotation.T)[1, 0]))),)
-    w = (rdot * rotation.T).applyfunc(lambda e: sympy.simplify(sympy.expand(e)))
-    return (w[2, 1], w[0, 2], w[1, 0])
+    def reduced(entry):
+        return algebra.to_expr(algebra.from_expr(sympy.expand(entry)))
+
+    if rotation.shape == (2, 2):
+        return (reduced(w[1, 0]),)
+    return (reduced(w[2, 1]), reduced(w[0, 2]), reduced(w[1, 0]))
 
 
 @dataclass(frozen=True)

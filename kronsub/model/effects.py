@@ -74,6 +74,7 @@ def _gravity(loader, ename, spec, primitive):
     else:
         g = None
         loader.error(spec, f"gravity '{ename}' needs `g:`", "give `g: 9.81` or declare a parameter `g`")
+    reported = len(loader.problems.problems)  # a gravity on nothing is an error, unless said already
     names = [p.name for p in primitive.parts]
     cnode = spec.get("components")
     if cnode is None:
@@ -114,6 +115,14 @@ def _gravity(loader, ename, spec, primitive):
                      f"{len(direction)} entries, but the components live in "
                      + " and ".join(f"{w}-D" for w in worlds),
                      "give a direction with one entry per world axis, e.g. `[0, -1]` in the plane")
+        return None
+    if not parts and len(loader.problems.problems) == reported and not loader.failed_components:
+        known = [p.name for p in primitive.parts if not p.type_name and any(b.mass != 0 for b in p.bodies)]
+        why = ("without `components:` it acts on the library components with mass, and known systems "
+               "bring their own gravity" if cnode is None else "nothing of the components named moves in a world")
+        loader.error(spec, f"gravity '{ename}' acts on no component: {why}",
+                     f"name the components it acts on, e.g. `components: [{known[0]}]`" if known and cnode is None
+                     else "leave it out, or name components with mass")
         return None
     if g is None:
         return None

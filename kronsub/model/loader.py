@@ -130,6 +130,8 @@ class _Loader:
         self.problems = ProblemCollector()
         self.names: dict[str, sympy.Basic] = {"t": TIME}
         self.parameters: dict[str, ParameterInfo] = {}
+        self.declared: set[str] = set()  # parameters this model declares itself
+        self.inherited: dict[str, tuple[str, sympy.Expr | None]] = {}  # name -> (component, value) first brought
         self.parts: list[Part] = []
         self.sub_hashes: list[str] = []
         self.locations: dict[str, Location] = {}
@@ -331,6 +333,7 @@ class _Loader:
             value = None
             if value_node is not None and value_node.value is not None:
                 value = self.expr(value_node, {}, what=f"value of parameter '{pname}'")
+            self.declared.add(pname)
             self.add_parameter(ParameterInfo(pname, symbol(pname), value, unit, description), location=loc)
 
     def add_parameter(self, info: ParameterInfo, *, inherited: bool = False, location: Location | None = None) -> None:
@@ -562,24 +565,43 @@ class _Loader:
                                                inertial=_inertial_parameters(system).__contains__)
         for info in system.parameters:
             if info.name not in overrides:
+                self._inherit(cname, mnode, info)
                 self.add_parameter(info, inherited=True, location=spec.location)
         # a constrained system is placed on y: its dependent coordinates can be renamed too
         local = tuple(q.name for q in (system.implicit.intermediate if system.implicit is not None
                                        else system.coordinates))
         names = self._coordinate_names(cname, spec.get("coordinates"), local, "{}")
-        origin = self._origin(cname, spec.get("origin"), system.dimension)
+        origin = self._origin(cname, spec.get("origin"), system.dimension, bool(system.points))
         if names is None or any(v is None for v in overrides.values()) or origin is False:
             return None
         part = known_system_part(cname, system, {symbol(k): v for k, v in overrides.items()},
                                  dict(zip(local, names)))
         return placed(part, origin) if origin else part
 
-    def _origin(self, cname: str, node: Node | None, dimension: int):
+    def _inherit(self, cname: str, mnode: Node, info: ParameterInfo) -> None:
+        """Known systems share an inherited parameter by its name; two that bring it with
+        different values are an error (one would silently take the other's value)."""
+        first = self.inherited.setdefault(info.name, (cname, info.value))
+        if info.name in self.declared or first[0] == cname or first[1] is None or info.value is None:
+            return
+        if sympy.simplify(first[1] - info.value) != 0:
+            self.error(mnode, f"parameter '{info.name}' is {excerpt(str(info.value))} in '{cname}' but "
+                              f"{excerpt(str(first[1]))} in '{first[0]}': known systems share a parameter by its name",
+                       f"declare `{info.name}` in this model's `parameters:` to give both one value, or give "
+                       f"'{cname}' its own: `parameters: {{{info.name}: {info.name}_{cname}}}` with "
+                       f"`{info.name}_{cname}` declared")
+
+    def _origin(self, cname: str, node: Node | None, dimension: int, has_points: bool = True):
         """``origin: [x, y]``: where a known system's own origin sits in this model's world."""
         if node is None:
             return None
+        if not dimension:
+            why = "its parts live in worlds of different dimensions" if has_points else "it has no points"
+            self.error(node, f"`origin:` of '{cname}': {why}, so there is no world to move it in",
+                       "leave `origin:` out; place the parts in the known system's own file instead")
+            return False
         if not node.is_sequence or len(node.value) != dimension:
-            self.error(node, f"`origin:` of '{cname}' needs {dimension or 'one entry per world axis'} entries",
+            self.error(node, f"`origin:` of '{cname}' needs {dimension} entries (one per world axis)",
                        "e.g. `origin: [2*d, 0]`: the known system is moved there, unturned")
             return False
         values = [self.expr(v, self.parameter_names(), what=f"origin of '{cname}'") for v in node.value]

@@ -89,6 +89,9 @@ def animate(t: np.ndarray, names: list[str], values: np.ndarray, path: Path, *, 
     if len(t) == 0:
         raise AnimationError("the trajectory has no rows to animate")
     paths = point_paths(names, values)
+    if not paths:
+        raise AnimationError("nothing to draw: the model has no named points (flywheels have none)"
+                             "\n  hint: `kronsub simulate` writes its coordinates over time")
     groups = _groups(paths)
     times, interval = frame_times(t, fps, suffix == ".gif")
     if len(t) > 1:  # the points at the frames' times, between the rows

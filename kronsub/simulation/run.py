@@ -315,6 +315,7 @@ def _auto_blocks(run, system, spec, native, constrained, grid, y0, param, rtol, 
     first = split = sw.Split(system, constrained)
     offset, start, total = 0, None, {}
     last = None  # (t, y, ydot) of the last row written
+    watched = False  # this stretch again in scipy, whose event watches G_d between the rows
     try:
         while True:
             if offset:
@@ -327,17 +328,17 @@ def _auto_blocks(run, system, spec, native, constrained, grid, y0, param, rtol, 
             else:
                 module = _numpy_module(split.system, outputs)
                 configure_module(module, split.evaluator.guess, tol)
-            if spec.engine == "c":  # (start() made it a scipy method when nothing compiled)
+            if spec.engine == "c" and not watched:  # (start() made it a scipy method when nothing compiled)
                 rows = _native_blocks(run, native, spec.name, _Tail(grid, offset, start), y0, param, rtol, atol, dt,
                                       chunks, bar, split.system)
             else:
                 rhs = _native_rhs(native, param) if native is not None else _numpy_rhs_of(module, param)
-                rows = _scipy_blocks(run, rhs, spec.name, _Tail(grid, offset, start), y0, rtol, atol, chunks, bar,
-                                     split.system, events=_toggle_event(split))
+                rows = _scipy_blocks(run, rhs, "DOP853" if watched else spec.name, _Tail(grid, offset, start), y0,
+                                     rtol, atol, chunks, bar, split.system, events=_toggle_event(split))
             switch = None
             for index, (t, Y) in enumerate(rows):
-                if (offset or start is not None) and index == 0:
-                    continue  # the row of the switch, written already (or between two rows)
+                if last is not None and index == 0:
+                    continue  # the row it went on from, written already (or between two rows)
                 Y = np.asarray(Y).reshape(len(t), -1)
                 out, dependent, cut = [], [], len(t)
                 for i, row in enumerate(Y):
@@ -371,18 +372,25 @@ def _auto_blocks(run, system, spec, native, constrained, grid, y0, param, rtol, 
                 y, ydot = split.full(y_event)
                 switch = split.numeric.pivot(y)
                 last = (t_event, y, ydot)
+            again = False
             if switch is None and not run.complete and last is not None:
                 # stopped in Newton's method or at a singular G_d: another choice from the last row
                 best = split.numeric.pivot(last[1])
                 if sorted(best) != sorted(split.dependent_idx) and len(run.switches) < sw.MAX_SWITCHES:
                     switch = best
+                elif spec.engine == "c" and not watched and len(run.switches) < sw.MAX_SWITCHES:
+                    again = True  # C watched only the rows: from the last one again, watched between rows
+                if switch is not None or again:
                     run.complete, run.message, run.t_fail, run.y_fail = True, "", None, None
-            if switch is None:
+            watched = again
+            if switch is None and not again:
                 break
             t_switch, y, ydot = last
-            new = sw.switched_split(split, switch, y, tol)
-            run.switches.append((t_switch, sw.describe(t_switch, split, new)))
-            split, y0 = new, new.row(y, ydot)
+            if switch is not None:
+                new = sw.switched_split(split, switch, y, tol)
+                run.switches.append((t_switch, sw.describe(t_switch, split, new)))
+                split = new
+            y0 = split.row(y, ydot)
             # go on from the switch: the grid rows after it (a switch between rows starts off the grid)
             offset = min(int(round(t_switch / grid.dt)), len(grid) - 1)
             if abs(grid[offset] - t_switch) <= 1e-9 * max(1.0, abs(t_switch)):
@@ -688,6 +696,15 @@ def _fixed_pieces(t0: float, t1: float, dt: float) -> list[tuple[float, float]]:
     return list(zip(cuts[:-1], cuts[1:]))
 
 
+def _aligned_pieces(t0: float, t1: float, dt: float) -> list[tuple[float, float]]:
+    """``t0 .. t1`` for an adaptive method, cut at the first multiple of ``dt`` after a ``t0``
+    between two rows (a run going on after a switch of coordinates there): C writes its rows
+    every ``dt`` from the start of a piece, so each piece must start on the grid."""
+    tiny = 1e-9 * dt
+    first = math.ceil(t0 / dt - 1e-9) * dt
+    return [(t0, first), (first, t1)] if t0 + tiny < first < t1 - tiny else [(t0, t1)]
+
+
 def _native_blocks(run, native, method, grid, y0, param, rtol, atol, dt, chunks, bar, system):
     """Blocks ``(t, Y)`` of a run wholly in C, one per chunk of the grid."""
     last = grid[0]
@@ -696,7 +713,7 @@ def _native_blocks(run, native, method, grid, y0, param, rtol, atol, dt, chunks,
     y = y0
     fixed = method in ("gauss4", "rk4")
     pieces = [p for a, b in _chunks(grid, chunks)
-              for p in (_fixed_pieces(grid[a], grid[b], dt) if fixed else [(grid[a], grid[b])])]
+              for p in (_fixed_pieces(grid[a], grid[b], dt) if fixed else _aligned_pieces(grid[a], grid[b], dt))]
     for t0, t1 in pieces:
         t, Y, result = native.integrate(method, t0, y, t1, dt, param, rtol=rtol, atol=atol,
                                         h=dt if fixed else None)

@@ -12,7 +12,9 @@ first choice) it projects the same primitive onto the same constraints with the 
 (:func:`~kronsub.core.constraints.project_implicit` on the system before the constraints
 that the derived system carries), maps the state (``ydot = C xbardot``), compiles the new
 equations and goes on from that row. A run that stops in Newton's method or at a singular
-``G_d`` first tries the same from its last row. Rows stay in the layout of the first
+``G_d`` first tries the same from its last row; a compiled run, which watches only the rows,
+then goes over the stretch from its last row again in scipy's DOP853, whose event stops where
+``G_d`` nears singular (between two rows). Rows stay in the layout of the first
 choice (its independent coordinates, their velocities, its dependent coordinates), so the
 CSV keeps its columns; each switch is recorded as ``(t, old, new)`` in ``Run.switches``.
 """
