@@ -106,3 +106,18 @@ effects:
   gravity: {type: gravity}
 initial: {theta: 0.4}
 """
+
+
+def Rx(u):
+    """The rotation by ``u`` about x (independent references of spatial models)."""
+    return sympy.Matrix([[1, 0, 0], [0, sympy.cos(u), -sympy.sin(u)], [0, sympy.sin(u), sympy.cos(u)]])
+
+
+def Ry(u):
+    """The rotation by ``u`` about y."""
+    return sympy.Matrix([[sympy.cos(u), 0, sympy.sin(u)], [0, 1, 0], [-sympy.sin(u), 0, sympy.cos(u)]])
+
+
+def Rz(u):
+    """The rotation by ``u`` about z."""
+    return sympy.Matrix([[sympy.cos(u), -sympy.sin(u), 0], [sympy.sin(u), sympy.cos(u), 0], [0, 0, 1]])

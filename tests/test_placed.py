@@ -7,7 +7,6 @@ from __future__ import annotations
 import math
 
 import pytest
-import sympy
 
 import kronsub
 
@@ -17,10 +16,8 @@ parameters:
   L: {value: 0.9, unit: m}
   g: {value: 9.81, unit: m/s^2}
 components:
-  rod: {type: pinned_rod, parameters: {mass: 0, length: L}, coordinates: {angle: theta}}
-  bob: {type: particle2d, parameters: {mass: m}, coordinates: [x, y]}
+  arm: {type: pinned_rod, parameters: {mass: m, length: L}, coordinates: {angle: theta}}
 coordinates: [theta]
-connection: {x: L*sin(theta), y: -L*cos(theta)}
 effects:
   gravity: {type: gravity, g: g, direction: [DX, DY]}
 """
@@ -44,9 +41,9 @@ def test_potential_of_a_known_system_placed_twice(tmp_path, monkeypatch, directi
         values = {s.name: s for s in system.potential_energy.free_symbols}
         theta = values["theta"]
         state = {"theta": 0.4, "m": 1.3, "L": 0.9, "g": 9.81, "e": 0.7, "w": -0.4, "f": 0.7}
-        # the bob in the world: the pendulum's origin moved by (w, e), then by (f, 2 w)
-        x = 0.9 * math.sin(0.4) + (-0.4) + 0.7
-        y = -0.9 * math.cos(0.4) + 0.7 + 2 * (-0.4)
+        # the rod's centre in the world: the pendulum's origin moved by (w, e), then by (f, 2 w)
+        x = 0.45 * math.sin(0.4) + (-0.4) + 0.7
+        y = -0.45 * math.cos(0.4) + 0.7 + 2 * (-0.4)
         norm = math.hypot(dx, dy)
         expected = -1.3 * 9.81 * (dx * x + dy * y) / norm
         got = float(system.potential_energy.subs({values[k]: v for k, v in state.items() if k in values}))

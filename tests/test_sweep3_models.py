@@ -25,10 +25,11 @@ import sympy as sp
 from click.testing import CliRunner
 
 import kronsub
+from helpers import Rx, Ry, Rz
 from kronsub.errors import ModelError
 from kronsub.cli import main
-from test_sweep_models import (Constrained, _evaluator, compare_explicit, dots, lagrange, rate_of, virtual_power,
-                               walk_constrained, world_angular_velocity, worst)
+from test_sweep_models import (Constrained, compare_explicit, dots, lagrange, largest_difference, rate_of,
+                               virtual_power, walk_constrained, world_angular_velocity, worst)
 
 HERE = Path(__file__).resolve().parent / "models" / "sweep3"
 t = sp.Symbol("t")
@@ -47,22 +48,8 @@ def down(a):
 
 def compare_energies(system, T, V, seed, *, spread=3.0, jitter=0.3, states=6, fixed=None):
     """Largest relative difference of kronsub's ``T`` (from ``Mbar``) and ``V`` from the hand ones."""
-    rng = np.random.default_rng(seed)
-    params = {p.name: float(p.value) for p in system.parameters if p.value is not None}
-    q = [s.name for s in system.coordinates] + [s.name for s in system.velocities]
-    names = ["t", *q, *sorted(params)]
-    ours = _evaluator([system.kinetic_energy, system.potential_energy], names)
-    theirs = _evaluator([sp.sympify(T), sp.sympify(V)], names)
-    err = 0.0
-    for _ in range(states):
-        values = {n: v * (1 + jitter * rng.uniform(-1, 1)) for n, v in params.items()}
-        values.update({n: rng.uniform(-spread, spread) for n in q})
-        values["t"] = rng.uniform(0, 3)
-        if fixed:
-            values.update(fixed(rng))
-        for a, b in zip(ours(values), theirs(values)):
-            err = max(err, float(np.max(np.abs(a - b)) / max(1.0, np.max(np.abs(b)))))
-    return err
+    return largest_difference(system, [system.kinetic_energy, system.potential_energy], [sp.sympify(T), sp.sympify(V)],
+                              seed, spread=spread, jitter=jitter, states=states, fixed=fixed)
 
 
 def kinetic(M, q):
@@ -422,18 +409,6 @@ def test_pendulum_on_the_peg_of_a_rolling_wheel():
 # ------------------------------------------------------------------------------------------
 # Space: a body on a Cardan joint with products of inertia, a bead on a cone
 # ------------------------------------------------------------------------------------------
-
-def Rx(u):
-    return sp.Matrix([[1, 0, 0], [0, sp.cos(u), -sp.sin(u)], [0, sp.sin(u), sp.cos(u)]])
-
-
-def Ry(u):
-    return sp.Matrix([[sp.cos(u), 0, sp.sin(u)], [0, 1, 0], [-sp.sin(u), 0, sp.cos(u)]])
-
-
-def Rz(u):
-    return sp.Matrix([[sp.cos(u), -sp.sin(u), 0], [sp.sin(u), sp.cos(u), 0], [0, 0, 1]])
-
 
 def test_cardan_body_with_products_of_inertia(tmp_path):
     """X-Y-Z angles (a, b, 0); the mass centre at (u, 0, -h) from the joint in body axes; the

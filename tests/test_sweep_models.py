@@ -24,6 +24,7 @@ import pytest
 import sympy as sp
 
 import kronsub
+from helpers import Rx, Ry, Rz
 from kronsub.errors import ModelError
 
 SWEEP = Path(__file__).resolve().parent / "models" / "sweep"
@@ -104,12 +105,18 @@ def _evaluator(exprs, names):
 def compare_explicit(system, reference, seed, *, spread=3.0, jitter=0.3, states=10, fixed=None):
     """Largest relative difference of kronsub's ``Mbar, hbar, fbar`` from the reference's at random
     states, times and parameters (each parameter its model value times 1 +- ``jitter``)."""
+    return largest_difference(system, [system.mass_matrix, system.velocity_terms, system.forces], list(reference),
+                              seed, spread=spread, jitter=jitter, states=states, fixed=fixed)
+
+
+def largest_difference(system, ours, theirs, seed, *, spread=3.0, jitter=0.3, states=10, fixed=None):
+    """Largest relative difference of the expressions ``ours`` from ``theirs`` (pairwise) at random
+    states, times and parameters of ``system``."""
     rng = np.random.default_rng(seed)
     params = {p.name: float(p.value) for p in system.parameters if p.value is not None}
     q = [s.name for s in system.coordinates] + [s.name for s in system.velocities]
     names = ["t", *q, *sorted(params)]
-    ours = _evaluator([system.mass_matrix, system.velocity_terms, system.forces], names)
-    theirs = _evaluator(list(reference), names)
+    ours, theirs = _evaluator(list(ours), names), _evaluator(list(theirs), names)
     worst = 0.0
     for _ in range(states):
         values = {n: v * (1 + jitter * rng.uniform(-1, 1)) for n, v in params.items()}
@@ -256,13 +263,6 @@ def test_sideways_top_zxz():
     psi, th, phi = S("psi theta phi")
     m, h, A, B, C, D, E, tau, cs, g = S("m h A B C D E tau cs g")
     q = [psi, th, phi]
-
-    def Rz(a):
-        return sp.Matrix([[sp.cos(a), -sp.sin(a), 0], [sp.sin(a), sp.cos(a), 0], [0, 0, 1]])
-
-    def Rx(a):
-        return sp.Matrix([[1, 0, 0], [0, sp.cos(a), -sp.sin(a)], [0, sp.sin(a), sp.cos(a)]])
-
     R = Rz(psi) * Rx(th) * Rz(phi)
     centre = R * sp.Matrix([0, 0, h])
     M, hh = virtual_power([(m, centre, R, sp.Matrix([[A, 0, D], [0, B, E], [D, E, C]]))], q)
@@ -471,15 +471,6 @@ def test_ball_joint_pendulum():
     accelerations of the compiled right-hand side."""
     a, b, c = q = list(S("a b c"))
     m, A, B, C, h, g = params = S("m A B C h g")
-
-    def Rx(u):
-        return sp.Matrix([[1, 0, 0], [0, sp.cos(u), -sp.sin(u)], [0, sp.sin(u), sp.cos(u)]])
-
-    def Ry(u):
-        return sp.Matrix([[sp.cos(u), 0, sp.sin(u)], [0, 1, 0], [-sp.sin(u), 0, sp.cos(u)]])
-
-    def Rz(u):
-        return sp.Matrix([[sp.cos(u), -sp.sin(u), 0], [sp.sin(u), sp.cos(u), 0], [0, 0, 1]])
 
     R = Rx(a) * Ry(b) * Rz(c)
     centre = -R * sp.Matrix([0, 0, h])
