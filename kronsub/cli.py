@@ -399,7 +399,9 @@ def _constraint_hints(system, run, step: float) -> str:
     if system.implicit is None:
         return ""
     hints = []
-    if run.method in ("gauss4", "rk4"):
+    from .simulation.run import FIXED_STEP
+
+    if run.method in FIXED_STEP:
         hints.append(f"{run.method} takes fixed steps of --dt {step:g}: a smaller --dt keeps each step "
                      "within the mechanism's reach")
     if "toggle position" in run.message and system.implicit.choice != "auto":

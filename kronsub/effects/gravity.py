@@ -18,11 +18,15 @@ class Gravity(Effect):
     g: sympy.Expr = sympy.Integer(0)
     parts: tuple[tuple[str, tuple[sympy.Expr, ...]], ...] = ()
 
-    def potential(self, primitive):
-        total = sympy.Integer(0)
+    def _units(self):
+        """``(part name, d)`` per part, ``d`` the unit direction in that part's world."""
         for name, direction in self.parts:
             norm = sympy.sqrt(sum(c**2 for c in direction))
-            unit = [c / norm for c in direction]
+            yield name, [c / norm for c in direction]
+
+    def potential(self, primitive):
+        total = sympy.Integer(0)
+        for name, unit in self._units():
             for body in primitive.part(name).bodies:
                 if body.mass != 0:
                     total -= body.mass * self.g * dot(unit, body.centre)
@@ -31,10 +35,9 @@ class Gravity(Effect):
     def translation(self, primitive):
         """``dV/do = -g sum m d``: the weight of the bodies it acts on, against ``d``."""
         total: list = []
-        for name, direction in self.parts:
-            norm = sympy.sqrt(sum(c**2 for c in direction))
+        for name, unit in self._units():
             mass = sympy.Add(*[b.mass for b in primitive.part(name).bodies])
-            total += [sympy.Integer(0)] * (len(direction) - len(total))
-            for i, c in enumerate(direction):
-                total[i] -= mass * self.g * c / norm
+            total += [sympy.Integer(0)] * (len(unit) - len(total))
+            for i, c in enumerate(unit):
+                total[i] -= mass * self.g * c
         return tuple(sympy.expand(t) for t in total)

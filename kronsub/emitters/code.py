@@ -11,7 +11,6 @@ import re
 from dataclasses import dataclass
 
 import sympy
-from sympy import S
 from sympy.printing.c import C99CodePrinter
 from sympy.printing.numpy import NumPyPrinter
 
@@ -55,16 +54,6 @@ class _CPrinter(C99CodePrinter):
         if exp == -1:
             return f"(1.0/{self.parenthesize(base, 100)})"
         return super()._print_Pow(expr)
-
-    def _print_Piecewise(self, expr):
-        """A ``Piecewise`` with a default as nested conditional expressions on one line."""
-        if expr.args[-1].cond is not S.true:
-            return super()._print_Piecewise(expr)  # no default: sympy's printer says so
-        parts = [(self._print(e), self._print(c)) for e, c in expr.args]
-        text = parts[-1][0]
-        for e, c in reversed(parts[:-1]):
-            text = f"(({c}) ? ({e}) : ({text}))"
-        return text
 
 
 class _PyPrinter(NumPyPrinter):

@@ -55,6 +55,9 @@ METHODS = {
 }
 
 
+FIXED_STEP = ("gauss4", "rk4")  # the compiled methods that step --dt at a time
+
+
 class StiffnessWarning(UserWarning):
     """An explicit method found the problem stiff (Hairer's test): an implicit one would be cheaper."""
 
@@ -711,7 +714,7 @@ def _native_blocks(run, native, method, grid, y0, param, rtol, atol, dt, chunks,
     yield np.array([last]), np.array([y0])
     stats = run.stats = {"steps": 0, "rejected": 0, "evaluations": 0}
     y = y0
-    fixed = method in ("gauss4", "rk4")
+    fixed = method in FIXED_STEP
     pieces = [p for a, b in _chunks(grid, chunks)
               for p in (_fixed_pieces(grid[a], grid[b], dt) if fixed else _aligned_pieces(grid[a], grid[b], dt))]
     for t0, t1 in pieces:
