@@ -25,6 +25,7 @@ from fractions import Fraction
 import sympy
 
 from .inverse_trig import divide_out
+from .printed import LexStrPrinter
 from . import trigpoly
 from .trigpoly import TrigAlgebra, TrigPoly, _coef_add_into, _common_monomial
 
@@ -189,7 +190,7 @@ class _Key:
 
     def length(self) -> int:
         if self._length is None:
-            self._length = len(sympy.sstr(self.expr, order="lex"))
+            self._length = len(LexStrPrinter().doprint(self.expr))  # sympy.sstr(order="lex"), faster
         return self._length
 
     def __lt__(self, other: "_Key") -> bool:

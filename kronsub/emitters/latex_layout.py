@@ -13,6 +13,8 @@ import re
 import sympy
 from sympy.printing.latex import LatexPrinter as _SympyLatex
 
+from ..core.printed import Remembering
+
 BREAK = "\x00"
 """Between the terms of a top-level sum; removed or turned into a line break by `lines`."""
 WIDTH = 50.0
@@ -21,8 +23,9 @@ of the estimate, which a line of System III showed to be 25 % low, and the
 ``\\bar{M}_{12} &= \\quad`` before the line)."""
 
 
-class LatexPrinter(_SympyLatex):
-    """sympy's LaTeX, with `BREAK` between the terms of the top-level sum."""
+class LatexPrinter(Remembering, _SympyLatex):
+    """sympy's LaTeX, with `BREAK` between the terms of the top-level sum (remembering what
+    it printed: one printer per report)."""
 
     def doprint(self, expr):
         if getattr(expr, "is_Add", False):

@@ -14,6 +14,7 @@ from markupsafe import Markup
 from sympy.printing.str import StrPrinter
 
 from ..core.known_system import KnownSystem
+from ..core.printed import Remembering
 from ..core.simplify import recompact, tidy
 from .latex_layout import LatexPrinter, unbroken
 from ..core.symbols import acceleration_symbol, velocity_symbol
@@ -21,11 +22,12 @@ from ..core.symbols import acceleration_symbol, velocity_symbol
 Printer = Callable[[sympy.Expr], str]
 
 
-class ModelStrPrinter(StrPrinter):
+class ModelStrPrinter(Remembering, StrPrinter):
     """sympy's ``str`` form in the words of the model's expression parser
     (:mod:`kronsub.model.expressions`), so that every printed expression reads back to
     the same value: ``Abs`` is ``abs``, Euler's number ``exp(1)``; ``pi`` is ``acos(-1)``
-    when the model has a name ``pi`` of its own."""
+    when the model has a name ``pi`` of its own. It remembers what it printed: one
+    printer per report."""
 
     def __init__(self, reserved: Iterable[str] = ()):
         super().__init__({"order": "lex"})
@@ -64,10 +66,7 @@ def plain_printer(reserved: Iterable[str] = ()) -> Printer:
 
 def plain(expr) -> str:
     """sympy's ``str`` form, readable by the model's parser: the JSON contract and the Markdown tables."""
-    return _PLAIN.doprint(expr)
-
-
-_PLAIN = ModelStrPrinter()
+    return ModelStrPrinter().doprint(expr)
 
 
 def model_names(system: KnownSystem) -> frozenset[str]:

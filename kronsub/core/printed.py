@@ -1,0 +1,100 @@
+"""sympy's printed forms, the same to the last character, in less time.
+
+A large system prints thousands of entries that share their sums (a chain's
+``m2/2 + m3 + ... + mn`` in a row of ``Mbar``), and sympy orders the terms of every
+sum by a key that turns each coefficient into a complex number through ``evalf``.
+`Remembering` prints each distinct subexpression once per printer, and orders a
+sum's terms by sympy's own key with rational coefficients converted exactly and
+directly. ``tests/test_printed.py`` checks both against sympy's printers.
+"""
+from __future__ import annotations
+
+import sympy
+from mpmath.libmp import dps_to_prec, from_rational, to_float
+from sympy.core.exprtools import decompose_power
+from sympy.core.numbers import mpf_norm
+from sympy.printing.str import StrPrinter
+
+_PREC = dps_to_prec(15)
+"""The bits of ``Expr.evalf()``'s default 15 digits; it evaluates with 4 more, then rounds."""
+
+
+def _complex(number) -> complex:
+    """``complex(number)`` as sympy computes it, without ``evalf``'s machinery for a rational:
+    the quotient truncated to ``_PREC + 4`` bits, then rounded to nearest at ``_PREC`` (the
+    two roundings of ``Expr.__complex__``; not always the correctly rounded quotient)."""
+    if number.is_Rational:
+        value = from_rational(int(number.p), int(number.q), _PREC + 4)
+        return complex(to_float(mpf_norm(value, _PREC)))
+    return complex(number)
+
+
+def ordered_terms(expr, order: str = "lex") -> list:
+    """``expr.as_ordered_terms(order)`` for a sum, by sympy's key (``Expr._parse_order``)
+    over the terms as ``Expr.as_terms`` describes them."""
+    terms, gens = [], set()
+    for term in sympy.Add.make_args(expr):
+        if term.is_Order:
+            return expr.as_ordered_terms(order=order)
+        coeff, rest = term.as_coeff_Mul()
+        value = _complex(coeff)
+        powers, noncommutative = {}, []
+        if rest is not sympy.S.One:
+            for factor in sympy.Mul.make_args(rest):
+                if factor.is_number:
+                    try:
+                        value *= _complex(factor)
+                    except (TypeError, ValueError):
+                        pass
+                    else:
+                        continue
+                if factor.is_commutative:
+                    base, exp = decompose_power(factor)
+                    powers[base] = exp
+                    gens.add(base)
+                else:
+                    noncommutative.append(factor)
+        terms.append((term, (value.real, value.imag), powers, tuple(noncommutative)))
+    index = {g: i for i, g in enumerate(sorted(gens, key=sympy.default_sort_key))}
+    described = []
+    for term, coeff, powers, noncommutative in terms:
+        monom = [0] * len(index)
+        for base, exp in powers.items():
+            monom[index[base]] = exp
+        described.append((term, (coeff, tuple(monom), noncommutative)))
+    key, reverse = sympy.Expr._parse_order(order)
+    return [term for term, _ in sorted(described, key=key, reverse=reverse)]
+
+
+class Remembering:
+    """A printer mixin: each distinct compound subexpression printed once (sympy's printed
+    form of a node depends on the node alone, not on where it stands), and sums ordered by
+    `ordered_terms`. Atoms are printed each time (a ``Float`` prints by its depth)."""
+
+    def _print(self, expr, **kwargs):
+        if kwargs or not isinstance(expr, sympy.Basic) or expr.is_Atom:
+            return super()._print(expr, **kwargs)
+        memo = self.__dict__.setdefault("_printed", {})
+        key = (type(expr), expr)
+        text = memo.get(key)
+        if text is None:
+            text = memo[key] = super()._print(expr)
+        return text
+
+    def _as_ordered_terms(self, expr, order=None):
+        order = order or self.order
+        if order in ("old", "none"):
+            return super()._as_ordered_terms(expr, order=order)
+        return ordered_terms(expr, order)
+
+
+class LexStrPrinter(Remembering, StrPrinter):
+    """``sympy.sstr(expr, order="lex")``, remembering what it printed."""
+
+    def __init__(self, settings=None):
+        super().__init__({"order": "lex", **(settings or {})})
+
+
+def lex_length(expr, printer: LexStrPrinter) -> int:
+    """The length of ``sympy.sstr(expr, order="lex")``."""
+    return len(printer.doprint(expr))
