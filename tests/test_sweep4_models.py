@@ -447,3 +447,35 @@ def test_rod_on_a_ball_joint_tip_on_a_tilted_plane():
     system = derived("rod_on_tilted_plane.yaml")
     pairs = walk_independent(system, ref, [0.3, 0.0], [0.3, 0.0, 0.222, 0.932, 0.288, -0.220], 66, step=0.1)
     assert worst(pairs) < TOL
+
+
+# ------------------------------------------------------------------------------------------
+# Defects this sweep found (these tests fail on the code before the fixes)
+# ------------------------------------------------------------------------------------------
+
+@pytest.mark.parametrize("model, old, new, what", [
+    ("kepler_polar.yaml", "value: -mu*m/r + m*eps/r**2", "value: -mu*m/r + m*eps*r_dot**2", "the potential of 'well'"),
+    ("torsion_pendulum.yaml", "angle: th1 + th2/2 - sin(th1)/3", "angle: th1 + th2_dot/2", "the angle of 'twist'"),
+    ("torsion_pendulum.yaml", "stiffness: k0}", "stiffness: k0*(1 + th1_dot**2)}", "the stiffness of 'tie'"),
+    ("torsion_pendulum.yaml", "angle: th2 - th1, coefficient: cr", "angle: th2 - th1_dot, coefficient: cr",
+     "the angle of 'knee'"),
+    ("drag_particle3d.yaml", "stiffness: k1, length: L1", "stiffness: k1, length: L1 + x_dot",
+     "the rest length of 's1'"),
+])
+def test_conservative_effects_in_the_velocities_are_refused(tmp_path, model, old, new, what):
+    """A potential in a velocity (``m eps r_dot^2``) derived without it, silently: the radial
+    equation was ``-m mu/r^2`` alone (``-dV/dr``, no ``d/dt dV/dr_dot = 2 m eps r_ddot``).
+    Likewise a spring's or a torsional spring's terms and a torsional damper's angle. Now an
+    error at the expression; a velocity stays allowed in a damper's coefficient."""
+    text = (HERE / model).read_text()
+    assert old in text
+    path = tmp_path / model
+    path.write_text(text.replace(old, new))
+    result = CliRunner().invoke(main, ["derive", str(path)])
+    assert result.exit_code == 1, result.output
+    line = next(i for i, ln in enumerate(path.read_text().splitlines(), 1) if new in ln)
+    assert f"{model}:{line}:" in result.output and f"{what} depends on the velocity" in result.output
+    assert "hint:" in result.output and "Traceback" not in result.output
+    damped = text.replace("angle: th2 - th1, coefficient: cr", "angle: th2 - th1, coefficient: cr*abs(th1_dot)")
+    path.write_text(damped)
+    assert CliRunner().invoke(main, ["check", str(path)]).exit_code == 0 or model != "torsion_pendulum.yaml"
