@@ -489,3 +489,15 @@ def test_a_damper_coefficient_in_the_velocities_stays_allowed(tmp_path):
     rows = [x + y for x, y in zip(damper_rows(cr * sp.Abs(dots(q)[0]), th2 - th1, q), damper_rows(c0, th1 - 2 * th2, q))]
     M, h = virtual_power(bodies, q)
     assert compare_explicit(system, (M, h, gradient_force(V, q, rows)), 67) < TOL
+
+
+def test_hint_lists_each_valid_name_once(tmp_path):
+    """A generalized force on a velocity: the hint listed 'a, a, r, r' (a coordinate that is
+    both primitive and generalized came twice)."""
+    path = tmp_path / "k.yaml"
+    path.write_text((HERE / "kepler_polar.yaml").read_text().replace("coordinate: r, value", "coordinate: a_dot, value"))
+    result = CliRunner().invoke(main, ["derive", str(path)])
+    assert result.exit_code == 1 and "'a_dot' is not a primitive or generalized coordinate" in result.output
+    hint = next(ln for ln in result.output.splitlines() if "hint:" in ln)
+    names = hint.split("valid names:")[1].split(",")
+    assert sorted(n.strip() for n in names) == ["a", "r", "sat.a", "sat.angle", "sat.r"], hint
