@@ -394,8 +394,7 @@ def test_four_bar_known_renamed_with_a_slider_loop():
     tip = pivot + l4 * down(e)
     M, h = virtual_power([*bodies, (m4, c4, e, m4 * l4 ** 2 / 12), (ms, sp.Matrix([s]))], y)
     V = V + g * m4 * c4[1] + ks * (s - s0) ** 2 / 2  # the slider stays right of O
-    length = norm(bodies[1][1] - tip)
-    f = gradient_force(V, y, [x + tau * int(q == a) for q, x in zip(y, damper_rows(cs, length, y))])
+    f = gradient_force(V, y, [x + tau * int(q == a) for q, x in zip(y, damper_rows(cs, s, y))])  # |s| = s
     params = (*S("m1 m2 m3 l1 l2 l3 d g tau"), m4, l4, ms, ks, s0, cs)
     ref = Constrained(y, M, h, f, [*g_, *(tip - sp.Matrix([s, 0]))], [a], params)
     system = derived("four_bar_slider_renamed.yaml")
