@@ -113,7 +113,8 @@ def near_names(name: str, options, n: int = 3) -> list[str]:
 
 
 def close_matches(name: str, options) -> str:
-    """A hint for an unknown name: the nearest valid ones, else all of them."""
+    """A hint for an unknown name: the nearest valid ones, else all of them (each once)."""
+    options = list(dict.fromkeys(options))
     near = near_names(name, options)
     if near:
         return "did you mean " + ", ".join(f"'{n}'" for n in near) + "?"

@@ -44,6 +44,25 @@ def _direction(loader, node: Node, what: str):
     return None if d is None or zero_vector(loader, node, d, what) else d
 
 
+def _positional(loader, node: Node, value, primitive, ename: str, what: str):
+    """``value`` if it has no velocity in it, else ``None`` (reported at ``node``): a potential,
+    a spring's or a torsional spring's terms and a torsional damper's angle are functions of
+    the configuration (and ``t``); with a velocity inside, ``-dV/dx`` (and ``angledot``)
+    would leave out its ``d/dt dV/dxdot`` terms, silently."""
+    from ..core.symbols import velocity_symbol
+
+    if value is None:
+        return None
+    rates = set(primitive.velocities) | {velocity_symbol(q) for q in loader.subspace_names.values()}
+    used = sorted(s.name for s in sympy.sympify(value).free_symbols & rates)
+    if not used:
+        return value
+    loader.error(node, f"{what} of '{ename}' depends on the velocity '{used[0]}'",
+                 "it is a function of the coordinates (and t) alone; a load in the velocities is a "
+                 "`force`, `generalized_force`, `damper` or `torsional_damper` (in its `coefficient:`)")
+    return None
+
+
 def _point(loader, node: Node, primitive, ename: str):
     """A named point ``component.point``, or a fixed place given as a list."""
     if node.is_sequence:
@@ -68,7 +87,9 @@ def _gravity(loader, ename, spec, primitive):
     """
 
     if spec.get("g") is not None:
-        g = loader.expr(spec.get("g"), what="g")
+        g = _positional(loader, spec.get("g"), loader.expr(spec.get("g"), what="g"), primitive, ename, "`g:`")
+        if g is None:
+            return None
     elif "g" in loader.parameters:
         g = loader.parameters["g"].symbol
     else:
@@ -94,7 +115,8 @@ def _gravity(loader, ename, spec, primitive):
     direction = None
     if spec.get("direction") is not None:
         direction = _direction(loader, spec.get("direction"), "direction of gravity")
-        if direction is None:
+        if direction is None or _positional(loader, spec.get("direction"), sympy.Matrix(direction), primitive,
+                                            ename, "the direction") is None:
             return None
     parts = []
     for name in chosen:
@@ -206,11 +228,14 @@ def _spring(loader, ename, spec, primitive, damper=False):
                      "join points of the same world (or give a fixed place with as many entries)")
         return None
     k = loader.expr(knode, what=key)
+    if not damper:
+        k = _positional(loader, knode, k, primitive, ename, "the stiffness")
     if k is None:
         return None
     if damper:
         return Damper(ename, ends=ends, coefficient=k)
-    length = loader.expr(spec.get("length"), what="rest length") if "length" in spec.value else sympy.Integer(0)
+    length = (_positional(loader, spec.get("length"), loader.expr(spec.get("length"), what="rest length"), primitive,
+                          ename, "the rest length") if "length" in spec.value else sympy.Integer(0))
     return None if length is None else Spring(ename, ends=ends, stiffness=k, length=length)
 
 
@@ -221,11 +246,15 @@ def _torsional(loader, ename, spec, primitive, damper=False):
     if anode is None or knode is None:
         return None
     angle, k = loader.expr(anode, what="angle"), loader.expr(knode, what=key)
+    angle = _positional(loader, anode, angle, primitive, ename, "the angle")
+    if not damper:
+        k = _positional(loader, knode, k, primitive, ename, "the stiffness")
     if angle is None or k is None:
         return None
     if damper:
         return TorsionalDamper(ename, angle=angle, coefficient=k)
-    rest = loader.expr(spec.get("rest"), what="rest angle") if "rest" in spec.value else sympy.Integer(0)
+    rest = (_positional(loader, spec.get("rest"), loader.expr(spec.get("rest"), what="rest angle"), primitive,
+                        ename, "the rest angle") if "rest" in spec.value else sympy.Integer(0))
     return None if rest is None else TorsionalSpring(ename, angle=angle, stiffness=k, rest=rest)
 
 
@@ -248,7 +277,7 @@ def _potential(loader, ename, spec, primitive):
     vnode = _required(loader, spec, "value", ename, "e.g. `value: k*x**4/4`")
     if vnode is None:
         return None
-    value = loader.expr(vnode, what="potential")
+    value = _positional(loader, vnode, loader.expr(vnode, what="potential"), primitive, ename, "the potential")
     return None if value is None else Potential(ename, value=value)
 
 
