@@ -89,7 +89,9 @@ for _k, _v in vars(ModelStrPrinter).items():
         setattr(_ForgetfulModelPrinter, _k, _v)
 
 
-MODELS = sorted(p.relative_to(REPO).as_posix() for p in (REPO / "models").glob("*/*.yaml"))
+MODELS = sorted(p.relative_to(REPO).as_posix() for p in [*(REPO / "models" / "hoffmann").glob("*.yaml"),
+                                                           *(REPO / "models" / "chain").glob("*.yaml"),
+                                                           REPO / "models" / "examples" / "watt_governor.yaml"])
 
 
 @lru_cache(maxsize=None)
