@@ -305,6 +305,8 @@ class _Tail:
     def __init__(self, grid, offset: int, start: float | None = None):
         self.grid, self.offset, self.start = grid, offset, start
         self.shift = offset - (1 if start is not None else 0)  # tail index -> grid index
+        self.t_end, self.dt = grid.t_end, grid.dt
+        self.spacing = grid.spacing if start is None else min(grid.spacing, grid[offset] - start)
 
     def __len__(self) -> int:
         return len(self.grid) - self.shift
@@ -409,7 +411,7 @@ def _auto_blocks(run, system, spec, native, constrained, grid, y0, param, rtol, 
             y0 = split.row(y, ydot)
             # go on from the switch: the grid rows after it (a switch between rows starts off the grid)
             offset = min(int(round(t_switch / grid.dt)), len(grid) - 1)
-            if abs(grid[offset] - t_switch) <= 1e-6 * grid.dt:
+            if abs(grid[offset] - t_switch) <= 1e-6 * grid.spacing:
                 start = None
             else:
                 offset = next((i for i in range(max(offset - 1, 0), len(grid)) if grid[i] > t_switch), len(grid) - 1)
