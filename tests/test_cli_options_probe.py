@@ -246,3 +246,11 @@ def test_animate_reads_a_good_trajectory_with_points(folder):
     result = invoke("animate", "points.csv", "-o", "a.gif", "--fps", "10")
     assert result.exit_code == 0, result.output
     assert (folder / "a.gif").stat().st_size > 0
+
+
+def test_a_moving_operating_point_says_why_it_is_no_equilibrium(folder):
+    """At rest q is an equilibrium, but not with qdot != 0: the warning names the velocity
+    (it used to print `qddot = 0, 0` as the reason)."""
+    result = invoke("linearize", "m.yaml", "--at", "theta=0", "--at", "phi=0", "--at", "theta_dot=1")
+    assert result.exit_code == 0, result.output
+    assert "not an equilibrium (qdot is not 0: theta_dot=1)" in result.output

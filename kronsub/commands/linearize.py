@@ -46,8 +46,11 @@ def linearize(model: Path, at: tuple[str, ...], inputs: str, symbolic: bool, fmt
         lin = linearize_system(system, assignments, names, symbolic=symbolic,
                                initial=initial_values(loaded, scene), option="--at")
         if not lin.equilibrium:
-            click.echo("Warning: the operating point is not an equilibrium (qddot = "
-                       + ", ".join(f"{a:.6g}" for a in lin.acceleration) + "): A describes the motion "
+            moving = [f"{s}={v}" for s, v in lin.point if s in set(system.velocities) and v.is_zero is not True]
+            why = ("qddot = " + ", ".join(f"{a:.6g}" for a in lin.acceleration)
+                   + (f"; {', '.join(moving)}" if moving else "")) if not _at_rest(lin.acceleration) \
+                else "qdot is not 0: " + ", ".join(moving)
+            click.echo(f"Warning: the operating point is not an equilibrium ({why}): A describes the motion "
                        "near it, not about a rest state", err=True)
         for note in lin.notes:
             click.echo(f"Warning: {note}", err=True)
@@ -55,3 +58,10 @@ def linearize(model: Path, at: tuple[str, ...], inputs: str, symbolic: bool, fmt
         emit_text(text, output)
 
     _run(job)
+
+
+def _at_rest(acceleration) -> bool:
+    """Whether every qddot is 0 to the tolerance of an equilibrium (NaN: not known, so not)."""
+    from ..core.linearize import EQUILIBRIUM_TOLERANCE
+
+    return all(abs(a) <= EQUILIBRIUM_TOLERANCE for a in acceleration)
