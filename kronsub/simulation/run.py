@@ -721,7 +721,9 @@ def _fixed_pieces(t0: float, t1: float, dt: float) -> list[tuple[float, float]]:
     multiple), so its rows fall on the ``--dt`` grid as every other method's do."""
     tiny = MERGE * dt
     first = math.ceil(t0 / dt - MERGE) * dt
-    last = (math.ceil(t1 / dt - MERGE) - 1) * dt  # the last row before t1, as _Grid counts them
+    # past a multiple (not one itself, to rounding): cut at the last row before t1, as _Grid counts them
+    past = t1 / dt - math.floor(t1 / dt + 1e-9) > 1e-9
+    last = (math.ceil(t1 / dt - MERGE) - 1) * dt if past else t1
     cuts = [t0] + [first] * (t0 + tiny < first < t1 - tiny) + [last] * (t0 + tiny < last < t1) + [t1]
     cuts = sorted(set(cuts))
     return list(zip(cuts[:-1], cuts[1:]))
