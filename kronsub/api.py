@@ -15,7 +15,7 @@ import sympy
 
 from .core.known_system import KnownSystem
 from .core.symbols import TIME
-from .errors import KronsubError, ModelError, Problem, near_names
+from .errors import KronsubError, Location, ModelError, Problem, near_names
 
 
 class UnknownName(KronsubError):
@@ -43,9 +43,9 @@ def symbol(system: KnownSystem, name: str) -> sympy.Symbol:
     return known[name]
 
 
-def _value(system: KnownSystem, name: str, value, *, constant: bool) -> sympy.Expr:
+def _value(system: KnownSystem, name: str, value, *, constant: bool, option: str | None = None) -> sympy.Expr:
     """A value given as a number or as text read by the whitelisted parser (never sympify
-    of raw text); ``constant`` forbids names."""
+    of raw text); ``constant`` forbids names. ``option`` (``--at``) places problems at ``--at NAME``."""
     from .model.expressions import parse_expression
 
     if isinstance(value, sympy.Basic):
@@ -55,22 +55,24 @@ def _value(system: KnownSystem, name: str, value, *, constant: bool) -> sympy.Ex
     if isinstance(value, (int, float, np.integer, np.floating)):
         return sympy.Float(float(value)) if isinstance(value, (float, np.floating)) else sympy.Integer(int(value))
     allowed = {} if constant else {p.name: p.symbol for p in system.parameters}
-    return parse_expression(str(value), allowed, None, what=f"value of {name}")
+    where = Location(f"{option} {name}") if option else None
+    return parse_expression(str(value), allowed, where, what=f"value of {name}")
 
 
-def split_assignments(system: KnownSystem, at: Mapping[str, object] | None):
-    """``{name: value}`` into the state/time part and the parameter part, all problems at once."""
+def split_assignments(system: KnownSystem, at: Mapping[str, object] | None, option: str | None = None):
+    """``{name: value}`` into the state/time part and the parameter part, all problems at once
+    (placed at ``option NAME`` when the values came from that command-line option)."""
     point, values, problems = {}, {}, []
     params = {p.name: p.symbol for p in system.parameters}
     state = {s.name: s for s in tuple(system.coordinates) + tuple(system.velocities)}
     for name, raw in (at or {}).items():
         try:
             if name in state:
-                point[state[name]] = _value(system, name, raw, constant=False)
+                point[state[name]] = _value(system, name, raw, constant=False, option=option)
             elif name in params:
-                values[params[name]] = _value(system, name, raw, constant=True)
+                values[params[name]] = _value(system, name, raw, constant=True, option=option)
             elif name == "t":
-                point[TIME] = _value(system, name, raw, constant=False)
+                point[TIME] = _value(system, name, raw, constant=False, option=option)
             elif system.implicit is not None and name in {d.name for d in system.implicit.dependent}:
                 problems.append(Problem(None, f"'{name}' is a dependent coordinate of {system.name}: the "
                                               "constraints set it", "fix the independent coordinates ("
@@ -90,16 +92,17 @@ def split_assignments(system: KnownSystem, at: Mapping[str, object] | None):
 
 
 def linearize(system: KnownSystem, at: Mapping[str, object] | None = None, inputs: Sequence[str] = (),
-              *, symbolic: bool = False, initial: Mapping | None = None):
+              *, symbolic: bool = False, initial: Mapping | None = None, option: str | None = None):
     """:func:`kronsub.core.linearize.linearize` with names: ``at={"theta": "pi", "b": 0}``
     fixes coordinates, velocities, ``t`` and parameter values; ``inputs=["u"]`` names the
     parameters that are inputs. ``initial`` (default: the model's initial values carried
-    by the system) starts the search for an equilibrium."""
+    by the system) starts the search for an equilibrium. ``option`` (``"--at"``) places problems
+    with the values at ``--at NAME``."""
     from .core.linearize import linearize as core_linearize
 
     problems = []
     try:
-        point, values = split_assignments(system, at)
+        point, values = split_assignments(system, at, option)
     except ModelError as exc:
         problems.extend(exc.problems)
     params = {p.name: p.symbol for p in system.parameters}

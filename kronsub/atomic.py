@@ -76,6 +76,12 @@ def _named(exc: OSError, path: Path) -> OSError:
     return type(exc)(exc.errno, exc.strerror or str(exc), str(path))
 
 
+def cannot_create(exc: OSError, path: Path) -> OSError:
+    """A failure to create a file beside ``path``, named after ``path`` (not the temporary file)."""
+    folder = path.parent if str(path.parent) else Path(".")
+    return type(exc)(exc.errno, f"cannot create a file in {folder} ({exc.strerror or exc})", str(path))
+
+
 @contextlib.contextmanager
 def atomic_file(path: Path, binary: bool = False):
     """A file handle whose content replaces ``path`` when the block ends without an exception.
@@ -90,7 +96,7 @@ def atomic_file(path: Path, binary: bool = False):
     try:
         fd, tmp = tempfile.mkstemp(dir=folder, prefix=f".{path.name}.", suffix=".tmp")
     except OSError as exc:
-        raise _named(exc, path) from None
+        raise cannot_create(exc, path) from None
     try:
         mode = "wb" if binary else "w"
         kwargs = {} if binary else {"encoding": "utf-8", "newline": "\n"}

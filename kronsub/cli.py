@@ -10,6 +10,7 @@ from __future__ import annotations
 import difflib
 import math
 import os
+import re
 import sys
 import warnings
 from pathlib import Path
@@ -52,6 +53,28 @@ def _writable_outputs(output: Path | None, plot: Path | None) -> None:
             import matplotlib  # noqa: F401
         except ImportError:
             _fail("Error: --plot needs matplotlib\n  hint: pip install 'kronsub[plot]'")
+
+
+def _same_file(a: Path, b: Path) -> bool:
+    """Whether the paths name one file (an existing one by inode, through links; else by path)."""
+    try:
+        return os.path.samefile(a, b)
+    except OSError:
+        return a.resolve() == b.resolve()
+
+
+def _separate_outputs(model: Path | None, *outputs: tuple[str, Path | None, str]) -> None:
+    """Fail (a usage error) before any work when an output ``(flag, path, what)`` would replace the
+    model file or another output of the same command."""
+    seen = [("MODEL", model, "model")] if model is not None else []
+    for flag, path, what in outputs:
+        if path is None:
+            continue
+        for _, other, other_what in seen:
+            if _same_file(path, other):
+                _fail(f"Error: {flag} {path} is the {other_what} file itself\n  hint: choose another {flag}",
+                      USAGE_ERROR)
+        seen.append((flag, path, what))
 
 
 def _fail(message: str, code: int = INPUT_ERROR) -> None:
@@ -153,6 +176,7 @@ def derive(model: Path, fmt: str, output: Path | None, check: Path | None, no_ca
     from .emitters import EMITTERS
 
     def job():
+        _separate_outputs(model, ("--output", output, "output"))
         if output is not None and not output.resolve().parent.is_dir():
             _fail(f"Error: {output}: the directory {output.resolve().parent} does not exist\n"
                   "  hint: create it first, or choose another --output path")
@@ -164,10 +188,11 @@ def derive(model: Path, fmt: str, output: Path | None, check: Path | None, no_ca
 
             text = add_reactions(text, system, fmt)
         if check is not None:
-            try:
-                expected = check.read_text(encoding="utf-8")
-            except OSError as exc:
-                _fail(f"Error: {check}: {exc.strerror}\n  hint: write it first with --output {check}")
+            from .model.source import read_user_text
+
+            if not check.exists():
+                _fail(f"Error: {check}: No such file or directory\n  hint: write it first with --output {check}")
+            expected = read_user_text(check, "file of derived equations (--check)")
             if expected != text:
                 diff = difflib.unified_diff(expected.splitlines(True), text.splitlines(True),
                                             fromfile=str(check), tofile=f"derived from {model}")
@@ -196,8 +221,12 @@ def codegen(model: Path, lang: str, outdir: Path, name: str | None, prefix: str,
             precision: str):
     """Generate C (header + source) or a numpy module for MODEL."""
     from .emitters.code import LANGUAGES
+    from .emitters.numeric import identifier
 
     def job():
+        if not _C_IDENTIFIER.fullmatch(prefix):
+            _fail(f"Error: --prefix {prefix!r} is not a C identifier (letters, digits and _, not starting "
+                  f"with a digit)\n  hint: e.g. --prefix {identifier(prefix)}", USAGE_ERROR)
         if outdir.exists() and not outdir.is_dir():
             _fail(f"Error: {outdir}: not a directory\n  hint: choose a directory for --output")
         try:
@@ -210,7 +239,9 @@ def codegen(model: Path, lang: str, outdir: Path, name: str | None, prefix: str,
         _, scene, system = scene_system(model, scene_name)
         stem = name or model.stem
         outputs = scene.outputs if scene is not None else None
-        for generated in LANGUAGES[lang](system, stem, source=model.as_posix(), prefix=prefix, outputs=outputs):
+        files = list(LANGUAGES[lang](system, stem, source=model.as_posix(), prefix=prefix, outputs=outputs))
+        _separate_outputs(model, *((f"--output {outdir} --name {stem}", outdir / g.name, "generated") for g in files))
+        for generated in files:
             text = generated.text
             if precision != "double":
                 from .simulation.extended import prelude, retype
@@ -220,6 +251,9 @@ def codegen(model: Path, lang: str, outdir: Path, name: str | None, prefix: str,
             click.echo(f"wrote {outdir / generated.name}", err=True)
 
     _run(job)
+
+
+_C_IDENTIFIER = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
 
 
 def _note_choice(system) -> None:
@@ -273,20 +307,22 @@ def simulate(model: Path, t_end: float | None, dt: float | None, method: str | N
     """Simulate MODEL from t = 0 to --t; the trajectory is plain CSV (a header row, then numbers),
     its metadata JSON (--meta, or beside --output)."""
     from .model.scenes import initial_values
-    from .simulation.run import METHODS, SimulationError, collect, explicit_only, row_count, start
+    from .simulation.run import (METHODS, SimulationError, check_tolerances, collect, explicit_only, row_count,
+                                 start)
     from .simulation.table import CsvWriter, metadata_json, sidecar_path, trajectory_csv
     from .simulation.values import parse_assignments, resolve
 
     def job():
         if method is not None and method not in METHODS:
             _fail(f"Error: unknown method '{method}'\n  hint: choose one of {', '.join(METHODS)}", USAGE_ERROR)
-        for flag, given in (("--t", t_end), ("--dt", dt)):  # before deriving; the row count once both are known
-            if given is not None and not (math.isfinite(given) and given > 0):
-                _fail(f"Error: {flag} must be a positive finite {'time' if flag == '--t' else 'interval'} "
-                      f"(got {given!r})", USAGE_ERROR)
+        _check_times(t_end, dt)  # before deriving; the row count once both are known
+        try:
+            check_tolerances(rtol, atol)
+        except SimulationError as exc:
+            _fail(f"Error: {exc}", USAGE_ERROR)
         meta_path = meta if meta is not None else (sidecar_path(output) if output is not None else None)
-        if output is not None and meta_path.resolve() == output.resolve():
-            _fail(f"Error: --meta {meta_path} is the CSV file itself\n  hint: choose another --meta", USAGE_ERROR)
+        _separate_outputs(model, ("--output", output, "CSV"), ("--meta", meta_path, "metadata"),
+                          ("--plot", plot, "plot"))
         _writable_outputs(output, plot)
         _writable(meta_path, "--meta")
         loaded, scene, system = scene_system(model, scene_name, all_points=with_points)
@@ -389,6 +425,14 @@ def simulate(model: Path, t_end: float | None, dt: float | None, method: str | N
     _run(job)
 
 
+def _check_times(t_end: float | None, dt: float | None) -> None:
+    """``--t`` and ``--dt``, when given, are positive finite numbers (a usage error else)."""
+    for flag, given in (("--t", t_end), ("--dt", dt)):
+        if given is not None and not (math.isfinite(given) and given > 0):
+            _fail(f"Error: {flag} must be a positive finite {'time' if flag == '--t' else 'interval'} "
+                  f"(got {given!r})", USAGE_ERROR)
+
+
 def _rows(count: int) -> str:
     return f"{count} row" if count == 1 else f"{count} rows"
 
@@ -447,17 +491,18 @@ def accuracy(model: Path, t_end: float, methods: str, tolerances: str, target: f
     from .simulation.values import parse_assignments, resolve
 
     def job():
+        _check_times(t_end, None)
         chosen = acc.parse_methods(methods)
         if precision != "double" and f"gbs-{precision}" not in chosen:
             chosen = chosen + (f"gbs-{precision}",)
         grid = acc.parse_tolerances(tolerances)
         if quick:
             grid = acc.quick_tolerances(grid)
-        if target is not None and not target > 0:
-            _fail("Error: --target must be a positive error, e.g. --target 1e-8")
+        if target is not None and not (target > 0 and math.isfinite(target)):
+            _fail("Error: --target must be a positive finite error, e.g. --target 1e-8")
         meta_path = meta if meta is not None else (sidecar_path(output) if output is not None else None)
-        if output is not None and meta_path.resolve() == output.resolve():
-            _fail(f"Error: --meta {meta_path} is the CSV file itself\n  hint: choose another --meta", USAGE_ERROR)
+        _separate_outputs(model, ("--output", output, "CSV"), ("--meta", meta_path, "metadata"),
+                          ("--plot", plot, "plot"))
         _writable_outputs(output, plot)
         _writable(meta_path, "--meta")
         loaded, scene, system = scene_system(model, scene_name)

@@ -24,9 +24,29 @@ def animate(source: Path, output: Path, t_end: float, dt: float, method: str, se
     """Draw the mechanism of SOURCE over time: a MODEL (simulated first) or a trajectory CSV
     written with `kronsub simulate --points`. Bodies are segments between their named
     points, discs are circles; needs matplotlib (pip install 'kronsub[plot]')."""
-    from ..cli import _fail, _run, _writable
+    from ..cli import USAGE_ERROR, _check_times, _fail, _run, _separate_outputs, _writable
+    from ..simulation.run import METHODS, SimulationError, row_count
 
     def job():
+        _separate_outputs(source, ("--output", output, "animation"))
+        from_csv = source.suffix.lower() == ".csv"
+        ctx = click.get_current_context()
+        if from_csv:  # a trajectory has its times and values: the options that make one do not apply
+            given = [f"--{name.replace('t_end', 't').replace('settings', 'set')}" for name in
+                     ("t_end", "dt", "method", "settings")
+                     if ctx.get_parameter_source(name) is not click.core.ParameterSource.DEFAULT]
+            if given:
+                _fail(f"Error: {', '.join(given)} {'applies' if len(given) == 1 else 'apply'} to a MODEL, not to "
+                      f"the trajectory {source}\n  hint: drop {', '.join(given)}, or animate the model itself",
+                      USAGE_ERROR)
+        else:
+            _check_times(t_end, dt)
+            if method not in METHODS:
+                _fail(f"Error: unknown method '{method}'\n  hint: choose one of {', '.join(METHODS)}", USAGE_ERROR)
+            try:
+                row_count(t_end, dt)
+            except SimulationError as exc:
+                _fail(f"Error: {exc}", USAGE_ERROR)
         _writable(output, "--output")
         try:
             import matplotlib  # noqa: F401
@@ -35,7 +55,7 @@ def animate(source: Path, output: Path, t_end: float, dt: float, method: str, se
         from ..simulation.animate import animate as draw
         from ..simulation.animate import read_points_csv
 
-        if source.suffix.lower() == ".csv":
+        if from_csv:
             t, names, values = read_points_csv(source)
             title = ""
         else:

@@ -3,11 +3,13 @@ from __future__ import annotations
 
 import json
 import os
+import shlex
 import tempfile
 from pathlib import Path
 
 import click
 
+from ..atomic import cannot_create
 from .starters import STARTERS
 
 
@@ -42,7 +44,10 @@ def components(type_name: str | None, fmt: str):
 
 def _create(path: Path, text: str) -> None:
     """Write a new file atomically; an existing file is never replaced (FileExistsError)."""
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    try:
+        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    except OSError as exc:
+        raise cannot_create(exc, path) from None
     try:
         with os.fdopen(fd, "w", encoding="utf-8", newline="\n") as fh:
             fh.write(text)
@@ -66,11 +71,21 @@ def _umask() -> int:
               help="Number of rods (--from chain).")
 def new(name: str, kind: str, links: int):
     """Write a starter model NAME.yaml that derives (never overwrites a file)."""
-    from ..cli import _fail, _run
+    from ..cli import USAGE_ERROR, _fail, _run
+    from ..errors import printable
     from .starters import starter
 
     def job():
         path = Path(name if name.endswith((".yaml", ".yml")) else name + ".yaml")
+        stem = path.name[:-len(path.suffix)]
+        if not stem.strip() or stem.startswith(".") or not name.isprintable() or "/" in stem:
+            _fail(f"Error: NAME {printable(repr(name))} gives no usable file name ({printable(str(path))})\n"
+                  "  hint: a name of printable characters not starting with '.', e.g. kronsub new my_pendulum",
+                  USAGE_ERROR)
+        if kind != "chain" and click.get_current_context().get_parameter_source("links") \
+                is not click.core.ParameterSource.DEFAULT:
+            _fail(f"Error: --links is for --from chain (not {kind})\n  hint: add --from chain, or drop --links",
+                  USAGE_ERROR)
         if not path.resolve().parent.is_dir():
             _fail(f"Error: {path}: the directory {path.resolve().parent} does not exist\n"
                   "  hint: create it first, or choose another NAME")
@@ -80,7 +95,9 @@ def new(name: str, kind: str, links: int):
             _create(path, starter(kind, path.stem, links))
         except FileExistsError:
             _fail(f"Error: {path} exists; kronsub new never overwrites a file\n  hint: choose another NAME")
-        click.echo(f"wrote {path} (from {kind}); next: kronsub check {path} && kronsub derive {path}", err=True)
+        shown = shlex.quote(str(path))  # a command to copy: the name quoted for the shell
+        click.echo(f"wrote {printable(str(path))} (from {kind}); next: kronsub check {shown} && kronsub derive {shown}",
+                   err=True)
 
     _run(job)
 

@@ -29,21 +29,28 @@ def linearize(model: Path, at: tuple[str, ...], inputs: str, symbolic: bool, fmt
     equilibrium is linearised about anyway and reported as such.
     """
     from ..api import linearize as linearize_system
-    from ..cli import _run, _writable, emit_text, scene_system
+    from ..cli import USAGE_ERROR, _fail, _run, _separate_outputs, _writable, emit_text, scene_system
     from ..emitters.linearization import EMITTERS
     from ..model.scenes import initial_values
     from ..simulation.values import parse_assignments
 
     def job():
         _writable(output, "--output")
-        assignments = parse_assignments(at)
+        _separate_outputs(model, ("--output", output, "output"))
+        assignments = parse_assignments(at, "--at")
         names = [n.strip() for n in inputs.split(",") if n.strip()]
+        twice = sorted({n for n in names if names.count(n) > 1})
+        if twice:
+            _fail(f"Error: --inputs names {', '.join(twice)} more than once\n  hint: name each input once", USAGE_ERROR)
         loaded, scene, system = scene_system(model, scene_name)
         lin = linearize_system(system, assignments, names, symbolic=symbolic,
-                               initial=initial_values(loaded, scene))
+                               initial=initial_values(loaded, scene), option="--at")
         if not lin.equilibrium:
-            click.echo("Warning: the operating point is not an equilibrium (qddot = "
-                       + ", ".join(f"{a:.6g}" for a in lin.acceleration) + "): A describes the motion "
+            moving = [f"{s}={v}" for s, v in lin.point if s in set(system.velocities) and v.is_zero is not True]
+            why = ("qddot = " + ", ".join(f"{a:.6g}" for a in lin.acceleration)
+                   + (f"; {', '.join(moving)}" if moving else "")) if not _at_rest(lin.acceleration) \
+                else "qdot is not 0: " + ", ".join(moving)
+            click.echo(f"Warning: the operating point is not an equilibrium ({why}): A describes the motion "
                        "near it, not about a rest state", err=True)
         for note in lin.notes:
             click.echo(f"Warning: {note}", err=True)
@@ -51,3 +58,10 @@ def linearize(model: Path, at: tuple[str, ...], inputs: str, symbolic: bool, fmt
         emit_text(text, output)
 
     _run(job)
+
+
+def _at_rest(acceleration) -> bool:
+    """Whether every qddot is 0 to the tolerance of an equilibrium (NaN: not known, so not)."""
+    from ..core.linearize import EQUILIBRIUM_TOLERANCE
+
+    return all(abs(a) <= EQUILIBRIUM_TOLERANCE for a in acceleration)

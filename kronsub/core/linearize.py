@@ -343,6 +343,9 @@ def _eigenvalues(A: np.ndarray) -> tuple[complex, ...]:
     """Eigenvalues of ``A`` in a fixed order (by real part, then imaginary part)."""
     if A.size == 0:
         return ()
+    if not np.all(np.isfinite(A)):
+        raise LinearizationError("A is not finite at the operating point: the equations overflow a double "
+                                 "there\n  hint: check the values given with --at and the parameters' values")
     values = np.linalg.eigvals(A)
     scale = max(1.0, float(np.max(np.abs(values))))
     cleaned = [complex(v.real if abs(v.real) > 1e-12 * scale else 0.0,

@@ -156,6 +156,41 @@ def read_model_text(path: Path, where: Location | None = None) -> str:
             "save the file with UTF-8 encoding")])
 
 
+def read_user_text(path: Path, kind: str, limit: int = 1 << 30) -> str:
+    """The UTF-8 text of a file given on the command line that is not a model (a trajectory CSV,
+    a ``--check`` file), with the same guards as :func:`read_model_text`: a regular file of at
+    most ``limit`` bytes, opened non-blocking (a FIFO or a device never hangs or floods);
+    ``kind`` names it in the hints. Problems are a `ModelError` at the file."""
+    where = Location(str(path))
+    hint = f"give the path of a {kind} on disk"
+    try:
+        info = os.stat(path)
+        for test, what in _KIND_OF_MODE:
+            if test(info.st_mode):
+                raise _file_error(where, path, f"is {what}, not a regular file", hint)
+        if not stat.S_ISREG(info.st_mode):
+            raise _file_error(where, path, "is not a regular file", hint)
+        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK | getattr(os, "O_NOCTTY", 0) | getattr(os, "O_CLOEXEC", 0))
+        try:
+            if not stat.S_ISREG(os.fstat(fd).st_mode):
+                raise _file_error(where, path, "is not a regular file", hint)
+            data = _read_at_most(fd, limit + 1)
+        finally:
+            os.close(fd)
+    except OSError as exc:
+        raise _os_error(path, exc, where) from None
+    if len(data) > limit:
+        raise _file_error(where, path, f"is too large (more than {limit:,} bytes)", f"check the path: {hint}")
+    try:
+        return data.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        line = data.count(b"\n", 0, exc.start) + 1
+        column = exc.start - (data.rfind(b"\n", 0, exc.start) + 1) + 1
+        raise ModelError([Problem(Location(str(path), line, column),
+                                  f"the file is not valid UTF-8 text (byte 0x{data[exc.start]:02x})",
+                                  f"{hint}, saved as UTF-8")]) from None
+
+
 def _check_regular(path: Path, info: os.stat_result, where: Location) -> None:
     """Refuse anything but a regular file of at most `MAX_MODEL_BYTES` outside /proc and /sys."""
     for test, kind in _KIND_OF_MODE:

@@ -133,7 +133,7 @@ def parse_tolerances(text: str) -> tuple[float, ...]:
                 raise ValueError
             first, last = float(parts[0]), float(parts[1])
             every = int(parts[2]) if len(parts) == 3 else 1
-            if not (first > 0 and last > 0 and every >= 1):
+            if not (0 < first < 1 and 0 < last < 1 and every >= 1):
                 raise ValueError
             a, b = math.log10(first), math.log10(last)
             count = int(math.floor(abs(b - a) / every + 1e-9)) + 1
@@ -142,11 +142,13 @@ def parse_tolerances(text: str) -> tuple[float, ...]:
         else:
             values = [float(v) for v in text.split(",") if v.strip()]
     except ValueError:
-        raise AccuracyError(f"--tolerances '{text}' is not a range or list of positive numbers\n  hint: {hint}") \
+        raise AccuracyError(f"--tolerances '{text}' is not a range or list of positive numbers below 1\n"
+                            f"  hint: {hint}") \
             from None
-    if not values or not all(v > 0 and math.isfinite(v) for v in values):
-        raise AccuracyError(f"--tolerances '{text}' must give positive numbers\n  hint: {hint}")
-    return tuple(float(f"{v:.6g}") for v in values)
+    if not values or not all(0 < v < 1 for v in values):
+        raise AccuracyError(f"--tolerances '{text}' must give positive numbers below 1 (relative tolerances)\n"
+                            f"  hint: {hint}")
+    return tuple(dict.fromkeys(float(f"{v:.6g}") for v in values))
 
 
 def quick_tolerances(tolerances: tuple[float, ...]) -> tuple[float, ...]:

@@ -28,24 +28,57 @@ class AnimationError(KronsubError):
     """The animation cannot be written (format, writer or input)."""
 
 
+WRITE_POINTS = "kronsub simulate MODEL --points --output FILE.csv"
+TRAJECTORY = f"trajectory CSV ({WRITE_POINTS})"
+
+
 def read_points_csv(path: Path) -> tuple[np.ndarray, list[str], np.ndarray]:
     """``t``, the point column names and their values from a trajectory CSV (lines
-    starting with ``#`` are skipped, so files with and without comment lines are read)."""
-    with open(path, newline="", encoding="utf-8") as fh:
-        rows = [row for row in csv.reader(line for line in fh if not line.startswith("#") and line.strip())]
-    if not rows or "t" not in rows[0]:
-        raise AnimationError(f"{path}: not a kronsub trajectory (no header row with a column 't')")
-    header, body = rows[0], rows[1:]
-    try:
-        data = np.array([[float(v) for v in row] for row in body], dtype=float).reshape(len(body), len(header))
-    except ValueError as exc:
-        raise AnimationError(f"{path}: a row is not all numbers ({exc})") from None
+    starting with ``#`` are skipped, so files with and without comment lines are read).
+
+    Every row has the header's number of values, each a finite number, and ``t``
+    increases from row to row; else a `ModelError` at the line and column."""
+    from ..errors import Location, ModelError, Problem
+    from ..model.source import read_user_text
+
+    def bad(line: int, column: int, message: str, hint: str = f"write it again with {WRITE_POINTS}"):
+        return ModelError([Problem(Location(str(path), line, column), message, hint)])
+
+    records = [(n, line) for n, line in enumerate(read_user_text(path, TRAJECTORY).splitlines(), 1)
+               if line.strip() and not line.startswith("#")]
+    header = next(csv.reader([records[0][1]])) if records else []
+    if "t" not in header:
+        raise AnimationError(f"{path}: not a kronsub trajectory (no header row with a column 't')\n"
+                             f"  hint: give a {TRAJECTORY}")
+    if len(records) < 2:
+        raise AnimationError(f"{path}: the trajectory has no rows to animate\n"
+                             f"  hint: write it again with {WRITE_POINTS}")
+    data = np.empty((len(records) - 1, len(header)))
+    it = header.index("t")
+    for i, (n, line) in enumerate(records[1:]):
+        row = next(csv.reader([line]))
+        if len(row) != len(header):
+            raise bad(n, 1, f"the row has {len(row)} values, the header {len(header)} columns "
+                            "(a damaged or truncated file)")
+        column = 1
+        for j, text in enumerate(row):
+            try:
+                value = float(text)
+            except ValueError:
+                value = None
+            if value is None or not np.isfinite(value):
+                raise bad(n, column, f"column '{header[j]}': expected a finite number, got '{text[:40]}'")
+            data[i, j] = value
+            column += len(text) + 1
+        if i and not data[i, it] > data[i - 1, it]:
+            raise bad(n, 1, f"t = {float(data[i, it])!r} does not increase (the row before has "
+                            f"t = {float(data[i - 1, it])!r})")
     columns = [j for j, name in enumerate(header) if name.rpartition(".")[2] in ("x", "y", "z")
                and "." in name]
     if not columns:
         raise AnimationError(f"{path} has no columns of named points\n  hint: write it with "
                              "`kronsub simulate MODEL --points --output FILE.csv`, or animate the model itself")
-    return data[:, header.index("t")], [header[j] for j in columns], data[:, columns]
+    return data[:, it], [header[j] for j in columns], data[:, columns]
 
 
 def _groups(labels) -> dict[str, list[str]]:
@@ -87,7 +120,7 @@ def animate(t: np.ndarray, names: list[str], values: np.ndarray, path: Path, *, 
         raise AnimationError("writing .mp4 needs ffmpeg, which is not on the PATH\n"
                              "  hint: install ffmpeg, or write a .gif (pillow)")
     if len(t) == 0:
-        raise AnimationError("the trajectory has no rows to animate")
+        raise AnimationError("the trajectory has no rows to animate\n  hint: give a trajectory with at least one row")
     paths = point_paths(names, values)
     if not paths:
         raise AnimationError("nothing to draw: the model has no named points (flywheels have none)"

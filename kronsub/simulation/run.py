@@ -137,6 +137,18 @@ def row_count(t_end: float, dt: float) -> int:
     return len(_Grid(t_end, dt))
 
 
+def check_tolerances(rtol: float, atol: float) -> None:
+    """Raise :class:`SimulationError` unless ``rtol`` and ``atol`` are finite, not negative and
+    not both zero (an adaptive method's error test ``|err| <= atol + rtol |y|``)."""
+    for flag, value in (("--rtol", rtol), ("--atol", atol)):
+        if not (math.isfinite(value) and value >= 0):
+            raise SimulationError(f"{flag} must be a finite tolerance of at least 0 (got {value!r})\n"
+                                  "  hint: e.g. --rtol 1e-10 --atol 1e-10")
+    if rtol == 0 and atol == 0:
+        raise SimulationError("--rtol and --atol are both 0: no step would pass the error test\n"
+                              "  hint: give one of them a positive value, e.g. --rtol 1e-10")
+
+
 @dataclass
 class Block:
     """Consecutive rows of a run: times, states ``[q; qdot]`` and, when computed in C, ``(T, V)``."""
@@ -228,6 +240,7 @@ def start(system: KnownSystem, values: RunValues, t_end: float, dt: float, metho
         raise SimulationError(f"unknown method '{method}'; choose one of: {', '.join(METHODS)}")
     explicit_only(system, method)
     row_count(t_end, dt)
+    check_tolerances(rtol, atol)
     if system.implicit is not None and constrained is None:
         from .constrained import project_initial
 
@@ -292,6 +305,8 @@ class _Tail:
     def __init__(self, grid, offset: int, start: float | None = None):
         self.grid, self.offset, self.start = grid, offset, start
         self.shift = offset - (1 if start is not None else 0)  # tail index -> grid index
+        self.t_end, self.dt = grid.t_end, grid.dt
+        self.spacing = grid.spacing if start is None else min(grid.spacing, grid[offset] - start)
 
     def __len__(self) -> int:
         return len(self.grid) - self.shift
@@ -396,7 +411,7 @@ def _auto_blocks(run, system, spec, native, constrained, grid, y0, param, rtol, 
             y0 = split.row(y, ydot)
             # go on from the switch: the grid rows after it (a switch between rows starts off the grid)
             offset = min(int(round(t_switch / grid.dt)), len(grid) - 1)
-            if abs(grid[offset] - t_switch) <= 1e-9 * max(1.0, abs(t_switch)):
+            if abs(grid[offset] - t_switch) <= 1e-6 * grid.spacing:
                 start = None
             else:
                 offset = next((i for i in range(max(offset - 1, 0), len(grid)) if grid[i] > t_switch), len(grid) - 1)
@@ -543,6 +558,11 @@ STIFF_REJECTED_SHARE = 0.25   # accuracy-limited smooth runs reject a few per ce
 STIFF_DAMPED_SHARE = 0.05     # a fast mode that decays by e within 20 radians counts as damped
 
 
+MERGE = 1e-7
+"""A multiple of ``dt`` within ``MERGE dt`` of ``t_end`` is ``t_end`` itself (as in the C integrators'
+``output_time``): no two rows are closer than that."""
+
+
 class _Grid:
     """Output times 0, dt, 2 dt, ... and exactly t_end, made a slice at a time.
 
@@ -552,11 +572,13 @@ class _Grid:
 
     def __init__(self, t_end: float, dt: float):
         self.t_end, self.dt = t_end, dt
-        # every multiple of dt before t_end (one within 1e-9 dt of it is t_end), then t_end: the
+        # every multiple of dt before t_end (one within MERGE dt of it is t_end), then t_end: the
         # rows the C integrators' dense output writes, whatever the remainder
-        n = math.ceil(t_end / dt - 1e-9) + 1
+        n = math.ceil(t_end / dt - MERGE) + 1
         self.n = max(n, 2)  # a run always starts at 0 (also when dt > t_end)
         self.decimal = _decimal(dt, self.n)
+        # the closest two rows: dt, or less from the last multiple of dt to t_end
+        self.spacing = min(dt, t_end - float(self._times(np.array([self.n - 2.0]))[0]))
 
     def __len__(self) -> int:
         return self.n
@@ -578,12 +600,17 @@ class _Grid:
         return self.t_end if i == self.n - 1 else float(self._times(np.array([float(i)]))[0])
 
     def snap(self, t: np.ndarray) -> np.ndarray:
-        """Times within a millionth of ``dt`` of a grid time replaced by that grid time."""
+        """Times within a millionth of the rows' spacing of a grid time replaced by that grid time
+        (the last rows may be closer than ``dt``: ``t_end`` is not a multiple of ``dt``, or below it)."""
         t = np.asarray(t, dtype=float)
-        k = np.clip(np.rint(t / self.dt), 0, self.n - 1)
+        last = self.n - 1
+        k = np.clip(np.rint(t / self.dt), 0, last)
         grid = self._times(k)
-        grid[k == self.n - 1] = self.t_end
-        return np.where(np.abs(t - grid) <= 1e-6 * self.dt, grid, t)
+        grid[k == last] = self.t_end
+        end = np.abs(t - self.t_end) < np.abs(t - grid)
+        k, grid = np.where(end, last, k), np.where(end, self.t_end, grid)
+        spacing = np.where(k >= last - 1, self.spacing, self.dt)
+        return np.where(np.abs(t - grid) <= 1e-6 * spacing, grid, t)
 
 
 def _decimal(dt: float, n: int) -> tuple[int, float] | None:
@@ -692,9 +719,12 @@ def _fixed_pieces(t0: float, t1: float, dt: float) -> list[tuple[float, float]]:
     steps of ``dt`` between them, a shorter step only up to the first multiple (a run going on
     after a switch of coordinates) and from the last one to ``t1`` (a ``t_end`` that is not a
     multiple), so its rows fall on the ``--dt`` grid as every other method's do."""
-    tiny = 1e-9 * dt
-    first, last = math.ceil(t0 / dt - 1e-9) * dt, math.floor(t1 / dt + 1e-9) * dt
-    cuts = [t0] + [m for m in (first, last) if t0 + tiny < m < t1 - tiny] + [t1]
+    tiny = MERGE * dt
+    first = math.ceil(t0 / dt - MERGE) * dt
+    # past a multiple (not one itself, to rounding): cut at the last row before t1, as _Grid counts them
+    past = t1 / dt - math.floor(t1 / dt + 1e-9) > 1e-9
+    last = (math.ceil(t1 / dt - MERGE) - 1) * dt if past else t1
+    cuts = [t0] + [first] * (t0 + tiny < first < t1 - tiny) + [last] * (t0 + tiny < last < t1) + [t1]
     cuts = sorted(set(cuts))
     return list(zip(cuts[:-1], cuts[1:]))
 
@@ -703,8 +733,8 @@ def _aligned_pieces(t0: float, t1: float, dt: float) -> list[tuple[float, float]
     """``t0 .. t1`` for an adaptive method, cut at the first multiple of ``dt`` after a ``t0``
     between two rows (a run going on after a switch of coordinates there): C writes its rows
     every ``dt`` from the start of a piece, so each piece must start on the grid."""
-    tiny = 1e-9 * dt
-    first = math.ceil(t0 / dt - 1e-9) * dt
+    tiny = MERGE * dt
+    first = math.ceil(t0 / dt - MERGE) * dt
     return [(t0, first), (first, t1)] if t0 + tiny < first < t1 - tiny else [(t0, t1)]
 
 
@@ -725,7 +755,7 @@ def _native_blocks(run, native, method, grid, y0, param, rtol, atol, dt, chunks,
         stats["evaluations"] += result.n_evals
         if result.t_stiff is not None and "stiff_from" not in stats:
             stats["stiff_from"] = result.t_stiff
-        keep = t > last + 1e-12 * max(1.0, abs(last))
+        keep = t > last + 1e-6 * grid.spacing  # a piece's first row repeats the last one
         if np.any(keep):
             last = t[keep][-1]
             yield t[keep], Y[keep]

@@ -24,16 +24,21 @@ class RunValues:
     y0: tuple[float, ...]
 
 
-def parse_assignments(items: tuple[str, ...]) -> dict[str, str]:
-    """``name=value`` strings from the command line."""
+def parse_assignments(items: tuple[str, ...], option: str = "--set") -> dict[str, str]:
+    """``name=value`` strings given with ``option`` on the command line; a name given twice is
+    an error (which value was meant is not for kronsub to guess)."""
     out: dict[str, str] = {}
     problems = []
     for item in items:
         name, sep, value = item.partition("=")
-        if not sep or not name.strip() or not value.strip():
-            problems.append(Problem(None, f"--set '{item}' is not of the form name=value", "e.g. --set m1=2.5"))
-            continue
-        out[name.strip()] = value.strip()
+        name = name.strip()
+        if not sep or not name or not value.strip():
+            problems.append(Problem(None, f"{option} '{item}' is not of the form name=value", f"e.g. {option} m1=2.5"))
+        elif name in out:
+            problems.append(Problem(None, f"{option} {name} is given twice ({name}={out[name]}, {name}={value.strip()})",
+                                    "give each name once"))
+        else:
+            out[name] = value.strip()
     if problems:
         raise ModelError(problems)
     return out

@@ -552,14 +552,16 @@ int ks_dop853(ks_fn f, int dim, const double *param, double t0, const double *y0
 /* Fixed-step methods                                                                          */
 /* ------------------------------------------------------------------------------------------ */
 
-/* n = ceil((t_end - t0) / h) steps of (t_end - t0) / n; 0 or KS_BAD_ARGUMENT. */
+/* n = ceil((t_end - t0) / h) steps of (t_end - t0) / n, a span up to 2e-7 h over whole steps
+ * taking none more (a t_end within 1e-7 dt_out of a row is that row, as in output_time);
+ * 0 or KS_BAD_ARGUMENT. */
 static int fixed_steps(double t0, double t_end, double h, long *n, double *step)
 {
     double r;
     if (!(h > 0.0) || !isfinite(h)) return KS_BAD_ARGUMENT;
     r = (t_end - t0) / h;
     if (!(r < 9.0e15)) return KS_BAD_ARGUMENT;
-    *n = (long)ceil(r * (1.0 - 1e-12));
+    *n = (long)ceil(r * (1.0 - 2e-7));
     if (*n < 1) *n = 1;
     *step = (t_end - t0) / (double)*n;
     return 0;
