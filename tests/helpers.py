@@ -121,3 +121,22 @@ def Ry(u):
 def Rz(u):
     """The rotation by ``u`` about z."""
     return sympy.Matrix([[sympy.cos(u), -sympy.sin(u), 0], [sympy.sin(u), sympy.cos(u), 0], [0, 0, 1]])
+
+
+def generated_numpy_module(tmp_path, model_path):
+    """The numpy module ``kronsub codegen --lang python`` writes for ``model_path``, imported."""
+    import importlib.util
+    from pathlib import Path
+
+    from click.testing import CliRunner
+
+    from kronsub.cli import main
+
+    model_path = Path(model_path)
+    result = CliRunner().invoke(main, ["codegen", str(model_path), "--lang", "python", "-o", str(tmp_path)])
+    assert result.exit_code == 0, result.output
+    stem = model_path.stem
+    spec = importlib.util.spec_from_file_location(f"generated_{model_path.parent.name}_{stem}", tmp_path / f"{stem}.py")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod

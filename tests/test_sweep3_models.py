@@ -15,7 +15,6 @@ generated numpy module.
 from __future__ import annotations
 
 import dataclasses
-import importlib.util
 from functools import lru_cache
 from pathlib import Path
 
@@ -25,7 +24,7 @@ import sympy as sp
 from click.testing import CliRunner
 
 import kronsub
-from helpers import Rx, Ry, Rz
+from helpers import Rx, Ry, Rz, generated_numpy_module
 from kronsub.errors import ModelError
 from kronsub.cli import main
 from test_sweep_models import (Constrained, compare_explicit, dots, lagrange, largest_difference, rate_of,
@@ -80,13 +79,7 @@ def accelerations_agree(system, M, h, f, seed, *, states=5, spread=2.0, numpy_mo
 
 
 def numpy_module(tmp_path, name):
-    result = CliRunner().invoke(main, ["codegen", str(HERE / name), "--lang", "python", "-o", str(tmp_path)])
-    assert result.exit_code == 0, result.output
-    stem = Path(name).stem
-    spec = importlib.util.spec_from_file_location(f"sweep3_{stem}", tmp_path / f"{stem}.py")
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
+    return generated_numpy_module(tmp_path, HERE / name)
 
 
 # ------------------------------------------------------------------------------------------

@@ -25,7 +25,7 @@ import sympy as sp
 from click.testing import CliRunner
 
 import kronsub
-from helpers import Rx, Ry, Rz
+from helpers import Rx, Ry, Rz, generated_numpy_module
 from kronsub.cli import main
 from test_sweep3_models import accelerations_agree, kinetic, walk_independent
 from test_sweep_models import (Constrained, compare_explicit, dots, lagrange, largest_difference, rate_of,
@@ -107,15 +107,7 @@ def test_gyroscope_on_gimbals_zxy_offset_centre(tmp_path):
 
 
 def numpy_module(tmp_path, name):
-    import importlib.util
-
-    result = CliRunner().invoke(main, ["codegen", str(HERE / name), "--lang", "python", "-o", str(tmp_path)])
-    assert result.exit_code == 0, result.output
-    stem = Path(name).stem
-    spec = importlib.util.spec_from_file_location(f"sweep4_{stem}", tmp_path / f"{stem}.py")
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
+    return generated_numpy_module(tmp_path, HERE / name)
 
 
 def test_free_box_xzx_products_of_inertia():

@@ -145,6 +145,12 @@ def read_model_text(path: Path, where: Location | None = None) -> str:
     if data and info.st_size == 0:
         raise _file_error(where, path, "reports a size of 0 but has content: it is not a regular model file",
                           "give the path of a .yaml model file on disk")
+    return _decoded(data, path)
+
+
+def _decoded(data: bytes, path: Path, hint: str = "save the file with UTF-8 encoding") -> str:
+    """``data`` as UTF-8 text (a byte-order mark dropped); invalid bytes are a `ModelError` at
+    their line and column."""
     try:
         return data.decode("utf-8-sig")
     except UnicodeDecodeError as exc:
@@ -153,7 +159,7 @@ def read_model_text(path: Path, where: Location | None = None) -> str:
         raise ModelError([Problem(
             Location(str(path), line, column),
             f"the file is not valid UTF-8 text (byte 0x{data[exc.start]:02x})",
-            "save the file with UTF-8 encoding")])
+            hint)]) from None
 
 
 def read_user_text(path: Path, kind: str, limit: int = 1 << 30) -> str:
@@ -181,14 +187,7 @@ def read_user_text(path: Path, kind: str, limit: int = 1 << 30) -> str:
         raise _os_error(path, exc, where) from None
     if len(data) > limit:
         raise _file_error(where, path, f"is too large (more than {limit:,} bytes)", f"check the path: {hint}")
-    try:
-        return data.decode("utf-8-sig")
-    except UnicodeDecodeError as exc:
-        line = data.count(b"\n", 0, exc.start) + 1
-        column = exc.start - (data.rfind(b"\n", 0, exc.start) + 1) + 1
-        raise ModelError([Problem(Location(str(path), line, column),
-                                  f"the file is not valid UTF-8 text (byte 0x{data[exc.start]:02x})",
-                                  f"{hint}, saved as UTF-8")]) from None
+    return _decoded(data, path, f"{hint}, saved as UTF-8")
 
 
 def _check_regular(path: Path, info: os.stat_result, where: Location) -> None:
