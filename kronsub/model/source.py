@@ -127,25 +127,30 @@ def read_model_text(path: Path, where: Location | None = None) -> str:
     ``/proc`` file is never read and nothing here can block.
     """
     where = where or Location(str(path))
-    try:
-        info = os.stat(path)
-        _check_regular(path, info, where)
-        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK | getattr(os, "O_NOCTTY", 0)
-                     | getattr(os, "O_CLOEXEC", 0))
-        try:
-            info = os.fstat(fd)  # the file opened is the one checked
-            _check_regular(path, info, where)
-            data = _read_at_most(fd, MAX_MODEL_BYTES + 1)
-        finally:
-            os.close(fd)
-    except OSError as exc:
-        raise _os_error(path, exc, where) from None
+    data, info = _read_checked(path, where, MAX_MODEL_BYTES, lambda info: _check_regular(path, info, where))
     if len(data) > MAX_MODEL_BYTES:
         raise _too_large(path, len(data), where)
     if data and info.st_size == 0:
         raise _file_error(where, path, "reports a size of 0 but has content: it is not a regular model file",
                           "give the path of a .yaml model file on disk")
     return _decoded(data, path)
+
+
+def _read_checked(path: Path, where: Location, limit: int, check) -> tuple[bytes, os.stat_result]:
+    """At most ``limit + 1`` bytes of ``path`` and its ``stat``: ``check(stat)`` (which raises)
+    before opening and again on the open descriptor (the file read is the one checked), opened
+    non-blocking so that nothing here can wait; an ``OSError`` is a `ModelError` at ``where``."""
+    try:
+        check(os.stat(path))
+        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK | getattr(os, "O_NOCTTY", 0) | getattr(os, "O_CLOEXEC", 0))
+        try:
+            info = os.fstat(fd)
+            check(info)
+            return _read_at_most(fd, limit + 1), info
+        finally:
+            os.close(fd)
+    except OSError as exc:
+        raise _os_error(path, exc, where) from None
 
 
 def _decoded(data: bytes, path: Path, hint: str = "save the file with UTF-8 encoding") -> str:
@@ -169,22 +174,15 @@ def read_user_text(path: Path, kind: str, limit: int = 1 << 30) -> str:
     ``kind`` names it in the hints. Problems are a `ModelError` at the file."""
     where = Location(str(path))
     hint = f"give the path of a {kind} on disk"
-    try:
-        info = os.stat(path)
+
+    def check(info: os.stat_result) -> None:
         for test, what in _KIND_OF_MODE:
             if test(info.st_mode):
                 raise _file_error(where, path, f"is {what}, not a regular file", hint)
         if not stat.S_ISREG(info.st_mode):
             raise _file_error(where, path, "is not a regular file", hint)
-        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK | getattr(os, "O_NOCTTY", 0) | getattr(os, "O_CLOEXEC", 0))
-        try:
-            if not stat.S_ISREG(os.fstat(fd).st_mode):
-                raise _file_error(where, path, "is not a regular file", hint)
-            data = _read_at_most(fd, limit + 1)
-        finally:
-            os.close(fd)
-    except OSError as exc:
-        raise _os_error(path, exc, where) from None
+
+    data, _ = _read_checked(path, where, limit, check)
     if len(data) > limit:
         raise _file_error(where, path, f"is too large (more than {limit:,} bytes)", f"check the path: {hint}")
     return _decoded(data, path, f"{hint}, saved as UTF-8")
