@@ -25,6 +25,7 @@ from fractions import Fraction
 import sympy
 
 from .inverse_trig import divide_out
+from .operations import count_ops
 from .printed import LexStrPrinter
 from . import trigpoly
 from .trigpoly import TrigAlgebra, TrigPoly, _coef_add_into, _common_monomial
@@ -103,11 +104,11 @@ def _compact(algebra: TrigAlgebra, p: TrigPoly) -> sympy.Expr:
     collected = _collected(view, p)
     if collected is not None:
         offer(collected)
-    offer(sympy.factor_terms(best))
+    offer(_factor_terms(best))
     if groups and best_key.ops <= FACTORED:
         for variant in (SIN, COS):  # all powers: a polynomial in sin and cos to factor
             powers = view.render(groups, {b: (variant, frozenset()) for b in groups}, rest)
-            if sympy.count_ops(powers) <= 2 * FACTORED:
+            if count_ops(powers) <= 2 * FACTORED:
                 offer(_factor(powers))
     return _atom_angles(algebra, p, best)
 
@@ -119,7 +120,7 @@ def _atom_angles(algebra: TrigAlgebra, p: TrigPoly, best: sympy.Expr) -> sympy.E
     coordinates = set(algebra.coordinates)
     held = [a for a in algebra.atoms_of(p)
             if isinstance(a, (sympy.sin, sympy.cos)) and a.args[0].free_symbols & coordinates]
-    if not held or sympy.count_ops(best) > FACTORED or len(best.free_symbols) > ATOM_SYMBOLS:
+    if not held or count_ops(best) > FACTORED or len(best.free_symbols) > ATOM_SYMBOLS:
         return best  # sin(t), cos(pi/7): no identity of a coordinate; many symbols: factor's cost
     candidate = sympy.trigsimp(best)
     return candidate if _key(candidate) < _key(best) else best
@@ -154,9 +155,9 @@ def _factor(expr: sympy.Expr) -> sympy.Expr:
 
 def _factored(expr: sympy.Expr) -> sympy.Expr:
     """``expr`` or, for a small one, its common factors pulled out if that is shorter."""
-    if _joins_exceed(expr, SMALL) or sympy.count_ops(expr) > SMALL:
+    if _joins_exceed(expr, SMALL) or count_ops(expr) > SMALL:
         return expr
-    return min((expr, sympy.factor_terms(expr)), key=_key)
+    return min((expr, _factor_terms(expr)), key=_key)
 
 
 def _joins_exceed(expr: sympy.Expr, limit: int) -> bool:
@@ -186,11 +187,11 @@ class _Key:
     __slots__ = ("expr", "ops", "_length")
 
     def __init__(self, expr: sympy.Expr):
-        self.expr, self.ops, self._length = expr, sympy.count_ops(expr), None
+        self.expr, self.ops, self._length = expr, count_ops(expr), None
 
     def length(self) -> int:
         if self._length is None:
-            self._length = len(LexStrPrinter().doprint(self.expr))  # sympy.sstr(order="lex"), faster
+            self._length = _printed_length(self.expr)
         return self._length
 
     def __lt__(self, other: "_Key") -> bool:
@@ -204,6 +205,31 @@ class _Key:
 
 def _key(expr: sympy.Expr) -> _Key:
     return _Key(expr)
+
+
+_PRINTER = [LexStrPrinter()]
+PRINTED = 100_000
+"""Printed subexpressions remembered at most between entries (candidate forms share most)."""
+
+
+_FACTORED_TERMS: dict = {}
+
+
+def _factor_terms(expr: sympy.Expr) -> sympy.Expr:
+    """``sympy.factor_terms(expr)``, remembered: an entry's candidates repeat between entries."""
+    if len(_FACTORED_TERMS) > PRINTED:
+        _FACTORED_TERMS.clear()
+    hit = _FACTORED_TERMS.get((type(expr), expr))
+    if hit is None:
+        hit = _FACTORED_TERMS[(type(expr), expr)] = sympy.factor_terms(expr)
+    return hit
+
+
+def _printed_length(expr: sympy.Expr) -> int:
+    """``len(sympy.sstr(expr, order="lex"))``, by one printer that remembers what it printed."""
+    if len(_PRINTER[0].__dict__.get("_printed", ())) > PRINTED:
+        _PRINTER[0] = LexStrPrinter()
+    return len(_PRINTER[0].doprint(expr))
 
 
 # ------------------------------------------------------------------ angle groups
@@ -547,4 +573,4 @@ def recompact(expr: sympy.Expr, coordinates) -> sympy.Expr:
         whole = compact(algebra, algebra.from_expr(expr))
     except Exception:  # too large to expand: it keeps its form
         return expr
-    return min((expr, whole, sympy.factor_terms(whole)), key=_key)
+    return min((expr, whole, _factor_terms(whole)), key=_key)

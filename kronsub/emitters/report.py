@@ -15,6 +15,7 @@ from sympy.printing.str import StrPrinter
 
 from ..core.known_system import KnownSystem
 from ..core.printed import Remembering
+from ..core.operations import count_ops
 from ..core.simplify import recompact, tidy
 from .latex_layout import LatexPrinter, unbroken
 from ..core.symbols import acceleration_symbol, velocity_symbol
@@ -91,7 +92,7 @@ def _repeats(exprs, coordinates) -> bool:
         for sub in sympy.preorder_traversal(e):
             if ((sub.is_Pow and not sub.exp.is_Integer)
                     or (isinstance(sub, sympy.Function) and not isinstance(sub, (sympy.sin, sympy.cos)))):
-                if sub.free_symbols & coordinates and sympy.count_ops(sub) >= MIN_NAMED_OPS:
+                if sub.free_symbols & coordinates and count_ops(sub) >= MIN_NAMED_OPS:
                     if sub in seen:
                         return True
                     seen.add(sub)
@@ -119,7 +120,7 @@ def named_subexpressions(exprs: list, taken: Iterable[str], coordinates) -> tupl
         kept = []
         for sym, expr in pending:
             expr = expr.xreplace(dropped)
-            ops = sympy.count_ops(expr)
+            ops = count_ops(expr)
             varying = bool(expr.free_symbols & coordinates)
             uses = sum(e.has(sym) for e in reduced) + sum(e.has(sym) for _, e in pending)
             if ops < MIN_NAMED_OPS or not varying or sym in entries or uses < 2:

@@ -1,0 +1,82 @@
+"""``sympy.count_ops``, the same number, remembered per subexpression.
+
+Choosing the printed form of an entry (:mod:`.simplify`) weighs many candidate forms
+that share most of their parts (coefficients, monomials, the insides of roots), and
+``sympy.count_ops`` walks each candidate whole, building a symbolic sum of operation
+names as it goes. The count is a sum over the nodes the walk visits, each node adding
+what its own kind adds, so it is computed here node by node, with sympy's rules in
+sympy's order, and each distinct subexpression is counted once.
+``tests/test_operations.py`` checks it against ``sympy.count_ops``.
+"""
+from __future__ import annotations
+
+import sympy
+from sympy.core.function import Derivative, _coeff_isneg
+from sympy.core.operations import LatticeOp
+from sympy.simplify.radsimp import fraction
+
+S = sympy.S
+LIMIT = 200_000
+"""Remembered subexpressions at most; the memory is emptied when it is full."""
+
+_counted: dict = {}
+
+
+def count_ops(expr) -> int:
+    """``sympy.count_ops(expr)`` (``visual=False``) for an expression; other arguments
+    (lists, relations) are handed to sympy."""
+    if not isinstance(expr, sympy.Expr) or expr.is_Relational:
+        return sympy.count_ops(expr)
+    if len(_counted) > LIMIT:
+        _counted.clear()
+    return _count(expr)
+
+
+def _count(a) -> int:
+    hit = _counted.get(a)
+    if hit is None:
+        hit = _counted[a] = _own(a)
+    return hit
+
+
+def _own(a) -> int:
+    """The operations ``count_ops`` records at node ``a`` plus those of the nodes it
+    visits next (sympy's ``count_ops``, branch by branch)."""
+    n = 0
+    if a.is_Rational:
+        if a is not S.One:
+            return (a.p < 0) + (a.q != 1)
+    elif a.is_Mul or a.is_MatMul:
+        if _coeff_isneg(a):
+            n += 1  # NEG
+            a = a.as_two_terms()[1] if a.args[0] is S.NegativeOne else -a
+        numer, denom = fraction(a)
+        if numer.is_Integer:
+            return n + 1 + (numer.p < 0) + _count(denom)  # DIV (NEG)
+        if denom is not S.One:
+            return n + 1 + (0 if denom.is_Integer else _count(denom)) + _count(numer)
+    elif a.is_Add or a.is_MatAdd:
+        terms = a.args
+        negative = 0
+        for term in terms:
+            if _coeff_isneg(term):
+                negative += 1
+                n += _count(-term)
+            else:
+                n += _count(term)
+        # one ADD or SUB per join; all terms negative: one NEG more
+        return n + len(terms) - 1 + (negative == len(terms))
+    if a.is_Pow and a.exp is S.NegativeOne:
+        return n + 1 + _count(a.base)  # DIV
+    if a is S.Exp1:
+        return n + 1
+    if a.is_Pow and a.base is S.Exp1:
+        return n + 1 + _count(a.exp)
+    if a.is_Mul or isinstance(a, LatticeOp):
+        n += len(a.args) - 1
+    elif a.args and (a.is_Pow or a.is_Function or isinstance(a, (Derivative, sympy.Integral, sympy.Sum))):
+        n += 1
+    if not a.is_Symbol:
+        for arg in a.args:
+            n += _count(arg)
+    return n

@@ -1,0 +1,54 @@
+"""The remembered operation count (kronsub/core/operations.py) is sympy's ``count_ops``."""
+from __future__ import annotations
+
+import random
+from pathlib import Path
+
+import pytest
+import sympy
+
+import kronsub
+from kronsub.core.operations import count_ops
+from test_printed import _random_expr
+
+REPO = Path(__file__).resolve().parent.parent
+x, y = sympy.symbols("x y")
+f = sympy.Function("f")
+
+EDGES = [
+    sympy.Integer(0), sympy.Integer(1), sympy.Integer(-1), sympy.Rational(-1, 3), sympy.Float(-2.5),
+    -x, -x - y, -x + y, x - y, 1 / x, -1 / x, 2 / x, -2 / (3 * x), x / y, -x / y, x ** -2,
+    x * y ** sympy.Rational(-1, 2), sympy.exp(x), sympy.exp(-x), sympy.E, sympy.E ** (x * y),
+    sympy.Pow(sympy.E, x, evaluate=False), sympy.Max(x, y, 1), sympy.Min(x, y), f(x, y) + f(-x),
+    sympy.Derivative(f(x), x), sympy.Integral(x, (x, 0, 1)), sympy.Abs(-x - y), sympy.sqrt(1 - x ** 2),
+    sympy.Mul(-1, x + y, evaluate=False), sympy.Mul(2, x + y, evaluate=False), -(x + y) / (x - y),
+    sympy.sin(x) ** 2 + sympy.cos(x) ** 2 - 1, (x - 1) * (x + 1) / (2 * y), sympy.pi * x / 2,
+]
+
+
+@pytest.mark.parametrize("expr", EDGES, ids=[str(e) for e in EDGES])
+def test_edges(expr):
+    assert count_ops(expr) == sympy.count_ops(expr)
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_random_expressions(seed):
+    rng = random.Random(300 + seed)
+    for _ in range(150):
+        e = _random_expr(rng)
+        assert count_ops(e) == sympy.count_ops(e), e
+        assert count_ops(-e) == sympy.count_ops(-e), -e
+        assert count_ops(1 / e) == sympy.count_ops(1 / e), 1 / e
+
+
+def test_other_arguments_go_to_sympy():
+    assert count_ops([x + y, sympy.sin(x)]) == 2
+    assert count_ops(sympy.Eq(x + y, 1)) == sympy.count_ops(sympy.Eq(x + y, 1))
+
+
+@pytest.mark.parametrize("name", ["models/hoffmann/system2.yaml", "models/examples/watt_governor.yaml",
+                                  "models/examples/slider_crank.yaml"])
+def test_bundled_models(name):
+    system = kronsub.load(REPO / name).derive()
+    for e in [*system.mass_matrix, *system.velocity_terms, *system.forces, system.potential_energy]:
+        assert count_ops(e) == sympy.count_ops(e), e
