@@ -372,6 +372,7 @@ class _View:
         self._varies: dict[int, bool] = {}
         self._pairs: dict[int, int] | None = None
         self._seen = 0
+        self._coefficients: dict = {}
 
     # atoms ---------------------------------------------------------------
     def atom(self, i: int) -> sympy.Expr:
@@ -388,6 +389,7 @@ class _View:
             self._pairs = {i: sines[a.args[0]] for i, a in enumerate(atoms)
                            if isinstance(a, sympy.cos) and a.args[0] in sines}
             self._seen = len(atoms)
+            self._coefficients = {}  # a new pair may collapse a coefficient printed before
         return self._pairs
 
     def touches(self, p: TrigPoly) -> bool:
@@ -416,9 +418,18 @@ class _View:
         return hit
 
     def coefficient(self, coef: dict) -> sympy.Expr:
-        """The coefficient with ``sin(a)^2 + cos(a)^2`` collapsed and common factors pulled out."""
+        """The coefficient with ``sin(a)^2 + cos(a)^2`` collapsed and common factors pulled out
+        (each distinct coefficient once: the trial forms of an entry share most of them)."""
+        pairs = self.pairs()
+        key = tuple(coef.items())  # in order: the sign pulled out is the first term's
+        hit = self._coefficients.get(key)
+        if hit is None:
+            hit = self._coefficients[key] = self._coefficient(coef, pairs)
+        return hit
+
+    def _coefficient(self, coef: dict, pairs: dict) -> sympy.Expr:
         variants = [coef]
-        for c, s in sorted(self.pairs().items()):
+        for c, s in sorted(pairs.items()):
             if any(dict(m).get(c, 0) >= 2 or dict(m).get(s, 0) >= 2 for m in coef):
                 variants = [_collapse(v, c, s, keep) for v in variants for keep in (SIN, COS)]
         if len(variants) == 1:
