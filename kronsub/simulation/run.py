@@ -761,9 +761,8 @@ def _native_blocks(run, native, method, grid, y0, param, rtol, atol, dt, chunks,
             yield t[keep], Y[keep]
         if result.status != 0:
             message = result.message
-            if result.status in (1, 2) and not _real_at(native, t0, y, param):  # out of the domain at the start
-                message = ("the equations have no real value at this state (a square root, asin or acos of the "
-                           "connection outside its domain: check the initial values and the parameters)")
+            if result.status in (1, 2) and not _real_at(native, t0, y, param):  # not finite at the start
+                message = _not_finite(system, t0, y, param)
             message += _where(system, result.y_fail) if result.status in (1, 2) else ""
             run.stop(message, result.t_fail, y_fail=result.y_fail)
             return
@@ -808,14 +807,28 @@ class _Cursor:
 
 
 def _real_at(native, t: float, y, param) -> bool:
-    """Whether the energies have a real value at ``(t, y)`` (a connection through sqrt, asin or
-    acos has none outside its domain, where the mass matrix is NaN, not singular)."""
+    """Whether the energies have a finite real value at ``(t, y)`` (a connection through sqrt, asin
+    or acos has none outside its domain, where the mass matrix is NaN, not singular; huge values
+    overflow)."""
     try:
         with np.errstate(all="ignore"):
             values = [native.kinetic_energy(y, param), native.potential_energy(t, y, param)]
     except Exception:  # noqa: BLE001 - a model without energies, or one that fails otherwise: no verdict
         return True
     return bool(np.all(np.isfinite(values)))
+
+
+def _not_finite(system, t: float, y, param) -> str:
+    """Why the equations are NaN or infinite at ``(t, y)``, where the state is finite: a value
+    beyond the range of doubles, or a function outside its domain (:mod:`..core.finite`)."""
+    from ..core.finite import at_state
+
+    cause = at_state(system, t, y, param)
+    if cause is None:
+        return ("the equations are NaN or infinite at this state in double precision, though finite "
+                "when evaluated exactly (an intermediate value overflows or cancels: check for huge "
+                "or tiny parameters and initial values)")
+    return f"the equations have no {'finite' if cause.overflow else 'real'} value at this state: {cause}"
 
 
 def _scipy_blocks(run, rhs, method, grid, y0, rtol, atol, chunks, bar, system, events=None):
