@@ -28,6 +28,7 @@ import numpy as np
 import sympy
 
 from ..errors import KronsubError
+from .finite import nonfinite_cause
 from .known_system import KnownSystem
 from .symbols import TIME
 
@@ -206,7 +207,7 @@ def linearize(system: KnownSystem, *, inputs: Sequence[sympy.Symbol] = (),
     else:
         evaluate = _Evaluator([M, r, K0], symbols)
         if free:
-            numeric_values = _solve_equilibrium(evaluate, numeric_values, q, free)
+            numeric_values = _solve_equilibrium(evaluate, numeric_values, q, free, r)
         Mn, rn, _ = evaluate(numeric_values)
         acceleration = tuple(float(a) for a in _solve(Mn, rn.ravel(), numeric_values, q))
     velocities_zero = all(_numeric(fixed.get(v, 0), numbers) == 0 for v in qd)
@@ -278,7 +279,7 @@ def _solve(Mn: np.ndarray, rhs: np.ndarray, values, q) -> np.ndarray:
     return np.linalg.solve(Mn, rhs)
 
 
-def _solve_equilibrium(evaluate: _Evaluator, values: dict, q, free) -> dict:
+def _solve_equilibrium(evaluate: _Evaluator, values: dict, q, free, r) -> dict:
     """Solve ``r(q, 0) = 0`` for the free coordinates (Levenberg-Marquardt, which copes with
     coordinates the equilibrium does not fix, such as a cart's position)."""
     from scipy.optimize import least_squares
@@ -301,10 +302,17 @@ def _solve_equilibrium(evaluate: _Evaluator, values: dict, q, free) -> dict:
 
     x0 = np.array([values[s] for s in free], dtype=float)
     if not np.all(np.isfinite(fun(x0))):
-        raise LinearizationError("the equations cannot be evaluated at the initial values; give the "
-                                 "operating point with --at NAME=VALUE")
+        raise LinearizationError(_unevaluable(r, q, values))
     solution = least_squares(fun, x0, jac=jac, method="lm", xtol=1e-15, ftol=1e-15, gtol=1e-15)
     return at(solution.x)
+
+
+def _unevaluable(r, q, values) -> str:
+    """Why ``r = fbar - hbar`` has no finite value at ``values``: an overflow (then another
+    operating point does not help) or a function outside its domain (:mod:`.finite`)."""
+    cause = nonfinite_cause([(f"(fbar - hbar)[{s.name}]", e) for s, e in zip(q, r)], values)
+    text = "the equations cannot be evaluated at the initial values" + (f": {cause}" if cause else "")
+    return text if cause is not None and cause.overflow else text + "; give the operating point with --at NAME=VALUE"
 
 
 def _exact(value: float) -> sympy.Expr:
