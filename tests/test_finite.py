@@ -20,16 +20,17 @@ a, b = symbol("a"), symbol("b")
 
 def test_an_overflow_names_the_subexpression_and_the_huge_value():
     cause = nonfinite_cause([("fine", a + b), ("the force", 10 * a * b)], {a: 1e300, b: 1e10})
-    assert cause.overflow and cause.text.startswith("the force overflows the range of doubles")
-    assert "1.0e+311" in cause.text and "a=1e+300, b=1e+10" in cause.text
+    assert cause.overflow and cause.what == ("the force overflows the range of doubles: 10*a*b is 1.0e+311 "
+                                             "(beyond 1.8e+308) with a=1e+300, b=1e+10")
+    assert "smaller values" in cause.hint
 
 
 def test_a_domain_problem_names_the_function():
     cause = nonfinite_cause([("Mbar[x, x]", 1 + sympy.sqrt(a - 2))], {a: 1.0})
-    assert not cause.overflow and cause.text == ("sqrt(a - 2) in Mbar[x, x] is outside its domain "
+    assert not cause.overflow and str(cause) == ("sqrt(a - 2) in Mbar[x, x] is outside its domain "
                                                  "(check the initial values and the parameters)")
     assert not nonfinite_cause([("y", sympy.asin(a) + 1e300 * b)], {a: 2.0, b: 1.0}).overflow
-    assert "division by zero" in nonfinite_cause([("z", 1 / (a - 1))], {a: 1.0}).text
+    assert "division by zero" in nonfinite_cause([("z", 1 / (a - 1))], {a: 1.0}).what
 
 
 def test_finite_values_and_unknown_symbols_give_no_verdict():
@@ -84,3 +85,16 @@ def test_linearize_and_accuracy_name_an_overflow():
     result = CliRunner().invoke(main, ["accuracy", str(SYSTEM1), "--set", "m1=1e308", "--t", "1",
                                        "--methods", "dop853", "--quick"])
     assert result.exit_code == 1 and "overflows the range of doubles" in result.output, result.output
+
+
+def test_linearize_names_a_domain_problem_instead_of_failing(tmp_path):
+    """A potential k sqrt(x - 1) at x = 0: numpy's NaN, not Python's complex power (an internal
+    error before)."""
+    model = tmp_path / "model.yaml"
+    model.write_text("name: slider\nparameters: {m: 1, k: 2}\ncomponents:\n"
+                     "  s: {type: particle1d, parameters: {mass: m}, coordinates: [x]}\ncoordinates: [x]\n"
+                     "effects:\n  well: {type: potential, value: k*sqrt(x - 1)}\n")
+    result = CliRunner().invoke(main, ["linearize", str(model)])
+    assert result.exit_code == 1, result.output
+    assert "1/sqrt(x - 1) in (fbar - hbar)[x] is outside its domain" in result.output
+    assert "--at NAME=VALUE" in result.output

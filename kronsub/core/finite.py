@@ -24,13 +24,15 @@ _DIGITS = 30
 
 
 class Cause(NamedTuple):
-    """Why a quantity has no finite double value: ``overflow`` (else a domain problem), in words."""
+    """Why a quantity has no finite double value: ``overflow`` (else a domain problem), what
+    happened and a hint, in words; as text, both on one line."""
 
     overflow: bool
-    text: str
+    what: str
+    hint: str
 
     def __str__(self) -> str:
-        return self.text
+        return f"{self.what} ({self.hint})"
 
 
 class _Found(Exception):
@@ -45,12 +47,12 @@ class _Unknown(Exception):
 
 def nonfinite_cause(quantities, values) -> Cause | None:
     """Why the first of ``quantities`` (``(label, expr)`` pairs) without a finite double value
-    has none at ``values`` (symbol -> float), with a hint in parentheses; None when there is no
-    such quantity, or no verdict (a symbol without a value)."""
+    has none at ``values`` (symbol -> float), with a hint; None when there is no such quantity,
+    or no verdict (a symbol without a value)."""
     given = dict(values)
     for symbol, value in given.items():
         if not math.isfinite(value):
-            return Cause(math.isinf(value), f"{symbol.name} is {value} (give it a finite value)")
+            return Cause(math.isinf(value), f"{symbol.name} is {value}", "give it a finite value")
     memo: dict = {}
     for label, expr in quantities:
         try:
@@ -126,9 +128,9 @@ def _describe(label: str, found: _Found, values) -> Cause:
     node = _short(found.node)
     if found.kind == "overflow":
         culprits = _largest(found.node, values)
-        return Cause(True, f"{label} overflows the range of doubles ({node} is "
-                           f"{mpmath.nstr(mpmath.mpf(found.value), 3)}, beyond {DOUBLE_MAX:.3g}"
-                           + (f", with {culprits}" if culprits else "")
-                           + ": give the parameters and the initial state smaller values, in other units)")
+        return Cause(True, f"{label} overflows the range of doubles: {node} is "
+                           f"{mpmath.nstr(mpmath.mpf(found.value), 3)} (beyond {DOUBLE_MAX:.3g})"
+                           + (f" with {culprits}" if culprits else ""),
+                     "give the parameters and the initial state smaller values, in other units")
     what = "a division by zero" if found.value.has(sympy.zoo) else "outside its domain"
-    return Cause(False, f"{node} in {label} is {what} (check the initial values and the parameters)")
+    return Cause(False, f"{node} in {label} is {what}", "check the initial values and the parameters")

@@ -102,8 +102,8 @@ class _Evaluator:
         self.fn = sympy.lambdify([self.symbols], flat, modules=["numpy"])
 
     def __call__(self, values: Mapping[sympy.Symbol, float]) -> list[np.ndarray]:
-        with np.errstate(all="ignore"):
-            flat = np.array(self.fn([values[s] for s in self.symbols]), dtype=float).ravel()
+        with np.errstate(all="ignore"):  # numpy's doubles: (-1.0)**0.5 is NaN, not a Python complex
+            flat = np.array(self.fn([np.float64(values[s]) for s in self.symbols]), dtype=float).ravel()
         out, start = [], 0
         for rows, cols in self.shapes:
             out.append(flat[start:start + rows * cols].reshape(rows, cols))
@@ -311,8 +311,10 @@ def _unevaluable(r, q, values) -> str:
     """Why ``r = fbar - hbar`` has no finite value at ``values``: an overflow (then another
     operating point does not help) or a function outside its domain (:mod:`.finite`)."""
     cause = nonfinite_cause([(f"(fbar - hbar)[{s.name}]", e) for s, e in zip(q, r)], values)
-    text = "the equations cannot be evaluated at the initial values" + (f": {cause}" if cause else "")
-    return text if cause is not None and cause.overflow else text + "; give the operating point with --at NAME=VALUE"
+    if cause is None:
+        return "the equations cannot be evaluated at the initial values; give the operating point with --at NAME=VALUE"
+    hint = cause.hint if cause.overflow else f"{cause.hint}, or give the operating point with --at NAME=VALUE"
+    return f"the equations cannot be evaluated at the initial values: {cause.what}\n  hint: {hint}"
 
 
 def _exact(value: float) -> sympy.Expr:

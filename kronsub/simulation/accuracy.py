@@ -514,7 +514,7 @@ def measure(system: KnownSystem, values: RunValues, t_end: float, methods: tuple
         cause = at_state(system, 0.0, y0, param)
         if cause is not None:
             raise AccuracyError(f"the equations have no {'finite' if cause.overflow else 'real'} value at the "
-                                f"initial state: {cause}")
+                                f"initial state: {cause.what}\n  hint: {cause.hint}")
     if ref is None:
         ref = compute_reference(system, values.parameters, values.y0, sample_times(t_end), digits,
                                 dependent=None if implicit is None else [float(v) for v in dependent])
