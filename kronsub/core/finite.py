@@ -98,6 +98,8 @@ def _value(node, values, memo):
         try:
             out = node.func(*args)
             out = out.evalf(_DIGITS) if isinstance(out, sympy.Expr) else out
+            if isinstance(node, sympy.atan2) and out is sympy.nan:
+                out = sympy.Integer(0)  # atan2(0, 0) is 0 in C
         except (TypeError, ValueError, ZeroDivisionError) as exc:
             raise _Unknown(node) from exc
         if isinstance(out, sympy.Expr):  # (a condition of a Piecewise is not checked)

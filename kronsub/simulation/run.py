@@ -823,16 +823,21 @@ def _real_at(native, t: float, y, param) -> bool:
 
 def _not_finite(system, t: float, y, param, otherwise: str | None = None) -> str:
     """Why the equations are NaN or infinite at ``(t, y)``, where the state is finite: a value
-    beyond the range of doubles, or a function outside its domain (:mod:`..core.finite`); when
-    the exact values are all finite, ``otherwise`` (None: that the double ones are not)."""
+    beyond the range of doubles, or a function outside its domain (:mod:`..core.finite`); else
+    ``otherwise`` (None: that the double values are not finite, though the exact ones are, or
+    with implicit constraints, whose dependent coordinates are not known here, just that)."""
     from ..core.finite import at_state
 
     cause = at_state(system, t, y, param)
-    if cause is None:
-        return otherwise if otherwise is not None else ("the equations are NaN or infinite at this state in double precision, though "
-                             "finite when evaluated exactly (an intermediate value overflows or cancels: "
-                             "check for huge or tiny parameters and initial values)")
-    return f"the equations have no {'finite' if cause.overflow else 'real'} value at this state: {cause}"
+    if cause is not None:
+        return f"the equations have no {'finite' if cause.overflow else 'real'} value at this state: {cause}"
+    if otherwise is not None:
+        return otherwise
+    if system.implicit is not None:
+        return "the equations have no finite value at this state"
+    return ("the equations are NaN or infinite at this state in double precision, though finite when evaluated "
+            "exactly (an intermediate value overflows or cancels: check for huge or tiny parameters and initial "
+            "values)")
 
 
 def _scipy_blocks(run, rhs, method, grid, y0, rtol, atol, chunks, bar, system, events=None, param=None):
