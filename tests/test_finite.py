@@ -25,6 +25,16 @@ def test_an_overflow_names_the_subexpression_and_the_huge_value():
     assert "smaller values" in cause.hint
 
 
+def test_an_overflow_on_the_way_to_a_value_in_range_is_found():
+    """``huge * sin(0)`` is 0 exactly but NaN in doubles (``inf * 0``); so is ``huge + huge - huge``."""
+    c = symbol("c")
+    cause = nonfinite_cause([("f", a * b * sympy.sin(c))], {a: 1e300, b: 1e10, c: 0.0})
+    assert cause.overflow and "the nonzero factors of a*b*sin(c) multiply to 1.0e+310" in cause.what
+    cause = nonfinite_cause([("f", a + b - c)], {a: 1e308, b: 1e308, c: 1e308})
+    assert cause.overflow and "the terms of one sign" in cause.what
+    assert nonfinite_cause([("f", a * b * sympy.sin(c))], {a: 1e300, b: 1e7, c: 0.0}) is None
+
+
 def test_a_domain_problem_names_the_function():
     cause = nonfinite_cause([("Mbar[x, x]", 1 + sympy.sqrt(a - 2))], {a: 1.0})
     assert not cause.overflow and str(cause) == ("sqrt(a - 2) in Mbar[x, x] is outside its domain "
@@ -82,6 +92,10 @@ def test_linearize_and_accuracy_name_an_overflow():
     result = CliRunner().invoke(main, ["linearize", str(SYSTEM1), "--at", "m1=1e308"])
     assert result.exit_code == 1 and "overflows the range of doubles" in result.output, result.output
     assert "--at NAME=VALUE" not in result.output  # another operating point would not help
+    # at theta = 0 the force -a1 g (m1 + 2 m2) sin(theta) is 0 exactly, NaN in doubles
+    result = CliRunner().invoke(main, ["linearize", str(SYSTEM1), "--at", "m1=1e308", "--at", "theta=0",
+                                       "--at", "phi=0"])
+    assert result.exit_code == 1 and "the nonzero factors of" in result.output, result.output
     result = CliRunner().invoke(main, ["accuracy", str(SYSTEM1), "--set", "m1=1e308", "--t", "1",
                                        "--methods", "dop853", "--quick"])
     assert result.exit_code == 1 and "overflows the range of doubles" in result.output, result.output

@@ -36,9 +36,12 @@ class Cause(NamedTuple):
 
 
 class _Found(Exception):
-    def __init__(self, kind: str, node, value):
+    """``kind`` ("domain", "overflow") at ``node``, whose ``value`` (or that of its ``part``:
+    "factors" of a product, "terms" of a sum) is not a finite double."""
+
+    def __init__(self, kind: str, node, value, part: str = ""):
         super().__init__(kind)
-        self.kind, self.node, self.value = kind, node, value
+        self.kind, self.node, self.value, self.part = kind, node, value, part
 
 
 class _Unknown(Exception):
@@ -109,8 +112,23 @@ def _value(node, values, memo):
                 raise _Found("domain", node, out)
             if abs(out) > DOUBLE_MAX:
                 raise _Found("overflow", node, out)
+            _partial_overflow(node, args)
     memo[node] = out
     return out
+
+
+def _partial_overflow(node, args) -> None:
+    """A product or sum in range whose doubles may overflow on the way, in whatever order the
+    compiled code takes: its nonzero factors' product (``huge * sin(0)`` is ``inf * 0 = NaN``),
+    or the sum of its terms of one sign, beyond the range."""
+    if node.is_Mul:
+        product = sympy.Mul(*[a for a in args if a != 0]).evalf(_DIGITS)
+        if abs(product) > DOUBLE_MAX:
+            raise _Found("overflow", node, product, "factors")
+    elif node.is_Add:
+        for same in (sympy.Add(*[a for a in args if a > 0]), sympy.Add(*[a for a in args if a < 0])):
+            if abs(same.evalf(_DIGITS)) > DOUBLE_MAX:
+                raise _Found("overflow", node, same.evalf(_DIGITS), "terms")
 
 
 def _short(node) -> str:
@@ -130,7 +148,9 @@ def _describe(label: str, found: _Found, values) -> Cause:
     node = _short(found.node)
     if found.kind == "overflow":
         culprits = _largest(found.node, values)
-        return Cause(True, f"{label} overflows the range of doubles: {node} is "
+        what = {"": f"{node} is", "factors": f"the nonzero factors of {node} multiply to",
+                "terms": f"the terms of one sign of {node} add up to"}[found.part]
+        return Cause(True, f"{label} overflows the range of doubles: {what} "
                            f"{mpmath.nstr(mpmath.mpf(found.value), 3)} (beyond {DOUBLE_MAX:.3g})"
                            + (f" with {culprits}" if culprits else ""),
                      "give the parameters and the initial state smaller values, in other units")

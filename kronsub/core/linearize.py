@@ -96,6 +96,7 @@ class _Evaluator:
     """Numeric matrices of symbolic ones at given values (lambdified once)."""
 
     def __init__(self, matrices: Sequence[sympy.Matrix], symbols: Sequence[sympy.Symbol]):
+        self.matrices = list(matrices)
         self.shapes = [m.shape for m in matrices]
         flat = [e for m in matrices for e in m]
         self.symbols = list(symbols)
@@ -209,6 +210,8 @@ def linearize(system: KnownSystem, *, inputs: Sequence[sympy.Symbol] = (),
         if free:
             numeric_values = _solve_equilibrium(evaluate, numeric_values, q, free, r)
         Mn, rn, _ = evaluate(numeric_values)
+        if not (np.all(np.isfinite(Mn)) and np.all(np.isfinite(rn))):
+            raise LinearizationError(_unevaluable(r, q, numeric_values, M, "at the operating point"))
         acceleration = tuple(float(a) for a in _solve(Mn, rn.ravel(), numeric_values, q))
     velocities_zero = all(_numeric(fixed.get(v, 0), numbers) == 0 for v in qd)
     if missing:  # no numbers to check with: check exactly
@@ -302,19 +305,21 @@ def _solve_equilibrium(evaluate: _Evaluator, values: dict, q, free, r) -> dict:
 
     x0 = np.array([values[s] for s in free], dtype=float)
     if not np.all(np.isfinite(fun(x0))):
-        raise LinearizationError(_unevaluable(r, q, values))
+        raise LinearizationError(_unevaluable(r, q, values, evaluate.matrices[0]))
     solution = least_squares(fun, x0, jac=jac, method="lm", xtol=1e-15, ftol=1e-15, gtol=1e-15)
     return at(solution.x)
 
 
-def _unevaluable(r, q, values) -> str:
-    """Why ``r = fbar - hbar`` has no finite value at ``values``: an overflow (then another
-    operating point does not help) or a function outside its domain (:mod:`.finite`)."""
-    cause = nonfinite_cause([(f"(fbar - hbar)[{s.name}]", e) for s, e in zip(q, r)], values)
+def _unevaluable(r, q, values, M, where: str = "at the initial values") -> str:
+    """Why ``Mbar`` or ``r = fbar - hbar`` has no finite value at ``values``: an overflow (then
+    another operating point does not help) or a function outside its domain (:mod:`.finite`)."""
+    n = len(q)
+    quantities = [(f"Mbar[{q[i].name}, {q[j].name}]", M[i, j]) for i in range(n) for j in range(i + 1)]
+    cause = nonfinite_cause(quantities + [(f"(fbar - hbar)[{s.name}]", e) for s, e in zip(q, r)], values)
     if cause is None:
-        return "the equations cannot be evaluated at the initial values; give the operating point with --at NAME=VALUE"
+        return f"the equations cannot be evaluated {where}; give the operating point with --at NAME=VALUE"
     hint = cause.hint if cause.overflow else f"{cause.hint}, or give the operating point with --at NAME=VALUE"
-    return f"the equations cannot be evaluated at the initial values: {cause.what}\n  hint: {hint}"
+    return f"the equations cannot be evaluated {where}: {cause.what}\n  hint: {hint}"
 
 
 def _exact(value: float) -> sympy.Expr:
