@@ -30,6 +30,7 @@ class Cause(NamedTuple):
     overflow: bool
     what: str
     hint: str
+    label: str = ""  # the quantity: "Mbar[x, y]", "fbar[x]"...
 
     def __str__(self) -> str:
         return f"{self.what} ({self.hint})"
@@ -153,6 +154,6 @@ def _describe(label: str, found: _Found, values) -> Cause:
         return Cause(True, f"{label} overflows the range of doubles: {what} "
                            f"{mpmath.nstr(mpmath.mpf(found.value), 3)} (beyond {DOUBLE_MAX:.3g})"
                            + (f" with {culprits}" if culprits else ""),
-                     "give the parameters and the initial state smaller values, in other units")
+                     "give the parameters and the initial state smaller values, in other units", label)
     what = "a division by zero" if found.value.has(sympy.zoo) else "outside its domain"
-    return Cause(False, f"{node} in {label} is {what}", "check the initial values and the parameters")
+    return Cause(False, f"{node} in {label} is {what}", "check the initial values and the parameters", label)

@@ -821,14 +821,18 @@ def _real_at(native, t: float, y, param) -> bool:
     return bool(np.all(np.isfinite(values)))
 
 
-def _not_finite(system, t: float, y, param, otherwise: str | None = None) -> str:
+def _not_finite(system, t: float, y, param, otherwise: str | None = None, mass_only: bool = False) -> str:
     """Why the equations are NaN or infinite at ``(t, y)``, where the state is finite: a value
     beyond the range of doubles, or a function outside its domain (:mod:`..core.finite`); else
     ``otherwise`` (None: that the double values are not finite, though the exact ones are, or
-    with implicit constraints, whose dependent coordinates are not known here, just that)."""
+    with implicit constraints, whose dependent coordinates are not known here, just that).
+    ``mass_only``: only an overflow or a problem in ``Mbar`` (a singular one, as at a coordinate
+    singularity, keeps ``otherwise``)."""
     from ..core.finite import at_state
 
     cause = at_state(system, t, y, param)
+    if cause is not None and mass_only and not (cause.overflow or cause.label.startswith("Mbar")):
+        cause = None
     if cause is not None:
         return f"the equations have no {'finite' if cause.overflow else 'real'} value at this state: {cause}"
     if otherwise is not None:
@@ -908,7 +912,7 @@ def _scipy_blocks(run, rhs, method, grid, y0, rtol, atol, chunks, bar, system, e
             message = "the mass matrix is singular or not positive definite" + _where(system, exc.y)
             if param is not None:  # NaN entries, not a singular matrix: an overflow, or outside the domain
                 t, y = (exc.t, exc.y) if np.all(np.isfinite(exc.y)) else (t_old, y_old)  # (a stage overflowed)
-                found = _not_finite(system, t, y, param, otherwise="")
+                found = _not_finite(system, t, y, param, otherwise="", mass_only=True)
                 message = found + _where(system, y) if found else message
             run.stop(message, exc.t, y_fail=exc.y)
             return
