@@ -5,9 +5,11 @@ Two caches share one folder (``$KRONSUB_CACHE_DIR``, else ``$XDG_CACHE_HOME/kron
 ``<sha256>.system.json`` / ``<sha256>.transition.json`` (and, per scene's share,
 ``.inertia``, ``.inertia-transition``, ``.effect.<name>``) beside it, and compiled models under
 ``native/<stem>-<key>/``. A folder that another user owns or that group or others may write is
-refused with a warning (someone else could plant entries there): the known-system cache is then
-off and compiled models go to a private temporary folder. A folder kronsub creates is private
-(mode 0700), so a permissive umask does not make it refused.
+refused with a warning (someone else could plant entries there), and so is one kronsub cannot
+create or write files in (probed as the cache writes: a temporary file created and removed; a
+path under ``/proc``, a read-only folder): the known-system cache is then off and compiled
+models go to a private temporary folder. A folder kronsub creates is private (mode 0700), so a
+permissive umask does not make it refused.
 """
 from __future__ import annotations
 
@@ -15,9 +17,12 @@ import os
 import re
 import shutil
 import stat
+import tempfile
 import warnings
 from dataclasses import dataclass
 from pathlib import Path
+
+from .atomic import clean_stale
 
 CACHE_ENV = "KRONSUB_CACHE_DIR"
 
@@ -56,7 +61,50 @@ def unsafe_reason(folder: Path) -> str | None:
         return f"it belongs to another user (uid {st.st_uid})"
     if st.st_mode & 0o022:
         return f"group or others may write to it (mode {stat.S_IMODE(st.st_mode):04o})"
+    key = (str(folder), st.st_dev, st.st_ino, st.st_mode)
+    if key not in _WRITABLE:  # probed once per folder (and mode) in a process
+        _WRITABLE[key] = unwritable_reason(folder)
+    return _WRITABLE[key]
+
+
+_WRITABLE: dict[tuple, str | None] = {}
+PROBE = "probe"
+"""The target name of the probe's temporary file, ``.probe.XXXXXXXX.tmp`` (:mod:`kronsub.atomic`'s
+naming, so one left by a killed process is removed by the next probe once it is stale)."""
+
+
+def unwritable_reason(folder: Path, it: str = "it") -> str | None:
+    """Why kronsub cannot create files in the existing folder ``folder``, or None: probed the
+    way the cache writes its entries (:func:`kronsub.atomic.atomic_file`), a temporary file
+    created, written and removed (permissions alone do not tell: root may not write in ``/proc``)."""
+    clean_stale(folder / PROBE)
+    try:
+        fd, name = tempfile.mkstemp(dir=folder, prefix=f".{PROBE}.", suffix=".tmp")
+    except OSError as exc:
+        return f"no file can be created in {it} ({exc.strerror or exc})"
+    try:
+        with os.fdopen(fd, "wb") as fh:
+            fh.write(b"kronsub")
+    except OSError as exc:
+        return f"a file in {it} cannot be written ({exc.strerror or exc})"
+    finally:
+        try:
+            os.unlink(name)
+        except OSError:
+            pass
     return None
+
+
+def missing_reason(folder: Path) -> str | None:
+    """Why the folder ``folder``, which does not exist, cannot be created, or None (probed in its
+    nearest existing parent, without creating it)."""
+    parent = folder.parent
+    while not parent.exists() and parent != parent.parent:
+        parent = parent.parent
+    if not parent.is_dir():
+        return f"it cannot be created: {parent} is not a folder"
+    reason = unwritable_reason(parent, str(parent))
+    return f"it cannot be created: {reason}" if reason else None
 
 
 _WARNED: set[str] = set()
@@ -70,16 +118,18 @@ def safe_folder(folder: Path | None) -> Path | None:
         if not folder.exists():  # ours: private, whatever the umask
             folder.mkdir(parents=True, exist_ok=True)
             folder.chmod(0o700)
-    except OSError:
-        return None
-    reason = unsafe_reason(folder)
+    except OSError as exc:
+        reason = f"it cannot be created ({exc.strerror or exc})"
+    else:
+        reason = unsafe_reason(folder)
     if reason is None:
         return folder
     if str(folder) not in _WARNED:
         _WARNED.add(str(folder))
         warnings.warn(CacheWarning(
             f"not using the cache folder {folder}: {reason}; kronsub works without it "
-            f"(hint: `chmod go-w {folder}`, or set {CACHE_ENV} to a folder of your own)"))
+            f"(hint: {f'`chmod go-w {folder}`, or ' if 'group or others' in reason else ''}"
+            f"set {CACHE_ENV} to a folder of your own)"))
     return None
 
 

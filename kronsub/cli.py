@@ -570,9 +570,10 @@ def cache_info():
         if found.folder is None:
             click.echo(f"cache: off ({store.CACHE_ENV}=off)")
             return
-        reason = store.unsafe_reason(found.folder) if found.folder.exists() else None
+        exists = found.folder.exists()
+        reason = store.unsafe_reason(found.folder) if exists else store.missing_reason(found.folder)
         click.echo(f"cache: {found.folder}" + (f" (not used: {reason})" if reason else "")
-                   + ("" if found.folder.exists() else " (empty)"))
+                   + ("" if exists or reason else " (empty)"))
         click.echo(f"derived known systems: {found.systems} ({_size(found.systems_bytes)})")
         click.echo(f"compiled models: {found.libraries} ({_size(found.libraries_bytes)})")
 

@@ -274,6 +274,64 @@ def test_cache_info_and_clear_touch_only_kronsub_entries(cache):
     assert "derived known systems: 0" in runner.invoke(main, ["cache", "info"]).output
 
 
+UNWRITABLE = [p for p in ("/proc", "/proc/self", "/sys/kernel") if os.path.isdir(p)]
+
+
+@pytest.mark.parametrize("folder", UNWRITABLE)
+def test_cache_info_says_a_folder_no_file_can_be_created_in_is_not_used(folder, monkeypatch):
+    """Owned by the user (root) and not writable by others, yet no file can be created there: the
+    probe, not the permissions, decides."""
+    monkeypatch.setenv("KRONSUB_CACHE_DIR", folder)
+    result = CliRunner().invoke(main, ["cache", "info"])
+    assert result.exit_code == 0, result.output
+    assert result.output.startswith(f"cache: {folder} (not used: no file can be created in it (")
+
+
+def test_cache_info_says_a_file_or_a_path_under_one_is_not_used(tmp_path, monkeypatch):
+    (tmp_path / "file").write_text("x")
+    for folder, reason in [(tmp_path / "file", "it is not a folder"),
+                           (tmp_path / "file" / "cache", f"it cannot be created: {tmp_path / 'file'} is not a folder"),
+                           (tmp_path / "new" / "cache", None)]:
+        monkeypatch.setenv("KRONSUB_CACHE_DIR", str(folder))
+        result = CliRunner().invoke(main, ["cache", "info"])
+        assert result.exit_code == 0, result.output
+        first = result.output.splitlines()[0]
+        assert first == (f"cache: {folder} (not used: {reason})" if reason else f"cache: {folder} (empty)")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["file"]  # info creates nothing, leaves no probe
+
+
+@pytest.mark.skipif(not hasattr(os, "geteuid") or os.geteuid() == 0, reason="root may write to a read-only folder")
+def test_a_read_only_folder_is_not_used(cache, monkeypatch):
+    cache.mkdir(mode=0o500)
+    try:
+        result = CliRunner().invoke(main, ["cache", "info"])
+        assert "(not used: no file can be created in it (Permission denied))" in result.output, result.output
+    finally:
+        cache.chmod(0o700)
+
+
+@pytest.mark.parametrize("folder", UNWRITABLE[:1] + ["/proc/kronsub-cache"])
+def test_commands_work_without_a_cache_that_cannot_be_written(folder, monkeypatch):
+    import kronsub.cache
+
+    monkeypatch.setenv("KRONSUB_CACHE_DIR", folder)
+    monkeypatch.setattr(kronsub.cache, "_WARNED", set())
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        system = load_model(SYSTEM1).derive()
+    assert system == fresh(SYSTEM1)
+    assert [str(w.message).split(":")[0] for w in caught if issubclass(w.category, CacheWarning)] == \
+        [f"not using the cache folder {folder}"]
+    result = CliRunner().invoke(main, ["derive", str(SYSTEM1)])
+    assert result.exit_code == 0 and result.stdout.startswith("# System I"), result.output
+
+
+def test_a_usable_folder_keeps_no_probe(cache):
+    load_model(SYSTEM1).derive()
+    assert CliRunner().invoke(main, ["cache", "info"]).exit_code == 0
+    assert not [p for p in cache.iterdir() if "probe" in p.name]
+
+
 # ---------------------------------------------------------------------------------------------
 # Compiled libraries
 # ---------------------------------------------------------------------------------------------

@@ -12,6 +12,20 @@ from typing import ClassVar, Mapping
 import sympy
 
 
+def in_world(point, dimension: int) -> tuple:
+    """``point`` in a world of ``dimension`` axes (at least its own): a point of the line lies on
+    the x axis of the plane, a point of the plane in the ``z = 0`` plane of space (zeros appended).
+    The one rule wherever points of different worlds meet: pins, springs and dampers
+    (:func:`common_world`), ``pivot:``, a known system with parts on a line and in the plane."""
+    return tuple(point) + (sympy.Integer(0),) * (dimension - len(point))
+
+
+def common_world(a, b) -> tuple[tuple, tuple]:
+    """Two points (named points' positions or fixed places) in the larger of their worlds (:func:`in_world`)."""
+    dimension = max(len(a), len(b))
+    return in_world(a, dimension), in_world(b, dimension)
+
+
 @dataclass(frozen=True)
 class ParameterSpec:
     """A parameter a component takes; ``default`` is an expression in the other parameters."""

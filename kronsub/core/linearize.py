@@ -28,6 +28,7 @@ import numpy as np
 import sympy
 
 from ..errors import KronsubError
+from .finite import nonfinite_cause
 from .known_system import KnownSystem
 from .symbols import TIME
 
@@ -95,14 +96,15 @@ class _Evaluator:
     """Numeric matrices of symbolic ones at given values (lambdified once)."""
 
     def __init__(self, matrices: Sequence[sympy.Matrix], symbols: Sequence[sympy.Symbol]):
+        self.matrices = list(matrices)
         self.shapes = [m.shape for m in matrices]
         flat = [e for m in matrices for e in m]
         self.symbols = list(symbols)
         self.fn = sympy.lambdify([self.symbols], flat, modules=["numpy"])
 
     def __call__(self, values: Mapping[sympy.Symbol, float]) -> list[np.ndarray]:
-        with np.errstate(all="ignore"):
-            flat = np.array(self.fn([values[s] for s in self.symbols]), dtype=float).ravel()
+        with np.errstate(all="ignore"):  # numpy's doubles: (-1.0)**0.5 is NaN, not a Python complex
+            flat = np.array(self.fn([np.float64(values[s]) for s in self.symbols]), dtype=float).ravel()
         out, start = [], 0
         for rows, cols in self.shapes:
             out.append(flat[start:start + rows * cols].reshape(rows, cols))
@@ -206,8 +208,10 @@ def linearize(system: KnownSystem, *, inputs: Sequence[sympy.Symbol] = (),
     else:
         evaluate = _Evaluator([M, r, K0], symbols)
         if free:
-            numeric_values = _solve_equilibrium(evaluate, numeric_values, q, free)
+            numeric_values = _solve_equilibrium(evaluate, numeric_values, q, free, r)
         Mn, rn, _ = evaluate(numeric_values)
+        if not (np.all(np.isfinite(Mn)) and np.all(np.isfinite(rn))):
+            raise LinearizationError(_unevaluable(r, q, numeric_values, M, "at the operating point"))
         acceleration = tuple(float(a) for a in _solve(Mn, rn.ravel(), numeric_values, q))
     velocities_zero = all(_numeric(fixed.get(v, 0), numbers) == 0 for v in qd)
     if missing:  # no numbers to check with: check exactly
@@ -278,7 +282,7 @@ def _solve(Mn: np.ndarray, rhs: np.ndarray, values, q) -> np.ndarray:
     return np.linalg.solve(Mn, rhs)
 
 
-def _solve_equilibrium(evaluate: _Evaluator, values: dict, q, free) -> dict:
+def _solve_equilibrium(evaluate: _Evaluator, values: dict, q, free, r) -> dict:
     """Solve ``r(q, 0) = 0`` for the free coordinates (Levenberg-Marquardt, which copes with
     coordinates the equilibrium does not fix, such as a cart's position)."""
     from scipy.optimize import least_squares
@@ -301,10 +305,21 @@ def _solve_equilibrium(evaluate: _Evaluator, values: dict, q, free) -> dict:
 
     x0 = np.array([values[s] for s in free], dtype=float)
     if not np.all(np.isfinite(fun(x0))):
-        raise LinearizationError("the equations cannot be evaluated at the initial values; give the "
-                                 "operating point with --at NAME=VALUE")
+        raise LinearizationError(_unevaluable(r, q, values, evaluate.matrices[0]))
     solution = least_squares(fun, x0, jac=jac, method="lm", xtol=1e-15, ftol=1e-15, gtol=1e-15)
     return at(solution.x)
+
+
+def _unevaluable(r, q, values, M, where: str = "at the initial values") -> str:
+    """Why ``Mbar`` or ``r = fbar - hbar`` has no finite value at ``values``: an overflow (then
+    another operating point does not help) or a function outside its domain (:mod:`.finite`)."""
+    n = len(q)
+    quantities = [(f"Mbar[{q[i].name}, {q[j].name}]", M[i, j]) for i in range(n) for j in range(i + 1)]
+    cause = nonfinite_cause(quantities + [(f"(fbar - hbar)[{s.name}]", e) for s, e in zip(q, r)], values)
+    if cause is None:
+        return f"the equations cannot be evaluated {where}; give the operating point with --at NAME=VALUE"
+    hint = cause.hint if cause.overflow else f"{cause.hint}, or give the operating point with --at NAME=VALUE"
+    return f"the equations cannot be evaluated {where}: {cause.what}\n  hint: {hint}"
 
 
 def _exact(value: float) -> sympy.Expr:

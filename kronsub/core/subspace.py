@@ -18,7 +18,7 @@ from typing import Mapping, Sequence
 
 import sympy
 
-from ..components.base import Body
+from ..components.base import Body, in_world
 from .inverse_trig import Radicands
 from .known_system import KnownSystem, ParameterInfo, ProjectedEffect, Transition
 from .primitive import Primitive
@@ -158,7 +158,7 @@ def project_inertia(sub: Subspace, primitive: Primitive, *, name: str = "",
 
     def placed(pos):  # a point of a line, in a system that also has parts in the plane: (x, 0)
         moved = tuple(sub.moved(c) for c in pos)
-        return moved + (sympy.Integer(0),) * (dimension - len(moved)) if dimension == 2 else moved
+        return in_world(moved, dimension) if dimension == 2 else moved
 
     points = {f"{part.name}.{label}": placed(pos)
               for part in primitive.parts for label, pos in part.points.items()}

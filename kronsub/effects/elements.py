@@ -5,11 +5,13 @@ from dataclasses import dataclass
 
 import sympy
 
+from ..components.base import common_world
 from .base import Effect
 
 
 def _separation(primitive, ends):
-    a, b = (primitive.points()[e] if isinstance(e, str) else e for e in ends)
+    """``p_b - p_a``, both ends in the larger of their worlds (as a pin's, :func:`common_world`)."""
+    a, b = common_world(*(primitive.points()[e] if isinstance(e, str) else e for e in ends))
     return [pb - pa for pa, pb in zip(a, b)]
 
 

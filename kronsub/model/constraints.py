@@ -26,6 +26,7 @@ from __future__ import annotations
 import numpy as np
 import sympy
 
+from ..components.base import common_world, in_world
 from ..core.constraints import Constraint, ConstraintFailure, NumericConstraints, closed_forms
 from ..errors import close_matches
 from .effects import zero_vector
@@ -94,11 +95,6 @@ def _vector(loader, node: Node, cname: str, what: str, names):
     return None if any(v is None for v in values) else tuple(values)
 
 
-def _pad(point, dim: int):
-    """A point of a line (1 axis) is on the x axis of the plane."""
-    return tuple(point) + (sympy.Integer(0),) * (dim - len(point))
-
-
 def _pin(loader, cname, node, primitive, names):
     if node is None or not node.is_sequence or len(node.value) != 2:
         loader.error(node if node is not None else loader.root, f"pin '{cname}' needs two points",
@@ -108,8 +104,8 @@ def _pin(loader, cname, node, primitive, names):
     q = _point(loader, node.value[1], primitive, cname, names)
     if p is None or q is None:
         return None
-    dim = max(len(p), len(q))
-    p, q = _pad(p, dim), _pad(q, dim)
+    p, q = common_world(p, q)
+    dim = len(p)
     source = f"pin: [{_text(node.value[0])}, {_text(node.value[1])}]"
     out = []
     for axis in range(dim):
@@ -207,7 +203,7 @@ def _point_on_line(loader, cname, node, primitive, names):
         return None
     if zero_vector(loader, node.get("direction") or node, d, f"direction of point_on_line '{cname}'", "[0, 1]"):
         return None
-    p, q, d = _pad(p, dim), _pad(q, dim), _unit(d)
+    p, q, d = in_world(p, dim), in_world(q, dim), _unit(d)
     v = tuple(a - b for a, b in zip(p, q))
     return _named(cname, _on_line(v, d, _values(loader)), f"point_on_line: {_text(node.get('point'))}")
 
@@ -253,7 +249,7 @@ def _slider(loader, cname, node, primitive, names):
     body = part.bodies[0]
     R = body.rotation
     q = sympy.Matrix(body.centre) + R * sympy.Matrix(through)
-    v = sympy.Matrix(_pad(p, dim)) - q
+    v = sympy.Matrix(in_world(p, dim)) - q
     source = f"slider: {_text(node.get('point'))} on {part.name}"
     if dim == 2:
         return [Constraint(cname, _cross(R * sympy.Matrix(_unit(d)), v), source)]

@@ -221,12 +221,6 @@ def _spring(loader, ename, spec, primitive, damper=False):
     knode = _required(loader, spec, key, ename, f"e.g. `{key}: k`")
     if knode is None or any(e is None for e in ends):
         return None
-    points = primitive.points()
-    dims = [len(points[e]) if isinstance(e, str) else len(e) for e in ends]
-    if dims[0] != dims[1]:
-        loader.error(bnode, f"the ends of '{ename}' live in {dims[0]}-D and {dims[1]}-D",
-                     "join points of the same world (or give a fixed place with as many entries)")
-        return None
     k = loader.expr(knode, what=key)
     if not damper:
         k = _positional(loader, knode, k, primitive, ename, "the stiffness")

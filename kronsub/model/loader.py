@@ -14,6 +14,7 @@ from pathlib import Path
 import sympy
 
 from ..components import REGISTRY
+from ..components.base import in_world
 from ..core.constraints import Constraint
 from ..core.known_system import KnownSystem, ParameterInfo
 from ..core.primitive import Part, Primitive, part_from_component
@@ -796,7 +797,7 @@ class _Loader:
             if len(pos) > 2:
                 self.error(pnode, f"pivot '{label}' of '{cname}' is a point in space", "a pinned_rod is planar")
                 continue
-            px, py = (tuple(pos) + (sympy.Integer(0),) * 2)[:2]
+            px, py = in_world(pos, 2)
             half = length / 2
             self.auto_connection[hidden["x"]] = (px + half * sympy.sin(angle), pnode.location)
             self.auto_connection[hidden["y"]] = (py - half * sympy.cos(angle), pnode.location)

@@ -508,6 +508,13 @@ def measure(system: KnownSystem, values: RunValues, t_end: float, methods: tuple
         values, _, closure = project_initial(system, {}, {}, values, 1e-14)
         dependent = closure.guess
     param, y0 = np.array(values.parameters, dtype=float), np.array(values.y0, dtype=float)
+    if implicit is None:  # every method would fail at once, against a reference computed exactly
+        from ..core.finite import at_state
+
+        cause = at_state(system, 0.0, y0, param)
+        if cause is not None:
+            raise AccuracyError(f"the equations have no {'finite' if cause.overflow else 'real'} value at the "
+                                f"initial state: {cause.what}\n  hint: {cause.hint}")
     if ref is None:
         ref = compute_reference(system, values.parameters, values.y0, sample_times(t_end), digits,
                                 dependent=None if implicit is None else [float(v) for v in dependent])

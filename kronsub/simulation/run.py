@@ -281,7 +281,7 @@ def start(system: KnownSystem, values: RunValues, t_end: float, dt: float, metho
     else:
         rhs = (_native_rhs(native, param) if native is not None else
                _numpy_rhs(system, param, outputs, constrained, _newton_tol(rtol, atol)))
-        rows = _scipy_blocks(run, rhs, spec.name, grid, y0, rtol, atol, chunks, bar, system)
+        rows = _scipy_blocks(run, rhs, spec.name, grid, y0, rtol, atol, chunks, bar, system, param=param)
     run.blocks = _finish(run, rows, bar, native, param, system, constrained, with_energies, grid)
     return run
 
@@ -667,6 +667,9 @@ def _taylor_blocks(run, system, param, y0, grid, tol):
         if len(t) > start:
             yield Block(t[start:], Y[start:])
         if not complete:
+            last = Y[-1] if len(Y) else y
+            if np.all(np.isfinite(last)):  # from the last row: an overflow, or a function outside its domain
+                message = _not_finite(system, t[-1] if len(t) else times[0], last, param, message)
             run.stop(message + _where(system, Y[-1] if len(Y) else None), float(t[-1]) if len(t) else float(times[0]))
             return
         y, first = Y[-1], False
@@ -761,9 +764,8 @@ def _native_blocks(run, native, method, grid, y0, param, rtol, atol, dt, chunks,
             yield t[keep], Y[keep]
         if result.status != 0:
             message = result.message
-            if result.status in (1, 2) and not _real_at(native, t0, y, param):  # out of the domain at the start
-                message = ("the equations have no real value at this state (a square root, asin or acos of the "
-                           "connection outside its domain: check the initial values and the parameters)")
+            if result.status in (1, 2) and not _real_at(native, t0, y, param):  # not finite at the start
+                message = _not_finite(system, t0, y, param)
             message += _where(system, result.y_fail) if result.status in (1, 2) else ""
             run.stop(message, result.t_fail, y_fail=result.y_fail)
             return
@@ -808,8 +810,9 @@ class _Cursor:
 
 
 def _real_at(native, t: float, y, param) -> bool:
-    """Whether the energies have a real value at ``(t, y)`` (a connection through sqrt, asin or
-    acos has none outside its domain, where the mass matrix is NaN, not singular)."""
+    """Whether the energies have a finite real value at ``(t, y)`` (a connection through sqrt, asin
+    or acos has none outside its domain, where the mass matrix is NaN, not singular; huge values
+    overflow)."""
     try:
         with np.errstate(all="ignore"):
             values = [native.kinetic_energy(y, param), native.potential_energy(t, y, param)]
@@ -818,7 +821,30 @@ def _real_at(native, t: float, y, param) -> bool:
     return bool(np.all(np.isfinite(values)))
 
 
-def _scipy_blocks(run, rhs, method, grid, y0, rtol, atol, chunks, bar, system, events=None):
+def _not_finite(system, t: float, y, param, otherwise: str | None = None, mass_only: bool = False) -> str:
+    """Why the equations are NaN or infinite at ``(t, y)``, where the state is finite: a value
+    beyond the range of doubles, or a function outside its domain (:mod:`..core.finite`); else
+    ``otherwise`` (None: that the double values are not finite, though the exact ones are, or
+    with implicit constraints, whose dependent coordinates are not known here, just that).
+    ``mass_only``: only an overflow or a problem in ``Mbar`` (a singular one, as at a coordinate
+    singularity, keeps ``otherwise``)."""
+    from ..core.finite import at_state
+
+    cause = at_state(system, t, y, param)
+    if cause is not None and mass_only and not (cause.overflow or cause.label.startswith("Mbar")):
+        cause = None
+    if cause is not None:
+        return f"the equations have no {'finite' if cause.overflow else 'real'} value at this state: {cause}"
+    if otherwise is not None:
+        return otherwise
+    if system.implicit is not None:
+        return "the equations have no finite value at this state"
+    return ("the equations are NaN or infinite at this state in double precision, though finite when evaluated "
+            "exactly (an intermediate value overflows or cancels: check for huge or tiny parameters and initial "
+            "values)")
+
+
+def _scipy_blocks(run, rhs, method, grid, y0, rtol, atol, chunks, bar, system, events=None, param=None):
     """Blocks ``(t, Y)`` of a run with one of scipy's solvers, stepped here: the rows of each
     step are written as it is taken (from its dense output), so a run that fails keeps every
     row before the failure, and a run whose steps stall (:data:`STALL_STEPS`) stops with the
@@ -840,8 +866,10 @@ def _scipy_blocks(run, rhs, method, grid, y0, rtol, atol, chunks, bar, system, e
             solver = getattr(integrate, method)(rhs, grid[0], np.array(y0, dtype=float), grid[len(grid) - 1],
                                                 rtol=rtol, atol=atol)
             before = events(solver.t, solver.y) if events is not None else None
+            t_old, y_old = solver.t, np.array(solver.y)
             while not cursor.done():
-                t_old = solver.t
+                if solver.t != t_old:
+                    t_old, y_old = solver.t, np.array(solver.y)
                 message = solver.step()
                 stats["evaluations"] = int(solver.nfev)
                 stats["steps"] += 1
@@ -849,7 +877,8 @@ def _scipy_blocks(run, rhs, method, grid, y0, rtol, atol, chunks, bar, system, e
                     run.stop(message or "the step failed", solver.t, y_fail=solver.y)
                     return
                 if not np.all(np.isfinite(solver.y)):
-                    run.stop("the state became NaN or infinite", solver.t)
+                    message = "the state became NaN or infinite"
+                    run.stop(message if param is None else _not_finite(system, t_old, y_old, param, message), solver.t)
                     return
                 t_new, dense = solver.t, None
                 if events is not None:
@@ -880,9 +909,17 @@ def _scipy_blocks(run, rhs, method, grid, y0, rtol, atol, chunks, bar, system, e
                              + _where(system, solver.y), t_new, y_fail=solver.y)
                     return
         except _Singular as exc:
-            run.stop("the mass matrix is singular or not positive definite" + _where(system, exc.y), exc.t,
-                     y_fail=exc.y)
+            message = "the mass matrix is singular or not positive definite" + _where(system, exc.y)
+            if param is not None:  # NaN entries, not a singular matrix: an overflow, or outside the domain
+                t, y = (exc.t, exc.y) if np.all(np.isfinite(exc.y)) else (t_old, y_old)  # (a stage overflowed)
+                found = _not_finite(system, t, y, param, otherwise="", mass_only=True)
+                message = found + _where(system, y) if found else message
+            run.stop(message, exc.t, y_fail=exc.y)
             return
         except (ValueError, RuntimeError, ArithmeticError, np.linalg.LinAlgError) as exc:
-            run.stop(str(exc), solver.t if solver is not None else grid[0])
+            t, y = (solver.t, solver.y) if solver is not None else (grid[0], y0)
+            message = str(exc)
+            if param is not None and np.all(np.isfinite(y)):  # scipy's "array must not contain infs or NaNs"
+                message = _not_finite(system, t, y, param, otherwise=message)
+            run.stop(message, t)
             return

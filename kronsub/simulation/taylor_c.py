@@ -408,7 +408,7 @@ class _Emitter:
             zero = []
             consts_void = scalars
             load = " ".join(f"Y{j}_0 = y[{j}];" for j in range(ny))
-            sizes = "\n        ".join(f"if (fabs(Y{j}_{N - 1 + e}) > size[{e}]) size[{e}] = fabs(Y{j}_{N - 1 + e});"
+            sizes = "\n        ".join(f"if (!(fabs(Y{j}_{N - 1 + e}) <= size[{e}])) size[{e}] = fabs(Y{j}_{N - 1 + e});"
                                       for j in range(ny) for e in (0, 1))
 
             def horner(tau: str) -> str:  # the increment sum_{k>=1} Y_k tau^k
@@ -430,8 +430,8 @@ class _Emitter:
             consts_void = arrays
             load = "for (i = 0; i < TN_NY; ++i) Y[i][0] = y[i];"
             sizes = ("for (i = 0; i < TN_NY; ++i) {\n"
-                     "            if (fabs(Y[i][TN_ORDER - 1]) > size[0]) size[0] = fabs(Y[i][TN_ORDER - 1]);\n"
-                     "            if (fabs(Y[i][TN_ORDER]) > size[1]) size[1] = fabs(Y[i][TN_ORDER]);\n"
+                     "            if (!(fabs(Y[i][TN_ORDER - 1]) <= size[0])) size[0] = fabs(Y[i][TN_ORDER - 1]);\n"
+                     "            if (!(fabs(Y[i][TN_ORDER]) <= size[1])) size[1] = fabs(Y[i][TN_ORDER]);\n"
                      "        }")
             dense = "ks_horner(Y, tau, dy);"
             advance = "ks_horner(Y, h, dy);"
@@ -517,6 +517,8 @@ int ks_taylor(const double *param, double t0, const double *y0, const double *y0
         }}
         for (i = 0; i < TN_NY; ++i) if (fabs(y[i]) > scale) scale = fabs(y[i]);
         {sizes}
+        /* a NaN or infinite coefficient (NaN propagates through the sizes): no polynomial to write rows from */
+        if (!isfinite(size[0]) || !isfinite(size[1])) {{ status = 1; goto done; }}
         for (k = 0; k < 2; ++k)  /* rho = min_k (max(1, |y|) / |y_k|)^(1/k), k = N - 1, N */
             if (size[k] > 0) {{
                 double hk = pow(scale / size[k], 1.0 / (TN_ORDER - 1 + k));

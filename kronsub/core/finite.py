@@ -1,0 +1,159 @@
+"""Why the equations have no finite value at a point, in words: a number beyond the range of
+doubles (an overflow, from huge parameter values or states) or a function outside its domain
+(a square root of a negative number, an asin of more than 1, a division by zero).
+
+The equations are evaluated exactly enough to tell the two apart: every subexpression, innermost
+first, in 30-digit floating point with an unbounded exponent (sympy's ``Float``), so a value
+beyond the double range is seen as such and not as ``inf``.
+"""
+from __future__ import annotations
+
+import math
+import sys
+from typing import NamedTuple
+
+import mpmath
+import sympy
+
+from .symbols import TIME
+
+DOUBLE_MAX = sys.float_info.max
+"""The largest double, 1.8e308: a value beyond it is ``inf`` in the compiled equations."""
+
+_DIGITS = 30
+
+
+class Cause(NamedTuple):
+    """Why a quantity has no finite double value: ``overflow`` (else a domain problem), what
+    happened and a hint, in words; as text, both on one line."""
+
+    overflow: bool
+    what: str
+    hint: str
+    label: str = ""  # the quantity: "Mbar[x, y]", "fbar[x]"...
+
+    def __str__(self) -> str:
+        return f"{self.what} ({self.hint})"
+
+
+class _Found(Exception):
+    """``kind`` ("domain", "overflow") at ``node``, whose ``value`` (or that of its ``part``:
+    "factors" of a product, "terms" of a sum) is not a finite double."""
+
+    def __init__(self, kind: str, node, value, part: str = ""):
+        super().__init__(kind)
+        self.kind, self.node, self.value, self.part = kind, node, value, part
+
+
+class _Unknown(Exception):
+    """A symbol without a value, or a subexpression sympy cannot evaluate: no verdict."""
+
+
+def nonfinite_cause(quantities, values) -> Cause | None:
+    """Why the first of ``quantities`` (``(label, expr)`` pairs) without a finite double value
+    has none at ``values`` (symbol -> float), with a hint; None when there is no such quantity,
+    or no verdict (a symbol without a value)."""
+    given = dict(values)
+    for symbol, value in given.items():
+        if not math.isfinite(value):
+            return Cause(math.isinf(value), f"{symbol.name} is {value}", "give it a finite value")
+    memo: dict = {}
+    for label, expr in quantities:
+        try:
+            _value(sympy.sympify(expr), given, memo)
+        except _Unknown:
+            continue
+        except _Found as found:
+            return _describe(label, found, given)
+    return None
+
+
+def at_state(system, t: float, y, param) -> Cause | None:
+    """:func:`nonfinite_cause` for the equations of ``system`` (``Mbar``, ``fbar``, ``hbar``, the
+    energies) at time ``t``, state ``y = [q; qdot]`` and parameter values ``param`` (in the order
+    of ``system.parameters``)."""
+    q, n = system.coordinates, len(system.coordinates)
+    values = {TIME: float(t)}
+    values.update(zip(q + system.velocities, (float(v) for v in y)))
+    values.update(zip((p.symbol for p in system.parameters), (float(v) for v in param)))
+    quantities = [(f"Mbar[{q[i].name}, {q[j].name}]", system.mass_matrix[i, j]) for i in range(n) for j in range(i + 1)]
+    forces = system.forces
+    quantities += [(f"fbar[{q[i].name}]", forces[i]) for i in range(n)]
+    quantities += [(f"hbar[{q[i].name}]", system.velocity_terms[i]) for i in range(n)]
+    quantities += [("the kinetic energy", system.kinetic_energy), ("the potential energy", system.potential_energy)]
+    return nonfinite_cause(quantities, values)
+
+
+def _value(node, values, memo):
+    """The value of ``node`` at ``values``; raises :class:`_Found` at the innermost subexpression
+    that overflows or leaves its domain."""
+    if node in memo:
+        return memo[node]
+    if node.is_Symbol:
+        if node not in values:
+            raise _Unknown(node)
+        out = sympy.Float(values[node], _DIGITS)
+    elif node.is_Number or node.is_NumberSymbol:
+        out = node if node.is_Rational else sympy.Float(node.evalf(_DIGITS), _DIGITS)
+    elif not node.args:  # true, false, I...
+        out = node
+    else:
+        args = [_value(a, values, memo) for a in node.args]
+        try:
+            out = node.func(*args)
+            out = out.evalf(_DIGITS) if isinstance(out, sympy.Expr) else out
+            if isinstance(node, sympy.atan2) and out is sympy.nan:
+                out = sympy.Integer(0)  # atan2(0, 0) is 0 in C
+        except (TypeError, ValueError, ZeroDivisionError) as exc:
+            raise _Unknown(node) from exc
+        if isinstance(out, sympy.Expr):  # (a condition of a Piecewise is not checked)
+            if not out.is_number:
+                raise _Unknown(node)
+            if out.has(sympy.zoo, sympy.nan, sympy.oo, -sympy.oo) or not out.is_extended_real:
+                raise _Found("domain", node, out)
+            if abs(out) > DOUBLE_MAX:
+                raise _Found("overflow", node, out)
+            _partial_overflow(node, args)
+    memo[node] = out
+    return out
+
+
+def _partial_overflow(node, args) -> None:
+    """A product or sum in range whose doubles may overflow on the way, in whatever order the
+    compiled code takes: its nonzero factors' product (``huge * sin(0)`` is ``inf * 0 = NaN``),
+    or the sum of its terms of one sign, beyond the range."""
+    if node.is_Mul:
+        product = sympy.Mul(*[a for a in args if a != 0]).evalf(_DIGITS)
+        if abs(product) > DOUBLE_MAX:
+            raise _Found("overflow", node, product, "factors")
+    elif node.is_Add:
+        for same in (sympy.Add(*[a for a in args if a > 0]), sympy.Add(*[a for a in args if a < 0])):
+            if abs(same.evalf(_DIGITS)) > DOUBLE_MAX:
+                raise _Found("overflow", node, same.evalf(_DIGITS), "terms")
+
+
+def _short(node) -> str:
+    text = str(node)
+    return text if len(text) <= 60 else text[:57] + "..."
+
+
+def _largest(node, values) -> str:
+    """The values of ``node``'s symbols of at least 1e10, or else its largest one: the likely
+    culprits of an overflow."""
+    symbols = sorted((s for s in node.free_symbols if s in values), key=lambda s: (-abs(values[s]), s.name))
+    huge = [s for s in symbols if abs(values[s]) >= 1e10] or symbols[:1]
+    return ", ".join(f"{s.name}={values[s]:.6g}" for s in huge)
+
+
+def _describe(label: str, found: _Found, values) -> Cause:
+    node = _short(found.node)
+    if found.kind == "overflow":
+        culprits = _largest(found.node, values)
+        what = {"": f"{node} is", "factors": f"the nonzero factors of {node} multiply to",
+                "terms": f"the terms of one sign of {node} add up to"}[found.part]
+        return Cause(True, f"{label} overflows the range of doubles: {what} "
+                           f"{mpmath.nstr(mpmath.mpf(found.value), 3)} (beyond {DOUBLE_MAX:.3g})"
+                           + (f" with {culprits}" if culprits else ""),
+                     "give the parameters and the initial state smaller values, in other units", label)
+    what = "a division by zero" if found.value.has(sympy.zoo) else "outside its domain"
+    return Cause(False, f"{node} in {label} is {what}", "check the initial values and the parameters", label)

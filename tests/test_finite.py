@@ -1,0 +1,114 @@
+"""Equations without a finite value: an overflow of doubles is told apart from a function outside
+its domain (kronsub/core/finite.py), in the messages of simulate, linearize and accuracy."""
+from __future__ import annotations
+
+import shutil
+
+import numpy as np
+import pytest
+import sympy
+from click.testing import CliRunner
+
+from conftest import MODELS
+from kronsub.cli import main
+from kronsub.core.finite import nonfinite_cause
+from kronsub.core.symbols import symbol
+
+SYSTEM1 = MODELS / "hoffmann" / "system1.yaml"
+a, b = symbol("a"), symbol("b")
+
+
+def test_an_overflow_names_the_subexpression_and_the_huge_value():
+    cause = nonfinite_cause([("fine", a + b), ("the force", 10 * a * b)], {a: 1e300, b: 1e10})
+    assert cause.overflow and cause.what == ("the force overflows the range of doubles: 10*a*b is 1.0e+311 "
+                                             "(beyond 1.8e+308) with a=1e+300, b=1e+10")
+    assert "smaller values" in cause.hint
+
+
+def test_an_overflow_on_the_way_to_a_value_in_range_is_found():
+    """``huge * sin(0)`` is 0 exactly but NaN in doubles (``inf * 0``); so is ``huge + huge - huge``."""
+    c = symbol("c")
+    cause = nonfinite_cause([("f", a * b * sympy.sin(c))], {a: 1e300, b: 1e10, c: 0.0})
+    assert cause.overflow and "the nonzero factors of a*b*sin(c) multiply to 1.0e+310" in cause.what
+    cause = nonfinite_cause([("f", a + b - c)], {a: 1e308, b: 1e308, c: 1e308})
+    assert cause.overflow and "the terms of one sign" in cause.what
+    assert nonfinite_cause([("f", a * b * sympy.sin(c))], {a: 1e300, b: 1e7, c: 0.0}) is None
+
+
+def test_a_domain_problem_names_the_function():
+    cause = nonfinite_cause([("Mbar[x, x]", 1 + sympy.sqrt(a - 2))], {a: 1.0})
+    assert not cause.overflow and str(cause) == ("sqrt(a - 2) in Mbar[x, x] is outside its domain "
+                                                 "(check the initial values and the parameters)")
+    assert not nonfinite_cause([("y", sympy.asin(a) + 1e300 * b)], {a: 2.0, b: 1.0}).overflow
+    assert "division by zero" in nonfinite_cause([("z", 1 / (a - 1))], {a: 1.0}).what
+
+
+def test_finite_values_and_unknown_symbols_give_no_verdict():
+    assert nonfinite_cause([("x", a ** 2 * 1e150 + sympy.sqrt(b))], {a: 1e4, b: 0.0}) is None
+    assert nonfinite_cause([("x", a * b)], {a: 1e300}) is None  # b has no value
+    # a product that a division brings back into range still overflows in doubles
+    assert nonfinite_cause([("x", (a * a) / b)], {a: 1e200, b: 1e200}).overflow
+
+
+def _simulate(*args):
+    return CliRunner().invoke(main, ["simulate", *map(str, args)])
+
+
+@pytest.mark.parametrize("method", ["dop853", "gauss4", "Radau", "RK45"])
+def test_simulate_names_an_overflow_not_a_square_root(tmp_path, method):
+    out = tmp_path / "run.csv"
+    result = _simulate(SYSTEM1, "--set", "m1=1e308", "--t", "1", "--method", method, "-o", out)
+    assert result.exit_code == 3, result.output
+    assert "overflows the range of doubles" in result.output and "m1=1e+308" in result.output
+    assert "square root" not in result.output and "domain" not in result.output
+    rows = np.genfromtxt(out, delimiter=",", skip_header=1, ndmin=2)
+    assert np.all(np.isfinite(rows[:, :5]))  # t and the state: no NaN row was written
+
+
+def test_taylor_writes_no_nan_rows_after_an_overflow(tmp_path):
+    out = tmp_path / "run.csv"
+    result = _simulate(SYSTEM1, "--set", "m1=1e308", "--t", "1", "--method", "taylor", "--rtol", "1e-6", "-o", out)
+    assert result.exit_code == 3, result.output
+    assert "overflows the range of doubles" in result.output
+    assert len(out.read_text().splitlines()) == 2  # the header and the initial row
+
+
+def test_a_huge_velocity_is_named(tmp_path):
+    result = _simulate(SYSTEM1, "--set", "theta_dot=1e200", "--t", "1", "-o", tmp_path / "run.csv")
+    assert result.exit_code == 3 and "theta_dot=1e+200" in result.output, result.output
+
+
+def test_simulate_still_names_a_domain_problem(tmp_path):
+    for name in ("system1.yaml", "system2.yaml"):
+        shutil.copy(MODELS / "hoffmann" / name, tmp_path / name)
+    result = _simulate(tmp_path / "system2.yaml", "--set", "c=0.9", "--t", "0.1", "--method", "Radau",
+                       "-o", tmp_path / "run.csv")
+    assert result.exit_code == 3, result.output
+    assert "no real value at this state" in result.output and "is outside its domain" in result.output
+    assert "asin" in result.output or "sqrt" in result.output
+
+
+def test_linearize_and_accuracy_name_an_overflow():
+    result = CliRunner().invoke(main, ["linearize", str(SYSTEM1), "--at", "m1=1e308"])
+    assert result.exit_code == 1 and "overflows the range of doubles" in result.output, result.output
+    assert "--at NAME=VALUE" not in result.output  # another operating point would not help
+    # at theta = 0 the force -a1 g (m1 + 2 m2) sin(theta) is 0 exactly, NaN in doubles
+    result = CliRunner().invoke(main, ["linearize", str(SYSTEM1), "--at", "m1=1e308", "--at", "theta=0",
+                                       "--at", "phi=0"])
+    assert result.exit_code == 1 and "the nonzero factors of" in result.output, result.output
+    result = CliRunner().invoke(main, ["accuracy", str(SYSTEM1), "--set", "m1=1e308", "--t", "1",
+                                       "--methods", "dop853", "--quick"])
+    assert result.exit_code == 1 and "overflows the range of doubles" in result.output, result.output
+
+
+def test_linearize_names_a_domain_problem_instead_of_failing(tmp_path):
+    """A potential k sqrt(x - 1) at x = 0: numpy's NaN, not Python's complex power (an internal
+    error before)."""
+    model = tmp_path / "model.yaml"
+    model.write_text("name: slider\nparameters: {m: 1, k: 2}\ncomponents:\n"
+                     "  s: {type: particle1d, parameters: {mass: m}, coordinates: [x]}\ncoordinates: [x]\n"
+                     "effects:\n  well: {type: potential, value: k*sqrt(x - 1)}\n")
+    result = CliRunner().invoke(main, ["linearize", str(model)])
+    assert result.exit_code == 1, result.output
+    assert "1/sqrt(x - 1) in (fbar - hbar)[x] is outside its domain" in result.output
+    assert "--at NAME=VALUE" in result.output
