@@ -19,3 +19,26 @@ def velocity_symbol(coordinate: sympy.Symbol) -> sympy.Symbol:
 def acceleration_symbol(coordinate: sympy.Symbol) -> sympy.Symbol:
     """The acceleration of a coordinate is named ``<coordinate>_ddot``."""
     return sympy.Symbol(f"{coordinate.name}_ddot", real=True)
+
+
+def free_symbols_of(exprs) -> set:
+    """The free symbols of ``exprs`` (expressions or matrices), each shared subexpression
+    walked once: a known system read from the cache shares its subtrees, which
+    ``expr.free_symbols`` would walk again at every use."""
+    found: set = set()
+    seen: set[int] = set()
+    stack = []
+    for e in exprs:
+        stack.extend(e if isinstance(e, sympy.MatrixBase) else (sympy.sympify(e),))
+    while stack:
+        e = stack.pop()
+        if id(e) in seen:
+            continue
+        seen.add(id(e))
+        if isinstance(e, sympy.Symbol):
+            found.add(e)
+        elif getattr(e, "bound_symbols", ()):  # a Lambda, Integral...: its own free symbols
+            found |= e.free_symbols
+        else:
+            stack.extend(e.args)
+    return found

@@ -84,6 +84,16 @@ MIN_NAMED_OPS = 4
 """Operations a repeated subexpression of the coordinates needs to be named (``sqrt(1 - u**2)``)."""
 
 
+def _uses(exprs, names: set) -> dict:
+    """How many of ``exprs`` contain each symbol of ``names`` (``sum(e.has(s) for e in exprs)``,
+    in one walk of each expression instead of one walk a name)."""
+    uses = dict.fromkeys(names, 0)
+    for e in exprs:
+        for s in e.atoms(sympy.Symbol) & names:
+            uses[s] += 1
+    return uses
+
+
 def _repeats(exprs, coordinates) -> bool:
     """Whether a root, a non-integer power or a function other than sine and cosine of
     the coordinates occurs twice: the subexpressions worth a name (a chain has none)."""
@@ -118,12 +128,12 @@ def named_subexpressions(exprs: list, taken: Iterable[str], coordinates) -> tupl
     while True:  # put back the small ones, whole entries and those used once
         dropped: dict = {}
         kept = []
+        uses = _uses(reduced + [e for _, e in pending], {sym for sym, _ in pending})
         for sym, expr in pending:
             expr = expr.xreplace(dropped)
             ops = count_ops(expr)
             varying = bool(expr.free_symbols & coordinates)
-            uses = sum(e.has(sym) for e in reduced) + sum(e.has(sym) for _, e in pending)
-            if ops < MIN_NAMED_OPS or not varying or sym in entries or uses < 2:
+            if ops < MIN_NAMED_OPS or not varying or sym in entries or uses[sym] < 2:
                 dropped[sym] = expr
             else:
                 kept.append((sym, expr))

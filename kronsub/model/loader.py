@@ -18,7 +18,7 @@ from ..components.base import in_world
 from ..core.constraints import Constraint
 from ..core.known_system import KnownSystem, ParameterInfo
 from ..core.primitive import Part, Primitive, part_from_component
-from ..core.symbols import TIME, symbol, velocity_symbol
+from ..core.symbols import TIME, free_symbols_of, symbol, velocity_symbol
 from ..errors import Location, ModelError, ProblemCollector, close_matches, near_names
 from .derive import content_key, derive_model, load_cached
 from .effects import build_effect
@@ -896,7 +896,7 @@ def _inertial_parameters(system: KnownSystem) -> set[str]:
     exprs += [c for pos in system.points.values() for c in pos]
     for b in system.bodies:
         exprs += [b.mass, *b.centre] + [m for m in (b.rotation, b.inertia) if m is not None]
-    used = set().union(*(sympy.sympify(e).free_symbols for e in exprs))
+    used = free_symbols_of(exprs)
     return {p.name for p in system.parameters if p.symbol in used}
 
 
