@@ -87,7 +87,14 @@ class Primitive:
 
     @property
     def metric(self) -> sympy.Matrix:
-        return sympy.diag(*[part.metric for part in self.parts])
+        """The block-diagonal ``M`` of the parts' metrics (Example III)."""
+        size = len(self.coordinates)
+        entries = [sympy.Integer(0)] * (size * size)
+        for offset, part in self.blocks():
+            rows = part.metric.tolist()
+            for i, row in enumerate(rows):
+                entries[(offset + i) * size + offset:(offset + i) * size + offset + len(row)] = row
+        return sympy.Matrix(size, size, entries)
 
     @property
     def velocity_terms(self) -> sympy.Matrix:
