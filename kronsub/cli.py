@@ -535,6 +535,13 @@ def accuracy(model: Path, t_end: float, methods: str, tolerances: str, target: f
                                 target=target, csv=csv_name)
             write_atomically(meta_path, metadata_json(info))
             click.echo(f"wrote {meta_path}", err=True)
+        if wp.points and wp.best_error() is None:
+            first = next((p for p in wp.points if p.status), wp.points[0])
+            _fail(f"Error: every point failed ({len(wp.points)} of {len(wp.points)}); the first, "
+                  f"{first.method} at {first.setting}: {first.status or 'a non-finite error'}"
+                  + (", so no plot was written" if plot is not None else "")
+                  + "\n  hint: the table above (and the CSV) has each point's status; try a shorter "
+                    "--t or other --set values")
         if not wp.reference_sufficient():
             _fail(f"Error: the reference's estimated error {wp.reference.error:.1e} is not "
                   f"{acc.REFERENCE_MARGIN:g}x below the best point's error {wp.best_error():.1e}: the errors "

@@ -3,6 +3,7 @@ the CSV, the PNG and --target; a reference too coarse to judge the best point is
 from __future__ import annotations
 
 import csv
+import dataclasses
 import io
 
 import mpmath
@@ -184,6 +185,25 @@ def test_cli_refuses_to_plot_against_a_coarse_reference(tmp_path, monkeypatch):
     assert result.exit_code == 1
     assert "not 100x below the best point" in result.output
     assert not png.exists()
+
+
+def test_cli_fails_when_every_point_failed(tmp_path, monkeypatch):
+    """A table of failures only is not a measurement: exit 1, the first failure named, the CSV kept."""
+    measure = A.measure
+
+    def failing(*args, **kwargs):
+        wp = measure(*args, **kwargs)
+        wp.points = [dataclasses.replace(p, status="step size too small at t = 0.5") for p in wp.points]
+        return wp
+
+    monkeypatch.setattr(A, "measure", failing)
+    csv, png = tmp_path / "wp.csv", tmp_path / "wp.png"
+    result = run_cli(TEST_MODELS / "pendulum.yaml", "--t", 1, "--methods", "dop853,rk4", "--tolerances", "1e-6,1e-8",
+                     "--output", csv, "--plot", png)
+    assert result.exit_code == 1, result.output
+    assert "every point failed (4 of 4)" in result.output
+    assert "dop853 at tol 1e-06: step size too small at t = 0.5" in result.output
+    assert csv.read_text().count("failed") == 4 and not png.exists()
 
 
 @pytest.mark.parametrize("args, message", [
