@@ -23,6 +23,8 @@ EDGES = [
     sympy.Derivative(f(x), x), sympy.Integral(x, (x, 0, 1)), sympy.Abs(-x - y), sympy.sqrt(1 - x ** 2),
     sympy.Mul(-1, x + y, evaluate=False), sympy.Mul(2, x + y, evaluate=False), -(x + y) / (x - y),
     sympy.sin(x) ** 2 + sympy.cos(x) ** 2 - 1, (x - 1) * (x + 1) / (2 * y), sympy.pi * x / 2,
+    -y / x ** 2, -sympy.sqrt(x) / y, -y * sympy.exp(-x), -x * y / 2, -x ** y * y, -x ** (-y) * y,
+    -sympy.Rational(3, 2) * x ** sympy.Rational(3, 2) * sympy.sin(y) ** 2, -x ** -1, -(x + y) ** -3,
 ]
 
 

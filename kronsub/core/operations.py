@@ -11,7 +11,7 @@ sympy's order, and each distinct subexpression is counted once.
 from __future__ import annotations
 
 import sympy
-from sympy.core.function import Derivative, _coeff_isneg
+from sympy.core.function import Derivative
 from sympy.core.operations import LatticeOp
 from sympy.simplify.radsimp import fraction
 
@@ -39,6 +39,33 @@ def _count(a) -> int:
     return hit
 
 
+def _coeff_isneg(a) -> bool:
+    """``sympy.core.function._coeff_isneg``: whether the leading number is negative (a
+    rational's sign read off its numerator, not asked of a number built a moment ago)."""
+    if a.is_MatMul:
+        a = a.args[0]
+    if a.is_Mul:
+        a = a.args[0]
+    if a.is_Rational:
+        return a.p < 0
+    return a.is_Number and a.is_extended_negative
+
+
+def _whole(a) -> bool:
+    """Whether ``fraction(a)`` of the product ``a`` is ``(a, 1)`` for certain: no factor a
+    power or exponential (unless to a positive rational power), no non-integer rational."""
+    for t in a.args:
+        if t.is_Pow:
+            if not (t.exp.is_Rational and t.exp.p > 0):
+                return False
+        elif t.is_Rational:
+            if t.q != 1:
+                return False
+        elif isinstance(t, sympy.exp) or not t.is_commutative:
+            return False
+    return True
+
+
 def _own(a) -> int:
     """The operations ``count_ops`` records at node ``a`` plus those of the nodes it
     visits next (sympy's ``count_ops``, branch by branch)."""
@@ -50,7 +77,7 @@ def _own(a) -> int:
         if _coeff_isneg(a):
             n += 1  # NEG
             a = a.as_two_terms()[1] if a.args[0] is S.NegativeOne else -a
-        numer, denom = fraction(a)
+        numer, denom = (a, S.One) if a.is_Mul and _whole(a) else fraction(a)
         if numer.is_Integer:
             return n + 1 + (numer.p < 0) + _count(denom)  # DIV (NEG)
         if denom is not S.One:
