@@ -70,7 +70,10 @@ class Subspace:
         return self.algebra.from_expr(self.radicands.rewrite(sympy.sympify(expr).xreplace(self.substitution)))
 
     def moved(self, expr: sympy.Expr) -> sympy.Expr:
-        return sympy.sympify(expr).xreplace(self.substitution)
+        """``expr`` at ``x(xbar)``, ``xdot = C xbardot`` (itself when the connection only names
+        the primitive's coordinates again)."""
+        substitution = self.substitution
+        return sympy.sympify(expr).xreplace(substitution) if substitution else sympy.sympify(expr)
 
     def transpose_times(self, f: list[TrigPoly]) -> list[TrigPoly]:
         """``C^T f`` (8'), (F): rows with equal ``C_aj`` are summed before the product."""
@@ -143,8 +146,7 @@ def project_inertia(sub: Subspace, primitive: Primitive, *, name: str = "",
     mass_matrix = sympy.zeros(n, n)
     for j in range(n):
         for k in range(j, n):
-            mass_matrix[j, k] = mass_matrix[k, j] = compact(algebra, mass[j][k]) + sympy.Add(
-                *direct_mass.get((j, k), ()))
+            mass_matrix[j, k] = mass_matrix[k, j] = _plus(compact(algebra, mass[j][k]), direct_mass.get((j, k), ()))
     transition = Transition(
         primitive_coordinates=sub.x,
         primitive_metric=primitive.metric,
@@ -170,7 +172,7 @@ def project_inertia(sub: Subspace, primitive: Primitive, *, name: str = "",
         name=name,
         coordinates=sub.coords,
         mass_matrix=mass_matrix,
-        velocity_terms=sympy.Matrix([compact(algebra, p) + sympy.Add(*direct_h.get(j, ()))
+        velocity_terms=sympy.Matrix([_plus(compact(algebra, p), direct_h.get(j, ()))
                                      for j, p in enumerate(velocity_terms)]),
         effect_forces={},
         points=points,
@@ -180,6 +182,17 @@ def project_inertia(sub: Subspace, primitive: Primitive, *, name: str = "",
         transition=transition,
         description=description,
     )
+
+
+def _plus(projected: sympy.Expr, direct) -> sympy.Expr:
+    """``projected + sum(direct)`` (a renamed part's entries carried over, :meth:`Subspace.renaming`),
+    not rebuilt when one side is all there is: sympy's cache would compare a large entry
+    read from the known-system cache node by node with the one it holds."""
+    if not direct:
+        return projected
+    if projected == 0 and len(direct) == 1:
+        return direct[0]
+    return projected + sympy.Add(*direct)
 
 
 def world_dimension(primitive: Primitive) -> int:
