@@ -173,6 +173,7 @@ def _nodes(table) -> list:
     if not isinstance(table, list):
         _fail("malformed node table")
     built: list = []
+    commutes: list[bool] = []  # each node's is_commutative, so a sum or product need not ask its terms
     add_new, mul_new = sympy.Add._from_args, sympy.Mul._from_args
     for node in table:
         if not isinstance(node, list) or not node or not isinstance(node[0], str):
@@ -185,10 +186,14 @@ def _nodes(table) -> list:
                 _fail("a node refers to a later one")
             if len(args) != len(node) - 1:
                 _fail("malformed node arguments")
-            if head == "Add":
-                e = add_new(args) if len(args) > 1 else _fail("malformed Add")
-            elif head == "Mul":
-                e = mul_new(args) if len(args) > 1 else _fail("malformed Mul")
+            if head in ("Add", "Mul"):
+                if len(args) < 2:
+                    _fail(f"malformed {head}")
+                commutative = all(commutes[i] for i in node[1:])
+                e = (add_new if head == "Add" else mul_new)(args, commutative)
+                built.append(e)
+                commutes.append(commutative)
+                continue
             elif head == "Pow":
                 e = sympy.Pow(*args, evaluate=False) if len(args) == 2 else _fail("malformed Pow")
             else:
@@ -210,6 +215,7 @@ def _nodes(table) -> list:
         else:
             _fail(f"node head {head!r} is not admitted")
         built.append(e)
+        commutes.append(bool(e.is_commutative))
     return built
 
 

@@ -7,6 +7,7 @@ Expressions go through the whitelisted parser only.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import os
 import re
 from pathlib import Path
@@ -562,8 +563,9 @@ class _Loader:
         self.sub_hashes.append(key)
         # parameters: overrides, the rest inherited
         allowed = [p.name for p in system.parameters]
+        inertial = functools.cache(lambda: _inertial_parameters(system))  # asked only of an override in t
         overrides = self._component_parameters(cname, spec.get("parameters"), allowed,
-                                               inertial=_inertial_parameters(system).__contains__)
+                                               inertial=lambda key: key in inertial())
         for info in system.parameters:
             if info.name not in overrides:
                 self._inherit(cname, mnode, info)
