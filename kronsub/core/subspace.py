@@ -146,7 +146,8 @@ def project_inertia(sub: Subspace, primitive: Primitive, *, name: str = "",
     mass_matrix = sympy.zeros(n, n)
     for j in range(n):
         for k in range(j, n):
-            mass_matrix[j, k] = mass_matrix[k, j] = _plus(compact(algebra, mass[j][k]), direct_mass.get((j, k), ()))
+            entry = _plus(compact(algebra, mass[j][k]), direct_mass.get((j, k), ()))
+            mass_matrix[j, k] = mass_matrix[k, j] = entry
     transition = Transition(
         primitive_coordinates=sub.x,
         primitive_metric=primitive.metric,
