@@ -1,0 +1,255 @@
+"""Fifth robustness sweep: models of kinds the first four sweeps did not cover
+(tests/models/sweep5/): a free `planar_body` with points of its own (linearized by hand),
+`rod`s with `axis: down` and an off-axis peg, a disc rolling inside a ring (its rim on a
+spring), particles on a line, in the plane and in space tied across their worlds, names
+other tools reserve (`nan`, `E`, `oo`, `zoo`, `Abs`, `double`, `main`, `q`, `param`), closed
+loops in space (a bead on a line turning with a turntable, a bead on a line fixed in a
+spinning `rigid_body3d`), a body on a ball joint given by the connection with
+`derive --reactions` in space, and a known system nested three levels deep with parameter
+overrides, selected by scenes for `codegen --lang c` and `--lang python`.
+
+Each is checked against a derivation written here in plain sympy (never with kronsub), with
+the reference helpers of the earlier sweeps.
+"""
+from __future__ import annotations
+
+import ctypes
+import json
+import shutil
+import subprocess
+from functools import lru_cache
+from pathlib import Path
+
+import numpy as np
+import pytest
+import sympy as sp
+from click.testing import CliRunner
+
+import kronsub
+from helpers import Rx, Ry, Rz, generated_numpy_module
+from kronsub.cli import main
+from test_sweep3_models import accelerations_agree, kinetic
+from test_sweep_models import (Constrained, compare_explicit, dots, lagrange, largest_difference, rate_of,
+                               virtual_power, worst)
+
+HERE = Path(__file__).resolve().parent / "models" / "sweep5"
+t = sp.Symbol("t")
+S = sp.symbols
+TOL = 1e-10
+
+
+@lru_cache(maxsize=None)
+def loaded(name):
+    return kronsub.load(HERE / name)
+
+
+@lru_cache(maxsize=None)
+def derived(name):
+    return loaded(name).derive()
+
+
+def scene(name, which):
+    from kronsub.model.scenes import derive_scene, select_scene
+
+    model = loaded(name)
+    return derive_scene(model, select_scene(model, which))
+
+
+def down(a):
+    return sp.Matrix([sp.sin(a), -sp.cos(a)])
+
+
+def turn(a):
+    return sp.Matrix([[sp.cos(a), -sp.sin(a)], [sp.sin(a), sp.cos(a)]])
+
+
+def norm(v):
+    return sp.sqrt(v.dot(v))
+
+
+def spring_V(k, p, q, length=0):
+    return k * (norm(p - q) - length) ** 2 / 2
+
+
+def damper_rows(c, length, q):
+    return [-c * rate_of(length, q) * length.diff(a) for a in q]
+
+
+def work_rows(F, p, q):
+    return [F.dot(p.diff(a)) for a in q]
+
+
+def gradient_force(V, q, extra):
+    return sp.Matrix([-V.diff(a) + extra[i] for i, a in enumerate(q)])
+
+
+def add(*rows):
+    return [sum(r) for r in zip(*rows)]
+
+
+def compare_energies(system, T, V, seed, *, fixed=None):
+    return largest_difference(system, [system.kinetic_energy, system.potential_energy], [sp.sympify(T), sp.sympify(V)],
+                              seed, states=6, fixed=fixed)
+
+
+def numpy_module(tmp_path, name):
+    return generated_numpy_module(tmp_path, HERE / name)
+
+
+R = sp.Rational
+
+
+# ------------------------------------------------------------------------------------------
+# The plane: a free planar body, rods with axis down, a rolling disc
+# ------------------------------------------------------------------------------------------
+
+@lru_cache(maxsize=None)
+def plate_reference(still=False):
+    x, y, th = q = list(S("x y th"))
+    m, J, a, b, k1, k2, l1, l2, c, F, tau, g = S("m J a b k1 k2 l1 l2 c F tau g")
+    centre = sp.Matrix([x, y])
+    p1, p2 = centre + turn(th) * sp.Matrix([a, b]), centre + turn(th) * sp.Matrix([-a, 0])
+    M, h = virtual_power([(m, centre, th, J)], q)
+    V = (-m * g * (x - 4 * y) / sp.sqrt(17) + spring_V(k1, p1, sp.Matrix([R(2, 5), 1]), l1)
+         + spring_V(k2, sp.Matrix([-R(3, 5), R(4, 5)]), p2, l2))
+    if still:
+        return q, M, h, gradient_force(V, q, [0, 0, 0]), V
+    rows = add(damper_rows(c, norm(p1 - sp.Matrix([1, -R(1, 5)])), q),
+               work_rows(F * sp.sin(3 * t) * sp.Matrix([1, 2]) / sp.sqrt(5), p2, q), [0, 0, tau * sp.cos(t)])
+    return q, M, h, gradient_force(V, q, rows), V
+
+
+def test_planar_body_tethered(tmp_path):
+    q, M, h, f, V = plate_reference()
+    system = derived("planar_body_tethered.yaml")
+    assert compare_explicit(system, (M, h, f), 501) < TOL
+    assert compare_energies(system, kinetic(M, q), V, 501) < TOL
+    assert accelerations_agree(system, M, h, f, 501) < TOL
+    # the model's only scene is codegen's default: the numpy module is that of `still`
+    _, M, h, f, _ = plate_reference(still=True)
+    module = numpy_module(tmp_path, "planar_body_tethered.yaml")
+    assert accelerations_agree(scene("planar_body_tethered.yaml", "still"), M, h, f, 501, numpy_module=module) < TOL
+
+
+def test_planar_body_linearized_by_hand(tmp_path):
+    """`linearize --scene still`: the equilibrium kronsub finds is one of the hand equations
+    (``f(q*) = 0``) and ``A`` is the hand Jacobian ``[[0, I], [M^-1 d(f - h)/dq, M^-1 d(f - h)/dqdot]]``."""
+    q, M, h, f, _ = plate_reference(still=True)
+    out = tmp_path / "lin.json"
+    result = CliRunner().invoke(main, ["linearize", str(HERE / "planar_body_tethered.yaml"), "--scene", "still",
+                                       "--format", "json", "-o", str(out)])
+    assert result.exit_code == 0, result.output
+    data = json.loads(out.read_text())
+    point = data["operating_point"]
+    values = {p.name: float(p.value) for p in derived("planar_body_tethered.yaml").parameters}
+    qd = dots(q)
+    sub = {s: values[s.name] for s in (f.free_symbols | M.free_symbols) if s.name in values}
+    qstar = {s: float(point[s.name]) for s in q}
+    zero = {v: 0.0 for v in qd}
+    residual = np.array((f - h).xreplace(sub).xreplace(qstar).xreplace(zero).evalf(), dtype=float)
+    assert np.max(np.abs(residual)) < 1e-9, residual
+    rhs = M.inv() * (f - h)
+    y = q + qd
+    J = rhs.jacobian(y).xreplace(sub).xreplace(qstar).xreplace(zero)
+    A = np.block([[np.zeros((3, 3)), np.eye(3)], [np.array(J.evalf(), dtype=float)]])
+    ours = np.array(data["A"], dtype=float)
+    assert np.allclose(ours, A, rtol=1e-8, atol=1e-8), (ours, A)
+
+
+def test_rods_with_axis_down_and_an_off_axis_peg():
+    al, be = q = list(S("al be"))
+    m1, m2, L1, L2, e, k, kt, ct, T0, g = S("m1 m2 L1 L2 e k kt ct T0 g")
+    c1 = L1 / 2 * down(al)
+    c2 = L1 * down(al) + L2 / 2 * down(be)
+    # axis down: the rod along body -y, so body x is across it; the peg at (e, -L2/4) in body axes
+    peg = c2 + turn(be) * sp.Matrix([e, -L2 / 4])
+    M, h = virtual_power([(m1, c1, al, m1 * L1 ** 2 / 12), (m2, c2, be, m2 * L2 ** 2 / 10)], q)
+    V = (g * (m1 * c1[1] + m2 * c2[1]) + spring_V(k, peg, sp.Matrix([R(9, 10), -R(19, 10)]), R(3, 10))
+         + kt * (be - al - R(1, 5)) ** 2 / 2)
+    f = gradient_force(V, q, add(damper_rows(ct, al, q), [0, T0 * sp.sin(2 * t)]))
+    system = derived("rods_axis_down.yaml")
+    assert compare_explicit(system, (M, h, f), 502) < TOL
+    assert compare_energies(system, kinetic(M, q), V, 502) < TOL
+
+
+def test_disc_rolling_inside_a_ring():
+    (u,) = q = [S("u")]
+    m, r, Rr, k, T0, g = S("m r Rr k T0 g")
+    centre = (Rr - r) * down(u)
+    spin = -(Rr - r) / r * u
+    rim = centre + r * sp.Matrix([sp.cos(spin), sp.sin(spin)])
+    M, h = virtual_power([(m, centre, spin, m * r ** 2 / 2)], q)
+    V = m * g * centre[1] + spring_V(k, rim, sp.zeros(2, 1), R(1, 2))
+    f = gradient_force(V, q, [T0 * spin.diff(u)])
+    system = derived("disc_in_ring.yaml")
+    assert compare_explicit(system, (M, h, f), 503) < TOL
+    assert compare_energies(system, kinetic(M, q), V, 503) < TOL
+
+
+@lru_cache(maxsize=None)
+def worlds_reference():
+    s, u, v, p1, p2, p3 = q = list(S("s u v p1 p2 p3"))
+    mc, mu_, mb, k1, k2, k3, c, Fc, g = S("mc mu_ mb k1 k2 k3 c Fc g")
+    cart3, puck3, ball = sp.Matrix([s, 0, 0]), sp.Matrix([u, v, 0]), sp.Matrix([p1, p2, p3])
+    T = (mc * dots(q)[0] ** 2 + mu_ * (dots(q)[1] ** 2 + dots(q)[2] ** 2) + mb * sum(x ** 2 for x in dots(q)[3:])) / 2
+    V = (mb * g * p3 + mu_ * g * v + mc * g / 5 * s + spring_V(k1, ball, cart3, R(1, 2))
+         + spring_V(k2, ball, puck3, R(3, 10)) + k3 * ((u - s) ** 2 + v ** 2) / 2)
+    Q = add(damper_rows(c, norm(ball - puck3), q), [Fc * sp.cos(t), 0, 0, 0, 0, 0])
+    return q, T, V, Q
+
+
+def test_line_plane_and_space_tied_across_worlds(tmp_path):
+    q, T, V, Q = worlds_reference()
+    M, h, f = lagrange(T, V, q, Q)
+    system = derived("line_plane_space.yaml")
+    assert compare_explicit(system, (M, h, f), 504) < TOL
+    assert compare_energies(system, T, V, 504) < TOL
+    assert accelerations_agree(system, M, h, f, 504, numpy_module=numpy_module(tmp_path, "line_plane_space.yaml")) < TOL
+
+
+def odd_reference():
+    nan, E = q = list(S("nan E"))
+    I, N, S_, O, Q, beta, gamma, zeta, double, oo, zoo, Abs, main_ = S("I N S O Q beta gamma zeta double oo zoo Abs main")
+    bob = E * down(nan)
+    M, h = virtual_power([(N, O / 2 * down(nan), nan, I), (S_, bob)], q)
+    V = double * (N * (-O / 2 * sp.cos(nan)) + S_ * bob[1]) + Q * (E - beta) ** 2 / 2 + Abs * (E - main_) ** 4
+    rows = add(damper_rows(gamma, nan, q), damper_rows(zeta, E, q),  # the slide's length |E| = E > 0
+               work_rows(sp.Matrix([oo * sp.cos(zoo * t), 0]), bob, q))
+    return q, M, h, gradient_force(V, q, rows), V
+
+
+def test_names_other_tools_reserve(tmp_path):
+    """Coordinates `nan`, `E` (numpy's and SymPy's constants), parameters `I`, `oo`, `zoo`,
+    `Abs` (SymPy's), `double`, `main` (C's) and primitive coordinates `q`, `param` (the
+    generated code's arguments): derived, the numpy module and the compiled C agree with the hand equations."""
+    q, M, h, f, V = odd_reference()
+    system = derived("odd_names.yaml")
+    fixed = lambda rng: {"E": rng.uniform(0.2, 2)}  # noqa: E731
+    assert compare_explicit(system, (M, h, f), 505, fixed=fixed) < TOL
+    assert compare_energies(system, kinetic(M, q), V, 505, fixed=fixed) < TOL
+    assert accelerations_agree(system, M, h, f, 505, spread=0.9, numpy_module=numpy_module(tmp_path, "odd_names.yaml")) < TOL
+
+
+@pytest.mark.parametrize("kind, name", [("parameter", "return"), ("parameter", "None"), ("coordinate", "lambda"),
+                                        ("component", "class")])
+def test_a_name_that_is_a_python_keyword_is_refused_where_declared(tmp_path, kind, name):
+    """A keyword was accepted as a name, and every expression using it then failed with a
+    message about something else ("unexpected ')'" for `E*sin(lambda)`, "'None' is not
+    allowed ... use 1 or 0" for a parameter `None`). Now refused at the declaration."""
+    text = (HERE / "odd_names.yaml").read_text()
+    old = {"parameter": "  zoo: {value", "coordinate": "coordinates: [nan]", "component": "  arm: {type"}[kind]
+    new = {"parameter": f"  {name}: {{value: 1}}\n" + old, "coordinate": f"coordinates: [{name}]",
+           "component": f"  {name}: {{type: particle1d, parameters: {{mass: 1}}, coordinates: [w]}}\n" + old}[kind]
+    assert old in text
+    text = text.replace(old, new, 1).replace("coordinates: [nan, E]", "coordinates: [nan, E, w]" if kind == "component"
+                                              else "coordinates: [nan, E]")
+    if kind == "coordinate":
+        text = text.replace("coordinates: [nan, E]", f"coordinates: [{name}, E]").replace("(nan)", "(0)")
+        text = text.replace("angle: nan", "angle: E").replace("initial: {nan: 0.5, ", "initial: {")
+    path = tmp_path / "k.yaml"
+    path.write_text(text)
+    result = CliRunner().invoke(main, ["derive", str(path)])
+    assert result.exit_code == 1, result.output
+    line = next(i for i, ln in enumerate(text.splitlines(), 1) if f"{name}: {{" in ln or f"[{name}]" in ln)
+    assert f"k.yaml:{line}:" in result.output and f"{kind} name '{name}' is a reserved word" in result.output
+    assert f"hint: rename it, e.g. '{name}_'" in result.output and "Traceback" not in result.output
