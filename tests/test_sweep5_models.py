@@ -253,3 +253,167 @@ def test_a_name_that_is_a_python_keyword_is_refused_where_declared(tmp_path, kin
     line = next(i for i, ln in enumerate(text.splitlines(), 1) if f"{name}: {{" in ln or f"[{name}]" in ln)
     assert f"k.yaml:{line}:" in result.output and f"{kind} name '{name}' is a reserved word" in result.output
     assert f"hint: rename it, e.g. '{name}_'" in result.output and "Traceback" not in result.output
+
+
+# ------------------------------------------------------------------------------------------
+# Space: closed loops (a moving line, a slider on a turning body), a ball joint's reactions
+# ------------------------------------------------------------------------------------------
+
+def walk(system, ref, start, guess, seed, *, step=0.1, states=8):
+    """Pairs (kronsub, reference) of ``Mbar, hbar, fbar`` and accelerations (compiled C) along a
+    random walk of the independent coordinates (kept on one branch)."""
+    num = system.numeric()
+    pv = [num.parameters[name] for name in ref.params]
+    rng = np.random.default_rng(seed)
+    q, pairs = np.array(start, dtype=float), []
+    for _ in range(states):
+        q = q + rng.uniform(-step, step, len(q))
+        u, tt = rng.uniform(-2, 2, len(q)), rng.uniform(0, 2)
+        yv, ydv = ref.consistent(q, u, guess, pv)
+        guess = yv
+        Mb, hb, fb, acc = ref.evaluate(tt, yv, ydv, pv)
+        st = np.concatenate([q, u])
+        pairs += [(num.mass_matrix(q), Mb), (num.velocity_terms(st), hb), (num.forces(tt, st), fb),
+                  (num.rhs(tt, st)[len(q):], acc)]
+    return pairs
+
+
+@lru_cache(maxsize=None)
+def turntable_reference(free=False):
+    a, x, y, z = ys = list(S("a x y z"))
+    Jt, mb, be, k, l0, tm, ct, g = params = S("Jt mb be k l0 tm ct g")
+    p = sp.Matrix([x, y, z])
+    M, h = sp.diag(Jt, mb, mb, mb), sp.zeros(4, 1)
+    V = mb * g * z + spring_V(k, p, sp.zeros(3, 1), l0)
+    rows = [0] * 4 if free else add(damper_rows(ct, a, ys), [tm * sp.cos(t), 0, 0, 0])
+    cons = [x - z * sp.tan(be) * sp.cos(a), y - z * sp.tan(be) * sp.sin(a)]  # the rod: (x, y) = z tan(be) (cos a, sin a)
+    return Constrained(ys, M, h, gradient_force(V, ys, rows), cons, [a, z], params if not free else (Jt, mb, be, k, l0, g))
+
+
+def test_bead_on_a_turntable_rod_moving_line_in_space():
+    system = derived("turntable_bead.yaml")
+    pairs = walk(system, turntable_reference(), [0.2, 0.6], [0.2, 0.4, 0.1, 0.6], 506, step=0.15)
+    assert worst(pairs) < TOL
+
+
+@lru_cache(maxsize=None)
+def frame_parts():
+    psi, xb, yb, zb = ys = list(S("psi xb yb zb"))
+    mf, A, B, C, P, al, mb, k, l0, tz, g = params = S("mf A B C P al mb k l0 tz g")
+    Rf = Rz(psi) * Ry(al)
+    p = sp.Matrix([xb, yb, zb])
+    M, h = virtual_power([(mf, sp.zeros(3, 1), Rf, sp.Matrix([[A, 0, P], [0, B, 0], [P, 0, C]])), (mb, p)], ys)
+    hub = Rf * sp.Matrix([-R(1, 10), 0, R(1, 20)])
+    V = mb * g * zb + spring_V(k, hub, p, l0)
+    from test_sweep_models import world_angular_velocity
+    omega = world_angular_velocity(Rf, ys)
+    torque = sp.Matrix([0, tz * sp.sin(t), tz])
+    drive = [torque.dot(omega.diff(v)) for v in dots(ys)]
+    w = Rf.T * p - sp.Matrix([0, R(1, 10), R(1, 5)])  # the bead in frame axes, from the line's point
+    return ys, params, M, h, V, drive, [w[0] - w[2], w[1]]
+
+
+def frame_reference(free=False):
+    ys, params, M, h, V, drive, cons = frame_parts()
+    f = gradient_force(V, ys, [0] * 4 if free else drive)
+    return Constrained(ys, M, h, f, cons, [ys[0], ys[3]], params)
+
+
+FRAME_GUESS = [0.1, 0.2, 0.1, 0.3]
+
+
+def test_bead_on_a_slider_in_a_spinning_tilted_frame():
+    system = derived("spinning_frame_slider.yaml")
+    assert worst(walk(system, frame_reference(), [0.1, 0.3], FRAME_GUESS, 507, step=0.3)) < TOL
+
+
+@pytest.mark.parametrize("name", ["turntable_bead.yaml", "spinning_frame_slider.yaml"])
+def test_closed_loops_in_space_keep_energy_in_their_free_scene(tmp_path, name):
+    """`simulate --scene free` (gravity and a spring only): the total energy is kept, and the
+    hand constraints hold in every row of the CSV."""
+    out = tmp_path / "run.csv"
+    result = CliRunner().invoke(main, ["simulate", str(HERE / name), "--scene", "free", "-o", str(out)])
+    assert result.exit_code == 0, result.output
+    table = np.genfromtxt(out, names=True, delimiter=",", comments="#")
+    energy = table["total_energy"]
+    assert len(energy) == 9 and np.ptp(energy) < 1e-8 * max(1.0, np.max(np.abs(energy)))
+    ref = turntable_reference(free=True) if name == "turntable_bead.yaml" else frame_reference(free=True)
+    values = {p.name: float(p.value) for p in derived(name).parameters}
+    pv = [values[n] for n in ref.params]
+    residual = [np.array(ref.fg(0.0, *[row[s.name] for s in ref.y], *np.zeros(len(ref.y)), *pv), dtype=float)
+                for row in table]
+    assert np.max(np.abs(residual)) < 1e-9
+    # and the hand energy at each row's state
+    T_V = []
+    for row in table:
+        ind = [ref.y[i].name for i in ref.ind]
+        yv, ydv = ref.consistent([row[n] for n in ind], [row[f"{n}_dot"] for n in ind],
+                                 [row[s.name] for s in ref.y], pv)
+        Mv = np.array(ref.fM(0.0, *yv, *ydv, *pv), dtype=float)
+        T_V.append(ydv @ Mv @ ydv / 2)
+    assert np.allclose(table["kinetic_energy"], T_V, rtol=1e-9, atol=1e-9)
+
+
+def ball_joint_parts():
+    xc, yc, zc, psi, th, ph = x = list(S("xc yc zc psi th ph"))
+    m, h, A, C, D, F, g = S("m h A C D F g")
+    Rb = Rz(psi) * Rx(th) * Rz(ph)
+    I3 = sp.Matrix([[A, D, 0], [D, A, 0], [0, 0, C]])
+    push = sp.Matrix([F, 0, F * sp.cos(t)])
+    side = sp.Matrix([xc, yc, zc]) + Rb * sp.Matrix([R(1, 10), 0, -R(1, 5)])
+    return x, (m, I3, Rb, push, side, g)
+
+
+def test_ball_joint_body_equations():
+    x, (m, I3, Rb, push, side, g) = ball_joint_parts()
+    q = x[3:]
+    centre = Rb * sp.Matrix([0, 0, -S("h")])
+    M, h = virtual_power([(m, centre, Rb, I3)], q)
+    side_q = side.xreplace(dict(zip(x[:3], centre)))
+    V = m * g * centre[2]
+    f = gradient_force(V, q, work_rows(push, side_q, q))
+    system = derived("ball_joint_body.yaml")
+    fixed = lambda rng: {"th": rng.uniform(0.2, 2.9)}  # noqa: E731  (Z-X-Z: singular at th = 0, pi)
+    assert compare_explicit(system, (M, h, f), 508, fixed=fixed) < TOL
+    assert compare_energies(system, kinetic(M, q), V, 508, fixed=fixed) < TOL
+
+
+def test_ball_joint_reactions_in_space():
+    """`derive --reactions`: ``R = M xddot + h - f`` on the six primitive coordinates of the body,
+    from a hand primitive (virtual power over the free body) along the hand motion; on the
+    centre's coordinates that is the joint force, ``m a_c + m g e_z - F``."""
+    x, (m, I3, Rb, push, side, g) = ball_joint_parts()
+    q, hh = x[3:], S("h")
+    Mx, hx = virtual_power([(m, sp.Matrix(x[:3]), Rb, I3)], x)
+    fx = sp.Matrix([-m * g * int(a == x[2]) for a in x]) + sp.Matrix(work_rows(push, side, x))
+    centre = Rb * sp.Matrix([0, 0, -hh])
+    connection = dict(zip(x[:3], centre))
+    qd, qdd = dots(q), [sp.Symbol(f"{s.name}_ddot") for s in q]
+    Jc = sp.Matrix([*centre, *q]).jacobian(q)
+    xdot = Jc * sp.Matrix(qd)
+    xddot = Jc * sp.Matrix(qdd) + xdot.jacobian(q) * sp.Matrix(qd)
+    sub = {**connection, **{sp.Symbol(f"{a.name}_dot"): xdot[i] for i, a in enumerate(x)}}
+    r_hand = (Mx * xddot + hx - fx).xreplace(sub)
+    M, h = virtual_power([(m, centre, Rb, I3)], q)
+    f = sp.Matrix(work_rows(push, side.xreplace(connection), q)) - sp.Matrix([(m * g * centre[2]).diff(a) for a in q])
+    result = CliRunner().invoke(main, ["derive", str(HERE / "ball_joint_body.yaml"), "--reactions", "--format", "json"])
+    assert result.exit_code == 0, result.output
+    expressions = json.loads(result.stdout)["reactions"]["expressions"]
+    assert list(expressions) == [f"R_{a.name}" for a in x]
+    names = {s.name: s for s in [*x, *qd, *qdd, t, *S("m h A C D F g")]}
+    ours = sp.Matrix([sp.sympify(expressions[f"R_{a.name}"], locals=names) for a in x])  # test code, not kronsub
+    values = {names[p.name]: float(p.value) for p in derived("ball_joint_body.yaml").parameters}
+    args = [t, *q, *qd, *qdd]
+    f_ours, f_hand = (sp.lambdify(args, e.xreplace(values), "numpy") for e in (ours, r_hand))
+    f_M, f_rhs = (sp.lambdify([t, *q, *qd], e.xreplace(values), "numpy") for e in (M, f - h))
+    joint = sp.lambdify(args, (m * xddot[:3, :] + sp.Matrix([0, 0, m * g]) - push).xreplace(values), "numpy")
+    rng = np.random.default_rng(509)
+    pairs = []
+    for _ in range(6):
+        tt, qv, qdv = rng.uniform(0, 3), rng.uniform(-3, 3, 3), rng.uniform(-2, 2, 3)
+        qv[1] = rng.uniform(0.2, 2.9)
+        acc = np.linalg.solve(np.array(f_M(tt, *qv, *qdv), dtype=float), np.array(f_rhs(tt, *qv, *qdv), dtype=float).ravel())
+        a = (tt, *qv, *qdv, *acc)
+        mine = np.array(f_ours(*a), dtype=float).ravel()
+        pairs += [(mine, np.array(f_hand(*a), dtype=float).ravel()), (mine[:3], np.array(joint(*a), dtype=float).ravel())]
+    assert worst(pairs) < 1e-9
