@@ -417,3 +417,121 @@ def test_ball_joint_reactions_in_space():
         mine = np.array(f_ours(*a), dtype=float).ravel()
         pairs += [(mine, np.array(f_hand(*a), dtype=float).ravel()), (mine[:3], np.array(joint(*a), dtype=float).ravel())]
     assert worst(pairs) < 1e-9
+
+
+# ------------------------------------------------------------------------------------------
+# A known system of known systems under scenes: codegen --scene, C and Python
+# ------------------------------------------------------------------------------------------
+
+NESTED_VALUES = {"mc": 1.0, "mp": 0.5, "l": 0.8, "k": 6, "L0": 0.4, "cp": 0.05, "g": 9.81, "kL": 9, "mp2": 0.7,
+                 "d": 1.5, "kc0": 2, "Jf": 0.05, "ks": 1.5, "tm": 0.3}  # as the three files give them
+
+
+@lru_cache(maxsize=None)
+def nested_reference(hinges=True, motor=True):
+    s1, th1, s2, th2, f = q = list(S("s1 th1 s2 th2 f"))
+    mc, mp, l, k, L0, cp, g, kL, mp2, d, kc0, Jf, ks, tm = S("mc mp l k L0 cp g kL mp2 d kc0 Jf ks tm")
+    cart1, cart2 = sp.Matrix([s1, 0]), sp.Matrix([d + s2, 0])  # the right copy placed at (d, 0)
+    bodies = [(mc, sp.Matrix([s1])), (mp, cart1 + l / 2 * down(th1), th1, mp * l ** 2 / 12),
+              (mc, sp.Matrix([s2])), (mp2, cart2 + l / 2 * down(th2), th2, mp2 * l ** 2 / 12), (0, sp.Matrix([0]), f, Jf)]
+    M, h = virtual_power(bodies, q)
+    tip1, tip2 = cart1 + l * down(th1), cart2 + l * down(th2)
+    V = (g * (mp * bodies[1][1][1] + mp2 * bodies[3][1][1]) + kL * (sp.sqrt(s1 ** 2) - L0) ** 2 / 2
+         + k * (sp.sqrt(s2 ** 2) - L0) ** 2 / 2  # each wall spring to its own copy's origin
+         + spring_V(2 * kc0, tip1, tip2, d) + ks * (f - th1) ** 2 / 2)
+    rows = [0] * 5
+    if hinges:
+        rows = add(rows, damper_rows(cp, th1, q), damper_rows(cp, th2, q))
+    if motor:
+        rows = add(rows, [0, 0, 0, 0, tm * sp.sin(t)])
+    return q, M, h, gradient_force(V, q, rows), V
+
+
+def test_nested_known_systems_with_overrides():
+    q, M, h, f, V = nested_reference()
+    system = derived("nested_scenes.yaml")
+    assert compare_explicit(system, (M, h, f), 510) < TOL
+    assert compare_energies(system, kinetic(M, q), V, 510) < TOL
+
+
+def hand_numbers(ref, values):
+    q, M, h, f, V = ref
+    qd = dots(q)
+    sub = {s: values[s.name] for s in (M.free_symbols | h.free_symbols | f.free_symbols | V.free_symbols)
+           if s.name in values}
+    args = [t, *q, *qd]
+    fM, fh, ff = (sp.lambdify(args, e.xreplace(sub), "numpy") for e in (M, h, f))
+    fT, fV = (sp.lambdify(args, e.xreplace(sub), "numpy") for e in (kinetic(M, q), V))
+    return fM, fh, ff, fT, fV
+
+
+def quiet_values():
+    return {**NESTED_VALUES, "kc0": 3, "mp2": 0.9}  # the scene's values
+
+
+def nested_states(seed):
+    rng = np.random.default_rng(seed)
+    return [(rng.uniform(0, 3), rng.uniform(-2, 2, 10)) for _ in range(6)]
+
+
+def test_nested_scene_numpy_module(tmp_path):
+    import importlib.util
+
+    result = CliRunner().invoke(main, ["codegen", str(HERE / "nested_scenes.yaml"), "--scene", "quiet", "--lang", "python",
+                                       "-o", str(tmp_path)])
+    assert result.exit_code == 0, result.output
+    spec = importlib.util.spec_from_file_location("sweep5_nested_quiet", tmp_path / "nested_scenes.py")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    assert not {"cp", "tm"} & set(mod.PARAMETERS), mod.PARAMETERS  # only the switched-off effects use them
+    values = quiet_values()
+    param = np.array([float(values[n]) for n in mod.PARAMETERS])
+    fM, fh, ff, fT, fV = hand_numbers(nested_reference(hinges=False, motor=False), values)
+    pairs = []
+    for tt, y in nested_states(511):
+        q, qd = y[:5], y[5:]
+        M, h, f = (np.array(fn(tt, *y), dtype=float) for fn in (fM, fh, ff))
+        pairs += [(mod.mass_matrix(q, param), M), (mod.velocity_terms(q, qd, param), h.ravel()),
+                  (mod.forces(tt, q, qd, param), f.ravel()),
+                  (np.asarray(mod.rhs(tt, y, param))[5:], np.linalg.solve(M, f.ravel() - h.ravel())),
+                  (np.array([mod.kinetic_energy(y, param), mod.potential_energy(tt, y, param)]),
+                   np.array([fT(tt, *y), fV(tt, *y)], dtype=float))]
+    assert worst(pairs) < TOL
+
+
+@pytest.mark.skipif(shutil.which("gcc") is None, reason="needs gcc")
+@pytest.mark.parametrize("which", ["quiet", "driven"])
+def test_nested_scene_generated_c(tmp_path, which):
+    from test_sweep_outputs import header_order
+
+    result = CliRunner().invoke(main, ["codegen", str(HERE / "nested_scenes.yaml"), "--scene", which, "--lang", "c",
+                                       "--prefix", "nq", "-o", str(tmp_path)])
+    assert result.exit_code == 0, result.output
+    lib = tmp_path / "libnested.so"
+    subprocess.run(["gcc", "-std=c99", "-Wall", "-Wextra", "-Werror", "-O2", "-shared", "-fPIC",
+                    str(tmp_path / "nested_scenes.c"), "-o", str(lib), "-lm"], check=True, capture_output=True)
+    names, _ = header_order((tmp_path / "nested_scenes.h").read_text(), "NQ")
+    if which == "quiet":
+        values, ref = quiet_values(), nested_reference(hinges=False, motor=False)
+        assert not {"cp", "tm"} & set(names), names
+    else:  # gravity, the coupling, the shaft and the motor: no wall springs, no hinges
+        values = {**NESTED_VALUES, "k": 0, "kL": 0}
+        ref = nested_reference(hinges=False, motor=True)
+        assert not {"cp", "k", "kL", "L0"} & set(names), names
+    c = ctypes.CDLL(str(lib))
+    D = ctypes.POINTER(ctypes.c_double)
+    c.nq_rhs.argtypes = [ctypes.c_double, D, D, D]
+    c.nq_forces.argtypes = [ctypes.c_double, D, D, D, D]
+    ptr = lambda a: a.ctypes.data_as(D)  # noqa: E731
+    param = np.array([float(values[n]) for n in names])
+    fM, fh, ff, _, _ = hand_numbers(ref, values)
+    pairs = []
+    for tt, y in nested_states(512):
+        q, qd = y[:5].copy(), y[5:].copy()
+        M, h, f = (np.array(fn(tt, *y), dtype=float) for fn in (fM, fh, ff))
+        Mc, fc, ydot = np.zeros(25), np.zeros(5), np.zeros(10)
+        c.nq_mass_matrix(ptr(q), ptr(param), ptr(Mc))
+        c.nq_forces(tt, ptr(q), ptr(qd), ptr(param), ptr(fc))
+        assert c.nq_rhs(tt, ptr(y), ptr(param), ptr(ydot)) == 0
+        pairs += [(Mc.reshape(5, 5), M), (fc, f.ravel()), (ydot[5:], np.linalg.solve(M, f.ravel() - h.ravel()))]
+    assert worst(pairs) < TOL
