@@ -535,3 +535,33 @@ def test_nested_scene_generated_c(tmp_path, which):
         assert c.nq_rhs(tt, ptr(y), ptr(param), ptr(ydot)) == 0
         pairs += [(Mc.reshape(5, 5), M), (fc, f.ravel()), (ydot[5:], np.linalg.solve(M, f.ravel() - h.ravel()))]
     assert worst(pairs) < TOL
+
+
+def test_linearize_a_closed_loop_in_space_against_the_multipliers(tmp_path):
+    """`linearize --scene free` of the turntable bead: the hand accelerations (the multiplier
+    solve on x, y, z, a) vanish at kronsub's operating point, and kronsub's A is their
+    Jacobian in [a, z, a_dot, z_dot] by central differences."""
+    ref = turntable_reference(free=True)
+    out = tmp_path / "lin.json"
+    result = CliRunner().invoke(main, ["linearize", str(HERE / "turntable_bead.yaml"), "--scene", "free",
+                                       "--format", "json", "-o", str(out)])
+    assert result.exit_code == 0, result.output
+    data = json.loads(out.read_text())
+    assert data["state"] == ["a", "z", "a_dot", "z_dot"] and data["equilibrium"]
+    values = {p.name: float(p.value) for p in derived("turntable_bead.yaml").parameters}
+    pv = [values[n] for n in ref.params]
+    point = np.array([data["operating_point"][n] for n in data["state"]], dtype=float)
+    guess = [point[0], 0.4, 0.1, point[1]]
+
+    def acc(state):
+        yv, ydv = ref.consistent(state[:2], state[2:], guess, pv)
+        return ref.evaluate(0.0, yv, ydv, pv)[3]
+
+    assert np.max(np.abs(acc(point))) < 1e-9
+    eps, cols = 1e-6, []
+    for j in range(4):
+        e = np.zeros(4)
+        e[j] = eps
+        cols.append((acc(point + e) - acc(point - e)) / (2 * eps))
+    A = np.vstack([np.hstack([np.zeros((2, 2)), np.eye(2)]), np.column_stack(cols)])
+    assert np.allclose(np.array(data["A"], dtype=float), A, rtol=1e-6, atol=1e-6)
