@@ -565,3 +565,47 @@ def test_linearize_a_closed_loop_in_space_against_the_multipliers(tmp_path):
         cols.append((acc(point + e) - acc(point - e)) / (2 * eps))
     A = np.vstack([np.hstack([np.zeros((2, 2)), np.eye(2)]), np.column_stack(cols)])
     assert np.allclose(np.array(data["A"], dtype=float), A, rtol=1e-6, atol=1e-6)
+
+
+@lru_cache(maxsize=None)
+def helix_reference():
+    s, x, y, z = ys = list(S("s x y z"))
+    Js, mb, rr, p, k, cd, Fz, ks, g = params = S("Js mb rr p k cd Fz ks g")
+    v = sp.Matrix(dots(ys)[1:])
+    M, h = sp.diag(Js, mb, mb, mb), sp.zeros(4, 1)
+    V = mb * g * z + k * (x ** 2 + y ** 2 + z ** 2) / 2 + ks * (s - 1) ** 2 / 2
+    drag = -cd * norm(v) * v
+    rows = [0, drag[0], drag[1], drag[2] + Fz * sp.cos(t)]
+    cons = [x - rr * sp.cos(s), y - rr * sp.sin(s), z - p * s]
+    return Constrained(ys, M, h, gradient_force(V, ys, rows), cons, [s], params)
+
+
+HELIX_GUESS = [0.5, 0.44, 0.24, 0.075]
+
+
+def test_bead_on_a_helix_constraints_through_definitions():
+    pairs = walk(derived("bead_on_helix.yaml"), helix_reference(), [0.5], HELIX_GUESS, 513, step=0.4)
+    assert worst(pairs) < TOL
+
+
+def test_bead_on_a_helix_reactions(tmp_path):
+    """`simulate --reactions`: the multipliers of the three constraints as written (``g`` = the
+    expressions) against the hand solve of ``M yddot + h = f + G^T mu`` at every row."""
+    ref = helix_reference()
+    out = tmp_path / "run.csv"
+    result = CliRunner().invoke(main, ["simulate", str(HERE / "bead_on_helix.yaml"), "--t", "0.4", "--dt", "0.1",
+                                       "--reactions", "-o", str(out)])
+    assert result.exit_code == 0, result.output
+    table = np.genfromtxt(out, names=True, delimiter=",", comments="#")
+    values = {p.name: float(p.value) for p in derived("bead_on_helix.yaml").parameters}
+    pv = [values[n] for n in ref.params]
+    pairs = []
+    for row in table:
+        yv, ydv = ref.consistent([row["s"]], [row["s_dot"]], HELIX_GUESS, pv)
+        a = (row["t"], *yv, *ydv, *pv)
+        M, h, f = (np.array(fn(*a), dtype=float) for fn in (ref.fM, ref.fh, ref.ff))
+        G, Gdy = np.array(ref.fG(*a), dtype=float), np.array(ref.fGd(*a), dtype=float).ravel()
+        K = np.block([[M, G.T], [G, np.zeros((3, 3))]])
+        mu = -np.linalg.solve(K, np.concatenate([f.ravel() - h.ravel(), -Gdy]))[4:]
+        pairs.append((np.array([row[n] for n in ("mu_cx", "mu_cy", "mu_cz")]), mu))
+    assert len(pairs) == 5 and worst(pairs) < 1e-8
