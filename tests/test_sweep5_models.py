@@ -609,3 +609,55 @@ def test_bead_on_a_helix_reactions(tmp_path):
         mu = -np.linalg.solve(K, np.concatenate([f.ravel() - h.ravel(), -Gdy]))[4:]
         pairs.append((np.array([row[n] for n in ("mu_cx", "mu_cy", "mu_cz")]), mu))
     assert len(pairs) == 5 and worst(pairs) < 1e-8
+
+
+def test_known_system_with_overrides_in_time_placed():
+    """Overrides in t of parameters that enter the known system's effects only (its wall
+    spring's rest length, its hinge's damping), another of its mass, and `origin:`."""
+    s, th = q = list(S("s th"))
+    mc, l, k, g, x0, A, w, c0, kt, mb = S("mc l k g x0 A w c0 kt mb")
+    mp = R(3, 5)
+    cart = sp.Matrix([x0 + s, 0])
+    tip = cart + l * down(th)
+    M, h = virtual_power([(mc, sp.Matrix([s])), (mp, cart + l / 2 * down(th), th, mp * l ** 2 / 12), (mb, tip)], q)
+    V = (k * (sp.sqrt(s ** 2) - (R(2, 5) + A * sp.sin(w * t))) ** 2 / 2 + kt * (tip - sp.Matrix([R(6, 5), -R(3, 10)])).dot(
+        tip - sp.Matrix([R(6, 5), -R(3, 10)])) / 2 + g * (mp + mb) * tip[1] - g * mp * l / 2 * down(th)[1])
+    f = gradient_force(V, q, damper_rows(c0 * (1 + t / 2), th, q))
+    system = derived("override_in_time.yaml")
+    assert compare_explicit(system, (M, h, f), 514) < TOL
+    assert compare_energies(system, kinetic(M, q), V, 514) < TOL
+
+
+def test_nested_scene_run_and_placed_points(tmp_path):
+    """`simulate --scene driven` (its t_end, dt and outputs): every row against the hand
+    equations integrated here (scipy, tight tolerances), and the points of the placed nested
+    copies (a line point on the plane's x axis) at the row's state."""
+    from scipy.integrate import solve_ivp
+
+    out = tmp_path / "run.csv"
+    result = CliRunner().invoke(main, ["simulate", str(HERE / "nested_scenes.yaml"), "--scene", "driven", "-o", str(out)])
+    assert result.exit_code == 0, result.output
+    table = np.genfromtxt(out, names=True, delimiter=",", comments="#", deletechars="")
+    values = {**NESTED_VALUES, "k": 0, "kL": 0}
+    fM, fh, ff, fT, fV = hand_numbers(nested_reference(hinges=False, motor=True), values)
+
+    def rhs(tt, y):
+        M = np.array(fM(tt, *y), dtype=float)
+        return np.concatenate([y[5:], np.linalg.solve(M, (np.array(ff(tt, *y), dtype=float)
+                                                          - np.array(fh(tt, *y), dtype=float)).ravel())])
+
+    y0 = [0.5, 0.2, 0.4, -0.1, 0, 0, 0, 0, 0, 0]
+    sol = solve_ivp(rhs, (0, 0.5), y0, method="DOP853", rtol=1e-12, atol=1e-12, t_eval=np.linspace(0, 0.5, 6))
+    names = ["s1", "th1", "s2", "th2", "f", "s1_dot", "th1_dot", "s2_dot", "th2_dot", "f_dot"]
+    assert np.allclose(table["t"], sol.t)
+    ours = np.column_stack([table[n] for n in names])
+    assert np.allclose(ours, sol.y.T, rtol=1e-8, atol=1e-8)
+    l, d = values["l"], values["d"]
+    s1, th1, s2, th2 = (table[n] for n in ("s1", "th1", "s2", "th2"))
+    points = {"pair.right.pole.tip": (d + s2 + l * np.sin(th2), -l * np.cos(th2)),
+              "pair.left.pole.centre": (s1 + l / 2 * np.sin(th1), -l / 2 * np.cos(th1)),
+              "pair.right.cart.centre": (d + s2, 0 * s2)}
+    for name, (px, py) in points.items():
+        assert np.allclose(table[f"{name}.x"], px, atol=1e-12) and np.allclose(table[f"{name}.y"], py, atol=1e-12), name
+    energy = [(fT(tt, *y), fV(tt, *y)) for tt, y in zip(sol.t, sol.y.T)]
+    assert np.allclose(np.column_stack([table["kinetic_energy"], table["potential_energy"]]), energy, rtol=1e-8, atol=1e-8)
