@@ -378,7 +378,7 @@ def test_ball_joint_body_equations():
     assert compare_energies(system, kinetic(M, q), V, 508, fixed=fixed) < TOL
 
 
-def test_ball_joint_reactions_in_space():
+def test_ball_joint_reactions_in_space(tmp_path):
     """`derive --reactions`: ``R = M xddot + h - f`` on the six primitive coordinates of the body,
     from a hand primitive (virtual power over the free body) along the hand motion; on the
     centre's coordinates that is the joint force, ``m a_c + m g e_z - F``."""
@@ -417,6 +417,18 @@ def test_ball_joint_reactions_in_space():
         mine = np.array(f_ours(*a), dtype=float).ravel()
         pairs += [(mine, np.array(f_hand(*a), dtype=float).ravel()), (mine[:3], np.array(joint(*a), dtype=float).ravel())]
     assert worst(pairs) < 1e-9
+    # the same reactions in every row of `simulate --reactions`, at the row's state
+    out = tmp_path / "run.csv"
+    result = CliRunner().invoke(main, ["simulate", str(HERE / "ball_joint_body.yaml"), "--t", "0.3", "--dt", "0.1",
+                                       "--reactions", "-o", str(out)])
+    assert result.exit_code == 0, result.output
+    table = np.genfromtxt(out, names=True, delimiter=",", comments="#")
+    rows = []
+    for row in table:
+        tt, qv, qdv = row["t"], [row[s.name] for s in q], [row[f"{s.name}_dot"] for s in q]
+        acc = np.linalg.solve(np.array(f_M(tt, *qv, *qdv), dtype=float), np.array(f_rhs(tt, *qv, *qdv), dtype=float).ravel())
+        rows.append((np.array([row[f"R_{a.name}"] for a in x]), np.array(f_hand(tt, *qv, *qdv, *acc), dtype=float).ravel()))
+    assert len(rows) == 4 and worst(rows) < 1e-9
 
 
 # ------------------------------------------------------------------------------------------
