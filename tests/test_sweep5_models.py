@@ -679,3 +679,30 @@ def test_nested_scene_run_and_placed_points(tmp_path):
         assert np.allclose(table[f"{name}.x"], px, atol=1e-12) and np.allclose(table[f"{name}.y"], py, atol=1e-12), name
     energy = [(fT(tt, *y), fV(tt, *y)) for tt, y in zip(sol.t, sol.y.T)]
     assert np.allclose(np.column_stack([table["kinetic_energy"], table["potential_energy"]]), energy, rtol=1e-8, atol=1e-8)
+
+
+def test_names_other_tools_reserve_linearized_symbolically(tmp_path):
+    """`linearize --symbolic` of the odd names (the push off: `--at oo=0`): every entry of A read
+    back with those names (`Abs`, `I`, `E`... as the model's symbols) equals the hand Jacobian at
+    the operating point and the parameters' values."""
+    q, M, h, f, _ = odd_reference()
+    out = tmp_path / "lin.json"
+    result = CliRunner().invoke(main, ["linearize", str(HERE / "odd_names.yaml"), "--symbolic", "--at", "oo=0",
+                                       "--format", "json", "-o", str(out)])
+    assert result.exit_code == 0, result.output
+    data = json.loads(out.read_text())
+    assert data["state"] == ["nan", "E", "nan_dot", "E_dot"] and data["equilibrium"]
+    values = {p.name: float(p.value) for p in derived("odd_names.yaml").parameters}
+    values["oo"] = 0.0
+    names = {n: sp.Symbol(n) for n in values}
+    point = {n: float(sp.Float(v)) for n, v in data["operating_point"].items()}
+    ours = np.array([[float(sp.sympify(e, locals=names).xreplace({names[k]: v for k, v in values.items()}))
+                      for e in row] for row in data["A"]])  # test code reading the output, not kronsub
+    qd = dots(q)
+    rhs = M.inv() * (f - h)
+    sub = {s: values[s.name] for s in rhs.free_symbols if s.name in values}
+    sub.update({s: point[s.name] for s in [*q, *qd]})
+    sub[t] = 0.0
+    J = np.array(rhs.jacobian([*q, *qd]).xreplace(sub).evalf(), dtype=float)
+    A = np.block([[np.zeros((2, 2)), np.eye(2)], [J]])
+    assert np.allclose(ours, A, rtol=1e-9, atol=1e-9), (ours, A)
