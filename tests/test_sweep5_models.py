@@ -706,3 +706,28 @@ def test_names_other_tools_reserve_linearized_symbolically(tmp_path):
     J = np.array(rhs.jacobian([*q, *qd]).xreplace(sub).evalf(), dtype=float)
     A = np.block([[np.zeros((2, 2)), np.eye(2)], [J]])
     assert np.allclose(ours, A, rtol=1e-9, atol=1e-9), (ours, A)
+
+
+@lru_cache(maxsize=None)
+def helix_pair_reference():
+    s1, s2, x1, y1, z1, x2, y2, z2 = ys = list(S("s1 s2 x1 y1 z1 x2 y2 z2"))
+    Js, mb, rr, p, k, cd, Fz, ks, g, kc = params = S("Js mb rr p k cd Fz ks g kc")
+    mb2 = R(3, 5)
+    left, right = sp.Matrix([x1, y1, z1]), sp.Matrix([x2, y2, z2])
+    origin = sp.Matrix([R(3, 2), 0, R(1, 5)])
+    M, h = sp.diag(Js, Js, mb, mb, mb, mb2, mb2, mb2), sp.zeros(8, 1)
+    # each copy's central potential in its own coordinates (a translation moves its points, not its forces)
+    V = (mb * g * z1 + mb2 * g * (z2 + origin[2]) + k * (left.dot(left) + right.dot(right)) / 2
+         + ks * ((s1 - 1) ** 2 + (s2 - 1) ** 2) / 2 + spring_V(kc, left, origin + right, R(6, 5)))
+    v1, v2 = sp.Matrix(dots(ys)[2:5]), sp.Matrix(dots(ys)[5:8])
+    d1, d2 = -cd * norm(v1) * v1, -cd * norm(v2) * v2
+    rows = [0, 0, d1[0], d1[1], d1[2] + Fz * sp.cos(t), d2[0], d2[1], d2[2]]
+    cons = [x1 - rr * sp.cos(s1), y1 - rr * sp.sin(s1), z1 - p * s1, x2 - rr * sp.cos(s2), y2 - rr * sp.sin(s2), z2 - p * s2]
+    return Constrained(ys, M, h, gradient_force(V, ys, rows), cons, [s1, s2], params)
+
+
+def test_helix_known_system_reused_and_placed_in_space():
+    system = derived("helix_pair.yaml")
+    assert [s.name for s in system.coordinates] == ["s1", "s2"]
+    guess = [0.5, -0.3, 0.44, 0.24, 0.075, 0.48, -0.15, -0.045]
+    assert worst(walk(system, helix_pair_reference(), [0.5, -0.3], guess, 515, step=0.3)) < TOL
