@@ -104,7 +104,7 @@ R = sp.Rational
 # ------------------------------------------------------------------------------------------
 
 @lru_cache(maxsize=None)
-def plate_reference(still=False):
+def plate_reference(still=False, damper=True):
     x, y, th = q = list(S("x y th"))
     m, J, a, b, k1, k2, l1, l2, c, F, tau, g = S("m J a b k1 k2 l1 l2 c F tau g")
     centre = sp.Matrix([x, y])
@@ -114,7 +114,7 @@ def plate_reference(still=False):
          + spring_V(k2, sp.Matrix([-R(3, 5), R(4, 5)]), p2, l2))
     if still:
         return q, M, h, gradient_force(V, q, [0, 0, 0]), V
-    rows = add(damper_rows(c, norm(p1 - sp.Matrix([1, -R(1, 5)])), q),
+    rows = add(damper_rows(c if damper else 0, norm(p1 - sp.Matrix([1, -R(1, 5)])), q),
                work_rows(F * sp.sin(3 * t) * sp.Matrix([1, 2]) / sp.sqrt(5), p2, q), [0, 0, tau * sp.cos(t)])
     return q, M, h, gradient_force(V, q, rows), V
 
@@ -124,11 +124,9 @@ def test_planar_body_tethered(tmp_path):
     system = derived("planar_body_tethered.yaml")
     assert compare_explicit(system, (M, h, f), 501) < TOL
     assert compare_energies(system, kinetic(M, q), V, 501) < TOL
-    assert accelerations_agree(system, M, h, f, 501) < TOL
-    # the model's only scene is codegen's default: the numpy module is that of `still`
-    _, M, h, f, _ = plate_reference(still=True)
+    # two scenes: codegen's default is every effect
     module = numpy_module(tmp_path, "planar_body_tethered.yaml")
-    assert accelerations_agree(scene("planar_body_tethered.yaml", "still"), M, h, f, 501, numpy_module=module) < TOL
+    assert accelerations_agree(system, M, h, f, 501, numpy_module=module) < TOL
 
 
 def test_planar_body_linearized_by_hand(tmp_path):
@@ -731,3 +729,31 @@ def test_helix_known_system_reused_and_placed_in_space():
     assert [s.name for s in system.coordinates] == ["s1", "s2"]
     guess = [0.5, -0.3, 0.44, 0.24, 0.075, 0.48, -0.15, -0.045]
     assert worst(walk(system, helix_pair_reference(), [0.5, -0.3], guess, 515, step=0.3)) < TOL
+
+
+def test_planar_body_linearized_with_inputs_in_time(tmp_path):
+    """`linearize --scene pushed --inputs F,tau --at t=0.5` at a given point that is no
+    equilibrium: A and B (the columns of the force's size F sin(3t) and the torque's tau cos t)
+    against the hand Jacobians there."""
+    q, M, h, f, _ = plate_reference(damper=False)
+    at = {"x": 0.1, "y": 0.2, "th": 0.3, "x_dot": 0.5, "y_dot": -0.2, "th_dot": 1.0}
+    args = ["linearize", str(HERE / "planar_body_tethered.yaml"), "--scene", "pushed", "--inputs", "F,tau",
+            "--at", "t=0.5", "--format", "json", "-o", str(tmp_path / "lin.json")]
+    for name, value in at.items():
+        args += ["--at", f"{name}={value}"]
+    result = CliRunner().invoke(main, args)
+    assert result.exit_code == 0, result.output
+    data = json.loads((tmp_path / "lin.json").read_text())
+    assert not data["equilibrium"] and data["inputs"] == ["F", "tau"]
+    values = {p.name: float(p.value) for p in derived("planar_body_tethered.yaml").parameters}
+    rhs = M.inv() * (f - h)
+    F, tau = S("F tau")
+    sub = {s: values[s.name] for s in rhs.free_symbols if s.name in values}
+    sub.update({s: at[s.name] for s in [*q, *dots(q)]})
+    sub[t] = 0.5
+    J = np.array(rhs.jacobian([*q, *dots(q)]).xreplace(sub).evalf(), dtype=float)
+    Bl = np.array(rhs.jacobian([F, tau]).xreplace(sub).evalf(), dtype=float)
+    A = np.block([[np.zeros((3, 3)), np.eye(3)], [J]])
+    B = np.vstack([np.zeros((3, 2)), Bl])
+    assert np.allclose(np.array(data["A"], dtype=float), A, rtol=1e-9, atol=1e-9)
+    assert np.allclose(np.array(data["B"], dtype=float), B, rtol=1e-9, atol=1e-9)
