@@ -768,3 +768,55 @@ def test_planar_body_linearized_with_inputs_in_time(tmp_path):
     B = np.vstack([np.zeros((3, 2)), Bl])
     assert np.allclose(np.array(data["A"], dtype=float), A, rtol=1e-9, atol=1e-9)
     assert np.allclose(np.array(data["B"], dtype=float), B, rtol=1e-9, atol=1e-9)
+
+
+# ------------------------------------------------------------------------------------------
+# Defects this sweep found (these tests fail on the code before the fixes)
+# ------------------------------------------------------------------------------------------
+
+CLASHING = """\
+name: Reaction names that clash
+parameters: {m: 1, L: 1, J: 0.1}
+components:
+  arm: {type: pinned_rod, parameters: {mass: m, length: L}, coordinates: [a]}
+  bead: {type: particle2d, parameters: {mass: m}, coordinates: [x, y]}
+  fly: {type: flywheel, parameters: {inertia: J}, coordinates: [w]}
+coordinates: [a]
+constraints:
+  B: {pin: [bead.centre, arm.tip]}
+  B_x: w - 2*a
+effects:
+  gravity: {type: gravity, g: 9.81}
+initial: {a: 0.3, x: 0.29, y: -0.95, w: 0.6}
+"""
+
+
+@pytest.mark.parametrize("where", ["here", "known"])
+def test_constraints_whose_multipliers_share_a_name_are_refused(tmp_path, where):
+    """A joint `B` (equations `B.x`, `B.y`) beside a constraint `B_x`: both multipliers were
+    `mu_B_x`, so `derive --reactions --format json` kept two of the three (the pin's x force
+    lost) and the markdown listed `mu_B_x` twice with different expressions. Likewise a
+    constraint `left_cx` beside the known system `left`'s `cx` (`mu_left_cx`). Now refused at
+    the constraint, naming both."""
+    if where == "here":
+        text, name, both = CLASHING, "B_x", ("'B.x'", "'B_x'", "'mu_B_x'")
+    else:
+        (tmp_path / "bead_on_helix.yaml").write_text((HERE / "bead_on_helix.yaml").read_text())
+        text = (HERE / "helix_pair.yaml").read_text()
+        text = text.replace("  right:\n", "  fly: {type: flywheel, parameters: {inertia: 1}, coordinates: [w]}\n  right:\n")
+        text = text.replace("effects:\n", "constraints:\n  left_cx: w - s1\neffects:\n")
+        name, both = "left_cx", ("'left.cx'", "'left_cx'", "'mu_left_cx'")
+    path = tmp_path / "clash.yaml"
+    path.write_text(text)
+    result = CliRunner().invoke(main, ["derive", str(path), "--reactions", "--format", "json"])
+    assert result.exit_code == 1, result.output
+    line = next(i for i, ln in enumerate(text.splitlines(), 1) if ln.startswith(f"  {name}:"))
+    assert f"clash.yaml:{line}:3:" in result.output and all(b in result.output for b in both), result.output
+    assert "hint: rename one of them" in result.output and "Traceback" not in result.output
+    fixed = text.replace(f"  {name}:", f"  {name}_:")
+    path.write_text(fixed)
+    result = CliRunner().invoke(main, ["derive", str(path), "--reactions", "--format", "json"])
+    assert result.exit_code == 0, result.output
+    reactions = json.loads(result.stdout)["reactions"]
+    names = list(reactions["expressions"]) if "expressions" in reactions else reactions["linear_system"]["unknowns"]
+    assert len(names) == len(set(names)) and f"mu_{name}_" in names, names

@@ -16,7 +16,7 @@ import sympy
 
 from ..components import REGISTRY
 from ..components.base import in_world
-from ..core.constraints import Constraint
+from ..core.constraints import Constraint, multiplier_name
 from ..core.known_system import KnownSystem, ParameterInfo
 from ..core.primitive import Part, Primitive, part_from_component
 from ..core.symbols import TIME, symbol, velocity_symbol
@@ -247,6 +247,24 @@ class _Loader:
             return False
         return True
 
+    def _multiplier_clashes(self, constraints, carried) -> None:
+        """Two constraints whose multipliers get one name (a joint `B`'s `B.x` and a constraint
+        `B_x` are both `mu_B_x`) would be one entry of the reactions: refused, naming both."""
+        seen: dict[str, Constraint] = {}
+        own = {id(c) for c in carried}
+        for c in constraints:
+            name = multiplier_name(c.name)
+            first = seen.setdefault(name, c)
+            if first is c:
+                continue
+            here = next((x for x in (c, first) if id(x) not in own), None)
+            key = None if here is None else (here.name if f"constraint:{here.name}" in self.locations
+                                             else here.name.rsplit(".", 1)[0])
+            self.error(self.locations.get(f"constraint:{key}", self.root), f"constraints '{first.name}' and "
+                       f"'{c.name}' have the same multiplier name '{name}' in the reactions",
+                       "rename one of them (a joint `B` names its equations `B.x`, `B.y`, whose multipliers "
+                       "are `mu_B_x`, `mu_B_y`)")
+
     # --------------------------------------------------------------- build
     def build(self) -> Model:
         root = self.root
@@ -288,6 +306,7 @@ class _Loader:
         implicit = None
         if constrained:
             constraints = (read_constraints(self, cnode, primitive) if cnode is not None else []) + carried
+            self._multiplier_clashes(constraints, carried)
             y = self._intermediate(root.get("connection"), primitive, coords)
         else:
             y = coords
