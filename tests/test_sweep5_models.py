@@ -820,3 +820,38 @@ def test_constraints_whose_multipliers_share_a_name_are_refused(tmp_path, where)
     reactions = json.loads(result.stdout)["reactions"]
     names = list(reactions["expressions"]) if "expressions" in reactions else reactions["linear_system"]["unknowns"]
     assert len(names) == len(set(names)) and f"mu_{name}_" in names, names
+
+
+def test_auto_coordinates_switching_in_space_follow_the_same_motion(tmp_path):
+    """The spinning frame with `coordinates: auto` (psi and xb picked; the bead's line turns, so
+    the choice switches between xb and yb): the run records its switches, keeps the energy and
+    the hand constraints, and follows the motion of the run with psi and zb listed."""
+    text = (HERE / "spinning_frame_slider.yaml").read_text().replace("coordinates: [psi, zb]", "coordinates: auto")
+    # the listed run's start (psi, zb and their rates held), given in full: auto holds other coordinates
+    ref = frame_reference(free=True)
+    values = {p.name: float(p.value) for p in derived("spinning_frame_slider.yaml").parameters}
+    pv = [values[n] for n in ref.params]
+    yv, ydv = ref.consistent([0.1, 0.3], [2.0, -0.3], FRAME_GUESS, pv)
+    start = ", ".join([f"{s.name}: {float(v)!r}" for s, v in zip(ref.y, yv)]
+                      + [f"{s.name}_dot: {float(v)!r}" for s, v in zip(ref.y, ydv)])
+    old = "initial: {psi: 0.1, zb: 0.3, xb: 0.2, yb: 0.1, psi_dot: 2.0, zb_dot: -0.3}"
+    assert old in text
+    text = text.replace(old, "initial: {" + start + "}")
+    auto = tmp_path / "auto.yaml"
+    auto.write_text(text)
+    tables = []
+    for path in (auto, HERE / "spinning_frame_slider.yaml"):
+        out = tmp_path / f"{path.stem}.csv"
+        result = CliRunner().invoke(main, ["simulate", str(path), "--scene", "free", "--t", "3", "--dt", "0.5",
+                                           "-o", str(out)])
+        assert result.exit_code == 0, result.output
+        tables.append(np.genfromtxt(out, names=True, delimiter=",", comments="#"))
+    switches = json.loads((tmp_path / "auto.json").read_text())["coordinate_switches"]
+    assert len(switches) >= 2, switches
+    ours, listed = tables
+    for name in ("psi", "xb", "yb", "zb"):
+        assert np.allclose(ours[name], listed[name], rtol=1e-7, atol=1e-7), name
+    energy = ours["total_energy"]
+    assert np.ptp(energy) < 1e-8 * max(1.0, np.max(np.abs(energy)))
+    residual = [np.array(ref.fg(0.0, *[row[s.name] for s in ref.y], *np.zeros(4), *pv), dtype=float) for row in ours]
+    assert np.max(np.abs(residual)) < 1e-9
