@@ -803,7 +803,8 @@ def test_constraints_whose_multipliers_share_a_name_are_refused(tmp_path, where)
     else:
         (tmp_path / "bead_on_helix.yaml").write_text((HERE / "bead_on_helix.yaml").read_text())
         text = (HERE / "helix_pair.yaml").read_text()
-        text = text.replace("  right:\n", "  fly: {type: flywheel, parameters: {inertia: 1}, coordinates: [w]}\n  right:\n")
+        fly = "  fly: {type: flywheel, parameters: {inertia: 1}, coordinates: [w]}\n"
+        text = text.replace("  right:\n", fly + "  right:\n")
         text = text.replace("effects:\n", "constraints:\n  left_cx: w - s1\neffects:\n")
         name, both = "left_cx", ("'left.cx'", "'left_cx'", "'mu_left_cx'")
     path = tmp_path / "clash.yaml"
