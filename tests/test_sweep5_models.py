@@ -1,15 +1,21 @@
 """Fifth robustness sweep: models of kinds the first four sweeps did not cover
-(tests/models/sweep5/): a free `planar_body` with points of its own (linearized by hand),
-`rod`s with `axis: down` and an off-axis peg, a disc rolling inside a ring (its rim on a
-spring), particles on a line, in the plane and in space tied across their worlds, names
-other tools reserve (`nan`, `E`, `oo`, `zoo`, `Abs`, `double`, `main`, `q`, `param`), closed
-loops in space (a bead on a line turning with a turntable, a bead on a line fixed in a
-spinning `rigid_body3d`), a body on a ball joint given by the connection with
-`derive --reactions` in space, and a known system nested three levels deep with parameter
-overrides, selected by scenes for `codegen --lang c` and `--lang python`.
+(tests/models/sweep5/): a free `planar_body` with points of its own (linearized by hand, at an
+equilibrium and at a given point with inputs in time), `rod`s with `axis: down` and an
+off-axis peg, a disc rolling inside a ring (its rim on a spring), particles on a line, in the
+plane and in space tied across their worlds, names other tools reserve (`nan`, `E`, `oo`,
+`zoo`, `Abs`, `double`, `main`, `q`, `param`; also `linearize --symbolic`), closed loops in
+space (a bead on a line turning with a turntable, a bead on a line fixed in a spinning
+`rigid_body3d`, a bead on a helix given through definitions, that helix reused twice as a
+placed known system), `coordinates: auto` switching in space, a body on a ball joint given by
+the connection with `derive --reactions` and `simulate --reactions` in space, and a known
+system of known systems with parameter overrides (also in t), selected by scenes for
+`codegen --lang c`, `--lang python` and `simulate`.
 
 Each is checked against a derivation written here in plain sympy (never with kronsub), with
-the reference helpers of the earlier sweeps.
+the reference helpers of the earlier sweeps: Lagrange's equations of a hand ``T`` and ``V``,
+virtual power over the bodies, Lagrange multipliers on the full coordinates for closed loops.
+The defects this sweep found have their tests at the end (and in the linearize test of the
+turntable).
 """
 from __future__ import annotations
 
