@@ -45,6 +45,11 @@ class Constraint:
     source: str = ""
 
 
+def multiplier_name(constraint: str) -> str:
+    """The name of a constraint's multiplier among the reactions: ``mu_B_x`` for ``B.x``."""
+    return f"mu_{constraint.replace('.', '_')}"
+
+
 @dataclass(frozen=True)
 class ImplicitSubspace:
     """The implicit part of a derived system: what its named intermediates mean.

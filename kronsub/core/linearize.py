@@ -306,7 +306,9 @@ def _solve_equilibrium(evaluate: _Evaluator, values: dict, q, free, r) -> dict:
     x0 = np.array([values[s] for s in free], dtype=float)
     if not np.all(np.isfinite(fun(x0))):
         raise LinearizationError(_unevaluable(r, q, values, evaluate.matrices[0]))
-    solution = least_squares(fun, x0, jac=jac, method="lm", xtol=1e-15, ftol=1e-15, gtol=1e-15)
+    # unit scaling: scaled by the Jacobian's column norms (scipy's default for "lm"), a coordinate the
+    # equilibrium does not fix, whose column is round-off (~1e-16) rather than 0, takes steps of ~1e15
+    solution = least_squares(fun, x0, jac=jac, method="lm", xtol=1e-15, ftol=1e-15, gtol=1e-15, x_scale=1.0)
     return at(solution.x)
 
 

@@ -189,5 +189,7 @@ def _equilibrium(reduced: _Reduced, qv, qdv, t: float, columns: list[int]) -> np
     if not np.all(np.isfinite(fun(x0))):
         raise LinearizationError("the equations cannot be evaluated at the initial values; give the "
                                  "operating point with --at NAME=VALUE")
-    solution = least_squares(fun, x0, jac=jac, method="lm", xtol=1e-15, ftol=1e-15, gtol=1e-15)
+    # unit scaling: scaled by the Jacobian's column norms (scipy's default for "lm"), a coordinate the
+    # equilibrium does not fix, whose column is round-off (~1e-16) rather than 0, takes steps of ~1e15
+    solution = least_squares(fun, x0, jac=jac, method="lm", xtol=1e-15, ftol=1e-15, gtol=1e-15, x_scale=1.0)
     return full(solution.x)

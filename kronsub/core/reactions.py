@@ -20,6 +20,7 @@ from __future__ import annotations
 import sympy
 
 from ..errors import KronsubError
+from .constraints import multiplier_name
 from .known_system import KnownSystem
 from .symbols import acceleration_symbol, velocity_symbol
 from .simplify import compact
@@ -111,7 +112,7 @@ def multiplier_system(system: KnownSystem) -> MultiplierSystem:
         i = index[d]
         r = sum((imp.metric[i, b] * yddot[c] for b, c in enumerate(y) if imp.metric[i, b] != 0), sympy.Integer(0))
         rows.append(sympy.sympify(r + imp.velocity_terms[i] - imp.forces[i]).xreplace(ydot))
-    names = [f"mu_{c.name.replace('.', '_')}" for c in imp.constraints]
+    names = [multiplier_name(c.name) for c in imp.constraints]
     return MultiplierSystem(names, imp.jacobian_dependent.T, sympy.Matrix(rows))
 
 

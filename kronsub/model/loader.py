@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+import keyword
 import os
 import re
 from pathlib import Path
@@ -16,7 +17,7 @@ import sympy
 
 from ..components import REGISTRY
 from ..components.base import in_world
-from ..core.constraints import Constraint
+from ..core.constraints import Constraint, multiplier_name
 from ..core.known_system import KnownSystem, ParameterInfo
 from ..core.primitive import Part, Primitive, part_from_component
 from ..core.symbols import TIME, free_symbols_of, symbol, velocity_symbol
@@ -36,6 +37,8 @@ TOP_LEVEL = ("name", "description", "parameters", "components", "coordinates", "
 _UNKNOWN_NAME = re.compile(r"unknown name '([^']+)'")
 IDENTIFIER = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")  # whole names only: fullmatch
 RESERVED = {"t", "pi"}
+# the kinds of names an expression may refer to (effects, scenes, constraints are only listed)
+NAMES_IN_EXPRESSIONS = ("parameter", "coordinate", "component", "point", "definition")
 OUTPUT_COLUMNS = ("kinetic_energy", "potential_energy", "total_energy")
 """Columns of a trajectory beside the state (``kronsub/simulation/table.py``): a coordinate of
 one of these names would be written twice and lost from the DataFrame."""
@@ -233,11 +236,35 @@ class _Loader:
         if name in RESERVED:
             self.error(loc, f"{what} name '{name}' is reserved", "'t' is time and 'pi' is the constant")
             return False
+        if keyword.iskeyword(name) and what in NAMES_IN_EXPRESSIONS:
+            # an expression is read as Python syntax, where a keyword is no name: declared, it
+            # could never be used (`lambda` in the connection, `None` in a force)
+            self.error(loc, f"{what} name '{name}' is a reserved word, which expressions cannot use",
+                       f"rename it, e.g. '{name}_'")
+            return False
         if what == "coordinate" and name in OUTPUT_COLUMNS:
             self.error(loc, f"{what} name '{name}' is the name of a column `simulate` writes",
                        f"rename it: beside the state, the trajectory has the columns {', '.join(OUTPUT_COLUMNS)}")
             return False
         return True
+
+    def _multiplier_clashes(self, constraints, carried) -> None:
+        """Two constraints whose multipliers get one name (a joint `B`'s `B.x` and a constraint
+        `B_x` are both `mu_B_x`) would be one entry of the reactions: refused, naming both."""
+        seen: dict[str, Constraint] = {}
+        own = {id(c) for c in carried}
+        for c in constraints:
+            name = multiplier_name(c.name)
+            first = seen.setdefault(name, c)
+            if first is c:
+                continue
+            here = next((x for x in (c, first) if id(x) not in own), None)
+            key = None if here is None else (here.name if f"constraint:{here.name}" in self.locations
+                                             else here.name.rsplit(".", 1)[0])
+            self.error(self.locations.get(f"constraint:{key}", self.root), f"constraints '{first.name}' and "
+                       f"'{c.name}' have the same multiplier name '{name}' in the reactions",
+                       "rename one of them (a joint `B` names its equations `B.x`, `B.y`, whose multipliers "
+                       "are `mu_B_x`, `mu_B_y`)")
 
     # --------------------------------------------------------------- build
     def build(self) -> Model:
@@ -280,6 +307,7 @@ class _Loader:
         implicit = None
         if constrained:
             constraints = (read_constraints(self, cnode, primitive) if cnode is not None else []) + carried
+            self._multiplier_clashes(constraints, carried)
             y = self._intermediate(root.get("connection"), primitive, coords)
         else:
             y = coords
