@@ -451,6 +451,9 @@ class _Builder:
     def _constant(self, node: ast.Constant, depth: int) -> _Value:
         value = node.value
         if isinstance(value, bool) or value is None:
+            if str(value) in self.names:  # declared (a parameter `None`): Python's syntax reads a constant
+                self.fail(node, f"'{value}' is a reserved word and cannot be used as a name",
+                          f"rename it, e.g. '{value}_'")
             self.fail(node, f"'{value}' is not allowed", "an expression must be a number: use 1 or 0")
         if isinstance(value, int):
             number = sympy.Integer(value)

@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import dataclasses
 import functools
-import keyword
 import os
 import re
 from pathlib import Path
@@ -37,8 +36,6 @@ TOP_LEVEL = ("name", "description", "parameters", "components", "coordinates", "
 _UNKNOWN_NAME = re.compile(r"unknown name '([^']+)'")
 IDENTIFIER = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")  # whole names only: fullmatch
 RESERVED = {"t", "pi"}
-# the kinds of names an expression may refer to (effects, scenes, constraints are only listed)
-NAMES_IN_EXPRESSIONS = ("parameter", "coordinate", "component", "point", "definition")
 OUTPUT_COLUMNS = ("kinetic_energy", "potential_energy", "total_energy")
 """Columns of a trajectory beside the state (``kronsub/simulation/table.py``): a coordinate of
 one of these names would be written twice and lost from the DataFrame."""
@@ -235,12 +232,6 @@ class _Loader:
             return False
         if name in RESERVED:
             self.error(loc, f"{what} name '{name}' is reserved", "'t' is time and 'pi' is the constant")
-            return False
-        if keyword.iskeyword(name) and what in NAMES_IN_EXPRESSIONS:
-            # an expression is read as Python syntax, where a keyword is no name: declared, it
-            # could never be used (`lambda` in the connection, `None` in a force)
-            self.error(loc, f"{what} name '{name}' is a reserved word, which expressions cannot use",
-                       f"rename it, e.g. '{name}_'")
             return False
         if what == "coordinate" and name in OUTPUT_COLUMNS:
             self.error(loc, f"{what} name '{name}' is the name of a column `simulate` writes",
