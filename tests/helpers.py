@@ -140,3 +140,21 @@ def generated_numpy_module(tmp_path, model_path):
     mod = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(mod)
     return mod
+
+
+def sweep_models(folder):
+    """``(loaded, derived)``: a sweep folder's models by file name, each loaded and derived
+    once per test process."""
+    from functools import lru_cache
+
+    import kronsub
+
+    @lru_cache(maxsize=None)
+    def loaded(name):
+        return kronsub.load(folder / name)
+
+    @lru_cache(maxsize=None)
+    def derived(name):
+        return loaded(name).derive()
+
+    return loaded, derived

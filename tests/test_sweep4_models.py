@@ -25,7 +25,7 @@ import sympy as sp
 from click.testing import CliRunner
 
 import kronsub
-from helpers import Rx, Ry, Rz, generated_numpy_module
+from helpers import Rx, Ry, Rz, generated_numpy_module, sweep_models
 from kronsub.cli import main
 from test_sweep3_models import accelerations_agree, kinetic, walk_independent
 from test_sweep_models import (Constrained, compare_explicit, dots, lagrange, largest_difference, rate_of,
@@ -36,15 +36,7 @@ t = sp.Symbol("t")
 S = sp.symbols
 TOL = 1e-10
 
-
-@lru_cache(maxsize=None)
-def loaded(name):
-    return kronsub.load(HERE / name)
-
-
-@lru_cache(maxsize=None)
-def derived(name):
-    return loaded(name).derive()
+loaded, derived = sweep_models(HERE)
 
 
 def down(a):

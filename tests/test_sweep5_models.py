@@ -31,10 +31,9 @@ import pytest
 import sympy as sp
 from click.testing import CliRunner
 
-import kronsub
-from helpers import Rx, Ry, Rz, generated_numpy_module
+from helpers import Rx, Ry, Rz, generated_numpy_module, sweep_models
 from kronsub.cli import main
-from test_sweep3_models import accelerations_agree, kinetic
+from test_sweep3_models import accelerations_agree, kinetic, walk_independent as walk
 from test_sweep_models import (Constrained, compare_explicit, dots, lagrange, largest_difference, rate_of,
                                virtual_power, worst)
 
@@ -43,15 +42,7 @@ t = sp.Symbol("t")
 S = sp.symbols
 TOL = 1e-10
 
-
-@lru_cache(maxsize=None)
-def loaded(name):
-    return kronsub.load(HERE / name)
-
-
-@lru_cache(maxsize=None)
-def derived(name):
-    return loaded(name).derive()
+loaded, derived = sweep_models(HERE)
 
 
 def scene(name, which):
@@ -260,25 +251,6 @@ def test_a_python_keyword_as_a_name_is_an_error_where_an_expression_uses_it(tmp_
 # ------------------------------------------------------------------------------------------
 # Space: closed loops (a moving line, a slider on a turning body), a ball joint's reactions
 # ------------------------------------------------------------------------------------------
-
-def walk(system, ref, start, guess, seed, *, step=0.1, states=8):
-    """Pairs (kronsub, reference) of ``Mbar, hbar, fbar`` and accelerations (compiled C) along a
-    random walk of the independent coordinates (kept on one branch)."""
-    num = system.numeric()
-    pv = [num.parameters[name] for name in ref.params]
-    rng = np.random.default_rng(seed)
-    q, pairs = np.array(start, dtype=float), []
-    for _ in range(states):
-        q = q + rng.uniform(-step, step, len(q))
-        u, tt = rng.uniform(-2, 2, len(q)), rng.uniform(0, 2)
-        yv, ydv = ref.consistent(q, u, guess, pv)
-        guess = yv
-        Mb, hb, fb, acc = ref.evaluate(tt, yv, ydv, pv)
-        st = np.concatenate([q, u])
-        pairs += [(num.mass_matrix(q), Mb), (num.velocity_terms(st), hb), (num.forces(tt, st), fb),
-                  (num.rhs(tt, st)[len(q):], acc)]
-    return pairs
-
 
 @lru_cache(maxsize=None)
 def turntable_reference(free=False):
