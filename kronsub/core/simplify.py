@@ -208,8 +208,9 @@ def _key(expr: sympy.Expr) -> _Key:
 
 
 _PRINTER = [LexStrPrinter()]
-PRINTED = 100_000
-"""Printed subexpressions remembered at most between entries (candidate forms share most)."""
+REMEMBERED = 100_000
+"""Printed subexpressions, and ``factor_terms`` results, remembered at most between entries
+(candidate forms share most of them)."""
 
 
 _FACTORED_TERMS: dict = {}
@@ -217,7 +218,7 @@ _FACTORED_TERMS: dict = {}
 
 def _factor_terms(expr: sympy.Expr) -> sympy.Expr:
     """``sympy.factor_terms(expr)``, remembered: an entry's candidates repeat between entries."""
-    if len(_FACTORED_TERMS) > PRINTED:
+    if len(_FACTORED_TERMS) > REMEMBERED:
         _FACTORED_TERMS.clear()
     hit = _FACTORED_TERMS.get((type(expr), expr))
     if hit is None:
@@ -227,7 +228,7 @@ def _factor_terms(expr: sympy.Expr) -> sympy.Expr:
 
 def _printed_length(expr: sympy.Expr) -> int:
     """``len(sympy.sstr(expr, order="lex"))``, by one printer that remembers what it printed."""
-    if len(_PRINTER[0].__dict__.get("_printed", ())) > PRINTED:
+    if len(_PRINTER[0].__dict__.get("_printed", ())) > REMEMBERED:
         _PRINTER[0] = LexStrPrinter()
     return len(_PRINTER[0].doprint(expr))
 

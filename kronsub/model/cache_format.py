@@ -179,6 +179,7 @@ def _nodes(table) -> list:
         if not isinstance(node, list) or not node or not isinstance(node[0], str):
             _fail("malformed node")
         head = node[0]
+        commutative = None  # a sum's or product's, from its terms'
         if head in ("Add", "Mul", "Pow") or head in FUNCTIONS:
             try:
                 args = [built[i] for i in node[1:] if type(i) is int and 0 <= i]
@@ -191,9 +192,6 @@ def _nodes(table) -> list:
                     _fail(f"malformed {head}")
                 commutative = all(commutes[i] for i in node[1:])
                 e = (add_new if head == "Add" else mul_new)(args, commutative)
-                built.append(e)
-                commutes.append(commutative)
-                continue
             elif head == "Pow":
                 e = sympy.Pow(*args, evaluate=False) if len(args) == 2 else _fail("malformed Pow")
             else:
@@ -215,7 +213,7 @@ def _nodes(table) -> list:
         else:
             _fail(f"node head {head!r} is not admitted")
         built.append(e)
-        commutes.append(bool(e.is_commutative))
+        commutes.append(bool(e.is_commutative) if commutative is None else commutative)
     return built
 
 
