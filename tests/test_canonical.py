@@ -152,3 +152,17 @@ def test_kinetic_energy_is_the_expanded_quadratic_form(monkeypatch, tmp_path):
         whole = sympy.expand((qd.T * system.mass_matrix * qd)[0, 0] / 2)
         assert sympy.srepr(system.kinetic_energy) == sympy.srepr(whole), path
         assert system.kinetic_energy is system.kinetic_energy
+
+
+def test_function_values_are_the_objects_sympy_builds_unevaluated():
+    """`canonical.function` skips sympy's per-value set of argument counts, nothing else."""
+    from kronsub.core.canonical import function
+    from kronsub.model.cache_format import FUNCTIONS
+
+    for name, cls in FUNCTIONS.items():
+        args = (q1 - q2, a) if name == "atan2" else (q1 - q2 / 3,)
+        ours, theirs = function(cls, *args), cls(*args, evaluate=False)
+        assert type(ours) is type(theirs) and ours == theirs and hash(ours) == hash(theirs)
+        assert sympy.srepr(ours) == sympy.srepr(theirs) and ours.nargs == theirs.nargs
+        assert ours.is_real == theirs.is_real and ours.free_symbols == theirs.free_symbols
+    assert function(sympy.cos, -q1) != sympy.cos(-q1)  # unevaluated, as asked: the sign stays

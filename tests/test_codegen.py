@@ -293,3 +293,17 @@ def test_header_indexes_the_state_and_parameters_and_links_from_cpp(tmp_path):
                    check=True)
     shown = subprocess.run([str(out / "main")], capture_output=True, text=True, check=True).stdout.split()
     assert [int(v) for v in shown] == list(range(len(names))) + list(range(len(system.parameters)))
+
+
+def test_remembered_rewritings_give_what_cse_basic_gives():
+    """`numeric._Rewritings` (one per model, shared by the blocks) is ``cse``'s "basic"."""
+    from kronsub.emitters.numeric import _Rewritings
+
+    x, y, z = sympy.symbols("x y z")
+    exprs = [2 * x * sympy.cos(y - z) - 2 * x * sympy.sin(z), -x - y + (z - x) ** 2, x * y - x * z,
+             sympy.sqrt(-y + z) * (x - y), 3 * x + 3 * y]
+    rewritings = _Rewritings()
+    for _ in range(2):  # the second round is read from memory
+        ours = sympy.cse(exprs, optimizations=rewritings.optimizations(), order="canonical")
+        assert ours == sympy.cse(exprs, optimizations="basic", order="canonical")
+    assert len(rewritings.done) == len(exprs)

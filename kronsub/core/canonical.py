@@ -32,6 +32,22 @@ def _atomic(factor: sympy.Expr) -> bool:
     return factor.is_Symbol or (isinstance(factor, sympy.Function) and factor.func is not sympy.exp)
 
 
+@functools.lru_cache(maxsize=None)
+def _nargs(cls: type) -> sympy.Set:
+    """The ``nargs`` set sympy gives every value of ``cls`` (made once, not per value)."""
+    return cls(*[sympy.Dummy() for _ in range(min(cls.nargs) if isinstance(cls.nargs, sympy.FiniteSet)
+                                                else 1)], evaluate=False).nargs
+
+
+def function(cls: type, *args: sympy.Expr) -> sympy.Expr:
+    """``cls(*args, evaluate=False)`` for a sympy ``Function`` class: the same object, built
+    without sympy remaking the set of admitted argument counts for every value (a hundred
+    microseconds each)."""
+    value = sympy.Basic.__new__(cls, *args)
+    value.nargs = _nargs(cls)
+    return value
+
+
 class _Unkeyed(Exception):
     """An expression whose canonical order the tuple key does not reproduce."""
 

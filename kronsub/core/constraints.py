@@ -28,6 +28,7 @@ from typing import Mapping
 import numpy as np
 import sympy
 
+from .derivative import derivative
 from .known_system import KnownSystem
 from .simplify import compact
 from .symbols import symbol, velocity_symbol
@@ -138,13 +139,13 @@ def project_implicit(system: KnownSystem, independent, dependent, constraints, *
     # quadratic term of the second derivative of g: -(ydot^T H ydot), with ydot in Lambda
     quadratic = []
     for c in constraints:
-        grad = [sympy.diff(c.expression, q) for q in y]
+        grad = [derivative(c.expression, q) for q in y]
         total = sympy.Integer(0)
         for a, qa in enumerate(y):
             if grad[a] == 0:
                 continue
             for b, qb in enumerate(y):
-                h = sympy.diff(grad[a], qb)
+                h = derivative(grad[a], qb)
                 if h != 0:
                     total += h * ydot_list[a] * ydot_list[b]
         quadratic.append(-total)

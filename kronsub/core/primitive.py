@@ -12,6 +12,7 @@ from typing import Mapping
 import sympy
 
 from ..components.base import Body, Component
+from .derivative import derivative
 from .symbols import velocity_symbol
 
 
@@ -29,7 +30,7 @@ def christoffel_terms(metric: sympy.Matrix, coordinates, velocities) -> sympy.Ma
         total = sympy.Integer(0)
         for b in range(n):
             for c in range(n):
-                term = sympy.diff(metric[a, b], coordinates[c]) - sympy.diff(metric[b, c], coordinates[a]) / 2
+                term = derivative(metric[a, b], coordinates[c]) - derivative(metric[b, c], coordinates[a]) / 2
                 if term != 0:
                     total += term * velocities[b] * velocities[c]
         h.append(sympy.expand(total))
@@ -120,7 +121,7 @@ class Primitive:
     def gradient(self, expr: sympy.Expr) -> list[sympy.Expr]:
         """``d expr / d x^a`` over the primitive coordinates."""
         present = sympy.sympify(expr).free_symbols
-        return [sympy.diff(expr, q) if q in present else sympy.Integer(0) for q in self.coordinates]
+        return [derivative(expr, q) if q in present else sympy.Integer(0) for q in self.coordinates]
 
     def rate(self, expr: sympy.Expr) -> sympy.Expr:
         """Time derivative of a function of the coordinates: ``(d expr/d x^a) xdot^a``."""

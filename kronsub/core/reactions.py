@@ -21,6 +21,7 @@ import sympy
 
 from ..errors import KronsubError
 from .constraints import multiplier_name
+from .derivative import derivative
 from .known_system import KnownSystem
 from .symbols import acceleration_symbol, velocity_symbol
 from .simplify import compact
@@ -66,7 +67,7 @@ def _connection_reactions(system: KnownSystem):
     xddot = []
     for a in range(len(x)):
         total = sum((C[a, j] * qdd[j] for j in range(len(q))), sympy.Integer(0))
-        total += sum((sympy.diff(xdot[a], c) * v for c, v in zip(q, qd)), sympy.Integer(0))
+        total += sum((derivative(xdot[a], c) * v for c, v in zip(q, qd)), sympy.Integer(0))
         xddot.append(total)
     sub = {xa: connection[xa] for xa in x}
     sub.update({velocity_symbol(xa): xdot[a] for a, xa in enumerate(x)})

@@ -28,6 +28,7 @@ import sympy
 
 from ..errors import Location, ModelError, Problem
 from . import canonical
+from .derivative import derivative
 
 MAX_EXPANDED_POWER = 8
 """Highest integer power of a sum that is expanded (``(x + y)**8``); a higher one is an error."""
@@ -448,7 +449,7 @@ class TrigAlgebra:
         key = (atom, coordinate)
         hit = self._atom_diff.get(key)
         if hit is None:
-            d = sympy.diff(self._atoms[atom], self.coordinates[coordinate])
+            d = derivative(self._atoms[atom], self.coordinates[coordinate])
             hit = self.from_expr(d if self.prepare is None else self.prepare(d))
             self._atom_diff[key] = hit
         return hit
@@ -479,9 +480,9 @@ class TrigAlgebra:
                 if _could_extract_minus_sign(arg):
                     arg, sign = -arg, -1
                 if kind == COS:
-                    hit = sympy.cos(arg, evaluate=False)
+                    hit = canonical.function(sympy.cos, arg)
                 else:
-                    hit = sign * sympy.sin(arg, evaluate=False)
+                    hit = sign * canonical.function(sympy.sin, arg)
             self._trig_cache[key] = hit
         return hit
 

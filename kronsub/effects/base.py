@@ -12,6 +12,7 @@ from dataclasses import dataclass
 
 import sympy
 
+from ..core.derivative import derivative
 from ..core.primitive import Primitive
 
 
@@ -60,7 +61,7 @@ class Effect:
         if type(self).generalized_force is not Effect.generalized_force:
             return None
         V = moved(self.potential(primitive))
-        return [-sympy.diff(V, q) for q in coordinates]
+        return [-derivative(V, q) for q in coordinates]
 
 
 def dot(u, v) -> sympy.Expr:
@@ -69,4 +70,4 @@ def dot(u, v) -> sympy.Expr:
 
 def virtual_work_force(primitive: Primitive, point, vector) -> list[sympy.Expr]:
     """Generalized force of a force ``vector`` applied at ``point``: ``F . dp/dx^a``."""
-    return [sympy.expand(dot(vector, [sympy.diff(c, q) for c in point])) for q in primitive.coordinates]
+    return [sympy.expand(dot(vector, [derivative(c, q) for c in point])) for q in primitive.coordinates]

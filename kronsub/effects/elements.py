@@ -6,6 +6,7 @@ from dataclasses import dataclass
 import sympy
 
 from ..components.base import common_world
+from ..core.derivative import derivative
 from .base import Effect
 
 
@@ -79,6 +80,6 @@ class TorsionalDamper(Effect):
         from ..core.symbols import velocity_symbol
 
         angle, c = moved(self.angle), moved(self.coefficient)
-        gradient = [sympy.diff(angle, q) for q in coordinates]
+        gradient = [derivative(angle, q) for q in coordinates]
         rate = sympy.Add(*[g * velocity_symbol(q) for g, q in zip(gradient, coordinates)])
         return [sympy.expand(-c * rate * g) for g in gradient]

@@ -5,6 +5,7 @@ from dataclasses import dataclass
 
 import sympy
 
+from ..core.derivative import derivative
 from .base import Effect, virtual_work_force
 
 
@@ -52,7 +53,7 @@ class Torque(Effect):
     def generalized_force(self, primitive):
         body = primitive.part(self.part).bodies[0]
         omega = angular_velocity(primitive, body.rotation)
-        return [sympy.expand(sum(t * sympy.diff(w, v) for t, w in zip(self.value, omega)))
+        return [sympy.expand(sum(t * derivative(w, v) for t, w in zip(self.value, omega)))
                 for v in primitive.velocities]
 
 

@@ -10,12 +10,14 @@ Common subexpressions are eliminated per function, deterministically.
 from __future__ import annotations
 
 import functools
+import importlib
 import math
 import re
 from dataclasses import dataclass
 
 import sympy
 
+from ..core.derivative import derivative
 from ..core.known_system import KnownSystem
 from ..core.symbols import TIME
 
@@ -211,10 +213,38 @@ def _more_nodes_than(exprs, limit: int) -> bool:
     return False
 
 
-def _block(targets: list[str], exprs: list[sympy.Expr], prefix: str, coordinates=(), guarded: bool = False) -> Block:
+class _Rewritings:
+    """``cse``'s "basic" rewritings (negations pulled out of sums, then ``factor_terms``), each
+    expression rewritten once per model: the blocks share most of their entries."""
+
+    def __init__(self):
+        self.done: dict = {}
+
+    def __call__(self, expr: sympy.Expr) -> sympy.Expr:
+        hit = self.done.get(expr)
+        if hit is None:
+            hit = expr
+            for rewrite, _ in _BASIC:
+                hit = rewrite(hit)
+            self.done[expr] = hit
+        return hit
+
+    def optimizations(self) -> list:
+        """The same steps as ``optimizations="basic"``, the rewritings remembered."""
+        return [(self, _BASIC[0][1])]
+
+
+_BASIC = importlib.import_module("sympy.simplify.cse_main").basic_optimizations
+assert [post for _, post in _BASIC][1:] == [None]  # only the first step is undone afterwards
+
+
+def _block(targets: list[str], exprs: list[sympy.Expr], prefix: str, coordinates=(), guarded: bool = False,
+           rewritings: _Rewritings | None = None) -> Block:
     exprs = _single_angles(exprs, coordinates, guarded)
     symbols = sympy.numbered_symbols(prefix)
-    basic = "basic" if not _more_nodes_than(exprs, BASIC_NODES) else None
+    basic = None
+    if not _more_nodes_than(exprs, BASIC_NODES):
+        basic = (rewritings or _Rewritings()).optimizations()
     replacements, reduced = sympy.cse(exprs, symbols=symbols, optimizations=basic, order="canonical")
     return Block(tuple(replacements), tuple(zip(targets, reduced)))
 
@@ -259,6 +289,7 @@ def prepare(system: KnownSystem, source: str = "", outputs=None, guarded_angles:
             expr = expr.replace(sympy.DiracDelta, lambda *args: sympy.Integer(0))
         return expr.xreplace(slots)
 
+    block = functools.partial(_block, rewritings=_Rewritings())  # the blocks share their entries' rewritings
     M = system.mass_matrix
     r = system.forces - system.velocity_terms
     targets = [f"M[{i * n + j}]" for i in range(n) for j in range(n)]
@@ -266,26 +297,32 @@ def prepare(system: KnownSystem, source: str = "", outputs=None, guarded_angles:
     r_targets = [f"r[{i}]" for i in range(n)]
     qs = tuple(q_slots.values())
     constants = _Constants(list(p_slots.values()))
-    equations = _block(targets + r_targets, [constants(e) for e in exprs + [slot(e) for e in r]], "x", qs,
+    equations = block(targets + r_targets, [constants(e) for e in exprs + [slot(e) for e in r]], "x", qs,
                        guarded_angles)
-    mass = _block(targets, exprs, "x", qs)
-    velocity_terms = _block([f"h[{i}]" for i in range(n)], [slot(e) for e in system.velocity_terms], "x", qs)
-    forces = _block([f"f[{i}]" for i in range(n)], [slot(e) for e in system.forces], "x", qs)
+    mass = block(targets, exprs, "x", qs)
+    velocity_terms = block([f"h[{i}]" for i in range(n)], [slot(e) for e in system.velocity_terms], "x", qs)
+    forces = block([f"f[{i}]" for i in range(n)], [slot(e) for e in system.forces], "x", qs)
 
     qd = list(system.velocities)
     dTdq = []
+    depends = [[M[i, j].free_symbols for j in range(n)] for i in range(n)]
+    derivatives: dict = {}  # (entry, q): the symmetric entries are differentiated once
     for k, qk in enumerate(system.coordinates):
         total = sympy.Integer(0)
         for i in range(n):
             for j in range(n):
-                d = sympy.diff(M[i, j], qk)
+                if qk not in depends[i][j]:
+                    continue
+                d = derivatives.get((M[i, j], qk))
+                if d is None:
+                    d = derivatives[M[i, j], qk] = derivative(M[i, j], qk)
                 if d != 0:
                     total += d * qd[i] * qd[j] / 2
         dTdq.append(total + system.forces[k])
-    canonical = _block(r_targets, [constants(slot(e)) for e in dTdq], "x", qs, guarded_angles)
-    prepare = _block(*constants.definitions(), "c")
+    canonical = block(r_targets, [constants(slot(e)) for e in dTdq], "x", qs, guarded_angles)
+    prepare = block(*constants.definitions(), "c")
 
-    potential = _block(["V"], [slot(system.potential_energy)], "x", qs) if energies else Block((), ())
+    potential = block(["V"], [slot(system.potential_energy)], "x", qs) if energies else Block((), ())
     labels = sorted(system.points) if with_points else []
     pos_targets, pos_exprs, dims = [], [], []
     offset = 0
@@ -296,13 +333,13 @@ def prepare(system: KnownSystem, source: str = "", outputs=None, guarded_angles:
             pos_targets.append(f"out[{offset}]")
             pos_exprs.append(slot(c))
             offset += 1
-    positions = _block(pos_targets, pos_exprs, "x", qs)
+    positions = block(pos_targets, pos_exprs, "x", qs)
     implicit = None
     if system.implicit is not None:
         from .numeric_implicit import implicit_code
 
-        implicit = implicit_code(system, slot, lambda t, e, c: _block(t, e, "x", qs))
-        canonical = _block(r_targets, [sympy.Integer(0)] * n, "x", qs)  # unused: no canonical form here
+        implicit = implicit_code(system, slot, lambda t, e, c: block(t, e, "x", qs))
+        canonical = block(r_targets, [sympy.Integer(0)] * n, "x", qs)  # unused: no canonical form here
     return NumericModel(
         name=system.name,
         source=source,

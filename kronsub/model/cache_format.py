@@ -22,6 +22,7 @@ from sympy.matrices.dense import MutableDenseMatrix
 from sympy.matrices.immutable import ImmutableDenseMatrix
 
 from ..components.base import Body
+from ..core import canonical
 from ..core.constraints import Constraint, ImplicitSubspace
 from ..core.known_system import KnownSystem, ParameterInfo, ProjectedEffect, Transition
 
@@ -195,10 +196,9 @@ def _nodes(table) -> list:
             elif head == "Pow":
                 e = sympy.Pow(*args, evaluate=False) if len(args) == 2 else _fail("malformed Pow")
             else:
-                try:
-                    e = FUNCTIONS[head](*args, evaluate=False)
-                except (TypeError, ValueError) as exc:
-                    _fail(f"malformed {head}: {exc}")
+                if not FUNCTIONS[head]._valid_nargs(len(args)):
+                    _fail(f"malformed {head}: {len(args)} arguments")
+                e = canonical.function(FUNCTIONS[head], *args)
         elif head == "S" and len(node) >= 2:
             e = _symbol(node)
         elif head == "N" and len(node) == 2:
