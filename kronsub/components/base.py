@@ -51,13 +51,16 @@ class Body:
 
     ``centre`` is the world position of its mass centre, ``rotation`` the
     world-from-body rotation matrix (None for a particle), ``inertia`` the
-    inertia about the centre in body axes (1x1 for planar bodies).
+    inertia about the centre in body axes (1x1 for planar bodies). ``name`` is empty for
+    a component's own body; a known system names each of its bodies by the component it
+    came from (``lower``, or ``pair.left`` a level down), so a model using it can say which.
     """
 
     mass: sympy.Expr
     centre: tuple[sympy.Expr, ...]
     rotation: sympy.Matrix | None = None
     inertia: sympy.Matrix | None = None
+    name: str = ""
 
 
 @dataclass(frozen=True)

@@ -63,6 +63,12 @@ class Part:
         return tuple(velocity_symbol(q) for q in self.coordinates)
 
 
+def body_label(part: Part, body: Body) -> str:
+    """A component's body is named as the component; a known system's as ``part.component``
+    (dotted further for a known system inside it)."""
+    return f"{part.name}.{body.name}" if body.name else part.name
+
+
 def part_from_component(name: str, component: Component) -> Part:
     """Place a library component in a primitive."""
     coords = component.coordinate_symbols
@@ -117,6 +123,10 @@ class Primitive:
     def points(self) -> dict[str, tuple[sympy.Expr, ...]]:
         """Every named point, as ``part.point``."""
         return {f"{part.name}.{name}": pos for part in self.parts for name, pos in part.points.items()}
+
+    def bodies_by_name(self) -> dict[str, tuple[Part, int]]:
+        """Every body, by the name a model gives it (`body_label`): its part and its place there."""
+        return {body_label(part, body): (part, i) for part in self.parts for i, body in enumerate(part.bodies)}
 
     def gradient(self, expr: sympy.Expr) -> list[sympy.Expr]:
         """``d expr / d x^a`` over the primitive coordinates."""

@@ -21,7 +21,7 @@ import sympy
 from ..components.base import Body, in_world
 from .inverse_trig import Radicands
 from .known_system import KnownSystem, ParameterInfo, ProjectedEffect, Transition
-from .primitive import Primitive
+from .primitive import Primitive, body_label
 from .simplify import compact
 from .symbols import velocity_symbol
 from .trigpoly import TrigAlgebra, TrigPoly
@@ -167,7 +167,8 @@ def project_inertia(sub: Subspace, primitive: Primitive, *, name: str = "",
               for part in primitive.parts for label, pos in part.points.items()}
     bodies = tuple(
         Body(body.mass, placed(body.centre),
-             None if body.rotation is None else body.rotation.applyfunc(sub.moved), body.inertia)
+             None if body.rotation is None else body.rotation.applyfunc(sub.moved), body.inertia,
+             name=body_label(part, body))
         for part in primitive.parts for body in part.bodies)
     return KnownSystem(
         name=name,

@@ -41,7 +41,8 @@ def angular_velocity(primitive, rotation: sympy.Matrix):
 
 @dataclass(frozen=True)
 class Torque(Effect):
-    """A torque on the (first) body of a part: ``f_a = tau . d omega / d xdot^a``.
+    """A torque on a body of a part (``body``: its place among the part's bodies, which a
+    known system has several of): ``f_a = tau . d omega / d xdot^a``.
 
     In the plane ``value`` is one expression (counter-clockwise); in space a
     world-frame vector of three.
@@ -49,9 +50,10 @@ class Torque(Effect):
 
     part: str = ""
     value: tuple[sympy.Expr, ...] = ()
+    body: int = 0
 
     def generalized_force(self, primitive):
-        body = primitive.part(self.part).bodies[0]
+        body = primitive.part(self.part).bodies[self.body]
         omega = angular_velocity(primitive, body.rotation)
         return [sympy.expand(sum(t * derivative(w, v) for t, w in zip(self.value, omega)))
                 for v in primitive.velocities]

@@ -29,7 +29,7 @@ import sympy
 from ..components.base import common_world, in_world
 from ..core.constraints import Constraint, ConstraintFailure, NumericConstraints, closed_forms
 from ..errors import close_matches
-from .effects import zero_vector
+from .effects import named_body, zero_vector
 from .source import Node
 
 JOINTS = ("pin", "point_on_line", "slider")
@@ -215,14 +215,17 @@ def _slider(loader, cname, node, primitive, names):
     loader.check_keys(node, ("point", "body", "through", "direction"), f"slider '{cname}'")
     p = _point(loader, node.get("point"), primitive, cname, names)
     bnode = node.get("body")
-    part = None
-    if bnode is None or not isinstance(bnode.value, str) or bnode.value not in [x.name for x in primitive.parts]:
+    part = index = None
+    bodies = primitive.bodies_by_name()
+    if bnode is None or not isinstance(bnode.value, str) or not any(
+            label == bnode.value or label.startswith(bnode.value + ".") for label in bodies):
         loader.error(bnode if bnode is not None else node, f"slider '{cname}' needs `body:` a component",
-                     close_matches(str(bnode.value if bnode is not None else ""), [x.name for x in primitive.parts]))
-    else:
-        part = primitive.part(bnode.value)
-        if not part.bodies or part.bodies[0].rotation is None or part.dimension not in (2, 3):
-            loader.error(bnode, f"slider '{cname}': component '{part.name}' is not a rigid body",
+                     close_matches(str(bnode.value if bnode is not None else ""),
+                                   [x.name for x in primitive.parts] + [label for label in bodies if "." in label]))
+    elif (found := named_body(loader, bnode, primitive, f"slider '{cname}'")) is not None:
+        part, index = found
+        if part.bodies[index].rotation is None or part.dimension not in (2, 3):
+            loader.error(bnode, f"slider '{cname}': component '{bnode.value}' is not a rigid body",
                          "use a rod, disc, planar_body, pinned_rod or rigid_body3d")
             part = None
     if part is None:
@@ -246,7 +249,7 @@ def _slider(loader, cname, node, primitive, names):
         loader.error(node.get("point"), f"slider '{cname}': the point is in space but '{part.name}' is planar",
                      "slide on a rigid_body3d, or use a planar point")
         return None
-    body = part.bodies[0]
+    body = part.bodies[index]
     R = body.rotation
     q = sympy.Matrix(body.centre) + R * sympy.Matrix(through)
     v = sympy.Matrix(in_world(p, dim)) - q

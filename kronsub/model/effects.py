@@ -182,18 +182,36 @@ def _force(loader, ename, spec, primitive):
     return Force(ename, point=point, vector=vector)
 
 
+def named_body(loader, node: Node, primitive, what: str):
+    """The body ``node`` names, as ``(part, index)``: a component's own (``lower``), or one of a
+    known system's by its dotted name (``s.lower``, ``pair.left.pole``; ``s`` alone when it has
+    just one body). None after reporting why: unknown, or a known system of several bodies."""
+    name = str(node.value)
+    bodies = primitive.bodies_by_name()
+    if name in bodies:
+        return bodies[name]
+    inner = [label for label in bodies if label.startswith(name + ".")]
+    if len(inner) == 1:
+        return bodies[inner[0]]
+    if inner:
+        loader.error(node, f"{what}: component '{name}' is a known system of {len(inner)} bodies",
+                     "say which one: " + ", ".join(f"`{label}`" for label in inner))
+        return None
+    names = [p.name for p in primitive.parts if p.bodies] + [label for label in bodies if "." in label]
+    loader.error(node, f"unknown component '{name}'", close_matches(name, names))
+    return None
+
+
 def _torque(loader, ename, spec, primitive):
     cnode = _required(loader, spec, "component", ename, "e.g. `component: wheel`")
     vnode = _required(loader, spec, "value", ename, "e.g. `value: tau`")
     if cnode is None or vnode is None:
         return None
-    names = [p.name for p in primitive.parts]
-    if str(cnode.value) not in names:
-
-        loader.error(cnode, f"unknown component '{cnode.value}'", close_matches(str(cnode.value), names))
+    found = named_body(loader, cnode, primitive, f"torque '{ename}'")
+    if found is None:
         return None
-    part = primitive.part(str(cnode.value))
-    if not part.bodies or part.bodies[0].rotation is None:
+    part, index = found
+    if part.bodies[index].rotation is None:
         loader.error(cnode, f"component '{cnode.value}' has no rotating body to take a torque",
                      "apply a torque to a rod, disc, body, pinned rod or flywheel")
         return None
@@ -201,12 +219,12 @@ def _torque(loader, ename, spec, primitive):
     if value is None:
         return None
     value = value if isinstance(value, tuple) else (value,)
-    axes = 1 if part.bodies[0].rotation.shape == (2, 2) else 3
+    axes = 1 if part.bodies[index].rotation.shape == (2, 2) else 3
     if len(value) != axes:
         loader.error(vnode, f"torque '{ename}' on '{part.name}' needs {axes} component(s), found {len(value)}",
                      "one value about the plane's normal for planar bodies; [x, y, z] in space")
         return None
-    return Torque(ename, part=part.name, value=value)
+    return Torque(ename, part=part.name, value=value, body=index)
 
 
 def _spring(loader, ename, spec, primitive, damper=False):

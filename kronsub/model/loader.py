@@ -957,7 +957,7 @@ def known_system_part(name: str, system: KnownSystem, overrides: dict, renames: 
 
     bodies = tuple(Body(s(b.mass), tuple(s(c) for c in b.centre),
                         b.rotation.xreplace(sub) if b.rotation is not None else None,
-                        b.inertia.xreplace(sub) if b.inertia is not None else None) for b in system.bodies)
+                        b.inertia.xreplace(sub) if b.inertia is not None else None, b.name) for b in system.bodies)
     return Part(
         name=name,
         coordinates=tuple(sub.get(q, q) for q in coordinates),
@@ -992,7 +992,7 @@ def placed(part: Part, origin) -> Part:
     for label, grad in part.translations.items():
         changes.append(sympy.Add(*[g * o for g, o in zip(grad, origin)]))
         potentials[label] = sympy.expand(potentials.get(label, sympy.Integer(0)) + changes[-1])
-    bodies = tuple(Body(b.mass, shift(b.centre), b.rotation, b.inertia) for b in part.bodies)
+    bodies = tuple(Body(b.mass, shift(b.centre), b.rotation, b.inertia, b.name) for b in part.bodies)
     return dataclasses.replace(part, points={k: shift(v) for k, v in part.points.items()}, bodies=bodies,
                                potentials=potentials, potential=sympy.expand(part.potential + sympy.Add(*changes)))
 
