@@ -1,0 +1,122 @@
+"""Sixth robustness sweep: models of kinds the first five sweeps did not cover
+(tests/models/sweep6/): a double pendulum of particles on massless rods, an elastic
+spherical pendulum under scenes, a cart carrying two pendulums from points of its own.
+
+Each is checked against a derivation written here in plain sympy (never with kronsub), with
+the reference helpers of the earlier sweeps: Lagrange's equations of a hand ``T`` and ``V``,
+virtual power over the bodies, virtual work for the non-conservative loads. ``Mbar``,
+``hbar``, ``fbar`` (and ``T``, ``V``) at random states and randomly perturbed parameters.
+"""
+from __future__ import annotations
+
+from functools import lru_cache
+from pathlib import Path
+
+import numpy as np
+import pytest
+import sympy as sp
+from click.testing import CliRunner
+
+from helpers import Rx, Ry, Rz, generated_numpy_module, sweep_models
+from kronsub.cli import main
+from test_sweep3_models import accelerations_agree, kinetic
+from test_sweep5_models import add, damper_rows, down, gradient_force, norm, spring_V, work_rows
+from test_sweep_models import (Constrained, compare_explicit, dots, lagrange, largest_difference, rate_of,
+                               virtual_power, worst)
+
+HERE = Path(__file__).resolve().parent / "models" / "sweep6"
+t = sp.Symbol("t")
+S = sp.symbols
+R = sp.Rational
+TOL = 1e-10
+
+loaded, derived = sweep_models(HERE)
+
+
+def scene(name, which):
+    from kronsub.model.scenes import derive_scene, select_scene
+
+    model = loaded(name)
+    return derive_scene(model, select_scene(model, which))
+
+
+def compare_energies(system, T, V, seed, *, fixed=None):
+    return largest_difference(system, [system.kinetic_energy, system.potential_energy], [sp.sympify(T), sp.sympify(V)],
+                              seed, states=6, fixed=fixed)
+
+
+# ------------------------------------------------------------------------------------------
+# The plane: particles on massless rods, two pendulums on one cart
+# ------------------------------------------------------------------------------------------
+
+def test_double_pendulum_of_particles_on_massless_rods():
+    """Massless pinned_rods carry only geometry: ``T`` is the bobs' alone, the spring hangs from
+    the middle of the upper (massless) rod."""
+    q1, q2 = q = list(S("q1 q2"))
+    m1, m2, L1, L2, k, l0, c, F0, w, g = S("m1 m2 L1 L2 k l0 c F0 w g")
+    b1 = L1 * down(q1)
+    b2 = b1 + L2 * down(q2)
+    T = m1 * rate_of(b1, q).dot(rate_of(b1, q)) / 2 + m2 * rate_of(b2, q).dot(rate_of(b2, q)) / 2
+    V = g * (m1 * b1[1] + m2 * b2[1]) + spring_V(k, b2, L1 / 2 * down(q1), l0)
+    Q = add(damper_rows(c, q2 - q1, q), work_rows(sp.Matrix([F0 * sp.cos(w * t), 0]), b2, q))
+    system = derived("particle_double_pendulum.yaml")
+    assert compare_explicit(system, lagrange(T, V, q, Q), 601) < TOL
+    assert compare_energies(system, T, V, 601) < TOL
+
+
+@lru_cache(maxsize=None)
+def elastic_reference(damper=True, swirl=True):
+    r, th, ph = q = list(S("r th ph"))
+    m, k, l0, c, P, w, g = S("m k l0 c P w g")
+    p = r * sp.Matrix([sp.sin(th) * sp.cos(ph), sp.sin(th) * sp.sin(ph), sp.cos(th)])
+    v = rate_of(p, q)
+    T = m * v.dot(v) / 2
+    V = m * g * p[2] + k * (r - l0) ** 2 / 2  # r > 0: the spring's length
+    Q = add(damper_rows(c if damper else 0, r, q),
+            work_rows(sp.Matrix([P * sp.cos(w * t), P * sp.sin(w * t), 0]) if swirl else sp.zeros(3, 1), p, q))
+    return q, T, V, Q
+
+
+def positive_r(rng):
+    return {"r": rng.uniform(0.3, 2), "th": rng.uniform(0.2, 2.9)}
+
+
+def test_elastic_spherical_pendulum():
+    q, T, V, Q = elastic_reference()
+    system = derived("elastic_spherical_pendulum.yaml")
+    assert compare_explicit(system, lagrange(T, V, q, Q), 602, fixed=positive_r) < TOL
+    assert compare_energies(system, T, V, 602, fixed=positive_r) < TOL
+
+
+@pytest.mark.parametrize("which, damper, swirl", [("undamped", False, True), ("free", False, False)])
+def test_elastic_spherical_pendulum_scenes(which, damper, swirl):
+    """A scene's equations are the full ones with its switched-off effects' parameters at zero
+    (the hand ones with c = 0, and P = 0 for `free`), and they no longer contain them."""
+    q, T, V, Q = elastic_reference(damper, swirl)
+    system = scene("elastic_spherical_pendulum.yaml", which)
+    gone = {"c"} if swirl else {"c", "P", "w"}
+    used = {s.name for e in (system.mass_matrix, system.velocity_terms, system.forces) for s in e.free_symbols}
+    assert not gone & used and not gone & {p.name for p in system.parameters}
+    assert compare_explicit(system, lagrange(T, V, q, Q), 603, fixed=positive_r) < TOL
+
+
+@lru_cache(maxsize=None)
+def cart_twin_reference():
+    s, p1, p2 = q = list(S("s p1 p2"))
+    mc, Jc, a, hh, m1, m2, L1, L2, kt, kw, lw, cp, F0, w, g = S("mc Jc a h m1 m2 L1 L2 kt kw lw cp F0 w g")
+    cart = sp.Matrix([s, 0])
+    left, right = cart + sp.Matrix([-a, -hh]), cart + sp.Matrix([a, -hh])
+    c1, c2 = left + L1 / 2 * down(p1), right + L2 / 2 * down(p2)
+    M, h = virtual_power([(mc, cart, 0, Jc), (m1, c1, p1, m1 * L1 ** 2 / 12), (m2, c2, p2, m2 * L2 ** 2 / 12)], q)
+    V = (g * (m1 * c1[1] + m2 * c2[1]) + spring_V(kt, left + L1 * down(p1), right + L2 * down(p2), 2 * a)
+         + spring_V(kw, sp.Matrix([-R(3, 2), 0]), cart, lw))
+    rows = add(damper_rows(cp, p1, q), work_rows(sp.Matrix([F0 * sp.sin(w * t), 0]), cart, q))
+    return q, M, h, gradient_force(V, q, rows), V
+
+
+def test_cart_with_two_pendulums_on_points_of_its_own():
+    q, M, h, f, V = cart_twin_reference()
+    system = derived("cart_twin_pendulums.yaml")
+    fixed = lambda rng: {"s": rng.uniform(-1, 1)}  # noqa: E731  (the wall spring stays stretched one way)
+    assert compare_explicit(system, (M, h, f), 604, fixed=fixed) < TOL
+    assert compare_energies(system, kinetic(M, q), V, 604, fixed=fixed) < TOL
