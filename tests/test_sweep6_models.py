@@ -120,3 +120,36 @@ def test_cart_with_two_pendulums_on_points_of_its_own():
     fixed = lambda rng: {"s": rng.uniform(-1, 1)}  # noqa: E731  (the wall spring stays stretched one way)
     assert compare_explicit(system, (M, h, f), 604, fixed=fixed) < TOL
     assert compare_energies(system, kinetic(M, q), V, 604, fixed=fixed) < TOL
+
+
+# ------------------------------------------------------------------------------------------
+# Space: a Furuta pendulum of two rigid_body3d's placed by the connection
+# ------------------------------------------------------------------------------------------
+
+@lru_cache(maxsize=None)
+def furuta_reference():
+    al, th = q = list(S("al th"))
+    ma, r, Ax, Ay, Az, mp, l, Bx, By, Bz, Bxy, u, w, cp, k, g = S("ma r Ax Ay Az mp l Bx By Bz Bxy u w cp k g")
+    Ra, Rp = Rz(al), Rz(al) * Rx(th)
+    arm = Ra * sp.Matrix([r / 2, 0, 0])
+    pend = Ra * sp.Matrix([r, 0, 0]) + Rp * sp.Matrix([0, 0, -l / 2])
+    tip = pend + Rp * sp.Matrix([0, 0, -l / 2])
+    inertia = sp.Matrix([[Bx, Bxy, 0], [Bxy, By, 0], [0, 0, Bz]])
+    M, h = virtual_power([(ma, arm, Ra, sp.diag(Ax, Ay, Az)), (mp, pend, Rp, inertia)], q)
+    V = g * (ma * arm[2] + mp * pend[2]) + spring_V(k, tip, sp.Matrix([R(3, 10), R(1, 10), -R(3, 5)]))
+    rows = add(damper_rows(cp, th, q), [u * sp.cos(w * t), 0])  # the arm turns about z: torque . d omega/d al_dot
+    return q, M, h, gradient_force(V, q, rows), V
+
+
+def test_furuta_pendulum():
+    q, M, h, f, V = furuta_reference()
+    system = derived("furuta.yaml")
+    assert compare_explicit(system, (M, h, f), 605) < TOL
+    assert compare_energies(system, kinetic(M, q), V, 605) < TOL
+
+
+def test_furuta_pendulum_generated_c_and_numpy(tmp_path):
+    """The accelerations of the compiled C right-hand side and of `codegen --lang python`."""
+    _, M, h, f, _ = furuta_reference()
+    mod = generated_numpy_module(tmp_path, HERE / "furuta.yaml")
+    assert accelerations_agree(derived("furuta.yaml"), M, h, f, 606, numpy_module=mod) < TOL
