@@ -153,3 +153,49 @@ def test_furuta_pendulum_generated_c_and_numpy(tmp_path):
     _, M, h, f, _ = furuta_reference()
     mod = generated_numpy_module(tmp_path, HERE / "furuta.yaml")
     assert accelerations_agree(derived("furuta.yaml"), M, h, f, 606, numpy_module=mod) < TOL
+
+
+# ------------------------------------------------------------------------------------------
+# One pendulum in two sets of coordinates: absolute and relative angles
+# ------------------------------------------------------------------------------------------
+
+def triple_parts(a1, a2, a3, q):
+    """``M, h, f`` in ``q`` of the triple pendulum whose absolute angles are ``a1, a2, a3`` (in ``q``)."""
+    m1, m2, m3, L1, L2, L3, I3, k2, k3, c3, T0, w, P, g = S("m1 m2 m3 L1 L2 L3 I3 k2 k3 c3 T0 w P g")
+    c1, e1 = L1 / 2 * down(a1), L1 * down(a1)
+    c2, e2 = e1 + L2 / 2 * down(a2), e1 + L2 * down(a2)
+    c3p, e3 = e2 + L3 / 2 * down(a3), e2 + L3 * down(a3)
+    M, h = virtual_power([(m1, c1, a1, m1 * L1 ** 2 / 12), (m2, c2, a2, m2 * L2 ** 2 / 12), (m3, c3p, a3, I3)], q)
+    V = g * (m1 * c1[1] + m2 * c2[1] + m3 * c3p[1]) + k2 * (a2 - a1 - R(1, 10)) ** 2 / 2 + k3 * (a3 - a2) ** 2 / 2
+    rows = add(damper_rows(c3, a3 - a2, q), [T0 * sp.sin(w * t) * a1.diff(v) for v in q],
+               work_rows(sp.Matrix([P, -P / 2]), e3, q))
+    return M, h, gradient_force(V, q, rows), V
+
+
+def test_triple_pendulum_in_absolute_and_in_relative_angles():
+    """Each against the hand equations, and the two against each other through the change of
+    variables ``a = J q`` (``J`` constant): ``Mbar_q = J^T Mbar_a J``, ``hbar_q = J^T hbar_a``,
+    ``fbar_q = J^T fbar_a``, the group property (13) of two subspaces of one primitive."""
+    a = list(S("a1 a2 a3"))
+    q = list(S("q1 q2 q3"))
+    absolute, relative = derived("triple_absolute.yaml"), derived("triple_relative.yaml")
+    M, h, f, V = triple_parts(*a, a)
+    assert compare_explicit(absolute, (M, h, f), 607) < TOL
+    assert compare_energies(absolute, kinetic(M, a), V, 607) < TOL
+    M, h, f, V = triple_parts(q[0], q[0] + q[1], q[0] + q[1] + q[2], q)
+    assert compare_explicit(relative, (M, h, f), 608) < TOL
+    assert compare_energies(relative, kinetic(M, q), V, 608) < TOL
+    # kronsub's absolute equations carried to the relative angles
+    J = sp.Matrix([[1, 0, 0], [1, 1, 0], [1, 1, 1]])
+    by_name = {s.name: s for e in (absolute.mass_matrix, absolute.velocity_terms, absolute.forces)
+               for s in e.free_symbols}
+    qs = {n: sp.Symbol(n) for n in ("q1", "q2", "q3", "q1_dot", "q2_dot", "q3_dot")}
+    rel = J * sp.Matrix([qs["q1"], qs["q2"], qs["q3"]])
+    reld = J * sp.Matrix([qs["q1_dot"], qs["q2_dot"], qs["q3_dot"]])
+    change = {by_name[n]: rel[i] for i, n in enumerate(("a1", "a2", "a3")) if n in by_name}
+    change.update({by_name[n]: reld[i] for i, n in enumerate(("a1_dot", "a2_dot", "a3_dot")) if n in by_name})
+    carried = [J.T * absolute.mass_matrix.xreplace(change) * J, J.T * absolute.velocity_terms.xreplace(change),
+               J.T * absolute.forces.xreplace(change)]
+    ours = [relative.mass_matrix, relative.velocity_terms, relative.forces]
+    plain = lambda e: e.xreplace({s: sp.Symbol(s.name) for s in e.free_symbols})  # noqa: E731
+    assert largest_difference(relative, [plain(e) for e in ours], [plain(e) for e in carried], 609) < TOL
