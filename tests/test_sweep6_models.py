@@ -199,3 +199,52 @@ def test_triple_pendulum_in_absolute_and_in_relative_angles():
     ours = [relative.mass_matrix, relative.velocity_terms, relative.forces]
     plain = lambda e: e.xreplace({s: sp.Symbol(s.name) for s in e.free_symbols})  # noqa: E731
     assert largest_difference(relative, [plain(e) for e in ours], [plain(e) for e in carried], 609) < TOL
+
+
+# ------------------------------------------------------------------------------------------
+# Coupled oscillators in a ring: beads on a hoop
+# ------------------------------------------------------------------------------------------
+
+RING = {"R": 0.5, "m1": 1.0, "m2": 0.5, "m3": 0.8, "m4": 1.2, "k": 6, "l0": 0.6, "c": 0.3}  # the model's values
+
+
+@lru_cache(maxsize=None)
+def ring_reference(damper=True):
+    u = list(S("u1 u2 u3 u4"))
+    Rh, k, l0, c = S("R k l0 c")
+    m = S("m1 m2 m3 m4")
+    p = [Rh * sp.Matrix([sp.cos(a), sp.sin(a)]) for a in u]
+    T = sum(mi * Rh ** 2 * ud ** 2 / 2 for mi, ud in zip(m, dots(u)))
+    stiffness = [k, 2 * k, k, k / 2]
+    V = sum(spring_V(ki, p[i], p[(i + 1) % 4], l0) for i, ki in enumerate(stiffness))
+    Q = damper_rows(c if damper else 0, norm(p[1] - p[0]), u)
+    return u, T, V, Q
+
+
+def test_beads_on_a_hoop_in_a_ring_of_springs():
+    u, T, V, Q = ring_reference()
+    system = derived("bead_ring.yaml")
+    apart = lambda rng: {n: a + rng.uniform(-0.4, 0.4) for n, a in zip(("u1", "u2", "u3", "u4"), (0, 1.6, 3.1, 4.7))}  # noqa: E731
+    assert compare_explicit(system, lagrange(T, V, u, Q), 610, fixed=apart) < TOL
+    assert compare_energies(system, T, V, 610, fixed=apart) < TOL
+
+
+def test_ring_free_scene_keeps_energy_and_angular_momentum(tmp_path):
+    """`simulate --scene free`: the energies in the CSV are the hand ``T`` and ``V`` of each row,
+    and the total energy and ``sum m_i R^2 u_i_dot`` (the springs are central in the ring's
+    plane) stay constant."""
+    out = tmp_path / "ring.csv"
+    result = CliRunner().invoke(main, ["simulate", str(HERE / "bead_ring.yaml"), "--scene", "free", "-o", str(out)])
+    assert result.exit_code == 0, result.output
+    table = np.genfromtxt(out, names=True, delimiter=",", comments="#")
+    assert len(table) == 7  # the scene's t_end and dt
+    u, T, V, _ = ring_reference(damper=False)
+    values = {s: RING[s.name] for s in (T + V).free_symbols if s.name in RING}
+    fT, fV = (sp.lambdify([*u, *dots(u)], e.xreplace(values), "numpy") for e in (T, V))
+    state = [table[n] for n in ("u1", "u2", "u3", "u4", "u1_dot", "u2_dot", "u3_dot", "u4_dot")]
+    assert np.allclose(table["kinetic_energy"], fT(*state), rtol=1e-12, atol=1e-12)
+    assert np.allclose(table["potential_energy"], fV(*state), rtol=1e-12, atol=1e-12)
+    energy = table["total_energy"]
+    momentum = sum(RING[f"m{i}"] * RING["R"] ** 2 * table[f"u{i}_dot"] for i in range(1, 5))
+    assert np.max(np.abs(energy - energy[0])) < 1e-7 and np.max(np.abs(momentum - momentum[0])) < 1e-7
+    assert abs(momentum[0] - (1.0 * 2.0 - 0.8) * 0.25) < 1e-12  # the initial velocities
