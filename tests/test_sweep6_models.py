@@ -248,3 +248,41 @@ def test_ring_free_scene_keeps_energy_and_angular_momentum(tmp_path):
     momentum = sum(RING[f"m{i}"] * RING["R"] ** 2 * table[f"u{i}_dot"] for i in range(1, 5))
     assert np.max(np.abs(energy - energy[0])) < 1e-7 and np.max(np.abs(momentum - momentum[0])) < 1e-7
     assert abs(momentum[0] - (1.0 * 2.0 - 0.8) * 0.25) < 1e-12  # the initial velocities
+
+
+# ------------------------------------------------------------------------------------------
+# A rope over a peg: the swinging Atwood machine, across a line and the plane
+# ------------------------------------------------------------------------------------------
+
+@lru_cache(maxsize=None)
+def atwood_reference(rope=True):
+    r, a = q = list(S("r a"))
+    m, M, L, b, g = S("m M L b g")
+    bob = r * sp.Matrix([sp.cos(a), sp.sin(a)])
+    T = m * rate_of(bob, q).dot(rate_of(bob, q)) / 2 + M * rate_of(r - L, q) ** 2 / 2
+    V = m * g * bob[1] + M * g * (r - L)
+    return q, T, V, [-b * dots(q)[0] if rope else 0, 0]
+
+
+def test_swinging_atwood_machine():
+    """Two gravities, one per world (the counterweight's line is vertical: its direction ``[-1]``)."""
+    q, T, V, Q = atwood_reference()
+    system = derived("swinging_atwood.yaml")
+    positive = lambda rng: {"r": rng.uniform(0.2, 2.5)}  # noqa: E731
+    assert compare_explicit(system, lagrange(T, V, q, Q), 611, fixed=positive) < TOL
+    assert compare_energies(system, T, V, 611, fixed=positive) < TOL
+
+
+def test_swinging_atwood_free_scene_keeps_energy(tmp_path):
+    """`simulate --scene free` (gauss4, fixed step 0.01): the hand energy of every row is the first's."""
+    out = tmp_path / "atwood.csv"
+    result = CliRunner().invoke(main, ["simulate", str(HERE / "swinging_atwood.yaml"), "--scene", "free",
+                                       "-o", str(out)])
+    assert result.exit_code == 0, result.output
+    table = np.genfromtxt(out, names=True, delimiter=",", comments="#")
+    q, T, V, _ = atwood_reference(rope=False)
+    values = {s: v for s, v in zip(S("m M L g"), (1.0, 1.3, 3, 9.81))}  # the model's values
+    energy = sp.lambdify([*q, *dots(q)], (T + V).xreplace(values), "numpy")(*(table[n] for n in ("r", "a", "r_dot", "a_dot")))
+    assert len(table) == 201 and np.min(table["r"]) > 0.3
+    assert np.allclose(table["total_energy"], energy, rtol=1e-12, atol=1e-12)
+    assert np.max(np.abs(energy - energy[0])) < 1e-6
