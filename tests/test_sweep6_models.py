@@ -286,3 +286,26 @@ def test_swinging_atwood_free_scene_keeps_energy(tmp_path):
     assert len(table) == 201 and np.min(table["r"]) > 0.3
     assert np.allclose(table["total_energy"], energy, rtol=1e-12, atol=1e-12)
     assert np.max(np.abs(energy - energy[0])) < 1e-6
+
+
+# ------------------------------------------------------------------------------------------
+# A rolling wheel and a body driven against each other: the segway
+# ------------------------------------------------------------------------------------------
+
+def test_segway_motor_torques_act_and_react():
+    """One motor torque (a definition in the state and t) on the wheel and minus it on the body:
+    by virtual work ``tau (d wheel_angle - d th)``, ``wheel_angle = -x/Rw`` (rolling)."""
+    x, th = q = list(S("x th"))
+    Mw, Rw, mb, L, Ib, kp, kd, u0, cb, g = S("Mw Rw mb L Ib kp kd u0 cb g")
+    wheel_angle = -x / Rw
+    centre = sp.Matrix([x, Rw])
+    body = centre + L / 2 * down(th)
+    M, h = virtual_power([(Mw, centre, wheel_angle, Mw * Rw ** 2 / 2), (mb, body, th, Ib)], q)
+    V = g * (Mw * Rw + mb * body[1])
+    tau = kp * sp.sin(th) - kd * dots(q)[1] + u0 * sp.cos(3 * t)
+    rows = add([tau * (wheel_angle - th).diff(v) for v in q], damper_rows(cb, wheel_angle - th, q))
+    system = derived("segway.yaml")
+    f = gradient_force(V, q, rows)
+    assert compare_explicit(system, (M, h, f), 612) < TOL
+    assert compare_energies(system, kinetic(M, q), V, 612) < TOL
+    assert accelerations_agree(system, M, h, f, 612) < TOL
