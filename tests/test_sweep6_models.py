@@ -309,3 +309,81 @@ def test_segway_motor_torques_act_and_react():
     assert compare_explicit(system, (M, h, f), 612) < TOL
     assert compare_energies(system, kinetic(M, q), V, 612) < TOL
     assert accelerations_agree(system, M, h, f, 612) < TOL
+
+
+# ------------------------------------------------------------------------------------------
+# A closed loop across worlds: a slider-crank whose piston is a particle on a line
+# ------------------------------------------------------------------------------------------
+
+@lru_cache(maxsize=None)
+def slider_crank_reference():
+    th, rx, ry, ra, px = y = list(S("theta rx ry ra px"))
+    m1, m2, mp, r, L, e, k, l0, tau, P, g = params = S("m1 m2 mp r L e k l0 tau P g")
+    M = sp.diag(m1 * r ** 2 / 3, m2, m2, m2 * L ** 2 / 12, mp)
+    tip = sp.Matrix([r * sp.sin(th), e - r * sp.cos(th)])
+    half = L / 2 * sp.Matrix([sp.cos(ra), sp.sin(ra)])
+    centre = sp.Matrix([rx, ry])
+    g_ = [*(tip - (centre - half)), *(centre + half - sp.Matrix([px, 0]))]  # the line is the plane's x axis
+    V = g * (m1 * (e - r / 2 * sp.cos(th)) + m2 * ry) + k * (R(3, 2) - px - l0) ** 2 / 2  # the piston left of the wall
+    f = gradient_force(V, y, [tau, 0, 0, 0, -P * sp.sin(2 * t) ** 2])
+    return Constrained(y, M, sp.zeros(5, 1), f, g_, [th], params)
+
+
+SLIDER_GUESS = [0.5, 0.52, -0.06, -0.15, 0.91]
+
+
+def test_slider_crank_with_the_piston_on_a_line():
+    from test_sweep_models import walk_constrained
+
+    rows = walk_constrained(derived("slider_crank_line.yaml"), slider_crank_reference(), 0.5, SLIDER_GUESS, 613,
+                            step=0.4)
+    assert worst(p for row in rows for p in row) < TOL
+
+
+def test_slider_crank_derive_reactions_against_the_multipliers():
+    """`derive --reactions` prints the multipliers' linear system ``G_d^T mu = r`` in the named
+    intermediates; with the dependent coordinates, ``lambda = dy_d/dtheta`` and
+    ``gamma = yddot_d`` at ``theta_ddot = 0`` taken from the hand constraints, and ``theta_ddot``
+    from the multiplier solve, its solution is the hand multipliers of
+    ``M yddot + h = f + G^T mu``."""
+    import json
+
+    result = CliRunner().invoke(main, ["derive", str(HERE / "slider_crank_line.yaml"), "--reactions",
+                                       "--format", "json"])
+    assert result.exit_code == 0, result.output
+    system = json.loads(result.stdout)["reactions"]["linear_system"]
+    assert system["unknowns"] == ["mu_A_x", "mu_A_y", "mu_B_x", "mu_B_y"]
+    ref = slider_crank_reference()
+    y = ref.y
+    dependent = [y[i] for i in ref.dep]
+    names = {s.name: s for s in [*y, *dots(y), t, *S("theta_ddot m1 m2 mp r L e k l0 tau P g")]}
+    names.update({f"lambda_{d.name}_theta": sp.Symbol(f"lambda_{d.name}_theta") for d in dependent})
+    names.update({f"gamma_{d.name}": sp.Symbol(f"gamma_{d.name}") for d in dependent})
+    parse = lambda text: sp.sympify(text, locals=names)  # noqa: E731  (test code, not kronsub)
+    A = sp.Matrix([[parse(v) for v in row] for row in system["matrix"]])
+    b = sp.Matrix([parse(v) for v in system["right_hand_side"]])
+    pv = [0.6, 0.4, 0.5, 0.25, 0.8, 0.1, 15, 0.4, 0.6, 2, 9.81]  # the model's values, in ref.params order
+    rng = np.random.default_rng(614)
+    q, guess, pairs = 0.5, SLIDER_GUESS, []
+    for _ in range(6):
+        q += rng.uniform(-0.4, 0.4)
+        u, tt = rng.uniform(-3, 3), rng.uniform(0, 2)
+        yv, ydv = ref.consistent([q], [u], guess, pv)
+        guess = yv
+        a = (tt, *yv, *ydv, *pv)
+        M, h, f = (np.array(fn(*a), dtype=float).reshape(-1, 5) for fn in (ref.fM, ref.fh, ref.ff))
+        G, Gdy = np.array(ref.fG(*a), dtype=float), np.array(ref.fGd(*a), dtype=float).ravel()
+        K = np.block([[M, G.T], [G, np.zeros((4, 4))]])
+        sol = np.linalg.solve(K, np.concatenate([f.ravel() - h.ravel(), -Gdy]))
+        acc, mu = sol[0], -sol[5:]  # M yddot + G^T (-mu) = f - h
+        lam = -np.linalg.solve(G[:, ref.dep], G[:, ref.ind]).ravel()
+        gamma = -np.linalg.solve(G[:, ref.dep], Gdy)
+        values = {names[s.name]: v for s, v in zip(y, yv)}
+        values.update({names[s.name]: v for s, v in zip(dots(y), ydv)})
+        values.update({names[s.name]: v for s, v in zip(S("m1 m2 mp r L e k l0 tau P g"), pv)})
+        values.update({t: tt, names["theta_ddot"]: acc})
+        values.update({names[f"lambda_{d.name}_theta"]: v for d, v in zip(dependent, lam)})
+        values.update({names[f"gamma_{d.name}"]: v for d, v in zip(dependent, gamma)})
+        An, bn = (np.array(e.xreplace(values).evalf(), dtype=float) for e in (A, b))
+        pairs.append((np.linalg.solve(An, bn.ravel()), mu))
+    assert worst(pairs) < 1e-9
