@@ -49,19 +49,49 @@ def compare_energies(system, T, V, seed, *, fixed=None):
 # The plane: particles on massless rods, two pendulums on one cart
 # ------------------------------------------------------------------------------------------
 
+def particle_pendulum_parts(q1, q2, q, origin=(0, 0), heavier=1, push=True, damper=True):
+    """``T, V, Q`` rows (in ``q``) and the lower bob of particle_double_pendulum.yaml, hung at ``origin``."""
+    m1, m2, L1, L2, k, l0, c, F0, w, g = S("m1 m2 L1 L2 k l0 c F0 w g")
+    O = sp.Matrix(origin)
+    b1 = O + L1 * down(q1)
+    b2 = b1 + L2 * down(q2)
+    m2 = heavier * m2
+    T = m1 * rate_of(b1, q).dot(rate_of(b1, q)) / 2 + m2 * rate_of(b2, q).dot(rate_of(b2, q)) / 2
+    V = g * (m1 * b1[1] + m2 * b2[1]) + spring_V(k, b2, O + L1 / 2 * down(q1), l0)
+    Q = add(damper_rows(c if damper else 0, q2 - q1, q),
+            work_rows(sp.Matrix([F0 * sp.cos(w * t) if push else 0, 0]), b2, q))
+    return T, V, Q, b2
+
+
 def test_double_pendulum_of_particles_on_massless_rods():
     """Massless pinned_rods carry only geometry: ``T`` is the bobs' alone, the spring hangs from
     the middle of the upper (massless) rod."""
-    q1, q2 = q = list(S("q1 q2"))
-    m1, m2, L1, L2, k, l0, c, F0, w, g = S("m1 m2 L1 L2 k l0 c F0 w g")
-    b1 = L1 * down(q1)
-    b2 = b1 + L2 * down(q2)
-    T = m1 * rate_of(b1, q).dot(rate_of(b1, q)) / 2 + m2 * rate_of(b2, q).dot(rate_of(b2, q)) / 2
-    V = g * (m1 * b1[1] + m2 * b2[1]) + spring_V(k, b2, L1 / 2 * down(q1), l0)
-    Q = add(damper_rows(c, q2 - q1, q), work_rows(sp.Matrix([F0 * sp.cos(w * t), 0]), b2, q))
+    q = list(S("q1 q2"))
+    T, V, Q, _ = particle_pendulum_parts(*q, q)
     system = derived("particle_double_pendulum.yaml")
     assert compare_explicit(system, lagrange(T, V, q, Q), 601) < TOL
     assert compare_energies(system, T, V, 601) < TOL
+
+
+@lru_cache(maxsize=None)
+def twin_reference(quiet=False):
+    q = list(S("a1 a2 b1 b2"))
+    d, kc = S("d kc")
+    TL, VL, QL, left = particle_pendulum_parts(q[0], q[1], q, push=not quiet, damper=not quiet)
+    TR, VR, QR, right = particle_pendulum_parts(q[2], q[3], q, origin=(d, 0), heavier=2, push=False,
+                                                damper=not quiet)
+    V = VL + VR + spring_V(kc, left, right, d)
+    return q, TL + TR, V, add(QL, QR)
+
+
+@pytest.mark.parametrize("which", [None, "quiet"])
+def test_two_particle_pendulums_as_known_systems_placed_and_tied(which):
+    """particle_double_pendulum.yaml twice (one placed, overridden), and its scene without the
+    nested dampers and push: equal to the hand equations with those loads left out."""
+    q, T, V, Q = twin_reference(quiet=which == "quiet")
+    system = scene("twin_particle_pendulums.yaml", which) if which else derived("twin_particle_pendulums.yaml")
+    assert compare_explicit(system, lagrange(T, V, q, Q), 615) < TOL
+    assert compare_energies(system, T, V, 615) < TOL
 
 
 @lru_cache(maxsize=None)
