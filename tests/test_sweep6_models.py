@@ -22,7 +22,7 @@ from kronsub.cli import main
 from test_sweep3_models import accelerations_agree, kinetic
 from test_sweep5_models import add, damper_rows, down, gradient_force, norm, spring_V, work_rows
 from test_sweep_models import (Constrained, compare_explicit, dots, lagrange, largest_difference, rate_of,
-                               virtual_power, worst)
+                               virtual_power, world_angular_velocity, worst)
 
 HERE = Path(__file__).resolve().parent / "models" / "sweep6"
 t = sp.Symbol("t")
@@ -417,3 +417,29 @@ def test_slider_crank_derive_reactions_against_the_multipliers():
         An, bn = (np.array(e.xreplace(values).evalf(), dtype=float) for e in (A, b))
         pairs.append((np.linalg.solve(An, bn.ravel()), mu))
     assert worst(pairs) < 1e-9
+
+
+# ------------------------------------------------------------------------------------------
+# A top on a moving support: a cart on a line carrying a top in space
+# ------------------------------------------------------------------------------------------
+
+def test_heavy_top_on_a_sliding_base():
+    """The top's support moves with a coordinate (no prescribed motion): ``M`` couples ``s`` to
+    the angles; a torque vector in the angles by ``tau . d omega/d qdot``."""
+    s, psi, th, phi = q = list(S("s psi th phi"))
+    mc, m, hh, A, C, k, l0, c, u, F, g = S("mc m h A C k l0 c u F g")
+    Rt = Rz(psi) * Rx(th) * Rz(phi)
+    cup = sp.Matrix([s, 0, 0])
+    centre = cup + Rt * sp.Matrix([0, 0, hh])
+    rim = centre + Rt * sp.Matrix([R(1, 20), 0, R(1, 20)])
+    M, h = virtual_power([(mc, sp.Matrix([s])), (m, centre, Rt, sp.diag(A, A, C))], q)
+    V = m * g * centre[2] + k * (norm(sp.Matrix([s + 1])) - l0) ** 2 / 2
+    omega = world_angular_velocity(Rt, q)
+    figure = Rt * sp.Matrix([0, 0, 1])
+    rows = add(damper_rows(c, norm(sp.Matrix([s + 1])), q), [(u * figure).dot(omega.diff(v)) for v in dots(q)],
+               work_rows(sp.Matrix([0, F * sp.cos(5 * t), 0]), rim, q))
+    system = derived("top_on_sliding_base.yaml")
+    fixed = lambda rng: {"th": rng.uniform(0.2, 2.9)}  # noqa: E731  (Z-X-Z: singular at th = 0, pi)
+    f = gradient_force(V, q, rows)
+    assert compare_explicit(system, (M, h, f), 616, fixed=fixed) < TOL
+    assert compare_energies(system, kinetic(M, q), V, 616, fixed=fixed) < TOL
