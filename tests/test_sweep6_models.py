@@ -443,3 +443,48 @@ def test_heavy_top_on_a_sliding_base():
     f = gradient_force(V, q, rows)
     assert compare_explicit(system, (M, h, f), 616, fixed=fixed) < TOL
     assert compare_energies(system, kinetic(M, q), V, 616, fixed=fixed) < TOL
+
+
+# ------------------------------------------------------------------------------------------
+# A particle in space under a central potential and a magnetic field
+# ------------------------------------------------------------------------------------------
+
+@lru_cache(maxsize=None)
+def charge_reference(drag=True):
+    r, th, ph = q = list(S("r th ph"))
+    m, mu, eps, b, c = S("m mu eps b c")
+    p = r * sp.Matrix([sp.sin(th) * sp.cos(ph), sp.sin(th) * sp.sin(ph), sp.cos(th)])
+    v = rate_of(p, q)
+    T = m * v.dot(v) / 2
+    V = -mu * m / r + eps * p[2] ** 2 / 2
+    F = sp.Matrix([b * v[1], -b * v[0], 0]) - (c if drag else 0) * v
+    return q, T, V, work_rows(F, p, q)
+
+
+def test_charge_in_a_central_and_a_magnetic_field():
+    """A potential in the generalized ``r`` beside one in the primitive ``z``, forces in the
+    primitive velocities (the Lorentz force's rows are gyroscopic: ``Q . qdot = 0``)."""
+    q, T, V, Q = charge_reference()
+    system = derived("charge_in_central_field.yaml")
+    fixed = lambda rng: {"r": rng.uniform(0.3, 2), "th": rng.uniform(0.2, 2.9)}  # noqa: E731
+    assert compare_explicit(system, lagrange(T, V, q, Q), 617, fixed=fixed) < TOL
+    assert compare_energies(system, T, V, 617, fixed=fixed) < TOL
+    _, _, _, lorentz = charge_reference(drag=False)
+    assert sp.simplify(sum(row * v for row, v in zip(lorentz, dots(q)))) == 0  # the hand force does no work
+
+
+def test_charge_free_scene_keeps_energy_and_canonical_angular_momentum(tmp_path):
+    out = tmp_path / "charge.csv"
+    result = CliRunner().invoke(main, ["simulate", str(HERE / "charge_in_central_field.yaml"), "--scene", "free",
+                                       "-o", str(out)])
+    assert result.exit_code == 0, result.output
+    table = np.genfromtxt(out, names=True, delimiter=",", comments="#")
+    q, T, V, _ = charge_reference(drag=False)
+    values = dict(zip(S("m mu eps b"), (1.0, 4, 0.5, 0.7)))  # the model's values
+    fE = sp.lambdify([*q, *dots(q)], (T + V).xreplace(values), "numpy")
+    state = [table[n] for n in ("r", "th", "ph", "r_dot", "th_dot", "ph_dot")]
+    energy = fE(*state)
+    rho2 = (table["r"] * np.sin(table["th"])) ** 2
+    momentum = 1.0 * rho2 * table["ph_dot"] + 0.7 * rho2 / 2
+    assert len(table) == 9 and np.allclose(table["total_energy"], energy, rtol=1e-12, atol=1e-12)
+    assert np.max(np.abs(energy - energy[0])) < 1e-7 and np.max(np.abs(momentum - momentum[0])) < 1e-7
