@@ -488,3 +488,55 @@ def test_charge_free_scene_keeps_energy_and_canonical_angular_momentum(tmp_path)
     momentum = 1.0 * rho2 * table["ph_dot"] + 0.7 * rho2 / 2
     assert len(table) == 9 and np.allclose(table["total_energy"], energy, rtol=1e-12, atol=1e-12)
     assert np.max(np.abs(energy - energy[0])) < 1e-7 and np.max(np.abs(momentum - momentum[0])) < 1e-7
+
+
+# ------------------------------------------------------------------------------------------
+# Defects this sweep found
+# ------------------------------------------------------------------------------------------
+
+def test_segway_reactions_with_an_effect_on_the_pivoted_rods_angle():
+    """`derive --reactions` of the segway, whose bearing damper is written in the body's angle
+    ``th`` (a pivoted rod's angle, not a primitive coordinate: the primitive has
+    ``body_axis = th - pi/2``). Such an effect once acted in the subspace only and the reactions
+    were refused; ``th`` is ``body_axis + pi/2`` exactly, so the damper now acts on the primitive.
+    ``R = M xddot + h - f`` on the six primitive coordinates from a hand primitive (two free
+    bodies, the motor's and the bearing's torques on their angles), at the hand accelerations;
+    ``C^T R = 0``."""
+    import json
+
+    x, th = q = list(S("x th"))
+    Mw, Rw, mb, L, Ib, kp, kd, u0, cb, g = S("Mw Rw mb L Ib kp kd u0 cb g")
+    prim = list(S("wx wy wa body_x body_y body_axis"))
+    qd, qdd = dots(q), [sp.Symbol(f"{s.name}_ddot") for s in q]
+    wa_d, axis_d = sp.Symbol("wa_dot"), sp.Symbol("body_axis_dot")
+    tau = kp * sp.sin(th) - kd * qd[1] + u0 * sp.cos(3 * t)
+    bearing = -cb * (wa_d - axis_d)  # on wa, minus it on body_axis
+    Mx = sp.diag(Mw, Mw, Mw * Rw ** 2 / 2, mb, mb, Ib)
+    fx = sp.Matrix([0, -Mw * g, tau + bearing, 0, -mb * g, -tau - bearing])
+    image = sp.Matrix([x, Rw, -x / Rw, x + L / 2 * sp.sin(th), Rw - L / 2 * sp.cos(th), th - sp.pi / 2])
+    C = image.jacobian(q)
+    xdot = C * sp.Matrix(qd)
+    xddot = C * sp.Matrix(qdd) + xdot.jacobian(q) * sp.Matrix(qd)
+    r_hand = (Mx * xddot - fx).xreplace({wa_d: xdot[2], axis_d: xdot[5]})
+    result = CliRunner().invoke(main, ["derive", str(HERE / "segway.yaml"), "--reactions", "--format", "json"])
+    assert result.exit_code == 0, result.output
+    expressions = json.loads(result.stdout)["reactions"]["expressions"]
+    assert list(expressions) == [f"R_{a.name}" for a in prim]
+    names = {s.name: s for s in [*q, *qd, *qdd, t, Mw, Rw, mb, L, Ib, kp, kd, u0, cb, g]}
+    ours = sp.Matrix([sp.sympify(expressions[f"R_{a.name}"], locals=names) for a in prim])  # test code
+    values = {names[p.name]: float(p.value) for p in derived("segway.yaml").parameters}
+    M, h = virtual_power([(Mw, image[:2, :], image[2], Mw * Rw ** 2 / 2), (mb, image[3:5, :], th, Ib)], q)
+    f = C.T * fx.xreplace({wa_d: xdot[2], axis_d: xdot[5]})
+    fns = [sp.lambdify([t, *q, *qd], e.xreplace(values), "numpy") for e in (M, f - h)]
+    args = [t, *q, *qd, *qdd]
+    f_ours, f_hand, f_work = (sp.lambdify(args, e.xreplace(values), "numpy") for e in (ours, r_hand, C.T * ours))
+    rng = np.random.default_rng(618)
+    pairs = []
+    for _ in range(6):
+        tt, qv, qdv = rng.uniform(0, 3), rng.uniform(-3, 3, 2), rng.uniform(-2, 2, 2)
+        acc = np.linalg.solve(np.array(fns[0](tt, *qv, *qdv), dtype=float),
+                              np.array(fns[1](tt, *qv, *qdv), dtype=float).ravel())
+        a = (tt, *qv, *qdv, *acc)
+        pairs += [(np.array(f_ours(*a), dtype=float).ravel(), np.array(f_hand(*a), dtype=float).ravel()),
+                  (np.array(f_work(*a), dtype=float).ravel(), np.zeros(2))]
+    assert worst(pairs) < 1e-9
