@@ -370,52 +370,93 @@ def test_slider_crank_with_the_piston_on_a_line():
     assert worst(p for row in rows for p in row) < TOL
 
 
-def test_slider_crank_derive_reactions_against_the_multipliers():
-    """`derive --reactions` prints the multipliers' linear system ``G_d^T mu = r`` in the named
-    intermediates; with the dependent coordinates, ``lambda = dy_d/dtheta`` and
-    ``gamma = yddot_d`` at ``theta_ddot = 0`` taken from the hand constraints, and ``theta_ddot``
-    from the multiplier solve, its solution is the hand multipliers of
-    ``M yddot + h = f + G^T mu``."""
+def printed_multipliers(name, ref, guess, pv, seed, step=0.4, states=6):
+    """Pairs (printed, hand) of the multipliers of ``M yddot + h = f + G^T mu`` along a walk of
+    the one independent coordinate: `derive --reactions` prints them in the named intermediates
+    (closed form, or the linear system ``G_d^T mu = r``), which are evaluated with the dependent
+    coordinates, ``lambda = dy_d/dq`` and ``gamma = yddot_d`` at ``qddot = 0`` from the hand
+    constraints and ``qddot`` from the multiplier solve."""
     import json
 
-    result = CliRunner().invoke(main, ["derive", str(HERE / "slider_crank_line.yaml"), "--reactions",
-                                       "--format", "json"])
+    result = CliRunner().invoke(main, ["derive", str(HERE / name), "--reactions", "--format", "json"])
     assert result.exit_code == 0, result.output
-    system = json.loads(result.stdout)["reactions"]["linear_system"]
-    assert system["unknowns"] == ["mu_A_x", "mu_A_y", "mu_B_x", "mu_B_y"]
-    ref = slider_crank_reference()
-    y = ref.y
+    printed = json.loads(result.stdout)["reactions"]
+    y, (q0,) = ref.y, [ref.y[i] for i in ref.ind]
     dependent = [y[i] for i in ref.dep]
-    names = {s.name: s for s in [*y, *dots(y), t, *S("theta_ddot m1 m2 mp r L e k l0 tau P g")]}
-    names.update({f"lambda_{d.name}_theta": sp.Symbol(f"lambda_{d.name}_theta") for d in dependent})
+    params = list(S(" ".join(ref.params)))
+    names = {s.name: s for s in [*y, *dots(y), t, sp.Symbol(f"{q0.name}_ddot"), *params]}
+    names.update({f"lambda_{d.name}_{q0.name}": sp.Symbol(f"lambda_{d.name}_{q0.name}") for d in dependent})
     names.update({f"gamma_{d.name}": sp.Symbol(f"gamma_{d.name}") for d in dependent})
     parse = lambda text: sp.sympify(text, locals=names)  # noqa: E731  (test code, not kronsub)
-    A = sp.Matrix([[parse(v) for v in row] for row in system["matrix"]])
-    b = sp.Matrix([parse(v) for v in system["right_hand_side"]])
-    pv = [0.6, 0.4, 0.5, 0.25, 0.8, 0.1, 15, 0.4, 0.6, 2, 9.81]  # the model's values, in ref.params order
-    rng = np.random.default_rng(614)
-    q, guess, pairs = 0.5, SLIDER_GUESS, []
-    for _ in range(6):
-        q += rng.uniform(-0.4, 0.4)
+    if "linear_system" in printed:
+        system = printed["linear_system"]
+        A = sp.Matrix([[parse(v) for v in row] for row in system["matrix"]])
+        b = sp.Matrix([parse(v) for v in system["right_hand_side"]])
+        solve = lambda values: np.linalg.solve(*(np.array(e.xreplace(values).evalf(), dtype=float)  # noqa: E731
+                                                 for e in (A, b))).ravel()
+    else:
+        mu = sp.Matrix([parse(v) for v in printed["expressions"].values()])
+        solve = lambda values: np.array(mu.xreplace(values).evalf(), dtype=float).ravel()  # noqa: E731
+    rng = np.random.default_rng(seed)
+    q, pairs, nc = float(guess[ref.ind[0]]), [], len(ref.dep)
+    for _ in range(states):
+        q += rng.uniform(-step, step)
         u, tt = rng.uniform(-3, 3), rng.uniform(0, 2)
         yv, ydv = ref.consistent([q], [u], guess, pv)
         guess = yv
         a = (tt, *yv, *ydv, *pv)
-        M, h, f = (np.array(fn(*a), dtype=float).reshape(-1, 5) for fn in (ref.fM, ref.fh, ref.ff))
+        M, h, f = (np.array(fn(*a), dtype=float) for fn in (ref.fM, ref.fh, ref.ff))
         G, Gdy = np.array(ref.fG(*a), dtype=float), np.array(ref.fGd(*a), dtype=float).ravel()
-        K = np.block([[M, G.T], [G, np.zeros((4, 4))]])
+        K = np.block([[M, G.T], [G, np.zeros((nc, nc))]])
         sol = np.linalg.solve(K, np.concatenate([f.ravel() - h.ravel(), -Gdy]))
-        acc, mu = sol[0], -sol[5:]  # M yddot + G^T (-mu) = f - h
+        values = {names[s.name]: v for s, v in zip([*y, *dots(y), *params], [*yv, *ydv, *pv])}
+        values.update({t: tt, names[f"{q0.name}_ddot"]: sol[ref.ind[0]]})
         lam = -np.linalg.solve(G[:, ref.dep], G[:, ref.ind]).ravel()
+        values.update({names[f"lambda_{d.name}_{q0.name}"]: v for d, v in zip(dependent, lam)})
         gamma = -np.linalg.solve(G[:, ref.dep], Gdy)
-        values = {names[s.name]: v for s, v in zip(y, yv)}
-        values.update({names[s.name]: v for s, v in zip(dots(y), ydv)})
-        values.update({names[s.name]: v for s, v in zip(S("m1 m2 mp r L e k l0 tau P g"), pv)})
-        values.update({t: tt, names["theta_ddot"]: acc})
-        values.update({names[f"lambda_{d.name}_theta"]: v for d, v in zip(dependent, lam)})
         values.update({names[f"gamma_{d.name}"]: v for d, v in zip(dependent, gamma)})
-        An, bn = (np.array(e.xreplace(values).evalf(), dtype=float) for e in (A, b))
-        pairs.append((np.linalg.solve(An, bn.ravel()), mu))
+        pairs.append((solve(values), -sol[len(y):]))  # M yddot + G^T (-mu) = f - h
+    return pairs
+
+
+def test_slider_crank_derive_reactions_against_the_multipliers():
+    """Four dependent coordinates: the printed linear system ``G_d^T mu = r``."""
+    pv = [0.6, 0.4, 0.5, 0.25, 0.8, 0.1, 15, 0.4, 0.6, 2, 9.81]  # the model's values, in ref.params order
+    pairs = printed_multipliers("slider_crank_line.yaml", slider_crank_reference(), SLIDER_GUESS, pv, 614)
+    assert worst(pairs) < 1e-9
+
+
+@lru_cache(maxsize=None)
+def four_bar_reference():
+    t1, t2, t3 = y = list(S("theta1 theta2 theta3"))
+    m1, m2, m3, l1, l2, l3, d, kt, k, c3, T0, g = params = S("m1 m2 m3 l1 l2 l3 d kt k c3 T0 g")
+    c1, tip1 = l1 / 2 * down(t1), l1 * down(t1)
+    c2, tip2 = tip1 + l2 / 2 * down(t2), tip1 + l2 * down(t2)
+    hook = c2 + R(1, 10) * down(t2) + R(1, 20) * sp.Matrix([sp.cos(t2), sp.sin(t2)])  # body y: x turned +90 deg
+    c3p, tip3 = sp.Matrix([d, 0]) + l3 / 2 * down(t3), sp.Matrix([d, 0]) + l3 * down(t3)
+    M, h = virtual_power([(m1, c1, t1, m1 * l1 ** 2 / 12), (m2, c2, t2, m2 * l2 ** 2 / 12),
+                          (m3, c3p, t3, m3 * l3 ** 2 / 12)], y)
+    V = (g * (m1 * c1[1] + m2 * c2[1] + m3 * c3p[1]) + kt * (t2 - t1 + R(3, 2)) ** 2 / 2
+         + spring_V(k, hook, sp.Matrix([R(1, 2), R(1, 2)]), R(3, 10)))
+    f = gradient_force(V, y, add(damper_rows(c3, t3, y), [T0 * sp.cos(t), 0, 0]))
+    return Constrained(y, M, h, f, list(tip2 - tip3), [t1], params)
+
+
+FOUR_BAR_GUESS = [2.0, 0.34, -0.25]
+
+
+def test_four_bar_with_a_sprung_coupler():
+    from test_sweep_models import walk_constrained
+
+    rows = walk_constrained(derived("four_bar_reactions.yaml"), four_bar_reference(), 2.0, FOUR_BAR_GUESS, 619,
+                            step=0.3)
+    assert worst(p for row in rows for p in row) < TOL
+
+
+def test_four_bar_derive_reactions_in_closed_form_against_the_multipliers():
+    """Two dependent coordinates: ``mu_B`` printed in closed form."""
+    pv = [0.5, 1.0, 0.8, 0.4, 1.0, 0.8, 0.9, 2, 5, 0.1, 0.5, 9.81]  # the model's values, in ref.params order
+    pairs = printed_multipliers("four_bar_reactions.yaml", four_bar_reference(), FOUR_BAR_GUESS, pv, 620, step=0.3)
     assert worst(pairs) < 1e-9
 
 
