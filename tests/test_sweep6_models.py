@@ -9,6 +9,9 @@ virtual power over the bodies, virtual work for the non-conservative loads. ``Mb
 """
 from __future__ import annotations
 
+import ctypes
+import shutil
+import subprocess
 from functools import lru_cache
 from pathlib import Path
 
@@ -128,6 +131,47 @@ def test_elastic_spherical_pendulum_scenes(which, damper, swirl):
     used = {s.name for e in (system.mass_matrix, system.velocity_terms, system.forces) for s in e.free_symbols}
     assert not gone & used and not gone & {p.name for p in system.parameters}
     assert compare_explicit(system, lagrange(T, V, q, Q), 603, fixed=positive_r) < TOL
+
+
+@pytest.mark.skipif(shutil.which("gcc") is None, reason="needs gcc")
+def test_elastic_spherical_pendulum_scene_generated_c(tmp_path):
+    """`codegen --scene undamped --lang c`, compiled with warnings as errors: no slot for the
+    damper's ``c``; mass matrix, forces and accelerations against the hand equations."""
+    from test_sweep_outputs import header_order
+
+    result = CliRunner().invoke(main, ["codegen", str(HERE / "elastic_spherical_pendulum.yaml"), "--scene",
+                                       "undamped", "--lang", "c", "--prefix", "esp", "-o", str(tmp_path)])
+    assert result.exit_code == 0, result.output
+    lib = tmp_path / "libesp.so"
+    subprocess.run(["gcc", "-std=c99", "-Wall", "-Wextra", "-Werror", "-O2", "-shared", "-fPIC",
+                    str(tmp_path / "elastic_spherical_pendulum.c"), "-o", str(lib), "-lm"], check=True,
+                   capture_output=True)
+    names, _ = header_order((tmp_path / "elastic_spherical_pendulum.h").read_text(), "ESP")
+    assert "c" not in names and {"P", "w"} <= set(names)
+    q, T, V, Q = elastic_reference(damper=False)
+    M, h, f = lagrange(T, V, q, Q)
+    values = {"m": 0.7, "k": 30, "l0": 0.9, "P": 0.5, "w": 1.7, "g": 9.81}  # the model's values
+    sub = {s: values[s.name] for e in (M, h, f) for s in e.free_symbols if s.name in values}
+    fM, fh, ff = (sp.lambdify([t, *q, *dots(q)], e.xreplace(sub), "numpy") for e in (M, h, f))
+    lib = ctypes.CDLL(str(lib))
+    D = ctypes.POINTER(ctypes.c_double)
+    lib.esp_rhs.argtypes = [ctypes.c_double, D, D, D]
+    lib.esp_forces.argtypes = [ctypes.c_double, D, D, D, D]
+    ptr = lambda a: a.ctypes.data_as(D)  # noqa: E731
+    param = np.array([float(values[n]) for n in names])
+    rng = np.random.default_rng(621)
+    pairs = []
+    for _ in range(6):
+        tt, y = rng.uniform(0, 3), rng.uniform(-2, 2, 6)
+        y[0], y[1] = rng.uniform(0.3, 2), rng.uniform(0.2, 2.9)
+        qv, qdv = y[:3].copy(), y[3:].copy()
+        Mr, hr, fr = (np.array(fn(tt, *y), dtype=float) for fn in (fM, fh, ff))
+        Mc, fc, ydot = np.zeros(9), np.zeros(3), np.zeros(6)
+        lib.esp_mass_matrix(ptr(qv), ptr(param), ptr(Mc))
+        lib.esp_forces(tt, ptr(qv), ptr(qdv), ptr(param), ptr(fc))
+        assert lib.esp_rhs(tt, ptr(y), ptr(param), ptr(ydot)) == 0
+        pairs += [(Mc.reshape(3, 3), Mr), (fc, fr.ravel()), (ydot[3:], np.linalg.solve(Mr, fr.ravel() - hr.ravel()))]
+    assert worst(pairs) < TOL
 
 
 @lru_cache(maxsize=None)
