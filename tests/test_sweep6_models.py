@@ -201,7 +201,7 @@ def test_cart_with_two_pendulums_on_points_of_its_own():
 # ------------------------------------------------------------------------------------------
 
 @lru_cache(maxsize=None)
-def furuta_reference():
+def furuta_reference(tether=True):
     al, th = q = list(S("al th"))
     ma, r, Ax, Ay, Az, mp, l, Bx, By, Bz, Bxy, u, w, cp, k, g = S("ma r Ax Ay Az mp l Bx By Bz Bxy u w cp k g")
     Ra, Rp = Rz(al), Rz(al) * Rx(th)
@@ -210,7 +210,7 @@ def furuta_reference():
     tip = pend + Rp * sp.Matrix([0, 0, -l / 2])
     inertia = sp.Matrix([[Bx, Bxy, 0], [Bxy, By, 0], [0, 0, Bz]])
     M, h = virtual_power([(ma, arm, Ra, sp.diag(Ax, Ay, Az)), (mp, pend, Rp, inertia)], q)
-    V = g * (ma * arm[2] + mp * pend[2]) + spring_V(k, tip, sp.Matrix([R(3, 10), R(1, 10), -R(3, 5)]))
+    V = g * (ma * arm[2] + mp * pend[2]) + (spring_V(k, tip, sp.Matrix([R(3, 10), R(1, 10), -R(3, 5)])) if tether else 0)
     rows = add(damper_rows(cp, th, q), [u * sp.cos(w * t), 0])  # the arm turns about z: torque . d omega/d al_dot
     return q, M, h, gradient_force(V, q, rows), V
 
@@ -227,6 +227,32 @@ def test_furuta_pendulum_generated_c_and_numpy(tmp_path):
     _, M, h, f, _ = furuta_reference()
     mod = generated_numpy_module(tmp_path, HERE / "furuta.yaml")
     assert accelerations_agree(derived("furuta.yaml"), M, h, f, 606, numpy_module=mod) < TOL
+
+
+def test_furuta_pendulum_linearized_upright(tmp_path):
+    """`linearize --scene balance` at the upright (th = pi, u = 0, t = 0) with the motor's ``u``
+    as input: ``A = [[0, I], [M^-1 d(f - h)/dq, M^-1 d(f - h)/dqdot]]`` and ``B = M^-1 df/du`` of
+    the hand equations (without the tether), their accelerations zero there."""
+    import json
+
+    out = tmp_path / "lin.json"
+    result = CliRunner().invoke(main, ["linearize", str(HERE / "furuta.yaml"), "--scene", "balance", "--at",
+                                       f"th={np.pi!r}", "--at", "al=0", "--at", "t=0", "--at", "u=0",
+                                       "--inputs", "u", "--format", "json", "-o", str(out)])
+    assert result.exit_code == 0, result.output
+    data = json.loads(out.read_text())
+    assert data["equilibrium"] and data["state"] == ["al", "th", "al_dot", "th_dot"]
+    q, M, h, f, _ = furuta_reference(tether=False)
+    u = S("u")
+    y = [*q, *dots(q)]
+    acc = M.LUsolve(f - h)
+    values = {s: float(data["parameters"][s.name]) for s in (M.free_symbols | f.free_symbols) if s.name in data["parameters"]}
+    point = {**dict(zip(y, [0.0, sp.pi, 0, 0])), t: 0}
+    jac = acc.jacobian(y).xreplace({**values, **point})
+    A = np.vstack([np.hstack([np.zeros((2, 2)), np.eye(2)]), np.array(jac.evalf(), dtype=float)])
+    B = np.vstack([np.zeros((2, 1)), np.array(acc.diff(u).xreplace({**values, **point}).evalf(), dtype=float)])
+    assert np.max(np.abs(np.array(acc.xreplace({**values, **point}).evalf(), dtype=float))) < 1e-12
+    assert worst([(np.array(data["A"]), A), (np.array(data["B"]), B)]) < 1e-9
 
 
 # ------------------------------------------------------------------------------------------
