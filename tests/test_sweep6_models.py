@@ -651,3 +651,23 @@ def test_segway_reactions_with_an_effect_on_the_pivoted_rods_angle():
         pairs += [(np.array(f_ours(*a), dtype=float).ravel(), np.array(f_hand(*a), dtype=float).ravel()),
                   (np.array(f_work(*a), dtype=float).ravel(), np.zeros(2))]
     assert worst(pairs) < 1e-9
+
+
+def test_a_generalized_force_on_a_pivoted_rods_angle_acts_on_its_axis(tmp_path):
+    """`generalized_force` on ``th`` (``body_axis + pi/2``) is the force on ``body_axis``: the row
+    ``th`` of ``fbar`` gains the value, and the reaction on the axis loses it (``R = ... - f``)."""
+    import kronsub
+    from kronsub.core.reactions import reactions
+    from kronsub.core.symbols import symbol
+
+    text = (HERE / "segway.yaml").read_text().replace(
+        "  bearing:", "  nudge: {type: generalized_force, coordinate: th, value: 0.3*th_dot + 0.2}\n  bearing:")
+    path = tmp_path / "segway_nudged.yaml"
+    path.write_text(text)
+    nudged, plain = kronsub.load(path).derive(), derived("segway.yaml")
+    assert not nudged.transition.direct_effects
+    extra = R(3, 10) * symbol("th_dot") + R(1, 5)
+    assert sp.expand(nudged.forces - plain.forces - sp.Matrix([0, extra])) == sp.zeros(2, 1)
+    ours, theirs = dict(reactions(nudged)), dict(reactions(plain))
+    assert sp.expand(ours["R_body_axis"] - theirs["R_body_axis"] + extra) == 0
+    assert all(sp.expand(ours[k] - theirs[k]) == 0 for k in ours if k != "R_body_axis")
