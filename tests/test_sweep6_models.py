@@ -1,11 +1,21 @@
 """Sixth robustness sweep: models of kinds the first five sweeps did not cover
-(tests/models/sweep6/): a double pendulum of particles on massless rods, an elastic
-spherical pendulum under scenes, a cart carrying two pendulums from points of its own.
+(tests/models/sweep6/): a double pendulum of particles on massless rods (and two of them as
+placed known systems tied by a spring, under a scene), an elastic spherical pendulum under
+scenes (also through `codegen --lang c`), a cart carrying two pendulums from points of its
+own, a Furuta pendulum of two `rigid_body3d`s (C, numpy, linearized at the upright), one
+triple pendulum in absolute and in relative angles (each against the other through the
+change of variables), beads on a hoop in a ring of springs, the swinging Atwood machine, a
+segway (one motor torque on the wheel and against the body), a heavy top on a sliding base, a
+charge in a central and a magnetic field, and closed loops with `derive --reactions` against
+the multipliers (a slider-crank whose piston lives on a line, a four-bar with a sprung
+coupler); `simulate` runs against energy, momentum and canonical angular momentum.
 
 Each is checked against a derivation written here in plain sympy (never with kronsub), with
 the reference helpers of the earlier sweeps: Lagrange's equations of a hand ``T`` and ``V``,
-virtual power over the bodies, virtual work for the non-conservative loads. ``Mbar``,
-``hbar``, ``fbar`` (and ``T``, ``V``) at random states and randomly perturbed parameters.
+virtual power over the bodies, virtual work for the non-conservative loads, Lagrange
+multipliers on the full coordinates for closed loops. The defect this sweep found (an effect
+in a pivoted rod's angle acted in the subspace only, so the reactions were refused) has its
+tests at the end.
 """
 from __future__ import annotations
 
