@@ -544,9 +544,8 @@ def test_four_bar_derive_reactions_in_closed_form_against_the_multipliers():
 # A top on a moving support: a cart on a line carrying a top in space
 # ------------------------------------------------------------------------------------------
 
-def test_heavy_top_on_a_sliding_base():
-    """The top's support moves with a coordinate (no prescribed motion): ``M`` couples ``s`` to
-    the angles; a torque vector in the angles by ``tau . d omega/d qdot``."""
+@lru_cache(maxsize=None)
+def top_reference():
     s, psi, th, phi = q = list(S("s psi th phi"))
     mc, m, hh, A, C, k, l0, c, u, F, g = S("mc m h A C k l0 c u F g")
     Rt = Rz(psi) * Rx(th) * Rz(phi)
@@ -557,13 +556,57 @@ def test_heavy_top_on_a_sliding_base():
     V = m * g * centre[2] + k * (norm(sp.Matrix([s + 1])) - l0) ** 2 / 2
     omega = world_angular_velocity(Rt, q)
     figure = Rt * sp.Matrix([0, 0, 1])
+    flick = sp.Matrix([0, F * sp.cos(5 * t), 0])
     rows = add(damper_rows(c, norm(sp.Matrix([s + 1])), q), [(u * figure).dot(omega.diff(v)) for v in dots(q)],
-               work_rows(sp.Matrix([0, F * sp.cos(5 * t), 0]), rim, q))
+               work_rows(flick, rim, q))
+    return q, M, h, gradient_force(V, q, rows), V, centre, flick
+
+
+def test_heavy_top_on_a_sliding_base():
+    """The top's support moves with a coordinate (no prescribed motion): ``M`` couples ``s`` to
+    the angles; a torque vector in the angles by ``tau . d omega/d qdot``."""
+    q, M, h, f, V, _, _ = top_reference()
     system = derived("top_on_sliding_base.yaml")
     fixed = lambda rng: {"th": rng.uniform(0.2, 2.9)}  # noqa: E731  (Z-X-Z: singular at th = 0, pi)
-    f = gradient_force(V, q, rows)
     assert compare_explicit(system, (M, h, f), 616, fixed=fixed) < TOL
     assert compare_energies(system, kinetic(M, q), V, 616, fixed=fixed) < TOL
+
+
+def test_heavy_top_on_a_sliding_base_reactions_at_the_cup():
+    """`derive --reactions`: on the top's centre coordinates the cup's force on the top,
+    ``m a_c + m g e_z - F`` (Newton, the flick's force ``F`` at the rim); on the cart's ``s`` minus
+    its x component (Newton's third law at the cup); ``C^T R = 0``. At the hand accelerations."""
+    import json
+
+    q, M, h, f, _, centre, flick = top_reference()
+    m, g = S("m g")
+    result = CliRunner().invoke(main, ["derive", str(HERE / "top_on_sliding_base.yaml"), "--reactions",
+                                       "--format", "json"])
+    assert result.exit_code == 0, result.output
+    expressions = json.loads(result.stdout)["reactions"]["expressions"]
+    prim = ["s", "x", "y", "z", "psi", "th", "phi"]
+    assert list(expressions) == [f"R_{n}" for n in prim]
+    qd, qdd = dots(q), [sp.Symbol(f"{v.name}_ddot") for v in q]
+    names = {v.name: v for v in [*q, *qd, *qdd, t, *S("mc m h A C k l0 c u F g")]}
+    ours = sp.Matrix([sp.sympify(expressions[f"R_{n}"], locals=names) for n in prim])  # test code, not kronsub
+    Cm = sp.Matrix([q[0], *centre, *q[1:]]).jacobian(q)
+    rate = rate_of(centre, q)
+    accel = rate.jacobian(qd) * sp.Matrix(qdd) + rate.jacobian(q) * sp.Matrix(qd)
+    joint = m * accel + sp.Matrix([0, 0, m * g]) - flick
+    values = {names[p.name]: float(p.value) for p in derived("top_on_sliding_base.yaml").parameters}
+    args = [t, *q, *qd, *qdd]
+    checks = [sp.lambdify(args, e.xreplace(values), "numpy")
+              for e in (ours[1:4, :], joint, sp.Matrix([ours[0] + ours[1]]), Cm.T * ours)]
+    fM, frhs = (sp.lambdify([t, *q, *qd], e.xreplace(values), "numpy") for e in (M, f - h))
+    rng = np.random.default_rng(622)
+    pairs = []
+    for _ in range(6):
+        tt, qv, qdv = rng.uniform(0, 3), rng.uniform(-2, 2, 4), rng.uniform(-2, 2, 4)
+        qv[2] = rng.uniform(0.2, 2.9)
+        acc = np.linalg.solve(np.array(fM(tt, *qv, *qdv), dtype=float), np.array(frhs(tt, *qv, *qdv), dtype=float).ravel())
+        mine, hand, third, work = (np.array(fn(tt, *qv, *qdv, *acc), dtype=float).ravel() for fn in checks)
+        pairs += [(mine, hand), (third, np.zeros(1)), (work, np.zeros(4))]
+    assert worst(pairs) < 1e-9
 
 
 # ------------------------------------------------------------------------------------------
