@@ -30,7 +30,7 @@ import pytest
 import sympy as sp
 from click.testing import CliRunner
 
-from helpers import Rx, Ry, Rz, generated_numpy_module, sweep_models
+from helpers import Rx, Rz, generated_numpy_module, sweep_models
 from kronsub.cli import main
 from test_sweep3_models import accelerations_agree, kinetic
 from test_sweep5_models import add, damper_rows, down, gradient_force, norm, spring_V, work_rows
@@ -220,7 +220,9 @@ def furuta_reference(tether=True):
     tip = pend + Rp * sp.Matrix([0, 0, -l / 2])
     inertia = sp.Matrix([[Bx, Bxy, 0], [Bxy, By, 0], [0, 0, Bz]])
     M, h = virtual_power([(ma, arm, Ra, sp.diag(Ax, Ay, Az)), (mp, pend, Rp, inertia)], q)
-    V = g * (ma * arm[2] + mp * pend[2]) + (spring_V(k, tip, sp.Matrix([R(3, 10), R(1, 10), -R(3, 5)])) if tether else 0)
+    V = g * (ma * arm[2] + mp * pend[2])
+    if tether:
+        V += spring_V(k, tip, sp.Matrix([R(3, 10), R(1, 10), -R(3, 5)]))
     rows = add(damper_rows(cp, th, q), [u * sp.cos(w * t), 0])  # the arm turns about z: torque . d omega/d al_dot
     return q, M, h, gradient_force(V, q, rows), V
 
@@ -256,7 +258,8 @@ def test_furuta_pendulum_linearized_upright(tmp_path):
     u = S("u")
     y = [*q, *dots(q)]
     acc = M.LUsolve(f - h)
-    values = {s: float(data["parameters"][s.name]) for s in (M.free_symbols | f.free_symbols) if s.name in data["parameters"]}
+    given = data["parameters"]
+    values = {s: float(given[s.name]) for s in (M.free_symbols | f.free_symbols) if s.name in given}
     point = {**dict(zip(y, [0.0, sp.pi, 0, 0])), t: 0}
     jac = acc.jacobian(y).xreplace({**values, **point})
     A = np.vstack([np.hstack([np.zeros((2, 2)), np.eye(2)]), np.array(jac.evalf(), dtype=float)])
@@ -332,9 +335,11 @@ def ring_reference(damper=True):
 
 
 def test_beads_on_a_hoop_in_a_ring_of_springs():
+    def apart(rng):  # the beads in their order round the hoop
+        return {n: a + rng.uniform(-0.4, 0.4) for n, a in zip(("u1", "u2", "u3", "u4"), (0, 1.6, 3.1, 4.7))}
+
     u, T, V, Q = ring_reference()
     system = derived("bead_ring.yaml")
-    apart = lambda rng: {n: a + rng.uniform(-0.4, 0.4) for n, a in zip(("u1", "u2", "u3", "u4"), (0, 1.6, 3.1, 4.7))}  # noqa: E731
     assert compare_explicit(system, lagrange(T, V, u, Q), 610, fixed=apart) < TOL
     assert compare_energies(system, T, V, 610, fixed=apart) < TOL
 
@@ -392,7 +397,8 @@ def test_swinging_atwood_free_scene_keeps_energy(tmp_path):
     table = np.genfromtxt(out, names=True, delimiter=",", comments="#")
     q, T, V, _ = atwood_reference(rope=False)
     values = {s: v for s, v in zip(S("m M L g"), (1.0, 1.3, 3, 9.81))}  # the model's values
-    energy = sp.lambdify([*q, *dots(q)], (T + V).xreplace(values), "numpy")(*(table[n] for n in ("r", "a", "r_dot", "a_dot")))
+    fE = sp.lambdify([*q, *dots(q)], (T + V).xreplace(values), "numpy")
+    energy = fE(*(table[n] for n in ("r", "a", "r_dot", "a_dot")))
     assert len(table) == 201 and np.min(table["r"]) > 0.3
     assert np.allclose(table["total_energy"], energy, rtol=1e-12, atol=1e-12)
     assert np.max(np.abs(energy - energy[0])) < 1e-6
@@ -603,7 +609,8 @@ def test_heavy_top_on_a_sliding_base_reactions_at_the_cup():
     for _ in range(6):
         tt, qv, qdv = rng.uniform(0, 3), rng.uniform(-2, 2, 4), rng.uniform(-2, 2, 4)
         qv[2] = rng.uniform(0.2, 2.9)
-        acc = np.linalg.solve(np.array(fM(tt, *qv, *qdv), dtype=float), np.array(frhs(tt, *qv, *qdv), dtype=float).ravel())
+        acc = np.linalg.solve(np.array(fM(tt, *qv, *qdv), dtype=float),
+                              np.array(frhs(tt, *qv, *qdv), dtype=float).ravel())
         mine, hand, third, work = (np.array(fn(tt, *qv, *qdv, *acc), dtype=float).ravel() for fn in checks)
         pairs += [(mine, hand), (third, np.zeros(1)), (work, np.zeros(4))]
     assert worst(pairs) < 1e-9
