@@ -141,6 +141,11 @@ def test_elastic_spherical_pendulum_scenes(which, damper, swirl):
     used = {s.name for e in (system.mass_matrix, system.velocity_terms, system.forces) for s in e.free_symbols}
     assert not gone & used and not gone & {p.name for p in system.parameters}
     assert compare_explicit(system, lagrange(T, V, q, Q), 603, fixed=positive_r) < TOL
+    full = derived("elastic_spherical_pendulum.yaml")
+    zero = {p.symbol: 0 for p in full.parameters if p.name in ({"c"} if swirl else {"c", "P"})}
+    for ours, theirs in ((system.mass_matrix, full.mass_matrix), (system.velocity_terms, full.velocity_terms),
+                         (system.forces, full.forces.xreplace(zero))):
+        assert sp.expand(ours - theirs) == sp.zeros(*ours.shape)
 
 
 @pytest.mark.skipif(shutil.which("gcc") is None, reason="needs gcc")
