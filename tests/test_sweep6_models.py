@@ -736,3 +736,35 @@ def test_a_generalized_force_on_a_pivoted_rods_angle_acts_on_its_axis(tmp_path):
     ours, theirs = dict(reactions(nudged)), dict(reactions(plain))
     assert sp.expand(ours["R_body_axis"] - theirs["R_body_axis"] + extra) == 0
     assert all(sp.expand(ours[k] - theirs[k]) == 0 for k in ours if k != "R_body_axis")
+
+
+RELATIVE_PIVOT = """\
+name: double pendulum in relative angles on pivots
+parameters: {m: 1, L: 1, g: 9.81}
+components:
+  r1: {type: pinned_rod, parameters: {mass: m, length: L}, coordinates: {angle: b1}}
+  r2: {type: pinned_rod, parameters: {mass: m, length: L}, coordinates: {angle: b2}, pivot: r1.tip}
+coordinates: COORDINATES
+connection:
+  b1: q1
+CONNECTED
+effects:
+  gravity: {type: gravity}
+"""
+
+
+@pytest.mark.parametrize("coordinates, connected, line, message", [
+    ("[q1]", "", 5, "the angle 'b2' of 'r2' (hung from `pivot: r1.tip`) is not a generalized coordinate"),
+    ("[q1, q2]", "  b2: q1 + q2", 9, "'b2' is the angle of 'r2', which hangs from `pivot: r1.tip`"),
+])
+def test_a_pivoted_rods_angle_must_be_a_generalized_coordinate(tmp_path, coordinates, connected, line, message):
+    """Left out of `coordinates:`, a pivoted rod's angle was a frozen symbol: the model derived
+    with ``b2`` a constant in ``V`` and the rod's swing missing from ``Mbar``. Connected (a
+    relative angle), it was "not a coordinate of the primitive system" with a hint naming the
+    other rod's angle. Both are now one error at its place, with the way to relative angles."""
+    path = tmp_path / "relative.yaml"
+    path.write_text(RELATIVE_PIVOT.replace("COORDINATES", coordinates).replace("CONNECTED", connected))
+    result = CliRunner().invoke(main, ["derive", str(path)])
+    assert result.exit_code == 1 and "Traceback" not in result.output
+    assert f"relative.yaml:{line}:" in result.output and message in result.output
+    assert "`rod` with `axis: down`" in result.output and "problems found" not in result.output
