@@ -273,6 +273,44 @@ def test_furuta_pendulum_linearized_upright(tmp_path):
     assert worst([(np.array(data["A"]), A), (np.array(data["B"]), B)]) < 1e-9
 
 
+def test_elastic_pendulum_carrying_a_rod_and_the_pin_between_them():
+    """A rod hung from a bob in polar coordinates; `derive --reactions` (the hinge damper is
+    written in the rod's pivoted angle) at the hand accelerations: the pin pushes the rod with
+    ``F = (R_rod_x, R_rod_y)`` and the bob with ``-F``, so ``R_r = -F . e_r`` and
+    ``R_a = -r F . e_a`` (Newton's third law)."""
+    from kronsub.core.reactions import reactions
+
+    r, a, th = q = list(S("r a th"))
+    m, mr, L, k, l0, c, g = S("m mr L k l0 c g")
+    bob = r * sp.Matrix([sp.cos(a), sp.sin(a)])
+    centre = bob + L / 2 * down(th)
+    M, h = virtual_power([(m, bob), (mr, centre, th, mr * L ** 2 / 12)], q)
+    V = g * (m * bob[1] + mr * centre[1]) + k * (r - l0) ** 2 / 2  # r > 0: the spring's length
+    f = gradient_force(V, q, damper_rows(c, th - a, q))
+    system = derived("elastic_double_pendulum.yaml")
+    positive = lambda rng: {"r": rng.uniform(0.3, 2)}  # noqa: E731
+    assert compare_explicit(system, (M, h, f), 623, fixed=positive) < TOL
+    assert compare_energies(system, kinetic(M, q), V, 623, fixed=positive) < TOL
+    items = dict(reactions(system))
+    assert list(items) == ["R_r", "R_a", "R_rod_x", "R_rod_y", "R_rod_axis"]
+    plain = lambda e: e.xreplace({s: sp.Symbol(s.name) for s in e.free_symbols})  # noqa: E731
+    F = sp.Matrix([plain(items["R_rod_x"]), plain(items["R_rod_y"])])
+    laws = sp.Matrix([plain(items["R_r"]) + F.dot(bob.diff(r)), plain(items["R_a"]) + F.dot(bob.diff(a))])
+    qd, qdd = dots(q), [sp.Symbol(f"{v.name}_ddot") for v in q]
+    values = {s: float(p.value) for p in system.parameters for s in (M.free_symbols | f.free_symbols)
+              if s.name == p.name}
+    fM, frhs = (sp.lambdify([*q, *qd], e.xreplace(values), "numpy") for e in (M, f - h))
+    flaw = sp.lambdify([*q, *qd, *qdd], laws.xreplace({sp.Symbol(s.name): v for s, v in values.items()}), "numpy")
+    rng = np.random.default_rng(624)
+    pairs = []
+    for _ in range(6):
+        qv, qdv = rng.uniform(-2, 2, 3), rng.uniform(-2, 2, 3)
+        qv[0] = rng.uniform(0.3, 2)
+        acc = np.linalg.solve(np.array(fM(*qv, *qdv), dtype=float), np.array(frhs(*qv, *qdv), dtype=float).ravel())
+        pairs.append((np.array(flaw(*qv, *qdv, *acc), dtype=float).ravel(), np.zeros(2)))
+    assert worst(pairs) < 1e-9
+
+
 # ------------------------------------------------------------------------------------------
 # One pendulum in two sets of coordinates: absolute and relative angles
 # ------------------------------------------------------------------------------------------
