@@ -2,7 +2,7 @@
 (tests/models/sweep6/): a double pendulum of particles on massless rods (and two of them as
 placed known systems tied by a spring, under a scene), an elastic spherical pendulum under
 scenes (also through `codegen --lang c`), a cart carrying two pendulums from points of its
-own, a Furuta pendulum of two `rigid_body3d`s (C, numpy, linearized at the upright), one
+own, an elastic pendulum carrying a rod (its pin's reactions), a Furuta pendulum of two `rigid_body3d`s (C, numpy, linearized at the upright), one
 triple pendulum in absolute and in relative angles (each against the other through the
 change of variables), beads on a hoop in a ring of springs, the swinging Atwood machine, a
 segway (one motor torque on the wheel and against the body), a heavy top on a sliding base, a
@@ -13,9 +13,10 @@ coupler); `simulate` runs against energy, momentum and canonical angular momentu
 Each is checked against a derivation written here in plain sympy (never with kronsub), with
 the reference helpers of the earlier sweeps: Lagrange's equations of a hand ``T`` and ``V``,
 virtual power over the bodies, virtual work for the non-conservative loads, Lagrange
-multipliers on the full coordinates for closed loops. The defect this sweep found (an effect
-in a pivoted rod's angle acted in the subspace only, so the reactions were refused) has its
-tests at the end.
+multipliers on the full coordinates for closed loops. The defects this sweep found have their
+tests at the end: an effect in a pivoted rod's angle acted in the subspace only (so the
+reactions were refused), and a pivoted rod's angle left out of `coordinates:` was a frozen
+symbol (the rod's swing missing from ``Mbar``).
 """
 from __future__ import annotations
 
