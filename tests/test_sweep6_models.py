@@ -213,6 +213,30 @@ def test_cart_with_two_pendulums_on_points_of_its_own():
     assert compare_energies(system, kinetic(M, q), V, 604, fixed=fixed) < TOL
 
 
+def test_cart_with_two_pendulums_linearized_at_its_equilibrium(tmp_path):
+    """`linearize` finds the equilibrium from the initial values (the tie between tips of unequal
+    rods tilts both pendulums: p1, p2 != 0); there the hand accelerations vanish, and ``A`` is
+    their Jacobian ``[[0, I], [M^-1 d(f - h)/dq, M^-1 d(f - h)/dqdot]]`` (at t = 0, the drive off)."""
+    import json
+
+    out = tmp_path / "lin.json"
+    result = CliRunner().invoke(main, ["linearize", str(HERE / "cart_twin_pendulums.yaml"), "--format", "json",
+                                       "-o", str(out)])
+    assert result.exit_code == 0, result.output
+    data = json.loads(out.read_text())
+    assert data["equilibrium"] and data["found"] == ["s", "p1", "p2"] and data["time"] == 0
+    q, M, h, f, _ = cart_twin_reference()
+    y = [*q, *dots(q)]
+    acc = M.LUsolve(f - h)
+    given = data["parameters"]
+    point = {**{v: data["operating_point"][v.name] for v in y}, t: 0}
+    values = {s: float(given[s.name]) for s in (M.free_symbols | f.free_symbols) if s.name in given}
+    at = lambda e: np.array(e.xreplace(values).xreplace(point).evalf(), dtype=float)  # noqa: E731
+    assert abs(data["operating_point"]["p1"]) > 0.01 and np.max(np.abs(at(acc))) < 1e-9
+    A = np.vstack([np.hstack([np.zeros((3, 3)), np.eye(3)]), at(acc.jacobian(y))])
+    assert worst([(np.array(data["A"]), A)]) < 1e-8
+
+
 # ------------------------------------------------------------------------------------------
 # Space: a Furuta pendulum of two rigid_body3d's placed by the connection
 # ------------------------------------------------------------------------------------------
