@@ -2,14 +2,15 @@
 (tests/models/sweep6/): a double pendulum of particles on massless rods (and two of them as
 placed known systems tied by a spring, under a scene), an elastic spherical pendulum under
 scenes (also through `codegen --lang c`), a cart carrying two pendulums from points of its
-own, an elastic pendulum carrying a rod (its pin's reactions), a Furuta pendulum of two
-`rigid_body3d`s (C, numpy, linearized at the upright), one triple pendulum in absolute and in
-relative angles (each against the other through the change of variables), beads on a hoop in
-a ring of springs, the swinging Atwood machine, a segway (one motor torque on the wheel and
-against the body), a heavy top on a sliding base (its reactions at the cup), a charge in a
-central and a magnetic field, and closed loops with `derive --reactions` against the
-multipliers (a slider-crank whose piston lives on a line, a four-bar with a sprung coupler);
-`simulate` runs against energy, momentum and canonical angular momentum.
+own (linearized at its equilibrium), an elastic pendulum carrying a rod (its pin's
+reactions), a Furuta pendulum of two `rigid_body3d`s (C, numpy, linearized at the upright),
+one triple pendulum in absolute and in relative angles (each against the other through the
+change of variables), beads on a hoop in a ring of springs, the swinging Atwood machine, a
+segway (one motor torque on the wheel and against the body), a heavy top on a sliding base
+(its reactions at the cup), a charge in a central and a magnetic field, and closed loops with
+`derive --reactions` against the multipliers (a slider-crank whose piston lives on a line, a
+four-bar with a sprung coupler); `simulate` runs against energy, momentum and canonical
+angular momentum.
 
 Each is checked against a derivation written here in plain sympy (never with kronsub), with
 the reference helpers of the earlier sweeps: Lagrange's equations of a hand ``T`` and ``V``,

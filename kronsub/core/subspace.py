@@ -342,7 +342,7 @@ def _through_primitive(sub: Subspace, generalized: set) -> dict:
     out: dict = {}
     for q, images in found.items():
         if len(images) == 1:
-            (x, offset), = images
+            [(x, offset)] = images
             out[q], out[velocity_symbol(q)] = x - offset, velocity_symbol(x)
     return out
 

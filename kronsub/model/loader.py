@@ -813,7 +813,7 @@ class _Loader:
         generalized coordinate): its connection lines are written in it. Left out, it would be a
         frozen symbol; given by the connection, it is no primitive coordinate."""
         entries = node.value if node is not None and node.is_mapping else {}
-        for cname, pnode, angle, _, hidden in self.pivots:
+        for cname, pnode, angle, _, _ in self.pivots:
             hint = (f"list '{angle}' under `coordinates:`; for an angle given by other coordinates "
                     f"(a relative angle), make '{cname}' a `rod` with `axis: down` and connect its x, y and angle")
             if angle.name in entries:
