@@ -306,9 +306,13 @@ def project_effects(sub: Subspace, primitive: Primitive, effects, only=None) -> 
                                        sub.moved(part.potentials.get(label, sympy.Integer(0))),
                                        translation=tuple(part.translations.get(label, ()))))
     generalized = _generalized_only(sub, primitive)
+    through = _through_primitive(sub, generalized)
     for effect in effects:
         if only is not None and effect.name not in only:
             continue
+        named = effect.symbols() & generalized
+        if named and named <= through.keys():  # in the primitive after all: its force acts there
+            effect = effect.written_in(through)
         f, V = effect.generalized_force(primitive), effect.potential(primitive)
         direct = None
         if generalized and effect.symbols() & generalized:
@@ -319,6 +323,28 @@ def project_effects(sub: Subspace, primitive: Primitive, effects, only=None) -> 
             continue
         out.append(ProjectedEffect(effect.name, sympy.Matrix(f), _projected(sub, f), sub.moved(V),
                                    translation=effect.translation(primitive)))
+    return out
+
+
+def _through_primitive(sub: Subspace, generalized: set) -> dict:
+    """``q -> x^a - c``, ``qdot -> xdot^a`` for each generalized coordinate ``q`` that exactly one
+    primitive coordinate equals up to a constant, ``x^a = q + c`` (a pivoted rod's
+    ``axis = angle - pi/2``, an identity line): an effect written in ``q`` is then one in ``x``,
+    its force acts on the primitive (``fbar = C^T f`` (8') is unchanged, ``C^a_q = 1``) and the
+    reactions are defined. With two such ``x^a`` the body it acts on is not said: left as it is."""
+    found: dict = {}
+    for x in sub.x:
+        image = sympy.sympify(sub.connection[x])
+        used = image.free_symbols & set(sub.coords)
+        if len(used) == 1 and (q := used.pop()) in generalized:
+            offset = sympy.expand(image - q)
+            if not offset.free_symbols & set(sub.coords):
+                found.setdefault(q, []).append((x, offset))
+    out: dict = {}
+    for q, images in found.items():
+        if len(images) == 1:
+            [(x, offset)] = images
+            out[q], out[velocity_symbol(q)] = x - offset, velocity_symbol(x)
     return out
 
 

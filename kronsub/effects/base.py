@@ -51,6 +51,18 @@ class Effect:
             walk(getattr(self, f.name))
         return found
 
+    def written_in(self, through: dict) -> "Effect":
+        """The same effect with ``through`` (symbol -> expression) put in every field."""
+
+        def put(value):
+            if isinstance(value, sympy.Basic):
+                return value.xreplace(through)
+            if isinstance(value, (tuple, list)):
+                return type(value)(put(item) for item in value)
+            return value
+
+        return dataclasses.replace(self, **{f.name: put(getattr(self, f.name)) for f in dataclasses.fields(self)})
+
     def direct_force(self, primitive: Primitive, coordinates, moved) -> list[sympy.Expr] | None:
         """``fbar`` applied directly in the subspace, for an effect written (partly) in the
         generalized coordinates ``xbar``; ``moved`` carries an expression to the subspace

@@ -1,6 +1,7 @@
 """Applied loads: forces at points, torques on bodies, direct generalized forces."""
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import sympy
@@ -68,6 +69,18 @@ class GeneralizedForce(Effect):
 
     def generalized_force(self, primitive):
         return [self.value if q == self.coordinate else sympy.Integer(0) for q in primitive.coordinates]
+
+    def written_in(self, through):
+        """On ``q`` with ``x^a = q + c``: on ``x^a`` (its row of ``C`` is that of ``q``, so
+        ``C^T f`` is ``value`` on row ``q`` as before)."""
+        from ..core.symbols import velocity_symbol
+
+        moved = super().written_in(through)
+        if self.coordinate not in through:
+            return moved
+        rate = through[velocity_symbol(self.coordinate)]  # xdot^a
+        (x,) = [s for s in through[self.coordinate].free_symbols if velocity_symbol(s) == rate]
+        return dataclasses.replace(moved, coordinate=x)
 
     def direct_force(self, primitive, coordinates, moved):
         """On a generalized coordinate: ``value`` is that row of ``fbar`` (Hoffmann's eq. (4)

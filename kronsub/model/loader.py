@@ -303,6 +303,7 @@ class _Loader:
         else:
             y = coords
         self._generated_names(y, primitive)
+        self._pivot_angles(root.get("connection"), y)
         connection = self._connection(root.get("connection"), primitive, y)
         effects = self._effects(root.get("effects"), primitive, y)
         initial = self._initial(root.get("initial"), y)
@@ -719,6 +720,8 @@ class _Loader:
                 unknown_keys.append(key)
                 if self.is_broken(key) or self.failed_components:
                     continue  # most likely a coordinate of the component that failed, reported already
+                if any(angle.name == key for _, _, angle, _, _ in self.pivots):
+                    continue  # a pivoted part's angle: reported by _pivot_angles
                 self.error(loc, f"'{key}' is not a coordinate of the primitive system",
                            close_matches(key, [k for k in self.primitive_names if "." in k] +
                                          [q.name for q in primitive.coordinates]))
@@ -804,6 +807,22 @@ class _Loader:
         angle = symbol(names[0])
         self.pivots.append((cname, pnode, angle, params["length"], hidden))
         return dataclasses.replace(part, points=points)
+
+    def _pivot_angles(self, node: Node | None, y) -> None:
+        """A pivoted part's angle is a coordinate of the subspace (``y``; without constraints a
+        generalized coordinate): its connection lines are written in it. Left out, it would be a
+        frozen symbol; given by the connection, it is no primitive coordinate."""
+        entries = node.value if node is not None and node.is_mapping else {}
+        for cname, pnode, angle, _, _ in self.pivots:
+            hint = (f"list '{angle}' under `coordinates:`; for an angle given by other coordinates "
+                    f"(a relative angle), make '{cname}' a `rod` with `axis: down` and connect its x, y and angle")
+            if angle.name in entries:
+                self.error(node.key_locations[angle.name], f"'{angle}' is the angle of '{cname}', which hangs "
+                           f"from `pivot: {pnode.value}`: the pivot sets its place from that angle, which cannot "
+                           "itself be connected", hint)
+            elif angle not in y:
+                self.error(pnode, f"the angle '{angle}' of '{cname}' (hung from `pivot: {pnode.value}`) is not a "
+                           "generalized coordinate", hint)
 
     def _pivot_connection(self, primitive: Primitive) -> None:
         """Connection lines of the pivoted parts: centre = pivot + L/2 (sin a, -cos a), axis = a - pi/2."""
