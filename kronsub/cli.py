@@ -409,7 +409,8 @@ def simulate(model: Path, t_end: float | None, dt: float | None, method: str | N
             _fail(f"Stopped after t = {writer.last_t!r}: the reader of {where} closed it after "
                   f"{_rows(writer.rows)}{marked}", INTERRUPTED)
         if writer.stopped:
-            _fail(f"Interrupted after t = {writer.last_t!r}: the {_rows(writer.rows)} computed so far are kept "
+            _fail(f"Interrupted after t = {writer.last_t!r}: the {_rows(writer.rows)} computed so far "
+                  f"{'is' if writer.rows == 1 else 'are'} kept "
                   f"in {where}{marked}", INTERRUPTED)
         if plot is not None:
             from .simulation.plot import plot_trajectory
@@ -419,7 +420,7 @@ def simulate(model: Path, t_end: float | None, dt: float | None, method: str | N
             click.echo(f"wrote {plot}", err=True)
         if not run.complete:
             _fail(f"Error: the run stopped at t = {run.t_fail:.6g}: {run.message}; "
-                  f"the {_rows(writer.rows)} computed so far are kept in {where}{marked}"
+                  f"the {_rows(writer.rows)} computed so far {'is' if writer.rows == 1 else 'are'} kept in {where}{marked}"
                   + _constraint_hints(system, run, step), NUMERICAL_FAILURE)
 
     _run(job)

@@ -112,3 +112,28 @@ def test_linearize_names_a_domain_problem_instead_of_failing(tmp_path):
     assert result.exit_code == 1, result.output
     assert "1/sqrt(x - 1) in (fbar - hbar)[x] is outside its domain" in result.output
     assert "--at NAME=VALUE" in result.output
+
+
+def test_a_singular_mass_matrix_is_described_by_the_motion_it_loses():
+    from kronsub.core.finite import describe_rank_loss
+
+    assert describe_rank_loss(np.diag([2.0, 1.0]), ["a", "b"]) is None
+    lost = describe_rank_loss(np.array([[1.0, 1.0], [1.0, 1.0]]), ["a", "b"])
+    assert "a motion along (a +1, b -1) has no inertia" in lost
+    assert "negative eigenvalue" in describe_rank_loss(np.diag([1.0, -0.5]), ["a", "b"])
+
+
+@pytest.mark.parametrize("method", ["dop853", "RK45"])
+def test_simulate_at_a_pole_of_spherical_coordinates_names_the_lost_direction(tmp_path, method):
+    """The polar angle 0 of a spherical pendulum: the azimuth moves nothing (Mbar = diag(m R^2, 0))."""
+    result = CliRunner().invoke(main, ["simulate", str(MODELS / "examples" / "particle_on_sphere.yaml"), "--t", "1",
+                                       "--set", "theta=0", "--method", method, "-o", str(tmp_path / "run.csv")])
+    assert result.exit_code == 3, result.output
+    assert "Mbar loses rank here: a motion along (phi +1) has no inertia" in result.output
+    assert "the 1 row computed so far is kept" in result.output
+
+
+def test_linearize_at_a_pole_names_the_lost_direction():
+    result = CliRunner().invoke(main, ["linearize", str(MODELS / "examples" / "particle_on_sphere.yaml"),
+                                       "--at", "theta=0", "--at", "phi=0"])
+    assert result.exit_code != 0 and "a motion along (phi +1) has no inertia" in result.output

@@ -13,6 +13,7 @@ import sys
 from typing import NamedTuple
 
 import mpmath
+import numpy as np
 import sympy
 
 from .symbols import TIME
@@ -157,3 +158,40 @@ def _describe(label: str, found: _Found, values) -> Cause:
                      "give the parameters and the initial state smaller values, in other units", label)
     what = "a division by zero" if found.value.has(sympy.zoo) else "outside its domain"
     return Cause(False, f"{node} in {label} is {what}", "check the initial values and the parameters", label)
+
+
+def rank_loss(system, y, param) -> str | None:
+    """Why ``Mbar(q)`` has no Cholesky factor at a finite state ``y = [q; qdot]``
+    (:func:`describe_rank_loss`); None when it is not the matrix, or with implicit
+    constraints (whose dependent coordinates are not known here)."""
+    if system.implicit is not None:
+        return None
+    q, n = system.coordinates, len(system.coordinates)
+    values = {s: sympy.Float(float(v), _DIGITS) for s, v in zip(q, y)}
+    values.update({p.symbol: sympy.Float(float(v), _DIGITS) for p, v in zip(system.parameters, param)})
+    try:
+        M = np.array([[float(sympy.sympify(system.mass_matrix[i, j]).xreplace(values).evalf(_DIGITS))
+                       for j in range(n)] for i in range(n)])
+    except (TypeError, ValueError):
+        return None
+    return describe_rank_loss(M, [s.name for s in q]) if np.all(np.isfinite(M)) else None
+
+
+def describe_rank_loss(M, names) -> str | None:
+    """``M`` (the mass matrix at a configuration) singular or indefinite, in words: the
+    direction of motion it gives no inertia (the eigenvector of its smallest eigenvalue, its
+    largest entry 1), as at a coordinate singularity. None when ``M`` is positive definite to
+    working accuracy."""
+    w, V = np.linalg.eigh((M + M.T) / 2)
+    scale = float(np.max(np.abs(w)))
+    k = int(np.argmin(w))
+    if scale > 0 and w[k] > 1e-9 * scale:
+        return None
+    if scale > 0 and w[k] < -1e-6 * scale:
+        return (f"Mbar has a negative eigenvalue here ({w[k]:.3g}, the largest {scale:.3g}): "
+                "is a mass or an inertia among the parameters negative?")
+    v = V[:, k] / V[int(np.argmax(np.abs(V[:, k]))), k]
+    along = ", ".join(f"{names[i]} {v[i]:+.3g}" for i in range(len(names)) if abs(v[i]) >= 1e-6)
+    return (f"Mbar loses rank here: a motion along ({along}) has no inertia, as at a singularity of "
+            "the coordinates (Euler angles in gimbal lock, spherical coordinates at a pole) or where "
+            "nothing with mass moves that way")

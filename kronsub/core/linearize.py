@@ -277,8 +277,12 @@ def _solve(Mn: np.ndarray, rhs: np.ndarray, values, q) -> np.ndarray:
     try:
         np.linalg.cholesky(Mn)
     except np.linalg.LinAlgError:
+        from .finite import describe_rank_loss
+
         where = ", ".join(f"{s}={values[s]:.6g}" for s in q)
-        raise LinearizationError(f"the mass matrix is not positive definite at {where}") from None
+        why = describe_rank_loss(Mn, [s.name for s in q])
+        raise LinearizationError(f"the mass matrix is not positive definite at {where}"
+                                 + (f"; {why}" if why else "")) from None
     return np.linalg.solve(Mn, rhs)
 
 

@@ -710,6 +710,16 @@ def _chunks(grid, count: int):
     return list(zip(edges[:-1], edges[1:]))
 
 
+def _rank_loss(system, y, param) -> str:
+    """``; <why Mbar is singular at y>`` (:func:`..core.finite.rank_loss`), or nothing."""
+    from ..core.finite import rank_loss
+
+    if param is None or y is None or not np.all(np.isfinite(y)):
+        return ""
+    why = rank_loss(system, y, param)
+    return f"; {why}" if why else ""
+
+
 def _where(system, y) -> str:
     """The configuration at a failure, for the message."""
     if y is None:
@@ -767,6 +777,8 @@ def _native_blocks(run, native, method, grid, y0, param, rtol, atol, dt, chunks,
             if result.status in (1, 2) and not _real_at(native, t0, y, param):  # not finite at the start
                 message = _not_finite(system, t0, y, param)
             message += _where(system, result.y_fail) if result.status in (1, 2) else ""
+            if result.status in (1, 2) and result.y_fail is not None and np.all(np.isfinite(result.y_fail)):
+                message += _rank_loss(system, result.y_fail, param)
             run.stop(message, result.t_fail, y_fail=result.y_fail)
             return
         y = Y[-1]
@@ -913,7 +925,7 @@ def _scipy_blocks(run, rhs, method, grid, y0, rtol, atol, chunks, bar, system, e
             if param is not None:  # NaN entries, not a singular matrix: an overflow, or outside the domain
                 t, y = (exc.t, exc.y) if np.all(np.isfinite(exc.y)) else (t_old, y_old)  # (a stage overflowed)
                 found = _not_finite(system, t, y, param, otherwise="", mass_only=True)
-                message = found + _where(system, y) if found else message
+                message = found + _where(system, y) if found else message + _rank_loss(system, exc.y, param)
             run.stop(message, exc.t, y_fail=exc.y)
             return
         except (ValueError, RuntimeError, ArithmeticError, np.linalg.LinAlgError) as exc:
