@@ -888,6 +888,7 @@ class _Loader:
                 continue
             effect = build_effect(self, ename, spec, primitive)
             if effect is not None:
+                self.locations[f"effect:{ename}"] = loc
                 effects.append(effect)
         return effects
 
