@@ -189,3 +189,49 @@ def test_a_spring_or_damper_from_a_point_to_itself_is_refused(tmp_path, kind, ke
     assert result.exit_code == 1, result.output
     assert f"Error: {model}:7:33: the two ends of {kind} 'same' are the same point, whatever the motion" \
         in result.output and "hint:" in result.output
+
+
+FOUR_BAR = MODELS / "examples" / "four_bar.yaml"
+
+
+def test_a_closed_loop_names_an_overflow_not_the_constraints(tmp_path):
+    """With implicit constraints the quantities are in the dependent coordinates too: they are
+    solved at the state, then the overflow is named as without constraints (it was 'the
+    constraints could not be solved ... where they still have a solution' from simulate, 'every
+    point failed' from accuracy, 'cannot be evaluated' without a cause from linearize)."""
+    big = ["m1=1e308", "g=100"]
+    result = _simulate(FOUR_BAR, *[a for v in big for a in ("--set", v)], "--t", "0.1", "-o", tmp_path / "run.csv")
+    assert result.exit_code == 3, result.output
+    assert "fbar[theta1] of effect 'gravity' overflows the range of doubles" in result.output
+    assert "with m1=1e+308" in result.output and "could not be solved" not in result.output
+    result = CliRunner().invoke(main, ["linearize", str(FOUR_BAR), "--at", big[0], "--at", big[1]])
+    assert result.exit_code == 1 and "(fbar - hbar)[theta1] overflows the range of doubles" in result.output, \
+        result.output
+    result = CliRunner().invoke(main, ["accuracy", str(FOUR_BAR), "--set", big[0], "--set", big[1], "--t", "0.1",
+                                       "--quick", "--methods", "dop853"])
+    assert result.exit_code == 1, result.output
+    assert "no finite value at the initial state: fbar[theta1] of effect 'gravity' overflows" in result.output
+
+
+def test_a_closed_loop_names_a_function_outside_its_domain_partway(tmp_path):
+    """A potential sqrt(theta2 - 0.34) in the dependent coordinate theta2, which falls below 0.34
+    as the crank turns: the run stops there naming it, with the dependent coordinates solved."""
+    model = tmp_path / "model.yaml"
+    model.write_text(FOUR_BAR.read_text().replace(
+        "  drive: {type: torque, component: crank, value: tau}\n",
+        "  drive: {type: torque, component: crank, value: tau}\n  well: {type: potential, value: "
+        "0.01*sqrt(theta2 - 0.34)}\n"))
+    result = _simulate(model, "--t", "1", "-o", tmp_path / "run.csv")
+    assert result.exit_code == 3, result.output
+    assert "no real value at this state: 1/sqrt(theta2 - 17/50) in fbar[theta1] of effect 'well' is outside its " \
+           "domain" in result.output and "theta2=0.3396" in result.output, result.output
+
+
+def test_a_closed_form_outside_its_domain_is_named(tmp_path):
+    """System II with the constraint (25): phi = asin((c - a1 sin(theta))/a2) has no value where
+    the lower rod cannot reach the line (theta = 0.1): the closed form's asin is named."""
+    for name in ("system1.yaml", "system2_implicit.yaml"):
+        shutil.copy(MODELS / "hoffmann" / name, tmp_path / name)
+    result = _simulate(tmp_path / "system2_implicit.yaml", "--set", "theta=0.1", "--t", "0.1")
+    assert result.exit_code == 1, result.output
+    assert "asin((-a1*sin(theta) + c)/a2) in phi is outside its domain at theta=0.1" in result.output, result.output

@@ -24,8 +24,8 @@ import sympy
 from .constraints import ConstraintFailure, Intermediates
 from .known_system import KnownSystem
 from .linearize import (EQUILIBRIUM_TOLERANCE, Linearization, LinearizationError, _Evaluator, _eigenvalues,
-                        _numeric, _residual, _solve, checked_inputs, derivative, parameter_defaults,
-                        parameter_numbers)
+                        _numeric, _residual, _solve, _unevaluable, checked_inputs, derivative,
+                        parameter_defaults, parameter_numbers)
 from .symbols import TIME
 
 
@@ -34,6 +34,7 @@ class _Reduced:
 
     def __init__(self, system: KnownSystem, numbers: dict, inputs: Sequence[sympy.Symbol], guess):
         imp = self.imp = system.implicit
+        self.system = system
         self.q, self.qd = list(system.coordinates), list(system.velocities)
         self.n, self.k = len(self.q), len(imp.dependent)
         self.numbers = numbers
@@ -186,9 +187,10 @@ def _equilibrium(reduced: _Reduced, qv, qdv, t: float, columns: list[int]) -> np
         return reduced.total(reduced.values(full(x), qdv, t))[2][:, columns]
 
     x0 = np.array(qv, dtype=float)[columns]
-    if not np.all(np.isfinite(fun(x0))):
-        raise LinearizationError("the equations cannot be evaluated at the initial values; give the "
-                                 "operating point with --at NAME=VALUE")
+    if not np.all(np.isfinite(fun(x0))):  # why, with the intermediates solved there (core/finite.py)
+        system = reduced.system
+        raise LinearizationError(_unevaluable(_residual(system), list(system.coordinates),
+                                              reduced.values(full(x0), qdv, t), system.mass_matrix))
     # unit scaling: scaled by the Jacobian's column norms (scipy's default for "lm"), a coordinate the
     # equilibrium does not fix, whose column is round-off (~1e-16) rather than 0, takes steps of ~1e15
     solution = least_squares(fun, x0, jac=jac, method="lm", xtol=1e-15, ftol=1e-15, gtol=1e-15, x_scale=1.0)
