@@ -259,3 +259,21 @@ def test_implicit_constraints_linearise_numerically_but_not_symbolically():
     assert symbolic.exit_code == 1
     assert "implicit constraints" in symbolic.output and "numeric only" in symbolic.output
     assert "internal error" not in symbolic.output
+
+
+def test_the_equilibrium_search_runs_one_method_where_it_converges(monkeypatch):
+    """The fallback of a stalled search (trust-region reflective after Levenberg-Marquardt) is
+    not run where Levenberg-Marquardt finds the equilibrium: those results stay as they were."""
+    import scipy.optimize
+
+    methods, real = [], scipy.optimize.least_squares
+
+    def spy(*args, **kwargs):
+        methods.append(kwargs["method"])
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(scipy.optimize, "least_squares", spy)
+    for model in (DOUBLE_PENDULUM, MODELS / "examples" / "four_bar.yaml"):
+        methods.clear()
+        result = CliRunner().invoke(main, ["linearize", str(model)])
+        assert result.exit_code == 0 and methods == ["lm"], (model, methods, result.output)
