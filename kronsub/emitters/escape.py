@@ -7,6 +7,7 @@ data. They reach generated C, Python, LaTeX and Markdown only through these func
 - :func:`c_string`: the body of a C string literal ``"..."``;
 - :func:`python_string`: the body of a Python ``"..."`` literal or ``\"\"\"...\"\"\"`` docstring;
 - :func:`latex_text`: LaTeX text mode (``\\title{}``, paragraphs, ``\\texttt{}``);
+- :func:`latex_name`: a name (coordinate, parameter...) in LaTeX math mode;
 - :func:`markdown_text`: Markdown inline text (headings, paragraphs, table cells).
 
 Templates call them as filters (``c_comment``, ``c_string``, ``py_str``, ``latex``, ``md``).
@@ -26,7 +27,7 @@ from typing import Callable
 import jinja2
 from markupsafe import Markup
 
-__all__ = ["c_comment", "c_string", "python_string", "latex_text", "markdown_text", "environment",
+__all__ = ["c_comment", "c_string", "python_string", "latex_text", "latex_name", "markdown_text", "environment",
            "UnescapedText", "Markup"]
 
 _NAMED = {"\n": "\\n", "\r": "\\r", "\t": "\\t", "\0": "\\0"}
@@ -164,6 +165,45 @@ def latex_text(text: str) -> str:
         else:  # past Latin-1: what pdflatex can print (a Greek letter once stopped the build)
             out.append(_BEYOND_LATIN1.get(ch, f"[U+{ord(ch):04X}]"))
     return "".join(out)
+
+
+_READ_AS_OTHER = frozenset({
+    "nan", "oo", "zoo", "inf", "infty", "Abs", "abs", "sin", "cos", "tan", "cot", "sec", "csc", "asin", "acos",
+    "atan", "atan2", "sinh", "cosh", "tanh", "exp", "log", "ln", "sqrt", "sign", "min", "max", "Min", "Max",
+    "re", "im", "arg", "det"})
+"""Words a reader takes for a number or a function (sympy's NaN and infinities, the functions of a
+model's expressions and of mathematics): as a name, each is an italic word of its own."""
+_WORD = re.compile(r"[A-Za-z]+")
+_PLAIN_NAME = re.compile(r"(?P<base>[A-Za-z]+)(?:(?P<digits>[0-9]+)|_(?P<sub>[A-Za-z]+|[0-9]+))?")
+
+
+def _plain_word(word: str) -> bool:
+    """Whether sympy prints ``word`` as itself or as one Greek letter (or other symbol) command:
+    not as a modifier (``xdot`` -> ``\\dot{x}``, the velocity's look; ``xabs`` -> ``|x|``), not as
+    a Latin twin (``Alpha`` -> ``A``), and not a word read as something else (``nan``)."""
+    from sympy.printing.latex import translate
+
+    if not _WORD.fullmatch(word) or word in _READ_AS_OTHER:
+        return False
+    tex = translate(word)
+    return tex == word or tex == "\\" + word
+
+
+def latex_name(name: str) -> str:
+    """A validated name (coordinate, parameter, intermediate) in LaTeX math mode, one way for
+    every name. sympy's form where it shows the name faithfully: a letter, a Greek letter's
+    name or a word, with digits or one subscript (``m1`` -> ``m_{1}``, ``theta`` ->
+    ``\\theta``, ``bob_phi`` -> ``bob_{\\phi}``). Any other name is the italic word of its
+    letters, escaped by :func:`latex_text`: ``nan`` -> ``\\mathit{nan}`` (not NaN), ``x_1_2`` ->
+    ``\\mathit{x\\_1\\_2}`` (sympy: ``x_{1 2}``, which reads as ``x_{12}``), ``a__b`` (sympy: a
+    power ``a^{b}``), ``xdot`` (sympy: ``\\dot{x}``, the velocity of ``x``), ``θ``."""
+    import sympy
+
+    plain = _PLAIN_NAME.fullmatch(name)
+    if plain and _plain_word(plain["base"]) and (not plain["sub"] or plain["sub"].isdigit()
+                                                  or _plain_word(plain["sub"])):
+        return sympy.latex(sympy.Symbol(name))
+    return r"\mathit{" + latex_text(name) + "}"
 
 
 _MARKDOWN_SPECIAL = set("\\`*_[]<>#|~&$")
