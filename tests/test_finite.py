@@ -234,4 +234,4 @@ def test_a_closed_form_outside_its_domain_is_named(tmp_path):
         shutil.copy(MODELS / "hoffmann" / name, tmp_path / name)
     result = _simulate(tmp_path / "system2_implicit.yaml", "--set", "theta=0.1", "--t", "0.1")
     assert result.exit_code == 1, result.output
-    assert "asin((-a1*sin(theta) + c)/a2) in phi is outside its domain at theta=0.1" in result.output, result.output
+    assert "asin((-a1*sin(theta) + c)/a2) in phi is outside its domain" in result.output, result.output

@@ -436,18 +436,15 @@ class Intermediates:
         return y[self.n:].copy()
 
     def _closed_cause(self, q) -> str:
-        """Which part of the closed form ``y_d(xbar)`` has no real (or finite) value at ``q``, and
-        the values that make it so (:mod:`.finite`), as ": ..." (empty without a verdict)."""
+        """Which part of the closed form ``y_d(xbar)`` has no real (or finite) value at ``q`` (:mod:`.finite`),
+        as ": ..." (empty without a verdict); the callers name the configuration."""
         from .finite import nonfinite_cause
 
         imp, closed = self.implicit, dict(self.implicit.closed_form)
         values = {s: float(v) for s, v in self.numeric_parameters.items()}
         values.update(zip(imp.independent, (float(v) for v in q)))
         cause = nonfinite_cause([(d.name, closed[d]) for d in imp.dependent], values)
-        if cause is None:
-            return ""
-        at = ", ".join(f"{s.name}={float(v):.6g}" for s, v in zip(imp.independent, q))
-        return f": {cause.what} at {at}"
+        return "" if cause is None else f": {cause.what}"
 
     def at(self, q, qdot) -> dict:
         """Every intermediate symbol -> its value at ``(q, qdot)``."""
