@@ -277,3 +277,14 @@ def test_the_equilibrium_search_runs_one_method_where_it_converges(monkeypatch):
         methods.clear()
         result = CliRunner().invoke(main, ["linearize", str(model)])
         assert result.exit_code == 0 and methods == ["lm"], (model, methods, result.output)
+
+
+def test_a_mass_matrix_singular_at_the_equilibrium_is_an_error_not_an_internal_one():
+    """The ball-joint body's equilibrium is at Euler angles 0, where two of its axes line up:
+    Cholesky passed the round-off of a singular Mbar, then numpy's solve raised (an internal
+    error, exit 4)."""
+    model = ROOT / "tests" / "models" / "sweep5" / "ball_joint_body.yaml"
+    result = CliRunner().invoke(main, ["linearize", str(model)])
+    assert result.exit_code == 1, result.output
+    assert "Error: the mass matrix is singular at psi=" in result.output and "hint: give another operating point" \
+        in result.output and "internal error" not in result.output

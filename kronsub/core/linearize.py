@@ -274,12 +274,17 @@ def linearize(system: KnownSystem, *, inputs: Sequence[sympy.Symbol] = (),
 
 
 def _solve(Mn: np.ndarray, rhs: np.ndarray, values, q) -> np.ndarray:
+    where = ", ".join(f"{s}={values[s]:.6g}" for s in q)
     try:
         np.linalg.cholesky(Mn)
     except np.linalg.LinAlgError:
-        where = ", ".join(f"{s}={values[s]:.6g}" for s in q)
         raise LinearizationError(f"the mass matrix is not positive definite at {where}") from None
-    return np.linalg.solve(Mn, rhs)
+    try:  # Cholesky passes a matrix singular to round-off (Euler angles at their singularity)
+        return np.linalg.solve(Mn, rhs)
+    except np.linalg.LinAlgError:
+        raise LinearizationError(f"the mass matrix is singular at {where} (a coordinate singularity, such as "
+                                 "Euler angles where two axes line up)\n  hint: give another operating point "
+                                 "with --at NAME=VALUE, or other coordinates") from None
 
 
 def _solve_equilibrium(evaluate: _Evaluator, values: dict, q, free, r) -> dict:
