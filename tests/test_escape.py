@@ -397,6 +397,7 @@ def test_hostile_text_stays_in_the_trajectory_metadata(key, tmp_path):
     # sympy's form where it is faithful: the names of the bundled models print as they did
     ("E", "E"), ("I", "I"), ("q12", "q_{12}"), ("theta", r"\theta"), ("theta1", r"\theta_{1}"),
     ("Gamma", r"\Gamma"), ("bob_phi", r"bob_{\phi}"), ("wheel", "wheel"), ("Jm", "Jm"), ("rod_x", "rod_{x}"),
+    ("mu_A_x", r"\mu_{A x}"), ("mu_B1_y", r"\mu_{B1 y}"), ("x_1_y", "x_{1 y}"), ("mu_phi1_x", r"\mathit{mu\_phi1\_x}"),
 ])
 def test_latex_name_prints_each_name_as_itself(name, tex):
     """`nan` printed as `nan` read as NaN (and its acceleration as `\\ddot{nan}`), `x_1_2` as

@@ -174,7 +174,7 @@ _READ_AS_OTHER = frozenset({
 """Words a reader takes for a number or a function (sympy's NaN and infinities, the functions of a
 model's expressions and of mathematics): as a name, each is an italic word of its own."""
 _WORD = re.compile(r"[A-Za-z]+")
-_PLAIN_NAME = re.compile(r"(?P<base>[A-Za-z]+)(?:(?P<digits>[0-9]+)|_(?P<sub>[A-Za-z]+|[0-9]+))?")
+_WORD_DIGITS = re.compile(r"(?P<word>[A-Za-z]+)(?P<digits>[0-9]*)")
 
 
 def _plain_word(word: str) -> bool:
@@ -189,19 +189,43 @@ def _plain_word(word: str) -> bool:
     return tex == word or tex == "\\" + word
 
 
+def _plain_subscript(part: str) -> bool:
+    """A part of a subscript sympy prints as it is: digits, a plain word, or letters and digits
+    (``B1``) whose letters are not a Greek letter's name (``phi1`` would print as its letters)."""
+    from sympy.printing.latex import translate
+
+    split = _WORD_DIGITS.fullmatch(part)
+    if part.isascii() and part.isdigit():
+        return True
+    if split is None:
+        return False
+    word = split["word"]
+    return _plain_word(word) if not split["digits"] else translate(word) == word and word not in _READ_AS_OTHER
+
+
+def _faithful(name: str) -> bool:
+    """Whether sympy's LaTeX of the name shows it as it is: a plain word (:func:`_plain_word`)
+    with digits (``m1`` -> ``m_{1}``) or with subscripts (``bob_phi`` -> ``bob_{\\phi}``,
+    ``mu_B_x`` -> ``\\mu_{B x}``), no two of them numbers side by side (``x_1_2`` -> ``x_{1 2}``,
+    which reads as ``x_{12}``), none empty (``a__b`` -> the power ``a^{b}``, ``x_`` -> ``x_{}``)."""
+    base, *subs = name.split("_")
+    split = _WORD_DIGITS.fullmatch(base)
+    if split is None or not _plain_word(split["word"]) or (split["digits"] and subs):
+        return False
+    numbers = [p.isdigit() for p in subs]
+    return all(_plain_subscript(p) for p in subs) and not any(a and b for a, b in zip(numbers, numbers[1:]))
+
+
 def latex_name(name: str) -> str:
     """A validated name (coordinate, parameter, intermediate) in LaTeX math mode, one way for
-    every name. sympy's form where it shows the name faithfully: a letter, a Greek letter's
-    name or a word, with digits or one subscript (``m1`` -> ``m_{1}``, ``theta`` ->
-    ``\\theta``, ``bob_phi`` -> ``bob_{\\phi}``). Any other name is the italic word of its
-    letters, escaped by :func:`latex_text`: ``nan`` -> ``\\mathit{nan}`` (not NaN), ``x_1_2`` ->
-    ``\\mathit{x\\_1\\_2}`` (sympy: ``x_{1 2}``, which reads as ``x_{12}``), ``a__b`` (sympy: a
-    power ``a^{b}``), ``xdot`` (sympy: ``\\dot{x}``, the velocity of ``x``), ``θ``."""
+    every name: sympy's form where it shows the name faithfully (:func:`_faithful`: ``m1`` ->
+    ``m_{1}``, ``theta`` -> ``\\theta``, ``bob_phi`` -> ``bob_{\\phi}``), else the italic word
+    of its letters, escaped by :func:`latex_text`: ``nan`` -> ``\\mathit{nan}`` (not NaN),
+    ``x_1_2`` -> ``\\mathit{x\\_1\\_2}``, ``a__b``, ``xdot`` (sympy: ``\\dot{x}``, the velocity of
+    ``x``), ``θ``."""
     import sympy
 
-    plain = _PLAIN_NAME.fullmatch(name)
-    if plain and _plain_word(plain["base"]) and (not plain["sub"] or plain["sub"].isdigit()
-                                                  or _plain_word(plain["sub"])):
+    if _faithful(name):
         return sympy.latex(sympy.Symbol(name))
     return r"\mathit{" + latex_text(name) + "}"
 
