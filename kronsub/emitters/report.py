@@ -169,7 +169,7 @@ def latex_printer(coordinates, implicit=None, breaks: bool = False) -> Printer:
         names[velocity_symbol(q)] = rf"\dot{{{base}}}"
         names[acceleration_symbol(q)] = rf"\ddot{{{base}}}"
 
-    printer = LatexPrinter({"symbol_names": names, "order": "lex"})
+    printer = LatexPrinter({"symbol_names": names, "order": "lex", "escaped_names": True})
 
     def show(expr) -> str:
         text = printer.doprint(expr)
