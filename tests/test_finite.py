@@ -235,3 +235,15 @@ def test_a_closed_form_outside_its_domain_is_named(tmp_path):
     result = _simulate(tmp_path / "system2_implicit.yaml", "--set", "theta=0.1", "--t", "0.1")
     assert result.exit_code == 1, result.output
     assert "asin((-a1*sin(theta) + c)/a2) in phi is outside its domain" in result.output, result.output
+
+
+def test_a_spring_from_a_point_to_itself_is_reported_with_its_other_problems(tmp_path):
+    """The whole model is validated at once: the spring's stiffness in a velocity is told too."""
+    model = tmp_path / "model.yaml"
+    model.write_text(COINCIDENT.replace("effects:\n", "effects:\n  same: {type: spring, between: "
+                                                     "[a.centre, a.centre], stiffness: x_dot}\n"))
+    result = _simulate(model, "--t", "0.1")
+    assert result.exit_code == 1, result.output
+    assert "the two ends of spring 'same' are the same point" in result.output
+    assert "the stiffness of 'same' depends on the velocity 'x_dot'" in result.output and "2 problems found" \
+        in result.output

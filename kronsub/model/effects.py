@@ -221,15 +221,15 @@ def _spring(loader, ename, spec, primitive, damper=False):
     knode = _required(loader, spec, key, ename, f"e.g. `{key}: k`")
     if knode is None or any(e is None for e in ends):
         return None
-    if _always_together(primitive, ends):
+    together = _always_together(primitive, ends)
+    if together:
         kind = "damper" if damper else "spring"
         loader.error(bnode, f"the two ends of {kind} '{ename}' are the same point, whatever the motion",
                      f"a {kind} acts between two points that move apart: join it to another point, or remove it")
-        return None
     k = loader.expr(knode, what=key)
     if not damper:
         k = _positional(loader, knode, k, primitive, ename, "the stiffness")
-    if k is None:
+    if k is None or together:
         return None
     if damper:
         return Damper(ename, ends=ends, coefficient=k)

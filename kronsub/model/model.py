@@ -80,7 +80,7 @@ class Model:
         import math
 
         from ..core.symbols import TIME
-        from ..effects.elements import squared_distance
+        from ..effects.elements import Damper, squared_distance
 
         q = system.coordinates
         values = {TIME: float(t), **dict(zip(q, (float(v) for v in y)))}
@@ -98,7 +98,7 @@ class Model:
                 continue
             if distance != 0.0:
                 continue
-            kind = "damper" if type(effect).__name__ == "Damper" else "spring"
+            kind = "damper" if isinstance(effect, Damper) else "spring"
             state = ", ".join(f"{s.name}={float(v):.6g}" for s, v in zip(q, y))
             hint = ("move one end, or start from a state where the ends are apart; a spring of rest length 0 "
                     "(leave out `length:`) pulls with k*d and is defined where its ends meet"
