@@ -419,9 +419,12 @@ def simulate(model: Path, t_end: float | None, dt: float | None, method: str | N
             plot_trajectory(system, traj, values, plot, with_points)
             click.echo(f"wrote {plot}", err=True)
         if not run.complete:
-            _fail(f"Error: the run stopped at t = {run.t_fail:.6g}: {run.message}; "
+            ends = _coincident_ends(loaded, system, run.t_fail, getattr(run, "y_fail", None), values.parameters)
+            at, message, hint = (f"{ends.location}: ", ends.message, f"\n  hint: {ends.hint}") if ends is not None \
+                else ("", run.message, "")
+            _fail(f"Error: {at}the run stopped at t = {run.t_fail:.6g}: {message}; "
                   f"the {_rows(writer.rows)} computed so far {'is' if writer.rows == 1 else 'are'} kept in {where}{marked}"
-                  + _constraint_hints(system, run, step), NUMERICAL_FAILURE)
+                  + hint + _constraint_hints(system, run, step), NUMERICAL_FAILURE)
 
     _run(job)
 
@@ -436,6 +439,37 @@ def _check_times(t_end: float | None, dt: float | None) -> None:
 
 def _rows(count: int) -> str:
     return f"{count} row" if count == 1 else f"{count} rows"
+
+
+def _coincident_ends(loaded, system, t, y, param):
+    """The spring or damper of ``loaded`` whose ends meet at ``(t, y)`` (where its force is 0/0),
+    as a :class:`~.errors.Problem` at its entry; None when none does, or the state is not known."""
+    import numpy as np
+
+    if t is None or y is None or system.implicit is not None:
+        return None
+    y = np.asarray(y, dtype=float)
+    n = len(system.coordinates)
+    if len(y) < n or not np.all(np.isfinite(y[:n])):
+        return None
+    return loaded.coincident_ends(system, t, y[:n], param)
+
+
+def _coincident_at_start(loaded, system, initial, settings) -> None:
+    """Raise the :func:`_coincident_ends` problem at the initial state (``settings``: ``--set`` or
+    ``--at`` values, a ``t`` among them) when there is one: ``linearize`` and ``accuracy`` found
+    equations without a value there, and this names the spring or damper why."""
+    from .simulation.values import resolve
+
+    t = settings.get("t", "0")
+    try:
+        values = resolve(system, initial, {k: v for k, v in settings.items() if k != "t"})
+        t = float(t)
+    except (KronsubError, ValueError):
+        return  # the values are reported as they are
+    ends = _coincident_ends(loaded, system, t, values.y0, values.parameters)
+    if ends is not None:
+        raise ModelError([ends])
 
 
 def _constraint_hints(system, run, step: float) -> str:
@@ -522,8 +556,12 @@ def accuracy(model: Path, t_end: float, methods: str, tolerances: str, target: f
             values = resolve(system, initial, assignments)
         click.echo(f"computing the reference to t = {t_end:g} ...", err=True)
         default_digits = 34 if "gbs-quad" in chosen else (16 if quick else 20)
-        wp = acc.measure(system, values, t_end, chosen, grid, digits=digits or default_digits, quick=quick,
-                         dependent=dependent)
+        try:
+            wp = acc.measure(system, values, t_end, chosen, grid, digits=digits or default_digits, quick=quick,
+                             dependent=dependent)
+        except acc.AccuracyError:
+            _coincident_at_start(loaded, system, initial, assignments)
+            raise
         click.echo(acc.markdown(wp, target), nl=False)
         if output is not None:
             write_atomically(output, acc.to_csv(wp))

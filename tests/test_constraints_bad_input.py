@@ -111,3 +111,41 @@ def test_coordinates_auto_is_reported_on_stderr(tmp_path):
     except ValueError:
         err = result.output
     assert "coordinates: auto picked theta" in err
+
+
+SUB_TIED = """name: bead tied twice
+parameters: {m: 1}
+components:
+  p: {type: particle3d, parameters: {mass: m}, coordinates: [u, v, w]}
+coordinates: [u]
+constraints:
+  x: v - u
+  c_x: w - 2*u
+initial: {u: 0.1, v: 0.1, w: 0.2}
+"""
+
+
+def test_multipliers_of_two_known_systems_that_share_a_name_point_at_their_components(tmp_path):
+    """`arm.c_x` (the known system `arm`'s constraint `c_x`) and `arm_c.x` are both `mu_arm_c_x`:
+    neither is written in this file, so the error is at the component entries that bring them
+    in (it was at the top of the file, 1:1)."""
+    (tmp_path / "sub.yaml").write_text(SUB_TIED, encoding="utf-8")
+    text = ("name: two subs\ncomponents:\n"
+            "  arm: {model: sub.yaml, coordinates: {u: u1, v: v1, w: w1}}\n"
+            "  arm_c: {model: sub.yaml, coordinates: {u: u2, v: v2, w: w2}}\n"
+            "coordinates: [u1, u2]\ninitial: {u1: 0.1, v1: 0.1, w1: 0.2, u2: 0.3, v2: 0.3, w2: 0.6}\n")
+    err = run(tmp_path, text)
+    path = tmp_path / "model.yaml"
+    assert err.startswith(f"Error: {path}:4:3: constraints 'arm.c_x' and 'arm_c.x' have the same multiplier "
+                          f"name 'mu_arm_c_x' in the reactions: they come from the component 'arm' (at {path}:3:3) "
+                          "and this one, 'arm_c'"), err
+    assert "hint: rename one of the components" in err
+    assert run_ok(tmp_path, text.replace("  arm_c:", "  arm_k:"))
+
+
+def run_ok(tmp_path: Path, text: str) -> bool:
+    path = tmp_path / "model.yaml"
+    path.write_text(text, encoding="utf-8")
+    result = CliRunner().invoke(main, ["derive", str(path)])
+    assert result.exit_code == 0, result.output
+    return True

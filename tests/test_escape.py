@@ -388,3 +388,65 @@ def test_hostile_text_stays_in_the_trajectory_metadata(key, tmp_path):
     assert all(float(v) == float(v) for line in lines[1:-1] for v in line.split(","))  # numbers only
     back = json.loads(metadata_json(meta))
     assert back["model"] == {"name": system.name, "file": text, "sha256": None}
+
+
+@pytest.mark.parametrize("name, tex", [
+    ("nan", r"\mathit{nan}"), ("oo", r"\mathit{oo}"), ("zoo", r"\mathit{zoo}"), ("Abs", r"\mathit{Abs}"),
+    ("sin", r"\mathit{sin}"), ("x_1_2", r"\mathit{x\_1\_2}"), ("a__b", r"\mathit{a\_\_b}"), ("x_", r"\mathit{x\_}"),
+    ("xdot", r"\mathit{xdot}"), ("Alpha", r"\mathit{Alpha}"), ("x1_a", r"\mathit{x1\_a}"),
+    # sympy's form where it is faithful: the names of the bundled models print as they did
+    ("E", "E"), ("I", "I"), ("q12", "q_{12}"), ("theta", r"\theta"), ("theta1", r"\theta_{1}"),
+    ("Gamma", r"\Gamma"), ("bob_phi", r"bob_{\phi}"), ("wheel", "wheel"), ("Jm", "Jm"), ("rod_x", "rod_{x}"),
+    ("mu_A_x", r"\mu_{A x}"), ("mu_B1_y", r"\mu_{B1 y}"), ("x_1_y", "x_{1 y}"), ("mu_phi1_x", r"\mathit{mu\_phi1\_x}"),
+])
+def test_latex_name_prints_each_name_as_itself(name, tex):
+    """`nan` printed as `nan` read as NaN (and its acceleration as `\\ddot{nan}`), `x_1_2` as
+    `x_{1 2}` (which reads as `x_{12}`), `a__b` as the power `a^{b}`, `xdot` as `\\dot{x}` (the
+    velocity of `x`): names sympy prints unfaithfully are italic words, escaped by latex_text."""
+    from kronsub.emitters.escape import latex_name
+
+    assert latex_name(name) == tex
+
+
+HOSTILE_NAMES = r"""name: 'Hostile \ { $ % # _ ^ ~ } & names'
+description: 'a description with \ { $ % # _ ^ ~ }'
+parameters:
+  oo: {value: 0.3, unit: 'N \ { $ % # _ ^ ~ }', description: '\input{x} $ % # _ ^ ~'}
+  zoo: {value: 0.7}
+  Abs: {value: 0.25}
+  E: {value: 0.5}
+  k_1_2: {value: 2}
+  a__b: {value: 1}
+components:
+  arm: {type: pinned_rod, parameters: {mass: E, length: 1}, coordinates: [nan]}
+  cart: {type: particle1d, parameters: {mass: Abs}, coordinates: [x_1_2]}
+coordinates: [nan, x_1_2]
+effects:
+  spring_1: {type: potential, value: k_1_2*x_1_2**2/2 + a__b*nan**2}
+  push: {type: generalized_force, coordinate: x_1_2, value: oo*cos(zoo*t)}
+initial: {nan: 0.5}
+"""
+
+
+def test_hostile_names_print_as_latex_names(tmp_path):
+    path = tmp_path / "hostile.yaml"
+    path.write_text(HOSTILE_NAMES, encoding="utf-8")
+    tex = CliRunner().invoke(main, ["derive", str(path), "--format", "latex"])
+    lin = CliRunner().invoke(main, ["linearize", str(path), "--at", "nan=0", "--at", "x_1_2=0", "--format", "latex"])
+    assert tex.exit_code == 0 and lin.exit_code == 0, tex.output + lin.output
+    for doc in (tex.stdout, lin.stdout):
+        assert r"\mathit{nan}" in doc and r"\mathit{x\_1\_2}" in doc
+        for bad in (r"\ddot{nan}", r"\dot{nan}", "x_{1 2}", "k_{1 2}", "a^{b}", "(nan", " oo ", "t zoo"):
+            assert bad not in doc, bad
+    doc = tex.stdout
+    assert r"\ddot{\mathit{nan}}" in doc and r"\dot{\mathit{nan}}" in doc and r"\mathit{oo}" in doc
+    assert r"\mathit{Abs}" in doc and r"\mathit{k\_1\_2}" in doc and r"\mathit{a\_\_b}" in doc
+    assert r"\title{Hostile \textbackslash{} \{ \$ \% \# \_ \textasciicircum{} \textasciitilde{} \} \& names}" in doc
+    assert r"\texttt{spring\_1}" in doc
+    assert "input{x}" not in doc  # the units and descriptions do not reach the LaTeX
+    if shutil.which("pdflatex"):
+        for stem, text in (("derive", doc), ("linearize", lin.stdout)):
+            (tmp_path / f"{stem}.tex").write_text(text, encoding="utf-8")
+            run = subprocess.run(["pdflatex", "-interaction=nonstopmode", "-halt-on-error", f"{stem}.tex"],
+                                 cwd=tmp_path, capture_output=True, text=True, timeout=120)
+            assert run.returncode == 0, run.stdout[-2000:]

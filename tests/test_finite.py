@@ -137,3 +137,136 @@ def test_linearize_at_a_pole_names_the_lost_direction():
     result = CliRunner().invoke(main, ["linearize", str(MODELS / "examples" / "particle_on_sphere.yaml"),
                                        "--at", "theta=0", "--at", "phi=0"])
     assert result.exit_code != 0 and "a motion along (phi +1) has no inertia" in result.output
+COINCIDENT = """name: tether
+parameters: {m: 1, k: 10, L: 0.5, c: 0.3}
+components:
+  a: {type: particle2d, parameters: {mass: m}, coordinates: [x, y]}
+coordinates: [x, y]
+effects:
+  tether: {type: spring, between: [[0, 0], a.centre], stiffness: k, length: L}
+  drag: {type: damper, between: [[0, 0], a.centre], coefficient: c}
+initial: {x: 0, y: 0, x_dot: 0.1}
+"""
+
+
+@pytest.mark.parametrize("method", ["dop853", "gauss4", "taylor", "RK45", "Radau", "LSODA"])
+def test_simulate_names_the_spring_whose_ends_coincide(tmp_path, method):
+    """A spring with a rest length (or a damper) pulls along (p_b - p_a)/|p_b - p_a|, which is
+    0/0 where its ends meet: named with its entry and the state, not a bare NaN."""
+    model = tmp_path / "model.yaml"
+    model.write_text(COINCIDENT)
+    result = _simulate(model, "--t", "0.1", "--method", method, "--rtol", "1e-6", "-o", tmp_path / "run.csv")
+    assert result.exit_code == 3, result.output
+    assert f"Error: {model}:7:3: the run stopped at t = 0: the ends of spring 'tether' coincide at t = 0 " \
+           "(x=0, y=0)" in result.output
+    assert "hint: move one end" in result.output and "leave out `length:`" in result.output
+    assert "NaN" not in result.output and "Traceback" not in result.output
+
+
+def test_a_damper_whose_ends_coincide_is_named(tmp_path):
+    model = tmp_path / "model.yaml"
+    model.write_text(COINCIDENT.replace("  tether:", "  # tether:"))
+    result = _simulate(model, "--t", "0.1", "-o", tmp_path / "run.csv")
+    assert result.exit_code == 3 and f"{model}:8:3:" in result.output, result.output
+    assert "the ends of damper 'drag' coincide at t = 0 (x=0, y=0)" in result.output
+
+
+def test_linearize_and_accuracy_name_the_spring_whose_ends_coincide(tmp_path):
+    model = tmp_path / "model.yaml"
+    model.write_text(COINCIDENT)
+    for args in (["linearize", str(model)], ["accuracy", str(model), "--t", "0.1", "--quick", "--methods", "dop853"]):
+        result = CliRunner().invoke(main, args)
+        assert result.exit_code == 1, result.output
+        assert f"Error: {model}:7:3: the ends of spring 'tether' coincide at t = 0 (x=0, y=0)" in result.output
+    # elsewhere the same model linearises: about x = L (the damper's ends apart)
+    result = CliRunner().invoke(main, ["linearize", str(model), "--at", "x=0.5", "--at", "y=0"])
+    assert result.exit_code == 0, result.output
+
+
+def test_a_spring_of_zero_rest_length_through_its_anchor_runs(tmp_path):
+    """Its force k (p_b - p_a) has a value where the ends meet: nothing to report."""
+    model = tmp_path / "model.yaml"
+    model.write_text(COINCIDENT.replace(", length: L", "").replace("  drag:", "  # drag:"))
+    result = _simulate(model, "--t", "1", "-o", tmp_path / "run.csv")
+    assert result.exit_code == 0, result.output
+    rows = np.genfromtxt(tmp_path / "run.csv", delimiter=",", skip_header=1, ndmin=2)
+    assert np.allclose(rows[-1, 1], 0.1 * np.sin(np.sqrt(10)) / np.sqrt(10), atol=1e-8)
+
+
+def test_the_force_of_a_named_effect_without_a_value_names_the_effect(tmp_path):
+    model = tmp_path / "model.yaml"
+    model.write_text("name: slider\nparameters: {m: 1, k: 2}\ncomponents:\n"
+                     "  s: {type: particle1d, parameters: {mass: m}, coordinates: [x]}\ncoordinates: [x]\n"
+                     "effects:\n  well: {type: potential, value: k*sqrt(x - 1)}\n")
+    result = _simulate(model, "--t", "0.1", "--method", "Radau", "-o", tmp_path / "run.csv")
+    assert result.exit_code == 3 and "1/sqrt(x - 1) in fbar[x] of effect 'well' is outside its domain" \
+        in result.output, result.output
+
+
+@pytest.mark.parametrize("kind, key", [("spring", "stiffness"), ("damper", "coefficient")])
+def test_a_spring_or_damper_from_a_point_to_itself_is_refused(tmp_path, kind, key):
+    model = tmp_path / "model.yaml"
+    model.write_text(COINCIDENT.replace("effects:\n", f"effects:\n  same: {{type: {kind}, between: "
+                                                     f"[a.centre, a.centre], {key}: k}}\n"))
+    result = _simulate(model, "--t", "0.1")
+    assert result.exit_code == 1, result.output
+    assert f"Error: {model}:7:33: the two ends of {kind} 'same' are the same point, whatever the motion" \
+        in result.output and "hint:" in result.output
+
+
+FOUR_BAR = MODELS / "examples" / "four_bar.yaml"
+
+
+def test_a_closed_loop_names_an_overflow_not_the_constraints(tmp_path):
+    """With implicit constraints the quantities are in the dependent coordinates too: they are
+    solved at the state, then the overflow is named as without constraints (it was 'the
+    constraints could not be solved ... where they still have a solution' from simulate, 'every
+    point failed' from accuracy, 'cannot be evaluated' without a cause from linearize)."""
+    big = ["m1=1e308", "g=100"]
+    result = _simulate(FOUR_BAR, *[a for v in big for a in ("--set", v)], "--t", "0.1", "-o", tmp_path / "run.csv")
+    assert result.exit_code == 3, result.output
+    assert "fbar[theta1] of effect 'gravity' overflows the range of doubles" in result.output
+    assert "with m1=1e+308" in result.output and "could not be solved" not in result.output
+    result = CliRunner().invoke(main, ["linearize", str(FOUR_BAR), "--at", big[0], "--at", big[1]])
+    assert result.exit_code == 1 and "(fbar - hbar)[theta1] overflows the range of doubles" in result.output, \
+        result.output
+    result = CliRunner().invoke(main, ["accuracy", str(FOUR_BAR), "--set", big[0], "--set", big[1], "--t", "0.1",
+                                       "--quick", "--methods", "dop853"])
+    assert result.exit_code == 1, result.output
+    assert "no finite value at the initial state: fbar[theta1] of effect 'gravity' overflows" in result.output
+
+
+def test_a_closed_loop_names_a_function_outside_its_domain_partway(tmp_path):
+    """A potential sqrt(theta2 - 0.34) in the dependent coordinate theta2, which falls below 0.34
+    as the crank turns: the run stops there naming it, with the dependent coordinates solved."""
+    model = tmp_path / "model.yaml"
+    model.write_text(FOUR_BAR.read_text().replace(
+        "  drive: {type: torque, component: crank, value: tau}\n",
+        "  drive: {type: torque, component: crank, value: tau}\n  well: {type: potential, value: "
+        "0.01*sqrt(theta2 - 0.34)}\n"))
+    result = _simulate(model, "--t", "1", "-o", tmp_path / "run.csv")
+    assert result.exit_code == 3, result.output
+    assert "no real value at this state: 1/sqrt(theta2 - 17/50) in fbar[theta1] of effect 'well' is outside its " \
+           "domain" in result.output and "theta2=0.3396" in result.output, result.output
+
+
+def test_a_closed_form_outside_its_domain_is_named(tmp_path):
+    """System II with the constraint (25): phi = asin((c - a1 sin(theta))/a2) has no value where
+    the lower rod cannot reach the line (theta = 0.1): the closed form's asin is named."""
+    for name in ("system1.yaml", "system2_implicit.yaml"):
+        shutil.copy(MODELS / "hoffmann" / name, tmp_path / name)
+    result = _simulate(tmp_path / "system2_implicit.yaml", "--set", "theta=0.1", "--t", "0.1")
+    assert result.exit_code == 1, result.output
+    assert "asin((-a1*sin(theta) + c)/a2) in phi is outside its domain" in result.output, result.output
+
+
+def test_a_spring_from_a_point_to_itself_is_reported_with_its_other_problems(tmp_path):
+    """The whole model is validated at once: the spring's stiffness in a velocity is told too."""
+    model = tmp_path / "model.yaml"
+    model.write_text(COINCIDENT.replace("effects:\n", "effects:\n  same: {type: spring, between: "
+                                                     "[a.centre, a.centre], stiffness: x_dot}\n"))
+    result = _simulate(model, "--t", "0.1")
+    assert result.exit_code == 1, result.output
+    assert "the two ends of spring 'same' are the same point" in result.output
+    assert "the stiffness of 'same' depends on the velocity 'x_dot'" in result.output and "2 problems found" \
+        in result.output

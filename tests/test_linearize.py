@@ -259,3 +259,32 @@ def test_implicit_constraints_linearise_numerically_but_not_symbolically():
     assert symbolic.exit_code == 1
     assert "implicit constraints" in symbolic.output and "numeric only" in symbolic.output
     assert "internal error" not in symbolic.output
+
+
+def test_the_equilibrium_search_runs_one_method_where_it_converges(monkeypatch):
+    """The fallback of a stalled search (trust-region reflective after Levenberg-Marquardt) is
+    not run where Levenberg-Marquardt finds the equilibrium: those results stay as they were."""
+    import scipy.optimize
+
+    methods, real = [], scipy.optimize.least_squares
+
+    def spy(*args, **kwargs):
+        methods.append(kwargs["method"])
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(scipy.optimize, "least_squares", spy)
+    for model in (DOUBLE_PENDULUM, MODELS / "examples" / "four_bar.yaml"):
+        methods.clear()
+        result = CliRunner().invoke(main, ["linearize", str(model)])
+        assert result.exit_code == 0 and methods == ["lm"], (model, methods, result.output)
+
+
+def test_a_mass_matrix_singular_at_the_equilibrium_is_an_error_not_an_internal_one():
+    """The ball-joint body's equilibrium is at Euler angles 0, where two of its axes line up:
+    Cholesky passed the round-off of a singular Mbar, then numpy's solve raised (an internal
+    error, exit 4)."""
+    model = ROOT / "tests" / "models" / "sweep5" / "ball_joint_body.yaml"
+    result = CliRunner().invoke(main, ["linearize", str(model)])
+    assert result.exit_code == 1, result.output
+    assert "Error: the mass matrix is singular at psi=" in result.output and "hint: give another operating point" \
+        in result.output and "internal error" not in result.output

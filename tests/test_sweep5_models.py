@@ -568,6 +568,35 @@ def test_linearize_a_closed_loop_in_space_against_the_multipliers(tmp_path):
     assert np.allclose(np.array(data["A"], dtype=float), A, rtol=1e-6, atol=1e-6)
 
 
+def test_linearize_finds_the_equilibrium_where_levenberg_marquardt_stalls(tmp_path, monkeypatch):
+    """`linearize --scene free` of the spinning frame from the model's initial values (psi = 0.1,
+    zb = 0.3): Levenberg-Marquardt stalled at zb = 0.144, where the residual turns (the largest
+    acceleration 1.01: "no equilibrium found"); the trust-region reflective method from the same
+    start finds the equilibrium, where the hand accelerations (the multiplier solve) vanish."""
+    import scipy.optimize
+
+    methods, real = [], scipy.optimize.least_squares
+
+    def spy(*args, **kwargs):
+        methods.append(kwargs["method"])
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(scipy.optimize, "least_squares", spy)
+    ref = frame_reference(free=True)
+    out = tmp_path / "lin.json"
+    result = CliRunner().invoke(main, ["linearize", str(HERE / "spinning_frame_slider.yaml"), "--scene", "free",
+                                       "--format", "json", "-o", str(out)])
+    assert result.exit_code == 0, result.output
+    assert methods == ["lm", "trf"], methods
+    data = json.loads(out.read_text())
+    assert data["state"] == ["psi", "zb", "psi_dot", "zb_dot"] and data["equilibrium"], data
+    values = {p.name: float(p.value) for p in derived("spinning_frame_slider.yaml").parameters}
+    pv = [values[n] for n in ref.params]
+    point = [data["operating_point"][n] for n in ("psi", "zb")]
+    yv, ydv = ref.consistent(point, [0.0, 0.0], [point[0], 0.2, 0.1, point[1]], pv)
+    assert np.max(np.abs(ref.evaluate(0.0, yv, ydv, pv)[3])) < 1e-9
+
+
 @lru_cache(maxsize=None)
 def helix_reference():
     s, x, y, z = ys = list(S("s x y z"))

@@ -29,7 +29,9 @@ def linearize(model: Path, at: tuple[str, ...], inputs: str, symbolic: bool, fmt
     equilibrium is linearised about anyway and reported as such.
     """
     from ..api import linearize as linearize_system
-    from ..cli import USAGE_ERROR, _fail, _run, _separate_outputs, _writable, emit_text, scene_system
+    from ..core.linearize import LinearizationError
+    from ..cli import (USAGE_ERROR, _coincident_at_start, _fail, _run, _separate_outputs, _writable, emit_text,
+                       scene_system)
     from ..emitters.linearization import EMITTERS
     from ..model.scenes import initial_values
     from ..simulation.values import parse_assignments
@@ -43,8 +45,12 @@ def linearize(model: Path, at: tuple[str, ...], inputs: str, symbolic: bool, fmt
         if twice:
             _fail(f"Error: --inputs names {', '.join(twice)} more than once\n  hint: name each input once", USAGE_ERROR)
         loaded, scene, system = scene_system(model, scene_name)
-        lin = linearize_system(system, assignments, names, symbolic=symbolic,
-                               initial=initial_values(loaded, scene), option="--at")
+        try:
+            lin = linearize_system(system, assignments, names, symbolic=symbolic,
+                                   initial=initial_values(loaded, scene), option="--at")
+        except LinearizationError:
+            _coincident_at_start(loaded, system, initial_values(loaded, scene), assignments)
+            raise
         if not lin.equilibrium:
             moving = [f"{s}={v}" for s, v in lin.point if s in set(system.velocities) and v.is_zero is not True]
             why = ("qddot = " + ", ".join(f"{a:.6g}" for a in lin.acceleration)

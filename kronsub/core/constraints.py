@@ -429,11 +429,23 @@ class Intermediates:
                 self.guess = yd
                 return yd
             raise ConstraintFailure("diverged", "the closed form of the dependent coordinates has no real "
-                                    "value here (the mechanism cannot reach this configuration)", q)
+                                    "value here (the mechanism cannot reach this configuration)"
+                                    + self._closed_cause(q), q)
         y = np.concatenate([q, self.guess])
         y = self.numeric.solve(y, range(self.n, self.n + self.k), tol=self.tol)
         self.guess = y[self.n:]
         return y[self.n:].copy()
+
+    def _closed_cause(self, q) -> str:
+        """Which part of the closed form ``y_d(xbar)`` has no real (or finite) value at ``q`` (:mod:`.finite`),
+        as ": ..." (empty without a verdict); the callers name the configuration."""
+        from .finite import nonfinite_cause
+
+        imp, closed = self.implicit, dict(self.implicit.closed_form)
+        values = {s: float(v) for s, v in self.numeric_parameters.items()}
+        values.update(zip(imp.independent, (float(v) for v in q)))
+        cause = nonfinite_cause([(d.name, closed[d]) for d in imp.dependent], values)
+        return "" if cause is None else f": {cause.what}"
 
     def at(self, q, qdot) -> dict:
         """Every intermediate symbol -> its value at ``(q, qdot)``."""

@@ -32,6 +32,7 @@ class Cause(NamedTuple):
     what: str
     hint: str
     label: str = ""  # the quantity: "Mbar[x, y]", "fbar[x]"...
+    effect: str = ""  # the effect whose force it is, by its name in the model ("" for none)
 
     def __str__(self) -> str:
         return f"{self.what} ({self.hint})"
@@ -51,33 +52,39 @@ class _Unknown(Exception):
 
 
 def nonfinite_cause(quantities, values) -> Cause | None:
-    """Why the first of ``quantities`` (``(label, expr)`` pairs) without a finite double value
-    has none at ``values`` (symbol -> float), with a hint; None when there is no such quantity,
-    or no verdict (a symbol without a value)."""
+    """Why the first of ``quantities`` (``(label, expr)`` pairs, or ``(label, expr, effect)``
+    for the force of a named effect) without a finite double value has none at ``values``
+    (symbol -> float), with a hint; None when there is no such quantity, or no verdict (a
+    symbol without a value)."""
     given = dict(values)
     for symbol, value in given.items():
         if not math.isfinite(value):
             return Cause(math.isinf(value), f"{symbol.name} is {value}", "give it a finite value")
     memo: dict = {}
-    for label, expr in quantities:
+    for label, expr, *effect in quantities:
         try:
             _value(sympy.sympify(expr), given, memo)
         except _Unknown:
             continue
         except _Found as found:
-            return _describe(label, found, given)
+            return _describe(label, found, given)._replace(effect=effect[0] if effect else "")
     return None
 
 
-def at_state(system, t: float, y, param) -> Cause | None:
+def at_state(system, t: float, y, param, intermediates=None) -> Cause | None:
     """:func:`nonfinite_cause` for the equations of ``system`` (``Mbar``, ``fbar``, ``hbar``, the
     energies) at time ``t``, state ``y = [q; qdot]`` and parameter values ``param`` (in the order
-    of ``system.parameters``)."""
+    of ``system.parameters``). ``fbar`` is looked at effect by effect first (10'), so a force
+    without a value names its effect; then as the sum (which may overflow where no term does).
+    With implicit constraints, ``intermediates`` gives the named intermediates at the state
+    (``y_d``, ``Lambda``, ``gamma``: symbol -> float), without which there is no verdict."""
     q, n = system.coordinates, len(system.coordinates)
-    values = {TIME: float(t)}
+    values = {TIME: float(t), **{s: float(v) for s, v in (intermediates or {}).items()}}
     values.update(zip(q + system.velocities, (float(v) for v in y)))
     values.update(zip((p.symbol for p in system.parameters), (float(v) for v in param)))
     quantities = [(f"Mbar[{q[i].name}, {q[j].name}]", system.mass_matrix[i, j]) for i in range(n) for j in range(i + 1)]
+    for name, force in system.effect_forces.items():
+        quantities += [(f"fbar[{q[i].name}] of effect '{name}'", force[i], name) for i in range(n)]
     forces = system.forces
     quantities += [(f"fbar[{q[i].name}]", forces[i]) for i in range(n)]
     quantities += [(f"hbar[{q[i].name}]", system.velocity_terms[i]) for i in range(n)]

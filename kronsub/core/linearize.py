@@ -274,22 +274,27 @@ def linearize(system: KnownSystem, *, inputs: Sequence[sympy.Symbol] = (),
 
 
 def _solve(Mn: np.ndarray, rhs: np.ndarray, values, q) -> np.ndarray:
+    where = ", ".join(f"{s}={values[s]:.6g}" for s in q)
     try:
         np.linalg.cholesky(Mn)
     except np.linalg.LinAlgError:
         from .finite import describe_rank_loss
 
-        where = ", ".join(f"{s}={values[s]:.6g}" for s in q)
         why = describe_rank_loss(Mn, [s.name for s in q])
         raise LinearizationError(f"the mass matrix is not positive definite at {where}"
                                  + (f"; {why}" if why else "")) from None
-    return np.linalg.solve(Mn, rhs)
+    try:  # Cholesky passes a matrix singular to round-off (Euler angles at their singularity)
+        return np.linalg.solve(Mn, rhs)
+    except np.linalg.LinAlgError:
+        raise LinearizationError(f"the mass matrix is singular at {where} (a coordinate singularity, such as "
+                                 "Euler angles where two axes line up)\n  hint: give another operating point "
+                                 "with --at NAME=VALUE, or other coordinates") from None
 
 
 def _solve_equilibrium(evaluate: _Evaluator, values: dict, q, free, r) -> dict:
-    """Solve ``r(q, 0) = 0`` for the free coordinates (Levenberg-Marquardt, which copes with
-    coordinates the equilibrium does not fix, such as a cart's position)."""
-    from scipy.optimize import least_squares
+    """Solve ``r(q, 0) = 0`` for the free coordinates (:func:`least_squares_equilibrium`:
+    Levenberg-Marquardt, which copes with coordinates the equilibrium does not fix, such as a
+    cart's position, then the trust-region reflective method where it stalls)."""
 
     columns = [q.index(s) for s in free]
     values = dict(values)
@@ -310,10 +315,55 @@ def _solve_equilibrium(evaluate: _Evaluator, values: dict, q, free, r) -> dict:
     x0 = np.array([values[s] for s in free], dtype=float)
     if not np.all(np.isfinite(fun(x0))):
         raise LinearizationError(_unevaluable(r, q, values, evaluate.matrices[0]))
+
+    def settled(x):
+        Mn, rn, _ = evaluate(at(x))
+        return _at_equilibrium(Mn, rn.ravel())
+
+    return at(least_squares_equilibrium(fun, jac, x0, settled))
+
+
+def _at_equilibrium(Mn: np.ndarray, rn: np.ndarray) -> bool:
+    """Whether ``qddot = Mbar^-1 r`` is 0 to :data:`EQUILIBRIUM_TOLERANCE` (False where it has no
+    value, or ``Mbar`` is singular)."""
+    with np.errstate(all="ignore"):
+        try:
+            a = np.linalg.solve(Mn, rn)
+        except np.linalg.LinAlgError:
+            return False
+    return bool(np.all(np.isfinite(a)) and np.max(np.abs(a), initial=0.0) <= EQUILIBRIUM_TOLERANCE)
+
+
+def least_squares_equilibrium(fun, jac, x0: np.ndarray, settled, warm=None) -> np.ndarray:
+    """The free coordinates where ``r(q, 0) = 0``, by least squares from ``x0``: first
+    Levenberg-Marquardt; where it stalls short of an equilibrium (``settled`` false: near a
+    turning point of the residual, where ``(dr/dq)^T r`` is small with ``r`` not, its steps
+    shrink to nothing), the trust-region reflective method from the same start, whose trust
+    region takes other steps; its answer is taken only where it settles. A point where
+    Levenberg-Marquardt settles is kept as it is (the second method is not run), and so is the
+    point where both stall (the one reported). ``warm = (get, put)`` reads and sets what ``fun``
+    keeps between calls (a warm start): the second method starts from the first's start, and
+    the first's answer comes back with its own."""
+    from scipy.optimize import least_squares
+
+    start = warm[0]() if warm is not None else None
     # unit scaling: scaled by the Jacobian's column norms (scipy's default for "lm"), a coordinate the
     # equilibrium does not fix, whose column is round-off (~1e-16) rather than 0, takes steps of ~1e15
-    solution = least_squares(fun, x0, jac=jac, method="lm", xtol=1e-15, ftol=1e-15, gtol=1e-15, x_scale=1.0)
-    return at(solution.x)
+    first = least_squares(fun, x0, jac=jac, method="lm", xtol=1e-15, ftol=1e-15, gtol=1e-15, x_scale=1.0)
+    if settled(first.x):
+        return first.x
+    kept = warm[0]() if warm is not None else None
+    if warm is not None:
+        warm[1](start)
+    try:
+        second = least_squares(fun, x0, jac=jac, method="trf", xtol=1e-15, ftol=1e-15, gtol=1e-15, x_scale=1.0)
+        if settled(second.x):
+            return second.x
+    except (ValueError, np.linalg.LinAlgError, LinearizationError):  # a state without a value: the first stands
+        pass
+    if warm is not None:
+        warm[1](kept)
+    return first.x
 
 
 def _unevaluable(r, q, values, M, where: str = "at the initial values") -> str:

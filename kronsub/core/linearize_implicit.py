@@ -23,9 +23,9 @@ import sympy
 
 from .constraints import ConstraintFailure, Intermediates
 from .known_system import KnownSystem
-from .linearize import (EQUILIBRIUM_TOLERANCE, Linearization, LinearizationError, _Evaluator, _eigenvalues,
-                        _numeric, _residual, _solve, checked_inputs, derivative, parameter_defaults,
-                        parameter_numbers)
+from .linearize import (EQUILIBRIUM_TOLERANCE, Linearization, LinearizationError, _at_equilibrium, _Evaluator,
+                        _eigenvalues, _numeric, _residual, _solve, _unevaluable, checked_inputs, derivative,
+                        least_squares_equilibrium, parameter_defaults, parameter_numbers)
 from .symbols import TIME
 
 
@@ -34,6 +34,7 @@ class _Reduced:
 
     def __init__(self, system: KnownSystem, numbers: dict, inputs: Sequence[sympy.Symbol], guess):
         imp = self.imp = system.implicit
+        self.system = system
         self.q, self.qd = list(system.coordinates), list(system.velocities)
         self.n, self.k = len(self.q), len(imp.dependent)
         self.numbers = numbers
@@ -170,9 +171,9 @@ def linearize_implicit(system: KnownSystem, *, inputs: Sequence[sympy.Symbol] = 
 
 
 def _equilibrium(reduced: _Reduced, qv, qdv, t: float, columns: list[int]) -> np.ndarray:
-    """Solve ``r(q, 0) = 0`` for the free independent coordinates (Levenberg-Marquardt, the
-    total derivative as its Jacobian; the dependent ones follow by Newton at every step)."""
-    from scipy.optimize import least_squares
+    """Solve ``r(q, 0) = 0`` for the free independent coordinates
+    (:func:`.linearize.least_squares_equilibrium`, the total derivative as its Jacobian; the
+    dependent ones follow by Newton at every step)."""
 
     def full(x):
         out = np.array(qv, dtype=float)
@@ -186,10 +187,19 @@ def _equilibrium(reduced: _Reduced, qv, qdv, t: float, columns: list[int]) -> np
         return reduced.total(reduced.values(full(x), qdv, t))[2][:, columns]
 
     x0 = np.array(qv, dtype=float)[columns]
-    if not np.all(np.isfinite(fun(x0))):
-        raise LinearizationError("the equations cannot be evaluated at the initial values; give the "
-                                 "operating point with --at NAME=VALUE")
-    # unit scaling: scaled by the Jacobian's column norms (scipy's default for "lm"), a coordinate the
-    # equilibrium does not fix, whose column is round-off (~1e-16) rather than 0, takes steps of ~1e15
-    solution = least_squares(fun, x0, jac=jac, method="lm", xtol=1e-15, ftol=1e-15, gtol=1e-15, x_scale=1.0)
-    return full(solution.x)
+    if not np.all(np.isfinite(fun(x0))):  # why, with the intermediates solved there (core/finite.py)
+        system = reduced.system
+        raise LinearizationError(_unevaluable(_residual(system), list(system.coordinates),
+                                              reduced.values(full(x0), qdv, t), system.mass_matrix))
+
+    def settled(x):
+        Mn, rn, *_ = reduced.total(reduced.values(full(x), qdv, t))
+        return _at_equilibrium(Mn, rn)
+
+    def get():
+        return np.array(reduced.evaluator.guess, dtype=float)  # y_d, Newton's warm start
+
+    def put(guess):
+        reduced.evaluator.guess = np.array(guess, dtype=float)
+
+    return full(least_squares_equilibrium(fun, jac, x0, settled, (get, put)))

@@ -16,6 +16,16 @@ def _separation(primitive, ends):
     return [pb - pa for pa, pb in zip(a, b)]
 
 
+def squared_distance(primitive, effect) -> sympy.Expr | None:
+    """``|p_b - p_a|^2`` of a spring or damper whose force has no value where its ends meet:
+    a damper's (its force is along ``(p_b - p_a)/|p_b - p_a|``) or a spring's with a rest
+    length (``k (l - length) dl/dx``, ``dl/dx`` again a unit vector); None for any other effect,
+    and for a spring of zero rest length (its force ``k (p_b - p_a)`` is defined everywhere)."""
+    if not isinstance(effect, Damper) and not (isinstance(effect, Spring) and effect.length != 0):
+        return None
+    return sympy.Add(*[c**2 for c in _separation(primitive, effect.ends)])
+
+
 @dataclass(frozen=True)
 class Spring(Effect):
     """Linear spring between two points (or a point and a fixed place):

@@ -7,6 +7,7 @@ data. They reach generated C, Python, LaTeX and Markdown only through these func
 - :func:`c_string`: the body of a C string literal ``"..."``;
 - :func:`python_string`: the body of a Python ``"..."`` literal or ``\"\"\"...\"\"\"`` docstring;
 - :func:`latex_text`: LaTeX text mode (``\\title{}``, paragraphs, ``\\texttt{}``);
+- :func:`latex_name`: a name (coordinate, parameter...) in LaTeX math mode;
 - :func:`markdown_text`: Markdown inline text (headings, paragraphs, table cells).
 
 Templates call them as filters (``c_comment``, ``c_string``, ``py_str``, ``latex``, ``md``).
@@ -26,7 +27,7 @@ from typing import Callable
 import jinja2
 from markupsafe import Markup
 
-__all__ = ["c_comment", "c_string", "python_string", "latex_text", "markdown_text", "environment",
+__all__ = ["c_comment", "c_string", "python_string", "latex_text", "latex_name", "markdown_text", "environment",
            "UnescapedText", "Markup"]
 
 _NAMED = {"\n": "\\n", "\r": "\\r", "\t": "\\t", "\0": "\\0"}
@@ -164,6 +165,69 @@ def latex_text(text: str) -> str:
         else:  # past Latin-1: what pdflatex can print (a Greek letter once stopped the build)
             out.append(_BEYOND_LATIN1.get(ch, f"[U+{ord(ch):04X}]"))
     return "".join(out)
+
+
+_READ_AS_OTHER = frozenset({
+    "nan", "oo", "zoo", "inf", "infty", "Abs", "abs", "sin", "cos", "tan", "cot", "sec", "csc", "asin", "acos",
+    "atan", "atan2", "sinh", "cosh", "tanh", "exp", "log", "ln", "sqrt", "sign", "min", "max", "Min", "Max",
+    "re", "im", "arg", "det"})
+"""Words a reader takes for a number or a function (sympy's NaN and infinities, the functions of a
+model's expressions and of mathematics): as a name, each is an italic word of its own."""
+_WORD = re.compile(r"[A-Za-z]+")
+_WORD_DIGITS = re.compile(r"(?P<word>[A-Za-z]+)(?P<digits>[0-9]*)")
+
+
+def _plain_word(word: str) -> bool:
+    """Whether sympy prints ``word`` as itself or as one Greek letter (or other symbol) command:
+    not as a modifier (``xdot`` -> ``\\dot{x}``, the velocity's look; ``xabs`` -> ``|x|``), not as
+    a Latin twin (``Alpha`` -> ``A``), and not a word read as something else (``nan``)."""
+    from sympy.printing.latex import translate
+
+    if not _WORD.fullmatch(word) or word in _READ_AS_OTHER:
+        return False
+    tex = translate(word)
+    return tex == word or tex == "\\" + word
+
+
+def _plain_subscript(part: str) -> bool:
+    """A part of a subscript sympy prints as it is: digits, a plain word, or letters and digits
+    (``B1``) whose letters are not a Greek letter's name (``phi1`` would print as its letters)."""
+    from sympy.printing.latex import translate
+
+    split = _WORD_DIGITS.fullmatch(part)
+    if part.isascii() and part.isdigit():
+        return True
+    if split is None:
+        return False
+    word = split["word"]
+    return _plain_word(word) if not split["digits"] else translate(word) == word and word not in _READ_AS_OTHER
+
+
+def _faithful(name: str) -> bool:
+    """Whether sympy's LaTeX of the name shows it as it is: a plain word (:func:`_plain_word`)
+    with digits (``m1`` -> ``m_{1}``) or with subscripts (``bob_phi`` -> ``bob_{\\phi}``,
+    ``mu_B_x`` -> ``\\mu_{B x}``), no two of them numbers side by side (``x_1_2`` -> ``x_{1 2}``,
+    which reads as ``x_{12}``), none empty (``a__b`` -> the power ``a^{b}``, ``x_`` -> ``x_{}``)."""
+    base, *subs = name.split("_")
+    split = _WORD_DIGITS.fullmatch(base)
+    if split is None or not _plain_word(split["word"]) or (split["digits"] and subs):
+        return False
+    numbers = [p.isdigit() for p in subs]
+    return all(_plain_subscript(p) for p in subs) and not any(a and b for a, b in zip(numbers, numbers[1:]))
+
+
+def latex_name(name: str) -> str:
+    """A validated name (coordinate, parameter, intermediate) in LaTeX math mode, one way for
+    every name: sympy's form where it shows the name faithfully (:func:`_faithful`: ``m1`` ->
+    ``m_{1}``, ``theta`` -> ``\\theta``, ``bob_phi`` -> ``bob_{\\phi}``), else the italic word
+    of its letters, escaped by :func:`latex_text`: ``nan`` -> ``\\mathit{nan}`` (not NaN),
+    ``x_1_2`` -> ``\\mathit{x\\_1\\_2}``, ``a__b``, ``xdot`` (sympy: ``\\dot{x}``, the velocity of
+    ``x``), ``θ``."""
+    import sympy
+
+    if _faithful(name):
+        return sympy.latex(sympy.Symbol(name))
+    return r"\mathit{" + latex_text(name) + "}"
 
 
 _MARKDOWN_SPECIAL = set("\\`*_[]<>#|~&$")

@@ -14,6 +14,7 @@ import sympy
 from sympy.printing.latex import LatexPrinter as _SympyLatex
 
 from ..core.printed import Remembering
+from .escape import latex_name
 
 BREAK = "\x00"
 """Between the terms of a top-level sum; removed or turned into a line break by `lines`."""
@@ -25,7 +26,16 @@ of the estimate, which a line of System III showed to be 25 % low, and the
 
 class LatexPrinter(Remembering, _SympyLatex):
     """sympy's LaTeX, with `BREAK` between the terms of the top-level sum (remembering what
-    it printed: one printer per report)."""
+    it printed: one printer per report); with the setting ``escaped_names``, a name not given
+    in ``symbol_names`` is printed by :func:`~.escape.latex_name` (without it, as sympy does)."""
+
+    _default_settings = {**_SympyLatex._default_settings, "escaped_names": False}
+
+    def _print_Symbol(self, expr, style="plain"):
+        given = self._settings["symbol_names"].get(expr)
+        if given is not None or not self._settings["escaped_names"]:
+            return super()._print_Symbol(expr, style)
+        return latex_name(expr.name)
 
     def doprint(self, expr):
         if getattr(expr, "is_Add", False):

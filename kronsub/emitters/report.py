@@ -17,6 +17,7 @@ from ..core.known_system import KnownSystem
 from ..core.printed import Remembering
 from ..core.operations import count_ops
 from ..core.simplify import recompact, tidy
+from .escape import latex_name
 from .latex_layout import LatexPrinter, unbroken
 from ..core.symbols import acceleration_symbol, velocity_symbol
 
@@ -159,15 +160,16 @@ def latex_printer(coordinates, implicit=None, breaks: bool = False) -> Printer:
         for a, d in enumerate(implicit.dependent):
             for j, q in enumerate(implicit.independent):
                 s = implicit.sensitivities[a, j]
-                names[s] = r"\lambda" if s.name == "lambda" else rf"\lambda_{{{sympy.latex(d)}{sympy.latex(q)}}}"
+                names[s] = (r"\lambda" if s.name == "lambda" else
+                            rf"\lambda_{{{latex_name(d.name)}{latex_name(q.name)}}}")
             g = implicit.convective[a]
-            names[g] = r"\gamma" if g.name == "gamma" else rf"\gamma_{{{sympy.latex(d)}}}"
+            names[g] = r"\gamma" if g.name == "gamma" else rf"\gamma_{{{latex_name(d.name)}}}"
     for q in coordinates:
-        base = sympy.latex(q)
+        base = latex_name(q.name)
         names[velocity_symbol(q)] = rf"\dot{{{base}}}"
         names[acceleration_symbol(q)] = rf"\ddot{{{base}}}"
 
-    printer = LatexPrinter({"symbol_names": names, "order": "lex"})
+    printer = LatexPrinter({"symbol_names": names, "order": "lex", "escaped_names": True})
 
     def show(expr) -> str:
         text = printer.doprint(expr)

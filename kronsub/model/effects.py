@@ -239,16 +239,31 @@ def _spring(loader, ename, spec, primitive, damper=False):
     knode = _required(loader, spec, key, ename, f"e.g. `{key}: k`")
     if knode is None or any(e is None for e in ends):
         return None
+    together = _always_together(primitive, ends)
+    if together:
+        kind = "damper" if damper else "spring"
+        loader.error(bnode, f"the two ends of {kind} '{ename}' are the same point, whatever the motion",
+                     f"a {kind} acts between two points that move apart: join it to another point, or remove it")
     k = loader.expr(knode, what=key)
     if not damper:
         k = _positional(loader, knode, k, primitive, ename, "the stiffness")
-    if k is None:
+    if k is None or together:
         return None
     if damper:
         return Damper(ename, ends=ends, coefficient=k)
     length = (_positional(loader, spec.get("length"), loader.expr(spec.get("length"), what="rest length"), primitive,
                           ename, "the rest length") if "length" in spec.value else sympy.Integer(0))
     return None if length is None else Spring(ename, ends=ends, stiffness=k, length=length)
+
+
+def _always_together(primitive, ends) -> bool:
+    """Whether the two ends of a spring or damper are one point in every configuration (the
+    same point named twice, or two fixed places that are one): its length is always 0, so it
+    does nothing, or (a damper's direction, a spring's with a rest length) is 0/0."""
+    from ..components.base import common_world
+
+    a, b = common_world(*(primitive.points()[e] if isinstance(e, str) else e for e in ends))
+    return all(sympy.expand(pb - pa) == 0 for pa, pb in zip(a, b))
 
 
 def _torsional(loader, ename, spec, primitive, damper=False):

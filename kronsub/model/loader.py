@@ -244,14 +244,25 @@ class _Loader:
         `B_x` are both `mu_B_x`) would be one entry of the reactions: refused, naming both."""
         seen: dict[str, Constraint] = {}
         own = {id(c) for c in carried}
+        owner = {id(c): part.name for part in self.parts for c in part.constraints}  # the component of each
         for c in constraints:
             name = multiplier_name(c.name)
             first = seen.setdefault(name, c)
             if first is c:
                 continue
             here = next((x for x in (c, first) if id(x) not in own), None)
-            key = None if here is None else (here.name if f"constraint:{here.name}" in self.locations
-                                             else here.name.rsplit(".", 1)[0])
+            if here is None:  # both from known systems: at the component entries that bring them in
+                parts = [owner.get(id(x), x.name.split(".", 1)[0]) for x in (first, c)]
+                at = [self.locations.get(f"component:{p}") for p in parts]
+                came = (f"both come from the component '{parts[0]}'" if parts[0] == parts[1] else
+                        f"they come from the component '{parts[0]}'" + (f" (at {at[0]})" if at[0] else "")
+                        + f" and this one, '{parts[1]}'")
+                self.error(at[1] or at[0] or self.root, f"constraints '{first.name}' and '{c.name}' have the "
+                           f"same multiplier name '{name}' in the reactions: {came}",
+                           "rename one of the components: a known system's constraints are named after its "
+                           "component (`left.cx`, multiplier `mu_left_cx`)")
+                continue
+            key = here.name if f"constraint:{here.name}" in self.locations else here.name.rsplit(".", 1)[0]
             self.error(self.locations.get(f"constraint:{key}", self.root), f"constraints '{first.name}' and "
                        f"'{c.name}' have the same multiplier name '{name}' in the reactions",
                        "rename one of them (a joint `B` names its equations `B.x`, `B.y`, whose multipliers "
@@ -907,6 +918,7 @@ class _Loader:
                 continue
             effect = build_effect(self, ename, spec, primitive)
             if effect is not None:
+                self.locations[f"effect:{ename}"] = loc
                 effects.append(effect)
         return effects
 

@@ -13,7 +13,7 @@ import sympy
 from ..core.known_system import KnownSystem, ParameterInfo
 from ..core.primitive import Primitive
 from ..effects.base import Effect
-from ..errors import Location
+from ..errors import Location, Problem
 
 
 @dataclass(frozen=True)
@@ -69,3 +69,43 @@ class Model:
     def parameter_values(self) -> dict[sympy.Symbol, sympy.Expr]:
         """Default values of the parameters that have one."""
         return {p.symbol: p.value for p in self.parameters if p.value is not None}
+
+    def coincident_ends(self, system: KnownSystem, t: float, y, param) -> Problem | None:
+        """The first spring (with a rest length) or damper of this model, switched on in
+        ``system``, whose two ends coincide at time ``t``, state ``y = [q; qdot]`` and parameter
+        values ``param`` (in the order of ``system.parameters``): there its force points along
+        ``(p_b - p_a)/|p_b - p_a|``, which is 0/0, so the equations are NaN. Reported at the
+        effect's entry; None when no such effect meets its other end (or with implicit
+        constraints, whose dependent coordinates are not in ``y``)."""
+        import math
+
+        from ..core.symbols import TIME
+        from ..effects.elements import Damper, squared_distance
+
+        q = system.coordinates
+        values = {TIME: float(t), **dict(zip(q, (float(v) for v in y)))}
+        values.update(zip((p.symbol for p in system.parameters), (float(v) for v in param)))
+        for effect in self.effects:
+            square = squared_distance(self.primitive, effect)
+            if square is None or effect.name not in system.effect_forces:
+                continue
+            square = sympy.sympify(square).xreplace(dict(self.connection)).xreplace(values)
+            if square.free_symbols or not square.is_number:
+                continue
+            try:
+                distance = math.sqrt(float(square))  # in doubles: 0 where C divides by 0
+            except (TypeError, ValueError, OverflowError):
+                continue
+            if distance != 0.0:
+                continue
+            kind = "damper" if isinstance(effect, Damper) else "spring"
+            state = ", ".join(f"{s.name}={float(v):.6g}" for s, v in zip(q, y))
+            hint = ("move one end, or start from a state where the ends are apart; a spring of rest length 0 "
+                    "(leave out `length:`) pulls with k*d and is defined where its ends meet"
+                    if kind == "spring" else
+                    "move one end, or start from a state where the ends are apart: a damper acts along the "
+                    "line between its ends, which two coincident ends do not have")
+            return Problem(self.locations.get(f"effect:{effect.name}", Location(self.path)),
+                           f"the ends of {kind} '{effect.name}' coincide at t = {float(t):.6g} ({state}): its "
+                           "force is along the line between them, which has no direction there (0/0)", hint)
+        return None

@@ -491,6 +491,27 @@ def sample_times(t_end: float, count: int = 4) -> list[float]:
     return [t_end * (i + 1) / count for i in range(count)]
 
 
+def _implicit_cause(system, y0, param, dependent):
+    """:func:`..core.finite.at_state` at the initial state of a system with implicit constraints,
+    its intermediates (``y_d`` from ``dependent``, ``Lambda``, ``gamma``) solved there; None when
+    they cannot be (the constraints' own failure is reported where they are solved)."""
+    import sympy
+
+    from ..core.constraints import ConstraintFailure, Intermediates
+    from ..core.finite import at_state
+
+    n = len(system.coordinates)
+    numbers = {p.symbol: sympy.Float(v, 17) for p, v in zip(system.parameters, param)}
+    evaluator = Intermediates(system.implicit, numbers)
+    evaluator.guess = np.array(dependent, dtype=float)
+    try:
+        with np.errstate(all="ignore"):
+            intermediates = evaluator.at(y0[:n], y0[n:])
+    except (ConstraintFailure, ValueError, ArithmeticError, np.linalg.LinAlgError):
+        return None
+    return at_state(system, 0.0, y0, param, intermediates)
+
+
 def measure(system: KnownSystem, values: RunValues, t_end: float, methods: tuple[str, ...],
             tolerances: tuple[float, ...], *, ref: Reference | None = None, digits: int = 20,
             quick: bool = False, progress: bool | None = None, budget: float | None = None,
@@ -508,13 +529,12 @@ def measure(system: KnownSystem, values: RunValues, t_end: float, methods: tuple
         values, _, closure = project_initial(system, {}, {}, values, 1e-14)
         dependent = closure.guess
     param, y0 = np.array(values.parameters, dtype=float), np.array(values.y0, dtype=float)
-    if implicit is None:  # every method would fail at once, against a reference computed exactly
-        from ..core.finite import at_state
+    from ..core.finite import at_state
 
-        cause = at_state(system, 0.0, y0, param)
-        if cause is not None:
-            raise AccuracyError(f"the equations have no {'finite' if cause.overflow else 'real'} value at the "
-                                f"initial state: {cause.what}\n  hint: {cause.hint}")
+    cause = at_state(system, 0.0, y0, param) if implicit is None else _implicit_cause(system, y0, param, dependent)
+    if cause is not None:  # every method would fail at once, against a reference computed exactly
+        raise AccuracyError(f"the equations have no {'finite' if cause.overflow else 'real'} value at the "
+                            f"initial state: {cause.what}\n  hint: {cause.hint}")
     if ref is None:
         ref = compute_reference(system, values.parameters, values.y0, sample_times(t_end), digits,
                                 dependent=None if implicit is None else [float(v) for v in dependent])

@@ -149,23 +149,45 @@ def configure_module(module: dict, dependent, tol: float) -> None:
 
 
 def diagnose(system, evaluator: Intermediates, t: float, y, guess) -> str:
-    """Why the constraints failed at ``(t, y)``: a toggle position or no solution near."""
+    """Why the run failed at ``(t, y)``: the equations without a finite value there (an overflow,
+    a function outside its domain: :mod:`..core.finite`, as for a system without constraints),
+    a toggle position, or no solution of the constraints near."""
     imp = system.implicit
     n = len(imp.independent)
     where = ", ".join(f"{q.name}={v:.6g}" for q, v in zip(imp.independent, y[:n]))
     where += ", " + ", ".join(f"{d.name}~{v:.6g}" for d, v in zip(imp.dependent, guess))
     evaluator.guess = np.array(guess, dtype=float)
     try:
-        evaluator.at(y[:n], y[n:])
+        intermediates = evaluator.at(y[:n], y[n:])
     except ConstraintFailure as exc:
         if exc.kind == "singular":
             kind = "a singular configuration (toggle position): "
         else:
             kind = _toggle(evaluator, imp, y, guess) or "no solution of the constraints near the last one: "
         return f"{kind}{exc.message}; constraints {_names(imp)} at t = {t:.6g}, {where}"
+    cause = _not_finite(system, evaluator, t, y, intermediates)
+    if cause is not None:  # where, with the dependent coordinates solved there
+        solved = ", ".join(f"{q.name}={v:.6g}" for q, v in zip(imp.independent + imp.dependent,
+                                                             [*y[:n], *(intermediates[d] for d in imp.dependent)]))
+        return cause + f" at t = {t:.6g}, {solved}"
     return (f"{_toggle(evaluator, imp, y, guess)}the constraints {_names(imp)} could not be solved in the "
             f"generated code at t = {t:.6g}, in a step from {where}, where they still have a solution: the "
             "step reached configurations the mechanism cannot take")
+
+
+def _not_finite(system, evaluator: Intermediates, t: float, y, intermediates: dict) -> str | None:
+    """Why ``Mbar``, ``fbar``, ``hbar`` or the energies have no finite value at ``(t, y)`` with the
+    intermediates solved there, in the words of :func:`..core.finite.at_state`; None when they do."""
+    from ..core.finite import at_state
+
+    values = evaluator.numeric_parameters
+    param = [float(values.get(p.symbol, np.nan)) for p in system.parameters]
+    if not np.all(np.isfinite(np.asarray(y, dtype=float))):
+        return None
+    cause = at_state(system, t, y, param, intermediates)
+    if cause is None:
+        return None
+    return f"the equations have no {'finite' if cause.overflow else 'real'} value at this state: {cause}"
 
 
 def _toggle(evaluator: Intermediates, imp, y, guess) -> str:

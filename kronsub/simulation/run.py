@@ -670,7 +670,8 @@ def _taylor_blocks(run, system, param, y0, grid, tol):
             last = Y[-1] if len(Y) else y
             if np.all(np.isfinite(last)):  # from the last row: an overflow, or a function outside its domain
                 message = _not_finite(system, t[-1] if len(t) else times[0], last, param, message)
-            run.stop(message + _where(system, Y[-1] if len(Y) else None), float(t[-1]) if len(t) else float(times[0]))
+            run.stop(message + _where(system, Y[-1] if len(Y) else None), float(t[-1]) if len(t) else float(times[0]),
+                     y_fail=last)
             return
         y, first = Y[-1], False
 
@@ -776,6 +777,10 @@ def _native_blocks(run, native, method, grid, y0, param, rtol, atol, dt, chunks,
             message = result.message
             if result.status in (1, 2) and not _real_at(native, t0, y, param):  # not finite at the start
                 message = _not_finite(system, t0, y, param)
+            elif result.status in (1, 2) and result.y_fail is not None and np.all(np.isfinite(result.y_fail)):
+                # NaN forces at a finite state (a spring whose ends meet): which effect, if any
+                message = _not_finite(system, result.t_fail, result.y_fail, param, otherwise=message,
+                                      mass_only=result.status == 1)
             message += _where(system, result.y_fail) if result.status in (1, 2) else ""
             if result.status in (1, 2) and result.y_fail is not None and np.all(np.isfinite(result.y_fail)):
                 message += _rank_loss(system, result.y_fail, param)
@@ -875,6 +880,12 @@ def _scipy_blocks(run, rhs, method, grid, y0, rtol, atol, chunks, bar, system, e
     solver = None
     with np.errstate(all="ignore"):
         try:
+            # NaN at the start makes scipy's first step size NaN, and its step loop never ends
+            if not np.all(np.isfinite(rhs(grid[0], np.array(y0, dtype=float)))):
+                message = "the derivative of the state is NaN or infinite at the initial state"
+                run.stop(message if param is None else _not_finite(system, grid[0], y0, param, message), grid[0],
+                         y_fail=y0)
+                return
             solver = getattr(integrate, method)(rhs, grid[0], np.array(y0, dtype=float), grid[len(grid) - 1],
                                                 rtol=rtol, atol=atol)
             before = events(solver.t, solver.y) if events is not None else None
@@ -886,11 +897,16 @@ def _scipy_blocks(run, rhs, method, grid, y0, rtol, atol, chunks, bar, system, e
                 stats["evaluations"] = int(solver.nfev)
                 stats["steps"] += 1
                 if solver.status == "failed":
-                    run.stop(message or "the step failed", solver.t, y_fail=solver.y)
+                    message = message or "the step failed"
+                    if param is not None and np.all(np.isfinite(solver.y)) and \
+                            not np.all(np.isfinite(rhs(solver.t, solver.y))):  # steps shrank at NaN forces
+                        message = _not_finite(system, solver.t, solver.y, param, otherwise=message)
+                    run.stop(message, solver.t, y_fail=solver.y)
                     return
                 if not np.all(np.isfinite(solver.y)):
                     message = "the state became NaN or infinite"
-                    run.stop(message if param is None else _not_finite(system, t_old, y_old, param, message), solver.t)
+                    run.stop(message if param is None else _not_finite(system, t_old, y_old, param, message), t_old,
+                             y_fail=y_old)  # (the step from t_old went wrong: the last finite state)
                     return
                 t_new, dense = solver.t, None
                 if events is not None:
@@ -933,5 +949,5 @@ def _scipy_blocks(run, rhs, method, grid, y0, rtol, atol, chunks, bar, system, e
             message = str(exc)
             if param is not None and np.all(np.isfinite(y)):  # scipy's "array must not contain infs or NaNs"
                 message = _not_finite(system, t, y, param, otherwise=message)
-            run.stop(message, t)
+            run.stop(message, t, y_fail=y)
             return
