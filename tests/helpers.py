@@ -158,3 +158,15 @@ def sweep_models(folder):
         return loaded(name).derive()
 
     return loaded, derived
+
+
+def scene_of(loaded):
+    """``scene(name, which)``: the scene ``which`` of a sweep model, derived (``loaded`` from
+    :func:`sweep_models`)."""
+    def scene(name, which):
+        from kronsub.model.scenes import derive_scene, select_scene
+
+        model = loaded(name)
+        return derive_scene(model, select_scene(model, which))
+
+    return scene

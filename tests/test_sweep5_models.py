@@ -31,7 +31,7 @@ import pytest
 import sympy as sp
 from click.testing import CliRunner
 
-from helpers import Rx, Ry, Rz, generated_numpy_module, sweep_models
+from helpers import Rx, Ry, Rz, generated_numpy_module, scene_of, sweep_models
 from kronsub.cli import main
 from test_sweep3_models import accelerations_agree, kinetic, walk_independent as walk
 from test_sweep_models import (Constrained, compare_explicit, dots, lagrange, largest_difference, rate_of,
@@ -43,13 +43,7 @@ S = sp.symbols
 TOL = 1e-10
 
 loaded, derived = sweep_models(HERE)
-
-
-def scene(name, which):
-    from kronsub.model.scenes import derive_scene, select_scene
-
-    model = loaded(name)
-    return derive_scene(model, select_scene(model, which))
+scene = scene_of(loaded)
 
 
 def down(a):

@@ -33,7 +33,7 @@ import pytest
 import sympy as sp
 from click.testing import CliRunner
 
-from helpers import Rx, Rz, generated_numpy_module, sweep_models
+from helpers import Rx, Rz, generated_numpy_module, scene_of, sweep_models
 from kronsub.cli import main
 from test_sweep3_models import accelerations_agree, kinetic
 from test_sweep5_models import add, damper_rows, down, gradient_force, norm, spring_V, work_rows
@@ -47,13 +47,7 @@ R = sp.Rational
 TOL = 1e-10
 
 loaded, derived = sweep_models(HERE)
-
-
-def scene(name, which):
-    from kronsub.model.scenes import derive_scene, select_scene
-
-    model = loaded(name)
-    return derive_scene(model, select_scene(model, which))
+scene = scene_of(loaded)
 
 
 def compare_energies(system, T, V, seed, *, fixed=None):
@@ -458,17 +452,22 @@ def test_swinging_atwood_machine():
     assert compare_energies(system, T, V, 611, fixed=positive) < TOL
 
 
-def test_swinging_atwood_free_scene_keeps_energy(tmp_path):
-    """`simulate --scene free` (gauss4, fixed step 0.01): the hand energy of every row is the first's."""
-    out = tmp_path / "atwood.csv"
-    result = CliRunner().invoke(main, ["simulate", str(HERE / "swinging_atwood.yaml"), "--scene", "free",
-                                       "-o", str(out)])
+def free_run(tmp_path, model, q, energy, values):
+    """`simulate --scene free` of ``model``: its rows, and the hand ``energy`` (at the model's
+    parameter ``values``) at each row's state."""
+    out = tmp_path / "run.csv"
+    result = CliRunner().invoke(main, ["simulate", str(HERE / model), "--scene", "free", "-o", str(out)])
     assert result.exit_code == 0, result.output
     table = np.genfromtxt(out, names=True, delimiter=",", comments="#")
+    f = sp.lambdify([*q, *dots(q)], energy.xreplace(values), "numpy")
+    return table, f(*(table[s.name] for s in q), *(table[s.name + "_dot"] for s in q))
+
+
+def test_swinging_atwood_free_scene_keeps_energy(tmp_path):
+    """`simulate --scene free` (gauss4, fixed step 0.01): the hand energy of every row is the first's."""
     q, T, V, _ = atwood_reference(rope=False)
     values = {s: v for s, v in zip(S("m M L g"), (1.0, 1.3, 3, 9.81))}  # the model's values
-    fE = sp.lambdify([*q, *dots(q)], (T + V).xreplace(values), "numpy")
-    energy = fE(*(table[n] for n in ("r", "a", "r_dot", "a_dot")))
+    table, energy = free_run(tmp_path, "swinging_atwood.yaml", q, T + V, values)
     assert len(table) == 201 and np.min(table["r"]) > 0.3
     assert np.allclose(table["total_energy"], energy, rtol=1e-12, atol=1e-12)
     assert np.max(np.abs(energy - energy[0])) < 1e-6
@@ -715,16 +714,9 @@ def test_charge_in_a_central_and_a_magnetic_field():
 
 
 def test_charge_free_scene_keeps_energy_and_canonical_angular_momentum(tmp_path):
-    out = tmp_path / "charge.csv"
-    result = CliRunner().invoke(main, ["simulate", str(HERE / "charge_in_central_field.yaml"), "--scene", "free",
-                                       "-o", str(out)])
-    assert result.exit_code == 0, result.output
-    table = np.genfromtxt(out, names=True, delimiter=",", comments="#")
     q, T, V, _ = charge_reference(drag=False)
     values = dict(zip(S("m mu eps b"), (1.0, 4, 0.5, 0.7)))  # the model's values
-    fE = sp.lambdify([*q, *dots(q)], (T + V).xreplace(values), "numpy")
-    state = [table[n] for n in ("r", "th", "ph", "r_dot", "th_dot", "ph_dot")]
-    energy = fE(*state)
+    table, energy = free_run(tmp_path, "charge_in_central_field.yaml", q, T + V, values)
     rho2 = (table["r"] * np.sin(table["th"])) ** 2
     momentum = 1.0 * rho2 * table["ph_dot"] + 0.7 * rho2 / 2
     assert len(table) == 9 and np.allclose(table["total_energy"], energy, rtol=1e-12, atol=1e-12)
