@@ -778,9 +778,13 @@ def _native_blocks(run, native, method, grid, y0, param, rtol, atol, dt, chunks,
             if result.status in (1, 2) and not _real_at(native, t0, y, param):  # not finite at the start
                 message = _not_finite(system, t0, y, param)
             elif result.status in (1, 2) and result.y_fail is not None and np.all(np.isfinite(result.y_fail)):
-                # NaN forces at a finite state (a spring whose ends meet): which effect, if any
-                message = _not_finite(system, result.t_fail, result.y_fail, param, otherwise=message,
-                                      mass_only=result.status == 1)
+                # NaN forces at a finite state (a spring whose ends meet): which effect, if any; Mbar
+                # without a real value where the run got to is the edge of the coordinates' range, where
+                # it is singular (System II's lower rod on the line): said so, the cause beside it
+                found = _not_finite(system, result.t_fail, result.y_fail, param, otherwise="",
+                                    mass_only=result.status == 1)
+                edge = result.status == 1 and "in Mbar[" in found and "no real value" in found
+                message = f"{message}: {found.partition(': ')[2]}" if edge else found or message
             message += _where(system, result.y_fail) if result.status in (1, 2) else ""
             if result.status in (1, 2) and result.y_fail is not None and np.all(np.isfinite(result.y_fail)):
                 message += _rank_loss(system, result.y_fail, param)

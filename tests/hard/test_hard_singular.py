@@ -40,6 +40,7 @@ def test_system2_stops_where_the_lower_rod_reaches_the_line():
     assert not traj.complete
     reach = math.asin(0.2)
     assert "theta=" in traj.message and "singular" in traj.message
+    assert "in Mbar[theta, theta] is outside its domain" in traj.message  # the square root of (27) at 0
     theta_at_stop = float(traj.message.split("theta=")[1].split()[0].rstrip(",;"))
     assert abs(theta_at_stop - reach) < 1e-3
     assert np.all(np.isfinite(traj.y)) and len(traj.t) > 10
