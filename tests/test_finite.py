@@ -270,3 +270,15 @@ def test_a_spring_from_a_point_to_itself_is_reported_with_its_other_problems(tmp
     assert "the two ends of spring 'same' are the same point" in result.output
     assert "the stiffness of 'same' depends on the velocity 'x_dot'" in result.output and "2 problems found" \
         in result.output
+
+
+def test_linearize_next_to_a_pole_notes_the_lost_direction():
+    """At theta = pi in floating point, Mbar[phi, phi] = sin(theta)**2 is 1.5e-32, not 0: Cholesky
+    passes, and A's row for phi would be taken at its word."""
+    result = CliRunner().invoke(main, ["linearize", str(MODELS / "examples" / "particle_on_sphere.yaml"),
+                                       "--at", "theta=3.141592653589793", "--at", "phi=0"])
+    assert result.exit_code == 0, result.output
+    assert "a motion along (phi +1) has no inertia" in result.output and "not to be trusted" in result.output
+    away = CliRunner().invoke(main, ["linearize", str(MODELS / "examples" / "particle_on_sphere.yaml"),
+                                     "--at", "theta=2.5", "--at", "phi=0"])
+    assert away.exit_code == 0 and "no inertia" not in away.output

@@ -257,6 +257,12 @@ def linearize(system: KnownSystem, *, inputs: Sequence[sympy.Symbol] = (),
         if n:
             Kn = Kn - np.column_stack([dMk @ a for dMk in dMn])
         lower = _solve(Mn, np.hstack([Kn, Dn, Gn]), numeric_values, q)
+        if n:  # singular to round-off, which Cholesky lets through (a spherical pole: sin(pi)**2 = 1.5e-32)
+            from .finite import describe_rank_loss
+
+            why = describe_rank_loss(Mn, [s.name for s in q])
+            if why:
+                notes.append(f"{why}: A is not to be trusted along it")
         A = np.zeros((2 * n, 2 * n))
         A[:n, n:] = np.eye(n)
         A[n:, :] = lower[:, :2 * n]
