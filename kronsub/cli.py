@@ -409,9 +409,7 @@ def simulate(model: Path, t_end: float | None, dt: float | None, method: str | N
             _fail(f"Stopped after t = {writer.last_t!r}: the reader of {where} closed it after "
                   f"{_rows(writer.rows)}{marked}", INTERRUPTED)
         if writer.stopped:
-            _fail(f"Interrupted after t = {writer.last_t!r}: the {_rows(writer.rows)} computed so far "
-                  f"{'is' if writer.rows == 1 else 'are'} kept "
-                  f"in {where}{marked}", INTERRUPTED)
+            _fail(f"Interrupted after t = {writer.last_t!r}: {_kept(writer.rows)} in {where}{marked}", INTERRUPTED)
         if plot is not None:
             from .simulation.plot import plot_trajectory
 
@@ -423,7 +421,7 @@ def simulate(model: Path, t_end: float | None, dt: float | None, method: str | N
             at, message, hint = (f"{ends.location}: ", ends.message, f"\n  hint: {ends.hint}") if ends is not None \
                 else ("", run.message, "")
             _fail(f"Error: {at}the run stopped at t = {run.t_fail:.6g}: {message}; "
-                  f"the {_rows(writer.rows)} computed so far {'is' if writer.rows == 1 else 'are'} kept in {where}{marked}"
+                  f"{_kept(writer.rows)} in {where}{marked}"
                   + hint + _constraint_hints(system, run, step), NUMERICAL_FAILURE)
 
     _run(job)
@@ -439,6 +437,10 @@ def _check_times(t_end: float | None, dt: float | None) -> None:
 
 def _rows(count: int) -> str:
     return f"{count} row" if count == 1 else f"{count} rows"
+
+
+def _kept(count: int) -> str:
+    return f"the {_rows(count)} computed so far {'is' if count == 1 else 'are'} kept"
 
 
 def _coincident_ends(loaded, system, t, y, param):

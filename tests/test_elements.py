@@ -9,7 +9,7 @@ import sympy
 
 import kronsub
 from conftest import MODELS, ROOT
-from kronsub.effects.elements import Damper, _separation
+from kronsub.effects.elements import Damper, separation
 
 CASES = [
     MODELS / "examples" / "cart_pole.yaml",
@@ -27,7 +27,7 @@ def test_damper_force_is_factor_of_each_component(path):
     assert dampers
     primitive = model.primitive
     for damper in dampers:
-        d = _separation(primitive, damper.ends)
+        d = separation(primitive, damper.ends)
         square = sympy.Add(*[c**2 for c in d])
         rate = primitive.rate(square)
         whole = [sympy.factor(-damper.coefficient * rate * g / (4 * square)) if g != 0 else sympy.Integer(0)

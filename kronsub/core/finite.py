@@ -37,6 +37,10 @@ class Cause(NamedTuple):
     def __str__(self) -> str:
         return f"{self.what} ({self.hint})"
 
+    def stated(self) -> str:
+        """The sentence a stopped run gives."""
+        return f"the equations have no {'finite' if self.overflow else 'real'} value at this state: {self}"
+
 
 class _Found(Exception):
     """``kind`` ("domain", "overflow") at ``node``, whose ``value`` (or that of its ``part``:
@@ -71,6 +75,15 @@ def nonfinite_cause(quantities, values) -> Cause | None:
     return None
 
 
+def state_values(system, t: float, y, param) -> dict:
+    """``t``, the state ``y = [q; qdot]`` (or ``q`` alone) and the parameter values ``param`` (in
+    the order of ``system.parameters``), by their symbols, as floats."""
+    values = {TIME: float(t)}
+    values.update(zip(system.coordinates + system.velocities, (float(v) for v in y)))
+    values.update(zip((p.symbol for p in system.parameters), (float(v) for v in param)))
+    return values
+
+
 def at_state(system, t: float, y, param, intermediates=None) -> Cause | None:
     """:func:`nonfinite_cause` for the equations of ``system`` (``Mbar``, ``fbar``, ``hbar``, the
     energies) at time ``t``, state ``y = [q; qdot]`` and parameter values ``param`` (in the order
@@ -79,9 +92,7 @@ def at_state(system, t: float, y, param, intermediates=None) -> Cause | None:
     With implicit constraints, ``intermediates`` gives the named intermediates at the state
     (``y_d``, ``Lambda``, ``gamma``: symbol -> float), without which there is no verdict."""
     q, n = system.coordinates, len(system.coordinates)
-    values = {TIME: float(t), **{s: float(v) for s, v in (intermediates or {}).items()}}
-    values.update(zip(q + system.velocities, (float(v) for v in y)))
-    values.update(zip((p.symbol for p in system.parameters), (float(v) for v in param)))
+    values = {**{s: float(v) for s, v in (intermediates or {}).items()}, **state_values(system, t, y, param)}
     quantities = [(f"Mbar[{q[i].name}, {q[j].name}]", system.mass_matrix[i, j]) for i in range(n) for j in range(i + 1)]
     for name, force in system.effect_forces.items():
         quantities += [(f"fbar[{q[i].name}] of effect '{name}'", force[i], name) for i in range(n)]
@@ -167,15 +178,14 @@ def _describe(label: str, found: _Found, values) -> Cause:
     return Cause(False, f"{node} in {label} is {what}", "check the initial values and the parameters", label)
 
 
-def rank_loss(system, y, param) -> str | None:
-    """Why ``Mbar(q)`` has no Cholesky factor at a finite state ``y = [q; qdot]``
+def rank_loss(system, t: float, y, param) -> str | None:
+    """Why ``Mbar(q)`` has no Cholesky factor at time ``t`` and a finite state ``y = [q; qdot]``
     (:func:`describe_rank_loss`); None when it is not the matrix, or with implicit
     constraints (whose dependent coordinates are not known here)."""
     if system.implicit is not None:
         return None
     q, n = system.coordinates, len(system.coordinates)
-    values = {s: sympy.Float(float(v), _DIGITS) for s, v in zip(q, y)}
-    values.update({p.symbol: sympy.Float(float(v), _DIGITS) for p, v in zip(system.parameters, param)})
+    values = {s: sympy.Float(v, _DIGITS) for s, v in state_values(system, t, y, param).items()}
     try:
         M = np.array([[float(sympy.sympify(system.mass_matrix[i, j]).xreplace(values).evalf(_DIGITS))
                        for j in range(n)] for i in range(n)])

@@ -10,10 +10,15 @@ from ..core.derivative import derivative
 from .base import Effect
 
 
-def _separation(primitive, ends):
+def separation(primitive, ends):
     """``p_b - p_a``, both ends in the larger of their worlds (as a pin's, :func:`common_world`)."""
     a, b = common_world(*(primitive.points()[e] if isinstance(e, str) else e for e in ends))
     return [pb - pa for pa, pb in zip(a, b)]
+
+
+def _squared_length(primitive, ends) -> sympy.Expr:
+    """``|p_b - p_a|^2``."""
+    return sympy.Add(*[c**2 for c in separation(primitive, ends)])
 
 
 def squared_distance(primitive, effect) -> sympy.Expr | None:
@@ -23,7 +28,7 @@ def squared_distance(primitive, effect) -> sympy.Expr | None:
     and for a spring of zero rest length (its force ``k (p_b - p_a)`` is defined everywhere)."""
     if not isinstance(effect, Damper) and not (isinstance(effect, Spring) and effect.length != 0):
         return None
-    return sympy.Add(*[c**2 for c in _separation(primitive, effect.ends)])
+    return _squared_length(primitive, effect.ends)
 
 
 @dataclass(frozen=True)
@@ -36,8 +41,7 @@ class Spring(Effect):
     length: sympy.Expr = sympy.Integer(0)
 
     def potential(self, primitive):
-        d = _separation(primitive, self.ends)
-        square = sympy.Add(*[c**2 for c in d])
+        square = _squared_length(primitive, self.ends)
         if self.length == 0:
             return sympy.expand(self.stiffness * square / 2)
         return self.stiffness * (sympy.sqrt(square) - self.length) ** 2 / 2
@@ -52,8 +56,7 @@ class Damper(Effect):
     coefficient: sympy.Expr = sympy.Integer(0)
 
     def generalized_force(self, primitive):
-        d = _separation(primitive, self.ends)
-        square = sympy.Add(*[c**2 for c in d])
+        square = _squared_length(primitive, self.ends)
         # c ldot dl/dx = c (dl^2/dt)(dl^2/dx) / (4 l^2): no square roots needed
         rate = primitive.rate(square)
         # sympy.factor factors each factor of a product on its own and multiplies the results,

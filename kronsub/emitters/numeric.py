@@ -10,12 +10,12 @@ Common subexpressions are eliminated per function, deterministically.
 from __future__ import annotations
 
 import functools
-import importlib
 import math
 import re
 from dataclasses import dataclass
 
 import sympy
+from sympy.simplify.cse_main import basic_optimizations as _BASIC
 
 from ..core.derivative import derivative
 from ..core.known_system import KnownSystem
@@ -230,12 +230,9 @@ class _Rewritings:
         return hit
 
     def optimizations(self) -> list:
-        """The same steps as ``optimizations="basic"``, the rewritings remembered."""
-        return [(self, _BASIC[0][1])]
-
-
-_BASIC = importlib.import_module("sympy.simplify.cse_main").basic_optimizations
-assert [post for _, post in _BASIC][1:] == [None]  # only the first step is undone afterwards
+        """The same steps as ``optimizations="basic"``, the rewritings remembered: every
+        rewriting at once, then each undoing step as ``cse`` runs them (last first)."""
+        return [(self, None)] + [(None, undo) for _, undo in _BASIC]
 
 
 def _block(targets: list[str], exprs: list[sympy.Expr], prefix: str, coordinates=(), guarded: bool = False,

@@ -216,13 +216,11 @@ def _slider(loader, cname, node, primitive, names):
     p = _point(loader, node.get("point"), primitive, cname, names)
     bnode = node.get("body")
     part = index = None
-    bodies = primitive.bodies_by_name()
-    if bnode is None or not isinstance(bnode.value, str) or not any(
-            label == bnode.value or label.startswith(bnode.value + ".") for label in bodies):
-        loader.error(bnode if bnode is not None else node, f"slider '{cname}' needs `body:` a component",
-                     close_matches(str(bnode.value if bnode is not None else ""),
-                                   [x.name for x in primitive.parts] + [label for label in bodies if "." in label]))
-    elif (found := named_body(loader, bnode, primitive, f"slider '{cname}'")) is not None:
+    needs = f"slider '{cname}' needs `body:` a component"
+    if bnode is None or not isinstance(bnode.value, str):
+        loader.error(bnode if bnode is not None else node, needs,
+                     close_matches(str(bnode.value) if bnode is not None else "", [x.name for x in primitive.parts]))
+    elif (found := named_body(loader, bnode, primitive, f"slider '{cname}'", unknown=needs)) is not None:
         part, index = found
         if part.bodies[index].rotation is None or part.dimension not in (2, 3):
             loader.error(bnode, f"slider '{cname}': component '{bnode.value}' is not a rigid body",

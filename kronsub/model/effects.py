@@ -4,7 +4,7 @@ from __future__ import annotations
 import sympy
 
 from ..effects.base import Effect
-from ..effects.elements import Damper, Spring, TorsionalDamper, TorsionalSpring
+from ..effects.elements import Damper, Spring, TorsionalDamper, TorsionalSpring, separation
 from ..effects.gravity import Gravity
 from ..effects.loads import Force, GeneralizedForce, Potential, Torque
 from ..errors import close_matches
@@ -182,10 +182,11 @@ def _force(loader, ename, spec, primitive):
     return Force(ename, point=point, vector=vector)
 
 
-def named_body(loader, node: Node, primitive, what: str):
+def named_body(loader, node: Node, primitive, what: str, unknown: str = ""):
     """The body ``node`` names, as ``(part, index)``: a component's own (``lower``), or one of a
     known system's by its dotted name (``s.lower``, ``pair.left.pole``; ``s`` alone when it has
-    just one body). None after reporting why: unknown, or a known system of several bodies."""
+    just one body). None after reporting why: unknown (``unknown``: the message then), or a
+    known system of several bodies."""
     name = str(node.value)
     bodies = primitive.bodies_by_name()
     if name in bodies:
@@ -198,7 +199,7 @@ def named_body(loader, node: Node, primitive, what: str):
                      "say which one: " + ", ".join(f"`{label}`" for label in inner))
         return None
     names = [p.name for p in primitive.parts if p.bodies] + [label for label in bodies if "." in label]
-    loader.error(node, f"unknown component '{name}'", close_matches(name, names))
+    loader.error(node, unknown or f"unknown component '{name}'", close_matches(name, names))
     return None
 
 
@@ -260,10 +261,7 @@ def _always_together(primitive, ends) -> bool:
     """Whether the two ends of a spring or damper are one point in every configuration (the
     same point named twice, or two fixed places that are one): its length is always 0, so it
     does nothing, or (a damper's direction, a spring's with a rest length) is 0/0."""
-    from ..components.base import common_world
-
-    a, b = common_world(*(primitive.points()[e] if isinstance(e, str) else e for e in ends))
-    return all(sympy.expand(pb - pa) == 0 for pa, pb in zip(a, b))
+    return all(sympy.expand(c) == 0 for c in separation(primitive, ends))
 
 
 def _torsional(loader, ename, spec, primitive, damper=False):

@@ -984,11 +984,10 @@ def known_system_part(name: str, system: KnownSystem, overrides: dict, renames: 
     def s(e):
         return sympy.sympify(e).xreplace(sub)
 
-    from ..components.base import Body
-
-    bodies = tuple(Body(s(b.mass), tuple(s(c) for c in b.centre),
-                        b.rotation.xreplace(sub) if b.rotation is not None else None,
-                        b.inertia.xreplace(sub) if b.inertia is not None else None, b.name) for b in system.bodies)
+    bodies = tuple(dataclasses.replace(b, mass=s(b.mass), centre=tuple(s(c) for c in b.centre),
+                                       rotation=b.rotation.xreplace(sub) if b.rotation is not None else None,
+                                       inertia=b.inertia.xreplace(sub) if b.inertia is not None else None)
+                   for b in system.bodies)
     return Part(
         name=name,
         coordinates=tuple(sub.get(q, q) for q in coordinates),
@@ -1012,9 +1011,6 @@ def placed(part: Part, origin) -> Part:
     metric, velocity terms and forces do not change (a translation is an isometry), nor does the
     potential of anything that moves with it (its springs and anchors); its own gravity's
     potential changes by ``dV/do . origin`` (``Effect.translation``), a constant."""
-    import dataclasses
-
-    from ..components.base import Body
 
     def shift(pos):
         return tuple(sympy.sympify(c) + o for c, o in zip(pos, origin))
@@ -1023,7 +1019,7 @@ def placed(part: Part, origin) -> Part:
     for label, grad in part.translations.items():
         changes.append(sympy.Add(*[g * o for g, o in zip(grad, origin)]))
         potentials[label] = sympy.expand(potentials.get(label, sympy.Integer(0)) + changes[-1])
-    bodies = tuple(Body(b.mass, shift(b.centre), b.rotation, b.inertia, b.name) for b in part.bodies)
+    bodies = tuple(dataclasses.replace(b, centre=shift(b.centre)) for b in part.bodies)
     return dataclasses.replace(part, points={k: shift(v) for k, v in part.points.items()}, bodies=bodies,
                                potentials=potentials, potential=sympy.expand(part.potential + sympy.Add(*changes)))
 

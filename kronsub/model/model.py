@@ -79,12 +79,11 @@ class Model:
         constraints, whose dependent coordinates are not in ``y``)."""
         import math
 
-        from ..core.symbols import TIME
+        from ..core.finite import state_values
         from ..effects.elements import Damper, squared_distance
 
         q = system.coordinates
-        values = {TIME: float(t), **dict(zip(q, (float(v) for v in y)))}
-        values.update(zip((p.symbol for p in system.parameters), (float(v) for v in param)))
+        values = state_values(system, t, y, param)
         for effect in self.effects:
             square = squared_distance(self.primitive, effect)
             if square is None or effect.name not in system.effect_forces:

@@ -185,9 +185,7 @@ def _not_finite(system, evaluator: Intermediates, t: float, y, intermediates: di
     if not np.all(np.isfinite(np.asarray(y, dtype=float))):
         return None
     cause = at_state(system, t, y, param, intermediates)
-    if cause is None:
-        return None
-    return f"the equations have no {'finite' if cause.overflow else 'real'} value at this state: {cause}"
+    return None if cause is None else cause.stated()
 
 
 def _toggle(evaluator: Intermediates, imp, y, guess) -> str:

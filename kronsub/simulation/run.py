@@ -711,13 +711,13 @@ def _chunks(grid, count: int):
     return list(zip(edges[:-1], edges[1:]))
 
 
-def _rank_loss(system, y, param) -> str:
+def _rank_loss(system, t, y, param) -> str:
     """``; <why Mbar is singular at y>`` (:func:`..core.finite.rank_loss`), or nothing."""
     from ..core.finite import rank_loss
 
-    if param is None or y is None or not np.all(np.isfinite(y)):
+    if param is None or t is None or y is None or not np.all(np.isfinite(y)):
         return ""
-    why = rank_loss(system, y, param)
+    why = rank_loss(system, t, y, param)
     return f"; {why}" if why else ""
 
 
@@ -775,19 +775,21 @@ def _native_blocks(run, native, method, grid, y0, param, rtol, atol, dt, chunks,
             yield t[keep], Y[keep]
         if result.status != 0:
             message = result.message
+            at_finite = result.status in (1, 2) and result.y_fail is not None and np.all(np.isfinite(result.y_fail))
             if result.status in (1, 2) and not _real_at(native, t0, y, param):  # not finite at the start
                 message = _not_finite(system, t0, y, param)
-            elif result.status in (1, 2) and result.y_fail is not None and np.all(np.isfinite(result.y_fail)):
+            elif at_finite:
                 # NaN forces at a finite state (a spring whose ends meet): which effect, if any; Mbar
                 # without a real value where the run got to is the edge of the coordinates' range, where
                 # it is singular (System II's lower rod on the line): said so, the cause beside it
-                found = _not_finite(system, result.t_fail, result.y_fail, param, otherwise="",
-                                    mass_only=result.status == 1)
-                edge = result.status == 1 and "in Mbar[" in found and "no real value" in found
-                message = f"{message}: {found.partition(': ')[2]}" if edge else found or message
+                cause = _cause(system, result.t_fail, result.y_fail, param, mass_only=result.status == 1)
+                if cause is not None and result.status == 1 and not cause.overflow and cause.label.startswith("Mbar"):
+                    message = f"{message}: {cause}"
+                elif cause is not None:
+                    message = cause.stated()
             message += _where(system, result.y_fail) if result.status in (1, 2) else ""
-            if result.status in (1, 2) and result.y_fail is not None and np.all(np.isfinite(result.y_fail)):
-                message += _rank_loss(system, result.y_fail, param)
+            if at_finite:
+                message += _rank_loss(system, result.t_fail, result.y_fail, param)
             run.stop(message, result.t_fail, y_fail=result.y_fail)
             return
         y = Y[-1]
@@ -842,6 +844,16 @@ def _real_at(native, t: float, y, param) -> bool:
     return bool(np.all(np.isfinite(values)))
 
 
+def _cause(system, t: float, y, param, mass_only: bool = False):
+    """The :class:`..core.finite.Cause` of :func:`_not_finite`, or None."""
+    from ..core.finite import at_state
+
+    cause = at_state(system, t, y, param)
+    if cause is not None and mass_only and not (cause.overflow or cause.label.startswith("Mbar")):
+        return None
+    return cause
+
+
 def _not_finite(system, t: float, y, param, otherwise: str | None = None, mass_only: bool = False) -> str:
     """Why the equations are NaN or infinite at ``(t, y)``, where the state is finite: a value
     beyond the range of doubles, or a function outside its domain (:mod:`..core.finite`); else
@@ -849,13 +861,9 @@ def _not_finite(system, t: float, y, param, otherwise: str | None = None, mass_o
     with implicit constraints, whose dependent coordinates are not known here, just that).
     ``mass_only``: only an overflow or a problem in ``Mbar`` (a singular one, as at a coordinate
     singularity, keeps ``otherwise``)."""
-    from ..core.finite import at_state
-
-    cause = at_state(system, t, y, param)
-    if cause is not None and mass_only and not (cause.overflow or cause.label.startswith("Mbar")):
-        cause = None
+    cause = _cause(system, t, y, param, mass_only)
     if cause is not None:
-        return f"the equations have no {'finite' if cause.overflow else 'real'} value at this state: {cause}"
+        return cause.stated()
     if otherwise is not None:
         return otherwise
     if system.implicit is not None:
@@ -945,7 +953,7 @@ def _scipy_blocks(run, rhs, method, grid, y0, rtol, atol, chunks, bar, system, e
             if param is not None:  # NaN entries, not a singular matrix: an overflow, or outside the domain
                 t, y = (exc.t, exc.y) if np.all(np.isfinite(exc.y)) else (t_old, y_old)  # (a stage overflowed)
                 found = _not_finite(system, t, y, param, otherwise="", mass_only=True)
-                message = found + _where(system, y) if found else message + _rank_loss(system, exc.y, param)
+                message = found + _where(system, y) if found else message + _rank_loss(system, exc.t, exc.y, param)
             run.stop(message, exc.t, y_fail=exc.y)
             return
         except (ValueError, RuntimeError, ArithmeticError, np.linalg.LinAlgError) as exc:
