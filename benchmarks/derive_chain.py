@@ -25,6 +25,7 @@ simplification) is reported in the f column and the h column shows "-".
 from __future__ import annotations
 
 import argparse
+import gc
 import importlib.util
 import json
 import os
@@ -276,6 +277,7 @@ def cache_section(sizes, timeout) -> None:
             def best(job, repeats=5):
                 times = []
                 for _ in range(repeats):
+                    gc.collect()  # each repeat from the same start: no collection left over from the last
                     start = time.perf_counter()
                     job()
                     times.append(time.perf_counter() - start)

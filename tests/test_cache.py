@@ -404,3 +404,22 @@ def test_compiled_models_go_to_a_private_folder_when_the_cache_is_unsafe(cache):
         library = _library(load_model(SYSTEM1, cache=False).derive(cache=False))
     assert cache not in library.parents
     assert not (library.parent.parent.stat().st_mode & 0o077)
+
+
+@pytest.mark.parametrize("spec", ["  arm: {model: arm.yaml}\n",
+                                  "  arm: *arm\n",
+                                  "  arm: {<<: *arm}\n"])
+def test_a_changed_sub_model_changes_the_key_however_it_is_named(tmp_path, spec):
+    """The key reads only an outline of each file (loader.model_key): a sub-model named
+    through an alias or a merge still counts."""
+    from kronsub.model.loader import model_key
+
+    arm = tmp_path / "arm.yaml"
+    arm.write_text(SYSTEM1.read_text(encoding="utf-8"), encoding="utf-8")
+    top = tmp_path / "top.yaml"
+    top.write_text("name: top\nshared: &arm {model: arm.yaml}\ncomponents:\n" + spec
+                   + "coordinates: [theta, phi]\n", encoding="utf-8")
+    before = model_key(top)
+    assert model_key(top) == before
+    arm.write_text(arm.read_text(encoding="utf-8").replace("value: 9.81", "value: 9.8"), encoding="utf-8")
+    assert model_key(top) != before

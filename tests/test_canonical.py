@@ -9,7 +9,7 @@ import pytest
 import sympy
 
 import kronsub
-from kronsub.core import trigpoly
+from kronsub.core import canonical, trigpoly
 from kronsub.core.trigpoly import TrigAlgebra
 
 q1, q2, q3 = sympy.symbols("q1 q2 q3")
@@ -166,3 +166,22 @@ def test_function_values_are_the_objects_sympy_builds_unevaluated():
         assert sympy.srepr(ours) == sympy.srepr(theirs) and ours.nargs == theirs.nargs
         assert ours.is_real == theirs.is_real and ours.free_symbols == theirs.free_symbols
     assert function(sympy.cos, -q1) != sympy.cos(-q1)  # unevaluated, as asked: the sign stays
+
+
+@pytest.mark.parametrize("cls", [sympy.Matrix, sympy.ImmutableMatrix])
+def test_matrix_is_the_matrix_sympy_builds(cls):
+    """``canonical.matrix`` against sympy's own constructor: equal, of the same domain, and
+    the zeros sympy leaves out of its sparse form left out (or kept) alike."""
+    x, y = sympy.symbols("x y")
+    kinds = [sympy.S.Zero, sympy.Integer(0), sympy.Float(0.0), sympy.Rational(1, 2), sympy.Integer(3),
+             sympy.Float(2.5), x, -x, x * y, sympy.cos(x) + y, x ** 2, sympy.pi]
+    rng = random.Random(5)
+    for _ in range(200):
+        rows, cols = rng.randint(0, 4), rng.randint(1, 4)
+        pool = rng.choice([kinds, kinds[:2] + [sympy.Integer(3)], kinds[:2] + [sympy.Rational(1, 2)]])
+        entries = [rng.choice(pool) for _ in range(rows * cols)]
+        ours, theirs = canonical.matrix(rows, cols, entries, cls), cls(rows, cols, entries)
+        assert type(ours) is type(theirs) and ours == theirs
+        assert ours._rep.domain == theirs._rep.domain and ours._rep.to_sdm() == theirs._rep.to_sdm()
+    with pytest.raises(ValueError):
+        canonical.matrix(2, 2, [x])

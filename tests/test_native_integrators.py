@@ -13,6 +13,7 @@ import os
 import numpy as np
 import pytest
 
+from conftest import MODELS
 from kronsub.errors import KronsubError
 from kronsub.simulation import native
 from kronsub.simulation.native import (
@@ -497,3 +498,44 @@ def test_missing_compiler_raises_compiler_not_found(cache, monkeypatch):
     monkeypatch.setenv("CC", "/nonexistent/kronsub-cc")
     with pytest.raises(CompilerNotFound, match="kronsub-cc"):
         compile_library([OSCILLATOR], "oscillator")
+
+
+def test_a_build_for_the_host_gives_the_portable_build_s_numbers(cache, monkeypatch):
+    """The host build (``-march=native``, no fused multiply-adds) only changes which
+    instructions compute the same operations: a long dop853 run of the generated System I
+    agrees bit for bit with the portable build, and the two are different libraries."""
+    import kronsub
+    from kronsub.simulation.compiled import compiled_library
+
+    if native.build_flags() == native.FLAGS:
+        pytest.skip("no processor to build for here (no /proc/cpuinfo)")
+    system = kronsub.load(MODELS / "hoffmann" / "system1.yaml").derive()
+    host = compiled_library(system)
+    monkeypatch.setenv("KRONSUB_PORTABLE_C", "1")
+    assert native.build_flags() == native.FLAGS
+    portable = compiled_library(system)
+    assert host != portable
+    param = np.array([1.0, 1.0, 0.5, 0.5, 1 / 12, 1 / 12, 9.81, 0.3])
+    runs = []
+    for library in (host, portable):
+        model = NativeModel(library, 2, len(param))
+        _, Y, res = model.integrate("dop853", 0.0, np.array([2.0, -0.2, 0.0, 0.0]), 20.0, 0.5, param,
+                                    rtol=1e-12, atol=1e-12)
+        runs.append(Y)
+    assert res.n_steps > 500 and np.array_equal(runs[0], runs[1])
+
+
+def test_a_compiler_that_cannot_build_for_the_host_builds_portably(cache, monkeypatch):
+    calls = []
+    real = native._run_compiler
+
+    def counted(command, cwd):
+        calls.append(command)
+        return real(command, cwd)
+
+    monkeypatch.setattr(native, "_run_compiler", counted)
+    monkeypatch.setattr(native, "HOST_FLAGS", ("-march=no-such-processor",))
+    monkeypatch.setattr(native, "_HOST_CPU", "a processor")
+    model = NativeModel.build([OSCILLATOR], "oscillator", nq=1, nparam=2)
+    assert [("-march=no-such-processor" in c) for c in calls] == [True, False]
+    assert math.isclose(model.rhs(0.0, [1.0, 0.0], [2.0, 8.0])[1], -4.0)

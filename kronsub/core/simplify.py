@@ -49,6 +49,8 @@ def compact(algebra: TrigAlgebra, p: TrigPoly) -> sympy.Expr:
     Shortest by ``sympy.count_ops``, ties broken by the printed length, so that
     ``2*l**2*m*sin(alpha)**2`` wins over ``l**2*m*(1 - cos(2*alpha))``.
     """
+    if not p.terms:
+        return sympy.S.Zero
     memo = algebra.__dict__.setdefault("_compacted", {})  # per derivation: each distinct entry once
     key = p.key()
     if key not in memo:

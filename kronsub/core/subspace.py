@@ -19,6 +19,7 @@ from typing import Mapping, Sequence
 import sympy
 
 from ..components.base import Body, in_world
+from . import canonical
 from .inverse_trig import Radicands
 from .known_system import KnownSystem, ParameterInfo, ProjectedEffect, Transition
 from .primitive import Primitive, body_label
@@ -123,7 +124,7 @@ def project(
     """
     sub = Subspace(primitive, coordinates, connection)
     inertia = project_inertia(sub, primitive, name=name, parameters=parameters, description=description)
-    return assemble(inertia, project_effects(sub, primitive, effects))
+    return assemble(inertia, project_effects(sub, primitive, effects), assembled_potentials(primitive))
 
 
 def effect_labels(primitive: Primitive, effects: Sequence) -> tuple[str, ...]:
@@ -143,18 +144,18 @@ def project_inertia(sub: Subspace, primitive: Primitive, *, name: str = "",
     n, algebra = sub.n, sub.algebra
     renamed = sub.renamed_parts(primitive)
     mass, velocity_terms, direct_mass, direct_h = _inertia(sub, primitive, renamed)
-    mass_matrix = sympy.zeros(n, n)
+    entries = [[None] * n for _ in range(n)]
     for j in range(n):
         for k in range(j, n):
-            entry = _plus(compact(algebra, mass[j][k]), direct_mass.get((j, k), ()))
-            mass_matrix[j, k] = mass_matrix[k, j] = entry
+            entries[j][k] = entries[k][j] = _plus(compact(algebra, mass[j][k]), direct_mass.get((j, k), ()))
+    mass_matrix = canonical.matrix(n, n, [e for row in entries for e in row])
     transition = Transition(
         primitive_coordinates=sub.x,
         primitive_metric=primitive.metric,
         primitive_velocity_terms=primitive.velocity_terms,
         primitive_forces={},
         connection=tuple((x, sub.connection[x]) for x in sub.x),
-        transformation=sympy.Matrix(len(sub.x), n, lambda a, j: compact(algebra, sub.C[a][j])),
+        transformation=canonical.matrix(len(sub.x), n, [compact(algebra, c) for row in sub.C for c in row]),
         parts=tuple((p.name, p.type_name) for p in primitive.parts),
     )
     dimension = world_dimension(primitive)
@@ -207,10 +208,18 @@ def world_dimension(primitive: Primitive) -> int:
     return max(dims) if len(dims) == 1 else 0
 
 
-def assemble(inertia: KnownSystem, effects: Sequence[ProjectedEffect]) -> KnownSystem:
+def assembled_potentials(primitive: Primitive) -> tuple:
+    """``(coordinates, sum of potentials, V)`` of the known systems in ``primitive``: sums that
+    :func:`assemble` compacted to ``V`` when each was derived (``Part.assembled_potential``)."""
+    return tuple(part.assembled_potential for part in primitive.parts if part.assembled_potential)
+
+
+def assemble(inertia: KnownSystem, effects: Sequence[ProjectedEffect], known: Sequence = ()) -> KnownSystem:
     """``Mbar qddot + hbar = fbar`` with ``fbar`` the sum of the given effects' forces (8'), (F)
-    and ``V`` the sum of their potentials: the effects left out contribute nothing at all."""
-    algebra = TrigAlgebra(inertia.coordinates)
+    and ``V`` the sum of their potentials: the effects left out contribute nothing at all.
+
+    ``known`` (:func:`assembled_potentials`): a sum already compacted in these coordinates
+    is taken as it is, so a model that only reuses a cached known system does not redo it."""
     potential = sympy.Add(*[e.potential for e in effects])
     transition = inertia.transition
     if transition is not None:
@@ -221,9 +230,17 @@ def assemble(inertia: KnownSystem, effects: Sequence[ProjectedEffect]) -> KnownS
         effect_forces={e.label: e.force for e in effects},
         effect_potentials={e.label: e.potential for e in effects},
         effect_translations={e.label: e.translation for e in effects if e.translation},
-        potential_energy=compact(algebra, algebra.from_expr(potential)),
+        potential_energy=_compacted_potential(tuple(inertia.coordinates), potential, known),
         transition=transition,
     )
+
+
+def _compacted_potential(coordinates: tuple, potential: sympy.Expr, known: Sequence) -> sympy.Expr:
+    for own, raw, compacted in known:
+        if own == coordinates and raw == potential:
+            return compacted
+    algebra = TrigAlgebra(coordinates)
+    return compact(algebra, algebra.from_expr(potential))
 
 
 def _inertia(sub: Subspace, primitive: Primitive, renamed: dict[str, list[int]]):
@@ -239,12 +256,13 @@ def _inertia(sub: Subspace, primitive: Primitive, renamed: dict[str, list[int]])
         size = len(part.coordinates)
         targets = renamed.get(part.name)
         if targets is not None:
+            metric, h = part.metric.tolist(), list(part.velocity_terms)
             for i, j in enumerate(targets):
-                if part.velocity_terms[i] != 0:
-                    direct_h.setdefault(j, []).append(sub.moved(part.velocity_terms[i]))
+                if h[i] != 0:
+                    direct_h.setdefault(j, []).append(sub.moved(h[i]))
                 for i2, k in enumerate(targets):
-                    if j <= k and part.metric[i, i2] != 0:
-                        direct_mass.setdefault((j, k), []).append(sub.moved(part.metric[i, i2]))
+                    if j <= k and metric[i][i2] != 0:
+                        direct_mass.setdefault((j, k), []).append(sub.moved(metric[i][i2]))
             continue
         block = [[sub.image(part.metric[i, j]) for j in range(size)] for i in range(size)]
         for i in range(size):

@@ -22,6 +22,7 @@ from sympy.matrices.dense import MutableDenseMatrix
 from sympy.matrices.immutable import ImmutableDenseMatrix
 
 from ..components.base import Body
+from ..collector import collector_paused
 from ..core import canonical
 from ..core.constraints import Constraint, ImplicitSubspace
 from ..core.known_system import KnownSystem, ParameterInfo, ProjectedEffect, Transition
@@ -169,29 +170,34 @@ def _int(x) -> int:
     return x
 
 
+_COMPOUND = frozenset(("Add", "Mul", "Pow", *FUNCTIONS))
+_INT = {int}
+
+
 def _nodes(table) -> list:
     """Rebuild the expression table; a node may refer only to nodes before it."""
     if not isinstance(table, list):
         _fail("malformed node table")
     built: list = []
-    commutes: list[bool] = []  # each node's is_commutative, so a sum or product need not ask its terms
+    commutes: list[bool] = []  # each node's is_commutative, so a sum, product or function need not ask its terms
     add_new, mul_new = sympy.Add._from_args, sympy.Mul._from_args
     for node in table:
         if not isinstance(node, list) or not node or not isinstance(node[0], str):
             _fail("malformed node")
         head = node[0]
         commutative = None  # a sum's or product's, from its terms'
-        if head in ("Add", "Mul", "Pow") or head in FUNCTIONS:
+        if head in _COMPOUND:
+            refs = node[1:]
+            if not refs or set(map(type, refs)) != _INT or min(refs) < 0:  # (a bool is no index)
+                _fail("malformed node arguments")
             try:
-                args = [built[i] for i in node[1:] if type(i) is int and 0 <= i]
+                args = [built[i] for i in refs]
             except IndexError:
                 _fail("a node refers to a later one")
-            if len(args) != len(node) - 1:
-                _fail("malformed node arguments")
             if head in ("Add", "Mul"):
                 if len(args) < 2:
                     _fail(f"malformed {head}")
-                commutative = all(commutes[i] for i in node[1:])
+                commutative = all(map(commutes.__getitem__, refs))
                 e = (add_new if head == "Add" else mul_new)(args, commutative)
             elif head == "Pow":
                 e = sympy.Pow(*args, evaluate=False) if len(args) == 2 else _fail("malformed Pow")
@@ -199,6 +205,7 @@ def _nodes(table) -> list:
                 if not FUNCTIONS[head]._valid_nargs(len(args)):
                     _fail(f"malformed {head}: {len(args)} arguments")
                 e = canonical.function(FUNCTIONS[head], *args)
+                commutative = all(map(commutes.__getitem__, refs))  # sympy's rule for a Function
         elif head == "S" and len(node) >= 2:
             e = _symbol(node)
         elif head == "N" and len(node) == 2:
@@ -251,7 +258,7 @@ class _Decoder:
             if cls is None or type(rows) is not int or type(cols) is not int or rows < 0 or cols < 0 \
                     or not isinstance(entries, list) or len(entries) != rows * cols:
                 _fail("malformed matrix")
-            return cls._new(rows, cols, [self.expr(i) for i in entries], copy=False)
+            return canonical.matrix(rows, cols, [self.expr(i) for i in entries], cls)
         if set(v) == {"c", "f"} and isinstance(v["f"], dict):
             cls = CLASSES.get(v["c"]) if isinstance(v["c"], str) else None
             if cls is None:
@@ -272,18 +279,19 @@ class _Decoder:
 def loads(text: str | bytes, expected: type | None = None):
     """The value stored by :func:`dumps`; raises :class:`CacheFormatError` on anything else
     (another format version, a head off the whitelist, a malformed table)."""
-    try:
-        data = json.loads(text)
-    except (ValueError, RecursionError) as exc:
-        raise CacheFormatError(f"not JSON: {exc}") from None
-    if not isinstance(data, dict) or data.get("format") != FORMAT or set(data) != {"format", "nodes", "value"}:
-        _fail("not a kronsub known-system file of this version")
-    try:
-        value = _Decoder(_nodes(data["nodes"])).value(data["value"])
-    except CacheFormatError:
-        raise
-    except (TypeError, ValueError, AttributeError, RecursionError) as exc:
-        raise CacheFormatError(f"malformed: {exc}") from None
+    with collector_paused():  # tens of thousands of new objects, no cycles among them
+        try:
+            data = json.loads(text)
+        except (ValueError, RecursionError) as exc:
+            raise CacheFormatError(f"not JSON: {exc}") from None
+        if not isinstance(data, dict) or data.get("format") != FORMAT or set(data) != {"format", "nodes", "value"}:
+            _fail("not a kronsub known-system file of this version")
+        try:
+            value = _Decoder(_nodes(data["nodes"])).value(data["value"])
+        except CacheFormatError:
+            raise
+        except (TypeError, ValueError, AttributeError, RecursionError) as exc:
+            raise CacheFormatError(f"malformed: {exc}") from None
     if expected is not None and not isinstance(value, expected):
         _fail(f"expected a {expected.__name__}")
     return value

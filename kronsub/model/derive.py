@@ -13,7 +13,8 @@ from .. import __version__
 from ..atomic import write_atomically
 from ..cache import usable_cache_dir
 from ..core.known_system import KnownSystem, ProjectedEffect, Transition
-from ..core.subspace import Subspace, assemble, effect_labels, project_effects, project_inertia
+from ..core.subspace import (Subspace, assemble, assembled_potentials, effect_labels, project_effects,
+                             project_inertia)
 from . import cache_format
 
 
@@ -136,7 +137,8 @@ def derive_model(model, *, cache: bool = True, effects=None) -> KnownSystem:
         for piece in project_effects(sub, model.primitive, model.effects, only=missing):
             pieces[piece.label] = piece
             _store_parts(key, {f"effect.{piece.label}": piece})
-    system = dataclasses.replace(assemble(inertia, [pieces[label] for label in chosen]), **own)
+    system = dataclasses.replace(assemble(inertia, [pieces[label] for label in chosen],
+                                          assembled_potentials(model.primitive)), **own)
     if implicit is not None:
         system = dataclasses.replace(derive_implicit(model, system), **own)
     if key and effects is None:

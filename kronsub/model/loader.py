@@ -63,7 +63,7 @@ def model_key(path: Path, stack: tuple[str, ...] = ()) -> str:
     if resolved in stack:
         return ""  # the cycle is reported when the model is loaded
     text = read_model_text(path)
-    root = load_yaml(path, text)
+    root = load_yaml(path, text, only={"components": {"*": {"model": None}}})
     subs = []
     for sub_path in _component_models(root, path):
         try:
@@ -979,7 +979,9 @@ def known_system_part(name: str, system: KnownSystem, overrides: dict, renames: 
         return Part(name, coordinates, metric, velocity_terms, dict(system.points), tuple(system.bodies),
                     system.dimension, forces, system.potential_energy, "", dict(system.effect_potentials),
                     tuple(Constraint(f"{name}.{c.name}", c.expression, c.source) for c in constraints), branch,
-                    dict(system.effect_translations))
+                    dict(system.effect_translations),
+                    assembled_potential=(coordinates, sympy.Add(*system.effect_potentials.values()),
+                                         system.potential_energy))
 
     def s(e):
         return sympy.sympify(e).xreplace(sub)

@@ -12,7 +12,7 @@ import os
 import stat
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any, Callable, Mapping
 
 import yaml
 from yaml.constructor import SafeConstructor
@@ -36,6 +36,7 @@ _SCALAR_TAGS: dict[str, Callable[[ScalarNode], Any]] = {
 }
 _DEFAULT_HINT = "check the indentation and that every `key: value` has a space after the colon"
 _PLAIN_DATA_HINT = "a model file is plain data: remove the tag"
+_LEFT_OUT = object()  # a value an outline does not convert
 
 
 @dataclass(frozen=True)
@@ -86,11 +87,13 @@ class Node:
         return self.value
 
 
-def load_yaml(path: str | Path, text: str | None = None) -> Node:
+def load_yaml(path: str | Path, text: str | None = None, only: Mapping | None = None) -> Node:
     """Parse a YAML model file (or ``text``, named ``path`` in messages).
 
     Raises `ModelError` listing every problem found: unreadable or empty
     file, YAML syntax, duplicate or non-string keys, unsupported tags.
+    ``only``: an outline of the values it names (:meth:`_Converter.outline`); every
+    other value is ``None``, unchecked, with where it starts.
     """
     name = str(path)
     if text is None:
@@ -102,7 +105,7 @@ def load_yaml(path: str | Path, text: str | None = None) -> Node:
             "write the model as YAML `key: value` lines")])
     converter = _Converter(name, text)
     try:
-        node = converter.convert(root)
+        node = converter.outline(root, only) if only is not None else converter.convert(root)
     except RecursionError:
         raise ModelError([Problem(Location(name), "the YAML is nested too deeply", "flatten the structure")])
     converter.problems.raise_if_any()
@@ -417,6 +420,14 @@ class _Converter:
         self.done[key] = result
         return result
 
+    def outline(self, root: yaml.Node, only: Mapping) -> Node:
+        """``root`` with only the values ``only`` names converted: ``{key: deeper}``, where
+        ``deeper`` is None for the whole value, or names what to take of it in turn
+        (``"*"``: every key). A mapping with a ``<<`` merge is converted whole."""
+        if not isinstance(root, MappingNode) or root.tag != _MAP:
+            return self.convert(root)
+        return self._mapping(root, _location_of_mark(self.name, root.start_mark), only)
+
     def _convert(self, node: yaml.Node, location: Location) -> Node:
         if isinstance(node, ScalarNode):
             return self._scalar(node, location)
@@ -476,9 +487,11 @@ class _Converter:
                 return _location_of_index(self.name, self.text, start)
         return location
 
-    def _mapping(self, node: MappingNode, location: Location) -> Node:
+    def _mapping(self, node: MappingNode, location: Location, only: Mapping | None = None) -> Node:
         explicit = {key.value for key, _ in node.value
                     if isinstance(key, ScalarNode) and key.tag != _MERGE}
+        if only is not None and len(explicit) < len(node.value):
+            only = None  # a merge (or a key that is no string): the whole mapping
         values: dict[str, Node] = {}
         key_locations: dict[str, Location] = {}
         written: dict[str, Location] = {}
@@ -494,7 +507,16 @@ class _Converter:
                 self._duplicate(key, key_location, written[key])
                 continue
             written[key] = key_locations[key] = key_location
-            values[key] = self.convert(value_node)
+            if only is None:
+                values[key] = self.convert(value_node)
+                continue
+            deeper = only.get(key, only.get("*", _LEFT_OUT))
+            if deeper is _LEFT_OUT:
+                values[key] = Node(None, None, _location_of_mark(self.name, value_node.start_mark))
+            elif deeper is None or not isinstance(value_node, MappingNode) or value_node.tag != _MAP:
+                values[key] = self.convert(value_node)
+            else:
+                values[key] = self._mapping(value_node, _location_of_mark(self.name, value_node.start_mark), deeper)
         return Node(values, None, location, key_locations)
 
     def _duplicate(self, key: str, where: Location, first: Location) -> None:

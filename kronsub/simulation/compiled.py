@@ -40,7 +40,7 @@ def fingerprint(system: KnownSystem, outputs=None) -> str | None:
     except cache_format.CacheFormatError:
         return None
     command = native.compiler_command()
-    parts = [text, repr(outputs), *native.FLAGS, *native.LIBS, shutil.which(command[0]) or command[0], *command[1:]]
+    parts = [text, repr(outputs), *native.build_identity(), shutil.which(command[0]) or command[0], *command[1:]]
     parts += [(native.CSRC / name).read_text() for name in native.INTEGRATOR_FILES]
     return content_key("compiled-model", *parts)
 

@@ -39,6 +39,9 @@ from kronsub.errors import KronsubError
 CSRC = Path(__file__).resolve().parent / "csrc"
 INTEGRATOR_FILES = ("integrators.h", "integrators.c")
 FLAGS = ("-std=c99", "-O2", "-fPIC", "-shared", "-Wall", "-Wextra", "-Werror")
+# for the processor the library runs on (the instruction set heyoka's JIT also targets); no
+# contraction into fused multiply-adds, so results stay those of the portable build
+HOST_FLAGS = ("-march=native", "-ffp-contract=off")
 LIBS = ("-lm",)
 COMPILE_TIMEOUT = 600.0
 
@@ -81,6 +84,42 @@ def compiler_command() -> list[str]:
             f"C compiler {command[0]!r} not found; set CC to a C compiler (such as gcc or cc)"
         )
     return command
+
+
+def _host_cpu() -> str:
+    """A digest naming this machine's processor and its instruction-set extensions (Linux's
+    ``/proc/cpuinfo``); empty where it cannot be read, and then nothing is built for it."""
+    global _HOST_CPU
+    if _HOST_CPU is None:
+        try:
+            with open("/proc/cpuinfo", encoding="utf-8", errors="replace") as fh:
+                head = fh.read(1 << 16).split("\n\n", 1)[0]  # the first processor
+        except OSError:
+            head = ""
+        facts = [line for line in head.splitlines()
+                 if line.split(":", 1)[0].strip() in ("vendor_id", "model name", "flags", "Features", "CPU part")]
+        _HOST_CPU = hashlib.sha256("\n".join(facts).encode()).hexdigest() if facts else ""
+    return _HOST_CPU
+
+
+_HOST_CPU: str | None = None
+
+
+def build_flags() -> tuple[str, ...]:
+    """The compiler flags: :data:`FLAGS`, and :data:`HOST_FLAGS` where the processor can be
+    named (:func:`_host_cpu`, part of every library's key, so that a cache folder shared by
+    several machines never hands one a library built for another's instructions) unless
+    ``KRONSUB_PORTABLE_C=1``. The generated C itself builds with :data:`FLAGS` alone."""
+    if os.environ.get("KRONSUB_PORTABLE_C", "").strip() not in ("", "0") or not _host_cpu():
+        return FLAGS
+    return FLAGS + HOST_FLAGS
+
+
+def build_identity() -> list[str]:
+    """What a library's key holds of how it is built: the flags, the libraries and, for a
+    build for the host, its processor."""
+    flags = build_flags()
+    return [*flags, *LIBS, *([f"cpu {_host_cpu()}"] if flags != FLAGS else [])]
 
 
 def _named_sources(sources: Sequence[str | tuple[str, str]], stem: str) -> list[tuple[str, str]]:
@@ -178,7 +217,8 @@ def compile_library(sources: Sequence[str | tuple[str, str]], name_hint: str = "
     for name, text in files:
         digest.update(name.encode() + b"\0" + text.encode() + b"\0")
     resolved = [shutil.which(command[0]) or command[0], *command[1:]]
-    digest.update("\0".join([*resolved, *FLAGS, *LIBS]).encode())
+    flags = build_flags()
+    digest.update("\0".join([*resolved, *build_identity()]).encode())
     key = digest.hexdigest()
 
     folder = _build_root() / f"{stem}-{key[:24]}"
@@ -194,10 +234,13 @@ def compile_library(sources: Sequence[str | tuple[str, str]], name_hint: str = "
     os.close(fd)
     tmp = Path(tmp_name)
     c_files = [name for name, _ in files if name.endswith(".c")]
-    full = [*command, *FLAGS, "-I", str(folder), "-o", str(tmp), *c_files, *LIBS]
+    full = [*command, *flags, "-I", str(folder), "-o", str(tmp), *c_files, *LIBS]
     try:
         try:
             proc = _run_compiler(full, folder)
+            if proc.returncode != 0 and flags != FLAGS:  # a compiler that cannot target the host
+                full = [*command, *FLAGS, *full[len(command) + len(flags):]]
+                proc = _run_compiler(full, folder)
         except OSError as exc:
             raise CompilerNotFound(f"C compiler {command[0]!r} could not be run: {exc}") from exc
         except subprocess.TimeoutExpired as exc:
