@@ -33,6 +33,7 @@ os.environ["KRONSUB_CACHE_DIR"] = "off"
 
 import kronsub  # noqa: E402
 from kronsub.emitters.code import emit_c  # noqa: E402
+from kronsub.simulation.native import host_flags  # noqa: E402
 
 DERIVE_TARGET_S = 1.0
 RHS_TARGET_RATIO = 3.0
@@ -95,7 +96,8 @@ def rhs_ns(system, calls: int, repeats: int, folder: Path, name: str) -> float:
     for generated in emit_c(system, "model"):
         (work / generated.name).write_text(generated.text)
     (work / "harness.c").write_text(HARNESS)
-    subprocess.run(["gcc", "-std=c99", "-O2", "-o", "harness", "harness.c", "model.c", "-lm"], cwd=work, check=True)
+    subprocess.run(["gcc", "-std=c99", "-O2", *host_flags(), "-o", "harness", "harness.c", "model.c", "-lm"],
+                   cwd=work, check=True)
     params = [str(float(p.value)) for p in system.parameters]
     out = subprocess.run([str(work / "harness"), str(calls), str(repeats), *params], capture_output=True,
                          text=True, check=True).stdout.split()

@@ -13,7 +13,7 @@ measured in one run:
 a. The generated right-hand side ``ydot = [qdot; Mbar^-1 (fbar - hbar)]`` of the full
    model and of the gravity-only scene: ``sympy.count_ops`` of its body (common
    subexpressions and outputs, the per-parameter constants apart), and the cost of one
-   call of the compiled C (``ks_rhs_pre``, ``-O2``) from a small C harness cycling
+   call of the compiled C (``ks_rhs_pre``, ``-O2`` and kronsub's host flags) from a small C harness cycling
    through random states, the full model and the scene timed in turn in one program (so
    both see the same machine load): min and median over repeats, and the scene/full ratio.
    Target: the 10-link gravity-only scene costs at most 70 % of the full model per call.
@@ -49,7 +49,7 @@ from kronsub.emitters.code import emit_c  # noqa: E402
 from kronsub.emitters.numeric import prepare  # noqa: E402
 from kronsub.model.loader import load_model  # noqa: E402
 from kronsub.model.scenes import derive_scene, select_scene  # noqa: E402
-from kronsub.simulation.native import compiler_command  # noqa: E402
+from kronsub.simulation.native import compiler_command, host_flags  # noqa: E402
 from kronsub.simulation.values import resolve  # noqa: E402
 
 RHS_TARGET = 0.70
@@ -151,7 +151,7 @@ def rhs_costs(pair, folder: Path, calls: int, repeats: int) -> tuple[list[float]
             (work / g.name).write_text(g.text, encoding="utf-8")
         args += map(repr, resolve(system, dict(model.initial), {}).parameters)
     (work / "harness.c").write_text(HARNESS, encoding="utf-8")
-    subprocess.run([*compiler_command(), "-std=c99", "-O2", "-o", "harness", "harness.c", "full.c", "scene.c",
+    subprocess.run([*compiler_command(), "-std=c99", "-O2", *host_flags(), "-o", "harness", "harness.c", "full.c", "scene.c",
                     "-lm"], cwd=work, check=True, capture_output=True)
     out = subprocess.run([str(work / "harness"), str(calls), str(repeats), *args],
                          cwd=work, check=True, capture_output=True, text=True).stdout.split("\n")

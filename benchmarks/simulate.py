@@ -9,7 +9,8 @@ a. One evaluation of ``ydot = [qdot; Mbar^-1 (fbar - hbar)]`` for the 2-, 5- and
    chains (``models/chain/generate.py``) at varying random states, by
 
    * ``C from C``: the generated C, called in a loop by a small C harness compiled with it at
-     ``-O2`` (written and built at run time);
+     ``-O2`` and the flags kronsub builds its libraries with for this processor
+     (``native.host_flags()``; written and built at run time);
    * ``C from Python``: the same C through ctypes (``NativeModel.scipy_rhs``, what scipy calls);
    * ``numpy module``: the generated numpy module (``emit_python``);
    * ``lambdify``: ``sympy.lambdify(cse=True)`` of ``Mbar`` and ``fbar - hbar`` with
@@ -65,7 +66,7 @@ import kronsub  # noqa: E402
 from generate import chain_yaml  # noqa: E402
 from kronsub.emitters.code import emit_c, emit_python  # noqa: E402
 from kronsub.simulation.native import (CSRC, INTEGRATOR_FILES, NativeModel, _CResult,  # noqa: E402
-                                      compile_library, compiler_command)
+                                      compile_library, compiler_command, host_flags)
 from kronsub.simulation.values import resolve  # noqa: E402
 
 HARNESS = r"""
@@ -180,7 +181,7 @@ class Harness:
             (folder / name).write_text((CSRC / name).read_text())
         (folder / "harness.c").write_text(HARNESS)
         self.exe = folder / "harness"
-        proc = subprocess.run([*compiler_command(), "-std=c99", "-D_POSIX_C_SOURCE=199309L", "-O2",
+        proc = subprocess.run([*compiler_command(), "-std=c99", "-D_POSIX_C_SOURCE=199309L", "-O2", *host_flags(),
                                "-o", str(self.exe), "harness.c", "model.c", "integrators.c", "-lm"],
                               cwd=folder, capture_output=True, text=True)
         if proc.returncode:

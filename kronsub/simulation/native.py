@@ -105,14 +105,19 @@ def _host_cpu() -> str:
 _HOST_CPU: str | None = None
 
 
-def build_flags() -> tuple[str, ...]:
-    """The compiler flags: :data:`FLAGS`, and :data:`HOST_FLAGS` where the processor can be
-    named (:func:`_host_cpu`, part of every library's key, so that a cache folder shared by
-    several machines never hands one a library built for another's instructions) unless
-    ``KRONSUB_PORTABLE_C=1``. The generated C itself builds with :data:`FLAGS` alone."""
+def host_flags() -> tuple[str, ...]:
+    """:data:`HOST_FLAGS` where the processor can be named (:func:`_host_cpu`, part of every
+    library's key, so that a cache folder shared by several machines never hands one a library
+    built for another's instructions), unless ``KRONSUB_PORTABLE_C=1``; else none."""
     if os.environ.get("KRONSUB_PORTABLE_C", "").strip() not in ("", "0") or not _host_cpu():
-        return FLAGS
-    return FLAGS + HOST_FLAGS
+        return ()
+    return HOST_FLAGS
+
+
+def build_flags() -> tuple[str, ...]:
+    """The compiler flags of a library: :data:`FLAGS` and :func:`host_flags`. The generated
+    C itself builds with :data:`FLAGS` alone."""
+    return FLAGS + host_flags()
 
 
 def build_identity() -> list[str]:
