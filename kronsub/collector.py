@@ -9,10 +9,12 @@ import gc
 def collector_paused():
     """Run the block with the cyclic collector off; reference counting still frees memory.
 
-    Reading a cached known system builds tens of thousands of sympy nodes, none of them in a
-    cycle, and every full collection they trigger walks each object alive, sympy's caches
-    included: about half the time of reading the 20-link chain (benchmarks/derive_chain.py).
-    The collector is turned back on afterwards only if it was on, so pauses nest.
+    Loading and deriving a model build sympy expressions by the hundred thousand and almost
+    no cycles (a 20-link chain: a few hundred objects in cycles), and every collection they
+    trigger walks the young objects again, every full one each object alive, sympy's caches
+    included: 10-25 % of deriving the 20- and 50-link chains, and about half of reading the
+    cached 20-link chain (benchmarks/derive_chain.py). The collector is turned back on
+    afterwards only if it was on, so pauses nest; what is left in cycles goes at its next run.
     """
     was_on = gc.isenabled()
     gc.disable()

@@ -15,6 +15,7 @@ from sympy.printing.c import C99CodePrinter
 from sympy.printing.numpy import NumPyPrinter
 
 from .. import __version__
+from ..collector import collector_paused
 from ..core.known_system import KnownSystem
 from .escape import Markup
 from .numeric import GUARD, Block, NumericModel, identifier, prepare
@@ -123,6 +124,7 @@ def _context(model: NumericModel, show, declare: str, end: str) -> dict:
             "defaults": [(name, Markup(value)) for name, value, _ in model.parameters if value]}
 
 
+@collector_paused()  # see kronsub.collector
 def emit_c(system: KnownSystem, stem: str, source: str = "", prefix: str = "ks",
            outputs=None) -> list[GeneratedFile]:
     """``<stem>.h`` and ``<stem>.c`` (``stem`` made safe by :func:`file_stem`): C99, libc and
@@ -142,6 +144,7 @@ def emit_c(system: KnownSystem, stem: str, source: str = "", prefix: str = "ks",
             GeneratedFile(f"{stem}.c", env.get_template("model.c.j2").render(**ctx))]
 
 
+@collector_paused()  # see kronsub.collector
 def emit_python(system: KnownSystem, stem: str, source: str = "", prefix: str = "ks",
                 outputs=None) -> list[GeneratedFile]:
     """``<stem>.py`` (``stem`` made safe by :func:`file_stem`): a numpy module that does not

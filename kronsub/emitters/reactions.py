@@ -5,6 +5,7 @@ import json
 
 import sympy
 
+from ..collector import collector_paused
 from ..core.known_system import KnownSystem
 from ..core.reactions import MultiplierSystem, reactions
 from .escape import latex_text
@@ -24,6 +25,7 @@ def _what(system: KnownSystem) -> str:
             "of the interconnection on it, on an angle its moment; `C^T R = 0`.")
 
 
+@collector_paused()  # see kronsub.collector
 def with_reactions(text: str, system: KnownSystem, fmt: str) -> str:
     """The derivation ``text`` in ``fmt`` with the reactions added."""
     items = reactions(system)

@@ -6,6 +6,7 @@ from importlib import resources
 
 import jinja2
 
+from ..collector import collector_paused
 from ..core.known_system import KnownSystem
 from .escape import Markup, environment
 from .latex_layout import WIDTH, lines, measure, unbroken
@@ -46,12 +47,14 @@ def _trusted(show):
     return lambda expr: Markup(show(expr))
 
 
+@collector_paused()  # see kronsub.collector
 def emit_markdown(system: KnownSystem) -> str:
     """Markdown: the derivation step by step, expressions in sympy's ``str`` form."""
     show = plain_printer(model_names(system))
     return _environment().get_template("derive.md.j2").render(r=build_report(system, _trusted(show)))
 
 
+@collector_paused()  # see kronsub.collector
 def emit_latex(system: KnownSystem) -> str:
     """A standalone LaTeX document of the derivation."""
     show = latex_printer(tuple(system.coordinates) + tuple(
@@ -63,6 +66,7 @@ def emit_latex(system: KnownSystem) -> str:
     return unbroken(env.get_template("derive.tex.j2").render(r=build_report(system, _trusted(show))))
 
 
+@collector_paused()  # see kronsub.collector
 def emit_json(system: KnownSystem) -> str:
     """The machine contract: ``Mbar qddot + hbar = fbar`` with sympy ``str`` expressions."""
     r = build_report(system, plain_printer(model_names(system)), named=False)

@@ -12,6 +12,7 @@ import sympy
 from .. import __version__
 from ..atomic import write_atomically
 from ..cache import usable_cache_dir
+from ..collector import collector_paused
 from ..core.known_system import KnownSystem, ProjectedEffect, Transition
 from ..core.subspace import (Subspace, assemble, assembled_potentials, effect_labels, project_effects,
                              project_inertia)
@@ -109,8 +110,14 @@ def derive_model(model, *, cache: bool = True, effects=None) -> KnownSystem:
     sum of the effects' projected forces (8'), (F), so ``Mbar``, ``hbar`` (the inertia) and
     each effect are cached apart, and every selection of effects shares them. The cache
     holds data only (:mod:`.cache_format`); name, description and initial values always come
-    from ``model`` (the same text may live under several file names).
+    from ``model`` (the same text may live under several file names). The cyclic garbage
+    collector is paused meanwhile (:func:`.collector_paused`).
     """
+    with collector_paused():
+        return _derive(model, cache, effects)
+
+
+def _derive(model, cache: bool, effects) -> KnownSystem:
     key = model.content_hash if cache else ""
     own = {"name": model.name, "description": model.description, "initial": dict(model.initial)}
     if key and effects is None:

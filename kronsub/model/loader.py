@@ -15,6 +15,7 @@ from pathlib import Path
 import sympy
 
 from ..components import REGISTRY
+from ..collector import collector_paused
 from ..components.base import in_world
 from ..core.constraints import Constraint, multiplier_name
 from ..core.known_system import KnownSystem, ParameterInfo
@@ -50,7 +51,8 @@ def load_model(path, *, text: str | None = None, cache: bool = True, _stack: tup
     if text is None:
         text = read_model_text(path)
     root = load_yaml(path, text)
-    return _Loader(path, root, text, _stack, cache).build()
+    with collector_paused():  # see kronsub.collector
+        return _Loader(path, root, text, _stack, cache).build()
 
 
 def model_key(path: Path, stack: tuple[str, ...] = ()) -> str:
