@@ -144,23 +144,27 @@ def test_points_need_a_rigid_body(tmp_path):
         kronsub.load(path)
 
 
-@pytest.mark.parametrize("extra", ["", "effects:\n  kick: {type: force, point: arm.lower.end, vector: [1, 0]}\n",
-                                   "effects:\n  tie: {type: spring, between: [arm.lower.end, [0, -1]], stiffness: 3}\n"])
-def test_a_known_system_reused_as_it_is_keeps_its_potential(tmp_path, extra):
+@pytest.mark.parametrize("placed, extra, reused", [
+    ("", "", True),
+    ("", "effects:\n  kick: {type: force, point: arm.lower.end, vector: [1, 0]}\n", True),
+    ("", "effects:\n  tie: {type: spring, between: [arm.lower.end, [0, -1]], stiffness: 3}\n", False),
+    (", origin: [0.5, 2]", "", False),  # moved: its gravity's potential changes
+])
+def test_a_known_system_reused_as_it_is_keeps_its_potential(tmp_path, placed, extra, reused):
     """A model on a known system's own coordinates takes the potential the known system's
     derivation compacted (subspace.assemble, ``known``): exactly what compacting the same sum
-    again gives; with an effect that adds a potential, the sum is compacted anew."""
+    again gives; with an effect that adds a potential, or the system moved, it is compacted anew."""
     from kronsub.core.simplify import compact
 
     arm = tmp_path / "arm.yaml"
     arm.write_text((MODELS / "hoffmann" / "system1.yaml").read_text(encoding="utf-8"), encoding="utf-8")
     top = tmp_path / "top.yaml"
-    top.write_text("name: arm again\ncomponents:\n  arm: {model: arm.yaml}\ncoordinates: [theta, phi]\n" + extra,
-                   encoding="utf-8")
+    top.write_text("name: arm again\ncomponents:\n  arm: {model: arm.yaml" + placed + "}\ncoordinates: [theta, phi]\n"
+                   + extra, encoding="utf-8")
     model = kronsub.load(top, cache=False)
     system = model.derive(cache=False)
     part = model.primitive.parts[0]
     algebra = TrigAlgebra(system.coordinates)
     again = compact(algebra, algebra.from_expr(sympy.Add(*system.effect_potentials.values())))
     assert sympy.srepr(system.potential_energy) == sympy.srepr(again)
-    assert (system.potential_energy is part.potential) == ("spring" not in extra)
+    assert (system.potential_energy is part.assembled_potential[2]) == reused

@@ -59,7 +59,7 @@ def matrix(rows: int, cols: int, entries: list, cls: type = sympy.Matrix) -> sym
         return cls._new(rows, cols, list(entries))
     nonzero: dict[int, dict[int, sympy.Expr]] = {}
     for n, e in enumerate(entries):
-        if e is not _ZERO and not (e.is_Number and not e != 0):
+        if e is not _ZERO and (not e.is_Number or e != 0):
             i, j = divmod(n, cols)
             nonzero.setdefault(i, {})[j] = e
     return cls._fromrep(cls._dod_to_DomainMatrix(rows, cols, nonzero, set(map(type, entries))))

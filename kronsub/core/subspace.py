@@ -236,6 +236,7 @@ def assemble(inertia: KnownSystem, effects: Sequence[ProjectedEffect], known: Se
 
 
 def _compacted_potential(coordinates: tuple, potential: sympy.Expr, known: Sequence) -> sympy.Expr:
+    """``V`` compacted in the algebra of ``coordinates``, or as ``known`` already holds it."""
     for own, raw, compacted in known:
         if own == coordinates and raw == potential:
             return compacted

@@ -279,7 +279,7 @@ class _Decoder:
 def loads(text: str | bytes, expected: type | None = None):
     """The value stored by :func:`dumps`; raises :class:`CacheFormatError` on anything else
     (another format version, a head off the whitelist, a malformed table)."""
-    with collector_paused():  # tens of thousands of new objects, no cycles among them
+    with collector_paused():  # thousands of new objects, no cycles (see kronsub.collector)
         try:
             data = json.loads(text)
         except (ValueError, RecursionError) as exc:
