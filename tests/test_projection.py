@@ -168,3 +168,21 @@ def test_a_known_system_reused_as_it_is_keeps_its_potential(tmp_path, placed, ex
     again = compact(algebra, algebra.from_expr(sympy.Add(*system.effect_potentials.values())))
     assert sympy.srepr(system.potential_energy) == sympy.srepr(again)
     assert (system.potential_energy is part.assembled_potential[2]) == reused
+
+
+def test_a_subspace_that_only_renames_is_known_to_have_full_rank(tmp_path):
+    """``Subspace.only_renames``: C a permutation (the rank check is skipped for it), and not
+    for a connection that mixes coordinates."""
+    from kronsub.core.subspace import Subspace
+
+    arm = tmp_path / "arm.yaml"
+    arm.write_text((MODELS / "hoffmann" / "system1.yaml").read_text(encoding="utf-8"), encoding="utf-8")
+    for coords, expected in (("[theta, phi]", True), ("[phi, theta]", True)):
+        top = tmp_path / "top.yaml"
+        top.write_text(f"name: again\ncomponents:\n  arm: {{model: arm.yaml}}\ncoordinates: {coords}\n",
+                       encoding="utf-8")
+        model = kronsub.load(top, cache=False)
+        assert Subspace(model.primitive, model.coordinates, model.connection).only_renames(model.primitive) \
+            is expected
+    model = kronsub.load(MODELS / "hoffmann" / "system1.yaml", cache=False)
+    assert not Subspace(model.primitive, model.coordinates, model.connection).only_renames(model.primitive)

@@ -12,6 +12,7 @@ from typing import Mapping
 import sympy
 
 from ..components.base import Body, Component
+from . import canonical
 from .derivative import derivative
 from .symbols import velocity_symbol
 
@@ -104,7 +105,7 @@ class Primitive:
             rows = part.metric.tolist()
             for i, row in enumerate(rows):
                 entries[(offset + i) * size + offset:(offset + i) * size + offset + len(row)] = row
-        return sympy.Matrix(size, size, entries)
+        return canonical.matrix(size, size, entries)
 
     @property
     def velocity_terms(self) -> sympy.Matrix:

@@ -98,6 +98,13 @@ class Subspace:
         over as it is: a cached known system then costs almost nothing."""
         return {part.name: t for part in primitive.parts if (t := self.renaming(part)) is not None}
 
+    def only_renames(self, primitive: Primitive) -> bool:
+        """Every coordinate is one primitive coordinate renamed, each exactly once: ``C`` is a
+        permutation, of full rank everywhere."""
+        renamed = self.renamed_parts(primitive)
+        return len(renamed) == len(primitive.parts) and \
+            sorted(j for targets in renamed.values() for j in targets) == list(range(self.n))
+
     def renaming(self, part) -> list[int] | None:
         """Indices of the new coordinates when the part's coordinates are only renamed."""
         index = {q: j for j, q in enumerate(self.coords)}
@@ -175,8 +182,8 @@ def project_inertia(sub: Subspace, primitive: Primitive, *, name: str = "",
         name=name,
         coordinates=sub.coords,
         mass_matrix=mass_matrix,
-        velocity_terms=sympy.Matrix([_plus(compact(algebra, p), direct_h.get(j, ()))
-                                     for j, p in enumerate(velocity_terms)]),
+        velocity_terms=canonical.matrix(n, 1, [_plus(compact(algebra, p), direct_h.get(j, ()))
+                                               for j, p in enumerate(velocity_terms)]),
         effect_forces={},
         points=points,
         bodies=bodies,

@@ -180,12 +180,12 @@ def _nodes(table) -> list:
         _fail("malformed node table")
     built: list = []
     commutes: list[bool] = []  # each node's is_commutative, so a sum, product or function need not ask its terms
+    keep, keep_commutes, commute_of = built.append, commutes.append, commutes.__getitem__
     add_new, mul_new = sympy.Add._from_args, sympy.Mul._from_args
     for node in table:
-        if not isinstance(node, list) or not node or not isinstance(node[0], str):
+        if type(node) is not list or not node or type(node[0]) is not str:
             _fail("malformed node")
         head = node[0]
-        commutative = None  # a sum's or product's, from its terms'
         if head in _COMPOUND:
             refs = node[1:]
             if not refs or set(map(type, refs)) != _INT or min(refs) < 0:  # (a bool is no index)
@@ -194,18 +194,21 @@ def _nodes(table) -> list:
                 args = [built[i] for i in refs]
             except IndexError:
                 _fail("a node refers to a later one")
-            if head in ("Add", "Mul"):
+            if head == "Mul" or head == "Add":
                 if len(args) < 2:
                     _fail(f"malformed {head}")
-                commutative = all(map(commutes.__getitem__, refs))
-                e = (add_new if head == "Add" else mul_new)(args, commutative)
-            elif head == "Pow":
+                commutative = all(map(commute_of, refs))  # a sum's or product's, from its terms'
+                keep((mul_new if head == "Mul" else add_new)(args, commutative))
+                keep_commutes(commutative)
+                continue
+            if head == "Pow":
                 e = sympy.Pow(*args, evaluate=False) if len(args) == 2 else _fail("malformed Pow")
             else:
                 if not FUNCTIONS[head]._valid_nargs(len(args)):
                     _fail(f"malformed {head}: {len(args)} arguments")
-                e = canonical.function(FUNCTIONS[head], *args)
-                commutative = all(map(commutes.__getitem__, refs))  # sympy's rule for a Function
+                keep(canonical.function(FUNCTIONS[head], *args))
+                keep_commutes(all(map(commute_of, refs)))  # sympy's rule for a Function
+                continue
         elif head == "S" and len(node) >= 2:
             e = _symbol(node)
         elif head == "N" and len(node) == 2:
@@ -219,8 +222,8 @@ def _nodes(table) -> list:
             e = CONSTANTS[node[1]]
         else:
             _fail(f"node head {head!r} is not admitted")
-        built.append(e)
-        commutes.append(bool(e.is_commutative) if commutative is None else commutative)
+        keep(e)
+        keep_commutes(bool(e.is_commutative))
     return built
 
 

@@ -137,7 +137,7 @@ def _derive(model, cache: bool, effects) -> KnownSystem:
         if inertia is None:
             inertia = project_inertia(sub, model.primitive, name=model.name, parameters=model.parameters,
                                       description=model.description)
-            if implicit is None:
+            if implicit is None and not sub.only_renames(model.primitive):
                 check_subspace_rank(model, sub)
             _store_parts(key, {"inertia": dataclasses.replace(inertia, transition=None),
                                "inertia-transition": inertia.transition})
