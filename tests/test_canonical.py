@@ -185,3 +185,17 @@ def test_matrix_is_the_matrix_sympy_builds(cls):
         assert ours._rep.domain == theirs._rep.domain and ours._rep.to_sdm() == theirs._rep.to_sdm()
     with pytest.raises(ValueError):
         canonical.matrix(2, 2, [x])
+
+
+def test_a_remembered_coefficient_is_the_one_sympy_builds_whatever_the_order():
+    """``TrigAlgebra._coefficient`` builds each distinct coefficient once: the same sum met
+    again in another order of its terms is the same expression, sympy's own."""
+    m = sympy.symbols("m1:6", real=True)
+    q = sympy.symbols("q1:3", real=True)
+    algebra = TrigAlgebra(q)
+    p = algebra.from_expr(sympy.Rational(1, 2) * m[0] + m[1] + 3 * m[2] * m[3] - m[4] ** 2)
+    (coef,) = p.terms.values()
+    first = algebra._coefficient(dict(coef))
+    again = algebra._coefficient(dict(reversed(list(coef.items()))))
+    assert again is first
+    assert sympy.srepr(first) == sympy.srepr(algebra.coefficient_expr(coef))

@@ -42,7 +42,7 @@ class Subspace:
         self.radicands = Radicands(algebra, connection.values())  # atan2/asin in it (inverse_trig)
         images = [algebra.from_expr(self.radicands.rewrite(connection[x])) for x in self.x]
         # C^a_alpha = dx^a / dxbar^alpha  (7'), (21)
-        self.C = [[algebra.diff(img, j) for j in range(self.n)] for img in images]
+        self.C = [algebra.gradient(img) for img in images]
         self.nonzero = [[j for j in range(self.n) if not row[j].is_zero()] for row in self.C]
         # rows of C equal within a column share their products: C^T y = sum over the distinct
         # values u of column j of u * (sum of y over the rows where C_aj = u)

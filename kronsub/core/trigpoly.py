@@ -299,6 +299,7 @@ class TrigAlgebra:
         self._cache: dict[sympy.Expr, TrigPoly] = {}
         self._trig_cache: dict[tuple[int, Freq], sympy.Expr] = {}
         self._mono_cache: dict[Mono, sympy.Expr] = {}
+        self._coefficient_cache: dict[frozenset, sympy.Expr] = {}
         self._power_cache: dict[tuple[int, int | Fraction], sympy.Expr] = {}
         self.prepare = None
         """A rewrite applied to an atom's derivative before it is converted (see inverse_trig)."""
@@ -415,7 +416,7 @@ class TrigAlgebra:
         out: dict[tuple[int, Freq], Coef] = {}
         chain: list[TrigPoly] = []
         for (kind, freq), coef in p.terms.items():
-            k = dict(freq).get(coordinate, 0)
+            k = next((v for i, v in freq if i == coordinate), 0)
             if k:
                 # d/dq cos(f.q) = -k sin(f.q);  d/dq sin(f.q) = k cos(f.q)
                 if kind == COS:
@@ -543,8 +544,14 @@ class TrigAlgebra:
         return out
 
     def _coefficient(self, coef: Coef) -> sympy.Expr:
-        """`coefficient_expr`, built in canonical form."""
-        return canonical.add([canonical.mul(_rational(c), self._powers(mono)) for mono, c in coef.items()])
+        """`coefficient_expr`, built in canonical form; each distinct one once (a chain's sums of
+        masses below a link recur in every entry of that link's row and column)."""
+        key = frozenset(coef.items())
+        hit = self._coefficient_cache.get(key)
+        if hit is None:
+            hit = self._coefficient_cache[key] = canonical.add(
+                [canonical.mul(_rational(c), self._powers(mono)) for mono, c in coef.items()])
+        return hit
 
     def _trig_factor(self, kind: int, freq: Freq) -> tuple[sympy.Integer, list[sympy.Expr]]:
         """``trig_expr`` as (sign, [function value]): ``[]`` for ``cos(0)``."""
@@ -565,6 +572,12 @@ class TrigAlgebra:
         """The atoms ``p``'s coefficients are made of, in the order met."""
         used = {i for coef in p.terms.values() for mono in coef for i, _ in mono}
         return [self._atoms[i] for i in sorted(used)]
+
+    def gradient(self, p: TrigPoly) -> list[TrigPoly]:
+        """``[d p / d q[j] for every coordinate j]``: zero, untouched, where ``p`` does not
+        depend on ``q[j]``."""
+        deps = self.depends_on(p)
+        return [self.diff(p, j) if j in deps else TrigPoly() for j in range(len(self.coordinates))]
 
     def depends_on(self, p: TrigPoly) -> frozenset[int]:
         """Indices of the coordinates that ``p`` depends on."""
