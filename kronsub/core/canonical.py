@@ -65,9 +65,6 @@ def matrix(rows: int, cols: int, entries: list, cls: type = sympy.Matrix) -> sym
     return cls._fromrep(cls._dod_to_DomainMatrix(rows, cols, nonzero, set(map(type, entries))))
 
 
-_ZERO = sympy.S.Zero
-
-
 class _Unkeyed(Exception):
     """An expression whose canonical order the tuple key does not reproduce."""
 

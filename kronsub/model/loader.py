@@ -14,8 +14,8 @@ from pathlib import Path
 
 import sympy
 
-from ..components import REGISTRY
 from ..collector import collector_paused
+from ..components import REGISTRY
 from ..components.base import in_world
 from ..core.constraints import Constraint, multiplier_name
 from ..core.known_system import KnownSystem, ParameterInfo

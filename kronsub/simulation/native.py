@@ -120,10 +120,10 @@ def build_flags() -> tuple[str, ...]:
     return FLAGS + host_flags()
 
 
-def build_identity() -> list[str]:
-    """What a library's key holds of how it is built: the flags, the libraries and, for a
-    build for the host, its processor."""
-    flags = build_flags()
+def build_identity(flags: tuple[str, ...] | None = None) -> list[str]:
+    """What a library's key holds of how it is built: the flags (:func:`build_flags` unless
+    given), the libraries and, for a build for the host, its processor."""
+    flags = build_flags() if flags is None else flags
     return [*flags, *LIBS, *([f"cpu {_host_cpu()}"] if flags != FLAGS else [])]
 
 
@@ -223,7 +223,7 @@ def compile_library(sources: Sequence[str | tuple[str, str]], name_hint: str = "
         digest.update(name.encode() + b"\0" + text.encode() + b"\0")
     resolved = [shutil.which(command[0]) or command[0], *command[1:]]
     flags = build_flags()
-    digest.update("\0".join([*resolved, *build_identity()]).encode())
+    digest.update("\0".join([*resolved, *build_identity(flags)]).encode())
     key = digest.hexdigest()
 
     folder = _build_root() / f"{stem}-{key[:24]}"
@@ -239,12 +239,13 @@ def compile_library(sources: Sequence[str | tuple[str, str]], name_hint: str = "
     os.close(fd)
     tmp = Path(tmp_name)
     c_files = [name for name, _ in files if name.endswith(".c")]
-    full = [*command, *flags, "-I", str(folder), "-o", str(tmp), *c_files, *LIBS]
+    rest = ["-I", str(folder), "-o", str(tmp), *c_files, *LIBS]
+    full = [*command, *flags, *rest]
     try:
         try:
             proc = _run_compiler(full, folder)
             if proc.returncode != 0 and flags != FLAGS:  # a compiler that cannot target the host
-                full = [*command, *FLAGS, *full[len(command) + len(flags):]]
+                full = [*command, *FLAGS, *rest]
                 proc = _run_compiler(full, folder)
         except OSError as exc:
             raise CompilerNotFound(f"C compiler {command[0]!r} could not be run: {exc}") from exc
