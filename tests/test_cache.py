@@ -10,6 +10,7 @@ import shutil
 import subprocess
 import sys
 import warnings
+from collections.abc import Mapping
 from pathlib import Path
 
 import pytest
@@ -43,7 +44,7 @@ def _walk(value, path="system"):
     elif isinstance(value, (tuple, list)):
         for i, x in enumerate(value):
             yield from _walk(x, f"{path}[{i}]")
-    elif isinstance(value, dict):
+    elif isinstance(value, Mapping):  # a dict, or points placed as they are read (PlacedPoints)
         for k, x in value.items():
             yield from _walk(x, f"{path}[{k!r}]")
     else:
@@ -421,5 +422,29 @@ def test_a_changed_sub_model_changes_the_key_however_it_is_named(tmp_path, spec)
                    + "coordinates: [theta, phi]\n", encoding="utf-8")
     before = model_key(top)
     assert model_key(top) == before
+    arm.write_text(arm.read_text(encoding="utf-8").replace("value: 9.81", "value: 9.8"), encoding="utf-8")
+    assert model_key(top) != before
+
+
+def test_a_file_that_names_no_model_is_keyed_by_its_text_alone(monkeypatch):
+    """The key of a file that plainly names no sub-model and no scene is read off its text
+    (loader._alone): the same key as reading its outline gives, for every bundled model."""
+    from kronsub.model import loader
+
+    keys = {path: loader.model_key(path) for path in BUNDLED}
+    assert any(loader._alone(path.read_text(encoding="utf-8")) for path in BUNDLED)
+    monkeypatch.setattr(loader, "_alone", lambda text: False)
+    assert {path: loader.model_key(path) for path in BUNDLED} == keys
+
+
+@pytest.mark.parametrize("spec", ['  arm: {"mod\\x65l": arm.yaml}\n', "  arm: {? model : arm.yaml}\n"])
+def test_a_sub_model_named_in_escapes_still_counts(tmp_path, spec):
+    from kronsub.model.loader import model_key
+
+    arm = tmp_path / "arm.yaml"
+    arm.write_text(SYSTEM1.read_text(encoding="utf-8"), encoding="utf-8")
+    top = tmp_path / "top.yaml"
+    top.write_text("name: top\ncomponents:\n" + spec + "coordinates: [theta, phi]\n", encoding="utf-8")
+    before = model_key(top)
     arm.write_text(arm.read_text(encoding="utf-8").replace("value: 9.81", "value: 9.8"), encoding="utf-8")
     assert model_key(top) != before

@@ -105,11 +105,11 @@ def test_sines_and_cosines_are_the_objects_sympy_evaluates_to():
     from kronsub.core.trigpoly import COS, SIN
 
     rng = random.Random(11)
-    names = ["q1", "q2", "q10", "q9", "theta", "phi", "a_b", "Z", "x_dot"]
+    names = ["q1", "q2", "q10", "q9", "theta", "phi", "a_b", "Z", "x_dot", "q11", "q3", "q12", "x1"]
     coords = [sympy.Symbol(n) for n in names] + [sympy.Symbol("r", real=True)]
     algebra = TrigAlgebra(coords)
-    for _ in range(400):
-        picked = rng.sample(range(len(coords)), rng.randint(1, 4))
+    for _ in range(600):  # up to 12 coordinates in one angle: name orders beyond one digit
+        picked = rng.sample(range(len(coords)), rng.choice([1, 2, 2, 3, 4, 11, 12]))
         freq = tuple(sorted((i, sympy.Integer(rng.choice([1, -1, 2, -2, 3])) / rng.choice([1, 1, 2]))
                             for i in picked))
         arg = sympy.Add(*[c * coords[i] for i, c in freq])
@@ -199,3 +199,18 @@ def test_a_remembered_coefficient_is_the_one_sympy_builds_whatever_the_order():
     again = algebra._coefficient(dict(reversed(list(coef.items()))))
     assert again is first
     assert sympy.srepr(first) == sympy.srepr(algebra.coefficient_expr(coef))
+
+
+def test_the_sign_sympy_takes_out_of_an_angle_of_many_coordinates():
+    """Ties of as many minus as plus signs are broken by the order of the names, beyond ten
+    coordinates too (``q10`` sorts before ``q2``)."""
+    rng = random.Random(5)
+    coords = sympy.symbols("q1:15")
+    algebra = TrigAlgebra(coords)
+    for _ in range(300):
+        picked = sorted(rng.sample(range(len(coords)), rng.choice([2, 4, 10, 12, 14])))
+        signs = [1] * (len(picked) // 2) + [-1] * (len(picked) // 2)
+        rng.shuffle(signs)
+        freq = tuple((i, s * rng.choice([1, 2])) for i, s in zip(picked, signs))
+        arg = sympy.Add(*[c * coords[i] for i, c in freq])
+        assert algebra._minus_sign(freq) == arg.could_extract_minus_sign()

@@ -6,12 +6,18 @@ the arguments. These builders do just that and fall back to sympy's own construc
 whenever its rules could do more (numbers, repeated bases, nested products, the
 ``2*(a + b)`` distribution), so the result is the very expression sympy would build:
 printed output stays byte-identical, only cheaper to make.
+
+sympy imports two modules only when it first flattens a sum (``sympy.tensor.tensor``, 75 ms)
+and first evaluates a sine or cosine (``sympy.sets.setexpr``); they are imported here, with
+sympy itself, so the first derivation of a process does not pay for them midway.
 """
 from __future__ import annotations
 
 import functools
 
 import sympy
+import sympy.sets.setexpr  # noqa: F401
+import sympy.tensor.tensor  # noqa: F401
 from sympy.core import basic
 from sympy.core.basic import _args_sortkey
 
@@ -57,12 +63,12 @@ def matrix(rows: int, cols: int, entries: list, cls: type = sympy.Matrix) -> sym
         raise ValueError(f"{len(entries)} entries for a {rows} x {cols} matrix")
     if not all(isinstance(e, sympy.Expr) for e in entries):
         return cls._new(rows, cols, list(entries))
-    nonzero: dict[int, dict[int, sympy.Expr]] = {}
+    dod: dict[int, dict[int, sympy.Expr]] = {}
     for n, e in enumerate(entries):
-        if e is not _ZERO and (not e.is_Number or e != 0):
+        if nonzero(e):
             i, j = divmod(n, cols)
-            nonzero.setdefault(i, {})[j] = e
-    return cls._fromrep(cls._dod_to_DomainMatrix(rows, cols, nonzero, set(map(type, entries))))
+            dod.setdefault(i, {})[j] = e
+    return cls._fromrep(cls._dod_to_DomainMatrix(rows, cols, dod, set(map(type, entries))))
 
 
 class _Unkeyed(Exception):
@@ -128,6 +134,21 @@ def mul(coefficient: sympy.Rational, factors: list[sympy.Expr]) -> sympy.Expr:
     if coefficient != 1:
         args.insert(0, coefficient)
     return sympy.Mul._from_args(args)
+
+
+def nonzero(e: sympy.Expr) -> bool:
+    """``e != 0``, asked of a number only: any other expression is nonzero by its kind."""
+    return e is not _ZERO and (not e.is_Number or e != 0)
+
+
+def total(terms) -> sympy.Expr:
+    """``sympy.Add(*terms)``, without sympy's cache lookup for no term or one: a large term
+    read from the known-system cache would be compared there node by node with an equal
+    one sympy holds."""
+    terms = list(terms)
+    if not terms:
+        return _ZERO
+    return terms[0] if len(terms) == 1 else sympy.Add(*terms)
 
 
 def add(terms: list[sympy.Expr]) -> sympy.Expr:

@@ -63,8 +63,9 @@ def _compact(algebra: TrigAlgebra, p: TrigPoly) -> sympy.Expr:
     expr = algebra.to_expr(p)
     view = _view(algebra)
     multiple = algebra.has_multiple_angles(p)
-    if not multiple and not _mixed(p) and not view.touches(p) and not view.varying_in(p):
-        return _atom_angles(algebra, p, expr)
+    used = trigpoly.used_atoms(p)
+    if not multiple and not _mixed(p) and not view.touches(used) and not view.varying_in(used):
+        return _atom_angles(algebra, used, expr)
     best, best_key = expr, _key(expr)
 
     def offer(candidate: sympy.Expr) -> None:
@@ -112,15 +113,15 @@ def _compact(algebra: TrigAlgebra, p: TrigPoly) -> sympy.Expr:
             powers = view.render(groups, {b: (variant, frozenset()) for b in groups}, rest)
             if count_ops(powers) <= 2 * FACTORED:
                 offer(_factor(powers))
-    return _atom_angles(algebra, p, best)
+    return _atom_angles(algebra, used, best)
 
 
-def _atom_angles(algebra: TrigAlgebra, p: TrigPoly, best: sympy.Expr) -> sympy.Expr:
+def _atom_angles(algebra: TrigAlgebra, used: set[int], best: sympy.Expr) -> sympy.Expr:
     """Sines and cosines the algebra holds as atoms (of an argument not a rational
     combination of coordinates, a gear's ``alpha/n``) miss the product-to-sum identities
     as products are formed; a small entry with them is also offered to ``trigsimp``."""
     coordinates = set(algebra.coordinates)
-    held = [a for a in algebra.atoms_of(p)
+    held = [a for a in (algebra.atom_expr(i) for i in sorted(used))
             if isinstance(a, (sympy.sin, sympy.cos)) and a.args[0].free_symbols & coordinates]
     if not held or count_ops(best) > FACTORED or len(best.free_symbols) > ATOM_SYMBOLS:
         return best  # sin(t), cos(pi/7): no identity of a coordinate; many symbols: factor's cost
@@ -395,10 +396,10 @@ class _View:
             self._coefficients = {}  # a new pair may collapse a coefficient printed before
         return self._pairs
 
-    def touches(self, p: TrigPoly) -> bool:
-        """Whether some factor of ``p`` has a shorter form, or a ``sin``/``cos`` pair occurs."""
+    def touches(self, used: set[int]) -> bool:
+        """Whether some atom of an entry (``used``, `trigpoly.used_atoms`) has a shorter form,
+        or a ``sin``/``cos`` pair occurs among them."""
         pairs = self.pairs()
-        used = {a for coef in p.terms.values() for mono in coef for a, _ in mono}
         if any(c in used and s in used for c, s in pairs.items()):
             return True
         return any(self.atom(a) is not self.algebra._atoms[a] for a in used)
@@ -410,8 +411,9 @@ class _View:
             hit = self._varies[i] = bool(self.algebra._atoms[i].free_symbols & set(self.algebra.coordinates))
         return hit
 
-    def varying_in(self, p: TrigPoly) -> bool:
-        return any(self.varies(a) for coef in p.terms.values() for mono in coef for a, _ in mono)
+    def varying_in(self, used: set[int]) -> bool:
+        """Whether some atom of an entry (``used``) depends on the coordinates."""
+        return any(self.varies(a) for a in used)
 
     # expressions ---------------------------------------------------------
     def monomial(self, mono) -> sympy.Expr:

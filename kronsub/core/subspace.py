@@ -14,7 +14,8 @@ from __future__ import annotations
 
 import dataclasses
 import functools
-from typing import Mapping, Sequence
+from collections.abc import Mapping
+from typing import Sequence
 
 import sympy
 
@@ -54,27 +55,52 @@ class Subspace:
     @functools.cached_property
     def substitution(self) -> dict:
         """x -> x(xbar), xdot -> C xbardot (identities left out: they would only rebuild)."""
-        substitution = {x: self.connection[x] for x in self.x}
-        substitution.update({v: self.algebra.to_expr(vel) for v, vel in zip(self.velocities, self.velocity)})
-        return {k: v for k, v in substitution.items() if k != v}
+        substitution = dict(self.placement)
+        substitution.update({v: e for v, vel in zip(self.velocities, self.velocity)
+                             if v != (e := self.algebra.to_expr(vel))})
+        return substitution
+
+    @functools.cached_property
+    def placement(self) -> dict:
+        """x -> x(xbar) alone: what an expression without velocities needs (the velocities'
+        images are built only when an expression has some)."""
+        return {x: image for x in self.x if x != (image := self.connection[x])}
+
+    def _substitution_for(self, expr: sympy.Expr) -> dict:
+        """What moves ``expr``: the velocities' images too once they are built, or when the
+        positions do not move at all (then they are only renamed symbols), or when ``expr``
+        has a velocity."""
+        if "substitution" in self.__dict__ or not self.placement \
+                or not expr.free_symbols.isdisjoint(self.velocities):
+            return self.substitution
+        return self.placement
 
     @functools.cached_property
     def convective(self) -> list[TrigPoly]:
         """``Cdot xbardot = d(xdot)/dxbar^k xbardot^k``: the convective acceleration (the
         inertia needs it, an effect does not)."""
         algebra = self.algebra
-        return [_sum(algebra.diff(vel, k) * self.qdots[k] for k in sorted(algebra.depends_on(vel)))
-                for vel in self.velocity]
+        out = []
+        for vel in self.velocity:
+            gradient = algebra.gradient(vel)
+            out.append(_sum(gradient[k] * self.qdots[k] for k in sorted(algebra.depends_on(vel))))
+        return out
 
     def image(self, expr: sympy.Expr) -> TrigPoly:
         """``expr(x(xbar), C xbardot)`` in the algebra."""
-        return self.algebra.from_expr(self.radicands.rewrite(sympy.sympify(expr).xreplace(self.substitution)))
+        return self.algebra.from_expr(self.radicands.rewrite(self.moved(expr)))
 
     def moved(self, expr: sympy.Expr) -> sympy.Expr:
         """``expr`` at ``x(xbar)``, ``xdot = C xbardot`` (itself when the connection only names
         the primitive's coordinates again)."""
-        substitution = self.substitution
-        return sympy.sympify(expr).xreplace(substitution) if substitution else sympy.sympify(expr)
+        expr = sympy.sympify(expr)
+        substitution = self._substitution_for(expr)
+        return expr.xreplace(substitution) if substitution else expr
+
+    def moved_matrix(self, matrix: sympy.MatrixBase) -> sympy.MatrixBase:
+        """`moved` of every entry (the matrix itself when nothing moves)."""
+        substitution = self._substitution_for(matrix)
+        return matrix.xreplace(substitution) if substitution else matrix
 
     def transpose_times(self, f: list[TrigPoly]) -> list[TrigPoly]:
         """``C^T f`` (8'), (F): rows with equal ``C_aj`` are summed before the product."""
@@ -112,6 +138,47 @@ class Subspace:
         if None in targets or len(set(targets)) != len(targets):
             return None
         return targets
+
+
+class PlacedPoints(Mapping):
+    """A derived system's named points, each placed at ``x(xbar)`` when it is first read.
+
+    A long chain's link ends are sums over every link above, which sympy rebuilds term by
+    term; ``Mbar``, ``hbar`` and ``fbar`` do not need them, the energies, the animation, a
+    scene's outputs and the next model do. A point is a position: ``x -> x(xbar)`` is all
+    that moves it (`Subspace.placement`), so the subspace itself is not kept."""
+
+    def __init__(self, positions: dict[str, tuple], placement: dict, dimension: int):
+        self._positions = positions
+        self._placement = placement
+        self._dimension = dimension
+        self._placed: dict[str, tuple] = {}
+
+    @property
+    def positions(self) -> dict[str, tuple]:
+        """The points where the primitive has them, before they are placed."""
+        return self._positions
+
+    def place(self, label: str, position: tuple) -> None:
+        """Give ``label`` its placed position now."""
+        self._placed[label] = position
+
+    def __getitem__(self, label: str) -> tuple:
+        hit = self._placed.get(label)
+        if hit is None:
+            moved = tuple(sympy.sympify(c).xreplace(self._placement) if self._placement else sympy.sympify(c)
+                          for c in self._positions[label])
+            hit = self._placed[label] = in_world(moved, self._dimension) if self._dimension == 2 else moved
+        return hit
+
+    def __iter__(self):
+        return iter(self._positions)
+
+    def __len__(self) -> int:
+        return len(self._positions)
+
+    def __repr__(self) -> str:
+        return f"PlacedPoints({dict(self)!r})"
 
 
 def project(
@@ -171,11 +238,14 @@ def project_inertia(sub: Subspace, primitive: Primitive, *, name: str = "",
         moved = tuple(sub.moved(c) for c in pos)
         return in_world(moved, dimension) if dimension == 2 else moved
 
-    points = {f"{part.name}.{label}": placed(pos)
-              for part in primitive.parts for label, pos in part.points.items()}
+    points = PlacedPoints({f"{part.name}.{label}": pos for part in primitive.parts
+                           for label, pos in part.points.items()}, sub.placement, dimension)
+    for label, pos in points.positions.items():  # a point that moves with a velocity: at once
+        if any(not sympy.sympify(c).free_symbols.isdisjoint(sub.velocities) for c in pos):
+            points.place(label, placed(pos))
     bodies = tuple(
         Body(body.mass, placed(body.centre),
-             None if body.rotation is None else body.rotation.applyfunc(sub.moved), body.inertia,
+             None if body.rotation is None else sub.moved_matrix(body.rotation), body.inertia,
              name=body_label(part, body))
         for part in primitive.parts for body in part.bodies)
     return KnownSystem(
@@ -227,7 +297,7 @@ def assemble(inertia: KnownSystem, effects: Sequence[ProjectedEffect], known: Se
 
     ``known`` (:func:`assembled_potentials`): a sum already compacted in these coordinates
     is taken as it is, so a model that only reuses a cached known system does not redo it."""
-    potential = sympy.Add(*[e.potential for e in effects])
+    potential = canonical.total(e.potential for e in effects)
     transition = inertia.transition
     if transition is not None:
         transition = dataclasses.replace(transition, primitive_forces={e.label: e.primitive_force for e in effects},
@@ -266,10 +336,10 @@ def _inertia(sub: Subspace, primitive: Primitive, renamed: dict[str, list[int]])
         if targets is not None:
             metric, h = part.metric.tolist(), list(part.velocity_terms)
             for i, j in enumerate(targets):
-                if h[i] != 0:
+                if canonical.nonzero(h[i]):
                     direct_h.setdefault(j, []).append(sub.moved(h[i]))
                 for i2, k in enumerate(targets):
-                    if j <= k and metric[i][i2] != 0:
+                    if j <= k and canonical.nonzero(metric[i][i2]):
                         direct_mass.setdefault((j, k), []).append(sub.moved(metric[i][i2]))
             continue
         block = [[sub.image(part.metric[i, j]) for j in range(size)] for i in range(size)]
@@ -325,10 +395,10 @@ def project_effects(sub: Subspace, primitive: Primitive, effects, only=None) -> 
                 vec = [sympy.Integer(0)] * sub.n
                 for i, j in enumerate(renamed[part.name]):
                     vec[j] = sub.moved(f[i])
-                force = sympy.Matrix(vec)
+                force = canonical.matrix(sub.n, 1, vec)
             else:
                 force = _projected(sub, full)
-            out.append(ProjectedEffect(key, sympy.Matrix(full), force,
+            out.append(ProjectedEffect(key, canonical.matrix(len(full), 1, full), force,
                                        sub.moved(part.potentials.get(label, sympy.Integer(0))),
                                        translation=tuple(part.translations.get(label, ()))))
     generalized = _generalized_only(sub, primitive)
@@ -383,7 +453,7 @@ def _generalized_only(sub: Subspace, primitive: Primitive) -> set:
 
 def _projected(sub: Subspace, f) -> sympy.Matrix:
     fbar = sub.transpose_times([sub.image(fa) if fa != 0 else TrigPoly() for fa in f])
-    return sympy.Matrix([compact(sub.algebra, p) for p in fbar])
+    return canonical.matrix(sub.n, 1, [compact(sub.algebra, p) for p in fbar])
 
 
 def _sum(polys) -> TrigPoly:

@@ -130,16 +130,9 @@ def _mono_mul(a: Mono, b: Mono) -> Mono:
     if not b:
         return a
     if len(b) == 1:
-        (i, e), = b
-        for pos, (j, f) in enumerate(a):
-            if j == i:
-                w = f + e
-                return a[:pos] + ((i, w),) + a[pos + 1:] if w else a[:pos] + a[pos + 1:]
-            if j > i:
-                return a[:pos] + (b[0],) + a[pos:]
-        return a + b
+        return _times_atom(a, b)
     if len(a) == 1:
-        return _mono_mul(b, a)
+        return _times_atom(b, a)
     out = []
     x = y = 0
     while x < len(a) and y < len(b):
@@ -161,6 +154,18 @@ def _mono_mul(a: Mono, b: Mono) -> Mono:
     return tuple(out)
 
 
+def _times_atom(a: Mono, b: Mono) -> Mono:
+    """`_mono_mul` of ``a`` and a monomial ``b`` of one atom."""
+    (i, e), = b
+    for pos, (j, f) in enumerate(a):
+        if j == i:
+            w = f + e
+            return a[:pos] + ((i, w),) + a[pos + 1:] if w else a[:pos] + a[pos + 1:]
+        if j > i:
+            return a[:pos] + b + a[pos:]
+    return a + b
+
+
 def _coef_mul(a: Coef, b: Coef) -> Coef:
     out: Coef = {}
     for ma, ca in a.items():
@@ -175,6 +180,14 @@ def _coef_mul(a: Coef, b: Coef) -> Coef:
 
 
 def _coef_add_into(target: Coef, src: Coef, scale: int | Fraction = 1) -> None:
+    if type(scale) is int and scale == 1:  # no product to form (and the types stay as they are)
+        for m, c in src.items():
+            v = target.get(m, 0) + c
+            if v:
+                target[m] = v
+            else:
+                target.pop(m, None)
+        return
     for m, c in src.items():
         v = target.get(m, 0) + scale * c
         if v:
@@ -298,6 +311,7 @@ class TrigAlgebra:
         self._atom_diff: dict[tuple[int, int], TrigPoly] = {}
         self._cache: dict[sympy.Expr, TrigPoly] = {}
         self._trig_cache: dict[tuple[int, Freq], sympy.Expr] = {}
+        self._trig_factors: dict[tuple[int, Freq], tuple] = {}
         self._mono_cache: dict[Mono, sympy.Expr] = {}
         self._coefficient_cache: dict[frozenset, sympy.Expr] = {}
         self._power_cache: dict[tuple[int, int | Fraction], sympy.Expr] = {}
@@ -414,7 +428,6 @@ class TrigAlgebra:
     def diff(self, p: TrigPoly, coordinate: int) -> TrigPoly:
         """``d p / d q[coordinate]``."""
         out: dict[tuple[int, Freq], Coef] = {}
-        chain: list[TrigPoly] = []
         for (kind, freq), coef in p.terms.items():
             k = next((v for i, v in freq if i == coordinate), 0)
             if k:
@@ -427,6 +440,15 @@ class TrigAlgebra:
                 _coef_add_into(tgt, coef, scale)
                 if not tgt:
                     del out[key]
+        result = TrigPoly(out)
+        for extra in self._chain_terms(p, coordinate):
+            result.add(extra)
+        return result
+
+    def _chain_terms(self, p: TrigPoly, coordinate: int) -> list[TrigPoly]:
+        """The chain rule's terms of ``d p / d q[coordinate]`` through atoms that depend on it."""
+        chain: list[TrigPoly] = []
+        for (kind, freq), coef in p.terms.items():
             for mono, c in coef.items():
                 for pos, (atom, e) in enumerate(mono):
                     if coordinate not in self._atom_deps[atom]:
@@ -441,10 +463,7 @@ class TrigAlgebra:
                         rest[pos] = (atom, e - 1)
                     factor = TrigPoly({(kind, freq): {tuple(rest): c * e}})
                     chain.append(factor * d_atom)
-        result = TrigPoly(out)
-        for extra in chain:
-            result.add(extra)
-        return result
+        return chain
 
     def _diff_atom(self, atom: int, coordinate: int) -> TrigPoly:
         key = (atom, coordinate)
@@ -474,17 +493,33 @@ class TrigAlgebra:
             if not freq:
                 hit = sympy.Integer(1)
             else:
-                # Built unevaluated, with sympy's own choice of sign, so the
+                # Built in canonical form, with sympy's own choice of sign, so the
                 # result is the very object ``cos(arg)`` would evaluate to.
-                arg = sympy.Add(*[_rational(v) * self.coordinates[i] for i, v in freq])
-                sign = 1
-                if _could_extract_minus_sign(arg):
-                    arg, sign = -arg, -1
+                sign = -1 if self._minus_sign(freq) else 1
+                arg = canonical.add([canonical.mul(_rational(sign * v), [self.coordinates[i]]) for i, v in freq])
                 if kind == COS:
                     hit = canonical.function(sympy.cos, arg)
                 else:
-                    hit = sign * canonical.function(sympy.sin, arg)
+                    hit = canonical.mul(sympy.Integer(sign), [canonical.function(sympy.sin, arg)])
             self._trig_cache[key] = hit
+        return hit
+
+    def _minus_sign(self, freq: Freq) -> bool:
+        """Whether sympy takes the sign out of ``freq . q`` (``cos(q2 - q1)`` is ``cos(q1 - q2)``).
+
+        sympy breaks the tie between ``q1 - q2`` and ``q2 - q1`` by sort keys, which depend on
+        plain symbols only through the order of their names: the answer is one per pattern of
+        coefficients taken in that order, asked of sympy once."""
+        symbols = [self.coordinates[i] for i, _ in freq]
+        if not all(type(s) is sympy.Symbol for s in symbols):
+            return bool(sympy.Add(*[_rational(v) * s for s, (_, v) in zip(symbols, freq)])
+                        .could_extract_minus_sign())
+        pattern = tuple(v for _, v in sorted(zip((s.name for s in symbols), (v for _, v in freq))))
+        hit = _SIGN_PATTERNS.get(pattern)
+        if hit is None:
+            placeholders = [sympy.Symbol(f"x{i:06d}") for i in range(len(pattern))]  # in name order
+            hit = _SIGN_PATTERNS[pattern] = bool(
+                sympy.Add(*[_rational(v) * x for v, x in zip(pattern, placeholders)]).could_extract_minus_sign())
         return hit
 
     def factored_coefficient(self, coef: Coef) -> sympy.Expr:
@@ -521,7 +556,7 @@ class TrigAlgebra:
                 parts.append(canonical.mul(sign, [self._coefficient(coef), *trig]))
                 continue
             content = _content(coef.values())
-            inner = {_mono_mul(m, tuple((i, -e) for i, e in common)): c / content for m, c in coef.items()}
+            inner = _divided(coef, common, content)
             parts.append(canonical.mul(_rational(_num(_Q(content))) * sign,
                                        [*self._powers(common), self._coefficient(inner), *trig]))
         return canonical.add(parts)
@@ -554,14 +589,20 @@ class TrigAlgebra:
         return hit
 
     def _trig_factor(self, kind: int, freq: Freq) -> tuple[sympy.Integer, list[sympy.Expr]]:
-        """``trig_expr`` as (sign, [function value]): ``[]`` for ``cos(0)``."""
-        expr = self.trig_expr(kind, freq)
-        if expr == 1:
-            return sympy.S.One, []
-        if expr.is_Mul:
-            sign, rest = expr.as_coeff_Mul()
-            return sign, [rest]
-        return sympy.S.One, [expr]
+        """``trig_expr`` as (sign, [function value]): ``[]`` for ``cos(0)`` (each once)."""
+        key = (kind, freq)
+        hit = self._trig_factors.get(key)
+        if hit is None:
+            expr = self.trig_expr(kind, freq)
+            if not freq:
+                hit = sympy.S.One, ()
+            elif expr.is_Mul:
+                sign, rest = expr.as_coeff_Mul()
+                hit = sign, (rest,)
+            else:
+                hit = sympy.S.One, (expr,)
+            self._trig_factors[key] = hit
+        return hit
 
     def numeric(self, values: dict) -> "NumericPoint":
         """The algebra at a point (``values``: every coordinate and the atoms' other
@@ -570,14 +611,36 @@ class TrigAlgebra:
 
     def atoms_of(self, p: TrigPoly) -> list[sympy.Expr]:
         """The atoms ``p``'s coefficients are made of, in the order met."""
-        used = {i for coef in p.terms.values() for mono in coef for i, _ in mono}
-        return [self._atoms[i] for i in sorted(used)]
+        return [self._atoms[i] for i in sorted(used_atoms(p))]
 
     def gradient(self, p: TrigPoly) -> list[TrigPoly]:
         """``[d p / d q[j] for every coordinate j]``: zero, untouched, where ``p`` does not
-        depend on ``q[j]``."""
+        depend on ``q[j]``; the same polynomials as `diff`, built in one pass over the terms
+        for the sines and cosines (the chain rule through atoms, rarer, as `diff` does it)."""
         deps = self.depends_on(p)
-        return [self.diff(p, j) if j in deps else TrigPoly() for j in range(len(self.coordinates))]
+        trig: dict[int, dict] = {j: {} for j in deps}
+        varying = False
+        for (kind, freq), coef in p.terms.items():
+            for j, k in freq:
+                # d/dq cos(f.q) = -k sin(f.q);  d/dq sin(f.q) = k cos(f.q)
+                key, scale = ((SIN, freq), -k) if kind == COS else ((COS, freq), k)
+                out = trig[j]
+                tgt = out.setdefault(key, {})
+                _coef_add_into(tgt, coef, scale)
+                if not tgt:
+                    del out[key]
+            varying = varying or any(self._atom_deps[atom] for mono in coef for atom, _ in mono)
+        result = []
+        for j in range(len(self.coordinates)):
+            if j not in deps:
+                result.append(TrigPoly())
+                continue
+            derivative = TrigPoly(trig[j])
+            if varying:
+                for extra in self._chain_terms(p, j):
+                    derivative.add(extra)
+            result.append(derivative)
+        return result
 
     def depends_on(self, p: TrigPoly) -> frozenset[int]:
         """Indices of the coordinates that ``p`` depends on."""
@@ -593,29 +656,30 @@ class TrigAlgebra:
         return any(abs(v) != 1 for (_, freq) in p.terms for _, v in freq)
 
 
-_SIGN_PATTERNS: dict[sympy.Expr, bool] = {}
+_SIGN_PATTERNS: dict[tuple, bool] = {}
+"""`TrigAlgebra._minus_sign` by the coefficients of a frequency in the order of the names."""
 
 
-def _could_extract_minus_sign(arg: sympy.Expr) -> bool:
-    """``arg.could_extract_minus_sign()`` for a linear combination of coordinates, decided
-    once per pattern: sympy breaks the tie between ``q1 - q2`` and ``q2 - q1`` by sort keys,
-    which depend on the symbols only through the order of their names, so the answer for
-    ``arg`` with its symbols renamed to placeholders in the same order is the answer."""
-    symbols = sorted(arg.free_symbols, key=lambda s: s.name)
-    if not all(type(s) is sympy.Symbol for s in symbols):
-        return arg.could_extract_minus_sign()
-    pattern = arg.xreplace({s: sympy.Symbol(f"x{i:06d}") for i, s in enumerate(symbols)})
-    hit = _SIGN_PATTERNS.get(pattern)
-    if hit is None:
-        hit = _SIGN_PATTERNS[pattern] = bool(pattern.could_extract_minus_sign())
-    return hit
+def used_atoms(p: TrigPoly) -> set[int]:
+    """Indices of the atoms ``p``'s coefficients are made of."""
+    return {i for coef in p.terms.values() for mono in coef for i, _ in mono}
+
+
+def _divided(coef: Coef, common: Mono, content) -> Coef:
+    """``coef / (content * common)``, term by term (``common`` divides every monomial)."""
+    inverse = tuple((i, -e) for i, e in common)
+    if content == 1:
+        return {_mono_mul(m, inverse): c for m, c in coef.items()}
+    return {_mono_mul(m, inverse): c / content for m, c in coef.items()}
 
 
 def _common_monomial(coef: Coef) -> Mono:
     """Atoms (with exponents) that divide every monomial of ``coef``."""
-    monos = list(coef)
-    exps = dict(monos[0])
-    for mono in monos[1:]:
+    monos = iter(coef)
+    exps = dict(next(monos))
+    for mono in monos:
+        if not exps:
+            return ()
         here = dict(mono)
         for i in list(exps):
             e, f = exps[i], here.get(i)

@@ -26,6 +26,7 @@ from ..collector import collector_paused
 from ..core import canonical
 from ..core.constraints import Constraint, ImplicitSubspace
 from ..core.known_system import KnownSystem, ParameterInfo, ProjectedEffect, Transition
+from ..core.subspace import PlacedPoints
 
 FORMAT = "kronsub-known-system/1"
 
@@ -112,7 +113,7 @@ class _Encoder:
             return {"x": self.expr(v)}
         if isinstance(v, tuple):
             return {"t": [self.value(x) for x in v]}
-        if isinstance(v, (dict, MappingProxyType)):
+        if isinstance(v, (dict, MappingProxyType, PlacedPoints)):
             return {"d": [[self.value(k), self.value(x)] for k, x in v.items()]}
         if dataclasses.is_dataclass(v) and CLASSES.get(type(v).__name__) is type(v):
             return {"c": type(v).__name__,

@@ -7,6 +7,7 @@ import warnings
 from pathlib import Path
 
 import numpy as np
+import numpy.random  # noqa: F401  numpy loads it on first use; imported with the rest
 import sympy
 
 from .. import __version__

@@ -17,6 +17,7 @@ import sympy
 from ..collector import collector_paused
 from ..components import REGISTRY
 from ..components.base import in_world
+from ..core import canonical
 from ..core.constraints import Constraint, multiplier_name
 from ..core.known_system import KnownSystem, ParameterInfo
 from ..core.primitive import Part, Primitive, part_from_component
@@ -65,6 +66,8 @@ def model_key(path: Path, stack: tuple[str, ...] = ()) -> str:
     if resolved in stack:
         return ""  # the cycle is reported when the model is loaded
     text = read_model_text(path)
+    if _alone(text):
+        return content_key(text)
     root = load_yaml(path, text, only={"components": {"*": {"model": None}}})
     subs = []
     for sub_path in _component_models(root, path):
@@ -73,6 +76,13 @@ def model_key(path: Path, stack: tuple[str, ...] = ()) -> str:
         except ModelError:  # reported where `model:` names it, when the model is loaded
             subs.append("unreadable")
     return content_key(derivation_text(root, text), *subs)
+
+
+def _alone(text: str) -> bool:
+    """Whether a model file plainly names no other model file and has no ``scenes:``: the
+    words are nowhere in it, nor any escape (``"mod\\x65l"``) that could spell them. Its key
+    is then its text's, without reading the YAML."""
+    return "model" not in text and "scenes" not in text and "\\" not in text
 
 
 def _component_models(root: Node, path: Path) -> list[Path]:
@@ -982,7 +992,7 @@ def known_system_part(name: str, system: KnownSystem, overrides: dict, renames: 
                     system.dimension, forces, system.potential_energy, "", dict(system.effect_potentials),
                     tuple(Constraint(f"{name}.{c.name}", c.expression, c.source) for c in constraints), branch,
                     dict(system.effect_translations),
-                    assembled_potential=(coordinates, sympy.Add(*system.effect_potentials.values()),
+                    assembled_potential=(coordinates, canonical.total(system.effect_potentials.values()),
                                          system.potential_energy))
 
     def s(e):
