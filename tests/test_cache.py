@@ -10,7 +10,7 @@ import shutil
 import subprocess
 import sys
 import warnings
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 
 import pytest
@@ -41,7 +41,7 @@ def _walk(value, path="system"):
         yield path, type(value).__name__
         for f in dataclasses.fields(value):
             yield from _walk(getattr(value, f.name), f"{path}.{f.name}")
-    elif isinstance(value, (tuple, list)):
+    elif isinstance(value, Sequence) and not isinstance(value, str):  # also PlacedBodies
         for i, x in enumerate(value):
             yield from _walk(x, f"{path}[{i}]")
     elif isinstance(value, Mapping):  # a dict, or points placed as they are read (PlacedPoints)

@@ -14,8 +14,7 @@ from __future__ import annotations
 
 import dataclasses
 import functools
-from collections.abc import Mapping
-from typing import Sequence
+from collections.abc import Mapping, Sequence
 
 import sympy
 
@@ -25,7 +24,7 @@ from .inverse_trig import Radicands
 from .known_system import KnownSystem, ParameterInfo, ProjectedEffect, Transition
 from .primitive import Primitive, body_label
 from .simplify import compact
-from .symbols import velocity_symbol
+from .symbols import free_symbols_of, velocity_symbol
 from .trigpoly import TrigAlgebra, TrigPoly
 
 
@@ -97,11 +96,6 @@ class Subspace:
         substitution = self._substitution_for(expr)
         return expr.xreplace(substitution) if substitution else expr
 
-    def moved_matrix(self, matrix: sympy.MatrixBase) -> sympy.MatrixBase:
-        """`moved` of every entry (the matrix itself when nothing moves)."""
-        substitution = self._substitution_for(matrix)
-        return matrix.xreplace(substitution) if substitution else matrix
-
     def transpose_times(self, f: list[TrigPoly]) -> list[TrigPoly]:
         """``C^T f`` (8'), (F): rows with equal ``C_aj`` are summed before the product."""
         groups: list[dict] = [{} for _ in range(self.n)]  # j -> {C_aj key: [C_aj, sum of f_a]}
@@ -140,18 +134,37 @@ class Subspace:
         return targets
 
 
+class _Placer:
+    """Moves a position or a rotation to ``x(xbar)``: ``x -> x(xbar)`` is all that moves either
+    (`Subspace.placement`), so the subspace itself is not kept."""
+
+    def __init__(self, placement: dict, dimension: int):
+        self.placement = placement
+        self.dimension = dimension
+
+    def position(self, pos: tuple) -> tuple:
+        """A point of a line, in a system that also has parts in the plane: ``(x, 0)``."""
+        moved = tuple(self.expr(c) for c in pos)
+        return in_world(moved, self.dimension) if self.dimension == 2 else moved
+
+    def expr(self, e) -> sympy.Expr:
+        e = sympy.sympify(e)
+        return e.xreplace(self.placement) if self.placement else e
+
+    def matrix(self, m: sympy.MatrixBase) -> sympy.MatrixBase:
+        return m.xreplace(self.placement) if self.placement else m
+
+
 class PlacedPoints(Mapping):
     """A derived system's named points, each placed at ``x(xbar)`` when it is first read.
 
     A long chain's link ends are sums over every link above, which sympy rebuilds term by
     term; ``Mbar``, ``hbar`` and ``fbar`` do not need them, the energies, the animation, a
-    scene's outputs and the next model do. A point is a position: ``x -> x(xbar)`` is all
-    that moves it (`Subspace.placement`), so the subspace itself is not kept."""
+    scene's outputs and the next model do."""
 
-    def __init__(self, positions: dict[str, tuple], placement: dict, dimension: int):
+    def __init__(self, positions: dict[str, tuple], placer: _Placer):
         self._positions = positions
-        self._placement = placement
-        self._dimension = dimension
+        self._placer = placer
         self._placed: dict[str, tuple] = {}
 
     @property
@@ -166,9 +179,7 @@ class PlacedPoints(Mapping):
     def __getitem__(self, label: str) -> tuple:
         hit = self._placed.get(label)
         if hit is None:
-            moved = tuple(sympy.sympify(c).xreplace(self._placement) if self._placement else sympy.sympify(c)
-                          for c in self._positions[label])
-            hit = self._placed[label] = in_world(moved, self._dimension) if self._dimension == 2 else moved
+            hit = self._placed[label] = self._placer.position(self._positions[label])
         return hit
 
     def __iter__(self):
@@ -179,6 +190,53 @@ class PlacedPoints(Mapping):
 
     def __repr__(self) -> str:
         return f"PlacedPoints({dict(self)!r})"
+
+
+class PlacedBodies(Sequence):
+    """A derived system's bodies, each placed at ``x(xbar)`` when it is first read: a rod's
+    rotation ``cos(q - pi/2)`` costs sympy milliseconds to evaluate, and the equations of
+    motion do not need it (energies, torques on a body and the next model do)."""
+
+    def __init__(self, bodies: list[Body], placer: _Placer):
+        self._bodies = bodies
+        self._placer = placer
+        self._placed: dict[int, Body] = {}
+
+    @property
+    def unplaced(self) -> list[Body]:
+        """The bodies where the primitive has them, before they are placed."""
+        return self._bodies
+
+    def place(self, i: int, body: Body) -> None:
+        """Give body ``i`` its placed form now."""
+        self._placed[i] = body
+
+    def _place(self, i: int) -> Body:
+        hit = self._placed.get(i)
+        if hit is None:
+            body, place = self._bodies[i], self._placer
+            hit = self._placed[i] = dataclasses.replace(
+                body, centre=place.position(body.centre),
+                rotation=None if body.rotation is None else place.matrix(body.rotation))
+        return hit
+
+    def __getitem__(self, i):
+        if isinstance(i, slice):
+            return tuple(self._place(k) for k in range(len(self._bodies))[i])
+        return self._place(range(len(self._bodies))[i])
+
+    def __len__(self) -> int:
+        return len(self._bodies)
+
+    def __eq__(self, other) -> bool:
+        if isinstance(other, Sequence) and not isinstance(other, (str, bytes)):
+            return tuple(self) == tuple(other)
+        return NotImplemented
+
+    __hash__ = None
+
+    def __repr__(self) -> str:
+        return f"PlacedBodies({tuple(self)!r})"
 
 
 def project(
@@ -234,20 +292,20 @@ def project_inertia(sub: Subspace, primitive: Primitive, *, name: str = "",
     )
     dimension = world_dimension(primitive)
 
-    def placed(pos):  # a point of a line, in a system that also has parts in the plane: (x, 0)
-        moved = tuple(sub.moved(c) for c in pos)
-        return in_world(moved, dimension) if dimension == 2 else moved
-
+    placer = _Placer(sub.placement, dimension)
     points = PlacedPoints({f"{part.name}.{label}": pos for part in primitive.parts
-                           for label, pos in part.points.items()}, sub.placement, dimension)
+                           for label, pos in part.points.items()}, placer)
     for label, pos in points.positions.items():  # a point that moves with a velocity: at once
         if any(not sympy.sympify(c).free_symbols.isdisjoint(sub.velocities) for c in pos):
-            points.place(label, placed(pos))
-    bodies = tuple(
-        Body(body.mass, placed(body.centre),
-             None if body.rotation is None else sub.moved_matrix(body.rotation), body.inertia,
-             name=body_label(part, body))
-        for part in primitive.parts for body in part.bodies)
+            points.place(label, placer.position(tuple(sub.moved(c) for c in pos)))
+    bodies = PlacedBodies([Body(body.mass, body.centre, body.rotation, body.inertia, name=body_label(part, body))
+                           for part in primitive.parts for body in part.bodies], placer)
+    for i, body in enumerate(bodies.unplaced):  # a body that moves with a velocity: at once
+        if not free_symbols_of([*body.centre, *([body.rotation] if body.rotation is not None else [])]) \
+                .isdisjoint(sub.velocities):
+            bodies.place(i, dataclasses.replace(body, centre=tuple(sub.moved(c) for c in body.centre),
+                                                rotation=None if body.rotation is None
+                                                else body.rotation.applyfunc(sub.moved)))
     return KnownSystem(
         name=name,
         coordinates=sub.coords,

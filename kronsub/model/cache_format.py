@@ -26,7 +26,7 @@ from ..collector import collector_paused
 from ..core import canonical
 from ..core.constraints import Constraint, ImplicitSubspace
 from ..core.known_system import KnownSystem, ParameterInfo, ProjectedEffect, Transition
-from ..core.subspace import PlacedPoints
+from ..core.subspace import PlacedBodies, PlacedPoints
 
 FORMAT = "kronsub-known-system/1"
 
@@ -111,7 +111,7 @@ class _Encoder:
             return {"m": [name, v.rows, v.cols, [self.expr(e) for e in v]]}
         if isinstance(v, sympy.Basic):
             return {"x": self.expr(v)}
-        if isinstance(v, tuple):
+        if isinstance(v, (tuple, PlacedBodies)):
             return {"t": [self.value(x) for x in v]}
         if isinstance(v, (dict, MappingProxyType, PlacedPoints)):
             return {"d": [[self.value(k), self.value(x)] for k, x in v.items()]}
