@@ -430,3 +430,25 @@ def test_well_formed_expressions_round_trip(pair):
             parse_expression(text, NAMES)
     else:
         assert parse_expression(text, NAMES) == built
+
+
+def test_parts_built_once_are_the_parts_built_each_time():
+    """``shared``: a part met again with the same text and the same names is the value built
+    the first time; with other values behind the same names, or at another depth, it is built
+    anew; a problem is reported where it is, as without it."""
+    other = {**NAMES, "x": sympy.Symbol("z"), "upper.tip.x": sympy.Symbol("u")}
+    texts = ["a1*sin(theta) + x/2", "2*(a1*sin(theta) + x/2)**2", "a1*sin(theta)", "x*y - a1*sin(theta)",
+             "sqrt(1 - (a1*sin(theta) - x)**2/a2**2)", "-(a1*sin(theta)) + x/2", "upper . tip.x*2 + 1",
+             "cos(phi - theta)*(F + t)", "a1  *  sin( theta )"]
+    shared: dict = {}
+    for names in (NAMES | {"upper.tip.x": sympy.Symbol("w")}, other, NAMES | {"upper.tip.x": sympy.Symbol("w")}):
+        for text in texts + texts[::-1]:
+            got = parse_expression(text, names, HERE, shared=shared)
+            assert sympy.srepr(got) == sympy.srepr(parse_expression(text, names, HERE))
+    assert shared
+    for bad in ("a1*sin(theta) + 1/0", "a1*sin(theta) + nope", "x/2 + a1*sin(theta, x)"):
+        with pytest.raises(ModelError) as with_shared:
+            parse_expression(bad, NAMES, HERE, shared=shared)
+        with pytest.raises(ModelError) as alone:
+            parse_expression(bad, NAMES, HERE)
+        assert str(with_shared.value) == str(alone.value)

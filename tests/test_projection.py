@@ -186,3 +186,70 @@ def test_a_subspace_that_only_renames_is_known_to_have_full_rank(tmp_path):
             is expected
     model = kronsub.load(MODELS / "hoffmann" / "system1.yaml", cache=False)
     assert not Subspace(model.primitive, model.coordinates, model.connection).only_renames(model.primitive)
+
+
+def test_the_gradient_is_diff_along_each_coordinate():
+    """`TrigAlgebra.gradient` (one pass over the terms) builds the very polynomials `diff` does,
+    term for term and in the same order, through atoms that depend on the coordinates too."""
+    a, b, c, k = sympy.symbols("a b c k", real=True)
+    alg = TrigAlgebra([a, b, c])
+    exprs = [k * sympy.cos(a - 2 * b) * sympy.sin(b) ** 2 + sympy.sqrt(1 + sympy.sin(a) ** 2) * a,
+             sympy.cos(a + b + c) * sympy.sin(a - c) * k ** 2 - sympy.sin(2 * c) / k,
+             sympy.asin(k * sympy.sin(a)) * sympy.cos(b) + sympy.cos(a) ** 3, k]
+    for expr in exprs:
+        p = alg.from_expr(expr)
+        gradient = alg.gradient(p)
+        for j in range(3):
+            want = alg.diff(p, j)
+            assert [(key, list(coef.items())) for key, coef in gradient[j].terms.items()] == \
+                [(key, list(coef.items())) for key, coef in want.terms.items()]
+
+
+@pytest.mark.parametrize("path", ALL_MODELS)
+def test_points_and_bodies_placed_when_read_are_those_placed_at_once(path):
+    """A derived system places its points and bodies when they are first read (PlacedPoints,
+    PlacedBodies); each is the one ``x -> x(xbar)`` gives at once (`Subspace.moved`)."""
+    from kronsub.components.base import in_world
+    from kronsub.core.primitive import body_label
+    from kronsub.core.subspace import Subspace, world_dimension
+
+    model = kronsub.load(MODELS / path, cache=False)
+    system = model.derive(cache=False)
+    sub = Subspace(model.primitive, model.coordinates, model.connection)
+    dimension = world_dimension(model.primitive)
+
+    def at_once(pos):
+        moved = tuple(sub.moved(c) for c in pos)
+        return in_world(moved, dimension) if dimension == 2 else moved
+
+    points = {f"{part.name}.{label}": at_once(pos) for part in model.primitive.parts
+              for label, pos in part.points.items()}
+    assert list(system.points) == list(points)
+    assert {k: sympy.srepr(v) for k, v in system.points.items()} == {k: sympy.srepr(v) for k, v in points.items()}
+    bodies = [(body_label(part, b), sympy.srepr(b.mass), sympy.srepr(at_once(b.centre)),
+               sympy.srepr(None if b.rotation is None else b.rotation.applyfunc(sub.moved)), sympy.srepr(b.inertia))
+              for part in model.primitive.parts for b in part.bodies]
+    assert [(b.name, sympy.srepr(b.mass), sympy.srepr(b.centre), sympy.srepr(b.rotation), sympy.srepr(b.inertia))
+            for b in system.bodies] == bodies
+    assert len(system.bodies) == len(bodies) and tuple(system.bodies) == system.bodies[:]
+    if bodies:
+        assert system.bodies[-1] == tuple(system.bodies)[-1]
+
+
+def test_a_derivation_places_no_point_and_no_body(tmp_path):
+    """``Mbar``, ``hbar`` and ``fbar`` need no point and no body: a chain's are placed only when
+    read (the link ends are sums over every link above; a rod's rotation costs sympy
+    milliseconds), and then once."""
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("_chain", MODELS / "chain" / "generate.py")
+    gen = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(gen)
+    path = tmp_path / "chain6.yaml"
+    path.write_text(gen.chain_yaml(6), encoding="utf-8")
+    system = kronsub.load(path, cache=False).derive(cache=False)
+    assert not system.points._placed and not system.bodies._placed
+    assert system.mass_matrix.shape == (6, 6)
+    first = system.points["rod6.b"]
+    assert system.points["rod6.b"] is first and len(system.points._placed) == 1
+    assert system.bodies[5] is system.bodies[5] and set(system.bodies._placed) == {5}

@@ -61,6 +61,7 @@ _ALLOWED = ("only numbers, declared names, + - * / **, parentheses and the funct
             + ", ".join(FUNCTIONS) + " are allowed")
 _DECIMAL = re.compile(r"([+-]?)(\d*)(?:\.(\d*))?(?:[eE]([+-]?\d+))?")
 _WORD = re.compile(r"[^\W\d]\w*")
+_DOTTED = re.compile(r"[^\W\d]\w*(?:\s*\.\s*[^\W\d]\w*)*")  # a name, or a dotted one: upper.tip.x
 _TOKEN = re.compile(r"\w+|\S")
 _UNDEFINED = (sympy.zoo, sympy.nan, sympy.oo, -sympy.oo, sympy.I)
 
@@ -122,7 +123,7 @@ class _Reject(Exception):
 
 def parse_expression(text: str, names: Mapping[str, sympy.Basic],
                      location: Location | None = None, *,
-                     what: str = "expression") -> sympy.Expr:
+                     what: str = "expression", shared: dict | None = None) -> sympy.Expr:
     """Build the sympy expression written in ``text``.
 
     ``names`` maps every name the text may use (dotted ones like ``lower.y``
@@ -130,13 +131,17 @@ def parse_expression(text: str, names: Mapping[str, sympy.Basic],
     defines it. ``location`` is where ``text`` starts in the model file and
     ``what`` names the text in messages ("expression for F", ...). Raises
     `ModelError` (and nothing else) for anything outside the whitelist.
+
+    ``shared`` (a dict the caller keeps across the expressions of one model) remembers
+    each part built: the same text with the same names met again is the same value,
+    so a chain's ``l1*sin(q1)``, written in every link's position below it, is built once.
     """
     base = location or _DEFAULT_LOCATION
     if not isinstance(text, str):
         raise _error(base, what, str(text), f"expected text, got {type(text).__name__}",
                      "write the expression as text, e.g. '2*x'")
     try:
-        return _Builder(text, names).build_all()
+        return _Builder(text, names, shared).build_all()
     except _Reject as problem:
         shift = base.shifted(problem.column - 1)
         where = shift if problem.line == 1 else Location(
@@ -319,10 +324,12 @@ def _name_hint(name: str, known: list[str]) -> str:
 class _Builder:
     """Walks the syntax tree of one expression and builds sympy objects."""
 
-    def __init__(self, text: str, names: Mapping[str, sympy.Basic]):
+    def __init__(self, text: str, names: Mapping[str, sympy.Basic], shared: dict | None = None):
         self.lead = len(text) - len(text.lstrip(" \t\f"))
         self.body = text[self.lead:]
         self.lines = re.split(r"\r\n|\r|\n", self.body)
+        self.shared = shared
+        self._encoded: list[bytes] | None = None
         self.names = {unicodedata.normalize("NFKC", key): value for key, value in names.items()}
         self.names.setdefault("pi", sympy.pi)
         self.known = sorted(names)
@@ -417,6 +424,37 @@ class _Builder:
 
     # -- the walk ------------------------------------------------------------
     def build(self, node: ast.AST, depth: int) -> _Value:
+        key = self._shared_key(node, depth) if self.shared is not None else None
+        if key is not None:
+            hit = self.shared.get(key)
+            if hit is not None:
+                return hit
+        value = self._build(node, depth)
+        if key is not None:
+            self.shared[key] = value
+        return value
+
+    def _shared_key(self, node: ast.AST, depth: int) -> tuple | None:
+        """What a built part is remembered by (`parse_expression`'s ``shared``): its text, its
+        depth and the value of every name in it; None for a name or a number (as quick to build
+        again) or a part over several lines."""
+        if type(node) not in (ast.BinOp, ast.UnaryOp, ast.Call) or node.lineno != node.end_lineno:
+            return None
+        if self._encoded is None:
+            self._encoded = [line.encode() for line in self.lines]
+        text = self._encoded[node.lineno - 1][node.col_offset:node.end_col_offset]
+        names = []
+        for word in _DOTTED.findall(text.decode("utf-8", "replace")):
+            word = unicodedata.normalize("NFKC", "".join(word.split()))
+            names.append((word, self.names.get(word)))
+        key = text, depth, tuple(names)
+        try:
+            hash(key)
+        except TypeError:  # a name whose value is not hashable: built each time
+            return None
+        return key
+
+    def _build(self, node: ast.AST, depth: int) -> _Value:
         if depth > MAX_DEPTH:
             self.fail(node, f"is nested more than {MAX_DEPTH} levels deep",
                       "split it into simpler parts")

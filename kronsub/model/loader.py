@@ -136,6 +136,7 @@ def _resolved(path: Path) -> str:
 class _Loader:
     def __init__(self, path: Path, root: Node, text: str, stack: tuple[str, ...], cache: bool = True):
         self.cache = cache
+        self.parsed: dict = {}  # parts of expressions built so far (parse_expression's shared)
         self.path = path
         self.file = str(path)
         self.root = root
@@ -178,7 +179,7 @@ class _Loader:
         table = names if names is not None else self.names
         try:
             value = parse_expression(text, {**table, **definition_names(self)},
-                                     node.text_location or node.location, what=what)
+                                     node.text_location or node.location, what=what, shared=self.parsed)
         except ModelError as exc:
             for problem in exc.problems:
                 unknown = _UNKNOWN_NAME.search(problem.message)
