@@ -30,6 +30,7 @@ import sympy
 from ..errors import KronsubError
 from .finite import nonfinite_cause
 from .known_system import KnownSystem
+from .seeded import seeded, sympy_seeded
 from .symbols import TIME
 
 EQUILIBRIUM_TOLERANCE = 1e-8  # largest |qddot| at a point called an equilibrium
@@ -239,7 +240,8 @@ def linearize(system: KnownSystem, *, inputs: Sequence[sympy.Symbol] = (),
     if symbolic:
         subs = {**op_state, TIME: t0, **{p: sympy.sympify(v) for p, v in values.items()}, **op_inputs}
         A, B = _symbolic_matrices(M, r, K0, D0, G0, dM, subs, n, len(inputs))
-        left = [sympy.simplify(e.xreplace(subs)) for e in r] if free and equilibrium else []
+        with sympy_seeded():
+            left = [sympy.simplify(e.xreplace(subs)) for e in r] if free and equilibrium else []
         depends = sorted({s.name for e in left if e != 0 for s in e.free_symbols})
         if depends:
             notes.append(f"the equilibrium was found with the values of {', '.join(depends)} and depends on "
@@ -393,12 +395,14 @@ def _exact(value: float) -> sympy.Expr:
     return sympy.Float(value, 17)
 
 
+@seeded
 def _exact_equilibrium(r, q, qd, fixed, t0, values) -> bool:
     subs = {**{v: 0 for v in qd}, **{s: sympy.sympify(v) for s, v in fixed.items()}, TIME: t0,
             **{p: sympy.sympify(v) for p, v in values.items()}}
     return all(sympy.simplify(e.xreplace(subs)) == 0 for e in r)
 
 
+@seeded
 def _symbolic_matrices(M, r, K0, D0, G0, dM, subs, n, m):
     Ms = M.xreplace(subs)
     a = Ms.LUsolve(r.xreplace(subs)).applyfunc(sympy.simplify)

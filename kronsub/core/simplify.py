@@ -27,6 +27,7 @@ import sympy
 from .inverse_trig import divide_out
 from .operations import count_ops
 from .printed import LexStrPrinter
+from .seeded import seeded, sympy_seeded
 from . import trigpoly
 from .trigpoly import TrigAlgebra, TrigPoly, _coef_add_into, _common_monomial
 
@@ -125,7 +126,8 @@ def _atom_angles(algebra: TrigAlgebra, used: set[int], best: sympy.Expr) -> symp
             if isinstance(a, (sympy.sin, sympy.cos)) and a.args[0].free_symbols & coordinates]
     if not held or count_ops(best) > FACTORED or len(best.free_symbols) > ATOM_SYMBOLS:
         return best  # sin(t), cos(pi/7): no identity of a coordinate; many symbols: factor's cost
-    candidate = sympy.trigsimp(best)
+    with sympy_seeded():
+        candidate = sympy.trigsimp(best)
     return candidate if _key(candidate) < _key(best) else best
 
 
@@ -146,6 +148,7 @@ def _mixed(p: TrigPoly) -> bool:
     return False
 
 
+@seeded
 def _factor(expr: sympy.Expr) -> sympy.Expr:
     """``sympy.factor``, with ``(sin(a) - 1)(sin(a) + 1)`` read back as ``-cos(a)^2``."""
     out = sympy.factor(expr)

@@ -155,78 +155,72 @@ class _Placer:
         return m.xreplace(self.placement) if self.placement else m
 
 
-class PlacedPoints(Mapping):
+class _PlacedOnRead:
+    """Items of a derived system placed at ``x(xbar)`` when first read, each once."""
+
+    def __init__(self, unplaced, placer: _Placer):
+        self._unplaced = unplaced
+        self._placer = placer
+        self._placed: dict = {}
+
+    @property
+    def unplaced(self):
+        """The items where the primitive has them, before they are placed."""
+        return self._unplaced
+
+    def place(self, key, item) -> None:
+        """Give ``key`` its placed item now."""
+        self._placed[key] = item
+
+    def _item(self, key):
+        hit = self._placed.get(key)
+        if hit is None:
+            hit = self._placed[key] = self._placing(self._unplaced[key])
+        return hit
+
+    def _placing(self, item):
+        raise NotImplementedError
+
+
+class PlacedPoints(_PlacedOnRead, Mapping):
     """A derived system's named points, each placed at ``x(xbar)`` when it is first read.
 
     A long chain's link ends are sums over every link above, which sympy rebuilds term by
     term; ``Mbar``, ``hbar`` and ``fbar`` do not need them, the energies, the animation, a
     scene's outputs and the next model do."""
 
-    def __init__(self, positions: dict[str, tuple], placer: _Placer):
-        self._positions = positions
-        self._placer = placer
-        self._placed: dict[str, tuple] = {}
-
-    @property
-    def positions(self) -> dict[str, tuple]:
-        """The points where the primitive has them, before they are placed."""
-        return self._positions
-
-    def place(self, label: str, position: tuple) -> None:
-        """Give ``label`` its placed position now."""
-        self._placed[label] = position
+    def _placing(self, position: tuple) -> tuple:
+        return self._placer.position(position)
 
     def __getitem__(self, label: str) -> tuple:
-        hit = self._placed.get(label)
-        if hit is None:
-            hit = self._placed[label] = self._placer.position(self._positions[label])
-        return hit
+        return self._item(label)
 
     def __iter__(self):
-        return iter(self._positions)
+        return iter(self._unplaced)
 
     def __len__(self) -> int:
-        return len(self._positions)
+        return len(self._unplaced)
 
     def __repr__(self) -> str:
         return f"PlacedPoints({dict(self)!r})"
 
 
-class PlacedBodies(Sequence):
+class PlacedBodies(_PlacedOnRead, Sequence):
     """A derived system's bodies, each placed at ``x(xbar)`` when it is first read: a rod's
     rotation ``cos(q - pi/2)`` costs sympy milliseconds to evaluate, and the equations of
     motion do not need it (energies, torques on a body and the next model do)."""
 
-    def __init__(self, bodies: list[Body], placer: _Placer):
-        self._bodies = bodies
-        self._placer = placer
-        self._placed: dict[int, Body] = {}
-
-    @property
-    def unplaced(self) -> list[Body]:
-        """The bodies where the primitive has them, before they are placed."""
-        return self._bodies
-
-    def place(self, i: int, body: Body) -> None:
-        """Give body ``i`` its placed form now."""
-        self._placed[i] = body
-
-    def _place(self, i: int) -> Body:
-        hit = self._placed.get(i)
-        if hit is None:
-            body, place = self._bodies[i], self._placer
-            hit = self._placed[i] = dataclasses.replace(
-                body, centre=place.position(body.centre),
-                rotation=None if body.rotation is None else place.matrix(body.rotation))
-        return hit
+    def _placing(self, body: Body) -> Body:
+        return dataclasses.replace(body, centre=self._placer.position(body.centre),
+                                   rotation=None if body.rotation is None else self._placer.matrix(body.rotation))
 
     def __getitem__(self, i):
         if isinstance(i, slice):
-            return tuple(self._place(k) for k in range(len(self._bodies))[i])
-        return self._place(range(len(self._bodies))[i])
+            return tuple(self._item(k) for k in range(len(self._unplaced))[i])
+        return self._item(range(len(self._unplaced))[i])
 
     def __len__(self) -> int:
-        return len(self._bodies)
+        return len(self._unplaced)
 
     def __eq__(self, other) -> bool:
         if isinstance(other, Sequence) and not isinstance(other, (str, bytes)):
@@ -295,7 +289,7 @@ def project_inertia(sub: Subspace, primitive: Primitive, *, name: str = "",
     placer = _Placer(sub.placement, dimension)
     points = PlacedPoints({f"{part.name}.{label}": pos for part in primitive.parts
                            for label, pos in part.points.items()}, placer)
-    for label, pos in points.positions.items():  # a point that moves with a velocity: at once
+    for label, pos in points.unplaced.items():  # a point that moves with a velocity: at once
         if any(not sympy.sympify(c).free_symbols.isdisjoint(sub.velocities) for c in pos):
             points.place(label, placer.position(tuple(sub.moved(c) for c in pos)))
     bodies = PlacedBodies([Body(body.mass, body.centre, body.rotation, body.inertia, name=body_label(part, body))

@@ -7,6 +7,7 @@ import sympy
 
 from ..components.base import common_world
 from ..core.derivative import derivative
+from ..core.seeded import seeded
 from .base import Effect
 
 
@@ -55,6 +56,7 @@ class Damper(Effect):
     ends: tuple = ()
     coefficient: sympy.Expr = sympy.Integer(0)
 
+    @seeded
     def generalized_force(self, primitive):
         square = _squared_length(primitive, self.ends)
         # c ldot dl/dx = c (dl^2/dt)(dl^2/dx) / (4 l^2): no square roots needed
