@@ -143,8 +143,10 @@ class _Placer:
         self.dimension = dimension
 
     def position(self, pos: tuple) -> tuple:
+        return self.in_world(tuple(self.expr(c) for c in pos))
+
+    def in_world(self, moved: tuple) -> tuple:
         """A point of a line, in a system that also has parts in the plane: ``(x, 0)``."""
-        moved = tuple(self.expr(c) for c in pos)
         return in_world(moved, self.dimension) if self.dimension == 2 else moved
 
     def expr(self, e) -> sympy.Expr:
@@ -291,13 +293,13 @@ def project_inertia(sub: Subspace, primitive: Primitive, *, name: str = "",
                            for label, pos in part.points.items()}, placer)
     for label, pos in points.unplaced.items():  # a point that moves with a velocity: at once
         if any(not sympy.sympify(c).free_symbols.isdisjoint(sub.velocities) for c in pos):
-            points.place(label, placer.position(tuple(sub.moved(c) for c in pos)))
+            points.place(label, placer.in_world(tuple(sub.moved(c) for c in pos)))
     bodies = PlacedBodies([Body(body.mass, body.centre, body.rotation, body.inertia, name=body_label(part, body))
                            for part in primitive.parts for body in part.bodies], placer)
     for i, body in enumerate(bodies.unplaced):  # a body that moves with a velocity: at once
         if not free_symbols_of([*body.centre, *([body.rotation] if body.rotation is not None else [])]) \
                 .isdisjoint(sub.velocities):
-            bodies.place(i, dataclasses.replace(body, centre=tuple(sub.moved(c) for c in body.centre),
+            bodies.place(i, dataclasses.replace(body, centre=placer.in_world(tuple(sub.moved(c) for c in body.centre)),
                                                 rotation=None if body.rotation is None
                                                 else body.rotation.applyfunc(sub.moved)))
     return KnownSystem(
