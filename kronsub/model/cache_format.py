@@ -26,7 +26,7 @@ from ..collector import collector_paused
 from ..core import canonical
 from ..core.constraints import Constraint, ImplicitSubspace
 from ..core.known_system import KnownSystem, ParameterInfo, ProjectedEffect, Transition
-from ..core.subspace import PlacedBodies, PlacedPoints
+from ..core.placed import PlacedBodies, PlacedPoints
 
 FORMAT = "kronsub-known-system/1"
 
