@@ -222,11 +222,7 @@ def _plus(projected: sympy.Expr, direct) -> sympy.Expr:
     """``projected + sum(direct)`` (a renamed part's entries carried over, :meth:`Subspace.renaming`),
     not rebuilt when one side is all there is: sympy's cache would compare a large entry
     read from the known-system cache node by node with the one it holds."""
-    if not direct:
-        return projected
-    if projected == 0 and len(direct) == 1:
-        return direct[0]
-    return projected + sympy.Add(*direct)
+    return canonical.total([projected, *direct] if canonical.nonzero(projected) else direct)
 
 
 def world_dimension(primitive: Primitive) -> int:

@@ -196,6 +196,16 @@ def _coef_add_into(target: Coef, src: Coef, scale: int | Fraction = 1) -> None:
             target.pop(m, None)
 
 
+def _add_derivative(out: dict, kind: int, freq: Freq, k, coef: Coef) -> None:
+    """Add ``coef * d trig(f.q) / dq`` into the terms ``out``, for ``k`` the coordinate's
+    frequency: ``d cos(f.q) = -k sin(f.q)``, ``d sin(f.q) = k cos(f.q)``."""
+    key, scale = ((SIN, freq), -k) if kind == COS else ((COS, freq), k)
+    tgt = out.setdefault(key, {})
+    _coef_add_into(tgt, coef, scale)
+    if not tgt:
+        del out[key]
+
+
 class TrigPoly:
     """An element of the algebra: ``{(kind, freq): coefficient}`` (immutable by convention)."""
 
@@ -431,15 +441,7 @@ class TrigAlgebra:
         for (kind, freq), coef in p.terms.items():
             k = next((v for i, v in freq if i == coordinate), 0)
             if k:
-                # d/dq cos(f.q) = -k sin(f.q);  d/dq sin(f.q) = k cos(f.q)
-                if kind == COS:
-                    key, scale = (SIN, freq), -k
-                else:
-                    key, scale = (COS, freq), k
-                tgt = out.setdefault(key, {})
-                _coef_add_into(tgt, coef, scale)
-                if not tgt:
-                    del out[key]
+                _add_derivative(out, kind, freq, k, coef)
         result = TrigPoly(out)
         for extra in self._chain_terms(p, coordinate):
             result.add(extra)
@@ -530,7 +532,7 @@ class TrigAlgebra:
         if not common:
             return self.coefficient_expr(coef)
         content = _content(coef.values())
-        inner = {_mono_mul(m, tuple((i, -e) for i, e in common)): c / content for m, c in coef.items()}
+        inner = _divided(coef, common, content)
         outer = [self._atoms[i] ** _rational(e) for i, e in common]
         return sympy.Mul(_rational(_num(_Q(content))), *outer, self.coefficient_expr(inner))
 
@@ -622,13 +624,7 @@ class TrigAlgebra:
         varying = False
         for (kind, freq), coef in p.terms.items():
             for j, k in freq:
-                # d/dq cos(f.q) = -k sin(f.q);  d/dq sin(f.q) = k cos(f.q)
-                key, scale = ((SIN, freq), -k) if kind == COS else ((COS, freq), k)
-                out = trig[j]
-                tgt = out.setdefault(key, {})
-                _coef_add_into(tgt, coef, scale)
-                if not tgt:
-                    del out[key]
+                _add_derivative(trig[j], kind, freq, k, coef)
             varying = varying or any(self._atom_deps[atom] for mono in coef for atom, _ in mono)
         result = []
         for j in range(len(self.coordinates)):
