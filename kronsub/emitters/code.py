@@ -96,7 +96,9 @@ WRITTEN_OUT = 12
 def ldlt_lines(n: int) -> list[Markup]:
     """The ``L D L^T`` solve of ``M x = r`` for ``n`` coordinates written out, in the loops'
     order of operations (the same roundings, so the same result to the last bit): no loop
-    bounds, indices or array stores, every intermediate in a register the compiler schedules."""
+    bounds, indices or array stores, every intermediate in a register the compiler schedules.
+    Every sum ends with the term that is ready last (the back substitution runs from the last
+    coordinate down), so each step waits for one product and one subtraction, not a whole sum."""
     out = []
     for j in range(n):
         out += [f"const double w{j}_{k} = l{j}_{k} * d{k};" for k in range(j)]
@@ -106,8 +108,8 @@ def ldlt_lines(n: int) -> list[Markup]:
         out += [f"const double l{i}_{j} = (M[{i * n + j}]" + "".join(f" - l{i}_{k} * w{j}_{k}" for k in range(j))
                 + f") * inv{j};" for i in range(j + 1, n)]
     out += [f"const double y{i} = r[{i}]" + "".join(f" - l{i}_{k} * y{k}" for k in range(i)) + ";" for i in range(n)]
-    out += [f"const double x{i} = y{i} * inv{i}" + "".join(f" - l{k}_{i} * x{k}" for k in range(i + 1, n)) + ";"
-            for i in reversed(range(n))]
+    out += [f"const double x{i} = y{i} * inv{i}" + "".join(f" - l{k}_{i} * x{k}" for k in reversed(range(i + 1, n)))
+            + ";" for i in reversed(range(n))]
     out += [f"r[{i}] = x{i};" for i in range(n)]
     return [Markup(line) for line in out]
 
