@@ -11,12 +11,17 @@ every hinge (``models/chain/generate.py 10 --hinges``, scene ``gravity_only``),
 measured in one run:
 
 a. The generated right-hand side ``ydot = [qdot; Mbar^-1 (fbar - hbar)]`` of the full
-   model and of the gravity-only scene: ``sympy.count_ops`` of its body (common
-   subexpressions and outputs, the per-parameter constants apart), and the cost of one
-   call of the compiled C (``ks_rhs_pre``, ``-O2`` and kronsub's host flags) from a small C harness cycling
-   through random states, the full model and the scene timed in turn in one program (so
-   both see the same machine load): min and median over repeats, and the scene/full ratio.
-   Target: the 10-link gravity-only scene costs at most 70 % of the full model per call.
+   model and of the gravity-only scene, the one ``simulate``'s ``dop853`` and ``rk4`` call:
+   in the circle state ``[q; qdot; cos q; sin q]`` when the model or scene has circle
+   coordinates (``ks_rhs_circle_pre``, ``kronsub/emitters/circle.py``: angles that enter only
+   through sines and cosines; a torsional spring's angle enters as itself), else in
+   ``[q; qdot]`` (``ks_rhs_pre``). ``sympy.count_ops`` of its body (common subexpressions
+   and outputs, the per-parameter constants apart, a guarded angle counted as its
+   single-angle products), and the cost of one call of the compiled C (``-O2`` and kronsub's
+   host flags) from a small C harness cycling through random states, the full model and
+   the scene timed in turn in one program (so both see the same machine load): min and
+   median over repeats, and the scene/full ratio. The ``state`` column gives each state's
+   size. Target: the 10-link gravity-only scene costs at most 70 % of the full model per call.
 
 b. Deriving: the whole model from an empty cache, then a scene of it (sharing the
    cached inertia and effects); and, from an empty cache, the gravity-only scene
@@ -46,7 +51,8 @@ sys.path.insert(0, str(REPO / "models" / "chain"))
 
 from generate import chain_yaml  # noqa: E402
 from kronsub.emitters.code import emit_c  # noqa: E402
-from kronsub.emitters.numeric import prepare  # noqa: E402
+from kronsub.emitters.circle import circle_equations  # noqa: E402
+from kronsub.emitters.numeric import NearAxis, prepare  # noqa: E402
 from kronsub.model.loader import load_model  # noqa: E402
 from kronsub.model.scenes import derive_scene, select_scene  # noqa: E402
 from kronsub.simulation.native import compiler_command, host_flags  # noqa: E402
@@ -64,6 +70,26 @@ HARNESS = r"""#define _POSIX_C_SOURCE 199309L
 
 #define K 256 /* distinct states, cycled */
 #define NY (KF_NY > KG_NY ? KF_NY : KG_NY)
+#define NZ (KF_NZ > KG_NZ ? KF_NZ : KG_NZ)
+
+/* the right-hand side the integrators call: in the circle state when there is one */
+static int full_rhs(const double *z, const double *pre, double *zdot)
+{
+#if KF_NC > 0
+    return kf_rhs_circle_pre(0.0, z, pre, zdot);
+#else
+    return kf_rhs_pre(0.0, z, pre, zdot);
+#endif
+}
+
+static int scene_rhs(const double *z, const double *pre, double *zdot)
+{
+#if KG_NC > 0
+    return kg_rhs_circle_pre(0.0, z, pre, zdot);
+#else
+    return kg_rhs_pre(0.0, z, pre, zdot);
+#endif
+}
 
 static double now(void) {
     struct timespec ts;
@@ -74,8 +100,8 @@ static double now(void) {
 /* usage: harness CALLS REPEATS NF f0 f1 ... g0 g1 ...: the full model's and the scene's
    right-hand sides timed in turn (so both see the same load); ns per call, one line each */
 int main(int argc, char **argv) {
-    static double ys[K][NY], pf[KF_NPARAM + 1], pg[KG_NPARAM + 1], pre_f[KF_NPRE + 1], pre_g[KG_NPRE + 1];
-    static double ydot[NY], tf[1000], tg[1000];
+    static double ys[K][NY], zf[K][NZ], zg[K][NZ], pf[KF_NPARAM + 1], pg[KG_NPARAM + 1];
+    static double pre_f[KF_NPRE + 1], pre_g[KG_NPRE + 1], ydot[NZ], tf[1000], tg[1000];
     long calls = atol(argv[1]), failed = 0;
     int repeats = atoi(argv[2]);
     double sink = 0.0;
@@ -91,15 +117,24 @@ int main(int argc, char **argv) {
             double u = (double)(s >> 11) / 9007199254740992.0;
             ys[k][i] = i < NY / 2 ? 6.283185307179586 * (u - 0.5) : 4 * (u - 0.5);
         }
+    for (int k = 0; k < K; k++) {
+        for (int i = 0; i < NY; i++) zf[k][i] = zg[k][i] = ys[k][i];
+#if KF_NC > 0
+        kf_circle_state(ys[k], zf[k]);
+#endif
+#if KG_NC > 0
+        kg_circle_state(ys[k], zg[k]);
+#endif
+    }
     for (int r = 0; r < repeats && r < 1000; r++) {
         double t0 = now();
         for (long c = 0; c < calls; c++) {
-            failed += kf_rhs_pre(0.0, ys[c & (K - 1)], pre_f, ydot);
+            failed += full_rhs(zf[c & (K - 1)], pre_f, ydot);
             sink += ydot[0];
         }
         double t1 = now();
         for (long c = 0; c < calls; c++) {
-            failed += kg_rhs_pre(0.0, ys[c & (K - 1)], pre_g, ydot);
+            failed += scene_rhs(zg[c & (K - 1)], pre_g, ydot);
             sink += ydot[0];
         }
         double t2 = now();
@@ -132,11 +167,16 @@ def _system(path: Path, scene: str | None):
     return model, chosen, derive_scene(model, chosen)
 
 
-def rhs_ops(system) -> int:
-    """Operations in the body of the right-hand side (its cse temporaries and outputs)."""
-    block = prepare(system).equations
-    return int(sum(sympy.count_ops(e) for _, e in block.temporaries) +
-               sum(sympy.count_ops(e) for _, e in block.outputs))
+def rhs_ops(system) -> tuple[int, int]:
+    """Operations in the body of the right-hand side the integrators call (its cse temporaries
+    and outputs; a guarded angle as its products), and the size of its state."""
+    block = prepare(system, guarded_angles=True).equations
+    n = len(system.coordinates)
+    circle, on_circle = circle_equations(block, [sympy.Symbol(f"q[{i}]") for i in range(n)])
+    block = on_circle or block
+    products = lambda e: e.replace(NearAxis, lambda angle, kind, p, again: p)  # noqa: E731
+    return (int(sum(sympy.count_ops(products(e)) for _, e in block.temporaries) +
+                sum(sympy.count_ops(products(e)) for _, e in block.outputs)), 2 * n + 2 * len(circle))
 
 
 def rhs_costs(pair, folder: Path, calls: int, repeats: int) -> tuple[list[float], list[float]]:
@@ -215,18 +255,19 @@ def main() -> None:
         cases = _cases(folder)
         print("a. Right-hand side: full model and gravity-only scene "
               f"(C, -O2; ns per call over {calls} calls, {repeats} repeats)\n")
-        print(f"{'model':24s} {'scene':14s} {'ops':>6s} {'min ns':>8s} {'median':>8s}  {'scene/full (min, median)':s}")
+        print(f"{'model':24s} {'scene':14s} {'state':>5s} {'ops':>6s} {'min ns':>8s} {'median':>8s}  "
+              f"{'scene/full (min, median)':s}")
         verdicts = []
         for label, path, full, gravity in cases:
             os.environ["KRONSUB_CACHE_DIR"] = str(folder / "cache")
             pair = [_system(path, name) for name in (full, gravity)]
             fcost, gcost = rhs_costs(pair, folder, calls, repeats)
-            (fname, fops), (gname, gops) = [(name or "(all effects)", rhs_ops(system))
-                                            for name, (_, _, system) in zip((full, gravity), pair)]
+            (fname, (fops, fdim)), (gname, (gops, gdim)) = [(name or "(all effects)", rhs_ops(system))
+                                                            for name, (_, _, system) in zip((full, gravity), pair)]
             ratio_min = min(gcost) / min(fcost)
             ratio_med = statistics.median(g / f for f, g in zip(fcost, gcost))  # repeat by repeat
-            print(f"{label:24s} {fname:14s} {fops:6d} {_fmt_ns(fcost)}")
-            print(f"{'':24s} {gname:14s} {gops:6d} {_fmt_ns(gcost)}  "
+            print(f"{label:24s} {fname:14s} {fdim:5d} {fops:6d} {_fmt_ns(fcost)}")
+            print(f"{'':24s} {gname:14s} {gdim:5d} {gops:6d} {_fmt_ns(gcost)}  "
                   f"{ratio_min:.2f}, {ratio_med:.2f}   ops {gops / fops:.2f}")
             if label.startswith("10-link"):
                 verdicts.append(f"10-link gravity-only scene / full model per call: {ratio_med:.2f} (median), "

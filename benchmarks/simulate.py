@@ -11,19 +11,24 @@ a. One evaluation of ``ydot = [qdot; Mbar^-1 (fbar - hbar)]`` for the 2-, 5- and
    * ``C from C``: the generated C, called in a loop by a small C harness compiled with it at
      ``-O2`` and the flags kronsub builds its libraries with for this processor
      (``native.host_flags()``; written and built at run time);
+   * ``C circle state``: the same harness calling the right-hand side of the circle state
+     ``[q; qdot; cos q; sin q]`` (``ks_rhs_circle_pre``, ``kronsub/emitters/circle.py``), which
+     ``dop853`` and ``rk4`` integrate: no sine or cosine evaluated;
    * ``C from Python``: the same C through ctypes (``NativeModel.scipy_rhs``, what scipy calls);
    * ``numpy module``: the generated numpy module (``emit_python``);
    * ``lambdify``: ``sympy.lambdify(cse=True)`` of ``Mbar`` and ``fbar - hbar`` with
      ``numpy.linalg.solve`` (the peer every ratio is taken against);
    * ``PyDy cython``: PyDy's cython backend on the same ``Mbar``, ``fbar - hbar``, if it installs.
 
-   Target: the C at n = 10 in <= 0.5 us and >= 100x faster than lambdify.
+   Targets: the C at n = 10 in <= 0.5 us and >= 100x faster than lambdify; issue 9: the
+   right-hand side the integrators call at n = 10 in <= 0.3 us.
 
 b. The double pendulum of two uniform rods (System I with its defaults: masses 1, lengths 1,
    g = 9.81; initial angles 120 and -10 degrees, at rest) to t = 10: wall time of the
    integration alone (compilation and setup excluded, best of several runs) and the largest
    error of the state at t = 10 against the 40-digit reference
-   ``../shared/reference/double-pendulum-rods.json``, for kronsub's C ``dop853`` and ``gauss4``,
+   ``../shared/reference/double-pendulum-rods.json``, for kronsub's C ``dop853`` (in the circle
+   state, as ``simulate`` runs it, and in ``[q; qdot]``) and ``gauss4``,
    scipy's methods calling the compiled C right-hand side, and heyoka (if installed; its
    compile time apart). Target: error <= 1e-8 in <= 0.5 ms.
 
@@ -56,6 +61,7 @@ if not REFERENCE.exists():  # the repository's own copy (tests/data/double_pendu
 SIZES = (2, 5, 10)
 RHS_TARGET_NS = 500.0
 RHS_TARGET_RATIO = 100.0
+ISSUE9_RHS_NS = 300.0  # issue 9: the right-hand side the integrators call, n = 10
 ERROR_TARGET = 1e-8
 TIME_TARGET_MS = 0.5
 FRONTIER = ((2.5e-9, None), (1e-6, 0.15))  # issue 9: (error, ms): faster than heyoka's best there / within ms
@@ -85,11 +91,11 @@ static double now(void) {
     return ts.tv_sec + 1e-9 * ts.tv_nsec;
 }
 
-/* usage: harness rhs CALLS REPEATS p0 p1 ...
+/* usage: harness rhs CALLS REPEATS p0 p1 ...     (circle: the circle state's ks_rhs_circle_pre)
           harness dop853 RUNS REPEATS TOL T_END y0_0 .. y0_{ny-1} p0 p1 ... */
 int main(int argc, char **argv) {
-    static double ys[K][KS_NY], param[KS_NPARAM + 1], pre[KS_NPRE + 1], ydot[KS_NY];
-    int rhs = argv[1][0] == 'r';
+    static double ys[K][KS_NZ], param[KS_NPARAM + 1], pre[KS_NPRE + 1], ydot[KS_NZ];
+    int circle = argv[1][0] == 'c', rhs = argv[1][0] == 'r' || circle;
     long calls = atol(argv[2]);
     int repeats = atoi(argv[3]), first = rhs ? 4 : 6 + KS_NY;
     for (int i = 0; i < KS_NPARAM; i++) param[i] = atof(argv[first + i]);
@@ -104,10 +110,22 @@ int main(int argc, char **argv) {
                 double u = (double)(s >> 11) / 9007199254740992.0;
                 ys[k][i] = i < KS_NQ ? 6.283185307179586 * (u - 0.5) : 4 * (u - 0.5);
             }
+#if KS_NC > 0
+        for (int k = 0; k < K && circle; k++) {
+            double y[KS_NY];
+            for (int i = 0; i < KS_NY; i++) y[i] = ys[k][i];
+            ks_circle_state(y, ys[k]);
+        }
+#endif
         for (int r = 0; r < repeats; r++) {
             double t0 = now();
             for (long c = 0; c < calls; c++) {
+#if KS_NC > 0
+                failed += circle ? ks_rhs_circle_pre(0.0, ys[c & (K - 1)], pre, ydot)
+                                 : ks_rhs_pre(0.0, ys[c & (K - 1)], pre, ydot);
+#else
                 failed += ks_rhs_pre(0.0, ys[c & (K - 1)], pre, ydot);
+#endif
                 sink += ydot[KS_NY - 1];
             }
             double dt = now() - t0;
@@ -192,8 +210,8 @@ class Harness:
         return subprocess.run([str(self.exe), *text], check=True, capture_output=True,
                               text=True).stdout.split()
 
-    def rhs_ns(self, param, calls: int, repeats: int = 5) -> float:
-        ns, failed = self._run("rhs", str(calls), str(repeats), *param)[:2]
+    def rhs_ns(self, param, calls: int, repeats: int = 5, circle: bool = False) -> float:
+        ns, failed = self._run("circle" if circle else "rhs", str(calls), str(repeats), *param)[:2]
         if int(failed):
             raise RuntimeError(f"ks_rhs failed in {failed} of the timed calls")
         return float(ns)
@@ -297,6 +315,7 @@ def section_rhs(quick: bool, scratch: Path) -> None:
         rows = []
         harness = Harness(system, scratch / f"chain{n}")
         rows.append(("C from C", harness.rhs_ns(param, c_calls), None, ""))
+        rows.append(("C circle state", harness.rhs_ns(param, c_calls, circle=True), None, ""))
         native = native_model(system)
         backends = {"C from Python": native.scipy_rhs(param),
                     "numpy module": numpy_rhs(system, param),
@@ -315,10 +334,12 @@ def section_rhs(quick: bool, scratch: Path) -> None:
         lam = dict((r[0], r[1]) for r in rows)["lambdify"]
         for name, ns, diff, extra in rows:
             ratio = lam / ns
-            if name == "C from C" and n == 10:
+            if name in ("C from C", "C circle state") and n == 10:
                 ok = ns <= RHS_TARGET_NS and ratio >= RHS_TARGET_RATIO
                 extra = (f"target <= {RHS_TARGET_NS:.0f} ns, >= {RHS_TARGET_RATIO:.0f}x: "
                          + ("MET" if ok else "missed"))
+                if name == "C circle state":
+                    extra += f"; <= {ISSUE9_RHS_NS:.0f} ns: " + ("MET" if ns <= ISSUE9_RHS_NS else "missed")
             shown = "" if diff is None else f"{diff:.1e}"
             print(f"{n:>3}  {name:<14} {ns:>11,.0f} {ratio:>8.1f}x  {shown:>10}  {extra}")
         if pydy_state is not None:
@@ -394,15 +415,18 @@ def section_pendulum(quick: bool, scratch: Path) -> None:
         shown = "" if median is None else f"{1e3 * median:.3f}"
         print(f"{mark} {method:<22} {setting:<13} {ms:>10.3f} {shown:>8} {err:>9.1e} {evals:>8}  {note}")
 
-    for tol in (1e-6, 1e-8, 1e-10, 1e-12, 1e-13, 1e-14):
-        out = {}
+    for circle in (True, False):
+        for tol in (1e-6, 1e-8, 1e-10, 1e-12, 1e-13, 1e-14):
+            out = {}
 
-        def run():
-            out["r"] = native.integrate("dop853", 0.0, y0, t_end, t_end, param, rtol=tol, atol=tol)
+            def run():
+                out["r"] = native.integrate("dop853", 0.0, y0, t_end, t_end, param, rtol=tol, atol=tol,
+                                            circle=circle)
 
-        seconds = min_median(run, c_repeats)
-        _, Y, res = out["r"]
-        row("kronsub C dop853", f"tol {tol:.0e}", seconds, Y[-1], res.n_evals, f"{res.n_steps} steps")
+            seconds = min_median(run, c_repeats)
+            _, Y, res = out["r"]
+            row("kronsub C dop853" if circle else "kronsub C dop853 in q", f"tol {tol:.0e}", seconds, Y[-1],
+                res.n_evals, f"{res.n_steps} steps" + ("; circle state" if circle else ""))
     for h in ((1e-2, 2e-3) if quick else (1e-2, 5e-3, 2e-3, 1e-3)):
         out = {}
 

@@ -18,6 +18,7 @@ from .. import __version__
 from ..collector import collector_paused
 from ..core.known_system import KnownSystem
 from .escape import Markup
+from .circle import circle_equations
 from .numeric import GUARD, Block, NumericModel, identifier, prepare
 from .text import _environment
 
@@ -137,6 +138,13 @@ def emit_c(system: KnownSystem, stem: str, source: str = "", prefix: str = "ks",
     p = identifier(prefix)
     printer = _CPrinter(p)
     ctx = _context(model, printer.doprint, "const double ", ";")
+    circle, circle_block = ((), None)
+    if model.implicit is None:  # the circle state (circle.py): angles as (cos q, sin q)
+        circle, circle_block = circle_equations(model.equations, [sympy.Symbol(f"q[{i}]") for i in range(model.n)])
+    if circle_block is not None:
+        ctx["b"]["circle"] = _lines(circle_block, printer.doprint, "const double ", ";")
+    ctx["circle"] = [(k, i, model.coordinates[i]) for k, i in enumerate(circle)]
+    ctx["circle_angles"] = list(circle)
     stem = file_stem(stem)
     ctx.update(near_axis=printer.near_axis, ldlt=ldlt_lines(model.n) if 0 < model.n <= WRITTEN_OUT else None,
                p=Markup(p), P=Markup(p.upper()), header=Markup(f"{stem}.h"),

@@ -330,6 +330,10 @@ _SIGNATURES = {
     "ks_map_rows": (_L, [_P, _I, _P, _P, _L, _P]),
     "ks_energy_rows": (None, [_P, _P, _I, _P, _P, _L, _P, _P]),
     "ks_nstate": (_I, []),
+    "ks_ncircle": (_I, []),
+    "ks_rhs_circle": (_I, [_D, _P, _P, _P]),
+    "ks_rhs_circle_pre": (_I, [_D, _P, _P, _P]),
+    "ks_circle_state": (None, [_P, _P]),
     "ks_newton_init": (None, [_P]),
 }
 _REQUIRED = ("ks_rhs", "ks_status_message", "ks_dop853", "ks_gauss4", "ks_rk4", "ks_map_rows",
@@ -374,6 +378,8 @@ class NativeModel:
         # implicit constraints: the Newton state [y_d; tolerance] after the parameters, owned here
         self.nstate = int(self._fn["ks_nstate"]()) if "ks_nstate" in self._fn else 0
         self._buffer = np.zeros(max(self.nparam + self.nstate, 1))
+        # the circle state z = [y; cos q_c; sin q_c] (emitters/circle.py): 0 without one
+        self.nc = int(self._fn["ks_ncircle"]()) if "ks_ncircle" in self._fn and "ks_rhs_circle" in self._fn else 0
         if self.nstate:
             self._fn["ks_newton_init"](_ptr(self._buffer[self.nparam:]))
 
@@ -448,6 +454,24 @@ class NativeModel:
         z, p = self._state(z, "z"), self._param(param)
         zdot = np.empty(self.ny)
         if self._function("ks_rhs_canonical")(t, _ptr(z), _ptr(p), _ptr(zdot)):
+            raise self._singular(t, z)
+        return zdot
+
+    def circle_state(self, y) -> np.ndarray:
+        """``z = [y; cos q_c; sin q_c]`` of the circle coordinates ``q_c`` (see :attr:`nc`)."""
+        y = self._state(y)
+        z = np.empty(self.ny + 2 * self.nc)
+        self._function("ks_circle_state")(_ptr(y), _ptr(z))
+        return z
+
+    def rhs_circle(self, t: float, z, param) -> np.ndarray:
+        """``zdot`` of the circle state ``z = [q; qdot; cos q_c; sin q_c]``: ``[ydot; -sin q_c
+        qdot_c; cos q_c qdot_c]``."""
+        z, p = np.ascontiguousarray(z, dtype=float), self._param(param)
+        if z.shape != (self.ny + 2 * self.nc,):
+            raise ValueError(f"z must be 1-dimensional with {self.ny + 2 * self.nc} entries (got shape {z.shape})")
+        zdot = np.empty_like(z)
+        if self._function("ks_rhs_circle")(t, _ptr(z), _ptr(p), _ptr(zdot)):
             raise self._singular(t, z)
         return zdot
 
@@ -527,7 +551,8 @@ class NativeModel:
 
     def integrate(self, method: str, t0: float, y0, t_end: float, dt_out: float, param, *,
                   rtol: float = 1e-10, atol: float = 1e-10, h: float | None = None,
-                  max_steps: int = 10_000_000) -> tuple[np.ndarray, np.ndarray, IntegrationResult]:
+                  max_steps: int = 10_000_000, circle: bool | None = None,
+                  ) -> tuple[np.ndarray, np.ndarray, IntegrationResult]:
         """Integrate from ``y0 = [q; qdot]`` at ``t0`` to ``t_end`` wholly in C.
 
         Returns the row times ``t``, the states ``Y`` (rows ``[q; qdot]``) and the result. Rows
@@ -536,6 +561,9 @@ class NativeModel:
         when None; ``max_steps`` bounds the step attempts, <= 0 for no bound). ``gauss4`` and ``rk4`` use the fixed
         step ``h`` (default ``dt_out``), shortened so that ``dt_out`` is a whole number of steps;
         ``gauss4`` integrates ``z = [q; p]`` and its rows are converted back to ``[q; qdot]``.
+        ``dop853`` and ``rk4`` integrate the circle state ``[q; qdot; cos q_c; sin q_c]`` when the
+        model has circle coordinates (``circle`` None or True; False: ``[q; qdot]``); the rows
+        are its first ``2 nq`` entries; a run that fails there is run again in ``[q; qdot]``.
         A failure does not raise: the rows computed so far are returned with ``result.status``.
         """
         if method not in METHODS:
@@ -547,10 +575,12 @@ class NativeModel:
         # gauss4 in (q, p = Mbar qdot); with implicit constraints, which have no canonical form,
         # in (q, qdot): fourth order still, the dependent coordinates by Newton in every stage
         canonical = method == "gauss4" and not self.nstate
-        start = self.momentum(y0, param) if canonical else y0
-        p, rhs = self._prepared(param, "ks_rhs_canonical" if canonical else "ks_rhs")
+        on_circle = method != "gauss4" and self.nc > 0 and circle is not False
+        dim = self.ny + 2 * self.nc if on_circle else self.ny
+        start = self.momentum(y0, param) if canonical else self.circle_state(y0) if on_circle else y0
+        p, rhs = self._prepared(param, "ks_rhs_canonical" if canonical else "ks_rhs_circle" if on_circle else "ks_rhs")
         rhs_address = _address(rhs)
-        work = np.empty(_WORK[method] * self.ny)
+        work = np.empty(_WORK[method] * dim)
         cres = _CResult()
 
         if method == "dop853":
@@ -562,7 +592,7 @@ class NativeModel:
 
             def run(out, rows):
                 return self._fn["ks_dop853"](
-                    rhs_address, self.ny, _ptr(p), t0, _ptr(start), t_end, dt_out, rtol, atol,
+                    rhs_address, dim, _ptr(p), t0, _ptr(start), t_end, dt_out, rtol, atol,
                     h if h is not None else 0.0, max_steps, _ptr(out), rows, _ptr(work),
                     ctypes.byref(cres))
         else:
@@ -582,16 +612,21 @@ class NativeModel:
             step = h
 
             def run(out, rows):
-                return fixed(rhs_address, self.ny, _ptr(p), t0, _ptr(start), t_end, step,
+                return fixed(rhs_address, dim, _ptr(p), t0, _ptr(start), t_end, step,
                              out_every, _ptr(out), rows, _ptr(work), ctypes.byref(cres))
 
         for rows in capacity:
-            out = np.empty((rows, self.ny + 1))
+            out = np.empty((rows, dim + 1))
             run(out, rows)
             if cres.status != 5:
                 break
         self._keep(p)
-        out = out[: cres.n_rows]
+        if on_circle and cres.status not in (0, 5):
+            # found and told in the model's own coordinates (a square root's domain, a singular
+            # Mbar): the circle point of an angle is not that angle's sine and cosine to the bit
+            return self.integrate(method, t0, y0, t_end, dt_out, param, rtol=rtol, atol=atol, h=h,
+                                  max_steps=max_steps, circle=False)
+        out = out[: cres.n_rows, : self.ny + 1]  # the circle state's rows begin with [t, q, qdot]
         y_fail = work[: self.ny].copy() if cres.status in (1, 2) else None
         if canonical:  # rows [t, q, p] -> [t, q, qdot]
             bad = self._fn["ks_map_rows"](_address(self._function("ks_velocity")), self.ny,
