@@ -191,17 +191,12 @@ def project_inertia(sub: Subspace, primitive: Primitive, *, name: str = "",
     placer = Placer(sub.placement, dimension)
     points = PlacedPoints({f"{part.name}.{label}": pos for part in primitive.parts
                            for label, pos in part.points.items()}, placer)
-    for label, pos in points.unplaced.items():  # a point that moves with a velocity: at once
-        if any(not sympy.sympify(c).free_symbols.isdisjoint(sub.velocities) for c in pos):
-            points.place(label, placer.in_world(tuple(sub.moved(c) for c in pos)))
     bodies = PlacedBodies([Body(body.mass, body.centre, body.rotation, body.inertia, name=body_label(part, body))
                            for part in primitive.parts for body in part.bodies], placer)
-    for i, body in enumerate(bodies.unplaced):  # a body that moves with a velocity: at once
-        if not free_symbols_of([*body.centre, *([body.rotation] if body.rotation is not None else [])]) \
-                .isdisjoint(sub.velocities):
-            bodies.place(i, dataclasses.replace(body, centre=placer.in_world(tuple(sub.moved(c) for c in body.centre)),
-                                                rotation=None if body.rotation is None
-                                                else body.rotation.applyfunc(sub.moved)))
+    located = [c for pos in points.unplaced.values() for c in pos] + \
+        [c for body in bodies.unplaced for c in [*body.centre, *([body.rotation] if body.rotation is not None else [])]]
+    if not free_symbols_of(located).isdisjoint(sub.velocities):  # one walk of their shared subtrees
+        _place_moving(sub, placer, points, bodies)
     return KnownSystem(
         name=name,
         coordinates=sub.coords,
@@ -216,6 +211,20 @@ def project_inertia(sub: Subspace, primitive: Primitive, *, name: str = "",
         transition=transition,
         description=description,
     )
+
+
+def _place_moving(sub: Subspace, placer: Placer, points: PlacedPoints, bodies: PlacedBodies) -> None:
+    """Place at once the points and bodies whose positions have a velocity in them (no bundled
+    model has one): placing them later would put those velocities through ``x -> x(xbar)``."""
+    for label, pos in points.unplaced.items():
+        if not free_symbols_of(pos).isdisjoint(sub.velocities):
+            points.place(label, placer.in_world(tuple(sub.moved(c) for c in pos)))
+    for i, body in enumerate(bodies.unplaced):
+        if not free_symbols_of([*body.centre, *([body.rotation] if body.rotation is not None else [])]) \
+                .isdisjoint(sub.velocities):
+            bodies.place(i, dataclasses.replace(body, centre=placer.in_world(tuple(sub.moved(c) for c in body.centre)),
+                                                rotation=None if body.rotation is None
+                                                else body.rotation.applyfunc(sub.moved)))
 
 
 def _plus(projected: sympy.Expr, direct) -> sympy.Expr:

@@ -1,6 +1,8 @@
 """The one place symbols are made, so the same name always means the same symbol."""
 from __future__ import annotations
 
+import functools
+
 import sympy
 
 TIME = sympy.Symbol("t", real=True)
@@ -11,11 +13,14 @@ def symbol(name: str) -> sympy.Symbol:
     return sympy.Symbol(name, real=True)
 
 
+@functools.lru_cache(maxsize=1 << 14)
 def velocity_symbol(coordinate: sympy.Symbol) -> sympy.Symbol:
-    """The velocity of a coordinate is named ``<coordinate>_dot``."""
+    """The velocity of a coordinate is named ``<coordinate>_dot`` (made once per coordinate:
+    a projection asks for each velocity at every image it builds)."""
     return sympy.Symbol(f"{coordinate.name}_dot", real=True)
 
 
+@functools.lru_cache(maxsize=1 << 14)
 def acceleration_symbol(coordinate: sympy.Symbol) -> sympy.Symbol:
     """The acceleration of a coordinate is named ``<coordinate>_ddot``."""
     return sympy.Symbol(f"{coordinate.name}_ddot", real=True)
