@@ -124,7 +124,7 @@ def _guarded(atom: sympy.Expr) -> sympy.Expr:
     return NearAxis(atom.args[0], kind, products, products)
 
 
-def _single_angles(exprs: list[sympy.Expr], coordinates, guarded: bool = False) -> list[sympy.Expr]:
+def _single_angles(exprs: list[sympy.Expr], coordinates, guarded: bool = False, plain: int = 0) -> list[sympy.Expr]:
     """Rewrite multiple angles of one coordinate (``sin(2 q1) = 2 sin(q1) cos(q1)``) through
     its sine and cosine, which then serve every entry (common subexpressions).
 
@@ -133,11 +133,15 @@ def _single_angles(exprs: list[sympy.Expr], coordinates, guarded: bool = False) 
     when ``q1`` is close to ``q2``, while ``q1 - q2`` is then exact (Sterbenz) and so is its
     sine, to one rounding (tests/hard/test_hard_cancellation.py). Unguarded it stays as it is,
     one libm call per angle; ``guarded`` (the C right-hand sides), :func:`_guarded`: a chain
-    of n links then calls ``sincos`` n times, not n^2 / 2 times.
+    of n links then calls ``sincos`` n times, not n^2 / 2 times. The first ``plain`` expressions
+    (guarded: the entries of ``Mbar``) take the products without a guard: ``Mbar`` enters only
+    through the ``L D L^T`` solve, whose rounding is already of the order of eps times the
+    largest entry, so an entry's relative accuracy below that is not used.
     """
     coords = set(coordinates)
-    mapping = {}
-    for expr in exprs:
+    mappings: tuple[dict, dict] = ({}, {})  # (the first `plain` expressions', the others')
+    for index, expr in enumerate(exprs):
+        mapping = mappings[index >= plain]
         for atom in expr.atoms(sympy.sin, sympy.cos):
             terms = sympy.Add.make_args(atom.args[0])
             parts = [t.as_coeff_Mul() for t in terms]
@@ -146,8 +150,8 @@ def _single_angles(exprs: list[sympy.Expr], coordinates, guarded: bool = False) 
             if len(parts) == 1 and abs(int(parts[0][0])) > 1:
                 mapping[atom] = sympy.expand_trig(atom)
             elif len(parts) > 1 and guarded:
-                mapping[atom] = _guarded(atom)
-    return [e.xreplace(mapping) if mapping else e for e in exprs]
+                mapping[atom] = _guarded(atom) if index >= plain else _angle_sum(atom)
+    return [e.xreplace(mapping) if (mapping := mappings[index >= plain]) else e for index, e in enumerate(exprs)]
 
 
 class _Constants:
@@ -236,8 +240,8 @@ class _Rewritings:
 
 
 def _block(targets: list[str], exprs: list[sympy.Expr], prefix: str, coordinates=(), guarded: bool = False,
-           rewritings: _Rewritings | None = None) -> Block:
-    exprs = _single_angles(exprs, coordinates, guarded)
+           rewritings: _Rewritings | None = None, plain: int = 0) -> Block:
+    exprs = _single_angles(exprs, coordinates, guarded, plain)
     symbols = sympy.numbered_symbols(prefix)
     basic = None
     if not _more_nodes_than(exprs, BASIC_NODES):
@@ -252,7 +256,8 @@ def prepare(system: KnownSystem, source: str = "", outputs=None, guarded_angles:
     ``outputs`` (a scene's :class:`~kronsub.model.scenes.Outputs`; None: everything) leaves
     out the energies and the named points when they are not asked for. ``guarded_angles``
     (the C): the right-hand sides take sines and cosines of several coordinates from
-    single-angle ones where that keeps their accuracy (:func:`_guarded`)."""
+    single-angle ones where that keeps their accuracy (:func:`_guarded`), and always in
+    ``Mbar`` (:func:`_single_angles`)."""
     energies = outputs is None or outputs.energies
     with_points = outputs is None or bool(outputs.points)
     n = len(system.coordinates)
@@ -295,7 +300,7 @@ def prepare(system: KnownSystem, source: str = "", outputs=None, guarded_angles:
     qs = tuple(q_slots.values())
     constants = _Constants(list(p_slots.values()))
     equations = block(targets + r_targets, [constants(e) for e in exprs + [slot(e) for e in r]], "x", qs,
-                       guarded_angles)
+                       guarded_angles, plain=len(targets))
     mass = block(targets, exprs, "x", qs)
     velocity_terms = block([f"h[{i}]" for i in range(n)], [slot(e) for e in system.velocity_terms], "x", qs)
     forces = block([f"f[{i}]" for i in range(n)], [slot(e) for e in system.forces], "x", qs)
