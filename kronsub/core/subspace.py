@@ -23,7 +23,7 @@ from . import canonical
 from .inverse_trig import Radicands
 from .known_system import KnownSystem, ParameterInfo, ProjectedEffect, Transition
 from .placed import PlacedBodies, PlacedPoints, Placer
-from .primitive import Primitive, body_label
+from .primitive import Primitive, body_label, point_symbols
 from .simplify import compact
 from .symbols import free_symbols_of, velocity_symbol
 from .trigpoly import TrigAlgebra, TrigPoly
@@ -189,11 +189,13 @@ def project_inertia(sub: Subspace, primitive: Primitive, *, name: str = "",
     dimension = world_dimension(primitive)
 
     placer = Placer(sub.placement, dimension)
-    points = PlacedPoints({f"{part.name}.{label}": pos for part in primitive.parts
-                           for label, pos in part.points.items()}, placer)
-    for label, pos in points.unplaced.items():  # a point that moves with a velocity: at once
-        if any(not sympy.sympify(c).free_symbols.isdisjoint(sub.velocities) for c in pos):
-            points.place(label, placer.in_world(tuple(sub.moved(c) for c in pos)))
+    points = PlacedPoints(primitive.points(), placer)  # each part's built when first read
+    for part in primitive.parts:  # a point that moves with a velocity: at once
+        if point_symbols(part.points).isdisjoint(sub.velocities):
+            continue
+        for label, pos in part.points.items():
+            if any(not sympy.sympify(c).free_symbols.isdisjoint(sub.velocities) for c in pos):
+                points.place(f"{part.name}.{label}", placer.in_world(tuple(sub.moved(c) for c in pos)))
     bodies = PlacedBodies([Body(body.mass, body.centre, body.rotation, body.inertia, name=body_label(part, body))
                            for part in primitive.parts for body in part.bodies], placer)
     for i, body in enumerate(bodies.unplaced):  # a body that moves with a velocity: at once
