@@ -10,6 +10,7 @@ from click.testing import CliRunner
 from scipy.integrate import solve_ivp
 
 import kronsub
+import kronsub.errors
 from conftest import MODELS
 from kronsub.cli import main
 
@@ -109,3 +110,21 @@ def test_the_report_names_the_effects_applied_in_the_subspace(tmp_path, fmt, mar
     line = " ".join(result.output.split("applied directly in the subspace")[1].split("\n")[:3])
     for name in ("spring", "drag", "drive"):
         assert mark.replace("spring", name) in line, (fmt, line)
+
+
+
+EVERY_MODEL_FILE = sorted([*MODELS.rglob("*.yaml"), *(MODELS.parent / "tests" / "models").rglob("*.yaml")])
+
+
+@pytest.mark.parametrize("path", EVERY_MODEL_FILE, ids=lambda p: f"{p.parent.name}/{p.stem}")
+def test_force_and_potential_are_the_effects_own(path):
+    """`Effect.force_and_potential` builds ``V`` once for the default ``f = -dV/dx``: the very
+    force and potential each effect of every bundled and test model gives apart."""
+    try:
+        model = kronsub.load(path)
+    except kronsub.errors.ModelError:
+        pytest.skip("a model of the bad-input tests")
+    for effect in model.effects:
+        f, V = effect.force_and_potential(model.primitive)
+        assert [sympy.srepr(e) for e in f] == [sympy.srepr(e) for e in effect.generalized_force(model.primitive)]
+        assert sympy.srepr(V) == sympy.srepr(effect.potential(model.primitive))

@@ -354,21 +354,24 @@ def project_effects(sub: Subspace, primitive: Primitive, effects, only=None) -> 
                                        sub.moved(part.potentials.get(label, sympy.Integer(0))),
                                        translation=tuple(part.translations.get(label, ()))))
     generalized = _generalized_only(sub, primitive)
-    through = _through_primitive(sub, generalized)
+    through = None  # found for the first effect that names a generalized coordinate
     for effect in effects:
         if only is not None and effect.name not in only:
             continue
         named = effect.symbols() & generalized
-        if named and named <= through.keys():  # in the primitive after all: its force acts there
-            effect = effect.written_in(through)
-        f, V = effect.generalized_force(primitive), effect.potential(primitive)
+        if named:
+            through = _through_primitive(sub, generalized) if through is None else through
+            if named <= through.keys():  # in the primitive after all: its force acts there
+                effect = effect.written_in(through)
         direct = None
         if generalized and effect.symbols() & generalized:
             direct = effect.direct_force(primitive, sub.coords, sub.moved)  # written in xbar
         if direct is not None:
             out.append(ProjectedEffect(effect.name, sympy.zeros(len(sub.x), 1), sympy.Matrix(direct),
-                                       sub.moved(V), direct=True, translation=effect.translation(primitive)))
+                                       sub.moved(effect.potential(primitive)), direct=True,
+                                       translation=effect.translation(primitive)))
             continue
+        f, V = effect.force_and_potential(primitive)
         out.append(ProjectedEffect(effect.name, sympy.Matrix(f), _projected(sub, f), sub.moved(V),
                                    translation=effect.translation(primitive)))
     return out
