@@ -22,6 +22,7 @@ import tempfile
 from pathlib import Path
 
 import pytest
+import sympy
 from click.testing import CliRunner
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
@@ -329,6 +330,71 @@ def test_rank_deficient_connection_is_a_warning(tmp_path, body):
     assert re.match(re.escape(f"Warning: {path}:") + f"(?:{line}|{line + 1}):\\d+: ", warning), warning
     assert "rank 1 < 2" in warning and "q1=" in warning and "q2=" in warning  # says where
     assert "Equations of motion" in result.stdout  # the derivation still succeeds
+
+
+def test_rank_of_a_piecewise_connection_is_sampled_further(tmp_path):
+    """``abs`` makes ``C`` piecewise: full rank at the first sample (q2 > 0) does not decide,
+    the third (q2 < 0, where ``C_22 = 1 + sign(q2) = 0``) finds the rank lost."""
+    text = ("name: piecewise\ncomponents:\n  a: {type: particle1d, parameters: {mass: 1}}\n"
+            "  b: {type: particle1d, parameters: {mass: 1}}\n"
+            "coordinates: [q1, q2]\nconnection:\n  a_x: q1\n  b_x: q2 + abs(q2)\n")
+    result = derive(write(tmp_path, text))
+    assert_no_crash(result, 0)
+    warning = next(out for out in stderr_of(result).splitlines() if out.startswith("Warning:"))
+    assert "rank 1 < 2" in warning and "q2=-0.873" in warning, warning
+
+
+class _Sampled:
+    """A model as the rank check reads it: coordinates, parameter values, locations."""
+
+    coordinates = tuple(sympy.symbols("q1 q2"))
+    locations: dict = {}
+
+    def parameter_values(self):
+        return {}
+
+
+@pytest.mark.parametrize("analytic, first_in_domain, calls, warned", [
+    (True, True, 1, False),     # full rank at the first sample decides
+    (True, False, 2, False),    # the first outside the domain: the next decides
+    (False, True, 3, False),    # piecewise: every sample
+])
+def test_rank_check_stops_at_the_first_sample_that_decides(analytic, first_in_domain, calls, warned):
+    import warnings
+
+    from kronsub.model.derive import RankWarning, _sample_rank
+
+    seen = []
+
+    def f(q, p):
+        seen.append(q)
+        if not first_in_domain and len(seen) == 1:
+            raise ValueError("outside the domain")
+        return [[1.0, 0.0], [0.0, 1.0]]
+
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        _sample_rank(_Sampled(), f, [], 3, constant=False, analytic=analytic)
+    assert len(seen) == calls
+    assert any(issubclass(w.category, RankWarning) for w in caught) == warned
+
+
+def test_rank_check_warns_at_the_first_deficient_sample():
+    import warnings
+
+    from kronsub.model.derive import RankWarning, _sample_rank
+
+    seen = []
+
+    def f(q, p):
+        seen.append(q)
+        return [[1.0, 1.0], [1.0, 1.0]]
+
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        _sample_rank(_Sampled(), f, [], 3, constant=False, analytic=True)
+    assert len(seen) == 1 and [w.category for w in caught] == [RankWarning]
+    assert "rank 1 < 2" in str(caught[0].message)
 
 
 # ------------------------------------------------------------ known systems

@@ -437,6 +437,18 @@ def test_a_file_that_names_no_model_is_keyed_by_its_text_alone(monkeypatch):
     assert {path: loader.model_key(path) for path in BUNDLED} == keys
 
 
+def test_the_key_is_made_when_first_asked_for(cache):
+    """A derivation without the cache never makes the model's key (nor hashes kronsub's code);
+    asked for, it is the key the outline of the file gives (`model_key`), for every bundled model."""
+    from kronsub.model import derive, loader
+
+    for path in BUNDLED:
+        model = load_model(path, cache=False)
+        model.derive(cache=False)
+        assert "content_hash" not in model.__dict__
+        assert model.content_hash == loader.model_key(path) and model.content_hash
+
+
 @pytest.mark.parametrize("spec", ['  arm: {"mod\\x65l": arm.yaml}\n', "  arm: {? model : arm.yaml}\n"])
 def test_a_sub_model_named_in_escapes_still_counts(tmp_path, spec):
     from kronsub.model.loader import model_key

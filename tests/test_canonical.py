@@ -89,6 +89,44 @@ def test_monomial_products_merge_like_a_dictionary_would():
         assert _mono_mul(a, b) == reference(a, b), (a, b)
 
 
+def test_a_coefficient_is_divided_by_its_common_monomial_as_a_dictionary_would():
+    """`_common_monomial` and `_divided` (the common factor pulled out of a coefficient by
+    `to_expr`) against the plain dictionary arithmetic they stand for."""
+    from kronsub.core.trigpoly import _Q, _common_monomial, _content, _divided
+
+    def common_reference(coef):
+        monos = [dict(m) for m in coef]
+        out = {}
+        for i, e in monos[0].items():
+            es = [m.get(i) for m in monos]
+            if all(f is not None and (f > 0) == (e > 0) for f in es):
+                out[i] = min(es) if e > 0 else max(es)
+        return tuple(sorted(out.items()))
+
+    def divided_reference(coef, common, content):
+        out = {}
+        for m, c in coef.items():
+            d = dict(m)
+            for i, e in common:
+                d[i] -= e
+            out[tuple(sorted((i, e) for i, e in d.items() if e))] = c if content == 1 else c / content
+        return out
+
+    rng = random.Random(5)
+    exponents = [1, 2, 3, -1, -2, _Q(1, 2), _Q(-3, 2)]
+    for _ in range(3000):
+        coef = {}
+        for _ in range(rng.randint(1, 5)):
+            mono = tuple(sorted({rng.randint(0, 5): rng.choice(exponents) for _ in range(rng.randint(0, 4))}.items()))
+            coef[mono] = rng.choice([1, 2, -3, 6, _Q(1, 2), _Q(-5, 6)])
+        common = _common_monomial(coef)
+        assert common == common_reference(coef)
+        content = _content(coef.values())
+        divided, reference = _divided(coef, common, content), divided_reference(coef, common, content)
+        assert list(divided.items()) == list(reference.items())
+        assert [type(c) for c in divided.values()] == [type(c) for c in reference.values()]
+
+
 def test_the_order_key_sorts_as_sympy_compares():
     from functools import cmp_to_key
 

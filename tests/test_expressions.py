@@ -452,3 +452,24 @@ def test_parts_built_once_are_the_parts_built_each_time():
         with pytest.raises(ModelError) as alone:
             parse_expression(bad, NAMES, HERE)
         assert str(with_shared.value) == str(alone.value)
+
+
+@pytest.mark.parametrize("text", ["x/exp(-800)", "x*exp(400)*exp(400)", "x + exp(800) - exp(800)",
+                                  "x + 10**400", "sin(x)*2**2000"])
+def test_constants_made_in_combining_parts_are_checked(text):
+    """A constant sympy makes in combining the parts (``x/exp(-800)`` is ``x*exp(800)``) is
+    checked like one written: found by `is_number`, which stops at the first symbol."""
+    x = sympy.Symbol("x", real=True)
+    with pytest.raises(ModelError):
+        parse_expression(text, {"x": x}, HERE)
+
+
+def test_is_number_finds_the_constants_free_symbols_would():
+    """Every part of a parsed expression is a number (`Expr.is_number`) exactly when it has no
+    free symbol: the parser builds no undefined function, the one difference."""
+    names = {n: sympy.Symbol(n, real=True) for n in ("x", "y", "l1", "q1", "q2")}
+    for text in ["l1*sin(q1) + l1/2*sin(q2) - pi/2 + sqrt(2)*x", "-x*cos(q1 - pi/2) + exp(2)*atan2(y, 3)",
+                 "abs(x - 1)**(1/3) + log(2)*sign(y) + asin(1/3)*q1", "(x + 1)**2*tanh(1) + 7/3",
+                 "sqrt(l1**2 - x**2)/cosh(q2) + acos(1/2)"]:
+        for part in sympy.preorder_traversal(parse_expression(text, names, HERE)):
+            assert bool(part.is_number) == (not part.free_symbols), (text, part)

@@ -247,9 +247,42 @@ def test_a_derivation_places_no_point_and_no_body(tmp_path):
     spec.loader.exec_module(gen)
     path = tmp_path / "chain6.yaml"
     path.write_text(gen.chain_yaml(6), encoding="utf-8")
-    system = kronsub.load(path, cache=False).derive(cache=False)
+    model = kronsub.load(path, cache=False)
+    system = model.derive(cache=False)
     assert not system.points._placed and not system.bodies._placed
+    assert all(part.points._points is None for part in model.primitive.parts)  # nor built (ComponentPoints)
     assert system.mass_matrix.shape == (6, 6)
     first = system.points["rod6.b"]
     assert system.points["rod6.b"] is first and len(system.points._placed) == 1
+    assert [part.name for part in model.primitive.parts if part.points._points is not None] == ["rod6"]
     assert system.bodies[5] is system.bodies[5] and set(system.bodies._placed) == {5}
+
+
+EVERY_MODEL_FILE = sorted(str(p.relative_to(MODELS.parent)) for p in
+                          [*MODELS.rglob("*.yaml"), *(MODELS.parent / "tests" / "models").rglob("*.yaml")])
+
+
+@pytest.mark.parametrize("path", EVERY_MODEL_FILE)
+def test_points_built_when_read_are_those_built_at_once(path):
+    """A component's points are built when first read (`ComponentPoints`): the very points
+    `Component.all_points` builds, in its order, with no symbol `ComponentPoints.symbols` does
+    not name; the primitive's (`PrimitivePoints`) are the same read one by one or listed."""
+    from kronsub.components.base import ComponentPoints
+    from kronsub.core.symbols import free_symbols_of
+
+    try:
+        model = kronsub.load(MODELS.parent / path)
+    except kronsub.errors.ModelError:
+        pytest.skip("a model of the bad-input tests")
+    parts = model.primitive.parts
+    for part in parts:
+        if isinstance(part.points, ComponentPoints):
+            at_once = part.points._component.all_points()
+            assert list(part.points) == list(at_once)
+            assert {k: sympy.srepr(v) for k, v in part.points.items()} == {k: sympy.srepr(v) for k, v in at_once.items()}
+            assert free_symbols_of([c for pos in at_once.values() for c in pos]) <= part.points.symbols()
+    listed = {f"{part.name}.{label}": pos for part in parts for label, pos in part.points.items()}
+    one_by_one = model.primitive.points()
+    assert {label: one_by_one[label] for label in listed} == listed and one_by_one._all is None
+    assert list(one_by_one) == list(listed) and len(one_by_one) == len(listed)
+    assert "no.such.point" not in one_by_one and f"{parts[0].name}.no_such_point" not in one_by_one

@@ -10,6 +10,7 @@ from click.testing import CliRunner
 from scipy.integrate import solve_ivp
 
 import kronsub
+import kronsub.errors
 from conftest import MODELS
 from kronsub.cli import main
 
@@ -109,3 +110,50 @@ def test_the_report_names_the_effects_applied_in_the_subspace(tmp_path, fmt, mar
     line = " ".join(result.output.split("applied directly in the subspace")[1].split("\n")[:3])
     for name in ("spring", "drag", "drive"):
         assert mark.replace("spring", name) in line, (fmt, line)
+
+
+
+EVERY_MODEL_FILE = sorted([*MODELS.rglob("*.yaml"), *(MODELS.parent / "tests" / "models").rglob("*.yaml")])
+
+
+@pytest.mark.parametrize("path", EVERY_MODEL_FILE, ids=lambda p: f"{p.parent.name}/{p.stem}")
+def test_force_and_potential_are_the_effects_own(path):
+    """`Effect.force_and_potential` builds ``V`` once for the default ``f = -dV/dx``: the very
+    force and potential each effect of every bundled and test model gives apart."""
+    try:
+        model = kronsub.load(path)
+    except kronsub.errors.ModelError:
+        pytest.skip("a model of the bad-input tests")
+    for effect in model.effects:
+        f, V = effect.force_and_potential(model.primitive)
+        assert [sympy.srepr(e) for e in f] == [sympy.srepr(e) for e in effect.generalized_force(model.primitive)]
+        assert sympy.srepr(V) == sympy.srepr(effect.potential(model.primitive))
+
+
+@pytest.mark.parametrize("path", EVERY_MODEL_FILE, ids=lambda p: f"{p.parent.name}/{p.stem}")
+def test_gravity_built_in_one_sum_is_the_sum_body_by_body(path):
+    """Gravity's ``V`` and ``dV/do`` are built as one sum each (`Gravity.potential`,
+    `Gravity.translation`): the very expressions adding one body (one part) at a time gives."""
+    from kronsub.effects.base import dot
+    from kronsub.effects.gravity import Gravity
+
+    try:
+        model = kronsub.load(path)
+    except kronsub.errors.ModelError:
+        pytest.skip("a model of the bad-input tests")
+    for effect in [e for e in model.effects if isinstance(e, Gravity)]:
+        units = [(name, [c / sympy.sqrt(sum(c**2 for c in d)) for c in d]) for name, d in effect.parts]
+        total = sympy.Integer(0)
+        for name, unit in units:
+            for body in model.primitive.part(name).bodies:
+                if body.mass != 0:
+                    total -= body.mass * effect.g * dot(unit, body.centre)
+        assert sympy.srepr(effect.potential(model.primitive)) == sympy.srepr(sympy.expand(total))
+        weights: list = []
+        for name, unit in units:
+            mass = sympy.Add(*[b.mass for b in model.primitive.part(name).bodies])
+            weights += [sympy.Integer(0)] * (len(unit) - len(weights))
+            for i, c in enumerate(unit):
+                weights[i] -= mass * effect.g * c
+        assert [sympy.srepr(t) for t in effect.translation(model.primitive)] == \
+            [sympy.srepr(sympy.expand(t)) for t in weights]

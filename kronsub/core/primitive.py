@@ -6,15 +6,15 @@ interconnected, the forces being the same as those acting externally".
 """
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import Mapping
 
 import sympy
 
-from ..components.base import Body, Component
+from ..components.base import Body, Component, ComponentPoints
 from . import canonical
 from .derivative import derivative
-from .symbols import velocity_symbol
+from .symbols import free_symbols_of, velocity_symbol
 
 
 def christoffel_terms(metric: sympy.Matrix, coordinates, velocities) -> sympy.Matrix:
@@ -78,8 +78,48 @@ def part_from_component(name: str, component: Component) -> Part:
     coords = component.coordinate_symbols
     metric = sympy.Matrix(component.metric())
     h = christoffel_terms(metric, coords, [velocity_symbol(q) for q in coords])
-    return Part(name, coords, metric, h, component.all_points(), tuple(component.bodies()),
+    return Part(name, coords, metric, h, ComponentPoints(component), tuple(component.bodies()),
                 component.dimension, type_name=component.type_name)
+
+
+def point_symbols(points: Mapping) -> set:
+    """Every symbol a part's points may hold; a component's are known without building them
+    (`ComponentPoints.symbols`)."""
+    if isinstance(points, ComponentPoints):
+        return points.symbols()
+    return free_symbols_of([c for pos in points.values() for c in pos])
+
+
+class PrimitivePoints(Mapping):
+    """Every named point of a primitive, as ``part.point``. Reading one builds the points of
+    its part alone (`ComponentPoints`); listing them builds every part's."""
+
+    def __init__(self, parts: tuple[Part, ...]):
+        self._parts = parts
+        self._all: dict | None = None
+
+    def _labelled(self) -> dict[str, tuple[sympy.Expr, ...]]:
+        if self._all is None:
+            self._all = {f"{part.name}.{label}": pos for part in self._parts for label, pos in part.points.items()}
+        return self._all
+
+    def __getitem__(self, label: str) -> tuple[sympy.Expr, ...]:
+        if self._all is not None:
+            return self._all[label]
+        for part in reversed(self._parts):  # the last part of the label wins, as in the listing
+            prefix = f"{part.name}."
+            if label.startswith(prefix) and label[len(prefix):] in part.points:
+                return part.points[label[len(prefix):]]
+        raise KeyError(label)
+
+    def __iter__(self):
+        return iter(self._labelled())
+
+    def __len__(self) -> int:
+        return len(self._labelled())
+
+    def __repr__(self) -> str:
+        return f"PrimitivePoints({self._labelled()!r})"
 
 
 @dataclass(frozen=True)
@@ -124,9 +164,9 @@ class Primitive:
             yield offset, part
             offset += len(part.coordinates)
 
-    def points(self) -> dict[str, tuple[sympy.Expr, ...]]:
-        """Every named point, as ``part.point``."""
-        return {f"{part.name}.{name}": pos for part in self.parts for name, pos in part.points.items()}
+    def points(self) -> PrimitivePoints:
+        """Every named point, as ``part.point`` (each part's built when first read)."""
+        return PrimitivePoints(self.parts)
 
     def bodies_by_name(self) -> dict[str, tuple[Part, int]]:
         """Every body, by the name a model gives it (`body_label`): its part and its place there."""

@@ -23,7 +23,7 @@ from . import canonical
 from .inverse_trig import Radicands
 from .known_system import KnownSystem, ParameterInfo, ProjectedEffect, Transition
 from .placed import PlacedBodies, PlacedPoints, Placer
-from .primitive import Primitive, body_label
+from .primitive import Primitive, body_label, point_symbols
 from .simplify import compact
 from .symbols import free_symbols_of, velocity_symbol
 from .trigpoly import TrigAlgebra, TrigPoly
@@ -189,14 +189,15 @@ def project_inertia(sub: Subspace, primitive: Primitive, *, name: str = "",
     dimension = world_dimension(primitive)
 
     placer = Placer(sub.placement, dimension)
-    points = PlacedPoints({f"{part.name}.{label}": pos for part in primitive.parts
-                           for label, pos in part.points.items()}, placer)
+    points = PlacedPoints(primitive.points(), placer)  # each part's built when first read
     bodies = PlacedBodies([Body(body.mass, body.centre, body.rotation, body.inertia, name=body_label(part, body))
                            for part in primitive.parts for body in part.bodies], placer)
-    located = [c for pos in points.unplaced.values() for c in pos] + \
-        [c for body in bodies.unplaced for c in [*body.centre, *([body.rotation] if body.rotation is not None else [])]]
-    if not free_symbols_of(located).isdisjoint(sub.velocities):  # one walk of their shared subtrees
-        _place_moving(sub, placer, points, bodies)
+    # a point or body that moves with a velocity is placed at once: a component tells which
+    # symbols its points may hold without building them; the bodies are walked once together
+    moving = [part for part in primitive.parts if not point_symbols(part.points).isdisjoint(sub.velocities)]
+    located = [c for body in bodies.unplaced for c in [*body.centre, *([body.rotation] if body.rotation is not None else [])]]
+    if moving or not free_symbols_of(located).isdisjoint(sub.velocities):
+        _place_moving(sub, placer, points, bodies, moving)
     return KnownSystem(
         name=name,
         coordinates=sub.coords,
@@ -213,12 +214,14 @@ def project_inertia(sub: Subspace, primitive: Primitive, *, name: str = "",
     )
 
 
-def _place_moving(sub: Subspace, placer: Placer, points: PlacedPoints, bodies: PlacedBodies) -> None:
-    """Place at once the points and bodies whose positions have a velocity in them (no bundled
-    model has one): placing them later would put those velocities through ``x -> x(xbar)``."""
-    for label, pos in points.unplaced.items():
-        if not free_symbols_of(pos).isdisjoint(sub.velocities):
-            points.place(label, placer.in_world(tuple(sub.moved(c) for c in pos)))
+def _place_moving(sub: Subspace, placer: Placer, points: PlacedPoints, bodies: PlacedBodies, parts) -> None:
+    """Place at once the points (of ``parts``) and bodies whose positions have a velocity in
+    them (no bundled model has one): placing them later would put those velocities through
+    ``x -> x(xbar)``."""
+    for part in parts:
+        for label, pos in part.points.items():
+            if not free_symbols_of(pos).isdisjoint(sub.velocities):
+                points.place(f"{part.name}.{label}", placer.in_world(tuple(sub.moved(c) for c in pos)))
     for i, body in enumerate(bodies.unplaced):
         if not free_symbols_of([*body.centre, *([body.rotation] if body.rotation is not None else [])]) \
                 .isdisjoint(sub.velocities):
@@ -361,21 +364,24 @@ def project_effects(sub: Subspace, primitive: Primitive, effects, only=None) -> 
                                        sub.moved(part.potentials.get(label, sympy.Integer(0))),
                                        translation=tuple(part.translations.get(label, ()))))
     generalized = _generalized_only(sub, primitive)
-    through = _through_primitive(sub, generalized)
+    through = None  # found for the first effect that names a generalized coordinate
     for effect in effects:
         if only is not None and effect.name not in only:
             continue
         named = effect.symbols() & generalized
-        if named and named <= through.keys():  # in the primitive after all: its force acts there
-            effect = effect.written_in(through)
-        f, V = effect.generalized_force(primitive), effect.potential(primitive)
+        if named:
+            through = _through_primitive(sub, generalized) if through is None else through
+            if named <= through.keys():  # in the primitive after all: its force acts there
+                effect = effect.written_in(through)
         direct = None
         if generalized and effect.symbols() & generalized:
             direct = effect.direct_force(primitive, sub.coords, sub.moved)  # written in xbar
         if direct is not None:
             out.append(ProjectedEffect(effect.name, sympy.zeros(len(sub.x), 1), sympy.Matrix(direct),
-                                       sub.moved(V), direct=True, translation=effect.translation(primitive)))
+                                       sub.moved(effect.potential(primitive)), direct=True,
+                                       translation=effect.translation(primitive)))
             continue
+        f, V = effect.force_and_potential(primitive)
         out.append(ProjectedEffect(effect.name, sympy.Matrix(f), _projected(sub, f), sub.moved(V),
                                    translation=effect.translation(primitive)))
     return out

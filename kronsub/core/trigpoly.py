@@ -322,6 +322,8 @@ class TrigAlgebra:
         self._cache: dict[sympy.Expr, TrigPoly] = {}
         self._trig_cache: dict[tuple[int, Freq], sympy.Expr] = {}
         self._trig_factors: dict[tuple[int, Freq], tuple] = {}
+        self._angles: dict[Freq, tuple[int, sympy.Expr]] = {}
+        self._signed: dict[tuple, sympy.Rational] = {}
         self._mono_cache: dict[Mono, sympy.Expr] = {}
         self._coefficient_cache: dict[frozenset, sympy.Expr] = {}
         self._power_cache: dict[tuple[int, int | Fraction], sympy.Expr] = {}
@@ -492,18 +494,20 @@ class TrigAlgebra:
         key = (kind, freq)
         hit = self._trig_cache.get(key)
         if hit is None:
-            if not freq:
-                hit = sympy.Integer(1)
-            else:
-                # Built in canonical form, with sympy's own choice of sign, so the
-                # result is the very object ``cos(arg)`` would evaluate to.
-                sign = -1 if self._minus_sign(freq) else 1
-                arg = canonical.add([canonical.mul(_rational(sign * v), [self.coordinates[i]]) for i, v in freq])
-                if kind == COS:
-                    hit = canonical.function(sympy.cos, arg)
-                else:
-                    hit = canonical.mul(sympy.Integer(sign), [canonical.function(sympy.sin, arg)])
-            self._trig_cache[key] = hit
+            # Built in canonical form, with sympy's own choice of sign, so the
+            # result is the very object ``cos(arg)`` would evaluate to.
+            sign, trig = self._trig_factor(kind, freq)
+            hit = self._trig_cache[key] = canonical.mul(sign, list(trig)) if trig else sympy.Integer(1)
+        return hit
+
+    def _angle(self, freq: Freq) -> tuple[int, sympy.Expr]:
+        """``(sign, arg)``: the argument sympy writes for ``freq . q`` (``q1 - q2``, never
+        ``q2 - q1``) and the sign taken out for it; each once, for its sine and its cosine."""
+        hit = self._angles.get(freq)
+        if hit is None:
+            sign = -1 if self._minus_sign(freq) else 1
+            arg = canonical.add([canonical.mul(_rational(sign * v), [self.coordinates[i]]) for i, v in freq])
+            hit = self._angles[freq] = sign, arg
         return hit
 
     def _minus_sign(self, freq: Freq) -> bool:
@@ -551,7 +555,7 @@ class TrigAlgebra:
                 if len(powers) == 1 and powers[0].is_Add:  # c*(a + b) distributes before trig joins
                     parts.append(canonical.mul(sign, [canonical.mul(_rational(c), powers), *trig]))
                 else:
-                    parts.append(canonical.mul(_rational(c) * sign, [*powers, *trig]))
+                    parts.append(canonical.mul(self._times_sign(c, sign), [*powers, *trig]))
                 continue
             common = _common_monomial(coef)
             if not common:
@@ -559,7 +563,7 @@ class TrigAlgebra:
                 continue
             content = _content(coef.values())
             inner = _divided(coef, common, content)
-            parts.append(canonical.mul(_rational(_num(_Q(content))) * sign,
+            parts.append(canonical.mul(self._times_sign(content, sign),
                                        [*self._powers(common), self._coefficient(inner), *trig]))
         return canonical.add(parts)
 
@@ -590,20 +594,29 @@ class TrigAlgebra:
                 [canonical.mul(_rational(c), self._powers(mono)) for mono, c in coef.items()])
         return hit
 
-    def _trig_factor(self, kind: int, freq: Freq) -> tuple[sympy.Integer, list[sympy.Expr]]:
-        """``trig_expr`` as (sign, [function value]): ``[]`` for ``cos(0)`` (each once)."""
+    def _trig_factor(self, kind: int, freq: Freq) -> tuple[sympy.Integer, tuple[sympy.Expr, ...]]:
+        """`trig_expr` as (sign, (function value,)): ``()`` for ``cos(0)`` (each once): sympy
+        takes the sign out of a sine, ``sin(q2 - q1) = -sin(q1 - q2)``, not out of a cosine."""
         key = (kind, freq)
         hit = self._trig_factors.get(key)
         if hit is None:
-            expr = self.trig_expr(kind, freq)
             if not freq:
                 hit = sympy.S.One, ()
-            elif expr.is_Mul:
-                sign, rest = expr.as_coeff_Mul()
-                hit = sign, (rest,)
             else:
-                hit = sympy.S.One, (expr,)
+                sign, arg = self._angle(freq)
+                if kind == COS:
+                    hit = sympy.S.One, (canonical.function(sympy.cos, arg),)
+                else:
+                    hit = sympy.Integer(sign), (canonical.function(sympy.sin, arg),)
             self._trig_factors[key] = hit
+        return hit
+
+    def _times_sign(self, c, sign: sympy.Integer) -> sympy.Rational:
+        """``c * sign`` as a sympy number (each once: the same few recur in every entry)."""
+        key = (c, sign)
+        hit = self._signed.get(key)
+        if hit is None:
+            hit = self._signed[key] = _rational(_num(_Q(c))) * sign
         return hit
 
     def numeric(self, values: dict) -> "NumericPoint":
@@ -662,11 +675,14 @@ def used_atoms(p: TrigPoly) -> set[int]:
 
 
 def _divided(coef: Coef, common: Mono, content) -> Coef:
-    """``coef / (content * common)``, term by term (``common`` divides every monomial)."""
-    inverse = tuple((i, -e) for i, e in common)
-    if content == 1:
-        return {_mono_mul(m, inverse): c for m, c in coef.items()}
-    return {_mono_mul(m, inverse): c / content for m, c in coef.items()}
+    """``coef / (content * common)``, term by term (``common`` divides every monomial, so each
+    of its atoms is in every monomial: subtracted, or left out where it goes to zero)."""
+    divisor = dict(common)
+    out: Coef = {}
+    for m, c in coef.items():
+        mono = tuple([(i, e - divisor[i]) if i in divisor else (i, e) for i, e in m if divisor.get(i) != e])
+        out[mono] = c if content == 1 else c / content
+    return out
 
 
 def _common_monomial(coef: Coef) -> Mono:
@@ -677,12 +693,12 @@ def _common_monomial(coef: Coef) -> Mono:
         if not exps:
             return ()
         here = dict(mono)
-        for i in list(exps):
-            e, f = exps[i], here.get(i)
+        for i, e in list(exps.items()):
+            f = here.get(i)
             if f is None or (e > 0) != (f > 0):
                 del exps[i]
-            else:
-                exps[i] = min(e, f) if e > 0 else max(e, f)
+            elif (f < e) if e > 0 else (f > e):
+                exps[i] = f
     return tuple(sorted(exps.items()))
 
 

@@ -36,6 +36,13 @@ class Effect:
         """``f_a`` over the primitive coordinates (default: ``-dV/dx^a``)."""
         return [-g for g in primitive.gradient(self.potential(primitive))]
 
+    def force_and_potential(self, primitive: Primitive) -> tuple[list[sympy.Expr], sympy.Expr]:
+        """``(f_a, V)``, with ``V`` built once for the default force ``f_a = -dV/dx^a``."""
+        V = self.potential(primitive)
+        if type(self).generalized_force is Effect.generalized_force:
+            return [-g for g in primitive.gradient(V)], V
+        return self.generalized_force(primitive), V
+
     def symbols(self) -> set:
         """Every symbol in the effect's own fields (its angle, stiffness, vector, coordinate...)."""
         found: set = set()

@@ -200,8 +200,9 @@ def check_subspace_rank(model, sub: Subspace, samples: int = 3) -> None:
         at = algebra.numeric({**dict(zip(sub.coords, q)), **dict(zip(symbols, p))})
         return [[at(entry) for entry in row] for row in sub.C]
 
-    _sample_rank(model, f, symbols, samples, constant=not symbols and not any(
-        freq for row in sub.C for entry in row for (_, freq) in entry.terms))
+    _sample_rank(model, f, symbols, samples,
+                 constant=not symbols and not any(algebra.depends_on(entry) for row in sub.C for entry in row),
+                 analytic=not any(a.has(*_PIECEWISE) for a in atoms))
 
 
 def check_rank(model, C: sympy.Matrix, samples: int = 3) -> None:
@@ -220,12 +221,22 @@ def check_rank(model, C: sympy.Matrix, samples: int = 3) -> None:
     else:  # a constant C (a linear connection): one look suffices
         constant = [[float(e) for e in row] for row in C.tolist()]
         f, samples = (lambda q, p: constant), 1
-    _sample_rank(model, f, symbols, samples, constant=not C.free_symbols)
+    _sample_rank(model, f, symbols, samples, constant=not C.free_symbols, analytic=not C.has(*_PIECEWISE))
 
 
-def _sample_rank(model, f, symbols, samples: int, constant: bool) -> None:
+_PIECEWISE = (sympy.Abs, sympy.sign, sympy.Heaviside, sympy.DiracDelta, sympy.Piecewise)
+"""What makes ``C`` piecewise (``abs`` and ``sign`` in a connection): full rank in one piece
+says nothing of another."""
+
+
+def _sample_rank(model, f, symbols, samples: int, constant: bool, analytic: bool = False) -> None:
     """Warn at the first of ``samples`` random configurations where ``f(q, p)`` (``C``) has
-    rank below the number of coordinates."""
+    rank below the number of coordinates.
+
+    An ``analytic`` ``C`` is decided by the first configuration inside the connection's
+    domain: with full rank there, a minor of ``C`` is a nonzero analytic function of the
+    configuration, zero only on a set of measure zero that further random samples would not
+    find either. The other samples are then drawn only past configurations outside the domain."""
     coords = model.coordinates
     values = model.parameter_values()
     rng = np.random.default_rng(20261121)
@@ -247,4 +258,6 @@ def _sample_rank(model, f, symbols, samples: int, constant: bool) -> None:
             warnings.warn(RankWarning(
                 f"{prefix}C = dx/dxbar has rank {rank} < {len(coords)} at {where}: the generalized "
                 "coordinates are not independent there"))
+            return
+        if analytic:
             return

@@ -464,13 +464,13 @@ class _Builder:
         value = getattr(self, method)(node, depth + 1)
         if value.bits > MAX_BITS:
             self.fail(node, "builds numbers that are too large", "use smaller numbers or exponents")
-        if not value.expr.has(*_UNDEFINED):  # those are reported by build_all
-            if not value.expr.free_symbols:
-                self._check_constant(node, value.expr)
-            else:  # constants sympy made in combining the parts: x/exp(-800) is x*exp(800)
-                for arg in value.expr.args:
-                    if not arg.free_symbols:
-                        self._check_constant(node, arg)
+        # a constant, or the constants sympy made in combining the parts (x/exp(-800) is
+        # x*exp(800)); `is_number` stops at the first symbol, where `free_symbols` walks all
+        expr = value.expr
+        constants = [expr] if expr.is_number else [arg for arg in expr.args if arg.is_number]
+        if constants and not expr.has(*_UNDEFINED):  # those are reported by build_all
+            for constant in constants:
+                self._check_constant(node, constant)
         return value
 
     def _check_constant(self, node: ast.AST, expr: sympy.Expr) -> None:

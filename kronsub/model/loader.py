@@ -350,8 +350,7 @@ class _Loader:
             effects=tuple(effects),
             initial=initial,
             scenes=scenes,
-            content_hash=content_key(derivation_text(self.root, self.text), *self.sub_hashes)
-            if self.text is not None else "",
+            key_texts=(derivation_text(self.root, self.text), *self.sub_hashes) if self.text is not None else (),
             locations=self.locations,
             implicit=implicit,
         )

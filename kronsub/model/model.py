@@ -5,6 +5,7 @@ equations. Deriving returns a new :class:`~kronsub.core.known_system.KnownSystem
 """
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass, field
 from typing import Mapping
 
@@ -48,10 +49,18 @@ class Model:
     connection: Mapping[sympy.Symbol, sympy.Expr]
     effects: tuple[Effect, ...]
     initial: Mapping[sympy.Symbol, sympy.Expr] = field(default_factory=dict)
-    content_hash: str = ""
+    key_texts: tuple[str, ...] = ()  # what `content_hash` is made of: the file's text, its sub-models' keys
     locations: Mapping[str, Location] = field(default_factory=dict)
     scenes: tuple = ()  # of :class:`~kronsub.model.scenes.Scene`, in file order
     implicit: ImplicitSpec | None = None  # constraints: g(y) = 0
+
+    @functools.cached_property
+    def content_hash(self) -> str:
+        """The model's cache key (:func:`~kronsub.model.derive.content_key`), made when first
+        asked for: a derivation without the cache never needs it (nor hashes kronsub's code)."""
+        from .derive import content_key
+
+        return content_key(*self.key_texts) if self.key_texts else ""
 
     def derive(self, *, cache: bool = True) -> KnownSystem:
         """The equations of motion by projection onto the subspace (9'), (E), (F)."""

@@ -55,7 +55,7 @@ def build_scenes(loader, node: Node | None, declared_effects, primitive, coords)
     """Read ``scenes:``; problems go to the loader. ``declared_effects`` are the names under
     ``effects:``; a known system's own effects are named ``part.effect``."""
     labels = [label for label in effect_labels(primitive, ()) if "." in label] + list(declared_effects)
-    points = sorted(primitive.points())
+    points = primitive.points()  # listed (every part's points built) only for a scene's `outputs:`
     scenes = []
     for sname, spec in loader.mapping(node, "scenes", "write `scenes: {free: {effects: [gravity]}}`").items():
         if not loader.identifier(sname, node.key_locations[sname], "scene"):
@@ -167,7 +167,8 @@ def _outputs(loader, node: Node | None, points, sname: str) -> Outputs:
     """``outputs: [coordinates, velocities, energies, points | <named point>...]``."""
     if node is None:
         return Outputs(points=())
-    valid = list(OUTPUT_KINDS) + list(points)
+    points = sorted(points)
+    valid = list(OUTPUT_KINDS) + points
     names = _names(loader, node, valid, f"`outputs:` of scene '{sname}'", "output") or []
     chosen = [n for n in names if n in points]
     if "points" in names:
