@@ -250,11 +250,11 @@ def test_a_derivation_places_no_point_and_no_body(tmp_path):
     model = kronsub.load(path, cache=False)
     system = model.derive(cache=False)
     assert not system.points._placed and not system.bodies._placed
-    assert all(part.points._points is None for part in model.primitive.parts)  # nor built (ComponentPoints)
+    assert all(part.points._all is None for part in model.primitive.parts)  # nor built (ComponentPoints)
     assert system.mass_matrix.shape == (6, 6)
     first = system.points["rod6.b"]
     assert system.points["rod6.b"] is first and len(system.points._placed) == 1
-    assert [part.name for part in model.primitive.parts if part.points._points is not None] == ["rod6"]
+    assert [part.name for part in model.primitive.parts if part.points._all is not None] == ["rod6"]
     assert system.bodies[5] is system.bodies[5] and set(system.bodies._placed) == {5}
 
 

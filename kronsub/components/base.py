@@ -117,21 +117,19 @@ class Component:
         return tuple(self.x[name] for name in self.coordinates)
 
 
-class ComponentPoints(Mapping):
-    """A component's points (`Component.all_points`), built when first read, all at once.
+class PointsOnRead(Mapping):
+    """Named points built in full (``_build``) when first read."""
 
-    ``Mbar``, ``hbar`` and ``fbar`` (D), (E), (F) need none of them; the energies, the
-    animation, a scene's outputs, the cache and the effects that name a point do. A planar
-    body's ``x + u cos(a) - v sin(a)`` costs sympy about half a millisecond a body."""
+    def __init__(self):
+        self._all: dict | None = None
 
-    def __init__(self, component: Component):
-        self._component = component
-        self._points: dict | None = None
+    def _build(self) -> dict[str, tuple[sympy.Expr, ...]]:
+        raise NotImplementedError
 
     def _built(self) -> dict[str, tuple[sympy.Expr, ...]]:
-        if self._points is None:
-            self._points = self._component.all_points()
-        return self._points
+        if self._all is None:
+            self._all = self._build()
+        return self._all
 
     def __getitem__(self, label: str) -> tuple[sympy.Expr, ...]:
         return self._built()[label]
@@ -143,7 +141,22 @@ class ComponentPoints(Mapping):
         return len(self._built())
 
     def __repr__(self) -> str:
-        return f"ComponentPoints({self._built()!r})"
+        return f"{type(self).__name__}({self._built()!r})"
+
+
+class ComponentPoints(PointsOnRead):
+    """A component's points (`Component.all_points`), built when first read, all at once.
+
+    ``Mbar``, ``hbar`` and ``fbar`` (D), (E), (F) need none of them; the energies, the
+    animation, a scene's outputs, the cache and the effects that name a point do. A planar
+    body's ``x + u cos(a) - v sin(a)`` costs sympy about half a millisecond a body."""
+
+    def __init__(self, component: Component):
+        super().__init__()
+        self._component = component
+
+    def _build(self) -> dict[str, tuple[sympy.Expr, ...]]:
+        return self._component.all_points()
 
     def symbols(self) -> set:
         """Every symbol a point may hold, without building the points: a component's points

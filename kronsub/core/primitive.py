@@ -11,7 +11,7 @@ from dataclasses import dataclass, field
 
 import sympy
 
-from ..components.base import Body, Component, ComponentPoints
+from ..components.base import Body, Component, ComponentPoints, PointsOnRead
 from . import canonical
 from .derivative import derivative
 from .symbols import free_symbols_of, velocity_symbol
@@ -90,18 +90,16 @@ def point_symbols(points: Mapping) -> set:
     return free_symbols_of([c for pos in points.values() for c in pos])
 
 
-class PrimitivePoints(Mapping):
+class PrimitivePoints(PointsOnRead):
     """Every named point of a primitive, as ``part.point``. Reading one builds the points of
     its part alone (`ComponentPoints`); listing them builds every part's."""
 
     def __init__(self, parts: tuple[Part, ...]):
+        super().__init__()
         self._parts = parts
-        self._all: dict | None = None
 
-    def _labelled(self) -> dict[str, tuple[sympy.Expr, ...]]:
-        if self._all is None:
-            self._all = {f"{part.name}.{label}": pos for part in self._parts for label, pos in part.points.items()}
-        return self._all
+    def _build(self) -> dict[str, tuple[sympy.Expr, ...]]:
+        return {f"{part.name}.{label}": pos for part in self._parts for label, pos in part.points.items()}
 
     def __getitem__(self, label: str) -> tuple[sympy.Expr, ...]:
         if self._all is not None:
@@ -111,15 +109,6 @@ class PrimitivePoints(Mapping):
             if label.startswith(prefix) and label[len(prefix):] in part.points:
                 return part.points[label[len(prefix):]]
         raise KeyError(label)
-
-    def __iter__(self):
-        return iter(self._labelled())
-
-    def __len__(self) -> int:
-        return len(self._labelled())
-
-    def __repr__(self) -> str:
-        return f"PrimitivePoints({self._labelled()!r})"
 
 
 @dataclass(frozen=True)
