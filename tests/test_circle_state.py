@@ -8,6 +8,7 @@ circle state against a run in ``[q; qdot]`` of the same model and tolerances.
 from __future__ import annotations
 
 import shutil
+import sys
 
 import numpy as np
 import pytest
@@ -21,7 +22,9 @@ from kronsub.model.scenes import derive_scene, select_scene
 from kronsub.simulation.compiled import compiled_library
 from kronsub.simulation.native import NativeModel
 from kronsub.simulation.values import resolve
-from models.chain.generate import chain_yaml
+
+sys.path.insert(0, str(MODELS / "chain"))
+from generate import chain_yaml  # noqa: E402
 
 needs_cc = pytest.mark.skipif(shutil.which("gcc") is None, reason="no C compiler")
 Q = sympy.symbols("q[0] q[1] q[2]")

@@ -314,8 +314,12 @@ def test_written_out_solve_is_the_loops_to_the_last_bit(tmp_path, monkeypatch):
     """``code.ldlt_lines`` writes the ``L D L^T`` solve out in scalars in the loops' order of
     operations: the 6-link chain's accelerations agree bit for bit with the loop version (the
     one emitted beyond ``WRITTEN_OUT`` coordinates) at random states."""
+    import sys
+
     from kronsub.emitters import code
-    from models.chain.generate import chain_yaml
+
+    sys.path.insert(0, str(ROOT / "models" / "chain"))
+    from generate import chain_yaml
 
     system = kronsub.load("chain6.yaml", text=chain_yaml(6)).derive()
     libs = []
