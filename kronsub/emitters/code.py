@@ -144,7 +144,6 @@ def emit_c(system: KnownSystem, stem: str, source: str = "", prefix: str = "ks",
     if circle_block is not None:
         ctx["b"]["circle"] = _lines(circle_block, printer.doprint, "const double ", ";")
     ctx["circle"] = [(k, i, model.coordinates[i]) for k, i in enumerate(circle)]
-    ctx["circle_angles"] = list(circle)
     stem = file_stem(stem)
     ctx.update(near_axis=printer.near_axis, ldlt=ldlt_lines(model.n) if 0 < model.n <= WRITTEN_OUT else None,
                p=Markup(p), P=Markup(p.upper()), header=Markup(f"{stem}.h"),
