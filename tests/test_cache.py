@@ -129,6 +129,15 @@ def _mutations(data: dict):
     self_ref = [list(n) for n in nodes]
     self_ref[first_op] = [self_ref[first_op][0], first_op, *self_ref[first_op][2:]]
     yield "reference to itself", {**data, "nodes": self_ref}
+    for why, ref in (("negative", -1), ("bool", True), ("float", 0.0), ("string", "0"), ("list", [0])):
+        bad = [list(n) for n in nodes]
+        bad[first_op] = [bad[first_op][0], ref, *bad[first_op][2:]]
+        yield f"{why} reference", {**data, "nodes": bad}
+    last_function = max(i for i, n in enumerate(nodes) if n[0] in ("sin", "cos", "Pow"))
+    for why, ref in (("negative", -1), ("bool", True), ("later", len(nodes))):
+        bad = [list(n) for n in nodes]
+        bad[last_function] = [bad[last_function][0], ref, *bad[last_function][2:]]
+        yield f"{why} reference of a function or power", {**data, "nodes": bad}
     yield "unknown class", json.loads(_text(data).replace('"c":"Body"', '"c":"Popen"', 1))
     value = json.loads(json.dumps(data["value"]))
     value["f"]["__class__"] = None

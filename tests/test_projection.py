@@ -188,6 +188,43 @@ def test_a_subspace_that_only_renames_is_known_to_have_full_rank(tmp_path):
     assert not Subspace(model.primitive, model.coordinates, model.connection).only_renames(model.primitive)
 
 
+@pytest.mark.parametrize("renamed, coords", [("", "[theta, phi]"), ("", "[phi, theta]"),
+                                             (", coordinates: {theta: a, phi: b}", "[b, a]")])
+def test_a_renaming_writes_c_and_the_velocities_without_the_algebra(tmp_path, renamed, coords):
+    """A subspace that only renames (a known system reused, its coordinates permuted or named
+    anew) writes ``C`` as ones and zeros and each velocity's image as the new coordinate's
+    velocity, without building ``C`` in the algebra: both equal what the algebra makes of them,
+    and ``C`` is built only when something asks for it."""
+    from kronsub.core import canonical
+    from kronsub.core.simplify import compact
+    from kronsub.core.subspace import Subspace
+    from kronsub.core.symbols import velocity_symbol
+
+    arm = tmp_path / "arm.yaml"
+    arm.write_text((MODELS / "hoffmann" / "system1.yaml").read_text(encoding="utf-8"), encoding="utf-8")
+    top = tmp_path / "top.yaml"
+    top.write_text(f"name: again\ncomponents:\n  arm: {{model: arm.yaml{renamed}}}\ncoordinates: {coords}\n",
+                   encoding="utf-8")
+    model = kronsub.load(top, cache=False)
+    sub = Subspace(model.primitive, model.coordinates, model.connection)
+    fast, substitution = sub.transformation(model.primitive), dict(sub.substitution)
+    assert "C" not in sub.__dict__  # nothing above needed the algebra's C
+    slow = canonical.matrix(len(sub.x), sub.n, [compact(sub.algebra, c) for row in sub.C for c in row])
+    assert fast == slow and sorted(fast) == [0, 0, 1, 1]
+    for a, (x, v) in enumerate(zip(sub.x, sub.velocities)):
+        image = sub.algebra.to_expr(sub.velocity[a])
+        assert substitution.get(v, v) == image == velocity_symbol(model.connection[x])
+    system = model.derive(cache=False)
+    order = [list(model.coordinates).index(model.connection[x]) for x in sub.x]
+    original = kronsub.load(MODELS / "hoffmann" / "system1.yaml", cache=False).derive(cache=False)
+    rename = {old: model.connection[x] for old, x in zip(original.coordinates, sub.x)}
+    rename.update({velocity_symbol(old): velocity_symbol(new) for old, new in list(rename.items())})
+    for i in range(2):
+        for j in range(2):
+            assert system.mass_matrix[order[i], order[j]] == original.mass_matrix[i, j].xreplace(rename)
+        assert system.velocity_terms[order[i]] == original.velocity_terms[i].xreplace(rename)
+
+
 def test_the_gradient_is_diff_along_each_coordinate():
     """`TrigAlgebra.gradient` (one pass over the terms) builds the very polynomials `diff` does,
     term for term and in the same order, through atoms that depend on the coordinates too."""

@@ -127,7 +127,9 @@ class Primitive:
 
     @property
     def metric(self) -> sympy.Matrix:
-        """The block-diagonal ``M`` of the parts' metrics (Example III)."""
+        """The block-diagonal ``M`` of the parts' metrics (Example III); a single part's own."""
+        if len(self.parts) == 1:
+            return self.parts[0].metric
         size = len(self.coordinates)
         entries = [sympy.Integer(0)] * (size * size)
         for offset, part in self.blocks():

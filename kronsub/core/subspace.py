@@ -36,28 +36,67 @@ class Subspace:
     def __init__(self, primitive: Primitive, coordinates, connection):
         self.coords = tuple(coordinates)
         self.n = len(self.coords)
-        self.algebra = algebra = TrigAlgebra(self.coords)
-        self.qdots = [algebra.atom(velocity_symbol(q)) for q in self.coords]
+        self.algebra = TrigAlgebra(self.coords)
         self.x = primitive.coordinates
         self.connection = connection
-        self.radicands = Radicands(algebra, connection.values())  # atan2/asin in it (inverse_trig)
-        images = [algebra.from_expr(self.radicands.rewrite(connection[x])) for x in self.x]
-        # C^a_alpha = dx^a / dxbar^alpha  (7'), (21)
-        self.C = [algebra.gradient(img) for img in images]
-        self.nonzero = [[j for j in range(self.n) if not row[j].is_zero()] for row in self.C]
-        # rows of C equal within a column share their products: C^T y = sum over the distinct
-        # values u of column j of u * (sum of y over the rows where C_aj = u)
-        self.shape_of = [{j: row[j].key() for j in nz} for row, nz in zip(self.C, self.nonzero)]
         self.velocities = primitive.velocities
-        # xdot^a = C^a_alpha xbardot^alpha
-        self.velocity = [_sum(self.C[a][j] * self.qdots[j] for j in self.nonzero[a]) for a in range(len(self.x))]
+
+    # C and what follows from it are built when first asked for: a subspace that only renames
+    # the coordinates of known systems carries their parts over without them
+
+    @functools.cached_property
+    def qdots(self) -> list[TrigPoly]:
+        return [self.algebra.atom(velocity_symbol(q)) for q in self.coords]
+
+    @functools.cached_property
+    def radicands(self) -> Radicands:
+        """The connection's atan2/asin (:mod:`.inverse_trig`)."""
+        return Radicands(self.algebra, self.connection.values())
+
+    @functools.cached_property
+    def C(self) -> list[list[TrigPoly]]:
+        """``C^a_alpha = dx^a / dxbar^alpha`` (7'), (21)."""
+        algebra = self.algebra
+        images = [algebra.from_expr(self.radicands.rewrite(self.connection[x])) for x in self.x]
+        return [algebra.gradient(img) for img in images]
+
+    @functools.cached_property
+    def nonzero(self) -> list[list[int]]:
+        """The columns where each row of ``C`` is not zero."""
+        return [[j for j in range(self.n) if not row[j].is_zero()] for row in self.C]
+
+    @functools.cached_property
+    def shape_of(self) -> list[dict]:
+        """Rows of ``C`` equal within a column share their products: ``C^T y = sum`` over the
+        distinct values ``u`` of column ``j`` of ``u * (sum of y over the rows where C_aj = u)``."""
+        return [{j: row[j].key() for j in nz} for row, nz in zip(self.C, self.nonzero)]
+
+    @functools.cached_property
+    def velocity(self) -> list[TrigPoly]:
+        """``xdot^a = C^a_alpha xbardot^alpha``."""
+        return [_sum(self.C[a][j] * self.qdots[j] for j in self.nonzero[a]) for a in range(len(self.x))]
+
+    def transformation(self, primitive: Primitive) -> sympy.Matrix:
+        """``C`` as a matrix of expressions; a renaming's ones and zeros written directly."""
+        if self.only_renames(primitive):
+            index = {q: j for j, q in enumerate(self.coords)}
+            entries = [sympy.Integer(0)] * (len(self.x) * self.n)
+            for a, x in enumerate(self.x):
+                entries[a * self.n + index[self.connection[x]]] = sympy.Integer(1)
+            return canonical.matrix(len(self.x), self.n, entries)
+        return canonical.matrix(len(self.x), self.n, [compact(self.algebra, c) for row in self.C for c in row])
 
     @functools.cached_property
     def substitution(self) -> dict:
-        """x -> x(xbar), xdot -> C xbardot (identities left out: they would only rebuild)."""
+        """x -> x(xbar), xdot -> C xbardot (identities left out: they would only rebuild).
+        A coordinate whose image is a coordinate of the subspace has that one's velocity."""
         substitution = dict(self.placement)
-        substitution.update({v: e for v, vel in zip(self.velocities, self.velocity)
-                             if v != (e := self.algebra.to_expr(vel))})
+        coords = set(self.coords)
+        for a, (x, v) in enumerate(zip(self.x, self.velocities)):
+            image = self.connection[x]
+            e = velocity_symbol(image) if image in coords else self.algebra.to_expr(self.velocity[a])
+            if v != e:
+                substitution[v] = e
         return substitution
 
     @functools.cached_property
@@ -65,6 +104,12 @@ class Subspace:
         """x -> x(xbar) alone: what an expression without velocities needs (the velocities'
         images are built only when an expression has some)."""
         return {x: image for x in self.x if x != (image := self.connection[x])}
+
+    @property
+    def moves_nothing(self) -> bool:
+        """Every primitive coordinate is a coordinate of the subspace under its own name
+        (``x = xbar``): an expression is its own image."""
+        return not self.placement and not self.substitution
 
     def _substitution_for(self, expr: sympy.Expr) -> dict:
         """What moves ``expr``: the velocities' images too once they are built, or when the
@@ -183,7 +228,7 @@ def project_inertia(sub: Subspace, primitive: Primitive, *, name: str = "",
         primitive_velocity_terms=primitive.velocity_terms,
         primitive_forces={},
         connection=tuple((x, sub.connection[x]) for x in sub.x),
-        transformation=canonical.matrix(len(sub.x), n, [compact(algebra, c) for row in sub.C for c in row]),
+        transformation=sub.transformation(primitive),
         parts=tuple((p.name, p.type_name) for p in primitive.parts),
     )
     dimension = world_dimension(primitive)
@@ -194,10 +239,13 @@ def project_inertia(sub: Subspace, primitive: Primitive, *, name: str = "",
                            for part in primitive.parts for body in part.bodies], placer)
     # a point or body that moves with a velocity is placed at once: a component tells which
     # symbols its points may hold without building them; the bodies are walked once together
-    moving = [part for part in primitive.parts if not point_symbols(part.points).isdisjoint(sub.velocities)]
-    located = [c for body in bodies.unplaced for c in [*body.centre, *([body.rotation] if body.rotation is not None else [])]]
-    if moving or not free_symbols_of(located).isdisjoint(sub.velocities):
-        _place_moving(sub, placer, points, bodies, moving)
+    # (when the subspace moves nothing, placing is the identity: there is nothing to look for)
+    if not sub.moves_nothing:
+        moving = [part for part in primitive.parts if not point_symbols(part.points).isdisjoint(sub.velocities)]
+        located = [c for body in bodies.unplaced
+                   for c in [*body.centre, *([body.rotation] if body.rotation is not None else [])]]
+        if moving or not free_symbols_of(located).isdisjoint(sub.velocities):
+            _place_moving(sub, placer, points, bodies, moving)
     return KnownSystem(
         name=name,
         coordinates=sub.coords,
@@ -285,7 +333,7 @@ def _compacted_potential(coordinates: tuple, potential: sympy.Expr, known: Seque
 
 def _inertia(sub: Subspace, primitive: Primitive, renamed: dict[str, list[int]]):
     """``Mbar = C^T M C`` (9'), (D) and ``hbar = C^T (M Cdot xbardot + h)`` (E), block by block."""
-    n, C, nonzero, shape_of = sub.n, sub.C, sub.nonzero, sub.shape_of
+    n = sub.n
     mass = [[TrigPoly() for _ in range(n)] for _ in range(n)]
     # sum_a C_aj (M C)_ak, with the rows of equal C_aj summed first (see Subspace.shape_of)
     sums: list[dict] = [{} for _ in range(n)]  # j -> {C_aj key: (C_aj, {k: sum of (M C)_ak})}
@@ -304,6 +352,7 @@ def _inertia(sub: Subspace, primitive: Primitive, renamed: dict[str, list[int]])
                     if j <= k and canonical.nonzero(metric[i][i2]):
                         direct_mass.setdefault((j, k), []).append(sub.moved(metric[i][i2]))
             continue
+        C, nonzero, shape_of = sub.C, sub.nonzero, sub.shape_of  # (built for the first part that needs them)
         block = [[sub.image(part.metric[i, j]) for j in range(size)] for i in range(size)]
         for i in range(size):
             a = offset + i

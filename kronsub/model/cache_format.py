@@ -13,6 +13,7 @@ treats it as a miss and derives again.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import json
 from types import MappingProxyType
 
@@ -143,7 +144,17 @@ def _fail(why: str):
     raise CacheFormatError(why)
 
 
+_SYMBOLS: dict[tuple, sympy.Symbol] = {}
+"""Symbols already read, by their node's name and flags (a symbol is immutable and sympy
+makes one object per name and assumptions anyway): a file names the same few again."""
+
+
 def _symbol(node: list) -> sympy.Symbol:
+    key = tuple(node[1:])
+    try:
+        return _SYMBOLS[key]
+    except (KeyError, TypeError):  # (a TypeError: a flag that is not a string, refused below)
+        pass
     name, flags = node[1], node[2:]
     if not isinstance(name, str) or not all(isinstance(f, str) for f in flags):
         _fail("malformed symbol")
@@ -153,7 +164,10 @@ def _symbol(node: list) -> sympy.Symbol:
         if key not in _assume_defined:
             _fail(f"unknown assumption {key!r}")
         assumptions[key] = value
-    return sympy.Symbol(name, **assumptions)
+    symbol = sympy.Symbol(name, **assumptions)
+    if len(_SYMBOLS) < 1 << 16:
+        _SYMBOLS[tuple(node[1:])] = symbol
+    return symbol
 
 
 def _float(node: list) -> sympy.Float:
@@ -171,44 +185,62 @@ def _int(x) -> int:
     return x
 
 
-_COMPOUND = frozenset(("Add", "Mul", "Pow", *FUNCTIONS))
+_FUNCTION_HEADS = frozenset(("Pow", *FUNCTIONS))
 _INT = {int}
 
 
 def _nodes(table) -> list:
-    """Rebuild the expression table; a node may refer only to nodes before it."""
+    """Rebuild the expression table; a node may refer only to nodes before it.
+
+    A reference is looked up as it is read (one past the nodes built so far fails there) and
+    checked once for the whole table at the end: a whole number, not negative (a bool is no
+    index; a negative one would count from the end). A table that fails is thrown away whole,
+    so nothing built from a bad reference is ever returned."""
     if not isinstance(table, list):
         _fail("malformed node table")
     built: list = []
-    commutes: list[bool] = []  # each node's is_commutative, so a sum, product or function need not ask its terms
-    keep, keep_commutes, commute_of = built.append, commutes.append, commutes.__getitem__
+    keep = built.append
+    references: list = []
+    note = references.extend
+    noncommutative: set[int] = set()  # the nodes that are not commutative (none, in kronsub's systems)
     add_new, mul_new = sympy.Add._from_args, sympy.Mul._from_args
-    for node in table:
-        if type(node) is not list or not node or type(node[0]) is not str:
+    for number, node in enumerate(table):
+        if type(node) is not list or not node:
             _fail("malformed node")
         head = node[0]
-        if head in _COMPOUND:
+        if head == "Mul" or head == "Add":
             refs = node[1:]
-            if not refs or set(map(type, refs)) != _INT or min(refs) < 0:  # (a bool is no index)
-                _fail("malformed node arguments")
+            if len(refs) < 2:
+                _fail(f"malformed {head}")
             try:
                 args = [built[i] for i in refs]
-            except IndexError:
-                _fail("a node refers to a later one")
-            if head == "Mul" or head == "Add":
-                if len(args) < 2:
-                    _fail(f"malformed {head}")
-                commutative = all(map(commute_of, refs))  # a sum's or product's, from its terms'
-                keep((mul_new if head == "Mul" else add_new)(args, commutative))
-                keep_commutes(commutative)
-                continue
+            except (IndexError, TypeError):
+                _fail("a node refers to a later one, or by something other than its number")
+            note(refs)
+            # a sum's or product's commutativity, from its terms'
+            commutative = not noncommutative or noncommutative.isdisjoint(refs)
+            keep((mul_new if head == "Mul" else add_new)(args, commutative))
+            if not commutative:
+                noncommutative.add(number)
+            continue
+        if type(head) is not str:
+            _fail("malformed node")
+        if head in _FUNCTION_HEADS:
+            refs = node[1:]
+            try:
+                args = [built[i] for i in refs] if refs else _fail("malformed node arguments")
+            except (IndexError, TypeError):
+                _fail("a node refers to a later one, or by something other than its number")
+            note(refs)
             if head == "Pow":
                 e = sympy.Pow(*args, evaluate=False) if len(args) == 2 else _fail("malformed Pow")
             else:
                 if not FUNCTIONS[head]._valid_nargs(len(args)):
                     _fail(f"malformed {head}: {len(args)} arguments")
-                keep(canonical.function(FUNCTIONS[head], *args))
-                keep_commutes(all(map(commute_of, refs)))  # sympy's rule for a Function
+                e = canonical.function(FUNCTIONS[head], *args)
+                if noncommutative and not noncommutative.isdisjoint(refs):  # sympy's rule for a Function
+                    noncommutative.add(number)
+                keep(e)
                 continue
         elif head == "S" and len(node) >= 2:
             e = _symbol(node)
@@ -224,8 +256,16 @@ def _nodes(table) -> list:
         else:
             _fail(f"node head {head!r} is not admitted")
         keep(e)
-        keep_commutes(bool(e.is_commutative))
+        if not e.is_commutative:
+            noncommutative.add(number)
+    if references and (set(map(type, references)) != _INT or min(references) < 0):
+        _fail("malformed node arguments: a reference that is not a node's number")
     return built
+
+
+@functools.lru_cache(maxsize=None)
+def _field_names(cls: type) -> frozenset:
+    return frozenset(f.name for f in dataclasses.fields(cls))
 
 
 class _Decoder:
@@ -267,8 +307,7 @@ class _Decoder:
             cls = CLASSES.get(v["c"]) if isinstance(v["c"], str) else None
             if cls is None:
                 _fail(f"class {v['c']!r} is not admitted")
-            names = {f.name for f in dataclasses.fields(cls)}
-            if set(v["f"]) != names:
+            if v["f"].keys() != _field_names(cls):
                 _fail(f"the fields of {cls.__name__} differ")
             return cls(**{k: self.value(x) for k, x in v["f"].items()})
         _fail("malformed value")
