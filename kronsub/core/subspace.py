@@ -171,6 +171,11 @@ class Subspace:
         return len(renamed) == len(primitive.parts) and \
             sorted(j for targets in renamed.values() for j in targets) == list(range(self.n))
 
+    def is_identity(self, primitive: Primitive) -> bool:
+        """``x = xbar``, coordinate for coordinate in the same order: ``C`` is the unit matrix,
+        the transition gives back the primitive as it is (a known system reused unchanged)."""
+        return self.x == self.coords and self.moves_nothing
+
     def renaming(self, part) -> list[int] | None:
         """Indices of the new coordinates when the part's coordinates are only renamed."""
         index = {q: j for j, q in enumerate(self.coords)}
@@ -214,18 +219,15 @@ def project_inertia(sub: Subspace, primitive: Primitive, *, name: str = "",
 
     The result has no effects; :func:`assemble` adds the ones a scene switches on.
     """
-    n, algebra = sub.n, sub.algebra
-    renamed = sub.renamed_parts(primitive)
-    mass, velocity_terms, direct_mass, direct_h = _inertia(sub, primitive, renamed)
-    entries = [[None] * n for _ in range(n)]
-    for j in range(n):
-        for k in range(j, n):
-            entries[j][k] = entries[k][j] = _plus(compact(algebra, mass[j][k]), direct_mass.get((j, k), ()))
-    mass_matrix = canonical.matrix(n, n, [e for row in entries for e in row])
+    metric, h = primitive.metric, primitive.velocity_terms
+    if sub.is_identity(primitive):  # x = xbar: Mbar = M, hbar = h, nothing to project
+        mass_matrix, velocity_terms = metric.as_mutable(), h.as_mutable()
+    else:
+        mass_matrix, velocity_terms = _projected_inertia(sub, primitive)
     transition = Transition(
         primitive_coordinates=sub.x,
-        primitive_metric=primitive.metric,
-        primitive_velocity_terms=primitive.velocity_terms,
+        primitive_metric=metric,
+        primitive_velocity_terms=h,
         primitive_forces={},
         connection=tuple((x, sub.connection[x]) for x in sub.x),
         transformation=sub.transformation(primitive),
@@ -250,8 +252,7 @@ def project_inertia(sub: Subspace, primitive: Primitive, *, name: str = "",
         name=name,
         coordinates=sub.coords,
         mass_matrix=mass_matrix,
-        velocity_terms=canonical.matrix(n, 1, [_plus(compact(algebra, p), direct_h.get(j, ()))
-                                               for j, p in enumerate(velocity_terms)]),
+        velocity_terms=velocity_terms,
         effect_forces={},
         points=points,
         bodies=bodies,
@@ -260,6 +261,18 @@ def project_inertia(sub: Subspace, primitive: Primitive, *, name: str = "",
         transition=transition,
         description=description,
     )
+
+
+def _projected_inertia(sub: Subspace, primitive: Primitive) -> tuple[sympy.Matrix, sympy.Matrix]:
+    """``Mbar`` and ``hbar`` as matrices: the projected sums, plus what renamed parts carry over."""
+    n, algebra = sub.n, sub.algebra
+    mass, velocity_terms, direct_mass, direct_h = _inertia(sub, primitive, sub.renamed_parts(primitive))
+    entries = [[None] * n for _ in range(n)]
+    for j in range(n):
+        for k in range(j, n):
+            entries[j][k] = entries[k][j] = _plus(compact(algebra, mass[j][k]), direct_mass.get((j, k), ()))
+    return (canonical.matrix(n, n, [e for row in entries for e in row]),
+            canonical.matrix(n, 1, [_plus(compact(algebra, p), direct_h.get(j, ())) for j, p in enumerate(velocity_terms)]))
 
 
 def _place_moving(sub: Subspace, placer: Placer, points: PlacedPoints, bodies: PlacedBodies, parts) -> None:
