@@ -203,7 +203,7 @@ def _nodes(table) -> list:
     references: list = []
     note = references.extend
     noncommutative: set[int] = set()  # the nodes that are not commutative (none, in kronsub's systems)
-    add_new, mul_new = sympy.Add._from_args, sympy.Mul._from_args
+    new, get = sympy.Basic.__new__, built.__getitem__
     for number, node in enumerate(table):
         if type(node) is not list or not node:
             _fail("malformed node")
@@ -212,14 +212,15 @@ def _nodes(table) -> list:
             refs = node[1:]
             if len(refs) < 2:
                 _fail(f"malformed {head}")
-            try:
-                args = [built[i] for i in refs]
+            try:  # what ``Add._from_args`` does with two or more terms in canonical order
+                e = new(sympy.Mul if head == "Mul" else sympy.Add, *map(get, refs))
             except (IndexError, TypeError):
                 _fail("a node refers to a later one, or by something other than its number")
             note(refs)
             # a sum's or product's commutativity, from its terms'
             commutative = not noncommutative or noncommutative.isdisjoint(refs)
-            keep((mul_new if head == "Mul" else add_new)(args, commutative))
+            e.is_commutative = commutative
+            keep(e)
             if not commutative:
                 noncommutative.add(number)
             continue
