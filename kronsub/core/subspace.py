@@ -36,22 +36,16 @@ class Subspace:
     def __init__(self, primitive: Primitive, coordinates, connection):
         self.coords = tuple(coordinates)
         self.n = len(self.coords)
-        self.algebra = TrigAlgebra(self.coords)
+        self.algebra = algebra = TrigAlgebra(self.coords)
+        self.qdots = [algebra.atom(velocity_symbol(q)) for q in self.coords]
         self.x = primitive.coordinates
         self.connection = connection
+        self.radicands = Radicands(algebra, connection.values())  # atan2/asin in it (inverse_trig)
         self.velocities = primitive.velocities
 
-    # C and what follows from it are built when first asked for: a subspace that only renames
-    # the coordinates of known systems carries their parts over without them
-
-    @functools.cached_property
-    def qdots(self) -> list[TrigPoly]:
-        return [self.algebra.atom(velocity_symbol(q)) for q in self.coords]
-
-    @functools.cached_property
-    def radicands(self) -> Radicands:
-        """The connection's atan2/asin (:mod:`.inverse_trig`)."""
-        return Radicands(self.algebra, self.connection.values())
+    # C and what follows from it are built when first asked for (before any other image, so
+    # the algebra meets its atoms in one order): a subspace that only renames the
+    # coordinates of known systems carries their parts over without them
 
     @functools.cached_property
     def C(self) -> list[list[TrigPoly]]:
@@ -133,6 +127,7 @@ class Subspace:
 
     def image(self, expr: sympy.Expr) -> TrigPoly:
         """``expr(x(xbar), C xbardot)`` in the algebra."""
+        self.C  # noqa: B018  (built first: see above)
         return self.algebra.from_expr(self.radicands.rewrite(self.moved(expr)))
 
     def moved(self, expr: sympy.Expr) -> sympy.Expr:
