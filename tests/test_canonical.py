@@ -252,3 +252,12 @@ def test_the_sign_sympy_takes_out_of_an_angle_of_many_coordinates():
         freq = tuple((i, s * rng.choice([1, 2])) for i, s in zip(picked, signs))
         arg = sympy.Add(*[c * coords[i] for i, c in freq])
         assert algebra._minus_sign(freq) == arg.could_extract_minus_sign()
+
+
+def test_ones_at_is_the_matrix_of_those_integers():
+    """`canonical.ones_at` (a renaming's C) is the very matrix `canonical.matrix` makes of the
+    same ones and zeros: entries, kind and stored domain."""
+    for rows, cols, columns in ((1, 1, [0]), (3, 2, [1, 0, 1]), (4, 4, [2, 0, 3, 1])):
+        entries = [sympy.Integer(1 if columns[i] == j else 0) for i in range(rows) for j in range(cols)]
+        fast, slow = canonical.ones_at(rows, cols, columns), canonical.matrix(rows, cols, entries)
+        assert type(fast) is type(slow) and fast == slow and fast._rep == slow._rep

@@ -20,6 +20,8 @@ import sympy.sets.setexpr  # noqa: F401
 import sympy.tensor.tensor  # noqa: F401
 from sympy.core import basic
 from sympy.core.basic import _args_sortkey
+from sympy.polys.domains import ZZ
+from sympy.polys.matrices import DomainMatrix
 
 _ONE, _ZERO = sympy.S.One, sympy.S.Zero
 
@@ -69,6 +71,12 @@ def matrix(rows: int, cols: int, entries: list, cls: type = sympy.Matrix) -> sym
             i, j = divmod(n, cols)
             dod.setdefault(i, {})[j] = e
     return cls._fromrep(cls._dod_to_DomainMatrix(rows, cols, dod, set(map(type, entries))))
+
+
+def ones_at(rows: int, cols: int, columns: list[int]) -> sympy.Matrix:
+    """The ``rows x cols`` matrix with a 1 in column ``columns[i]`` of each row ``i`` and zeros
+    elsewhere (a renaming's ``C``): the same matrix :func:`matrix` makes of those integers."""
+    return sympy.Matrix._fromrep(DomainMatrix({i: {j: ZZ(1)} for i, j in enumerate(columns)}, (rows, cols), ZZ))
 
 
 class _Unkeyed(Exception):

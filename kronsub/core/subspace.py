@@ -74,10 +74,7 @@ class Subspace:
         """``C`` as a matrix of expressions; a renaming's ones and zeros written directly."""
         if self.only_renames(primitive):
             index = {q: j for j, q in enumerate(self.coords)}
-            entries = [sympy.Integer(0)] * (len(self.x) * self.n)
-            for a, x in enumerate(self.x):
-                entries[a * self.n + index[self.connection[x]]] = sympy.Integer(1)
-            return canonical.matrix(len(self.x), self.n, entries)
+            return canonical.ones_at(len(self.x), self.n, [index[self.connection[x]] for x in self.x])
         return canonical.matrix(len(self.x), self.n, [compact(self.algebra, c) for row in self.C for c in row])
 
     @functools.cached_property
@@ -216,7 +213,7 @@ def project_inertia(sub: Subspace, primitive: Primitive, *, name: str = "",
     """
     metric, h = primitive.metric, primitive.velocity_terms
     if sub.is_identity(primitive):  # x = xbar: Mbar = M, hbar = h, nothing to project
-        mass_matrix, velocity_terms = metric.as_mutable(), h.as_mutable()
+        mass_matrix, velocity_terms = _mutable(metric), _mutable(h)
     else:
         mass_matrix, velocity_terms = _projected_inertia(sub, primitive)
     transition = Transition(
@@ -256,6 +253,11 @@ def project_inertia(sub: Subspace, primitive: Primitive, *, name: str = "",
         transition=transition,
         description=description,
     )
+
+
+def _mutable(m: sympy.MatrixBase) -> sympy.Matrix:
+    """A mutable copy of ``m`` (copied as it is stored, not rebuilt entry by entry)."""
+    return m.copy() if isinstance(m, sympy.MutableDenseMatrix) else m.as_mutable()
 
 
 def _projected_inertia(sub: Subspace, primitive: Primitive) -> tuple[sympy.Matrix, sympy.Matrix]:
