@@ -92,6 +92,15 @@ def _tree(terms: list[str]) -> str:
     return terms[0]
 
 
+def _last(old: list[str], new: list[str]) -> str:
+    """``old`` summed pairwise, then each of ``new`` added: the terms that wait for this order's
+    coefficients enter last, so only one addition each lies on the chain from order to order."""
+    text = _tree(old) if old else ""
+    for term in new:
+        text = f"({text} + {term})" if text else term
+    return text or "0.0"
+
+
 class _Emitter:
     """The C of one system at one order."""
 
@@ -126,6 +135,7 @@ class _Emitter:
                 self.needed.add(i)
                 stack.extend(self.nodes[i][1])
         # derivative arrays d_j = j a_j of the nodes whose recurrences need them
+        self.pairs: dict[tuple[str, str], int] = {}  # (a, b) of each sum_j a_j b_{k-j}: its lane
         self.scaled = set()
         for i, (kind, args, _) in enumerate(self.nodes):
             if kind in ("sincos", "exp", "integral", "pow") and self.var[args[0]] and i in self.needed:
@@ -153,8 +163,13 @@ class _Emitter:
 
     def conv(self, a: str, b: str, lo, hi, k) -> str:
         """``sum_{j=lo}^{hi} a[j] b[k-j]`` (``hi`` may be ``k`` or ``k - 1`` in loop form)."""
-        if isinstance(k, int):
-            return _tree([f"{a}[{j}] * {b}[{k - j}]" for j in range(lo, hi + 1)])
+        if isinstance(k, int):  # the terms with a coefficient of this order last: the chain from order to order
+            assert lo in (0, 1) and hi in (k - 1, k)
+            new = [f"{a}[{j}] * {b}[{k - j}]" for j in range(lo, hi + 1) if not 0 < j < k]
+            if k < 2:
+                return _last([], new)
+            lane = self.pairs.setdefault((a, b), len(self.pairs))
+            return _last([f"KS[{lane}]"], new)  # sum_{j=1}^{k-1} a[j] b[k-j], all the lanes at once
         return f"ks_conv({a}, {b}, {lo}, {hi}, k)"
 
     # one coefficient of one node ---------------------------------------------------------
@@ -180,12 +195,6 @@ class _Emitter:
                 c, s = (x, y) if not self.var[x] else (y, x)
                 return [f"{v}[{k}] = c{c} * {self.name(s)}[{k}];"]
             b = self.name(y)
-            if x == y and isinstance(k, int):  # a square: each cross product once
-                half = [f"{a}[{j}] * {a}[{k - j}]" for j in range((k + 1) // 2)]
-                s = f"2.0 * {_tree(half)}"
-                if k % 2 == 0:
-                    s += f" + {a}[{k // 2}] * {a}[{k // 2}]"
-                return [f"{v}[{k}] = {s};"]
             return [f"{v}[{k}] = {self.conv(a, b, 0, k, k)};"]
         d = f"d{args[0]}" if args else ""
         if kind == "sincos":
@@ -382,8 +391,18 @@ class _Emitter:
             lows = kept
         step += emit_order(0) + solve(0) + ["if (fine) {"] + ["    " + x for x in lows] + ["}"]
         if self.unrolled:
-            for k in range(1, N):
-                step += emit_order(k) + solve(k)
+            orders = [emit_order(k) + solve(k) for k in range(1, N)]  # the lanes are known after this
+            lanes = -(-len(self.pairs) // 4) * 4  # a multiple of the vector width (4 with AVX, 2 with SSE2)
+            for k, lines in enumerate(orders, 1):
+                if k >= 2 and self.pairs:  # the sums over older coefficients, lane by lane (vectorized)
+                    terms = _tree([f"KA[{j}][p] * KB[{k - j}][p]" for j in range(1, k)])
+                    step.append(f"for (p = 0; p < {lanes}; ++p) KS[p] = {terms};")
+                step += lines
+                if k <= N - 2:  # this order's coefficients into the lanes they are read in
+                    for (a, b), lane in self.pairs.items():
+                        step.append(f"KA[{k}][{lane}] = {a}[{k}]; KB[{k}][{lane}] = {b}[{k}];")
+            if self.pairs:
+                storage_lanes = [f"double KA[TN_ORDER][{lanes}], KB[TN_ORDER][{lanes}], KS[{lanes}];", "int p;"]
         else:
             step.append("for (k = 1; k < TN_ORDER; ++k) {")
             step += ["    " + x for x in emit_order("k") + solve("k")]
@@ -406,6 +425,10 @@ class _Emitter:
                              key=lambda x: (x[0], [int(p) for p in re.findall(r"\d+", x)]))
             storage = ["double " + ", ".join(scalars) + ";"]
             zero = []
+            if self.pairs:
+                storage += storage_lanes
+                zero += [f"for (p = 0; p < {lanes}; ++p) {{ KS[p] = 0; for (k = 0; k < TN_ORDER; ++k) "
+                         "KA[k][p] = KB[k][p] = 0; }"]
             consts_void = scalars
             load = " ".join(f"Y{j}_0 = y[{j}];" for j in range(ny))
             sizes = "\n        ".join(f"if (!(fabs(Y{j}_{N - 1 + e}) <= size[{e}])) size[{e}] = fabs(Y{j}_{N - 1 + e});"
