@@ -67,6 +67,21 @@ def _ldl_substitution(n: int, x) -> list[str]:
     return lines + [f"{x(a)} -= L{b}_{a} * {x(b)};" for a in reversed(range(n)) for b in range(a + 1, n)]
 
 
+def _ldl_inverse(n: int) -> list[str]:
+    """``A{a}_{b}`` (a >= b) <- ``Mbar^-1 = L^-T D^-1 L^-1`` from ``L{a}_{b}`` and ``R{a}``, a column
+    at a time as :func:`_ldl_substitution` solves for ``e_b`` (its known zeros and ones left out)."""
+    lines = []
+    for b in range(n):
+        for a in range(b + 1, n):
+            lines.append(f"A{a}_{b} = -(" + " + ".join([f"L{a}_{b}"] + [f"L{a}_{c} * A{c}_{b}" for c in range(b + 1, a)])
+                         + ");")
+        lines.append(f"A{b}_{b} = R{b};")
+        lines += [f"A{a}_{b} *= R{a};" for a in range(b + 1, n)]
+        lines += [f"A{a}_{b} -= " + " + ".join(f"L{c}_{a} * A{c}_{b}" for c in range(a + 1, n)) + ";"
+                  for a in reversed(range(b, n - 1))]
+    return lines
+
+
 def _literal(value) -> str:
     with mpmath.workdps(40):
         text = mpmath.nstr(mpmath.mpf(value), 36, min_fixed=-1, max_fixed=1, strip_zeros=False)
@@ -166,6 +181,8 @@ class _Emitter:
         if isinstance(k, int):  # the terms with a coefficient of this order last: the chain from order to order
             assert lo in (0, 1) and hi in (k - 1, k)
             new = [f"{a}[{j}] * {b}[{k - j}]" for j in range(lo, hi + 1) if not 0 < j < k]
+            if a == b and len(new) == 2:  # a square: a_0 a_k twice, exactly 2 (a_0 a_k)
+                new = [f"2.0 * {a}[0] * {a}[{k}]"]
             if k < 2:
                 return _last([], new)
             lane = self.pairs.setdefault((a, b), len(self.pairs))
@@ -323,7 +340,7 @@ class _Emitter:
                 arrays.append(f"v{i}")
         arrays += [f"d{i}" for i in sorted(self.scaled | {i for i, (kind, _, _) in enumerate(nodes)
                                                           if kind == "log" and self.var[i] and i in self.needed})]
-        arrays += [f"Y{j}" for j in range(2 * n)] + [f"X{a}" for a in range(n)]
+        arrays += [f"Y{j}" for j in range(2 * n)] + [f"X{a}" for a in range(n)] + [f"B{a}" for a in range(n)]
         prologue = []
         for i, (kind, args, data) in enumerate(nodes):
             if not self.var[i] and i in self.needed:
@@ -341,7 +358,7 @@ class _Emitter:
             return lines
 
         def solve(k) -> list[str]:
-            lines = []
+            lines, inverse = [], self.unrolled and k != 0
             if k == 0:  # Mbar_0 = L D L^T, L unit lower triangular
                 for a in range(n):
                     for b in range(a + 1):
@@ -358,8 +375,14 @@ class _Emitter:
                     m = self.M[a][b]
                     if self.var[m] and k != 0:
                         terms.append(f"({self.conv(self.name(m), f'X{b}', 1, k, k)})")
-                lines.append(f"X{a}[{k}] = {' - '.join(terms)};")
-            lines += _ldl_substitution(n, lambda a: f"X{a}[{k}]")
+                lines.append(f"{'B' if inverse else 'X'}{a}[{k}] = {' - '.join(terms)};")
+            if k == 0 and self.unrolled:
+                lines += _ldl_inverse(n)
+            if inverse:  # x_k = Mbar_0^-1 (r_k - ...): a product (a short chain), not two substitutions
+                lines += [f"X{a}[{k}] = " + _tree([f"A{max(a, b)}_{min(a, b)} * B{b}[{k}]" for b in range(n)]) + ";"
+                          for a in range(n)]
+            else:
+                lines += _ldl_substitution(n, lambda a: f"X{a}[{k}]")
             inv = _literal(mpmath.mpf(1) / (k + 1)) if isinstance(k, int) else "ks_inv[k + 1]"
             k1 = k + 1 if isinstance(k, int) else "k + 1"
             for a in range(n):
@@ -409,6 +432,8 @@ class _Emitter:
             step.append("}")
         ldl = [f"L{a}_{b}" for a in range(n) for b in range(a)] + [f"D{a}" for a in range(n)] + \
             [f"R{a}" for a in range(n)]  # R = 1 / D: no division on the chain from order to order
+        if self.unrolled:
+            ldl += [f"A{a}_{b}" for a in range(n) for b in range(a + 1)]
         lo_names = sorted(set(re.findall(r"\b(?:e\d+|eS\d+|eC\d+|EX\d+)\b", "\n".join(lows))),
                           key=lambda x: (re.sub(r"\d", "", x), int(re.sub(r"\D", "", x))))
         decl = ["double " + ", ".join(f"{x} = 0" for x in lo_names) + ";"]
