@@ -418,7 +418,8 @@ class _Emitter:
             lanes = -(-len(self.pairs) // 4) * 4  # a multiple of the vector width (4 with AVX, 2 with SSE2)
             for k, lines in enumerate(orders, 1):
                 if k >= 2 and self.pairs:  # the sums over older coefficients, lane by lane (vectorized)
-                    terms = _tree([f"KA[{j}][p] * KB[{k - j}][p]" for j in range(1, k)])
+                    terms = _last([f"KA[{j}][p] * KB[{k - j}][p]" for j in range(2, k - 1)],  # the last order's last
+                                  [f"KA[{j}][p] * KB[{k - j}][p]" for j in sorted({1, k - 1})])
                     step.append(f"for (p = 0; p < {lanes}; ++p) KS[p] = {terms};")
                 step += lines
                 if k <= N - 2:  # this order's coefficients into the lanes they are read in
