@@ -460,15 +460,28 @@ class _Emitter:
             sizes = "\n        ".join(f"if (!(fabs(Y{j}_{N - 1 + e}) <= size[{e}])) size[{e}] = fabs(Y{j}_{N - 1 + e});"
                                       for j in range(ny) for e in (0, 1))
 
-            def horner(tau: str) -> str:  # the increment sum_{k>=1} Y_k tau^k
-                def poly(j):
-                    text = f"Y{j}_{N}"
-                    for k in range(N - 1, 0, -1):
-                        text = f"({text} * {tau} + Y{j}_{k})"
-                    return f"{text} * {tau}"
-                return " ".join(f"dy[{j}] = {poly(j)};" for j in range(ny))
+            def horner(tau: str, estrin: bool = True) -> str:  # the increment sum_{k>=1} Y_k tau^k
+                powers = [tau]  # Estrin's scheme in tau, tau^2, tau^4, ...: a chain of log2(N) products, not N
+                while estrin and 2 ** len(powers) < N:
+                    powers.append(f"{tau}{2 ** len(powers)}")
 
-            dense = horner("tau")
+                def poly(j):
+                    if not estrin:
+                        text = f"Y{j}_{N}"
+                        for k in range(N - 1, 0, -1):
+                            text = f"({text} * {tau} + Y{j}_{k})"
+                        return f"{text} * {tau}"
+                    terms = [f"Y{j}_{k}" for k in range(1, N + 1)]
+                    for x in powers:
+                        terms = [f"({terms[i]} + {terms[i + 1]} * {x})" if i + 1 < len(terms) else terms[i]
+                                 for i in range(0, len(terms), 2)]
+                    assert len(terms) == 1
+                    return f"{terms[0]} * {tau}"
+                square = [f"{b} = {a} * {a};" for a, b in zip(powers, powers[1:])]
+                lines = ([f"double {', '.join(powers[1:])};"] if square else []) + square
+                return " ".join(["{", *lines, *(f"dy[{j}] = {poly(j)};" for j in range(ny)), "}"])
+
+            dense = horner("tau", estrin=False)  # the rows are off the chain from step to step
             advance = horner("h")
             helpers = ""
         else:
