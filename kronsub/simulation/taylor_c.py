@@ -461,8 +461,10 @@ class _Emitter:
                                       for j in range(ny) for e in (0, 1))
 
             def horner(tau: str, estrin: bool = True) -> str:  # the increment sum_{k>=1} Y_k tau^k
-                powers = [tau]  # Estrin's scheme in tau, tau^2, tau^4, ...: a chain of log2(N) products, not N
-                while estrin and 2 ** len(powers) < N:
+                # Estrin's scheme: Y_1 tau + (Y_2 + Y_3 tau + (Y_4 + Y_5 tau) tau^2 + ...) tau^2 in tau,
+                # tau^2, tau^4, ...: a chain of log2(N) products, not N; the leading term added last
+                powers = [tau, f"{tau}2"]  # as many as the N - 1 terms after the first need, at least tau^2
+                while 2 ** len(powers) < N - 1:
                     powers.append(f"{tau}{2 ** len(powers)}")
 
                 def poly(j):
@@ -471,14 +473,14 @@ class _Emitter:
                         for k in range(N - 1, 0, -1):
                             text = f"({text} * {tau} + Y{j}_{k})"
                         return f"{text} * {tau}"
-                    terms = [f"Y{j}_{k}" for k in range(1, N + 1)]
+                    terms = [f"Y{j}_{k}" for k in range(2, N + 1)]
                     for x in powers:
                         terms = [f"({terms[i]} + {terms[i + 1]} * {x})" if i + 1 < len(terms) else terms[i]
                                  for i in range(0, len(terms), 2)]
                     assert len(terms) == 1
-                    return f"{terms[0]} * {tau}"
-                square = [f"{b} = {a} * {a};" for a, b in zip(powers, powers[1:])]
-                lines = ([f"double {', '.join(powers[1:])};"] if square else []) + square
+                    return f"Y{j}_1 * {tau} + {terms[0]} * {tau}2"
+                square = [f"{b} = {a} * {a};" for a, b in zip(powers, powers[1:])] if estrin else []
+                lines = [f"double {', '.join(powers[1:])};", *square] if estrin else []
                 return " ".join(["{", *lines, *(f"dy[{j}] = {poly(j)};" for j in range(ny)), "}"])
 
             dense = horner("tau", estrin=False)  # the rows are off the chain from step to step
