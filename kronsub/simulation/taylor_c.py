@@ -116,6 +116,72 @@ def _last(old: list[str], new: list[str]) -> str:
     return text or "0.0"
 
 
+def _varying(nodes) -> list[bool]:
+    """Does node i vary along the trajectory (else: parameters and constants only)."""
+    var = []
+    for kind, args, _ in nodes:
+        var.append(kind in ("state", "time") or (kind not in ("const", "param") and any(var[a] for a in args)))
+    return var
+
+
+def _fold_factors(nodes, roots: list[int]) -> tuple[list, list[int]]:
+    """The tape with its constant factors moved outward and merged: ``s (c a)``, ``(c a) b`` and
+    ``c (c' a)`` become one product ``(s c c') (a b)`` with its factor computed once per call, so
+    each order pays one multiplication for it instead of one per factor (exact when the factors
+    are powers of two, as ``2``, ``-1``). Returns the new nodes (topological) and the roots' nodes."""
+    var = _varying(nodes)
+    new: list = []
+    index: dict = {}
+
+    def add(kind, args, data=None) -> int:
+        key = (kind, tuple(args), data)
+        if key not in index:
+            new.append(key)
+            index[key] = len(new) - 1
+        return index[key]
+
+    memo: dict[int, tuple] = {}  # old node -> (literal, constant nodes, new node): the value is their product
+
+    def visit(i: int) -> tuple:
+        if i in memo:
+            return memo[i]
+        kind, args, data = nodes[i]
+        lit, consts, base = mpmath.mpf(1), (), None
+        if not var[i] or kind in ("state", "time"):
+            base = add(kind, [materialize(a) for a in args], data)
+        elif kind == "scale":
+            lit0, consts, base = visit(args[0])
+            lit = lit0 * data
+        elif kind == "mul":
+            x, y = args
+            if not var[x] or not var[y]:
+                c, v = (x, y) if not var[x] else (y, x)
+                lit, consts0, base = visit(v)
+                consts = tuple(sorted(consts0 + (materialize(c),)))
+            else:
+                lx, cx, bx = visit(x)
+                ly, cy, by = visit(y)
+                lit, consts, base = lx * ly, tuple(sorted(cx + cy)), add("mul", sorted((bx, by)))
+        else:
+            base = add(kind, [materialize(a) for a in args], data)
+        memo[i] = (lit, consts, base)
+        return memo[i]
+
+    def materialize(i: int) -> int:
+        lit, consts, base = visit(i)
+        if not consts:
+            return base if lit == 1 else add("scale", (base,), lit)
+        factor = consts[0]
+        for c in consts[1:]:
+            factor = add("mul", (factor, c))
+        if lit != 1:
+            factor = add("scale", (factor,), lit)
+        return add("mul", (factor, base))
+
+    out = [materialize(r) for r in roots]
+    return new, out
+
+
 class _Emitter:
     """The C of one system at one order."""
 
@@ -129,19 +195,16 @@ class _Emitter:
         tape = _Tape([*system.coordinates, *system.velocities], {}, tuple(p.symbol for p in system.parameters))
         M, r = system.mass_matrix, system.forces - system.velocity_terms
         try:
-            self.M = [[tape.node(sympy.sympify(M[a, b])) for b in range(n)] for a in range(n)]
-            self.r = [tape.node(sympy.sympify(r[a])) for a in range(n)]
+            M = [tape.node(sympy.sympify(M[a, b])) for a in range(n) for b in range(n)]
+            r = [tape.node(sympy.sympify(r[a])) for a in range(n)]
         except Unsupported as exc:
             raise TaylorUnavailable(str(exc).replace("the high-precision reference", "method 'taylor'")) from None
-        self.nodes = tape.nodes
-        self.var = []  # does node i vary along the trajectory (else: parameters and constants only)
-        for kind, args, _ in self.nodes:
-            if kind in ("state", "time"):
-                self.var.append(True)
-            elif kind in ("const", "param"):
-                self.var.append(False)
-            else:
-                self.var.append(any(self.var[a] for a in args))
+        states = [i for i, (kind, _, _) in enumerate(tape.nodes) if kind == "state"]  # kept, in their order
+        self.nodes, roots = _fold_factors(tape.nodes, states + M + r)
+        roots = roots[len(states):]
+        self.M = [roots[a * n:(a + 1) * n] for a in range(n)]
+        self.r = roots[n * n:]
+        self.var = _varying(self.nodes)  # does node i vary along the trajectory (else: parameters and constants)
         self.needed = set()  # the nodes Mbar and fbar - hbar depend on
         stack = [x for row in self.M for x in row] + list(self.r)
         while stack:
