@@ -7,10 +7,18 @@ differentiation, ``Mbar_0 x_k = r_k - sum_{j>=1} Mbar_j x_{k-j}`` solved by ``L 
 
 The order ``N = ceil(ln(1/tol) / 2) + 1`` is a compile-time constant: one library per order
 used. Operations on parameters and constants alone are computed once per call, and a product
-with such a factor costs one multiplication per order instead of a convolution; ``1/D`` and
-``1/k`` are multiplications. Small systems at low orders get every order written out, the
-convolutions as pairwise sums; otherwise the orders are a loop over a four-accumulator
-convolution (as fast here, and much quicker to compile). The step is
+with such a factor costs one multiplication per order instead of a convolution; the constant
+factors are moved out of products and merged first (``2 (c a) b`` is ``(2 c) (a b)``: one
+multiplication per order, :func:`_fold_factors`); ``1/D`` and ``1/k`` are multiplications.
+Small systems at low orders get every order written out: each convolution
+``sum_j a_j b_{k-j}`` is its older part ``sum_{j=1}^{k-1}`` plus the terms of order ``k``, and the
+older parts of all the convolutions are summed lane by lane in one loop per order over arrays
+``KA[j][lane]``, ``KB[j][lane]`` that every order's coefficients are copied into (the compiler
+vectorizes it: 4 convolutions per AVX instruction, no sum across lanes), the terms of order
+``k`` added last (they wait for this order); ``x_k`` for ``k >= 1`` is ``Mbar_0^-1`` (from
+``L D L^T``, once per step) times the right-hand side, a short chain instead of two
+substitutions; the step's increment is evaluated by Estrin's scheme. Otherwise the orders
+are a loop over a four-accumulator convolution (much quicker to compile). The step is
 ``h = rho tol^(1/(N-1)) exp(-0.7 / (N - 1))``, ``rho = min_{k = N-1, N} (max(1, |y|) / |y_k|)^(1/k)``:
 Jorba and Zou's ``rho / e^2 exp(-0.7 / (N - 1))`` (heyoka's) when ``tol = e^(-2 (N - 1))``, and
 between two orders a step that still keeps ``(h / rho)^N`` below ``tol``. The states at the
