@@ -47,6 +47,41 @@ def test_unrolled_orders_match_the_loops(monkeypatch):
     np.testing.assert_allclose(out[True], out[False], rtol=0, atol=1e-13)
 
 
+@pytest.mark.parametrize("tol, atol", [(3e-11, 1e-9), (1e-15, 1e-13)])
+def test_benchmark_kernel_matches_the_loop_form_and_the_reference(monkeypatch, tol, atol):
+    """The double pendulum's orders written out (the older products summed lane by lane,
+    ``Mbar_0^-1`` for k >= 1, the factors folded, Estrin's increment) against the loop form of
+    the same order and the mpmath Taylor route, to t = 1 (at the benchmark's order 14, and at 19
+    with the low part of the state carried)."""
+    system, _, _, _ = benchmark_problem()
+    values = resolve(system, {}, {"theta": "2*pi/3", "phi": "-pi/18"})
+    want = np.array([float(v) for v in R.taylor(system, values.parameters, values.y0, [1.0], digits=20).states[-1]])
+    out = {}
+    for unroll in (True, False):
+        monkeypatch.setattr(taylor_c, "UNROLL_TERMS", taylor_c.UNROLL_TERMS if unroll else 0)
+        emitter = taylor_c._Emitter(system, taylor_c.order_for(tol))
+        assert emitter.unrolled is unroll and ("KS[p] = " in emitter.source("x")) is unroll
+        got, status, steps, _ = TaylorC(system).integrate(values.parameters, values.y0, 1.0, tol)
+        assert status == 0 and steps > 20
+        out[unroll] = got
+    np.testing.assert_allclose(out[True], want, rtol=0, atol=atol)
+    np.testing.assert_allclose(out[True], out[False], rtol=0, atol=atol)
+
+
+def test_generated_c_is_byte_identical_under_different_hash_seeds():
+    import os
+    import subprocess
+
+    code = ("import sys, kronsub; from kronsub.simulation.taylor_c import emit_taylor_c; "
+            "s = kronsub.load(sys.argv[1]).derive(); sys.stdout.write(emit_taylor_c(s, 14) + emit_taylor_c(s, 40))")
+    texts = set()
+    for seed in ("1", "777"):
+        env = dict(os.environ, PYTHONHASHSEED=seed, KRONSUB_CACHE_DIR="off", PYTHONPATH=str(ROOT))
+        texts.add(subprocess.run([sys.executable, "-c", code, str(MODELS / "hoffmann" / "system1.yaml")], env=env,
+                                 check=True, capture_output=True, text=True).stdout)
+    assert len(texts) == 1
+
+
 @pytest.mark.parametrize("name, exact, tolerances", [
     ("spring_chain", spring_chain_exact, (1e-6, 1e-12)),  # linear: no trigonometric function
     ("pendulum", pendulum_exact, (1e-4, 1e-8, 1e-12)),  # elliptic-function solution

@@ -7,10 +7,18 @@ differentiation, ``Mbar_0 x_k = r_k - sum_{j>=1} Mbar_j x_{k-j}`` solved by ``L 
 
 The order ``N = ceil(ln(1/tol) / 2) + 1`` is a compile-time constant: one library per order
 used. Operations on parameters and constants alone are computed once per call, and a product
-with such a factor costs one multiplication per order instead of a convolution; ``1/D`` and
-``1/k`` are multiplications. Small systems at low orders get every order written out, the
-convolutions as pairwise sums; otherwise the orders are a loop over a four-accumulator
-convolution (as fast here, and much quicker to compile). The step is
+with such a factor costs one multiplication per order instead of a convolution; the constant
+factors are moved out of products and merged first (``2 (c a) b`` is ``(2 c) (a b)``: one
+multiplication per order, :func:`_fold_factors`); ``1/D`` and ``1/k`` are multiplications.
+Small systems at low orders get every order written out: each convolution
+``sum_j a_j b_{k-j}`` is its older part ``sum_{j=1}^{k-1}`` plus the terms of order ``k``, and the
+older parts of all the convolutions are summed lane by lane in one loop per order over arrays
+``KA[j][lane]``, ``KB[j][lane]`` that every order's coefficients are copied into (the compiler
+vectorizes it: 4 convolutions per AVX instruction, no sum across lanes), the terms of order
+``k`` added last (they wait for this order); ``x_k`` for ``k >= 1`` is ``Mbar_0^-1`` (from
+``L D L^T``, once per step) times the right-hand side, a short chain instead of two
+substitutions; the step's increment is evaluated by Estrin's scheme. Otherwise the orders
+are a loop over a four-accumulator convolution (much quicker to compile). The step is
 ``h = rho tol^(1/(N-1)) exp(-0.7 / (N - 1))``, ``rho = min_{k = N-1, N} (max(1, |y|) / |y_k|)^(1/k)``:
 Jorba and Zou's ``rho / e^2 exp(-0.7 / (N - 1))`` (heyoka's) when ``tol = e^(-2 (N - 1))``, and
 between two orders a step that still keeps ``(h / rho)^N`` below ``tol``. The states at the
@@ -67,6 +75,21 @@ def _ldl_substitution(n: int, x) -> list[str]:
     return lines + [f"{x(a)} -= L{b}_{a} * {x(b)};" for a in reversed(range(n)) for b in range(a + 1, n)]
 
 
+def _ldl_inverse(n: int) -> list[str]:
+    """``A{a}_{b}`` (a >= b) <- ``Mbar^-1 = L^-T D^-1 L^-1`` from ``L{a}_{b}`` and ``R{a}``, a column
+    at a time as :func:`_ldl_substitution` solves for ``e_b`` (its known zeros and ones left out)."""
+    lines = []
+    for b in range(n):
+        for a in range(b + 1, n):
+            lines.append(f"A{a}_{b} = -(" + " + ".join([f"L{a}_{b}"] + [f"L{a}_{c} * A{c}_{b}" for c in range(b + 1, a)])
+                         + ");")
+        lines.append(f"A{b}_{b} = R{b};")
+        lines += [f"A{a}_{b} *= R{a};" for a in range(b + 1, n)]
+        lines += [f"A{a}_{b} -= " + " + ".join(f"L{c}_{a} * A{c}_{b}" for c in range(a + 1, n)) + ";"
+                  for a in reversed(range(b, n - 1))]
+    return lines
+
+
 def _literal(value) -> str:
     with mpmath.workdps(40):
         text = mpmath.nstr(mpmath.mpf(value), 36, min_fixed=-1, max_fixed=1, strip_zeros=False)
@@ -92,6 +115,81 @@ def _tree(terms: list[str]) -> str:
     return terms[0]
 
 
+def _last(old: list[str], new: list[str]) -> str:
+    """``old`` summed pairwise, then each of ``new`` added: the terms that wait for this order's
+    coefficients enter last, so only one addition each lies on the chain from order to order."""
+    text = _tree(old) if old else ""
+    for term in new:
+        text = f"({text} + {term})" if text else term
+    return text or "0.0"
+
+
+def _varying(nodes) -> list[bool]:
+    """Does node i vary along the trajectory (else: parameters and constants only)."""
+    var = []
+    for kind, args, _ in nodes:
+        var.append(kind in ("state", "time") or (kind not in ("const", "param") and any(var[a] for a in args)))
+    return var
+
+
+def _fold_factors(nodes, roots: list[int]) -> tuple[list, list[int]]:
+    """The tape with its constant factors moved outward and merged: ``s (c a)``, ``(c a) b`` and
+    ``c (c' a)`` become one product ``(s c c') (a b)`` with its factor computed once per call, so
+    each order pays one multiplication for it instead of one per factor (exact when the factors
+    are powers of two, as ``2``, ``-1``). Returns the new nodes (topological) and the roots' nodes."""
+    var = _varying(nodes)
+    new: list = []
+    index: dict = {}
+
+    def add(kind, args, data=None) -> int:
+        key = (kind, tuple(args), data)
+        if key not in index:
+            new.append(key)
+            index[key] = len(new) - 1
+        return index[key]
+
+    memo: dict[int, tuple] = {}  # old node -> (literal, constant nodes, new node): the value is their product
+
+    def visit(i: int) -> tuple:
+        if i in memo:
+            return memo[i]
+        kind, args, data = nodes[i]
+        lit, consts, base = mpmath.mpf(1), (), None
+        if not var[i] or kind in ("state", "time"):
+            base = add(kind, [materialize(a) for a in args], data)
+        elif kind == "scale":
+            lit0, consts, base = visit(args[0])
+            lit = lit0 * data
+        elif kind == "mul":
+            x, y = args
+            if not var[x] or not var[y]:
+                c, v = (x, y) if not var[x] else (y, x)
+                lit, consts0, base = visit(v)
+                consts = tuple(sorted(consts0 + (materialize(c),)))
+            else:
+                lx, cx, bx = visit(x)
+                ly, cy, by = visit(y)
+                lit, consts, base = lx * ly, tuple(sorted(cx + cy)), add("mul", sorted((bx, by)))
+        else:
+            base = add(kind, [materialize(a) for a in args], data)
+        memo[i] = (lit, consts, base)
+        return memo[i]
+
+    def materialize(i: int) -> int:
+        lit, consts, base = visit(i)
+        if not consts:
+            return base if lit == 1 else add("scale", (base,), lit)
+        factor = consts[0]
+        for c in consts[1:]:
+            factor = add("mul", (factor, c))
+        if lit != 1:
+            factor = add("scale", (factor,), lit)
+        return add("mul", (factor, base))
+
+    out = [materialize(r) for r in roots]
+    return new, out
+
+
 class _Emitter:
     """The C of one system at one order."""
 
@@ -105,19 +203,16 @@ class _Emitter:
         tape = _Tape([*system.coordinates, *system.velocities], {}, tuple(p.symbol for p in system.parameters))
         M, r = system.mass_matrix, system.forces - system.velocity_terms
         try:
-            self.M = [[tape.node(sympy.sympify(M[a, b])) for b in range(n)] for a in range(n)]
-            self.r = [tape.node(sympy.sympify(r[a])) for a in range(n)]
+            M = [tape.node(sympy.sympify(M[a, b])) for a in range(n) for b in range(n)]
+            r = [tape.node(sympy.sympify(r[a])) for a in range(n)]
         except Unsupported as exc:
             raise TaylorUnavailable(str(exc).replace("the high-precision reference", "method 'taylor'")) from None
-        self.nodes = tape.nodes
-        self.var = []  # does node i vary along the trajectory (else: parameters and constants only)
-        for kind, args, _ in self.nodes:
-            if kind in ("state", "time"):
-                self.var.append(True)
-            elif kind in ("const", "param"):
-                self.var.append(False)
-            else:
-                self.var.append(any(self.var[a] for a in args))
+        states = [i for i, (kind, _, _) in enumerate(tape.nodes) if kind == "state"]  # kept, in their order
+        self.nodes, roots = _fold_factors(tape.nodes, states + M + r)
+        roots = roots[len(states):]
+        self.M = [roots[a * n:(a + 1) * n] for a in range(n)]
+        self.r = roots[n * n:]
+        self.var = _varying(self.nodes)  # does node i vary along the trajectory (else: parameters and constants)
         self.needed = set()  # the nodes Mbar and fbar - hbar depend on
         stack = [x for row in self.M for x in row] + list(self.r)
         while stack:
@@ -126,6 +221,7 @@ class _Emitter:
                 self.needed.add(i)
                 stack.extend(self.nodes[i][1])
         # derivative arrays d_j = j a_j of the nodes whose recurrences need them
+        self.pairs: dict[tuple[str, str], int] = {}  # (a, b) of each sum_j a_j b_{k-j}: its lane
         self.scaled = set()
         for i, (kind, args, _) in enumerate(self.nodes):
             if kind in ("sincos", "exp", "integral", "pow") and self.var[args[0]] and i in self.needed:
@@ -153,8 +249,15 @@ class _Emitter:
 
     def conv(self, a: str, b: str, lo, hi, k) -> str:
         """``sum_{j=lo}^{hi} a[j] b[k-j]`` (``hi`` may be ``k`` or ``k - 1`` in loop form)."""
-        if isinstance(k, int):
-            return _tree([f"{a}[{j}] * {b}[{k - j}]" for j in range(lo, hi + 1)])
+        if isinstance(k, int):  # the terms with a coefficient of this order last: the chain from order to order
+            assert lo in (0, 1) and hi in (k - 1, k)
+            new = [f"{a}[{j}] * {b}[{k - j}]" for j in range(lo, hi + 1) if not 0 < j < k]
+            if a == b and len(new) == 2:  # a square: a_0 a_k twice, exactly 2 (a_0 a_k)
+                new = [f"2.0 * {a}[0] * {a}[{k}]"]
+            if k < 2:
+                return _last([], new)
+            lane = self.pairs.setdefault((a, b), len(self.pairs))
+            return _last([f"KS[{lane}]"], new)  # sum_{j=1}^{k-1} a[j] b[k-j], all the lanes at once
         return f"ks_conv({a}, {b}, {lo}, {hi}, k)"
 
     # one coefficient of one node ---------------------------------------------------------
@@ -180,12 +283,6 @@ class _Emitter:
                 c, s = (x, y) if not self.var[x] else (y, x)
                 return [f"{v}[{k}] = c{c} * {self.name(s)}[{k}];"]
             b = self.name(y)
-            if x == y and isinstance(k, int):  # a square: each cross product once
-                half = [f"{a}[{j}] * {a}[{k - j}]" for j in range((k + 1) // 2)]
-                s = f"2.0 * {_tree(half)}"
-                if k % 2 == 0:
-                    s += f" + {a}[{k // 2}] * {a}[{k // 2}]"
-                return [f"{v}[{k}] = {s};"]
             return [f"{v}[{k}] = {self.conv(a, b, 0, k, k)};"]
         d = f"d{args[0]}" if args else ""
         if kind == "sincos":
@@ -314,7 +411,7 @@ class _Emitter:
                 arrays.append(f"v{i}")
         arrays += [f"d{i}" for i in sorted(self.scaled | {i for i, (kind, _, _) in enumerate(nodes)
                                                           if kind == "log" and self.var[i] and i in self.needed})]
-        arrays += [f"Y{j}" for j in range(2 * n)] + [f"X{a}" for a in range(n)]
+        arrays += [f"Y{j}" for j in range(2 * n)] + [f"X{a}" for a in range(n)] + [f"B{a}" for a in range(n)]
         prologue = []
         for i, (kind, args, data) in enumerate(nodes):
             if not self.var[i] and i in self.needed:
@@ -332,7 +429,7 @@ class _Emitter:
             return lines
 
         def solve(k) -> list[str]:
-            lines = []
+            lines, inverse = [], self.unrolled and k != 0
             if k == 0:  # Mbar_0 = L D L^T, L unit lower triangular
                 for a in range(n):
                     for b in range(a + 1):
@@ -349,8 +446,14 @@ class _Emitter:
                     m = self.M[a][b]
                     if self.var[m] and k != 0:
                         terms.append(f"({self.conv(self.name(m), f'X{b}', 1, k, k)})")
-                lines.append(f"X{a}[{k}] = {' - '.join(terms)};")
-            lines += _ldl_substitution(n, lambda a: f"X{a}[{k}]")
+                lines.append(f"{'B' if inverse else 'X'}{a}[{k}] = {' - '.join(terms)};")
+            if k == 0 and self.unrolled:
+                lines += _ldl_inverse(n)
+            if inverse:  # x_k = Mbar_0^-1 (r_k - ...): a product (a short chain), not two substitutions
+                lines += [f"X{a}[{k}] = " + _tree([f"A{max(a, b)}_{min(a, b)} * B{b}[{k}]" for b in range(n)]) + ";"
+                          for a in range(n)]
+            else:
+                lines += _ldl_substitution(n, lambda a: f"X{a}[{k}]")
             inv = _literal(mpmath.mpf(1) / (k + 1)) if isinstance(k, int) else "ks_inv[k + 1]"
             k1 = k + 1 if isinstance(k, int) else "k + 1"
             for a in range(n):
@@ -382,14 +485,27 @@ class _Emitter:
             lows = kept
         step += emit_order(0) + solve(0) + ["if (fine) {"] + ["    " + x for x in lows] + ["}"]
         if self.unrolled:
-            for k in range(1, N):
-                step += emit_order(k) + solve(k)
+            orders = [emit_order(k) + solve(k) for k in range(1, N)]  # the lanes are known after this
+            lanes = -(-len(self.pairs) // 4) * 4  # a multiple of the vector width (4 with AVX, 2 with SSE2)
+            for k, lines in enumerate(orders, 1):
+                if k >= 2 and self.pairs:  # the sums over older coefficients, lane by lane (vectorized)
+                    terms = _last([f"KA[{j}][p] * KB[{k - j}][p]" for j in range(2, k - 1)],  # the last order's last
+                                  [f"KA[{j}][p] * KB[{k - j}][p]" for j in sorted({1, k - 1})])
+                    step.append(f"for (p = 0; p < {lanes}; ++p) KS[p] = {terms};")
+                step += lines
+                if k <= N - 2:  # this order's coefficients into the lanes they are read in
+                    for (a, b), lane in self.pairs.items():
+                        step.append(f"KA[{k}][{lane}] = {a}[{k}]; KB[{k}][{lane}] = {b}[{k}];")
+            if self.pairs:
+                storage_lanes = [f"double KA[TN_ORDER][{lanes}], KB[TN_ORDER][{lanes}], KS[{lanes}];", "int p;"]
         else:
             step.append("for (k = 1; k < TN_ORDER; ++k) {")
             step += ["    " + x for x in emit_order("k") + solve("k")]
             step.append("}")
         ldl = [f"L{a}_{b}" for a in range(n) for b in range(a)] + [f"D{a}" for a in range(n)] + \
             [f"R{a}" for a in range(n)]  # R = 1 / D: no division on the chain from order to order
+        if self.unrolled:
+            ldl += [f"A{a}_{b}" for a in range(n) for b in range(a + 1)]
         lo_names = sorted(set(re.findall(r"\b(?:e\d+|eS\d+|eC\d+|EX\d+)\b", "\n".join(lows))),
                           key=lambda x: (re.sub(r"\d", "", x), int(re.sub(r"\D", "", x))))
         decl = ["double " + ", ".join(f"{x} = 0" for x in lo_names) + ";"]
@@ -406,20 +522,39 @@ class _Emitter:
                              key=lambda x: (x[0], [int(p) for p in re.findall(r"\d+", x)]))
             storage = ["double " + ", ".join(scalars) + ";"]
             zero = []
+            if self.pairs:
+                storage += storage_lanes
+                zero += [f"for (p = 0; p < {lanes}; ++p) {{ KS[p] = 0; for (k = 0; k < TN_ORDER; ++k) "
+                         "KA[k][p] = KB[k][p] = 0; }"]
             consts_void = scalars
             load = " ".join(f"Y{j}_0 = y[{j}];" for j in range(ny))
             sizes = "\n        ".join(f"if (!(fabs(Y{j}_{N - 1 + e}) <= size[{e}])) size[{e}] = fabs(Y{j}_{N - 1 + e});"
                                       for j in range(ny) for e in (0, 1))
 
-            def horner(tau: str) -> str:  # the increment sum_{k>=1} Y_k tau^k
-                def poly(j):
-                    text = f"Y{j}_{N}"
-                    for k in range(N - 1, 0, -1):
-                        text = f"({text} * {tau} + Y{j}_{k})"
-                    return f"{text} * {tau}"
-                return " ".join(f"dy[{j}] = {poly(j)};" for j in range(ny))
+            def horner(tau: str, estrin: bool = True) -> str:  # the increment sum_{k>=1} Y_k tau^k
+                # Estrin's scheme: Y_1 tau + (Y_2 + Y_3 tau + (Y_4 + Y_5 tau) tau^2 + ...) tau^2 in tau,
+                # tau^2, tau^4, ...: a chain of log2(N) products, not N; the leading term added last
+                powers = [tau, f"{tau}2"]  # as many as the N - 1 terms after the first need, at least tau^2
+                while 2 ** len(powers) < N - 1:
+                    powers.append(f"{tau}{2 ** len(powers)}")
 
-            dense = horner("tau")
+                def poly(j):
+                    if not estrin:
+                        text = f"Y{j}_{N}"
+                        for k in range(N - 1, 0, -1):
+                            text = f"({text} * {tau} + Y{j}_{k})"
+                        return f"{text} * {tau}"
+                    terms = [f"Y{j}_{k}" for k in range(2, N + 1)]
+                    for x in powers:
+                        terms = [f"({terms[i]} + {terms[i + 1]} * {x})" if i + 1 < len(terms) else terms[i]
+                                 for i in range(0, len(terms), 2)]
+                    assert len(terms) == 1
+                    return f"Y{j}_1 * {tau} + {terms[0]} * {tau}2"
+                square = [f"{b} = {a} * {a};" for a, b in zip(powers, powers[1:])] if estrin else []
+                lines = [f"double {', '.join(powers[1:])};", *square] if estrin else []
+                return " ".join(["{", *lines, *(f"dy[{j}] = {poly(j)};" for j in range(ny)), "}"])
+
+            dense = horner("tau", estrin=False)  # the rows are off the chain from step to step
             advance = horner("h")
             helpers = ""
         else:
