@@ -160,6 +160,14 @@ def test_unknown_option_is_a_usage_error(tmp_path):
 
 
 # ------------------------------------------------------------- components
+def test_a_coordinate_listed_twice(tmp_path):
+    text = ("name: bad\ncomponents:\n  a: {type: particle1d, parameters: {mass: 1}}\n"
+            "  b: {type: particle1d, parameters: {mass: 1}}\ncoordinates: [a_x, b_x, a_x]\n")
+    path = write(tmp_path, text)
+    line, column = place(text, "a_x", 2)
+    assert_error(derive(path), path, line, column, "coordinate 'a_x' is listed twice")
+
+
 def test_unknown_component_type(tmp_path):
     text = "name: bad\ncomponents:\n  p: {type: particel1d, parameters: {mass: 1}}\ncoordinates: [q]\n"
     path = write(tmp_path, text)

@@ -662,7 +662,7 @@ class _Loader:
         if not node.is_sequence or not node.value:
             self.error(node, "`coordinates:` must be a non-empty list of names", "e.g. `coordinates: [theta, phi]`")
             return ()
-        coords = []
+        coords, listed = [], set()
         for item in node.value:
             name = item.value
             if not isinstance(name, str):
@@ -674,9 +674,10 @@ class _Loader:
             if name in self.parameters:
                 self.error(item, f"'{name}' is both a parameter and a coordinate", "rename one of them")
                 continue
-            if symbol(name) in coords:
+            if name in listed:
                 self.error(item, f"coordinate '{name}' is listed twice", "list each coordinate once")
                 continue
+            listed.add(name)
             coords.append(symbol(name))
             self.locations[f"coordinate:{name}"] = item.location
         for q in coords:
@@ -714,6 +715,7 @@ class _Loader:
     def _generated_names(self, coords, primitive: Primitive) -> None:
         """No model name may be the velocity or acceleration name of a coordinate (names.py)."""
         coordinates = [Declared(q.name, "coordinate", self.locations.get(f"coordinate:{q.name}")) for q in coords]
+        coords = set(coords)
         for part in primitive.parts:
             where = self.locations.get(f"component:{part.name}")
             coordinates += [Declared(q.name, "coordinate", where, f"component '{part.name}'")
