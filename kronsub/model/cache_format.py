@@ -150,9 +150,9 @@ makes one object per name and assumptions anyway): a file names the same few aga
 
 
 def _symbol(node: list) -> sympy.Symbol:
-    key = tuple(node[1:])
+    seen = tuple(node[1:])
     try:
-        return _SYMBOLS[key]
+        return _SYMBOLS[seen]
     except (KeyError, TypeError):  # (a TypeError: a flag that is not a string, refused below)
         pass
     name, flags = node[1], node[2:]
@@ -166,7 +166,7 @@ def _symbol(node: list) -> sympy.Symbol:
         assumptions[key] = value
     symbol = sympy.Symbol(name, **assumptions)
     if len(_SYMBOLS) < 1 << 16:
-        _SYMBOLS[tuple(node[1:])] = symbol
+        _SYMBOLS[seen] = symbol
     return symbol
 
 
