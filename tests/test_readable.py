@@ -239,6 +239,23 @@ def test_printed_entries_no_longer_than_the_papers_22_23_29():
             assert ours <= theirs, f"{name} {label}: {got[label]} ({ours} ops) vs the paper's {expr} ({theirs})"
 
 
+def test_kinetic_energy_prints_as_the_papers_24():
+    """``T`` is printed as (24): one term for each entry of ``Mbar``'s upper triangle, the entry
+    as printed (``1/2 (I1 + m1 a1^2 + 4 m2 a1^2) theta_dot^2 + ...``), not multiplied out; it
+    is ``qdot^T Mbar qdot / 2`` for every model (its where names written out)."""
+    m1, m2, a1, a2, I1, I2, th, ph = S("m1 m2 a1 a2 I1 I2 theta phi")
+    thd, phd = S("theta_dot phi_dot")
+    _, report, names = printed("hoffmann/system1.yaml")
+    paper = (I1 + m1 * a1**2 + 4 * m2 * a1**2) * thd**2 / 2 + 2 * m2 * a1 * a2 * cos(th - ph) * thd * phd \
+        + (I2 + m2 * a2**2) * phd**2 / 2
+    got = parse_expression(report["kinetic_energy"], names)
+    assert got == paper and sympy.count_ops(got) == sympy.count_ops(paper), report["kinetic_energy"]
+    for name in PARSEABLE + EXTRA:
+        system, report, names = printed(name)
+        got = inline(parse_expression(report["kinetic_energy"], names), report, names)
+        assert same_value(got, system.kinetic_energy), f"{name}: T = {report['kinetic_energy']}"
+
+
 def test_system2_names_its_repeated_square_root_once():
     system, report, names = printed("hoffmann/system2.yaml")
     assert report["where"], "no named subexpressions"

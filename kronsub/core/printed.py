@@ -29,6 +29,21 @@ def _complex(number) -> complex:
     return complex(number)
 
 
+_SORT_KEYS: dict = {}
+_REMEMBERED = 100_000
+
+
+def _sort_key(expr):
+    """``sympy.default_sort_key(expr)``, remembered: the sums of a large system share their
+    factors (a coordinate's velocity, a sine), whose keys sympy builds anew at every sum."""
+    key = _SORT_KEYS.get((type(expr), expr))
+    if key is None:
+        if len(_SORT_KEYS) > _REMEMBERED:
+            _SORT_KEYS.clear()
+        key = _SORT_KEYS[(type(expr), expr)] = sympy.default_sort_key(expr)
+    return key
+
+
 def ordered_terms(expr, order: str = "lex") -> list:
     """``expr.as_ordered_terms(order)`` for a sum, by sympy's key (``Expr._parse_order``)
     over the terms as ``Expr.as_terms`` describes them."""
@@ -55,7 +70,7 @@ def ordered_terms(expr, order: str = "lex") -> list:
                 else:
                     noncommutative.append(factor)
         terms.append((term, (value.real, value.imag), powers, tuple(noncommutative)))
-    index = {g: i for i, g in enumerate(sorted(gens, key=sympy.default_sort_key))}
+    index = {g: i for i, g in enumerate(sorted(gens, key=_sort_key))}
     described = []
     for term, coeff, powers, noncommutative in terms:
         monom = [0] * len(index)

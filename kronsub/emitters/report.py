@@ -197,6 +197,18 @@ def _once(show: Printer) -> Printer:
     return once
 
 
+def kinetic_energy(mass: sympy.Matrix, velocities) -> sympy.Expr:
+    """``T = 1/2 Mbar_ab qdot^a qdot^b`` as the paper prints (24): one term for each entry of the
+    upper triangle, ``Mbar_aa qdot_a^2 / 2`` and ``Mbar_ab qdot_a qdot_b``, the entries as printed
+    (not multiplied out: a chain's entries hold sums of masses, whose products with the
+    velocities would be far longer to print, and to make)."""
+    half = sympy.Rational(1, 2)
+    n = len(velocities)
+    return sympy.Add(*[sympy.Mul(half, mass[a, a], velocities[a] ** 2) if a == b  # one product: 1/2 not distributed
+                       else sympy.Mul(mass[a, b], velocities[a], velocities[b])
+                       for a in range(n) for b in range(a, n) if mass[a, b] != 0])
+
+
 def build_report(system: KnownSystem, show: Printer, named: bool = True) -> dict:
     """The derivation as nested lists of printed strings, in a fixed order.
 
@@ -219,12 +231,13 @@ def build_report(system: KnownSystem, show: Printer, named: bool = True) -> dict
         mass[i, j] = mass[j, i] = e
     hbar, fbar = exprs[len(upper):len(upper) + n], exprs[len(upper) + n:]
     named_as = {e: s for s, e in where}
-    others = [e.xreplace(named_as) for e in (system.kinetic_energy, system.potential_energy,
-                                              *[e for _, f in effects for e in f])]
+    others = [kinetic_energy(mass, system.velocities),
+              *[e.xreplace(named_as) for e in (system.potential_energy, *[e for _, f in effects for e in f])]]
     it = iter(others[2:])
     take = lambda k: [next(it) for _ in range(k)]  # noqa: E731
     accelerations = sympy.Matrix(system.accelerations)
-    lhs = mass * accelerations + sympy.Matrix(hbar)
+    # Mbar qddot + hbar, each row one sum (the matrix product adds its terms one at a time)
+    lhs = [sympy.Add(*[mass[i, j] * accelerations[j] for j in range(n)], hbar[i]) for i in range(n)]
     report = {
         "name": system.name,
         "description": system.description.strip(),
