@@ -539,3 +539,15 @@ def test_a_compiler_that_cannot_build_for_the_host_builds_portably(cache, monkey
     model = NativeModel.build([OSCILLATOR], "oscillator", nq=1, nparam=2)
     assert [("-march=no-such-processor" in c) for c in calls] == [True, False]
     assert math.isclose(model.rhs(0.0, [1.0, 0.0], [2.0, 8.0])[1], -4.0)
+
+
+def test_data_address_is_numpys_for_every_kind_of_array():
+    """`native.data_address` (what every call into a compiled model passes) is the address
+    numpy gives, for writable, read-only, empty and non-contiguous arrays."""
+    from kronsub.simulation.native import data_address
+
+    writable = np.arange(6.0)
+    read_only = np.arange(6.0)
+    read_only.setflags(write=False)
+    for array in (writable, read_only, np.zeros(0), writable[::2], np.zeros((3, 2)), np.zeros((3, 2)).T):
+        assert data_address(array) == array.ctypes.data

@@ -343,7 +343,15 @@ _REQUIRED = ("ks_rhs", "ks_status_message", "ks_dop853", "ks_gauss4", "ks_rk4", 
 _WORK = {"dop853": 27, "gauss4": 7, "rk4": 6}
 
 
-def _ptr(array: np.ndarray) -> int:
+def data_address(array: np.ndarray) -> int:
+    """The address of ``array``'s data (``array.ctypes.data``); for a writable array through a
+    ctypes view of its buffer, a third of the time (numpy builds a ctypes helper per call,
+    and scipy's integrators ask once per right-hand side)."""
+    if array.flags.writeable:
+        try:
+            return ctypes.addressof(ctypes.c_char.from_buffer(array))
+        except (TypeError, ValueError, BufferError):  # empty or not contiguous
+            pass
     return array.ctypes.data
 
 
@@ -381,7 +389,7 @@ class NativeModel:
         # the circle state z = [y; cos q_c; sin q_c] (emitters/circle.py): 0 without one
         self.nc = int(self._fn["ks_ncircle"]()) if "ks_ncircle" in self._fn and "ks_rhs_circle" in self._fn else 0
         if self.nstate:
-            self._fn["ks_newton_init"](_ptr(self._buffer[self.nparam:]))
+            self._fn["ks_newton_init"](data_address(self._buffer[self.nparam:]))
 
     def set_newton(self, dependent, tol: float | None = None) -> None:
         """Warm start (the dependent coordinates) and tolerance of the compiled Newton's method."""
@@ -445,7 +453,7 @@ class NativeModel:
         """``ydot = [qdot; Mbar^-1 (fbar - hbar)]``."""
         y, p = self._state(y), self._param(param)
         ydot = np.empty(self.ny)
-        if self._function("ks_rhs")(t, _ptr(y), _ptr(p), _ptr(ydot)):
+        if self._function("ks_rhs")(t, data_address(y), data_address(p), data_address(ydot)):
             raise self._singular(t, y)
         return ydot
 
@@ -453,7 +461,7 @@ class NativeModel:
         """``zdot = [Mbar^-1 p; dT/dq + fbar]`` for ``z = [q; p]``."""
         z, p = self._state(z, "z"), self._param(param)
         zdot = np.empty(self.ny)
-        if self._function("ks_rhs_canonical")(t, _ptr(z), _ptr(p), _ptr(zdot)):
+        if self._function("ks_rhs_canonical")(t, data_address(z), data_address(p), data_address(zdot)):
             raise self._singular(t, z)
         return zdot
 
@@ -461,7 +469,7 @@ class NativeModel:
         """``z = [y; cos q_c; sin q_c]`` of the circle coordinates ``q_c`` (see :attr:`nc`)."""
         y = self._state(y)
         z = np.empty(self.ny + 2 * self.nc)
-        self._function("ks_circle_state")(_ptr(y), _ptr(z))
+        self._function("ks_circle_state")(data_address(y), data_address(z))
         return z
 
     def rhs_circle(self, t: float, z, param) -> np.ndarray:
@@ -471,19 +479,19 @@ class NativeModel:
         if z.shape != (self.ny + 2 * self.nc,):
             raise ValueError(f"z must be 1-dimensional with {self.ny + 2 * self.nc} entries (got shape {z.shape})")
         zdot = np.empty_like(z)
-        if self._function("ks_rhs_circle")(t, _ptr(z), _ptr(p), _ptr(zdot)):
+        if self._function("ks_rhs_circle")(t, data_address(z), data_address(p), data_address(zdot)):
             raise self._singular(t, z)
         return zdot
 
     def kinetic_energy(self, y, param) -> float:
         """``T = 1/2 qdot^T Mbar qdot``."""
         y, p = self._state(y), self._param(param)
-        return float(self._function("ks_kinetic_energy")(_ptr(y), _ptr(p)))
+        return float(self._function("ks_kinetic_energy")(data_address(y), data_address(p)))
 
     def potential_energy(self, t: float, y, param) -> float:
         """``V`` of the model's conservative effects."""
         y, p = self._state(y), self._param(param)
-        return float(self._function("ks_potential_energy")(t, _ptr(y), _ptr(p)))
+        return float(self._function("ks_potential_energy")(t, data_address(y), data_address(p)))
 
     def energies(self, t, Y, param) -> tuple[np.ndarray, np.ndarray]:
         """Kinetic and potential energy at every row ``(t_r, Y_r)`` of a trajectory (in C)."""
@@ -496,21 +504,21 @@ class NativeModel:
         self._fn["ks_energy_rows"](
             _address(self._function("ks_kinetic_energy")),
             _address(self._function("ks_potential_energy")),
-            self.ny, _ptr(p), _ptr(rows), len(t), _ptr(T), _ptr(V))
+            self.ny, data_address(p), data_address(rows), len(t), data_address(T), data_address(V))
         return T, V
 
     def momentum(self, y, param) -> np.ndarray:
         """``z = [q; Mbar qdot]``."""
         y, p = self._state(y), self._param(param)
         z = np.empty(self.ny)
-        self._function("ks_momentum")(_ptr(y), _ptr(p), _ptr(z))
+        self._function("ks_momentum")(data_address(y), data_address(p), data_address(z))
         return z
 
     def velocity(self, z, param) -> np.ndarray:
         """``y = [q; Mbar^-1 p]``."""
         z, p = self._state(z, "z"), self._param(param)
         y = np.empty(self.ny)
-        if self._function("ks_velocity")(_ptr(z), _ptr(p), _ptr(y)):
+        if self._function("ks_velocity")(data_address(z), data_address(p), data_address(y)):
             raise self._singular(None, z)
         return y
 
@@ -520,7 +528,7 @@ class NativeModel:
         p = self._param(param)
         if "ks_prepare" in self._fn and "ks_npre" in self._fn and f"{name}_pre" in self._fn:
             pre = np.empty(max(int(self._fn["ks_npre"]()), self.nparam + self.nstate) + 1)
-            self._fn["ks_prepare"](_ptr(p), _ptr(pre))
+            self._fn["ks_prepare"](data_address(p), data_address(pre))
             return pre, self._fn[f"{name}_pre"]
         return p, self._function(name)
 
@@ -529,7 +537,7 @@ class NativeModel:
         buffers (the returned array is a fresh copy, as solvers keep references to it)."""
         p, fn = self._prepared(param, "ks_rhs")
         ydot = np.empty(self.ny)
-        p_ptr, out_ptr, ny = _ptr(p), _ptr(ydot), self.ny
+        p_ptr, out_ptr, ny = data_address(p), data_address(ydot), self.ny
 
         keep = self._keep if self.nstate else None
 
@@ -537,7 +545,7 @@ class NativeModel:
             y = np.ascontiguousarray(y, dtype=float)
             if y.shape != (ny,):
                 raise ValueError(f"y must be 1-dimensional with {ny} entries (got shape {y.shape})")
-            status = fn(t, _ptr(y), p_ptr, out_ptr)
+            status = fn(t, data_address(y), p_ptr, out_ptr)
             if keep is not None:
                 keep(p)
             if status:
@@ -592,8 +600,8 @@ class NativeModel:
 
             def run(out, rows):
                 return self._fn["ks_dop853"](
-                    rhs_address, dim, _ptr(p), t0, _ptr(start), t_end, dt_out, rtol, atol,
-                    h if h is not None else 0.0, max_steps, _ptr(out), rows, _ptr(work),
+                    rhs_address, dim, data_address(p), t0, data_address(start), t_end, dt_out, rtol, atol,
+                    h if h is not None else 0.0, max_steps, data_address(out), rows, data_address(work),
                     ctypes.byref(cres))
         else:
             if h is None:
@@ -612,8 +620,8 @@ class NativeModel:
             step = h
 
             def run(out, rows):
-                return fixed(rhs_address, dim, _ptr(p), t0, _ptr(start), t_end, step,
-                             out_every, _ptr(out), rows, _ptr(work), ctypes.byref(cres))
+                return fixed(rhs_address, dim, data_address(p), t0, data_address(start), t_end, step,
+                             out_every, data_address(out), rows, data_address(work), ctypes.byref(cres))
 
         for rows in capacity:
             out = np.empty((rows, dim + 1))
@@ -630,7 +638,7 @@ class NativeModel:
         y_fail = work[: self.ny].copy() if cres.status in (1, 2) else None
         if canonical:  # rows [t, q, p] -> [t, q, qdot]
             bad = self._fn["ks_map_rows"](_address(self._function("ks_velocity")), self.ny,
-                                          _ptr(p), _ptr(out), cres.n_rows, _ptr(work))
+                                          data_address(p), data_address(out), cres.n_rows, data_address(work))
             if bad >= 0:
                 raise self._singular(float(out[bad, 0]), out[bad, 1:])
             if y_fail is not None:

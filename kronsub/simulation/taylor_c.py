@@ -46,7 +46,7 @@ import sympy
 from ..core.known_system import KnownSystem
 from ..emitters.escape import c_comment
 from ..errors import KronsubError
-from .native import compile_library
+from .native import compile_library, data_address
 from .reference import Unsupported, _Tape
 
 MIN_ORDER, MAX_ORDER = 4, 40
@@ -767,8 +767,8 @@ class TaylorC:
         lo = None if y0_lo is None else np.ascontiguousarray(y0_lo, dtype=float).ravel()
         if lo is not None and lo.size != self.ny:
             raise ValueError(f"expected {self.ny} low parts of the initial values (got {lo.size})")
-        status = fn(p.ctypes.data, float(t0), y.ctypes.data, None if lo is None else lo.ctypes.data, len(ts),
-                    ts.ctypes.data, float(tol), int(max_steps), out.ctypes.data, counts, ctypes.byref(t_last))
+        status = fn(data_address(p), float(t0), data_address(y), None if lo is None else data_address(lo), len(ts),
+                    data_address(ts), float(tol), int(max_steps), data_address(out), counts, ctypes.byref(t_last))
         return out, int(status), int(counts[0]), int(counts[1]), float(t_last.value)
 
     def solve(self, param, y0, grid, tol: float) -> tuple[np.ndarray, np.ndarray, bool, str]:
