@@ -209,7 +209,7 @@ def test_a_renaming_writes_c_and_the_velocities_without_the_algebra(tmp_path, re
     sub = Subspace(model.primitive, model.coordinates, model.connection)
     fast, substitution = sub.transformation(model.primitive), dict(sub.substitution)
     assert "C" not in sub.__dict__  # nothing above needed the algebra's C
-    assert sub.is_identity(model.primitive) == (not renamed and coords == "[theta, phi]")
+    assert sub.is_identity == (not renamed and coords == "[theta, phi]")
     slow = canonical.matrix(len(sub.x), sub.n, [compact(sub.algebra, c) for row in sub.C for c in row])
     assert fast == slow and sorted(fast) == [0, 0, 1, 1]
     for a, (x, v) in enumerate(zip(sub.x, sub.velocities)):

@@ -163,7 +163,8 @@ class Subspace:
         return len(renamed) == len(primitive.parts) and \
             sorted(j for targets in renamed.values() for j in targets) == list(range(self.n))
 
-    def is_identity(self, primitive: Primitive) -> bool:
+    @property
+    def is_identity(self) -> bool:
         """``x = xbar``, coordinate for coordinate in the same order: ``C`` is the unit matrix,
         the transition gives back the primitive as it is (a known system reused unchanged)."""
         return self.x == self.coords and self.moves_nothing
@@ -212,7 +213,7 @@ def project_inertia(sub: Subspace, primitive: Primitive, *, name: str = "",
     The result has no effects; :func:`assemble` adds the ones a scene switches on.
     """
     metric, h = primitive.metric, primitive.velocity_terms
-    if sub.is_identity(primitive):  # x = xbar: Mbar = M, hbar = h, nothing to project
+    if sub.is_identity:  # x = xbar: Mbar = M, hbar = h, nothing to project
         mass_matrix, velocity_terms = _mutable(metric), _mutable(h)
     else:
         mass_matrix, velocity_terms = _projected_inertia(sub, primitive)
@@ -236,8 +237,7 @@ def project_inertia(sub: Subspace, primitive: Primitive, *, name: str = "",
     # (when the subspace moves nothing, placing is the identity: there is nothing to look for)
     if not sub.moves_nothing:
         moving = [part for part in primitive.parts if not point_symbols(part.points).isdisjoint(sub.velocities)]
-        located = [c for body in bodies.unplaced
-                   for c in [*body.centre, *([body.rotation] if body.rotation is not None else [])]]
+        located = [c for body in bodies.unplaced for c in _located(body)]
         if moving or not free_symbols_of(located).isdisjoint(sub.velocities):
             _place_moving(sub, placer, points, bodies, moving)
     return KnownSystem(
@@ -281,11 +281,15 @@ def _place_moving(sub: Subspace, placer: Placer, points: PlacedPoints, bodies: P
             if not free_symbols_of(pos).isdisjoint(sub.velocities):
                 points.place(f"{part.name}.{label}", placer.in_world(tuple(sub.moved(c) for c in pos)))
     for i, body in enumerate(bodies.unplaced):
-        if not free_symbols_of([*body.centre, *([body.rotation] if body.rotation is not None else [])]) \
-                .isdisjoint(sub.velocities):
+        if not free_symbols_of(_located(body)).isdisjoint(sub.velocities):
             bodies.place(i, dataclasses.replace(body, centre=placer.in_world(tuple(sub.moved(c) for c in body.centre)),
                                                 rotation=None if body.rotation is None
                                                 else body.rotation.applyfunc(sub.moved)))
+
+
+def _located(body: Body) -> list:
+    """What places a body: its centre's coordinates and its rotation, if it has one."""
+    return [*body.centre, *([body.rotation] if body.rotation is not None else [])]
 
 
 def _plus(projected: sympy.Expr, direct) -> sympy.Expr:
