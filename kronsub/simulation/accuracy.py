@@ -20,7 +20,7 @@ The points go to a plain CSV (:func:`to_csv`), everything else (model, reference
 methods, failures) to JSON metadata beside it (:func:`metadata`).
 
 Adaptive methods take ``rtol = atol = tol``; ``taylor`` is a Taylor integrator generated as C for
-the model (:mod:`.taylor_c`), of order ``ceil(ln(1/tol)/2) + 1`` (one library per order, its
+the model (:mod:`.taylor_c`), of order ``2 ceil(ln(1/tol)/4) + 4`` (:func:`.taylor_c.order_for`; one library per order, its
 compile time reported apart); ``gbs-long`` and ``gbs-quad`` (extrapolation in the
 generated C in long double and ``_Float128``, :mod:`.extended`) take ``tol`` as their tolerance. The fixed-step methods (``gauss4``, ``rk4``, both of
 order 4) take the step ``h = tol^(1/4)`` (at most ``t_end / 8``), so their error also scales

@@ -5,7 +5,7 @@ C: Taylor coefficients per operation, filled order by order with the recurrences
 differentiation, ``Mbar_0 x_k = r_k - sum_{j>=1} Mbar_j x_{k-j}`` solved by ``L D L^T`` of
 ``Mbar_0`` once per step, then ``q_{k+1} = qdot_k / (k+1)``, ``qdot_{k+1} = x_k / (k+1)``.
 
-The order ``N = ceil(ln(1/tol) / 2) + 1`` is a compile-time constant: one library per order
+The order ``N = 2 ceil(ln(1/tol) / 4) + 4`` (:func:`order_for`) is a compile-time constant: one library per order
 used. Operations on parameters and constants alone are computed once per call, and a product
 with such a factor costs one multiplication per order instead of a convolution; the constant
 factors are moved out of products and merged first (``2 (c a) b`` is ``(2 c) (a b)``: one
@@ -21,7 +21,8 @@ substitutions; the step's increment is evaluated by Estrin's scheme. Otherwise t
 are a loop over a four-accumulator convolution (much quicker to compile). The step is
 ``h = rho tol^(1/(N-1)) exp(-0.7 / (N - 1))``, ``rho = min_{k = N-1, N} (max(1, |y|) / |y_k|)^(1/k)``:
 Jorba and Zou's ``rho / e^2 exp(-0.7 / (N - 1))`` (heyoka's) when ``tol = e^(-2 (N - 1))``, and
-between two orders a step that still keeps ``(h / rho)^N`` below ``tol``. The states at the
+at the higher orders :func:`order_for` takes a longer step that still keeps ``(h / rho)^(N-1)``
+below ``tol``. The states at the
 requested output times come from the step's polynomial (dense output at no extra evaluation).
 The state and the time are compensated sums ``y + ylo``, ``t + tlo`` (issue 9, section 3): a step
 adds its increment ``sum_{k>=1} y_k h^k`` and keeps that addition's rounding exactly (TwoSum);
@@ -50,7 +51,7 @@ from .native import compile_library, data_address
 from .reference import Unsupported, _Tape
 
 MIN_ORDER, MAX_ORDER = 4, 40
-UNROLL_TERMS = 2_500  # write every order out while products + statements stay below this (gcc's time)
+UNROLL_TERMS = 5_000  # write every order out while products + statements stay below this (gcc's time)
 _INTEGRALS = {"atan": "atan", "asin": "asin", "acos": "acos"}
 STATUS = {0: "", 1: "the mass matrix is not positive definite, or the state became NaN or infinite",
           4: "the step limit was reached", 6: "bad arguments"}
@@ -61,10 +62,14 @@ class TaylorUnavailable(KronsubError):
 
 
 def order_for(tol: float) -> int:
-    """The order ``ceil(ln(1/tol) / 2) + 1`` (Jorba and Zou), within ``[MIN_ORDER, MAX_ORDER]``."""
+    """The order ``2 ceil(ln(1/tol) / 4) + 4``, within ``[MIN_ORDER, MAX_ORDER]``: Jorba and
+    Zou's ``ln(1/tol) / 2 + 1``, the optimum when a step costs ``N^2``, raised by 3 or 4 to an even
+    order. The generated step costs about ``a + b N`` (the older products are summed lane by
+    lane, off the chain from order to order), which favours a higher order with longer steps;
+    odd orders measured slower at equal error (``benchmarks/README.md``)."""
     if not (tol > 0 and math.isfinite(tol)):
         raise ValueError(f"the tolerance must be a positive number (got {tol!r})")
-    return min(MAX_ORDER, max(MIN_ORDER, math.ceil(-0.5 * math.log(tol)) + 1))
+    return min(MAX_ORDER, max(MIN_ORDER, 2 * math.ceil(-0.25 * math.log(tol)) + 4))
 
 
 def _ldl_substitution(n: int, x) -> list[str]:
