@@ -51,7 +51,7 @@ from .native import compile_library, data_address
 from .reference import Unsupported, _Tape
 
 MIN_ORDER, MAX_ORDER = 4, 40
-UNROLL_TERMS = 5_000  # write every order out while products + statements stay below this (gcc's time)
+UNROLL_TERMS = 12_000  # write every order out while products + statements stay below this (gcc's time)
 _INTEGRALS = {"atan": "atan", "asin": "asin", "acos": "acos"}
 STATUS = {0: "", 1: "the mass matrix is not positive definite, or the state became NaN or infinite",
           4: "the step limit was reached", 6: "bad arguments"}
