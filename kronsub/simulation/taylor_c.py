@@ -37,6 +37,7 @@ constraints are refused (:class:`TaylorUnavailable`).
 from __future__ import annotations
 
 import ctypes
+import functools
 import math
 import re
 
@@ -61,6 +62,7 @@ class TaylorUnavailable(KronsubError):
     """A system the generated Taylor integrator cannot integrate."""
 
 
+@functools.lru_cache(maxsize=256)
 def order_for(tol: float) -> int:
     """The order ``2 ceil(ln(1/tol) / 4) + 4``, within ``[MIN_ORDER, MAX_ORDER]``: Jorba and
     Zou's ``ln(1/tol) / 2 + 1``, the optimum when a step costs ``N^2``, raised by 3 or 4 to an even
