@@ -135,6 +135,35 @@ def test_a_failing_run_keeps_its_rows_and_says_where():
     assert len(t) == 1 and np.array_equal(Y[0], [-1.0, 0.0])
 
 
+def test_a_call_checks_its_sizes_and_returns_rows_it_owns():
+    """``run`` packs parameters, states, times and rows into one buffer: wrong sizes are refused
+    with the expected counts, rows not reached stay NaN, a model without parameters ignores
+    ``param``, and the rows are the same as from separate calls."""
+    import sympy
+
+    from kronsub.core.known_system import KnownSystem
+    from kronsub.core.symbols import symbol
+
+    q = symbol("q")
+    free = KnownSystem("free", (q,), sympy.Matrix([[1]]), sympy.Matrix([[0]]), {"f": sympy.Matrix([[1]])})
+    Y, status, steps, rows, t_last = TaylorC(free).run(None, [0.0, 0.0], [0.5, 1.0], 1e-12)
+    assert status == 0 and rows == 2 and t_last == 1.0
+    np.testing.assert_allclose(Y, [[0.125, 0.5], [0.5, 1.0]], rtol=0, atol=1e-15)  # q = t^2 / 2
+    system, _, _, _ = benchmark_problem()
+    values = resolve(system, {}, {"theta": "2*pi/3", "phi": "-pi/18"})
+    taylor = TaylorC(system)
+    with pytest.raises(ValueError, match=r"expected 8 parameters and 4 initial values \(got 7 and 4\)"):
+        taylor.run(values.parameters[:7], values.y0, [1.0], 1e-9)
+    with pytest.raises(ValueError, match=r"expected 4 low parts of the initial values \(got 3\)"):
+        taylor.run(values.parameters, values.y0, [1.0], 1e-9, y0_lo=[0.0, 0.0, 0.0])
+    both, status, _, rows, _ = taylor.run(values.parameters, values.y0, [0.5, 1.0], 1e-9)
+    assert status == 0 and rows == 2
+    for row, t in zip(both, (0.5, 1.0)):
+        np.testing.assert_allclose(row, taylor.run(values.parameters, values.y0, [t], 1e-9)[0][0], rtol=0, atol=1e-13)
+    cut, status, _, rows, _ = taylor.run(values.parameters, values.y0, [0.5, 1.0], 1e-9, max_steps=3)
+    assert status == 4 and rows == 0 and np.isnan(cut).all()
+
+
 @pytest.mark.parametrize("path", [MODELS / "examples" / "cart_pole.yaml", MODELS / "examples" / "watt_governor.yaml",
                                   ROOT / "tests" / "models" / "polar_spring.yaml"], ids=lambda p: p.stem)
 def test_models_build_and_match_the_reference(path):

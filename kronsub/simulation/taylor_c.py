@@ -763,7 +763,8 @@ class TaylorC:
         were; ``t_last`` is the time of the last state reached). ``y0_lo``: a low part of the
         initial state (the state is ``y0 + y0_lo``), carried to first order."""
         fn = self._fns.get(order or order_for(tol)) or self.build(order or order_for(tol))
-        p, y = np.asarray(param, dtype=float), np.asarray(y0, dtype=float)
+        p = np.asarray(param, dtype=float) if self.nparam else np.zeros(0)  # none to pass: param unread
+        y = np.asarray(y0, dtype=float)
         ts = np.asarray(times, dtype=float).ravel()
         npar, ny, m = max(1, self.nparam), self.ny, len(ts)
         if p.size != self.nparam or y.size != ny:
