@@ -46,7 +46,7 @@ METHODS = {
         Method("DOP853", "scipy", "scipy's DOP853 calling the compiled right-hand side"),
         Method("Radau", "scipy", "scipy's implicit Radau IIA (order 5): stiff problems (stiff springs, dampers)"),
         Method("LSODA", "scipy", "scipy's LSODA: switches between stiff and non-stiff automatically"),
-        Method("taylor", "taylor", "a Taylor integrator generated as C for the model, order ceil(ln(1/rtol)/2)+1 "
+        Method("taylor", "taylor", "a Taylor integrator generated as C for the model, order 2 ceil(ln(1/rtol)/4)+4 "
                                    "(compiled per order): the high-accuracy end, explicit equations only; "
                                    "tolerance --rtol"),
         Method("heyoka", "heyoka", "heyoka's Taylor integrator (optional extra kronsub[heyoka]): the "
