@@ -168,6 +168,37 @@ void ks_check(const double *a, long n, double *worst)
         assert worst.max() < 3e-15, (spread, worst)  # 1.3e-15 measured; 1e-13 without the resets
 
 
+def test_the_step_sizes_log2_and_exp2_are_within_their_stated_error():
+    """``ks_log2`` and ``ks_exp2`` (the step size without a call to pow): within 4e-7 of log2 over
+    normal doubles from 1e-300 to 1e300 (a subnormal reads as the smallest normal's exponent,
+    never lower), and 2^f within 2e-7 relative over [-1000, 1000], clamped outside."""
+    import ctypes
+
+    from kronsub.simulation.native import compile_library
+
+    harness = "#include <math.h>\n#include <stdint.h>\n#include <string.h>\n" + taylor_c.STEP_ROOT + """
+void ks_check(const double *x, const double *f, long n, double *out)
+{
+    long i;
+    for (i = 0; i < n; ++i) { out[2 * i] = ks_log2(x[i]); out[2 * i + 1] = ks_exp2(f[i]); }
+}
+"""
+    library = ctypes.CDLL(str(compile_library([("root.c", harness)], "root")))
+    rng = np.random.default_rng(3)
+    x = np.concatenate([10.0 ** rng.uniform(-300, 300, 5000), [1.0, 2.0, 0.5, 3.0, 1e-310, 5e-324]])
+    f = np.concatenate([rng.uniform(-1000, 1000, 5000), [0.0, 1.0, -1.0, 1e4, -1e4, np.nan]])
+    out = np.zeros(2 * len(x))
+    library.ks_check(ctypes.c_void_p(x.ctypes.data), ctypes.c_void_p(f.ctypes.data), ctypes.c_long(len(x)),
+                     ctypes.c_void_p(out.ctypes.data))
+    log2, exp2 = out[0::2], out[1::2]
+    normal = x >= 2.2250738585072014e-308
+    assert np.max(np.abs(log2[normal] - np.log2(x[normal]))) < 4e-7
+    assert np.all(log2[~normal] >= np.log2(x[~normal])) and np.all(log2[~normal] < -1020)
+    inside = np.abs(f) <= 1000
+    assert np.max(np.abs(exp2[inside] / np.exp2(f[inside]) - 1)) < 2e-7
+    assert exp2[-3] == exp2[-3] and exp2[-3] > 1e300 and 0 < exp2[-2] < 1e-300 and 0 < exp2[-1] < 1e-300
+
+
 def test_a_call_checks_its_sizes_and_returns_rows_it_owns():
     """``run`` packs parameters, states, times and rows into one buffer: wrong sizes are refused
     with the expected counts, rows not reached stay NaN, a model without parameters ignores
