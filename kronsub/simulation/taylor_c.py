@@ -24,6 +24,11 @@ Jorba and Zou's ``rho / e^2 exp(-0.7 / (N - 1))`` (heyoka's) when ``tol = e^(-2 
 at the higher orders :func:`order_for` takes a longer step that still keeps ``(h / rho)^(N-1)``
 below ``tol``. The states at the
 requested output times come from the step's polynomial (dense output at no extra evaluation).
+No libm call lies on the chain from step to step: the root is taken in log2 (inline, from the
+bits of a double: :data:`STEP_ROOT`), and order 0's sines and cosines come from the last
+step's by angle addition (:func:`_rotate_helper`), libm's every 32nd step, for a large
+increment, and at tol < 1e-13 (where ``pow`` is also kept). Python calls ``ks_taylor_io``, whose
+one argument holds every input and output.
 The state and the time are compensated sums ``y + ylo``, ``t + tlo`` (issue 9, section 3): a step
 adds its increment ``sum_{k>=1} y_k h^k`` and keeps that addition's rounding exactly (TwoSum);
 at tol < 1e-13 the low part enters the next step to first order together with order 0's own
