@@ -799,8 +799,9 @@ def _rotate_helper() -> str:
 ROTATE = r"""
 /* r = {{a_old, sin a_old, cos a_old}} <- {{a, sin a, cos a}}: by the angle-addition formula, the
    increment's sine and cosine by their series of degree 17 and 16 (|a - a_old| <= 1/2: below
-   1e-21), a third of the time of libm's; by libm when fresh (the first step, every 32nd so that
-   roundings cannot pile up, and tolerances below 1e-13) or for a larger increment */
+   1e-21), inline and shorter than libm's call on the chain from step to step; by libm when fresh
+   (the first step, every 32nd so that roundings cannot pile up, and tolerances below 1e-13) or
+   for a larger increment */
 static inline void ks_rotate(double a, double *r, int fresh)
 {{
     double d = a - r[0];
@@ -874,8 +875,8 @@ class TaylorC:
     def run(self, param, y0, times, tol: float, order: int = 0, max_steps: int = 10_000_000, t0: float = 0.0,
             y0_lo=None):
         """``(Y, status, steps, rows, t_last)``: the states at the increasing ``times`` (>= t0)
-        from ``y0`` at ``t0``; rows after a failure are not written (``rows`` says how many
-        were; ``t_last`` is the time of the last state reached). ``y0_lo``: a low part of the
+        from ``y0`` at ``t0``; rows after a failure are NaN (``rows`` says how many were
+        written; ``t_last`` is the time of the last state reached). ``y0_lo``: a low part of the
         initial state (the state is ``y0 + y0_lo``), carried to first order."""
         rows, status, steps, written, t_last = self._call(param, y0, times, tol, order, max_steps, t0, y0_lo)
         return rows.reshape(-1, self.ny), status, steps, written, t_last
