@@ -127,6 +127,16 @@ def _tree(terms: list[str]) -> str:
     return terms[0]
 
 
+def _estrin(terms: list[str], powers) -> str:
+    """``terms[0] + terms[1] x + terms[2] x^2 + ...`` by Estrin's scheme, ``powers`` naming ``x``,
+    ``x^2``, ``x^4``, ...: pairs joined level by level, a chain of log2(len(terms)) products."""
+    for x in powers:
+        terms = [f"({terms[i]} + {terms[i + 1]} * {x})" if i + 1 < len(terms) else terms[i]
+                 for i in range(0, len(terms), 2)]
+    assert len(terms) == 1
+    return terms[0]
+
+
 def _last(old: list[str], new: list[str]) -> str:
     """``old`` summed pairwise, then each of ``new`` added: the terms that wait for this order's
     coefficients enter last, so only one addition each lies on the chain from order to order."""
@@ -560,12 +570,7 @@ class _Emitter:
                         for k in range(N - 1, 0, -1):
                             text = f"({text} * {tau} + Y{j}_{k})"
                         return f"{text} * {tau}"
-                    terms = [f"Y{j}_{k}" for k in range(2, N + 1)]
-                    for x in powers:
-                        terms = [f"({terms[i]} + {terms[i + 1]} * {x})" if i + 1 < len(terms) else terms[i]
-                                 for i in range(0, len(terms), 2)]
-                    assert len(terms) == 1
-                    return f"Y{j}_1 * {tau} + {terms[0]} * {tau}2"
+                    return f"Y{j}_1 * {tau} + {_estrin([f'Y{j}_{k}' for k in range(2, N + 1)], powers)} * {tau}2"
                 square = [f"{b} = {a} * {a};" for a, b in zip(powers, powers[1:])] if estrin else []
                 lines = [f"double {', '.join(powers[1:])};", *square] if estrin else []
                 return " ".join(["{", *lines, *(f"dy[{j}] = {poly(j)};" for j in range(ny)), "}"])
@@ -595,11 +600,11 @@ class _Emitter:
         dense += " if (fine) { " + first_order("tau") + " }"
         advance += " if (fine) { " + first_order("h") + " }"
         text = TEMPLATE.format(
-            name=c_comment(name), n=n, ny=ny, order=N, nparam=max(1, self.nparam), decl="\n    ".join(decl + storage),
-            zero="\n    ".join(zero + [f"(void){x};" for x in consts_void + consts]),
-            prologue="\n    ".join(prologue), helpers=helpers + (_rotate_helper() if rotated else ""), load=load,
-            root=STEP_ROOT, fresh="const int fresh = fine || (steps & 31) == 0;" if rotated else "", sizes=sizes, dense=dense,
-            advance=advance, step="\n            ".join(step), free="free(W);" if not self.unrolled else "")
+            name=c_comment(name), n=n, ny=ny, order=N, nparam=max(1, self.nparam),
+            decl="\n    ".join(decl + storage), zero="\n    ".join(zero + [f"(void){x};" for x in consts_void + consts]),
+            prologue="\n    ".join(prologue), helpers=helpers + (_rotate_helper() if rotated else ""), root=STEP_ROOT,
+            fresh="const int fresh = fine || (steps & 31) == 0;" if rotated else "", load=load, sizes=sizes,
+            dense=dense, advance=advance, step="\n            ".join(step), free="free(W);" if not self.unrolled else "")
         return text
 
 
@@ -783,17 +788,11 @@ static inline double ks_exp2(double f)
 def _rotate_helper() -> str:
     """``ks_rotate``: the sine and cosine at order 0 from the last step's by the angle-addition
     formula, the increment's by their series (``|d| <= 1/2``, truncation below 1e-21)."""
-    def estrin(coefficients):
-        terms = [_literal(c) for c in coefficients]
-        for x in ("z", "z2", "z4", "z8"):
-            terms = [f"({terms[i]} + {terms[i + 1]} * {x})" if i + 1 < len(terms) else terms[i]
-                     for i in range(0, len(terms), 2)]
-        assert len(terms) == 1
-        return terms[0]
     with mpmath.workdps(40):
-        sine = [(-1) ** j / mpmath.factorial(2 * j + 1) for j in range(9)]
-        cosine = [(-1) ** j / mpmath.factorial(2 * j) for j in range(9)]
-    return ROTATE.format(sine=estrin(sine), cosine=estrin(cosine))
+        sine = [_literal((-1) ** j / mpmath.factorial(2 * j + 1)) for j in range(9)]
+        cosine = [_literal((-1) ** j / mpmath.factorial(2 * j)) for j in range(9)]
+    powers = ("z", "z2", "z4", "z8")
+    return ROTATE.format(sine=_estrin(sine, powers), cosine=_estrin(cosine, powers))
 
 
 ROTATE = r"""
