@@ -228,6 +228,49 @@ def test_a_call_checks_its_sizes_and_returns_rows_it_owns():
     assert status == 4 and rows == 0 and np.isnan(cut).all()
 
 
+def test_integrate_reuses_a_buffer_per_thread_and_matches_run():
+    """``integrate`` keeps its io array per thread: the same end state as ``run`` bit for bit,
+    sizes checked, a failed run's state NaN (nothing left from the call before), a model without
+    parameters, and threads that call at once each get their own answer."""
+    import threading
+
+    import sympy
+
+    from kronsub.core.known_system import KnownSystem
+    from kronsub.core.symbols import symbol
+
+    system, _, _, _ = benchmark_problem()
+    values = resolve(system, {}, {"theta": "2*pi/3", "phi": "-pi/18"})
+    taylor = TaylorC(system)
+    for t_end, tol in ((1.0, 1e-9), (0.5, 1e-12), (1.0, 1e-9)):
+        got, status, steps, order = taylor.integrate(values.parameters, values.y0, t_end, tol)
+        Y, status_run, steps_run, _, _ = taylor.run(values.parameters, values.y0, [t_end], tol)
+        assert status == status_run == 0 and steps == steps_run and order == taylor_c.order_for(tol)
+        assert np.array_equal(got, Y[0])
+    with pytest.raises(ValueError, match=r"expected 8 parameters and 4 initial values \(got 8 and 3\)"):
+        taylor.integrate(values.parameters, values.y0[:3], 1.0, 1e-9)
+    cut, status, steps, _ = taylor.integrate(values.parameters, values.y0, 1.0, 1e-9, max_steps=3)
+    assert status == 4 and steps == 3 and np.isnan(cut).all()
+    q = symbol("q")
+    free = KnownSystem("free", (q,), sympy.Matrix([[1]]), sympy.Matrix([[0]]), {"f": sympy.Matrix([[1]])})
+    np.testing.assert_allclose(TaylorC(free).integrate(None, [0.0, 0.0], 1.0, 1e-12)[0], [0.5, 1.0], atol=1e-15)
+    starts = [np.asarray(values.y0) * (1 + 0.01 * i) for i in range(4)]
+    want = [taylor.integrate(values.parameters, y, 2.0, 1e-10)[0] for y in starts]
+    got = {}
+
+    def worker(i):
+        for _ in range(20):
+            got.setdefault(i, []).append(taylor.integrate(values.parameters, starts[i], 2.0, 1e-10)[0])
+
+    threads = [threading.Thread(target=worker, args=(i,)) for i in range(4)]
+    for thread in threads:
+        thread.start()
+    for thread in threads:
+        thread.join()
+    for i in range(4):
+        assert all(np.array_equal(y, want[i]) for y in got[i])
+
+
 @pytest.mark.parametrize("path", [MODELS / "examples" / "cart_pole.yaml", MODELS / "examples" / "watt_governor.yaml",
                                   ROOT / "tests" / "models" / "polar_spring.yaml"], ids=lambda p: p.stem)
 def test_models_build_and_match_the_reference(path):

@@ -45,6 +45,7 @@ import ctypes
 import functools
 import math
 import re
+import threading
 
 import mpmath
 import numpy as np
@@ -858,6 +859,7 @@ class TaylorC:
         self.ny = 2 * len(system.coordinates)
         self.nparam = len(system.parameters)
         self._fns: dict[int, object] = {}
+        self._local = threading.local()  # integrate's io buffer, one per thread (the call releases the GIL)
         self.last_steps = 0
         _Emitter(system, MIN_ORDER)  # refuse an unsupported system now
 
@@ -921,7 +923,27 @@ class TaylorC:
         return grid[:rows].copy(), Y[:rows], False, f"{STATUS.get(status, f'status {status}')} at t = {t_last:.17g}"
 
     def integrate(self, param, y0, t_end: float, tol: float, order: int = 0, max_steps: int = 10_000_000):
-        """``(y_end, status, steps, order)`` from ``y0`` at t = 0."""
+        """``(y_end, status, steps, order)`` from ``y0`` at t = 0. The quick path of :meth:`run` for
+        one end state: the io array (header, parameters, y0, t_end, the row) is kept per thread
+        with its address, so a call writes five entries and reads four."""
         order = order or order_for(tol)
-        out, status, steps, _, _ = self._call(param, y0, float(t_end), tol, order, max_steps, 0.0, None)
-        return out[-self.ny:], status, steps, order
+        fn = self._fns.get(order) or self.build(order)
+        p = np.asarray(param, dtype=float) if self.nparam else None
+        y = np.asarray(y0, dtype=float)
+        if (p is not None and p.size != self.nparam) or y.size != self.ny:
+            raise ValueError(f"expected {self.nparam} parameters and {self.ny} initial values "
+                             f"(got {0 if p is None else p.size} and {y.size})")
+        buffer = getattr(self._local, "io", None)
+        if buffer is None:  # {t0 = 0, tol, max_steps, n_out = 1, has_lo = 0, steps, rows, t_last, param, y0, lo, t, row}
+            io = np.zeros(8 + max(1, self.nparam) + 3 * self.ny + 1)
+            io[3] = 1
+            buffer = self._local.io = (io, data_address(io), 8 + max(1, self.nparam))
+        io, address, at = buffer
+        io[1] = tol
+        io[2] = max_steps
+        if p is not None:
+            io[8:8 + self.nparam] = p.ravel()
+        io[at:at + self.ny] = y.ravel()
+        io[at + 2 * self.ny] = t_end
+        status = fn(address)
+        return io[-self.ny:].copy(), status, int(io[5]), order
