@@ -7,7 +7,9 @@ derived sympy expressions, at ``digits`` significant digits:
   operations (sums, products, powers, sin/cos, exp, log, ...) whose Taylor coefficients follow
   from the classical recurrences of automatic differentiation; ``Mbar x = r`` is solved order by
   order, ``Mbar_0 x_k = r_k - sum_{j>=1} Mbar_j x_{k-j}``. Order ``N ~ ln(1/eps)/2`` and step
-  ``h = min_k (eps / |y_k|)^(1/k)`` over the last two orders (Jorba and Zou's choice).
+  ``h = min_k (eps / |y_k|)^(1/k)`` over the last four orders (Jorba and Zou take the last two;
+  four also see a series with gaps, such as that of two rods released from rest level with their
+  hinge, whose every third and fourth coefficient is zero).
 - :func:`extrapolation`: Gragg-Bulirsch-Stoer extrapolation of the explicit midpoint rule, with
   its own step control; the right-hand side is the tape's first coefficient.
 
@@ -455,7 +457,7 @@ def taylor(system: KnownSystem, param, y0, times, digits: int = 30, dependent=No
                 coeff = series.coefficients(t, y + closure.dependent(y[:n]), order)
                 scale = max(1, _norm([_real(s[0], P) for s in coeff]))
                 h = None
-                for k in (order - 1, order):
+                for k in range(order - 3, order + 1):
                     size = _norm([_real(s[k], P) for s in coeff])
                     if size:
                         hk = _fixed((eps * scale / size) ** (mpmath.mpf(1) / k), P)
