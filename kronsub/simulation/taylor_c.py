@@ -25,9 +25,11 @@ at the higher orders :func:`order_for` takes a longer step that still keeps ``(h
 below ``tol``. Jorba and Zou (and heyoka) read ``rho`` off the last two orders, which sees the
 zero odd or even coefficients of a motion from rest. Orders ``N-3`` and ``N-2`` guard it: a
 series can have two zero coefficients in a row (two rods released from rest level with their
-hinge: every third and fourth), and the last two orders then read a radius 10x too long. When
-the exponent bits of ``|y_k|`` alone show that one of them reads a shorter radius, the step is
-taken from it (:data:`GUARD`). The states at the
+hinge: every third and fourth), and the last two orders then read a radius 10x too long. So
+``rho`` is the smallest read off orders ``N-3 .. N`` (:data:`GUARD`); those of ``N-3`` and ``N-2``
+take ``log2 |y_k|`` from the bits of ``|y_k|`` alone (exponent plus mantissa, within 0.09, so
+their radius is within 0.5 %), which costs a few integer operations per step. ``L D L^T``
+multiplies by ``1/D`` rather than dividing. The states at the
 requested output times come from the step's polynomial (dense output at no extra evaluation).
 No libm call lies on the chain from step to step: the root is taken in log2 (inline, from the
 bits of a double: :data:`STEP_ROOT`), and order 0's sines and cosines come from the last
@@ -64,7 +66,7 @@ from .reference import Unsupported, _Tape
 
 MIN_ORDER, MAX_ORDER = 4, 40
 UNROLL_TERMS = 12_000  # write every order out while products + statements stay below this (gcc's time)
-GUARD = 2  # orders N-1-GUARD .. N-2 guard the step's radius against a series with gaps (see above)
+GUARD = 2  # orders N-1-GUARD .. N-2 also give the step's radius: a series with gaps (see above)
 _INTEGRALS = {"atan": "atan", "asin": "asin", "acos": "acos"}
 STATUS = {0: "", 1: "the mass matrix is not positive definite, or the state became NaN or infinite",
           4: "the step limit was reached", 6: "bad arguments"}
@@ -469,7 +471,7 @@ class _Emitter:
                             lines.append(f"if (!(D{a} > 0)) {{ status = 1; goto done; }}")
                             lines.append(f"R{a} = 1.0 / D{a};")
                         else:
-                            lines.append(f"L{a}_{b} = ({s}) / D{b};")
+                            lines.append(f"L{a}_{b} = ({s}) * R{b};")
             for a in range(n):  # r_k - sum_{j>=1} Mbar_j x_{k-j}
                 terms = [self.at(self.r[a], k)] if (k == 0 or self.var[self.r[a]]) else ["0.0"]
                 for b in range(n):
@@ -617,11 +619,13 @@ class _Emitter:
             fresh="const int fresh = fine || (steps & 31) == 0;" if rotated else "", load=load, sizes=sizes,
             guard_n=GUARD, guard_finite="".join(f" && guard[{e}] < KS_INF_BITS" for e in range(GUARD)),
             guard_any=" || ".join(f"guard[{e}] > 0" for e in range(GUARD)),
-            guard="\n            ".join(
-                f"if (guard[{e}] > 0 && ls - ((int)(guard[{e}] >> 52) - 1023) < lmain * {N - 1 - GUARD + e}) {{ "
-                f"double g = ks_double(guard[{e}]), lk = (ls - ks_log2(g)) * (1.0 / {N - 1 - GUARD + e}); "
-                f"if (lk < lmain) {{ lmain = lk; h = fine ? factor * pow(scale / g, 1.0 / {N - 1 - GUARD + e}) "
-                f": ks_exp2(lk + lfactor); }} }}"
+            guard_log="\n            ".join(
+                f"double g{e} = guard[{e}] > 0 ? (ls - ks_log2_bits(guard[{e}])) * (1.0 / {N - 1 - GUARD + e}) : 1e300;"
+                for e in range(GUARD)),
+            guard_min="\n            ".join(f"if (g{e} < l) l = g{e};" for e in range(GUARD)),
+            guard_fine="\n                ".join(
+                f"if (guard[{e}] > 0 && (h < 0 || ls - ks_log2_bits(guard[{e}]) < lh * {N - 1 - GUARD + e})) {{ "
+                f"double hk = factor * pow(scale / ks_double(guard[{e}]), 1.0 / {N - 1 - GUARD + e}); if (h < 0 || hk < h) h = hk; }}"
                 for e in range(GUARD)),
             dense=dense, advance=advance, step="\n            ".join(step), free="free(W);" if not self.unrolled else "")
         return text
@@ -692,7 +696,7 @@ int ks_taylor(const double *param, double t0, const double *y0, const double *y0
         ++row;
     }}
     while (row < n_out) {{
-        double h = -1, scale = 1, size[2] = {{0, 0}}, lmain = 1e300, t_end = t_out[n_out - 1];
+        double h = -1, scale = 1, size[2] = {{0, 0}}, t_end = t_out[n_out - 1];
         uint64_t guard[TN_GUARD] = {{0}};
         if (max_steps > 0 && steps >= max_steps) {{ status = 4; break; }}
         {fresh}
@@ -704,23 +708,27 @@ int ks_taylor(const double *param, double t0, const double *y0, const double *y0
         {sizes}
         /* a NaN or infinite coefficient (NaN propagates through the sizes): no polynomial to write rows from */
         if (!(isfinite(size[0]) && isfinite(size[1]){guard_finite})) {{ status = 1; goto done; }}
-        if (fine) {{  /* rho = min_k (max(1, |y|) / |y_k|)^(1/k), k = N - 1, N; by pow at the float64 end */
+        /* rho = min_k (max(1, |y|) / |y_k|)^(1/k), k = N - 3 .. N: Jorba and Zou's last two orders, and
+           N - 3, N - 2 as a guard against a series with gaps (their log2 from the bits alone, to 0.09) */
+        if (fine) {{  /* by pow at the float64 end (the guard's when its estimate reads shorter) */
             for (k = 0; k < 2; ++k)
                 if (size[k] > 0) {{
                     double hk = pow(scale / size[k], 1.0 / (TN_ORDER - 1 + k));
                     if (h < 0 || hk < h) h = hk;
                 }}
-            if (h > 0) {{ h *= factor; lmain = ks_log2(h) - lfactor; }}
-        }} else if (size[0] > 0 || size[1] > 0) {{  /* the same in log2, inline */
-            double ls = ks_log2(scale);
+            if (h > 0) h *= factor;
+            if ({guard_any}) {{
+                double ls = ks_log2(scale), lh = h > 0 ? ks_log2(h) - lfactor : 0;
+                {guard_fine}
+            }}
+        }} else if (size[0] > 0 || size[1] > 0 || {guard_any}) {{  /* in log2, inline */
+            double ls = ks_log2(scale), l;
             double l0 = size[0] > 0 ? (ls - ks_log2(size[0])) * (1.0 / (TN_ORDER - 1)) : 1e300;
             double l1 = size[1] > 0 ? (ls - ks_log2(size[1])) * (1.0 / TN_ORDER) : 1e300;
-            lmain = l0 < l1 ? l0 : l1;
-            h = ks_exp2(lmain + lfactor);
-        }}
-        if ({guard_any}) {{  /* the guard: log2 rho_k <= (log2 max(1, |y|) - the exponent of max |y_k|) / k */
-            double ls = ks_log2(scale);
-            {guard}
+            {guard_log}
+            l = l0 < l1 ? l0 : l1;
+            {guard_min}
+            h = ks_exp2(l + lfactor);
         }}
         if (h < 0 || (t_end - t) - tlo <= h) h = (t_end - t) - tlo;
         while (row < n_out && (t_out[row] - t) - tlo < h) {{  /* dense output: the step's polynomial */
@@ -788,6 +796,11 @@ static inline uint64_t ks_abits(double x)
 }
 
 static inline uint64_t ks_umax(uint64_t a, uint64_t b) { return a > b ? a : b; }
+
+static inline double ks_log2_bits(uint64_t bits)  /* log2 of the (positive, finite) double: e + m - 1, within 0.09 below */
+{
+    return (double)(int64_t)bits * 0x1p-52 - 1023;
+}
 
 static inline double ks_double(uint64_t bits)
 {
