@@ -782,10 +782,7 @@ int ks_taylor_io(double *io)
 """
 
 
-STEP_ROOT = r"""/* log2 x (x > 0 finite) and 2^f, to about 4e-7, all a step size needs: from the bits of a double
-   (IEEE 754) and polynomials fitted at Chebyshev points (Estrin's scheme), inline: pow was a call
-   on the chain from step to step. A subnormal x reads as a larger one: a shorter step. */
-/* |x| as its bits, whose order as integers is the order of the numbers (NaN above infinity), and
+STEP_ROOT = r"""/* |x| as its bits, whose order as integers is the order of the numbers (NaN above infinity), and
    the greater of two: a maximum without a branch; the exponent is bits >> 52, less 1023 */
 #define KS_INF_BITS 0x7ff0000000000000ULL
 static inline uint64_t ks_abits(double x)
@@ -809,6 +806,9 @@ static inline double ks_double(uint64_t bits)
     return x;
 }
 
+/* log2 x (x > 0 finite) and 2^f, to about 4e-7, all a step size needs: from the bits of a double
+   (IEEE 754) and polynomials fitted at Chebyshev points (Estrin's scheme), inline: pow was a call
+   on the chain from step to step. A subnormal x reads as a larger one: a shorter step. */
 static inline double ks_log2(double x)
 {
     uint64_t bits;
