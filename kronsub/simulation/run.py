@@ -62,6 +62,10 @@ class StiffnessWarning(UserWarning):
     """An explicit method found the problem stiff (Hairer's test): an implicit one would be cheaper."""
 
 
+class EnergyWarning(UserWarning):
+    """A run did not keep the energy of a model that conserves it: its rows are not accurate."""
+
+
 class SimulationError(KronsubError):
     """A run that could not start."""
 
@@ -248,13 +252,13 @@ def start(system: KnownSystem, values: RunValues, t_end: float, dt: float, metho
     param = np.array(values.parameters, dtype=float)
     y0 = np.array(values.y0, dtype=float)
     grid = _Grid(t_end, dt)
-    if METHODS[method].engine == "heyoka":
-        run = Run("heyoka", "heyoka")
-        run.blocks = _heyoka_blocks(run, system, param, y0, grid, rtol)
-        return run
-    if METHODS[method].engine == "taylor":
-        run = Run("taylor", "C")
-        run.blocks = _taylor_blocks(run, system, param, y0, grid, rtol)
+    if METHODS[method].engine in ("heyoka", "taylor"):  # the compiled model for the energies and their check
+        heyoka = METHODS[method].engine == "heyoka"
+        run = Run("heyoka", "heyoka") if heyoka else Run("taylor", "C")
+        rows = ((b.t, b.y) for b in (_heyoka_blocks if heyoka else _taylor_blocks)(run, system, param, y0, grid, rtol))
+        with_energies = outputs is None or outputs.energies
+        native = _compiled_quietly(system, outputs) if with_energies else None
+        run.blocks = _finish(run, rows, _Progress(t_end, False), native, param, system, None, with_energies)
         return run
     native = _compiled(system, outputs)
     if constrained is not None and native is not None:
@@ -296,6 +300,15 @@ def _compiled(system, outputs):
         first = next((line for line in exc.stderr.splitlines() if "error" in line), "") or str(exc).splitlines()[0]
         warnings.warn(f"compiling the generated C failed ({first.strip()}): using the generated numpy module (slower)")
     return None
+
+
+def _compiled_quietly(system, outputs):
+    """The compiled model for the energies of rows computed without it (heyoka, taylor), or None:
+    those rows do not need it, so a missing compiler says nothing here."""
+    try:
+        return NativeModel(compiled_library(system, outputs), len(system.coordinates), len(system.parameters))
+    except (CompilerNotFound, CompileError):
+        return None
 
 
 class _Tail:
@@ -482,6 +495,7 @@ def _finish(run, rows, bar, native, param, system, constrained, with_energies=Tr
     failure, what failed); at the end, a warning when an explicit run was held by stiffness."""
     guess = constrained.guess.copy() if constrained is not None else None
     first_t = last_t = last_y = None
+    energy = None  # (t0, y0, E0, largest T, last E) of the rows, when they have energies
     try:
         for t, y in rows:
             if len(t):
@@ -501,6 +515,11 @@ def _finish(run, rows, bar, native, param, system, constrained, with_energies=Tr
                         energies = energies_on_branch(native, t, y, param, dependent)
                 last_y, last_t = np.asarray(y)[-1], float(np.asarray(t)[-1])
                 first_t = float(np.asarray(t)[0]) if first_t is None else first_t
+                if energies is not None:
+                    T, V = energies
+                    if energy is None:
+                        energy = (float(np.asarray(t)[0]), np.asarray(y)[0].copy(), float(T[0] + V[0]), 0.0, 0.0)
+                    energy = (*energy[:3], max(energy[3], float(np.max(np.abs(T)))), float(T[-1] + V[-1]))
                 yield Block(grid.snap(t) if grid is not None else np.asarray(t), np.asarray(y), energies, dependent)
     finally:
         bar.close()
@@ -511,6 +530,60 @@ def _finish(run, rows, bar, native, param, system, constrained, with_energies=Tr
     if native is not None and last_y is not None and _stiffness(run.stats):
         warnings.warn(StiffnessWarning(_stiffness_advice(native, param, run.stats, last_t - first_t, last_t, last_y,
                                                          run.method)))
+    if energy is not None and run.complete and constrained is None and not run.switches:
+        advice = _energy_advice(native, param, len(system.coordinates), run.method, *energy)
+        if advice:
+            warnings.warn(EnergyWarning(advice))
+
+
+ENERGY_DRIFT_SHARE = 1e-2  # of the largest kinetic energy (or |E|): no run accurate to any tolerance drifts this far
+
+
+def _energy_advice(native, param, nq: int, method: str, t0: float, y0, E0: float, T_max: float, E1: float) -> str:
+    """A warning when the energy changed by more than ``ENERGY_DRIFT_SHARE`` of its scale over a
+    run of a model that conserves it (else ""): a run that went wrong without failing, such as
+    heyoka's step fooled by a Taylor series with gaps (a motion from rest at a symmetric
+    position, benchmarks/README.md)."""
+    scale = max(abs(E0), T_max)
+    if not (np.isfinite(E1) and scale > 0) or abs(E1 - E0) <= ENERGY_DRIFT_SHARE * scale:
+        return ""
+    try:
+        if not _conserves_energy(native, param, nq, t0, y0):
+            return ""
+    except Exception:  # noqa: BLE001 - the check is a courtesy; a failed evaluation must not stop the run
+        return ""
+    hint = ("heyoka reads its step size off its last two Taylor orders, which a motion from rest at a symmetric "
+            "position can fool: use --method taylor or dop853" if method == "heyoka" else
+            "tighten --rtol (adaptive methods) or --dt (fixed-step methods), or try another --method")
+    return (f"the energy of this conservative model went from {E0:.6g} to {E1:.6g} over the run, "
+            f"{abs(E1 - E0) / scale:.2g} of its scale ({scale:.3g}, the largest kinetic energy or |E|): "
+            f"{method}'s rows are not accurate; {hint}")
+
+
+def _conserves_energy(native, param, nq: int, t0: float, y0) -> bool:
+    """Whether ``dE/dt = 0`` along the equations (``E = T + V``, ``V`` of the conservative
+    effects): at three states with random velocities (seeded) about the first row, the rate,
+    by central differences, is below 1e-6 of the sum of its terms' magnitudes. Damping, driving,
+    loads or connections that depend on time all give a rate of the order of its terms."""
+    rng = np.random.default_rng(20261124)
+    y0 = np.asarray(y0, dtype=float)
+
+    def energy(t, y):
+        return native.kinetic_energy(y, param) + native.potential_energy(t, y, param)
+
+    for _ in range(3):
+        y = y0.copy()
+        y[nq:] += rng.standard_normal(nq) * max(1.0, float(np.max(np.abs(y0[nq:]), initial=0.0)))
+        ydot = native.rhs(t0, y, param)
+        dt = 1e-5 * max(1.0, abs(t0))
+        terms = [(energy(t0 + dt, y) - energy(t0 - dt, y)) / (2 * dt)]
+        for i in range(len(y)):
+            e = np.zeros_like(y)
+            e[i] = 1e-5 * max(1.0, abs(y[i]))
+            terms.append((energy(t0, y + e) - energy(t0, y - e)) / (2 * e[i]) * ydot[i])
+        if not abs(sum(terms)) <= 1e-6 * sum(map(abs, terms)):
+            return False
+    return True
 
 
 def _stiffness(stats: dict) -> bool:
