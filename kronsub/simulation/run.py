@@ -492,7 +492,8 @@ def _newton_tol(rtol: float, atol: float) -> float:
 def _finish(run, rows, bar, native, param, system, constrained, with_energies=True, grid=None):
     """The blocks, with energies computed in C when there is a compiled model (and they are
     wanted) and, with implicit constraints, the dependent coordinates per row (and, after a
-    failure, what failed); at the end, a warning when an explicit run was held by stiffness."""
+    failure, what failed); at the end, a warning when an explicit run was held by stiffness, and
+    one when a complete run of a model that conserves energy did not keep it."""
     guess = constrained.guess.copy() if constrained is not None else None
     first_t = last_t = last_y = None
     energy = None  # (t0, y0, E0, largest T, last E) of the rows, when they have energies
