@@ -1,5 +1,5 @@
 """The energy check after a run: when the energy of a model that conserves it changes by more
-than 1 % of its scale over a complete run, ``simulate`` warns (heyoka, fooled by the Taylor
+than 1 % of its largest kinetic energy over a complete run, ``simulate`` warns (heyoka, fooled by the Taylor
 series with gaps of two rods released from rest level with their hinge, benchmarks/README.md);
 accurate runs, and models that do not conserve energy (a damper), say nothing. Whether a model conserves energy is read off its equations: dE/dt at
 states with random velocities, by central differences."""
@@ -75,6 +75,10 @@ def test_the_threshold_is_one_percent_of_the_energy_scale():
     cart_native, cart_param, cart_y0 = _damped()
     assert R._energy_advice(cart_native, cart_param, 2, "dop853", 0.0, cart_y0, -2.0, 10.0, -5.0) == ""
     assert R._energy_advice(native, param, 2, "dop853", 0.0, y0, 0.0, 0.0, 0.0) == ""  # at rest: no scale
+    # the scale is the kinetic energy, not |E|: an offset of the potential hides nothing
+    assert "dop853's rows" in R._energy_advice(native, param, 2, "dop853", 0.0, y0, -1e4, 1.0, -1e4 + 0.05)
+    # a run that hardly moves: the rounding of a large potential is not a drift
+    assert R._energy_advice(native, param, 2, "dop853", 0.0, y0, -17.7, 1e-16, -17.7 + 1e-14) == ""
 
 
 def test_a_damped_run_that_loses_energy_says_nothing():

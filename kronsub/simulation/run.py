@@ -537,15 +537,18 @@ def _finish(run, rows, bar, native, param, system, constrained, with_energies=Tr
             warnings.warn(EnergyWarning(advice))
 
 
-ENERGY_DRIFT_SHARE = 1e-2  # of the largest kinetic energy (or |E|): no run accurate to any tolerance drifts this far
+ENERGY_DRIFT_SHARE = 1e-2  # of the largest kinetic energy: no run accurate to any tolerance drifts this far
+ENERGY_FLOOR_SHARE = 1e-6  # of |E|: the scale of a run that hardly moves (the rounding of V is not a drift)
 
 
 def _energy_advice(native, param, nq: int, method: str, t0: float, y0, E0: float, T_max: float, E1: float) -> str:
     """A warning when the energy changed by more than ``ENERGY_DRIFT_SHARE`` of its scale over a
     run of a model that conserves it (else ""): a run that went wrong without failing, such as
     heyoka's step fooled by a Taylor series with gaps (a motion from rest at a symmetric
-    position, benchmarks/README.md)."""
-    scale = max(abs(E0), T_max)
+    position, benchmarks/README.md). The scale is the energy the motion exchanges, its largest
+    kinetic energy, not ``|E|``, which an offset of the potential can make as large as it likes;
+    ``ENERGY_FLOOR_SHARE |E|`` below it."""
+    scale = max(T_max, ENERGY_FLOOR_SHARE * abs(E0))
     if not (np.isfinite(E1) and scale > 0) or abs(E1 - E0) <= ENERGY_DRIFT_SHARE * scale:
         return ""
     try:
@@ -557,7 +560,7 @@ def _energy_advice(native, param, nq: int, method: str, t0: float, y0, E0: float
             "position can fool: use --method taylor or dop853" if method == "heyoka" else
             "tighten --rtol (adaptive methods) or --dt (fixed-step methods), or try another --method")
     return (f"the energy of this conservative model went from {E0:.6g} to {E1:.6g} over the run, "
-            f"{abs(E1 - E0) / scale:.2g} of its scale ({scale:.3g}, the largest kinetic energy or |E|): "
+            f"{abs(E1 - E0) / scale:.2g} of its largest kinetic energy ({scale:.3g}): "
             f"{method}'s rows are not accurate; {hint}")
 
 
