@@ -568,7 +568,7 @@ class _Emitter:
             sizes += "".join(f"\n        guard[{e}] = ks_umax(guard[{e}], ks_abits(Y{j}_{N - 1 - GUARD + e}));"
                              for j in range(ny) for e in range(GUARD))
 
-            def horner(tau: str, estrin: bool = True) -> str:  # the increment sum_{k>=1} Y_k tau^k
+            def increment(tau: str, estrin: bool = True) -> str:  # sum_{k>=1} Y_k tau^k, by Estrin or Horner
                 # Estrin's scheme: Y_1 tau + (Y_2 + Y_3 tau + (Y_4 + Y_5 tau) tau^2 + ...) tau^2 in tau,
                 # tau^2, tau^4, ...: a chain of log2(N) products, not N; the leading term added last
                 powers = [tau, f"{tau}2"]  # as many as the N - 1 terms after the first need, at least tau^2
@@ -586,8 +586,8 @@ class _Emitter:
                 lines = [f"double {', '.join(powers[1:])};", *square] if estrin else []
                 return " ".join(["{", *lines, *(f"dy[{j}] = {poly(j)};" for j in range(ny)), "}"])
 
-            dense = horner("tau", estrin=False)  # the rows are off the chain from step to step
-            advance = horner("h")
+            dense = increment("tau", estrin=False)  # Horner: the rows are off the chain from step to step
+            advance = increment("h")
             helpers = ""
         else:
             storage = ["double *W = calloc((size_t)" + str(len(arrays)) + " * (TN_ORDER + 1), sizeof(double));"]
@@ -936,20 +936,11 @@ class TaylorC:
         from ``y0`` at ``t0``; rows after a failure are NaN (``rows`` says how many were
         written; ``t_last`` is the time of the last state reached). ``y0_lo``: a low part of the
         initial state (the state is ``y0 + y0_lo``), carried to first order."""
-        rows, status, steps, written, t_last = self._call(param, y0, times, tol, order, max_steps, t0, y0_lo)
-        return rows.reshape(-1, self.ny), status, steps, written, t_last
-
-    def _call(self, param, y0, times, tol: float, order: int, max_steps: int, t0: float, y0_lo):
-        """:meth:`run` with the rows flat (``times`` may be one float)."""
         order = order or order_for(tol)
         fn = self._fns.get(order) or self.build(order)
-        p = np.asarray(param, dtype=float) if self.nparam else np.zeros(0)  # none to pass: param unread
-        y = np.asarray(y0, dtype=float)
-        ts = times if type(times) is float else np.asarray(times, dtype=float).ravel()
-        npar, ny, m = max(1, self.nparam), self.ny, 1 if type(ts) is float else len(ts)
-        if p.size != self.nparam or y.size != ny:
-            raise ValueError(f"expected {self.nparam} parameters and {ny} initial values "
-                             f"(got {p.size} and {y.size})")
+        p, y = self._inputs(param, y0)
+        ts = np.asarray(times, dtype=float).ravel()
+        npar, ny, m = max(1, self.nparam), self.ny, len(ts)
         lo = None if y0_lo is None else np.asarray(y0_lo, dtype=float)
         if lo is not None and lo.size != ny:
             raise ValueError(f"expected {ny} low parts of the initial values (got {lo.size})")
@@ -957,13 +948,24 @@ class TaylorC:
         at = 8 + npar + 2 * ny
         io = np.empty(at + m + m * ny)
         io[:8] = (t0, tol, max_steps, m, lo is not None, 0, 0, t0)
-        io[8:8 + self.nparam] = p.ravel()
+        if p is not None:
+            io[8:8 + self.nparam] = p.ravel()
         io[8 + npar:8 + npar + ny] = y.ravel()
         if lo is not None:
             io[8 + npar + ny:at] = lo.ravel()
         io[at:at + m] = ts
         status = fn(data_address(io))
-        return io[at + m:], status, int(io[5]), int(io[6]), float(io[7])
+        return io[at + m:].reshape(-1, ny), status, int(io[5]), int(io[6]), float(io[7])
+
+    def _inputs(self, param, y0) -> tuple:
+        """``(param, y0)`` as float arrays, their sizes checked (param None: a model without
+        parameters, which ``ks_taylor`` does not read)."""
+        p = np.asarray(param, dtype=float) if self.nparam else None
+        y = np.asarray(y0, dtype=float)
+        if (p is not None and p.size != self.nparam) or y.size != self.ny:
+            raise ValueError(f"expected {self.nparam} parameters and {self.ny} initial values "
+                             f"(got {0 if p is None else p.size} and {y.size})")
+        return p, y
 
     def solve(self, param, y0, grid, tol: float) -> tuple[np.ndarray, np.ndarray, bool, str]:
         """``(t, Y, complete, message)`` as :meth:`.heyoka_backend.HeyokaIntegrator.run`: rows
@@ -985,11 +987,7 @@ class TaylorC:
         with its address, so a call writes five entries and reads four."""
         order = order or order_for(tol)
         fn = self._fns.get(order) or self.build(order)
-        p = np.asarray(param, dtype=float) if self.nparam else None
-        y = np.asarray(y0, dtype=float)
-        if (p is not None and p.size != self.nparam) or y.size != self.ny:
-            raise ValueError(f"expected {self.nparam} parameters and {self.ny} initial values "
-                             f"(got {0 if p is None else p.size} and {y.size})")
+        p, y = self._inputs(param, y0)
         buffer = getattr(self._local, "io", None)
         if buffer is None:  # {t0 = 0, tol, max_steps, n_out = 1, has_lo = 0, steps, rows, t_last, param, y0, lo, t, row}
             io = np.zeros(8 + max(1, self.nparam) + 3 * self.ny + 1)
