@@ -18,7 +18,9 @@ vectorizes it: 4 convolutions per AVX instruction, no sum across lanes), the ter
 ``k`` added last (they wait for this order); ``x_k`` for ``k >= 1`` is ``Mbar_0^-1`` (from
 ``L D L^T``, once per step) times the right-hand side, a short chain instead of two
 substitutions; the step's increment is evaluated by Estrin's scheme. Otherwise the orders
-are a loop over a four-accumulator convolution (much quicker to compile). The step is
+are one loop (much quicker to compile) with the same split: at its top ``ks_lanes`` sums the
+older parts of every lane at once, and each order stores its coefficients into the lanes at
+its end (1.6x quicker than a convolution per product on the 10-link chain). The step is
 ``h = rho tol^(1/(N-1)) exp(-0.7 / (N - 1))``, ``rho = min_{k = N-1, N} (max(1, |y|) / |y_k|)^(1/k)``:
 Jorba and Zou's ``rho / e^2 exp(-0.7 / (N - 1))`` (heyoka's) when ``tol = e^(-2 (N - 1))``, and
 at the higher orders :func:`order_for` takes a longer step that still keeps ``(h / rho)^(N-1)``
@@ -290,7 +292,15 @@ class _Emitter:
                 return _last([], new)
             lane = self.pairs.setdefault((a, b), len(self.pairs))
             return _last([f"KS[{lane}]"], new)  # sum_{j=1}^{k-1} a[j] b[k-j], all the lanes at once
-        return f"ks_conv({a}, {b}, {lo}, {hi}, k)"
+        # the loop form: the same split, the older part summed lane by lane at the top of the loop
+        assert lo in (0, 1) and hi in (k, "k - 1")
+        new = [f"{a}[0] * {b}[k]"] if lo == 0 else []
+        if hi == k:
+            new.append(f"{a}[k] * {b}[0]")
+        if a == b and len(new) == 2:
+            new = [f"2.0 * {a}[0] * {a}[k]"]
+        lane = self.pairs.setdefault((a, b), len(self.pairs))
+        return _last([f"KS[{lane}]"], new)
 
     # one coefficient of one node ---------------------------------------------------------
 
@@ -530,9 +540,13 @@ class _Emitter:
                         step.append(f"KA[{k}][{lane}] = {a}[{k}]; KB[{k}][{lane}] = {b}[{k}];")
             if self.pairs:
                 storage_lanes = [f"double KA[TN_ORDER][{lanes}], KB[TN_ORDER][{lanes}], KS[{lanes}];", "int p;"]
-        else:
+        else:  # one loop over the orders: the lanes' older sums, this order's terms, its lanes stored
+            body = emit_order("k") + solve("k")  # the lanes are known after this
+            lanes = max(4, -(-len(self.pairs) // 4) * 4)
+            stores = [f"KA[k * TN_LANES + {lane}] = {a}[k]; KB[k * TN_LANES + {lane}] = {b}[k];"
+                      for (a, b), lane in self.pairs.items()]
             step.append("for (k = 1; k < TN_ORDER; ++k) {")
-            step += ["    " + x for x in emit_order("k") + solve("k")]
+            step += ["    " + x for x in ["ks_lanes(KS, KA, KB, k);", *body, *stores]]
             step.append("}")
         ldl = [f"L{a}_{b}" for a in range(n) for b in range(a)] + [f"D{a}" for a in range(n)] + \
             [f"R{a}" for a in range(n)]  # R = 1 / D: no division on the chain from order to order
@@ -590,8 +604,11 @@ class _Emitter:
             advance = increment("h")
             helpers = ""
         else:
-            storage = ["double *W = calloc((size_t)" + str(len(arrays)) + " * (TN_ORDER + 1), sizeof(double));"]
+            storage = ["double *W = calloc((size_t)" + str(len(arrays)) + " * (TN_ORDER + 1) + (2 * TN_ORDER + 1) * TN_LANES,"
+                       " sizeof(double));"]
             storage += [f"double *{x} = W + {j} * (TN_ORDER + 1);" for j, x in enumerate(arrays)]
+            storage += [f"double *KA = W + {len(arrays)} * (TN_ORDER + 1), *KB = KA + TN_ORDER * TN_LANES, "
+                        "*KS = KB + TN_ORDER * TN_LANES;"]
             storage += ["double *Y[TN_NY] = {" + ", ".join(f"Y{j}" for j in range(ny)) + "};"]
             zero = ["if (W == NULL) return 1;"]
             consts_void = arrays
@@ -605,7 +622,8 @@ class _Emitter:
             dense = "ks_horner(Y, tau, dy);"
             advance = "ks_horner(Y, h, dy);"
             inverses = ", ".join(["0.0"] + [_literal(mpmath.mpf(1) / k) for k in range(1, N + 2)])
-            helpers = CONV + "\nstatic const double ks_inv[TN_ORDER + 2] = {" + inverses + "};  /* 1 / k */\n"
+            helpers = (f"\n#define TN_LANES {lanes}\n" + CONV
+                       + "\nstatic const double ks_inv[TN_ORDER + 2] = {" + inverses + "};  /* 1 / k */\n")
         def first_order(v: str) -> str:  # the low parts carried through the step to first order
             return " ".join(f"dy[{a}] += {v} * (ylo[{n + a}] + 0.5 * {v} * EX{a}); dy[{n + a}] += {v} * EX{a};"
                             for a in range(n))
@@ -889,16 +907,16 @@ static void ks_horner(double *const *Y, double tau, double *out)
     for (i = 0; i < TN_NY; ++i) out[i] = s[i] * tau;
 }
 
-static double ks_conv(const double *restrict a, const double *restrict b, int lo, int hi, int k)
+/* KS[p] = sum_{j=1}^{k-1} KA[j][p] KB[k-j][p] for every lane p: the older part of each convolution
+   of order k, all at once (the compiler vectorizes over the lanes) */
+static void ks_lanes(double *restrict KS, const double *restrict KA, const double *restrict KB, int k)
 {
-    double s0 = 0, s1 = 0, s2 = 0, s3 = 0;
-    int j = lo;
-    for (; j + 3 <= hi; j += 4) {
-        s0 += a[j] * b[k - j]; s1 += a[j + 1] * b[k - j - 1];
-        s2 += a[j + 2] * b[k - j - 2]; s3 += a[j + 3] * b[k - j - 3];
+    int j, p;
+    for (p = 0; p < TN_LANES; ++p) KS[p] = 0.0;
+    for (j = 1; j < k; ++j) {
+        const double *a = KA + j * TN_LANES, *b = KB + (k - j) * TN_LANES;
+        for (p = 0; p < TN_LANES; ++p) KS[p] += a[p] * b[p];
     }
-    for (; j <= hi; ++j) s0 += a[j] * b[k - j];
-    return (s0 + s1) + (s2 + s3);
 }
 """
 
