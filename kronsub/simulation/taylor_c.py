@@ -282,23 +282,15 @@ class _Emitter:
         return f"{self.name(i)}[{k}]"
 
     def conv(self, a: str, b: str, lo, hi, k) -> str:
-        """``sum_{j=lo}^{hi} a[j] b[k-j]`` (``hi`` may be ``k`` or ``k - 1`` in loop form)."""
-        if isinstance(k, int):  # the terms with a coefficient of this order last: the chain from order to order
-            assert lo in (0, 1) and hi in (k - 1, k)
-            new = [f"{a}[{j}] * {b}[{k - j}]" for j in range(lo, hi + 1) if not 0 < j < k]
-            if a == b and len(new) == 2:  # a square: a_0 a_k twice, exactly 2 (a_0 a_k)
-                new = [f"2.0 * {a}[0] * {a}[{k}]"]
-            if k < 2:
-                return _last([], new)
-            lane = self.pairs.setdefault((a, b), len(self.pairs))
-            return _last([f"KS[{lane}]"], new)  # sum_{j=1}^{k-1} a[j] b[k-j], all the lanes at once
-        # the loop form: the same split, the older part summed lane by lane at the top of the loop
-        assert lo in (0, 1) and hi in (k, "k - 1")
-        new = [f"{a}[0] * {b}[k]"] if lo == 0 else []
-        if hi == k:
-            new.append(f"{a}[k] * {b}[0]")
-        if a == b and len(new) == 2:
-            new = [f"2.0 * {a}[0] * {a}[k]"]
+        """``sum_{j=lo}^{hi} a[j] b[k-j]`` (``k`` an int, or the loop variable "k"; ``hi`` is ``k`` or
+        ``k - 1``): its older part ``sum_{j=1}^{k-1}`` from the lanes (``KS``, all the lanes summed at
+        once), then the terms with a coefficient of order ``k``, last: the chain from order to order."""
+        assert lo in (0, 1) and hi in ((k - 1, k) if isinstance(k, int) else ("k - 1", k))
+        new = ([f"{a}[0] * {b}[{k}]"] if lo == 0 else []) + ([f"{a}[{k}] * {b}[0]"] if hi == k else [])
+        if a == b and len(new) == 2:  # a square: a_0 a_k twice, exactly 2 (a_0 a_k)
+            new = [f"2.0 * {a}[0] * {a}[{k}]"]
+        if isinstance(k, int) and k < 2:
+            return _last([], new)
         lane = self.pairs.setdefault((a, b), len(self.pairs))
         return _last([f"KS[{lane}]"], new)
 
