@@ -129,7 +129,10 @@ def test_cli_writes_table_csv_png_and_names_the_target(tmp_path):
     method, setting = line.split("cheapest is ")[1].split(":")[0].split(" at ")
     chosen = next(r for r in rows if r["method"] == method and r["setting"] == setting)
     assert float(chosen["error"]) <= 1e-6
-    meeting = [r for r in rows if float(r["error"]) <= 1e-6 and r["status"] == "ok"]
+    def holds(r):  # the target met at this tolerance and at every tighter one of the same method
+        return all(float(o["error"]) <= 1e-6 for o in rows if o["method"] == r["method"] and o["status"] == "ok"
+                   and float(o["tolerance"]) <= float(r["tolerance"]))
+    meeting = [r for r in rows if r["status"] == "ok" and holds(r)]
     assert float(chosen["seconds"]) == min(float(r["seconds"]) for r in meeting)
     # the metadata beside the CSV: the model, the reference and its estimated error, the target
     meta = json.loads((tmp_path / "wp.json").read_text())
@@ -148,6 +151,33 @@ def test_cli_writes_table_csv_png_and_names_the_target(tmp_path):
                                           "error": float(chosen["error"]), "seconds": float(chosen["seconds"])}
     if "heyoka" not in methods:
         assert "heyoka" in meta["skipped"]
+
+
+def test_target_is_not_named_by_chance():
+    """On a chaotic model the error scatters from one tolerance to the next: a point that met the
+    target while a tighter tolerance of its method did not is not the cheapest, it is named as
+    chance; a failed tighter run does not count against a point."""
+    def point(method, tol, error, ms, status=""):
+        return A.Point(method, tol, f"tol {tol:.0e}", error, None, ms / 1e3, None, 10, 3, status=status)
+
+    ref = Reference([10.0], [[mpmath.mpf(0)]], 1e-20, 30, ("test",))
+    points = [point("taylor", 1e-9, 5e-7, 0.12), point("taylor", 3e-10, 2.5e-6, 0.135),
+              point("taylor", 1e-10, 2.7e-7, 0.147), point("taylor", 1e-12, 2.6e-9, 0.19),
+              point("dop853", 1e-10, 4e-7, 0.6), point("dop853", 1e-12, float("nan"), 0.9, "step limit"),
+              point("rk4", 1e-6, 2e-6, 0.05)]
+    wp = A.WorkPrecision("test", 10.0, points, ref, None, True)
+    best, chance = wp.cheapest(1e-6), wp.by_chance(1e-6)
+    assert (best.method, best.tolerance) == ("taylor", 1e-10) and (chance.method, chance.tolerance) == ("taylor", 1e-9)
+    sentence = A.target_sentence(wp, 1e-6)
+    assert sentence.startswith("Target 1e-06: cheapest is taylor at tol 1e-10: error 2.7e-07 in 0.147 ms, and at "
+                               "every tighter tolerance taylor ran at.")
+    assert "taylor at tol 1e-09 met it in 0.120 ms (error 5.0e-07), but a tighter tolerance" in sentence
+    assert wp._holds(points[4], 5e-7)  # dop853's failed tighter run aside
+    assert wp.by_chance(1e-10) is None and wp.cheapest(1e-10) is None
+    wp.points = [point("rk4", 1e-6, 1e-8, 0.05), point("rk4", 1e-8, 1e-5, 0.5)]
+    assert wp.cheapest(1e-6) is None and wp.by_chance(1e-6).tolerance == 1e-6
+    assert A.target_sentence(wp, 1e-6).startswith("Target 1e-06: no method met it at a tolerance and every tighter "
+                                                  "one (best error 1.0e-08). rk4 at tol 1e-06 met it")
 
 
 def test_cli_closed_loop_csv_and_meta(tmp_path):
