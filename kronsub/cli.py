@@ -500,7 +500,8 @@ def _constraint_hints(system, run, step: float) -> str:
 @click.option("--tolerances", default="1e-4:1e-14", show_default=True,
               help="Every decade of a range (1e-4:1e-14, or 1e-4:1e-14:2 for every second) or a list "
                    "(1e-6,1e-9). Fixed-step methods take the step tol^(1/4).")
-@click.option("--target", type=float, help="Name the cheapest method and tolerance reaching this error (at every tighter tolerance of that method too).")
+@click.option("--target", type=float, help="Name the cheapest method and tolerance reaching this error (and at every "
+                                           "tighter tolerance of that method).")
 @click.option("--output", "-o", type=click.Path(dir_okay=False, path_type=Path),
               help="Write the CSV (a header row, one row per method and tolerance) to FILE; its metadata goes "
                    "beside it as JSON (wp.csv -> wp.json).")

@@ -596,8 +596,8 @@ class _Emitter:
             advance = increment("h")
             helpers = ""
         else:
-            storage = ["double *W = calloc((size_t)" + str(len(arrays)) + " * (TN_ORDER + 1) + (2 * TN_ORDER + 1) * TN_LANES,"
-                       " sizeof(double));"]
+            storage = ["double *W = calloc((size_t)" + str(len(arrays))
+                       + " * (TN_ORDER + 1) + (2 * TN_ORDER + 1) * TN_LANES, sizeof(double));"]
             storage += [f"double *{x} = W + {j} * (TN_ORDER + 1);" for j, x in enumerate(arrays)]
             storage += [f"double *KA = W + {len(arrays)} * (TN_ORDER + 1), *KB = KA + TN_ORDER * TN_LANES, "
                         "*KS = KB + TN_ORDER * TN_LANES;"]
