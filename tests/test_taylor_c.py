@@ -314,14 +314,16 @@ def test_benchmark_double_pendulum_reaches_the_float64_end():
     assert status == 0 and error < 1e-9, error
 
 
-FLOOR_FACTOR = 2  # issue 9, section 3; measured 1.1 at tol 1e-15 (7.5 before the compensated state)
+FLOOR_FACTOR = 2  # issue 9, section 3: the median over nine tolerances measured 1.4x (20x before the compensated state)
 
 
 def test_benchmark_double_pendulum_within_twice_the_float64_floor():
-    """At tol 1e-15 the error at t = 10 is within FLOOR_FACTOR times the float64 floor: how far
+    """Near tol 1e-15 the error at t = 10 is within FLOOR_FACTOR times the float64 floor: how far
     rounding the inputs to float64 alone moves the exact state (the mpmath Taylor route from the
-    float64 inputs against the 40-digit state of the exact ones). Not by chance: the median over
-    nine tolerances at the same order is within 3x (measured 1.2x; 20x before)."""
+    float64 inputs against the 40-digit state of the exact ones). Judged on the median over nine
+    tolerances at the same order, not on one: the chaotic motion scatters single errors from 0.55x
+    to 3.1x the floor (1.9x at 1e-15 itself), as the roundings of one run happen to add to or cancel
+    the inputs' own; one run is only held within twice that factor."""
     system, _, _, want = benchmark_problem()
     values = resolve(system, {}, {"theta": "2*pi/3", "phi": "-pi/18"})
     rounded = R.taylor(system, [float(v) for v in values.parameters], [float(v) for v in values.y0], [10.0],
@@ -335,8 +337,8 @@ def test_benchmark_double_pendulum_within_twice_the_float64_floor():
         error = float(max(abs(g - w) for g, w in zip(got, want)))
         median = float(np.median([float(max(abs(g - w) for g, w in zip(y, want))) for y in nearby]))
     assert 5e-12 < floor < 5e-11, floor  # 1.3e-11: the chaotic motion amplifies the inputs' rounding
-    assert status == 0 and order == taylor_c.order_for(1e-15) == 22 and error <= FLOOR_FACTOR * floor, (error, floor)
-    assert median <= 3 * floor, (median, floor)
+    assert status == 0 and order == taylor_c.order_for(1e-15) == 22 and error <= 2 * FLOOR_FACTOR * floor, (error, floor)
+    assert median <= FLOOR_FACTOR * floor, (median, floor)
 
 
 @pytest.mark.parametrize("which", ["functions", "benchmark"])
