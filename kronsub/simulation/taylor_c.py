@@ -537,6 +537,24 @@ class _Emitter:
             lanes = max(4, -(-len(self.pairs) // 4) * 4)
             stores = [f"KA[k * TN_LANES + {lane}] = {a}[k]; KB[k * TN_LANES + {lane}] = {b}[k];"
                       for (a, b), lane in self.pairs.items()]
+            # a coefficient no lane, no later order and no other index reads is a scalar of the loop
+            # body, not an array entry: no store and reload of it on the chain within the order
+            read = re.compile(r"\b(\w+)\[([^\]]+)\]")
+            indices: dict[str, set] = {}  # every index each array is written or read at
+            for line in emit_order(0) + solve(0) + body:
+                for name, index in read.findall(line):
+                    indices.setdefault(name, set()).add(index)
+            # read at k in the body (a value only written, as a rule's unused node, stays an entry)
+            read_k = {name for line in body for name, index in read.findall(re.split(r" [-+*]?= ", line, 1)[-1])
+                      if index == "k"} | {name for line in body for name, index in read.findall(line.split(" ", 1)[0])
+                                          if index == "k" and re.match(r"\S+ [-+*]= ", line)}
+            kept = {x for pair in self.pairs for x in pair} | {f"Y{j}" for j in range(2 * n)}
+            local = sorted((x for x in arrays if x not in kept and x in read_k
+                            and indices.get(x, set()) <= {"k", "0"}), key=lambda x: (re.sub(r"\d", "", x), x))
+            if local:
+                ordered = re.compile(r"\b(" + "|".join(local) + r")\[k\]")
+                body = [f"double {', '.join(f'{x}_k' for x in local)};"] + \
+                    [ordered.sub(lambda m: f"{m[1]}_k", line) for line in body]
             step.append("for (k = 1; k < TN_ORDER; ++k) {")
             step += ["    " + x for x in ["ks_lanes(KS, KA, KB, k);", *body, *stores]]
             step.append("}")
@@ -905,7 +923,12 @@ static void ks_lanes(double *restrict KS, const double *restrict KA, const doubl
 {
     int j, p;
     for (p = 0; p < TN_LANES; ++p) KS[p] = 0.0;
-    for (j = 1; j < k; ++j) {
+    for (j = 1; j + 1 < k; j += 2) {  /* two orders at a time: half the loads and stores of KS */
+        const double *a = KA + j * TN_LANES, *b = KB + (k - j) * TN_LANES;
+        const double *c = a + TN_LANES, *d = b - TN_LANES;
+        for (p = 0; p < TN_LANES; ++p) KS[p] += a[p] * b[p] + c[p] * d[p];
+    }
+    if (j < k) {
         const double *a = KA + j * TN_LANES, *b = KB + (k - j) * TN_LANES;
         for (p = 0; p < TN_LANES; ++p) KS[p] += a[p] * b[p];
     }
