@@ -91,6 +91,25 @@ def order_for(tol: float) -> int:
     return min(MAX_ORDER, max(MIN_ORDER, 2 * math.ceil(-0.25 * math.log(tol)) + 4))
 
 
+def _order_locals(arrays: list[str], kept: set[str], before: list[str], body: list[str]) -> list[str]:
+    """The arrays of the loop form whose coefficient ``k`` can be a scalar of the loop body: read at
+    ``k`` in the body (a value only written stays an entry), at no index but ``k`` and ``0``
+    anywhere (``before``: order 0 and what follows it), and not ``kept`` (the lanes' and the state's,
+    read at other orders)."""
+    access = re.compile(r"\b(\w+)\[([^\]]+)\]")
+    indices: dict[str, set[str]] = {}
+    for line in before + body:
+        for name, index in access.findall(line):
+            indices.setdefault(name, set()).add(index)
+    read = set()
+    for line in body:
+        for statement in line.rstrip(";").split("; "):
+            target, op, expr = re.match(r"(\w+(?:\[[^\]]*\])?) ([-+*]?=) (.*)", statement).groups()
+            read |= {name for name, index in access.findall(expr + (" " + target if op != "=" else "")) if index == "k"}
+    return sorted((x for x in arrays if x not in kept and x in read and indices.get(x, set()) <= {"k", "0"}),
+                  key=lambda x: (re.sub(r"\d", "", x), x))
+
+
 def _ldl_substitution(n: int, x) -> list[str]:
     """``x`` <- ``Mbar^-1 x`` by the factors ``L`` (``L{a}_{b}``) and ``1/D`` (``R{a}``) of
     ``Mbar = L D L^T``: forward substitution, scaling, back substitution; ``x(a)`` names entry a."""
@@ -538,21 +557,9 @@ class _Emitter:
             lanes = max(4, -(-len(self.pairs) // 4) * 4)
             stores = [f"KA[k * TN_LANES + {lane}] = {a}[k]; KB[k * TN_LANES + {lane}] = {b}[k];"
                       for (a, b), lane in self.pairs.items()]
-            # a coefficient no lane, no later order and no other index reads is a scalar of the loop
-            # body, not an array entry: no store and reload of it on the chain within the order
-            read = re.compile(r"\b(\w+)\[([^\]]+)\]")
-            indices: dict[str, set] = {}  # every index each array is written or read at
-            for line in emit_order(0) + solve(0) + body:
-                for name, index in read.findall(line):
-                    indices.setdefault(name, set()).add(index)
-            # read at k in the body (a value only written, as a rule's unused node, stays an entry)
-            read_k = {name for line in body for name, index in read.findall(re.split(r" [-+*]?= ", line, 1)[-1])
-                      if index == "k"} | {name for line in body for name, index in read.findall(line.split(" ", 1)[0])
-                                          if index == "k" and re.match(r"\S+ [-+*]= ", line)}
-            kept = {x for pair in self.pairs for x in pair} | {f"Y{j}" for j in range(2 * n)}
-            local = sorted((x for x in arrays if x not in kept and x in read_k
-                            and indices.get(x, set()) <= {"k", "0"}), key=lambda x: (re.sub(r"\d", "", x), x))
-            if local:
+            local = _order_locals(arrays, {x for pair in self.pairs for x in pair} | {f"Y{j}" for j in range(2 * n)},
+                                  step, body)
+            if local:  # no store and reload of them on the chain within the order
                 ordered = re.compile(r"\b(" + "|".join(local) + r")\[k\]")
                 body = [f"double {', '.join(f'{x}_k' for x in local)};"] + \
                     [ordered.sub(lambda m: f"{m[1]}_k", line) for line in body]
