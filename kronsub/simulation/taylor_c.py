@@ -640,7 +640,7 @@ class _Emitter:
             dense = "ks_horner(Y, tau, dy);"
             advance = "ks_horner(Y, h, dy);"
             inverses = ", ".join(["0.0"] + [_literal(mpmath.mpf(1) / k) for k in range(1, N + 2)])
-            helpers = (f"\n#define TN_LANES {lanes}\n" + CONV
+            helpers = (f"\n#define TN_LANES {lanes}\n" + LOOP_HELPERS
                        + "\nstatic const double ks_inv[TN_ORDER + 2] = {" + inverses + "};  /* 1 / k */\n")
         def first_order(v: str) -> str:  # the low parts carried through the step to first order
             return " ".join(f"dy[{a}] += {v} * (ylo[{n + a}] + 0.5 * {v} * EX{a}); dy[{n + a}] += {v} * EX{a};"
@@ -913,7 +913,7 @@ static inline void ks_rotate(double a, double *r, int fresh)
 """
 
 
-CONV = r"""
+LOOP_HELPERS = r"""
 /* out_i = sum_{k>=1} Y_i[k] tau^k (the increment), the components side by side (independent chains) */
 static void ks_horner(double *const *Y, double tau, double *out)
 {
