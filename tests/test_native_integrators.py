@@ -525,6 +525,29 @@ def test_a_build_for_the_host_gives_the_portable_build_s_numbers(cache, monkeypa
     assert res.n_steps > 500 and np.array_equal(runs[0], runs[1])
 
 
+def test_a_processor_that_vectorizes_128_bits_wide_gets_the_portable_build_s_numbers(cache, monkeypatch):
+    """gcc 12 turns a pair of products ``a c + b d``, ``b c - a d`` (the Taylor integrator's
+    angle addition) into one ``vfmaddsub`` where it vectorizes 128 bits wide (Zen 1's choice),
+    although ``-ffp-contract=off`` forbids the contraction. The host flags forbid fused
+    multiply-add instructions outright, so such a processor's Taylor run of the chaotic double
+    pendulum agrees bit for bit with the portable build's (with the old flags it did not)."""
+    import platform
+
+    import kronsub
+    from kronsub.simulation.taylor_c import TaylorC
+
+    if native.build_flags() == native.FLAGS or platform.machine().lower() not in ("x86_64", "amd64"):
+        pytest.skip("the 128-bit preference is an x86 option; no processor to build for here")
+    system = kronsub.load(MODELS / "hoffmann" / "system1.yaml").derive()
+    param = np.array([1.0, 1.0, 0.5, 0.5, 1 / 12, 1 / 12, 9.81, 0.0])
+    y0 = np.array([2 * np.pi / 3, -np.pi / 18, 0.0, 0.0])
+    monkeypatch.setattr(native, "HOST_FLAGS", (*native.HOST_FLAGS, "-mprefer-vector-width=128"))
+    narrow, status, steps, _ = TaylorC(system).integrate(param, y0, 10.0, 1e-10, order=8)
+    monkeypatch.setenv("KRONSUB_PORTABLE_C", "1")
+    portable, *_ = TaylorC(system).integrate(param, y0, 10.0, 1e-10, order=8)
+    assert status == 0 and steps > 500 and np.array_equal(narrow, portable), (narrow - portable)
+
+
 def test_a_compiler_that_cannot_build_for_the_host_builds_portably(cache, monkeypatch):
     calls = []
     real = native._run_compiler
