@@ -323,10 +323,11 @@ def test_benchmark_double_pendulum_within_twice_the_float64_floor():
     far rounding the inputs to float64 alone moves the exact state (the mpmath Taylor route from the
     float64 inputs against the 40-digit state of the exact ones). Judged on the median over 25
     tolerances from 1e-17 to 1e-14 at the order of 1e-15, not on one: the chaotic motion scatters
-    single errors from 0.01x to 16x the floor (quartiles 0.55x and 1.9x), as the roundings of one run happen to add to or cancel
-    the inputs' own, and a change of rounding anywhere (one multiplication less per order) moved the
-    median of nine tolerances within 1e-16 .. 1e-15 from 1.4x to 2.3x, while that of these 25 stayed
-    at 1.2-1.3x. One run, at 1e-15, is only held within twice that factor."""
+    single errors from 0.01x to 16x the floor (quartiles 0.55x and 1.9x), as the roundings of one
+    run happen to add to or cancel the inputs' own. A change of rounding anywhere (one
+    multiplication less per order) moved the median of nine tolerances within 1e-16 .. 1e-15 from
+    1.4x to 2.3x, while that of these 25 stayed at 1.2-1.3x. One run, at 1e-15, is only held
+    within twice that factor."""
     system, _, _, want = benchmark_problem()
     values = resolve(system, {}, {"theta": "2*pi/3", "phi": "-pi/18"})
     rounded = R.taylor(system, [float(v) for v in values.parameters], [float(v) for v in values.y0], [10.0],
