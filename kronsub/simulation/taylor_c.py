@@ -312,7 +312,7 @@ class _Emitter:
         if isinstance(k, int) and k < 2:
             return _last([], new)
         lane = self.pairs.setdefault((a, b), len(self.pairs))
-        return _last([f"KS[{lane}]"], new)
+        return _last([f"KS_LANE({lane})" if self.unrolled else f"KS[{lane}]"], new)
 
     # one coefficient of one node ---------------------------------------------------------
 
@@ -540,18 +540,28 @@ class _Emitter:
         step += emit_order(0) + solve(0) + ["if (fine) {"] + ["    " + x for x in lows] + ["}"]
         if self.unrolled:
             orders = [emit_order(k) + solve(k) for k in range(1, N)]  # the lanes are known after this
-            lanes = -(-len(self.pairs) // 4) * 4  # a multiple of the vector width (4 with AVX, 2 with SSE2)
+            vectors = -(-len(self.pairs) // 4)  # of 4 lanes: KA[k][q] is lanes 4q .. 4q + 3 of order k
+            lanes = 4 * vectors
+            pairs = list(self.pairs) + [("0.0", "0.0")] * (lanes - len(self.pairs))
             for k, lines in enumerate(orders, 1):
-                if k >= 2 and self.pairs:  # the sums over older coefficients, lane by lane (vectorized)
+                if k >= 2 and self.pairs:  # the sums over older coefficients, 4 lanes per vector operation
                     terms = _last([f"KA[{j}][p] * KB[{k - j}][p]" for j in range(2, k - 1)],  # the last order's last
                                   [f"KA[{j}][p] * KB[{k - j}][p]" for j in sorted({1, k - 1})])
-                    step.append(f"for (p = 0; p < {lanes}; ++p) KS[p] = {terms};")
+                    step += ["#if KS_VECTOR", " ".join(f"KS[{q}] = {terms.replace('[p]', f'[{q}]')};" for q in range(vectors)),
+                             "#else", f"for (p = 0; p < {lanes}; ++p) KS[p] = {terms};", "#endif"]
                 step += lines
-                if k <= N - 2:  # this order's coefficients into the lanes they are read in
-                    for (a, b), lane in self.pairs.items():
-                        step.append(f"KA[{k}][{lane}] = {a}[{k}]; KB[{k}][{lane}] = {b}[{k}];")
+                if k <= N - 2:  # this order's coefficients into the lanes they are read in: a whole vector
+                    def row(side, q):  # stored at once, which a vector load of it can take straight from the store
+                        return ", ".join(x if x == "0.0" else f"{x}[{k}]" for x in (pair[side] for pair in pairs[4 * q:4 * q + 4]))
+                    step.append("#if KS_VECTOR")
+                    step += [f"KA[{k}][{q}] = KS_V4({row(0, q)}); KB[{k}][{q}] = KS_V4({row(1, q)});" for q in range(vectors)]
+                    step.append("#else")
+                    step += [f"KA[{k}][{lane}] = {a}[{k}]; KB[{k}][{lane}] = {b}[{k}];" for (a, b), lane in self.pairs.items()]
+                    step.append("#endif")
             if self.pairs:
-                storage_lanes = [f"double KA[TN_ORDER][{lanes}], KB[TN_ORDER][{lanes}], KS[{lanes}];", "int p;"]
+                storage_lanes = ["#if KS_VECTOR", f"ks_v4 KA[TN_ORDER][{vectors}], KB[TN_ORDER][{vectors}], KS[{vectors}];",
+                                 "#else", f"double KA[TN_ORDER][{lanes}], KB[TN_ORDER][{lanes}], KS[{lanes}];", "#endif",
+                                 "int p;"]
         else:  # one loop over the orders: the lanes' older sums, this order's terms, its lanes stored
             body = emit_order("k") + solve("k")  # the lanes are known after this
             lanes = max(4, -(-len(self.pairs) // 4) * 4)
@@ -591,8 +601,11 @@ class _Emitter:
             zero = []
             if self.pairs:
                 storage += storage_lanes
-                zero += [f"for (p = 0; p < {lanes}; ++p) {{ KS[p] = 0; for (k = 0; k < TN_ORDER; ++k) "
-                         "KA[k][p] = KB[k][p] = 0; }"]
+                zero += ["#if KS_VECTOR",
+                         f"for (p = 0; p < {vectors}; ++p) {{ KS[p] = KS_V4(0.0, 0.0, 0.0, 0.0); "
+                         "for (k = 0; k < TN_ORDER; ++k) KA[k][p] = KB[k][p] = KS[p]; }", "#else",
+                         f"for (p = 0; p < {lanes}; ++p) {{ KS[p] = 0; for (k = 0; k < TN_ORDER; ++k) "
+                         "KA[k][p] = KB[k][p] = 0; }", "#endif"]
             consts_void = scalars
             load = " ".join(f"Y{j}_0 = y[{j}];" for j in range(ny))
             sizes = "\n        ".join(f"if (!(fabs(Y{j}_{N - 1 + e}) <= size[{e}])) size[{e}] = fabs(Y{j}_{N - 1 + e});"
@@ -620,7 +633,7 @@ class _Emitter:
 
             dense = increment("tau", estrin=False)  # Horner: the rows are off the chain from step to step
             advance = increment("h")
-            helpers = ""
+            helpers = LANE_VECTORS if self.pairs else ""
         else:
             storage = ["double *W = calloc((size_t)" + str(len(arrays))
                        + " * (TN_ORDER + 1) + (2 * TN_ORDER + 1) * TN_LANES, sizeof(double));"]
@@ -917,6 +930,24 @@ static inline void ks_rotate(double a, double *r, int fresh)
 }}
 """
 
+
+LANE_VECTORS = r"""
+/* the lanes of the written-out orders, 4 per vector where the compiler has GNU C's vector types
+   (gcc, clang): each order's coefficients go into them as whole vectors and every sum over older
+   coefficients is one vector expression; the compiler's own vectorizing of the lanes stored one
+   double at a time and shuffled the scalar code into vectors, lengthening the chain from order to
+   order (about 5-10 % slower). Elsewhere (or with -DKS_SCALAR_LANES) arrays of doubles, with the
+   same sums in the same order: the same numbers, bit for bit */
+#if defined(__GNUC__) && !defined(KS_SCALAR_LANES)
+#define KS_VECTOR 1
+typedef double ks_v4 __attribute__((vector_size(32)));
+#define KS_V4(a, b, c, d) ((ks_v4){a, b, c, d})
+#define KS_LANE(p) KS[(p) / 4][(p) % 4]
+#else
+#define KS_VECTOR 0
+#define KS_LANE(p) KS[p]
+#endif
+"""
 
 LOOP_HELPERS = r"""
 #if defined(__GNUC__)
