@@ -9,7 +9,9 @@ The order ``N = 2 ceil(ln(1/tol) / 4) + 4`` (:func:`order_for`) is a compile-tim
 used. Operations on parameters and constants alone are computed once per call, and a product
 with such a factor costs one multiplication per order instead of a convolution; the constant
 factors are moved out of products and merged first (``2 (c a) b`` is ``(2 c) (a b)``: one
-multiplication per order, :func:`_fold_factors`); ``1/D`` and ``1/k`` are multiplications.
+multiplication per order, :func:`_fold_factors`); ``1/D`` and ``1/k`` are multiplications. The
+derivative ``k a_k`` a sine, cosine or exponential needs of an argument linear in the state is read
+off the state's next derivative (``k q_k = qdot_{k-1}``: :meth:`_Emitter.derivative`), not formed.
 Small systems at low orders get every order written out: each convolution
 ``sum_j a_j b_{k-j}`` is its older part ``sum_{j=1}^{k-1}`` plus the terms of order ``k``, and the
 older parts of all the convolutions are summed lane by lane in one loop per order over arrays
@@ -314,6 +316,26 @@ class _Emitter:
         lane = self.pairs.setdefault((a, b), len(self.pairs))
         return _last([f"KS_LANE({lane})" if self.unrolled else f"KS[{lane}]"], new)
 
+    def derivative(self, i: int, k) -> str | None:
+        """``k a_k`` (the coefficient ``k - 1`` of ``a'``) of node ``i`` when ``a`` is linear in the
+        state: read off the state's next derivative (``k q_k = qdot_{k-1}``, ``k qdot_k = x_{k-1}``),
+        which takes two roundings and a multiplication per order off the chain; else None."""
+        kind, args, data = self.nodes[i]
+        km1 = k - 1 if isinstance(k, int) else "k - 1"
+        if kind == "state":
+            return f"Y{data + self.n}[{km1}]" if data < self.n else f"X{data - self.n}[{km1}]"
+        if kind == "scale":
+            inner = self.derivative(args[0], k)
+            return None if inner is None else f"{_literal(data)} * {inner}"
+        if kind == "mul" and not (self.var[args[0]] and self.var[args[1]]):
+            c, v = (args[0], args[1]) if not self.var[args[0]] else (args[1], args[0])
+            inner = self.derivative(v, k)
+            return None if inner is None else f"c{c} * {inner}"
+        if kind == "add":
+            terms = [self.derivative(x, k) for x in args if self.var[x]]
+            return None if None in terms else " + ".join(terms)
+        return None
+
     # one coefficient of one node ---------------------------------------------------------
 
     def coefficient(self, i: int, k) -> list[str]:
@@ -479,7 +501,8 @@ class _Emitter:
                     continue
                 lines += self.first(i, "v") if k == 0 else self.coefficient(i, k)
                 if i in self.scaled or nodes[i][0] == "log":
-                    lines.append(f"d{i}[{k}] = {k} * {self.name(i)}[{k}];" if k != 0 else f"d{i}[0] = 0.0;")
+                    lines.append(f"d{i}[{k}] = {self.derivative(i, k) or f'{k} * {self.name(i)}[{k}]'};" if k != 0
+                                 else f"d{i}[0] = 0.0;")
             return lines
 
         def solve(k) -> list[str]:
