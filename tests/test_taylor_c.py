@@ -34,6 +34,19 @@ def test_every_rule_matches_the_mpmath_taylor_route(monkeypatch):
     assert np.allclose(got, [float(v) for v in want], rtol=0, atol=1e-11)
 
 
+def test_derivatives_of_linear_arguments_are_read_off_the_state():
+    """``k a_k`` of a sine's argument linear in the state is the state's next derivative
+    (``k q_k = qdot_{k-1}``, ``k qdot_k = x_{k-1}``), not formed; a nonlinear argument keeps
+    ``k a_k`` (the values: the tests against the mpmath route)."""
+    import re
+
+    system, _, _, _ = benchmark_problem()
+    lines = re.findall(r"\bd\d+_5 = ([^;]*);", taylor_c.emit_taylor_c(system, 8))
+    assert len(lines) == 3 and all(re.fullmatch(r"[-+*.\de ]*Y[23]_4( \+ [-+*.\de ]*Y[23]_4)?", x) for x in lines), lines
+    lines = re.findall(r"\bd\d+_5 = ([^;]*);", taylor_c.emit_taylor_c(_functions_system(), 8))
+    assert "X0_4" in lines and "Y1_4" in lines and any(re.fullmatch(r"5 \* \w+_5", x) for x in lines), lines
+
+
 def test_unrolled_orders_match_the_loops(monkeypatch):
     """Every rule written out order by order (pairwise sums) against the loop form, same order."""
     system = _functions_system()
