@@ -43,7 +43,7 @@ FLAGS = ("-std=c99", "-O2", "-fPIC", "-shared", "-Wall", "-Wextra", "-Werror")
 # for the processor the library runs on (the instruction set heyoka's JIT also targets); no
 # contraction into fused multiply-adds, so results stay those of the portable build. On x86:
 # * no fused multiply-add instructions at all: gcc 12 makes a pair ``a c + b d``, ``b c - a d``
-#   one vfmaddsub even under -ffp-contract=off (seen in a mass matrix, and in the Taylor
+#   one vfmaddsub even under -ffp-contract=off (seen in the 10-link chain's velocity terms, and in the Taylor
 #   integrator's angle addition where it vectorizes 128 bits wide, as for Zen 1);
 # * every function on a cache line of its own start, so a hot function's speed does not depend on
 #   the sizes of those before it (the 10-link chain's right-hand side: 244 or 296 ns a call as
