@@ -71,6 +71,7 @@ from .reference import Unsupported, _Tape
 
 MIN_ORDER, MAX_ORDER = 4, 40
 UNROLL_TERMS = 12_000  # write every order out while products + statements stay below this (gcc's time)
+WRITTEN_VECTORS = 4  # lane sums written out vector by vector up to this (System I's 3), else a loop (3-link chain's 7)
 GUARD = 2  # orders N-1-GUARD .. N-2 also give the step's radius: a series with gaps (see above)
 _INTEGRALS = {"atan": "atan", "asin": "asin", "acos": "acos"}
 STATUS = {0: "", 1: "the mass matrix is not positive definite, or the state became NaN or infinite",
@@ -570,8 +571,9 @@ class _Emitter:
                 if k >= 2 and self.pairs:  # the sums over older coefficients, 4 lanes per vector operation
                     terms = _last([f"KA[{j}][p] * KB[{k - j}][p]" for j in range(2, k - 1)],  # the last order's last
                                   [f"KA[{j}][p] * KB[{k - j}][p]" for j in sorted({1, k - 1})])
-                    step += ["#if KS_VECTOR", " ".join(f"KS[{q}] = {terms.replace('[p]', f'[{q}]')};" for q in range(vectors)),
-                             "#else", f"for (p = 0; p < {lanes}; ++p) KS[p] = {terms};", "#endif"]
+                    vector = (" ".join(f"KS[{q}] = {terms.replace('[p]', f'[{q}]')};" for q in range(vectors))
+                              if vectors <= WRITTEN_VECTORS else f"for (p = 0; p < {vectors}; ++p) KS[p] = {terms};")
+                    step += ["#if KS_VECTOR", vector, "#else", f"for (p = 0; p < {lanes}; ++p) KS[p] = {terms};", "#endif"]
                 step += lines
                 if k <= N - 2:  # this order's coefficients into the lanes they are read in: a whole vector
                     def row(side, q):  # stored at once, which a vector load of it can take straight from the store
@@ -957,10 +959,10 @@ static inline void ks_rotate(double a, double *r, int fresh)
 LANE_VECTORS = r"""
 /* the lanes of the written-out orders, 4 per vector where the compiler has GNU C's vector types
    (gcc, clang): each order's coefficients go into them as whole vectors and every sum over older
-   coefficients is one vector expression; the compiler's own vectorizing of the lanes stored one
-   double at a time and shuffled the scalar code into vectors, lengthening the chain from order to
-   order (about 5-10 % slower). Elsewhere (or with -DKS_SCALAR_LANES) arrays of doubles, with the
-   same sums in the same order: the same numbers, bit for bit */
+   coefficients is one vector expression (written out for a few vectors, else a loop over them);
+   the compiler's own vectorizing of the lanes stored one double at a time and shuffled the scalar
+   code into vectors, lengthening the chain from order to order (5-10 % slower). Elsewhere (or with
+   -DKS_SCALAR_LANES) arrays of doubles, with the same sums in the same order: the same numbers */
 #if defined(__GNUC__) && !defined(KS_SCALAR_LANES)
 #define KS_VECTOR 1
 typedef double ks_v4 __attribute__((vector_size(32)));
