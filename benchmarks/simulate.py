@@ -30,7 +30,9 @@ b. The double pendulum of two uniform rods (System I with its defaults: masses 1
    ``../shared/reference/double-pendulum-rods.json``, for kronsub's C ``dop853`` (in the circle
    state, as ``simulate`` runs it, and in ``[q; qdot]``) and ``gauss4``,
    scipy's methods calling the compiled C right-hand side, and heyoka (if installed; its
-   compile time apart). Target: error <= 1e-8 in <= 0.5 ms.
+   compile time apart). Target: error <= 1e-8 in <= 0.5 ms. The rows of ``taylor`` and of
+   heyoka (0.1-1 ms each) are timed interleaved, 200 rounds of every tolerance in turn, so a
+   slow phase of the machine (they come in bursts of seconds) falls on all of them alike.
 
 c. Where the C ``dop853`` time goes: the same integration called from C, from Python through
    ctypes, and the right-hand side's share.
@@ -159,6 +161,21 @@ int main(int argc, char **argv) {
 # ---------------------------------------------------------------------------------------------
 # helpers
 # ---------------------------------------------------------------------------------------------
+
+def interleaved(fns: dict, rounds: int) -> tuple[dict, dict]:
+    """The shortest and the median wall time of each of ``fns`` (seconds) over ``rounds`` rounds
+    that call every one in turn, and each one's last result. The machine's slow phases come in
+    bursts of seconds, longer than a row's repeats: measured one after another, a burst can slow one
+    row alone; in turn, it falls on every row alike."""
+    times = {key: [] for key in fns}
+    results = {}
+    for _ in range(rounds):
+        for key, fn in fns.items():
+            t0 = time.perf_counter()
+            results[key] = fn()
+            times[key].append(time.perf_counter() - t0)
+    return {key: (min(v), sorted(v)[len(v) // 2]) for key, v in times.items()}, results
+
 
 def best_of(fn, repeats: int) -> float:
     """The shortest wall time of ``repeats`` calls of ``fn()``, in seconds."""
@@ -406,6 +423,7 @@ def section_pendulum(quick: bool, scratch: Path) -> None:
     param, y0, t_end = np.array(values.parameters), np.array(values.y0), 10.0
     native = native_model(system)
     c_repeats, py_repeats = (5, 1) if quick else (30, 3)
+    rounds = 20 if quick else 200  # of the interleaved rows (taylor, heyoka): 0.1-1 ms each
 
     print(f"b. Double pendulum of two uniform rods (System I defaults), 120 / -10 deg at rest, to t = {t_end:g};")
     print("   wall time of the integration alone (min and median of repeats), max |error| of [q; qdot] at t = 10")
@@ -453,19 +471,17 @@ def section_pendulum(quick: bool, scratch: Path) -> None:
     taylor = TaylorC(system)
     taylor_tols = (1e-6, 1e-9, 1e-10, 3e-11, 1e-12, 3e-13, 1e-15) if quick else \
         (1e-6, 1e-9, 1e-10, 3e-11, 1e-12, 3e-13, 1e-13, 1e-14, 1e-15)
+    built = {}
     for tol in taylor_tols:
-        out = {}
         t0 = time.perf_counter()
         taylor.build(order_for(tol))
-        built = time.perf_counter() - t0
-
-        def run():
-            out["r"] = taylor.integrate(param, y0, t_end, tol)
-
-        seconds = min_median(run, c_repeats)
-        final, _, steps, order = out["r"]
-        row("kronsub C taylor", f"tol {tol:.0e}", seconds, final, "-",
-            f"{steps} steps, order {order}; generated C, build {built:.1f} s")
+        built[tol] = time.perf_counter() - t0
+    seconds, results = interleaved({tol: (lambda tol=tol: taylor.integrate(param, y0, t_end, tol))
+                                    for tol in taylor_tols}, rounds)
+    for tol in taylor_tols:
+        final, _, steps, order = results[tol]
+        row("kronsub C taylor", f"tol {tol:.0e}", seconds[tol], final, "-",
+            f"{steps} steps, order {order}; generated C, build {built[tol]:.1f} s")
 
     rhs = native.scipy_rhs(param)
     scipy_runs = [("RK45", 1e-6), ("RK45", 1e-9), ("DOP853", 1e-9), ("DOP853", 1e-12),
@@ -491,20 +507,22 @@ def section_pendulum(quick: bool, scratch: Path) -> None:
     else:
         heyoka.llvm_state.set_diskcache_enabled(False)  # this process only: cold compile times
         grid = np.array([0.0, t_end])
-        for tol in ((1e-9, 1e-12, 1e-13, 1e-15) if quick else (1e-9, 1e-10, 1e-11, 1e-12, 1e-13, 1e-14, 1e-15)):
+        heyoka_tols = (1e-9, 1e-12, 1e-13, 1e-15) if quick else (1e-9, 1e-10, 1e-11, 1e-12, 1e-13, 1e-14, 1e-15)
+        tas, compiled = {}, {}
+        for tol in heyoka_tols:
             t0 = time.perf_counter()
-            integrator = HeyokaIntegrator(system, tol)
-            compiled = time.perf_counter() - t0
-            ta, out = integrator.ta, {}
+            tas[tol] = HeyokaIntegrator(system, tol).ta
+            compiled[tol] = time.perf_counter() - t0
 
-            def run():
-                ta.time, ta.state[:], ta.pars[:] = 0.0, y0, param
-                out["r"] = ta.propagate_grid(grid)
+        def run(ta):
+            ta.time, ta.state[:], ta.pars[:] = 0.0, y0, param
+            return ta.propagate_grid(grid)
 
-            seconds = min_median(run, c_repeats)
-            outcome, _, _, steps, _, Y = out["r"]
-            row("heyoka " + heyoka.__version__, f"tol {tol:.0e}", seconds, Y[-1], "-",
-                f"{steps} steps, order {ta.order}; compile {compiled:.2f} s")
+        seconds, results = interleaved({tol: (lambda tol=tol: run(tas[tol])) for tol in heyoka_tols}, rounds)
+        for tol in heyoka_tols:
+            outcome, _, _, steps, _, Y = results[tol]
+            row("heyoka " + heyoka.__version__, f"tol {tol:.0e}", seconds[tol], Y[-1], "-",
+                f"{steps} steps, order {tas[tol].order}; compile {compiled[tol]:.2f} s")
 
     import peer_mujoco  # MuJoCo's Euler and RK4 at several steps, where mujoco installs (benchmarks/peer_mujoco.py)
 
