@@ -14,10 +14,10 @@ derivative ``k a_k`` a sine, cosine or exponential needs of an argument linear i
 off the state's next derivative (``k q_k = qdot_{k-1}``: :meth:`_Emitter.derivative`), not formed.
 Small systems at low orders get every order written out: each convolution
 ``sum_j a_j b_{k-j}`` is its older part ``sum_{j=1}^{k-1}`` plus the terms of order ``k``, and the
-older parts of all the convolutions are summed lane by lane in one loop per order over arrays
-``KA[j][lane]``, ``KB[j][lane]`` that every order's coefficients are copied into (the compiler
-vectorizes it: 4 convolutions per AVX instruction, no sum across lanes), the terms of order
-``k`` added last (they wait for this order); ``x_k`` for ``k >= 1`` is ``Mbar_0^-1`` (from
+older parts of all the convolutions are summed lane by lane, 4 lanes to a GNU C vector
+(:data:`LANE_VECTORS`: ``KA[j][q]``, ``KB[j][q]``, into which every order's coefficients are
+stored as whole vectors; arrays of doubles and a loop the compiler vectorizes where there are no
+such vectors, with the same numbers), the terms of order ``k`` added last (they wait for this order); ``x_k`` for ``k >= 1`` is ``Mbar_0^-1`` (from
 ``L D L^T``, once per step) times the right-hand side, a short chain instead of two
 substitutions; the step's increment is evaluated by Estrin's scheme. Otherwise the orders
 are one loop (much quicker to compile) with the same split: at its top ``ks_lanes`` sums the
