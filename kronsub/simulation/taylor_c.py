@@ -17,10 +17,10 @@ Small systems at low orders get every order written out: each convolution
 older parts of all the convolutions are summed lane by lane, 4 lanes to a GNU C vector
 (:data:`LANE_VECTORS`: ``KA[j][q]``, ``KB[j][q]``, into which every order's coefficients are
 stored as whole vectors; arrays of doubles and a loop the compiler vectorizes where there are no
-such vectors, with the same numbers), the terms of order ``k`` added last (they wait for this order); ``x_k`` for ``k >= 1`` is ``Mbar_0^-1`` (from
-``L D L^T``, once per step) times the right-hand side, a short chain instead of two
-substitutions; the step's increment is evaluated by Estrin's scheme. Otherwise the orders
-are one loop (much quicker to compile) with the same split: at its top ``ks_lanes`` sums the
+such vectors, with the same numbers), the terms of order ``k`` added last (they wait for this
+order); ``x_k`` for ``k >= 1`` is ``Mbar_0^-1`` (from ``L D L^T``, once per step) times the
+right-hand side, a short chain instead of two substitutions; the step's increment is evaluated
+by Estrin's scheme. Otherwise the orders are one loop (much quicker to compile) with the same split: at its top ``ks_lanes`` sums the
 older parts of every lane at once, each order stores its coefficients into the lanes at its end,
 and a coefficient only its own order reads is a scalar of the loop body (1.8x quicker than a
 convolution per product on the 10-link chain). The step is
@@ -567,25 +567,32 @@ class _Emitter:
             vectors = -(-len(self.pairs) // 4)  # of 4 lanes: KA[k][q] is lanes 4q .. 4q + 3 of order k
             lanes = 4 * vectors
             pairs = list(self.pairs) + [("0.0", "0.0")] * (lanes - len(self.pairs))
+
+            def row(side: int, q: int, k: int) -> str:  # lanes 4q .. 4q + 3 of order k, padded with zeros
+                names = (pair[side] for pair in pairs[4 * q:4 * q + 4])
+                return ", ".join(x if x == "0.0" else f"{x}[{k}]" for x in names)
+
             for k, lines in enumerate(orders, 1):
                 if k >= 2 and self.pairs:  # the sums over older coefficients, 4 lanes per vector operation
                     terms = _last([f"KA[{j}][p] * KB[{k - j}][p]" for j in range(2, k - 1)],  # the last order's last
                                   [f"KA[{j}][p] * KB[{k - j}][p]" for j in sorted({1, k - 1})])
                     vector = (" ".join(f"KS[{q}] = {terms.replace('[p]', f'[{q}]')};" for q in range(vectors))
                               if vectors <= WRITTEN_VECTORS else f"for (p = 0; p < {vectors}; ++p) KS[p] = {terms};")
-                    step += ["#if KS_VECTOR", vector, "#else", f"for (p = 0; p < {lanes}; ++p) KS[p] = {terms};", "#endif"]
+                    step += ["#if KS_VECTOR", vector,
+                             "#else", f"for (p = 0; p < {lanes}; ++p) KS[p] = {terms};", "#endif"]
                 step += lines
-                if k <= N - 2:  # this order's coefficients into the lanes they are read in: a whole vector
-                    def row(side, q):  # stored at once, which a vector load of it can take straight from the store
-                        return ", ".join(x if x == "0.0" else f"{x}[{k}]" for x in (pair[side] for pair in pairs[4 * q:4 * q + 4]))
-                    step.append("#if KS_VECTOR")
-                    step += [f"KA[{k}][{q}] = KS_V4({row(0, q)}); KB[{k}][{q}] = KS_V4({row(1, q)});" for q in range(vectors)]
+                if k <= N - 2:  # this order's coefficients into the lanes they are read in: whole vectors, which
+                    step.append("#if KS_VECTOR")  # a vector load takes straight from the store
+                    step += [f"KA[{k}][{q}] = KS_V4({row(0, q, k)}); KB[{k}][{q}] = KS_V4({row(1, q, k)});"
+                             for q in range(vectors)]
                     step.append("#else")
-                    step += [f"KA[{k}][{lane}] = {a}[{k}]; KB[{k}][{lane}] = {b}[{k}];" for (a, b), lane in self.pairs.items()]
+                    step += [f"KA[{k}][{lane}] = {a}[{k}]; KB[{k}][{lane}] = {b}[{k}];"
+                             for (a, b), lane in self.pairs.items()]
                     step.append("#endif")
             if self.pairs:
-                storage_lanes = ["#if KS_VECTOR", f"ks_v4 KA[TN_ORDER][{vectors}], KB[TN_ORDER][{vectors}], KS[{vectors}];",
-                                 "#else", f"double KA[TN_ORDER][{lanes}], KB[TN_ORDER][{lanes}], KS[{lanes}];", "#endif",
+                storage_lanes = ["#if KS_VECTOR",
+                                 f"ks_v4 KA[TN_ORDER][{vectors}], KB[TN_ORDER][{vectors}], KS[{vectors}];", "#else",
+                                 f"double KA[TN_ORDER][{lanes}], KB[TN_ORDER][{lanes}], KS[{lanes}];", "#endif",
                                  "int p;"]
         else:  # one loop over the orders: the lanes' older sums, this order's terms, its lanes stored
             body = emit_order("k") + solve("k")  # the lanes are known after this
