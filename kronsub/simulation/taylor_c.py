@@ -20,10 +20,10 @@ stored as whole vectors; arrays of doubles and a loop the compiler vectorizes wh
 such vectors, with the same numbers), the terms of order ``k`` added last (they wait for this
 order); ``x_k`` for ``k >= 1`` is ``Mbar_0^-1`` (from ``L D L^T``, once per step) times the
 right-hand side, a short chain instead of two substitutions; the step's increment is evaluated
-by Estrin's scheme. Otherwise the orders are one loop (much quicker to compile) with the same split: at its top ``ks_lanes`` sums the
-older parts of every lane at once, each order stores its coefficients into the lanes at its end,
-and a coefficient only its own order reads is a scalar of the loop body (1.8x quicker than a
-convolution per product on the 10-link chain). The step is
+by Estrin's scheme. Otherwise the orders are one loop (much quicker to compile) with the same
+split: at its top ``ks_lanes`` sums the older parts of every lane at once, each order stores its
+coefficients into the lanes at its end, and a coefficient only its own order reads is a scalar of
+the loop body (1.8x quicker than a convolution per product on the 10-link chain). The step is
 ``h = rho tol^(1/(N-1)) exp(-0.7 / (N - 1))``, ``rho = min_{k = N-1, N} (max(1, |y|) / |y_k|)^(1/k)``:
 Jorba and Zou's ``rho / e^2 exp(-0.7 / (N - 1))`` (heyoka's) when ``tol = e^(-2 (N - 1))``, and
 at the higher orders :func:`order_for` takes a longer step that still keeps ``(h / rho)^(N-1)``
@@ -698,8 +698,9 @@ class _Emitter:
             # the loop form calls them (gcc: a third less compile time for the 10-link chain, the
             # same speed); written out, they stay inline: the float64 end calls them every step
             outline="" if self.unrolled else "KS_OUTLINE ",
-            outline_note="" if self.unrolled else (";\n   called, not inlined: the order-0 tangents of a large system are long, and gcc's\n"
-                                                   "   register allocation over them took most of its time"),
+            outline_note="" if self.unrolled else (
+                ";\n   called, not inlined: the order-0 tangents of a large system are long, and gcc's\n"
+                "   register allocation over them took most of its time"),
             decl="\n    ".join(decl + storage), zero="\n    ".join(zero + [f"(void){x};" for x in consts_void + consts]),
             prologue="\n    ".join(prologue), helpers=helpers + (_rotate_helper() if rotated else ""), root=STEP_ROOT,
             fresh="const int fresh = fine || (steps & 31) == 0;" if rotated else "", load=load, sizes=sizes,
@@ -1004,7 +1005,7 @@ static void ks_lanes(double *restrict KS, const double *restrict KA, const doubl
 {
     int j, p;
     for (p = 0; p < TN_LANES; ++p) KS[p] = 0.0;
-    for (j = 1; j + 1 < k; j += 2) {  /* two orders at a time: half the loads and stores of KS */
+    for (j = 1; j + 1 < k; j += 2) {  /* the terms j and j + 1 in one pass: half the loads and stores of KS */
         const double *a = KA + j * TN_LANES, *b = KB + (k - j) * TN_LANES;
         const double *c = a + TN_LANES, *d = b - TN_LANES;
         for (p = 0; p < TN_LANES; ++p) KS[p] += a[p] * b[p] + c[p] * d[p];
