@@ -106,3 +106,91 @@ effects:
     (tmp_path / "pinned.yaml").write_text(pinned)
     result = CliRunner().invoke(main, ["check", str(tmp_path / "pinned.yaml")])
     assert result.exit_code == 0, result.output
+
+
+CART_POLE = """\
+name: cart-pole
+parameters: {mc: 1.3, mp: 0.4, l: 0.9, g: 9.81, a: 0.3}
+components:
+  cart: {type: particle1d, parameters: {mass: mc}, coordinates: [x]}
+  pole: {type: pinned_rod, parameters: {mass: mp, length: l}, coordinates: {angle: theta}, pivot: cart.centre}
+coordinates: [x, theta]
+effects:
+  gravity: GRAVITY
+"""
+
+
+def _cart_pole_by_hand(S, direction):
+    """``(Mbar, hbar - fbar)`` of the cart-pole by Lagrange: the cart at ``(x, 0)`` (a line is the
+    plane's x axis), the pole's centre ``l/2 (sin theta, -cos theta)`` from it, gravity ``g`` along
+    the unit ``direction`` on both bodies."""
+    x, th, xd, thd = S("x"), S("theta"), S("x_dot"), S("theta_dot")
+    mc, mp, l, g = S("mc"), S("mp"), S("l"), S("g")
+    q, qd = [x, th], [xd, thd]
+    d = sympy.Matrix(direction) / sympy.sqrt(sum(c**2 for c in direction))
+    cart = sympy.Matrix([x, 0])
+    centre = cart + l / 2 * sympy.Matrix([sympy.sin(th), -sympy.cos(th)])
+    velocity = centre.diff(x) * xd + centre.diff(th) * thd
+    T = mc * xd**2 / 2 + mp * velocity.dot(velocity) / 2 + mp * l**2 / 12 * thd**2 / 2
+    V = -g * (mc * d.dot(cart) + mp * d.dot(centre))
+    rest = [sum(sympy.diff(sympy.diff(T, b), a) * ad for a, ad in zip(q, qd)) - sympy.diff(T, a) + sympy.diff(V, a)
+            for a, b in zip(q, qd)]
+    return sympy.hessian(T, qd), rest, [x, th, xd, thd, mc, mp, l, g]
+
+
+@pytest.mark.parametrize("direction", [(0, -1), (sympy.sin(sympy.Symbol("a")), -sympy.cos(sympy.Symbol("a")))],
+                         ids=["horizontal rail", "tilted gravity"])
+def test_a_cart_on_its_rail_feels_gravity_along_the_rail_only(tmp_path, direction):
+    """Gravity over a line and the plane, its direction given in the plane: the line is the
+    plane's x axis, so the cart feels ``g (d . e_x)`` along it (none for a horizontal rail), as a
+    hand Lagrangian of the cart-pole says."""
+    written = "[0, -1]" if direction == (0, -1) else "[sin(a), -cos(a)]"
+    system = _derive(tmp_path, CART_POLE.replace("GRAVITY", f"{{type: gravity, g: g, direction: {written}}}"))
+    S = system.symbol
+    a = S("a")
+    direction = [sympy.sympify(c).xreplace({sympy.Symbol("a"): a}) for c in direction]
+    mass, rest, names = _cart_pole_by_hand(S, direction)
+    for i in range(2):
+        for j in range(2):
+            assert sympy.simplify(system.mass_matrix[i, j] - mass[i, j]) == 0
+    weight_on_cart = system.effect_forces["gravity"][0]  # fbar along x
+    assert sympy.simplify(weight_on_cart - (S("mc") + S("mp")) * S("g") * direction[0]) == 0
+    ours = sympy.lambdify(names + [a], list(system.velocity_terms - system.forces))
+    hand = sympy.lambdify(names + [a], rest)
+    rng = np.random.default_rng(3)
+    for _ in range(6):
+        values = list(rng.uniform(-2, 2, 4)) + list(rng.uniform(0.3, 2, 5))
+        assert np.allclose(ours(*values), hand(*values), rtol=1e-12, atol=1e-12)
+
+
+def _check(tmp_path, text):
+    (tmp_path / "model.yaml").write_text(text)
+    return CliRunner().invoke(main, ["check", str(tmp_path / "model.yaml")])
+
+
+def test_gravity_over_worlds_without_a_direction_is_refused_where_it_is_written(tmp_path):
+    """Each world's own "down" (along the line, -y in the plane) disagrees with the others' once a
+    line is the plane's x axis: ``check`` refuses the gravity, located, with the way out."""
+    result = _check(tmp_path, CART_POLE.replace("GRAVITY", "{type: gravity, g: g}"))
+    assert result.exit_code == 1, result.output
+    assert ("model.yaml:8:12: gravity 'gravity' has no `direction:` and acts on components of different "
+            "worlds (line: cart; plane: pole)") in result.output
+    assert "hint: give `direction:` in the plane, e.g. `[0, -1]`" in result.output
+    space = CART_POLE.replace("  pole:", "  top: {type: particle3d, parameters: {mass: mp}, coordinates: [u, v, w]}\n"
+                                         "  pole:").replace("[x, theta]", "[x, theta, u, v, w]")
+    result = _check(tmp_path, space.replace("GRAVITY", "{type: gravity, g: g}"))
+    assert result.exit_code == 1 and "(line: cart; plane: pole; space: top)" in result.output, result.output
+    assert "e.g. `[0, 0, -1]`" in result.output
+    one_world = CART_POLE.replace("GRAVITY", "{type: gravity, g: g, components: [pole]}")
+    assert _check(tmp_path, one_world).exit_code == 0
+
+
+def test_a_listed_component_gravity_does_nothing_on_is_refused(tmp_path):
+    """Listing the cart under a gravity straight across its rail asks for a force it never feels."""
+    result = _check(tmp_path, CART_POLE.replace(
+        "GRAVITY", "{type: gravity, g: g, direction: [0, -1], components: [cart, pole]}"))
+    assert result.exit_code == 1, result.output
+    assert ("gravity 'gravity' does nothing on component 'cart': its direction is across the line the "
+            "component moves in (the plane's x axis)") in result.output
+    tilted = CART_POLE.replace("GRAVITY", "{type: gravity, g: g, direction: [1, -3], components: [cart, pole]}")
+    assert _check(tmp_path, tilted).exit_code == 0

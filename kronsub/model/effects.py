@@ -11,6 +11,9 @@ from ..errors import close_matches
 from .source import Node
 
 DEFAULT_DOWN = {1: (-1,), 2: (0, -1), 3: (0, 0, -1)}
+WORLDS = {1: "line", 2: "plane", 3: "space"}
+IN_WORLD = {1: {2: "the plane's x axis", 3: "space's x axis"}, 2: {3: "space's z = 0 plane"}}
+"""Where a smaller world lies in a larger one (:func:`~kronsub.components.base.in_world`)."""
 
 
 def _required(loader, spec: Node, key: str, ename: str, hint: str) -> Node | None:
@@ -82,8 +85,10 @@ def _gravity(loader, ename, spec, primitive):
     """Gravity on the chosen components (default: every library component with mass).
 
     Known systems bring their own effects, so they are included only when named.
-    Without ``direction:`` each component falls "down" in its own world
-    (-x on a line, -y in the plane, -z in space).
+    Without ``direction:`` the components fall "down" in their world (-x on a line, -y in the
+    plane, -z in space); over components of different worlds it needs a ``direction:``. A
+    component in a smaller world than the direction's lies in it as everywhere (a line on the
+    x axis): it feels the part of gravity along its world, none across it.
     """
 
     if spec.get("g") is not None:
@@ -118,20 +123,31 @@ def _gravity(loader, ename, spec, primitive):
         if direction is None or _positional(loader, spec.get("direction"), sympy.Matrix(direction), primitive,
                                             ename, "the direction") is None:
             return None
+    worlds = sorted({primitive.part(n).dimension for n in chosen if primitive.part(n).dimension})
+    if direction is None and len(worlds) > 1:
+        _mixed_worlds(loader, spec, ename, primitive, chosen, worlds)
+        return None
     parts = []
     for name in chosen:
         part = primitive.part(name)
         if not part.dimension:
             continue  # nothing of it moves in a world (a flywheel on its axis)
         d = direction if direction is not None else DEFAULT_DOWN.get(part.dimension)
-        if len(d) != part.dimension:
+        if len(d) < part.dimension:
             if cnode is not None:
                 loader.error(spec, f"gravity '{ename}' has a {len(d)}-D direction but component "
                                    f"'{name}' lives in {part.dimension}-D",
                              "give a direction with one entry per world axis of the component")
             continue
+        if not _along(d, part.dimension):
+            if cnode is not None:
+                loader.error(spec, f"gravity '{ename}' does nothing on component '{name}': its direction is "
+                                   f"across the {WORLDS[part.dimension]} the component moves in "
+                                   f"({IN_WORLD[part.dimension][len(d)]})",
+                             f"leave '{name}' out of `components:`, or give a direction with a part along its "
+                             f"{WORLDS[part.dimension]}")
+            continue
         parts.append((name, tuple(d)))
-    worlds = sorted({primitive.part(n).dimension for n in chosen if primitive.part(n).dimension})
     if direction is not None and not parts and worlds and cnode is None:
         loader.error(spec.get("direction"), f"gravity '{ename}' acts on no component: its direction has "
                      f"{len(direction)} entries, but the components live in "
@@ -149,6 +165,26 @@ def _gravity(loader, ename, spec, primitive):
     if g is None:
         return None
     return Gravity(ename, g=g, parts=tuple(parts))
+
+
+def _along(d, dimension: int) -> bool:
+    """Whether gravity along ``d`` has a part in a component's world of ``dimension`` axes: the
+    world's first axes (:func:`~kronsub.components.base.in_world`), a line on the x axis."""
+    return not sympy.Add(*[c**2 for c in d[:dimension]]).is_zero
+
+
+def _mixed_worlds(loader, spec: Node, ename: str, primitive, chosen, worlds) -> None:
+    """Report a gravity without ``direction:`` over components of different worlds: each world's
+    own "down" (along a line, -y in the plane, -z in space) disagrees with the others', since a
+    line lies on the plane's x axis and the plane in space's z = 0 plane."""
+    by_world = "; ".join(f"{WORLDS[w]}: " + ", ".join(n for n in chosen if primitive.part(n).dimension == w)
+                         for w in worlds)
+    example = str(list(DEFAULT_DOWN[worlds[-1]]))
+    loader.error(spec, f"gravity '{ename}' has no `direction:` and acts on components of different worlds "
+                       f"({by_world})",
+                 f"give `direction:` in the {WORLDS[worlds[-1]]}, e.g. `{example}`: a line lies on the plane's x "
+                 f"axis (a horizontal rail, which feels none of it), the plane in space's z = 0 plane; or list one "
+                 f"world's components in `components:`")
 
 
 def _force(loader, ename, spec, primitive):
