@@ -323,3 +323,34 @@ def test_editing_a_scene_keeps_the_cached_derivation(tmp_path):
     document["initial"] = {"theta": 0.1}
     _write(e, document)
     assert load_model(d).content_hash != load_model(e).content_hash
+
+
+# ----------------------------------------------------- a parameter the constraints still use
+LOOP = MODELS.parent / "tests" / "models" / "loop_scene_parameter.yaml"
+
+
+@needs_cc
+def test_a_parameter_the_constraints_use_stays_when_its_other_users_are_switched_off(tmp_path):
+    """``d`` places the rocker's pivot (so it is in the pin's constraint) and the spring's anchor;
+    the scene `free` switches the spring off: derive, codegen (the C compiles) and simulate keep
+    ``d`` as a parameter with its value, and drop the spring's ``k``."""
+    runner = CliRunner()
+    derived = runner.invoke(main, ["derive", str(LOOP), "--scene", "free", "--format", "json"])
+    assert derived.exit_code == 0, derived.output
+    parameters = json.loads(derived.stdout)["parameters"]
+    assert "d" in parameters and "k" not in parameters
+    out = tmp_path / "c"
+    generated = runner.invoke(main, ["codegen", str(LOOP), "--scene", "free", "-o", str(out), "--name", "loop"])
+    assert generated.exit_code == 0, generated.output
+    header = (out / "loop.h").read_text(encoding="utf-8")
+    assert "#define KS_P_d " in header and "KS_P_k " not in header
+    subprocess.run(["gcc", *CFLAGS, "-c", "loop.c", "-o", "loop.o"], cwd=out, check=True)
+    run = runner.invoke(main, ["simulate", str(LOOP), "--scene", "free", "--t", "0.2", "--dt", "0.1",
+                               "--set", "d=0.95", "--meta", str(tmp_path / "run.json")])
+    assert run.exit_code == 0, run.output
+    meta = json.loads((tmp_path / "run.json").read_text())
+    assert meta["parameters"]["d"] == 0.95 and "k" not in meta["parameters"]
+    model = load_model(LOOP)
+    system = derive_scene(model, select_scene(model, "free"))
+    used = set().union(*(c.expression.free_symbols for c in system.implicit.constraints))
+    assert {p.symbol for p in system.parameters} >= used - set(system.implicit.independent + system.implicit.dependent)

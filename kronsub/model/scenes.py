@@ -201,8 +201,10 @@ def select_scene(model, name: str | None) -> Scene | None:
 
 def derive_scene(model, scene: Scene | None, *, cache: bool = True) -> KnownSystem:
     """The equations of a scene: only its effects are projected (and cached apart, shared
-    with every other scene), parameters only of switched-off effects are dropped, the
-    scene's values become the defaults, and only the named points it asks for are kept."""
+    with every other scene), parameters of switched-off effects are dropped unless something
+    kept uses them (the equations, constraints and intermediates, the points asked for, the
+    initial values), the scene's values become the defaults, and only the named points it
+    asks for are kept."""
     if scene is None:
         return model.derive(cache=cache)
     from .derive import derive_model
@@ -211,13 +213,8 @@ def derive_scene(model, scene: Scene | None, *, cache: bool = True) -> KnownSyst
     off = [label for label in effect_labels(model.primitive, model.effects) if label not in scene.effects]
     off_symbols = set().union(*(_effect_symbols(model, label) for label in off)) if off else set()
     points = {label: system.points[label] for label in (scene.outputs.points or ()) if label in system.points}
-    used = set(system.mass_matrix.free_symbols) | set(system.velocity_terms.free_symbols) \
-        | set(system.forces.free_symbols) | set(sympy.sympify(system.potential_energy).free_symbols)
-    for pos in points.values():
-        for c in pos:
-            used |= sympy.sympify(c).free_symbols
-    for value in initial_values(model, scene).values():  # initial values may name parameters
-        used |= sympy.sympify(value).free_symbols
+    kept = dataclasses.replace(system, parameters=(), points=points, initial=initial_values(model, scene))
+    used = _symbols(kept)  # equations, constraints and intermediates, kept points, initial values
     parameters = tuple(
         dataclasses.replace(p, value=scene.parameters.get(p.name, p.value))
         for p in system.parameters if p.symbol in used or p.symbol not in off_symbols)
@@ -249,8 +246,14 @@ def _effect_symbols(model, label: str) -> set:
 
 
 def _symbols(value) -> set:
-    if isinstance(value, (list, tuple)):
-        return set().union(*(_symbols(v) for v in value)) if value else set()
+    """Every symbol in ``value``: an expression or matrix, and what a list, mapping or dataclass
+    (a derived system, its constraints and intermediates, bodies) holds, keys and values."""
     if isinstance(value, (sympy.Basic, sympy.MatrixBase)):
         return set(value.free_symbols)
+    if isinstance(value, Mapping):
+        value = [*value.keys(), *value.values()]
+    elif dataclasses.is_dataclass(value) and not isinstance(value, type):
+        value = [getattr(value, f.name) for f in dataclasses.fields(value)]
+    if isinstance(value, (list, tuple)):
+        return set().union(*(_symbols(v) for v in value)) if value else set()
     return set()
