@@ -27,14 +27,22 @@ def common_world(a, b) -> tuple[tuple, tuple]:
     return in_world(a, dimension), in_world(b, dimension)
 
 
+POSITIVE, NONNEGATIVE, INERTIA = "positive", "nonnegative", "inertia"
+"""What a component needs of a value (:meth:`Component.requirements`): above zero (a length),
+not below zero (a mass, a moment of inertia: zero is a massless part), or an inertia tensor of
+a body (principal moments not below zero, each at most the sum of the other two)."""
+
+
 @dataclass(frozen=True)
 class ParameterSpec:
-    """A parameter a component takes; ``default`` is an expression in the other parameters."""
+    """A parameter a component takes; ``default`` is an expression in the other parameters,
+    ``sign`` what the physics needs of its value (:data:`POSITIVE`, :data:`NONNEGATIVE`)."""
 
     name: str
     description: str
     default: str | None = None
     unit: str = ""
+    sign: str = ""
 
 
 @dataclass(frozen=True)
@@ -99,6 +107,12 @@ class Component:
     def bodies(self) -> tuple[Body, ...]:
         """The mass distribution (used by gravity and by the energy checks)."""
         return ()
+
+    def requirements(self) -> tuple[tuple[str, object, str], ...]:
+        """``(parameter, value, kind)``: what the component needs of its parameters' values, the
+        sign each :class:`ParameterSpec` declares; a subclass adds conditions among them (a 3-D
+        inertia tensor, :data:`INERTIA`, named by its first entry)."""
+        return tuple((ps.name, self.p[ps.name], ps.sign) for ps in self.parameters if ps.sign)
 
     # -- derived ---------------------------------------------------------
     def all_points(self) -> dict[str, tuple[sympy.Expr, ...]]:

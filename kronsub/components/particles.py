@@ -4,9 +4,9 @@ from __future__ import annotations
 import sympy
 from sympy import cos, sin
 
-from .base import Body, Component, ParameterSpec
+from .base import NONNEGATIVE, Body, Component, ParameterSpec
 
-MASS = ParameterSpec("mass", "mass of the particle", unit="kg")
+MASS = ParameterSpec("mass", "mass of the particle", unit="kg", sign=NONNEGATIVE)
 
 
 class _Cartesian(Component):

@@ -8,9 +8,9 @@ from __future__ import annotations
 import sympy
 from sympy import Rational, cos, sin
 
-from .base import Body, Component, OptionSpec, ParameterSpec, rotation2
+from .base import NONNEGATIVE, POSITIVE, Body, Component, OptionSpec, ParameterSpec, rotation2
 
-MASS = ParameterSpec("mass", "mass of the body", unit="kg")
+MASS = ParameterSpec("mass", "mass of the body", unit="kg", sign=NONNEGATIVE)
 
 
 class PlanarBody(Component):
@@ -19,7 +19,8 @@ class PlanarBody(Component):
     type_name = "planar_body"
     summary = "rigid body in the plane (x, y of the mass centre, angle); given inertia"
     coordinates = ("x", "y", "angle")
-    parameters = (MASS, ParameterSpec("inertia", "moment of inertia about the mass centre", unit="kg m^2"))
+    parameters = (MASS, ParameterSpec("inertia", "moment of inertia about the mass centre", unit="kg m^2",
+                                          sign=NONNEGATIVE))
     dimension = 2
     rigid = True
 
@@ -54,8 +55,9 @@ class Rod(PlanarBody):
 
     type_name = "rod"
     summary = "planar rod (x, y of its centre, angle of its axis); ends a, b"
-    parameters = (MASS, ParameterSpec("length", "length", unit="m"),
-                  ParameterSpec("inertia", "moment of inertia about the centre", "mass*length**2/12", "kg m^2"))
+    parameters = (MASS, ParameterSpec("length", "length", unit="m", sign=POSITIVE),
+                  ParameterSpec("inertia", "moment of inertia about the centre", "mass*length**2/12", "kg m^2",
+                                NONNEGATIVE))
     options = (OptionSpec("axis", "the rod's axis in its body frame: body x (its angle from the world x axis) "
                                   "or down, body -y (its angle from the downward vertical)", ("x", "down")),)
 
@@ -72,8 +74,9 @@ class Disc(PlanarBody):
 
     type_name = "disc"
     summary = "planar disc (x, y of its centre, angle); point rim on its body x axis"
-    parameters = (MASS, ParameterSpec("radius", "radius", unit="m"),
-                  ParameterSpec("inertia", "moment of inertia about the centre", "mass*radius**2/2", "kg m^2"))
+    parameters = (MASS, ParameterSpec("radius", "radius", unit="m", sign=POSITIVE),
+                  ParameterSpec("inertia", "moment of inertia about the centre", "mass*radius**2/2", "kg m^2",
+                                NONNEGATIVE))
 
     def body_points(self):
         z = sympy.Integer(0)
@@ -91,8 +94,9 @@ class PinnedRod(Component):
     type_name = "pinned_rod"
     summary = "rod pinned at one end (angle from the downward vertical)"
     coordinates = ("angle",)
-    parameters = (MASS, ParameterSpec("length", "length", unit="m"),
-                  ParameterSpec("inertia", "moment of inertia about the centre", "mass*length**2/12", "kg m^2"),
+    parameters = (MASS, ParameterSpec("length", "length", unit="m", sign=POSITIVE),
+                  ParameterSpec("inertia", "moment of inertia about the centre", "mass*length**2/12", "kg m^2",
+                                NONNEGATIVE),
                   ParameterSpec("pivot_x", "x of the fixed pivot", "0", "m"),
                   ParameterSpec("pivot_y", "y of the fixed pivot", "0", "m"))
     dimension = 2
@@ -121,7 +125,8 @@ class Flywheel(Component):
     type_name = "flywheel"
     summary = "rotor on a fixed axis (angle)"
     coordinates = ("angle",)
-    parameters = (ParameterSpec("inertia", "moment of inertia about the axis", unit="kg m^2"),)
+    parameters = (ParameterSpec("inertia", "moment of inertia about the axis", unit="kg m^2",
+                                sign=NONNEGATIVE),)
     dimension = 0
 
     def metric(self):

@@ -7,7 +7,7 @@ from typing import ClassVar
 import sympy
 from sympy import cos, sin
 
-from .base import Body, Component, OptionSpec, ParameterSpec
+from .base import INERTIA, NONNEGATIVE, Body, Component, OptionSpec, ParameterSpec
 
 SEQUENCES = ("ZYX", "ZXY", "YXZ", "YZX", "XYZ", "XZY",  # Tait-Bryan: three different axes
              "ZXZ", "ZYZ", "XYX", "XZX", "YXY", "YZY")  # proper Euler: first axis repeated
@@ -71,7 +71,7 @@ class RigidBody3D(Component):
     summary = "rigid body in space (x, y, z, Euler angles psi, theta, phi; Z-Y-X unless `euler:` says)"
     coordinates = ("x", "y", "z", "psi", "theta", "phi")
     parameters = (
-        ParameterSpec("mass", "mass", unit="kg"),
+        ParameterSpec("mass", "mass", unit="kg", sign=NONNEGATIVE),
         ParameterSpec("Ixx", "moment of inertia about body x", unit="kg m^2"),
         ParameterSpec("Iyy", "moment of inertia about body y", unit="kg m^2"),
         ParameterSpec("Izz", "moment of inertia about body z", unit="kg m^2"),
@@ -94,6 +94,10 @@ class RigidBody3D(Component):
         return sympy.Matrix([[p["Ixx"], p["Ixy"], p["Ixz"]],
                              [p["Ixy"], p["Iyy"], p["Iyz"]],
                              [p["Ixz"], p["Iyz"], p["Izz"]]])
+
+    def requirements(self):
+        """The mass's sign, and the tensor's: that of a body (the moments' signs with it)."""
+        return super().requirements() + (("Ixx", self.inertia(), INERTIA),)
 
     def metric(self):
         E = euler_rates(self.sequence, self.x["theta"], self.x["phi"])

@@ -76,6 +76,7 @@ class KnownSystem:
     effect_translations: Mapping[str, tuple] = field(default_factory=dict)  # dV/do per effect of a world field
     implicit: object | None = None  # core.constraints.ImplicitSubspace: the named intermediates (26)-(29)
     initial: Mapping[sympy.Symbol, sympy.Expr] = field(default_factory=dict)  # the model's initial values
+    requirements: tuple = ()  # what its components need of the parameters' values (model.requirements)
 
     @property
     def velocities(self) -> tuple[sympy.Symbol, ...]:

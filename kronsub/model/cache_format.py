@@ -28,12 +28,14 @@ from ..core import canonical
 from ..core.constraints import Constraint, ImplicitSubspace
 from ..core.known_system import KnownSystem, ParameterInfo, ProjectedEffect, Transition
 from ..core.placed import PlacedBodies, PlacedPoints
+from ..errors import Location
+from .requirements import Requirement
 
 FORMAT = "kronsub-known-system/1"
 
 #: the dataclasses a cache file may hold, by name
 CLASSES = {cls.__name__: cls for cls in (KnownSystem, Transition, ParameterInfo, Body, ProjectedEffect,
-                                          ImplicitSubspace, Constraint)}
+                                          ImplicitSubspace, Constraint, Requirement, Location)}
 
 #: the functions an expression may apply (those of the parser, kronsub/model/expressions.py)
 FUNCTIONS = {cls.__name__: cls for cls in (

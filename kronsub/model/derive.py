@@ -110,8 +110,8 @@ def derive_model(model, *, cache: bool = True, effects=None) -> KnownSystem:
     others are left out before projection, so nothing of them is derived. ``fbar`` is the
     sum of the effects' projected forces (8'), (F), so ``Mbar``, ``hbar`` (the inertia) and
     each effect are cached apart, and every selection of effects shares them. The cache
-    holds data only (:mod:`.cache_format`); name, description and initial values always come
-    from ``model`` (the same text may live under several file names). The cyclic garbage
+    holds data only (:mod:`.cache_format`); name, description, initial values and requirements
+    always come from ``model`` (the same text may live under several file names). The cyclic garbage
     collector is paused meanwhile (:func:`.collector_paused`).
     """
     with collector_paused():
@@ -120,7 +120,8 @@ def derive_model(model, *, cache: bool = True, effects=None) -> KnownSystem:
 
 def _derive(model, cache: bool, effects) -> KnownSystem:
     key = model.content_hash if cache else ""
-    own = {"name": model.name, "description": model.description, "initial": dict(model.initial)}
+    own = {"name": model.name, "description": model.description, "initial": dict(model.initial),
+           "requirements": model.requirements}
     if key and effects is None:
         hit = load_cached(key)
         if hit is not None:

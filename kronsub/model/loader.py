@@ -26,6 +26,7 @@ from ..errors import Location, ModelError, ProblemCollector, close_matches, near
 from .derive import content_key, derive_model, load_cached
 from .effects import build_effect
 from .expressions import parse_expression
+from .requirements import Requirement, body_requirements, component_requirements, unmet
 from .scenes import build_scenes
 from .constraints import analyse, read_constraints
 from .definitions import definition_names, read_definitions, substitute_definitions
@@ -151,6 +152,7 @@ class _Loader:
         self.sub_hashes: list[str] = []
         self.locations: dict[str, Location] = {}
         self.failed_components = False
+        self.requirements: list[Requirement] = []  # what the components need of the parameters' values
         # one typo, one error: names of components that failed, and the coordinate names their
         # `coordinates:` renames declared, so later references to them report nothing more
         self.broken_parts: set[str] = set()
@@ -334,6 +336,7 @@ class _Loader:
         declared = root.get("effects")
         scenes = build_scenes(self, root.get("scenes"), list(declared.value) if declared is not None and
                               declared.is_mapping else [], primitive, y)
+        self._check_values()
         if constrained and not self.problems:
             implicit = self._implicit(cnode, constraints, connection, y, coords, auto, initial)
             if implicit is not None:
@@ -353,7 +356,23 @@ class _Loader:
             key_texts=(derivation_text(self.root, self.text), *self.sub_hashes) if self.text is not None else (),
             locations=self.locations,
             implicit=implicit,
+            requirements=tuple(self.requirements),
         )
+
+    def parameter_values(self) -> dict:
+        """The parameters' values (symbol -> number) as declared or inherited."""
+        return {info.symbol: info.value for info in self.parameters.values() if info.value is not None}
+
+    def _check_values(self) -> None:
+        """The components' requirements on the parameters' values (:mod:`.requirements`): a
+        problem at the parameter's declaration when the value is one parameter, else where
+        the value is given."""
+        def declared(req):
+            value = req.value
+            return self.locations.get(f"parameter:{value.name}") if isinstance(value, sympy.Symbol) else None
+
+        for problem in unmet(self.requirements, self.parameter_values(), declared):
+            self.problems.add(problem.location, problem.message, problem.hint)
 
     def _string(self, node: Node | None, default: str) -> str:
         if node is None:
@@ -458,6 +477,7 @@ class _Loader:
         params: dict[str, sympy.Expr] = {}
         for ps in cls.parameters:  # defaults are library text, in the other parameters
             params[ps.name] = values[ps.name] if ps.name in values else parse_expression(ps.default, params)
+        self.requirements += component_requirements(cname, cls(p=params), spec.get("parameters"))
         names = self._coordinate_names(cname, spec.get("coordinates"), cls.coordinates, f"{cname}_{{}}")
         if names is None:
             return None
@@ -622,6 +642,9 @@ class _Loader:
             return None
         part = known_system_part(cname, system, {symbol(k): v for k, v in overrides.items()},
                                  dict(zip(local, names)))
+        for body in part.bodies:
+            self.requirements += body_requirements(f"{cname}.{body.name}" if body.name else cname, body,
+                                                   (spec.get("parameters") or spec).location)
         return placed(part, origin) if origin else part
 
     def _inherit(self, cname: str, mnode: Node, info: ParameterInfo) -> None:

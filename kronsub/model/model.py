@@ -53,6 +53,7 @@ class Model:
     locations: Mapping[str, Location] = field(default_factory=dict)
     scenes: tuple = ()  # of :class:`~kronsub.model.scenes.Scene`, in file order
     implicit: ImplicitSpec | None = None  # constraints: g(y) = 0
+    requirements: tuple = ()  # of :class:`~kronsub.model.requirements.Requirement`: checked on values
 
     @functools.cached_property
     def content_hash(self) -> str:

@@ -19,6 +19,8 @@ import sympy
 from ..core.known_system import KnownSystem
 from ..core.subspace import effect_labels
 from ..errors import ModelError, Problem, close_matches
+from ..core.symbols import symbol
+from .requirements import parameters_in, unmet
 from .source import Node
 
 KEYS = ("description", "effects", "without", "parameters", "initial", "t_end", "dt", "method", "outputs")
@@ -99,6 +101,7 @@ def _scene(loader, sname: str, spec: Node, labels, points, coords) -> Scene | No
         value = loader.expr(vnode, {}, what=f"value of parameter '{pname}' in scene '{sname}'")
         if value is not None:
             parameters[pname] = value
+    _check_values(loader, pnode, parameters)
     initial = loader._initial(spec.get("initial"), coords)
     t_end = _positive(loader, spec.get("t_end"), f"`t_end:` of scene '{sname}'")
     dt = _positive(loader, spec.get("dt"), f"`dt:` of scene '{sname}'")
@@ -115,6 +118,18 @@ def _scene(loader, sname: str, spec: Node, labels, points, coords) -> Scene | No
         method=method,
         outputs=outputs,
     )
+
+
+def _check_values(loader, pnode: Node | None, parameters: dict) -> None:
+    """The components' requirements on the values a scene sets (:mod:`.requirements`), each
+    problem at the scene's value."""
+    if not parameters:
+        return
+    values = {**loader.parameter_values(), **{symbol(k): v for k, v in parameters.items()}}
+    concerned = [r for r in loader.requirements if {s.name for s in parameters_in(r)} & set(parameters)]
+    for problem in unmet(concerned, values, lambda req: next(
+            (pnode.get(s.name).location for s in parameters_in(req) if s.name in parameters), None)):
+        loader.problems.add(problem.location, problem.message, problem.hint)
 
 
 def _names(loader, node: Node, valid, what: str, kind: str) -> list[str] | None:

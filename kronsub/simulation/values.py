@@ -14,6 +14,7 @@ import sympy
 from ..core.known_system import KnownSystem
 from ..errors import Location, ModelError, Problem, near_names
 from ..model.expressions import constant_value, parse_expression
+from ..model.requirements import parameters_in, unmet
 
 
 @dataclass(frozen=True)
@@ -85,6 +86,9 @@ def resolve(system: KnownSystem, initial: dict, settings: dict[str, str]) -> Run
                                 + ", ".join(missing), "give them a `value:` in the model or --set "
                                 + " ".join(f"{m}=..." for m in missing)))
     values = dict(zip([p.symbol for p in system.parameters], params))
+    if not missing and None not in params:  # what the components need of the values (model/requirements.py)
+        problems.extend(unmet(system.requirements, values, lambda req: next(
+            (Location(f"--set {s.name}") for s in parameters_in(req) if s.name in settings), None)))
     y0: list[float] = []
     initial_by_name = {k.name: v for k, v in initial.items()}
     for name in state:
