@@ -428,11 +428,13 @@ def simulate(model: Path, t_end: float | None, dt: float | None, method: str | N
 
 
 def _check_times(t_end: float | None, dt: float | None) -> None:
-    """``--t`` and ``--dt``, when given, are positive finite numbers (a usage error else)."""
+    """``--t`` and ``--dt``, when given, are positive finite normal numbers (a usage error else)."""
+    from .simulation.run import time_problem
+
     for flag, given in (("--t", t_end), ("--dt", dt)):
-        if given is not None and not (math.isfinite(given) and given > 0):
-            _fail(f"Error: {flag} must be a positive finite {'time' if flag == '--t' else 'interval'} "
-                  f"(got {given!r})", USAGE_ERROR)
+        why = time_problem(flag, given) if given is not None else None
+        if why is not None:
+            _fail(f"Error: {why}", USAGE_ERROR)
 
 
 def _rows(count: int) -> str:

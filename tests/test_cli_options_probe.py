@@ -76,6 +76,21 @@ BAD = [
     (["simulate", "m.yaml", "--t", ""], 2, ["--t", "not a valid float"]),
     (["simulate", "m.yaml", "--t", "0.05", "--dt", "0"], 2, ["--dt", "positive finite"]),
     (["simulate", "m.yaml", "--t", "0.05", "--dt", "1e-300"], 2, ["--dt", "rows"]),
+    # absurd times and tolerances are usage errors that give the valid range, not failures at t = 0
+    (["simulate", "m.yaml", "--t", "5e-324"], 2, ["--t", "at least 2.23e-308", "(got 5e-324)"]),
+    (["simulate", "m.yaml", "--t", "1e-310", "--dt", "1e-311"], 2, ["--t", "at least 2.23e-308"]),
+    (["simulate", "m.yaml", "--t", "0.05", "--dt", "5e-324"], 2, ["--dt", "at least 2.23e-308"]),
+    (["simulate", "m.yaml", "--t", "0.05", "--rtol", "1e-300"], 2, ["--rtol", "0, or from 1e-15 to 1", "round-off"]),
+    (["simulate", "m.yaml", "--t", "0.05", "--rtol", "2"], 2, ["--rtol", "0, or from 1e-15 to 1"]),
+    (["simulate", "m.yaml", "--t", "0.05", "--atol", "1e-300"], 2, ["--atol", "0, or at least 1e-30"]),
+    (["simulate", "m.yaml", "--t", "0.05", "--rtol", "0", "--atol", "1e-300"], 2, ["--atol", "at least 1e-30"]),
+    (["animate", "m.yaml", "-o", "a.gif", "--t", "5e-324"], 2, ["--t", "at least 2.23e-308"]),
+    (["accuracy", "m.yaml", "--tolerances", "1e-4:1e-20"], 1, ["--tolerances", "from 1e-15 to below 1"]),
+    # a value that is not a finite number, or a name, in --set
+    (["simulate", "m.yaml", "--t", "0.05", "--set", "m1=nan"], 1, ["--set m1", "'nan' is not a finite number"]),
+    (["simulate", "m.yaml", "--t", "0.05", "--set", "m1=-inf"], 1, ["--set m1", "'inf' is not a finite number"]),
+    (["simulate", "m.yaml", "--t", "0.05", "--set", "theta=Infinity"], 1, ["'Infinity' is not a finite number"]),
+    (["simulate", "m.yaml", "--t", "0.05", "--set", "m1=m2"], 1, ["--set m1", "--set takes a constant"]),
     (["simulate", "m.yaml", "--t", "0.05", "--rtol", "-1"], 2, ["--rtol", "at least 0"]),
     (["simulate", "m.yaml", "--t", "0.05", "--rtol", "nan"], 2, ["--rtol", "finite"]),
     (["simulate", "m.yaml", "--t", "0.05", "--rtol", "inf"], 2, ["--rtol", "finite"]),
@@ -254,3 +269,18 @@ def test_a_moving_operating_point_says_why_it_is_no_equilibrium(folder):
     result = invoke("linearize", "m.yaml", "--at", "theta=0", "--at", "phi=0", "--at", "theta_dot=1")
     assert result.exit_code == 0, result.output
     assert "not an equilibrium (qdot is not 0: theta_dot=1)" in result.output
+
+
+@pytest.mark.parametrize("value", ["nan", "NaN", "inf", "-inf", "oo"])
+def test_a_value_that_is_not_finite_is_not_a_name_to_declare(folder, value):
+    """``--set m1=nan``: the value must be a finite number; nothing suggests declaring a parameter."""
+    result = invoke("simulate", "m.yaml", "--t", "0.05", "--set", f"m1={value}")
+    assert_clear(result, 1, "is not a finite number", "finite real number")
+    assert "declare" not in result.output
+
+
+def test_tolerances_and_times_at_the_edges_of_their_ranges_run(folder):
+    for args in (["--rtol", "0", "--atol", "1e-10"], ["--rtol", "1e-15", "--atol", "1e-10"],
+                 ["--rtol", "1", "--atol", "1e-10"], ["--t", "1e-300", "--dt", "1e-300"]):
+        result = invoke("simulate", "m.yaml", "--t", "0.05", *args)
+        assert result.exit_code == 0, (args, result.output)

@@ -275,3 +275,77 @@ def test_an_outline_follows_aliases_and_merges_into_what_it_names():
             full.get("components").get(name).get("model").value
     assert outline.get("components").get("b").get("parameters").get("m").value == 2  # merged: whole
     assert outline.get("shared").value is None and full.get("shared").get("model").value == "arm.yaml"
+
+
+# ------------------------------------------------------- files that are not models, and depth
+def _check(path):
+    from click.testing import CliRunner
+
+    from kronsub.cli import main
+
+    return CliRunner().invoke(main, ["check", str(path)])
+
+
+SECRET = "ghp_16C7e42F292c6912E7710c838347Ae178B4a"
+
+
+@pytest.mark.parametrize("content", [
+    f"{SECRET}\n", f"{SECRET}: 1\n", f"token: {SECRET}\n", f"- {SECRET}\n", f"!!int {SECRET}\n",
+    f"*{SECRET}\n", f"[{SECRET}\n", f"123456789012: {SECRET}\n", f"{SECRET}: !!timestamp x\n",
+    f"root:{SECRET}:19000:0:99999:7:::\n", "",
+], ids=["line", "key", "value", "list", "tag", "alias", "unclosed", "number key", "timestamp", "shadow", "empty"])
+def test_nothing_of_a_model_file_that_is_not_a_model_is_shown(tmp_path, content):
+    """A `model:` file none of whose lines begins with a model section is no model: the error
+    says so at the `model:` entry and shows nothing of the file (a secret's first line)."""
+    (tmp_path / "secret.txt").write_text(content)
+    text = "name: a\ncomponents:\n  sub: {model: secret.txt}\ncoordinates: [q]\n"
+    (tmp_path / "model.yaml").write_text(text)
+    result = _check(tmp_path / "model.yaml")
+    assert result.exit_code == 1, result.output
+    assert f"model.yaml:3:16: model file 'secret.txt' is not a kronsub model" in result.output
+    assert SECRET not in result.output and "ghp_" not in result.output and "19000" not in result.output
+
+
+def test_a_file_that_is_not_a_model_echoes_no_key(tmp_path):
+    (tmp_path / "model.yaml").write_text(f"{SECRET}: 1\nother: 2\n")
+    result = _check(tmp_path / "model.yaml")
+    assert result.exit_code == 1 and "this is not a kronsub model" in result.output
+    assert SECRET not in result.output
+
+
+def test_a_model_in_flow_style_is_still_a_model(tmp_path):
+    (tmp_path / "sub.yaml").write_text("{name: s, components: {p: {type: particle1d, parameters: {mass: 1}}}, "
+                                       "coordinates: [p_x]}\n")
+    (tmp_path / "model.yaml").write_text("name: a\ncomponents:\n  s: {model: sub.yaml}\ncoordinates: [p_x]\n")
+    result = _check(tmp_path / "model.yaml")
+    assert result.exit_code == 0, result.output
+
+
+@pytest.mark.parametrize("path", ["/proc/kcore", "/proc/no-such-file.yaml", "/sys/kernel/nothing.yaml",
+                                  "/proc/self/status"])
+def test_a_path_under_proc_or_sys_is_a_system_file_whether_or_not_it_exists(tmp_path, path):
+    root = path.split("/")[1]
+    result = _check(path)
+    assert result.exit_code == 1
+    assert result.output.startswith(f"Error: {path}: is a system file under /{root}, not a model file\n")
+    (tmp_path / "model.yaml").write_text(f"name: a\ncomponents:\n  sub: {{model: {path}}}\ncoordinates: [q]\n")
+    result = _check(tmp_path / "model.yaml")
+    assert f"model.yaml:3:16: model file '{path}': is a system file under /{root}" in result.output, result.output
+
+
+def test_model_files_nested_too_deeply_say_so_with_the_limit(tmp_path):
+    """Known systems in known systems, one level more than the limit: the error names the
+    levels of `model:` files and the limit (not "YAML nested too deeply"); at the limit, it loads."""
+    from kronsub.model.loader import MAX_MODEL_DEPTH
+
+    (tmp_path / "m0.yaml").write_text("name: m0\ncomponents:\n  p: {type: particle1d, parameters: {mass: 1}, "
+                                      "coordinates: [x]}\ncoordinates: [x]\n")
+    for i in range(1, MAX_MODEL_DEPTH + 1):
+        (tmp_path / f"m{i}.yaml").write_text(f"name: m{i}\ncomponents:\n  s: {{model: m{i - 1}.yaml}}\n"
+                                             "coordinates: [x]\n")
+    assert _check(tmp_path / f"m{MAX_MODEL_DEPTH - 1}.yaml").exit_code == 0  # MAX_MODEL_DEPTH files
+    result = _check(tmp_path / f"m{MAX_MODEL_DEPTH}.yaml")
+    assert result.exit_code == 1, result.output
+    assert (f"m1.yaml:3:14: too many levels of `model:` files: 'm0.yaml' would be level {MAX_MODEL_DEPTH + 1}, "
+            f"and the limit is {MAX_MODEL_DEPTH}") in result.output
+    assert "nested too deeply" not in result.output

@@ -313,6 +313,10 @@ def _rational_bits(value: sympy.Rational) -> int:
     return abs(value.p).bit_length() + value.q.bit_length()
 
 
+NOT_FINITE = frozenset({"nan", "inf", "infinity", "oo", "zoo"})
+"""Names of values that are not finite numbers (in any case), said as such when not declared."""
+
+
 def _name_hint(name: str, known: list[str]) -> str:
     """Suggest the closest known names, or how to declare a new one."""
     close = near_names(name, known)
@@ -524,6 +528,9 @@ class _Builder:
             return _Value(value, self.name_bits[name])
         if name in FUNCTIONS:
             self.fail(node, f"'{name}' is a function", f"call it, e.g. {name}(x)")
+        if name.lower() in NOT_FINITE:
+            self.fail(node, f"'{name}' is not a finite number",
+                      "a value must be a finite real number, e.g. 9.81: NaN and infinities are not values")
         self.fail(node, f"unknown name '{name}'", _name_hint(name, self.known))
 
     def _name(self, node: ast.Name, depth: int) -> _Value:

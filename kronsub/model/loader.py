@@ -32,11 +32,19 @@ from .constraints import analyse, read_constraints
 from .definitions import definition_names, read_definitions, substitute_definitions
 from .model import ImplicitSpec, Model
 from .names import Declared, generated_name_clashes
-from .source import Node, excerpt, load_yaml, read_model_text
+from .source import Node, excerpt, load_yaml, read_model_text, system_root
 
 TOP_LEVEL = ("name", "description", "parameters", "components", "coordinates", "definitions", "connection",
              "constraints", "effects", "initial", "scenes")
 _UNKNOWN_NAME = re.compile(r"unknown name '([^']+)'")
+_SECTION_LINE = re.compile(r"^(?:---[ \t]*)?(?:\{[ \t]*)?[\"']?(?:" + "|".join(TOP_LEVEL) + r")[\"']?[ \t]*:", re.M)
+
+
+def looks_like_model(text: str) -> bool:
+    """Whether a line of ``text`` begins with a model section (``name:``, ``{components:``): a
+    file named by ``model:`` without one is no model, and nothing of it is quoted in messages
+    (its first line may be a secret)."""
+    return _SECTION_LINE.search(text) is not None
 IDENTIFIER = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")  # whole names only: fullmatch
 RESERVED = {"t", "pi"}
 OUTPUT_COLUMNS = ("kinetic_energy", "potential_energy", "total_energy")
@@ -57,6 +65,11 @@ def load_model(path, *, text: str | None = None, cache: bool = True, _stack: tup
         return _Loader(path, root, text, _stack, cache).build()
 
 
+MAX_MODEL_DEPTH = 32
+"""Most levels of model files, the model given first being level 1: a known system's own
+``model:`` files are one level further down."""
+
+
 def model_key(path: Path, stack: tuple[str, ...] = ()) -> str:
     """The content hash of a model file and, recursively, of the model files it uses.
 
@@ -64,8 +77,8 @@ def model_key(path: Path, stack: tuple[str, ...] = ()) -> str:
     known system is found without deriving or even constructing its model.
     """
     resolved = _resolved(path)
-    if resolved in stack:
-        return ""  # the cycle is reported when the model is loaded
+    if resolved in stack or len(stack) >= MAX_MODEL_DEPTH:
+        return ""  # the cycle, or the depth, is reported when the model is loaded
     text = read_model_text(path)
     if _alone(text):
         return content_key(text)
@@ -103,7 +116,7 @@ def model_files(path: Path, stack: tuple[str, ...] = ()) -> list[Path]:
     order they are named; the model's own file is not among them. Unreadable ones are left out
     (loading the model reports them)."""
     resolved = _resolved(path)
-    if resolved in stack:
+    if resolved in stack or len(stack) >= MAX_MODEL_DEPTH:
         return []
     try:
         root = load_yaml(path, read_model_text(path))
@@ -292,9 +305,8 @@ class _Loader:
                        "start with `name:`, `components:`, `coordinates:` and `connection:`")
             self.problems.raise_if_any()
         if root.value and not any(key in TOP_LEVEL for key in root.value):
-            first = next(iter(root.value))  # not a model: echo no more than one key of it
-            self.error(root.key_locations[first], f"this is not a kronsub model: no key is a model section "
-                                                  f"(the first is '{excerpt(first)}')",
+            first = next(iter(root.value))  # not a model: echo nothing of it, not even a key
+            self.error(root.key_locations[first], "this is not a kronsub model: no key is a model section",
                        "a model has `name:`, `components:`, `coordinates:` and `connection:`; check the path")
             self.problems.raise_if_any()
         self.check_keys(root, TOP_LEVEL, "the model")
@@ -609,12 +621,23 @@ class _Loader:
             chain = " -> ".join(Path(p).name for p in self.stack + (resolved,))
             self.error(mnode, f"model files form a cycle: {chain}", "a model cannot contain itself")
             return None
-        if not os.path.lexists(sub_path):
+        if len(self.stack) >= MAX_MODEL_DEPTH:
+            self.error(mnode, f"too many levels of `model:` files: '{mnode.value}' would be level "
+                              f"{len(self.stack) + 1}, and the limit is {MAX_MODEL_DEPTH}",
+                       "a known system may use known systems, but not this many levels down: write the parts "
+                       "of some levels into one model file")
+            return None
+        if not os.path.lexists(sub_path) and system_root(sub_path) is None:  # read_model_text says what it is
             self.error(mnode, f"model file '{mnode.value}' not found (looked at {sub_path})",
                        "paths are relative to this model file")
             return None
         try:
-            read_model_text(sub_path, mnode.text_location or mnode.location)
+            if not looks_like_model(read_model_text(sub_path, mnode.text_location or mnode.location)):
+                self.error(mnode, f"model file '{mnode.value}' is not a kronsub model: no line of it begins "
+                                  "with a model section", "a model file starts its lines with `name:`, "
+                                  "`components:`, `coordinates:`...; check the path (nothing of another file "
+                                  "is shown)")
+                return None
             key = model_key(sub_path, self.stack)
             system = load_cached(key, transition=False) if self.cache else None
             if system is None:

@@ -130,6 +130,7 @@ def read_model_text(path: Path, where: Location | None = None) -> str:
     ``/proc`` file is never read and nothing here can block.
     """
     where = where or Location(str(path))
+    _check_not_system(path, where)
     data, info = _read_checked(path, where, MAX_MODEL_BYTES, lambda info: _check_regular(path, info, where))
     if len(data) > MAX_MODEL_BYTES:
         raise _too_large(path, len(data), where)
@@ -189,6 +190,22 @@ def read_user_text(path: Path, kind: str, limit: int = 1 << 30) -> str:
     if len(data) > limit:
         raise _file_error(where, path, f"is too large (more than {limit:,} bytes)", f"check the path: {hint}")
     return _decoded(data, path, f"{hint}, saved as UTF-8")
+
+
+def system_root(path: Path) -> str | None:
+    """``/proc`` or ``/sys`` when ``path`` (links followed) lies under it, by its name alone: one
+    missing there (``/proc/kcore`` in a container) is a system path all the same."""
+    resolved = os.path.realpath(path)
+    return next((root for root in _PSEUDO_FILESYSTEMS if resolved == root or resolved.startswith(root + os.sep)),
+                None)
+
+
+def _check_not_system(path: Path, where: Location) -> None:
+    """Refuse a path under /proc or /sys (:func:`system_root`) before it is looked at."""
+    root = system_root(path)
+    if root is not None:
+        raise _file_error(where, path, f"is a system file under {root}, not a model file",
+                          "give the path of a .yaml model file")
 
 
 def _check_regular(path: Path, info: os.stat_result, where: Location) -> None:

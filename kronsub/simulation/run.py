@@ -126,14 +126,27 @@ MAX_ROWS = 10**8  # a run asking for more rows is a mistake (--dt far too small)
 BLOCK_ROWS = 100_000  # rows per block of a streamed run (bounds the memory of long runs)
 
 
+MIN_TIME = sys.float_info.min  # the smallest normal double: a subnormal one has too few bits to step by
+RTOL_RANGE = (1e-15, 1.0)  # tighter is below the round-off of doubles; looser asks for no accuracy
+MIN_ATOL = 1e-30  # tighter than any state of a mechanical model in SI units needs, and not met at t = 0
+
+
+def time_problem(flag: str, value: float) -> str | None:
+    """Why ``--t`` or ``--dt`` cannot be ``value`` (None: it can): a positive finite normal double."""
+    if math.isfinite(value) and value >= MIN_TIME:
+        return None
+    what = "time" if flag == "--t" else "interval"
+    return f"{flag} must be a positive finite {what} of at least {MIN_TIME:.3g} (got {value!r})"
+
+
 def row_count(t_end: float, dt: float) -> int:
     """The number of output rows of a run from 0 to ``t_end`` every ``dt``; raises
-    :class:`SimulationError` when ``t_end`` or ``dt`` is not a positive finite number or the
-    run would have more than :data:`MAX_ROWS` rows."""
-    if not (math.isfinite(t_end) and t_end > 0):
-        raise SimulationError(f"--t must be a positive finite time (got {t_end!r})")
-    if not (math.isfinite(dt) and dt > 0):
-        raise SimulationError(f"--dt must be a positive finite interval (got {dt!r})")
+    :class:`SimulationError` when ``t_end`` or ``dt`` is not a positive finite normal number
+    (:func:`time_problem`) or the run would have more than :data:`MAX_ROWS` rows."""
+    for flag, value in (("--t", t_end), ("--dt", dt)):
+        why = time_problem(flag, value)
+        if why is not None:
+            raise SimulationError(why)
     ratio = t_end / dt
     if not ratio < MAX_ROWS:
         raise SimulationError(f"--t {t_end:g} with --dt {dt:g} asks for {ratio:.3g} rows, more than "
@@ -142,12 +155,19 @@ def row_count(t_end: float, dt: float) -> int:
 
 
 def check_tolerances(rtol: float, atol: float) -> None:
-    """Raise :class:`SimulationError` unless ``rtol`` and ``atol`` are finite, not negative and
-    not both zero (an adaptive method's error test ``|err| <= atol + rtol |y|``)."""
-    for flag, value in (("--rtol", rtol), ("--atol", atol)):
-        if not (math.isfinite(value) and value >= 0):
-            raise SimulationError(f"{flag} must be a finite tolerance of at least 0 (got {value!r})\n"
-                                  "  hint: e.g. --rtol 1e-10 --atol 1e-10")
+    """Raise :class:`SimulationError` unless ``rtol`` is 0 or in :data:`RTOL_RANGE`, ``atol`` 0 or
+    finite and at least :data:`MIN_ATOL`, and not both are zero (an adaptive method's error test
+    ``|err| <= atol + rtol |y|``: a tighter one is below round-off, and the run stops at t = 0)."""
+    low, high = RTOL_RANGE
+    if not (rtol == 0 or low <= rtol <= high):
+        raise SimulationError(f"--rtol must be a finite tolerance of at least 0: 0, or from {low:g} to {high:g} "
+                              f"(got {rtol!r})\n"
+                              f"  hint: a relative tolerance below {low:g} is under the round-off of doubles; "
+                              "e.g. --rtol 1e-10 --atol 1e-10")
+    if not (atol == 0 or MIN_ATOL <= atol < math.inf):
+        raise SimulationError(f"--atol must be a finite tolerance of at least 0: 0, or at least {MIN_ATOL:g} "
+                              f"(got {atol!r})\n"
+                              "  hint: it is in the units of the state; e.g. --rtol 1e-10 --atol 1e-10")
     if rtol == 0 and atol == 0:
         raise SimulationError("--rtol and --atol are both 0: no step would pass the error test\n"
                               "  hint: give one of them a positive value, e.g. --rtol 1e-10")

@@ -7,6 +7,8 @@ parameter without a value is an error that names it.
 """
 from __future__ import annotations
 
+import dataclasses
+import re
 from dataclasses import dataclass
 
 import sympy
@@ -15,6 +17,11 @@ from ..core.known_system import KnownSystem
 from ..errors import Location, ModelError, Problem, near_names
 from ..model.expressions import constant_value, parse_expression
 from ..model.requirements import parameters_in, unmet
+
+
+_UNKNOWN_NAME = re.compile(r"unknown name '([^']*)'")
+CONSTANT_HINT = ("--set takes a constant: a number or a formula of numbers, e.g. 2.5 or 2*pi/3 (no parameter, "
+                 "coordinate or other name)")
 
 
 @dataclass(frozen=True)
@@ -62,7 +69,8 @@ def resolve(system: KnownSystem, initial: dict, settings: dict[str, str]) -> Run
         try:
             return constant_value(parse_expression(text, {}, where, what=what), where, what=what)
         except ModelError as exc:
-            problems.extend(exc.problems)
+            problems.extend(dataclasses.replace(p, hint=CONSTANT_HINT) if _UNKNOWN_NAME.search(p.message) else p
+                            for p in exc.problems)
             return None
 
     def value_of(expr, what: str) -> float | None:
