@@ -99,6 +99,7 @@ def linearize(system: KnownSystem, at: Mapping[str, object] | None = None, input
     by the system) starts the search for an equilibrium. ``option`` (``"--at"``) places problems
     with the values at ``--at NAME``."""
     from .core.linearize import linearize as core_linearize
+    from .model.requirements import parameters_in, unmet
 
     problems = []
     try:
@@ -115,6 +116,12 @@ def linearize(system: KnownSystem, at: Mapping[str, object] | None = None, input
                                     "inputs are parameters: " + ", ".join(sorted(params))))
         else:
             chosen.append(params[name])
+    if not problems:  # what the components need of the values (model/requirements.py)
+        numbers = {p.symbol: p.value for p in system.parameters if p.value is not None}
+        numbers.update(values)
+        given = {s.name for s in values}
+        problems.extend(unmet(system.requirements, numbers, lambda req: next(
+            (Location(f"{option} {s.name}") for s in parameters_in(req) if option and s.name in given), None)))
     if problems:
         raise ModelError(problems)
     start = dict(system.initial) if initial is None else {symbol(system, k) if isinstance(k, str) else k: v

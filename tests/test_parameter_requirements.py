@@ -167,3 +167,14 @@ def test_every_declared_sign_is_checked(tmp_path, type_name, name, sign):
     assert f"{name} of component 'c' must" in bad.output, bad.output
     zero = _run("check", _write(tmp_path, _library_model(type_name, {name: 0})))
     assert (zero.exit_code == 1) == (sign == POSITIVE), zero.output
+
+
+@pytest.mark.parametrize("command", [["simulate", "--t", "0.1"], ["accuracy", "--quick", "--t", "0.1"],
+                                     ["animate", "-o", "a.gif", "--t", "0.1"], ["linearize"]])
+def test_every_command_that_takes_values_checks_them(tmp_path, command, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    option = "--at" if command[0] == "linearize" else "--set"
+    result = _run(command[0], SYSTEM1, *command[1:], option, "a2=-0.3")
+    assert result.exit_code == 1, result.output
+    assert f"Error: {option} a2: length of component 'lower' must be positive: 2*a2 = -0.6 (a2 = -0.3)" \
+        in result.output
