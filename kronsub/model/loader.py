@@ -37,7 +37,13 @@ from .source import Node, excerpt, load_yaml, read_model_text, system_root
 TOP_LEVEL = ("name", "description", "parameters", "components", "coordinates", "definitions", "connection",
              "constraints", "effects", "initial", "scenes")
 _UNKNOWN_NAME = re.compile(r"unknown name '([^']+)'")
-_SECTION_LINE = re.compile(r"^(?:---[ \t]*)?(?:\{[ \t]*)?[\"']?(?:" + "|".join(TOP_LEVEL) + r")[\"']?[ \t]*:", re.M)
+_SECTION_LINE = re.compile(r"^[ \t]*(?:---[ \t]*)?(?:\{[ \t]*)?[\"']?(?:" + "|".join(TOP_LEVEL) + r")[\"']?[ \t]*:",
+                           re.M)
+IDENTIFIER = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")  # whole names only: fullmatch
+RESERVED = {"t", "pi"}
+OUTPUT_COLUMNS = ("kinetic_energy", "potential_energy", "total_energy")
+"""Columns of a trajectory beside the state (``kronsub/simulation/table.py``): a coordinate of
+one of these names would be written twice and lost from the DataFrame."""
 
 
 def looks_like_model(text: str) -> bool:
@@ -45,11 +51,6 @@ def looks_like_model(text: str) -> bool:
     file named by ``model:`` without one is no model, and nothing of it is quoted in messages
     (its first line may be a secret)."""
     return _SECTION_LINE.search(text) is not None
-IDENTIFIER = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")  # whole names only: fullmatch
-RESERVED = {"t", "pi"}
-OUTPUT_COLUMNS = ("kinetic_energy", "potential_energy", "total_energy")
-"""Columns of a trajectory beside the state (``kronsub/simulation/table.py``): a coordinate of
-one of these names would be written twice and lost from the DataFrame."""
 
 
 def load_model(path, *, text: str | None = None, cache: bool = True, _stack: tuple[str, ...] = ()) -> Model:

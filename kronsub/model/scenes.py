@@ -18,8 +18,8 @@ import sympy
 
 from ..core.known_system import KnownSystem
 from ..core.subspace import effect_labels
-from ..errors import ModelError, Problem, close_matches
 from ..core.symbols import symbol
+from ..errors import ModelError, Problem, close_matches
 from .requirements import parameters_in, unmet
 from .source import Node
 
@@ -228,7 +228,8 @@ def derive_scene(model, scene: Scene | None, *, cache: bool = True) -> KnownSyst
     off = [label for label in effect_labels(model.primitive, model.effects) if label not in scene.effects]
     off_symbols = set().union(*(_effect_symbols(model, label) for label in off)) if off else set()
     points = {label: system.points[label] for label in (scene.outputs.points or ()) if label in system.points}
-    kept = dataclasses.replace(system, parameters=(), points=points, initial=initial_values(model, scene))
+    kept = dataclasses.replace(system, parameters=(), requirements=(), points=points,
+                               initial=initial_values(model, scene))
     used = _symbols(kept)  # equations, constraints and intermediates, kept points, initial values
     parameters = tuple(
         dataclasses.replace(p, value=scene.parameters.get(p.name, p.value))
