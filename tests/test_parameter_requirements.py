@@ -178,3 +178,10 @@ def test_every_command_that_takes_values_checks_them(tmp_path, command, monkeypa
     assert result.exit_code == 1, result.output
     assert f"Error: {option} a2: length of component 'lower' must be positive: 2*a2 = -0.6 (a2 = -0.3)" \
         in result.output
+
+
+def test_a_tensor_in_small_units_is_judged_by_its_own_scale(tmp_path):
+    text = TOP.replace("A: 1, B: 1", "A: 1e-20, B: 1e-20").replace("C_VALUE", "3e-20").replace("P_VALUE", "0")
+    result = _run("check", _write(tmp_path, text))
+    assert result.exit_code == 1 and "principal moments 1e-20, 1e-20, 3e-20" in result.output, result.output
+    assert _run("check", _write(tmp_path, text.replace("3e-20", "2e-20"))).exit_code == 0

@@ -56,7 +56,7 @@ def body_requirements(label: str, body, location: Location | None) -> list[Requi
     if body.inertia is not None and body.inertia.shape == (1, 1):
         found.append(Requirement(f"inertia of body '{label}'", body.inertia[0, 0], NONNEGATIVE, location))
     elif body.inertia is not None:
-        found.append(Requirement(f"inertia tensor of body '{label}'", body.inertia, INERTIA, location))
+        found.append(Requirement(f"the inertia tensor of body '{label}'", body.inertia, INERTIA, location))
     return found
 
 
@@ -103,7 +103,7 @@ def _inertia_problem(tensor) -> str | None:
     """Why a symmetric tensor is no body's: a negative principal moment, or one larger than the
     other two together (the triangle inequality)."""
     moments = np.linalg.eigvalsh((tensor + tensor.T) / 2)
-    slack = 1e-12 * max(1.0, float(np.max(np.abs(moments))))
+    slack = 1e-12 * float(np.max(np.abs(moments)))  # rounding of the eigenvalues (a flat plate: C = A + B)
     if moments[0] >= -slack and moments[2] <= moments[0] + moments[1] + slack:
         return None
     listed = ", ".join(f"{m:.6g}" for m in moments)
@@ -120,7 +120,8 @@ def _shown(expr, number, names, values) -> str:
         return _g(number)
     if isinstance(expr, sympy.MatrixBase):
         return given or sympy.sstr(expr.tolist())
-    text = f"{sympy.sstr(expr)} = {_g(number)}"
+    written = sympy.sstr(expr)
+    text = f"{written if len(written) <= 80 else written[:77] + '...'} = {_g(number)}"
     return f"{text} ({given})" if given else text
 
 
