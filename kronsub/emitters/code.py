@@ -29,8 +29,24 @@ def _number(self, expr) -> str:
     return f"{float(expr):.17g}"
 
 
+EXACT = 2 ** 53
+"""Integers up to this size are exact in a double; larger ones (a product of powers can make
+one past 64 bits, which no C or numpy integer holds) print as the nearest double."""
+
+
+def _double(expr) -> float:
+    """The nearest double to a rational number (``inf`` past the double range)."""
+    return float(sympy.Float(expr, 20))
+
+
+def _big(expr) -> bool:
+    return abs(int(expr.p)) > EXACT or int(expr.q) > EXACT
+
+
 class _CPrinter(C99CodePrinter):
-    """C99 with small integer powers written as products, constants as numbers (no ``M_PI``)."""
+    """C99 with small integer powers written as products, constants as numbers (no ``M_PI``),
+    integers past :data:`EXACT` and rationals of them as double literals, ``sign`` a double
+    (``fabs`` of an ``int`` fails ``-Werror``): every math call gets a double argument."""
 
     def __init__(self, prefix: str = "ks"):
         super().__init__({"math_macros": {}})
@@ -48,6 +64,18 @@ class _CPrinter(C99CodePrinter):
     _print_NumberSymbol = _print_Pi = _print_Exp1 = _print_EulerGamma = _print_GoldenRatio = \
         _print_Catalan = _print_TribonacciConstant = _number
 
+    def _print_Integer(self, expr):
+        return self._print_Rational(expr) if _big(expr) else super()._print_Integer(expr)
+
+    def _print_Rational(self, expr):
+        if not _big(expr):
+            return super()._print_Rational(expr) if not expr.is_Integer else super()._print_Integer(expr)
+        value = _double(expr)
+        return repr(value) if abs(value) < float("inf") else ("HUGE_VAL" if value > 0 else "(-HUGE_VAL)")
+
+    def _print_sign(self, expr):
+        return f"((double){super()._print_sign(expr)})"
+
     def _print_Pow(self, expr):
         base, exp = expr.args
         if exp.is_Integer and 2 <= int(exp) <= 4:
@@ -59,8 +87,20 @@ class _CPrinter(C99CodePrinter):
 
 
 class _PyPrinter(NumPyPrinter):
+    """numpy, with small integer powers written as products, constants as numbers, integers past
+    :data:`EXACT` and rationals of them as floats (a Python integer past 64 bits overflows numpy)."""
+
     _print_NumberSymbol = _print_Pi = _print_Exp1 = _print_EulerGamma = _print_GoldenRatio = \
         _print_Catalan = _print_TribonacciConstant = _number
+
+    def _print_Integer(self, expr):
+        return self._print_Rational(expr) if _big(expr) else super()._print_Integer(expr)
+
+    def _print_Rational(self, expr):
+        if not _big(expr):
+            return super()._print_Rational(expr) if not expr.is_Integer else super()._print_Integer(expr)
+        value = _double(expr)
+        return repr(value) if abs(value) < float("inf") else ("numpy.inf" if value > 0 else "(-numpy.inf)")
 
     def _print_Pow(self, expr, rational=False):
         base, exp = expr.args
