@@ -222,3 +222,23 @@ def test_a_nul_in_a_model_path_is_a_located_error(tmp_path):
     assert result.exit_code == 1, result.output
     assert f"Error: {path}:6:" in result.stderr and "NUL character" in result.stderr, result.stderr
     assert "internal error" not in result.stderr
+
+
+def test_no_escape_function_lets_a_control_or_direction_character_through():
+    """Random texts over the characters that act on a terminal, a renderer or a parser: no
+    function's output has a raw one (the terminal keeps its line feeds), and JSON reads back."""
+    import random
+
+    from kronsub.emitters.escape import json_document, latex_text, markdown_text, plot_text, terminal_text
+
+    alphabet = ([chr(c) for c in range(0x20)] + [chr(c) for c in range(0x7F, 0xA0)]
+                + list("\u061c\u200e\u200f\u2028\u2029\u202a\u202b\u202c\u202d\u202e\u2066\u2067\u2068\u2069")
+                + list("ab$%}{\\`<>&#|*_[]~^\"'") + ["\U000E0001", "\ufeff", "é", "漢"])
+    rng = random.Random(31)
+    for _ in range(300):
+        text = "".join(rng.choice(alphabet) for _ in range(rng.randint(1, 30)))
+        for escape in (markdown_text, latex_text, plot_text):
+            assert not RAW.search(escape(text)) and "\n" not in escape(text), (escape.__name__, text)
+        assert not RAW.search(terminal_text(text)) and terminal_text(text).count("\n") == text.count("\n")
+        document = json_document({"t": text})
+        assert not RAW.search(document) and "<" not in document and json.loads(document) == {"t": text}
