@@ -57,8 +57,10 @@ def _float_rationals(expr: sympy.Expr) -> sympy.Expr:
 
 def _without_abs(hy, expr: sympy.Expr, names: dict) -> tuple[sympy.Expr, dict]:
     """``expr`` and the names for ``hy.from_sympy`` with ``Abs(x)`` and ``sign(x)`` standing for
-    heyoka's ``sqrt(x**2)`` and ``x / sqrt(x**2)`` (heyoka has no ``abs``; a spring whose length
-    is a coordinate brings ``Abs``), innermost first."""
+    heyoka's ``relu(x) + relu(-x)`` and ``relup(x) - relup(-x)`` (heyoka has no ``abs``; a spring
+    whose length is a coordinate brings ``Abs``), innermost first: exact at ``x = 0`` (``sign(0)
+    = 0``, where ``x / sqrt(x**2)`` is NaN), and differentiated as kronsub does (``d sign/dx = 0``,
+    ``d |x|/dx = sign(x)``: :mod:`kronsub.core.derivative`)."""
     names = dict(names)
     while True:
         found = sorted(expr.atoms(sympy.Abs, sympy.sign), key=sympy.default_sort_key)
@@ -69,8 +71,8 @@ def _without_abs(hy, expr: sympy.Expr, names: dict) -> tuple[sympy.Expr, dict]:
         for k, atom in enumerate(inner):
             x = hy.from_sympy(atom.args[0], names)
             stand_in = sympy.Dummy(f"abs{len(names)}_{k}")
-            root = hy.sqrt(x * x)
-            names[stand_in] = root if isinstance(atom, sympy.Abs) else x / root
+            names[stand_in] = (hy.relu(x) + hy.relu(-x) if isinstance(atom, sympy.Abs)
+                                else hy.relup(x) - hy.relup(-x))
             swap[atom] = stand_in
         expr = expr.xreplace(swap)
 
