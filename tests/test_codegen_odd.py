@@ -113,3 +113,22 @@ def test_sign_and_abs_are_differentiated_where_they_have_a_derivative():
     assert derivative(sympy.sign(q), q) == 0
     J = jacobian(sympy.Matrix([q * sympy.sign(q), sympy.sin(sympy.Abs(q))]), [q])
     assert J == sympy.Matrix([sympy.sign(q), sympy.cos(sympy.Abs(q)) * sympy.sign(q)])
+
+
+def test_heyoka_runs_a_model_whose_parameters_cancel(tmp_path, monkeypatch):
+    """``m*sign(q)**2*qddot = 0`` and a free particle: no parameter is left in the equations
+    (heyoka refused the parameter values it did not see: an internal error), in simulate and
+    accuracy."""
+    pytest.importorskip("heyoka")
+    monkeypatch.setenv("KRONSUB_CACHE_DIR", str(tmp_path / "cache"))
+    free = tmp_path / "free.yaml"
+    free.write_text("name: free\nparameters:\n  m: {value: 1}\n  k: {value: 3}\ncomponents:\n"
+                    "  bob: {type: particle1d, parameters: {mass: m}, coordinates: [x]}\ncoordinates: [q]\n"
+                    "connection: {x: q}\ninitial: {q: 0.3, q_dot: 1}\n", encoding="utf-8")
+    result = CliRunner().invoke(main, ["simulate", str(free), "--t", "0.2", "--dt", "0.1", "--method", "heyoka"])
+    assert result.exit_code == 0, result.output
+    assert [float(v) for v in result.stdout.splitlines()[-1].split(",")[:3]] == pytest.approx([0.2, 0.5, 1.0])
+    result = CliRunner().invoke(main, ["accuracy", str(free), "--t", "0.1", "--quick", "--methods", "heyoka",
+                                       "--tolerances", "1e-6"])
+    assert result.exit_code == 0, result.output
+    assert "| heyoka | tol 1e-06 |" in result.stdout

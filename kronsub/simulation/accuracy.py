@@ -382,7 +382,7 @@ class _Runners:
             ta, grid = integrator.ta, np.array([0.0, t_end])
 
             def run():
-                ta.time, ta.state[:], ta.pars[:] = 0.0, y0, param
+                integrator.start(0.0, y0, param)
                 outcome, _, _, steps, _, Y = ta.propagate_grid(grid)
                 ok = outcome == integrator._ok
                 return np.asarray(Y)[-1], None, int(steps), "" if ok else f"heyoka outcome {outcome.name}"
