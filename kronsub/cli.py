@@ -20,7 +20,6 @@ import click
 
 from . import __version__
 from .atomic import atomic_file, write_atomically
-from .emitters.escape import terminal_text
 from .errors import KronsubError, ModelError
 
 OK, INPUT_ERROR, USAGE_ERROR, NUMERICAL_FAILURE, INTERNAL_ERROR, INTERRUPTED = 0, 1, 2, 3, 4, 130
@@ -82,6 +81,8 @@ def say(message: str, err: bool = True) -> None:
     """A message for the terminal (standard error unless ``err`` is false), through
     :func:`~.emitters.escape.terminal_text`: whatever a model, a path or an exception put in it,
     no control or direction character reaches the terminal."""
+    from .emitters.escape import terminal_text  # not at import: the emitters bring sympy
+
     click.echo(terminal_text(message), err=err)
 
 
@@ -204,7 +205,7 @@ def derive(model: Path, fmt: str, output: Path | None, check: Path | None, no_ca
             if expected != text:
                 diff = difflib.unified_diff(expected.splitlines(True), text.splitlines(True),
                                             fromfile=str(check), tofile=f"derived from {model}")
-                click.echo(terminal_text("".join(diff)), nl=False)
+                say("".join(diff).rstrip("\n"), err=False)
                 _fail(f"Error: {check} differs from the derived equations")
             say(f"{check}: up to date")
             return
