@@ -8,7 +8,7 @@ products and powers with a constant exponent follow sympy's own rules term by te
 same expressions, built in the same order), and anything else is left to ``sympy.diff``.
 
 Where a derivative does not exist everywhere, it is taken where it does (the rule of
-docs/model-format.md, "Piecewise functions"): ``d sign(u)/du = 0`` away from ``u = 0``, so
+docs/model-format.md, "Expressions"): ``d sign(u)/du = 0`` away from ``u = 0``, so
 ``d |u|/du = sign(u)``. Sympy's ``DiracDelta`` (an impulse at the switch) has no place in
 equations of motion and no numeric backend evaluates it: :func:`where_defined` drops it, and
 every derivative kronsub takes (this one, :func:`jacobian`, :func:`matrix_derivative`) goes

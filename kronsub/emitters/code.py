@@ -34,13 +34,15 @@ EXACT = 2 ** 53
 one past 64 bits, which no C or numpy integer holds) print as the nearest double."""
 
 
-def _double(expr) -> float:
-    """The nearest double to a rational number (``inf`` past the double range)."""
-    return float(sympy.Float(expr, 20))
-
-
 def _big(expr) -> bool:
+    """Whether a rational number has a numerator or denominator past :data:`EXACT`."""
     return abs(int(expr.p)) > EXACT or int(expr.q) > EXACT
+
+
+def _double(expr, infinity: str) -> str:
+    """The nearest double to a rational number as a literal (``infinity`` past the double range)."""
+    value = float(sympy.Float(expr, 20))
+    return repr(value) if abs(value) < float("inf") else (infinity if value > 0 else f"(-{infinity})")
 
 
 class _CPrinter(C99CodePrinter):
@@ -65,13 +67,10 @@ class _CPrinter(C99CodePrinter):
         _print_Catalan = _print_TribonacciConstant = _number
 
     def _print_Integer(self, expr):
-        return self._print_Rational(expr) if _big(expr) else super()._print_Integer(expr)
+        return _double(expr, "HUGE_VAL") if _big(expr) else super()._print_Integer(expr)
 
     def _print_Rational(self, expr):
-        if not _big(expr):
-            return super()._print_Rational(expr) if not expr.is_Integer else super()._print_Integer(expr)
-        value = _double(expr)
-        return repr(value) if abs(value) < float("inf") else ("HUGE_VAL" if value > 0 else "(-HUGE_VAL)")
+        return _double(expr, "HUGE_VAL") if _big(expr) else super()._print_Rational(expr)
 
     def _print_sign(self, expr):
         return f"((double){super()._print_sign(expr)})"
@@ -94,13 +93,10 @@ class _PyPrinter(NumPyPrinter):
         _print_Catalan = _print_TribonacciConstant = _number
 
     def _print_Integer(self, expr):
-        return self._print_Rational(expr) if _big(expr) else super()._print_Integer(expr)
+        return _double(expr, "numpy.inf") if _big(expr) else super()._print_Integer(expr)
 
     def _print_Rational(self, expr):
-        if not _big(expr):
-            return super()._print_Rational(expr) if not expr.is_Integer else super()._print_Integer(expr)
-        value = _double(expr)
-        return repr(value) if abs(value) < float("inf") else ("numpy.inf" if value > 0 else "(-numpy.inf)")
+        return _double(expr, "numpy.inf") if _big(expr) else super()._print_Rational(expr)
 
     def _print_Pow(self, expr, rational=False):
         base, exp = expr.args
