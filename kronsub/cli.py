@@ -38,7 +38,7 @@ def emit_text(text: str, output: Path | None) -> None:
     """A command's text: to ``output`` (atomically), else to standard output."""
     if output is not None:
         write_atomically(output, text)
-        click.echo(f"wrote {output}", err=True)
+        say(f"wrote {output}")
     else:
         click.echo(text, nl=False)
 
@@ -77,8 +77,17 @@ def _separate_outputs(model: Path | None, *outputs: tuple[str, Path | None, str]
         seen.append((flag, path, what))
 
 
+def say(message: str, err: bool = True) -> None:
+    """A message for the terminal (standard error unless ``err`` is false), through
+    :func:`~.emitters.escape.terminal_text`: whatever a model, a path or an exception put in it,
+    no control or direction character reaches the terminal."""
+    from .emitters.escape import terminal_text  # not at import: the emitters bring sympy
+
+    click.echo(terminal_text(message), err=err)
+
+
 def _fail(message: str, code: int = INPUT_ERROR) -> None:
-    click.echo(message, err=True)
+    say(message)
     sys.exit(code)
 
 
@@ -93,7 +102,7 @@ def _report_model_error(exc: ModelError) -> None:
 
 
 def _show_warning(message, category, filename, lineno, file=None, line=None):
-    click.echo(f"Warning: {message}", err=True)
+    say(f"Warning: {message}")  # matplotlib's missing-glyph warnings quote the character
 
 
 def _run(job):
@@ -196,9 +205,9 @@ def derive(model: Path, fmt: str, output: Path | None, check: Path | None, no_ca
             if expected != text:
                 diff = difflib.unified_diff(expected.splitlines(True), text.splitlines(True),
                                             fromfile=str(check), tofile=f"derived from {model}")
-                click.echo("".join(diff), nl=False)
+                say("".join(diff).rstrip("\n"), err=False)
                 _fail(f"Error: {check} differs from the derived equations")
-            click.echo(f"{check}: up to date", err=True)
+            say(f"{check}: up to date")
             return
         emit_text(text, output)
 
@@ -248,7 +257,7 @@ def codegen(model: Path, lang: str, outdir: Path, name: str | None, prefix: str,
 
                 text = prelude(precision) + retype(text, precision)
             write_atomically(outdir / generated.name, text)
-            click.echo(f"wrote {outdir / generated.name}", err=True)
+            say(f"wrote {outdir / generated.name}")
 
     _run(job)
 
@@ -260,9 +269,9 @@ def _note_choice(system) -> None:
     """Say on stderr which coordinates `coordinates: auto` picked as independent."""
     imp = getattr(system, "implicit", None)
     if imp is not None and imp.choice == "auto":
-        click.echo(f"note: coordinates: auto picked {', '.join(q.name for q in imp.independent)} as independent "
-                   f"({', '.join(q.name for q in imp.dependent)} dependent; pivoted QR of dg/dy at the initial "
-                   "configuration)", err=True)
+        say(f"note: coordinates: auto picked {', '.join(q.name for q in imp.independent)} as independent "
+            f"({', '.join(q.name for q in imp.dependent)} dependent; pivoted QR of dg/dy at the initial "
+            "configuration)")
 
 
 def _writable(path: Path | None, what: str) -> None:
@@ -349,7 +358,7 @@ def simulate(model: Path, t_end: float | None, dt: float | None, method: str | N
             values, notes, constrained = project_initial(system, initial, dependent_settings, values,
                                                          newton_tolerance(rtol, atol))
             for note in notes:
-                click.echo(f"note: initial conditions projected onto the constraints: {note}", err=True)
+                say(f"note: initial conditions projected onto the constraints: {note}")
         else:
             values = resolve(system, initial, assignments)
         run = start(system, values, span, step, _pick(method, scene and scene.method, "dop853"), rtol, atol,
@@ -386,7 +395,7 @@ def simulate(model: Path, t_end: float | None, dt: float | None, method: str | N
             with atomic_file(output) as fh:
                 writer = stream(fh)
             where = str(output)
-            click.echo(f"wrote {output} ({_rows(writer.rows)})", err=True)
+            say(f"wrote {output} ({_rows(writer.rows)})")
         else:
             writer = stream(sys.stdout)
             if writer.reader_gone:  # nothing more goes to standard output
@@ -399,12 +408,12 @@ def simulate(model: Path, t_end: float | None, dt: float | None, method: str | N
             info["csv"] = output.name if output is not None and output.parent.resolve() == meta_path.parent.resolve() \
                 else (str(output) if output is not None else None)
             write_atomically(meta_path, metadata_json(info))
-            click.echo(f"wrote {meta_path}", err=True)
+            say(f"wrote {meta_path}")
         state = "stopped" if writer.reader_gone else "interrupted" if writer.stopped else "incomplete"
         marked = f" (marked {state} in {meta_path})" \
             if meta_path is not None else ""
         for _, what in run.switches:
-            click.echo(f"note: coordinates: auto switched at {what}", err=True)
+            say(f"note: coordinates: auto switched at {what}")
         if writer.reader_gone:
             _fail(f"Stopped after t = {writer.last_t!r}: the reader of {where} closed it after "
                   f"{_rows(writer.rows)}{marked}", INTERRUPTED)
@@ -415,7 +424,7 @@ def simulate(model: Path, t_end: float | None, dt: float | None, method: str | N
 
             traj = kept[0] if with_reactions else collect(run, kept, len(system.coordinates))
             plot_trajectory(system, traj, values, plot, with_points)
-            click.echo(f"wrote {plot}", err=True)
+            say(f"wrote {plot}")
         if not run.complete:
             ends = _coincident_ends(loaded, system, run.t_fail, getattr(run, "y_fail", None), values.parameters)
             at, message, hint = (f"{ends.location}: ", ends.message, f"\n  hint: {ends.hint}") if ends is not None \
@@ -556,10 +565,10 @@ def accuracy(model: Path, t_end: float, methods: str, tolerances: str, target: f
             values, notes, closure = project_initial(system, initial, dependent_settings, values, 1e-14)
             dependent = closure.guess
             for note in notes:
-                click.echo(f"note: initial conditions projected onto the constraints: {note}", err=True)
+                say(f"note: initial conditions projected onto the constraints: {note}")
         else:
             values = resolve(system, initial, assignments)
-        click.echo(f"computing the reference to t = {t_end:g} ...", err=True)
+        say(f"computing the reference to t = {t_end:g} ...")
         default_digits = 34 if "gbs-quad" in chosen else (16 if quick else 20)
         try:
             wp = acc.measure(system, values, t_end, chosen, grid, digits=digits or default_digits, quick=quick,
@@ -570,7 +579,7 @@ def accuracy(model: Path, t_end: float, methods: str, tolerances: str, target: f
         click.echo(acc.markdown(wp, target), nl=False)
         if output is not None:
             write_atomically(output, acc.to_csv(wp))
-            click.echo(f"wrote {output} ({len(wp.points)} points)", err=True)
+            say(f"wrote {output} ({len(wp.points)} points)")
         if meta_path is not None:
             csv_name = None if output is None else (
                 output.name if output.parent.resolve() == meta_path.parent.resolve() else str(output))
@@ -578,7 +587,7 @@ def accuracy(model: Path, t_end: float, methods: str, tolerances: str, target: f
                                 scene=scene.name if scene is not None else None, methods=chosen, tolerances=grid,
                                 target=target, csv=csv_name)
             write_atomically(meta_path, metadata_json(info))
-            click.echo(f"wrote {meta_path}", err=True)
+            say(f"wrote {meta_path}")
         if wp.points and wp.best_error() is None:
             first = next((p for p in wp.points if p.status), wp.points[0])
             _fail(f"Error: every point failed ({len(wp.points)} of {len(wp.points)}); the first, "
@@ -593,7 +602,7 @@ def accuracy(model: Path, t_end: float, methods: str, tolerances: str, target: f
                   + "\n  hint: raise --digits")
         if plot is not None:
             acc.plot(wp, plot, target)
-            click.echo(f"wrote {plot}", err=True)
+            say(f"wrote {plot}")
 
     _run(job)
 
@@ -619,14 +628,14 @@ def cache_info():
     def job():
         found = store.info()
         if found.folder is None:
-            click.echo(f"cache: off ({store.CACHE_ENV}=off)")
+            say(f"cache: off ({store.CACHE_ENV}=off)", err=False)
             return
         exists = found.folder.exists()
         reason = store.unsafe_reason(found.folder) if exists else store.missing_reason(found.folder)
-        click.echo(f"cache: {found.folder}" + (f" (not used: {reason})" if reason else "")
-                   + ("" if exists or reason else " (empty)"))
-        click.echo(f"derived known systems: {found.systems} ({_size(found.systems_bytes)})")
-        click.echo(f"compiled models: {found.libraries} ({_size(found.libraries_bytes)})")
+        say(f"cache: {found.folder}" + (f" (not used: {reason})" if reason else "")
+            + ("" if exists or reason else " (empty)"), err=False)
+        say(f"derived known systems: {found.systems} ({_size(found.systems_bytes)})", err=False)
+        say(f"compiled models: {found.libraries} ({_size(found.libraries_bytes)})", err=False)
 
     _run(job)
 
@@ -639,7 +648,7 @@ def cache_clear():
     def job():
         folder = store.cache_dir()
         removed = store.clear()
-        click.echo(f"removed {removed} entries from {folder}" if folder is not None else "cache: off")
+        say(f"removed {removed} entries from {folder}" if folder is not None else "cache: off", err=False)
 
     _run(job)
 

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import json
 import re
+import shutil
+import subprocess
 
 import numpy as np
 import pytest
@@ -16,6 +18,7 @@ from kronsub.emitters import emit_json
 from kronsub.emitters.code import emit_c, emit_python
 from kronsub.simulation.native import CompilerNotFound, NativeModel, compile_library
 
+CFLAGS = ["-std=c99", "-Wall", "-Wextra", "-Werror", "-O2"]
 PATHS = ["examples/four_bar.yaml", "examples/slider_crank.yaml", "hoffmann/system3.yaml",
          "hoffmann/system2_implicit.yaml"]
 
@@ -148,3 +151,60 @@ def test_c_newton_state_belongs_to_the_caller():
             evaluator.guess = np.array(start)
             assert np.max(np.abs(native.dependent - evaluator.dependent(q))) < 1e-9
             assert np.allclose(got, acc(q, qd, guess=start), rtol=1e-9, atol=1e-9)
+
+
+@pytest.mark.skipif(shutil.which("gcc") is None, reason="no C compiler")
+def test_c_of_a_closed_loop_never_writes_a_const_param(tmp_path):
+    """The functions taking ``param`` read the warm start after the parameters and write nothing
+    there: a ``static const`` array (read-only memory, where a write is a segfault) works, under
+    -Werror. The ``_pre`` functions carry the warm start in ``pre``, declared writable (a const
+    ``pre`` does not compile); along a path they follow the same branch as ``param``'s calls."""
+    model = kronsub.load(MODELS / "examples/four_bar.yaml")
+    system = model.derive()
+    for generated in emit_c(system, "model"):
+        (tmp_path / generated.name).write_text(generated.text, encoding="utf-8")
+    header = (tmp_path / "model.h").read_text()
+    assert re.search(r"int ks_rhs\(double t, const double \*y, const double \*param, double \*ydot\);", header)
+    assert re.search(r"int ks_rhs_pre\(double t, const double \*y, double \*pre, double \*ydot\);", header)
+    evaluator = Intermediates(system.implicit, {p.symbol: p.value for p in system.parameters})
+    q0 = float(model.initial[system.coordinates[0]])
+    warm = [float(v) for v in evaluator.dependent(np.array([q0]))]
+    values = ", ".join(repr(float(p.value)) for p in system.parameters)
+    driver = f"""\
+#include <stdio.h>
+#include "model.h"
+static const double param[KS_NPARAM + KS_NSTATE] = {{{values}, {warm[0]!r}, {warm[1]!r}, 1e-12}};
+int main(void)
+{{
+    double y[KS_NY] = {{{q0!r}, 0.7}}, ydot[KS_NY], M[KS_NQ * KS_NQ], w[KS_NW], state[KS_NSTATE];
+    double pre[KS_NPRE + 1], ydot_pre[KS_NY], points[KS_NPOINTS];
+    int i, k;
+    if (ks_rhs(0.0, y, param, ydot)) return 1;
+    ks_mass_matrix(y, param, M);
+    ks_points(y, param, points);
+    for (k = 0; k < KS_NSTATE; ++k) state[k] = param[KS_NPARAM + k];
+    if (ks_dependent(y, y + KS_NQ, param, w, state)) return 2;
+    ks_prepare(param, pre);
+    if (ks_rhs_pre(0.0, y, pre, ydot_pre)) return 3;
+    for (i = 0; i < 40; ++i) {{  /* along the crank's turn: the param calls from their warm start */
+        y[0] = {q0!r} + 0.01 * i;
+        if (ks_rhs(0.0, y, param, ydot) || ks_rhs_pre(0.0, y, pre, ydot_pre)) return 4;
+        if (ydot[1] != ydot[1] || ydot_pre[1] != ydot_pre[1]) return 5;
+    }}
+    printf("%.17g %.17g %.17g %.17g %.17g\\n", ydot[1], ydot_pre[1], M[0], kinetic(y), w[0]);
+    return 0;
+}}
+""".replace("kinetic(y)", "ks_kinetic_energy(y, param)")
+    (tmp_path / "main.c").write_text(driver, encoding="utf-8")
+    subprocess.run(["gcc", *CFLAGS, "main.c", "model.c", "-o", "main", "-lm"], cwd=tmp_path, check=True,
+                   capture_output=True, text=True)
+    run = subprocess.run([str(tmp_path / "main")], capture_output=True, text=True, timeout=60)
+    assert run.returncode == 0, (run.returncode, run.stderr)
+    from_param, from_pre, mass, kinetic, dependent = map(float, run.stdout.split())
+    assert np.isclose(from_param, from_pre, rtol=1e-9, atol=1e-9) and mass > 0 and kinetic > 0
+    assert np.isclose(dependent, warm[0], atol=1e-9)
+    # a const pre is refused by the compiler (the _pre functions write the warm start there)
+    (tmp_path / "bad.c").write_text(driver.replace("double pre[KS_NPRE + 1]", "const double pre[KS_NPRE + 1] = {0}")
+                                    .replace("    ks_prepare(param, pre);\n", ""), encoding="utf-8")
+    refused = subprocess.run(["gcc", *CFLAGS, "-c", "bad.c"], cwd=tmp_path, capture_output=True, text=True)
+    assert refused.returncode != 0 and "pre" in refused.stderr

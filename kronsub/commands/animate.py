@@ -24,7 +24,7 @@ def animate(source: Path, output: Path, t_end: float, dt: float, method: str, se
     """Draw the mechanism of SOURCE over time: a MODEL (simulated first) or a trajectory CSV
     written with `kronsub simulate --points`. Bodies are segments between their named
     points, discs are circles; needs matplotlib (pip install 'kronsub[plot]')."""
-    from ..cli import USAGE_ERROR, _check_times, _fail, _run, _separate_outputs, _writable
+    from ..cli import USAGE_ERROR, _check_times, _fail, _run, _separate_outputs, _writable, say
     from ..simulation.run import METHODS, SimulationError, row_count
 
     def job():
@@ -61,7 +61,7 @@ def animate(source: Path, output: Path, t_end: float, dt: float, method: str, se
         else:
             t, names, values, title = _simulate(source, t_end, dt, method, settings)
         frames = draw(t, names, values, output, fps=fps, size=size, title=title)
-        click.echo(f"wrote {output} ({frames} frames)", err=True)
+        say(f"wrote {output} ({frames} frames)")
 
     _run(job)
 
@@ -79,7 +79,9 @@ def _simulate(model: Path, t_end: float, dt: float, method: str, settings):
     values = resolve(system, dict(loaded.initial), parse_assignments(settings))
     traj = simulate(system, values, t_end, dt, method)
     if not traj.complete:
-        click.echo(f"Warning: the run stopped at t = {traj.t_fail:.6g}: {traj.message}; "
-                   f"animating the {len(traj.t)} rows computed", err=True)
+        from ..cli import say
+
+        say(f"Warning: the run stopped at t = {traj.t_fail:.6g}: {traj.message}; "
+            f"animating the {len(traj.t)} rows computed")
     names, pts = point_columns(system, traj, np.array(values.parameters))
     return traj.t, names, pts, system.name

@@ -1,7 +1,6 @@
 """Discovery: ``kronsub components [TYPE]``, ``kronsub new NAME``, ``kronsub check MODEL``."""
 from __future__ import annotations
 
-import json
 import os
 import shlex
 import tempfile
@@ -10,6 +9,7 @@ from pathlib import Path
 import click
 
 from ..atomic import cannot_create
+from ..emitters.escape import json_document
 from .starters import STARTERS
 
 
@@ -27,14 +27,14 @@ def components(type_name: str | None, fmt: str):
 
     def job():
         if type_name is None:
-            text = (json.dumps(catalogue.catalogue(), indent=2) + "\n") if fmt == "json" else catalogue.overview_text()
+            text = (json_document(catalogue.catalogue(), indent=2) + "\n") if fmt == "json" else catalogue.overview_text()
         elif type_name not in catalogue.names():
             raise KronsubError(f"no component or effect type '{type_name}'\n  hint: "
                                + close_matches(type_name, catalogue.names()))
         elif fmt == "json":
             data = catalogue.component(type_name) if type_name in catalogue.REGISTRY else \
                 catalogue.effect(type_name)
-            text = json.dumps(data, indent=2) + "\n"
+            text = json_document(data, indent=2) + "\n"
         else:
             text = catalogue.detail_text(type_name)
         click.echo(text, nl=False)
@@ -71,7 +71,7 @@ def _umask() -> int:
               help="Number of rods (--from chain).")
 def new(name: str, kind: str, links: int):
     """Write a starter model NAME.yaml that derives (never overwrites a file)."""
-    from ..cli import USAGE_ERROR, _fail, _run
+    from ..cli import USAGE_ERROR, _fail, _run, say
     from ..errors import printable
     from .starters import starter
 
@@ -96,8 +96,7 @@ def new(name: str, kind: str, links: int):
         except FileExistsError:
             _fail(f"Error: {path} exists; kronsub new never overwrites a file\n  hint: choose another NAME")
         shown = shlex.quote(str(path))  # a command to copy: the name quoted for the shell
-        click.echo(f"wrote {printable(str(path))} (from {kind}); next: kronsub check {shown} && kronsub derive {shown}",
-                   err=True)
+        say(f"wrote {path} (from {kind}); next: kronsub check {shown} && kronsub derive {shown}")
 
     _run(job)
 
@@ -106,7 +105,7 @@ def new(name: str, kind: str, links: int):
 @click.argument("model", type=click.Path(dir_okay=False, path_type=Path))
 def check(model: Path):
     """Validate MODEL without deriving it: every problem at once, exit 1 when there are any."""
-    from ..cli import _run
+    from ..cli import _run, say
     from ..model.loader import load_model
 
     def job():
@@ -115,7 +114,7 @@ def check(model: Path):
         counts = [(len(loaded.coordinates), "generalized coordinate"), (len(loaded.primitive.parts), "component"),
                   (len(loaded.effects), "effect"), (len(getattr(loaded, "scenes", ())), "scene")]
         shown = [f"{n} {what}{'s' if n != 1 else ''}" for n, what in counts if n or what != "scene"]
-        click.echo(f"{model}: OK ({', '.join(shown)})")
+        say(f"{model}: OK ({', '.join(shown)})", err=False)
 
     _run(job)
 
@@ -124,7 +123,8 @@ def _check_rank(model) -> None:
     """Warn, as deriving would, when ``C = dx/dxbar`` (21) loses rank at sample configurations."""
     import sympy
 
+    from ..core.derivative import jacobian
     from ..model.derive import check_rank
 
     x = sympy.Matrix([model.connection.get(c, c) for c in model.primitive.coordinates])
-    check_rank(model, x.jacobian(sympy.Matrix(model.coordinates)))
+    check_rank(model, jacobian(x, model.coordinates))

@@ -30,7 +30,7 @@ def linearize(model: Path, at: tuple[str, ...], inputs: str, symbolic: bool, fmt
     """
     from ..api import linearize as linearize_system
     from ..core.linearize import LinearizationError
-    from ..cli import (USAGE_ERROR, _coincident_at_start, _fail, _run, _separate_outputs, _writable, emit_text,
+    from ..cli import (USAGE_ERROR, _coincident_at_start, _fail, _run, _separate_outputs, _writable, emit_text, say,
                        scene_system)
     from ..emitters.linearization import EMITTERS
     from ..model.scenes import initial_values
@@ -56,10 +56,10 @@ def linearize(model: Path, at: tuple[str, ...], inputs: str, symbolic: bool, fmt
             why = ("qddot = " + ", ".join(f"{a:.6g}" for a in lin.acceleration)
                    + (f"; {', '.join(moving)}" if moving else "")) if not _at_rest(lin.acceleration) \
                 else "qdot is not 0: " + ", ".join(moving)
-            click.echo(f"Warning: the operating point is not an equilibrium ({why}): A describes the motion "
-                       "near it, not about a rest state", err=True)
+            say(f"Warning: the operating point is not an equilibrium ({why}): A describes the motion "
+                "near it, not about a rest state")
         for note in lin.notes:
-            click.echo(f"Warning: {note}", err=True)
+            say(f"Warning: {note}")
         text = EMITTERS[fmt](lin, system.name)
         emit_text(text, output)
 

@@ -28,7 +28,7 @@ from typing import Mapping
 import numpy as np
 import sympy
 
-from .derivative import derivative
+from .derivative import derivative, jacobian
 from .known_system import KnownSystem
 from .simplify import compact
 from .symbols import symbol, velocity_symbol
@@ -125,8 +125,8 @@ def project_implicit(system: KnownSystem, independent, dependent, constraints, *
     y = tuple(system.coordinates)
     n, k = len(independent), len(dependent)
     g = sympy.Matrix([c.expression for c in constraints])
-    G_d = g.jacobian(dependent) if k else sympy.zeros(0, 0)
-    G_i = g.jacobian(independent)
+    G_d = jacobian(g, dependent) if k else sympy.zeros(0, 0)
+    G_i = jacobian(g, independent)
     lam, gamma = intermediate_symbols(independent, dependent,
                                       set(taken or ()) | {s.name for s in y} | {p.name for p in system.parameters})
     # ydot = C xbardot: independent velocities as they are, dependent ones Lambda xbardot
@@ -266,7 +266,7 @@ class NumericConstraints:
         self.constraints = tuple(constraints)
         self.y = tuple(coordinates)
         g = sympy.Matrix([c.expression for c in self.constraints]).xreplace(parameters)
-        G = g.jacobian(self.y) if len(self.y) else sympy.zeros(len(g), 0)
+        G = jacobian(g, self.y) if len(self.y) else sympy.zeros(len(g), 0)
         extra = sorted((g.free_symbols | G.free_symbols) - set(self.y), key=lambda s: s.name)
         if extra:
             raise ConstraintFailure("parameters", ", ".join(s.name for s in extra))

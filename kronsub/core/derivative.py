@@ -6,6 +6,13 @@ Sympy differentiates a power ``b**e`` as ``b**e * (de/ds log(b) + db/ds e/b)`` e
 potential, a damper's rate and the metric's derivatives are full of such powers. Here sums,
 products and powers with a constant exponent follow sympy's own rules term by term (the
 same expressions, built in the same order), and anything else is left to ``sympy.diff``.
+
+Where a derivative does not exist everywhere, it is taken where it does (the rule of
+docs/model-format.md, "Expressions"): ``d sign(u)/du = 0`` away from ``u = 0``, so
+``d |u|/du = sign(u)``. Sympy's ``DiracDelta`` (an impulse at the switch) has no place in
+equations of motion and no numeric backend evaluates it: :func:`where_defined` drops it, and
+every derivative kronsub takes (this one, :func:`jacobian`, :func:`matrix_derivative`) goes
+through it.
 """
 from __future__ import annotations
 
@@ -34,4 +41,23 @@ def derivative(expr: sympy.Expr, s: sympy.Symbol) -> sympy.Expr:
     if expr.is_Pow and s not in expr.exp.free_symbols:  # Pow._eval_derivative, de/ds = 0
         base, exp = expr.args
         return expr * (derivative(base, s) * exp / base)
-    return sympy.diff(expr, s)
+    return where_defined(sympy.diff(expr, s))
+
+
+def where_defined(d):
+    """A derivative (expression or matrix) where it exists: each ``DiracDelta(u)`` (and its
+    derivatives ``DiracDelta(u, k)``), which sympy gives for ``d sign(u)/du`` and
+    ``d Heaviside(u)/du``, is 0 (their value at every ``u != 0``)."""
+    return d.replace(sympy.DiracDelta, lambda *args: _ZERO) if d.has(sympy.DiracDelta) else d
+
+
+def jacobian(m: sympy.Matrix, wrt) -> sympy.Matrix:
+    """``m.jacobian(wrt)`` where it exists (:func:`where_defined`)."""
+    return where_defined(m.jacobian(sympy.Matrix(list(wrt))))
+
+
+def matrix_derivative(m: sympy.Matrix, wrt) -> sympy.Matrix:
+    """``dm/dwrt`` where it exists: a Jacobian for a sequence of symbols, else ``m.diff(wrt)``."""
+    if isinstance(wrt, (list, tuple, sympy.MatrixBase)):
+        return jacobian(m, wrt)
+    return where_defined(m.diff(wrt))

@@ -28,6 +28,7 @@ import numpy as np
 import sympy
 
 from ..errors import KronsubError
+from .derivative import matrix_derivative
 from .finite import nonfinite_cause
 from .known_system import KnownSystem
 from .seeded import seeded, sympy_seeded
@@ -74,10 +75,9 @@ class Linearization:
 
 def derivative(m: sympy.Matrix, wrt) -> sympy.Matrix:
     """``dm/dwrt`` (a Jacobian, or ``diff`` by one symbol) where it exists: ``d sign(x)/dx``
-    (a spring of rest length on a line, ``|x| - l0``) is zero away from ``x = 0``, never
-    ``DiracDelta``, which no numeric backend evaluates (the generated code does the same)."""
-    d = m.jacobian(sympy.Matrix(wrt)) if isinstance(wrt, (list, tuple, sympy.MatrixBase)) else m.diff(wrt)
-    return d.replace(sympy.DiracDelta, lambda *args: sympy.Integer(0)) if d.has(sympy.DiracDelta) else d
+    (a spring of rest length on a line, ``|x| - l0``) is zero away from ``x = 0``
+    (:func:`kronsub.core.derivative.matrix_derivative`)."""
+    return matrix_derivative(m, wrt)
 
 
 def _residual(system: KnownSystem) -> sympy.Matrix:

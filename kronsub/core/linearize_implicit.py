@@ -22,6 +22,7 @@ import numpy as np
 import sympy
 
 from .constraints import ConstraintFailure, Intermediates
+from .derivative import matrix_derivative
 from .known_system import KnownSystem
 from .linearize import (EQUILIBRIUM_TOLERANCE, Linearization, LinearizationError, _at_equilibrium, _Evaluator,
                         _eigenvalues, _numeric, _residual, _solve, _unevaluable, checked_inputs, derivative,
@@ -60,8 +61,8 @@ class _Reduced:
             for i, s in enumerate(symbols):
                 matrices[f"M_{label}{i}"] = derivative(M, s)
                 if label != "L":
-                    matrices[f"Gd_{label}{i}"] = Gd.diff(s)
-                    matrices[f"Gi_{label}{i}"] = Gi.diff(s)
+                    matrices[f"Gd_{label}{i}"] = matrix_derivative(Gd, s)
+                    matrices[f"Gi_{label}{i}"] = matrix_derivative(Gi, s)
         self.names = list(matrices)
         self.symbols = self.q + self.qd + yd + lam + gam + [TIME] + list(numbers)
         self.evaluate = _Evaluator([matrices[k] for k in self.names], self.symbols)

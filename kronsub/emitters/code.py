@@ -29,8 +29,26 @@ def _number(self, expr) -> str:
     return f"{float(expr):.17g}"
 
 
+EXACT = 2 ** 53
+"""Integers up to this size are exact in a double; larger ones (a product of powers can make
+one past 64 bits, which no C or numpy integer holds) print as the nearest double."""
+
+
+def _big(expr) -> bool:
+    """Whether a rational number has a numerator or denominator past :data:`EXACT`."""
+    return abs(int(expr.p)) > EXACT or int(expr.q) > EXACT
+
+
+def _double(expr, infinity: str) -> str:
+    """The nearest double to a rational number as a literal (``infinity`` past the double range)."""
+    value = float(sympy.Float(expr, 20))
+    return repr(value) if abs(value) < float("inf") else (infinity if value > 0 else f"(-{infinity})")
+
+
 class _CPrinter(C99CodePrinter):
-    """C99 with small integer powers written as products, constants as numbers (no ``M_PI``)."""
+    """C99 with small integer powers written as products, constants as numbers (no ``M_PI``),
+    integers past :data:`EXACT` and rationals of them as double literals, ``sign`` a double
+    (``fabs`` of an ``int`` fails ``-Werror``): every math call gets a double argument."""
 
     def __init__(self, prefix: str = "ks"):
         super().__init__({"math_macros": {}})
@@ -48,6 +66,15 @@ class _CPrinter(C99CodePrinter):
     _print_NumberSymbol = _print_Pi = _print_Exp1 = _print_EulerGamma = _print_GoldenRatio = \
         _print_Catalan = _print_TribonacciConstant = _number
 
+    def _print_Integer(self, expr):
+        return _double(expr, "HUGE_VAL") if _big(expr) else super()._print_Integer(expr)
+
+    def _print_Rational(self, expr):
+        return _double(expr, "HUGE_VAL") if _big(expr) else super()._print_Rational(expr)
+
+    def _print_sign(self, expr):
+        return f"((double){super()._print_sign(expr)})"
+
     def _print_Pow(self, expr):
         base, exp = expr.args
         if exp.is_Integer and 2 <= int(exp) <= 4:
@@ -59,8 +86,17 @@ class _CPrinter(C99CodePrinter):
 
 
 class _PyPrinter(NumPyPrinter):
+    """numpy, with small integer powers written as products, constants as numbers, integers past
+    :data:`EXACT` and rationals of them as floats (a Python integer past 64 bits overflows numpy)."""
+
     _print_NumberSymbol = _print_Pi = _print_Exp1 = _print_EulerGamma = _print_GoldenRatio = \
         _print_Catalan = _print_TribonacciConstant = _number
+
+    def _print_Integer(self, expr):
+        return _double(expr, "numpy.inf") if _big(expr) else super()._print_Integer(expr)
+
+    def _print_Rational(self, expr):
+        return _double(expr, "numpy.inf") if _big(expr) else super()._print_Rational(expr)
 
     def _print_Pow(self, expr, rational=False):
         base, exp = expr.args

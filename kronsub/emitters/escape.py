@@ -8,7 +8,10 @@ data. They reach generated C, Python, LaTeX and Markdown only through these func
 - :func:`python_string`: the body of a Python ``"..."`` literal or ``\"\"\"...\"\"\"`` docstring;
 - :func:`latex_text`: LaTeX text mode (``\\title{}``, paragraphs, ``\\texttt{}``);
 - :func:`latex_name`: a name (coordinate, parameter...) in LaTeX math mode;
-- :func:`markdown_text`: Markdown inline text (headings, paragraphs, table cells).
+- :func:`markdown_text`: Markdown inline text (headings, paragraphs, table cells);
+- :func:`json_document`: a JSON document of data holding such text;
+- :func:`plot_text`: a matplotlib title, label or legend entry;
+- :func:`terminal_text`: a message for the terminal (standard error, a status line).
 
 Templates call them as filters (``c_comment``, ``c_string``, ``py_str``, ``latex``, ``md``).
 :func:`environment` makes forgetting one an error rather than a hole: with it, every
@@ -20,6 +23,7 @@ text safe without escaping it for the target (``safe``, ``tojson``, ``replace``,
 """
 from __future__ import annotations
 
+import json
 import re
 import unicodedata
 from typing import Callable
@@ -27,8 +31,10 @@ from typing import Callable
 import jinja2
 from markupsafe import Markup
 
-__all__ = ["c_comment", "c_string", "python_string", "latex_text", "latex_name", "markdown_text", "environment",
-           "UnescapedText", "Markup"]
+from ..errors import printable
+
+__all__ = ["c_comment", "c_string", "python_string", "latex_text", "latex_name", "markdown_text", "json_document",
+           "plot_text", "terminal_text", "environment", "UnescapedText", "Markup"]
 
 _NAMED = {"\n": "\\n", "\r": "\\r", "\t": "\\t", "\0": "\\0"}
 
@@ -250,6 +256,43 @@ def markdown_text(text: str) -> str:
     s = "".join(out).strip()
     s = re.sub(r"^(\d+)([.)])", r"\1\\\2", s)
     return "\\" + s if s[:1] in ("-", "+", "=", ">") else s
+
+
+_JSON_INERT = re.compile("[<>&]")
+
+
+def _json_escape(ch: str) -> str:
+    code = ord(ch)
+    if code < 0x10000:
+        return f"\\u{code:04x}"
+    high, low = 0xD800 + ((code - 0x10000) >> 10), 0xDC00 + ((code - 0x10000) & 0x3FF)
+    return f"\\u{high:04x}\\u{low:04x}"
+
+
+def json_document(data, **options) -> str:
+    """``json.dumps(data, ensure_ascii=False, **options)`` in which no character can act on a
+    reader: C0 and C1 controls (U+009B is a terminal's CSI), direction overrides and isolates
+    (U+202E, U+2066), line separators and every other invisible character are ``\\uXXXX``, and
+    so are ``<``, ``>`` and ``&`` (no markup when the JSON lands in a web page). Readable
+    non-ASCII stays as it is; the document reads back to the same data."""
+    text = json.dumps(data, ensure_ascii=False, **options)
+    # outside strings a JSON document has only ASCII structure, digits, spaces and line breaks
+    return "".join(ch if (_visible(ch) and not _JSON_INERT.match(ch)) or ch in " \n" else _json_escape(ch)
+                   for ch in text)
+
+
+def terminal_text(text: str) -> str:
+    """A message for the terminal: its lines kept, every other control, format or direction
+    character in each line shown as an escape (``\\x1b``, ``\\x9b``, ``\\u202e``), so no escape
+    sequence reaches the terminal and no text is reordered (:func:`kronsub.errors.printable`)."""
+    return "\n".join(printable(line) for line in str(text).split("\n"))
+
+
+def plot_text(text: str) -> str:
+    """A matplotlib title, label or legend entry that shows ``text``: invisible characters as
+    escapes (``\\n``, ``\\x1b``: one line, no missing-glyph warnings) and ``$`` as ``\\$``, so no
+    mathtext is parsed and the text is shown as it is."""
+    return printable(str(text)).replace("$", r"\$")
 
 
 class UnescapedText(jinja2.TemplateError):

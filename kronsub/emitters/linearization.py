@@ -2,16 +2,17 @@
 
 Numbers are printed in their shortest round-trip form (``repr``), symbolic entries
 in sympy's ``str`` (Markdown, JSON) or LaTeX form; eigenvalues with 12 significant
-digits. No free text of the model reaches the LaTeX: only symbols and numbers.
+digits. The model's name reaches the Markdown through :func:`~.escape.markdown_text` and the
+JSON through :func:`~.escape.json_document`; no free text of the model reaches the LaTeX: only
+symbols and numbers.
 """
 from __future__ import annotations
-
-import json
 
 import numpy as np
 import sympy
 
 from ..core.linearize import Linearization
+from .escape import json_document, markdown_text
 from .report import latex_printer, plain
 
 
@@ -65,7 +66,7 @@ def _stability(lin: Linearization) -> str:
 
 def emit_markdown(lin: Linearization, name: str) -> str:
     show = plain
-    lines = [f"# Linearisation of {name}", "",
+    lines = [f"# Linearisation of {markdown_text(name)}", "",
              "`ydot ~ A (y - y*) + B (u - u*)` with `y = [q; qdot]` and "
              "`ydot = [qdot; Mbar^-1 (fbar - hbar)]`.", ""]
     lines += ["## Operating point", "", f"The point is {_summary(lin)}."]
@@ -143,7 +144,7 @@ def emit_json(lin: Linearization, name: str) -> str:
         [{"re": float(f"{e.real:.12g}"), "im": float(f"{e.imag:.12g}")} for e in lin.eigenvalues],
         "form": "d/dt [q; qdot] = A ([q; qdot] - point) + B (inputs - point)",
     }
-    return json.dumps(data, indent=2, ensure_ascii=False) + "\n"
+    return json_document(data, indent=2) + "\n"
 
 
 def emit_latex(lin: Linearization, name: str) -> str:

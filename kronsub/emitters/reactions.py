@@ -8,7 +8,7 @@ import sympy
 from ..collector import collector_paused
 from ..core.known_system import KnownSystem
 from ..core.reactions import MultiplierSystem, reactions
-from .escape import latex_text
+from .escape import json_document, latex_text
 from .latex_layout import lines as layout_lines, unbroken
 from .report import latex_printer, plain
 
@@ -36,7 +36,7 @@ def with_reactions(text: str, system: KnownSystem, fmt: str) -> str:
     if fmt == "json":
         data = json.loads(text)
         data["reactions"] = {"expressions": {name: plain(e) for name, e in items}, "note": note.replace("`", "")}
-        return json.dumps(data, indent=2, ensure_ascii=False) + "\n"
+        return json_document(data, indent=2) + "\n"
     if fmt == "latex":
         coords = tuple(system.coordinates) + (tuple(system.transition.primitive_coordinates)
                                               if system.transition else ())
@@ -60,7 +60,7 @@ def _with_linear_system(text: str, system: KnownSystem, fmt: str, eqs: Multiplie
             "unknowns": eqs.names,
             "matrix": [[plain(eqs.matrix[a, b]) for b in range(k)] for a in range(k)],
             "right_hand_side": [plain(e) for e in eqs.rows]}, "note": note.replace("`", "")}
-        return json.dumps(data, indent=2, ensure_ascii=False) + "\n"
+        return json_document(data, indent=2) + "\n"
 
     unknowns = [sympy.Symbol(nm) for nm in eqs.names]
 

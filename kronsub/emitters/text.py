@@ -1,14 +1,13 @@
 """Markdown, LaTeX and JSON emitters of a derived system (the ``--format`` registry)."""
 from __future__ import annotations
 
-import json
 from importlib import resources
 
 import jinja2
 
 from ..collector import collector_paused
 from ..core.known_system import KnownSystem
-from .escape import Markup, environment
+from .escape import Markup, environment, json_document
 from .latex_layout import WIDTH, lines, measure, unbroken
 from .report import build_report, latex_printer, model_names, plain_printer
 
@@ -96,7 +95,7 @@ def emit_json(system: KnownSystem) -> str:
         }
     if "implicit" in r:
         data["implicit"] = _implicit_json(r["implicit"])
-    return json.dumps(data, indent=2, ensure_ascii=False) + "\n"
+    return json_document(data, indent=2) + "\n"
 
 
 def _implicit_json(imp: dict) -> dict:

@@ -107,7 +107,7 @@ def _component_models(root: Node, path: Path) -> list[Path]:
     if comps is not None and comps.is_mapping:
         for spec in comps.value.values():
             mnode = spec.get("model") if spec.is_mapping else None
-            if mnode is not None and isinstance(mnode.value, str) and mnode.value:
+            if mnode is not None and isinstance(mnode.value, str) and mnode.value and "\0" not in mnode.value:
                 out.append(path.parent / mnode.value)
     return out
 
@@ -615,6 +615,10 @@ class _Loader:
         if not isinstance(mnode.value, str) or not mnode.value:
             self.error(mnode, f"`model:` of component '{cname}' must be a file name, found {_kind(mnode)}",
                        "write e.g. `model: system1.yaml` (relative to this model file)")
+            return None
+        if "\0" in mnode.value:  # no file name holds one (the system calls refuse it)
+            self.error(mnode, f"`model:` of component '{cname}' has a NUL character, which no file name can hold",
+                       "write the file name without `\\0` or `\\x00` escapes")
             return None
         sub_path = (self.path.parent / mnode.value)
         resolved = _resolved(sub_path)

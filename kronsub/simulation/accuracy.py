@@ -40,6 +40,7 @@ import mpmath
 import numpy as np
 
 from ..core.known_system import KnownSystem
+from ..emitters.escape import markdown_text, plot_text
 from ..errors import KronsubError
 from . import native as native_module
 from .reference import Reference, reference as compute_reference
@@ -381,7 +382,7 @@ class _Runners:
             ta, grid = integrator.ta, np.array([0.0, t_end])
 
             def run():
-                ta.time, ta.state[:], ta.pars[:] = 0.0, y0, param
+                integrator.start(0.0, y0, param)
                 outcome, _, _, steps, _, Y = ta.propagate_grid(grid)
                 ok = outcome == integrator._ok
                 return np.asarray(Y)[-1], None, int(steps), "" if ok else f"heyoka outcome {outcome.name}"
@@ -628,7 +629,7 @@ def _number(value, fmt: str) -> str:
 def markdown(wp: WorkPrecision, target: float | None = None) -> str:
     """The table, the reference and the cheapest point meeting ``target``."""
     ref = wp.reference
-    lines = [f"# Work-precision: {wp.system}, t = 0 .. {wp.t_end:g}", "",
+    lines = [f"# Work-precision: {markdown_text(wp.system)}, t = 0 .. {wp.t_end:g}", "",
              f"Reference at t = {', '.join(f'{t:g}' for t in ref.times)}: {ref.routes[0]}; estimated "
              f"error {ref.error:.1e} ({'; '.join(ref.routes[1:])}).", ""]
     if wp.compile_seconds is not None:
@@ -639,7 +640,7 @@ def markdown(wp: WorkPrecision, target: float | None = None) -> str:
     lines += ["| method | setting | error at t_end | energy drift |" + extra_head + " time [ms] | f evals | steps | note |",
               "|---|---|---:|---:|" + ("---:|---:|" if loop else "") + "---:|---:|---:|---|"]
     for p in wp.points:
-        note = p.status or (f"compile {p.compile_seconds:.2f} s" if p.compile_seconds is not None else "")
+        note = markdown_text(p.status) or (f"compile {p.compile_seconds:.2f} s" if p.compile_seconds is not None else "")
         extra = f" {_number(p.constraint_residual, '.1e')} | {_number(p.velocity_residual, '.1e')} |" if loop else ""
         lines.append(f"| {p.method} | {p.setting} | {_number(p.error, '.2e')} | {_number(p.energy_drift, '.1e')} |"
                      f"{extra} {1e3 * p.seconds:.3f} | {_number(p.evaluations, 'd')} | {_number(p.steps, 'd')} | {note} |")
@@ -653,7 +654,7 @@ def markdown(wp: WorkPrecision, target: float | None = None) -> str:
                      "of the constraints and of their velocity form over the run's steps, the dependent coordinates "
                      "found as the run finds them (Newton's method to min(rtol, atol)/100, within 1e-14 .. 1e-8).")
     for method, why in wp.skipped.items():
-        lines.append(f"- {method}: skipped, {why}")
+        lines.append(f"- {method}: skipped, {markdown_text(why)}")
     if target is not None:
         lines.append("")
         lines.append(target_sentence(wp, target))
@@ -780,7 +781,7 @@ def plot(wp: WorkPrecision, path, target: float | None = None) -> None:
         ax.axhline(target, color="red", linestyle="--", label=f"target {target:.2g}")
     ax.set_xlabel("integration time [ms]")
     ax.set_ylabel(f"max |error| at t = {wp.t_end:g}")
-    ax.set_title(f"Work-precision: {wp.system}", parse_math=False)  # a name is text, never mathtext
+    ax.set_title(f"Work-precision: {plot_text(wp.system)}")
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize="small")
     fig.tight_layout()

@@ -18,6 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from ..atomic import _final_mode
+from ..emitters.escape import plot_text
 from ..errors import KronsubError
 from .plot import point_paths
 
@@ -158,7 +159,7 @@ def animate(t: np.ndarray, names: list[str], values: np.ndarray, path: Path, *, 
                        zorder=1 if alone else 2)[0]
         artists.append((labels, hub, rim, disc, spokes, dots))
     clock = ax.set_title("")
-    shown = title.replace("$", r"\$")  # plain text, never mathtext
+    shown = plot_text(title)
 
     def draw(frame: int):
         row = rows[frame]

@@ -57,8 +57,10 @@ def _float_rationals(expr: sympy.Expr) -> sympy.Expr:
 
 def _without_abs(hy, expr: sympy.Expr, names: dict) -> tuple[sympy.Expr, dict]:
     """``expr`` and the names for ``hy.from_sympy`` with ``Abs(x)`` and ``sign(x)`` standing for
-    heyoka's ``sqrt(x**2)`` and ``x / sqrt(x**2)`` (heyoka has no ``abs``; a spring whose length
-    is a coordinate brings ``Abs``), innermost first."""
+    heyoka's ``relu(x) + relu(-x)`` and ``relup(x) - relup(-x)`` (heyoka has no ``abs``; a spring
+    whose length is a coordinate brings ``Abs``), innermost first: exact at ``x = 0`` (``sign(0)
+    = 0``, where ``x / sqrt(x**2)`` is NaN), and differentiated as kronsub does (``d sign/dx = 0``,
+    ``d |x|/dx = sign(x)``: :mod:`kronsub.core.derivative`)."""
     names = dict(names)
     while True:
         found = sorted(expr.atoms(sympy.Abs, sympy.sign), key=sympy.default_sort_key)
@@ -69,8 +71,8 @@ def _without_abs(hy, expr: sympy.Expr, names: dict) -> tuple[sympy.Expr, dict]:
         for k, atom in enumerate(inner):
             x = hy.from_sympy(atom.args[0], names)
             stand_in = sympy.Dummy(f"abs{len(names)}_{k}")
-            root = hy.sqrt(x * x)
-            names[stand_in] = root if isinstance(atom, sympy.Abs) else x / root
+            names[stand_in] = (hy.relu(x) + hy.relu(-x) if isinstance(atom, sympy.Abs)
+                                else hy.relup(x) - hy.relup(-x))
             swap[atom] = stand_in
         expr = expr.xreplace(swap)
 
@@ -144,10 +146,21 @@ class HeyokaIntegrator:
         self.ny = 2 * len(system.coordinates)
         self.nparam = len(system.parameters)
         compact = len(system.coordinates) > 3 if compact is None else compact
-        self.ta = hy.taylor_adaptive(ode(system), np.zeros(self.ny), tol=tol,
-                                     pars=np.zeros(self.nparam), compact_mode=compact)
+        equations = ode(system)
+        # heyoka takes as many values as the highest parameter the equations use (none when they
+        # cancel, as in m*sign(q)**2*qddot = 0): the others it does not see
+        used = [int(str(p)[1:]) for p in hy.get_params([rhs for _, rhs in equations])]
+        self.used = max(used) + 1 if used else 0
+        self.ta = hy.taylor_adaptive(equations, np.zeros(self.ny), tol=tol,
+                                     pars=np.zeros(self.used), compact_mode=compact)
         self._ok = hy.taylor_outcome.time_limit
         self._nonfinite = hy.taylor_outcome.err_nf_state
+
+    def start(self, t0: float, y0, param) -> None:
+        """Set the time, the state and the parameters (those the equations use) of :attr:`ta`."""
+        self.ta.time = t0
+        self.ta.state[:] = y0
+        self.ta.pars[:] = np.asarray(param, dtype=float).ravel()[:self.used]
 
     def run(self, param, y0, grid) -> tuple[np.ndarray, np.ndarray, bool, str]:
         """``(t, Y, complete, message)``: rows ``Y = [q; qdot]`` at the ``grid`` times from
@@ -162,9 +175,7 @@ class HeyokaIntegrator:
         if grid.size < 1 or not np.all(np.isfinite(grid)) or np.any(np.diff(grid) < 0):
             raise ValueError("grid must be a non-empty, finite, non-decreasing array of times")
         ta = self.ta
-        ta.time = grid[0]
-        ta.state[:] = y0
-        ta.pars[:] = param
+        self.start(grid[0], y0, param)
         outcome, *_, Y = ta.propagate_grid(grid)
         if outcome == self._ok:
             return grid.copy(), np.asarray(Y), True, ""

@@ -459,10 +459,14 @@ class NativeModel:
     # -- the model's functions ---------------------------------------------------------------
 
     def rhs(self, t: float, y, param) -> np.ndarray:
-        """``ydot = [qdot; Mbar^-1 (fbar - hbar)]``."""
-        y, p = self._state(y), self._param(param)
+        """``ydot = [qdot; Mbar^-1 (fbar - hbar)]`` (with implicit constraints from the warm start,
+        which it updates: through ``pre``, as the C never writes ``param``)."""
+        y = self._state(y)
+        p, fn = self._prepared(param, "ks_rhs") if self.nstate else (self._param(param), self._function("ks_rhs"))
         ydot = np.empty(self.ny)
-        if self._function("ks_rhs")(t, data_address(y), data_address(p), data_address(ydot)):
+        status = fn(t, data_address(y), data_address(p), data_address(ydot))
+        self._keep(p)
+        if status:
             raise self._singular(t, y)
         return ydot
 
@@ -484,11 +488,15 @@ class NativeModel:
     def rhs_circle(self, t: float, z, param) -> np.ndarray:
         """``zdot`` of the circle state ``z = [q; qdot; cos q_c; sin q_c]``: ``[ydot; -sin q_c
         qdot_c; cos q_c qdot_c]``."""
-        z, p = np.ascontiguousarray(z, dtype=float), self._param(param)
+        z = np.ascontiguousarray(z, dtype=float)
         if z.shape != (self.ny + 2 * self.nc,):
             raise ValueError(f"z must be 1-dimensional with {self.ny + 2 * self.nc} entries (got shape {z.shape})")
+        p, fn = self._prepared(param, "ks_rhs_circle") if self.nstate else \
+            (self._param(param), self._function("ks_rhs_circle"))
         zdot = np.empty_like(z)
-        if self._function("ks_rhs_circle")(t, data_address(z), data_address(p), data_address(zdot)):
+        status = fn(t, data_address(z), data_address(p), data_address(zdot))
+        self._keep(p)
+        if status:
             raise self._singular(t, z)
         return zdot
 

@@ -14,6 +14,7 @@ import numpy as np
 import sympy
 
 from ..atomic import atomic_file
+from ..emitters.escape import plot_text
 
 
 def angle_coordinates(system) -> set:
@@ -86,7 +87,7 @@ def plot_trajectory(system, traj, values, path: Path, with_points: bool = False)
         ax.set_ylabel("height")
         ax.set_title("paths of the named points", fontsize="small")
         ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize="small", borderaxespad=0)
-    fig.suptitle(f"{system.name} ({traj.method})", parse_math=False)  # a name is text, never mathtext
+    fig.suptitle(f"{plot_text(system.name)} ({traj.method})")
     save_figure(fig, path, "png")
 
 

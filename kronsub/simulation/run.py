@@ -21,6 +21,7 @@ import numpy as np
 
 from ..core.known_system import KnownSystem
 from ..emitters.code import emit_python
+from ..emitters.escape import python_string
 from ..errors import KronsubError
 from .compiled import compiled_library
 from .native import CompileError, CompilerNotFound, NativeModel
@@ -95,7 +96,7 @@ def _numpy_module(system: KnownSystem, outputs=None):
     """The generated numpy module, loaded from its text (our own generated code)."""
     namespace: dict = {}
     (generated,) = emit_python(system, "model", outputs=outputs)
-    exec(compile(generated.text, f"<kronsub model {system.name}>", "exec"), namespace)
+    exec(compile(generated.text, f"<kronsub model {python_string(system.name)}>", "exec"), namespace)
     return namespace
 
 

@@ -30,6 +30,7 @@ from pathlib import Path
 import numpy as np
 
 from ..core.known_system import KnownSystem
+from ..emitters.escape import json_document
 from .run import Block, Run, Trajectory, _numpy_module
 from .values import RunValues
 
@@ -101,7 +102,7 @@ def _json_number(value):
 
 def metadata_json(meta: dict) -> str:
     """The metadata as JSON text (key order as built; deterministic)."""
-    return json.dumps(meta, indent=2, ensure_ascii=False, allow_nan=False) + "\n"
+    return json_document(meta, indent=2, allow_nan=False) + "\n"
 class _Module:
     """The generated numpy module, made on first use."""
 
