@@ -5,7 +5,7 @@ its ```` ```yaml ```` blocks whose first line is ``# NAME`` are written to NAME
 (that comment line included, so the line numbers shown are those of the block),
 then its ```` ```console ```` blocks are replayed: ``$ kronsub ...`` runs the CLI
 in-process, ``$ echo $?`` prints the exit code of the last command, and a few
-plain commands (``mkfifo``, ``ln -s``, ``truncate``) prepare special files. The
+plain commands (``mkfifo``, ``ln -s``, ``truncate``, ``mkdir``) prepare special files. The
 lines after each command are its exact output (standard output, then error).
 
 ``python tests/test_errors_doc.py --update`` rewrites the outputs from a run
@@ -28,7 +28,7 @@ from kronsub.cli import main
 
 PAGE = Path(__file__).resolve().parent.parent / "docs" / "errors.md"
 FENCE = re.compile(r"^```(\w*)\n(.*?)^```\n", re.M | re.S)
-PLAIN_COMMANDS = {"mkfifo", "ln", "truncate"}
+PLAIN_COMMANDS = {"mkfifo", "ln", "truncate", "mkdir"}
 
 
 def sections(text: str) -> list[tuple[str, str]]:
