@@ -671,9 +671,13 @@ def cache_clear():
     from . import cache as store
 
     def job():
-        folder = store.cache_dir()
         removed = store.clear()
-        click.echo(f"removed {removed} entries from {folder}" if folder is not None else "cache: off")
+        if removed.folder is None:
+            click.echo(f"cache: off ({store.CACHE_ENV}=off)")
+            return
+        click.echo(f"removed from {removed.folder}: derived known systems: {removed.systems} "
+                   f"({_size(removed.systems_bytes)}), compiled models: {removed.libraries} "
+                   f"({_size(removed.libraries_bytes)})")
 
     _run(job)
 
