@@ -507,6 +507,9 @@ def test_cache_clear_never_follows_a_linked_native_folder(cache, tmp_path):
     assert (outside / NATIVE_NAME / "precious").read_text() == "keep me"
     assert (outside / "index" / INDEX_NAME).exists() and (outside / "index" / "precious").exists()
     assert (cache / "native").is_symlink()  # not kronsub's: left as it is
+    from kronsub.simulation import native
+
+    assert outside not in native._build_root().parents and native._build_root() != outside  # nor built in
 
 
 def test_cache_clear_removes_linked_entries_as_links_only(cache, tmp_path):
@@ -542,6 +545,9 @@ def _modes(folder: Path) -> set[tuple[str, int]]:
 
 @needs_cc
 def test_every_entry_is_private_whatever_the_umask(cache):
+    (cache / "native").mkdir(parents=True)
+    cache.chmod(0o755)
+    (cache / "native").chmod(0o755)  # as an older kronsub left it
     old = os.umask(0)
     try:
         result = CliRunner().invoke(main, ["simulate", str(SYSTEM1), "--t", "0.1"])
@@ -550,6 +556,7 @@ def test_every_entry_is_private_whatever_the_umask(cache):
     assert result.exit_code == 0, result.output
     assert (cache / "native" / "index").is_dir() and list(cache.glob("*.system.json"))
     assert _modes(cache) == {("d", 0o700), ("f", 0o600)}
+    assert cache.stat().st_mode & 0o777 == 0o755  # the user's own folder, as the user made it
 
 
 def _one_digit_changed(path: Path) -> None:

@@ -172,7 +172,12 @@ def _build_root() -> Path:
     writable, or not safe (see :mod:`kronsub.cache`)."""
     folder = usable_cache_dir()
     native = safe_folder(folder / "native") if folder is not None else None
-    return native if native is not None else _scratch_root()
+    if native is not None:
+        try:
+            return private_folder(native)  # 0700, also when an older kronsub made it 0755
+        except OSError:
+            pass
+    return _scratch_root()
 
 
 def _digest_file(path: Path) -> str:
