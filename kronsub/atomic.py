@@ -122,7 +122,7 @@ def output_target(path: Path) -> tuple[str, Path]:
         if stat.S_ISLNK(st.st_mode):
             followed = _followed(path)
             st = os.stat(path)  # the kernel's own resolution
-            if followed is None or not os.path.samestat(os.stat(followed), st):
+            if followed is None or not _same(followed, st):  # (only a rename needs the link's target)
                 return (STREAM, path) if stat.S_ISREG(st.st_mode) or _streamed(st) else _refused(path, st)
             where = followed
     except FileNotFoundError:  # a new file (a dangling link: its target)
@@ -137,6 +137,13 @@ def output_target(path: Path) -> tuple[str, Path]:
     if _streamed(st):
         return STREAM, path
     return _refused(path, st)
+
+
+def _same(path: Path, st: os.stat_result) -> bool:
+    try:
+        return os.path.samestat(os.stat(path), st)
+    except OSError:
+        return False
 
 
 def _streamed(st: os.stat_result) -> bool:
