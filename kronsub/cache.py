@@ -256,7 +256,7 @@ class Entries:
     libraries: list  # compiled-model folders under native/
     index: list  # native/index/*.json
     temporaries: list  # temporary files of interrupted writes
-    links: list  # links named like entries: removed as links, never followed
+    links: list  # links (FIFOs, sockets) named like entries: removed as themselves, never followed
 
 
 def _lstat(path: Path):
@@ -279,16 +279,21 @@ def _real_folder(path: Path) -> bool:
     return st is not None and stat.S_ISDIR(st.st_mode)
 
 
+def _odd(st: os.stat_result) -> bool:
+    """A link, FIFO, socket or device where an entry should be: removed as itself by ``clear``."""
+    return not stat.S_ISREG(st.st_mode) and not stat.S_ISDIR(st.st_mode)
+
+
 def entries(folder: Path) -> Entries:
     """List kronsub's own entries in ``folder`` by name and kind (``lstat``: a link is never
     followed; a link named like an entry is listed under ``links``)."""
     found = Entries({}, [], [], [], [])
-    if not _real_folder(folder):
+    if not folder.is_dir():  # the folder the user configured (a link to one is the user's choice)
         return found
     for name, st in _listing(folder):
         path = folder / name
         if SYSTEM_FILE.fullmatch(name) or TEMPORARY.fullmatch(name):
-            if stat.S_ISLNK(st.st_mode):
+            if _odd(st):
                 found.links.append(path)
             elif stat.S_ISREG(st.st_mode):
                 if SYSTEM_FILE.fullmatch(name):
@@ -300,14 +305,13 @@ def entries(folder: Path) -> Entries:
         return found
     for name, st in _listing(native):
         if NATIVE_DIR.fullmatch(name):
-            (found.links if stat.S_ISLNK(st.st_mode) else found.libraries if stat.S_ISDIR(st.st_mode)
+            (found.links if _odd(st) else found.libraries if stat.S_ISDIR(st.st_mode)
              else []).append(native / name)
     index = native / "index"
     if _real_folder(index):
         for name, st in _listing(index):
             if INDEX_FILE.fullmatch(name) or TEMPORARY_INDEX.fullmatch(name):
-                (found.links if stat.S_ISLNK(st.st_mode) else found.index if stat.S_ISREG(st.st_mode)
-                 else []).append(index / name)
+                (found.links if _odd(st) else found.index if stat.S_ISREG(st.st_mode) else []).append(index / name)
     return found
 
 

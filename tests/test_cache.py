@@ -521,11 +521,13 @@ def test_cache_clear_removes_linked_entries_as_links_only(cache, tmp_path):
     (native / NATIVE_NAME).symlink_to(outside)  # a compiled model's folder that is a link
     (native / "index" / INDEX_NAME).symlink_to(outside / "precious")
     (cache / ("1" * 64 + ".system.json")).symlink_to(outside / "system.json")
+    os.mkfifo(cache / ("2" * 64 + ".transition.json"))  # listed without opening it
+    assert "derived known systems: 1 (" in CliRunner().invoke(main, ["cache", "info"]).output
     result = CliRunner().invoke(main, ["cache", "clear"])
     assert result.exit_code == 0, result.output
     assert sorted(p.name for p in outside.iterdir()) == ["precious", "system.json"]
     assert (outside / "precious").read_text() == "keep me"
-    assert not any(p.is_symlink() for p in cache.rglob("*"))
+    assert not any(p.is_symlink() for p in cache.rglob("*")) and not list(cache.glob("2" * 64 + "*"))
 
 
 def test_cache_info_and_clear_count_alike(cache):

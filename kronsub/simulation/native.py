@@ -181,8 +181,13 @@ def _build_root() -> Path:
 
 
 def _digest_file(path: Path) -> str:
+    """The sha256 of the regular file ``path`` (no link followed, no FIFO waited on: else an
+    :class:`OSError`)."""
     digest = hashlib.sha256()
-    with open(path, "rb") as fh:
+    fd = os.open(path, os.O_RDONLY | os.O_NOFOLLOW | os.O_NONBLOCK | getattr(os, "O_CLOEXEC", 0))
+    with os.fdopen(fd, "rb") as fh:
+        if not stat.S_ISREG(os.fstat(fd).st_mode):
+            raise OSError(f"{path} is not a regular file")
         for block in iter(lambda: fh.read(1 << 20), b""):
             digest.update(block)
     return digest.hexdigest()
