@@ -133,6 +133,14 @@ def _run(job):
               f"with the command and the model file; {DEBUG_ENV}=1 prints the traceback", INTERNAL_ERROR)
 
 
+def _note(text: str) -> None:
+    """A line on standard error that cannot stop the command (a terminal gone after SIGHUP)."""
+    try:
+        click.echo(text, err=True)
+    except OSError:
+        pass
+
+
 def _by(signum: int) -> str:
     """`` by SIGTERM`` (nothing for Ctrl-C, which the user pressed)."""
     return "" if signum == signal.SIGINT else f" by {signal_name(signum)}"
@@ -420,7 +428,7 @@ def simulate(model: Path, t_end: float | None, dt: float | None, method: str | N
             with atomic_file(output) as fh:
                 writer = stream(fh)
             where = str(output)
-            click.echo(f"wrote {output} ({_rows(writer.rows)})", err=True)
+            _note(f"wrote {output} ({_rows(writer.rows)})")  # a terminal gone (SIGHUP) keeps no metadata back
         else:
             writer = stream(sys.stdout)
             if writer.reader_gone:  # nothing more goes to standard output
