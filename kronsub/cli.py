@@ -287,7 +287,7 @@ def _note_choice(system) -> None:
 
 def _default_sidecar(output: Path | None) -> Path | None:
     """The metadata file beside ``--output``: none for standard output, a FIFO or a device
-    (nothing is beside ``/dev/null``), or a path that cannot be written (told by :func:`_writable`)."""
+    (nothing is beside ``/dev/null``)."""
     from .simulation.table import sidecar_path
 
     if output is None:

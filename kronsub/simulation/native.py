@@ -174,7 +174,7 @@ def _build_root() -> Path:
     native = safe_folder(folder / "native") if folder is not None else None
     if native is not None:
         try:
-            return private_folder(native)  # 0700, also when an older kronsub made it 0755
+            return private_folder(native)  # 0700, whatever mode it was made with
         except OSError:
             pass
     return _scratch_root()
