@@ -107,6 +107,7 @@ def test_dev_null_discards_and_stays_a_character_device(monkeypatch):
     def refused(*args, **kwargs):
         raise AssertionError("a temporary file or a rename for /dev/null")
 
+    monkeypatch.setenv("KRONSUB_CACHE_DIR", "off")  # (the cache's own writes use both)
     monkeypatch.setattr(atomic.tempfile, "mkstemp", refused)
     monkeypatch.setattr(atomic.os, "replace", refused)
     before = os.stat("/dev/null")
