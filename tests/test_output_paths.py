@@ -275,3 +275,29 @@ def test_temporary_names_include_the_suffix_a_writer_needs():
     assert atomic.temporary_pattern("m.gif").fullmatch(".m.gif.abcdefgh.tmp.gif")
     assert atomic.temporary_pattern("m.gif").fullmatch(".m.gif.abcdefgh.tmp")
     assert not atomic.temporary_pattern("m.gif").fullmatch(".m.gif.abcdefgh.tmp.bak")
+
+
+@pytest.mark.skipif(not os.path.exists("/dev/full"), reason="no /dev/full")
+def test_a_full_device_names_the_path_the_user_gave(tmp_path, monkeypatch):
+    """/dev/full (every write: ENOSPC), directly and through a link named like an animation.
+    Nothing may be renamed here (a regression fails the test instead of replacing /dev/full)."""
+    real = os.replace
+
+    def guarded(src, dst, *args, **kwargs):
+        if str(dst).startswith("/dev/"):
+            raise AssertionError(f"a rename onto {dst}")
+        return real(src, dst, *args, **kwargs)
+
+    monkeypatch.setenv("KRONSUB_CACHE_DIR", "off")
+    monkeypatch.setattr(atomic.os, "replace", guarded)
+    result = cli("derive", SYSTEM1, "-o", "/dev/full")
+    assert result.exit_code == 1
+    assert "Error: /dev/full: No space left on device" in result.output
+    pytest.importorskip("matplotlib")
+    pytest.importorskip("PIL")
+    link = tmp_path / "motion.gif"
+    link.symlink_to("/dev/full")
+    result = cli("animate", SYSTEM1, "--output", link, "--t", "0.2", "--dt", "0.1", "--fps", "10", "--size", "64")
+    assert result.exit_code == 1
+    assert f"Error: {link}: No space left on device" in result.output
+    assert stat.S_ISCHR(os.stat("/dev/full").st_mode) and link.is_symlink()
