@@ -752,3 +752,24 @@ def test_a_library_removed_between_build_and_load_is_built_again(cache, monkeypa
     assert calls
     values = np.ones(len(system.parameters))
     assert np.all(np.isfinite(model.rhs(0.0, np.full(2 * len(system.coordinates), 0.1), values)))
+
+
+@needs_cc
+def test_a_cache_cleared_again_and_again_still_gets_the_model_built(cache, monkeypatch):
+    """`kronsub cache clear` in a loop meanwhile: the build moves to the process's private
+    temporary folder after two tries; the run uses C, and says nothing of a compiler."""
+    from kronsub import cache as kcache
+    from kronsub.simulation import compiled, native
+
+    real = native._run_compiler
+
+    def clearing(command, cwd):
+        kcache.clear()
+        return real(command, cwd)
+
+    monkeypatch.setattr(native, "_run_compiler", clearing)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        model = compiled.native_model(load_model(SYSTEM1).derive())
+    assert cache not in model.path.parents and model.path.is_file()
+    assert not [w for w in caught if "compiler" in str(w.message)]

@@ -247,7 +247,8 @@ def compile_library(sources: Sequence[str | tuple[str, str]], name_hint: str = "
     digest and key (:func:`verified`); one planted without a sidecar, truncated, changed or
     moved under another key's name is rebuilt. The folder and its files are private (0700,
     0600); a folder removed meanwhile (``kronsub cache clear``) is made again and the build
-    run again, not reported as a missing compiler.
+    run again (removed twice: in the process's private temporary folder), not reported as a
+    missing compiler.
     """
     command = compiler_command()
     stem = re.sub(r"[^A-Za-z0-9_]+", "_", name_hint).strip("_") or "model"
@@ -262,8 +263,10 @@ def compile_library(sources: Sequence[str | tuple[str, str]], name_hint: str = "
     digest.update("\0".join([*resolved, *build_identity(flags)]).encode())
     key = digest.hexdigest()
 
-    for attempt in (1, 2, 3):  # a folder removed meanwhile (`kronsub cache clear`) is made again
-        folder = _build_root() / f"{stem}-{key[:24]}"
+    # a folder removed meanwhile (`kronsub cache clear`) is made again; removed twice, the build
+    # goes to this process's private temporary folder, which nothing else clears
+    for root in (_build_root, _build_root, _scratch_root, _scratch_root):
+        folder = root() / f"{stem}-{key[:24]}"
         try:
             try:
                 private_folder(folder)
@@ -273,10 +276,8 @@ def compile_library(sources: Sequence[str | tuple[str, str]], name_hint: str = "
                 folder = private_folder(_scratch_root() / folder.name)
             return _build(folder, stem, files, command, flags, key)
         except _Vanished:
-            if attempt == 3:
-                raise NativeError(f"the build folder {folder} was removed while {stem} was compiled, three "
-                                  "times; is something clearing the cache?") from None
-    raise AssertionError("unreachable")
+            continue
+    raise NativeError(f"the build folder {folder} was removed while {stem} was compiled, four times")
 
 
 class _Vanished(Exception):
