@@ -242,8 +242,8 @@ def numeric(system: KnownSystem, set: Mapping[str, object] | None = None) -> Num
     """Compiled numeric functions with the parameters' values (``set`` overrides them)."""
     import warnings
 
-    from .simulation.compiled import compiled_library
-    from .simulation.native import CompilerNotFound, NativeModel
+    from .simulation.compiled import native_model
+    from .simulation.native import CompilerNotFound
     from .simulation.run import _numpy_module
 
     values = _run_values(system, set)
@@ -252,7 +252,7 @@ def numeric(system: KnownSystem, set: Mapping[str, object] | None = None) -> Num
     module = _numpy_module(system)  # mass matrix, forces, velocity terms (numpy)
     native = None
     try:
-        native = NativeModel(compiled_library(system), n, len(system.parameters))
+        native = native_model(system)
     except CompilerNotFound:
         warnings.warn("no C compiler found: using the generated numpy module (slower)")
 

@@ -10,9 +10,19 @@ create or write files in (probed as the cache writes: a temporary file created a
 path under ``/proc``, a read-only folder): the known-system cache is then off and compiled
 models go to a private temporary folder. A folder kronsub creates is private (mode 0700), so a
 permissive umask does not make it refused.
+
+Entries are private whatever the umask (files 0600, folders 0700: :func:`write_private`,
+:func:`private_folder`) and sealed with the sha256 of their payload (:func:`store_entry`);
+:func:`load_entry` reads one only when it is a private regular file of this user, opened
+without following a link or waiting on a FIFO and at most :data:`ENTRY_BYTES` long, whose
+digest matches. :func:`entries` lists kronsub's own entries by ``lstat`` for both
+:func:`info` and :func:`clear`, which never follows a link out of the folder.
 """
 from __future__ import annotations
 
+import errno
+import hashlib
+import hmac
 import os
 import re
 import shutil
@@ -32,6 +42,7 @@ SYSTEM_FILE = re.compile(r"[0-9a-f]{64}\." + _PART + r"\.(json|pickle)")
 NATIVE_DIR = re.compile(r"[A-Za-z0-9_]+-[0-9a-f]{24}")
 INDEX_FILE = re.compile(r"[0-9a-f]{64}\.json")
 TEMPORARY = re.compile(r"\.[0-9a-f]{64}\." + _PART + r"\.json\.[a-z0-9_]{8}\.tmp")
+TEMPORARY_INDEX = re.compile(r"\.[0-9a-f]{64}\.json\.[a-z0-9_]{8}\.tmp")
 
 
 class CacheWarning(UserWarning):
@@ -138,6 +149,97 @@ def usable_cache_dir() -> Path | None:
     return safe_folder(cache_dir())
 
 
+# ---------------------------------------------------------------------------------------------
+# Entries: private, sealed with a digest, read bounded
+# ---------------------------------------------------------------------------------------------
+
+SEAL = b"kronsub-cache/1 sha256="
+"""The first line of every entry kronsub writes: the sha256 of the rest, recorded at write time."""
+ENTRY_BYTES = 64 << 20  # the most an entry may hold (a derived system is far smaller)
+
+
+def private_folder(folder: Path) -> Path:
+    """``folder`` (in an existing one), a real folder of this user, mode 0700 whatever the
+    umask; raises :class:`OSError` when it is a link, not a folder, or another user's."""
+    try:
+        os.mkdir(folder, 0o700)
+    except FileExistsError:
+        pass
+    st = os.lstat(folder)
+    if not stat.S_ISDIR(st.st_mode) or st.st_uid != os.geteuid():
+        raise OSError(errno.EPERM, "not a folder of this user", str(folder))
+    if stat.S_IMODE(st.st_mode) != 0o700:
+        os.chmod(folder, 0o700)
+    return folder
+
+
+def write_private(path: Path, data: bytes) -> None:
+    """Write ``data`` to ``path`` (mode 0600 whatever the umask) through a temporary file of
+    :mod:`kronsub.atomic`'s naming and a rename."""
+    clean_stale(path)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    try:
+        os.fchmod(fd, 0o600)
+        with os.fdopen(fd, "wb") as fh:
+            fh.write(data)
+        os.replace(tmp, path)
+    except BaseException:
+        try:
+            os.unlink(tmp)
+        except OSError:
+            pass
+        raise
+
+
+def store_entry(path: Path, payload: bytes) -> None:
+    """Write a cache entry: :data:`SEAL`, the payload's sha256, then the payload (private)."""
+    write_private(path, SEAL + hashlib.sha256(payload).hexdigest().encode() + b"\n" + payload)
+
+
+def read_private(path: Path, limit: int = ENTRY_BYTES) -> bytes | None:
+    """The bytes of ``path`` when it is a regular file of this user that no one else may
+    write or read (no link followed, no FIFO waited on, at most ``limit`` bytes); else None."""
+    try:
+        fd = os.open(path, os.O_RDONLY | os.O_NOFOLLOW | os.O_NONBLOCK | getattr(os, "O_CLOEXEC", 0))
+    except OSError:
+        return None
+    try:
+        st = os.fstat(fd)
+        if not stat.S_ISREG(st.st_mode) or st.st_uid != os.geteuid() or st.st_mode & 0o077 \
+                or st.st_size > limit:
+            return None
+        chunks, left = [], limit + 1
+        while left > 0:
+            chunk = os.read(fd, min(left, 1 << 20))
+            if not chunk:
+                break
+            chunks.append(chunk)
+            left -= len(chunk)
+        data = b"".join(chunks)
+        return data if len(data) <= limit else None
+    except OSError:
+        return None
+    finally:
+        os.close(fd)
+
+
+def load_entry(path: Path, limit: int = ENTRY_BYTES) -> bytes | None:
+    """The payload of an entry written by :func:`store_entry`, when it is private and its
+    digest matches; else None (the caller rebuilds it)."""
+    data = read_private(path, limit + 100)
+    if data is None or not data.startswith(SEAL):
+        return None
+    line, _, payload = data.partition(b"\n")
+    recorded = line[len(SEAL):]
+    if len(payload) > limit or not hmac.compare_digest(recorded, hashlib.sha256(payload).hexdigest().encode()):
+        return None
+    return payload
+
+
+# ---------------------------------------------------------------------------------------------
+# What the cache holds (one listing for `cache info` and `cache clear`)
+# ---------------------------------------------------------------------------------------------
+
 @dataclass(frozen=True)
 class CacheInfo:
     folder: Path | None
@@ -147,57 +249,123 @@ class CacheInfo:
     libraries_bytes: int = 0
 
 
-def _size(path: Path) -> int:
-    if path.is_file() and not path.is_symlink():
-        return path.stat().st_size
-    if path.is_dir() and not path.is_symlink():
-        return sum(p.stat().st_size for p in path.iterdir() if p.is_file() and not p.is_symlink())
-    return 0
+@dataclass(frozen=True)
+class Entries:
+    """kronsub's own entries in a cache folder, none reached through a link."""
+    systems: dict  # key -> the files of one derived model (system, transition, parts)
+    libraries: list  # compiled-model folders under native/
+    index: list  # native/index/*.json
+    temporaries: list  # temporary files of interrupted writes
+    links: list  # links (FIFOs, sockets) named like entries: removed as themselves, never followed
 
 
-def _entries(folder: Path):
-    """kronsub's own entries: (known-system files, compiled-model folders)."""
-    systems = sorted(p for p in folder.iterdir() if SYSTEM_FILE.fullmatch(p.name)) if folder.is_dir() else []
+def _lstat(path: Path):
+    try:
+        return os.lstat(path)
+    except OSError:
+        return None
+
+
+def _listing(folder: Path) -> list[tuple[str, os.stat_result]]:
+    try:
+        names = os.listdir(folder)
+    except OSError:
+        return []
+    return [(name, st) for name in sorted(names) if (st := _lstat(folder / name)) is not None]
+
+
+def _real_folder(path: Path) -> bool:
+    st = _lstat(path)
+    return st is not None and stat.S_ISDIR(st.st_mode)
+
+
+def _odd(st: os.stat_result) -> bool:
+    """A link, FIFO, socket or device where an entry should be: removed as itself by ``clear``."""
+    return not stat.S_ISREG(st.st_mode) and not stat.S_ISDIR(st.st_mode)
+
+
+def entries(folder: Path) -> Entries:
+    """List kronsub's own entries in ``folder`` by name and kind (``lstat``: a link is never
+    followed; a link named like an entry is listed under ``links``)."""
+    found = Entries({}, [], [], [], [])
+    if not folder.is_dir():  # the folder the user configured (a link to one is the user's choice)
+        return found
+    for name, st in _listing(folder):
+        path = folder / name
+        if SYSTEM_FILE.fullmatch(name) or TEMPORARY.fullmatch(name):
+            if _odd(st):
+                found.links.append(path)
+            elif stat.S_ISREG(st.st_mode):
+                if SYSTEM_FILE.fullmatch(name):
+                    found.systems.setdefault(name.split(".")[0], []).append(path)
+                else:
+                    found.temporaries.append(path)
     native = folder / "native"
-    libraries = sorted(p for p in native.iterdir() if NATIVE_DIR.fullmatch(p.name) and p.is_dir()
-                       and not p.is_symlink()) if native.is_dir() else []
-    return systems, libraries
+    if not _real_folder(native):
+        return found
+    for name, st in _listing(native):
+        if NATIVE_DIR.fullmatch(name):
+            (found.links if _odd(st) else found.libraries if stat.S_ISDIR(st.st_mode)
+             else []).append(native / name)
+    index = native / "index"
+    if _real_folder(index):
+        for name, st in _listing(index):
+            if INDEX_FILE.fullmatch(name) or TEMPORARY_INDEX.fullmatch(name):
+                (found.links if _odd(st) else found.index if stat.S_ISREG(st.st_mode) else []).append(index / name)
+    return found
+
+
+def _size(path: Path) -> int:
+    st = _lstat(path)
+    if st is None or stat.S_ISLNK(st.st_mode):
+        return 0
+    if stat.S_ISREG(st.st_mode):
+        return st.st_size
+    return sum(s.st_size for _, s in _listing(path) if stat.S_ISREG(s.st_mode)) if stat.S_ISDIR(st.st_mode) else 0
 
 
 def info() -> CacheInfo:
-    """Where the cache is and what it holds."""
+    """Where the cache is and what it holds: derived models (by key) and compiled models."""
     folder = cache_dir()
     if folder is None or not folder.is_dir():
         return CacheInfo(folder)
-    systems, libraries = _entries(folder)
-    keys = {p.name.split(".")[0] for p in systems}
-    return CacheInfo(folder, len(keys), sum(map(_size, systems)), len(libraries), sum(map(_size, libraries)))
+    found = entries(folder)
+    files = [p for group in found.systems.values() for p in group]
+    return CacheInfo(folder, len(found.systems), sum(map(_size, files)), len(found.libraries),
+                     sum(map(_size, found.libraries)))
 
 
-def clear() -> int:
-    """Remove kronsub's own entries (and stale temporary files) from the cache; the count removed."""
+def _inside(path: Path, root: Path) -> bool:
+    try:
+        return Path(os.path.realpath(path)).is_relative_to(root) and Path(os.path.realpath(path)) != root
+    except OSError:
+        return False
+
+
+def clear() -> CacheInfo:
+    """Remove kronsub's own entries (and stale temporary files) from the cache: what was
+    removed, counted as :func:`info` counts. Nothing outside the cache folder is touched: no
+    link is followed (a link named like an entry is removed as a link), and a compiled model's
+    folder is removed only when it is a real folder inside the cache."""
     folder = cache_dir()
     if folder is None or not folder.is_dir():
-        return 0
-    systems, libraries = _entries(folder)
-    removed = 0
-    for path in systems + [p for p in folder.iterdir() if TEMPORARY.fullmatch(p.name) and p.is_file()]:
-        path.unlink(missing_ok=True)
-        removed += 1
-    for lib in libraries:
-        shutil.rmtree(lib, ignore_errors=True)
-        removed += 1
-    index = folder / "native" / "index"  # compiled models by fingerprint (simulation/compiled.py)
-    if index.is_dir() and not index.is_symlink():
-        for path in index.iterdir():
-            if INDEX_FILE.fullmatch(path.name) and path.is_file():
-                path.unlink(missing_ok=True)
+        return CacheInfo(folder)
+    root = Path(os.path.realpath(folder))
+    found = entries(folder)
+    before = info()
+    for path in [p for group in found.systems.values() for p in group] + found.temporaries + found.index \
+            + found.links:
         try:
-            index.rmdir()
+            os.unlink(path)  # a link itself, never what it points to
         except OSError:
             pass
-    try:
-        (folder / "native").rmdir()
-    except OSError:
-        pass
-    return removed
+    for lib in found.libraries:
+        if _real_folder(lib) and _inside(lib, root):
+            shutil.rmtree(lib, ignore_errors=True)  # (rmtree does not follow links inside)
+    for sub in (folder / "native" / "index", folder / "native"):
+        if _real_folder(sub):
+            try:
+                sub.rmdir()
+            except OSError:
+                pass
+    return before

@@ -3,7 +3,8 @@
 Problems in a model print as ``Error: FILE:LINE:COL: message`` with a hint;
 never a traceback. Exit codes (see :data:`EXIT_CODES`): 0 success, 1 model or
 input error, 2 usage error, 3 numerical failure (rows so far kept), 4 internal
-error, 130 interrupted (rows so far kept).
+error, 130 interrupted (rows so far kept); 143 and 129 for SIGTERM and SIGHUP, which
+interrupt a run as Ctrl-C does.
 """
 from __future__ import annotations
 
@@ -11,6 +12,7 @@ import difflib
 import math
 import os
 import re
+import signal
 import sys
 import warnings
 from pathlib import Path
@@ -19,17 +21,21 @@ from types import SimpleNamespace
 import click
 
 from . import __version__
-from .atomic import atomic_file, write_atomically
+from .atomic import STREAM, atomic_file, output_target, write_atomically
 from .errors import KronsubError, ModelError
+from .interrupts import exit_code, signal_name, signal_of, signals_as_interrupts
 
 OK, INPUT_ERROR, USAGE_ERROR, NUMERICAL_FAILURE, INTERNAL_ERROR, INTERRUPTED = 0, 1, 2, 3, 4, 130
+HANGUP, TERMINATED = 129, 143  # 128 + SIGHUP, 128 + SIGTERM (kronsub/interrupts.py)
 EXIT_CODES = {
     OK: "success",
     INPUT_ERROR: "model or input error (the message names the file, line and column)",
     USAGE_ERROR: "usage error (an unknown command or option, an option value out of range)",
     NUMERICAL_FAILURE: "numerical failure: the run stopped early; the rows so far are kept, the metadata says where",
     INTERNAL_ERROR: "internal error: a bug in kronsub (KRONSUB_DEBUG=1 shows the traceback)",
+    HANGUP: "hung up (SIGHUP); as for 130",
     INTERRUPTED: "interrupted (Ctrl-C); the rows so far are kept, the metadata says where",
+    TERMINATED: "terminated (SIGTERM); as for 130",
 }
 DEBUG_ENV = "KRONSUB_DEBUG"
 
@@ -109,7 +115,8 @@ def _run(job):
     """Run a command body, turning known errors into messages and exit codes."""
     warnings.showwarning = _show_warning
     try:
-        return job()
+        with signals_as_interrupts():  # SIGTERM and SIGHUP stop a run as Ctrl-C does
+            return job()
     except ModelError as exc:
         _report_model_error(exc)
     except KronsubError as exc:
@@ -124,8 +131,8 @@ def _run(job):
         _fail(f"Error: {exc.filename or ''}: {exc.strerror or exc}\n  hint: check the path and its permissions")
     except RecursionError:
         _fail("Error: the model is nested too deeply to derive\n  hint: split it into known systems")
-    except KeyboardInterrupt:
-        _fail("Interrupted.", INTERRUPTED)
+    except KeyboardInterrupt as exc:
+        _fail(f"Interrupted{_by(signal_of(exc))}.", exit_code(exc))
     except Exception as exc:  # never a traceback for users
         if os.environ.get(DEBUG_ENV):
             raise
@@ -133,6 +140,19 @@ def _run(job):
         _fail(f"Error: internal error ({type(exc).__name__}{': ' + text if text else ''})\n"
               f"  hint: this is a bug in kronsub {__version__}; please report it to the kronsub developers "
               f"with the command and the model file; {DEBUG_ENV}=1 prints the traceback", INTERNAL_ERROR)
+
+
+def _note(text: str) -> None:
+    """A line on standard error that cannot stop the command (a terminal gone after SIGHUP)."""
+    try:
+        say(text)
+    except OSError:
+        pass
+
+
+def _by(signum: int) -> str:
+    """`` by SIGTERM`` (nothing for Ctrl-C, which the user pressed)."""
+    return "" if signum == signal.SIGINT else f" by {signal_name(signum)}"
 
 
 def scene_option(command):
@@ -274,14 +294,36 @@ def _note_choice(system) -> None:
             "configuration)")
 
 
+def _default_sidecar(output: Path | None) -> Path | None:
+    """The metadata file beside ``--output``: none for standard output, a FIFO or a device
+    (nothing is beside ``/dev/null``)."""
+    from .simulation.table import sidecar_path
+
+    if output is None:
+        return None
+    try:
+        how, _ = output_target(output)
+    except OSError:
+        how = None
+    return sidecar_path(output) if how != STREAM else None
+
+
 def _writable(path: Path | None, what: str) -> None:
     """Fail before any work when an output file could not be written."""
     if path is None:
         return
-    parent = path.resolve().parent
+    try:
+        how, where = output_target(path)
+    except OSError as exc:
+        _fail(f"Error: {path}: {exc.strerror}\n  hint: choose another {what}")
+    if how == STREAM:  # a FIFO or a device, written directly
+        if not os.access(where, os.W_OK):
+            _fail(f"Error: {path}: not writable\n  hint: choose another {what}")
+        return
+    parent = where.resolve().parent
     if not parent.is_dir():
         _fail(f"Error: {path}: the directory {parent} does not exist\n  hint: create it first, or choose another {what}")
-    if not os.access(parent, os.W_OK) or (path.exists() and not os.access(path, os.W_OK)):
+    if where.exists() and not os.access(where, os.W_OK) or not where.exists() and not os.access(parent, os.W_OK):
         _fail(f"Error: {path}: not writable\n  hint: choose another {what}")
 
 
@@ -318,7 +360,7 @@ def simulate(model: Path, t_end: float | None, dt: float | None, method: str | N
     from .model.scenes import initial_values
     from .simulation.run import (METHODS, SimulationError, check_tolerances, collect, explicit_only, row_count,
                                  start)
-    from .simulation.table import CsvWriter, metadata_json, sidecar_path, trajectory_csv
+    from .simulation.table import CsvWriter, metadata_json, trajectory_csv
     from .simulation.values import parse_assignments, resolve
 
     def job():
@@ -329,7 +371,7 @@ def simulate(model: Path, t_end: float | None, dt: float | None, method: str | N
             check_tolerances(rtol, atol)
         except SimulationError as exc:
             _fail(f"Error: {exc}", USAGE_ERROR)
-        meta_path = meta if meta is not None else (sidecar_path(output) if output is not None else None)
+        meta_path = meta if meta is not None else _default_sidecar(output)
         _separate_outputs(model, ("--output", output, "CSV"), ("--meta", meta_path, "metadata"),
                           ("--plot", plot, "plot"))
         _writable_outputs(output, plot)
@@ -395,7 +437,7 @@ def simulate(model: Path, t_end: float | None, dt: float | None, method: str | N
             with atomic_file(output) as fh:
                 writer = stream(fh)
             where = str(output)
-            say(f"wrote {output} ({_rows(writer.rows)})")
+            _note(f"wrote {output} ({_rows(writer.rows)})")  # a terminal gone (SIGHUP) keeps no metadata back
         else:
             writer = stream(sys.stdout)
             if writer.reader_gone:  # nothing more goes to standard output
@@ -418,7 +460,9 @@ def simulate(model: Path, t_end: float | None, dt: float | None, method: str | N
             _fail(f"Stopped after t = {writer.last_t!r}: the reader of {where} closed it after "
                   f"{_rows(writer.rows)}{marked}", INTERRUPTED)
         if writer.stopped:
-            _fail(f"Interrupted after t = {writer.last_t!r}: {_kept(writer.rows)} in {where}{marked}", INTERRUPTED)
+            signum = writer.signum or signal.SIGINT
+            _fail(f"Interrupted{_by(signum)} after t = {writer.last_t!r}: {_kept(writer.rows)} in {where}{marked}",
+                  128 + signum)
         if plot is not None:
             from .simulation.plot import plot_trajectory
 
@@ -536,7 +580,7 @@ def accuracy(model: Path, t_end: float, methods: str, tolerances: str, target: f
     """What accuracy costs in time: error against a high-precision reference, per method and tolerance."""
     from .model.scenes import initial_values
     from .simulation import accuracy as acc
-    from .simulation.table import metadata_json, sidecar_path
+    from .simulation.table import metadata_json
     from .simulation.values import parse_assignments, resolve
 
     def job():
@@ -549,7 +593,7 @@ def accuracy(model: Path, t_end: float, methods: str, tolerances: str, target: f
             grid = acc.quick_tolerances(grid)
         if target is not None and not (target > 0 and math.isfinite(target)):
             _fail("Error: --target must be a positive finite error, e.g. --target 1e-8")
-        meta_path = meta if meta is not None else (sidecar_path(output) if output is not None else None)
+        meta_path = meta if meta is not None else _default_sidecar(output)
         _separate_outputs(model, ("--output", output, "CSV"), ("--meta", meta_path, "metadata"),
                           ("--plot", plot, "plot"))
         _writable_outputs(output, plot)
@@ -646,9 +690,13 @@ def cache_clear():
     from . import cache as store
 
     def job():
-        folder = store.cache_dir()
         removed = store.clear()
-        say(f"removed {removed} entries from {folder}" if folder is not None else "cache: off", err=False)
+        if removed.folder is None:
+            say(f"cache: off ({store.CACHE_ENV}=off)", err=False)
+            return
+        say(f"removed from {removed.folder}: derived known systems: {removed.systems} "
+            f"({_size(removed.systems_bytes)}), compiled models: {removed.libraries} "
+            f"({_size(removed.libraries_bytes)})", err=False)
 
     _run(job)
 

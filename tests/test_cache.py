@@ -13,6 +13,7 @@ import warnings
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 
+import numpy as np
 import pytest
 import sympy
 from click.testing import CliRunner
@@ -351,10 +352,16 @@ needs_cc = pytest.mark.skipif(shutil.which(os.environ.get("CC", "gcc").split()[0
 
 
 def _library(system) -> Path:
+    """The library ``simulate`` builds for ``system`` (the generated C, its identity, the
+    integrators), built but not loaded here (a test that changes it in place would change this
+    process's mapped copy)."""
     from kronsub.emitters.code import emit_c
+    from kronsub.simulation import compiled
     from kronsub.simulation.native import compile_library
 
-    return compile_library([(g.name, g.text) for g in emit_c(system, "model")], "model")
+    identity = compiled.identity_source(compiled.fingerprint(system), len(system.coordinates),
+                                        len(system.parameters))
+    return compile_library([(g.name, g.text) for g in emit_c(system, "model")] + [identity], "model")
 
 
 def _simulate(cache_folder: Path, *args) -> subprocess.CompletedProcess:
@@ -370,7 +377,9 @@ def test_a_library_is_recorded_and_verified(cache):
 
     library = _library(load_model(SYSTEM1).derive())
     assert verified(library)
-    assert len(sidecar(library).read_text().strip()) == 64
+    digest, key = sidecar(library).read_text().split()  # its bytes' sha256, its sources' key
+    assert len(digest) == 64 and library.parent.name.endswith(key[:24]) and verified(library, key)
+    assert not verified(library, "0" * 64)  # a folder moved under another key's name
     assert not [p for p in library.parent.iterdir() if p.name.endswith(".tmp")]
 
 
@@ -469,3 +478,298 @@ def test_a_sub_model_named_in_escapes_still_counts(tmp_path, spec):
     before = model_key(top)
     arm.write_text(arm.read_text(encoding="utf-8").replace("value: 9.81", "value: 9.8"), encoding="utf-8")
     assert model_key(top) != before
+
+
+# ---------------------------------------------------------------------------------------------
+# Issue 31: clearing never leaves the cache; entries private, sealed, read bounded; libraries
+# checked to belong to their model; a build survives `cache clear`
+# ---------------------------------------------------------------------------------------------
+
+NATIVE_NAME = "model-0123456789abcdef01234567"
+INDEX_NAME = "0" * 64 + ".json"
+
+
+def _precious(folder: Path) -> Path:
+    folder.mkdir(parents=True, exist_ok=True)
+    (folder / "precious").write_text("keep me")
+    return folder
+
+
+def test_cache_clear_never_follows_a_linked_native_folder(cache, tmp_path):
+    outside = tmp_path / "outside"
+    _precious(outside / NATIVE_NAME)
+    _precious(outside / "index")
+    (outside / "index" / INDEX_NAME).write_text("{}")
+    load_model(SYSTEM1).derive()
+    (cache / "native").symlink_to(outside)
+    result = CliRunner().invoke(main, ["cache", "clear"])
+    assert result.exit_code == 0, result.output
+    assert (outside / NATIVE_NAME / "precious").read_text() == "keep me"
+    assert (outside / "index" / INDEX_NAME).exists() and (outside / "index" / "precious").exists()
+    assert (cache / "native").is_symlink()  # not kronsub's: left as it is
+    from kronsub.simulation import native
+
+    assert outside not in native._build_root().parents and native._build_root() != outside  # nor built in
+
+
+def test_cache_clear_removes_linked_entries_as_links_only(cache, tmp_path):
+    outside = _precious(tmp_path / "outside")
+    (outside / "system.json").write_text("mine")
+    load_model(SYSTEM1).derive()
+    native = cache / "native"
+    (native / "index").mkdir(parents=True)
+    (native / NATIVE_NAME).symlink_to(outside)  # a compiled model's folder that is a link
+    (native / "index" / INDEX_NAME).symlink_to(outside / "precious")
+    (cache / ("1" * 64 + ".system.json")).symlink_to(outside / "system.json")
+    os.mkfifo(cache / ("2" * 64 + ".transition.json"))  # listed without opening it
+    assert "derived known systems: 1 (" in CliRunner().invoke(main, ["cache", "info"]).output
+    result = CliRunner().invoke(main, ["cache", "clear"])
+    assert result.exit_code == 0, result.output
+    assert sorted(p.name for p in outside.iterdir()) == ["precious", "system.json"]
+    assert (outside / "precious").read_text() == "keep me"
+    assert not any(p.is_symlink() for p in cache.rglob("*")) and not list(cache.glob("2" * 64 + "*"))
+
+
+def test_cache_info_and_clear_count_alike(cache):
+    load_model(SYSTEM1).derive()
+    load_model(MODELS / "hoffmann" / "system2.yaml").derive()
+    runner = CliRunner()
+    info = runner.invoke(main, ["cache", "info"]).output
+    cleared = runner.invoke(main, ["cache", "clear"]).output
+    assert "derived known systems: 2 (" in info and "derived known systems: 2 (" in cleared
+    counted = [line.split(": ", 1)[1] for line in info.splitlines()[1:]]
+    assert all(part in cleared for part in counted), (info, cleared)
+
+
+def _modes(folder: Path) -> set[tuple[str, int]]:
+    return {("d" if p.is_dir() else "f", p.stat().st_mode & 0o777) for p in folder.rglob("*")}
+
+
+@needs_cc
+def test_every_entry_is_private_whatever_the_umask(cache):
+    (cache / "native").mkdir(parents=True)
+    cache.chmod(0o755)
+    (cache / "native").chmod(0o755)  # as an older kronsub left it
+    old = os.umask(0)
+    try:
+        result = CliRunner().invoke(main, ["simulate", str(SYSTEM1), "--t", "0.1"])
+    finally:
+        os.umask(old)
+    assert result.exit_code == 0, result.output
+    assert (cache / "native" / "index").is_dir() and list(cache.glob("*.system.json"))
+    assert _modes(cache) == {("d", 0o700), ("f", 0o600)}
+    assert cache.stat().st_mode & 0o777 == 0o755  # the user's own folder, as the user made it
+
+
+def _one_digit_changed(path: Path) -> None:
+    """A digit of an integer node changed, the entry's seal left as it was."""
+    data = path.read_bytes()
+    at = data.index(b'["N",') + 5
+    while not data[at:at + 1].isdigit():
+        at += 1
+    digit = data[at:at + 1]
+    path.write_bytes(data[:at] + (b"7" if digit != b"7" else b"3") + data[at + 1:])
+
+
+def test_a_known_system_entry_with_one_digit_changed_is_ignored_and_rebuilt(cache):
+    model = load_model(SYSTEM1)
+    model.derive()
+    key = model.content_hash
+    for part in ("system", "inertia"):
+        _one_digit_changed(cache / f"{key}.{part}.json")
+    assert load_cached(key) is None
+    assert model.derive() == fresh(SYSTEM1)
+    assert load_cached(key) == fresh(SYSTEM1)  # stored again
+    out = CliRunner().invoke(main, ["derive", str(SYSTEM1)]).output
+    assert out == CliRunner().invoke(main, ["derive", str(SYSTEM1), "--no-cache"]).output
+
+
+def test_an_entry_others_may_write_is_ignored(cache):
+    model = load_model(SYSTEM1)
+    model.derive()
+    entry = cache / f"{model.content_hash}.system.json"
+    entry.chmod(0o666)
+    assert load_cached(model.content_hash) is None
+    entry.chmod(0o600)
+    assert load_cached(model.content_hash) == fresh(SYSTEM1)
+
+
+def _limited(child: str, cache_folder: Path, *args) -> subprocess.CompletedProcess:
+    """``kronsub`` in a child limited to 2 GiB of memory and 60 s (a regression fails the test
+    instead of taking the machine's memory or hanging it)."""
+    import resource
+
+    def limit():
+        resource.setrlimit(resource.RLIMIT_AS, (2 << 30, 2 << 30))
+
+    env = {**os.environ, "KRONSUB_CACHE_DIR": str(cache_folder)}
+    return subprocess.run([sys.executable, "-m", "kronsub", child, *map(str, args)], capture_output=True, text=True,
+                          env=env, timeout=60, preexec_fn=limit)
+
+
+@pytest.mark.parametrize("plant", ["fifo", "zero", "folder"])
+def test_an_entry_that_is_not_a_regular_file_is_ignored(cache, plant):
+    model = load_model(SYSTEM1)
+    model.derive()
+    for part in ("system", "inertia", "transition", "inertia-transition"):
+        entry = cache / f"{model.content_hash}.{part}.json"
+        entry.unlink()
+        if plant == "fifo":
+            os.mkfifo(entry)
+        elif plant == "zero":
+            entry.symlink_to("/dev/zero")
+        else:
+            entry.mkdir()
+    result = _limited("derive", cache, SYSTEM1)
+    assert result.returncode == 0, result.stderr
+    assert result.stdout == CliRunner().invoke(main, ["derive", str(SYSTEM1), "--no-cache"]).output
+
+
+def test_a_node_table_doubling_a_term_is_refused_quickly():
+    nodes = [["S", "q", "real"]] + [["Add", i, i] for i in range(80)]
+    text = json.dumps({"format": cache_format.FORMAT, "nodes": nodes,
+                       "value": {"t": [{"x": len(nodes) - 1}]}})
+    with pytest.raises(cache_format.CacheFormatError, match="as a tree"):
+        cache_format.loads(text)
+
+
+def _first_matrix(value):
+    if isinstance(value, dict):
+        if "m" in value:
+            return value["m"]
+        for x in value.values():
+            found = _first_matrix(x)
+            if found is not None:
+                return found
+    elif isinstance(value, list):
+        for x in value:
+            found = _first_matrix(x)
+            if found is not None:
+                return found
+    return None
+
+
+def test_a_sealed_entry_doubling_a_term_80_times_is_rebuilt_not_walked(cache):
+    """Even with a valid seal (anyone who can write an entry can compute a sha256), an entry
+    whose expressions grow as trees without bound is refused: `simulate` derives afresh."""
+    from kronsub import cache as kcache
+
+    model = load_model(SYSTEM1)
+    model.derive()
+    expected = CliRunner().invoke(main, ["simulate", str(SYSTEM1), "--t", "0.2"]).output
+    for part in ("system", "inertia"):
+        entry = cache / f"{model.content_hash}.{part}.json"
+        data = json.loads(kcache.load_entry(entry))
+        nodes = data["nodes"]
+        q = next(i for i, n in enumerate(nodes) if n[0] == "S")
+        first = len(nodes)
+        nodes.append(["Add", q, q])
+        for i in range(79):
+            nodes.append(["Add", first + i, first + i])
+        matrix = _first_matrix(data["value"])
+        matrix[3][0] = len(nodes) - 1
+        kcache.store_entry(entry, json.dumps(data).encode())
+    result = _limited("simulate", cache, SYSTEM1, "--t", "0.2")
+    assert result.returncode == 0, result.stderr
+    assert result.stdout == expected
+
+
+@needs_cc
+def test_swapped_index_entries_never_run_one_model_with_the_others_library(cache):
+    from kronsub import cache as kcache
+    from kronsub.api import simulate
+    from kronsub.simulation import compiled
+
+    one = load_model(SYSTEM1).derive()
+    two = load_model(MODELS / "examples" / "double_pendulum.yaml").derive()
+    expected = {s.name: simulate(s, t=0.5, dt=0.25, dataframe=False).y for s in (one, two)}
+    keys = [compiled.fingerprint(s) for s in (one, two)]
+    files = [compiled._index_file(k) for k in keys]
+    entries = [kcache.load_entry(f) for f in files]
+    kcache.store_entry(files[0], entries[1])
+    kcache.store_entry(files[1], entries[0])
+    assert compiled.lookup(keys[0]) is not None  # a verified library, of the other model
+    assert not compiled.belongs(compiled.lookup(keys[0]), keys[0], len(one.coordinates), len(one.parameters))
+    for system in (one, two):
+        library = compiled.compiled_library(system)
+        assert compiled.belongs(library, compiled.fingerprint(system), len(system.coordinates),
+                                len(system.parameters))
+        np.testing.assert_array_equal(simulate(system, t=0.5, dt=0.25, dataframe=False).y, expected[system.name])
+
+
+@needs_cc
+def test_a_library_loaded_for_other_counts_is_refused(cache):
+    from kronsub.simulation.native import NativeError, NativeModel
+
+    system = load_model(SYSTEM1).derive()
+    library = _library(system)
+    n, p = len(system.coordinates), len(system.parameters)
+    assert NativeModel(library, n, p).nq == n
+    with pytest.raises(NativeError, match="was built for"):
+        NativeModel(library, n + 1, p)
+
+
+@needs_cc
+def test_cache_clear_during_a_build_rebuilds_instead_of_blaming_the_compiler(cache, monkeypatch):
+    from kronsub import cache as kcache
+    from kronsub.simulation import compiled, native
+
+    real = native._run_compiler
+    cleared = []
+
+    def clearing(command, cwd):
+        if not cleared:  # `kronsub cache clear` in another terminal, just as gcc starts
+            cleared.append(kcache.clear())
+        return real(command, cwd)
+
+    monkeypatch.setattr(native, "_run_compiler", clearing)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        model = compiled.native_model(load_model(SYSTEM1).derive())
+    assert cleared and model.path.is_file()
+    assert not [w for w in caught if "compiler" in str(w.message)]
+    result = CliRunner().invoke(main, ["simulate", str(SYSTEM1), "--t", "0.1"])
+    assert result.exit_code == 0 and "compiler" not in result.output
+
+
+@needs_cc
+def test_a_library_removed_between_build_and_load_is_built_again(cache, monkeypatch):
+    from kronsub.simulation import compiled
+
+    real = compiled.compiled_library
+    calls = []
+
+    def removed(system, outputs=None):
+        library = real(system, outputs)
+        if not calls:
+            shutil.rmtree(cache / "native")
+        calls.append(library)
+        return library
+
+    monkeypatch.setattr(compiled, "compiled_library", removed)
+    system = load_model(SYSTEM1).derive()
+    model = compiled.native_model(system)  # loaded already (checked to belong), or built again
+    assert calls
+    values = np.ones(len(system.parameters))
+    assert np.all(np.isfinite(model.rhs(0.0, np.full(2 * len(system.coordinates), 0.1), values)))
+
+
+@needs_cc
+def test_a_cache_cleared_again_and_again_still_gets_the_model_built(cache, monkeypatch):
+    """`kronsub cache clear` in a loop meanwhile: the build moves to the process's private
+    temporary folder after two tries; the run uses C, and says nothing of a compiler."""
+    from kronsub import cache as kcache
+    from kronsub.simulation import compiled, native
+
+    real = native._run_compiler
+
+    def clearing(command, cwd):
+        kcache.clear()
+        return real(command, cwd)
+
+    monkeypatch.setattr(native, "_run_compiler", clearing)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        model = compiled.native_model(load_model(SYSTEM1).derive())
+    assert cache not in model.path.parents and model.path.is_file()
+    assert not [w for w in caught if "compiler" in str(w.message)]

@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 from conftest import MODELS
+from kronsub import cache as kcache
 from kronsub.emitters import code
 from kronsub.model.loader import load_model
 from kronsub.simulation import compiled, native
@@ -67,7 +68,7 @@ def test_a_tampered_index_never_loads_an_unverified_library(cache, emissions, ta
     _run(system)
     key = compiled.fingerprint(system)
     index = compiled._index_file(key)
-    entry = json.loads(index.read_text())
+    entry = json.loads(kcache.load_entry(index))  # sealed with its digest (kronsub.cache.store_entry)
     library = native._build_root() / entry["folder"] / entry["library"]
     if tamper == "digest":
         entry["sha256"] = "0" * 64
@@ -79,10 +80,8 @@ def test_a_tampered_index_never_loads_an_unverified_library(cache, emissions, ta
         changed = library.with_name("changed.tmp")  # a new file: this process has the old one mapped
         changed.write_bytes(library.read_bytes()[:100])
         os.replace(changed, library)  # the sidecar no longer matches
-    if tamper == "garbage":
-        index.write_text("{not json")
-    else:
-        index.write_text(json.dumps(entry))
+    # written as kronsub writes entries (private, sealed): refused for what it says, not its form
+    kcache.store_entry(index, b"{not json" if tamper == "garbage" else json.dumps(entry).encode())
     assert compiled.lookup(key) is None
     _run(system)  # emitted and built again, then indexed afresh
     assert len(emissions) == 2

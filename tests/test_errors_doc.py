@@ -5,7 +5,7 @@ its ```` ```yaml ```` blocks whose first line is ``# NAME`` are written to NAME
 (that comment line included, so the line numbers shown are those of the block),
 then its ```` ```console ```` blocks are replayed: ``$ kronsub ...`` runs the CLI
 in-process, ``$ echo $?`` prints the exit code of the last command, and a few
-plain commands (``mkfifo``, ``ln -s``, ``truncate``) prepare special files. The
+plain commands (``mkfifo``, ``ln -s``, ``truncate``, ``mkdir``) prepare special files. The
 lines after each command are its exact output (standard output, then error),
 where ``<number>`` stands for any number (:data:`NUMBER`): digits that depend on the
 machine's BLAS kernel, instruction set or thread count are never pinned.
@@ -30,7 +30,7 @@ from kronsub.cli import main
 
 PAGE = Path(__file__).resolve().parent.parent / "docs" / "errors.md"
 FENCE = re.compile(r"^```(\w*)\n(.*?)^```\n", re.M | re.S)
-PLAIN_COMMANDS = {"mkfifo", "ln", "truncate"}
+PLAIN_COMMANDS = {"mkfifo", "ln", "truncate", "mkdir"}
 PLACEHOLDER = "<number>"
 NUMBER = r"[-+]?(?:\d+(?:\.\d*)?|\.\d+)(?:[eE][-+]?\d+)?|[-+]?(?:nan|inf)"
 """What :data:`PLACEHOLDER` stands for in a documented output: a number as Python prints it."""

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import click
 
-from ..atomic import cannot_create
+from ..atomic import cannot_create, umask
 from ..emitters.escape import json_document
 from .starters import STARTERS
 
@@ -51,16 +51,10 @@ def _create(path: Path, text: str) -> None:
     try:
         with os.fdopen(fd, "w", encoding="utf-8", newline="\n") as fh:
             fh.write(text)
-        os.chmod(tmp, 0o666 & ~_umask())
+        os.chmod(tmp, 0o666 & ~umask())
         os.link(tmp, path)  # fails when path exists: no overwrite, no race
     finally:
         os.unlink(tmp)
-
-
-def _umask() -> int:
-    mask = os.umask(0)
-    os.umask(mask)
-    return mask
 
 
 @click.command()

@@ -6,7 +6,9 @@ every expression as a node of one shared table (a subexpression used twice is st
 A node is ``[head, ...]`` whose head must be on a whitelist: numbers, real symbols, ``Add``,
 ``Mul``, ``Pow`` and the elementary functions the expression parser admits. Loading rebuilds
 the expressions from the table without ``eval`` or ``sympify`` of text, as they were stored
-(they are canonical already, so nothing is re-evaluated). Anything off the whitelist,
+(they are canonical already, so nothing is re-evaluated), in time linear in the table (shared
+nodes stay shared), refusing expressions that would grow past :data:`TREE_NODES` nodes as
+trees (a term doubled again and again). Anything off the whitelist,
 malformed, or written by another format version raises :class:`CacheFormatError`: the caller
 treats it as a miss and derives again.
 """
@@ -202,6 +204,8 @@ def _nodes(table) -> list:
         _fail("malformed node table")
     built: list = []
     keep = built.append
+    sizes: list = []  # each node's size as a tree (what a walk that does not share would visit)
+    size_of = sizes.__getitem__
     references: list = []
     note = references.extend
     noncommutative: set[int] = set()  # the nodes that are not commutative (none, in kronsub's systems)
@@ -219,6 +223,7 @@ def _nodes(table) -> list:
             except (IndexError, TypeError):
                 _fail("a node refers to a later one, or by something other than its number")
             note(refs)
+            sizes.append(_tree_size(map(size_of, refs)))
             # a sum's or product's commutativity, from its terms'
             commutative = not noncommutative or noncommutative.isdisjoint(refs)
             e.is_commutative = commutative
@@ -235,6 +240,7 @@ def _nodes(table) -> list:
             except (IndexError, TypeError):
                 _fail("a node refers to a later one, or by something other than its number")
             note(refs)
+            sizes.append(_tree_size(map(size_of, refs)))
             if head == "Pow":
                 e = sympy.Pow(*args, evaluate=False) if len(args) == 2 else _fail("malformed Pow")
             else:
@@ -258,12 +264,29 @@ def _nodes(table) -> list:
             e = CONSTANTS[node[1]]
         else:
             _fail(f"node head {head!r} is not admitted")
+        if len(sizes) == number:  # a leaf
+            sizes.append(1)
         keep(e)
         if not e.is_commutative:
             noncommutative.add(number)
     if references and (set(map(type, references)) != _INT or min(references) < 0):
         _fail("malformed node arguments: a reference that is not a node's number")
     return built
+
+
+TREE_NODES = 10_000_000
+"""The most nodes an expression of a cache file may have as a tree. The table shares repeated
+subexpressions, and loading it is linear in its length, but what uses an expression may walk
+it as a tree; a table whose expressions double a term again and again (2**80 nodes in 80
+lines) is refused, so it is rebuilt, not walked. Derived systems stay far below (tens of
+thousands)."""
+
+
+def _tree_size(sizes) -> int:
+    size = 1 + sum(sizes)
+    if size > TREE_NODES:
+        _fail(f"an expression of more than {TREE_NODES} nodes as a tree")
+    return size
 
 
 @functools.lru_cache(maxsize=None)

@@ -11,8 +11,7 @@ import numpy.random  # noqa: F401  numpy loads it on first use; imported with th
 import sympy
 
 from .. import __version__
-from ..atomic import write_atomically
-from ..cache import usable_cache_dir
+from ..cache import load_entry, store_entry, usable_cache_dir
 from ..collector import collector_paused
 from ..core.known_system import KnownSystem, ProjectedEffect, Transition
 from ..core.subspace import (Subspace, assemble, assembled_potentials, effect_labels, project_effects,
@@ -59,12 +58,12 @@ def _cache_file(key: str, part: str) -> Path | None:
 
 
 def _load(path: Path | None, expected: type):
-    """The value stored at ``path``; None when it is missing, damaged, stale or not ours."""
+    """The value stored at ``path``; None when it is missing, damaged (its digest, recorded when
+    it was written, differs), stale, not ours or not private (:func:`kronsub.cache.load_entry`)."""
     if path is None:
         return None
-    try:
-        text = path.read_bytes()
-    except OSError:
+    text = load_entry(path)  # a private regular file whose digest matches, read bounded; else None
+    if text is None:
         return None
     try:
         return cache_format.loads(text, expected)
@@ -97,8 +96,8 @@ def store_cached(key: str, system: KnownSystem) -> None:
     try:
         transition = cache_format.dumps(system.transition)
         known = cache_format.dumps(dataclasses.replace(system, transition=None))
-        write_atomically(_cache_file(key, "transition"), transition)
-        write_atomically(path, known)
+        store_entry(_cache_file(key, "transition"), transition.encode())
+        store_entry(path, known.encode())
     except (OSError, cache_format.CacheFormatError):
         pass  # the cache is an optimisation only
 
@@ -182,7 +181,7 @@ def _store_parts(key: str, parts: dict) -> None:
         if path is None:
             return
         try:
-            write_atomically(path, cache_format.dumps(value))
+            store_entry(path, cache_format.dumps(value).encode())
         except (OSError, cache_format.CacheFormatError):
             pass  # the cache is an optimisation only
 

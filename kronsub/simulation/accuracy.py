@@ -238,12 +238,11 @@ class _Runners:
         self.native = None
         self.compile_seconds = None
         self.skipped: dict[str, str] = {}
-        from .compiled import compiled_library
+        from .compiled import native_model
 
         t0 = time.perf_counter()
         try:  # the library simulate built, when the equations are the same (compiled.fingerprint)
-            library = compiled_library(system)
-            self.native = native_module.NativeModel(library, len(system.coordinates), len(system.parameters))
+            self.native = native_model(system)
             self.compile_seconds = time.perf_counter() - t0
         except native_module.CompilerNotFound as exc:
             for m in NATIVE:

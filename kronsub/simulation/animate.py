@@ -11,13 +11,11 @@ along y (x horizontal, z up). GIF is written with pillow, mp4 with ffmpeg where 
 from __future__ import annotations
 
 import csv
-import os
-import tempfile
 from pathlib import Path
 
 import numpy as np
 
-from ..atomic import _final_mode
+from ..atomic import atomic_path
 from ..emitters.escape import plot_text
 from ..errors import KronsubError
 from .plot import point_paths
@@ -186,14 +184,9 @@ def animate(t: np.ndarray, names: list[str], values: np.ndarray, path: Path, *, 
     # below 1/interval keeps 30 ms from becoming 29, and so 20
     rate = 1000.0 / (1000.0 * interval + 1e-6)
     writer = animation.PillowWriter(fps=rate) if suffix == ".gif" else animation.FFMpegWriter(fps=1.0 / interval)
-    fd, tmp = tempfile.mkstemp(dir=path.resolve().parent, prefix=f".{path.stem}.", suffix=suffix)
-    os.close(fd)
     try:
-        movie.save(tmp, writer=writer, dpi=dpi)
-        os.chmod(tmp, _final_mode(path))  # the mode an ordinary open would give (mkstemp makes 0600)
-        os.replace(tmp, path)
+        with atomic_path(path) as tmp:  # the writers want a file name with the format's suffix
+            movie.save(str(tmp), writer=writer, dpi=dpi)
     finally:
         plt.close(fig)
-        if os.path.exists(tmp):
-            os.unlink(tmp)
     return len(rows)

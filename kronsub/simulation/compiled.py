@@ -6,18 +6,21 @@ the equations themselves (their cache-format text, :mod:`kronsub.model.cache_for
 outputs asked for, the integrators' sources and the compiler, and a run whose fingerprint
 is indexed loads the library without emitting a line. The index holds names and digests
 only: the library it names is loaded only when its bytes match both the digest recorded
-in the index and its sidecar (:func:`.native.verified`); otherwise it is emitted and built
-anew.
+in the index and its sidecar (:func:`.native.verified`) and it says, from a C file compiled
+into it (:func:`identity_source`), that it computes these equations with these numbers of
+coordinates and parameters; otherwise it is emitted and built anew. Index entries are private
+and sealed with their digest (:func:`kronsub.cache.store_entry`).
 """
 from __future__ import annotations
 
+import ctypes
 import dataclasses
 import json
 import re
 import shutil
 from pathlib import Path
 
-from ..atomic import write_atomically
+from ..cache import load_entry, private_folder, store_entry
 from ..core.known_system import KnownSystem
 from . import native
 
@@ -49,49 +52,98 @@ def _index_file(key: str) -> Path:
     return native._build_root() / "index" / f"{key}.json"
 
 
+INDEX_BYTES = 4096  # an index entry names a folder, a library and a digest
+
+
 def lookup(key: str) -> Path | None:
     """The verified library indexed under ``key``, or None."""
     try:
-        entry = json.loads(_index_file(key).read_text(encoding="utf-8"))
+        text = load_entry(_index_file(key), INDEX_BYTES)  # private, sealed, read bounded
+        entry = json.loads(text.decode("ascii"))
         folder, name, digest = entry["folder"], entry["library"], entry["sha256"]
-    except (OSError, ValueError, KeyError, TypeError):
+    except (AttributeError, OSError, ValueError, KeyError, TypeError):
         return None
     if not (isinstance(folder, str) and _FOLDER.fullmatch(folder) and isinstance(name, str)
             and _LIBRARY.fullmatch(name) and isinstance(digest, str)):
         return None
     library = native._build_root() / folder / name
-    try:
-        recorded = native.sidecar(library).read_text(encoding="ascii").strip()
-    except (OSError, UnicodeError):
-        return None
+    recorded = native.recorded_digest(library)
     return library if recorded == digest and native.verified(library) else None
 
 
 def record(key: str, library: Path) -> None:
     """Index ``library`` under ``key`` (an optimisation only: failures are ignored)."""
     try:
-        digest = native.sidecar(library).read_text(encoding="ascii").strip()
-        index = _index_file(key)
-        index.parent.mkdir(exist_ok=True)
+        digest = native.recorded_digest(library)
+        if digest is None:
+            return
+        index = private_folder(_index_file(key).parent) / f"{key}.json"
         entry = {"folder": library.parent.name, "library": library.name, "sha256": digest}
-        write_atomically(index, json.dumps(entry, sort_keys=True))
-    except (OSError, UnicodeError):
+        store_entry(index, json.dumps(entry, sort_keys=True).encode("ascii"))
+    except OSError:
         pass
+
+
+def identity_source(key: str, nq: int, nparam: int) -> tuple[str, str]:
+    """The C file compiled into a model's library that says which model it computes: its
+    coordinates, parameters and equations' fingerprint (checked by :func:`belongs`)."""
+    return IDENTITY_FILE, (
+        "/* kronsub: the model this library computes, checked when it is loaded */\n"
+        "int ks_identity_nq(void);\nint ks_identity_nparam(void);\nconst char *ks_identity(void);\n"
+        f"int ks_identity_nq(void) {{ return {int(nq)}; }}\n"
+        f"int ks_identity_nparam(void) {{ return {int(nparam)}; }}\n"
+        f'const char *ks_identity(void) {{ return "{key}"; }}\n')
+
+
+IDENTITY_FILE = "ks_identity.c"
+
+
+def belongs(library: Path, key: str, nq: int, nparam: int) -> bool:
+    """Whether ``library`` was built for the equations fingerprinted ``key`` with ``nq``
+    coordinates and ``nparam`` parameters (what :func:`identity_source` compiled into it)."""
+    try:
+        lib = ctypes.CDLL(str(library))
+        told = lib.ks_identity
+        told.restype, told.argtypes = ctypes.c_char_p, []
+        counts = int(lib.ks_identity_nq()), int(lib.ks_identity_nparam())
+        return told() == key.encode("ascii") and counts == (nq, nparam)
+    except (OSError, AttributeError, ValueError):
+        return False
 
 
 def compiled_library(system: KnownSystem, outputs=None) -> Path:
     """The shared library of ``system``'s generated C with the integrators: from the index
-    when its fingerprint is there, else emitted, built (:func:`.native.compile_library`) and
-    indexed. Raises what ``compile_library`` raises."""
+    when its fingerprint is there and the library says it computes these equations
+    (:func:`belongs`), else emitted, built (:func:`.native.compile_library`) and indexed.
+    Raises what ``compile_library`` raises."""
     from ..emitters.code import emit_c
 
     key = fingerprint(system, outputs)
+    nq, nparam = len(system.coordinates), len(system.parameters)
     if key is not None:
         library = lookup(key)
-        if library is not None:
+        if library is not None and belongs(library, key, nq, nparam):
             return library
     generated = [(g.name, g.text) for g in emit_c(system, "model", outputs=outputs)]
+    if key is not None:
+        generated.append(identity_source(key, nq, nparam))
     library = native.compile_library(generated, "model")
     if key is not None:
+        if not belongs(library, key, nq, nparam):
+            raise native.NativeError(f"{library} does not compute the model it was built for")
         record(key, library)
     return library
+
+
+def native_model(system: KnownSystem, outputs=None) -> native.NativeModel:
+    """:func:`compiled_library` loaded; a library removed between its build and its loading
+    (``kronsub cache clear`` meanwhile) is built again, once."""
+    nq, nparam = len(system.coordinates), len(system.parameters)
+    for attempt in (1, 2):
+        library = compiled_library(system, outputs)
+        try:
+            return native.NativeModel(library, nq, nparam)
+        except OSError:
+            if attempt == 2 or library.exists():
+                raise
+    raise AssertionError("unreachable")

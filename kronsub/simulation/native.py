@@ -25,6 +25,7 @@ import platform
 import re
 import shlex
 import shutil
+import stat
 import subprocess
 import tempfile
 from dataclasses import dataclass
@@ -33,8 +34,8 @@ from typing import Callable, Sequence
 
 import numpy as np
 
-from kronsub.atomic import clean_stale, write_atomically
-from kronsub.cache import safe_folder, usable_cache_dir
+from kronsub.atomic import clean_stale
+from kronsub.cache import private_folder, read_private, safe_folder, usable_cache_dir, write_private
 from kronsub.errors import KronsubError
 
 CSRC = Path(__file__).resolve().parent / "csrc"
@@ -154,11 +155,6 @@ def _named_sources(sources: Sequence[str | tuple[str, str]], stem: str) -> list[
     return named
 
 
-def _write_atomic(path: Path, data: bytes) -> None:
-    """Write ``data`` to ``path`` through a temporary file and a rename."""
-    write_atomically(path, data)
-
-
 _SCRATCH: list[Path] = []
 
 
@@ -176,12 +172,22 @@ def _build_root() -> Path:
     writable, or not safe (see :mod:`kronsub.cache`)."""
     folder = usable_cache_dir()
     native = safe_folder(folder / "native") if folder is not None else None
-    return native if native is not None else _scratch_root()
+    if native is not None:
+        try:
+            return private_folder(native)  # 0700, whatever mode it was made with
+        except OSError:
+            pass
+    return _scratch_root()
 
 
 def _digest_file(path: Path) -> str:
+    """The sha256 of the regular file ``path`` (no link followed, no FIFO waited on: else an
+    :class:`OSError`)."""
     digest = hashlib.sha256()
-    with open(path, "rb") as fh:
+    fd = os.open(path, os.O_RDONLY | os.O_NOFOLLOW | os.O_NONBLOCK | getattr(os, "O_CLOEXEC", 0))
+    with os.fdopen(fd, "rb") as fh:
+        if not stat.S_ISREG(os.fstat(fd).st_mode):
+            raise OSError(f"{path} is not a regular file")
         for block in iter(lambda: fh.read(1 << 20), b""):
             digest.update(block)
     return digest.hexdigest()
@@ -192,15 +198,33 @@ def sidecar(library: Path) -> Path:
     return library.with_name(library.name + ".sha256")
 
 
-def verified(library: Path) -> bool:
-    """True when ``library`` is a regular file whose sha256 is the one its sidecar records
-    (a library planted without one, truncated, or changed since its build is not)."""
+def _sidecar_lines(library: Path) -> list[str]:
+    data = read_private(sidecar(library), 200)
+    return data.decode("ascii", "replace").split() if data is not None else []
+
+
+def recorded_digest(library: Path) -> str | None:
+    """The sha256 the sidecar of ``library`` records, when the sidecar is a private regular
+    file of this user holding one (read bounded, no link followed); else None."""
+    lines = _sidecar_lines(library)
+    return lines[0] if lines and re.fullmatch(r"[0-9a-f]{64}", lines[0]) else None
+
+
+def verified(library: Path, key: str | None = None) -> bool:
+    """True when ``library`` is a private regular file of this user (no link) whose sha256 is
+    the one its sidecar records (a library planted without one, truncated, changed since its
+    build, or that others may write is not), and, given ``key``, whose sidecar says it was
+    built from the sources of that key (a folder moved under another key's name is not)."""
     try:
-        if not library.is_file() or library.is_symlink():
+        st = os.lstat(library)
+        if not stat.S_ISREG(st.st_mode) or st.st_uid != os.geteuid() or st.st_mode & 0o077:
             return False
-        recorded = sidecar(library).read_text(encoding="ascii").strip()
-        return re.fullmatch(r"[0-9a-f]{64}", recorded) is not None and _digest_file(library) == recorded
-    except (OSError, UnicodeError):
+        lines = _sidecar_lines(library)
+        recorded = recorded_digest(library)
+        if recorded is None or key is not None and lines[1:2] != [key]:
+            return False
+        return _digest_file(library) == recorded
+    except OSError:
         return False
 
 
@@ -218,9 +242,13 @@ def compile_library(sources: Sequence[str | tuple[str, str]], name_hint: str = "
     on the include path. The folder ``<cache>/native/<name_hint>-<key>`` is keyed by the sha256
     of every file's name and text, the resolved compiler command and the flags, so an existing
     library is reused and a changed input never meets a stale one; the library is compiled
-    under a temporary name and renamed into place, and the sha256 of its bytes is written
-    beside it (:func:`sidecar`). A library is reused only when it matches that digest
-    (:func:`verified`); one planted without a sidecar, truncated or changed is rebuilt.
+    under a temporary name and renamed into place, and the sha256 of its bytes and the key
+    are written beside it (:func:`sidecar`). A library is reused only when it matches that
+    digest and key (:func:`verified`); one planted without a sidecar, truncated, changed or
+    moved under another key's name is rebuilt. The folder and its files are private (0700,
+    0600); a folder removed meanwhile (``kronsub cache clear``) is made again and the build
+    run again (removed twice: in the process's private temporary folder), not reported as a
+    missing compiler.
     """
     command = compiler_command()
     stem = re.sub(r"[^A-Za-z0-9_]+", "_", name_hint).strip("_") or "model"
@@ -235,17 +263,41 @@ def compile_library(sources: Sequence[str | tuple[str, str]], name_hint: str = "
     digest.update("\0".join([*resolved, *build_identity(flags)]).encode())
     key = digest.hexdigest()
 
-    folder = _build_root() / f"{stem}-{key[:24]}"
-    library = folder / f"lib{stem}.so"
-    if verified(library):
-        return library
-    folder.mkdir(parents=True, exist_ok=True)
-    for name, text in files:
-        _write_atomic(folder / name, text.encode())
+    # a folder removed meanwhile (`kronsub cache clear`) is made again; removed twice, the build
+    # goes to this process's private temporary folder, which nothing else clears
+    for root in (_build_root, _build_root, _scratch_root, _scratch_root):
+        folder = root() / f"{stem}-{key[:24]}"
+        try:
+            try:
+                private_folder(folder)
+            except FileNotFoundError:
+                raise _Vanished from None
+            except OSError:  # planted there (a link, a file, another user's): not used
+                folder = private_folder(_scratch_root() / folder.name)
+            return _build(folder, stem, files, command, flags, key)
+        except _Vanished:
+            continue
+    raise NativeError(f"the build folder {folder} was removed while {stem} was compiled, four times")
 
-    clean_stale(library)  # left by a build that was killed
-    fd, tmp_name = tempfile.mkstemp(prefix=f".lib{stem}.so.", suffix=".tmp", dir=folder)
-    os.close(fd)
+
+class _Vanished(Exception):
+    """The build folder was removed during a build."""
+
+
+def _build(folder: Path, stem: str, files: list[tuple[str, str]], command: list[str], flags, key: str) -> Path:
+    """Compile ``files`` in ``folder`` (private) into ``lib{stem}.so`` with its sidecar; raises
+    :class:`_Vanished` when the folder disappears meanwhile."""
+    library = folder / f"lib{stem}.so"
+    if verified(library, key):
+        return library
+    try:
+        for name, text in files:
+            write_private(folder / name, text.encode())
+        clean_stale(library)  # left by a build that was killed
+        fd, tmp_name = tempfile.mkstemp(prefix=f".lib{stem}.so.", suffix=".tmp", dir=folder)
+        os.close(fd)
+    except FileNotFoundError:
+        raise _Vanished from None
     tmp = Path(tmp_name)
     c_files = [name for name, _ in files if name.endswith(".c")]
     rest = ["-I", str(folder), "-o", str(tmp), *c_files, *LIBS]
@@ -253,21 +305,29 @@ def compile_library(sources: Sequence[str | tuple[str, str]], name_hint: str = "
     try:
         try:
             proc = _run_compiler(full, folder)
-            if proc.returncode != 0 and flags != FLAGS:  # a compiler that cannot target the host
+            if proc.returncode != 0 and flags != FLAGS and folder.is_dir():  # a compiler that cannot target the host
                 full = [*command, *FLAGS, *rest]
                 proc = _run_compiler(full, folder)
         except OSError as exc:
+            if not folder.is_dir():
+                raise _Vanished from None
             raise CompilerNotFound(f"C compiler {command[0]!r} could not be run: {exc}") from exc
         except subprocess.TimeoutExpired as exc:
             raise CompileError(f"compiling {stem} took longer than {COMPILE_TIMEOUT:.0f} s") from exc
         if proc.returncode != 0:
+            if not folder.is_dir() or not all((folder / name).is_file() for name in c_files):
+                raise _Vanished
             stderr = (proc.stderr or proc.stdout or "").strip()
             raise CompileError(
                 f"compiling {stem} failed ({shlex.join(full)}):\n{stderr}", stderr
             )
-        digest = _digest_file(tmp)
-        os.replace(tmp, library)
-        write_atomically(sidecar(library), digest + "\n")
+        try:
+            os.chmod(tmp, 0o600)  # private whatever the umask (the linker made it executable)
+            digest = _digest_file(tmp)
+            os.replace(tmp, library)
+            write_private(sidecar(library), f"{digest}\n{key}\n".encode())
+        except FileNotFoundError:
+            raise _Vanished from None
     finally:
         tmp.unlink(missing_ok=True)
     return library
@@ -344,6 +404,8 @@ _SIGNATURES = {
     "ks_rhs_circle_pre": (_I, [_D, _P, _P, _P]),
     "ks_circle_state": (None, [_P, _P]),
     "ks_newton_init": (None, [_P]),
+    "ks_identity_nq": (_I, []),
+    "ks_identity_nparam": (_I, []),
 }
 _REQUIRED = ("ks_rhs", "ks_status_message", "ks_dop853", "ks_gauss4", "ks_rk4", "ks_map_rows",
              "ks_energy_rows")
@@ -392,6 +454,11 @@ class NativeModel:
         missing = [name for name in _REQUIRED if name not in self._fn]
         if missing:
             raise NativeError(f"{self.path} lacks {', '.join(missing)}; build it with compile_library")
+        if "ks_identity_nq" in self._fn and "ks_identity_nparam" in self._fn:  # (kronsub.simulation.compiled)
+            built = int(self._fn["ks_identity_nq"]()), int(self._fn["ks_identity_nparam"]())
+            if built != (nq, nparam):
+                raise NativeError(f"{self.path} was built for {built[0]} coordinates and {built[1]} parameters, "
+                                  f"not {nq} and {nparam}")
         # implicit constraints: the Newton state [y_d; tolerance] after the parameters, owned here
         self.nstate = int(self._fn["ks_nstate"]()) if "ks_nstate" in self._fn else 0
         self._buffer = np.zeros(max(self.nparam + self.nstate, 1))

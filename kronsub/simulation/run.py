@@ -23,8 +23,8 @@ from ..core.known_system import KnownSystem
 from ..emitters.code import emit_python
 from ..emitters.escape import python_string
 from ..errors import KronsubError
-from .compiled import compiled_library
-from .native import CompileError, CompilerNotFound, NativeModel
+from .compiled import native_model
+from .native import CompileError, CompilerNotFound
 from .values import RunValues
 
 
@@ -314,7 +314,7 @@ def start(system: KnownSystem, values: RunValues, t_end: float, dt: float, metho
 def _compiled(system, outputs):
     """The model compiled from its generated C, or None (with a warning) to use the numpy module."""
     try:
-        return NativeModel(compiled_library(system, outputs), len(system.coordinates), len(system.parameters))
+        return native_model(system, outputs)
     except CompilerNotFound:
         warnings.warn("no C compiler found: using the generated numpy module (slower)")
     except CompileError as exc:
@@ -327,7 +327,7 @@ def _compiled_quietly(system, outputs):
     """The compiled model for the energies of rows computed without it (heyoka, taylor), or None:
     those rows do not need it, so a missing compiler says nothing here."""
     try:
-        return NativeModel(compiled_library(system, outputs), len(system.coordinates), len(system.parameters))
+        return native_model(system, outputs)
     except (CompilerNotFound, CompileError):
         return None
 

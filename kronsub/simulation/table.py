@@ -31,6 +31,7 @@ import numpy as np
 
 from ..core.known_system import KnownSystem
 from ..emitters.escape import json_document
+from ..interrupts import HELD, signal_name, signal_of
 from .run import Block, Run, Trajectory, _numpy_module
 from .values import RunValues
 
@@ -44,23 +45,29 @@ def format_rows(data: np.ndarray) -> str:
 
 @contextlib.contextmanager
 def _whole_rows():
-    """Hold off Ctrl-C (SIGINT) while rows are written, then deliver it: a file interrupted
-    mid-write still ends with a whole row, counted in the metadata."""
+    """Hold off Ctrl-C (SIGINT), SIGTERM and SIGHUP (:data:`kronsub.interrupts.HELD`) while rows
+    are written, then deliver the first: a file interrupted mid-write still ends with a whole
+    row, counted in the metadata. A signal whose handler is not Python's (the default action,
+    ignored) is left alone."""
     if threading.current_thread() is not threading.main_thread():
         yield
         return
     caught = []
+    previous = {}
     try:
-        previous = signal.signal(signal.SIGINT, lambda signum, frame: caught.append((signum, frame)))
+        for signum in HELD:
+            handler = signal.getsignal(signum)
+            if callable(handler):
+                previous[signum] = signal.signal(signum, lambda number, frame: caught.append((number, frame)))
     except (ValueError, OSError):  # no signals here (an embedded interpreter)
-        yield
-        return
+        pass
     try:
         yield
     finally:
-        signal.signal(signal.SIGINT, previous)
-        if caught and callable(previous):
-            previous(*caught[0])
+        for signum, handler in previous.items():
+            signal.signal(signum, handler)
+        if caught:
+            previous[caught[0][0]](*caught[0])
 
 
 def sidecar_path(csv_path: Path) -> Path:
@@ -178,6 +185,7 @@ class CsvWriter:
         self.param = np.array(values.parameters)
         self.module = _Module(system, outputs)
         self.rows, self.last_t, self.stopped, self.reader_gone = 0, None, False, False
+        self.signum: int | None = None  # the signal that interrupted the run (SIGINT for Ctrl-C)
         self.want = {k: outputs is None or getattr(outputs, k) for k in ("coordinates", "velocities", "energies")}
         columns = ["t"]
         if self.want["coordinates"]:
@@ -275,13 +283,17 @@ class CsvWriter:
     def _cost(self, stats: dict) -> None:
         self._meta["cost"] = {k: (_json_number(v) if k == "stiff_from" else int(v)) for k, v in stats.items()}
 
-    def interrupted(self, stats: dict | None = None) -> None:
-        """Record an interrupt (Ctrl-C): the rows so far, to ``last_t``, are all there is."""
+    def interrupted(self, stats: dict | None = None, signum: int = signal.SIGINT) -> None:
+        """Record an interrupt (Ctrl-C, SIGTERM, SIGHUP: ``signum``): the rows so far, to
+        ``last_t``, are all there is."""
         self.stopped = True
+        self.signum = int(signum)
         if stats is not None:
             self._cost(stats)
+        name = signal_name(signum)
         self._meta.update(status="interrupted", complete=False, stopped_at=_json_number(self.last_t),
-                          stop_reason="interrupted (Ctrl-C)")
+                          stop_reason=f"interrupted ({'Ctrl-C' if signum == signal.SIGINT else name})",
+                          signal=name)
 
     def stream(self, run: Run, keep=None) -> None:
         """Write the blocks of ``run`` as they are computed, then record how it ended; ``keep(block)``,
@@ -292,8 +304,8 @@ class CsvWriter:
                 self.block(block)
                 if keep is not None:
                     keep(block)
-        except KeyboardInterrupt:
-            self.interrupted(run.stats)
+        except KeyboardInterrupt as exc:
+            self.interrupted(run.stats, signal_of(exc))
             raise
         except BrokenPipeError:  # the reader went away (`| head`): the rows it took are all there is
             self.stopped = self.reader_gone = True
