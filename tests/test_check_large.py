@@ -60,3 +60,17 @@ def test_numeric_jacobian_outside_the_domain_raises():
 def test_affine():
     assert affine(2 * (q1 + q2) + l, [q1, q2]) and affine(q1 - sympy.pi / 2, [q1])
     assert not affine(l * q1, [q1]) and not affine(q1 * q2, [q1, q2]) and not affine(sympy.sin(q1), [q1])
+
+
+def test_the_jacobian_is_charged_to_the_work_budget():
+    """Its work counts against the command's budget (kronsub/budget.py): a small one stops it,
+    naming what grew."""
+    from kronsub import budget
+
+    qs = sympy.symbols("q1:41")
+    rows = [sum(sympy.sin(q) for q in qs[:i + 1]) for i in range(len(qs))]
+    with budget.limited(units=500):
+        with pytest.raises(budget.WorkBudgetExceeded, match="the Jacobian C = dx/dxbar of the connection"):
+            jacobian(rows, qs, {q: 0.1 for q in qs})
+    with budget.limited(units=10**6):
+        jacobian(rows, qs, {q: 0.1 for q in qs})

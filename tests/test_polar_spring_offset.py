@@ -89,3 +89,13 @@ def test_peeled_wang_known_factors(expr):
     e = sympy.sympify(expr)
     with peeled():
         assert sympy.factor(sympy.expand(e)) == sympy.factor(e)
+
+
+def test_the_factorization_is_charged_to_the_work_budget():
+    from kronsub import budget
+
+    x, y, z = sympy.symbols("x y z")
+    expr = sympy.expand((x * y + 1) * (x * y - 1) * (x * z - y))
+    with budget.limited(units=3), peeled():
+        with pytest.raises(budget.WorkBudgetExceeded, match="the factorization of an entry's printed form"):
+            sympy.factor(expr)

@@ -15,6 +15,8 @@ from typing import Mapping, Sequence
 
 import sympy
 
+from ..budget import charge
+
 _D = {  # f(u) -> f'(u)
     sympy.sin: (math.sin, math.cos),
     sympy.cos: (math.cos, lambda u: -math.sin(u)),
@@ -60,7 +62,8 @@ def _evaluate(root, index, values, memo):
             stack.extend(pending)
             continue
         stack.pop()
-        memo[node] = _node(node, index, values, memo)
+        memo[node] = value = _node(node, index, values, memo)
+        charge(1 + len(node.args) + len(value[1]), "the Jacobian C = dx/dxbar of the connection")
     return memo[root]
 
 

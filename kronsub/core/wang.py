@@ -23,6 +23,8 @@ from sympy.polys.densearith import dmp_exquo, dmp_neg
 from sympy.polys.densetools import dmp_ground_primitive
 from sympy.polys.euclidtools import dmp_gcd
 
+from ..budget import charge
+
 _WANG = factortools.dmp_zz_wang
 
 
@@ -41,6 +43,7 @@ def factor_sqf(f, u, K, mod=None, seed=None):
     """The irreducible factors of the primitive square-free ``f`` in ``Z[x_0..x_u]``
     (``dmp_zz_wang``'s contract): the variables of degree one peeled off first."""
     terms = dmp_to_dict(f, u, K)
+    charge(len(terms) * (u + 1), "the factorization of an entry's printed form")
     for j in range(u + 1):
         if max(m[j] for m in terms) != 1:
             continue
