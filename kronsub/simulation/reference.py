@@ -514,6 +514,7 @@ def extrapolation(system: KnownSystem, param, y0, times, digits: int = 30, depen
         K = max(6, (digits + 3) // 2)
         tol = mpmath.mpf(10) ** -(digits + 2)
         t, y, steps, out, h = 0, [_fixed(_mpf(v), P) for v in y0], 0, [], 1 << (P - 5)
+        end = _fixed(_targets(times)[-1], P)
         deps = []
 
         def f(tt, z):
@@ -545,9 +546,9 @@ def extrapolation(system: KnownSystem, param, y0, times, digits: int = 30, depen
                     y = best
                     steps += 1
                 h = int(step * factor)
-                _within_budget(steps, t, h, _fixed(_targets(times)[-1], P), P)
                 if h < (1 << P) // 10 ** (digits // 2):
                     raise ReferenceFailure(f"the extrapolation route's step underflowed at t = {float(_real(t, P)):.6g}")
+                _within_budget(steps, t, h, end, P)
             out.append([_real(v, P) for v in y])
             if closure.k:
                 deps.append([_real(v, P) for v in closure.dependent(y[:n])])
