@@ -1,10 +1,13 @@
-"""sympy's own random numbers drawn from a fixed seed around the calls that use them."""
+"""sympy's own random numbers drawn from a fixed seed around the calls that use them, and
+Wang's factorization given only the variables it needs (:mod:`.wang`)."""
 from __future__ import annotations
 
 import contextlib
 import functools
 
 from sympy.core import random as sympy_random
+
+from .wang import peeled
 
 SEED = 20261124
 """The seed each such call starts from."""
@@ -19,11 +22,14 @@ def sympy_seeded():
     tries evaluation points drawn at random: the factors are the same whatever they are, the
     time is not. Unseeded, the same reaction of a spring on a spherical pendulum took 2 s in
     four runs and over 5 minutes in the fifth; seeded, every run takes the path of the first.
+    The variables of degree one are peeled off before Wang's algorithm (:func:`.wang.peeled`),
+    whose time at any seed grows steeply with the number of variables.
     """
     states = sympy_random.rng.getstate(), sympy_random._assumptions_rng.getstate()
     sympy_random.seed(SEED)
     try:
-        yield
+        with peeled():
+            yield
     finally:
         sympy_random.rng.setstate(states[0])
         sympy_random._assumptions_rng.setstate(states[1])

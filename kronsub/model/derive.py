@@ -14,6 +14,7 @@ from .. import __version__
 from ..cache import load_entry, store_entry, usable_cache_dir
 from ..collector import collector_paused
 from ..core.known_system import KnownSystem, ProjectedEffect, Transition
+from ..core.numeric_jacobian import affine, jacobian
 from ..core.subspace import (Subspace, assemble, assembled_potentials, effect_labels, project_effects,
                              project_inertia)
 from . import cache_format
@@ -205,28 +206,39 @@ def check_subspace_rank(model, sub: Subspace, samples: int = 3) -> None:
                  analytic=not any(a.has(*_PIECEWISE) for a in atoms))
 
 
-def check_rank(model, C: sympy.Matrix, samples: int = 3) -> None:
-    """Warn when ``C = dx/dxbar`` (21) is rank-deficient at sample configurations."""
+def check_rank(model, positions, samples: int = 3) -> None:
+    """Warn when ``C = dx/dxbar`` (21) of the connection's ``positions`` (each ``x`` in the
+    generalized coordinates) is rank-deficient at sample configurations; ``C`` is evaluated
+    there in floating point (:func:`.numeric_jacobian.jacobian`), never formed symbolically."""
     coords = model.coordinates
-    symbols = sorted(C.free_symbols - set(coords), key=lambda s: s.name)
-    if C.free_symbols:
-        cells = [(i, j) for i in range(C.rows) for j in range(C.cols) if C[i, j] != 0]
-        g = sympy.lambdify([list(coords), symbols], [C[i, j] for i, j in cells], modules="math")
+    positions = [sympy.sympify(x) for x in positions]
+    symbols = sorted(set().union(*(x.free_symbols for x in positions)) - set(coords), key=lambda s: s.name)
 
-        def f(q, p):
-            m = np.zeros(C.shape)
-            for (i, j), v in zip(cells, g(q, p)):
-                m[i, j] = v
-            return m
-    else:  # a constant C (a linear connection): one look suffices
-        constant = [[float(e) for e in row] for row in C.tolist()]
-        f, samples = (lambda q, p: constant), 1
-    _sample_rank(model, f, symbols, samples, constant=not C.free_symbols, analytic=not C.has(*_PIECEWISE))
+    def f(q, p):
+        return jacobian(positions, coords, {**dict(zip(coords, q)), **dict(zip(symbols, p))})
+
+    constant = all(affine(x, coords) for x in positions)
+    analytic = not _piecewise_in(positions, set(coords))
+    _sample_rank(model, f, symbols, samples, constant=constant, analytic=analytic)
 
 
 _PIECEWISE = (sympy.Abs, sympy.sign, sympy.Heaviside, sympy.DiracDelta, sympy.Piecewise)
 """What makes ``C`` piecewise (``abs`` and ``sign`` in a connection): full rank in one piece
 says nothing of another."""
+
+
+def _piecewise_in(positions, coords: set) -> bool:
+    """Whether a `_PIECEWISE` function of the coordinates is in ``positions`` (each distinct
+    subexpression looked at once)."""
+    seen, stack = set(), list(positions)
+    while stack:
+        node = stack.pop()
+        if node not in seen:
+            seen.add(node)
+            if isinstance(node, _PIECEWISE) and node.free_symbols & coords:
+                return True
+            stack.extend(node.args)
+    return False
 
 
 def _sample_rank(model, f, symbols, samples: int, constant: bool, analytic: bool = False) -> None:

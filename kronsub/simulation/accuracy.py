@@ -59,6 +59,8 @@ REFERENCE_MARGIN = 100.0  # the reference must be this much more accurate than t
 SLOW_SECONDS = 5.0  # a method whose run took longer skips its tighter tolerances
 FLOAT64_FLOOR = 1e-15  # float64 methods skip tighter tolerances
 RESIDUAL_ROWS = 2000  # the constraint residuals are evaluated at most at this many steps of a run
+RUN_STEPS = 1_000_000  # a SciPy run that takes more steps is a failed point
+STALLED_STEPS = 100  # so is one whose time stays where it is for this many steps (a step size of 0)
 
 
 class AccuracyError(KronsubError):
@@ -341,11 +343,17 @@ class _Runners:
                 with warnings.catch_warnings(), np.errstate(all="ignore"):
                     warnings.simplefilter("ignore")
                     solver = solver_class(rhs, 0.0, y0.copy(), t_end, rtol=tol, atol=tol)
-                    steps = 0
+                    steps, still = 0, 0
                     try:
                         while solver.status == "running":
+                            if steps >= RUN_STEPS or still >= STALLED_STEPS:
+                                return (solver.y.copy(), solver.nfev, steps,
+                                        f"stopped at t = {solver.t:.6g}: " + (f"more than {RUN_STEPS:,} steps" if
+                                        still < STALLED_STEPS else f"{still} steps in a row that did not advance"))
+                            t_before = solver.t
                             message = solver.step()
                             steps += 1
+                            still = still + 1 if solver.t == t_before else 0
                     except Exception as exc:  # a singular mass matrix, a failing step
                         return np.full(len(y0), np.nan), solver.nfev, steps, str(exc) or type(exc).__name__
                     status = "" if solver.status == "finished" else (message or "failed")

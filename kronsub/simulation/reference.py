@@ -48,6 +48,24 @@ class Unsupported(ReferenceFailure):
     """An expression the Taylor route has no recurrence for."""
 
 
+REFERENCE_STEPS = 10_000
+"""Steps a reference route may take to its last time (a bundled model takes about 450 to
+t = 10): a state that changes faster (an initial velocity of 1e154) is refused at its first
+step, from the step it takes there, instead of running for hours."""
+
+
+def _within_budget(steps: int, t: int, h: int, end: int, bits: int) -> None:
+    """Raise when the steps so far and those of size ``h`` still needed to ``end`` (fixed point)
+    exceed `REFERENCE_STEPS`."""
+    if h > 0 and steps + (end - t) // h < REFERENCE_STEPS:
+        return
+    size = f"{float(_real(h, bits)):.2g}" if h > 0 else "below the reference's resolution"
+    raise ReferenceFailure(
+        f"the reference would take more than {REFERENCE_STEPS:,} steps to t = {float(_real(end, bits)):g}: "
+        f"its step at t = {float(_real(t, bits)):.6g} is {size} (the state changes too fast to measure "
+        "against)\n  hint: a shorter --t, or smaller initial velocities or parameters (--set)")
+
+
 # ---------------------------------------------------------------------------------------------
 # The Taylor route: a tape of elementary operations and their coefficient recurrences
 # ---------------------------------------------------------------------------------------------
@@ -451,6 +469,7 @@ def taylor(system: KnownSystem, param, y0, times, digits: int = 30, dependent=No
         closure = _Closure(system, param, P, dependent)
         n = len(system.coordinates)
         t, y, steps, out, deps = 0, [_fixed(_mpf(v), P) for v in y0], 0, [], []
+        end = _fixed(_targets(times)[-1], P)
         for target in _targets(times):
             target = _fixed(target, P)
             while t < target:
@@ -462,6 +481,8 @@ def taylor(system: KnownSystem, param, y0, times, digits: int = 30, dependent=No
                     if size:
                         hk = _fixed((eps * scale / size) ** (mpmath.mpf(1) / k), P)
                         h = hk if h is None else min(h, hk)
+                if h is not None:
+                    _within_budget(steps, t, h, end, P)
                 h = target - t if h is None or t + h >= target else h
                 new = []
                 for s in coeff:  # Horner
@@ -493,6 +514,7 @@ def extrapolation(system: KnownSystem, param, y0, times, digits: int = 30, depen
         K = max(6, (digits + 3) // 2)
         tol = mpmath.mpf(10) ** -(digits + 2)
         t, y, steps, out, h = 0, [_fixed(_mpf(v), P) for v in y0], 0, [], 1 << (P - 5)
+        end = _fixed(_targets(times)[-1], P)
         deps = []
 
         def f(tt, z):
@@ -526,6 +548,7 @@ def extrapolation(system: KnownSystem, param, y0, times, digits: int = 30, depen
                 h = int(step * factor)
                 if h < (1 << P) // 10 ** (digits // 2):
                     raise ReferenceFailure(f"the extrapolation route's step underflowed at t = {float(_real(t, P)):.6g}")
+                _within_budget(steps, t, h, end, P)
             out.append([_real(v, P) for v in y])
             if closure.k:
                 deps.append([_real(v, P) for v in closure.dependent(y[:n])])
