@@ -1,0 +1,113 @@
+"""One bound on the work of a command, so that no small model can take minutes or all memory.
+
+The steps whose cost a model controls (reading an expression, expanding definitions,
+expanding products of sines and cosines, choosing a printed form...) `charge` a count
+of what they build (terms, nodes, operations) against the active `WorkBudget`. Counts
+are deterministic, so the same model stops at the same place on any machine; a
+deadline in seconds is an optional backstop. When the budget is spent, `charge` raises
+`WorkBudgetExceeded` naming what grew; the layer that knows the place in the model file
+re-raises it there with `WorkBudgetExceeded.at`, and the CLI prints it as any located
+error (exit 1) with a hint: ``--budget``, a cache, a simpler form.
+
+Usage::
+
+    with budget.limited(units=10**7):      # a command (the CLI's ``--budget``)
+        ...
+    with budget.scope():                   # a library entry point: the active budget, or a default one
+        budget.charge(len(a) * len(b), "terms of a product of sines and cosines")
+"""
+from __future__ import annotations
+
+import time
+from contextlib import contextmanager
+from contextvars import ContextVar
+from typing import Iterator
+
+from .errors import Location, ModelError, Problem
+
+DEFAULT_UNITS = 20_000_000
+"""The work budget of one command when none is given (``--budget``), in units of work:
+one unit is about one term, node or operation formed (roughly a microsecond)."""
+
+HINT = ("raise the budget with --budget UNITS (default {default:,}), keep the derivation in a "
+        "known system (`model:`, cached once derived), or write a simpler form")
+
+
+class WorkBudgetExceeded(ModelError):
+    """The work budget is spent: ``what`` grew beyond it (a located `ModelError`)."""
+
+    def __init__(self, what: str, units: int, location: Location | None = None):
+        self.what, self.units, self.location = what, units, location
+        super().__init__([Problem(location, f"stopped: {what} exceeded the work budget of {units:,} units",
+                                  HINT.format(default=DEFAULT_UNITS))])
+
+    def at(self, location: Location | None) -> "WorkBudgetExceeded":
+        """The same error placed at ``location``, unless it is placed already."""
+        if self.location is not None or location is None:
+            return self
+        return WorkBudgetExceeded(self.what, self.units, location)
+
+
+class WorkBudget:
+    """``units`` of work, and optionally a deadline ``seconds`` from now; `charge` spends them."""
+
+    __slots__ = ("units", "used", "deadline")
+
+    def __init__(self, units: int = DEFAULT_UNITS, seconds: float | None = None):
+        self.units, self.used = int(units), 0
+        self.deadline = None if seconds is None else time.monotonic() + seconds
+
+    def charge(self, units: int, what: str) -> None:
+        """Spend ``units``; raise `WorkBudgetExceeded` naming ``what`` once the budget is spent."""
+        self.used += units
+        if self.used > self.units or (self.deadline is not None and time.monotonic() > self.deadline):
+            raise WorkBudgetExceeded(what, self.units)
+
+    def check(self, units: int, what: str) -> None:
+        """Raise as `charge` would if ``units`` more were spent, without spending them."""
+        if self.used + units > self.units:
+            raise WorkBudgetExceeded(what, self.units)
+
+
+_ACTIVE: ContextVar[WorkBudget | None] = ContextVar("kronsub_work_budget", default=None)
+
+
+def active() -> WorkBudget | None:
+    """The budget work is charged to, or None outside `limited` and `scope`."""
+    return _ACTIVE.get()
+
+
+@contextmanager
+def limited(units: int | None = None, seconds: float | None = None) -> Iterator[WorkBudget]:
+    """A fresh budget of ``units`` (default `DEFAULT_UNITS`) for the block (a command)."""
+    token = _ACTIVE.set(WorkBudget(DEFAULT_UNITS if units is None else units, seconds))
+    try:
+        yield _ACTIVE.get()
+    finally:
+        _ACTIVE.reset(token)
+
+
+@contextmanager
+def scope() -> Iterator[WorkBudget]:
+    """The active budget, or a default one for the block when none is active (so that a
+    library call is bounded as a command is)."""
+    current = _ACTIVE.get()
+    if current is not None:
+        yield current
+        return
+    with limited() as fresh:
+        yield fresh
+
+
+def charge(units: int, what: str) -> None:
+    """Charge ``units`` of ``what`` to the active budget (nothing outside `limited`/`scope`)."""
+    current = _ACTIVE.get()
+    if current is not None:
+        current.charge(units, what)
+
+
+def check(units: int, what: str) -> None:
+    """Refuse ahead, as `WorkBudget.check`, work known to cost ``units`` (nothing outside a budget)."""
+    current = _ACTIVE.get()
+    if current is not None:
+        current.check(units, what)
