@@ -39,6 +39,12 @@ FACTORED = 60
 of multiple angles or varying factors only: ``(a1 sin(theta) - c)^2`` in System II)."""
 
 
+MULTIPLE = 16
+"""Highest multiple ``k`` of an angle whose ``sin(k b)``, ``cos(k b)`` are offered as polynomials in
+``sin b`` and ``cos b`` (the power form has some ``k/2`` terms, never shorter beyond it, and its
+reduction grows as ``2^(k/2)``): a higher one keeps its multiple-angle form."""
+
+
 ATOM_SYMBOLS = 24
 """Free symbols up to which an entry with trigonometric atoms is offered to ``trigsimp``
 (whose ``factor`` grows steeply with them)."""
@@ -242,7 +248,8 @@ def _printed_length(expr: sympy.Expr) -> int:
 # ------------------------------------------------------------------ angle groups
 def _angle_groups(p: TrigPoly):
     """Split ``p`` by base angle ``b`` (unit frequencies, e.g. ``phi - theta``): every
-    term ``trig(k b)`` with integer ``k`` joins the group of ``b`` when some ``k >= 2``.
+    term ``trig(k b)`` with integer ``k`` joins the group of ``b`` when some ``k >= 2`` and
+    none exceeds `MULTIPLE`.
 
     Returns ``({base: {(kind, k): coef}}, rest)``, rest holding the other terms
     (with the constant one, which each group may absorb).
@@ -260,7 +267,7 @@ def _angle_groups(p: TrigPoly):
         rest[(kind, freq)] = coef
     groups = {}
     for base, terms in by_base.items():
-        if any(k >= 2 for _, k in terms):
+        if any(k >= 2 for _, k in terms) and all(k <= MULTIPLE for _, k in terms):
             groups[base] = terms
         else:
             for (kind, k), coef in terms.items():
@@ -301,7 +308,7 @@ def _products(view: "_View", p: TrigPoly) -> sympy.Expr:
     shorter: ``cos(2 phi - 2 theta)`` terms of a top become products of single angles."""
     poly: dict = {}  # ((i, a, b), ...) -> coef: prod sin(q_i)^a cos(q_i)^b
     for (kind, freq), coef in p.terms.items():
-        if any(_fraction(v).denominator != 1 for _, v in freq):
+        if any(_fraction(v).denominator != 1 or abs(v) > MULTIPLE for _, v in freq):
             return view.render({}, {}, dict(p.terms))
         expansion = {(): (1, 0)}  # monomial -> (real, imaginary) integer parts
         for i, v in freq:

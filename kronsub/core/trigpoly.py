@@ -29,6 +29,7 @@ import sympy
 from ..errors import Location, ModelError, Problem
 from . import canonical
 from .derivative import derivative
+from .doubles import Unsupported, complex_value
 
 MAX_EXPANDED_POWER = 8
 """Highest integer power of a sum that is expanded (``(x + y)**8``); a higher one is an error."""
@@ -768,13 +769,21 @@ class NumericPoint:
     def __init__(self, algebra: TrigAlgebra, values: dict):
         self.q = [float(values[c]) for c in algebra.coordinates]
         self.algebra = algebra
-        self.values = {k: sympy.Float(v) for k, v in values.items()}
+        self.values = {k: float(v) for k, v in values.items()}
         self.atoms: dict[int, complex] = {}
+        self._memo: dict = {}
 
     def _atom(self, i: int) -> complex:
+        """An atom's value in complex doubles (`complex_value`: never sympy's unbounded
+        multiprecision, in which ``exp(exp(...))`` can abort the process)."""
         hit = self.atoms.get(i)
         if hit is None:
-            hit = self.atoms[i] = complex(self.algebra._atoms[i].xreplace(self.values).evalf())
+            atom = self.algebra._atoms[i]
+            try:
+                hit = complex_value(atom, self.values, self._memo)
+            except Unsupported:  # a Piecewise: sympy's evaluation
+                hit = complex(atom.xreplace({k: sympy.Float(v) for k, v in self.values.items()}).evalf())
+            self.atoms[i] = hit
         return hit
 
     def __call__(self, p: TrigPoly) -> float:

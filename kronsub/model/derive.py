@@ -14,6 +14,7 @@ from .. import __version__
 from ..atomic import write_atomically
 from ..cache import usable_cache_dir
 from ..collector import collector_paused
+from ..core.doubles import Unsupported, complex_jacobian, graph_nodes
 from ..core.known_system import KnownSystem, ProjectedEffect, Transition
 from ..core.subspace import (Subspace, assemble, assembled_potentials, effect_labels, project_effects,
                              project_inertia)
@@ -205,23 +206,46 @@ def check_subspace_rank(model, sub: Subspace, samples: int = 3) -> None:
                  analytic=not any(a.has(*_PIECEWISE) for a in atoms))
 
 
-def check_rank(model, C: sympy.Matrix, samples: int = 3) -> None:
-    """Warn when ``C = dx/dxbar`` (21) is rank-deficient at sample configurations."""
-    coords = model.coordinates
-    symbols = sorted(C.free_symbols - set(coords), key=lambda s: s.name)
-    if C.free_symbols:
-        cells = [(i, j) for i in range(C.rows) for j in range(C.cols) if C[i, j] != 0]
-        g = sympy.lambdify([list(coords), symbols], [C[i, j] for i, j in cells], modules="math")
+def check_rank(model, positions, samples: int = 3) -> None:
+    """Warn when ``C = dx/dxbar`` (21) is rank-deficient at sample configurations: ``C`` of the
+    connection's ``positions`` (each ``x`` in the generalized coordinates) evaluated by forward
+    differentiation over their graph (`complex_jacobian`), so that shared definitions cost once;
+    through sympy's Jacobian only for what that does not know (a Piecewise)."""
+    coords = list(model.coordinates)
+    positions = [sympy.sympify(x) for x in positions]
+    nodes = graph_nodes(positions)
+    symbols = sorted({n for n in nodes if n.is_Symbol} - set(coords), key=lambda s: s.name)
+    analytic = not any(isinstance(n, _PIECEWISE) for n in nodes)
 
-        def f(q, p):
-            m = np.zeros(C.shape)
-            for (i, j), v in zip(cells, g(q, p)):
-                m[i, j] = v
-            return m
-    else:  # a constant C (a linear connection): one look suffices
-        constant = [[float(e) for e in row] for row in C.tolist()]
-        f, samples = (lambda q, p: constant), 1
-    _sample_rank(model, f, symbols, samples, constant=not C.free_symbols, analytic=not C.has(*_PIECEWISE))
+    fallback = []
+
+    def f(q, p):
+        values = {**dict(zip(coords, q)), **dict(zip(symbols, p))}
+        try:
+            rows = complex_jacobian(positions, coords, values)
+        except Unsupported:
+            if not fallback:
+                fallback.append(_sympy_jacobian(positions, coords, symbols))
+            return fallback[0](q, p)
+        if any(v.imag for row in rows for v in row):
+            raise ValueError("outside the domain")
+        return [[v.real for v in row] for row in rows]
+
+    _sample_rank(model, f, symbols, samples, constant=not symbols and analytic, analytic=analytic)
+
+
+def _sympy_jacobian(positions, coords, symbols):
+    """``C`` at ``(q, p)`` through sympy's Jacobian and ``lambdify``."""
+    C = sympy.Matrix(positions).jacobian(sympy.Matrix(coords))
+    cells = [(i, j) for i in range(C.rows) for j in range(C.cols) if C[i, j] != 0]
+    g = sympy.lambdify([list(coords), symbols], [C[i, j] for i, j in cells], modules="math")
+
+    def f(q, p):
+        m = np.zeros(C.shape)
+        for (i, j), v in zip(cells, g(q, p)):
+            m[i, j] = v
+        return m
+    return f
 
 
 _PIECEWISE = (sympy.Abs, sympy.sign, sympy.Heaviside, sympy.DiracDelta, sympy.Piecewise)
