@@ -12,12 +12,14 @@ import sympy
 
 from .. import __version__
 from ..atomic import write_atomically
+from ..budget import WorkBudgetExceeded
 from ..cache import usable_cache_dir
 from ..collector import collector_paused
 from ..core.doubles import Unsupported, complex_jacobian, graph_nodes
 from ..core.known_system import KnownSystem, ProjectedEffect, Transition
 from ..core.subspace import (Subspace, assemble, assembled_potentials, effect_labels, project_effects,
                              project_inertia)
+from ..errors import Location
 from . import cache_format
 
 
@@ -137,13 +139,20 @@ def _derive(model, cache: bool, effects) -> KnownSystem:
     if inertia is None or missing:
         sub = Subspace(model.primitive, coordinates, model.connection)
         if inertia is None:
-            inertia = project_inertia(sub, model.primitive, name=model.name, parameters=model.parameters,
-                                      description=model.description)
+            try:
+                inertia = project_inertia(sub, model.primitive, name=model.name, parameters=model.parameters,
+                                          description=model.description)
+            except WorkBudgetExceeded as exc:  # placed at the connection, whose algebra grew
+                raise exc.at(model.locations.get("connection") or Location(model.path)) from None
             if implicit is None and not sub.only_renames(model.primitive):
                 check_subspace_rank(model, sub)
             _store_parts(key, {"inertia": dataclasses.replace(inertia, transition=None),
                                "inertia-transition": inertia.transition})
-        for piece in project_effects(sub, model.primitive, model.effects, only=missing):
+        try:
+            projected = project_effects(sub, model.primitive, model.effects, only=missing)
+        except WorkBudgetExceeded as exc:
+            raise exc.at(Location(model.path)) from None
+        for piece in projected:
             pieces[piece.label] = piece
             _store_parts(key, {f"effect.{piece.label}": piece})
     system = dataclasses.replace(assemble(inertia, [pieces[label] for label in chosen],
