@@ -29,6 +29,10 @@ DEFAULT_UNITS = 20_000_000
 """The work budget of one command when none is given (``--budget``), in units of work:
 one unit is about one term, node or operation formed (roughly a microsecond)."""
 
+PER_OPERATION = {"print": 25, "factor": 100}
+"""Units charged per operation of an expression (``count_ops``) by the steps that walk it whole:
+printing it, and sympy's ``factor_terms`` (a few tens of microseconds per operation each)."""
+
 HINT = ("raise the budget with --budget UNITS (default {default:,}), keep the derivation in a "
         "known system (`model:`, cached once derived), or write a simpler form")
 

@@ -24,7 +24,7 @@ from fractions import Fraction
 
 import sympy
 
-from ..budget import charge
+from ..budget import PER_OPERATION, charge
 from .inverse_trig import divide_out
 from .operations import count_ops
 from .printed import LexStrPrinter
@@ -241,6 +241,7 @@ def _factor_terms(expr: sympy.Expr) -> sympy.Expr:
         _FACTORED_TERMS.clear()
     hit = _FACTORED_TERMS.get((type(expr), expr))
     if hit is None:
+        charge(PER_OPERATION["factor"] * count_ops(expr), "the printed forms of an entry")
         hit = _FACTORED_TERMS[(type(expr), expr)] = sympy.factor_terms(expr)
     return hit
 

@@ -12,11 +12,12 @@ import sympy
 
 from .. import __version__
 from ..atomic import write_atomically
-from ..budget import WorkBudgetExceeded
+from ..budget import PER_OPERATION, WorkBudgetExceeded, charge
 from ..cache import usable_cache_dir
 from ..collector import collector_paused
 from ..core.doubles import Unsupported, complex_jacobian, graph_nodes
 from ..core.known_system import KnownSystem, ProjectedEffect, Transition
+from ..core.operations import count_ops
 from ..core.subspace import (Subspace, assemble, assembled_potentials, effect_labels, project_effects,
                              project_inertia)
 from ..errors import Location
@@ -118,7 +119,20 @@ def derive_model(model, *, cache: bool = True, effects=None) -> KnownSystem:
     collector is paused meanwhile (:func:`.collector_paused`).
     """
     with collector_paused():
-        return _derive(model, cache, effects)
+        system = _derive(model, cache, effects)
+    _charge_printed(system, model)
+    return system
+
+
+def _charge_printed(system: KnownSystem, model) -> None:
+    """Charge the work budget for printing the equations, before any command prints them:
+    their operations counted as printed (a definition used twice, twice; ``count_ops`` counts
+    each distinct part once), so that equations too long to print stop here, placed at the file."""
+    parts = [*system.mass_matrix, *system.velocity_terms, *system.forces, system.potential_energy]
+    try:
+        charge(PER_OPERATION["print"] * sum(count_ops(e) for e in parts), "the printed size of the equations")
+    except WorkBudgetExceeded as exc:
+        raise exc.at(Location(model.path)) from None
 
 
 def _derive(model, cache: bool, effects) -> KnownSystem:
