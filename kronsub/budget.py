@@ -18,6 +18,8 @@ Usage::
 """
 from __future__ import annotations
 
+import signal
+import threading
 import time
 from contextlib import contextmanager
 from contextvars import ContextVar
@@ -25,45 +27,55 @@ from typing import Iterator
 
 from .errors import Location, ModelError, Problem
 
-DEFAULT_UNITS = 20_000_000
+DEFAULT_UNITS = 10_000_000
 """The work budget of one command when none is given (``--budget``), in units of work:
 one unit is about one term, node or operation formed (roughly a microsecond)."""
 
-PER_OPERATION = {"print": 25, "factor": 100}
-"""Units charged per operation of an expression (``count_ops``) by the steps that walk it whole:
-printing it, and sympy's ``factor_terms`` (a few tens of microseconds per operation each)."""
+SECONDS_PER_MILLION = 3.0
+"""CPU seconds of the backstop (`cpu_backstop`) per million units of the budget, at least
+`MIN_SECONDS`: work the counts do not see (inside sympy) still stops."""
+MIN_SECONDS = 60.0
+
+PER_OPERATION = {"print": 25, "factor": 100, "evaluate": 100}
+"""Units charged per operation of an expression (``count_ops``, a definition used twice counted
+twice) by the steps that walk it whole: printing it, sympy's ``factor_terms``, and sympy's
+evaluation of a function or power of it as it is built (its assumptions: is it real, positive...)."""
 
 HINT = ("raise the budget with --budget UNITS (default {default:,}), keep the derivation in a "
         "known system (`model:`, cached once derived), or write a simpler form")
 
 
 class WorkBudgetExceeded(ModelError):
-    """The work budget is spent: ``what`` grew beyond it (a located `ModelError`)."""
+    """The work budget is spent: ``what`` grew beyond it (a located `ModelError`); ``seconds``
+    when it was the CPU-time backstop that stopped it."""
 
-    def __init__(self, what: str, units: int, location: Location | None = None):
-        self.what, self.units, self.location = what, units, location
-        super().__init__([Problem(location, f"stopped: {what} exceeded the work budget of {units:,} units",
+    def __init__(self, what: str, units: int, location: Location | None = None, seconds: float | None = None):
+        self.what, self.units, self.location, self.seconds = what, units, location, seconds
+        limit = f"the work budget of {units:,} units" if seconds is None else \
+            f"the {seconds:g} s of CPU time of the work budget of {units:,} units"
+        super().__init__([Problem(location, f"stopped: {what} exceeded {limit}",
                                   HINT.format(default=DEFAULT_UNITS))])
 
     def at(self, location: Location | None) -> "WorkBudgetExceeded":
         """The same error placed at ``location``, unless it is placed already."""
         if self.location is not None or location is None:
             return self
-        return WorkBudgetExceeded(self.what, self.units, location)
+        return WorkBudgetExceeded(self.what, self.units, location, self.seconds)
 
 
 class WorkBudget:
     """``units`` of work, and optionally a deadline ``seconds`` from now; `charge` spends them."""
 
-    __slots__ = ("units", "used", "deadline")
+    __slots__ = ("units", "used", "deadline", "what")
 
     def __init__(self, units: int = DEFAULT_UNITS, seconds: float | None = None):
-        self.units, self.used = int(units), 0
+        self.units, self.used, self.what = int(units), 0, "the work"
         self.deadline = None if seconds is None else time.monotonic() + seconds
 
     def charge(self, units: int, what: str) -> None:
         """Spend ``units``; raise `WorkBudgetExceeded` naming ``what`` once the budget is spent."""
         self.used += units
+        self.what = what
         if self.used > self.units or (self.deadline is not None and time.monotonic() > self.deadline):
             raise WorkBudgetExceeded(what, self.units)
 
@@ -115,3 +127,30 @@ def check(units: int, what: str) -> None:
     current = _ACTIVE.get()
     if current is not None:
         current.check(units, what)
+
+
+@contextmanager
+def cpu_backstop() -> Iterator[None]:
+    """Stop the block once the process has spent the active budget's CPU seconds in it
+    (`SECONDS_PER_MILLION`, at least `MIN_SECONDS`), naming what was last charged: a backstop
+    for work inside sympy that no count sees. CPU time (``ITIMER_VIRTUAL``), so the load of
+    other processes does not move it; only in the main thread, where signals arrive."""
+    current = _ACTIVE.get()
+    usable = current is not None and hasattr(signal, "setitimer") \
+        and threading.current_thread() is threading.main_thread() \
+        and signal.getitimer(signal.ITIMER_VIRTUAL) == (0.0, 0.0)
+    if not usable:
+        yield
+        return
+    seconds = max(MIN_SECONDS, SECONDS_PER_MILLION * current.units / 1e6)
+
+    def stop(signum, frame):
+        raise WorkBudgetExceeded(current.what, current.units, seconds=seconds)
+
+    previous = signal.signal(signal.SIGVTALRM, stop)
+    signal.setitimer(signal.ITIMER_VIRTUAL, seconds)
+    try:
+        yield
+    finally:
+        signal.setitimer(signal.ITIMER_VIRTUAL, 0)
+        signal.signal(signal.SIGVTALRM, previous)

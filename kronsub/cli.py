@@ -168,15 +168,17 @@ def scene_system(model: Path, scene_name: str | None, *, cache: bool = True, all
     and the scene's equations derived. ``all_points`` asks the scene for every named point."""
     import dataclasses
 
+    from .budget import cpu_backstop
     from .model.loader import load_model
     from .model.scenes import derive_scene, select_scene
 
-    loaded = load_model(model, cache=cache)
-    scene = select_scene(loaded, scene_name)
-    if scene is not None and all_points:
-        points = tuple(sorted(loaded.primitive.points()))
-        scene = dataclasses.replace(scene, outputs=dataclasses.replace(scene.outputs, points=points))
-    return loaded, scene, derive_scene(loaded, scene, cache=cache)
+    with cpu_backstop():
+        loaded = load_model(model, cache=cache)
+        scene = select_scene(loaded, scene_name)
+        if scene is not None and all_points:
+            points = tuple(sorted(loaded.primitive.points()))
+            scene = dataclasses.replace(scene, outputs=dataclasses.replace(scene.outputs, points=points))
+        return loaded, scene, derive_scene(loaded, scene, cache=cache)
 
 
 @click.group(context_settings={"help_option_names": ["-h", "--help"]})

@@ -18,6 +18,7 @@ from ..collector import collector_paused
 from ..core.doubles import Unsupported, complex_jacobian, graph_nodes
 from ..core.known_system import KnownSystem, ProjectedEffect, Transition
 from ..core.operations import count_ops
+from ..core.symbols import free_symbols_of
 from ..core.subspace import (Subspace, assemble, assembled_potentials, effect_labels, project_effects,
                              project_inertia)
 from ..errors import Location
@@ -218,7 +219,7 @@ def check_subspace_rank(model, sub: Subspace, samples: int = 3) -> None:
     """`check_rank` of the subspace's ``C``, evaluated straight from the algebra's form."""
     algebra = sub.algebra
     atoms = [a for row in sub.C for entry in row for a in algebra.atoms_of(entry)]
-    symbols = sorted(set().union(*(a.free_symbols for a in atoms)) - set(sub.coords), key=lambda s: s.name)
+    symbols = sorted(free_symbols_of(atoms) - set(sub.coords), key=lambda s: s.name)
 
     def f(q, p):
         at = algebra.numeric({**dict(zip(sub.coords, q)), **dict(zip(symbols, p))})

@@ -14,6 +14,7 @@ from pathlib import Path
 
 import sympy
 
+from ..budget import WorkBudgetExceeded
 from ..collector import collector_paused
 from ..components import REGISTRY
 from ..components.base import in_world
@@ -180,6 +181,8 @@ class _Loader:
         try:
             value = parse_expression(text, {**table, **definition_names(self)},
                                      node.text_location or node.location, what=what, shared=self.parsed)
+        except WorkBudgetExceeded:
+            raise  # the budget is spent: nothing further is read
         except ModelError as exc:
             for problem in exc.problems:
                 unknown = _UNKNOWN_NAME.search(problem.message)
@@ -522,7 +525,7 @@ class _Loader:
                            close_matches(key, allowed))
                 continue
             value = values[key] = self.expr(vnode, what=f"parameter '{key}' of '{cname}'")
-            if value is not None and TIME in value.free_symbols and inertial(key):
+            if value is not None and TIME in free_symbols_of([value]) and inertial(key):
                 self.error(vnode, f"parameter '{key}' of '{cname}' depends on t, but a component's "
                            "parameters are constants of its inertia (its metric and points): the motion "
                            "a value in t prescribes would be missing from its equations",
@@ -600,6 +603,8 @@ class _Loader:
             if system is None:
                 sub = load_model(sub_path, cache=self.cache, _stack=self.stack)
                 system = derive_model(sub, cache=self.cache)
+        except WorkBudgetExceeded:
+            raise
         except ModelError as exc:
             self.problems.extend(exc)
             return None
@@ -787,7 +792,7 @@ class _Loader:
                            f"primitive coordinate '{owner}.{x}' is not connected",
                            f"add `{x}: <expression in {', '.join(generalized)}>` under `connection:`, "
                            "or name it like a generalized coordinate for an identity map")
-        used = set().union(*(e.free_symbols for e in connection.values())) if connection else set()
+        used = free_symbols_of(connection.values())
         if attempted - set(connection) or unknown_keys or self.failed_components or not coords:
             return connection  # after another error this check would only mislead
         for q in coords:
@@ -895,7 +900,7 @@ class _Loader:
         in_y = tuple(Constraint(c.name, sympy.sympify(c.expression).xreplace(connection), c.source)
                      for c in constraints)
         for c in in_y:
-            if not (c.expression.free_symbols & set(y)):
+            if not (free_symbols_of([c.expression]) & set(y)):
                 self.error(self.locations.get(f"constraint:{c.name.split('.')[0]}", where),
                            f"constraint '{c.name}' does not involve any coordinate after the connection",
                            "a constraint on connected coordinates only is already satisfied or never")
