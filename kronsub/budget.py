@@ -27,7 +27,7 @@ from typing import Iterator
 
 from .errors import Location, ModelError, Problem
 
-DEFAULT_UNITS = 10_000_000
+DEFAULT_UNITS = 20_000_000
 """The work budget of one command when none is given (``--budget``), in units of work:
 one unit is about one term, node or operation formed (roughly a microsecond)."""
 
@@ -36,7 +36,7 @@ SECONDS_PER_MILLION = 3.0
 `MIN_SECONDS`: work the counts do not see (inside sympy) still stops."""
 MIN_SECONDS = 60.0
 
-PER_OPERATION = {"print": 25, "factor": 100, "evaluate": 100}
+PER_OPERATION = {"print": 25, "factor": 25, "evaluate": 100}
 """Units charged per operation of an expression (``count_ops``, a definition used twice counted
 twice) by the steps that walk it whole: printing it, sympy's ``factor_terms``, and sympy's
 evaluation of a function or power of it as it is built (its assumptions: is it real, positive...)."""

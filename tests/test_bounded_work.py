@@ -83,7 +83,7 @@ def test_a_product_of_powers_of_multiple_angles_derives(run):
 
 # -- nesting: finishes or stops at the budget, in bounded memory ---------------------------
 def test_nested_sines_stop_at_the_budget(run):
-    result = run(connected(nested("sin({})", 98)), "derive", "--no-cache")
+    result = run(connected(nested("sin({})", 98)), "derive", "--no-cache", "--budget", "5000000")
     stopped(result, 7)
 
 
@@ -126,7 +126,8 @@ def test_definitions_each_using_the_one_before_twice_derive(run):
 
 def test_printing_a_definition_that_doubles_stops_at_the_budget(run):
     """``sqrt(a*a + a + 1)`` 16 times over: megabytes of printed equations."""
-    result = run(connected("a16*sin(q)", definitions=chain(16, "sqrt({p}*{p} + {p} + 1)")), "derive", "--no-cache")
+    result = run(connected("a16*sin(q)", definitions=chain(16, "sqrt({p}*{p} + {p} + 1)")), "derive", "--no-cache",
+                 "--budget", "5000000")
     stopped(result, 24)
 
 

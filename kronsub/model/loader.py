@@ -14,7 +14,7 @@ from pathlib import Path
 
 import sympy
 
-from ..budget import WorkBudgetExceeded
+from ..budget import WorkBudgetExceeded, scope as budget_scope
 from ..collector import collector_paused
 from ..components import REGISTRY
 from ..components.base import in_world
@@ -47,13 +47,14 @@ one of these names would be written twice and lost from the DataFrame."""
 def load_model(path, *, text: str | None = None, cache: bool = True, _stack: tuple[str, ...] = ()) -> Model:
     """Load a model file; sub-model files are loaded (and derived) recursively.
 
-    ``cache=False`` derives sub-models from scratch instead of reading the cache.
+    ``cache=False`` derives sub-models from scratch instead of reading the cache. The work
+    is charged to the active work budget, or to a default one (`kronsub.budget.scope`).
     """
     path = Path(path)
     if text is None:
         text = read_model_text(path)
     root = load_yaml(path, text)
-    with collector_paused():  # see kronsub.collector
+    with collector_paused(), budget_scope():  # see kronsub.collector
         return _Loader(path, root, text, _stack, cache).build()
 
 
