@@ -3,8 +3,9 @@
 The steps whose cost a model controls (reading an expression, expanding definitions,
 expanding products of sines and cosines, choosing a printed form...) `charge` a count
 of what they build (terms, nodes, operations) against the active `WorkBudget`. Counts
-are deterministic, so the same model stops at the same place on any machine; a
-deadline in seconds is an optional backstop. When the budget is spent, `charge` raises
+are deterministic, so the same model stops at the same place on any machine; CPU time
+(`cpu_backstop`, around reading and deriving) is a backstop for work inside sympy that
+no count sees. When the budget is spent, `charge` raises
 `WorkBudgetExceeded` naming what grew; the layer that knows the place in the model file
 re-raises it there with `WorkBudgetExceeded.at`, and the CLI prints it as any located
 error (exit 1) with a hint: ``--budget``, a cache, a simpler form.
@@ -29,7 +30,7 @@ from .errors import Location, ModelError, Problem
 
 DEFAULT_UNITS = 20_000_000
 """The work budget of one command when none is given (``--budget``), in units of work:
-one unit is about one term, node or operation formed (roughly a microsecond)."""
+one unit is about one term, node or operation formed (one to a few microseconds)."""
 
 SECONDS_PER_MILLION = 3.0
 """CPU seconds of the backstop (`cpu_backstop`) per million units of the budget, at least
