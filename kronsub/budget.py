@@ -3,8 +3,9 @@
 The steps whose cost a model controls (reading an expression, expanding definitions,
 expanding products of sines and cosines, choosing a printed form...) `charge` a count
 of what they build (terms, nodes, operations) against the active `WorkBudget`. Counts
-are deterministic, so the same model stops at the same place on any machine; a
-deadline in seconds is an optional backstop. When the budget is spent, `charge` raises
+are deterministic, so the same model stops at the same place on any machine; CPU time
+(`cpu_backstop`, around reading and deriving) is a backstop for work inside sympy that
+no count sees. When the budget is spent, `charge` raises
 `WorkBudgetExceeded` naming what grew; the layer that knows the place in the model file
 re-raises it there with `WorkBudgetExceeded.at`, and the CLI prints it as any located
 error (exit 1) with a hint: ``--budget``, a cache, a simpler form.
@@ -27,16 +28,20 @@ from typing import Iterator
 
 from .errors import Location, ModelError, Problem
 
-DEFAULT_UNITS = 10_000_000
+DEFAULT_UNITS = 20_000_000
 """The work budget of one command when none is given (``--budget``), in units of work:
-one unit is about one term, node or operation formed (roughly a microsecond)."""
+one unit is about one term, node or operation formed (one to a few microseconds)."""
+
+GROWS_FROM = 120
+"""Coordinates of a primitive system beyond which a default budget grows, with their cube (the
+derivation's work grows about so: ``Mbar = Cᵀ M C`` (9') of n coordinates); `allow_for`."""
 
 SECONDS_PER_MILLION = 3.0
 """CPU seconds of the backstop (`cpu_backstop`) per million units of the budget, at least
 `MIN_SECONDS`: work the counts do not see (inside sympy) still stops."""
 MIN_SECONDS = 60.0
 
-PER_OPERATION = {"print": 25, "factor": 100, "evaluate": 100}
+PER_OPERATION = {"print": 25, "factor": 25, "evaluate": 100}
 """Units charged per operation of an expression (``count_ops``, a definition used twice counted
 twice) by the steps that walk it whole: printing it, sympy's ``factor_terms``, and sympy's
 evaluation of a function or power of it as it is built (its assumptions: is it real, positive...)."""
@@ -66,10 +71,10 @@ class WorkBudgetExceeded(ModelError):
 class WorkBudget:
     """``units`` of work, and optionally a deadline ``seconds`` from now; `charge` spends them."""
 
-    __slots__ = ("units", "used", "deadline", "what")
+    __slots__ = ("units", "used", "deadline", "what", "fixed")
 
-    def __init__(self, units: int = DEFAULT_UNITS, seconds: float | None = None):
-        self.units, self.used, self.what = int(units), 0, "the work"
+    def __init__(self, units: int = DEFAULT_UNITS, seconds: float | None = None, fixed: bool = False):
+        self.units, self.used, self.what, self.fixed = int(units), 0, "the work", fixed
         self.deadline = None if seconds is None else time.monotonic() + seconds
 
     def charge(self, units: int, what: str) -> None:
@@ -86,6 +91,7 @@ class WorkBudget:
 
 
 _ACTIVE: ContextVar[WorkBudget | None] = ContextVar("kronsub_work_budget", default=None)
+_BACKSTOP: ContextVar[WorkBudget | None] = ContextVar("kronsub_work_backstop", default=None)
 
 
 def active() -> WorkBudget | None:
@@ -96,7 +102,7 @@ def active() -> WorkBudget | None:
 @contextmanager
 def limited(units: int | None = None, seconds: float | None = None) -> Iterator[WorkBudget]:
     """A fresh budget of ``units`` (default `DEFAULT_UNITS`) for the block (a command)."""
-    token = _ACTIVE.set(WorkBudget(DEFAULT_UNITS if units is None else units, seconds))
+    token = _ACTIVE.set(WorkBudget(DEFAULT_UNITS if units is None else units, seconds, fixed=units is not None))
     try:
         yield _ACTIVE.get()
     finally:
@@ -113,6 +119,32 @@ def scope() -> Iterator[WorkBudget]:
         return
     with limited() as fresh:
         yield fresh
+
+
+def default_units(coordinates: int) -> int:
+    """The default budget of a model whose primitive system has ``coordinates`` coordinates:
+    `DEFAULT_UNITS`, times ``(coordinates / GROWS_FROM)**3`` beyond `GROWS_FROM`."""
+    return int(DEFAULT_UNITS * max(1.0, coordinates / GROWS_FROM) ** 3)
+
+
+def allow_for(coordinates: int) -> None:
+    """Let a default budget (none was given) grow to `default_units` of a primitive system of
+    ``coordinates`` coordinates, and its CPU-time backstop with it; a given budget stays."""
+    current = _ACTIVE.get()
+    if current is None or current.fixed:
+        return
+    units = default_units(coordinates)
+    if units > current.units:
+        before = _seconds(current.units)
+        current.units = units
+        if _BACKSTOP.get() is current:
+            left = signal.getitimer(signal.ITIMER_VIRTUAL)[0]
+            if left > 0:
+                signal.setitimer(signal.ITIMER_VIRTUAL, left + _seconds(units) - before)
+
+
+def _seconds(units: int) -> float:
+    return max(MIN_SECONDS, SECONDS_PER_MILLION * units / 1e6)
 
 
 def charge(units: int, what: str) -> None:
@@ -142,15 +174,16 @@ def cpu_backstop() -> Iterator[None]:
     if not usable:
         yield
         return
-    seconds = max(MIN_SECONDS, SECONDS_PER_MILLION * current.units / 1e6)
 
     def stop(signum, frame):
-        raise WorkBudgetExceeded(current.what, current.units, seconds=seconds)
+        raise WorkBudgetExceeded(current.what, current.units, seconds=_seconds(current.units))
 
     previous = signal.signal(signal.SIGVTALRM, stop)
-    signal.setitimer(signal.ITIMER_VIRTUAL, seconds)
+    token = _BACKSTOP.set(current)
+    signal.setitimer(signal.ITIMER_VIRTUAL, _seconds(current.units))
     try:
         yield
     finally:
         signal.setitimer(signal.ITIMER_VIRTUAL, 0)
+        _BACKSTOP.reset(token)
         signal.signal(signal.SIGVTALRM, previous)

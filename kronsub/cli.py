@@ -22,7 +22,7 @@ import click
 
 from . import __version__
 from .atomic import STREAM, atomic_file, output_target, write_atomically
-from .errors import KronsubError, ModelError
+from .errors import KronsubError, Location, ModelError
 from .interrupts import exit_code, signal_name, signal_of, signals_as_interrupts
 
 OK, INPUT_ERROR, USAGE_ERROR, NUMERICAL_FAILURE, INTERNAL_ERROR, INTERRUPTED = 0, 1, 2, 3, 4, 130
@@ -112,11 +112,19 @@ def _show_warning(message, category, filename, lineno, file=None, line=None):
 
 
 def _run(job):
-    """Run a command body, turning known errors into messages and exit codes."""
+    """Run a command body, turning known errors into messages and exit codes; its work is
+    bounded by the command's ``--budget`` (`kronsub.budget`)."""
+    from . import budget
+
     warnings.showwarning = _show_warning
+    context = click.get_current_context(silent=True)
+    units = context.meta.get(_BUDGET_KEY) if context is not None else None
     try:
-        with signals_as_interrupts():  # SIGTERM and SIGHUP stop a run as Ctrl-C does
+        with signals_as_interrupts(), budget.limited(units):  # SIGTERM and SIGHUP stop a run as Ctrl-C does
             return job()
+    except budget.WorkBudgetExceeded as exc:  # placed at the model file when no layer placed it
+        source = context.params.get("model") or context.params.get("source") if context is not None else None
+        _report_model_error(exc.at(Location(str(source))) if source is not None else exc)
     except ModelError as exc:
         _report_model_error(exc)
     except KronsubError as exc:
@@ -155,6 +163,27 @@ def _by(signum: int) -> str:
     return "" if signum == signal.SIGINT else f" by {signal_name(signum)}"
 
 
+_BUDGET_KEY = "kronsub.budget"
+
+
+def _budget_units(ctx, param, value):
+    """Keep ``--budget`` for `_run` (read there, so every command body runs under it)."""
+    if value is not None:
+        ctx.meta[_BUDGET_KEY] = value
+    return value
+
+
+def budget_option(command):
+    """``--budget UNITS`` for every command that reads or derives a model (`kronsub.budget`)."""
+    from .budget import DEFAULT_UNITS
+
+    return click.option("--budget", type=click.IntRange(min=1), metavar="UNITS", default=None,
+                        expose_value=False, callback=_budget_units, is_eager=True,
+                        help=f"Work budget of reading and deriving the model, in units of about a term "
+                             f"formed each (default {DEFAULT_UNITS:,}): a model that needs more stops "
+                             "with an error naming what grew.")(command)
+
+
 def scene_option(command):
     """``--scene NAME`` for every command that derives a model (see :func:`scene_system`)."""
     return click.option("--scene", "scene_name", metavar="NAME", default=None,
@@ -167,15 +196,17 @@ def scene_system(model: Path, scene_name: str | None, *, cache: bool = True, all
     and the scene's equations derived. ``all_points`` asks the scene for every named point."""
     import dataclasses
 
+    from .budget import cpu_backstop
     from .model.loader import load_model
     from .model.scenes import derive_scene, select_scene
 
-    loaded = load_model(model, cache=cache)
-    scene = select_scene(loaded, scene_name)
-    if scene is not None and all_points:
-        points = tuple(sorted(loaded.primitive.points()))
-        scene = dataclasses.replace(scene, outputs=dataclasses.replace(scene.outputs, points=points))
-    return loaded, scene, derive_scene(loaded, scene, cache=cache)
+    with cpu_backstop():
+        loaded = load_model(model, cache=cache)
+        scene = select_scene(loaded, scene_name)
+        if scene is not None and all_points:
+            points = tuple(sorted(loaded.primitive.points()))
+            scene = dataclasses.replace(scene, outputs=dataclasses.replace(scene.outputs, points=points))
+        return loaded, scene, derive_scene(loaded, scene, cache=cache)
 
 
 @click.group(context_settings={"help_option_names": ["-h", "--help"]})
@@ -197,6 +228,7 @@ def main(debug: bool):
               help="Compare with FILE; exit 1 with a unified diff when they differ.")
 @click.option("--no-cache", is_flag=True, help="Derive from scratch, ignoring the known-system cache.")
 @scene_option
+@budget_option
 @click.option("--reactions", "with_reactions", is_flag=True,
               help="Add the workless reactions (viewpoint (alpha)) as functions of the state.")
 def derive(model: Path, fmt: str, output: Path | None, check: Path | None, no_cache: bool, scene_name: str | None,
@@ -244,6 +276,7 @@ def derive(model: Path, fmt: str, output: Path | None, check: Path | None, no_ca
 @click.option("--prefix", default="ks", show_default=True,
               help="Prefix of the C functions and macros, so several models can share a program.")
 @scene_option
+@budget_option
 @click.option("--precision", type=click.Choice(["double", "long", "quad"]), default="double", show_default=True,
               help="The C's real type: double, long double, or _Float128 (glibc's libm; typedef ks_real).")
 def codegen(model: Path, lang: str, outdir: Path, name: str | None, prefix: str, scene_name: str | None,
@@ -350,6 +383,7 @@ def _writable(path: Path | None, what: str) -> None:
 @click.option("--points", "with_points", is_flag=True, help="Add the named points' positions to the CSV.")
 @click.option("--plot", type=click.Path(dir_okay=False, path_type=Path), help="Write a PNG of coordinates and energy.")
 @scene_option
+@budget_option
 @click.option("--reactions", "with_reactions", is_flag=True,
               help="Add the workless reactions (viewpoint (alpha)) to the CSV.")
 def simulate(model: Path, t_end: float | None, dt: float | None, method: str | None, rtol: float, atol: float,
@@ -574,6 +608,7 @@ def _constraint_hints(system, run, step: float) -> str:
 @click.option("--set", "settings", multiple=True, metavar="NAME=VALUE",
               help="Set a parameter or an initial coordinate/velocity (repeatable).")
 @scene_option
+@budget_option
 def accuracy(model: Path, t_end: float, methods: str, tolerances: str, target: float | None,
              output: Path | None, meta: Path | None, plot: Path | None, quick: bool, digits: int | None,
              precision: str, settings: tuple[str, ...], scene_name: str | None):
@@ -714,6 +749,8 @@ def _register_commands() -> None:
     from .commands.discovery import check, components, new
     from .commands.linearize import linearize
 
+    for command in (check, linearize, animate):
+        budget_option(command)
     for command in (components, new, check, linearize, animate):
         main.add_command(command)
 

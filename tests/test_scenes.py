@@ -326,7 +326,7 @@ def test_editing_a_scene_keeps_the_cached_derivation(tmp_path):
 
 
 # ----------------------------------------------------- a parameter the constraints still use
-LOOP = MODELS.parent / "tests" / "models" / "loop_scene_parameter.yaml"
+LOOP = MODELS.parent / "tests" / "models" / "closed_loops" / "loop_scene_parameter.yaml"
 
 
 @needs_cc

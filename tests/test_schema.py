@@ -162,7 +162,7 @@ def test_effect_types_and_keys_follow_the_builders(schema):
 
 
 EFFECTS = {
-    "gravity_default": {"type": "gravity"},
+    "gravity_default": {"type": "gravity", "components": ["p", "q"]},  # one world: its default direction
     "gravity_full": {"type": "gravity", "g": "g", "direction": [0, -1], "components": ["p"]},
     "force_vector": {"type": "force", "point": "p.centre", "vector": ["F", 0]},
     "force_direction": {"type": "force", "point": "q.centre", "direction": [1, 1], "magnitude": 2},

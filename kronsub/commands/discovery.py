@@ -99,12 +99,14 @@ def new(name: str, kind: str, links: int):
 @click.argument("model", type=click.Path(dir_okay=False, path_type=Path))
 def check(model: Path):
     """Validate MODEL without deriving it: every problem at once, exit 1 when there are any."""
+    from ..budget import cpu_backstop
     from ..cli import _run, say
     from ..model.loader import load_model
 
     def job():
-        loaded = load_model(model)
-        _check_rank(loaded)
+        with cpu_backstop():
+            loaded = load_model(model)
+            _check_rank(loaded)
         counts = [(len(loaded.coordinates), "generalized coordinate"), (len(loaded.primitive.parts), "component"),
                   (len(loaded.effects), "effect"), (len(getattr(loaded, "scenes", ())), "scene")]
         shown = [f"{n} {what}{'s' if n != 1 else ''}" for n, what in counts if n or what != "scene"]

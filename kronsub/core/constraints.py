@@ -29,6 +29,7 @@ import numpy as np
 import sympy
 
 from .derivative import derivative, jacobian
+from .doubles import complex_value
 from .known_system import KnownSystem
 from .simplify import compact
 from .symbols import symbol, velocity_symbol
@@ -384,10 +385,16 @@ def closed_forms(constraints, independent, dependent, branch: dict, parameters: 
         break
     point = {**parameters, **branch}
     hits = []
-    for s in candidates:
+    numbers = {}
+    for k, v in point.items():
         try:
-            value = complex(sympy.sympify(s).xreplace(point).evalf())
+            numbers[k] = float(v)
         except (TypeError, ValueError):
+            pass  # not a number: a candidate using it is left out, as before
+    for s in candidates:
+        try:  # in doubles (`complex_value`): sympy's multiprecision can abort on exp(exp(...))
+            value = complex_value(sympy.sympify(s), numbers)
+        except (TypeError, ValueError, ArithmeticError):
             continue
         if abs(value.imag) < 1e-12 and abs(value.real - float(branch[d])) < 1e-8:
             hits.append(s)

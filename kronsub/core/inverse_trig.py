@@ -28,6 +28,8 @@ import sympy
 from sympy.polys.domains import QQ, QQ_I
 from sympy.polys.rings import ring
 
+from .doubles import graph_nodes
+from .symbols import free_symbols_of
 from .trigpoly import COS, SIN, TrigAlgebra, TrigPoly, _Q
 
 INVERSE = (sympy.asin, sympy.acos, sympy.atan, sympy.atan2)
@@ -88,13 +90,12 @@ class Radicands:
 def needed(connection, coordinates) -> bool:
     """Whether a connection holds an inverse trigonometric function, or a radical or a
     denominator that depends on the coordinates."""
-    for expr in connection:
-        expr = sympy.sympify(expr)
-        if expr.has(*INVERSE):
+    nodes = graph_nodes(connection)  # each shared part once (definitions used twice)
+    if any(isinstance(node, INVERSE) for node in nodes):
+        return True
+    for p in nodes:
+        if p.is_Pow and _radical(p.exp) and any(s in coordinates for s in free_symbols_of([p.base])):
             return True
-        for p in expr.atoms(sympy.Pow):
-            if _radical(p.exp) and any(s in coordinates for s in p.base.free_symbols):
-                return True
     return False
 
 

@@ -68,7 +68,7 @@ def _evaluate(root, index, values, memo):
 
 
 def _children(node, index):
-    if node in index or not node.free_symbols or node.is_Symbol:
+    if node in index or node.is_Symbol or not node.args:  # never ``free_symbols``: it walks every path
         return ()
     if node.is_Add or node.is_Mul or node.is_Pow or (node.func in _D and len(node.args) == 1) \
             or node.func == sympy.atan2:
@@ -79,10 +79,10 @@ def _children(node, index):
 def _node(node, index, values, memo):
     if node in index:
         return float(values[node]), {index[node]: 1.0}
-    if not node.free_symbols:
-        return _float(node), {}
     if node.is_Symbol:
         return float(values[node]), {}
+    if not node.args:  # a number
+        return _float(node), {}
     if node.is_Add:
         total, grad = 0.0, {}
         for a in node.args:

@@ -24,6 +24,7 @@ from fractions import Fraction
 
 import sympy
 
+from ..budget import PER_OPERATION, charge
 from .inverse_trig import divide_out
 from .operations import count_ops
 from .printed import LexStrPrinter
@@ -37,6 +38,17 @@ SMALL = 40
 FACTORED = 60
 """Operations up to which the polynomial factorization of the chosen form is tried (an entry
 of multiple angles or varying factors only: ``(a1 sin(theta) - c)^2`` in System II)."""
+
+
+MULTIPLE = 16
+"""Highest multiple ``k`` of an angle whose ``sin(k b)``, ``cos(k b)`` are offered as polynomials in
+``sin b`` and ``cos b`` (the power form has some ``k/2`` terms, never shorter beyond it, and its
+reduction grows as ``2^(k/2)``): a higher one keeps its multiple-angle form."""
+
+
+VARIANTS = 8
+"""Most variants of a coefficient weighed for ``sin(a)^2 + cos(a)^2`` (two per pair of atoms
+``sin(a)``, ``cos(a)`` squared in it): the pairs beyond the first three keep their squares."""
 
 
 ATOM_SYMBOLS = 24
@@ -81,6 +93,7 @@ def _compact(algebra: TrigAlgebra, p: TrigPoly) -> sympy.Expr:
     seen: dict = {}
 
     def measure(trial) -> _Key:
+        charge(len(p.terms), "the trial forms of an entry")
         rendered = view.render(groups, trial, rest)
         if rendered not in seen:
             seen[rendered] = _key(_factored(rendered))
@@ -228,6 +241,7 @@ def _factor_terms(expr: sympy.Expr) -> sympy.Expr:
         _FACTORED_TERMS.clear()
     hit = _FACTORED_TERMS.get((type(expr), expr))
     if hit is None:
+        charge(PER_OPERATION["factor"] * count_ops(expr), "the printed forms of an entry")
         hit = _FACTORED_TERMS[(type(expr), expr)] = sympy.factor_terms(expr)
     return hit
 
@@ -242,7 +256,8 @@ def _printed_length(expr: sympy.Expr) -> int:
 # ------------------------------------------------------------------ angle groups
 def _angle_groups(p: TrigPoly):
     """Split ``p`` by base angle ``b`` (unit frequencies, e.g. ``phi - theta``): every
-    term ``trig(k b)`` with integer ``k`` joins the group of ``b`` when some ``k >= 2``.
+    term ``trig(k b)`` with integer ``k`` joins the group of ``b`` when some ``k >= 2`` and
+    none exceeds `MULTIPLE`.
 
     Returns ``({base: {(kind, k): coef}}, rest)``, rest holding the other terms
     (with the constant one, which each group may absorb).
@@ -260,7 +275,7 @@ def _angle_groups(p: TrigPoly):
         rest[(kind, freq)] = coef
     groups = {}
     for base, terms in by_base.items():
-        if any(k >= 2 for _, k in terms):
+        if any(k >= 2 for _, k in terms) and all(k <= MULTIPLE for _, k in terms):
             groups[base] = terms
         else:
             for (kind, k), coef in terms.items():
@@ -285,6 +300,7 @@ def _reduced(poly: dict[tuple[int, int], int], variant: int) -> dict[tuple[int, 
     out: dict[tuple[int, int], int] = {}
     todo = list(poly.items())
     while todo:
+        charge(1, "the forms of an entry's multiple angles")
         (i, j), n = todo.pop()
         if variant == SIN and j >= 2:
             todo += [((i, j - 2), n), ((i + 2, j - 2), -n)]
@@ -301,7 +317,7 @@ def _products(view: "_View", p: TrigPoly) -> sympy.Expr:
     shorter: ``cos(2 phi - 2 theta)`` terms of a top become products of single angles."""
     poly: dict = {}  # ((i, a, b), ...) -> coef: prod sin(q_i)^a cos(q_i)^b
     for (kind, freq), coef in p.terms.items():
-        if any(_fraction(v).denominator != 1 for _, v in freq):
+        if any(_fraction(v).denominator != 1 or abs(v) > MULTIPLE for _, v in freq):
             return view.render({}, {}, dict(p.terms))
         expansion = {(): (1, 0)}  # monomial -> (real, imaginary) integer parts
         for i, v in freq:
@@ -312,6 +328,7 @@ def _products(view: "_View", p: TrigPoly) -> sympy.Expr:
                 n = math.comb(k, a) * sign**a
                 factor[a] = {0: (n, 0), 1: (0, n), 2: (-n, 0), 3: (0, -n)}[a % 4]
             out: dict = {}
+            charge(len(expansion) * len(factor), "the forms of an entry's sums of angles")
             for mono, (re, im) in expansion.items():
                 for a, (fr, fi) in factor.items():
                     key = mono + ((i, a, k - a),)
@@ -361,6 +378,7 @@ def _reduce_products(poly: dict, chosen: dict[int, int]) -> dict:
         terms = {(): 1}
         for i, a, b in mono:
             single = _reduced({(a, b): 1}, chosen[i]) if i in chosen else {(a, b): 1}
+            charge(len(terms) * len(single), "the forms of an entry's sums of angles")
             terms = {t + ((i, x, y),): n * m for t, n in terms.items() for (x, y), m in single.items()}
         for t, n in terms.items():
             key = tuple(e for e in t if e[1] or e[2])
@@ -439,12 +457,15 @@ class _View:
         variants = [coef]
         for c, s in sorted(pairs.items()):
             if any(dict(m).get(c, 0) >= 2 or dict(m).get(s, 0) >= 2 for m in coef):
+                if 2 * len(variants) > VARIANTS:
+                    break  # the further pairs keep their squares
                 variants = [_collapse(v, c, s, keep) for v in variants for keep in (SIN, COS)]
         if len(variants) == 1:
             return self.factored(coef)
         return min((self.factored(v) for v in variants), key=_key)
 
     def factored(self, coef: dict) -> sympy.Expr:
+        charge(len(coef) + sum(len(m) for m in coef), "the printed forms of an entry")
         if not coef:
             return sympy.Integer(0)
         if len(coef) == 1:
@@ -536,6 +557,7 @@ def _collapse(coef: dict, c: int, s: int, keep: int) -> dict:
     out: dict = {}
     todo = list(coef.items())
     while todo:
+        charge(1, "the forms of an entry's powers of sines and cosines")
         mono, n = todo.pop()
         exps = dict(mono)
         e = exps.get(drop, 0)

@@ -26,9 +26,11 @@ from typing import Iterable, Iterator
 
 import sympy
 
+from ..budget import charge
 from ..errors import Location, ModelError, Problem
 from . import canonical
 from .derivative import derivative
+from .doubles import Unsupported, complex_value
 
 MAX_EXPANDED_POWER = 8
 """Highest integer power of a sum that is expanded (``(x + y)**8``); a higher one is an error."""
@@ -238,8 +240,11 @@ class TrigPoly:
         return self
 
     def add_product(self, a: "TrigPoly", b: "TrigPoly") -> "TrigPoly":
-        """``self += a * b`` in place; returns self."""
+        """``self += a * b`` in place; returns self. Charged to the work budget (`kronsub.budget`):
+        one unit per product of two monomials, before they are formed."""
         out = self.terms
+        (na, ta), (nb, tb) = _size(a), _size(b)
+        charge(na * nb + na * tb + nb * ta, "the terms of products of sines and cosines")
         for (ka, fa), ca in a.terms.items():
             for (kb, fb), cb in b.terms.items():
                 coef = _coef_mul(ca, cb)
@@ -265,6 +270,17 @@ class TrigPoly:
 
     def __mul__(self, other: "TrigPoly") -> "TrigPoly":
         return TrigPoly().add_product(self, other)
+
+
+def _size(p: TrigPoly) -> tuple[int, int]:
+    """``(monomials, atoms in them)`` of ``p``: a product of ``a`` and ``b`` forms ``na * nb``
+    monomials by merging ``ta`` and ``tb`` atoms."""
+    monomials = atoms = 0
+    for coef in p.terms.values():
+        monomials += len(coef)
+        for mono in coef:
+            atoms += len(mono)
+    return monomials, atoms
 
 
 def _trig_key(kind: int, freq: Freq, scale: int | Fraction) -> tuple[tuple[int, Freq], int | Fraction] | None:
@@ -547,6 +563,7 @@ class TrigAlgebra:
         `evaluated_expr`, without sympy collecting terms the algebra has already collected.
         """
         parts = []
+        charge(sum(_size(p)), "the printed terms of an entry")
         for (kind, freq), coef in _sorted_terms(p):
             sign, trig = self._trig_factor(kind, freq)
             if len(coef) == 1:
@@ -768,13 +785,21 @@ class NumericPoint:
     def __init__(self, algebra: TrigAlgebra, values: dict):
         self.q = [float(values[c]) for c in algebra.coordinates]
         self.algebra = algebra
-        self.values = {k: sympy.Float(v) for k, v in values.items()}
+        self.values = {k: float(v) for k, v in values.items()}
         self.atoms: dict[int, complex] = {}
+        self._memo: dict = {}
 
     def _atom(self, i: int) -> complex:
+        """An atom's value in complex doubles (`complex_value`: never sympy's unbounded
+        multiprecision, in which ``exp(exp(...))`` can abort the process)."""
         hit = self.atoms.get(i)
         if hit is None:
-            hit = self.atoms[i] = complex(self.algebra._atoms[i].xreplace(self.values).evalf())
+            atom = self.algebra._atoms[i]
+            try:
+                hit = complex_value(atom, self.values, self._memo)
+            except Unsupported:  # a Piecewise: sympy's evaluation
+                hit = complex(atom.xreplace({k: sympy.Float(v) for k, v in self.values.items()}).evalf())
+            self.atoms[i] = hit
         return hit
 
     def __call__(self, p: TrigPoly) -> float:

@@ -28,6 +28,7 @@ import sympy
 
 from ..components.base import common_world, in_world
 from ..core.constraints import Constraint, ConstraintFailure, NumericConstraints, closed_forms
+from ..core.symbols import free_symbols_of
 from ..errors import close_matches
 from .effects import named_body, zero_vector
 from .source import Node
@@ -64,7 +65,7 @@ def read_constraints(loader, node: Node, primitive) -> list[Constraint]:
         if value is None:
             continue
         value = sympy.sympify(value)
-        if not (value.free_symbols & set(primitive.coordinates)):
+        if not (free_symbols_of([value]) & set(primitive.coordinates)):
             loader.error(spec, f"constraint '{cname}' does not involve any coordinate",
                          "write g(x) with `g = 0`, e.g. `a1*sin(theta) + a2*sin(phi) - c`")
             continue
@@ -160,7 +161,7 @@ def _on_line(v, d, values) -> list[sympy.Expr]:
     numbers = []
     for c in d:
         value = c.xreplace(values)
-        value = value.xreplace({s: 0 for s in value.free_symbols})
+        value = value.xreplace({s: 0 for s in free_symbols_of([value])})
         try:
             numbers.append(abs(float(value)))
         except (TypeError, ValueError):

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import sympy
 
-from ..core.symbols import TIME, velocity_symbol
+from ..core.symbols import TIME, free_symbols_of, velocity_symbol
 from .expressions import FUNCTIONS, parse_expression
 from .source import Node
 
@@ -77,7 +77,7 @@ def substitute_definitions(loader, value, table: dict, node: Node, what: str):
     allowed = {v for v in table.values() if isinstance(v, sympy.Symbol)} | {TIME}
     ok = True
     for name, _, expansion in used:
-        foreign = sorted(s.name for s in expansion.free_symbols - allowed)
+        foreign = sorted(s.name for s in free_symbols_of([expansion]) - allowed)
         if foreign:
             ok = False
             can = sorted(k for k, v in table.items() if isinstance(v, sympy.Symbol) and "." not in k and k != "t")

@@ -11,12 +11,17 @@ import numpy.random  # noqa: F401  numpy loads it on first use; imported with th
 import sympy
 
 from .. import __version__
+from ..budget import PER_OPERATION, WorkBudgetExceeded, charge
 from ..cache import load_entry, store_entry, usable_cache_dir
 from ..collector import collector_paused
+from ..core.doubles import graph_nodes
 from ..core.known_system import KnownSystem, ProjectedEffect, Transition
-from ..core.numeric_jacobian import affine, jacobian
+from ..core.numeric_jacobian import jacobian
+from ..core.operations import count_ops
+from ..core.symbols import free_symbols_of
 from ..core.subspace import (Subspace, assemble, assembled_potentials, effect_labels, project_effects,
                              project_inertia)
+from ..errors import Location
 from . import cache_format
 
 
@@ -115,7 +120,20 @@ def derive_model(model, *, cache: bool = True, effects=None) -> KnownSystem:
     collector is paused meanwhile (:func:`.collector_paused`).
     """
     with collector_paused():
-        return _derive(model, cache, effects)
+        system = _derive(model, cache, effects)
+    _charge_printed(system, model)
+    return system
+
+
+def _charge_printed(system: KnownSystem, model) -> None:
+    """Charge the work budget for printing the equations, before any command prints them:
+    their operations counted as printed (a definition used twice, twice; ``count_ops`` counts
+    each distinct part once), so that equations too long to print stop here, placed at the file."""
+    parts = [*system.mass_matrix, *system.velocity_terms, *system.forces, system.potential_energy]
+    try:
+        charge(PER_OPERATION["print"] * sum(count_ops(e) for e in parts), "the printed size of the equations")
+    except WorkBudgetExceeded as exc:
+        raise exc.at(Location(model.path)) from None
 
 
 def _derive(model, cache: bool, effects) -> KnownSystem:
@@ -137,13 +155,20 @@ def _derive(model, cache: bool, effects) -> KnownSystem:
     if inertia is None or missing:
         sub = Subspace(model.primitive, coordinates, model.connection)
         if inertia is None:
-            inertia = project_inertia(sub, model.primitive, name=model.name, parameters=model.parameters,
-                                      description=model.description)
+            try:
+                inertia = project_inertia(sub, model.primitive, name=model.name, parameters=model.parameters,
+                                          description=model.description)
+            except WorkBudgetExceeded as exc:  # placed at the connection, whose algebra grew
+                raise exc.at(model.locations.get("connection") or Location(model.path)) from None
             if implicit is None and not sub.only_renames(model.primitive):
                 check_subspace_rank(model, sub)
             _store_parts(key, {"inertia": dataclasses.replace(inertia, transition=None),
                                "inertia-transition": inertia.transition})
-        for piece in project_effects(sub, model.primitive, model.effects, only=missing):
+        try:
+            projected = project_effects(sub, model.primitive, model.effects, only=missing)
+        except WorkBudgetExceeded as exc:
+            raise exc.at(Location(model.path)) from None
+        for piece in projected:
             pieces[piece.label] = piece
             _store_parts(key, {f"effect.{piece.label}": piece})
     system = dataclasses.replace(assemble(inertia, [pieces[label] for label in chosen],
@@ -195,7 +220,7 @@ def check_subspace_rank(model, sub: Subspace, samples: int = 3) -> None:
     """`check_rank` of the subspace's ``C``, evaluated straight from the algebra's form."""
     algebra = sub.algebra
     atoms = [a for row in sub.C for entry in row for a in algebra.atoms_of(entry)]
-    symbols = sorted(set().union(*(a.free_symbols for a in atoms)) - set(sub.coords), key=lambda s: s.name)
+    symbols = sorted(free_symbols_of(atoms) - set(sub.coords), key=lambda s: s.name)
 
     def f(q, p):
         at = algebra.numeric({**dict(zip(sub.coords, q)), **dict(zip(symbols, p))})
@@ -209,17 +234,18 @@ def check_subspace_rank(model, sub: Subspace, samples: int = 3) -> None:
 def check_rank(model, positions, samples: int = 3) -> None:
     """Warn when ``C = dx/dxbar`` (21) of the connection's ``positions`` (each ``x`` in the
     generalized coordinates) is rank-deficient at sample configurations; ``C`` is evaluated
-    there in floating point (:func:`.numeric_jacobian.jacobian`), never formed symbolically."""
-    coords = model.coordinates
+    there in floating point (:func:`.numeric_jacobian.jacobian`, each shared subexpression
+    once), never formed symbolically."""
+    coords = list(model.coordinates)
     positions = [sympy.sympify(x) for x in positions]
-    symbols = sorted(set().union(*(x.free_symbols for x in positions)) - set(coords), key=lambda s: s.name)
+    nodes = graph_nodes(positions)
+    symbols = sorted({n for n in nodes if n.is_Symbol} - set(coords), key=lambda s: s.name)
+    analytic = not any(isinstance(n, _PIECEWISE) for n in nodes)
 
     def f(q, p):
         return jacobian(positions, coords, {**dict(zip(coords, q)), **dict(zip(symbols, p))})
 
-    constant = all(affine(x, coords) for x in positions)
-    analytic = not _piecewise_in(positions, set(coords))
-    _sample_rank(model, f, symbols, samples, constant=constant, analytic=analytic)
+    _sample_rank(model, f, symbols, samples, constant=not symbols and analytic, analytic=analytic)
 
 
 _PIECEWISE = (sympy.Abs, sympy.sign, sympy.Heaviside, sympy.DiracDelta, sympy.Piecewise)

@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import sympy
 
+from ..core.symbols import free_symbols_of
 from ..effects.base import Effect
 from ..effects.elements import Damper, Spring, TorsionalDamper, TorsionalSpring, separation
 from ..effects.gravity import Gravity
@@ -57,7 +58,7 @@ def _positional(loader, node: Node, value, primitive, ename: str, what: str):
     if value is None:
         return None
     rates = set(primitive.velocities) | {velocity_symbol(q) for q in loader.subspace_names.values()}
-    used = sorted(s.name for s in sympy.sympify(value).free_symbols & rates)
+    used = sorted(s.name for s in free_symbols_of([value]) & rates)
     if not used:
         return value
     loader.error(node, f"{what} of '{ename}' depends on the velocity '{used[0]}'",

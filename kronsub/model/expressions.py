@@ -23,6 +23,8 @@ from typing import Mapping, NamedTuple, NoReturn
 
 import sympy
 
+from kronsub.budget import PER_OPERATION, WorkBudgetExceeded, charge
+from kronsub.core.operations import count_ops
 from kronsub.core.trigpoly import EXPANSION_HINT, expansion_problem
 from kronsub.errors import Location, ModelError, Problem, near_names
 
@@ -142,6 +144,8 @@ def parse_expression(text: str, names: Mapping[str, sympy.Basic],
                      "write the expression as text, e.g. '2*x'")
     try:
         return _Builder(text, names, shared).build_all()
+    except WorkBudgetExceeded as exc:
+        raise exc.at(base) from None
     except _Reject as problem:
         shift = base.shifted(problem.column - 1)
         where = shift if problem.line == 1 else Location(
@@ -309,6 +313,13 @@ def _shorten(text: str) -> str:
     return flat if len(flat) <= 60 else flat[:57] + "..."
 
 
+def _charge_evaluation(*args: sympy.Expr) -> None:
+    """Charge the work budget for sympy's evaluation of a function or power of ``args`` as it
+    is built, which walks them whole (``sin(atan2(sin(atan2(q, 1)), 1))`` doubles at each level)."""
+    charge(PER_OPERATION["evaluate"] * sum(count_ops(arg) for arg in args if arg.args),
+           "the expression as sympy evaluates it")
+
+
 def _rational_bits(value: sympy.Rational) -> int:
     return abs(value.p).bit_length() + value.q.bit_length()
 
@@ -465,6 +476,7 @@ class _Builder:
         method = _HANDLERS.get(type(node))
         if method is None:
             self._reject(node)
+        charge(1, "the expression")
         value = getattr(self, method)(node, depth + 1)
         if value.bits > MAX_BITS:
             self.fail(node, "builds numbers that are too large", "use smaller numbers or exponents")
@@ -563,6 +575,7 @@ class _Builder:
             self.fail(node, "builds numbers that are too large", "use smaller numbers or exponents",
                       at=self._operator_position(node, "**"))
         self._check_expansion(node, base.expr, exponent.expr)
+        _charge_evaluation(base.expr, exponent.expr)
         return _Value(sympy.Pow(base.expr, exponent.expr), estimate)
 
     def _check_expansion(self, node: ast.BinOp, base: sympy.Expr, exponent: sympy.Expr) -> None:
@@ -650,4 +663,5 @@ class _Builder:
             self.fail(node, f"{func.id}() takes {arity} argument{plural}, got {len(node.args)}",
                       f"write {func.id}({', '.join('xy'[:arity])})")
         args = [self.build(arg, depth) for arg in node.args]
+        _charge_evaluation(*(arg.expr for arg in args))
         return _Value(function(*(arg.expr for arg in args)), sum(arg.bits for arg in args) + 8)

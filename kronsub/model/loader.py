@@ -14,6 +14,7 @@ from pathlib import Path
 
 import sympy
 
+from ..budget import WorkBudgetExceeded, allow_for, scope as budget_scope
 from ..collector import collector_paused
 from ..components import REGISTRY
 from ..components.base import in_world
@@ -56,13 +57,14 @@ def looks_like_model(text: str) -> bool:
 def load_model(path, *, text: str | None = None, cache: bool = True, _stack: tuple[str, ...] = ()) -> Model:
     """Load a model file; sub-model files are loaded (and derived) recursively.
 
-    ``cache=False`` derives sub-models from scratch instead of reading the cache.
+    ``cache=False`` derives sub-models from scratch instead of reading the cache. The work
+    is charged to the active work budget, or to a default one (`kronsub.budget.scope`).
     """
     path = Path(path)
     if text is None:
         text = read_model_text(path)
     root = load_yaml(path, text)
-    with collector_paused():  # see kronsub.collector
+    with collector_paused(), budget_scope():  # see kronsub.collector
         return _Loader(path, root, text, _stack, cache).build()
 
 
@@ -196,6 +198,8 @@ class _Loader:
         try:
             value = parse_expression(text, {**table, **definition_names(self)},
                                      node.text_location or node.location, what=what, shared=self.parsed)
+        except WorkBudgetExceeded:
+            raise  # the budget is spent: nothing further is read
         except ModelError as exc:
             for problem in exc.problems:
                 unknown = _UNKNOWN_NAME.search(problem.message)
@@ -331,6 +335,7 @@ class _Loader:
         if auto:
             self.locations["coordinates"] = coords_node.location
         primitive = Primitive(tuple(self.parts))
+        allow_for(len(primitive.coordinates))  # a default budget grows with the model
         self._primitive_names(primitive)
         read_definitions(self, root.get("definitions"), coords, primitive)
         self._pivot_connection(primitive)
@@ -555,7 +560,7 @@ class _Loader:
                            close_matches(key, allowed))
                 continue
             value = values[key] = self.expr(vnode, what=f"parameter '{key}' of '{cname}'")
-            if value is not None and TIME in value.free_symbols and inertial(key):
+            if value is not None and TIME in free_symbols_of([value]) and inertial(key):
                 self.error(vnode, f"parameter '{key}' of '{cname}' depends on t, but a component's "
                            "parameters are constants of its inertia (its metric and points): the motion "
                            "a value in t prescribes would be missing from its equations",
@@ -648,6 +653,8 @@ class _Loader:
             if system is None:
                 sub = load_model(sub_path, cache=self.cache, _stack=self.stack)
                 system = derive_model(sub, cache=self.cache)
+        except WorkBudgetExceeded:
+            raise
         except ModelError as exc:
             self.problems.extend(exc)
             return None
@@ -838,7 +845,7 @@ class _Loader:
                            f"primitive coordinate '{owner}.{x}' is not connected",
                            f"add `{x}: <expression in {', '.join(generalized)}>` under `connection:`, "
                            "or name it like a generalized coordinate for an identity map")
-        used = set().union(*(e.free_symbols for e in connection.values())) if connection else set()
+        used = free_symbols_of(connection.values())
         if attempted - set(connection) or unknown_keys or self.failed_components or not coords:
             return connection  # after another error this check would only mislead
         for q in coords:
@@ -946,7 +953,7 @@ class _Loader:
         in_y = tuple(Constraint(c.name, sympy.sympify(c.expression).xreplace(connection), c.source)
                      for c in constraints)
         for c in in_y:
-            if not (c.expression.free_symbols & set(y)):
+            if not (free_symbols_of([c.expression]) & set(y)):
                 self.error(self.locations.get(f"constraint:{c.name.split('.')[0]}", where),
                            f"constraint '{c.name}' does not involve any coordinate after the connection",
                            "a constraint on connected coordinates only is already satisfied or never")

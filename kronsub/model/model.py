@@ -67,11 +67,13 @@ class Model:
         """The equations of motion by projection onto the subspace (9'), (E), (F)."""
         import dataclasses
 
+        from ..budget import scope
         from ..core.trigpoly import ExpansionTooLarge
         from .derive import derive_model
 
         try:
-            system = derive_model(self, cache=cache)
+            with scope():  # the active work budget, or a default one
+                system = derive_model(self, cache=cache)
         except ExpansionTooLarge as exc:
             raise exc.at(Location(self.path)) from None
         return dataclasses.replace(system, initial=dict(self.initial)) if self.initial else system

@@ -112,6 +112,10 @@ def load_yaml(path: str | Path, text: str | None = None, only: Mapping | None = 
     return node
 
 
+MAX_ALIAS_VALUES = 10_000
+"""Most values a file's aliases (``*name``) may repeat in all, each counted with the values
+inside it: a few lines of aliases of aliases would otherwise stand for billions of values."""
+
 MAX_MODEL_BYTES = 1 << 20
 """Largest model file read, in bytes (1 MiB); checked before the file is parsed."""
 
@@ -419,10 +423,13 @@ class _Converter:
         self.problems = ProblemCollector()
         self.done: dict[int, Node] = {}  # aliases share nodes: convert each once
         self.active: set[int] = set()
+        self.sizes: dict[int, int] = {}  # values a node stands for, its aliases' expanded
+        self.repeated = 0  # values repeated through aliases, so far
 
     def convert(self, node: yaml.Node) -> Node:
         key = id(node)
         if key in self.done:
+            self._repeat(node)
             return self.done[key]
         location = _location_of_mark(self.name, node.start_mark)
         if key in self.active:
@@ -435,7 +442,21 @@ class _Converter:
         finally:
             self.active.discard(key)
         self.done[key] = result
+        children = node.value if isinstance(node, SequenceNode) else \
+            [value for _, value in node.value] if isinstance(node, MappingNode) else ()
+        self.sizes[key] = 1 + sum(self.sizes.get(id(child), 1) for child in children)
         return result
+
+    def _repeat(self, node: yaml.Node) -> None:
+        """Count the values an alias repeats; refuse (once) beyond `MAX_ALIAS_VALUES`, so that
+        nothing that walks the values (a message quoting them, a copy) grows exponentially."""
+        before = self.repeated
+        self.repeated += self.sizes.get(id(node), 1)
+        if self.repeated > MAX_ALIAS_VALUES >= before:
+            self.problems.add(_location_of_mark(self.name, node.start_mark),
+                              f"aliases repeat more than {MAX_ALIAS_VALUES:,} values (the value anchored "
+                              "here is repeated through aliases of aliases)",
+                              "write the values out, or use fewer aliases")
 
     def outline(self, root: yaml.Node, only: Mapping) -> Node:
         """``root`` with only the values ``only`` names converted: ``{key: deeper}``, where
