@@ -10,13 +10,13 @@ import numpy as np
 import numpy.random  # noqa: F401  numpy loads it on first use; imported with the rest
 import sympy
 
-from .. import __version__
 from ..atomic import write_atomically
 from ..cache import usable_cache_dir
 from ..collector import collector_paused
 from ..core.known_system import KnownSystem, ProjectedEffect, Transition
 from ..core.subspace import (Subspace, assemble, assembled_potentials, effect_labels, project_effects,
                              project_inertia)
+from ..version import __version__
 from . import cache_format
 
 

@@ -31,6 +31,7 @@ import numpy as np
 
 from ..core.known_system import KnownSystem
 from ..emitters.escape import json_document
+from ..version import __version__
 from .run import Block, Run, Trajectory, _numpy_module
 from .values import RunValues
 
@@ -92,7 +93,7 @@ def model_record(name: str, file: str | None, path: Path | None = None) -> dict:
     return record
 
 
-def _json_number(value):
+def json_number(value):
     """A float for JSON: non-finite values (which JSON lacks) as null."""
     if value is None:
         return None
@@ -197,8 +198,6 @@ class CsvWriter:
         out.write(",".join(columns) + "\n")
 
     def _start_metadata(self, model_path, values, method, backend, rtol, atol, t_end, dt, scene, file) -> dict:
-        from .. import __version__
-
         system = self.system
         state = [q.name for q in system.coordinates] + [v.name for v in system.velocities]
         meta = {
@@ -209,12 +208,12 @@ class CsvWriter:
             "scene": scene,
             "method": method,
             "right_hand_side": backend,
-            "rtol": _json_number(rtol),
-            "atol": _json_number(atol),
-            "t_end": _json_number(t_end),
-            "dt": _json_number(dt),
-            "parameters": {p.name: _json_number(v) for p, v in zip(system.parameters, values.parameters)},
-            "initial_state": {name: _json_number(v) for name, v in zip(state, values.y0)},
+            "rtol": json_number(rtol),
+            "atol": json_number(atol),
+            "t_end": json_number(t_end),
+            "dt": json_number(dt),
+            "parameters": {p.name: json_number(v) for p, v in zip(system.parameters, values.parameters)},
+            "initial_state": {name: json_number(v) for name, v in zip(state, values.y0)},
         }
         if system.implicit is not None:
             meta["dependent_coordinates"] = {
@@ -257,7 +256,7 @@ class CsvWriter:
             self.out.write(text)
             self.rows += n
             self.last_t = float(block.t[-1]) if n else self.last_t
-            self._meta.update(rows=self.rows, last_t=_json_number(self.last_t))
+            self._meta.update(rows=self.rows, last_t=json_number(self.last_t))
 
     def end(self, stats: dict, complete: bool, t_fail: float | None = None, message: str = "",
             switches=()) -> None:
@@ -266,21 +265,21 @@ class CsvWriter:
         self._cost(stats)
         self._meta["complete"] = bool(complete)
         if switches:
-            self._meta["coordinate_switches"] = [{"t": _json_number(t), "what": str(what)} for t, what in switches]
+            self._meta["coordinate_switches"] = [{"t": json_number(t), "what": str(what)} for t, what in switches]
         if complete:
             self._meta["status"] = "complete"
         else:
-            self._meta.update(status="stopped", stopped_at=_json_number(t_fail), stop_reason=message)
+            self._meta.update(status="stopped", stopped_at=json_number(t_fail), stop_reason=message)
 
     def _cost(self, stats: dict) -> None:
-        self._meta["cost"] = {k: (_json_number(v) if k == "stiff_from" else int(v)) for k, v in stats.items()}
+        self._meta["cost"] = {k: (json_number(v) if k == "stiff_from" else int(v)) for k, v in stats.items()}
 
     def interrupted(self, stats: dict | None = None) -> None:
         """Record an interrupt (Ctrl-C): the rows so far, to ``last_t``, are all there is."""
         self.stopped = True
         if stats is not None:
             self._cost(stats)
-        self._meta.update(status="interrupted", complete=False, stopped_at=_json_number(self.last_t),
+        self._meta.update(status="interrupted", complete=False, stopped_at=json_number(self.last_t),
                           stop_reason="interrupted (Ctrl-C)")
 
     def stream(self, run: Run, keep=None) -> None:
@@ -298,7 +297,7 @@ class CsvWriter:
         except BrokenPipeError:  # the reader went away (`| head`): the rows it took are all there is
             self.stopped = self.reader_gone = True
             self._cost(run.stats)
-            self._meta.update(status="stopped", complete=False, stopped_at=_json_number(self.last_t),
+            self._meta.update(status="stopped", complete=False, stopped_at=json_number(self.last_t),
                               stop_reason="the reader of the output closed it")
             return
         self.end(run.stats, run.complete, run.t_fail, run.message, run.switches)
