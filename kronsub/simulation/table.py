@@ -303,16 +303,6 @@ class CsvWriter:
         self.end(run.stats, run.complete, run.t_fail, run.message, run.switches)
 
 
-def write_csv(out, system: KnownSystem, model_path: str, run: Run, values: RunValues, rtol: float,
-              atol: float, with_points: bool = False, keep=None, outputs=None, **run_info) -> CsvWriter:
-    """Stream the CSV of ``run`` to ``out`` (see :meth:`CsvWriter.stream`); ``run_info`` are
-    :class:`CsvWriter`'s keyword arguments for the metadata."""
-    writer = CsvWriter(out, system, model_path, values, run.method, run.backend, rtol, atol, with_points, outputs,
-                       **run_info)
-    writer.stream(run, keep)
-    return writer
-
-
 def to_csv(system: KnownSystem, model_path: str, traj: Trajectory, values: RunValues,
            rtol: float, atol: float, with_points: bool = False, outputs=None) -> str:
     """The CSV text of a whole trajectory."""
@@ -331,3 +321,7 @@ def trajectory_csv(system: KnownSystem, model_path: str, traj: Trajectory, value
         writer.block(Block(traj.t, traj.y, traj.energies, traj.dependent), data)
     writer.end(traj.stats, traj.complete, traj.t_fail, traj.message, traj.switches)
     return out.getvalue(), writer.metadata()
+
+
+__all__ = ["METADATA_FORMAT", "CsvWriter", "energies", "file_sha256", "format_rows", "json_number", "metadata_json",
+           "model_record", "point_columns", "sidecar_path", "to_csv", "trajectory_csv"]
