@@ -18,9 +18,9 @@ from types import SimpleNamespace
 
 import click
 
-from . import __version__
 from .atomic import atomic_file, write_atomically
 from .errors import KronsubError, ModelError
+from .version import __version__
 
 OK, INPUT_ERROR, USAGE_ERROR, NUMERICAL_FAILURE, INTERNAL_ERROR, INTERRUPTED = 0, 1, 2, 3, 4, 130
 EXIT_CODES = {
