@@ -15,6 +15,7 @@ from ..core.known_system import KnownSystem, ParameterInfo
 from ..core.primitive import Primitive
 from ..effects.base import Effect
 from ..errors import Location, Problem
+from .source import SourceFile
 
 
 @dataclass(frozen=True)
@@ -54,6 +55,8 @@ class Model:
     scenes: tuple = ()  # of :class:`~kronsub.model.scenes.Scene`, in file order
     implicit: ImplicitSpec | None = None  # constraints: g(y) = 0
     requirements: tuple = ()  # of :class:`~kronsub.model.requirements.Requirement`: checked on values
+    source: SourceFile | None = None  # the file as read (None when its text was given)
+    uses: tuple[SourceFile, ...] = ()  # the model files it uses as known systems, recursively, each once
 
     @functools.cached_property
     def content_hash(self) -> str:

@@ -42,6 +42,7 @@ import numpy as np
 from ..core.known_system import KnownSystem
 from ..emitters.escape import markdown_text, plot_text
 from ..errors import KronsubError
+from ..model.source import SourceFile
 from . import native as native_module
 from .reference import Reference, reference as compute_reference
 from .values import RunValues
@@ -700,8 +701,8 @@ def to_csv(wp: WorkPrecision) -> str:
     return "\n".join(lines) + "\n"
 
 
-def metadata(wp: WorkPrecision, *, model_file: str | None = None, model_path=None,
-             scene: str | None = None, methods: tuple[str, ...] = (), tolerances: tuple[float, ...] = (),
+def metadata(wp: WorkPrecision, *, model_file: str | None = None, source: SourceFile | None = None,
+             uses: tuple[SourceFile, ...] = (), scene: str | None = None, methods: tuple[str, ...] = (), tolerances: tuple[float, ...] = (),
              target: float | None = None, csv: str | None = None) -> dict:
     """Everything about a measurement that is not a point: the model, the reference (its routes,
     estimated error and state at the end time, 30 digits), what was skipped and why, the
@@ -717,7 +718,7 @@ def metadata(wp: WorkPrecision, *, model_file: str | None = None, model_path=Non
         "format": METADATA_FORMAT,
         "kronsub": __version__,
         "csv": csv,
-        "model": model_record(wp.system, model_file, model_path),
+        "model": model_record(wp.system, model_file, source, uses),
         "scene": scene,
         "t_end": json_number(wp.t_end),
         "parameters": {k: json_number(v) for k, v in wp.parameters.items()},

@@ -19,7 +19,6 @@ its metadata says so.
 from __future__ import annotations
 
 import contextlib
-import hashlib
 import io
 import json
 import math
@@ -31,6 +30,7 @@ import numpy as np
 
 from ..core.known_system import KnownSystem
 from ..emitters.escape import json_document
+from ..model.source import SourceFile
 from ..version import __version__
 from .run import Block, Run, Trajectory, _numpy_module
 from .values import RunValues
@@ -72,24 +72,15 @@ def sidecar_path(csv_path: Path) -> Path:
     return csv_path.with_name(csv_path.name + ".json")
 
 
-def file_sha256(path: Path) -> str | None:
-    """The SHA-256 of a file's bytes (None when it cannot be read)."""
-    try:
-        return hashlib.sha256(Path(path).read_bytes()).hexdigest()
-    except OSError:
-        return None
-
-
-def model_record(name: str, file: str | None, path: Path | None = None) -> dict:
-    """The ``model`` entry of a sidecar: its name, the file as given and, when ``path`` can be
-    read, its SHA-256, with under ``uses`` the file and SHA-256 of each model it takes as a
-    known system (the results depend on their text too)."""
-    from ..model.loader import model_files
-
-    record = {"name": name, "file": file, "sha256": file_sha256(path) if path is not None else None}
-    uses = model_files(Path(path)) if path is not None else []
+def model_record(name: str, file: str | None, source: SourceFile | None = None,
+                 uses: tuple[SourceFile, ...] = ()) -> dict:
+    """The ``model`` entry of a sidecar: its name, the file as given and the SHA-256 of the file as
+    the model read it (``source``, :attr:`Model.source <kronsub.model.model.Model.source>`), with
+    under ``uses`` the file and SHA-256 of each model it takes as a known system (``uses``,
+    :attr:`Model.uses <kronsub.model.model.Model.uses>`: the results depend on their text too)."""
+    record = {"name": name, "file": file, "sha256": source.sha256 if source is not None else None}
     if uses:
-        record["uses"] = [{"file": str(f), "sha256": file_sha256(f)} for f in uses]
+        record["uses"] = [{"file": f.file, "sha256": f.sha256} for f in uses]
     return record
 
 
@@ -171,9 +162,11 @@ class CsvWriter:
     def __init__(self, out, system: KnownSystem, model_path: str, values: RunValues, method: str,
                  backend: str, rtol: float, atol: float, with_points: bool = False, outputs=None, *,
                  t_end: float | None = None, dt: float | None = None, scene: str | None = None,
-                 model_file: Path | None = None, extra_columns: tuple[str, ...] = ()):
+                 source: SourceFile | None = None, uses: tuple[SourceFile, ...] = (),
+                 extra_columns: tuple[str, ...] = ()):
         """``outputs`` (a scene's; None: everything) choose the columns (and the points);
-        ``extra_columns`` are appended (their values passed to :meth:`block`)."""
+        ``extra_columns`` are appended (their values passed to :meth:`block`); ``source`` and
+        ``uses`` are the model's files as it read them (:func:`model_record`)."""
         self.out, self.system, self.outputs = out, system, outputs
         self.with_points = with_points if outputs is None else bool(outputs.points)
         self.param = np.array(values.parameters)
@@ -194,17 +187,18 @@ class CsvWriter:
         columns += _distinct(columns, extra_columns)
         self.columns = columns
         self._meta = self._start_metadata(model_path, values, method, backend, rtol, atol, t_end, dt, scene,
-                                          model_file)
+                                          source, uses)
         out.write(",".join(columns) + "\n")
 
-    def _start_metadata(self, model_path, values, method, backend, rtol, atol, t_end, dt, scene, file) -> dict:
+    def _start_metadata(self, model_path, values, method, backend, rtol, atol, t_end, dt, scene, source,
+                        uses) -> dict:
         system = self.system
         state = [q.name for q in system.coordinates] + [v.name for v in system.velocities]
         meta = {
             "format": METADATA_FORMAT,
             "kronsub": __version__,
             "csv": None,
-            "model": model_record(system.name, model_path, file),
+            "model": model_record(system.name, model_path, source, uses),
             "scene": scene,
             "method": method,
             "right_hand_side": backend,
@@ -323,5 +317,5 @@ def trajectory_csv(system: KnownSystem, model_path: str, traj: Trajectory, value
     return out.getvalue(), writer.metadata()
 
 
-__all__ = ["METADATA_FORMAT", "CsvWriter", "energies", "file_sha256", "format_rows", "json_number", "metadata_json",
+__all__ = ["METADATA_FORMAT", "CsvWriter", "energies", "format_rows", "json_number", "metadata_json",
            "model_record", "point_columns", "sidecar_path", "to_csv", "trajectory_csv"]
