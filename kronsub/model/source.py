@@ -590,3 +590,7 @@ class _Converter:
                 if key not in explicit and key not in values:
                     values[key] = item
                     key_locations[key] = merged.key_locations[key]
+
+
+__all__ = ["MAX_MODEL_BYTES", "Node", "SourceFile", "TextLocation", "excerpt", "load_yaml", "read_model_file",
+           "read_model_text", "read_user_text", "system_root"]
