@@ -26,6 +26,7 @@ import numpy as np
 import sympy
 
 from .derivative import derivative, jacobian
+from .finite import nonfinite_cause
 from .known_system import Constraint, ImplicitSubspace, KnownSystem
 from .simplify import compact
 from .symbols import symbol, velocity_symbol
@@ -387,8 +388,6 @@ class Intermediates:
     def _closed_cause(self, q) -> str:
         """Which part of the closed form ``y_d(xbar)`` has no real (or finite) value at ``q`` (:mod:`.finite`),
         as ": ..." (empty without a verdict); the callers name the configuration."""
-        from .finite import nonfinite_cause
-
         imp, closed = self.implicit, dict(self.implicit.closed_form)
         values = {s: float(v) for s, v in self.numeric_parameters.items()}
         values.update(zip(imp.independent, (float(v) for v in q)))
