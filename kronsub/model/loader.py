@@ -1103,6 +1103,5 @@ def _kind(node: Node) -> str:
     return f"'{excerpt(node.text if node.text is not None else str(node.value))}'"
 
 
-
 __all__ = ["IDENTIFIER", "MAX_MODEL_DEPTH", "OUTPUT_COLUMNS", "RESERVED", "TOP_LEVEL", "derivation_text",
            "known_system_part", "load_model", "looks_like_model", "model_key", "placed"]
