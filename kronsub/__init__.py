@@ -6,18 +6,19 @@
 
 Data flows one way: YAML -> model -> primitive -> subspace -> equations.
 """
-__version__ = "0.1.0"
+from .version import __version__
 
 
 def load(path, *, text=None, cache=True):
-    """Load and validate a model file; returns a :class:`kronsub.model.model.Model`.
+    """Load and validate a model file; returns a :class:`kronsub.api.LoadedModel`, whose
+    ``derive()`` gives a :class:`kronsub.api.System`.
 
     ``text`` gives the YAML directly (``path`` then names it in messages);
     ``cache=False`` derives sub-models from scratch.
     """
-    from .model.loader import load_model
+    from .api import load  # sympy and the model reader: imported when first asked for
 
-    return load_model(path, text=text, cache=cache)
+    return load(path, text=text, cache=cache)
 
 
 __all__ = ["load", "__version__"]

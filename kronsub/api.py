@@ -1,12 +1,15 @@
-"""The notebook face of a derived system: names to symbols, simulation, numeric functions.
+"""The notebook face: :func:`load`, and :class:`System`, a derived system with names to
+symbols, simulation, numeric functions, linearisation and Jupyter display.
 
-:class:`~kronsub.core.known_system.KnownSystem` stays a frozen dataclass of pure data;
-its convenience methods (``simulate``, ``numeric``, ``linearize``, ``symbol``) are
-one-line delegations to the functions here, imported only when called, so the core
-never imports the simulation (data flows one way).
+:class:`~kronsub.core.known_system.KnownSystem` is pure data; :class:`System` is the same
+data with these conveniences (as PyDy's ``System`` sits on ``KanesMethod``), each one of
+the functions here. The simulation and the emitters are imported when first used: they
+bring the code generators and their templates, which deriving alone never needs.
 """
 from __future__ import annotations
 
+import dataclasses
+import warnings
 from dataclasses import dataclass
 from typing import Callable, Mapping, Sequence
 
@@ -14,8 +17,14 @@ import numpy as np
 import sympy
 
 from .core.known_system import KnownSystem
+from .core.linearize import Linearization
+from .core.linearize import linearize as core_linearize
 from .core.symbols import TIME
 from .errors import KronsubError, Location, ModelError, Problem, near_names
+from .model.expressions import parse_expression
+from .model.loader import load_model
+from .model.model import Model
+from .model.requirements import parameters_in, unmet
 
 
 class UnknownName(KronsubError):
@@ -46,8 +55,6 @@ def symbol(system: KnownSystem, name: str) -> sympy.Symbol:
 def _value(system: KnownSystem, name: str, value, *, constant: bool, option: str | None = None) -> sympy.Expr:
     """A value given as a number or as text read by the whitelisted parser (never sympify
     of raw text); ``constant`` forbids names. ``option`` (``--at``) places problems at ``--at NAME``."""
-    from .model.expressions import parse_expression
-
     if isinstance(value, sympy.Basic):
         return value
     if isinstance(value, bool):
@@ -92,15 +99,12 @@ def split_assignments(system: KnownSystem, at: Mapping[str, object] | None, opti
 
 
 def linearize(system: KnownSystem, at: Mapping[str, object] | None = None, inputs: Sequence[str] = (),
-              *, symbolic: bool = False, initial: Mapping | None = None, option: str | None = None):
+              *, symbolic: bool = False, initial: Mapping | None = None, option: str | None = None) -> Linearization:
     """:func:`kronsub.core.linearize.linearize` with names: ``at={"theta": "pi", "b": 0}``
     fixes coordinates, velocities, ``t`` and parameter values; ``inputs=["u"]`` names the
     parameters that are inputs. ``initial`` (default: the model's initial values carried
     by the system) starts the search for an equilibrium. ``option`` (``"--at"``) places problems
     with the values at ``--at NAME``."""
-    from .core.linearize import linearize as core_linearize
-    from .model.requirements import parameters_in, unmet
-
     problems = []
     try:
         point, values = split_assignments(system, at, option)
@@ -202,8 +206,6 @@ def simulate(system: KnownSystem, t: float = 10.0, dt: float = 0.01, method: str
     values = _run_values(system, set)
     traj = run(system, values, t, dt, method, rtol, atol, progress=False)
     if not traj.complete:
-        import warnings
-
         warnings.warn(f"the run stopped at t = {traj.t_fail:.6g}: {traj.message}; the rows so far are kept")
     T, V = energies(system, traj, np.array(values.parameters))
     columns = tuple(s.name for s in system.coordinates) + tuple(s.name for s in system.velocities)
@@ -326,3 +328,62 @@ def repr_latex(system: KnownSystem) -> str:
     show = latex_printer(system.coordinates)
     rows = " \\\\ ".join(f"{show(eq.lhs)} &= {show(eq.rhs)}" for eq in system.equations())
     return "$$\\begin{aligned} " + rows + " \\end{aligned}$$"
+
+
+# ------------------------------------------------------------------------------------------
+# The notebook's objects
+# ------------------------------------------------------------------------------------------
+
+class System(KnownSystem):
+    """A derived system as a notebook sees it: the :class:`KnownSystem`'s data (``mass_matrix``
+    is ``Mbar = Cᵀ M C`` (9'), ``velocity_terms``, ``forces``, ``coordinates``, energies...),
+    with :meth:`symbol`, :meth:`simulate`, :meth:`numeric`, :meth:`linearize` and its Jupyter
+    display. The conveniences add no data: a ``System`` goes wherever a ``KnownSystem`` does."""
+
+    @classmethod
+    def of(cls, known: KnownSystem) -> System:
+        """``known``'s data, with the notebook's conveniences."""
+        if isinstance(known, cls):
+            return known
+        return cls(**{f.name: getattr(known, f.name) for f in dataclasses.fields(KnownSystem)})
+
+    def symbol(self, name: str) -> sympy.Symbol:
+        """The system's symbol called ``name`` (kronsub's symbols are ``real=True``)."""
+        return symbol(self, name)
+
+    def simulate(self, t: float = 10.0, dt: float = 0.01, method: str = "dop853", set=None, **options):
+        """Simulate from the model's initial values; see :func:`simulate`."""
+        return simulate(self, t, dt, method, set, **options)
+
+    def numeric(self, set=None) -> NumericSystem:
+        """Compiled ``rhs``, ``mass_matrix``, energies...; see :func:`numeric`."""
+        return numeric(self, set)
+
+    def linearize(self, at=None, inputs=(), *, symbolic: bool = False) -> Linearization:
+        """``A``, ``B`` about an operating point; see :func:`linearize`."""
+        return linearize(self, at, inputs, symbolic=symbolic)
+
+    def _repr_markdown_(self) -> str:
+        return repr_markdown(self)
+
+    def _repr_latex_(self) -> str:
+        return repr_latex(self)
+
+
+class LoadedModel(Model):
+    """A model as :func:`load` gives it: a :class:`~kronsub.model.model.Model` whose
+    :meth:`derive` returns a :class:`System`."""
+
+    def derive(self, *, cache: bool = True) -> System:
+        """The equations of motion by projection onto the subspace (9'), (E), (F)."""
+        return System.of(super().derive(cache=cache))
+
+
+def load(path, *, text: str | None = None, cache: bool = True) -> LoadedModel:
+    """Load and validate a model file (see :func:`kronsub.load`)."""
+    model = load_model(path, text=text, cache=cache)
+    return LoadedModel(**{f.name: getattr(model, f.name) for f in dataclasses.fields(Model)})
+
+
+__all__ = ["LoadedModel", "NumericSystem", "Run", "System", "UnknownName", "linearize", "load", "names", "numeric",
+           "repr_latex", "repr_markdown", "simulate", "split_assignments", "symbol"]

@@ -20,10 +20,10 @@ from types import SimpleNamespace
 
 import click
 
-from . import __version__
 from .atomic import STREAM, atomic_file, output_target, write_atomically
 from .errors import KronsubError, Location, ModelError
 from .interrupts import exit_code, signal_name, signal_of, signals_as_interrupts
+from .version import __version__
 
 OK, INPUT_ERROR, USAGE_ERROR, NUMERICAL_FAILURE, INTERNAL_ERROR, INTERRUPTED = 0, 1, 2, 3, 4, 130
 HANGUP, TERMINATED = 129, 143  # 128 + SIGHUP, 128 + SIGTERM (kronsub/interrupts.py)
@@ -441,7 +441,7 @@ def simulate(model: Path, t_end: float | None, dt: float | None, method: str | N
                     outputs=outputs, constrained=constrained)
         kept = [] if plot is not None or with_reactions else None
         run_info = dict(t_end=span, dt=step, scene=scene.name if scene is not None else None,
-                        model_file=model)
+                        source=loaded.source, uses=loaded.uses)
 
         def stream(out):
             """Write the CSV; what is returned tells ``rows``, ``last_t``, ``stopped`` and the metadata."""
@@ -662,7 +662,7 @@ def accuracy(model: Path, t_end: float, methods: str, tolerances: str, target: f
         if meta_path is not None:
             csv_name = None if output is None else (
                 output.name if output.parent.resolve() == meta_path.parent.resolve() else str(output))
-            info = acc.metadata(wp, model_file=model.as_posix(), model_path=model,
+            info = acc.metadata(wp, model_file=model.as_posix(), source=loaded.source, uses=loaded.uses,
                                 scene=scene.name if scene is not None else None, methods=chosen, tolerances=grid,
                                 target=target, csv=csv_name)
             write_atomically(meta_path, metadata_json(info))

@@ -112,12 +112,28 @@ def test_jupyter_display(double_pendulum):
 
 
 def test_the_core_does_not_import_the_simulation():
-    """KnownSystem's conveniences import kronsub.api (and the simulation) only when called."""
+    """Loading and deriving import the notebook face (kronsub.api), whose System imports the
+    simulation only when one of its conveniences needs it."""
     code = ("import sys, kronsub; s = kronsub.load(sys.argv[1]).derive(); s.symbol('g'); "
             "print(sorted(m for m in sys.modules if m.startswith(('kronsub.simulation', 'kronsub.api'))))")
     out = subprocess.run([sys.executable, "-c", code, str(DOUBLE_PENDULUM)], capture_output=True, text=True,
                          cwd=ROOT, check=True).stdout
     assert out.strip() == "['kronsub.api']"
+
+
+def test_the_notebook_system_is_the_known_system_with_conveniences(double_pendulum):
+    """KnownSystem is pure data; api.System adds the conveniences and goes wherever it does."""
+    import dataclasses
+
+    from kronsub.core.known_system import KnownSystem
+
+    assert isinstance(double_pendulum, kronsub.api.System) and isinstance(double_pendulum, KnownSystem)
+    for name in ("symbol", "simulate", "numeric", "linearize", "_repr_markdown_", "_repr_latex_"):
+        assert not hasattr(KnownSystem, name) and callable(getattr(double_pendulum, name))
+    known = KnownSystem(**{f.name: getattr(double_pendulum, f.name) for f in dataclasses.fields(KnownSystem)})
+    again = kronsub.api.System.of(known)
+    assert again == dataclasses.replace(double_pendulum) and again.mass_matrix == double_pendulum.mass_matrix
+    assert again.symbol("g") is double_pendulum.symbol("g")
 
 
 def test_simulate_a_model_with_implicit_constraints():

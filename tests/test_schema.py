@@ -133,6 +133,15 @@ def test_scene_keys_methods_and_outputs_follow_the_code(schema):
     assert scene["properties"]["outputs"]["items"]["pattern"].startswith("^(" + "|".join(OUTPUT_KINDS) + "|")
 
 
+def test_a_scene_names_the_methods_of_the_simulation():
+    """The model reader checks a scene's ``method:`` against the schema's list (the model sits
+    below the simulation): that list is the simulation's method table, in its order."""
+    from kronsub.model.schema import scene_methods
+    from kronsub.simulation.run import METHODS
+
+    assert scene_methods() == tuple(METHODS)
+
+
 def test_component_type_enum_is_the_registry(schema):
     assert schema["$defs"]["libraryComponent"]["properties"]["type"]["enum"] == sorted(REGISTRY)
 

@@ -44,11 +44,6 @@ def euler_rates(sequence: str, theta, phi) -> sympy.Matrix:
     return sympy.Matrix.hstack(rc * rb * unit[a], rc * unit[b], unit[c])
 
 
-def euler_zyx(psi, theta, phi) -> sympy.Matrix:
-    """World-from-body rotation ``Rz(psi) Ry(theta) Rx(phi)`` (yaw, pitch, roll)."""
-    return euler_rotation("ZYX", psi, theta, phi)
-
-
 class RigidBody3D(Component):
     """Rigid body in space: centre (x, y, z) and Euler angles (psi, theta, phi).
 
@@ -112,3 +107,6 @@ class RigidBody3D(Component):
 
     def bodies(self):
         return (Body(self.p["mass"], self.points()["centre"], self.rotation(), self.inertia()),)
+
+
+__all__ = ["PRODUCT_OF_INERTIA", "SEQUENCES", "RigidBody3D", "axis_rotation", "euler_rates", "euler_rotation"]

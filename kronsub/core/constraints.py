@@ -22,15 +22,13 @@ branch of the initial configuration.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
-from typing import Mapping
-
 import numpy as np
 import sympy
 
 from .derivative import derivative, jacobian
 from .doubles import complex_value
-from .known_system import KnownSystem
+from .finite import nonfinite_cause
+from .known_system import Constraint, ImplicitSubspace, KnownSystem
 from .simplify import compact
 from .symbols import symbol, velocity_symbol
 from .trigpoly import TrigAlgebra, TrigPoly
@@ -38,58 +36,9 @@ from .trigpoly import TrigAlgebra, TrigPoly
 SYMBOLIC_INVERSE = 3  # Lambda and gamma are printed in closed form for at most this many dependents
 
 
-@dataclass(frozen=True)
-class Constraint:
-    """One scalar constraint ``g = 0``; ``source`` says where it came from (a joint, the file)."""
-
-    name: str
-    expression: sympy.Expr
-    source: str = ""
-
-
 def multiplier_name(constraint: str) -> str:
     """The name of a constraint's multiplier among the reactions: ``mu_B_x`` for ``B.x``."""
     return f"mu_{constraint.replace('.', '_')}"
-
-
-@dataclass(frozen=True)
-class ImplicitSubspace:
-    """The implicit part of a derived system: what its named intermediates mean.
-
-    ``Mbar``, ``hbar`` and ``fbar`` of the system are written in the independent
-    coordinates, the dependent coordinates, ``Lambda`` (``sensitivities``, k x n) and
-    ``gamma`` (``convective``, k); to evaluate them at a state, find ``y_d`` with
-    ``g(xbar, y_d) = 0`` on the branch through ``branch``, then
-    ``G_d Lambda = -G_i`` and ``G_d gamma = quadratic``.
-    """
-
-    independent: tuple[sympy.Symbol, ...]
-    dependent: tuple[sympy.Symbol, ...]
-    constraints: tuple[Constraint, ...]
-    jacobian_dependent: sympy.Matrix  # G_d = dg/dy_d (k x k)
-    jacobian_independent: sympy.Matrix  # G_i = dg/dxbar (k x n)
-    sensitivities: sympy.Matrix  # Lambda, k x n matrix of symbols
-    convective: tuple[sympy.Symbol, ...]  # gamma, k symbols
-    quadratic: tuple[sympy.Expr, ...]  # -(ydot^T d2g/dy2 ydot) with ydot = C xbardot, in Lambda
-    closed_form: tuple[tuple[sympy.Symbol, sympy.Expr], ...] = ()  # y_d = y_d(xbar) where unique
-    branch: tuple[tuple[sympy.Symbol, float], ...] = ()  # y_d at the initial configuration
-    choice: str = "given"  # "given" (coordinates listed) or "auto" (pivoted at the initial configuration)
-    definitions: tuple[tuple[sympy.Symbol, sympy.Expr], ...] = field(default=())  # printed closed forms
-    intermediate: tuple[sympy.Symbol, ...] = ()  # y, in the order of the connection's C columns
-    # the system on y before the constraints (for the reactions of viewpoint (alpha))
-    metric: sympy.Matrix | None = None
-    velocity_terms: sympy.Matrix | None = None
-    forces: sympy.Matrix | None = None
-    effect_forces: Mapping[str, sympy.Matrix] = field(default_factory=dict)  # f per effect, on y
-
-    @property
-    def intermediates(self) -> tuple[sympy.Symbol, ...]:
-        """``y_d``, ``Lambda`` (row-major) and ``gamma``: the order of generated code's ``w[]``."""
-        return self.dependent + tuple(self.sensitivities) + self.convective
-
-    @property
-    def residuals(self) -> tuple[sympy.Expr, ...]:
-        return tuple(c.expression for c in self.constraints)
 
 
 # --------------------------------------------------------------------------------------------
@@ -446,8 +395,6 @@ class Intermediates:
     def _closed_cause(self, q) -> str:
         """Which part of the closed form ``y_d(xbar)`` has no real (or finite) value at ``q`` (:mod:`.finite`),
         as ": ..." (empty without a verdict); the callers name the configuration."""
-        from .finite import nonfinite_cause
-
         imp, closed = self.implicit, dict(self.implicit.closed_form)
         values = {s: float(v) for s, v in self.numeric_parameters.items()}
         values.update(zip(imp.independent, (float(v) for v in q)))
@@ -471,3 +418,7 @@ class Intermediates:
         out.update(zip(imp.sensitivities, lam.ravel()))
         out.update(zip(imp.convective, gamma))
         return out
+
+
+__all__ = ["SYMBOLIC_INVERSE", "Constraint", "ConstraintFailure", "ImplicitSubspace", "Intermediates",
+           "NumericConstraints", "closed_forms", "intermediate_symbols", "multiplier_name", "project_implicit"]

@@ -1,7 +1,9 @@
 """A known system: the result of a derivation, itself usable as a component.
 
 ``Mbar qddot + hbar = fbar`` with ``fbar`` the sum of the named effects'
-generalized forces (10'), (C)-(F).
+generalized forces (10'), (C)-(F). Pure data: printing, simulating and the notebook's
+conveniences live above it (:mod:`kronsub.emitters`, :mod:`kronsub.simulation`,
+:class:`kronsub.api.System`).
 """
 from __future__ import annotations
 
@@ -53,12 +55,71 @@ class ProjectedEffect:
     force: sympy.Matrix
     potential: sympy.Expr = sympy.Integer(0)
     direct: bool = False  # written in generalized coordinates: fbar formed in the subspace, f is zero
-    translation: tuple = ()  # dV/do under a translation o of the whole system (Effect.translation)
+    translation: tuple[sympy.Expr, ...] = ()  # dV/do under a translation o of the whole system (Effect.translation)
+
+
+@dataclass(frozen=True)
+class Constraint:
+    """One scalar constraint ``g = 0``; ``source`` says where it came from (a joint, the file)."""
+
+    name: str
+    expression: sympy.Expr
+    source: str = ""
+
+
+@dataclass(frozen=True)
+class ImplicitSubspace:
+    """The implicit part of a derived system: what its named intermediates mean (26)-(29).
+
+    ``Mbar``, ``hbar`` and ``fbar`` of the system are written in the independent
+    coordinates, the dependent coordinates, ``Lambda`` (``sensitivities``, k x n) and
+    ``gamma`` (``convective``, k); to evaluate them at a state, find ``y_d`` with
+    ``g(xbar, y_d) = 0`` on the branch through ``branch``, then
+    ``G_d Lambda = -G_i`` and ``G_d gamma = quadratic``
+    (:func:`kronsub.core.constraints.project_implicit` makes it).
+    """
+
+    independent: tuple[sympy.Symbol, ...]
+    dependent: tuple[sympy.Symbol, ...]
+    constraints: tuple[Constraint, ...]
+    jacobian_dependent: sympy.Matrix  # G_d = dg/dy_d (k x k)
+    jacobian_independent: sympy.Matrix  # G_i = dg/dxbar (k x n)
+    sensitivities: sympy.Matrix  # Lambda, k x n matrix of symbols
+    convective: tuple[sympy.Symbol, ...]  # gamma, k symbols
+    quadratic: tuple[sympy.Expr, ...]  # -(ydot^T d2g/dy2 ydot) with ydot = C xbardot, in Lambda
+    closed_form: tuple[tuple[sympy.Symbol, sympy.Expr], ...] = ()  # y_d = y_d(xbar) where unique
+    branch: tuple[tuple[sympy.Symbol, float], ...] = ()  # y_d at the initial configuration
+    choice: str = "given"  # "given" (coordinates listed) or "auto" (pivoted at the initial configuration)
+    definitions: tuple[tuple[sympy.Symbol, sympy.Expr], ...] = field(default=())  # printed closed forms
+    intermediate: tuple[sympy.Symbol, ...] = ()  # y, in the order of the connection's C columns
+    # the system on y before the constraints (for the reactions of viewpoint (alpha))
+    metric: sympy.Matrix | None = None
+    velocity_terms: sympy.Matrix | None = None
+    forces: sympy.Matrix | None = None
+    effect_forces: Mapping[str, sympy.Matrix] = field(default_factory=dict)  # f per effect, on y
+
+    @property
+    def intermediates(self) -> tuple[sympy.Symbol, ...]:
+        """``y_d``, ``Lambda`` (row-major) and ``gamma``: the order of generated code's ``w[]``."""
+        return self.dependent + tuple(self.sensitivities) + self.convective
+
+    @property
+    def residuals(self) -> tuple[sympy.Expr, ...]:
+        return tuple(c.expression for c in self.constraints)
 
 
 @dataclass(frozen=True)
 class KnownSystem:
-    """The equations of motion of a derived system, ready to be a component of the next."""
+    """The equations of motion of a derived system, ready to be a component of the next.
+
+    ``mass_matrix`` is ``Mbar = Cᵀ M C`` (9'), (D): the metric of the subspace, the primitive's
+    metric ``M`` carried by the transformation ``C`` (what a component calls its metric);
+    ``velocity_terms`` is ``hbar`` (E) and ``effect_forces`` the ``fbar`` of each named effect (F).
+    ``effect_translations`` holds, per effect of a world field, ``dV/do`` under a translation
+    ``o`` of the whole system; ``requirements`` what its components need of the parameters'
+    values (:class:`kronsub.model.requirements.Requirement`, checked by the model above);
+    ``initial`` the model's initial values.
+    """
 
     name: str
     coordinates: tuple[sympy.Symbol, ...]
@@ -73,10 +134,10 @@ class KnownSystem:
     transition: Transition | None = None
     description: str = ""
     effect_potentials: Mapping[str, sympy.Expr] = field(default_factory=dict)  # V per effect
-    effect_translations: Mapping[str, tuple] = field(default_factory=dict)  # dV/do per effect of a world field
-    implicit: object | None = None  # core.constraints.ImplicitSubspace: the named intermediates (26)-(29)
-    initial: Mapping[sympy.Symbol, sympy.Expr] = field(default_factory=dict)  # the model's initial values
-    requirements: tuple = ()  # what its components need of the parameters' values (model.requirements)
+    effect_translations: Mapping[str, tuple[sympy.Expr, ...]] = field(default_factory=dict)
+    implicit: ImplicitSubspace | None = None  # the named intermediates (26)-(29)
+    initial: Mapping[sympy.Symbol, sympy.Expr] = field(default_factory=dict)
+    requirements: tuple[object, ...] = ()
 
     @property
     def velocities(self) -> tuple[sympy.Symbol, ...]:
@@ -115,39 +176,5 @@ class KnownSystem:
         lhs = self.mass_matrix * sympy.Matrix(self.accelerations) + self.velocity_terms
         return [sympy.Eq(lhs[i], self.forces[i]) for i in range(len(self.coordinates))]
 
-    # -- conveniences for notebooks: thin delegations to kronsub.api, imported when called,
-    #    so this module stays pure data and never imports the simulation ----------------------
 
-    def symbol(self, name: str) -> sympy.Symbol:
-        """The system's symbol called ``name`` (kronsub's symbols are ``real=True``)."""
-        from ..api import symbol
-
-        return symbol(self, name)
-
-    def simulate(self, t: float = 10.0, dt: float = 0.01, method: str = "dop853", set=None, **options):
-        """Simulate from the model's initial values; see :func:`kronsub.api.simulate`."""
-        from ..api import simulate
-
-        return simulate(self, t, dt, method, set, **options)
-
-    def numeric(self, set=None):
-        """Compiled ``rhs``, ``mass_matrix``, energies...; see :func:`kronsub.api.numeric`."""
-        from ..api import numeric
-
-        return numeric(self, set)
-
-    def linearize(self, at=None, inputs=(), *, symbolic: bool = False):
-        """``A``, ``B`` about an operating point; see :func:`kronsub.api.linearize`."""
-        from ..api import linearize
-
-        return linearize(self, at, inputs, symbolic=symbolic)
-
-    def _repr_markdown_(self) -> str:
-        from ..api import repr_markdown
-
-        return repr_markdown(self)
-
-    def _repr_latex_(self) -> str:
-        from ..api import repr_latex
-
-        return repr_latex(self)
+__all__ = ["Constraint", "ImplicitSubspace", "KnownSystem", "ParameterInfo", "ProjectedEffect", "Transition"]

@@ -21,125 +21,20 @@ coordinates not given, from the model's initial values.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
 from typing import Mapping, Sequence
 
 import numpy as np
 import sympy
 
-from ..errors import KronsubError
-from .derivative import matrix_derivative
-from .finite import nonfinite_cause
+from .finite import describe_rank_loss
 from .known_system import KnownSystem
+from .linearize_implicit import linearize_implicit
+from .linearize_numerics import (EQUILIBRIUM_TOLERANCE, Evaluator, Linearization, LinearizationError, at_equilibrium,
+                                 checked_inputs, derivative, least_squares_equilibrium, numeric_value,
+                                 parameter_defaults, parameter_numbers, residual, solve_mass, sorted_eigenvalues,
+                                 unevaluable)
 from .seeded import seeded, sympy_seeded
 from .symbols import TIME
-
-EQUILIBRIUM_TOLERANCE = 1e-8  # largest |qddot| at a point called an equilibrium
-
-
-class LinearizationError(KronsubError):
-    """The operating point cannot be found or the system cannot be linearised there."""
-
-
-@dataclass(frozen=True)
-class Linearization:
-    """``ydot ~ A (y - y*) + B (u - u*)`` about the operating point, ``y = [q; qdot]``.
-
-    ``A`` and ``B`` are numpy arrays, or sympy matrices in the parameters when
-    ``symbolic``; ``eigenvalues`` are those of ``A`` with the parameters' values
-    (None when some parameter has no value).
-    """
-
-    state: tuple[sympy.Symbol, ...]
-    inputs: tuple[sympy.Symbol, ...]
-    point: tuple[tuple[sympy.Symbol, sympy.Expr], ...]  # q*, qdot*, then u*
-    time: sympy.Expr
-    parameters: tuple[tuple[sympy.Symbol, sympy.Expr], ...]  # values substituted
-    A: object
-    B: object
-    eigenvalues: tuple[complex, ...] | None
-    acceleration: tuple[float, ...]  # qddot at the point (zero at an equilibrium)
-    equilibrium: bool
-    found: tuple[sympy.Symbol, ...]  # coordinates solved for (not given)
-    symbolic: bool = False
-    notes: tuple[str, ...] = ()  # caveats to show with the result
-    dependent: tuple[tuple[sympy.Symbol, float], ...] = ()  # implicit constraints: y_d at the point
-
-    @property
-    def stable(self) -> bool | None:
-        """Every eigenvalue in the open left half plane (None when unknown)."""
-        if self.eigenvalues is None:
-            return None
-        return all(e.real < 0 for e in self.eigenvalues)
-
-
-def derivative(m: sympy.Matrix, wrt) -> sympy.Matrix:
-    """``dm/dwrt`` (a Jacobian, or ``diff`` by one symbol) where it exists: ``d sign(x)/dx``
-    (a spring of rest length on a line, ``|x| - l0``) is zero away from ``x = 0``
-    (:func:`kronsub.core.derivative.matrix_derivative`)."""
-    return matrix_derivative(m, wrt)
-
-
-def _residual(system: KnownSystem) -> sympy.Matrix:
-    """``r = fbar - hbar`` (10')."""
-    return system.forces - system.velocity_terms
-
-
-def _numeric(expr: sympy.Expr, values: Mapping[sympy.Symbol, float]) -> float:
-    value = sympy.sympify(expr).xreplace(values)
-    try:
-        return float(value.evalf(30)) if value.free_symbols == set() else float("nan")
-    except TypeError:  # complex: outside the expression's real domain
-        return float("nan")
-
-
-class _Evaluator:
-    """Numeric matrices of symbolic ones at given values (lambdified once)."""
-
-    def __init__(self, matrices: Sequence[sympy.Matrix], symbols: Sequence[sympy.Symbol]):
-        self.matrices = list(matrices)
-        self.shapes = [m.shape for m in matrices]
-        flat = [e for m in matrices for e in m]
-        self.symbols = list(symbols)
-        self.fn = sympy.lambdify([self.symbols], flat, modules=["numpy"])
-
-    def __call__(self, values: Mapping[sympy.Symbol, float]) -> list[np.ndarray]:
-        with np.errstate(all="ignore"):  # numpy's doubles: (-1.0)**0.5 is NaN, not a Python complex
-            flat = np.array(self.fn([np.float64(values[s]) for s in self.symbols]), dtype=float).ravel()
-        out, start = [], 0
-        for rows, cols in self.shapes:
-            out.append(flat[start:start + rows * cols].reshape(rows, cols))
-            start += rows * cols
-        return out
-
-
-def checked_inputs(system: KnownSystem, inputs) -> tuple:
-    """The inputs, each one a parameter of ``system`` (else a :class:`LinearizationError`)."""
-    inputs = tuple(inputs)
-    known = {p.symbol for p in system.parameters}
-    for u in inputs:
-        if u not in known:
-            raise LinearizationError(f"input '{u}' is not a parameter of {system.name}")
-    return inputs
-
-
-def parameter_defaults(system: KnownSystem) -> dict:
-    """The parameters' default values, where they have one."""
-    return {p.symbol: p.value for p in system.parameters if p.value is not None}
-
-
-def parameter_numbers(system: KnownSystem, values: Mapping) -> tuple[dict, list[str]]:
-    """Every parameter's value (``values`` over the defaults) as a float, NaN where none is
-    known; and the names of those without one."""
-    defaults = parameter_defaults(system)
-    numbers: dict[sympy.Symbol, float] = {}
-    missing = []
-    for p in system.parameters:
-        given = values.get(p.symbol, defaults.get(p.symbol))
-        numbers[p.symbol] = _numeric(given, {}) if given is not None else float("nan")
-        if not np.isfinite(numbers[p.symbol]):
-            missing.append(p.name)
-    return numbers, missing
 
 
 def linearize(system: KnownSystem, *, inputs: Sequence[sympy.Symbol] = (),
@@ -159,8 +54,6 @@ def linearize(system: KnownSystem, *, inputs: Sequence[sympy.Symbol] = (),
     ``A`` and ``B``.
     """
     if getattr(system, "implicit", None) is not None:  # the reduced equations (linearize_implicit.py)
-        from .linearize_implicit import linearize_implicit
-
         return linearize_implicit(system, inputs=inputs, point=point, values=values, initial=initial,
                                   symbolic=symbolic)
     point = dict(point or {})
@@ -178,7 +71,7 @@ def linearize(system: KnownSystem, *, inputs: Sequence[sympy.Symbol] = (),
                                  + ", ".join(missing) + "; give it with --at NAME=VALUE "
                                  "(or linearise symbolically)")
 
-    r = _residual(system)
+    r = residual(system)
     M = system.mass_matrix
     x_q = sympy.Matrix(q)
     K0 = derivative(r, x_q)
@@ -187,7 +80,7 @@ def linearize(system: KnownSystem, *, inputs: Sequence[sympy.Symbol] = (),
     dM = [derivative(M, qk) for qk in q]
 
     # the operating point, numerically
-    start = {qk: _numeric(initial.get(qk, 0), numbers) for qk in q}
+    start = {qk: numeric_value(initial.get(qk, 0), numbers) for qk in q}
     fixed = {}
     for s, v in point.items():
         if s not in q and s not in qd:
@@ -196,25 +89,25 @@ def linearize(system: KnownSystem, *, inputs: Sequence[sympy.Symbol] = (),
     free = [qk for qk in q if qk not in fixed]
     state_values = {**{v: 0.0 for v in qd}, **start}
     for s, v in fixed.items():
-        state_values[s] = _numeric(v, numbers)
+        state_values[s] = numeric_value(v, numbers)
         if not np.isfinite(state_values[s]):
             raise LinearizationError(f"the operating value of '{s}' is not a real number")
     symbols = q + qd + [TIME] + [p.symbol for p in system.parameters]
-    numeric_values = {**state_values, TIME: _numeric(t0, numbers), **numbers}
+    numeric_values = {**state_values, TIME: numeric_value(t0, numbers), **numbers}
     if missing:  # symbolic without values: the point must be given, it cannot be solved for
         if free:
             raise LinearizationError("cannot find an equilibrium without values for " + ", ".join(missing)
                                      + "; give them, or every coordinate, with --at NAME=VALUE")
         acceleration = (float("nan"),) * n
     else:
-        evaluate = _Evaluator([M, r, K0], symbols)
+        evaluate = Evaluator([M, r, K0], symbols)
         if free:
             numeric_values = _solve_equilibrium(evaluate, numeric_values, q, free, r)
         Mn, rn, _ = evaluate(numeric_values)
         if not (np.all(np.isfinite(Mn)) and np.all(np.isfinite(rn))):
-            raise LinearizationError(_unevaluable(r, q, numeric_values, M, "at the operating point"))
-        acceleration = tuple(float(a) for a in _solve(Mn, rn.ravel(), numeric_values, q))
-    velocities_zero = all(_numeric(fixed.get(v, 0), numbers) == 0 for v in qd)
+            raise LinearizationError(unevaluable(r, q, numeric_values, M, "at the operating point"))
+        acceleration = tuple(float(a) for a in solve_mass(Mn, rn.ravel(), numeric_values, q))
+    velocities_zero = all(numeric_value(fixed.get(v, 0), numbers) == 0 for v in qd)
     if missing:  # no numbers to check with: check exactly
         equilibrium = velocities_zero and _exact_equilibrium(r, q, qd, fixed, t0, values)
     else:
@@ -249,19 +142,17 @@ def linearize(system: KnownSystem, *, inputs: Sequence[sympy.Symbol] = (),
         eig = None
         if not missing:
             An = np.array(A.xreplace({s: sympy.Float(v) for s, v in numbers.items()}).evalf(), dtype=float)
-            eig = _eigenvalues(An)
+            eig = sorted_eigenvalues(An)
         substituted = tuple((p.symbol, sympy.sympify(values[p.symbol])) for p in system.parameters
                             if p.symbol in values)
     else:
-        evaluate = _Evaluator([M, r, K0, D0, G0] + dM, symbols)
+        evaluate = Evaluator([M, r, K0, D0, G0] + dM, symbols)
         Mn, rn, Kn, Dn, Gn, *dMn = evaluate(numeric_values)
         a = np.array(acceleration)
         if n:
             Kn = Kn - np.column_stack([dMk @ a for dMk in dMn])
-        lower = _solve(Mn, np.hstack([Kn, Dn, Gn]), numeric_values, q)
+        lower = solve_mass(Mn, np.hstack([Kn, Dn, Gn]), numeric_values, q)
         if n:  # singular to round-off, which Cholesky lets through (a spherical pole: sin(pi)**2 = 1.5e-32)
-            from .finite import describe_rank_loss
-
             why = describe_rank_loss(Mn, [s.name for s in q])
             if why:
                 notes.append(f"{why}: A is not to be trusted along it")
@@ -270,7 +161,7 @@ def linearize(system: KnownSystem, *, inputs: Sequence[sympy.Symbol] = (),
         A[n:, :] = lower[:, :2 * n]
         B = np.zeros((2 * n, len(inputs)))
         B[n:, :] = lower[:, 2 * n:]
-        eig = _eigenvalues(A)
+        eig = sorted_eigenvalues(A)
         substituted = tuple((p.symbol, sympy.sympify(values.get(p.symbol, defaults.get(p.symbol))))
                             for p in system.parameters)
     return Linearization(
@@ -281,25 +172,7 @@ def linearize(system: KnownSystem, *, inputs: Sequence[sympy.Symbol] = (),
     )
 
 
-def _solve(Mn: np.ndarray, rhs: np.ndarray, values, q) -> np.ndarray:
-    where = ", ".join(f"{s}={values[s]:.6g}" for s in q)
-    try:
-        np.linalg.cholesky(Mn)
-    except np.linalg.LinAlgError:
-        from .finite import describe_rank_loss
-
-        why = describe_rank_loss(Mn, [s.name for s in q])
-        raise LinearizationError(f"the mass matrix is not positive definite at {where}"
-                                 + (f"; {why}" if why else "")) from None
-    try:  # Cholesky passes a matrix singular to round-off (Euler angles at their singularity)
-        return np.linalg.solve(Mn, rhs)
-    except np.linalg.LinAlgError:
-        raise LinearizationError(f"the mass matrix is singular at {where} (a coordinate singularity, such as "
-                                 "Euler angles where two axes line up)\n  hint: give another operating point "
-                                 "with --at NAME=VALUE, or other coordinates") from None
-
-
-def _solve_equilibrium(evaluate: _Evaluator, values: dict, q, free, r) -> dict:
+def _solve_equilibrium(evaluate: Evaluator, values: dict, q, free, r) -> dict:
     """Solve ``r(q, 0) = 0`` for the free coordinates (:func:`least_squares_equilibrium`:
     Levenberg-Marquardt, which copes with coordinates the equilibrium does not fix, such as a
     cart's position, then the trust-region reflective method where it stalls)."""
@@ -322,68 +195,13 @@ def _solve_equilibrium(evaluate: _Evaluator, values: dict, q, free, r) -> dict:
 
     x0 = np.array([values[s] for s in free], dtype=float)
     if not np.all(np.isfinite(fun(x0))):
-        raise LinearizationError(_unevaluable(r, q, values, evaluate.matrices[0]))
+        raise LinearizationError(unevaluable(r, q, values, evaluate.matrices[0]))
 
     def settled(x):
         Mn, rn, _ = evaluate(at(x))
-        return _at_equilibrium(Mn, rn.ravel())
+        return at_equilibrium(Mn, rn.ravel())
 
     return at(least_squares_equilibrium(fun, jac, x0, settled))
-
-
-def _at_equilibrium(Mn: np.ndarray, rn: np.ndarray) -> bool:
-    """Whether ``qddot = Mbar^-1 r`` is 0 to :data:`EQUILIBRIUM_TOLERANCE` (False where it has no
-    value, or ``Mbar`` is singular)."""
-    with np.errstate(all="ignore"):
-        try:
-            a = np.linalg.solve(Mn, rn)
-        except np.linalg.LinAlgError:
-            return False
-    return bool(np.all(np.isfinite(a)) and np.max(np.abs(a), initial=0.0) <= EQUILIBRIUM_TOLERANCE)
-
-
-def least_squares_equilibrium(fun, jac, x0: np.ndarray, settled, warm=None) -> np.ndarray:
-    """The free coordinates where ``r(q, 0) = 0``, by least squares from ``x0``: first
-    Levenberg-Marquardt; where it stalls short of an equilibrium (``settled`` false: near a
-    turning point of the residual, where ``(dr/dq)^T r`` is small with ``r`` not, its steps
-    shrink to nothing), the trust-region reflective method from the same start, whose trust
-    region takes other steps; its answer is taken only where it settles. A point where
-    Levenberg-Marquardt settles is kept as it is (the second method is not run), and so is the
-    point where both stall (the one reported). ``warm = (get, put)`` reads and sets what ``fun``
-    keeps between calls (a warm start): the second method starts from the first's start, and
-    the first's answer comes back with its own."""
-    from scipy.optimize import least_squares
-
-    start = warm[0]() if warm is not None else None
-    # unit scaling: scaled by the Jacobian's column norms (scipy's default for "lm"), a coordinate the
-    # equilibrium does not fix, whose column is round-off (~1e-16) rather than 0, takes steps of ~1e15
-    first = least_squares(fun, x0, jac=jac, method="lm", xtol=1e-15, ftol=1e-15, gtol=1e-15, x_scale=1.0)
-    if settled(first.x):
-        return first.x
-    kept = warm[0]() if warm is not None else None
-    if warm is not None:
-        warm[1](start)
-    try:
-        second = least_squares(fun, x0, jac=jac, method="trf", xtol=1e-15, ftol=1e-15, gtol=1e-15, x_scale=1.0)
-        if settled(second.x):
-            return second.x
-    except (ValueError, np.linalg.LinAlgError, LinearizationError):  # a state without a value: the first stands
-        pass
-    if warm is not None:
-        warm[1](kept)
-    return first.x
-
-
-def _unevaluable(r, q, values, M, where: str = "at the initial values") -> str:
-    """Why ``Mbar`` or ``r = fbar - hbar`` has no finite value at ``values``: an overflow (then
-    another operating point does not help) or a function outside its domain (:mod:`.finite`)."""
-    n = len(q)
-    quantities = [(f"Mbar[{q[i].name}, {q[j].name}]", M[i, j]) for i in range(n) for j in range(i + 1)]
-    cause = nonfinite_cause(quantities + [(f"(fbar - hbar)[{s.name}]", e) for s, e in zip(q, r)], values)
-    if cause is None:
-        return f"the equations cannot be evaluated {where}; give the operating point with --at NAME=VALUE"
-    hint = cause.hint if cause.overflow else f"{cause.hint}, or give the operating point with --at NAME=VALUE"
-    return f"the equations cannot be evaluated {where}: {cause.what}\n  hint: {hint}"
 
 
 def _exact(value: float) -> sympy.Expr:
@@ -420,15 +238,4 @@ def _symbolic_matrices(M, r, K0, D0, G0, dM, subs, n, m):
     return A, B
 
 
-def _eigenvalues(A: np.ndarray) -> tuple[complex, ...]:
-    """Eigenvalues of ``A`` in a fixed order (by real part, then imaginary part)."""
-    if A.size == 0:
-        return ()
-    if not np.all(np.isfinite(A)):
-        raise LinearizationError("A is not finite at the operating point: the equations overflow a double "
-                                 "there\n  hint: check the values given with --at and the parameters' values")
-    values = np.linalg.eigvals(A)
-    scale = max(1.0, float(np.max(np.abs(values))))
-    cleaned = [complex(v.real if abs(v.real) > 1e-12 * scale else 0.0,
-                       v.imag if abs(v.imag) > 1e-12 * scale else 0.0) for v in values]
-    return tuple(sorted(cleaned, key=lambda c: (round(c.real, 9), round(c.imag, 9))))
+__all__ = ["EQUILIBRIUM_TOLERANCE", "Linearization", "LinearizationError", "linearize"]

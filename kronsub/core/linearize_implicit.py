@@ -24,9 +24,10 @@ import sympy
 from .constraints import ConstraintFailure, Intermediates
 from .derivative import matrix_derivative
 from .known_system import KnownSystem
-from .linearize import (EQUILIBRIUM_TOLERANCE, Linearization, LinearizationError, _at_equilibrium, _Evaluator,
-                        _eigenvalues, _numeric, _residual, _solve, _unevaluable, checked_inputs, derivative,
-                        least_squares_equilibrium, parameter_defaults, parameter_numbers)
+from .linearize_numerics import (EQUILIBRIUM_TOLERANCE, Evaluator, Linearization, LinearizationError, at_equilibrium,
+                                 checked_inputs, derivative, least_squares_equilibrium, numeric_value,
+                                 parameter_defaults, parameter_numbers, residual, solve_mass, sorted_eigenvalues,
+                                 unevaluable)
 from .symbols import TIME
 
 
@@ -44,7 +45,7 @@ class _Reduced:
             self.evaluator.guess = np.array(guess, dtype=float)
         yd, lam, gam = list(imp.dependent), list(imp.sensitivities), list(imp.convective)
         self.lam_shape = imp.sensitivities.shape
-        r, M = _residual(system), system.mass_matrix
+        r, M = residual(system), system.mass_matrix
         Gd, Gi = imp.jacobian_dependent, imp.jacobian_independent
         quad = sympy.Matrix(imp.quadratic)
 
@@ -65,7 +66,7 @@ class _Reduced:
                     matrices[f"Gi_{label}{i}"] = matrix_derivative(Gi, s)
         self.names = list(matrices)
         self.symbols = self.q + self.qd + yd + lam + gam + [TIME] + list(numbers)
-        self.evaluate = _Evaluator([matrices[k] for k in self.names], self.symbols)
+        self.evaluate = Evaluator([matrices[k] for k in self.names], self.symbols)
 
     def values(self, q, qd, t: float) -> dict:
         """Every symbol's value at the reduced state ``(q, qdot)`` (the intermediates solved for)."""
@@ -125,16 +126,16 @@ def linearize_implicit(system: KnownSystem, *, inputs: Sequence[sympy.Symbol] = 
     for s in point:
         if s not in q and s not in qd:
             raise LinearizationError(f"'{s}' is not an independent coordinate or velocity of {system.name}")
-    state = {s: _numeric(point.get(s, initial.get(s, 0)), numbers) for s in q + qd}
+    state = {s: numeric_value(point.get(s, initial.get(s, 0)), numbers) for s in q + qd}
     for s, v in state.items():
         if not np.isfinite(v):
             raise LinearizationError(f"the operating value of '{s}' is not a real number")
     for s in qd:
         state[s] = state[s] if s in point else 0.0
-    guess = [_numeric(initial[d], numbers) for d in imp.dependent] if all(d in initial for d in imp.dependent) \
+    guess = [numeric_value(initial[d], numbers) for d in imp.dependent] if all(d in initial for d in imp.dependent) \
         else None
     reduced = _Reduced(system, numbers, inputs, guess if guess and all(np.isfinite(guess)) else None)
-    t = _numeric(t0, numbers)
+    t = numeric_value(t0, numbers)
     free = [s for s in q if s not in point]
     qv = np.array([state[s] for s in q])
     qdv = np.array([state[s] for s in qd])
@@ -142,7 +143,7 @@ def linearize_implicit(system: KnownSystem, *, inputs: Sequence[sympy.Symbol] = 
         qv = _equilibrium(reduced, qv, qdv, t, [q.index(s) for s in free])
     at = reduced.values(qv, qdv, t)
     Mn, rn, *_ = reduced.total(at)
-    acceleration = _solve(Mn, rn, at, q)
+    acceleration = solve_mass(Mn, rn, at, q)
     velocities_zero = not np.any(qdv)
     equilibrium = velocities_zero and float(np.max(np.abs(acceleration), initial=0.0)) <= EQUILIBRIUM_TOLERANCE
     if free and not [s for s in point if s in q] and not equilibrium:
@@ -151,7 +152,7 @@ def linearize_implicit(system: KnownSystem, *, inputs: Sequence[sympy.Symbol] = 
                                  f"acceleration is {np.max(np.abs(acceleration)):.3g}); give the operating "
                                  "point with --at NAME=VALUE for every independent coordinate")
     Mn, rn, K, D, G = reduced.total(at, acceleration)
-    lower = _solve(Mn, np.hstack([K, D, G]), at, q)
+    lower = solve_mass(Mn, np.hstack([K, D, G]), at, q)
     A = np.zeros((2 * n, 2 * n))
     A[:n, n:] = np.eye(n)
     A[n:, :] = lower[:, :2 * n]
@@ -165,7 +166,7 @@ def linearize_implicit(system: KnownSystem, *, inputs: Sequence[sympy.Symbol] = 
         point=tuple(list(op_state.items()) + list(op_inputs.items())), time=t0,
         parameters=tuple((p.symbol, sympy.sympify(values.get(p.symbol, defaults.get(p.symbol))))
                          for p in system.parameters),
-        A=A, B=B, eigenvalues=_eigenvalues(A), acceleration=tuple(float(a) for a in acceleration),
+        A=A, B=B, eigenvalues=sorted_eigenvalues(A), acceleration=tuple(float(a) for a in acceleration),
         equilibrium=equilibrium, found=tuple(free), symbolic=False,
         dependent=tuple((d, float(at[d])) for d in imp.dependent),
     )
@@ -173,7 +174,7 @@ def linearize_implicit(system: KnownSystem, *, inputs: Sequence[sympy.Symbol] = 
 
 def _equilibrium(reduced: _Reduced, qv, qdv, t: float, columns: list[int]) -> np.ndarray:
     """Solve ``r(q, 0) = 0`` for the free independent coordinates
-    (:func:`.linearize.least_squares_equilibrium`, the total derivative as its Jacobian; the
+    (:func:`.linearize_numerics.least_squares_equilibrium`, the total derivative as its Jacobian; the
     dependent ones follow by Newton at every step)."""
 
     def full(x):
@@ -190,12 +191,12 @@ def _equilibrium(reduced: _Reduced, qv, qdv, t: float, columns: list[int]) -> np
     x0 = np.array(qv, dtype=float)[columns]
     if not np.all(np.isfinite(fun(x0))):  # why, with the intermediates solved there (core/finite.py)
         system = reduced.system
-        raise LinearizationError(_unevaluable(_residual(system), list(system.coordinates),
+        raise LinearizationError(unevaluable(residual(system), list(system.coordinates),
                                               reduced.values(full(x0), qdv, t), system.mass_matrix))
 
     def settled(x):
         Mn, rn, *_ = reduced.total(reduced.values(full(x), qdv, t))
-        return _at_equilibrium(Mn, rn)
+        return at_equilibrium(Mn, rn)
 
     def get():
         return np.array(reduced.evaluator.guess, dtype=float)  # y_d, Newton's warm start
@@ -204,3 +205,6 @@ def _equilibrium(reduced: _Reduced, qv, qdv, t: float, columns: list[int]) -> np
         reduced.evaluator.guess = np.array(guess, dtype=float)
 
     return full(least_squares_equilibrium(fun, jac, x0, settled, (get, put)))
+
+
+__all__ = ["linearize_implicit"]

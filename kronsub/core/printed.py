@@ -110,6 +110,4 @@ class LexStrPrinter(Remembering, StrPrinter):
         super().__init__({"order": "lex", **(settings or {})})
 
 
-def lex_length(expr, printer: LexStrPrinter) -> int:
-    """The length of ``sympy.sstr(expr, order="lex")``."""
-    return len(printer.doprint(expr))
+__all__ = ["LexStrPrinter", "Remembering", "ordered_terms"]

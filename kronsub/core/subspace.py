@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import dataclasses
 import functools
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
 
 import sympy
 
@@ -176,26 +176,6 @@ class Subspace:
         if None in targets or len(set(targets)) != len(targets):
             return None
         return targets
-
-
-def project(
-    primitive: Primitive,
-    coordinates: Sequence[sympy.Symbol],
-    connection: Mapping[sympy.Symbol, sympy.Expr],
-    effects: Sequence,
-    *,
-    name: str = "",
-    parameters: Sequence[ParameterInfo] = (),
-    description: str = "",
-) -> KnownSystem:
-    """Project ``primitive`` onto the subspace ``x = connection(xbar)``.
-
-    ``connection`` maps every primitive coordinate to an expression in the new
-    ``coordinates``; ``effects`` are applied on the primitive and projected.
-    """
-    sub = Subspace(primitive, coordinates, connection)
-    inertia = project_inertia(sub, primitive, name=name, parameters=parameters, description=description)
-    return assemble(inertia, project_effects(sub, primitive, effects), assembled_potentials(primitive))
 
 
 def effect_labels(primitive: Primitive, effects: Sequence) -> tuple[str, ...]:
@@ -423,8 +403,8 @@ def project_effects(sub: Subspace, primitive: Primitive, effects, only=None) -> 
                 force = canonical.matrix(sub.n, 1, vec)
             else:
                 force = _projected(sub, full)
-            out.append(ProjectedEffect(key, canonical.matrix(len(full), 1, full), force,
-                                       sub.moved(part.potentials.get(label, sympy.Integer(0))),
+            out.append(ProjectedEffect(label=key, primitive_force=canonical.matrix(len(full), 1, full), force=force,
+                                       potential=sub.moved(part.potentials.get(label, sympy.Integer(0))),
                                        translation=tuple(part.translations.get(label, ()))))
     generalized = _generalized_only(sub, primitive)
     through = None  # found for the first effect that names a generalized coordinate
@@ -440,13 +420,13 @@ def project_effects(sub: Subspace, primitive: Primitive, effects, only=None) -> 
         if generalized and effect.symbols() & generalized:
             direct = effect.direct_force(primitive, sub.coords, sub.moved)  # written in xbar
         if direct is not None:
-            out.append(ProjectedEffect(effect.name, sympy.zeros(len(sub.x), 1), sympy.Matrix(direct),
-                                       sub.moved(effect.potential(primitive)), direct=True,
-                                       translation=effect.translation(primitive)))
+            out.append(ProjectedEffect(label=effect.name, primitive_force=sympy.zeros(len(sub.x), 1),
+                                       force=sympy.Matrix(direct), potential=sub.moved(effect.potential(primitive)),
+                                       direct=True, translation=effect.translation(primitive)))
             continue
         f, V = effect.force_and_potential(primitive)
-        out.append(ProjectedEffect(effect.name, sympy.Matrix(f), _projected(sub, f), sub.moved(V),
-                                   translation=effect.translation(primitive)))
+        out.append(ProjectedEffect(label=effect.name, primitive_force=sympy.Matrix(f), force=_projected(sub, f),
+                                   potential=sub.moved(V), translation=effect.translation(primitive)))
     return out
 
 
@@ -489,3 +469,7 @@ def _sum(polys) -> TrigPoly:
     for p in polys:
         total.add(p)
     return total
+
+
+__all__ = ["Subspace", "assemble", "assembled_potentials", "effect_labels", "project_effects", "project_inertia",
+           "world_dimension"]

@@ -14,9 +14,9 @@ import sympy
 from sympy.printing.c import C99CodePrinter
 from sympy.printing.numpy import NumPyPrinter
 
-from .. import __version__
 from ..collector import collector_paused
 from ..core.known_system import KnownSystem
+from ..version import __version__
 from .escape import Markup
 from .circle import circle_equations
 from .numeric import GUARD, Block, NumericModel, identifier, prepare

@@ -27,8 +27,7 @@ from sympy.matrices.immutable import ImmutableDenseMatrix
 from ..components.base import Body
 from ..collector import collector_paused
 from ..core import canonical
-from ..core.constraints import Constraint, ImplicitSubspace
-from ..core.known_system import KnownSystem, ParameterInfo, ProjectedEffect, Transition
+from ..core.known_system import Constraint, ImplicitSubspace, KnownSystem, ParameterInfo, ProjectedEffect, Transition
 from ..core.placed import PlacedBodies, PlacedPoints
 from ..errors import Location
 from .requirements import Requirement

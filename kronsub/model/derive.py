@@ -10,7 +10,6 @@ import numpy as np
 import numpy.random  # noqa: F401  numpy loads it on first use; imported with the rest
 import sympy
 
-from .. import __version__
 from ..budget import PER_OPERATION, WorkBudgetExceeded, charge
 from ..cache import load_entry, store_entry, usable_cache_dir
 from ..collector import collector_paused
@@ -22,6 +21,7 @@ from ..core.symbols import free_symbols_of
 from ..core.subspace import (Subspace, assemble, assembled_potentials, effect_labels, project_effects,
                              project_inertia)
 from ..errors import Location
+from ..version import __version__
 from . import cache_format
 
 

@@ -33,7 +33,7 @@ from .constraints import analyse, read_constraints
 from .definitions import definition_names, read_definitions, substitute_definitions
 from .model import ImplicitSpec, Model
 from .names import Declared, generated_name_clashes
-from .source import Node, excerpt, load_yaml, read_model_text, system_root
+from .source import Node, SourceFile, excerpt, load_yaml, read_model_file, read_model_text, system_root
 
 TOP_LEVEL = ("name", "description", "parameters", "components", "coordinates", "definitions", "connection",
              "constraints", "effects", "initial", "scenes")
@@ -61,11 +61,12 @@ def load_model(path, *, text: str | None = None, cache: bool = True, _stack: tup
     is charged to the active work budget, or to a default one (`kronsub.budget.scope`).
     """
     path = Path(path)
+    source = None
     if text is None:
-        text = read_model_text(path)
+        text, source = read_model_file(path)
     root = load_yaml(path, text)
     with collector_paused(), budget_scope():  # see kronsub.collector
-        return _Loader(path, root, text, _stack, cache).build()
+        return _Loader(path, root, text, _stack, cache, source).build()
 
 
 MAX_MODEL_DEPTH = 32
@@ -73,8 +74,9 @@ MAX_MODEL_DEPTH = 32
 ``model:`` files are one level further down."""
 
 
-def model_key(path: Path, stack: tuple[str, ...] = ()) -> str:
-    """The content hash of a model file and, recursively, of the model files it uses.
+def model_key(path: Path, stack: tuple[str, ...] = (), read: list[SourceFile] | None = None) -> str:
+    """The content hash of a model file and, recursively, of the model files it uses;
+    ``read`` (when given) gets the :class:`SourceFile` of each file read, in that order.
 
     Cheap next to loading: it reads the YAML but builds nothing, so a cached
     known system is found without deriving or even constructing its model.
@@ -82,14 +84,16 @@ def model_key(path: Path, stack: tuple[str, ...] = ()) -> str:
     resolved = _resolved(path)
     if resolved in stack or len(stack) >= MAX_MODEL_DEPTH:
         return ""  # the cycle, or the depth, is reported when the model is loaded
-    text = read_model_text(path)
+    text, source = read_model_file(path)
+    if read is not None:
+        read.append(source)
     if _alone(text):
         return content_key(text)
     root = load_yaml(path, text, only={"components": {"*": {"model": None}}})
     subs = []
     for sub_path in _component_models(root, path):
         try:
-            subs.append(model_key(sub_path, stack + (resolved,)))
+            subs.append(model_key(sub_path, stack + (resolved,), read))
         except ModelError:  # reported where `model:` names it, when the model is loaded
             subs.append("unreadable")
     return content_key(derivation_text(root, text), *subs)
@@ -114,23 +118,16 @@ def _component_models(root: Node, path: Path) -> list[Path]:
     return out
 
 
-def model_files(path: Path, stack: tuple[str, ...] = ()) -> list[Path]:
-    """The model files a model uses as components (``model:``), recursively, each once, in the
-    order they are named; the model's own file is not among them. Unreadable ones are left out
-    (loading the model reports them)."""
-    resolved = _resolved(path)
-    if resolved in stack or len(stack) >= MAX_MODEL_DEPTH:
-        return []
-    try:
-        root = load_yaml(path, read_model_text(path))
-    except ModelError:
-        return []
-    out: list[Path] = []
-    for sub_path in _component_models(root, path):
-        for found in [sub_path, *model_files(sub_path, stack + (resolved,))]:
-            if found.is_file() and _resolved(found) not in {_resolved(p) for p in out}:
-                out.append(found)
-    return out
+def _each_once(files: list[SourceFile]) -> tuple[SourceFile, ...]:
+    """``files`` in order, each file once (the first time it was read)."""
+    seen: set[str] = set()
+    out = []
+    for f in files:
+        key = _resolved(Path(f.file))
+        if key not in seen:
+            seen.add(key)
+            out.append(f)
+    return tuple(out)
 
 
 def derivation_text(root: Node, text: str) -> str:
@@ -151,8 +148,11 @@ def _resolved(path: Path) -> str:
 
 
 class _Loader:
-    def __init__(self, path: Path, root: Node, text: str, stack: tuple[str, ...], cache: bool = True):
+    def __init__(self, path: Path, root: Node, text: str, stack: tuple[str, ...], cache: bool = True,
+                 source: SourceFile | None = None):
         self.cache = cache
+        self.source = source  # the file as read (None: the text was given)
+        self.used: list[SourceFile] = []  # the model files read for the known systems, recursively
         self.parsed: dict = {}  # parts of expressions built so far (parse_expression's shared)
         self.path = path
         self.file = str(path)
@@ -375,6 +375,8 @@ class _Loader:
             locations=self.locations,
             implicit=implicit,
             requirements=tuple(self.requirements),
+            source=self.source,
+            uses=_each_once(self.used),
         )
 
     def parameter_values(self) -> dict:
@@ -648,7 +650,7 @@ class _Loader:
                                   "`components:`, `coordinates:`...; check the path (nothing of another file "
                                   "is shown)")
                 return None
-            key = model_key(sub_path, self.stack)
+            key = model_key(sub_path, self.stack, self.used)
             system = load_cached(key, transition=False) if self.cache else None
             if system is None:
                 sub = load_model(sub_path, cache=self.cache, _stack=self.stack)
@@ -1107,3 +1109,6 @@ def _kind(node: Node) -> str:
         return "nothing"
     return f"'{excerpt(node.text if node.text is not None else str(node.value))}'"
 
+
+__all__ = ["IDENTIFIER", "MAX_MODEL_DEPTH", "OUTPUT_COLUMNS", "RESERVED", "TOP_LEVEL", "derivation_text",
+           "known_system_part", "load_model", "looks_like_model", "model_key", "placed"]

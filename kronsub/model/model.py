@@ -11,10 +11,13 @@ from typing import Mapping
 
 import sympy
 
-from ..core.known_system import KnownSystem, ParameterInfo
+from ..core.known_system import Constraint, KnownSystem, ParameterInfo
 from ..core.primitive import Primitive
 from ..effects.base import Effect
 from ..errors import Location, Problem
+from .requirements import Requirement
+from .scenes import Scene
+from .source import SourceFile
 
 
 @dataclass(frozen=True)
@@ -29,7 +32,7 @@ class ImplicitSpec:
     intermediate: tuple[sympy.Symbol, ...]
     independent: tuple[sympy.Symbol, ...]
     dependent: tuple[sympy.Symbol, ...]
-    constraints: tuple  # core.constraints.Constraint, in y
+    constraints: tuple[Constraint, ...]  # in y
     branch: tuple[tuple[sympy.Symbol, float], ...] = ()
     closed_form: tuple[tuple[sympy.Symbol, sympy.Expr], ...] = ()
     choice: str = "given"
@@ -51,9 +54,11 @@ class Model:
     initial: Mapping[sympy.Symbol, sympy.Expr] = field(default_factory=dict)
     key_texts: tuple[str, ...] = ()  # what `content_hash` is made of: the file's text, its sub-models' keys
     locations: Mapping[str, Location] = field(default_factory=dict)
-    scenes: tuple = ()  # of :class:`~kronsub.model.scenes.Scene`, in file order
+    scenes: tuple[Scene, ...] = ()  # in file order
     implicit: ImplicitSpec | None = None  # constraints: g(y) = 0
-    requirements: tuple = ()  # of :class:`~kronsub.model.requirements.Requirement`: checked on values
+    requirements: tuple[Requirement, ...] = ()  # checked on values
+    source: SourceFile | None = None  # the file as read (None when its text was given)
+    uses: tuple[SourceFile, ...] = ()  # the model files it uses as known systems, recursively, each once
 
     @functools.cached_property
     def content_hash(self) -> str:
@@ -120,3 +125,6 @@ class Model:
                            f"the ends of {kind} '{effect.name}' coincide at t = {float(t):.6g} ({state}): its "
                            "force is along the line between them, which has no direction there (0/0)", hint)
         return None
+
+
+__all__ = ["ImplicitSpec", "Model"]

@@ -20,7 +20,9 @@ from ..core.known_system import KnownSystem
 from ..core.subspace import effect_labels
 from ..core.symbols import symbol
 from ..errors import ModelError, Problem, close_matches
+from .derive import derive_model
 from .requirements import parameters_in, unmet
+from .schema import scene_methods
 from .source import Node
 
 KEYS = ("description", "effects", "without", "parameters", "initial", "t_end", "dt", "method", "outputs")
@@ -169,11 +171,10 @@ def _positive(loader, node: Node | None, what: str) -> float | None:
 def _method(loader, node: Node | None, sname: str) -> str | None:
     if node is None:
         return None
-    from ..simulation.run import METHODS  # the method table lives with the integrators
-
-    if not isinstance(node.value, str) or node.value not in METHODS:
+    methods = scene_methods()
+    if not isinstance(node.value, str) or node.value not in methods:
         shown = node.text if node.text is not None else str(node.value)
-        loader.error(node, f"unknown method '{shown}' in scene '{sname}'", close_matches(shown, METHODS))
+        loader.error(node, f"unknown method '{shown}' in scene '{sname}'", close_matches(shown, methods))
         return None
     return node.value
 
@@ -222,8 +223,6 @@ def derive_scene(model, scene: Scene | None, *, cache: bool = True) -> KnownSyst
     asks for are kept."""
     if scene is None:
         return model.derive(cache=cache)
-    from .derive import derive_model
-
     system = derive_model(model, cache=cache, effects=scene.effects)
     off = [label for label in effect_labels(model.primitive, model.effects) if label not in scene.effects]
     off_symbols = set().union(*(_effect_symbols(model, label) for label in off)) if off else set()
@@ -273,3 +272,6 @@ def _symbols(value) -> set:
     if isinstance(value, (list, tuple)):
         return set().union(*(_symbols(v) for v in value)) if value else set()
     return set()
+
+
+__all__ = ["KEYS", "OUTPUT_KINDS", "Outputs", "Scene", "build_scenes", "derive_scene", "initial_values", "select_scene"]

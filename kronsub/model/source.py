@@ -8,6 +8,7 @@ with (so ``9.81`` can later become the exact rational 981/100).
 from __future__ import annotations
 
 import errno
+import hashlib
 import os
 import stat
 from dataclasses import dataclass, field
@@ -125,9 +126,18 @@ _KIND_OF_MODE = ((stat.S_ISDIR, "a directory"), (stat.S_ISCHR, "a character devi
                  (stat.S_ISSOCK, "a socket"))
 
 
-def read_model_text(path: Path, where: Location | None = None) -> str:
-    """The text of a model file, read only if it is a regular file of at most
-    `MAX_MODEL_BYTES`; else a `ModelError` at ``where`` (default: the file itself).
+@dataclass(frozen=True)
+class SourceFile:
+    """A model file as read: its path as named and the SHA-256 of its bytes (what a run's
+    results depend on, recorded in its metadata)."""
+
+    file: str
+    sha256: str
+
+
+def read_model_file(path: Path, where: Location | None = None) -> tuple[str, SourceFile]:
+    """The text of a model file and its :class:`SourceFile`, read only if it is a regular file
+    of at most `MAX_MODEL_BYTES`; else a `ModelError` at ``where`` (default: the file itself).
 
     The file is checked with ``stat`` before it is opened, opened non-blocking
     and checked again on the open descriptor, so a device, FIFO, socket or
@@ -141,7 +151,12 @@ def read_model_text(path: Path, where: Location | None = None) -> str:
     if data and info.st_size == 0:
         raise _file_error(where, path, "reports a size of 0 but has content: it is not a regular model file",
                           "give the path of a .yaml model file on disk")
-    return _decoded(data, path)
+    return _decoded(data, path), SourceFile(str(path), hashlib.sha256(data).hexdigest())
+
+
+def read_model_text(path: Path, where: Location | None = None) -> str:
+    """The text of a model file (:func:`read_model_file`)."""
+    return read_model_file(path, where)[0]
 
 
 def _read_checked(path: Path, where: Location, limit: int, check) -> tuple[bytes, os.stat_result]:
@@ -596,3 +611,7 @@ class _Converter:
                 if key not in explicit and key not in values:
                     values[key] = item
                     key_locations[key] = merged.key_locations[key]
+
+
+__all__ = ["MAX_MODEL_BYTES", "Node", "SourceFile", "TextLocation", "excerpt", "load_yaml", "read_model_file",
+           "read_model_text", "read_user_text", "system_root"]

@@ -42,6 +42,7 @@ import numpy as np
 from ..core.known_system import KnownSystem
 from ..emitters.escape import markdown_text, plot_text
 from ..errors import KronsubError
+from ..model.source import SourceFile
 from . import native as native_module
 from .reference import Reference, reference as compute_reference
 from .values import RunValues
@@ -707,14 +708,14 @@ def to_csv(wp: WorkPrecision) -> str:
     return "\n".join(lines) + "\n"
 
 
-def metadata(wp: WorkPrecision, *, model_file: str | None = None, model_path=None,
-             scene: str | None = None, methods: tuple[str, ...] = (), tolerances: tuple[float, ...] = (),
+def metadata(wp: WorkPrecision, *, model_file: str | None = None, source: SourceFile | None = None,
+             uses: tuple[SourceFile, ...] = (), scene: str | None = None, methods: tuple[str, ...] = (), tolerances: tuple[float, ...] = (),
              target: float | None = None, csv: str | None = None) -> dict:
     """Everything about a measurement that is not a point: the model, the reference (its routes,
     estimated error and state at the end time, 30 digits), what was skipped and why, the
     failures' messages, the target's choice. Written as JSON beside the CSV."""
-    from .. import __version__
-    from .table import _json_number, model_record
+    from ..version import __version__
+    from .table import json_number, model_record
 
     ref = wp.reference
     names = list(wp.initial_state) or [f"y{i}" for i in range(len(ref.states[-1]))]
@@ -724,32 +725,32 @@ def metadata(wp: WorkPrecision, *, model_file: str | None = None, model_path=Non
         "format": METADATA_FORMAT,
         "kronsub": __version__,
         "csv": csv,
-        "model": model_record(wp.system, model_file, model_path),
+        "model": model_record(wp.system, model_file, source, uses),
         "scene": scene,
-        "t_end": _json_number(wp.t_end),
-        "parameters": {k: _json_number(v) for k, v in wp.parameters.items()},
-        "initial_state": {k: _json_number(v) for k, v in wp.initial_state.items()},
+        "t_end": json_number(wp.t_end),
+        "parameters": {k: json_number(v) for k, v in wp.parameters.items()},
+        "initial_state": {k: json_number(v) for k, v in wp.initial_state.items()},
     }
     if wp.constraints:
         meta["closed_loop"] = {"constraints": list(wp.constraints),
-                               "dependent_at_t0": {k: _json_number(v) for k, v in wp.dependent.items()},
+                               "dependent_at_t0": {k: json_number(v) for k, v in wp.dependent.items()},
                                "state": "the independent coordinates and their velocities"}
     best = wp.best_error()
     meta.update({
         "methods": list(methods),
-        "tolerances": [_json_number(t) for t in tolerances],
+        "tolerances": [json_number(t) for t in tolerances],
         "reference": {
-            "times": [_json_number(t) for t in ref.times],
+            "times": [json_number(t) for t in ref.times],
             "route": ref.routes[0],
             "cross_checks": list(ref.routes[1:]),
-            "estimated_error": _json_number(ref.error),
+            "estimated_error": json_number(ref.error),
             "digits": ref.digits,
             "state_at_t_end": end_state,
             "sufficient": wp.reference_sufficient(),
             "required_margin": REFERENCE_MARGIN,
-            "best_point_error": _json_number(best),
+            "best_point_error": json_number(best),
         },
-        "compile_seconds": _json_number(wp.compile_seconds),
+        "compile_seconds": json_number(wp.compile_seconds),
         "conservative": wp.conservative,
         "skipped": dict(wp.skipped),
         "failures": [{"method": p.method, "setting": p.setting, "message": p.status or "non-finite state"}
@@ -760,9 +761,9 @@ def metadata(wp: WorkPrecision, *, model_file: str | None = None, model_path=Non
     })
     if target is not None:
         def point(p):
-            return None if p is None else {"method": p.method, "setting": p.setting, "error": _json_number(p.error),
-                                           "seconds": _json_number(p.seconds)}
-        meta["target"] = {"error": _json_number(target), "cheapest": point(wp.cheapest(target)),
+            return None if p is None else {"method": p.method, "setting": p.setting, "error": json_number(p.error),
+                                           "seconds": json_number(p.seconds)}
+        meta["target"] = {"error": json_number(target), "cheapest": point(wp.cheapest(target)),
                           "by_chance": point(wp.by_chance(target))}
     return meta
 

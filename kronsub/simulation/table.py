@@ -19,7 +19,6 @@ its metadata says so.
 from __future__ import annotations
 
 import contextlib
-import hashlib
 import io
 import json
 import math
@@ -32,6 +31,8 @@ import numpy as np
 from ..core.known_system import KnownSystem
 from ..emitters.escape import json_document
 from ..interrupts import HELD, signal_name, signal_of
+from ..model.source import SourceFile
+from ..version import __version__
 from .run import Block, Run, Trajectory, _numpy_module
 from .values import RunValues
 
@@ -78,28 +79,19 @@ def sidecar_path(csv_path: Path) -> Path:
     return csv_path.with_name(csv_path.name + ".json")
 
 
-def file_sha256(path: Path) -> str | None:
-    """The SHA-256 of a file's bytes (None when it cannot be read)."""
-    try:
-        return hashlib.sha256(Path(path).read_bytes()).hexdigest()
-    except OSError:
-        return None
-
-
-def model_record(name: str, file: str | None, path: Path | None = None) -> dict:
-    """The ``model`` entry of a sidecar: its name, the file as given and, when ``path`` can be
-    read, its SHA-256, with under ``uses`` the file and SHA-256 of each model it takes as a
-    known system (the results depend on their text too)."""
-    from ..model.loader import model_files
-
-    record = {"name": name, "file": file, "sha256": file_sha256(path) if path is not None else None}
-    uses = model_files(Path(path)) if path is not None else []
+def model_record(name: str, file: str | None, source: SourceFile | None = None,
+                 uses: tuple[SourceFile, ...] = ()) -> dict:
+    """The ``model`` entry of a sidecar: its name, the file as given and the SHA-256 of the file as
+    the model read it (``source``, :attr:`Model.source <kronsub.model.model.Model.source>`), with
+    under ``uses`` the file and SHA-256 of each model it takes as a known system (``uses``,
+    :attr:`Model.uses <kronsub.model.model.Model.uses>`: the results depend on their text too)."""
+    record = {"name": name, "file": file, "sha256": source.sha256 if source is not None else None}
     if uses:
-        record["uses"] = [{"file": str(f), "sha256": file_sha256(f)} for f in uses]
+        record["uses"] = [{"file": f.file, "sha256": f.sha256} for f in uses]
     return record
 
 
-def _json_number(value):
+def json_number(value):
     """A float for JSON: non-finite values (which JSON lacks) as null."""
     if value is None:
         return None
@@ -177,9 +169,11 @@ class CsvWriter:
     def __init__(self, out, system: KnownSystem, model_path: str, values: RunValues, method: str,
                  backend: str, rtol: float, atol: float, with_points: bool = False, outputs=None, *,
                  t_end: float | None = None, dt: float | None = None, scene: str | None = None,
-                 model_file: Path | None = None, extra_columns: tuple[str, ...] = ()):
+                 source: SourceFile | None = None, uses: tuple[SourceFile, ...] = (),
+                 extra_columns: tuple[str, ...] = ()):
         """``outputs`` (a scene's; None: everything) choose the columns (and the points);
-        ``extra_columns`` are appended (their values passed to :meth:`block`)."""
+        ``extra_columns`` are appended (their values passed to :meth:`block`); ``source`` and
+        ``uses`` are the model's files as it read them (:func:`model_record`)."""
         self.out, self.system, self.outputs = out, system, outputs
         self.with_points = with_points if outputs is None else bool(outputs.points)
         self.param = np.array(values.parameters)
@@ -201,28 +195,27 @@ class CsvWriter:
         columns += _distinct(columns, extra_columns)
         self.columns = columns
         self._meta = self._start_metadata(model_path, values, method, backend, rtol, atol, t_end, dt, scene,
-                                          model_file)
+                                          source, uses)
         out.write(",".join(columns) + "\n")
 
-    def _start_metadata(self, model_path, values, method, backend, rtol, atol, t_end, dt, scene, file) -> dict:
-        from .. import __version__
-
+    def _start_metadata(self, model_path, values, method, backend, rtol, atol, t_end, dt, scene, source,
+                        uses) -> dict:
         system = self.system
         state = [q.name for q in system.coordinates] + [v.name for v in system.velocities]
         meta = {
             "format": METADATA_FORMAT,
             "kronsub": __version__,
             "csv": None,
-            "model": model_record(system.name, model_path, file),
+            "model": model_record(system.name, model_path, source, uses),
             "scene": scene,
             "method": method,
             "right_hand_side": backend,
-            "rtol": _json_number(rtol),
-            "atol": _json_number(atol),
-            "t_end": _json_number(t_end),
-            "dt": _json_number(dt),
-            "parameters": {p.name: _json_number(v) for p, v in zip(system.parameters, values.parameters)},
-            "initial_state": {name: _json_number(v) for name, v in zip(state, values.y0)},
+            "rtol": json_number(rtol),
+            "atol": json_number(atol),
+            "t_end": json_number(t_end),
+            "dt": json_number(dt),
+            "parameters": {p.name: json_number(v) for p, v in zip(system.parameters, values.parameters)},
+            "initial_state": {name: json_number(v) for name, v in zip(state, values.y0)},
         }
         if system.implicit is not None:
             meta["dependent_coordinates"] = {
@@ -265,7 +258,7 @@ class CsvWriter:
             self.out.write(text)
             self.rows += n
             self.last_t = float(block.t[-1]) if n else self.last_t
-            self._meta.update(rows=self.rows, last_t=_json_number(self.last_t))
+            self._meta.update(rows=self.rows, last_t=json_number(self.last_t))
 
     def end(self, stats: dict, complete: bool, t_fail: float | None = None, message: str = "",
             switches=()) -> None:
@@ -274,14 +267,14 @@ class CsvWriter:
         self._cost(stats)
         self._meta["complete"] = bool(complete)
         if switches:
-            self._meta["coordinate_switches"] = [{"t": _json_number(t), "what": str(what)} for t, what in switches]
+            self._meta["coordinate_switches"] = [{"t": json_number(t), "what": str(what)} for t, what in switches]
         if complete:
             self._meta["status"] = "complete"
         else:
-            self._meta.update(status="stopped", stopped_at=_json_number(t_fail), stop_reason=message)
+            self._meta.update(status="stopped", stopped_at=json_number(t_fail), stop_reason=message)
 
     def _cost(self, stats: dict) -> None:
-        self._meta["cost"] = {k: (_json_number(v) if k == "stiff_from" else int(v)) for k, v in stats.items()}
+        self._meta["cost"] = {k: (json_number(v) if k == "stiff_from" else int(v)) for k, v in stats.items()}
 
     def interrupted(self, stats: dict | None = None, signum: int = signal.SIGINT) -> None:
         """Record an interrupt (Ctrl-C, SIGTERM, SIGHUP: ``signum``): the rows so far, to
@@ -291,7 +284,7 @@ class CsvWriter:
         if stats is not None:
             self._cost(stats)
         name = signal_name(signum)
-        self._meta.update(status="interrupted", complete=False, stopped_at=_json_number(self.last_t),
+        self._meta.update(status="interrupted", complete=False, stopped_at=json_number(self.last_t),
                           stop_reason=f"interrupted ({'Ctrl-C' if signum == signal.SIGINT else name})",
                           signal=name)
 
@@ -310,20 +303,10 @@ class CsvWriter:
         except BrokenPipeError:  # the reader went away (`| head`): the rows it took are all there is
             self.stopped = self.reader_gone = True
             self._cost(run.stats)
-            self._meta.update(status="stopped", complete=False, stopped_at=_json_number(self.last_t),
+            self._meta.update(status="stopped", complete=False, stopped_at=json_number(self.last_t),
                               stop_reason="the reader of the output closed it")
             return
         self.end(run.stats, run.complete, run.t_fail, run.message, run.switches)
-
-
-def write_csv(out, system: KnownSystem, model_path: str, run: Run, values: RunValues, rtol: float,
-              atol: float, with_points: bool = False, keep=None, outputs=None, **run_info) -> CsvWriter:
-    """Stream the CSV of ``run`` to ``out`` (see :meth:`CsvWriter.stream`); ``run_info`` are
-    :class:`CsvWriter`'s keyword arguments for the metadata."""
-    writer = CsvWriter(out, system, model_path, values, run.method, run.backend, rtol, atol, with_points, outputs,
-                       **run_info)
-    writer.stream(run, keep)
-    return writer
 
 
 def to_csv(system: KnownSystem, model_path: str, traj: Trajectory, values: RunValues,
@@ -344,3 +327,7 @@ def trajectory_csv(system: KnownSystem, model_path: str, traj: Trajectory, value
         writer.block(Block(traj.t, traj.y, traj.energies, traj.dependent), data)
     writer.end(traj.stats, traj.complete, traj.t_fail, traj.message, traj.switches)
     return out.getvalue(), writer.metadata()
+
+
+__all__ = ["METADATA_FORMAT", "CsvWriter", "energies", "format_rows", "json_number", "metadata_json",
+           "model_record", "point_columns", "sidecar_path", "to_csv", "trajectory_csv"]
