@@ -107,7 +107,7 @@ def _derive_kronsub(n: int):
 
 def _derive_peer(n: int, method: str):
     sys.path.insert(0, str(REPO / "tests"))
-    import mechanics_reference as mr
+    from reference import mechanics as mr
 
     raw = mr.rod_chain(n, method, raw=True)
     M, forcing = raw.plain()  # conversion to plain symbols, not timed

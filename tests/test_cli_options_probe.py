@@ -18,7 +18,7 @@ import pytest
 from click.testing import CliRunner
 
 from conftest import MODELS
-from deadline import within
+from helpers.deadline import within
 from kronsub.cli import main
 
 SYSTEM1 = MODELS / "hoffmann" / "system1.yaml"

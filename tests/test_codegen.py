@@ -2,11 +2,9 @@
 from __future__ import annotations
 
 import ctypes
-import importlib.util
 import json
 import shutil
 import subprocess
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -14,110 +12,23 @@ import sympy
 from click.testing import CliRunner
 
 import kronsub
-from conftest import MODELS, ROOT, explicit_model_paths
+from conftest import MODELS, ROOT
+from helpers.generated import ALL_MODELS, CFLAGS, DOUBLE_P, c_agrees_with_symbolic, python_agrees_with_symbolic
 from kronsub.cli import main
 from kronsub.emitters.code import emit_c, emit_python
 
-# every bundled model without `constraints:` and every test model, relative to the repository
-# (the closed loops have their own code tests: tests/test_constraints_codegen.py)
-ALL_MODELS = sorted([str(Path("models") / p) for p in explicit_model_paths()]
-                    + [str(p.relative_to(ROOT)) for p in (ROOT / "tests" / "models").glob("*.yaml")])
-CFLAGS = ["-std=c99", "-Wall", "-Wextra", "-Werror", "-O2"]
 needs_cc = pytest.mark.skipif(shutil.which("gcc") is None, reason="no C compiler")
-DOUBLE_P = ctypes.POINTER(ctypes.c_double)
-
-
-def _symbolic(system):
-    """Reference values straight from the derived sympy expressions."""
-    syms = [*system.coordinates, *system.velocities, *(p.symbol for p in system.parameters), sympy.Symbol("t", real=True)]
-    exprs = [system.mass_matrix, system.velocity_terms, system.forces, system.kinetic_energy, system.potential_energy]
-    f = sympy.lambdify(syms, exprs, modules="numpy", dummify=True)  # model names may be numpy's (sqrt, cos)
-
-    def at(t, y, param):
-        M, h, fo, T, V = f(*y, *param, t)
-        return (np.array(M, float), np.array(h, float).ravel(), np.array(fo, float).ravel(), float(T), float(V))
-
-    return at
-
-
-def _states(system, rng, count):
-    n = len(system.coordinates)
-    for _ in range(count):
-        y = rng.uniform(-1.0, 1.0, 2 * n)
-        param = rng.uniform(0.5, 1.5, len(system.parameters))
-        names = [p.name for p in system.parameters]
-        if system.name == "System II":  # keep the subspace (26) real
-            param[names.index("c")] = 0.1
-            param[names.index("a1")] = 0.4
-            param[names.index("a2")] = 1.0
-            y[0] = rng.uniform(-0.3, 0.3)
-        yield rng.uniform(0, 2), y, param
-
-
-def _close(a, b):
-    a, b = np.asarray(a, float), np.asarray(b, float)
-    return np.allclose(a, b, rtol=1e-12, atol=1e-12 * max(1.0, float(np.max(np.abs(b)))))
 
 
 @needs_cc
 @pytest.mark.parametrize("path", ALL_MODELS)
 def test_generated_c_agrees_with_symbolic(path, tmp_path):
-    """Built with -std=c99 -Wall -Wextra -Werror -O2: no M_PI or M_SQRT2, which c99 lacks."""
-    system = kronsub.load(ROOT / path).derive()
-    for generated in emit_c(system, "model", source=path):
-        (tmp_path / generated.name).write_text(generated.text)
-        assert "M_PI" not in generated.text and "M_SQRT" not in generated.text
-    lib_path = tmp_path / "libmodel.so"
-    subprocess.run(["gcc", *CFLAGS, "-fPIC", "-shared", "model.c", "-o", str(lib_path), "-lm"],
-                   cwd=tmp_path, check=True, capture_output=True, text=True)
-    lib = ctypes.CDLL(str(lib_path))
-    for fn in ("ks_kinetic_energy", "ks_potential_energy"):
-        getattr(lib, fn).restype = ctypes.c_double
-    n = len(system.coordinates)
-    symbolic = _symbolic(system)
-    buf = lambda k: (ctypes.c_double * k)()  # noqa: E731
-    arr = lambda a: (ctypes.c_double * len(a))(*a)  # noqa: E731
-    for t, y, param in _states(system, np.random.default_rng(7), 100):
-        M, h, f, T, V = symbolic(t, y, param)
-        yc, pc = arr(y), arr(param)
-        Mc, hc, fc, yd = buf(n * n), buf(n), buf(n), buf(2 * n)
-        lib.ks_mass_matrix(yc, pc, Mc)
-        lib.ks_velocity_terms(yc, ctypes.cast(ctypes.byref(yc, 8 * n), DOUBLE_P), pc, hc)
-        lib.ks_forces(ctypes.c_double(t), yc, ctypes.cast(ctypes.byref(yc, 8 * n), DOUBLE_P), pc, fc)
-        assert _close(np.array(Mc[:]).reshape(n, n), M)
-        assert _close(hc[:], h)
-        assert _close(fc[:], f)
-        assert lib.ks_rhs(ctypes.c_double(t), yc, pc, yd) == 0
-        assert _close(yd[:n], y[n:])
-        assert _close(yd[n:], np.linalg.solve(M, f - h))
-        assert _close([lib.ks_kinetic_energy(yc, pc)], [T])
-        assert _close([lib.ks_potential_energy(ctypes.c_double(t), yc, pc)], [V])
-        z, back = buf(2 * n), buf(2 * n)
-        lib.ks_momentum(yc, pc, z)
-        assert _close(z[n:], M @ y[n:])
-        assert lib.ks_velocity(z, pc, back) == 0
-        assert _close(back[:], y)
+    c_agrees_with_symbolic(path, tmp_path)
 
 
 @pytest.mark.parametrize("path", ALL_MODELS)
 def test_generated_python_agrees_with_symbolic(path, tmp_path):
-    system = kronsub.load(ROOT / path).derive()
-    (generated,) = emit_python(system, "model", source=path)
-    assert "sympy" not in generated.text
-    (tmp_path / "model.py").write_text(generated.text)
-    spec = importlib.util.spec_from_file_location(f"gen_{abs(hash(path))}", tmp_path / "model.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    n = len(system.coordinates)
-    symbolic = _symbolic(system)
-    for t, y, param in _states(system, np.random.default_rng(8), 100):
-        M, h, f, T, V = symbolic(t, y, param)
-        assert _close(module.mass_matrix(y[:n], param), M)
-        assert _close(module.velocity_terms(y[:n], y[n:], param), h)
-        assert _close(module.forces(t, y[:n], y[n:], param), f)
-        assert _close(module.rhs(t, y, param)[n:], np.linalg.solve(M, f - h))
-        assert _close([module.kinetic_energy(y, param)], [T])
-        assert _close([module.potential_energy(t, y, param)], [V])
+    python_agrees_with_symbolic(path, tmp_path)
 
 
 def test_canonical_form_matches_the_first_order_form():

@@ -16,7 +16,7 @@ import sympy
 from click.testing import CliRunner
 
 import kronsub
-import test_codegen as generated
+from helpers.generated import c_agrees_with_symbolic, python_agrees_with_symbolic
 from kronsub.cli import main
 from kronsub.core.derivative import derivative, jacobian
 
@@ -80,11 +80,11 @@ def test_an_odd_model_checks_and_derives_without_impulses(odd):
 @pytest.mark.skipif(shutil.which("gcc") is None, reason="no C compiler")
 def test_an_odd_model_builds_under_werror_and_agrees_with_the_symbolic_equations(odd, tmp_path):
     (tmp_path / "c").mkdir()
-    generated.test_generated_c_agrees_with_symbolic(str(odd), tmp_path / "c")
+    c_agrees_with_symbolic(str(odd), tmp_path / "c")
 
 
 def test_the_numpy_code_of_an_odd_model_agrees_with_the_symbolic_equations(odd, tmp_path):
-    generated.test_generated_python_agrees_with_symbolic(str(odd), tmp_path)
+    python_agrees_with_symbolic(str(odd), tmp_path)
 
 
 @pytest.mark.parametrize("env, method", [({}, "dop853"), ({"CC": "kronsub-no-such-compiler"}, "DOP853"),

@@ -16,7 +16,7 @@ import pytest
 import kronsub
 from conftest import ROOT
 from kronsub.emitters.code import emit_c
-from test_codegen import ALL_MODELS
+from helpers.generated import ALL_MODELS
 
 SANITIZE = ["-std=c99", "-Wall", "-Wextra", "-Werror", "-O0", "-g", "-fno-omit-frame-pointer",
             "-fsanitize=address,undefined", "-fno-sanitize-recover=all"]

@@ -3,7 +3,7 @@
 Each closed-loop model against an independent route: System II written with (25) equals
 System II written with (26) (system2.yaml) at 20 random states; every closed-loop model
 against sympy.physics.mechanics' KanesMethod with configuration constraints
-(closed_loop_reference.py): generalized active forces (fbar), kinetic energy (Mbar) and
+(tests/reference/closed_loops.py): generalized active forces (fbar), kinetic energy (Mbar) and
 accelerations (with those, hbar) at random consistent states; the pendulum on a cart with
 ``pivot:`` against the hand-connected cart-pole's mechanics reference.
 """
@@ -13,9 +13,9 @@ import numpy as np
 import pytest
 import sympy
 
-import closed_loop_reference as loops
+from reference import closed_loops as loops
 import kronsub
-import mechanics_reference as ref
+from reference import mechanics as ref
 from conftest import MODELS
 from helpers import implicit_numeric as _numeric
 

@@ -5,7 +5,7 @@ crank explicitly to a motor through a gear; the linkage brings its constraints a
 Independent routes: the same mechanism written in one step (tests/data/
 geared_four_bar_one_step.yaml) at 20 random states (Mbar, hbar, fbar, T); the kinetic
 energy and the generalized forces against sympy.physics.mechanics' KanesMethod with
-configuration constraints (closed_loop_reference.four_bar), the gear and the motor's
+configuration constraints (reference.closed_loops.four_bar), the gear and the motor's
 inertia added by hand, the spring's force by hand from the rocker's tip; a 10 s run that
 keeps the loop closed and follows the one-step model's run.
 """
@@ -17,7 +17,7 @@ import numpy as np
 import sympy
 from click.testing import CliRunner
 
-import closed_loop_reference as loops
+from reference import closed_loops as loops
 import kronsub
 from conftest import MODELS, ROOT
 from helpers import constraint_residual, implicit_numeric

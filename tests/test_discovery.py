@@ -12,7 +12,7 @@ from click.testing import CliRunner
 from sympy.physics.mechanics import ReferenceFrame, inertia
 
 import kronsub
-import mechanics_reference as mr
+from reference import mechanics as mr
 from conftest import MODELS, ROOT
 from helpers import assert_same
 from kronsub.cli import main

@@ -1,6 +1,6 @@
 """The energy check after a run: when the energy of a model that conserves it changes by more
 than 1 % of its largest kinetic energy over a complete run, ``simulate`` warns (heyoka, fooled by the Taylor
-series with gaps of two rods released from rest level with their hinge, benchmarks/README.md);
+series with gaps of two rods released from rest level with their hinge, benchmarks/HISTORY.md);
 accurate runs, and models that do not conserve energy (a damper), say nothing. Whether a model conserves energy is read off its equations: dE/dt at
 states with random velocities, by central differences."""
 from __future__ import annotations

@@ -1,6 +1,6 @@
 """Sanity checks of the independent sympy.physics.mechanics references.
 
-The references in ``mechanics_reference.py`` are what kronsub gets checked
+The references in ``tests/reference/mechanics.py`` are what kronsub gets checked
 against, so they are checked here against hand-derived / printed results and
 against physics (energy balance, consistency of M and h with T).
 """
@@ -17,7 +17,7 @@ import sympy
 from sympy import Matrix, Symbol, cos, sin, sqrt
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-import mechanics_reference as mr  # noqa: E402
+from reference import mechanics as mr  # noqa: E402
 
 S = sympy.symbols
 

@@ -11,7 +11,7 @@ import pytest
 import sympy
 
 import kronsub
-import mechanics_reference as ref
+from reference import mechanics as ref
 from conftest import MODELS
 
 CASES = {

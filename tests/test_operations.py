@@ -8,8 +8,8 @@ import pytest
 import sympy
 
 import kronsub
+from helpers.expressions import random_sum
 from kronsub.core.operations import count_ops
-from test_printed import _random_expr
 
 REPO = Path(__file__).resolve().parent.parent
 x, y = sympy.symbols("x y")
@@ -37,7 +37,7 @@ def test_edges(expr):
 def test_random_expressions(seed):
     rng = random.Random(300 + seed)
     for _ in range(150):
-        e = _random_expr(rng)
+        e = random_sum(rng)
         assert count_ops(e) == sympy.count_ops(e), e
         assert count_ops(-e) == sympy.count_ops(-e), -e
         assert count_ops(1 / e) == sympy.count_ops(1 / e), 1 / e

@@ -17,7 +17,7 @@ import sympy
 from click.testing import CliRunner
 
 import kronsub
-import mechanics_reference as ref
+from reference import mechanics as ref
 from conftest import MODELS
 from kronsub.cli import main
 from kronsub.core.constraints import Intermediates

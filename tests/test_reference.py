@@ -2,23 +2,18 @@
 and against an independent 40-digit solution of the double pendulum (``tests/data``)."""
 from __future__ import annotations
 
-import json
-from pathlib import Path
-
 import mpmath
 import numpy as np
 import pytest
 import sympy
 
-import kronsub
-from conftest import MODELS, ROOT
-from kronsub.core.known_system import KnownSystem, ParameterInfo
-from kronsub.core.symbols import TIME, symbol
+from conftest import MODELS
+# closed_loop, loaded, pendulum_exact, spring_chain_exact are also imported from here by
+# test_accuracy.py until it takes them from helpers.systems and reference.exact (issue 33)
+from helpers.systems import TEST_MODELS, benchmark_problem, closed_loop, functions_system, loaded
+from kronsub.core.symbols import TIME
 from kronsub.simulation import reference as R
-from kronsub.simulation.values import resolve
-
-DATA = Path(__file__).resolve().parent / "data"
-TEST_MODELS = ROOT / "tests" / "models"
+from reference.exact import pendulum_exact, spring_chain_exact
 
 
 def lambdified_rhs(system, param):
@@ -34,12 +29,6 @@ def lambdified_rhs(system, param):
                                                       np.ravel(np.array(r(q, u, t, param), dtype=float)))])
 
     return f
-
-
-def loaded(path, settings=None):
-    model = kronsub.load(path)
-    system = model.derive()
-    return system, resolve(system, dict(model.initial), settings or {})
 
 
 @pytest.mark.parametrize("path", [
@@ -68,21 +57,8 @@ def test_tape_right_hand_side_matches_lambdify(path):
         assert np.allclose(got, want, rtol=1e-12, atol=1e-12), (got, want)
 
 
-def _functions_system():
-    """A one-coordinate system whose equation uses every function the tape has a rule for."""
-    q, c = symbol("q"), symbol("c")
-    qd = kronsub.core.symbols.velocity_symbol(q)
-    force = (-sympy.sin(q) + sympy.exp(-q ** 2) * sympy.cos(TIME) - c * sympy.atan(qd) + sympy.log(2 + q ** 2) / 5
-             + sympy.asin(q / 4) * sympy.tan(q / 3) + sympy.tanh(qd) * sympy.sinh(q / 2) - sympy.cosh(q / 5)
-             + sympy.sqrt(3 + q) / (1 + qd ** 2) + sympy.acos(qd / 5) / 7 + sympy.Abs(q - 5) / 10
-             + sympy.sign(q - 4) * qd ** 3 / 20)
-    mass = sympy.Matrix([[1 + sympy.cos(q) ** 2 / 2]])
-    return KnownSystem("functions", (q,), mass, sympy.zeros(1, 1), {"f": sympy.Matrix([force])},
-                       parameters=(ParameterInfo("c", c, sympy.Rational(3, 10)),))
-
-
 def test_taylor_and_extrapolation_agree_on_every_function_rule():
-    system = _functions_system()
+    system = functions_system()
     y0 = [0.4, -0.3]
     taylor = R.taylor(system, [0.3], y0, [0.5, 1.0], digits=16)
     gbs = R.extrapolation(system, [0.3], y0, [0.5, 1.0], digits=16)
@@ -95,38 +71,6 @@ def test_taylor_and_extrapolation_agree_on_every_function_rule():
     assert np.allclose(sol.y.T, [[float(v) for v in s] for s in taylor.states], rtol=0, atol=1e-10)
 
 
-def spring_chain_exact(values, times, digits=30):
-    """``y(t) = expm(A t) y0``, A = [[0, I], [-M^-1 K, 0]], K from the four springs by hand."""
-    m1, m2, m3, k1, k2, k3, k4 = [mpmath.mpf(v) for v in values.parameters]
-    with mpmath.workdps(digits + 10):
-        K = mpmath.matrix([[k1 + k2, -k2, 0], [-k2, k2 + k3, -k3], [0, -k3, k3 + k4]])
-        Minv = mpmath.diag([1 / m1, 1 / m2, 1 / m3])
-        A = mpmath.zeros(6, 6)
-        for i in range(3):
-            A[i, 3 + i] = 1
-        B = -Minv * K
-        for i in range(3):
-            for j in range(3):
-                A[3 + i, j] = B[i, j]
-        y0 = mpmath.matrix([mpmath.mpf(v) for v in values.y0])
-        return [[v for v in mpmath.expm(A * mpmath.mpf(t)) * y0] for t in times]
-
-
-def pendulum_exact(values, times, digits=30):
-    """Released from rest at q0: ``q = 2 asin(k sn(K - w t | k^2))``, ``qdot = -2 k w cn(K - w t | k^2)``,
-    ``k = sin(q0 / 2)``, ``w = sqrt(g / l)``."""
-    m, l, g = [mpmath.mpf(v) for v in values.parameters]
-    with mpmath.workdps(digits + 10):
-        k = mpmath.sin(mpmath.mpf(values.y0[0]) / 2)
-        w, K = mpmath.sqrt(g / l), mpmath.ellipk(k ** 2)
-        out = []
-        for t in times:
-            u = K - w * mpmath.mpf(t)
-            out.append([2 * mpmath.asin(k * mpmath.ellipfun("sn", u, m=k ** 2)),
-                        -2 * k * w * mpmath.ellipfun("cn", u, m=k ** 2)])
-        return out
-
-
 @pytest.mark.parametrize("name, exact", [("spring_chain", spring_chain_exact), ("pendulum", pendulum_exact)])
 def test_reference_matches_exact_solution(name, exact):
     system, values = loaded(TEST_MODELS / f"{name}.yaml")
@@ -136,19 +80,6 @@ def test_reference_matches_exact_solution(name, exact):
     actual = R._difference(ref.states, want)
     assert actual < 1e-20
     assert ref.error < 1e-12  # the estimate: the 16-digit run against the 24-digit one
-
-
-def benchmark_problem():
-    """System I as the benchmark's double pendulum of two rods, from exact inputs, and the
-    40-digit state at t = 10 of ``tests/data/double_pendulum_rods.json``."""
-    data = json.loads((DATA / "double_pendulum_rods.json").read_text())
-    with mpmath.workdps(50):
-        want = [mpmath.mpf(data["state_at_t_end"][k]) for k in ("q1", "q2", "u1", "u2")]
-    system = kronsub.load(MODELS / "hoffmann" / "system1.yaml").derive()
-    half, twelfth = sympy.Rational(1, 2), sympy.Rational(1, 12)
-    exact = {"m1": 1, "m2": 1, "a1": half, "a2": half, "I1": twelfth, "I2": twelfth,
-             "g": sympy.Rational(981, 100), "F": 0}
-    return system, [exact[p.name] for p in system.parameters], [2 * sympy.pi / 3, -sympy.pi / 18, 0, 0], want
 
 
 def test_reference_matches_independent_40_digit_double_pendulum():
@@ -241,17 +172,6 @@ def test_retyped_c_builds_with_warnings_as_errors(tmp_path, precision):
 # closed loops: the dependent coordinates as series (y_d' = Lambda qdot) and by Newton's method
 # ---------------------------------------------------------------------------------------------
 
-def closed_loop(path, settings=None):
-    """A closed-loop model's system, initial values projected onto its constraints, and y_d there."""
-    from kronsub.simulation.constrained import project_initial
-
-    model = kronsub.load(path)
-    system = model.derive()
-    values = resolve(system, dict(model.initial), settings or {})
-    values, _, closure = project_initial(system, dict(model.initial), {}, values, 1e-14)
-    return system, values, [float(v) for v in closure.guess]
-
-
 def test_closed_loop_reference_equals_its_explicit_twin():
     """System II written with the constraint (25) against System II in the parametric form (26):
     the same motion from two derivations; phi against its closed form asin((c - a1 sin theta)/a2)."""
@@ -276,7 +196,7 @@ def test_closed_loop_series_matches_kane_and_the_newton_route():
     against sympy.physics.mechanics' KanesMethod with configuration constraints; then the Taylor
     route (all orders of y_d, Lambda, gamma) against Gragg-Bulirsch-Stoer with Newton's method in
     every evaluation."""
-    import closed_loop_reference as loops
+    from reference import closed_loops as loops
 
     system, values, dependent = closed_loop(MODELS / "examples" / "four_bar.yaml", {"tau": "0.7"})
     kane = loops.four_bar()

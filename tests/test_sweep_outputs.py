@@ -1,4 +1,4 @@
-"""Robustness sweep of kronsub's OUTPUTS (not the derived equations, see test_sweep_models.py):
+"""Robustness sweep of kronsub's OUTPUTS (not the derived equations, see tests/test_models_*.py):
 the trajectory CSV (``simulate``, CLI and API), the generated C and numpy code, ``linearize``,
 ``derive --format latex|json``, each checked against an independent route written here in
 plain sympy/numpy/scipy (Lagrange's equations of a hand-written T and V, scipy's solve_ivp at
@@ -24,6 +24,7 @@ from scipy.integrate import solve_ivp
 from scipy.optimize import fsolve
 
 import kronsub
+from helpers.generated import header_order
 from kronsub.cli import main
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -253,18 +254,6 @@ CODEGEN = [(SYSTEM1, system1_reference, {"F": 0.8}), (SPRING, spring_reference, 
 def random_states(n, seed, spread=2.0):
     rng = np.random.default_rng(seed)
     return [(rng.uniform(0, 3), rng.uniform(-spread, spread, 2 * n)) for _ in range(6)]
-
-
-def header_order(header, prefix):
-    """Parameter names by their ``KS_P_`` index and the points by their ``out[]`` slots."""
-    params, points = {}, []
-    for line in header.splitlines():
-        if line.startswith(f"#define {prefix}_P_"):
-            _, name, index = line.split()
-            params[int(index)] = name[len(prefix) + 3:]
-        if line.strip().startswith("*   out["):
-            points.append(line.split("=")[1].strip())
-    return [params[i] for i in sorted(params)], points
 
 
 def fix_state(y, name):
@@ -568,8 +557,8 @@ def test_simulate_to_a_closed_pipe_keeps_its_metadata(tmp_path):
 def test_linearize_closed_loop_against_multipliers(tmp_path):
     """A closed loop (tests/models/sweep/offset_slider_crank.yaml, five dependent coordinates):
     the equilibrium, A and B (input tau) against finite differences of the accelerations of the
-    Lagrange-multiplier reference of test_sweep_models.py (which never forms C)."""
-    from test_sweep_models import slider_crank_reference
+    Lagrange-multiplier reference of tests/reference/sweep.py (which never forms C)."""
+    from reference.sweep import slider_crank_reference
 
     out = tmp_path / "lin.json"
     run_cli("linearize", SWEEP / "offset_slider_crank.yaml", "--inputs", "tau", "--format", "json", "-o", out)
@@ -599,7 +588,7 @@ def test_linearize_closed_loop_against_multipliers(tmp_path):
 
 @lru_cache(maxsize=None)
 def slider_crank_trajectory(times):
-    from test_sweep_models import slider_crank_reference
+    from reference.sweep import slider_crank_reference
 
     ref = slider_crank_reference()
     pv = np.array([0.8, 0.5, 0.3, 0.2, 0.7, -0.1, 20, 0.3, 0.4, 0.5, 9.81])
@@ -651,7 +640,7 @@ def test_generated_numpy_module_of_a_closed_loop(tmp_path):
     coordinates inside), potential energy and points along a walk of the crank angle."""
     import importlib.util
 
-    from test_sweep_models import slider_crank_reference
+    from reference.sweep import slider_crank_reference
 
     run_cli("codegen", SWEEP / "offset_slider_crank.yaml", "--lang", "python", "-o", tmp_path)
     spec = importlib.util.spec_from_file_location("sweep_osc", tmp_path / "offset_slider_crank.py")
@@ -735,7 +724,7 @@ def markdown_entries(text):
 
 @lru_cache(maxsize=None)
 def coupled_reference():
-    """tests/models/sweep/coupled_spring_pendulums.yaml written by hand (as test_sweep_models.py's)."""
+    """tests/models/sweep/coupled_spring_pendulums.yaml written by hand (as tests/reference/sweep.py does)."""
     r1, q1, r2, q2 = q = list(sp.symbols("r1 q1 r2 q2"))
     m, m2, d, e, kc, k, L0, c, cd, F0, w, g = sp.symbols("m m2 d e kc k L0 c cd F0 w g")
     b1 = sp.Matrix([r1 * sp.sin(q1), -r1 * sp.cos(q1)])

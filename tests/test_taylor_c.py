@@ -12,13 +12,13 @@ import pytest
 
 import kronsub
 from conftest import MODELS, ROOT
+from helpers.systems import TEST_MODELS, benchmark_problem, functions_system, loaded
 from kronsub.simulation import reference as R
 from kronsub.simulation import taylor_c
 from kronsub.simulation.run import SimulationError, simulate
 from kronsub.simulation.taylor_c import TaylorC, TaylorUnavailable
 from kronsub.simulation.values import resolve
-from test_reference import (TEST_MODELS, _functions_system, benchmark_problem, loaded, pendulum_exact,
-                            spring_chain_exact)
+from reference.exact import pendulum_exact, spring_chain_exact
 
 sys.path.insert(0, str(MODELS / "chain"))
 from generate import chain_yaml  # noqa: E402
@@ -26,7 +26,7 @@ from generate import chain_yaml  # noqa: E402
 
 def test_every_rule_matches_the_mpmath_taylor_route(monkeypatch):
     monkeypatch.setattr(taylor_c, "UNROLL_TERMS", 0)
-    system = _functions_system()
+    system = functions_system()
     y0 = [0.4, -0.3]
     want = R.taylor(system, [0.3], y0, [1.0], digits=20).states[-1]
     got, status, steps, order = TaylorC(system).integrate([0.3], y0, 1.0, 1e-12)
@@ -43,13 +43,13 @@ def test_derivatives_of_linear_arguments_are_read_off_the_state():
     system, _, _, _ = benchmark_problem()
     lines = re.findall(r"\bd\d+_5 = ([^;]*);", taylor_c.emit_taylor_c(system, 8))
     assert len(lines) == 3 and all(re.fullmatch(r"[-+*.\de ]*Y[23]_4( \+ [-+*.\de ]*Y[23]_4)?", x) for x in lines), lines
-    lines = re.findall(r"\bd\d+_5 = ([^;]*);", taylor_c.emit_taylor_c(_functions_system(), 8))
+    lines = re.findall(r"\bd\d+_5 = ([^;]*);", taylor_c.emit_taylor_c(functions_system(), 8))
     assert "X0_4" in lines and "Y1_4" in lines and any(re.fullmatch(r"5 \* \w+_5", x) for x in lines), lines
 
 
 def test_unrolled_orders_match_the_loops(monkeypatch):
     """Every rule written out order by order (pairwise sums) against the loop form, same order."""
-    system = _functions_system()
+    system = functions_system()
     out = {}
     for unroll in (False, True):
         monkeypatch.setattr(taylor_c, "UNROLL_TERMS", 10**9 if unroll else 0)
@@ -93,7 +93,7 @@ def test_lanes_as_vectors_and_as_arrays_give_the_same_numbers(monkeypatch):
     values = resolve(system, {}, {"theta": "2*pi/3", "phi": "-pi/18"})
     emit = taylor_c.emit_taylor_c
     assert "KS_V4(" in emit(system, 16) and "#if KS_VECTOR" in emit(system, 16)
-    functions = _functions_system()
+    functions = functions_system()
     runs = []
     for scalar in (False, True):
         if scalar:
@@ -389,7 +389,7 @@ def test_low_part_of_the_state_carried_to_first_order(which):
     the ``L D L^T`` solve) into the step: over one short step the result matches the exact flow
     from ``y0 + d`` far better than adding ``d`` at the end does."""
     if which == "functions":
-        system, param, y0 = _functions_system(), [0.3], [0.4, -0.3]
+        system, param, y0 = functions_system(), [0.3], [0.4, -0.3]
     else:
         system, _, _, _ = benchmark_problem()
         values = resolve(system, {}, {"theta": "2*pi/3", "phi": "-pi/18"})

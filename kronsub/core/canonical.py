@@ -18,10 +18,11 @@ import functools
 import sympy
 import sympy.sets.setexpr  # noqa: F401
 import sympy.tensor.tensor  # noqa: F401
-from sympy.core import basic
-from sympy.core.basic import _args_sortkey
 from sympy.polys.domains import ZZ
 from sympy.polys.matrices import DomainMatrix
+
+from .sympy_internals import (add_from_args, args_sortkey, basic_new, hashable_content, matrix_from_dod,
+                              matrix_fromrep, matrix_new, mul_from_args, ordering_of_classes)
 
 _ONE, _ZERO = sympy.S.One, sympy.S.Zero
 
@@ -51,7 +52,7 @@ def function(cls: type, *args: sympy.Expr) -> sympy.Expr:
     """``cls(*args, evaluate=False)`` for a sympy ``Function`` class: the same object, built
     without sympy remaking the set of admitted argument counts for every value (a hundred
     microseconds each)."""
-    value = sympy.Basic.__new__(cls, *args)
+    value = basic_new(cls, *args)
     value.nargs = _nargs(cls)
     return value
 
@@ -64,19 +65,19 @@ def matrix(rows: int, cols: int, entries: list, cls: type = sympy.Matrix) -> sym
     if len(entries) != rows * cols:
         raise ValueError(f"{len(entries)} entries for a {rows} x {cols} matrix")
     if not all(isinstance(e, sympy.Expr) for e in entries):
-        return cls._new(rows, cols, list(entries))
+        return matrix_new(cls, rows, cols, list(entries))
     dod: dict[int, dict[int, sympy.Expr]] = {}
     for n, e in enumerate(entries):
         if nonzero(e):
             i, j = divmod(n, cols)
             dod.setdefault(i, {})[j] = e
-    return cls._fromrep(cls._dod_to_DomainMatrix(rows, cols, dod, set(map(type, entries))))
+    return matrix_from_dod(cls, rows, cols, dod, set(map(type, entries)))
 
 
 def ones_at(rows: int, cols: int, columns: list[int]) -> sympy.Matrix:
     """The ``rows x cols`` matrix with a 1 in column ``columns[i]`` of each row ``i`` and zeros
     elsewhere (a renaming's ``C``): the same matrix :func:`matrix` makes of those integers."""
-    return sympy.Matrix._fromrep(DomainMatrix({i: {j: ZZ(1)} for i, j in enumerate(columns)}, (rows, cols), ZZ))
+    return matrix_fromrep(sympy.Matrix, DomainMatrix({i: {j: ZZ(1)} for i, j in enumerate(columns)}, (rows, cols), ZZ))
 
 
 class _Unkeyed(Exception):
@@ -87,7 +88,7 @@ class _Unkeyed(Exception):
 def _class_key(cls: type) -> tuple:
     """The class part of ``Basic.compare``: the place in sympy's ``ordering_of_classes``,
     then the name (``_cmp_name``)."""
-    order = basic.ordering_of_classes
+    order = ordering_of_classes
     unknown = len(order) + 1
     name = cls.__name__
     return (order.index(name) if name in order else unknown, name if name not in order else "")
@@ -97,10 +98,10 @@ def _class_key(cls: type) -> tuple:
 def order_key(expr: sympy.Basic) -> tuple:
     """A tuple that sorts as ``Basic.compare`` does: class, length of the hashable content,
     then its items, recursively (computed once per expression, compared in C)."""
-    content = expr._hashable_content()
+    content = hashable_content(expr)
     items = []
     for item in content:
-        if isinstance(item, basic.Basic):
+        if isinstance(item, sympy.Basic):
             items.append(order_key(item))
         elif isinstance(item, (frozenset, set)):
             raise _Unkeyed
@@ -114,7 +115,7 @@ def _sorted(args: list[sympy.Expr]) -> list[sympy.Expr]:
     try:
         return sorted(args, key=order_key)
     except (_Unkeyed, TypeError):
-        return sorted(args, key=_args_sortkey)
+        return sorted(args, key=args_sortkey)
 
 
 def mul(coefficient: sympy.Rational, factors: list[sympy.Expr]) -> sympy.Expr:
@@ -141,7 +142,7 @@ def mul(coefficient: sympy.Rational, factors: list[sympy.Expr]) -> sympy.Expr:
     args = _sorted(factors)
     if coefficient != 1:
         args.insert(0, coefficient)
-    return sympy.Mul._from_args(args)
+    return mul_from_args(args)
 
 
 def nonzero(e: sympy.Expr) -> bool:
@@ -183,4 +184,4 @@ def add(terms: list[sympy.Expr]) -> sympy.Expr:
     flat = _sorted(flat)
     if number != 0:
         flat.insert(0, number)
-    return sympy.Add._from_args(flat)
+    return add_from_args(flat)

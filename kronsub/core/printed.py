@@ -15,6 +15,8 @@ from sympy.core.exprtools import decompose_power
 from sympy.core.numbers import mpf_norm
 from sympy.printing.str import StrPrinter
 
+from .sympy_internals import parse_order
+
 _PREC = dps_to_prec(15)
 """The bits of ``Expr.evalf()``'s default 15 digits; it evaluates with 4 more, then rounds."""
 
@@ -77,7 +79,7 @@ def ordered_terms(expr, order: str = "lex") -> list:
         for base, exp in powers.items():
             monom[index[base]] = exp
         described.append((term, (coeff, tuple(monom), noncommutative)))
-    key, reverse = sympy.Expr._parse_order(order)
+    key, reverse = parse_order(order)
     return [term for term, _ in sorted(described, key=key, reverse=reverse)]
 
 

@@ -19,6 +19,7 @@ from sympy.simplify.cse_main import basic_optimizations as _BASIC
 
 from ..core.derivative import derivative
 from ..core.known_system import KnownSystem
+from ..core.sympy_internals import eval_evalf
 from ..core.symbols import TIME
 
 
@@ -94,7 +95,7 @@ class NearAxis(sympy.Function):
 
     def _eval_evalf(self, prec):
         angle, kind = self.args[:2]
-        return (sympy.cos if kind else sympy.sin)(angle)._eval_evalf(prec)
+        return eval_evalf((sympy.cos if kind else sympy.sin)(angle), prec)
 
 
 def _angle_sum(atom: sympy.Expr) -> sympy.Expr:

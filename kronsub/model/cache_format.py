@@ -20,7 +20,6 @@ import json
 from types import MappingProxyType
 
 import sympy
-from sympy.core.assumptions import _assume_defined
 from sympy.matrices.dense import MutableDenseMatrix
 from sympy.matrices.immutable import ImmutableDenseMatrix
 
@@ -29,6 +28,8 @@ from ..collector import collector_paused
 from ..core import canonical
 from ..core.known_system import Constraint, ImplicitSubspace, KnownSystem, ParameterInfo, ProjectedEffect, Transition
 from ..core.placed import PlacedBodies, PlacedPoints
+from ..core.sympy_internals import (assume_defined, assumptions_given, basic_new, float_new, float_parts,
+                                     valid_nargs)
 from ..errors import Location
 from .requirements import Requirement
 
@@ -86,15 +87,16 @@ class _Encoder:
         if isinstance(e, sympy.Symbol):
             if cls is not sympy.Symbol:  # Dummy, Wild: not data of a model
                 raise CacheFormatError(f"cannot store a {cls.__name__}")
-            return ["S", e.name, *sorted(k for k, v in e._assumptions_orig.items() if v),
-                    *sorted("!" + k for k, v in e._assumptions_orig.items() if not v)]
+            given = assumptions_given(e)
+            return ["S", e.name, *sorted(k for k, v in given.items() if v),
+                    *sorted("!" + k for k, v in given.items() if not v)]
         if isinstance(e, sympy.Integer):
             return ["N", int(e)]
         if isinstance(e, sympy.Rational):
             return ["Q", int(e.p), int(e.q)]
         if isinstance(e, sympy.Float):
-            sign, man, exp, bc = e._mpf_
-            return ["F", int(sign), hex(int(man)), int(exp), int(bc), int(e._prec)]
+            (sign, man, exp, bc), prec = float_parts(e)
+            return ["F", int(sign), hex(int(man)), int(exp), int(bc), int(prec)]
         if e in _CONSTANT_NAMES and not e.args:
             return ["C", _CONSTANT_NAMES[e]]
         if cls is sympy.Add or cls is sympy.Mul or cls is sympy.Pow or FUNCTIONS.get(cls.__name__) is cls:
@@ -164,7 +166,7 @@ def _symbol(node: list) -> sympy.Symbol:
     assumptions = {}
     for flag in flags:
         key, value = (flag[1:], False) if flag.startswith("!") else (flag, True)
-        if key not in _assume_defined:
+        if key not in assume_defined:
             _fail(f"unknown assumption {key!r}")
         assumptions[key] = value
     symbol = sympy.Symbol(name, **assumptions)
@@ -179,7 +181,7 @@ def _float(node: list) -> sympy.Float:
     sign, man, exp, bc, prec = node[1], int(node[2], 16), node[3], node[4], node[5]
     if sign not in (0, 1) or man < 0 or bc != man.bit_length() or not 1 <= prec <= 100_000:
         _fail("malformed float")
-    return sympy.Float._new((sign, man, exp, bc), prec)
+    return float_new((sign, man, exp, bc), prec)
 
 
 def _int(x) -> int:
@@ -208,7 +210,7 @@ def _nodes(table) -> list:
     references: list = []
     note = references.extend
     noncommutative: set[int] = set()  # the nodes that are not commutative (none, in kronsub's systems)
-    new, get = sympy.Basic.__new__, built.__getitem__
+    new, get = basic_new, built.__getitem__
     for number, node in enumerate(table):
         if type(node) is not list or not node:
             _fail("malformed node")
@@ -243,7 +245,7 @@ def _nodes(table) -> list:
             if head == "Pow":
                 e = sympy.Pow(*args, evaluate=False) if len(args) == 2 else _fail("malformed Pow")
             else:
-                if not FUNCTIONS[head]._valid_nargs(len(args)):
+                if not valid_nargs(FUNCTIONS[head], len(args)):
                     _fail(f"malformed {head}: {len(args)} arguments")
                 e = canonical.function(FUNCTIONS[head], *args)
                 if noncommutative and not noncommutative.isdisjoint(refs):  # sympy's rule for a Function

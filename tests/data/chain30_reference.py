@@ -2,7 +2,7 @@
 """Recompute ``chain30_rods.json``: the 30-link rod chain after 0.5 s and 1 s, by Kane's method.
 
 Independent of kronsub: the equations are ``sympy.physics.mechanics``'s (``KanesMethod`` on the
-chain of ``tests/mechanics_reference.py``: 30 uniform rods, mass 1, length 1, pinned end to end
+chain of ``tests/reference/mechanics.py``: 30 uniform rods, mass 1, length 1, pinned end to end
 from the origin, absolute angles q1..q30 from the downward vertical, g = 9.81), integrated by
 scipy's DOP853 from q_i = 0.3 sin(i), at rest, at two tolerances (1e-12 and 1e-13); their
 largest difference is recorded as the estimated error. Deriving takes about a minute.
@@ -33,7 +33,7 @@ def initial_angles(n: int = N) -> list[float]:
 
 def main() -> int:
     sys.path.insert(0, str(HERE.parent))
-    import mechanics_reference as ref
+    from reference import mechanics as ref
 
     start = time.perf_counter()
     raw = ref.rod_chain_raw(N, "kane")

@@ -20,7 +20,7 @@ import sympy
 from scipy.integrate import solve_ivp
 
 import kronsub
-import mechanics_reference as ref
+from reference import mechanics as ref
 from conftest import MODELS
 from kronsub.emitters.code import emit_c
 from kronsub.simulation.native import NativeModel, compile_library

@@ -1,4 +1,10 @@
-"""Test helpers: symbols by name, and numeric comparison of expressions."""
+"""Test helpers shared by the test modules (a test module never imports another): symbols by
+name, numeric comparison of expressions, generated code imported.
+
+Submodules: :mod:`helpers.compare` (kronsub against a hand derivation at random states),
+:mod:`helpers.generated` (generated C and numpy against the symbolic equations),
+:mod:`helpers.systems` (systems and starting values of the simulation tests),
+:mod:`helpers.expressions` (random expressions), :mod:`helpers.deadline` (a time limit)."""
 from __future__ import annotations
 
 import numpy as np

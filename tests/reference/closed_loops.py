@@ -17,7 +17,7 @@ from sympy import Symbol
 from sympy.physics.mechanics import KanesMethod, Particle, Point, ReferenceFrame, RigidBody, dynamicsymbols, inertia
 from sympy.physics.mechanics import kinetic_energy as kinetic
 
-from mechanics_reference import to_plain
+from .mechanics import to_plain
 
 T = dynamicsymbols._t
 

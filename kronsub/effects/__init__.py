@@ -1,0 +1,1 @@
+"""Effects: the named loads of a model (gravity, loads, springs, dampers); see base.py."""
