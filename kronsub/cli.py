@@ -23,6 +23,8 @@ import click
 from . import __version__
 from .atomic import STREAM, atomic_file, output_target, write_atomically
 from .errors import KronsubError, ModelError
+from .simulation.methods import MEASURED, SIMULATE
+from .simulation.methods import help_text as method_help
 from .interrupts import exit_code, signal_name, signal_of, signals_as_interrupts
 
 OK, INPUT_ERROR, USAGE_ERROR, NUMERICAL_FAILURE, INTERNAL_ERROR, INTERRUPTED = 0, 1, 2, 3, 4, 130
@@ -333,9 +335,7 @@ def _writable(path: Path | None, what: str) -> None:
 @click.option("--dt", type=float, default=None,
               help="Output interval (and step of fixed-step methods; default: the scene's, else 0.01).")
 @click.option("--method", default=None,
-              help="Default: the scene's, else dop853. dop853 (C, adaptive), gauss4 (C, symplectic, fixed step), "
-                   "taylor (C, Taylor series, explicit equations only), RK45, DOP853, Radau, LSODA (scipy), "
-                   "heyoka (optional extra).")
+              help="Default: the scene's, else dop853. " + method_help())
 @click.option("--rtol", type=float, default=1e-10, show_default=True, help="Relative tolerance (adaptive methods).")
 @click.option("--atol", type=float, default=1e-10, show_default=True, help="Absolute tolerance (adaptive methods).")
 @click.option("--set", "settings", multiple=True, metavar="NAME=VALUE",
@@ -358,14 +358,13 @@ def simulate(model: Path, t_end: float | None, dt: float | None, method: str | N
     """Simulate MODEL from t = 0 to --t; the trajectory is plain CSV (a header row, then numbers),
     its metadata JSON (--meta, or beside --output)."""
     from .model.scenes import initial_values
-    from .simulation.run import (METHODS, SimulationError, check_tolerances, collect, explicit_only, row_count,
-                                 start)
+    from .simulation.run import SimulationError, check_tolerances, collect, explicit_only, row_count, start
     from .simulation.table import CsvWriter, metadata_json, trajectory_csv
     from .simulation.values import parse_assignments, resolve
 
     def job():
-        if method is not None and method not in METHODS:
-            _fail(f"Error: unknown method '{method}'\n  hint: choose one of {', '.join(METHODS)}", USAGE_ERROR)
+        if method is not None and method not in SIMULATE:
+            _fail(f"Error: unknown method '{method}'\n  hint: choose one of {', '.join(SIMULATE)}", USAGE_ERROR)
         _check_times(t_end, dt)  # before deriving; the row count once both are known
         try:
             check_tolerances(rtol, atol)
@@ -550,8 +549,8 @@ def _constraint_hints(system, run, step: float) -> str:
 @click.argument("model", type=click.Path(dir_okay=False, path_type=Path))
 @click.option("--t", "t_end", type=float, default=10.0, show_default=True, help="End time.")
 @click.option("--methods", default="all", show_default=True,
-              help="Comma-separated: dop853, gauss4, rk4, taylor (C), RK45, DOP853, Radau, LSODA (scipy), heyoka; "
-                   "gbs-long, gbs-quad (extended precision, see --precision).")
+              help="Comma-separated (all: every one but the extended-precision ones, see --precision): "
+                   + method_help(MEASURED))
 @click.option("--tolerances", default="1e-4:1e-14", show_default=True,
               help="Every decade of a range (1e-4:1e-14, or 1e-4:1e-14:2 for every second) or a list "
                    "(1e-6,1e-9). Fixed-step methods take the step tol^(1/4).")

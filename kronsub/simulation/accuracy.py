@@ -43,18 +43,20 @@ from ..core.known_system import KnownSystem
 from ..emitters.escape import markdown_text, plot_text
 from ..errors import KronsubError
 from . import native as native_module
+from .methods import MEASURED, METHODS, by_engine
 from .reference import Reference, reference as compute_reference
 from .values import RunValues
 
-NATIVE = ("dop853", "gauss4", "rk4")
-SCIPY = ("RK45", "DOP853", "Radau", "LSODA")
-HEYOKA = ("heyoka",)
-GENERATED = ("taylor",)  # a Taylor integrator generated as C for the model (.taylor_c)
-EXTENDED = {"gbs-long": "long", "gbs-quad": "quad"}  # extrapolation in long double / _Float128 C
-ALL_METHODS = NATIVE + GENERATED + SCIPY + HEYOKA  # "all"; the extended ones are asked for by name
-CLOSED_LOOP = NATIVE + SCIPY  # the compiled right-hand side, which finds y_d by Newton's method
-KNOWN_METHODS = ALL_METHODS + tuple(EXTENDED)
-FIXED_STEP_ORDER = {"gauss4": 4, "rk4": 4}
+# the method table's (.methods) lists, as this module reads them
+NATIVE = by_engine("c")
+SCIPY = by_engine("scipy")
+HEYOKA = by_engine("heyoka")
+GENERATED = by_engine("taylor")  # a Taylor integrator generated as C for the model (.taylor_c)
+EXTENDED = {name: METHODS[name].precision for name in by_engine("extended")}  # long double / _Float128 C
+KNOWN_METHODS = MEASURED
+ALL_METHODS = tuple(name for name in MEASURED if name not in EXTENDED)  # "all"; the extended ones by name
+CLOSED_LOOP = tuple(name for name in MEASURED if METHODS[name].closed_loops)  # Newton's method finds y_d
+FIXED_STEP_ORDER = {name: METHODS[name].order for name in MEASURED if METHODS[name].fixed_step}
 REFERENCE_MARGIN = 100.0  # the reference must be this much more accurate than the best point
 SLOW_SECONDS = 5.0  # a method whose run took longer skips its tighter tolerances
 FLOAT64_FLOOR = 1e-15  # float64 methods skip tighter tolerances

@@ -24,39 +24,13 @@ from ..emitters.code import emit_python
 from ..emitters.escape import python_string
 from ..errors import KronsubError
 from .compiled import native_model
+from .methods import METHODS as REGISTRY, SIMULATE, unknown_method
 from .native import CompileError, CompilerNotFound
 from .values import RunValues
 
 
-@dataclass(frozen=True)
-class Method:
-    name: str
-    engine: str  # "c" (wholly in compiled C) or "scipy"
-    summary: str
-
-
-METHODS = {
-    m.name: m
-    for m in (
-        Method("dop853", "c", "Dormand-Prince 8(5,3), adaptive, dense output at --dt; wholly in C (default: "
-                              "accurate and fast for smooth non-stiff problems)"),
-        Method("gauss4", "c", "2-stage Gauss-Legendre, fixed step --dt, symplectic in (q, p = Mbar qdot); for "
-                              "long conservative runs: energy error stays bounded instead of drifting (with "
-                              "implicit constraints: order 4 in (q, qdot))"),
-        Method("RK45", "scipy", "scipy's Dormand-Prince 5(4) calling the compiled right-hand side"),
-        Method("DOP853", "scipy", "scipy's DOP853 calling the compiled right-hand side"),
-        Method("Radau", "scipy", "scipy's implicit Radau IIA (order 5): stiff problems (stiff springs, dampers)"),
-        Method("LSODA", "scipy", "scipy's LSODA: switches between stiff and non-stiff automatically"),
-        Method("taylor", "taylor", "a Taylor integrator generated as C for the model, order 2 ceil(ln(1/rtol)/4)+4 "
-                                   "(compiled per order): the high-accuracy end, explicit equations only; "
-                                   "tolerance --rtol"),
-        Method("heyoka", "heyoka", "heyoka's Taylor integrator (optional extra kronsub[heyoka]): the "
-                                   "high-accuracy end, for small systems; tolerance --rtol"),
-    )
-}
-
-
-FIXED_STEP = ("gauss4", "rk4")  # the compiled methods that step --dt at a time
+METHODS = {name: REGISTRY[name] for name in SIMULATE}  # the methods of ``simulate``, by name
+FIXED_STEP = tuple(name for name, m in METHODS.items() if m.fixed_step)  # the methods that step --dt at a time
 
 
 class StiffnessWarning(UserWarning):
@@ -246,7 +220,7 @@ def collect(run: Run, blocks: list[Block], nq: int) -> Trajectory:
 def explicit_only(system: KnownSystem, method: str) -> None:
     """Raise :class:`SimulationError` when ``method`` needs explicit equations (a Taylor series) and
     ``system`` has implicit constraints."""
-    if system.implicit is not None and method in ("heyoka", "taylor"):
+    if system.implicit is not None and method in METHODS and not METHODS[method].closed_loops:
         raise SimulationError(f"method '{method}' needs explicit equations (its Taylor series), which a system "
                               "with implicit constraints does not have; use dop853 (default), gauss4, Radau or LSODA")
 
@@ -262,7 +236,7 @@ def start(system: KnownSystem, values: RunValues, t_end: float, dt: float, metho
     implicit constraints, ``constrained`` is the :class:`~kronsub.core.constraints.Intermediates`
     of the projected initial conditions (:func:`.constrained.project_initial`)."""
     if method not in METHODS:
-        raise SimulationError(f"unknown method '{method}'; choose one of: {', '.join(METHODS)}")
+        raise SimulationError(unknown_method(method))
     explicit_only(system, method)
     row_count(t_end, dt)
     check_tolerances(rtol, atol)
