@@ -414,11 +414,11 @@ def simulate(model: Path, t_end: float | None, dt: float | None, method: str | N
                 import numpy as np
 
                 from .simulation.reactions import reaction_columns
-                from .simulation.run import _numpy_module
+                from .simulation.fallback import numpy_module
 
                 traj = collect(run, list(run), len(system.coordinates))
                 kept.append(traj)
-                extra = reaction_columns(system, traj, np.array(values.parameters), _numpy_module(system), constrained)
+                extra = reaction_columns(system, traj, np.array(values.parameters), numpy_module(system), constrained)
                 text, info = trajectory_csv(system, model.as_posix(), traj, values, rtol, atol, with_points,
                                             outputs, extra, **run_info)
                 out.write(text)

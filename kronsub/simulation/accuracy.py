@@ -43,6 +43,7 @@ from ..core.known_system import KnownSystem
 from ..emitters.escape import markdown_text, plot_text
 from ..errors import KronsubError
 from . import native as native_module
+from .fallback import numpy_module
 from .methods import MEASURED, METHODS, by_engine
 from .reference import Reference, reference as compute_reference
 from .values import RunValues
@@ -254,9 +255,7 @@ class _Runners:
         if self.native is not None:
             self.rhs = self.native.scipy_rhs(param)
         else:
-            from .run import _numpy_module
-
-            module = self.module = _numpy_module(system)
+            module = self.module = numpy_module(system)
             self.rhs = lambda t, y: module["rhs"](t, y, param)
         self._heyoka = None
         self.heyoka_compile: dict[float, float] = {}

@@ -32,7 +32,8 @@ import numpy as np
 from ..core.known_system import KnownSystem
 from ..emitters.escape import json_document
 from ..interrupts import HELD, signal_name, signal_of
-from .run import Block, Run, Trajectory, _numpy_module
+from .fallback import numpy_module
+from .rows import Block, Run, Trajectory
 from .values import RunValues
 
 METADATA_FORMAT = "kronsub-trajectory-metadata/1"
@@ -118,7 +119,7 @@ class _Module:
 
     def __getitem__(self, name):
         if self.namespace is None:
-            self.namespace = _numpy_module(self.system, self.outputs)
+            self.namespace = numpy_module(self.system, self.outputs)
         return self.namespace[name]
 
 

@@ -1,0 +1,55 @@
+"""The engine of the methods wholly in C (:mod:`..native`: dop853, gauss4, rk4): blocks of rows,
+one per chunk of the grid; fixed-step methods step ``--dt`` at a time."""
+from __future__ import annotations
+
+import numpy as np
+
+from ..failure import at_configuration, cause_of, not_finite, rank_loss_note, real_at
+from ..methods import METHODS
+from ..grid import aligned_pieces, chunk_ranges, fixed_pieces
+
+__all__ = ["blocks"]
+
+
+def blocks(run, native, method, grid, y0, param, rtol, atol, dt, chunks, bar, system):
+    """Blocks ``(t, Y)`` of a run wholly in C, one per chunk of the grid."""
+    last = grid[0]
+    yield np.array([last]), np.array([y0])
+    stats = run.stats = {"steps": 0, "rejected": 0, "evaluations": 0}
+    y = y0
+    fixed = METHODS[method].fixed_step
+    pieces = [p for a, b in chunk_ranges(grid, chunks)
+              for p in (fixed_pieces(grid[a], grid[b], dt) if fixed else aligned_pieces(grid[a], grid[b], dt))]
+    for t0, t1 in pieces:
+        t, Y, result = native.integrate(method, t0, y, t1, dt, param, rtol=rtol, atol=atol,
+                                        h=dt if fixed else None)
+        stats["steps"] += result.n_steps
+        stats["rejected"] += result.n_rejected
+        stats["evaluations"] += result.n_evals
+        if result.t_stiff is not None and "stiff_from" not in stats:
+            stats["stiff_from"] = result.t_stiff
+        keep = t > last + 1e-6 * grid.spacing  # a piece's first row repeats the last one
+        if np.any(keep):
+            last = t[keep][-1]
+            yield t[keep], Y[keep]
+        if result.status != 0:
+            message = result.message
+            at_finite = result.status in (1, 2) and result.y_fail is not None and np.all(np.isfinite(result.y_fail))
+            if result.status in (1, 2) and not real_at(native, t0, y, param):  # not finite at the start
+                message = not_finite(system, t0, y, param)
+            elif at_finite:
+                # NaN forces at a finite state (a spring whose ends meet): which effect, if any; Mbar
+                # without a real value where the run got to is the edge of the coordinates' range, where
+                # it is singular (System II's lower rod on the line): said so, the cause beside it
+                cause = cause_of(system, result.t_fail, result.y_fail, param, mass_only=result.status == 1)
+                if cause is not None and result.status == 1 and not cause.overflow and cause.label.startswith("Mbar"):
+                    message = f"{message}: {cause}"
+                elif cause is not None:
+                    message = cause.stated()
+            message += at_configuration(system, result.y_fail) if result.status in (1, 2) else ""
+            if at_finite:
+                message += rank_loss_note(system, result.t_fail, result.y_fail, param)
+            run.stop(message, result.t_fail, y_fail=result.y_fail)
+            return
+        y = Y[-1]
+        bar.update(t1)

@@ -1,0 +1,41 @@
+"""The engine of ``taylor``: a Taylor integrator generated as C for the model (:mod:`..taylor_c`)."""
+from __future__ import annotations
+
+
+import numpy as np
+
+from ..failure import at_configuration, not_finite
+from ..grid import chunk_ranges
+from ..rows import Block, SimulationError
+
+__all__ = ["blocks"]
+
+
+def blocks(run, system, param, y0, grid, tol, chunks: int):
+    from ..native import NativeError
+    from ..taylor_c import TaylorC, TaylorUnavailable, order_for
+
+    try:
+        integrator = TaylorC(system)
+        integrator.build(order_for(tol))
+    except (TaylorUnavailable, NativeError) as exc:
+        raise SimulationError(str(exc)) from None
+    except ValueError as exc:
+        raise SimulationError(f"--rtol: {exc}") from None
+    stats = run.stats = {"steps": 0, "order": order_for(tol)}
+    y, first = y0, True
+    for a, b in chunk_ranges(grid, chunks) if len(grid) > 1 else [(0, 0)]:
+        times = grid[a:b + 1]
+        t, Y, complete, message = integrator.solve(param, y, times, tol)
+        stats["steps"] += integrator.last_steps
+        start = 0 if first else 1  # a chunk starts on the last row of the one before
+        if len(t) > start:
+            yield Block(t[start:], Y[start:])
+        if not complete:
+            last = Y[-1] if len(Y) else y
+            if np.all(np.isfinite(last)):  # from the last row: an overflow, or a function outside its domain
+                message = not_finite(system, t[-1] if len(t) else times[0], last, param, message)
+            run.stop(message + at_configuration(system, Y[-1] if len(Y) else None), float(t[-1]) if len(t) else float(times[0]),
+                     y_fail=last)
+            return
+        y, first = Y[-1], False
