@@ -579,6 +579,7 @@ def accuracy(model: Path, t_end: float, methods: str, tolerances: str, target: f
     """What accuracy costs in time: error against a high-precision reference, per method and tolerance."""
     from .model.scenes import initial_values
     from .simulation import accuracy as acc
+    from .simulation import accuracy_report as report
     from .simulation.table import metadata_json
     from .simulation.values import parse_assignments, resolve
 
@@ -619,14 +620,14 @@ def accuracy(model: Path, t_end: float, methods: str, tolerances: str, target: f
         except acc.AccuracyError:
             _coincident_at_start(loaded, system, initial, assignments)
             raise
-        click.echo(acc.markdown(wp, target), nl=False)
+        click.echo(report.markdown(wp, target), nl=False)
         if output is not None:
-            write_atomically(output, acc.to_csv(wp))
+            write_atomically(output, report.to_csv(wp))
             say(f"wrote {output} ({len(wp.points)} points)")
         if meta_path is not None:
             csv_name = None if output is None else (
                 output.name if output.parent.resolve() == meta_path.parent.resolve() else str(output))
-            info = acc.metadata(wp, model_file=model.as_posix(), model_path=model,
+            info = report.metadata(wp, model_file=model.as_posix(), model_path=model,
                                 scene=scene.name if scene is not None else None, methods=chosen, tolerances=grid,
                                 target=target, csv=csv_name)
             write_atomically(meta_path, metadata_json(info))
@@ -644,7 +645,7 @@ def accuracy(model: Path, t_end: float, methods: str, tolerances: str, target: f
                   "near it are not measured" + (", so no plot was written" if plot is not None else "")
                   + "\n  hint: raise --digits")
         if plot is not None:
-            acc.plot(wp, plot, target)
+            report.plot(wp, plot, target)
             say(f"wrote {plot}")
 
     _run(job)
