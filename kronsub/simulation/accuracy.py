@@ -42,6 +42,11 @@ import numpy as np
 from ..core.known_system import KnownSystem
 from ..errors import KronsubError
 from . import native as native_module
+from .engines import c as c_engine
+from .engines import extended as extended_engine
+from .engines import heyoka as heyoka_engine
+from .engines import scipy as scipy_engine
+from .engines import taylor as taylor_engine
 from .fallback import numpy_module
 from .methods import MEASURED, METHODS, by_engine
 from .reference import Reference, reference as compute_reference
@@ -316,84 +321,42 @@ class _Runners:
         return ""
 
     def prepare(self, method: str, tol: float) -> Callable[[], tuple]:
+        """The timed run of ``method`` at ``tol``: a function returning ``(y_end, evaluations,
+        steps, status)``, the ``final_state`` of the method's engine (:mod:`.engines`, as the
+        method table says); what it compiles for this tolerance is timed apart."""
         t_end, y0, param = self.t_end, self.y0, self.param
-        if method in NATIVE:
-            native = self.native
+        engine = METHODS[method].engine if method in KNOWN_METHODS else None
+        if engine == "c":
+            native, h = self.native, fixed_step(method, tol, t_end) if method in FIXED_STEP_ORDER else None
             restart = (lambda: self._fresh_rhs(tol)) if self.dependent is not None else (lambda: None)
-            if method == "dop853":
-                def run():
-                    restart()
-                    _, Y, res = native.integrate("dop853", 0.0, y0, t_end, t_end, param, rtol=tol, atol=tol)
-                    return Y[-1], res.n_evals, res.n_steps, "" if res.ok else res.message
-            else:
-                h = fixed_step(method, tol, t_end)
-
-                def run():
-                    restart()
-                    _, Y, res = native.integrate(method, 0.0, y0, t_end, t_end, param, h=h)
-                    return Y[-1], res.n_evals, res.n_steps, "" if res.ok else res.message
-            return run
-        if method in SCIPY:
-            import scipy.integrate
-
-            solver_class = getattr(scipy.integrate, method)
 
             def run():
-                rhs = self._fresh_rhs(tol)
-                with warnings.catch_warnings(), np.errstate(all="ignore"):
-                    warnings.simplefilter("ignore")
-                    solver = solver_class(rhs, 0.0, y0.copy(), t_end, rtol=tol, atol=tol)
-                    steps, still = 0, 0
-                    try:
-                        while solver.status == "running":
-                            if steps >= RUN_STEPS or still >= STALLED_STEPS:
-                                return (solver.y.copy(), solver.nfev, steps,
-                                        f"stopped at t = {solver.t:.6g}: " + (f"more than {RUN_STEPS:,} steps" if
-                                        still < STALLED_STEPS else f"{still} steps in a row that did not advance"))
-                            t_before = solver.t
-                            message = solver.step()
-                            steps += 1
-                            still = still + 1 if solver.t == t_before else 0
-                    except Exception as exc:  # a singular mass matrix, a failing step
-                        return np.full(len(y0), np.nan), solver.nfev, steps, str(exc) or type(exc).__name__
-                    status = "" if solver.status == "finished" else (message or "failed")
-                    return solver.y.copy(), solver.nfev, steps, status
+                restart()
+                return c_engine.final_state(native, method, y0, t_end, param, tol, h)
             return run
-        if method == "taylor":
+        if engine == "scipy":
+            return lambda: scipy_engine.final_state(self._fresh_rhs(tol), method, y0, t_end, tol, RUN_STEPS,
+                                                    STALLED_STEPS)
+        if engine == "taylor":
             from .taylor_c import order_for
 
             taylor = self.extended["taylor"]
             t0 = time.perf_counter()
             taylor.build(order_for(tol))  # one library per order, compiled apart from the timing
             self.taylor_compile[tol] = time.perf_counter() - t0
-
-            def run():
-                y_end, status, steps, order = taylor.integrate(param, y0, t_end, tol)
-                return y_end, None, steps, "" if status == 0 else f"Taylor status {status}"
-            return run
-        if method in EXTENDED:
+            return lambda: taylor_engine.final_state(taylor, param, y0, t_end, tol)
+        if engine == "extended":
             model = self.extended[EXTENDED[method]]
             param_list, y0_list = [float(v) for v in param], [float(v) for v in y0]
-
-            def run():
-                r = model.integrate(param_list, y0_list, t_end, tol=tol)
-                status = "" if r.status == 0 else f"extrapolation status {r.status}"
-                return r.state, r.evaluations, r.steps, status
-            return run
-        if method == "heyoka":
+            return lambda: extended_engine.final_state(model, param_list, y0_list, t_end, tol)
+        if engine == "heyoka":
             from .heyoka_backend import HeyokaIntegrator
 
             t0 = time.perf_counter()
             integrator = HeyokaIntegrator(self.system, tol)
             self.heyoka_compile[tol] = time.perf_counter() - t0
-            ta, grid = integrator.ta, np.array([0.0, t_end])
-
-            def run():
-                integrator.start(0.0, y0, param)
-                outcome, _, _, steps, _, Y = ta.propagate_grid(grid)
-                ok = outcome == integrator._ok
-                return np.asarray(Y)[-1], None, int(steps), "" if ok else f"heyoka outcome {outcome.name}"
-            return run
+            grid = np.array([0.0, t_end])
+            return lambda: heyoka_engine.final_state(integrator, param, y0, grid)
         raise AccuracyError(f"unknown method '{method}'")
 
     def intermediates(self):
@@ -429,7 +392,7 @@ class _Runners:
     def trace(self, method: str, tol: float) -> tuple[np.ndarray, np.ndarray]:
         """One more (untimed) run of ``method`` at ``tol``: the times and states of its steps."""
         t_end, y0, param = self.t_end, self.y0, self.param
-        if method in NATIVE:
+        if METHODS[method].engine == "c":
             self._fresh_rhs(tol)
             if method == "dop853":
                 T, Y, _ = self.native.integrate("dop853", 0.0, y0, t_end, 0.0, param, rtol=tol, atol=tol)

@@ -8,7 +8,7 @@ from ..failure import at_configuration, cause_of, not_finite, rank_loss_note, re
 from ..methods import METHODS
 from ..grid import aligned_pieces, chunk_ranges, fixed_pieces
 
-__all__ = ["blocks"]
+__all__ = ["blocks", "final_state"]
 
 
 def blocks(run, native, method, grid, y0, param, rtol, atol, dt, chunks, bar, system):
@@ -53,3 +53,15 @@ def blocks(run, native, method, grid, y0, param, rtol, atol, dt, chunks, bar, sy
             return
         y = Y[-1]
         bar.update(t1)
+
+
+def final_state(native, method: str, y0: np.ndarray, t_end: float, param: np.ndarray, tol: float,
+                h: float | None) -> tuple[np.ndarray, int, int, str]:
+    """One run of ``method`` from t = 0 to ``t_end`` with a row at the end only: ``(y_end,
+    evaluations, steps, status)`` (status '' when it got there). A fixed-step method takes the
+    step ``h``, an adaptive one ``rtol = atol = tol``."""
+    if METHODS[method].fixed_step:
+        _, Y, res = native.integrate(method, 0.0, y0, t_end, t_end, param, h=h)
+    else:
+        _, Y, res = native.integrate(method, 0.0, y0, t_end, t_end, param, rtol=tol, atol=tol)
+    return Y[-1], res.n_evals, res.n_steps, "" if res.ok else res.message

@@ -1,11 +1,12 @@
 """The engine of ``heyoka``: heyoka's Taylor integrator (optional extra, :mod:`..heyoka_backend`)."""
 from __future__ import annotations
 
+import numpy as np
 
 from ..grid import chunk_ranges
 from ..rows import Block, SimulationError
 
-__all__ = ["blocks"]
+__all__ = ["blocks", "final_state"]
 
 
 def blocks(run, system, param, y0, grid, tol, chunks: int):
@@ -27,3 +28,12 @@ def blocks(run, system, param, y0, grid, tol, chunks: int):
             run.stop(message, float(t[-1]) if len(t) else float(times[0]))
             return
         y, first = Y[-1], False
+
+
+def final_state(integrator, param: np.ndarray, y0: np.ndarray, grid: np.ndarray) -> tuple[np.ndarray, None, int, str]:
+    """One run of heyoka's ``integrator`` (:class:`..heyoka_backend.HeyokaIntegrator`) over
+    ``grid = [0, t_end]``: ``(y_end, None, steps, status)`` (status '' when it got there)."""
+    integrator.start(0.0, y0, param)
+    outcome, _, _, steps, _, Y = integrator.ta.propagate_grid(grid)
+    ok = outcome == integrator.finished
+    return np.asarray(Y)[-1], None, int(steps), "" if ok else f"heyoka outcome {outcome.name}"

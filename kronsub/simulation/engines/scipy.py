@@ -8,7 +8,7 @@ from ..native import SingularMassMatrix
 from ..failure import at_configuration, not_finite, rank_loss_note, Singular
 from ..grid import Cursor
 
-__all__ = ["STALL_STEPS", "STALL_SPAN", "native_rhs", "blocks"]
+__all__ = ["STALL_STEPS", "STALL_SPAN", "blocks", "final_state", "native_rhs"]
 
 
 STALL_STEPS = 1000
@@ -119,3 +119,33 @@ def blocks(run, rhs, method, grid, y0, rtol, atol, chunks, bar, system, events=N
                 message = not_finite(system, t, y, param, otherwise=message)
             run.stop(message, t, y_fail=y)
             return
+
+
+def final_state(rhs, method: str, y0: np.ndarray, t_end: float, tol: float, max_steps: int,
+                stalled_steps: int) -> tuple[np.ndarray, int, int, str]:
+    """One run of scipy's ``method`` from t = 0 to ``t_end`` at ``rtol = atol = tol``, stepped to
+    the end: ``(y_end, evaluations, steps, status)`` (status '' when it got there). A run of more
+    than ``max_steps`` steps, or of ``stalled_steps`` in a row that leave t where it is, stops."""
+    import warnings
+
+    from scipy import integrate
+
+    solver_class = getattr(integrate, method)
+    with warnings.catch_warnings(), np.errstate(all="ignore"):
+        warnings.simplefilter("ignore")
+        solver = solver_class(rhs, 0.0, y0.copy(), t_end, rtol=tol, atol=tol)
+        steps, still = 0, 0
+        try:
+            while solver.status == "running":
+                if steps >= max_steps or still >= stalled_steps:
+                    return (solver.y.copy(), solver.nfev, steps,
+                            f"stopped at t = {solver.t:.6g}: " + (f"more than {max_steps:,} steps" if
+                            still < stalled_steps else f"{still} steps in a row that did not advance"))
+                t_before = solver.t
+                message = solver.step()
+                steps += 1
+                still = still + 1 if solver.t == t_before else 0
+        except Exception as exc:  # noqa: BLE001 - a singular mass matrix, a failing step: a failed point
+            return np.full(len(y0), np.nan), solver.nfev, steps, str(exc) or type(exc).__name__
+        status = "" if solver.status == "finished" else (message or "failed")
+        return solver.y.copy(), solver.nfev, steps, status

@@ -8,7 +8,7 @@ from ..failure import at_configuration, not_finite
 from ..grid import chunk_ranges
 from ..rows import Block, SimulationError
 
-__all__ = ["blocks"]
+__all__ = ["blocks", "final_state"]
 
 
 def blocks(run, system, param, y0, grid, tol, chunks: int):
@@ -39,3 +39,11 @@ def blocks(run, system, param, y0, grid, tol, chunks: int):
                      y_fail=last)
             return
         y, first = Y[-1], False
+
+
+def final_state(taylor, param: np.ndarray, y0: np.ndarray, t_end: float, tol: float) -> tuple[np.ndarray, None, int, str]:
+    """One run of the Taylor integrator ``taylor`` (:class:`..taylor_c.TaylorC`, built at the
+    order for ``tol``) from t = 0 to ``t_end``: ``(y_end, None, steps, status)`` (it does not
+    count evaluations; status '' when it got there)."""
+    y_end, status, steps, order = taylor.integrate(param, y0, t_end, tol)
+    return y_end, None, steps, "" if status == 0 else f"Taylor status {status}"
