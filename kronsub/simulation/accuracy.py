@@ -52,6 +52,11 @@ from .methods import MEASURED, METHODS, by_engine
 from .reference import Reference, reference as compute_reference
 from .values import RunValues
 
+__all__ = ["ALL_METHODS", "AccuracyError", "CLOSED_LOOP", "EXTENDED", "FIXED_STEP_ORDER", "FLOAT64_FLOOR",
+           "GENERATED", "HEYOKA", "KNOWN_METHODS", "NATIVE", "Point", "Progress", "REFERENCE_MARGIN",
+           "RESIDUAL_ROWS", "RUN_STEPS", "SCIPY", "SLOW_SECONDS", "STALLED_STEPS", "WorkPrecision", "fixed_step",
+           "measure", "parse_methods", "parse_tolerances", "quick_tolerances", "sample_times"]
+
 # the method table's (.methods) lists, as this module reads them
 NATIVE = by_engine("c")
 SCIPY = by_engine("scipy")

@@ -6,7 +6,9 @@ import numpy as np
 
 
 
-__all__ = ["StiffnessWarning", "EnergyWarning", "ENERGY_DRIFT_SHARE", "ENERGY_FLOOR_SHARE", "conserves_energy", "energy_advice", "is_stiff", "stiffness_advice", "STIFF_MIN_STEPS", "STIFF_REJECTED_SHARE", "STIFF_DAMPED_SHARE"]
+__all__ = ["ENERGY_DRIFT_SHARE", "ENERGY_FLOOR_SHARE", "EnergyWarning", "STIFF_DAMPED_SHARE", "STIFF_MIN_STEPS",
+           "STIFF_REJECTED_SHARE", "StiffnessWarning", "conserves_energy", "energy_advice", "is_stiff",
+           "stiffness_advice"]
 
 
 class StiffnessWarning(UserWarning):

@@ -6,7 +6,7 @@ import numpy as np
 
 
 
-__all__ = ["Singular", "failed_state", "rank_loss_note", "at_configuration", "real_at", "cause_of", "not_finite"]
+__all__ = ["Singular", "at_configuration", "cause_of", "failed_state", "not_finite", "rank_loss_note", "real_at"]
 
 
 class Singular(Exception):

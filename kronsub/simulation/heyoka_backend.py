@@ -27,6 +27,8 @@ from ..core.known_system import KnownSystem
 from ..core.symbols import TIME
 from ..errors import KronsubError
 
+__all__ = ["INSTALL_HINT", "HeyokaIntegrator", "available", "integrate", "ode"]
+
 INSTALL_HINT = "pip install 'kronsub[heyoka]'"
 
 

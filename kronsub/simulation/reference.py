@@ -39,6 +39,9 @@ from ..core.known_system import KnownSystem
 from ..emitters.tape import Tape
 from ..errors import KronsubError
 
+__all__ = ["REFERENCE_STEPS", "Reference", "ReferenceFailure", "RouteResult", "extrapolation", "reference",
+           "taylor"]
+
 
 class ReferenceFailure(KronsubError):
     """A reference solution could not be computed."""

@@ -2,11 +2,16 @@
 of a run that could not start."""
 from __future__ import annotations
 
+from collections.abc import Iterator
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from ..errors import KronsubError
+
+if TYPE_CHECKING:
+    from .switching import Split
 
 __all__ = ["SimulationError", "Trajectory", "Block", "Run"]
 
@@ -30,10 +35,10 @@ class Trajectory:
     energies: tuple[np.ndarray, np.ndarray] | None = None  # (T, V) per row, when computed in C
     y_fail: np.ndarray | None = None  # the state at which the right-hand side failed, when known
     dependent: np.ndarray | None = None  # implicit constraints: the dependent coordinates per row
-    switches: list = field(default_factory=list)  # coordinates: auto: (t, what) per switch
+    switches: list[tuple[float, str]] = field(default_factory=list)  # coordinates: auto: (t, what) per switch
     # coordinates: auto: (first row, end row, split, its own rows [q; qdot] in its own layout) per
-    # stretch of rows computed with one choice of independent coordinates (switching.Split)
-    segments: list | None = None
+    # stretch of rows computed with one choice of independent coordinates
+    segments: list[tuple[int, int, Split, np.ndarray]] | None = None
 
 
 @dataclass
@@ -44,7 +49,7 @@ class Block:
     y: np.ndarray
     energies: tuple[np.ndarray, np.ndarray] | None = None
     dependent: np.ndarray | None = None  # implicit constraints: the dependent coordinates per row
-    split: object | None = None  # coordinates: auto: the choice (switching.Split) that computed these rows
+    split: Split | None = None  # coordinates: auto: the choice of independent coordinates that computed these rows
     own: np.ndarray | None = None  # ... and the rows in its own layout (the first choice's are in ``y``)
 
 
@@ -56,14 +61,14 @@ class Run:
 
     method: str
     backend: str
-    blocks: object = None
+    blocks: Iterator[Block] | None = None
     complete: bool = True
     message: str = ""
     t_fail: float | None = None
     stats: dict = field(default_factory=dict)
     y_fail: np.ndarray | None = None  # the state at which the right-hand side failed, when known
-    switches: list = field(default_factory=list)  # coordinates: auto: (t, old, new) independent coordinates
-    pending: tuple | None = None  # (t, y) where scipy's toggle event stopped a segment
+    switches: list[tuple[float, str]] = field(default_factory=list)  # coordinates: auto: (t, what) per switch
+    pending: tuple[float, np.ndarray] | None = None  # (t, y) where scipy's toggle event stopped a segment
 
     def __iter__(self):
         yield from self.blocks

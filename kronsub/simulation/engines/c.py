@@ -5,13 +5,18 @@ from __future__ import annotations
 import numpy as np
 
 from ..failure import at_configuration, cause_of, not_finite, rank_loss_note, real_at
+from ...core.known_system import KnownSystem
 from ..methods import METHODS
-from ..grid import aligned_pieces, chunk_ranges, fixed_pieces
+from ..native import NativeModel
+from ..rows import Run
+from . import ProgressBar, Rows
+from ..grid import Grid, Tail, aligned_pieces, chunk_ranges, fixed_pieces
 
 __all__ = ["blocks", "final_state"]
 
 
-def blocks(run, native, method, grid, y0, param, rtol, atol, dt, chunks, bar, system):
+def blocks(run: Run, native: NativeModel, method: str, grid: Grid | Tail, y0: np.ndarray, param: np.ndarray,
+           rtol: float, atol: float, dt: float, chunks: int, bar: ProgressBar, system: KnownSystem) -> Rows:
     """Blocks ``(t, Y)`` of a run wholly in C, one per chunk of the grid."""
     last = grid[0]
     yield np.array([last]), np.array([y0])
@@ -55,7 +60,7 @@ def blocks(run, native, method, grid, y0, param, rtol, atol, dt, chunks, bar, sy
         bar.update(t1)
 
 
-def final_state(native, method: str, y0: np.ndarray, t_end: float, param: np.ndarray, tol: float,
+def final_state(native: NativeModel, method: str, y0: np.ndarray, t_end: float, param: np.ndarray, tol: float,
                 h: float | None) -> tuple[np.ndarray, int, int, str]:
     """One run of ``method`` from t = 0 to ``t_end`` with a row at the end only: ``(y_end,
     evaluations, steps, status)`` (status '' when it got there). A fixed-step method takes the

@@ -1,15 +1,23 @@
 """The engine of ``heyoka``: heyoka's Taylor integrator (optional extra, :mod:`..heyoka_backend`)."""
 from __future__ import annotations
 
+from collections.abc import Iterator
+from typing import TYPE_CHECKING
+
 import numpy as np
 
-from ..grid import chunk_ranges
-from ..rows import Block, SimulationError
+from ...core.known_system import KnownSystem
+from ..grid import Grid, chunk_ranges
+from ..rows import Block, Run, SimulationError
+
+if TYPE_CHECKING:
+    from ..heyoka_backend import HeyokaIntegrator
 
 __all__ = ["blocks", "final_state"]
 
 
-def blocks(run, system, param, y0, grid, tol, chunks: int):
+def blocks(run: Run, system: KnownSystem, param: np.ndarray, y0: np.ndarray, grid: Grid, tol: float,
+           chunks: int) -> Iterator[Block]:
     try:
         from .. import heyoka_backend
     except ImportError:
@@ -30,7 +38,8 @@ def blocks(run, system, param, y0, grid, tol, chunks: int):
         y, first = Y[-1], False
 
 
-def final_state(integrator, param: np.ndarray, y0: np.ndarray, grid: np.ndarray) -> tuple[np.ndarray, None, int, str]:
+def final_state(integrator: HeyokaIntegrator, param: np.ndarray, y0: np.ndarray,
+                grid: np.ndarray) -> tuple[np.ndarray, None, int, str]:
     """One run of heyoka's ``integrator`` (:class:`..heyoka_backend.HeyokaIntegrator`) over
     ``grid = [0, t_end]``: ``(y_end, None, steps, status)`` (status '' when it got there)."""
     integrator.start(0.0, y0, param)

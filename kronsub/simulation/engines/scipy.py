@@ -4,9 +4,14 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..native import SingularMassMatrix
+from collections.abc import Callable
+
+from ...core.known_system import KnownSystem
+from ..native import NativeModel, SingularMassMatrix
+from ..rows import Run
+from . import ProgressBar, Rhs, Rows
 from ..failure import at_configuration, not_finite, rank_loss_note, Singular
-from ..grid import Cursor
+from ..grid import Cursor, Grid, Tail
 
 __all__ = ["STALL_STEPS", "STALL_SPAN", "blocks", "final_state", "native_rhs"]
 
@@ -17,7 +22,7 @@ has stalled (an implicit method creeping towards a singular configuration takes 
 STALL_SPAN = 1e-8
 
 
-def native_rhs(native, param):
+def native_rhs(native: NativeModel, param: np.ndarray) -> Rhs:
     rhs = native.scipy_rhs(param)
 
     def f(t, y):
@@ -29,7 +34,9 @@ def native_rhs(native, param):
     return f
 
 
-def blocks(run, rhs, method, grid, y0, rtol, atol, chunks, bar, system, events=None, param=None):
+def blocks(run: Run, rhs: Rhs, method: str, grid: Grid | Tail, y0: np.ndarray, rtol: float, atol: float, chunks: int,
+           bar: ProgressBar, system: KnownSystem, events: Callable[[float, np.ndarray], float] | None = None,
+           param: np.ndarray | None = None) -> Rows:
     """Blocks ``(t, Y)`` of a run with one of scipy's solvers, stepped here: the rows of each
     step are written as it is taken (from its dense output), so a run that fails keeps every
     row before the failure, and a run whose steps stall (:data:`STALL_STEPS`) stops with the
@@ -109,7 +116,8 @@ def blocks(run, rhs, method, grid, y0, rtol, atol, chunks, bar, system, events=N
             if param is not None:  # NaN entries, not a singular matrix: an overflow, or outside the domain
                 t, y = (exc.t, exc.y) if np.all(np.isfinite(exc.y)) else (t_old, y_old)  # (a stage overflowed)
                 found = not_finite(system, t, y, param, otherwise="", mass_only=True)
-                message = found + at_configuration(system, y) if found else message + rank_loss_note(system, exc.t, exc.y, param)
+                message = (found + at_configuration(system, y) if found else
+                           message + rank_loss_note(system, exc.t, exc.y, param))
             run.stop(message, exc.t, y_fail=exc.y)
             return
         except (ValueError, RuntimeError, ArithmeticError, np.linalg.LinAlgError) as exc:
@@ -121,7 +129,7 @@ def blocks(run, rhs, method, grid, y0, rtol, atol, chunks, bar, system, events=N
             return
 
 
-def final_state(rhs, method: str, y0: np.ndarray, t_end: float, tol: float, max_steps: int,
+def final_state(rhs: Rhs, method: str, y0: np.ndarray, t_end: float, tol: float, max_steps: int,
                 stalled_steps: int) -> tuple[np.ndarray, int, int, str]:
     """One run of scipy's ``method`` from t = 0 to ``t_end`` at ``rtol = atol = tol``, stepped to
     the end: ``(y_end, evaluations, steps, status)`` (status '' when it got there). A run of more

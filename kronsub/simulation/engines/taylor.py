@@ -1,18 +1,25 @@
 """The engine of ``taylor``: a Taylor integrator generated as C for the model (:mod:`..taylor_c`)."""
 from __future__ import annotations
 
+from collections.abc import Iterator
+from typing import TYPE_CHECKING
 
 import numpy as np
 
+from ...core.known_system import KnownSystem
 from ..failure import at_configuration, not_finite
-from ..grid import chunk_ranges
-from ..rows import Block, SimulationError
+from ..grid import Grid, chunk_ranges
+from ..native import NativeError
+from ..rows import Block, Run, SimulationError
+
+if TYPE_CHECKING:
+    from ..taylor_c import TaylorC
 
 __all__ = ["blocks", "final_state"]
 
 
-def blocks(run, system, param, y0, grid, tol, chunks: int):
-    from ..native import NativeError
+def blocks(run: Run, system: KnownSystem, param: np.ndarray, y0: np.ndarray, grid: Grid, tol: float,
+           chunks: int) -> Iterator[Block]:
     from ..taylor_c import TaylorC, TaylorUnavailable, order_for
 
     try:
@@ -35,13 +42,15 @@ def blocks(run, system, param, y0, grid, tol, chunks: int):
             last = Y[-1] if len(Y) else y
             if np.all(np.isfinite(last)):  # from the last row: an overflow, or a function outside its domain
                 message = not_finite(system, t[-1] if len(t) else times[0], last, param, message)
-            run.stop(message + at_configuration(system, Y[-1] if len(Y) else None), float(t[-1]) if len(t) else float(times[0]),
+            run.stop(message + at_configuration(system, Y[-1] if len(Y) else None),
+                     float(t[-1]) if len(t) else float(times[0]),
                      y_fail=last)
             return
         y, first = Y[-1], False
 
 
-def final_state(taylor, param: np.ndarray, y0: np.ndarray, t_end: float, tol: float) -> tuple[np.ndarray, None, int, str]:
+def final_state(taylor: TaylorC, param: np.ndarray, y0: np.ndarray, t_end: float,
+                tol: float) -> tuple[np.ndarray, None, int, str]:
     """One run of the Taylor integrator ``taylor`` (:class:`..taylor_c.TaylorC`, built at the
     order for ``tol``) from t = 0 to ``t_end``: ``(y_end, None, steps, status)`` (it does not
     count evaluations; status '' when it got there)."""
