@@ -84,3 +84,15 @@ def test_rk4_in_simulate_is_fourth_order_against_the_exact_solution():
     coarse, fine = _rk4_error(0.02), _rk4_error(0.01)
     assert coarse < 2e-6  # C h^4, h = 0.02, C of the fastest mode
     assert 12 < coarse / fine < 20  # halving the step divides the error by 2^4
+
+
+def test_every_engine_has_its_module():
+    """A method's engine runs it for both commands: ``blocks`` (simulate's streamed rows, for an
+    engine of a simulate method) and ``final_state`` (accuracy's timed run)."""
+    import importlib
+
+    for engine in ENGINES:
+        module = importlib.import_module(f"kronsub.simulation.engines.{engine}")
+        assert callable(module.final_state), engine
+        if any(m.simulate for m in METHODS.values() if m.engine == engine):
+            assert callable(module.blocks), engine
