@@ -246,12 +246,12 @@ def numeric(system: KnownSystem, set: Mapping[str, object] | None = None) -> Num
 
     from .simulation.compiled import native_model
     from .simulation.native import CompilerNotFound
-    from .simulation.run import _numpy_module
+    from .simulation.fallback import numpy_module
 
     values = _run_values(system, set)
     param = np.array(values.parameters, dtype=float)
     n = len(system.coordinates)
-    module = _numpy_module(system)  # mass matrix, forces, velocity terms (numpy)
+    module = numpy_module(system)  # mass matrix, forces, velocity terms (numpy)
     native = None
     try:
         native = native_model(system)

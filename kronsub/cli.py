@@ -22,6 +22,8 @@ import click
 
 from .atomic import STREAM, atomic_file, output_target, write_atomically
 from .errors import KronsubError, Location, ModelError
+from .simulation.methods import MEASURED, SIMULATE
+from .simulation.methods import help_text as method_help
 from .interrupts import exit_code, signal_name, signal_of, signals_as_interrupts
 from .version import __version__
 
@@ -366,9 +368,7 @@ def _writable(path: Path | None, what: str) -> None:
 @click.option("--dt", type=float, default=None,
               help="Output interval (and step of fixed-step methods; default: the scene's, else 0.01).")
 @click.option("--method", default=None,
-              help="Default: the scene's, else dop853. dop853 (C, adaptive), gauss4 (C, symplectic, fixed step), "
-                   "taylor (C, Taylor series, explicit equations only), RK45, DOP853, Radau, LSODA (scipy), "
-                   "heyoka (optional extra).")
+              help="Default: the scene's, else dop853. " + method_help())
 @click.option("--rtol", type=float, default=1e-10, show_default=True, help="Relative tolerance (adaptive methods).")
 @click.option("--atol", type=float, default=1e-10, show_default=True, help="Absolute tolerance (adaptive methods).")
 @click.option("--set", "settings", multiple=True, metavar="NAME=VALUE",
@@ -392,14 +392,13 @@ def simulate(model: Path, t_end: float | None, dt: float | None, method: str | N
     """Simulate MODEL from t = 0 to --t; the trajectory is plain CSV (a header row, then numbers),
     its metadata JSON (--meta, or beside --output)."""
     from .model.scenes import initial_values
-    from .simulation.run import (METHODS, SimulationError, check_tolerances, collect, explicit_only, row_count,
-                                 start)
+    from .simulation.run import SimulationError, check_tolerances, collect, explicit_only, row_count, start
     from .simulation.table import CsvWriter, metadata_json, trajectory_csv
     from .simulation.values import parse_assignments, resolve
 
     def job():
-        if method is not None and method not in METHODS:
-            _fail(f"Error: unknown method '{method}'\n  hint: choose one of {', '.join(METHODS)}", USAGE_ERROR)
+        if method is not None and method not in SIMULATE:
+            _fail(f"Error: unknown method '{method}'\n  hint: choose one of {', '.join(SIMULATE)}", USAGE_ERROR)
         _check_times(t_end, dt)  # before deriving; the row count once both are known
         try:
             check_tolerances(rtol, atol)
@@ -449,11 +448,11 @@ def simulate(model: Path, t_end: float | None, dt: float | None, method: str | N
                 import numpy as np
 
                 from .simulation.reactions import reaction_columns
-                from .simulation.run import _numpy_module
+                from .simulation.fallback import numpy_module
 
                 traj = collect(run, list(run), len(system.coordinates))
                 kept.append(traj)
-                extra = reaction_columns(system, traj, np.array(values.parameters), _numpy_module(system), constrained)
+                extra = reaction_columns(system, traj, np.array(values.parameters), numpy_module(system), constrained)
                 text, info = trajectory_csv(system, model.as_posix(), traj, values, rtol, atol, with_points,
                                             outputs, extra, **run_info)
                 out.write(text)
@@ -584,8 +583,8 @@ def _constraint_hints(system, run, step: float) -> str:
 @click.argument("model", type=click.Path(dir_okay=False, path_type=Path))
 @click.option("--t", "t_end", type=float, default=10.0, show_default=True, help="End time.")
 @click.option("--methods", default="all", show_default=True,
-              help="Comma-separated: dop853, gauss4, rk4, taylor (C), RK45, DOP853, Radau, LSODA (scipy), heyoka; "
-                   "gbs-long, gbs-quad (extended precision, see --precision).")
+              help="Comma-separated (all: every one but the extended-precision ones, see --precision): "
+                   + method_help(MEASURED))
 @click.option("--tolerances", default="1e-4:1e-14", show_default=True,
               help="Every decade of a range (1e-4:1e-14, or 1e-4:1e-14:2 for every second) or a list "
                    "(1e-6,1e-9). Fixed-step methods take the step tol^(1/4).")
@@ -615,6 +614,7 @@ def accuracy(model: Path, t_end: float, methods: str, tolerances: str, target: f
     """What accuracy costs in time: error against a high-precision reference, per method and tolerance."""
     from .model.scenes import initial_values
     from .simulation import accuracy as acc
+    from .simulation import accuracy_report as report
     from .simulation.table import metadata_json
     from .simulation.values import parse_assignments, resolve
 
@@ -655,14 +655,14 @@ def accuracy(model: Path, t_end: float, methods: str, tolerances: str, target: f
         except acc.AccuracyError:
             _coincident_at_start(loaded, system, initial, assignments)
             raise
-        click.echo(acc.markdown(wp, target), nl=False)
+        click.echo(report.markdown(wp, target), nl=False)
         if output is not None:
-            write_atomically(output, acc.to_csv(wp))
+            write_atomically(output, report.to_csv(wp))
             say(f"wrote {output} ({len(wp.points)} points)")
         if meta_path is not None:
             csv_name = None if output is None else (
                 output.name if output.parent.resolve() == meta_path.parent.resolve() else str(output))
-            info = acc.metadata(wp, model_file=model.as_posix(), source=loaded.source, uses=loaded.uses,
+            info = report.metadata(wp, model_file=model.as_posix(), source=loaded.source, uses=loaded.uses,
                                 scene=scene.name if scene is not None else None, methods=chosen, tolerances=grid,
                                 target=target, csv=csv_name)
             write_atomically(meta_path, metadata_json(info))
@@ -680,7 +680,7 @@ def accuracy(model: Path, t_end: float, methods: str, tolerances: str, target: f
                   "near it are not measured" + (", so no plot was written" if plot is not None else "")
                   + "\n  hint: raise --digits")
         if plot is not None:
-            acc.plot(wp, plot, target)
+            report.plot(wp, plot, target)
             say(f"wrote {plot}")
 
     _run(job)

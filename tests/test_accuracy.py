@@ -14,6 +14,7 @@ import kronsub
 from conftest import ROOT
 from kronsub.cli import main
 from kronsub.simulation import accuracy as A
+from kronsub.simulation import accuracy_report as report
 from kronsub.simulation.reference import Reference
 from kronsub.simulation.values import resolve
 from conftest import MODELS
@@ -78,7 +79,7 @@ def test_closed_loop_error_falls_with_tolerance_against_the_explicit_twin():
             assert p.energy_drift is not None and p.energy_drift < 10 * p.error + 1e-12, p
     for method in ("taylor", "heyoka", "gbs-quad"):
         assert "explicit equations only" in wp.skipped[method]
-    table = A.markdown(wp)
+    table = report.markdown(wp)
     assert "max \\|g\\|" in table and "Closed loop (line)" in table
 
 
@@ -119,7 +120,7 @@ def test_cli_writes_table_csv_png_and_names_the_target(tmp_path):
     assert text.startswith("method,tolerance,setting,error,") and "#" not in text  # one header row, then rows
     readers = read_csv_every_way(text)
     for reader, columns in readers.items():
-        assert list(columns) == list(A.CSV_COLUMNS), reader
+        assert list(columns) == list(report.CSV_COLUMNS), reader
         assert all(float(v) > 0 for v in columns["error"]), reader
         assert all(math.isnan(float(v)) for v in columns["constraint_residual"]), reader  # no constraints here
     rows = list(csv.DictReader(io.StringIO(text)))
@@ -136,9 +137,9 @@ def test_cli_writes_table_csv_png_and_names_the_target(tmp_path):
     assert float(chosen["seconds"]) == min(float(r["seconds"]) for r in meeting)
     # the metadata beside the CSV: the model, the reference and its estimated error, the target
     meta = json.loads((tmp_path / "wp.json").read_text())
-    assert meta["format"] == A.METADATA_FORMAT and meta["csv"] == "wp.csv" and meta["t_end"] == 2.0
+    assert meta["format"] == report.METADATA_FORMAT and meta["csv"] == "wp.csv" and meta["t_end"] == 2.0
     assert meta["model"]["name"] == "Simple pendulum" and meta["model"]["file"].endswith("tests/models/pendulum.yaml")
-    assert meta["model"]["sha256"] and meta["columns"] == list(A.CSV_COLUMNS)
+    assert meta["model"]["sha256"] and meta["columns"] == list(report.CSV_COLUMNS)
     reference = meta["reference"]
     assert reference["times"][-1] == 2.0 and reference["sufficient"] is True
     assert 0 <= reference["estimated_error"] < 1e-12 and "Taylor series" in reference["route"]
@@ -168,7 +169,7 @@ def test_target_is_not_named_by_chance():
     wp = A.WorkPrecision("test", 10.0, points, ref, None, True)
     best, chance = wp.cheapest(1e-6), wp.by_chance(1e-6)
     assert (best.method, best.tolerance) == ("taylor", 1e-10) and (chance.method, chance.tolerance) == ("taylor", 1e-9)
-    sentence = A.target_sentence(wp, 1e-6)
+    sentence = report.target_sentence(wp, 1e-6)
     assert sentence.startswith("Target 1e-06: cheapest is taylor at tol 1e-10: error 2.7e-07 in 0.147 ms, and at "
                                "every tighter tolerance taylor ran at.")
     assert "taylor at tol 1e-09 met it in 0.120 ms (error 5.0e-07), but a tighter tolerance" in sentence
@@ -176,7 +177,7 @@ def test_target_is_not_named_by_chance():
     assert wp.by_chance(1e-10) is None and wp.cheapest(1e-10) is None
     wp.points = [point("rk4", 1e-6, 1e-8, 0.05), point("rk4", 1e-8, 1e-5, 0.5)]
     assert wp.cheapest(1e-6) is None and wp.by_chance(1e-6).tolerance == 1e-6
-    assert A.target_sentence(wp, 1e-6).startswith("Target 1e-06: no method met it at a tolerance and every tighter "
+    assert report.target_sentence(wp, 1e-6).startswith("Target 1e-06: no method met it at a tolerance and every tighter "
                                                   "one (best error 1.0e-08). rk4 at tol 1e-06 met it")
 
 

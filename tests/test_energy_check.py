@@ -12,6 +12,7 @@ import pytest
 
 import kronsub
 from conftest import MODELS
+from kronsub.simulation import advice as A
 from kronsub.simulation import run as R
 from kronsub.simulation.values import resolve
 
@@ -58,27 +59,27 @@ def test_conservation_is_read_off_the_equations():
     system, values = _system1()
     native = R._compiled(system, None)
     y0 = np.array(values.y0)
-    assert R._conserves_energy(native, np.array(values.parameters), 2, 0.0, y0)
+    assert A.conserves_energy(native, np.array(values.parameters), 2, 0.0, y0)
     pushed, pushed_values = _system1(F="5")  # a steady push has a potential, -F x: E = T + V still holds
-    assert R._conserves_energy(native, np.array(pushed_values.parameters), 2, 0.0, y0)
+    assert A.conserves_energy(native, np.array(pushed_values.parameters), 2, 0.0, y0)
     cart_native, cart_param, cart_y0 = _damped()
-    assert not R._conserves_energy(cart_native, cart_param, 2, 0.0, cart_y0)
-    assert not R._conserves_energy(cart_native, cart_param, 2, 0.0, cart_y0 * 0)  # at rest too (random velocities)
+    assert not A.conserves_energy(cart_native, cart_param, 2, 0.0, cart_y0)
+    assert not A.conserves_energy(cart_native, cart_param, 2, 0.0, cart_y0 * 0)  # at rest too (random velocities)
 
 
 def test_the_threshold_is_one_percent_of_the_energy_scale():
     system, values = _system1()
     native, param, y0 = R._compiled(system, None), np.array(values.parameters), np.array(values.y0)
-    assert R._energy_advice(native, param, 2, "dop853", 0.0, y0, -2.0, 10.0, -2.0 + 0.099) == ""
-    advice = R._energy_advice(native, param, 2, "dop853", 0.0, y0, -2.0, 10.0, -2.0 + 0.101)
+    assert A.energy_advice(native, param, 2, "dop853", 0.0, y0, -2.0, 10.0, -2.0 + 0.099) == ""
+    advice = A.energy_advice(native, param, 2, "dop853", 0.0, y0, -2.0, 10.0, -2.0 + 0.101)
     assert "dop853's rows are not accurate" in advice and "tighten --rtol" in advice
     cart_native, cart_param, cart_y0 = _damped()
-    assert R._energy_advice(cart_native, cart_param, 2, "dop853", 0.0, cart_y0, -2.0, 10.0, -5.0) == ""
-    assert R._energy_advice(native, param, 2, "dop853", 0.0, y0, 0.0, 0.0, 0.0) == ""  # at rest: no scale
+    assert A.energy_advice(cart_native, cart_param, 2, "dop853", 0.0, cart_y0, -2.0, 10.0, -5.0) == ""
+    assert A.energy_advice(native, param, 2, "dop853", 0.0, y0, 0.0, 0.0, 0.0) == ""  # at rest: no scale
     # the scale is the kinetic energy, not |E|: an offset of the potential hides nothing
-    assert "dop853's rows" in R._energy_advice(native, param, 2, "dop853", 0.0, y0, -1e4, 1.0, -1e4 + 0.05)
+    assert "dop853's rows" in A.energy_advice(native, param, 2, "dop853", 0.0, y0, -1e4, 1.0, -1e4 + 0.05)
     # a run that hardly moves: the rounding of a large potential is not a drift
-    assert R._energy_advice(native, param, 2, "dop853", 0.0, y0, -17.7, 1e-16, -17.7 + 1e-14) == ""
+    assert A.energy_advice(native, param, 2, "dop853", 0.0, y0, -17.7, 1e-16, -17.7 + 1e-14) == ""
 
 
 def test_a_damped_run_that_loses_energy_says_nothing():

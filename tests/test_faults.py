@@ -20,6 +20,7 @@ from conftest import MODELS
 from kronsub import atomic
 from kronsub.cli import EXIT_CODES, main
 from kronsub.model.loader import load_model
+from kronsub.simulation import grid as grid_module
 from kronsub.simulation import run as run_module
 from kronsub.simulation.values import resolve
 
@@ -207,13 +208,13 @@ def test_grid_matches_the_in_memory_grid():
     for t_end, dt in [(10.0, 0.01), (3.7, 0.013), (1.0, 0.3), (1.0, 1.0), (2.0, 0.7), (1e3, 1e-3)]:
         # every multiple of dt before t_end, then t_end (as the C integrators' dense output writes)
         grid = np.append(np.arange(math.ceil(t_end / dt - 1e-9)) * dt, t_end)
-        lazy = run_module._Grid(t_end, dt)
+        lazy = grid_module.Grid(t_end, dt)
         # the same times, each the double nearest k dt in decimal (arange's k * dt may be an ulp off)
         ulps = 2 * np.spacing(np.maximum(np.abs(grid), dt))
         assert len(lazy) == len(grid) and np.all(np.abs(lazy[:] - grid) <= ulps)
         assert lazy[len(grid) - 1] == t_end and np.array_equal(lazy[3:len(grid)], lazy[:][3:])
         assert all(lazy[k] == float(Decimal(repr(dt)) * k) for k in range(0, len(grid) - 1, 7))
-    assert list(run_module._Grid(1.0, 5.0)[:]) == [0.0, 1.0]  # the first row is at t = 0, even when dt > t
+    assert list(grid_module.Grid(1.0, 5.0)[:]) == [0.0, 1.0]  # the first row is at t = 0, even when dt > t
 
 
 # ---------------------------------------------------------------------------------------------

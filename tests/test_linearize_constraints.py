@@ -10,7 +10,7 @@ import pytest
 import kronsub
 from conftest import MODELS
 from kronsub.simulation.constrained import configure_module
-from kronsub.simulation.run import _numpy_module
+from kronsub.simulation.fallback import numpy_module
 
 
 def _system(path):
@@ -21,7 +21,7 @@ def _system(path):
 def _rhs_jacobian(system, lin, h=1e-6):
     """Central differences of the generated numpy right-hand side (the one simulate uses
     without a compiler) in the reduced state, and in the inputs."""
-    module = _numpy_module(system)
+    module = numpy_module(system)
     params = {p: float(v) for p, v in lin.parameters}
     param = np.array([params[p.symbol] for p in system.parameters])
     y0 = np.array([float(v) for _, v in lin.point[: len(lin.state)]])

@@ -14,7 +14,8 @@ from click.testing import CliRunner
 import kronsub
 from conftest import MODELS
 from kronsub.cli import main
-from kronsub.simulation.run import _Grid, simulate
+from kronsub.simulation.grid import Grid
+from kronsub.simulation.run import simulate
 from kronsub.simulation.table import format_rows, sidecar_path, to_csv
 from kronsub.simulation.values import resolve
 
@@ -94,12 +95,12 @@ def test_numbers_are_written_in_shortest_round_trip_form():
 def test_output_times_are_the_decimals_of_the_grid(dt, t_end):
     from decimal import Decimal
 
-    grid = _Grid(t_end, dt)
+    grid = Grid(t_end, dt)
     times = grid[0:len(grid)]
     for k, t in enumerate(times[:-1]):
         assert t == float(Decimal(repr(dt)) * k)  # the double nearest the decimal k dt
     assert times[-1] == t_end
-    assert np.array_equal(_Grid(np.float64(t_end), np.float64(dt))[0:len(grid)], times)  # numpy scalars too
+    assert np.array_equal(Grid(np.float64(t_end), np.float64(dt))[0:len(grid)], times)  # numpy scalars too
     assert np.array_equal(grid.snap(times + 1e-9 * dt * np.sign(np.arange(len(times)) % 2 - 0.5)), times)
 
 

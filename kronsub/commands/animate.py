@@ -25,7 +25,8 @@ def animate(source: Path, output: Path, t_end: float, dt: float, method: str, se
     written with `kronsub simulate --points`. Bodies are segments between their named
     points, discs are circles; needs matplotlib (pip install 'kronsub[plot]')."""
     from ..cli import USAGE_ERROR, _check_times, _fail, _run, _separate_outputs, _writable, say
-    from ..simulation.run import METHODS, SimulationError, row_count
+    from ..simulation.methods import SIMULATE
+    from ..simulation.run import SimulationError, row_count
 
     def job():
         _separate_outputs(source, ("--output", output, "animation"))
@@ -41,8 +42,8 @@ def animate(source: Path, output: Path, t_end: float, dt: float, method: str, se
                       USAGE_ERROR)
         else:
             _check_times(t_end, dt)
-            if method not in METHODS:
-                _fail(f"Error: unknown method '{method}'\n  hint: choose one of {', '.join(METHODS)}", USAGE_ERROR)
+            if method not in SIMULATE:
+                _fail(f"Error: unknown method '{method}'\n  hint: choose one of {', '.join(SIMULATE)}", USAGE_ERROR)
             try:
                 row_count(t_end, dt)
             except SimulationError as exc:

@@ -16,8 +16,8 @@ Gragg-Bulirsch-Stoer routes in mpmath, cross-checked). A point records
   (27). The state is ``[xbar; xbardot]`` (the independent coordinates): the error is measured
   there, and the residuals show how well each method's run keeps the loop closed.
 
-The points go to a plain CSV (:func:`to_csv`), everything else (model, reference, skipped
-methods, failures) to JSON metadata beside it (:func:`metadata`).
+The reports (:mod:`.accuracy_report`): the points go to a plain CSV, everything else (model,
+reference, skipped methods, failures) to JSON metadata beside it.
 
 Adaptive methods take ``rtol = atol = tol``; ``taylor`` is a Taylor integrator generated as C for
 the model (:mod:`.taylor_c`), of order ``2 ceil(ln(1/tol)/4) + 4`` (:func:`.taylor_c.order_for`; one library per order, its
@@ -40,22 +40,33 @@ import mpmath
 import numpy as np
 
 from ..core.known_system import KnownSystem
-from ..emitters.escape import markdown_text, plot_text
 from ..errors import KronsubError
-from ..model.source import SourceFile
 from . import native as native_module
+from .engines import c as c_engine
+from .engines import extended as extended_engine
+from .engines import heyoka as heyoka_engine
+from .engines import scipy as scipy_engine
+from .engines import taylor as taylor_engine
+from .fallback import numpy_module
+from .methods import MEASURED, METHODS, by_engine
 from .reference import Reference, reference as compute_reference
 from .values import RunValues
 
-NATIVE = ("dop853", "gauss4", "rk4")
-SCIPY = ("RK45", "DOP853", "Radau", "LSODA")
-HEYOKA = ("heyoka",)
-GENERATED = ("taylor",)  # a Taylor integrator generated as C for the model (.taylor_c)
-EXTENDED = {"gbs-long": "long", "gbs-quad": "quad"}  # extrapolation in long double / _Float128 C
-ALL_METHODS = NATIVE + GENERATED + SCIPY + HEYOKA  # "all"; the extended ones are asked for by name
-CLOSED_LOOP = NATIVE + SCIPY  # the compiled right-hand side, which finds y_d by Newton's method
-KNOWN_METHODS = ALL_METHODS + tuple(EXTENDED)
-FIXED_STEP_ORDER = {"gauss4": 4, "rk4": 4}
+__all__ = ["ALL_METHODS", "AccuracyError", "CLOSED_LOOP", "EXTENDED", "FIXED_STEP_ORDER", "FLOAT64_FLOOR",
+           "GENERATED", "HEYOKA", "KNOWN_METHODS", "NATIVE", "Point", "Progress", "REFERENCE_MARGIN",
+           "RESIDUAL_ROWS", "RUN_STEPS", "SCIPY", "SLOW_SECONDS", "STALLED_STEPS", "WorkPrecision", "fixed_step",
+           "measure", "parse_methods", "parse_tolerances", "quick_tolerances", "sample_times"]
+
+# the method table's (.methods) lists, as this module reads them
+NATIVE = by_engine("c")
+SCIPY = by_engine("scipy")
+HEYOKA = by_engine("heyoka")
+GENERATED = by_engine("taylor")  # a Taylor integrator generated as C for the model (.taylor_c)
+EXTENDED = {name: METHODS[name].precision for name in by_engine("extended")}  # long double / _Float128 C
+KNOWN_METHODS = MEASURED
+ALL_METHODS = tuple(name for name in MEASURED if name not in EXTENDED)  # "all"; the extended ones by name
+CLOSED_LOOP = tuple(name for name in MEASURED if METHODS[name].closed_loops)  # Newton's method finds y_d
+FIXED_STEP_ORDER = {name: METHODS[name].order for name in MEASURED if METHODS[name].fixed_step}
 REFERENCE_MARGIN = 100.0  # the reference must be this much more accurate than the best point
 SLOW_SECONDS = 5.0  # a method whose run took longer skips its tighter tolerances
 FLOAT64_FLOOR = 1e-15  # float64 methods skip tighter tolerances
@@ -253,9 +264,7 @@ class _Runners:
         if self.native is not None:
             self.rhs = self.native.scipy_rhs(param)
         else:
-            from .run import _numpy_module
-
-            module = self.module = _numpy_module(system)
+            module = self.module = numpy_module(system)
             self.rhs = lambda t, y: module["rhs"](t, y, param)
         self._heyoka = None
         self.heyoka_compile: dict[float, float] = {}
@@ -317,84 +326,42 @@ class _Runners:
         return ""
 
     def prepare(self, method: str, tol: float) -> Callable[[], tuple]:
+        """The timed run of ``method`` at ``tol``: a function returning ``(y_end, evaluations,
+        steps, status)``, the ``final_state`` of the method's engine (:mod:`.engines`, as the
+        method table says); what it compiles for this tolerance is timed apart."""
         t_end, y0, param = self.t_end, self.y0, self.param
-        if method in NATIVE:
-            native = self.native
+        engine = METHODS[method].engine if method in KNOWN_METHODS else None
+        if engine == "c":
+            native, h = self.native, fixed_step(method, tol, t_end) if method in FIXED_STEP_ORDER else None
             restart = (lambda: self._fresh_rhs(tol)) if self.dependent is not None else (lambda: None)
-            if method == "dop853":
-                def run():
-                    restart()
-                    _, Y, res = native.integrate("dop853", 0.0, y0, t_end, t_end, param, rtol=tol, atol=tol)
-                    return Y[-1], res.n_evals, res.n_steps, "" if res.ok else res.message
-            else:
-                h = fixed_step(method, tol, t_end)
-
-                def run():
-                    restart()
-                    _, Y, res = native.integrate(method, 0.0, y0, t_end, t_end, param, h=h)
-                    return Y[-1], res.n_evals, res.n_steps, "" if res.ok else res.message
-            return run
-        if method in SCIPY:
-            import scipy.integrate
-
-            solver_class = getattr(scipy.integrate, method)
 
             def run():
-                rhs = self._fresh_rhs(tol)
-                with warnings.catch_warnings(), np.errstate(all="ignore"):
-                    warnings.simplefilter("ignore")
-                    solver = solver_class(rhs, 0.0, y0.copy(), t_end, rtol=tol, atol=tol)
-                    steps, still = 0, 0
-                    try:
-                        while solver.status == "running":
-                            if steps >= RUN_STEPS or still >= STALLED_STEPS:
-                                return (solver.y.copy(), solver.nfev, steps,
-                                        f"stopped at t = {solver.t:.6g}: " + (f"more than {RUN_STEPS:,} steps" if
-                                        still < STALLED_STEPS else f"{still} steps in a row that did not advance"))
-                            t_before = solver.t
-                            message = solver.step()
-                            steps += 1
-                            still = still + 1 if solver.t == t_before else 0
-                    except Exception as exc:  # a singular mass matrix, a failing step
-                        return np.full(len(y0), np.nan), solver.nfev, steps, str(exc) or type(exc).__name__
-                    status = "" if solver.status == "finished" else (message or "failed")
-                    return solver.y.copy(), solver.nfev, steps, status
+                restart()
+                return c_engine.final_state(native, method, y0, t_end, param, tol, h)
             return run
-        if method == "taylor":
+        if engine == "scipy":
+            return lambda: scipy_engine.final_state(self._fresh_rhs(tol), method, y0, t_end, tol, RUN_STEPS,
+                                                    STALLED_STEPS)
+        if engine == "taylor":
             from .taylor_c import order_for
 
             taylor = self.extended["taylor"]
             t0 = time.perf_counter()
             taylor.build(order_for(tol))  # one library per order, compiled apart from the timing
             self.taylor_compile[tol] = time.perf_counter() - t0
-
-            def run():
-                y_end, status, steps, order = taylor.integrate(param, y0, t_end, tol)
-                return y_end, None, steps, "" if status == 0 else f"Taylor status {status}"
-            return run
-        if method in EXTENDED:
+            return lambda: taylor_engine.final_state(taylor, param, y0, t_end, tol)
+        if engine == "extended":
             model = self.extended[EXTENDED[method]]
             param_list, y0_list = [float(v) for v in param], [float(v) for v in y0]
-
-            def run():
-                r = model.integrate(param_list, y0_list, t_end, tol=tol)
-                status = "" if r.status == 0 else f"extrapolation status {r.status}"
-                return r.state, r.evaluations, r.steps, status
-            return run
-        if method == "heyoka":
+            return lambda: extended_engine.final_state(model, param_list, y0_list, t_end, tol)
+        if engine == "heyoka":
             from .heyoka_backend import HeyokaIntegrator
 
             t0 = time.perf_counter()
             integrator = HeyokaIntegrator(self.system, tol)
             self.heyoka_compile[tol] = time.perf_counter() - t0
-            ta, grid = integrator.ta, np.array([0.0, t_end])
-
-            def run():
-                integrator.start(0.0, y0, param)
-                outcome, _, _, steps, _, Y = ta.propagate_grid(grid)
-                ok = outcome == integrator._ok
-                return np.asarray(Y)[-1], None, int(steps), "" if ok else f"heyoka outcome {outcome.name}"
-            return run
+            grid = np.array([0.0, t_end])
+            return lambda: heyoka_engine.final_state(integrator, param, y0, grid)
         raise AccuracyError(f"unknown method '{method}'")
 
     def intermediates(self):
@@ -430,7 +397,7 @@ class _Runners:
     def trace(self, method: str, tol: float) -> tuple[np.ndarray, np.ndarray]:
         """One more (untimed) run of ``method`` at ``tol``: the times and states of its steps."""
         t_end, y0, param = self.t_end, self.y0, self.param
-        if method in NATIVE:
+        if METHODS[method].engine == "c":
             self._fresh_rhs(tol)
             if method == "dop853":
                 T, Y, _ = self.native.integrate("dop853", 0.0, y0, t_end, 0.0, param, rtol=tol, atol=tol)
@@ -624,177 +591,3 @@ def measure(system: KnownSystem, values: RunValues, t_end: float, methods: tuple
                          dict(zip(state, map(float, y0))),
                          {d.name: float(v) for d, v in zip(implicit.dependent, dependent)} if implicit is not None
                          else {})
-
-
-# ---------------------------------------------------------------------------------------------
-# Output
-# ---------------------------------------------------------------------------------------------
-
-def _number(value, fmt: str) -> str:
-    return "" if value is None or (isinstance(value, float) and math.isnan(value)) else format(value, fmt)
-
-
-def markdown(wp: WorkPrecision, target: float | None = None) -> str:
-    """The table, the reference and the cheapest point meeting ``target``."""
-    ref = wp.reference
-    lines = [f"# Work-precision: {markdown_text(wp.system)}, t = 0 .. {wp.t_end:g}", "",
-             f"Reference at t = {', '.join(f'{t:g}' for t in ref.times)}: {ref.routes[0]}; estimated "
-             f"error {ref.error:.1e} ({'; '.join(ref.routes[1:])}).", ""]
-    if wp.compile_seconds is not None:
-        lines += [f"Compiling the C right-hand side and integrators: {wp.compile_seconds:.2f} s (apart from "
-                  "the times below; cached after the first run).", ""]
-    loop = bool(wp.constraints)
-    extra_head = " max \\|g\\| | max \\|G ydot\\| |" if loop else ""
-    lines += ["| method | setting | error at t_end | energy drift |" + extra_head + " time [ms] | f evals | steps | note |",
-              "|---|---|---:|---:|" + ("---:|---:|" if loop else "") + "---:|---:|---:|---|"]
-    for p in wp.points:
-        note = markdown_text(p.status) or (f"compile {p.compile_seconds:.2f} s" if p.compile_seconds is not None else "")
-        extra = f" {_number(p.constraint_residual, '.1e')} | {_number(p.velocity_residual, '.1e')} |" if loop else ""
-        lines.append(f"| {p.method} | {p.setting} | {_number(p.error, '.2e')} | {_number(p.energy_drift, '.1e')} |"
-                     f"{extra} {1e3 * p.seconds:.3f} | {_number(p.evaluations, 'd')} | {_number(p.steps, 'd')} | {note} |")
-    lines.append("")
-    state = "[q; qdot] of the independent coordinates" if loop else "[q; qdot]"
-    lines.append(f"Error: max over the state {state} at t_end; time: median of repeated integrations; "
-                 + ("energy drift: |E(t_end) - E(0)| / |E| (the model conserves energy)."
-                    if wp.conservative else "energy drift: not reported (the model does not conserve energy)."))
-    if loop:
-        lines.append(f"Closed loop ({', '.join(wp.constraints)}): max |g| and max |G ydot| are the largest residuals "
-                     "of the constraints and of their velocity form over the run's steps, the dependent coordinates "
-                     "found as the run finds them (Newton's method to min(rtol, atol)/100, within 1e-14 .. 1e-8).")
-    for method, why in wp.skipped.items():
-        lines.append(f"- {method}: skipped, {markdown_text(why)}")
-    if target is not None:
-        lines.append("")
-        lines.append(target_sentence(wp, target))
-    return "\n".join(lines) + "\n"
-
-
-def target_sentence(wp: WorkPrecision, target: float) -> str:
-    """The cheapest point meeting ``target`` at its tolerance and every tighter one, and the quicker
-    point that met it only by the scatter of the error, if any."""
-    best, chance = wp.cheapest(target), wp.by_chance(target)
-    luck = "" if chance is None else (
-        f" {chance.method} at {chance.setting} met it in {1e3 * chance.seconds:.3f} ms (error {chance.error:.1e}), "
-        f"but a tighter tolerance of {chance.method} did not: the error scatters there, so that was chance.")
-    if best is None:
-        closest = wp.best_error()
-        return (f"Target {target:.2g}: no method met it at a tolerance and every tighter one" +
-                (f" (best error {closest:.1e})." if closest is not None else ".") + luck)
-    return (f"Target {target:.2g}: cheapest is {best.method} at {best.setting}: error {best.error:.1e} "
-            f"in {1e3 * best.seconds:.3f} ms, and at every tighter tolerance {best.method} ran at." + luck)
-
-
-CSV_COLUMNS = ("method", "tolerance", "setting", "error", "energy_drift", "constraint_residual",
-               "velocity_residual", "seconds", "compile_seconds", "evaluations", "steps", "repeats", "status")
-METADATA_FORMAT = "kronsub-accuracy-metadata/1"
-
-
-def to_csv(wp: WorkPrecision) -> str:
-    """One header row (:data:`CSV_COLUMNS`), then one row per point: plain CSV that
-    ``numpy.genfromtxt``, ``csv.DictReader`` and ``pandas.read_csv`` read without options.
-    Numbers in their shortest round-trip form, ``nan`` where a value does not apply (no energy
-    drift for a model that does not conserve energy, no residuals without constraints, no
-    evaluation count from a method that does not report it); ``status`` is ``ok`` or ``failed``
-    (the message is in the metadata, :func:`metadata`)."""
-    def number(value) -> str:
-        return "nan" if value is None else repr(float(value)) if not isinstance(value, int) else str(value)
-
-    lines = [",".join(CSV_COLUMNS)]
-    for p in wp.points:
-        lines.append(",".join([p.method, repr(p.tolerance), p.setting, number(p.error), number(p.energy_drift),
-                               number(p.constraint_residual), number(p.velocity_residual), number(p.seconds),
-                               number(p.compile_seconds), number(p.evaluations), number(p.steps), str(p.repeats),
-                               "ok" if p.ok else "failed"]))
-    return "\n".join(lines) + "\n"
-
-
-def metadata(wp: WorkPrecision, *, model_file: str | None = None, source: SourceFile | None = None,
-             uses: tuple[SourceFile, ...] = (), scene: str | None = None, methods: tuple[str, ...] = (), tolerances: tuple[float, ...] = (),
-             target: float | None = None, csv: str | None = None) -> dict:
-    """Everything about a measurement that is not a point: the model, the reference (its routes,
-    estimated error and state at the end time, 30 digits), what was skipped and why, the
-    failures' messages, the target's choice. Written as JSON beside the CSV."""
-    from ..version import __version__
-    from .table import json_number, model_record
-
-    ref = wp.reference
-    names = list(wp.initial_state) or [f"y{i}" for i in range(len(ref.states[-1]))]
-    with mpmath.workdps(max(ref.digits, 30) + 5):
-        end_state = {name: mpmath.nstr(v, 30, strip_zeros=False) for name, v in zip(names, ref.states[-1])}
-    meta = {
-        "format": METADATA_FORMAT,
-        "kronsub": __version__,
-        "csv": csv,
-        "model": model_record(wp.system, model_file, source, uses),
-        "scene": scene,
-        "t_end": json_number(wp.t_end),
-        "parameters": {k: json_number(v) for k, v in wp.parameters.items()},
-        "initial_state": {k: json_number(v) for k, v in wp.initial_state.items()},
-    }
-    if wp.constraints:
-        meta["closed_loop"] = {"constraints": list(wp.constraints),
-                               "dependent_at_t0": {k: json_number(v) for k, v in wp.dependent.items()},
-                               "state": "the independent coordinates and their velocities"}
-    best = wp.best_error()
-    meta.update({
-        "methods": list(methods),
-        "tolerances": [json_number(t) for t in tolerances],
-        "reference": {
-            "times": [json_number(t) for t in ref.times],
-            "route": ref.routes[0],
-            "cross_checks": list(ref.routes[1:]),
-            "estimated_error": json_number(ref.error),
-            "digits": ref.digits,
-            "state_at_t_end": end_state,
-            "sufficient": wp.reference_sufficient(),
-            "required_margin": REFERENCE_MARGIN,
-            "best_point_error": json_number(best),
-        },
-        "compile_seconds": json_number(wp.compile_seconds),
-        "conservative": wp.conservative,
-        "skipped": dict(wp.skipped),
-        "failures": [{"method": p.method, "setting": p.setting, "message": p.status or "non-finite state"}
-                     for p in wp.points if not p.ok],
-        "columns": list(CSV_COLUMNS),
-        "units": ("error and residuals in the state's units (max over its entries); energy_drift relative to the "
-                  "largest |E| or T; seconds: median wall time of repeated integrations, compile_seconds apart"),
-    })
-    if target is not None:
-        def point(p):
-            return None if p is None else {"method": p.method, "setting": p.setting, "error": json_number(p.error),
-                                           "seconds": json_number(p.seconds)}
-        meta["target"] = {"error": json_number(target), "cheapest": point(wp.cheapest(target)),
-                          "by_chance": point(wp.by_chance(target))}
-    return meta
-
-
-def plot(wp: WorkPrecision, path, target: float | None = None) -> None:
-    """Error against time, log-log, one line per method (matplotlib); written atomically."""
-    from pathlib import Path
-
-    import matplotlib
-
-    from ..atomic import atomic_file
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, ax = plt.subplots(figsize=(8, 5.5))
-    for method in dict.fromkeys(p.method for p in wp.points):
-        pts = [p for p in wp.points if p.method == method and p.ok and p.error > 0]
-        if pts:
-            ax.loglog([1e3 * p.seconds for p in pts], [p.error for p in pts], "o-", label=method)
-    ax.axhline(wp.reference.error, color="grey", linestyle=":", label="reference error")
-    if target is not None:
-        ax.axhline(target, color="red", linestyle="--", label=f"target {target:.2g}")
-    ax.set_xlabel("integration time [ms]")
-    ax.set_ylabel(f"max |error| at t = {wp.t_end:g}")
-    ax.set_title(f"Work-precision: {plot_text(wp.system)}")
-    ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize="small")
-    fig.tight_layout()
-    try:
-        with atomic_file(Path(path), binary=True) as fh:  # the user's umask, no stray temporary file
-            fig.savefig(fh, dpi=100, format="png")
-    finally:
-        plt.close(fig)

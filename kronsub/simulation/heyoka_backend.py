@@ -27,6 +27,8 @@ from ..core.known_system import KnownSystem
 from ..core.symbols import TIME
 from ..errors import KronsubError
 
+__all__ = ["INSTALL_HINT", "HeyokaIntegrator", "available", "integrate", "ode"]
+
 INSTALL_HINT = "pip install 'kronsub[heyoka]'"
 
 
@@ -153,7 +155,7 @@ class HeyokaIntegrator:
         self.used = max(used) + 1 if used else 0
         self.ta = hy.taylor_adaptive(equations, np.zeros(self.ny), tol=tol,
                                      pars=np.zeros(self.used), compact_mode=compact)
-        self._ok = hy.taylor_outcome.time_limit
+        self.finished = hy.taylor_outcome.time_limit  # the outcome of a propagation that reached its end
         self._nonfinite = hy.taylor_outcome.err_nf_state
 
     def start(self, t0: float, y0, param) -> None:
@@ -177,7 +179,7 @@ class HeyokaIntegrator:
         ta = self.ta
         self.start(grid[0], y0, param)
         outcome, *_, Y = ta.propagate_grid(grid)
-        if outcome == self._ok:
+        if outcome == self.finished:
             return grid.copy(), np.asarray(Y), True, ""
         Y = np.asarray(Y).reshape(-1, self.ny)  # only the rows reached
         good = np.all(np.isfinite(Y), axis=1)

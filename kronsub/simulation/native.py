@@ -697,7 +697,7 @@ class NativeModel:
                 out_every = max(1, math.ceil(dt_out / h - 1e-9))
                 h = dt_out / out_every
             # a span up to 2e-7 h over whole steps takes no extra step: a t_end within 1e-7 dt_out of a
-            # row is that row (run.MERGE, output_time in integrators.c), reached by a longer last step
+            # row is that row (grid.MERGE, output_time in integrators.c), reached by a longer last step
             n_steps = max(1, math.ceil(span / h * (1 - 2e-7))) if span > 0 else 0
             capacity = [n_steps // out_every + 3]
             fixed = self._fn[f"ks_{method}"]

@@ -6,6 +6,7 @@ import sympy
 
 from ..core.reactions import MultiplierSystem, reactions
 from ..core.symbols import acceleration_symbol
+from .fallback import numpy_module
 
 
 def reaction_columns(system, traj, param, module, constrained=None) -> tuple[list[str], np.ndarray]:
@@ -64,15 +65,13 @@ def _rows(system, fn, k, times, states, param, module, constrained) -> np.ndarra
 def _switched_columns(traj, param) -> tuple[list[str], np.ndarray]:
     """The rows of each stretch with its own choice's system, module and Newton's method, started
     from the configuration the run recorded at the stretch's first row."""
-    from .run import _numpy_module
-
     first = traj.segments[0][2]
     n1 = len(first.independent_idx)
     done: dict[int, tuple] = {}
     names, out = None, np.full((len(traj.t), 0), np.nan)
     for start, stop, split, own in traj.segments:
         if id(split) not in done:
-            done[id(split)] = (*_reaction_function(split.system, param), _numpy_module(split.system))
+            done[id(split)] = (*_reaction_function(split.system, param), numpy_module(split.system))
         split_names, fn, module = done[id(split)]
         if names is None:
             names, out = split_names, np.full((len(traj.t), len(split_names)), np.nan)

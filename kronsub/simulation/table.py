@@ -33,7 +33,8 @@ from ..emitters.escape import json_document
 from ..interrupts import HELD, signal_name, signal_of
 from ..model.source import SourceFile
 from ..version import __version__
-from .run import Block, Run, Trajectory, _numpy_module
+from .fallback import numpy_module
+from .rows import Block, Run, Trajectory
 from .values import RunValues
 
 METADATA_FORMAT = "kronsub-trajectory-metadata/1"
@@ -110,7 +111,7 @@ class _Module:
 
     def __getitem__(self, name):
         if self.namespace is None:
-            self.namespace = _numpy_module(self.system, self.outputs)
+            self.namespace = numpy_module(self.system, self.outputs)
         return self.namespace[name]
 
 

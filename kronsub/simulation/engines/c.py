@@ -1,0 +1,72 @@
+"""The engine of the methods wholly in C (:mod:`..native`: dop853, gauss4, rk4): blocks of rows,
+one per chunk of the grid; fixed-step methods step ``--dt`` at a time."""
+from __future__ import annotations
+
+import numpy as np
+
+from ..failure import at_configuration, cause_of, not_finite, rank_loss_note, real_at
+from ...core.known_system import KnownSystem
+from ..methods import METHODS
+from ..native import NativeModel
+from ..rows import Run
+from . import ProgressBar, Rows
+from ..grid import Grid, Tail, aligned_pieces, chunk_ranges, fixed_pieces
+
+__all__ = ["blocks", "final_state"]
+
+
+def blocks(run: Run, native: NativeModel, method: str, grid: Grid | Tail, y0: np.ndarray, param: np.ndarray,
+           rtol: float, atol: float, dt: float, chunks: int, bar: ProgressBar, system: KnownSystem) -> Rows:
+    """Blocks ``(t, Y)`` of a run wholly in C, one per chunk of the grid."""
+    last = grid[0]
+    yield np.array([last]), np.array([y0])
+    stats = run.stats = {"steps": 0, "rejected": 0, "evaluations": 0}
+    y = y0
+    fixed = METHODS[method].fixed_step
+    pieces = [p for a, b in chunk_ranges(grid, chunks)
+              for p in (fixed_pieces(grid[a], grid[b], dt) if fixed else aligned_pieces(grid[a], grid[b], dt))]
+    for t0, t1 in pieces:
+        t, Y, result = native.integrate(method, t0, y, t1, dt, param, rtol=rtol, atol=atol,
+                                        h=dt if fixed else None)
+        stats["steps"] += result.n_steps
+        stats["rejected"] += result.n_rejected
+        stats["evaluations"] += result.n_evals
+        if result.t_stiff is not None and "stiff_from" not in stats:
+            stats["stiff_from"] = result.t_stiff
+        keep = t > last + 1e-6 * grid.spacing  # a piece's first row repeats the last one
+        if np.any(keep):
+            last = t[keep][-1]
+            yield t[keep], Y[keep]
+        if result.status != 0:
+            message = result.message
+            at_finite = result.status in (1, 2) and result.y_fail is not None and np.all(np.isfinite(result.y_fail))
+            if result.status in (1, 2) and not real_at(native, t0, y, param):  # not finite at the start
+                message = not_finite(system, t0, y, param)
+            elif at_finite:
+                # NaN forces at a finite state (a spring whose ends meet): which effect, if any; Mbar
+                # without a real value where the run got to is the edge of the coordinates' range, where
+                # it is singular (System II's lower rod on the line): said so, the cause beside it
+                cause = cause_of(system, result.t_fail, result.y_fail, param, mass_only=result.status == 1)
+                if cause is not None and result.status == 1 and not cause.overflow and cause.label.startswith("Mbar"):
+                    message = f"{message}: {cause}"
+                elif cause is not None:
+                    message = cause.stated()
+            message += at_configuration(system, result.y_fail) if result.status in (1, 2) else ""
+            if at_finite:
+                message += rank_loss_note(system, result.t_fail, result.y_fail, param)
+            run.stop(message, result.t_fail, y_fail=result.y_fail)
+            return
+        y = Y[-1]
+        bar.update(t1)
+
+
+def final_state(native: NativeModel, method: str, y0: np.ndarray, t_end: float, param: np.ndarray, tol: float,
+                h: float | None) -> tuple[np.ndarray, int, int, str]:
+    """One run of ``method`` from t = 0 to ``t_end`` with a row at the end only: ``(y_end,
+    evaluations, steps, status)`` (status '' when it got there). A fixed-step method takes the
+    step ``h``, an adaptive one ``rtol = atol = tol``."""
+    if METHODS[method].fixed_step:
+        _, Y, res = native.integrate(method, 0.0, y0, t_end, t_end, param, h=h)
+    else:
+        _, Y, res = native.integrate(method, 0.0, y0, t_end, t_end, param, rtol=tol, atol=tol)
+    return Y[-1], res.n_evals, res.n_steps, "" if res.ok else res.message
