@@ -19,7 +19,8 @@ from kronsub.simulation.reference import Reference
 from kronsub.simulation.values import resolve
 from conftest import MODELS
 from kronsub.simulation import reference as R
-from test_reference import closed_loop, loaded, pendulum_exact, spring_chain_exact
+from helpers.systems import closed_loop, loaded
+from reference.exact import pendulum_exact, spring_chain_exact
 
 TEST_MODELS = ROOT / "tests" / "models"
 TOLERANCES = (1e-3, 1e-6, 1e-9)

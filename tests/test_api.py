@@ -10,7 +10,7 @@ import pytest
 import sympy
 
 import kronsub
-import mechanics_reference as mr
+from reference import mechanics as mr
 from conftest import MODELS, ROOT
 from helpers import COMPOUND
 from kronsub.errors import KronsubError, ModelError

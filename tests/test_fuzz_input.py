@@ -23,7 +23,7 @@ from click.testing import CliRunner
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from deadline import within
+from helpers.deadline import within
 from kronsub.cli import main
 from kronsub.errors import ModelError
 from kronsub.model.expressions import FUNCTIONS, constant_value, parse_expression

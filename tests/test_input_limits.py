@@ -24,7 +24,7 @@ from click.testing import CliRunner
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from deadline import within
+from helpers.deadline import within
 from kronsub.cli import main
 from kronsub.core.trigpoly import (MAX_EXPANDED_POWER, MAX_EXPANSION_TERMS, ExpansionTooLarge, TrigAlgebra,
                                    _expansion_width, expansion_terms)

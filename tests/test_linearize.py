@@ -1,5 +1,5 @@
 """Linearisation: A, B about an operating point, checked against sympy.physics.mechanics'
-``KanesMethod.linearize`` (tests/mechanics_reference.py) and known eigenvalues."""
+``KanesMethod.linearize`` (tests/reference/mechanics.py) and known eigenvalues."""
 from __future__ import annotations
 
 import json
@@ -14,7 +14,7 @@ import sympy
 from click.testing import CliRunner
 
 import kronsub
-import mechanics_reference as mr
+from reference import mechanics as mr
 from conftest import MODELS, ROOT
 from helpers import COMPOUND, by_name
 from kronsub.cli import main

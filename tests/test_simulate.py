@@ -9,7 +9,7 @@ from click.testing import CliRunner
 from scipy.integrate import solve_ivp
 
 import kronsub
-import mechanics_reference as ref
+from reference import mechanics as ref
 from conftest import MODELS, ROOT
 from kronsub.cli import main
 from kronsub.simulation.run import simulate
