@@ -48,22 +48,30 @@ def _raise(signum, frame):
 
 
 @contextlib.contextmanager
+def handled(which, handler):
+    """``handler`` for each signal of :data:`HELD` that ``which(signum)`` accepts, during the
+    block; the previous handlers restored after. Yields them (signum -> handler)."""
+    previous = {}
+    try:
+        for signum in HELD:
+            if which(signum):
+                previous[signum] = signal.signal(signum, handler)
+    except (ValueError, OSError):  # no signals here (an embedded interpreter)
+        pass
+    try:
+        yield previous
+    finally:
+        for signum, old in previous.items():
+            signal.signal(signum, old)
+
+
+@contextlib.contextmanager
 def signals_as_interrupts():
     """SIGTERM and SIGHUP raise :class:`Interrupted` inside the block (main thread only; a
     signal someone set to be ignored stays ignored)."""
     if threading.current_thread() is not threading.main_thread():
         yield
         return
-    previous = {}
-    try:
-        for signum in HELD:
-            if signum == signal.SIGINT or signal.getsignal(signum) is signal.SIG_IGN:
-                continue
-            previous[signum] = signal.signal(signum, _raise)
-    except (ValueError, OSError):  # no signals here (an embedded interpreter)
-        pass
-    try:
+    with handled(lambda signum: signum != signal.SIGINT and signal.getsignal(signum) is not signal.SIG_IGN,
+                 _raise):
         yield
-    finally:
-        for signum, handler in previous.items():
-            signal.signal(signum, handler)

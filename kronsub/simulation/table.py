@@ -30,7 +30,7 @@ import numpy as np
 
 from ..core.known_system import KnownSystem
 from ..emitters.escape import json_document
-from ..interrupts import HELD, signal_name, signal_of
+from ..interrupts import handled, signal_name, signal_of
 from ..model.source import SourceFile
 from ..version import __version__
 from .fallback import numpy_module
@@ -54,20 +54,12 @@ def _whole_rows():
     if threading.current_thread() is not threading.main_thread():
         yield
         return
-    caught = []
-    previous = {}
+    caught, previous = [], {}
     try:
-        for signum in HELD:
-            handler = signal.getsignal(signum)
-            if callable(handler):
-                previous[signum] = signal.signal(signum, lambda number, frame: caught.append((number, frame)))
-    except (ValueError, OSError):  # no signals here (an embedded interpreter)
-        pass
-    try:
-        yield
+        with handled(lambda signum: callable(signal.getsignal(signum)),
+                     lambda number, frame: caught.append((number, frame))) as previous:
+            yield
     finally:
-        for signum, handler in previous.items():
-            signal.signal(signum, handler)
         if caught:
             previous[caught[0][0]](*caught[0])
 
