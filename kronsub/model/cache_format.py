@@ -121,10 +121,23 @@ class _Encoder:
             return {"t": [self.value(x) for x in v]}
         if isinstance(v, (dict, MappingProxyType, PlacedPoints)):
             return {"d": [[self.value(k), self.value(x)] for k, x in v.items()]}
-        if dataclasses.is_dataclass(v) and CLASSES.get(type(v).__name__) is type(v):
-            return {"c": type(v).__name__,
+        stored = stored_class(v)
+        if stored is not None:
+            return {"c": stored.__name__,
                     "f": {f.name: self.value(getattr(v, f.name)) for f in dataclasses.fields(v)}}
         raise CacheFormatError(f"cannot store a {type(v).__name__}")
+
+
+def stored_class(v) -> type | None:
+    """The class of :data:`CLASSES` that ``v`` is stored as: its own, or the one it subclasses
+    without adding data (the notebook's ``api.System`` is a ``KnownSystem``); else None."""
+    if not dataclasses.is_dataclass(v) or isinstance(v, type):
+        return None
+    for cls in type(v).__mro__:
+        if CLASSES.get(cls.__name__) is cls:
+            same = [f.name for f in dataclasses.fields(cls)] == [f.name for f in dataclasses.fields(v)]
+            return cls if same else None
+    return None
 
 
 def dumps(value) -> str:
