@@ -5,8 +5,8 @@ from pathlib import Path
 
 import click
 
-from .common import (USAGE_ERROR, check_times, fail, output_option, run_command, say, separate_outputs,
-                     set_option, writable)
+from .common import (USAGE_ERROR, budget_option, check_times, fail, output_option, run_command, say,
+                     separate_outputs, set_option, writable)
 
 
 @click.command()
@@ -20,6 +20,7 @@ from .common import (USAGE_ERROR, check_times, fail, output_option, run_command,
               help="Frames per second; rows are skipped so that the animation plays in real time.")
 @click.option("--size", type=click.IntRange(64, 4096), default=480, show_default=True,
               help="Width and height of the frames in pixels.")
+@budget_option
 def animate(source: Path, output: Path, t_end: float, dt: float, method: str, settings: tuple[str, ...],
             fps: int, size: int):
     """Draw the mechanism of SOURCE over time: a MODEL (simulated first) or a trajectory CSV

@@ -10,7 +10,7 @@ import click
 
 from ..atomic import cannot_create, umask
 from ..emitters.escape import json_document
-from .common import USAGE_ERROR, fail, run_command, say
+from .common import USAGE_ERROR, budget_option, fail, run_command, say
 from .starters import STARTERS
 
 
@@ -96,6 +96,7 @@ def new(name: str, kind: str, links: int):
 
 @click.command()
 @click.argument("model", type=click.Path(dir_okay=False, path_type=Path))
+@budget_option
 def check(model: Path):
     """Validate MODEL without deriving it: every problem at once, exit 1 when there are any."""
     from ..budget import cpu_backstop

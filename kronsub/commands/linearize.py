@@ -5,8 +5,8 @@ from pathlib import Path
 
 import click
 
-from .common import (USAGE_ERROR, coincident_at_start, emit_text, fail, output_option, run_command, say,
-                     scene_option, scene_system, separate_outputs, writable)
+from .common import (USAGE_ERROR, budget_option, coincident_at_start, emit_text, fail, output_option, run_command,
+                     say, scene_option, scene_system, separate_outputs, writable)
 
 
 @click.command()
@@ -21,6 +21,7 @@ from .common import (USAGE_ERROR, coincident_at_start, emit_text, fail, output_o
               show_default=True, help="Output format.")
 @output_option()
 @scene_option(help="Use the model's scene NAME: only its effects, its values and initial values.")
+@budget_option
 def linearize(model: Path, at: tuple[str, ...], inputs: str, symbolic: bool, fmt: str, output: Path | None,
               scene_name: str | None):
     """Linearise MODEL: ydot ~ A (y - y*) + B (u - u*), y = [q; qdot], with the eigenvalues of A.
