@@ -24,6 +24,13 @@ from ..errors import KronsubError, Location, ModelError
 from ..interrupts import exit_code, signal_name, signal_of, signals_as_interrupts
 from ..version import __version__
 
+__all__ = ["DEBUG_ENV", "EXIT_CODES", "FILE", "HANGUP", "INPUT_ERROR", "INTERNAL_ERROR", "INTERRUPTED",
+           "NUMERICAL_FAILURE", "OK", "OUTPUT_HELP", "SCENE_HELP", "SET_HELP", "TERMINATED", "USAGE_ERROR",
+           "budget_option", "check_times", "coincident_at_start", "coincident_ends", "default_sidecar",
+           "emit_text", "fail", "interrupted_by", "meta_option", "note_choice", "note_safely", "output_option",
+           "plot_option", "run_command", "say", "scene_option", "scene_system", "separate_outputs", "set_option",
+           "writable", "writable_outputs"]
+
 OK, INPUT_ERROR, USAGE_ERROR, NUMERICAL_FAILURE, INTERNAL_ERROR, INTERRUPTED = 0, 1, 2, 3, 4, 130
 HANGUP, TERMINATED = 129, 143  # 128 + SIGHUP, 128 + SIGTERM (kronsub/interrupts.py)
 EXIT_CODES = {
