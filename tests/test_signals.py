@@ -57,12 +57,14 @@ def test_a_signal_before_the_rows_exits_with_its_code(tmp_path):
     model = tmp_path / "m.yaml"
     model.write_text(SYSTEM1.read_text())
     code = ("import os, signal, sys\n"
+            "import importlib\n"
             "from kronsub import cli\n"
-            "real = cli.scene_system\n"
+            "command = importlib.import_module('kronsub.commands.simulate')\n"
+            "real = command.scene_system\n"
             "def hung(*a, **k):\n"
             "    os.kill(os.getpid(), signal.SIGTERM)\n"
             "    return real(*a, **k)\n"
-            "cli.scene_system = hung\n"
+            "command.scene_system = hung\n"
             f"sys.argv = ['kronsub', 'simulate', {str(model)!r}, '--t', '1']\n"
             "cli.main()\n")
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)

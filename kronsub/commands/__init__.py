@@ -1,2 +1,2 @@
-"""Commands of the command line beyond derive/codegen/simulate, one module per concern;
-:mod:`kronsub.cli` registers them on its group."""
+"""The commands of the command line, one module per command; what they share is in
+:mod:`~kronsub.commands.common`. :mod:`kronsub.cli` registers them on its group."""

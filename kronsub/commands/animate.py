@@ -5,31 +5,32 @@ from pathlib import Path
 
 import click
 
+from .common import (USAGE_ERROR, budget_option, check_times, fail, output_option, run_command, say,
+                     separate_outputs, set_option, writable)
+
 
 @click.command()
 @click.argument("source", type=click.Path(dir_okay=False, path_type=Path))
-@click.option("--output", "-o", type=click.Path(dir_okay=False, path_type=Path), required=True,
-              help="The animation: a .gif (pillow) or .mp4 (ffmpeg).")
+@output_option("The animation: a .gif (pillow) or .mp4 (ffmpeg).", required=True)
 @click.option("--t", "t_end", type=float, default=5.0, show_default=True, help="End time (MODEL only).")
 @click.option("--dt", type=float, default=0.02, show_default=True, help="Output interval (MODEL only).")
 @click.option("--method", default="dop853", show_default=True, help="Integration method (MODEL only).")
-@click.option("--set", "settings", multiple=True, metavar="NAME=VALUE",
-              help="Set a parameter or an initial coordinate/velocity (MODEL only; repeatable).")
+@set_option("Set a parameter or an initial coordinate/velocity (MODEL only; repeatable).")
 @click.option("--fps", type=click.IntRange(1, 120), default=30, show_default=True,
               help="Frames per second; rows are skipped so that the animation plays in real time.")
 @click.option("--size", type=click.IntRange(64, 4096), default=480, show_default=True,
               help="Width and height of the frames in pixels.")
+@budget_option
 def animate(source: Path, output: Path, t_end: float, dt: float, method: str, settings: tuple[str, ...],
             fps: int, size: int):
     """Draw the mechanism of SOURCE over time: a MODEL (simulated first) or a trajectory CSV
     written with `kronsub simulate --points`. Bodies are segments between their named
     points, discs are circles; needs matplotlib (pip install 'kronsub[plot]')."""
-    from ..cli import USAGE_ERROR, _check_times, _fail, _run, _separate_outputs, _writable, say
     from ..simulation.methods import SIMULATE
     from ..simulation.run import SimulationError, row_count
 
     def job():
-        _separate_outputs(source, ("--output", output, "animation"))
+        separate_outputs(source, ("--output", output, "animation"))
         from_csv = source.suffix.lower() == ".csv"
         ctx = click.get_current_context()
         if from_csv:  # a trajectory has its times and values: the options that make one do not apply
@@ -37,22 +38,22 @@ def animate(source: Path, output: Path, t_end: float, dt: float, method: str, se
                      ("t_end", "dt", "method", "settings")
                      if ctx.get_parameter_source(name) is not click.core.ParameterSource.DEFAULT]
             if given:
-                _fail(f"Error: {', '.join(given)} {'applies' if len(given) == 1 else 'apply'} to a MODEL, not to "
+                fail(f"Error: {', '.join(given)} {'applies' if len(given) == 1 else 'apply'} to a MODEL, not to "
                       f"the trajectory {source}\n  hint: drop {', '.join(given)}, or animate the model itself",
                       USAGE_ERROR)
         else:
-            _check_times(t_end, dt)
+            check_times(t_end, dt)
             if method not in SIMULATE:
-                _fail(f"Error: unknown method '{method}'\n  hint: choose one of {', '.join(SIMULATE)}", USAGE_ERROR)
+                fail(f"Error: unknown method '{method}'\n  hint: choose one of {', '.join(SIMULATE)}", USAGE_ERROR)
             try:
                 row_count(t_end, dt)
             except SimulationError as exc:
-                _fail(f"Error: {exc}", USAGE_ERROR)
-        _writable(output, "--output")
+                fail(f"Error: {exc}", USAGE_ERROR)
+        writable(output, "--output")
         try:
             import matplotlib  # noqa: F401
         except ImportError:
-            _fail("Error: animate needs matplotlib\n  hint: pip install 'kronsub[plot]'")
+            fail("Error: animate needs matplotlib\n  hint: pip install 'kronsub[plot]'")
         from ..simulation.animate import animate as draw
         from ..simulation.animate import read_points_csv
 
@@ -64,7 +65,7 @@ def animate(source: Path, output: Path, t_end: float, dt: float, method: str, se
         frames = draw(t, names, values, output, fps=fps, size=size, title=title)
         say(f"wrote {output} ({frames} frames)")
 
-    _run(job)
+    run_command(job)
 
 
 def _simulate(model: Path, t_end: float, dt: float, method: str, settings):
@@ -80,8 +81,6 @@ def _simulate(model: Path, t_end: float, dt: float, method: str, settings):
     values = resolve(system, dict(loaded.initial), parse_assignments(settings))
     traj = simulate(system, values, t_end, dt, method)
     if not traj.complete:
-        from ..cli import say
-
         say(f"Warning: the run stopped at t = {traj.t_fail:.6g}: {traj.message}; "
             f"animating the {len(traj.t)} rows computed")
     names, pts = point_columns(system, traj, np.array(values.parameters))

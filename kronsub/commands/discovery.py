@@ -10,6 +10,7 @@ import click
 
 from ..atomic import cannot_create, umask
 from ..emitters.escape import json_document
+from .common import USAGE_ERROR, budget_option, fail, run_command, say
 from .starters import STARTERS
 
 
@@ -21,7 +22,6 @@ def components(type_name: str | None, fmt: str):
     """The component library and the effect types; with TYPE, the details of one
     (coordinates, parameters with defaults and units, named points, conventions; or
     an effect's keys)."""
-    from ..cli import _run
     from ..errors import KronsubError, close_matches
     from . import catalogue
 
@@ -39,7 +39,7 @@ def components(type_name: str | None, fmt: str):
             text = catalogue.detail_text(type_name)
         click.echo(text, nl=False)
 
-    _run(job)
+    run_command(job)
 
 
 def _create(path: Path, text: str) -> None:
@@ -65,7 +65,6 @@ def _create(path: Path, text: str) -> None:
               help="Number of rods (--from chain).")
 def new(name: str, kind: str, links: int):
     """Write a starter model NAME.yaml that derives (never overwrites a file)."""
-    from ..cli import USAGE_ERROR, _fail, _run, say
     from ..errors import printable
     from .starters import starter
 
@@ -73,34 +72,34 @@ def new(name: str, kind: str, links: int):
         path = Path(name if name.endswith((".yaml", ".yml")) else name + ".yaml")
         stem = path.name[:-len(path.suffix)]
         if not stem.strip() or stem.startswith(".") or not name.isprintable() or "/" in stem:
-            _fail(f"Error: NAME {printable(repr(name))} gives no usable file name ({printable(str(path))})\n"
+            fail(f"Error: NAME {printable(repr(name))} gives no usable file name ({printable(str(path))})\n"
                   "  hint: a name of printable characters not starting with '.', e.g. kronsub new my_pendulum",
                   USAGE_ERROR)
         if kind != "chain" and click.get_current_context().get_parameter_source("links") \
                 is not click.core.ParameterSource.DEFAULT:
-            _fail(f"Error: --links is for --from chain (not {kind})\n  hint: add --from chain, or drop --links",
+            fail(f"Error: --links is for --from chain (not {kind})\n  hint: add --from chain, or drop --links",
                   USAGE_ERROR)
         if not path.resolve().parent.is_dir():
-            _fail(f"Error: {path}: the directory {path.resolve().parent} does not exist\n"
+            fail(f"Error: {path}: the directory {path.resolve().parent} does not exist\n"
                   "  hint: create it first, or choose another NAME")
         if path.exists():
-            _fail(f"Error: {path} exists; kronsub new never overwrites a file\n  hint: choose another NAME")
+            fail(f"Error: {path} exists; kronsub new never overwrites a file\n  hint: choose another NAME")
         try:
             _create(path, starter(kind, path.stem, links))
         except FileExistsError:
-            _fail(f"Error: {path} exists; kronsub new never overwrites a file\n  hint: choose another NAME")
+            fail(f"Error: {path} exists; kronsub new never overwrites a file\n  hint: choose another NAME")
         shown = shlex.quote(str(path))  # a command to copy: the name quoted for the shell
         say(f"wrote {path} (from {kind}); next: kronsub check {shown} && kronsub derive {shown}")
 
-    _run(job)
+    run_command(job)
 
 
 @click.command()
 @click.argument("model", type=click.Path(dir_okay=False, path_type=Path))
+@budget_option
 def check(model: Path):
     """Validate MODEL without deriving it: every problem at once, exit 1 when there are any."""
     from ..budget import cpu_backstop
-    from ..cli import _run, say
     from ..model.loader import load_model
 
     def job():
@@ -112,7 +111,7 @@ def check(model: Path):
         shown = [f"{n} {what}{'s' if n != 1 else ''}" for n, what in counts if n or what != "scene"]
         say(f"{model}: OK ({', '.join(shown)})", err=False)
 
-    _run(job)
+    run_command(job)
 
 
 def _check_rank(model) -> None:

@@ -5,6 +5,9 @@ from pathlib import Path
 
 import click
 
+from .common import (USAGE_ERROR, budget_option, coincident_at_start, emit_text, fail, output_option, run_command,
+                     say, scene_option, scene_system, separate_outputs, writable)
+
 
 @click.command()
 @click.argument("model", type=click.Path(dir_okay=False, path_type=Path))
@@ -16,10 +19,9 @@ import click
               help="A and B in the parameters' symbols (those not fixed with --at) instead of numbers.")
 @click.option("--format", "fmt", type=click.Choice(["markdown", "json", "latex"]), default="markdown",
               show_default=True, help="Output format.")
-@click.option("--output", "-o", type=click.Path(dir_okay=False, path_type=Path),
-              help="Write to FILE (atomically) instead of standard output.")
-@click.option("--scene", "scene_name", metavar="NAME", default=None,
-              help="Use the model's scene NAME: only its effects, its values and initial values.")
+@output_option()
+@scene_option(help="Use the model's scene NAME: only its effects, its values and initial values.")
+@budget_option
 def linearize(model: Path, at: tuple[str, ...], inputs: str, symbolic: bool, fmt: str, output: Path | None,
               scene_name: str | None):
     """Linearise MODEL: ydot ~ A (y - y*) + B (u - u*), y = [q; qdot], with the eigenvalues of A.
@@ -30,26 +32,24 @@ def linearize(model: Path, at: tuple[str, ...], inputs: str, symbolic: bool, fmt
     """
     from ..api import linearize as linearize_system
     from ..core.linearize import LinearizationError
-    from ..cli import (USAGE_ERROR, _coincident_at_start, _fail, _run, _separate_outputs, _writable, emit_text, say,
-                       scene_system)
     from ..emitters.linearization import EMITTERS
     from ..model.scenes import initial_values
     from ..simulation.values import parse_assignments
 
     def job():
-        _writable(output, "--output")
-        _separate_outputs(model, ("--output", output, "output"))
+        writable(output, "--output")
+        separate_outputs(model, ("--output", output, "output"))
         assignments = parse_assignments(at, "--at")
         names = [n.strip() for n in inputs.split(",") if n.strip()]
         twice = sorted({n for n in names if names.count(n) > 1})
         if twice:
-            _fail(f"Error: --inputs names {', '.join(twice)} more than once\n  hint: name each input once", USAGE_ERROR)
+            fail(f"Error: --inputs names {', '.join(twice)} more than once\n  hint: name each input once", USAGE_ERROR)
         loaded, scene, system = scene_system(model, scene_name)
         try:
             lin = linearize_system(system, assignments, names, symbolic=symbolic,
                                    initial=initial_values(loaded, scene), option="--at")
         except LinearizationError:
-            _coincident_at_start(loaded, system, initial_values(loaded, scene), assignments)
+            coincident_at_start(loaded, system, initial_values(loaded, scene), assignments)
             raise
         if not lin.equilibrium:
             moving = [f"{s}={v}" for s, v in lin.point if s in set(system.velocities) and v.is_zero is not True]
@@ -63,7 +63,7 @@ def linearize(model: Path, at: tuple[str, ...], inputs: str, symbolic: bool, fmt
         text = EMITTERS[fmt](lin, system.name)
         emit_text(text, output)
 
-    _run(job)
+    run_command(job)
 
 
 def _at_rest(acceleration) -> bool:

@@ -1,0 +1,62 @@
+"""``kronsub codegen MODEL``: C (header + source) or a numpy module of the equations."""
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import click
+
+from ..atomic import write_atomically
+from .common import USAGE_ERROR, budget_option, fail, run_command, say, scene_option, scene_system, separate_outputs
+
+_C_IDENTIFIER = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
+
+
+@click.command()
+@click.argument("model", type=click.Path(dir_okay=False, path_type=Path))
+@click.option("--lang", type=click.Choice(["c", "python"]), default="c", show_default=True,
+              help="Language of the generated code.")
+@click.option("--output", "-o", "outdir", type=click.Path(file_okay=False, path_type=Path), default=Path("."),
+              show_default=True, help="Directory to write the files into.")
+@click.option("--name", help="Stem of the file names (default: the model file's stem).")
+@click.option("--prefix", default="ks", show_default=True,
+              help="Prefix of the C functions and macros, so several models can share a program.")
+@scene_option
+@budget_option
+@click.option("--precision", type=click.Choice(["double", "long", "quad"]), default="double", show_default=True,
+              help="The C's real type: double, long double, or _Float128 (glibc's libm; typedef ks_real).")
+def codegen(model: Path, lang: str, outdir: Path, name: str | None, prefix: str, scene_name: str | None,
+            precision: str):
+    """Generate C (header + source) or a numpy module for MODEL."""
+    from ..emitters.code import LANGUAGES
+    from ..emitters.numeric import identifier
+
+    def job():
+        if not _C_IDENTIFIER.fullmatch(prefix):
+            fail(f"Error: --prefix {prefix!r} is not a C identifier (letters, digits and _, not starting "
+                  f"with a digit)\n  hint: e.g. --prefix {identifier(prefix)}", USAGE_ERROR)
+        if outdir.exists() and not outdir.is_dir():
+            fail(f"Error: {outdir}: not a directory\n  hint: choose a directory for --output")
+        try:
+            outdir.mkdir(parents=True, exist_ok=True)  # the README's `--output build/` in a fresh clone
+        except OSError as exc:
+            fail(f"Error: {outdir}: cannot create the directory ({exc.strerror})\n"
+                  "  hint: choose another --output")
+        if precision != "double" and lang != "c":
+            fail("Error: --precision long|quad is for --lang c\n  hint: drop --precision, or use --lang c")
+        _, scene, system = scene_system(model, scene_name)
+        stem = name or model.stem
+        outputs = scene.outputs if scene is not None else None
+        files = list(LANGUAGES[lang](system, stem, source=model.as_posix(), prefix=prefix, outputs=outputs))
+        separate_outputs(model, *((f"--output {outdir} --name {stem}", outdir / g.name, "generated") for g in files))
+        for generated in files:
+            text = generated.text
+            if precision != "double":
+                from ..simulation.extended import prelude, retype
+
+                text = prelude(precision) + retype(text, precision)
+            write_atomically(outdir / generated.name, text)
+            say(f"wrote {outdir / generated.name}")
+
+    run_command(job)
+

@@ -1,0 +1,57 @@
+"""``kronsub derive MODEL``: the equations of motion in Markdown, LaTeX or JSON."""
+from __future__ import annotations
+
+import difflib
+from pathlib import Path
+
+import click
+
+from .common import (budget_option, emit_text, fail, note_choice, output_option, run_command, say, scene_option,
+                     scene_system, separate_outputs)
+
+
+@click.command()
+@click.argument("model", type=click.Path(dir_okay=False, path_type=Path))
+@click.option("--format", "fmt", type=click.Choice(["markdown", "latex", "json"]), default="markdown",
+              show_default=True, help="Output format.")
+@output_option()
+@click.option("--check", type=click.Path(dir_okay=False, path_type=Path),
+              help="Compare with FILE; exit 1 with a unified diff when they differ.")
+@click.option("--no-cache", is_flag=True, help="Derive from scratch, ignoring the known-system cache.")
+@scene_option
+@budget_option
+@click.option("--reactions", "with_reactions", is_flag=True,
+              help="Add the workless reactions (viewpoint (alpha)) as functions of the state.")
+def derive(model: Path, fmt: str, output: Path | None, check: Path | None, no_cache: bool, scene_name: str | None,
+           with_reactions: bool):
+    """Derive the equations of motion of MODEL (a YAML file)."""
+    from ..emitters import EMITTERS
+
+    def job():
+        separate_outputs(model, ("--output", output, "output"))
+        if output is not None and not output.resolve().parent.is_dir():
+            fail(f"Error: {output}: the directory {output.resolve().parent} does not exist\n"
+                  "  hint: create it first, or choose another --output path")
+        _, _, system = scene_system(model, scene_name, cache=not no_cache)
+        note_choice(system)
+        text = EMITTERS[fmt](system)
+        if with_reactions:
+            from ..emitters.reactions import with_reactions as add_reactions
+
+            text = add_reactions(text, system, fmt)
+        if check is not None:
+            from ..model.source import read_user_text
+
+            if not check.exists():
+                fail(f"Error: {check}: No such file or directory\n  hint: write it first with --output {check}")
+            expected = read_user_text(check, "file of derived equations (--check)")
+            if expected != text:
+                diff = difflib.unified_diff(expected.splitlines(True), text.splitlines(True),
+                                            fromfile=str(check), tofile=f"derived from {model}")
+                say("".join(diff).rstrip("\n"), err=False)
+                fail(f"Error: {check} differs from the derived equations")
+            say(f"{check}: up to date")
+            return
+        emit_text(text, output)
+
+    run_command(job)

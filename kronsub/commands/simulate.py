@@ -1,0 +1,198 @@
+"""``kronsub simulate MODEL``: the trajectory as CSV, its metadata as JSON."""
+from __future__ import annotations
+
+import os
+import signal
+import sys
+from pathlib import Path
+from types import SimpleNamespace
+
+import click
+
+from ..atomic import atomic_file, write_atomically
+from ..simulation.methods import SIMULATE
+from ..simulation.methods import help_text as method_help
+from .common import (INTERRUPTED, NUMERICAL_FAILURE, USAGE_ERROR, budget_option, check_times, coincident_ends,
+                     default_sidecar, fail, interrupted_by, meta_option, note_choice, note_safely, output_option,
+                     plot_option, run_command, say, scene_option, scene_system, separate_outputs, set_option,
+                     writable, writable_outputs)
+
+
+@click.command()
+@click.argument("model", type=click.Path(dir_okay=False, path_type=Path))
+@click.option("--t", "t_end", type=float, default=None, help="End time (default: the scene's, else 10).")
+@click.option("--dt", type=float, default=None,
+              help="Output interval (and step of fixed-step methods; default: the scene's, else 0.01).")
+@click.option("--method", default=None,
+              help="Default: the scene's, else dop853. " + method_help())
+@click.option("--rtol", type=float, default=1e-10, show_default=True, help="Relative tolerance (adaptive methods).")
+@click.option("--atol", type=float, default=1e-10, show_default=True, help="Absolute tolerance (adaptive methods).")
+@set_option()
+@output_option("Write the CSV to FILE (atomically) instead of standard output; the run's metadata "
+                   "goes beside it as JSON (out.csv -> out.json).")
+@meta_option("Write the run's metadata (JSON: model and hash, method, tolerances, parameters, initial "
+                   "state, cost, complete or where it stopped) to FILE (default: beside --output; none for "
+                   "standard output).")
+@click.option("--points", "with_points", is_flag=True, help="Add the named points' positions to the CSV.")
+@plot_option("Write a PNG of coordinates and energy.")
+@scene_option
+@budget_option
+@click.option("--reactions", "with_reactions", is_flag=True,
+              help="Add the workless reactions (viewpoint (alpha)) to the CSV.")
+def simulate(model: Path, t_end: float | None, dt: float | None, method: str | None, rtol: float, atol: float,
+             settings: tuple[str, ...], output: Path | None, meta: Path | None, with_points: bool,
+             plot: Path | None, scene_name: str | None, with_reactions: bool = False):
+    """Simulate MODEL from t = 0 to --t; the trajectory is plain CSV (a header row, then numbers),
+    its metadata JSON (--meta, or beside --output)."""
+    from ..model.scenes import initial_values
+    from ..simulation.run import SimulationError, check_tolerances, collect, explicit_only, row_count, start
+    from ..simulation.table import CsvWriter, metadata_json, trajectory_csv
+    from ..simulation.values import parse_assignments, resolve
+
+    def job():
+        if method is not None and method not in SIMULATE:
+            fail(f"Error: unknown method '{method}'\n  hint: choose one of {', '.join(SIMULATE)}", USAGE_ERROR)
+        check_times(t_end, dt)  # before deriving; the row count once both are known
+        try:
+            check_tolerances(rtol, atol)
+        except SimulationError as exc:
+            fail(f"Error: {exc}", USAGE_ERROR)
+        meta_path = meta if meta is not None else default_sidecar(output)
+        separate_outputs(model, ("--output", output, "CSV"), ("--meta", meta_path, "metadata"),
+                          ("--plot", plot, "plot"))
+        writable_outputs(output, plot)
+        writable(meta_path, "--meta")
+        loaded, scene, system = scene_system(model, scene_name, all_points=with_points)
+        note_choice(system)
+        outputs = scene.outputs if scene is not None else None
+        span = _pick(t_end, scene and scene.t_end, 10.0)
+        step = _pick(dt, scene and scene.dt, 0.01)
+        try:
+            row_count(span, step)
+        except SimulationError as exc:
+            fail(f"Error: {exc}", USAGE_ERROR)
+        try:  # before the initial values are projected onto the constraints
+            explicit_only(system, _pick(method, scene and scene.method, "dop853"))
+        except SimulationError as exc:
+            fail(f"Error: {exc}")
+        initial = initial_values(loaded, scene)
+        assignments = parse_assignments(settings)
+        constrained = None
+        if system.implicit is not None:  # initial conditions onto the constraints (simulation/constrained.py)
+            from ..simulation.constrained import newton_tolerance, project_initial, split_settings
+
+            assignments, dependent_settings = split_settings(system, assignments)
+            values = resolve(system, initial, assignments)
+            values, notes, constrained = project_initial(system, initial, dependent_settings, values,
+                                                         newton_tolerance(rtol, atol))
+            for note in notes:
+                say(f"note: initial conditions projected onto the constraints: {note}")
+        else:
+            values = resolve(system, initial, assignments)
+        run = start(system, values, span, step, _pick(method, scene and scene.method, "dop853"), rtol, atol,
+                    outputs=outputs, constrained=constrained)
+        kept = [] if plot is not None or with_reactions else None
+        run_info = dict(t_end=span, dt=step, scene=scene.name if scene is not None else None,
+                        source=loaded.source, uses=loaded.uses)
+
+        def stream(out):
+            """Write the CSV; what is returned tells ``rows``, ``last_t``, ``stopped`` and the metadata."""
+            if with_reactions:  # the reactions need the whole run: computed, then written at once
+                import numpy as np
+
+                from ..simulation.reactions import reaction_columns
+                from ..simulation.fallback import numpy_module
+
+                traj = collect(run, list(run), len(system.coordinates))
+                kept.append(traj)
+                extra = reaction_columns(system, traj, np.array(values.parameters), numpy_module(system), constrained)
+                text, info = trajectory_csv(system, model.as_posix(), traj, values, rtol, atol, with_points,
+                                            outputs, extra, **run_info)
+                out.write(text)
+                return SimpleNamespace(rows=len(traj.t), last_t=float(traj.t[-1]) if len(traj.t) else None,
+                                       stopped=False, reader_gone=False, metadata=lambda: info)
+            writer = CsvWriter(out, system, model.as_posix(), values, run.method, run.backend, rtol, atol,
+                               with_points, outputs, **run_info)
+            try:
+                writer.stream(run, kept.append if kept is not None else None)
+            except KeyboardInterrupt:
+                pass  # the file is kept, its metadata says interrupted (writer.stopped)
+            return writer
+
+        if output is not None:
+            with atomic_file(output) as fh:
+                writer = stream(fh)
+            where = str(output)
+            note_safely(f"wrote {output} ({_rows(writer.rows)})")  # a terminal gone (SIGHUP) keeps no metadata back
+        else:
+            writer = stream(sys.stdout)
+            if writer.reader_gone:  # nothing more goes to standard output
+                os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+            else:
+                sys.stdout.flush()
+            where = "standard output"
+        if meta_path is not None:
+            info = writer.metadata()
+            info["csv"] = output.name if output is not None and output.parent.resolve() == meta_path.parent.resolve() \
+                else (str(output) if output is not None else None)
+            write_atomically(meta_path, metadata_json(info))
+            say(f"wrote {meta_path}")
+        state = "stopped" if writer.reader_gone else "interrupted" if writer.stopped else "incomplete"
+        marked = f" (marked {state} in {meta_path})" \
+            if meta_path is not None else ""
+        for _, what in run.switches:
+            say(f"note: coordinates: auto switched at {what}")
+        if writer.reader_gone:
+            fail(f"Stopped after t = {writer.last_t!r}: the reader of {where} closed it after "
+                  f"{_rows(writer.rows)}{marked}", INTERRUPTED)
+        if writer.stopped:
+            signum = writer.signum or signal.SIGINT
+            fail(f"Interrupted{interrupted_by(signum)} after t = {writer.last_t!r}: {_kept(writer.rows)} in {where}{marked}",
+                  128 + signum)
+        if plot is not None:
+            from ..simulation.plot import plot_trajectory
+
+            traj = kept[0] if with_reactions else collect(run, kept, len(system.coordinates))
+            plot_trajectory(system, traj, values, plot, with_points)
+            say(f"wrote {plot}")
+        if not run.complete:
+            ends = coincident_ends(loaded, system, run.t_fail, getattr(run, "y_fail", None), values.parameters)
+            at, message, hint = (f"{ends.location}: ", ends.message, f"\n  hint: {ends.hint}") if ends is not None \
+                else ("", run.message, "")
+            fail(f"Error: {at}the run stopped at t = {run.t_fail:.6g}: {message}; "
+                  f"{_kept(writer.rows)} in {where}{marked}"
+                  + hint + _constraint_hints(system, run, step), NUMERICAL_FAILURE)
+
+    run_command(job)
+
+
+def _rows(count: int) -> str:
+    return f"{count} row" if count == 1 else f"{count} rows"
+
+
+def _kept(count: int) -> str:
+    return f"the {_rows(count)} computed so far {'is' if count == 1 else 'are'} kept"
+
+
+def _constraint_hints(system, run, step: float) -> str:
+    """Hints after a closed-loop run stopped: a fixed step too coarse for the mechanism, a toggle
+    position that another choice of independent coordinates passes."""
+    if system.implicit is None:
+        return ""
+    hints = []
+    from ..simulation.run import FIXED_STEP
+
+    if run.method in FIXED_STEP:
+        hints.append(f"{run.method} takes fixed steps of --dt {step:g}: a smaller --dt keeps each step "
+                     "within the mechanism's reach")
+    if "toggle position" in run.message and system.implicit.choice != "auto":
+        hints.append("`coordinates: auto` changes the independent coordinates where this choice's dg/dy_d "
+                     "goes singular, and the run goes on")
+    return "".join(f"\n  hint: {h}" for h in hints)
+
+
+def _pick(given, from_scene, default):
+    """A command-line value, else the scene's, else the default."""
+    if given is not None:
+        return given
+    return from_scene if from_scene is not None else default
