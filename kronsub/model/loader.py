@@ -23,28 +23,23 @@ from ..core.constraints import Constraint, multiplier_name
 from ..core.known_system import KnownSystem, ParameterInfo
 from ..core.primitive import Part, Primitive, part_from_component
 from ..core.symbols import TIME, free_symbols_of, symbol, velocity_symbol
-from ..errors import Location, ModelError, ProblemCollector, close_matches, near_names
+from ..errors import Location, ModelError, close_matches, near_names
 from .derive import content_key, derive_model, load_cached
 from .effects import build_effect
 from .expressions import parse_expression
-from .requirements import Requirement, body_requirements, component_requirements, unmet
+from .requirements import body_requirements, component_requirements, unmet
 from .scenes import build_scenes
 from .constraints import analyse, read_constraints
-from .definitions import definition_names, read_definitions, substitute_definitions
+from .definitions import read_definitions
 from .model import ImplicitSpec, Model
 from .names import Declared, generated_name_clashes
+from .reader import ModelReader, node_kind, resolved_path
 from .source import Node, SourceFile, excerpt, load_yaml, read_model_file, read_model_text, system_root
 
 TOP_LEVEL = ("name", "description", "parameters", "components", "coordinates", "definitions", "connection",
              "constraints", "effects", "initial", "scenes")
-_UNKNOWN_NAME = re.compile(r"unknown name '([^']+)'")
 _SECTION_LINE = re.compile(r"^[ \t]*(?:---[ \t]*)?(?:\{[ \t]*)?[\"']?(?:" + "|".join(TOP_LEVEL) + r")[\"']?[ \t]*:",
                            re.M)
-IDENTIFIER = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")  # whole names only: fullmatch
-RESERVED = {"t", "pi"}
-OUTPUT_COLUMNS = ("kinetic_energy", "potential_energy", "total_energy")
-"""Columns of a trajectory beside the state (``kronsub/simulation/table.py``): a coordinate of
-one of these names would be written twice and lost from the DataFrame."""
 
 
 def looks_like_model(text: str) -> bool:
@@ -66,7 +61,7 @@ def load_model(path, *, text: str | None = None, cache: bool = True, _stack: tup
         text, source = read_model_file(path)
     root = load_yaml(path, text)
     with collector_paused(), budget_scope():  # see kronsub.collector
-        return _Loader(path, root, text, _stack, cache, source).build()
+        return ModelLoader(path, root, text, _stack, cache, source).build()
 
 
 MAX_MODEL_DEPTH = 32
@@ -81,7 +76,7 @@ def model_key(path: Path, stack: tuple[str, ...] = (), read: list[SourceFile] | 
     Cheap next to loading: it reads the YAML but builds nothing, so a cached
     known system is found without deriving or even constructing its model.
     """
-    resolved = _resolved(path)
+    resolved = resolved_path(path)
     if resolved in stack or len(stack) >= MAX_MODEL_DEPTH:
         return ""  # the cycle, or the depth, is reported when the model is loaded
     text, source = read_model_file(path)
@@ -123,7 +118,7 @@ def _each_once(files: list[SourceFile]) -> tuple[SourceFile, ...]:
     seen: set[str] = set()
     out = []
     for f in files:
-        key = _resolved(Path(f.file))
+        key = resolved_path(Path(f.file))
         if key not in seen:
             seen.add(key)
             out.append(f)
@@ -142,136 +137,11 @@ def derivation_text(root: Node, text: str) -> str:
     return "".join(lines[:start - 1] + lines[end - 1:])
 
 
-def _resolved(path: Path) -> str:
-    """The absolute path with symbolic links followed; a loop is left for reading to report."""
-    return os.path.realpath(path)
+class ModelLoader(ModelReader):
+    """The reading of one model file, section by section, into a :class:`Model` (:meth:`build`)."""
 
-
-class _Loader:
-    def __init__(self, path: Path, root: Node, text: str, stack: tuple[str, ...], cache: bool = True,
-                 source: SourceFile | None = None):
-        self.cache = cache
-        self.source = source  # the file as read (None: the text was given)
-        self.used: list[SourceFile] = []  # the model files read for the known systems, recursively
-        self.parsed: dict = {}  # parts of expressions built so far (parse_expression's shared)
-        self.path = path
-        self.file = str(path)
-        self.root = root
-        self.text = text
-        self.stack = stack + (_resolved(path),)
-        self.problems = ProblemCollector()
-        self.names: dict[str, sympy.Basic] = {"t": TIME}
-        self.parameters: dict[str, ParameterInfo] = {}
-        self.declared: set[str] = set()  # parameters this model declares itself
-        self.inherited: dict[str, tuple[str, sympy.Expr | None]] = {}  # name -> (component, value) first brought
-        self.parts: list[Part] = []
-        self.sub_hashes: list[str] = []
-        self.locations: dict[str, Location] = {}
-        self.failed_components = False
-        self.requirements: list[Requirement] = []  # what the components need of the parameters' values
-        # one typo, one error: names of components that failed, and the coordinate names their
-        # `coordinates:` renames declared, so later references to them report nothing more
-        self.broken_parts: set[str] = set()
-        self.broken_names: set[str] = set()
-        self.generalized_names: set[str] = set()
-        self.primitive_names: dict[str, sympy.Symbol] = {}
-        self.subspace_names: dict[str, sympy.Symbol] = {}  # the connection's coordinates, for effects
-        self.pivots: list[tuple] = []  # pinned parts hanging from a moving point (`pivot:`)
-        self.auto_connection: dict[sympy.Symbol, tuple] = {}
-        # `definitions:` (definitions.py): name -> (placeholder, expansion; None when it failed)
-        self.definitions: dict[str, tuple[sympy.Symbol, sympy.Expr | None]] = {}
-        self.definition_keys: set[str] = set()  # their names, known before they are read
 
     # ----------------------------------------------------------- utilities
-    def error(self, node_or_loc, message: str, hint: str | None = None) -> None:
-        loc = node_or_loc.location if isinstance(node_or_loc, Node) else node_or_loc
-        self.problems.add(loc, message, hint)
-
-    def expr(self, node: Node, names: dict | None = None, what: str = "expression") -> sympy.Expr | None:
-        """Parse a scalar node as an expression; None (problem recorded) on failure."""
-        if not node.is_scalar or node.value is None or isinstance(node.value, bool):
-            self.error(node, f"expected {what} (a number or a formula), found {_kind(node)}",
-                       "write e.g. `2*a1*sin(theta)`")
-            return None
-        text = node.text if node.text is not None else str(node.value)
-        table = names if names is not None else self.names
-        try:
-            value = parse_expression(text, {**table, **definition_names(self)},
-                                     node.text_location or node.location, what=what, shared=self.parsed)
-        except WorkBudgetExceeded:
-            raise  # the budget is spent: nothing further is read
-        except ModelError as exc:
-            for problem in exc.problems:
-                unknown = _UNKNOWN_NAME.search(problem.message)
-                if unknown and self.is_broken(unknown.group(1)):
-                    continue  # a consequence of a component reported already
-                generalized = unknown and self.generalized_name(unknown.group(1))
-                if unknown and unknown.group(1) in self.definition_keys and unknown.group(1) not in self.definitions:
-                    problem = dataclasses.replace(problem, hint=(
-                        f"'{unknown.group(1)}' is a definition; definitions are read after the parameters and "
-                        "components, so they cannot be used in parameter values, component parameters or "
-                        "points: write the expression here, or make it a parameter"))
-                elif generalized:
-                    problem = self._generalized_problem(problem, unknown.group(1), generalized)
-                elif unknown and unknown.group(1) == "t":
-                    problem = dataclasses.replace(problem, hint=(
-                        "`t` (time) cannot appear here: the effects (and a known system's parameters that "
-                        "drive its effects alone) may depend on time; connections, constraints, component "
-                        "parameters and values may not"))
-                elif unknown and unknown.group(1) in self.parameters:
-                    problem = dataclasses.replace(problem, hint=(
-                        f"'{unknown.group(1)}' is a parameter, and a parameter's value is a constant: write a "
-                        "number (or an expression of numbers), and the formula where the value is used"))
-                self.problems.problems.append(problem)
-            return None
-        return substitute_definitions(self, value, table, node, what)
-
-    def generalized_name(self, name: str) -> str | None:
-        """"coordinate" or "velocity" when ``name`` is a generalized coordinate (or its velocity)
-        that is not also a primitive one; else None."""
-        if name in self.generalized_names and name not in self.primitive_names:
-            return "coordinate"
-        base = name[:-4] if name.endswith("_dot") else None
-        if base and base in self.generalized_names and base not in self.primitive_names:
-            return "velocity"
-        return None
-
-    def _generalized_problem(self, problem, name: str, kind: str):
-        """The unknown-name problem for a generalized coordinate or velocity, said as such."""
-        return dataclasses.replace(problem, hint=f"'{name}' is a generalized {kind}, which cannot appear here")
-
-    def mapping(self, node: Node | None, what: str, hint: str) -> dict[str, Node]:
-        if node is None or node.value is None:
-            return {}
-        if not node.is_mapping:
-            self.error(node, f"`{what}` must be a mapping, found {_kind(node)}", hint)
-            return {}
-        return node.value
-
-    def check_keys(self, node: Node, allowed, what: str) -> None:
-        for key in node.value:
-            if key not in allowed:
-                split = isinstance(key, str) and not IDENTIFIER.fullmatch(key.strip()) and any(
-                    c in key for c in ")]*/+-")
-                self.error(node.key_locations.get(key, node.location), f"unknown key '{key}' in {what}",
-                           "this looks like the rest of an expression: in a `{...}` mapping a comma ends the "
-                           "value, so quote an expression with commas, e.g. `value: \"atan2(y, x)\"`"
-                           if split else close_matches(key, allowed))
-
-    def identifier(self, name: str, loc: Location, what: str) -> bool:
-        if not IDENTIFIER.fullmatch(name):
-            self.error(loc, f"{what} name {name!r} is not a valid name",
-                       "use letters, digits and underscores, starting with a letter")
-            return False
-        if name in RESERVED:
-            self.error(loc, f"{what} name '{name}' is reserved", "'t' is time and 'pi' is the constant")
-            return False
-        if what == "coordinate" and name in OUTPUT_COLUMNS:
-            self.error(loc, f"{what} name '{name}' is the name of a column `simulate` writes",
-                       f"rename it: beside the state, the trajectory has the columns {', '.join(OUTPUT_COLUMNS)}")
-            return False
-        return True
-
     def _multiplier_clashes(self, constraints, carried) -> None:
         """Two constraints whose multipliers get one name (a joint `B`'s `B.x` and a constraint
         `B_x` are both `mu_B_x`) would be one entry of the reactions: refused, naming both."""
@@ -305,7 +175,7 @@ class _Loader:
     def build(self) -> Model:
         root = self.root
         if not root.is_mapping:
-            found = "a single value" if root.is_scalar and root.value is not None else _kind(root)
+            found = "a single value" if root.is_scalar and root.value is not None else node_kind(root)
             self.error(root, f"a model file must be a mapping of sections, found {found}",
                        "start with `name:`, `components:`, `coordinates:` and `connection:`")
             self.problems.raise_if_any()
@@ -317,8 +187,8 @@ class _Loader:
         self.check_keys(root, TOP_LEVEL, "the model")
         dnode = root.get("definitions")
         self.definition_keys = set(dnode.value) if dnode is not None and dnode.is_mapping else set()
-        name = self._string(root.get("name"), self.path.stem)
-        description = self._string(root.get("description"), "")
+        name = self.string(root.get("name"), self.path.stem)
+        description = self.string(root.get("description"), "")
         self._parameters(root.get("parameters"))
         self._components(root.get("components"))
         cnode = root.get("constraints")
@@ -350,7 +220,7 @@ class _Loader:
         self._pivot_angles(root.get("connection"), y)
         connection = self._connection(root.get("connection"), primitive, y)
         effects = self._effects(root.get("effects"), primitive, y)
-        initial = self._initial(root.get("initial"), y)
+        initial = self.initial_values(root.get("initial"), y)
         declared = root.get("effects")
         scenes = build_scenes(self, root.get("scenes"), list(declared.value) if declared is not None and
                               declared.is_mapping else [], primitive, y)
@@ -379,10 +249,6 @@ class _Loader:
             uses=_each_once(self.used),
         )
 
-    def parameter_values(self) -> dict:
-        """The parameters' values (symbol -> number) as declared or inherited."""
-        return {info.symbol: info.value for info in self.parameters.values() if info.value is not None}
-
     def _check_values(self) -> None:
         """The components' requirements on the parameters' values (:mod:`.requirements`): a
         problem at the parameter's declaration when the value is one parameter, else where
@@ -394,14 +260,6 @@ class _Loader:
         for problem in unmet(self.requirements, self.parameter_values(), declared):
             self.problems.add(problem.location, problem.message, problem.hint)
 
-    def _string(self, node: Node | None, default: str) -> str:
-        if node is None:
-            return default
-        if not node.is_scalar or not isinstance(node.value, str):
-            self.error(node, f"expected text, found {_kind(node)}", "quote it")
-            return default
-        return node.value
-
     # ---------------------------------------------------------- parameters
     def _parameters(self, node: Node | None) -> None:
         for pname, spec in self.mapping(node, "parameters", "write `m1: 1.0` or `m1: {value: 1.0, unit: kg}`").items():
@@ -412,23 +270,13 @@ class _Loader:
             if spec.is_mapping:
                 self.check_keys(spec, ("value", "unit", "description"), f"parameter '{pname}'")
                 value_node = spec.get("value")
-                unit = self._string(spec.get("unit"), "")
-                description = self._string(spec.get("description"), "")
+                unit = self.string(spec.get("unit"), "")
+                description = self.string(spec.get("description"), "")
             value = None
             if value_node is not None and value_node.value is not None:
                 value = self.expr(value_node, {}, what=f"value of parameter '{pname}'")
             self.declared.add(pname)
             self.add_parameter(ParameterInfo(pname, symbol(pname), value, unit, description), location=loc)
-
-    def add_parameter(self, info: ParameterInfo, *, inherited: bool = False, location: Location | None = None) -> None:
-        if location is not None and (not inherited or f"parameter:{info.name}" not in self.locations):
-            self.locations[f"parameter:{info.name}"] = location
-        if info.name in self.parameters:
-            if not inherited:
-                self.parameters[info.name] = info
-            return
-        self.parameters[info.name] = info
-        self.names[info.name] = info.symbol
 
     # ---------------------------------------------------------- components
     def _components(self, node: Node | None) -> None:
@@ -465,10 +313,6 @@ class _Loader:
         elif renames is not None and renames.is_sequence:
             self.broken_names.update(str(v.value) for v in renames.value if v.is_scalar)
 
-    def is_broken(self, name: str) -> bool:
-        """Whether ``name`` (plain or dotted) belongs to a component that failed to load."""
-        return name in self.broken_names or name.split(".", 1)[0] in self.broken_parts
-
     def _library_component(self, cname: str, spec: Node) -> Part | None:
         tnode = spec.get("type")
         cls = REGISTRY.get(tnode.value) if tnode is not None and isinstance(tnode.value, str) else None
@@ -480,7 +324,7 @@ class _Loader:
                        "valid types: " + ", ".join(sorted(REGISTRY)) + " (or `model: file.yaml`)")
             return None
         if not isinstance(tnode.value, str):
-            self.error(tnode, f"`type:` of component '{cname}' must be a name, found {_kind(tnode)}",
+            self.error(tnode, f"`type:` of component '{cname}' must be a name, found {node_kind(tnode)}",
                        "valid types: " + ", ".join(sorted(REGISTRY)))
             return None
         cls = REGISTRY.get(tnode.value)
@@ -520,7 +364,7 @@ class _Loader:
                 continue
             if not isinstance(node.value, str) or node.value not in option.values:
                 self.error(node, f"`{option.name}:` of component '{cname}' ({cls.type_name}) must be one of "
-                           f"{', '.join(option.values)}, found {_kind(node)}",
+                           f"{', '.join(option.values)}, found {node_kind(node)}",
                            f"{option.description}; " + close_matches(str(node.value), option.values))
                 return None
             choices[option.name] = node.value
@@ -598,7 +442,7 @@ class _Loader:
         failed = False
         for key, vnode in items:
             if not isinstance(vnode.value, str):
-                self.error(vnode, f"coordinate name of '{cname}.{key}' must be a name, found {_kind(vnode)}",
+                self.error(vnode, f"coordinate name of '{cname}.{key}' must be a name, found {node_kind(vnode)}",
                            "use letters, digits and underscores")
                 failed = True
                 continue
@@ -620,7 +464,7 @@ class _Loader:
         self.check_keys(spec, ("model", "parameters", "coordinates", "origin", "description"), f"component '{cname}'")
         mnode = spec.get("model")
         if not isinstance(mnode.value, str) or not mnode.value:
-            self.error(mnode, f"`model:` of component '{cname}' must be a file name, found {_kind(mnode)}",
+            self.error(mnode, f"`model:` of component '{cname}' must be a file name, found {node_kind(mnode)}",
                        "write e.g. `model: system1.yaml` (relative to this model file)")
             return None
         if "\0" in mnode.value:  # no file name holds one (the system calls refuse it)
@@ -628,7 +472,7 @@ class _Loader:
                        "write the file name without `\\0` or `\\x00` escapes")
             return None
         sub_path = (self.path.parent / mnode.value)
-        resolved = _resolved(sub_path)
+        resolved = resolved_path(sub_path)
         if resolved in self.stack:
             chain = " -> ".join(Path(p).name for p in self.stack + (resolved,))
             self.error(mnode, f"model files form a cycle: {chain}", "a model cannot contain itself")
@@ -726,7 +570,7 @@ class _Loader:
         for item in node.value:
             name = item.value
             if not isinstance(name, str):
-                self.error(item, f"a coordinate must be a name, found {_kind(item)}", "e.g. `coordinates: [theta, phi]`")
+                self.error(item, f"a coordinate must be a name, found {node_kind(item)}", "e.g. `coordinates: [theta, phi]`")
                 continue
             if not self.identifier(name, item.location, "coordinate"):
                 self.broken_names.update((name, f"{name}_dot"))  # reported once, not again where it is used
@@ -856,9 +700,6 @@ class _Loader:
                            f"generalized coordinate '{q}' does not appear in the connection",
                            "every generalized coordinate must move some primitive coordinate")
         return connection
-
-    def parameter_names(self) -> dict[str, sympy.Symbol]:
-        return {k: v.symbol for k, v in self.parameters.items()}
 
     # ------------------------------------------------------ pivots, constraints
     def _pivoted(self, cname: str, cls, spec: Node, params: dict, names: list[str], extra: dict) -> Part | None:
@@ -996,23 +837,6 @@ class _Loader:
                 effects.append(effect)
         return effects
 
-    def _initial(self, node: Node | None, coords):
-        initial: dict[sympy.Symbol, sympy.Expr] = {}
-        allowed = {q.name: q for q in coords}
-        allowed.update({velocity_symbol(q).name: velocity_symbol(q) for q in coords})
-        for key, vnode in self.mapping(node, "initial", "write `initial: {theta: 0.1, theta_dot: 0}`").items():
-            if key not in allowed and self.is_broken(key):
-                continue
-            if key not in allowed:
-                self.error(node.key_locations[key], f"'{key}' is not a coordinate or velocity of this model",
-                           close_matches(key, allowed))
-                continue
-            value = self.expr(vnode, self.parameter_names(), what=f"initial value of '{key}'")
-            if value is not None:
-                initial[allowed[key]] = value
-        return initial
-
-
 def _inertial_parameters(system: KnownSystem) -> set[str]:
     """Names of a known system's parameters in its metric, velocity terms, points or bodies
     (those an override in ``t`` would move without their inertial terms); the others enter its
@@ -1100,15 +924,7 @@ def placed(part: Part, origin) -> Part:
                                potentials=potentials, potential=sympy.expand(part.potential + sympy.Add(*changes)))
 
 
-def _kind(node: Node) -> str:
-    if node.is_mapping:
-        return "a mapping"
-    if node.is_sequence:
-        return "a list"
-    if node.value is None:
-        return "nothing"
-    return f"'{excerpt(node.text if node.text is not None else str(node.value))}'"
 
 
-__all__ = ["IDENTIFIER", "MAX_MODEL_DEPTH", "OUTPUT_COLUMNS", "RESERVED", "TOP_LEVEL", "derivation_text",
-           "known_system_part", "load_model", "looks_like_model", "model_key", "placed"]
+__all__ = ["MAX_MODEL_DEPTH", "TOP_LEVEL", "ModelLoader", "derivation_text", "known_system_part", "load_model",
+           "looks_like_model", "model_key", "placed"]
