@@ -7,7 +7,6 @@ collected with its file, line and column and raised together as one :class:`Mode
 from __future__ import annotations
 
 import dataclasses
-import os
 import re
 from pathlib import Path
 
@@ -20,6 +19,7 @@ from ..core.symbols import TIME, free_symbols_of, velocity_symbol
 from ..errors import Location, ModelError, ProblemCollector, close_matches
 from .expressions import parse_expression
 from .requirements import Requirement
+from .files import resolved_path
 from .source import Node, SourceFile, excerpt
 
 IDENTIFIER = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")  # whole names only: fullmatch
@@ -244,11 +244,6 @@ class ModelReader:
         return value.xreplace({ph: expansion for _, ph, expansion in used})
 
 
-def resolved_path(path: Path) -> str:
-    """The absolute path with symbolic links followed; a loop is left for reading to report."""
-    return os.path.realpath(path)
-
-
 def node_kind(node: Node) -> str:
     if node.is_mapping:
         return "a mapping"
@@ -259,4 +254,4 @@ def node_kind(node: Node) -> str:
     return f"'{excerpt(node.text if node.text is not None else str(node.value))}'"
 
 
-__all__ = ["IDENTIFIER", "OUTPUT_COLUMNS", "RESERVED", "ModelReader", "node_kind", "resolved_path"]
+__all__ = ["IDENTIFIER", "OUTPUT_COLUMNS", "RESERVED", "ModelReader", "node_kind"]
