@@ -28,6 +28,7 @@ from .derive import derive_model, load_cached
 from .effects import build_effect
 from .files import (MAX_MODEL_DEPTH, TOP_LEVEL, derivation_text, each_once, looks_like_model, model_key,
                     resolved_path)
+from .initial import read_initial
 from .model import Model
 from .names import Declared, generated_name_clashes
 from .parts import (component_origin, component_parameters, coordinate_names, inertial_parameters,
@@ -136,7 +137,7 @@ class ModelLoader(ModelReader):
         read_pivot_angles(self, root.get("connection"), y)
         connection = read_connection(self, root.get("connection"), primitive, y)
         effects = self._effects(root.get("effects"), primitive, y)
-        initial = self.initial_values(root.get("initial"), y)
+        initial = read_initial(self, root.get("initial"), y)
         declared = root.get("effects")
         scenes = build_scenes(self, root.get("scenes"), list(declared.value) if declared is not None and
                               declared.is_mapping else [], primitive, y)
@@ -270,7 +271,7 @@ class ModelLoader(ModelReader):
         allowed = [p.name for p in system.parameters]
         inertial = functools.cache(lambda: inertial_parameters(system))  # asked only of an override in t
         overrides = component_parameters(self, cname, spec.get("parameters"), allowed,
-                                               inertial=lambda key: key in inertial())
+                                         inertial=lambda key: key in inertial())
         for info in system.parameters:
             if info.name not in overrides:
                 inherit_parameter(self, cname, mnode, info)

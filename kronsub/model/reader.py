@@ -15,7 +15,7 @@ import sympy
 from ..budget import WorkBudgetExceeded
 from ..core.known_system import ParameterInfo
 from ..core.primitive import Part
-from ..core.symbols import TIME, free_symbols_of, velocity_symbol
+from ..core.symbols import TIME, free_symbols_of
 from ..errors import Location, ModelError, ProblemCollector, close_matches
 from .expressions import parse_expression
 from .requirements import Requirement
@@ -41,7 +41,7 @@ class ModelReader:
     ``primitive_names``, ``subspace_names`` (the symbols an expression may use), ``parameters``,
     :meth:`parameter_names`, :meth:`parameter_values`, ``definitions``, :meth:`is_broken` and
     ``failed_components`` (parts that failed, so a later reference reports nothing more),
-    ``pivots``, ``requirements``, :meth:`initial_values`, and the definitions in place
+    ``pivots``, ``requirements``, and the definitions in place
     (:meth:`definition_names`, :meth:`substitute_definitions`).
     """
 
@@ -197,22 +197,6 @@ class ModelReader:
     def parameter_names(self) -> dict[str, sympy.Symbol]:
         return {k: v.symbol for k, v in self.parameters.items()}
 
-    def initial_values(self, node: Node | None, coords):
-        initial: dict[sympy.Symbol, sympy.Expr] = {}
-        allowed = {q.name: q for q in coords}
-        allowed.update({velocity_symbol(q).name: velocity_symbol(q) for q in coords})
-        for key, vnode in self.mapping(node, "initial", "write `initial: {theta: 0.1, theta_dot: 0}`").items():
-            if key not in allowed and self.is_broken(key):
-                continue
-            if key not in allowed:
-                self.error(node.key_locations[key], f"'{key}' is not a coordinate or velocity of this model",
-                           close_matches(key, allowed))
-                continue
-            value = self.expr(vnode, self.parameter_names(), what=f"initial value of '{key}'")
-            if value is not None:
-                initial[allowed[key]] = value
-        return initial
-
     def definition_names(self) -> dict[str, sympy.Symbol]:
         """The definitions' placeholders by name, for the parser (empty before they are read)."""
         return {name: placeholder for name, (placeholder, _) in self.definitions.items()}
@@ -238,7 +222,7 @@ class ModelReader:
                 shown = ", ".join(can[:16]) + (", ..." if len(can) > 16 else "") if can else "none: numbers only"
                 self.error(node, f"in {what}: definition '{name}' uses {', '.join(repr(f) for f in foreign)}, "
                                    "which cannot appear here",
-                             f"names usable here: {shown}")
+                           f"names usable here: {shown}")
         if not ok:
             return None
         return value.xreplace({ph: expansion for _, ph, expansion in used})

@@ -21,6 +21,7 @@ from ..core.subspace import effect_labels
 from ..core.symbols import symbol
 from ..errors import ModelError, Problem, close_matches
 from .derive import derive_model
+from .initial import read_initial
 from .requirements import parameters_in, unmet
 from .schema import scene_methods
 from .reader import ModelReader
@@ -105,7 +106,7 @@ def _scene(loader: ModelReader, sname: str, spec: Node, labels, points, coords) 
         if value is not None:
             parameters[pname] = value
     _check_values(loader, pnode, parameters)
-    initial = loader.initial_values(spec.get("initial"), coords)
+    initial = read_initial(loader, spec.get("initial"), coords)
     t_end = _positive(loader, spec.get("t_end"), f"`t_end:` of scene '{sname}'")
     dt = _positive(loader, spec.get("dt"), f"`dt:` of scene '{sname}'")
     method = _method(loader, spec.get("method"), sname)
