@@ -36,18 +36,18 @@ def read_connection(reader: ModelReader, node: Node | None, primitive: Primitive
             if reader.is_broken(key) or reader.failed_components:
                 continue  # most likely a coordinate of the component that failed, reported already
             if any(angle.name == key for _, _, angle, _, _ in reader.pivots):
-                continue  # a pivoted part's angle: reported by _pivot_angles
+                continue  # a pivoted part's angle: reported by read_pivot_angles
             reader.error(loc, f"'{key}' is not a coordinate of the primitive system",
-                       close_matches(key, [k for k in reader.primitive_names if "." in k] +
-                                     [q.name for q in primitive.coordinates]))
+                         close_matches(key, [k for k in reader.primitive_names if "." in k] +
+                                       [q.name for q in primitive.coordinates]))
             continue
         if x in connection:
             reader.error(loc, f"primitive coordinate '{x}' is connected twice (first at line {where[x].line})",
-                       "connect each primitive coordinate once")
+                         "connect each primitive coordinate once")
             continue
         attempted.add(x)
         value = reader.expr(vnode, {**reader.parameter_names(), **generalized},
-                          what=f"connection of '{key}'")
+                            what=f"connection of '{key}'")
         if value is None:
             continue
         connection[x] = sympy.sympify(value)
@@ -55,7 +55,7 @@ def read_connection(reader: ModelReader, node: Node | None, primitive: Primitive
     for x, (expr, ploc) in reader.auto_connection.items():
         if x in connection:
             reader.error(where[x], f"primitive coordinate '{x}' is set by `pivot:` and cannot be connected",
-                       "remove it from `connection:`")
+                         "remove it from `connection:`")
             continue
         connection[x] = expr
     if reader.auto_connection:  # a pivot on a connected point: compose until only xbar remains
@@ -74,20 +74,22 @@ def read_connection(reader: ModelReader, node: Node | None, primitive: Primitive
             if any(near_names(key, [x.name, f"{owner}.{x.name}"]) for key in unknown_keys):
                 continue  # the misspelt key reported above was meant for it: one typo, one error
             reader.error(node.location if node is not None else reader.locations[f"component:{owner}"],
-                       f"primitive coordinate '{owner}.{x}' is not connected",
-                       f"add `{x}: <expression in {', '.join(generalized)}>` under `connection:`, "
-                       "or name it like a generalized coordinate for an identity map")
+                         f"primitive coordinate '{owner}.{x}' is not connected",
+                         f"add `{x}: <expression in {', '.join(generalized)}>` under `connection:`, "
+                         "or name it like a generalized coordinate for an identity map")
     used = free_symbols_of(connection.values())
     if attempted - set(connection) or unknown_keys or reader.failed_components or not coords:
         return connection  # after another error this check would only mislead
     for q in coords:
         if q not in used:
             reader.error(reader.locations.get("coordinates", reader.root.location),
-                       f"generalized coordinate '{q}' does not appear in the connection",
-                       "every generalized coordinate must move some primitive coordinate")
+                         f"generalized coordinate '{q}' does not appear in the connection",
+                         "every generalized coordinate must move some primitive coordinate")
     return connection
 
-def pivoted_part(reader: ModelReader, cname: str, cls, spec: Node, params: dict, names: list[str], extra: dict) -> Part | None:
+
+def pivoted_part(reader: ModelReader, cname: str, cls, spec: Node, params: dict, names: list[str],
+                 extra: dict) -> Part | None:
     """A pinned part hanging from a moving point: in the primitive a free rod whose centre and
     axis the connection ties to the pivot point and the part's own angle (Kron's way)."""
     from ..components.planar import PinnedRod, Rod
@@ -95,17 +97,17 @@ def pivoted_part(reader: ModelReader, cname: str, cls, spec: Node, params: dict,
     pnode = spec.get("pivot")
     if cls is not PinnedRod:
         reader.error(pnode, f"component '{cname}' ({cls.type_name}) takes no `pivot:`",
-                   "only a pinned_rod hangs from a point")
+                     "only a pinned_rod hangs from a point")
         return None
     given = spec.get("parameters")
     for key in ("pivot_x", "pivot_y"):
         if given is not None and given.is_mapping and key in given.value:
             reader.error(given.key_locations[key], f"component '{cname}' has `pivot:`; `{key}` is not used",
-                       f"remove `{key}`")
+                         f"remove `{key}`")
             return None
     if not isinstance(pnode.value, str):
         reader.error(pnode, f"`pivot:` of '{cname}' must name a point, e.g. `pivot: cart.centre`",
-                   "a moving point `component.point`; a fixed pivot is `pivot_x`, `pivot_y`")
+                     "a moving point `component.point`; a fixed pivot is `pivot_x`, `pivot_y`")
         return None
     hidden = {local: symbol(f"{cname}_{local if local != 'angle' else 'axis'}") for local in Rod.coordinates}
     rod = Rod(x=hidden, p={"mass": params["mass"], "length": params["length"], "inertia": params["inertia"]},
@@ -119,6 +121,7 @@ def pivoted_part(reader: ModelReader, cname: str, cls, spec: Node, params: dict,
     reader.pivots.append((cname, pnode, angle, params["length"], hidden))
     return dataclasses.replace(part, points=points)
 
+
 def read_pivot_angles(reader: ModelReader, node: Node | None, y) -> None:
     """A pivoted part's angle is a coordinate of the subspace (``y``; without constraints a
     generalized coordinate): its connection lines are written in it. Left out, it would be a
@@ -129,11 +132,12 @@ def read_pivot_angles(reader: ModelReader, node: Node | None, y) -> None:
                 f"(a relative angle), make '{cname}' a `rod` with `axis: down` and connect its x, y and angle")
         if angle.name in entries:
             reader.error(node.key_locations[angle.name], f"'{angle}' is the angle of '{cname}', which hangs "
-                       f"from `pivot: {pnode.value}`: the pivot sets its place from that angle, which cannot "
-                       "itself be connected", hint)
+                         f"from `pivot: {pnode.value}`: the pivot sets its place from that angle, which cannot "
+                         "itself be connected", hint)
         elif angle not in y:
             reader.error(pnode, f"the angle '{angle}' of '{cname}' (hung from `pivot: {pnode.value}`) is not a "
-                       "generalized coordinate", hint)
+                         "generalized coordinate", hint)
+
 
 def pivot_connection(reader: ModelReader, primitive: Primitive) -> None:
     """Connection lines of the pivoted parts: centre = pivot + L/2 (sin a, -cos a), axis = a - pi/2."""
@@ -142,7 +146,7 @@ def pivot_connection(reader: ModelReader, primitive: Primitive) -> None:
         label = pnode.value
         if label not in points or label.startswith(f"{cname}."):
             reader.error(pnode, f"unknown pivot point '{label}' of '{cname}'",
-                       close_matches(label, [p for p in points if not p.startswith(f"{cname}.")]))
+                         close_matches(label, [p for p in points if not p.startswith(f"{cname}.")]))
             continue
         pos = tuple(points[label])
         if len(pos) > 2:
@@ -153,6 +157,7 @@ def pivot_connection(reader: ModelReader, primitive: Primitive) -> None:
         reader.auto_connection[hidden["x"]] = (px + half * sympy.sin(angle), pnode.location)
         reader.auto_connection[hidden["y"]] = (py - half * sympy.cos(angle), pnode.location)
         reader.auto_connection[hidden["angle"]] = (angle - sympy.pi / 2, pnode.location)
+
 
 def read_intermediate(reader: ModelReader, node: Node | None, primitive: Primitive, coords) -> tuple[sympy.Symbol, ...]:
     """The coordinates ``y`` the constraints act on: the primitive coordinates not given by
@@ -172,7 +177,9 @@ def read_intermediate(reader: ModelReader, node: Node | None, primitive: Primiti
         reader.names.setdefault(q.name, q)
     return tuple(y)
 
-def implicit_spec(reader: ModelReader, node: Node, constraints, connection, y, coords, auto: bool, initial) -> ImplicitSpec | None:
+
+def implicit_spec(reader: ModelReader, node: Node, constraints, connection, y, coords, auto: bool,
+                  initial) -> ImplicitSpec | None:
     """Constraints in ``y``, the dependent coordinates and the branch (25)-(27)."""
     where = reader.root.key_locations.get("constraints") or reader.root.key_locations["components"]
     if not constraints:
@@ -183,14 +190,14 @@ def implicit_spec(reader: ModelReader, node: Node, constraints, connection, y, c
     for c in in_y:
         if not (free_symbols_of([c.expression]) & set(y)):
             reader.error(reader.locations.get(f"constraint:{c.name.split('.')[0]}", where),
-                       f"constraint '{c.name}' does not involve any coordinate after the connection",
-                       "a constraint on connected coordinates only is already satisfied or never")
+                         f"constraint '{c.name}' does not involve any coordinate after the connection",
+                         "a constraint on connected coordinates only is already satisfied or never")
             return None
     for q in coords:
         if q not in y:
             reader.error(reader.locations.get("coordinates", where),
-                       f"independent coordinate '{q}' is not a coordinate of the constrained system",
-                       "choose among " + ", ".join(s.name for s in y))
+                         f"independent coordinate '{q}' is not a coordinate of the constrained system",
+                         "choose among " + ", ".join(s.name for s in y))
             return None
     # the branch of a constrained known system is the first guess of its dependent coordinates
     guesses = {q: v for part in reader.parts for q, v in part.branch.items() if q in set(y)}

@@ -20,7 +20,7 @@ def read_initial(reader: ModelReader, node: Node | None, coords) -> dict[sympy.S
             continue
         if key not in allowed:
             reader.error(node.key_locations[key], f"'{key}' is not a coordinate or velocity of this model",
-                         close_matches(key, allowed))
+                           close_matches(key, allowed))
             continue
         value = reader.expr(vnode, reader.parameter_names(), what=f"initial value of '{key}'")
         if value is not None:

@@ -303,7 +303,8 @@ class ModelLoader(ModelReader):
         for item in node.value:
             name = item.value
             if not isinstance(name, str):
-                self.error(item, f"a coordinate must be a name, found {node_kind(item)}", "e.g. `coordinates: [theta, phi]`")
+                self.error(item, f"a coordinate must be a name, found {node_kind(item)}",
+                           "e.g. `coordinates: [theta, phi]`")
                 continue
             if not self.identifier(name, item.location, "coordinate"):
                 self.broken_names.update((name, f"{name}_dot"))  # reported once, not again where it is used

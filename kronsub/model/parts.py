@@ -39,14 +39,14 @@ def library_component(reader: ModelReader, cname: str, spec: Node) -> Part | Non
     cls = REGISTRY.get(tnode.value) if tnode is not None and isinstance(tnode.value, str) else None
     options = tuple(o.name for o in cls.options) if cls is not None else ()
     reader.check_keys(spec, ("type", "parameters", "coordinates", "points", "pivot", "description", *options),
-                    f"component '{cname}'")
+                      f"component '{cname}'")
     if tnode is None:
         reader.error(spec, f"component '{cname}' has no `type:`",
-                   "valid types: " + ", ".join(sorted(REGISTRY)) + " (or `model: file.yaml`)")
+                     "valid types: " + ", ".join(sorted(REGISTRY)) + " (or `model: file.yaml`)")
         return None
     if not isinstance(tnode.value, str):
         reader.error(tnode, f"`type:` of component '{cname}' must be a name, found {node_kind(tnode)}",
-                   "valid types: " + ", ".join(sorted(REGISTRY)))
+                     "valid types: " + ", ".join(sorted(REGISTRY)))
         return None
     cls = REGISTRY.get(tnode.value)
     if cls is None:
@@ -56,7 +56,7 @@ def library_component(reader: ModelReader, cname: str, spec: Node) -> Part | Non
     missing = [ps for ps in cls.parameters if ps.name not in values and ps.default is None]
     for ps in missing:
         reader.error(spec, f"component '{cname}' ({cls.type_name}) needs parameter '{ps.name}'",
-                   f"add `{ps.name}: ...` ({ps.description}) under its `parameters:`")
+                     f"add `{ps.name}: ...` ({ps.description}) under its `parameters:`")
     if missing or any(v is None for v in values.values()):
         return None
     params: dict[str, sympy.Expr] = {}
@@ -86,8 +86,8 @@ def component_choices(reader: ModelReader, cname: str, cls, spec: Node) -> dict[
             continue
         if not isinstance(node.value, str) or node.value not in option.values:
             reader.error(node, f"`{option.name}:` of component '{cname}' ({cls.type_name}) must be one of "
-                       f"{', '.join(option.values)}, found {node_kind(node)}",
-                       f"{option.description}; " + close_matches(str(node.value), option.values))
+                         f"{', '.join(option.values)}, found {node_kind(node)}",
+                         f"{option.description}; " + close_matches(str(node.value), option.values))
             return None
         choices[option.name] = node.value
     return choices
@@ -99,7 +99,7 @@ def body_points(reader: ModelReader, cname: str, cls, node: Node | None, params:
         return {}
     if not cls.rigid:
         reader.error(node, f"component '{cname}' ({cls.type_name}) is not a rigid body: it takes no `points:`",
-                   "add points to a rod, disc, planar_body, pinned_rod or rigid_body3d")
+                     "add points to a rod, disc, planar_body, pinned_rod or rigid_body3d")
         return None
     entries = reader.mapping(node, f"{cname}.points", "write `points: {tip: [0.5, 0]}` (body axes)")
     points = {}
@@ -108,7 +108,7 @@ def body_points(reader: ModelReader, cname: str, cls, node: Node | None, params:
             continue
         if not vnode.is_sequence or len(vnode.value) != cls.dimension:
             reader.error(vnode, f"point '{cname}.{pname}' needs {cls.dimension} body-frame offsets",
-                       "e.g. `[0.5, 0]` in the plane, `[0, 0, 0.1]` in space")
+                         "e.g. `[0.5, 0]` in the plane, `[0, 0, 0.1]` in space")
             continue
         values = [reader.expr(v, reader.parameter_names(), what=f"offset of point '{pname}'") for v in vnode.value]
         if all(v is not None for v in values):
@@ -127,16 +127,16 @@ def component_parameters(reader: ModelReader, cname: str, node: Node | None, all
     for key, vnode in params.items():
         if key not in allowed:
             reader.error(node.key_locations[key], f"component '{cname}' has no parameter '{key}'",
-                       close_matches(key, allowed))
+                         close_matches(key, allowed))
             continue
         value = values[key] = reader.expr(vnode, what=f"parameter '{key}' of '{cname}'")
         if value is not None and TIME in free_symbols_of([value]) and inertial(key):
             reader.error(vnode, f"parameter '{key}' of '{cname}' depends on t, but a component's "
-                       "parameters are constants of its inertia (its metric and points): the motion "
-                       "a value in t prescribes would be missing from its equations",
-                       "give it a constant value; a support moving with the system is a component of "
-                       "its own (hang a pinned_rod from it with `pivot:`); a motion prescribed in t is "
-                       "not supported (connections have no t either); a force in t goes under `effects:`")
+                         "parameters are constants of its inertia (its metric and points): the motion "
+                         "a value in t prescribes would be missing from its equations",
+                         "give it a constant value; a support moving with the system is a component of "
+                         "its own (hang a pinned_rod from it with `pivot:`); a motion prescribed in t is "
+                         "not supported (connections have no t either); a force in t goes under `effects:`")
             values[key] = None
     return values
 
@@ -149,7 +149,7 @@ def coordinate_names(reader: ModelReader, cname: str, node: Node | None, local: 
     if node.is_sequence:
         if len(node.value) != len(local):
             reader.error(node, f"component '{cname}' has {len(local)} coordinates ({', '.join(local)}), "
-                             f"{len(node.value)} names given", "give one name per coordinate, in that order")
+                               f"{len(node.value)} names given", "give one name per coordinate, in that order")
             return None
         items = list(zip(local, node.value))
     elif node.is_mapping:
@@ -157,18 +157,18 @@ def coordinate_names(reader: ModelReader, cname: str, node: Node | None, local: 
         for key, vnode in node.value.items():
             if key not in local:
                 reader.error(node.key_locations[key], f"component '{cname}' has no coordinate '{key}'",
-                           close_matches(key, local))
+                             close_matches(key, local))
                 continue
             items.append((key, vnode))
     else:
         reader.error(node, "`coordinates:` of a component must map its coordinates to new names",
-                   f"e.g. `coordinates: {{{local[0]}: q1}}`")
+                     f"e.g. `coordinates: {{{local[0]}: q1}}`")
         return None
     failed = False
     for key, vnode in items:
         if not isinstance(vnode.value, str):
             reader.error(vnode, f"coordinate name of '{cname}.{key}' must be a name, found {node_kind(vnode)}",
-                       "use letters, digits and underscores")
+                         "use letters, digits and underscores")
             failed = True
             continue
         if reader.identifier(vnode.value, vnode.location, "coordinate"):
@@ -180,7 +180,7 @@ def coordinate_names(reader: ModelReader, cname: str, node: Node | None, local: 
     for i, n in enumerate(names):
         if n in names[:i]:
             reader.error(node, f"component '{cname}' gives two coordinates the name '{n}'",
-                       "give each coordinate its own name")
+                         "give each coordinate its own name")
             return None
     return names
 
@@ -193,10 +193,10 @@ def inherit_parameter(reader: ModelReader, cname: str, mnode: Node, info: Parame
         return
     if sympy.simplify(first[1] - info.value) != 0:
         reader.error(mnode, f"parameter '{info.name}' is {excerpt(str(info.value))} in '{cname}' but "
-                          f"{excerpt(str(first[1]))} in '{first[0]}': known systems share a parameter by its name",
-                   f"declare `{info.name}` in this model's `parameters:` to give both one value, or give "
-                   f"'{cname}' its own: `parameters: {{{info.name}: {info.name}_{cname}}}` with "
-                   f"`{info.name}_{cname}` declared")
+                            f"{excerpt(str(first[1]))} in '{first[0]}': known systems share a parameter by its name",
+                     f"declare `{info.name}` in this model's `parameters:` to give both one value, or give "
+                     f"'{cname}' its own: `parameters: {{{info.name}: {info.name}_{cname}}}` with "
+                     f"`{info.name}_{cname}` declared")
 
 
 def component_origin(reader: ModelReader, cname: str, node: Node | None, dimension: int, has_points: bool = True):
@@ -206,11 +206,11 @@ def component_origin(reader: ModelReader, cname: str, node: Node | None, dimensi
     if not dimension:
         why = "its parts live in worlds of different dimensions" if has_points else "it has no points"
         reader.error(node, f"`origin:` of '{cname}': {why}, so there is no world to move it in",
-                   "leave `origin:` out; place the parts in the known system's own file instead")
+                     "leave `origin:` out; place the parts in the known system's own file instead")
         return False
     if not node.is_sequence or len(node.value) != dimension:
         reader.error(node, f"`origin:` of '{cname}' needs {dimension} entries (one per world axis)",
-                   "e.g. `origin: [2*d, 0]`: the known system is moved there, unturned")
+                     "e.g. `origin: [2*d, 0]`: the known system is moved there, unturned")
         return False
     values = [reader.expr(v, reader.parameter_names(), what=f"origin of '{cname}'") for v in node.value]
     return False if any(v is None for v in values) else tuple(values)
