@@ -2,7 +2,10 @@
 
 The whole file is checked at once: every problem is collected with its
 file, line and column, then raised together as one :class:`ModelError`.
-Expressions go through the whitelisted parser only.
+Expressions go through the whitelisted parser only. The sections are read by the modules of
+their job, each a function of the one :class:`~kronsub.model.reader.ModelReader`: ``parts.py``
+(components and known systems), ``connection.py``, ``definitions.py``, ``constraints.py``,
+``effects.py``, ``initial.py``, ``scenes.py``; ``files.py`` keys the file and those it uses.
 """
 from __future__ import annotations
 
@@ -56,7 +59,6 @@ def load_model(path, *, text: str | None = None, cache: bool = True, _stack: tup
 
 class ModelLoader(ModelReader):
     """The reading of one model file, section by section, into a :class:`Model` (:meth:`build`)."""
-
 
     # ----------------------------------------------------------- utilities
     def _multiplier_clashes(self, constraints, carried) -> None:

@@ -1,8 +1,9 @@
 """The reading context of a model file: its problems, names, parameters and the shared readers.
 
-Every section reader (``loader.py``, ``constraints.py``, ``definitions.py``, ``effects.py``,
-``scenes.py``) takes the one :class:`ModelReader` of the file being read; every problem is
-collected with its file, line and column and raised together as one :class:`ModelError`.
+Every section reader (``loader.py``, ``parts.py``, ``connection.py``, ``constraints.py``,
+``definitions.py``, ``effects.py``, ``initial.py``, ``scenes.py``) takes the one
+:class:`ModelReader` of the file being read; every problem is collected with its file, line and
+column and raised together as one :class:`ModelError`.
 """
 from __future__ import annotations
 
@@ -31,8 +32,7 @@ _UNKNOWN_NAME = re.compile(r"unknown name '([^']+)'")
 
 
 class ModelReader:
-    """The reading of one model file: what the section readers (``constraints.py``,
-    ``definitions.py``, ``effects.py``, ``scenes.py``) share.
+    """The reading of one model file: what the section readers share.
 
     They may use: :meth:`error` (record a problem at a node or location; all are raised together
     as one :class:`ModelError`), ``problems`` (the collector), ``root`` (the file's top node),
@@ -41,8 +41,8 @@ class ModelReader:
     ``primitive_names``, ``subspace_names`` (the symbols an expression may use), ``parameters``,
     :meth:`parameter_names`, :meth:`parameter_values`, ``definitions``, :meth:`is_broken` and
     ``failed_components`` (parts that failed, so a later reference reports nothing more),
-    ``pivots``, ``requirements``, and the definitions in place
-    (:meth:`definition_names`, :meth:`substitute_definitions`).
+    ``pivots`` and ``auto_connection`` (parts hung from a moving point), ``requirements``, ``parts``,
+    and the definitions in place (:meth:`definition_names`, :meth:`substitute_definitions`).
     """
 
     def __init__(self, path: Path, root: Node, text: str, stack: tuple[str, ...], cache: bool = True,
