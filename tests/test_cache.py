@@ -429,9 +429,9 @@ def test_compiled_models_go_to_a_private_folder_when_the_cache_is_unsafe(cache):
                                   "  arm: *arm\n",
                                   "  arm: {<<: *arm}\n"])
 def test_a_changed_sub_model_changes_the_key_however_it_is_named(tmp_path, spec):
-    """The key reads only an outline of each file (loader.model_key): a sub-model named
+    """The key reads only an outline of each file (files.model_key): a sub-model named
     through an alias or a merge still counts."""
-    from kronsub.model.loader import model_key
+    from kronsub.model.files import model_key
 
     arm = tmp_path / "arm.yaml"
     arm.write_text(SYSTEM1.read_text(encoding="utf-8"), encoding="utf-8")
@@ -446,30 +446,30 @@ def test_a_changed_sub_model_changes_the_key_however_it_is_named(tmp_path, spec)
 
 def test_a_file_that_names_no_model_is_keyed_by_its_text_alone(monkeypatch):
     """The key of a file that plainly names no sub-model and no scene is read off its text
-    (loader._alone): the same key as reading its outline gives, for every bundled model."""
-    from kronsub.model import loader
+    (files.alone): the same key as reading its outline gives, for every bundled model."""
+    from kronsub.model import files
 
-    keys = {path: loader.model_key(path) for path in BUNDLED}
-    assert any(loader._alone(path.read_text(encoding="utf-8")) for path in BUNDLED)
-    monkeypatch.setattr(loader, "_alone", lambda text: False)
-    assert {path: loader.model_key(path) for path in BUNDLED} == keys
+    keys = {path: files.model_key(path) for path in BUNDLED}
+    assert any(files.alone(path.read_text(encoding="utf-8")) for path in BUNDLED)
+    monkeypatch.setattr(files, "alone", lambda text: False)
+    assert {path: files.model_key(path) for path in BUNDLED} == keys
 
 
 def test_the_key_is_made_when_first_asked_for(cache):
     """A derivation without the cache never makes the model's key (nor hashes kronsub's code);
     asked for, it is the key the outline of the file gives (`model_key`), for every bundled model."""
-    from kronsub.model import derive, loader
+    from kronsub.model import derive, files
 
     for path in BUNDLED:
         model = load_model(path, cache=False)
         model.derive(cache=False)
         assert "content_hash" not in model.__dict__
-        assert model.content_hash == loader.model_key(path) and model.content_hash
+        assert model.content_hash == files.model_key(path) and model.content_hash
 
 
 @pytest.mark.parametrize("spec", ['  arm: {"mod\\x65l": arm.yaml}\n', "  arm: {? model : arm.yaml}\n"])
 def test_a_sub_model_named_in_escapes_still_counts(tmp_path, spec):
-    from kronsub.model.loader import model_key
+    from kronsub.model.files import model_key
 
     arm = tmp_path / "arm.yaml"
     arm.write_text(SYSTEM1.read_text(encoding="utf-8"), encoding="utf-8")

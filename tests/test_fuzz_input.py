@@ -27,7 +27,8 @@ from helpers.deadline import within
 from kronsub.cli import main
 from kronsub.errors import ModelError
 from kronsub.model.expressions import FUNCTIONS, constant_value, parse_expression
-from kronsub.model.loader import TOP_LEVEL, load_model
+from kronsub.model.files import TOP_LEVEL
+from kronsub.model.loader import load_model
 from kronsub.simulation.values import parse_assignments, resolve
 
 LIMIT = 30  # seconds per call: many times a normal run

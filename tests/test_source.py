@@ -340,7 +340,7 @@ def test_a_path_under_proc_or_sys_is_a_system_file_whether_or_not_it_exists(tmp_
 def test_model_files_nested_too_deeply_say_so_with_the_limit(tmp_path):
     """Known systems in known systems, one level more than the limit: the error names the
     levels of `model:` files and the limit (not "YAML nested too deeply"); at the limit, it loads."""
-    from kronsub.model.loader import MAX_MODEL_DEPTH
+    from kronsub.model.files import MAX_MODEL_DEPTH
 
     (tmp_path / "m0.yaml").write_text("name: m0\ncomponents:\n  p: {type: particle1d, parameters: {mass: 1}, "
                                       "coordinates: [x]}\ncoordinates: [x]\n")

@@ -31,13 +31,14 @@ from ..core.constraints import Constraint, ConstraintFailure, NumericConstraints
 from ..core.symbols import free_symbols_of
 from ..errors import close_matches
 from .effects import named_body, zero_vector
+from .reader import ModelReader
 from .source import Node
 
 JOINTS = ("pin", "point_on_line", "slider")
 AXES = "xyz"
 
 
-def read_constraints(loader, node: Node, primitive) -> list[Constraint]:
+def read_constraints(loader: ModelReader, node: Node, primitive) -> list[Constraint]:
     """The constraints of the model, in primitive coordinates, each with its location kept."""
     out: list[Constraint] = []
     entries = loader.mapping(node, "constraints", "write `name: expression` (= 0) or `name: {pin: [P, Q]}`")
@@ -73,7 +74,7 @@ def read_constraints(loader, node: Node, primitive) -> list[Constraint]:
     return out
 
 
-def _point(loader, node: Node, primitive, cname: str, names):
+def _point(loader: ModelReader, node: Node, primitive, cname: str, names):
     """A named point (``component.point``) or a fixed place ``[x, y]``: its world position."""
     if node is not None and node.is_sequence:
         values = [loader.expr(v, names, what=f"fixed place in constraint '{cname}'") for v in node.value]
@@ -87,7 +88,7 @@ def _point(loader, node: Node, primitive, cname: str, names):
     return points[label]
 
 
-def _vector(loader, node: Node, cname: str, what: str, names):
+def _vector(loader: ModelReader, node: Node, cname: str, what: str, names):
     if node is None or not node.is_sequence or not node.value:
         loader.error(node if node is not None else loader.root,
                      f"{what} of constraint '{cname}' must be a list, e.g. `[0, 1]`", "one entry per world axis")
@@ -96,7 +97,7 @@ def _vector(loader, node: Node, cname: str, what: str, names):
     return None if any(v is None for v in values) else tuple(values)
 
 
-def _pin(loader, cname, node, primitive, names):
+def _pin(loader: ModelReader, cname, node, primitive, names):
     if node is None or not node.is_sequence or len(node.value) != 2:
         loader.error(node if node is not None else loader.root, f"pin '{cname}' needs two points",
                      "e.g. `pin: [left.lower.end, right.lower.end]` or a fixed place `[0, 0]`")
@@ -116,7 +117,7 @@ def _pin(loader, cname, node, primitive, names):
     return out
 
 
-def _line(loader, cname, node, names, what):
+def _line(loader: ModelReader, cname, node, names, what):
     if node is None or not node.is_mapping:
         loader.error(node if node is not None else loader.root, f"{what} '{cname}' needs a mapping",
                      "e.g. `{point: lower.end, through: [1.2, 0], direction: [0, 1]}`")
@@ -171,7 +172,7 @@ def _on_line(v, d, values) -> list[sympy.Expr]:
     return [sympy.sympify(cross[i]) for i in range(3) if i != k]
 
 
-def _values(loader) -> dict:
+def _values(loader: ModelReader) -> dict:
     return {p.symbol: p.value for p in loader.parameters.values()
             if p.value is not None and sympy.sympify(p.value).is_number}
 
@@ -183,7 +184,7 @@ def _named(cname: str, equations, source: str) -> list[Constraint]:
     return [Constraint(f"{cname}.{i + 1}", e, source) for i, e in enumerate(equations)]
 
 
-def _point_on_line(loader, cname, node, primitive, names):
+def _point_on_line(loader: ModelReader, cname, node, primitive, names):
     node = _line(loader, cname, node, names, "point_on_line")
     if node is None:
         return None
@@ -209,7 +210,7 @@ def _point_on_line(loader, cname, node, primitive, names):
     return _named(cname, _on_line(v, d, _values(loader)), f"point_on_line: {_text(node.get('point'))}")
 
 
-def _slider(loader, cname, node, primitive, names):
+def _slider(loader: ModelReader, cname, node, primitive, names):
     node = _line(loader, cname, node, names, "slider")
     if node is None:
         return None
@@ -278,7 +279,7 @@ def _text(node: Node | None) -> str:
 # The analysis at the initial configuration
 # --------------------------------------------------------------------------------------------
 
-def analyse(loader, constraints, y, independent, auto: bool, initial: dict, where):
+def analyse(loader: ModelReader, constraints, y, independent, auto: bool, initial: dict, where):
     """Dependent coordinates, the branch (their values at the initial configuration) and the
     closed forms; every problem reported at ``where`` naming the constraints involved.
 
@@ -361,7 +362,7 @@ def analyse(loader, constraints, y, independent, auto: bool, initial: dict, wher
     return independent, dependent, branch, closed, point
 
 
-def _redundant(loader, where, numeric, bad, constraints):
+def _redundant(loader: ModelReader, where, numeric, bad, constraints):
     names = numeric.names(bad)
     others = numeric.names([i for i in range(len(constraints)) if i not in bad])
     loader.error(where, f"redundant constraints: {names} {'depends' if len(bad) == 1 else 'depend'} on "

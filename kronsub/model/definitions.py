@@ -12,19 +12,15 @@ from __future__ import annotations
 
 import sympy
 
-from ..core.symbols import TIME, free_symbols_of, velocity_symbol
+from ..core.symbols import TIME, velocity_symbol
 from .expressions import FUNCTIONS, parse_expression
+from .reader import ModelReader
 from .source import Node
 
 _HINT = "write `name: expression`, e.g. `beta: asin(r*sin(theta)/l)`"
 
 
-def definition_names(loader) -> dict[str, sympy.Symbol]:
-    """The definitions' placeholders by name, for the parser (empty before they are read)."""
-    return {name: placeholder for name, (placeholder, _) in loader.definitions.items()}
-
-
-def read_definitions(loader, node: Node | None, coords, primitive) -> None:
+def read_definitions(loader: ModelReader, node: Node | None, coords, primitive) -> None:
     """Parse ``definitions:`` into ``loader.definitions``: each name's placeholder and its
     expansion (definitions used inside it expanded too); cycles and name clashes are problems."""
     entries = loader.mapping(node, "definitions", _HINT)
@@ -63,34 +59,7 @@ def read_definitions(loader, node: Node | None, coords, primitive) -> None:
     loader.definitions = {name: (placeholders[name], expanded.get(name)) for name in placeholders}
 
 
-def substitute_definitions(loader, value, table: dict, node: Node, what: str):
-    """``value`` (parsed with the definitions' placeholders) with each definition put in its
-    place; a definition using a name that ``table`` (what this place may use) lacks is a problem."""
-    if value is None or not loader.definitions:
-        return value
-    used = [(name, ph, expansion) for name, (ph, expansion) in loader.definitions.items()
-            if ph in getattr(value, "free_symbols", ())]
-    if not used:
-        return value
-    if any(expansion is None for _, _, expansion in used):
-        return None  # the definition's own problem is reported already
-    allowed = {v for v in table.values() if isinstance(v, sympy.Symbol)} | {TIME}
-    ok = True
-    for name, _, expansion in used:
-        foreign = sorted(s.name for s in free_symbols_of([expansion]) - allowed)
-        if foreign:
-            ok = False
-            can = sorted(k for k, v in table.items() if isinstance(v, sympy.Symbol) and "." not in k and k != "t")
-            shown = ", ".join(can[:16]) + (", ..." if len(can) > 16 else "") if can else "none: numbers only"
-            loader.error(node, f"in {what}: definition '{name}' uses {', '.join(repr(f) for f in foreign)}, "
-                               "which cannot appear here",
-                         f"names usable here: {shown}")
-    if not ok:
-        return None
-    return value.xreplace({ph: expansion for _, ph, expansion in used})
-
-
-def _usable_names(loader, coords) -> dict[str, sympy.Basic]:
+def _usable_names(loader: ModelReader, coords) -> dict[str, sympy.Basic]:
     """What a definition may use: t, parameters, generalized and primitive coordinates and
     their velocities (``loader.names`` holds the primitive ones by now)."""
     names: dict[str, sympy.Basic] = {"t": TIME, **loader.parameter_names()}
@@ -102,7 +71,7 @@ def _usable_names(loader, coords) -> dict[str, sympy.Basic]:
     return names
 
 
-def _taken_names(loader, universal: dict, primitive) -> dict[str, str]:
+def _taken_names(loader: ModelReader, universal: dict, primitive) -> dict[str, str]:
     """Names a definition may not take, with what they are."""
     taken: dict[str, str] = {name: f"the function '{name}'" for name in FUNCTIONS}
     taken.update({"t": "time 't'", "pi": "the constant 'pi'"})
@@ -120,7 +89,7 @@ def _taken_names(loader, universal: dict, primitive) -> dict[str, str]:
     return taken
 
 
-def _parse(loader, vnode: Node, names: dict, what: str) -> sympy.Expr | None:
+def _parse(loader: ModelReader, vnode: Node, names: dict, what: str) -> sympy.Expr | None:
     if not vnode.is_scalar or vnode.value is None or isinstance(vnode.value, bool):
         loader.error(vnode, f"{what} must be an expression (a number or a formula)", _HINT)
         return None

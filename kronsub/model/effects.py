@@ -9,6 +9,7 @@ from ..effects.elements import Damper, Spring, TorsionalDamper, TorsionalSpring,
 from ..effects.gravity import Gravity
 from ..effects.loads import Force, GeneralizedForce, Potential, Torque
 from ..errors import close_matches
+from .reader import ModelReader
 from .source import Node
 
 DEFAULT_DOWN = {1: (-1,), 2: (0, -1), 3: (0, 0, -1)}
@@ -17,14 +18,14 @@ IN_WORLD = {1: {2: "the plane's x axis", 3: "space's x axis"}, 2: {3: "space's z
 """Where a smaller world lies in a larger one (:func:`~kronsub.components.base.in_world`)."""
 
 
-def _required(loader, spec: Node, key: str, ename: str, hint: str) -> Node | None:
+def _required(loader: ModelReader, spec: Node, key: str, ename: str, hint: str) -> Node | None:
     node = spec.get(key)
     if node is None:
         loader.error(spec, f"effect '{ename}' needs `{key}:`", hint)
     return node
 
 
-def _vector(loader, node: Node, what: str):
+def _vector(loader: ModelReader, node: Node, what: str):
     if not node.is_sequence or not node.value:
         loader.error(node, f"{what} must be a list of components, e.g. `[F, 0]`", "write `[x, y]` or `[x, y, z]`")
         return None
@@ -32,7 +33,7 @@ def _vector(loader, node: Node, what: str):
     return None if any(v is None for v in values) else tuple(values)
 
 
-def zero_vector(loader, node: Node, d, what: str, example: str = "[0, -1]") -> bool:
+def zero_vector(loader: ModelReader, node: Node, d, what: str, example: str = "[0, -1]") -> bool:
     """Whether the direction ``d`` is the zero vector, which is reported at ``node`` (a direction
     is divided by its length: the zero one gave NaN forces or constraints)."""
     if not sympy.Add(*[c**2 for c in d]).is_zero:
@@ -42,13 +43,13 @@ def zero_vector(loader, node: Node, d, what: str, example: str = "[0, -1]") -> b
     return True
 
 
-def _direction(loader, node: Node, what: str):
+def _direction(loader: ModelReader, node: Node, what: str):
     """A direction: a vector that is not zero."""
     d = _vector(loader, node, what)
     return None if d is None or zero_vector(loader, node, d, what) else d
 
 
-def _positional(loader, node: Node, value, primitive, ename: str, what: str):
+def _positional(loader: ModelReader, node: Node, value, primitive, ename: str, what: str):
     """``value`` if it has no velocity in it, else ``None`` (reported at ``node``): a potential,
     a spring's or a torsional spring's terms and a torsional damper's angle are functions of
     the configuration (and ``t``); with a velocity inside, ``-dV/dx`` (and ``angledot``)
@@ -67,7 +68,7 @@ def _positional(loader, node: Node, value, primitive, ename: str, what: str):
     return None
 
 
-def _point(loader, node: Node, primitive, ename: str):
+def _point(loader: ModelReader, node: Node, primitive, ename: str):
     """A named point ``component.point``, or a fixed place given as a list."""
     if node.is_sequence:
         return _vector(loader, node, f"fixed point of '{ename}'")
@@ -82,7 +83,7 @@ def _point(loader, node: Node, primitive, ename: str):
     return name
 
 
-def _gravity(loader, ename, spec, primitive):
+def _gravity(loader: ModelReader, ename, spec, primitive):
     """Gravity on the chosen components (default: every library component with mass).
 
     Known systems bring their own effects, so they are included only when named.
@@ -174,7 +175,7 @@ def _along(d, dimension: int) -> bool:
     return not sympy.Add(*[c**2 for c in d[:dimension]]).is_zero
 
 
-def _mixed_worlds(loader, spec: Node, ename: str, primitive, chosen, worlds) -> None:
+def _mixed_worlds(loader: ModelReader, spec: Node, ename: str, primitive, chosen, worlds) -> None:
     """Report a gravity without ``direction:`` over components of different worlds: each world's
     own "down" (along a line, -y in the plane, -z in space) disagrees with the others', since a
     line lies on the plane's x axis and the plane in space's z = 0 plane."""
@@ -188,7 +189,7 @@ def _mixed_worlds(loader, spec: Node, ename: str, primitive, chosen, worlds) -> 
                  f"world's components in `components:`")
 
 
-def _force(loader, ename, spec, primitive):
+def _force(loader: ModelReader, ename, spec, primitive):
     pnode = _required(loader, spec, "point", ename, "e.g. `point: lower.centre`")
     if pnode is None:
         return None
@@ -219,7 +220,7 @@ def _force(loader, ename, spec, primitive):
     return Force(ename, point=point, vector=vector)
 
 
-def named_body(loader, node: Node, primitive, what: str, unknown: str = ""):
+def named_body(loader: ModelReader, node: Node, primitive, what: str, unknown: str = ""):
     """The body ``node`` names, as ``(part, index)``: a component's own (``lower``), or one of a
     known system's by its dotted name (``s.lower``, ``pair.left.pole``; ``s`` alone when it has
     just one body). None after reporting why: unknown (``unknown``: the message then), or a
@@ -240,7 +241,7 @@ def named_body(loader, node: Node, primitive, what: str, unknown: str = ""):
     return None
 
 
-def _torque(loader, ename, spec, primitive):
+def _torque(loader: ModelReader, ename, spec, primitive):
     cnode = _required(loader, spec, "component", ename, "e.g. `component: wheel`")
     vnode = _required(loader, spec, "value", ename, "e.g. `value: tau`")
     if cnode is None or vnode is None:
@@ -265,7 +266,7 @@ def _torque(loader, ename, spec, primitive):
     return Torque(ename, part=part.name, value=value, body=index)
 
 
-def _spring(loader, ename, spec, primitive, damper=False):
+def _spring(loader: ModelReader, ename, spec, primitive, damper=False):
     bnode = _required(loader, spec, "between", ename, "e.g. `between: [upper.tip, [0, 0]]`")
     if bnode is None:
         return None
@@ -301,7 +302,7 @@ def _always_together(primitive, ends) -> bool:
     return all(sympy.expand(c) == 0 for c in separation(primitive, ends))
 
 
-def _torsional(loader, ename, spec, primitive, damper=False):
+def _torsional(loader: ModelReader, ename, spec, primitive, damper=False):
     anode = _required(loader, spec, "angle", ename, "e.g. `angle: phi - theta` (primitive coordinates)")
     key = "coefficient" if damper else "stiffness"
     knode = _required(loader, spec, key, ename, f"e.g. `{key}: k`")
@@ -320,7 +321,7 @@ def _torsional(loader, ename, spec, primitive, damper=False):
     return None if rest is None else TorsionalSpring(ename, angle=angle, stiffness=k, rest=rest)
 
 
-def _generalized(loader, ename, spec, primitive):
+def _generalized(loader: ModelReader, ename, spec, primitive):
     cnode = _required(loader, spec, "coordinate", ename, "e.g. `coordinate: lower.phi`")
     vnode = _required(loader, spec, "value", ename, "e.g. `value: -c*phi_dot`")
     if cnode is None or vnode is None:
@@ -335,7 +336,7 @@ def _generalized(loader, ename, spec, primitive):
     return None if value is None else GeneralizedForce(ename, coordinate=q, value=value)
 
 
-def _potential(loader, ename, spec, primitive):
+def _potential(loader: ModelReader, ename, spec, primitive):
     vnode = _required(loader, spec, "value", ename, "e.g. `value: k*x**4/4`")
     if vnode is None:
         return None
@@ -356,7 +357,7 @@ BUILDERS = {
 }
 
 
-def build_effect(loader, ename: str, spec: Node, primitive) -> Effect | None:
+def build_effect(loader: ModelReader, ename: str, spec: Node, primitive) -> Effect | None:
     """Build one named effect from its YAML mapping (problems go to the loader)."""
 
     if not spec.is_mapping:

@@ -2,14 +2,15 @@
 
 The whole file is checked at once: every problem is collected with its
 file, line and column, then raised together as one :class:`ModelError`.
-Expressions go through the whitelisted parser only.
+Expressions go through the whitelisted parser only. The sections are read by the modules of
+their job, each a function of the one :class:`~kronsub.model.reader.ModelReader`: ``parts.py``
+(components and known systems), ``connection.py``, ``definitions.py``, ``constraints.py``,
+``effects.py``, ``initial.py``, ``scenes.py``; ``files.py`` keys the file and those it uses.
 """
 from __future__ import annotations
 
-import dataclasses
 import functools
 import os
-import re
 from pathlib import Path
 
 import sympy
@@ -17,41 +18,28 @@ import sympy
 from ..budget import WorkBudgetExceeded, allow_for, scope as budget_scope
 from ..collector import collector_paused
 from ..components import REGISTRY
-from ..components.base import in_world
-from ..core import canonical
 from ..core.constraints import Constraint, multiplier_name
-from ..core.known_system import KnownSystem, ParameterInfo
-from ..core.primitive import Part, Primitive, part_from_component
-from ..core.symbols import TIME, free_symbols_of, symbol, velocity_symbol
-from ..errors import Location, ModelError, ProblemCollector, close_matches, near_names
-from .derive import content_key, derive_model, load_cached
+from ..core.known_system import ParameterInfo
+from ..core.primitive import Part, Primitive
+from ..core.symbols import TIME, symbol, velocity_symbol
+from ..errors import Location, ModelError
+from .connection import (implicit_spec, pivot_connection, read_connection, read_intermediate,
+                         read_pivot_angles)
+from .constraints import read_constraints
+from .definitions import read_definitions
+from .derive import derive_model, load_cached
 from .effects import build_effect
-from .expressions import parse_expression
-from .requirements import Requirement, body_requirements, component_requirements, unmet
-from .scenes import build_scenes
-from .constraints import analyse, read_constraints
-from .definitions import definition_names, read_definitions, substitute_definitions
-from .model import ImplicitSpec, Model
+from .files import (MAX_MODEL_DEPTH, TOP_LEVEL, derivation_text, each_once, looks_like_model, model_key,
+                    resolved_path)
+from .initial import read_initial
+from .model import Model
 from .names import Declared, generated_name_clashes
-from .source import Node, SourceFile, excerpt, load_yaml, read_model_file, read_model_text, system_root
-
-TOP_LEVEL = ("name", "description", "parameters", "components", "coordinates", "definitions", "connection",
-             "constraints", "effects", "initial", "scenes")
-_UNKNOWN_NAME = re.compile(r"unknown name '([^']+)'")
-_SECTION_LINE = re.compile(r"^[ \t]*(?:---[ \t]*)?(?:\{[ \t]*)?[\"']?(?:" + "|".join(TOP_LEVEL) + r")[\"']?[ \t]*:",
-                           re.M)
-IDENTIFIER = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")  # whole names only: fullmatch
-RESERVED = {"t", "pi"}
-OUTPUT_COLUMNS = ("kinetic_energy", "potential_energy", "total_energy")
-"""Columns of a trajectory beside the state (``kronsub/simulation/table.py``): a coordinate of
-one of these names would be written twice and lost from the DataFrame."""
-
-
-def looks_like_model(text: str) -> bool:
-    """Whether a line of ``text`` begins with a model section (``name:``, ``{components:``): a
-    file named by ``model:`` without one is no model, and nothing of it is quoted in messages
-    (its first line may be a secret)."""
-    return _SECTION_LINE.search(text) is not None
+from .parts import (component_origin, component_parameters, coordinate_names, inertial_parameters,
+                    inherit_parameter, known_system_part, library_component, mark_broken, placed)
+from .reader import ModelReader, node_kind
+from .requirements import body_requirements, unmet
+from .scenes import build_scenes
+from .source import Node, load_yaml, read_model_file, read_model_text, system_root
 
 
 def load_model(path, *, text: str | None = None, cache: bool = True, _stack: tuple[str, ...] = ()) -> Model:
@@ -66,212 +54,13 @@ def load_model(path, *, text: str | None = None, cache: bool = True, _stack: tup
         text, source = read_model_file(path)
     root = load_yaml(path, text)
     with collector_paused(), budget_scope():  # see kronsub.collector
-        return _Loader(path, root, text, _stack, cache, source).build()
+        return ModelLoader(path, root, text, _stack, cache, source).build()
 
 
-MAX_MODEL_DEPTH = 32
-"""Most levels of model files, the model given first being level 1: a known system's own
-``model:`` files are one level further down."""
-
-
-def model_key(path: Path, stack: tuple[str, ...] = (), read: list[SourceFile] | None = None) -> str:
-    """The content hash of a model file and, recursively, of the model files it uses;
-    ``read`` (when given) gets the :class:`SourceFile` of each file read, in that order.
-
-    Cheap next to loading: it reads the YAML but builds nothing, so a cached
-    known system is found without deriving or even constructing its model.
-    """
-    resolved = _resolved(path)
-    if resolved in stack or len(stack) >= MAX_MODEL_DEPTH:
-        return ""  # the cycle, or the depth, is reported when the model is loaded
-    text, source = read_model_file(path)
-    if read is not None:
-        read.append(source)
-    if _alone(text):
-        return content_key(text)
-    root = load_yaml(path, text, only={"components": {"*": {"model": None}}})
-    subs = []
-    for sub_path in _component_models(root, path):
-        try:
-            subs.append(model_key(sub_path, stack + (resolved,), read))
-        except ModelError:  # reported where `model:` names it, when the model is loaded
-            subs.append("unreadable")
-    return content_key(derivation_text(root, text), *subs)
-
-
-def _alone(text: str) -> bool:
-    """Whether a model file plainly names no other model file and has no ``scenes:``: the
-    words are nowhere in it, nor any escape (``"mod\\x65l"``) that could spell them. Its key
-    is then its text's, without reading the YAML."""
-    return "model" not in text and "scenes" not in text and "\\" not in text
-
-
-def _component_models(root: Node, path: Path) -> list[Path]:
-    """The files named by the ``model:`` of the components in ``root`` (the model at ``path``)."""
-    out = []
-    comps = root.get("components")
-    if comps is not None and comps.is_mapping:
-        for spec in comps.value.values():
-            mnode = spec.get("model") if spec.is_mapping else None
-            if mnode is not None and isinstance(mnode.value, str) and mnode.value and "\0" not in mnode.value:
-                out.append(path.parent / mnode.value)
-    return out
-
-
-def _each_once(files: list[SourceFile]) -> tuple[SourceFile, ...]:
-    """``files`` in order, each file once (the first time it was read)."""
-    seen: set[str] = set()
-    out = []
-    for f in files:
-        key = _resolved(Path(f.file))
-        if key not in seen:
-            seen.add(key)
-            out.append(f)
-    return tuple(out)
-
-
-def derivation_text(root: Node, text: str) -> str:
-    """The text a derivation depends on: the file without its ``scenes:`` section, so
-    editing a scene keeps the cached inertia and effects that every scene shares."""
-    if not root.is_mapping or "scenes" not in root.key_locations:
-        return text
-    lines = text.splitlines(keepends=True)
-    start = root.key_locations["scenes"].line
-    after = [loc.line for loc in root.key_locations.values() if loc.line > start]
-    end = min(after) if after else len(lines) + 1
-    return "".join(lines[:start - 1] + lines[end - 1:])
-
-
-def _resolved(path: Path) -> str:
-    """The absolute path with symbolic links followed; a loop is left for reading to report."""
-    return os.path.realpath(path)
-
-
-class _Loader:
-    def __init__(self, path: Path, root: Node, text: str, stack: tuple[str, ...], cache: bool = True,
-                 source: SourceFile | None = None):
-        self.cache = cache
-        self.source = source  # the file as read (None: the text was given)
-        self.used: list[SourceFile] = []  # the model files read for the known systems, recursively
-        self.parsed: dict = {}  # parts of expressions built so far (parse_expression's shared)
-        self.path = path
-        self.file = str(path)
-        self.root = root
-        self.text = text
-        self.stack = stack + (_resolved(path),)
-        self.problems = ProblemCollector()
-        self.names: dict[str, sympy.Basic] = {"t": TIME}
-        self.parameters: dict[str, ParameterInfo] = {}
-        self.declared: set[str] = set()  # parameters this model declares itself
-        self.inherited: dict[str, tuple[str, sympy.Expr | None]] = {}  # name -> (component, value) first brought
-        self.parts: list[Part] = []
-        self.sub_hashes: list[str] = []
-        self.locations: dict[str, Location] = {}
-        self.failed_components = False
-        self.requirements: list[Requirement] = []  # what the components need of the parameters' values
-        # one typo, one error: names of components that failed, and the coordinate names their
-        # `coordinates:` renames declared, so later references to them report nothing more
-        self.broken_parts: set[str] = set()
-        self.broken_names: set[str] = set()
-        self.generalized_names: set[str] = set()
-        self.primitive_names: dict[str, sympy.Symbol] = {}
-        self.subspace_names: dict[str, sympy.Symbol] = {}  # the connection's coordinates, for effects
-        self.pivots: list[tuple] = []  # pinned parts hanging from a moving point (`pivot:`)
-        self.auto_connection: dict[sympy.Symbol, tuple] = {}
-        # `definitions:` (definitions.py): name -> (placeholder, expansion; None when it failed)
-        self.definitions: dict[str, tuple[sympy.Symbol, sympy.Expr | None]] = {}
-        self.definition_keys: set[str] = set()  # their names, known before they are read
+class ModelLoader(ModelReader):
+    """The reading of one model file, section by section, into a :class:`Model` (:meth:`build`)."""
 
     # ----------------------------------------------------------- utilities
-    def error(self, node_or_loc, message: str, hint: str | None = None) -> None:
-        loc = node_or_loc.location if isinstance(node_or_loc, Node) else node_or_loc
-        self.problems.add(loc, message, hint)
-
-    def expr(self, node: Node, names: dict | None = None, what: str = "expression") -> sympy.Expr | None:
-        """Parse a scalar node as an expression; None (problem recorded) on failure."""
-        if not node.is_scalar or node.value is None or isinstance(node.value, bool):
-            self.error(node, f"expected {what} (a number or a formula), found {_kind(node)}",
-                       "write e.g. `2*a1*sin(theta)`")
-            return None
-        text = node.text if node.text is not None else str(node.value)
-        table = names if names is not None else self.names
-        try:
-            value = parse_expression(text, {**table, **definition_names(self)},
-                                     node.text_location or node.location, what=what, shared=self.parsed)
-        except WorkBudgetExceeded:
-            raise  # the budget is spent: nothing further is read
-        except ModelError as exc:
-            for problem in exc.problems:
-                unknown = _UNKNOWN_NAME.search(problem.message)
-                if unknown and self.is_broken(unknown.group(1)):
-                    continue  # a consequence of a component reported already
-                generalized = unknown and self.generalized_name(unknown.group(1))
-                if unknown and unknown.group(1) in self.definition_keys and unknown.group(1) not in self.definitions:
-                    problem = dataclasses.replace(problem, hint=(
-                        f"'{unknown.group(1)}' is a definition; definitions are read after the parameters and "
-                        "components, so they cannot be used in parameter values, component parameters or "
-                        "points: write the expression here, or make it a parameter"))
-                elif generalized:
-                    problem = self._generalized_problem(problem, unknown.group(1), generalized)
-                elif unknown and unknown.group(1) == "t":
-                    problem = dataclasses.replace(problem, hint=(
-                        "`t` (time) cannot appear here: the effects (and a known system's parameters that "
-                        "drive its effects alone) may depend on time; connections, constraints, component "
-                        "parameters and values may not"))
-                elif unknown and unknown.group(1) in self.parameters:
-                    problem = dataclasses.replace(problem, hint=(
-                        f"'{unknown.group(1)}' is a parameter, and a parameter's value is a constant: write a "
-                        "number (or an expression of numbers), and the formula where the value is used"))
-                self.problems.problems.append(problem)
-            return None
-        return substitute_definitions(self, value, table, node, what)
-
-    def generalized_name(self, name: str) -> str | None:
-        """"coordinate" or "velocity" when ``name`` is a generalized coordinate (or its velocity)
-        that is not also a primitive one; else None."""
-        if name in self.generalized_names and name not in self.primitive_names:
-            return "coordinate"
-        base = name[:-4] if name.endswith("_dot") else None
-        if base and base in self.generalized_names and base not in self.primitive_names:
-            return "velocity"
-        return None
-
-    def _generalized_problem(self, problem, name: str, kind: str):
-        """The unknown-name problem for a generalized coordinate or velocity, said as such."""
-        return dataclasses.replace(problem, hint=f"'{name}' is a generalized {kind}, which cannot appear here")
-
-    def mapping(self, node: Node | None, what: str, hint: str) -> dict[str, Node]:
-        if node is None or node.value is None:
-            return {}
-        if not node.is_mapping:
-            self.error(node, f"`{what}` must be a mapping, found {_kind(node)}", hint)
-            return {}
-        return node.value
-
-    def check_keys(self, node: Node, allowed, what: str) -> None:
-        for key in node.value:
-            if key not in allowed:
-                split = isinstance(key, str) and not IDENTIFIER.fullmatch(key.strip()) and any(
-                    c in key for c in ")]*/+-")
-                self.error(node.key_locations.get(key, node.location), f"unknown key '{key}' in {what}",
-                           "this looks like the rest of an expression: in a `{...}` mapping a comma ends the "
-                           "value, so quote an expression with commas, e.g. `value: \"atan2(y, x)\"`"
-                           if split else close_matches(key, allowed))
-
-    def identifier(self, name: str, loc: Location, what: str) -> bool:
-        if not IDENTIFIER.fullmatch(name):
-            self.error(loc, f"{what} name {name!r} is not a valid name",
-                       "use letters, digits and underscores, starting with a letter")
-            return False
-        if name in RESERVED:
-            self.error(loc, f"{what} name '{name}' is reserved", "'t' is time and 'pi' is the constant")
-            return False
-        if what == "coordinate" and name in OUTPUT_COLUMNS:
-            self.error(loc, f"{what} name '{name}' is the name of a column `simulate` writes",
-                       f"rename it: beside the state, the trajectory has the columns {', '.join(OUTPUT_COLUMNS)}")
-            return False
-        return True
-
     def _multiplier_clashes(self, constraints, carried) -> None:
         """Two constraints whose multipliers get one name (a joint `B`'s `B.x` and a constraint
         `B_x` are both `mu_B_x`) would be one entry of the reactions: refused, naming both."""
@@ -305,7 +94,7 @@ class _Loader:
     def build(self) -> Model:
         root = self.root
         if not root.is_mapping:
-            found = "a single value" if root.is_scalar and root.value is not None else _kind(root)
+            found = "a single value" if root.is_scalar and root.value is not None else node_kind(root)
             self.error(root, f"a model file must be a mapping of sections, found {found}",
                        "start with `name:`, `components:`, `coordinates:` and `connection:`")
             self.problems.raise_if_any()
@@ -317,8 +106,8 @@ class _Loader:
         self.check_keys(root, TOP_LEVEL, "the model")
         dnode = root.get("definitions")
         self.definition_keys = set(dnode.value) if dnode is not None and dnode.is_mapping else set()
-        name = self._string(root.get("name"), self.path.stem)
-        description = self._string(root.get("description"), "")
+        name = self.string(root.get("name"), self.path.stem)
+        description = self.string(root.get("description"), "")
         self._parameters(root.get("parameters"))
         self._components(root.get("components"))
         cnode = root.get("constraints")
@@ -338,25 +127,25 @@ class _Loader:
         allow_for(len(primitive.coordinates))  # a default budget grows with the model
         self._primitive_names(primitive)
         read_definitions(self, root.get("definitions"), coords, primitive)
-        self._pivot_connection(primitive)
+        pivot_connection(self, primitive)
         implicit = None
         if constrained:
             constraints = (read_constraints(self, cnode, primitive) if cnode is not None else []) + carried
             self._multiplier_clashes(constraints, carried)
-            y = self._intermediate(root.get("connection"), primitive, coords)
+            y = read_intermediate(self, root.get("connection"), primitive, coords)
         else:
             y = coords
         self._generated_names(y, primitive)
-        self._pivot_angles(root.get("connection"), y)
-        connection = self._connection(root.get("connection"), primitive, y)
+        read_pivot_angles(self, root.get("connection"), y)
+        connection = read_connection(self, root.get("connection"), primitive, y)
         effects = self._effects(root.get("effects"), primitive, y)
-        initial = self._initial(root.get("initial"), y)
+        initial = read_initial(self, root.get("initial"), y)
         declared = root.get("effects")
         scenes = build_scenes(self, root.get("scenes"), list(declared.value) if declared is not None and
                               declared.is_mapping else [], primitive, y)
         self._check_values()
         if constrained and not self.problems:
-            implicit = self._implicit(cnode, constraints, connection, y, coords, auto, initial)
+            implicit = implicit_spec(self, cnode, constraints, connection, y, coords, auto, initial)
             if implicit is not None:
                 coords = implicit.independent
         self.problems.raise_if_any()
@@ -376,12 +165,8 @@ class _Loader:
             implicit=implicit,
             requirements=tuple(self.requirements),
             source=self.source,
-            uses=_each_once(self.used),
+            uses=each_once(self.used),
         )
-
-    def parameter_values(self) -> dict:
-        """The parameters' values (symbol -> number) as declared or inherited."""
-        return {info.symbol: info.value for info in self.parameters.values() if info.value is not None}
 
     def _check_values(self) -> None:
         """The components' requirements on the parameters' values (:mod:`.requirements`): a
@@ -394,14 +179,6 @@ class _Loader:
         for problem in unmet(self.requirements, self.parameter_values(), declared):
             self.problems.add(problem.location, problem.message, problem.hint)
 
-    def _string(self, node: Node | None, default: str) -> str:
-        if node is None:
-            return default
-        if not node.is_scalar or not isinstance(node.value, str):
-            self.error(node, f"expected text, found {_kind(node)}", "quote it")
-            return default
-        return node.value
-
     # ---------------------------------------------------------- parameters
     def _parameters(self, node: Node | None) -> None:
         for pname, spec in self.mapping(node, "parameters", "write `m1: 1.0` or `m1: {value: 1.0, unit: kg}`").items():
@@ -412,23 +189,13 @@ class _Loader:
             if spec.is_mapping:
                 self.check_keys(spec, ("value", "unit", "description"), f"parameter '{pname}'")
                 value_node = spec.get("value")
-                unit = self._string(spec.get("unit"), "")
-                description = self._string(spec.get("description"), "")
+                unit = self.string(spec.get("unit"), "")
+                description = self.string(spec.get("description"), "")
             value = None
             if value_node is not None and value_node.value is not None:
                 value = self.expr(value_node, {}, what=f"value of parameter '{pname}'")
             self.declared.add(pname)
             self.add_parameter(ParameterInfo(pname, symbol(pname), value, unit, description), location=loc)
-
-    def add_parameter(self, info: ParameterInfo, *, inherited: bool = False, location: Location | None = None) -> None:
-        if location is not None and (not inherited or f"parameter:{info.name}" not in self.locations):
-            self.locations[f"parameter:{info.name}"] = location
-        if info.name in self.parameters:
-            if not inherited:
-                self.parameters[info.name] = info
-            return
-        self.parameters[info.name] = info
-        self.names[info.name] = info.symbol
 
     # ---------------------------------------------------------- components
     def _components(self, node: Node | None) -> None:
@@ -448,179 +215,20 @@ class _Loader:
             if spec.get("model") is not None:
                 part = self._known_system(cname, spec)
             else:
-                part = self._library_component(cname, spec)
+                part = library_component(self, cname, spec)
             if part is not None:
                 self.parts.append(part)
                 self.locations[f"component:{cname}"] = loc
             else:
                 self.failed_components = True
-                self._mark_broken(cname, spec)
-
-    def _mark_broken(self, cname: str, spec: Node) -> None:
-        """Remember a component that failed (its problem is reported already)."""
-        self.broken_parts.add(cname)
-        renames = spec.get("coordinates")
-        if renames is not None and renames.is_mapping:
-            self.broken_names.update(str(v.value) for v in renames.value.values() if v.is_scalar)
-        elif renames is not None and renames.is_sequence:
-            self.broken_names.update(str(v.value) for v in renames.value if v.is_scalar)
-
-    def is_broken(self, name: str) -> bool:
-        """Whether ``name`` (plain or dotted) belongs to a component that failed to load."""
-        return name in self.broken_names or name.split(".", 1)[0] in self.broken_parts
-
-    def _library_component(self, cname: str, spec: Node) -> Part | None:
-        tnode = spec.get("type")
-        cls = REGISTRY.get(tnode.value) if tnode is not None and isinstance(tnode.value, str) else None
-        options = tuple(o.name for o in cls.options) if cls is not None else ()
-        self.check_keys(spec, ("type", "parameters", "coordinates", "points", "pivot", "description", *options),
-                        f"component '{cname}'")
-        if tnode is None:
-            self.error(spec, f"component '{cname}' has no `type:`",
-                       "valid types: " + ", ".join(sorted(REGISTRY)) + " (or `model: file.yaml`)")
-            return None
-        if not isinstance(tnode.value, str):
-            self.error(tnode, f"`type:` of component '{cname}' must be a name, found {_kind(tnode)}",
-                       "valid types: " + ", ".join(sorted(REGISTRY)))
-            return None
-        cls = REGISTRY.get(tnode.value)
-        if cls is None:
-            self.error(tnode, f"unknown component type '{tnode.value}'", close_matches(tnode.value, REGISTRY))
-            return None
-        values = self._component_parameters(cname, spec.get("parameters"), [p.name for p in cls.parameters])
-        missing = [ps for ps in cls.parameters if ps.name not in values and ps.default is None]
-        for ps in missing:
-            self.error(spec, f"component '{cname}' ({cls.type_name}) needs parameter '{ps.name}'",
-                       f"add `{ps.name}: ...` ({ps.description}) under its `parameters:`")
-        if missing or any(v is None for v in values.values()):
-            return None
-        params: dict[str, sympy.Expr] = {}
-        for ps in cls.parameters:  # defaults are library text, in the other parameters
-            params[ps.name] = values[ps.name] if ps.name in values else parse_expression(ps.default, params)
-        self.requirements += component_requirements(cname, cls(p=params), spec.get("parameters"))
-        names = self._coordinate_names(cname, spec.get("coordinates"), cls.coordinates, f"{cname}_{{}}")
-        if names is None:
-            return None
-        extra = self._body_points(cname, cls, spec.get("points"), params)
-        choices = self._choices(cname, cls, spec)
-        if extra is None or choices is None:
-            return None
-        if spec.get("pivot") is not None:
-            return self._pivoted(cname, cls, spec, params, names, extra)
-        component = cls(x={local: symbol(n) for local, n in zip(cls.coordinates, names)}, p=params,
-                        extra_points=extra, choices=choices)
-        return part_from_component(cname, component)
-
-    def _choices(self, cname: str, cls, spec: Node) -> dict[str, str] | None:
-        """The component's options (``euler: ZXZ``): each one of its fixed names."""
-        choices: dict[str, str] = {}
-        for option in cls.options:
-            node = spec.get(option.name)
-            if node is None:
-                continue
-            if not isinstance(node.value, str) or node.value not in option.values:
-                self.error(node, f"`{option.name}:` of component '{cname}' ({cls.type_name}) must be one of "
-                           f"{', '.join(option.values)}, found {_kind(node)}",
-                           f"{option.description}; " + close_matches(str(node.value), option.values))
-                return None
-            choices[option.name] = node.value
-        return choices
-
-    def _body_points(self, cname: str, cls, node: Node | None, params: dict):
-        """Points a model fixes in a rigid body: ``name: [offsets in body axes]``."""
-        if node is None:
-            return {}
-        if not cls.rigid:
-            self.error(node, f"component '{cname}' ({cls.type_name}) is not a rigid body: it takes no `points:`",
-                       "add points to a rod, disc, planar_body, pinned_rod or rigid_body3d")
-            return None
-        entries = self.mapping(node, f"{cname}.points", "write `points: {tip: [0.5, 0]}` (body axes)")
-        points = {}
-        for pname, vnode in entries.items():
-            if not self.identifier(pname, node.key_locations[pname], "point"):
-                continue
-            if not vnode.is_sequence or len(vnode.value) != cls.dimension:
-                self.error(vnode, f"point '{cname}.{pname}' needs {cls.dimension} body-frame offsets",
-                           "e.g. `[0.5, 0]` in the plane, `[0, 0, 0.1]` in space")
-                continue
-            values = [self.expr(v, self.parameter_names(), what=f"offset of point '{pname}'") for v in vnode.value]
-            if all(v is not None for v in values):
-                points[pname] = tuple(values)
-        return points
-
-    def _component_parameters(self, cname: str, node: Node | None, allowed,
-                              inertial=lambda key: True) -> dict[str, sympy.Expr | None]:
-        """The values given under a component's ``parameters:``. Those for which ``inertial(key)``
-        (they shape the component's metric, velocity terms or points) must not depend on ``t``:
-        the component's equations are those of constant parameters, so the motion a value in
-        ``t`` would prescribe (a shaken pivot, a growing mass) would be silently left out."""
-        values: dict[str, sympy.Expr | None] = {}
-        params = self.mapping(node, f"{cname}.parameters", "write `parameters: {mass: m1, length: 2*a1}`")
-        for key, vnode in params.items():
-            if key not in allowed:
-                self.error(node.key_locations[key], f"component '{cname}' has no parameter '{key}'",
-                           close_matches(key, allowed))
-                continue
-            value = values[key] = self.expr(vnode, what=f"parameter '{key}' of '{cname}'")
-            if value is not None and TIME in free_symbols_of([value]) and inertial(key):
-                self.error(vnode, f"parameter '{key}' of '{cname}' depends on t, but a component's "
-                           "parameters are constants of its inertia (its metric and points): the motion "
-                           "a value in t prescribes would be missing from its equations",
-                           "give it a constant value; a support moving with the system is a component of "
-                           "its own (hang a pinned_rod from it with `pivot:`); a motion prescribed in t is "
-                           "not supported (connections have no t either); a force in t goes under `effects:`")
-                values[key] = None
-        return values
-
-    def _coordinate_names(self, cname: str, node: Node | None, local: tuple[str, ...], default: str):
-        """Names of a component's coordinates: ``{local: new}`` or a list in order."""
-        names = [default.format(n) for n in local]
-        if node is None:
-            return names
-        if node.is_sequence:
-            if len(node.value) != len(local):
-                self.error(node, f"component '{cname}' has {len(local)} coordinates ({', '.join(local)}), "
-                                 f"{len(node.value)} names given", "give one name per coordinate, in that order")
-                return None
-            items = list(zip(local, node.value))
-        elif node.is_mapping:
-            items = []
-            for key, vnode in node.value.items():
-                if key not in local:
-                    self.error(node.key_locations[key], f"component '{cname}' has no coordinate '{key}'",
-                               close_matches(key, local))
-                    continue
-                items.append((key, vnode))
-        else:
-            self.error(node, "`coordinates:` of a component must map its coordinates to new names",
-                       f"e.g. `coordinates: {{{local[0]}: q1}}`")
-            return None
-        failed = False
-        for key, vnode in items:
-            if not isinstance(vnode.value, str):
-                self.error(vnode, f"coordinate name of '{cname}.{key}' must be a name, found {_kind(vnode)}",
-                           "use letters, digits and underscores")
-                failed = True
-                continue
-            if self.identifier(vnode.value, vnode.location, "coordinate"):
-                names[local.index(key)] = vnode.value
-            else:
-                failed = True
-        if failed:
-            return None  # the component fails: no default name stands in for the one refused
-        for i, n in enumerate(names):
-            if n in names[:i]:
-                self.error(node, f"component '{cname}' gives two coordinates the name '{n}'",
-                           "give each coordinate its own name")
-                return None
-        return names
+                mark_broken(self, cname, spec)
 
     def _known_system(self, cname: str, spec: Node) -> Part | None:
         """A derived model used as a component (examples II and III)."""
         self.check_keys(spec, ("model", "parameters", "coordinates", "origin", "description"), f"component '{cname}'")
         mnode = spec.get("model")
         if not isinstance(mnode.value, str) or not mnode.value:
-            self.error(mnode, f"`model:` of component '{cname}' must be a file name, found {_kind(mnode)}",
+            self.error(mnode, f"`model:` of component '{cname}' must be a file name, found {node_kind(mnode)}",
                        "write e.g. `model: system1.yaml` (relative to this model file)")
             return None
         if "\0" in mnode.value:  # no file name holds one (the system calls refuse it)
@@ -628,7 +236,7 @@ class _Loader:
                        "write the file name without `\\0` or `\\x00` escapes")
             return None
         sub_path = (self.path.parent / mnode.value)
-        resolved = _resolved(sub_path)
+        resolved = resolved_path(sub_path)
         if resolved in self.stack:
             chain = " -> ".join(Path(p).name for p in self.stack + (resolved,))
             self.error(mnode, f"model files form a cycle: {chain}", "a model cannot contain itself")
@@ -663,18 +271,18 @@ class _Loader:
         self.sub_hashes.append(key)
         # parameters: overrides, the rest inherited
         allowed = [p.name for p in system.parameters]
-        inertial = functools.cache(lambda: _inertial_parameters(system))  # asked only of an override in t
-        overrides = self._component_parameters(cname, spec.get("parameters"), allowed,
-                                               inertial=lambda key: key in inertial())
+        inertial = functools.cache(lambda: inertial_parameters(system))  # asked only of an override in t
+        overrides = component_parameters(self, cname, spec.get("parameters"), allowed,
+                                         inertial=lambda key: key in inertial())
         for info in system.parameters:
             if info.name not in overrides:
-                self._inherit(cname, mnode, info)
+                inherit_parameter(self, cname, mnode, info)
                 self.add_parameter(info, inherited=True, location=spec.location)
         # a constrained system is placed on y: its dependent coordinates can be renamed too
         local = tuple(q.name for q in (system.implicit.intermediate if system.implicit is not None
                                        else system.coordinates))
-        names = self._coordinate_names(cname, spec.get("coordinates"), local, "{}")
-        origin = self._origin(cname, spec.get("origin"), system.dimension, bool(system.points))
+        names = coordinate_names(self, cname, spec.get("coordinates"), local, "{}")
+        origin = component_origin(self, cname, spec.get("origin"), system.dimension, bool(system.points))
         if names is None or any(v is None for v in overrides.values()) or origin is False:
             return None
         part = known_system_part(cname, system, {symbol(k): v for k, v in overrides.items()},
@@ -683,35 +291,6 @@ class _Loader:
             self.requirements += body_requirements(f"{cname}.{body.name}" if body.name else cname, body,
                                                    (spec.get("parameters") or spec).location)
         return placed(part, origin) if origin else part
-
-    def _inherit(self, cname: str, mnode: Node, info: ParameterInfo) -> None:
-        """Known systems share an inherited parameter by its name; two that bring it with
-        different values are an error (one would silently take the other's value)."""
-        first = self.inherited.setdefault(info.name, (cname, info.value))
-        if info.name in self.declared or first[0] == cname or first[1] is None or info.value is None:
-            return
-        if sympy.simplify(first[1] - info.value) != 0:
-            self.error(mnode, f"parameter '{info.name}' is {excerpt(str(info.value))} in '{cname}' but "
-                              f"{excerpt(str(first[1]))} in '{first[0]}': known systems share a parameter by its name",
-                       f"declare `{info.name}` in this model's `parameters:` to give both one value, or give "
-                       f"'{cname}' its own: `parameters: {{{info.name}: {info.name}_{cname}}}` with "
-                       f"`{info.name}_{cname}` declared")
-
-    def _origin(self, cname: str, node: Node | None, dimension: int, has_points: bool = True):
-        """``origin: [x, y]``: where a known system's own origin sits in this model's world."""
-        if node is None:
-            return None
-        if not dimension:
-            why = "its parts live in worlds of different dimensions" if has_points else "it has no points"
-            self.error(node, f"`origin:` of '{cname}': {why}, so there is no world to move it in",
-                       "leave `origin:` out; place the parts in the known system's own file instead")
-            return False
-        if not node.is_sequence or len(node.value) != dimension:
-            self.error(node, f"`origin:` of '{cname}' needs {dimension} entries (one per world axis)",
-                       "e.g. `origin: [2*d, 0]`: the known system is moved there, unturned")
-            return False
-        values = [self.expr(v, self.parameter_names(), what=f"origin of '{cname}'") for v in node.value]
-        return False if any(v is None for v in values) else tuple(values)
 
     # --------------------------------------------------------- coordinates
     def _coordinates(self, node: Node | None) -> tuple[sympy.Symbol, ...]:
@@ -726,7 +305,8 @@ class _Loader:
         for item in node.value:
             name = item.value
             if not isinstance(name, str):
-                self.error(item, f"a coordinate must be a name, found {_kind(item)}", "e.g. `coordinates: [theta, phi]`")
+                self.error(item, f"a coordinate must be a name, found {node_kind(item)}",
+                           "e.g. `coordinates: [theta, phi]`")
                 continue
             if not self.identifier(name, item.location, "coordinate"):
                 self.broken_names.update((name, f"{name}_dot"))  # reported once, not again where it is used
@@ -788,196 +368,7 @@ class _Loader:
         cls = REGISTRY.get(part.type_name)
         return cls.coordinates if cls is not None else tuple(q.name for q in part.coordinates)
 
-    # ---------------------------------------------------------- connection
-    def _connection(self, node: Node | None, primitive: Primitive, coords) -> dict:
-        connection: dict[sympy.Symbol, sympy.Expr] = {}
-        where: dict[sympy.Symbol, Location] = {}
-        generalized = {q.name: q for q in coords}
-        attempted: set[sympy.Symbol] = set()
-        unknown_keys: list[str] = []
-        entries = self.mapping(node, "connection", "write one `primitive_coordinate: expression` per line")
-        if node is not None:
-            self.locations["connection"] = node.location
-        for key, vnode in entries.items():
-            loc = node.key_locations[key]
-            x = self.primitive_names.get(key)
-            if x is None:
-                unknown_keys.append(key)
-                if self.is_broken(key) or self.failed_components:
-                    continue  # most likely a coordinate of the component that failed, reported already
-                if any(angle.name == key for _, _, angle, _, _ in self.pivots):
-                    continue  # a pivoted part's angle: reported by _pivot_angles
-                self.error(loc, f"'{key}' is not a coordinate of the primitive system",
-                           close_matches(key, [k for k in self.primitive_names if "." in k] +
-                                         [q.name for q in primitive.coordinates]))
-                continue
-            if x in connection:
-                self.error(loc, f"primitive coordinate '{x}' is connected twice (first at line {where[x].line})",
-                           "connect each primitive coordinate once")
-                continue
-            attempted.add(x)
-            value = self.expr(vnode, {**self.parameter_names(), **generalized},
-                              what=f"connection of '{key}'")
-            if value is None:
-                continue
-            connection[x] = sympy.sympify(value)
-            where[x] = loc
-        for x, (expr, ploc) in self.auto_connection.items():
-            if x in connection:
-                self.error(where[x], f"primitive coordinate '{x}' is set by `pivot:` and cannot be connected",
-                           "remove it from `connection:`")
-                continue
-            connection[x] = expr
-        if self.auto_connection:  # a pivot on a connected point: compose until only xbar remains
-            for _ in range(len(self.auto_connection) + 1):
-                done = {x: e.xreplace(connection) for x, e in connection.items()}
-                if done == connection:
-                    break
-                connection = done
-        for x in primitive.coordinates:
-            if x in connection or x in attempted:
-                continue
-            if x.name in generalized:
-                connection[x] = x  # identity maps may be written short
-            else:
-                owner = next(p.name for p in primitive.parts if x in p.coordinates)
-                if any(near_names(key, [x.name, f"{owner}.{x.name}"]) for key in unknown_keys):
-                    continue  # the misspelt key reported above was meant for it: one typo, one error
-                self.error(node.location if node is not None else self.locations[f"component:{owner}"],
-                           f"primitive coordinate '{owner}.{x}' is not connected",
-                           f"add `{x}: <expression in {', '.join(generalized)}>` under `connection:`, "
-                           "or name it like a generalized coordinate for an identity map")
-        used = free_symbols_of(connection.values())
-        if attempted - set(connection) or unknown_keys or self.failed_components or not coords:
-            return connection  # after another error this check would only mislead
-        for q in coords:
-            if q not in used:
-                self.error(self.locations.get("coordinates", self.root.location),
-                           f"generalized coordinate '{q}' does not appear in the connection",
-                           "every generalized coordinate must move some primitive coordinate")
-        return connection
-
-    def parameter_names(self) -> dict[str, sympy.Symbol]:
-        return {k: v.symbol for k, v in self.parameters.items()}
-
-    # ------------------------------------------------------ pivots, constraints
-    def _pivoted(self, cname: str, cls, spec: Node, params: dict, names: list[str], extra: dict) -> Part | None:
-        """A pinned part hanging from a moving point: in the primitive a free rod whose centre and
-        axis the connection ties to the pivot point and the part's own angle (Kron's way)."""
-        from ..components.planar import PinnedRod, Rod
-
-        pnode = spec.get("pivot")
-        if cls is not PinnedRod:
-            self.error(pnode, f"component '{cname}' ({cls.type_name}) takes no `pivot:`",
-                       "only a pinned_rod hangs from a point")
-            return None
-        given = spec.get("parameters")
-        for key in ("pivot_x", "pivot_y"):
-            if given is not None and given.is_mapping and key in given.value:
-                self.error(given.key_locations[key], f"component '{cname}' has `pivot:`; `{key}` is not used",
-                           f"remove `{key}`")
-                return None
-        if not isinstance(pnode.value, str):
-            self.error(pnode, f"`pivot:` of '{cname}' must name a point, e.g. `pivot: cart.centre`",
-                       "a moving point `component.point`; a fixed pivot is `pivot_x`, `pivot_y`")
-            return None
-        hidden = {local: symbol(f"{cname}_{local if local != 'angle' else 'axis'}") for local in Rod.coordinates}
-        rod = Rod(x=hidden, p={"mass": params["mass"], "length": params["length"], "inertia": params["inertia"]},
-                  extra_points=extra)
-        part = part_from_component(cname, rod)
-        pts = dict(part.points)
-        points = {"pivot": pts.pop("a"), "centre": pts.pop("centre"), "tip": pts.pop("b"), **pts}
-        import dataclasses
-
-        angle = symbol(names[0])
-        self.pivots.append((cname, pnode, angle, params["length"], hidden))
-        return dataclasses.replace(part, points=points)
-
-    def _pivot_angles(self, node: Node | None, y) -> None:
-        """A pivoted part's angle is a coordinate of the subspace (``y``; without constraints a
-        generalized coordinate): its connection lines are written in it. Left out, it would be a
-        frozen symbol; given by the connection, it is no primitive coordinate."""
-        entries = node.value if node is not None and node.is_mapping else {}
-        for cname, pnode, angle, _, _ in self.pivots:
-            hint = (f"list '{angle}' under `coordinates:`; for an angle given by other coordinates "
-                    f"(a relative angle), make '{cname}' a `rod` with `axis: down` and connect its x, y and angle")
-            if angle.name in entries:
-                self.error(node.key_locations[angle.name], f"'{angle}' is the angle of '{cname}', which hangs "
-                           f"from `pivot: {pnode.value}`: the pivot sets its place from that angle, which cannot "
-                           "itself be connected", hint)
-            elif angle not in y:
-                self.error(pnode, f"the angle '{angle}' of '{cname}' (hung from `pivot: {pnode.value}`) is not a "
-                           "generalized coordinate", hint)
-
-    def _pivot_connection(self, primitive: Primitive) -> None:
-        """Connection lines of the pivoted parts: centre = pivot + L/2 (sin a, -cos a), axis = a - pi/2."""
-        points = primitive.points()
-        for cname, pnode, angle, length, hidden in self.pivots:
-            label = pnode.value
-            if label not in points or label.startswith(f"{cname}."):
-                self.error(pnode, f"unknown pivot point '{label}' of '{cname}'",
-                           close_matches(label, [p for p in points if not p.startswith(f"{cname}.")]))
-                continue
-            pos = tuple(points[label])
-            if len(pos) > 2:
-                self.error(pnode, f"pivot '{label}' of '{cname}' is a point in space", "a pinned_rod is planar")
-                continue
-            px, py = in_world(pos, 2)
-            half = length / 2
-            self.auto_connection[hidden["x"]] = (px + half * sympy.sin(angle), pnode.location)
-            self.auto_connection[hidden["y"]] = (py - half * sympy.cos(angle), pnode.location)
-            self.auto_connection[hidden["angle"]] = (angle - sympy.pi / 2, pnode.location)
-
-    def _intermediate(self, node: Node | None, primitive: Primitive, coords) -> tuple[sympy.Symbol, ...]:
-        """The coordinates ``y`` the constraints act on: the primitive coordinates not given by
-        the connection (nor by a pivot), the pivoted parts' angles, then any other listed ones."""
-        connected = set(self.auto_connection)
-        for key in self.mapping(node, "connection", "write one `primitive_coordinate: expression` per line"):
-            if key in self.primitive_names:
-                connected.add(self.primitive_names[key])
-        y = [x for x in primitive.coordinates if x not in connected]
-        for _, _, angle, _, _ in self.pivots:
-            if angle not in y:
-                y.append(angle)
-        for q in coords:
-            if q not in y:
-                y.append(q)
-        for q in y:
-            self.names.setdefault(q.name, q)
-        return tuple(y)
-
-    def _implicit(self, node: Node, constraints, connection, y, coords, auto: bool, initial) -> ImplicitSpec | None:
-        """Constraints in ``y``, the dependent coordinates and the branch (25)-(27)."""
-        where = self.root.key_locations.get("constraints") or self.root.key_locations["components"]
-        if not constraints:
-            self.error(where, "`constraints:` is empty", "remove it, or write `name: expression` (= 0)")
-            return None
-        in_y = tuple(Constraint(c.name, sympy.sympify(c.expression).xreplace(connection), c.source)
-                     for c in constraints)
-        for c in in_y:
-            if not (free_symbols_of([c.expression]) & set(y)):
-                self.error(self.locations.get(f"constraint:{c.name.split('.')[0]}", where),
-                           f"constraint '{c.name}' does not involve any coordinate after the connection",
-                           "a constraint on connected coordinates only is already satisfied or never")
-                return None
-        for q in coords:
-            if q not in y:
-                self.error(self.locations.get("coordinates", where),
-                           f"independent coordinate '{q}' is not a coordinate of the constrained system",
-                           "choose among " + ", ".join(s.name for s in y))
-                return None
-        # the branch of a constrained known system is the first guess of its dependent coordinates
-        guesses = {q: v for part in self.parts for q, v in part.branch.items() if q in set(y)}
-        guesses.update(initial)
-        result = analyse(self, in_y, y, tuple(coords), auto, guesses, where)
-        if result is None:
-            return None
-        independent, dependent, branch, closed, point = result
-        return ImplicitSpec(intermediate=tuple(y), independent=tuple(independent), dependent=tuple(dependent),
-                            constraints=in_y, branch=branch, closed_form=closed,
-                            choice="auto" if auto else "given", configuration=tuple(point.items()))
-
-    # -------------------------------------------------------------- effects
+    # ------------------------------------------------------------- effects
     def _effects(self, node: Node | None, primitive: Primitive, coords):
         """The effects, written in the primitive coordinates or in the subspace's ``coords``
         (those are applied directly in the subspace: core/subspace.py)."""
@@ -996,119 +387,5 @@ class _Loader:
                 effects.append(effect)
         return effects
 
-    def _initial(self, node: Node | None, coords):
-        initial: dict[sympy.Symbol, sympy.Expr] = {}
-        allowed = {q.name: q for q in coords}
-        allowed.update({velocity_symbol(q).name: velocity_symbol(q) for q in coords})
-        for key, vnode in self.mapping(node, "initial", "write `initial: {theta: 0.1, theta_dot: 0}`").items():
-            if key not in allowed and self.is_broken(key):
-                continue
-            if key not in allowed:
-                self.error(node.key_locations[key], f"'{key}' is not a coordinate or velocity of this model",
-                           close_matches(key, allowed))
-                continue
-            value = self.expr(vnode, self.parameter_names(), what=f"initial value of '{key}'")
-            if value is not None:
-                initial[allowed[key]] = value
-        return initial
 
-
-def _inertial_parameters(system: KnownSystem) -> set[str]:
-    """Names of a known system's parameters in its metric, velocity terms, points or bodies
-    (those an override in ``t`` would move without their inertial terms); the others enter its
-    effects alone."""
-    imp = system.implicit
-    exprs = [imp.metric, imp.velocity_terms] if imp is not None else [system.mass_matrix, system.velocity_terms]
-    exprs += [c for pos in system.points.values() for c in pos]
-    for b in system.bodies:
-        exprs += [b.mass, *b.centre] + [m for m in (b.rotation, b.inertia) if m is not None]
-    used = free_symbols_of(exprs)
-    return {p.name for p in system.parameters if p.symbol in used}
-
-
-def known_system_part(name: str, system: KnownSystem, overrides: dict, renames: dict[str, str]) -> Part:
-    """A derived system placed as a component: parameters overridden, coordinates renamed.
-
-    A constrained system (``implicit``) is placed on its coordinates ``y`` before the
-    constraints, with the metric, velocity terms and forces it carries there, and it brings
-    its constraints ``g(y) = 0`` and their branch along: the model using it adds them to its
-    own, so its subspace is the one-step projection of the group property (13) whatever
-    else it connects or constrains (and the dependent coordinates' points stay usable)."""
-    imp = system.implicit
-    if imp is not None:
-        coordinates, metric, velocity_terms = tuple(imp.intermediate), imp.metric, imp.velocity_terms
-        forces = dict(imp.effect_forces)
-        constraints, branch = tuple(imp.constraints), dict(imp.branch)
-    else:
-        coordinates, metric, velocity_terms = tuple(system.coordinates), system.mass_matrix, system.velocity_terms
-        forces, constraints, branch = dict(system.effect_forces), (), {}
-    sub = dict(overrides)
-    for q in coordinates:
-        new = symbol(renames.get(q.name, q.name))
-        sub[q] = new
-        sub[velocity_symbol(q)] = velocity_symbol(new)
-
-    sub = {k: v for k, v in sub.items() if k != v}
-    if not sub:
-        return Part(name, coordinates, metric, velocity_terms, dict(system.points), tuple(system.bodies),
-                    system.dimension, forces, system.potential_energy, "", dict(system.effect_potentials),
-                    tuple(Constraint(f"{name}.{c.name}", c.expression, c.source) for c in constraints), branch,
-                    dict(system.effect_translations),
-                    assembled_potential=(coordinates, canonical.total(system.effect_potentials.values()),
-                                         system.potential_energy))
-
-    def s(e):
-        return sympy.sympify(e).xreplace(sub)
-
-    bodies = tuple(dataclasses.replace(b, mass=s(b.mass), centre=tuple(s(c) for c in b.centre),
-                                       rotation=b.rotation.xreplace(sub) if b.rotation is not None else None,
-                                       inertia=b.inertia.xreplace(sub) if b.inertia is not None else None)
-                   for b in system.bodies)
-    return Part(
-        name=name,
-        coordinates=tuple(sub.get(q, q) for q in coordinates),
-        metric=metric.xreplace(sub),
-        velocity_terms=velocity_terms.xreplace(sub),
-        points={label: tuple(s(c) for c in pos) for label, pos in system.points.items()},
-        bodies=bodies,
-        dimension=system.dimension,
-        forces={label: f.xreplace(sub) for label, f in forces.items()},
-        potential=s(system.potential_energy),
-        type_name="",
-        potentials={label: s(v) for label, v in system.effect_potentials.items()},
-        constraints=tuple(Constraint(f"{name}.{c.name}", s(c.expression), c.source) for c in constraints),
-        branch={sub.get(q, q): v for q, v in branch.items()},
-        translations={label: tuple(s(c) for c in grad) for label, grad in system.effect_translations.items()},
-    )
-
-
-def placed(part: Part, origin) -> Part:
-    """A known system moved (not turned) to ``origin``: its points and mass centres shift; its
-    metric, velocity terms and forces do not change (a translation is an isometry), nor does the
-    potential of anything that moves with it (its springs and anchors); its own gravity's
-    potential changes by ``dV/do . origin`` (``Effect.translation``), a constant."""
-
-    def shift(pos):
-        return tuple(sympy.sympify(c) + o for c, o in zip(pos, origin))
-
-    potentials, changes = dict(part.potentials), []
-    for label, grad in part.translations.items():
-        changes.append(sympy.Add(*[g * o for g, o in zip(grad, origin)]))
-        potentials[label] = sympy.expand(potentials.get(label, sympy.Integer(0)) + changes[-1])
-    bodies = tuple(dataclasses.replace(b, centre=shift(b.centre)) for b in part.bodies)
-    return dataclasses.replace(part, points={k: shift(v) for k, v in part.points.items()}, bodies=bodies,
-                               potentials=potentials, potential=sympy.expand(part.potential + sympy.Add(*changes)))
-
-
-def _kind(node: Node) -> str:
-    if node.is_mapping:
-        return "a mapping"
-    if node.is_sequence:
-        return "a list"
-    if node.value is None:
-        return "nothing"
-    return f"'{excerpt(node.text if node.text is not None else str(node.value))}'"
-
-
-__all__ = ["IDENTIFIER", "MAX_MODEL_DEPTH", "OUTPUT_COLUMNS", "RESERVED", "TOP_LEVEL", "derivation_text",
-           "known_system_part", "load_model", "looks_like_model", "model_key", "placed"]
+__all__ = ["ModelLoader", "load_model"]

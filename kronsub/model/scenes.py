@@ -21,8 +21,10 @@ from ..core.subspace import effect_labels
 from ..core.symbols import symbol
 from ..errors import ModelError, Problem, close_matches
 from .derive import derive_model
+from .initial import read_initial
 from .requirements import parameters_in, unmet
 from .schema import scene_methods
+from .reader import ModelReader
 from .source import Node
 
 KEYS = ("description", "effects", "without", "parameters", "initial", "t_end", "dt", "method", "outputs")
@@ -55,7 +57,7 @@ class Scene:
 
 
 # ------------------------------------------------------------------------------------ reading
-def build_scenes(loader, node: Node | None, declared_effects, primitive, coords) -> tuple[Scene, ...]:
+def build_scenes(loader: ModelReader, node: Node | None, declared_effects, primitive, coords) -> tuple[Scene, ...]:
     """Read ``scenes:``; problems go to the loader. ``declared_effects`` are the names under
     ``effects:``; a known system's own effects are named ``part.effect``."""
     labels = [label for label in effect_labels(primitive, ()) if "." in label] + list(declared_effects)
@@ -78,7 +80,7 @@ def build_scenes(loader, node: Node | None, declared_effects, primitive, coords)
     return tuple(scenes)
 
 
-def _scene(loader, sname: str, spec: Node, labels, points, coords) -> Scene | None:
+def _scene(loader: ModelReader, sname: str, spec: Node, labels, points, coords) -> Scene | None:
     on, off = spec.get("effects"), spec.get("without")
     if on is not None and off is not None:
         loader.error(spec.key_locations["without"], f"scene '{sname}' has both `effects:` and `without:`",
@@ -104,7 +106,7 @@ def _scene(loader, sname: str, spec: Node, labels, points, coords) -> Scene | No
         if value is not None:
             parameters[pname] = value
     _check_values(loader, pnode, parameters)
-    initial = loader._initial(spec.get("initial"), coords)
+    initial = read_initial(loader, spec.get("initial"), coords)
     t_end = _positive(loader, spec.get("t_end"), f"`t_end:` of scene '{sname}'")
     dt = _positive(loader, spec.get("dt"), f"`dt:` of scene '{sname}'")
     method = _method(loader, spec.get("method"), sname)
@@ -112,7 +114,7 @@ def _scene(loader, sname: str, spec: Node, labels, points, coords) -> Scene | No
     return Scene(
         name=sname,
         effects=tuple(label for label in labels if label in chosen),
-        description=loader._string(spec.get("description"), ""),
+        description=loader.string(spec.get("description"), ""),
         parameters=parameters,
         initial=initial,
         t_end=t_end,
@@ -122,7 +124,7 @@ def _scene(loader, sname: str, spec: Node, labels, points, coords) -> Scene | No
     )
 
 
-def _check_values(loader, pnode: Node | None, parameters: dict) -> None:
+def _check_values(loader: ModelReader, pnode: Node | None, parameters: dict) -> None:
     """The components' requirements on the values a scene sets (:mod:`.requirements`), each
     problem at the scene's value."""
     if not parameters:
@@ -134,7 +136,7 @@ def _check_values(loader, pnode: Node | None, parameters: dict) -> None:
         loader.problems.add(problem.location, problem.message, problem.hint)
 
 
-def _names(loader, node: Node, valid, what: str, kind: str) -> list[str] | None:
+def _names(loader: ModelReader, node: Node, valid, what: str, kind: str) -> list[str] | None:
     """A list of names, each one of ``valid`` (an unknown name lists the valid ones)."""
     if node.value is None:
         return []
@@ -156,7 +158,7 @@ def _names(loader, node: Node, valid, what: str, kind: str) -> list[str] | None:
     return names if ok else None
 
 
-def _positive(loader, node: Node | None, what: str) -> float | None:
+def _positive(loader: ModelReader, node: Node | None, what: str) -> float | None:
     if node is None:
         return None
     value = loader.expr(node, {}, what=what)
@@ -168,7 +170,7 @@ def _positive(loader, node: Node | None, what: str) -> float | None:
     return float(value)
 
 
-def _method(loader, node: Node | None, sname: str) -> str | None:
+def _method(loader: ModelReader, node: Node | None, sname: str) -> str | None:
     if node is None:
         return None
     methods = scene_methods()
@@ -179,7 +181,7 @@ def _method(loader, node: Node | None, sname: str) -> str | None:
     return node.value
 
 
-def _outputs(loader, node: Node | None, points, sname: str) -> Outputs:
+def _outputs(loader: ModelReader, node: Node | None, points, sname: str) -> Outputs:
     """``outputs: [coordinates, velocities, energies, points | <named point>...]``."""
     if node is None:
         return Outputs(points=())
