@@ -14,6 +14,7 @@ import pytest
 import sympy as sp
 from click.testing import CliRunner
 
+from kronsub.api import System
 import kronsub
 from helpers.compare import compare_energies, compare_explicit, TOL, worst
 from kronsub.cli import main
@@ -34,7 +35,7 @@ def test_two_cart_pendulums_scene_switches_off_nested_effects():
     off = {sp.Symbol(n): 0 for n in ("c", "cp", "cc", "P", "Q")}
     fixed = lambda rng: {"x1": rng.uniform(0, 0.5), "x2": rng.uniform(0, 0.5)}  # noqa: E731
     assert compare_explicit(system, (M, h, f.subs(off)), 45, fixed=fixed) < TOL
-    run = dataclasses.replace(system, initial=dict(model.initial)).simulate(t=2.0, dt=0.5, dataframe=False)
+    run = System.of(dataclasses.replace(system, initial=dict(model.initial))).simulate(t=2.0, dt=0.5, dataframe=False)
     energy = run["total_energy"]
     assert run.complete and np.ptp(energy) < 1e-8 * max(1.0, np.max(np.abs(energy)))
 
@@ -47,7 +48,7 @@ def test_kepler_scene_keeps_energy_and_angular_momentum():
     system = derive_scene(model, select_scene(model, "kepler"))
     fixed = lambda rng: {"r": rng.uniform(0.3, 2)}  # noqa: E731
     assert compare_explicit(system, lagrange(T, V, q, [0, 0]), 55, fixed=fixed) < TOL
-    run = dataclasses.replace(system, initial=dict(model.initial)).simulate(t=10.0, dt=0.5, dataframe=False)
+    run = System.of(dataclasses.replace(system, initial=dict(model.initial))).simulate(t=10.0, dt=0.5, dataframe=False)
     assert run.complete
     energy = run["total_energy"]
     assert np.ptp(energy) < 1e-8 * max(1.0, np.max(np.abs(energy)))
@@ -69,7 +70,7 @@ def test_known_system_under_scenes():
     assert not names & {"cr", "tm"}, names
     assert next(p for p in cons.parameters if p.name == "kt").value == sp.Rational(5, 2)
     assert compare_explicit(cons, (M, h, gradient_force(V, q)), 59) < TOL
-    run = dataclasses.replace(cons, initial=dict(model.initial)).simulate(t=3.0, dt=0.5, dataframe=False)
+    run = System.of(dataclasses.replace(cons, initial=dict(model.initial))).simulate(t=3.0, dt=0.5, dataframe=False)
     energy = run["total_energy"]
     assert run.complete and np.ptp(energy) < 1e-8 * max(1.0, np.max(np.abs(energy)))
     bare = derive_scene(model, select_scene(model, "bare"))  # the shaft and the known system's gravity
