@@ -10,7 +10,7 @@ import pytest
 import sympy
 
 from conftest import MODELS
-from kronsub.core.numeric_jacobian import affine, jacobian
+from kronsub.core.numeric_jacobian import jacobian
 
 sys.path.insert(0, str(MODELS / "chain"))
 from generate import chain_yaml  # noqa: E402
@@ -55,11 +55,6 @@ def test_numeric_jacobian_outside_the_domain_raises():
         jacobian([1 / q1], [q1], {q1: 1e-300})
     with pytest.raises(TypeError):  # a complex value
         jacobian([sympy.Piecewise((sympy.sqrt(q1 - 1), q1 < 1), (q1, True))], [q1], {q1: 0.5})
-
-
-def test_affine():
-    assert affine(2 * (q1 + q2) + l, [q1, q2]) and affine(q1 - sympy.pi / 2, [q1])
-    assert not affine(l * q1, [q1]) and not affine(q1 * q2, [q1, q2]) and not affine(sympy.sin(q1), [q1])
 
 
 def test_the_jacobian_is_charged_to_the_work_budget():

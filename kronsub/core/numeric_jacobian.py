@@ -139,25 +139,3 @@ def _float(value) -> float:
 def _add_into(grad: dict, other: dict, factor: float) -> None:
     for j, d in other.items():
         grad[j] = grad.get(j, 0.0) + factor * d
-
-
-def affine(expr: sympy.Expr, coordinates) -> bool:
-    """Whether ``expr`` is a sum of numbers times coordinates and terms free of them
-    (its Jacobian is a constant)."""
-    coordinates, seen = set(coordinates), set()
-    stack = [sympy.sympify(expr)]
-    while stack:
-        node = stack.pop()
-        if node in seen or node in coordinates or not (node.free_symbols & coordinates):
-            continue
-        seen.add(node)
-        if node.is_Add:
-            stack.extend(node.args)
-        elif node.is_Mul:
-            moving = [a for a in node.args if a.free_symbols & coordinates]
-            if len(moving) != 1 or not all(a.is_number for a in node.args if a is not moving[0]):
-                return False
-            stack.append(moving[0])
-        else:
-            return False
-    return True

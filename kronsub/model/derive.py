@@ -253,20 +253,6 @@ _PIECEWISE = (sympy.Abs, sympy.sign, sympy.Heaviside, sympy.DiracDelta, sympy.Pi
 says nothing of another."""
 
 
-def _piecewise_in(positions, coords: set) -> bool:
-    """Whether a `_PIECEWISE` function of the coordinates is in ``positions`` (each distinct
-    subexpression looked at once)."""
-    seen, stack = set(), list(positions)
-    while stack:
-        node = stack.pop()
-        if node not in seen:
-            seen.add(node)
-            if isinstance(node, _PIECEWISE) and node.free_symbols & coords:
-                return True
-            stack.extend(node.args)
-    return False
-
-
 def _sample_rank(model, f, symbols, samples: int, constant: bool, analytic: bool = False) -> None:
     """Warn at the first of ``samples`` random configurations where ``f(q, p)`` (``C``) has
     rank below the number of coordinates.
