@@ -110,7 +110,7 @@ def order_for(tol: float) -> int:
     Zou's ``ln(1/tol) / 2 + 1``, the optimum when a step costs ``N^2``, raised by 3 or 4 to an even
     order. The generated step costs about ``a + b N`` (the older products are summed lane by
     lane, off the chain from order to order), which favours a higher order with longer steps;
-    odd orders measured slower at equal error (``benchmarks/README.md``)."""
+    odd orders measured slower at equal error (``benchmarks/HISTORY.md``)."""
     if not (tol > 0 and math.isfinite(tol)):
         raise ValueError(f"the tolerance must be a positive number (got {tol!r})")
     return min(MAX_ORDER, max(MIN_ORDER, 2 * math.ceil(-0.25 * math.log(tol)) + 4))

@@ -29,7 +29,7 @@ def energy_advice(native, param, nq: int, method: str, t0: float, y0, E0: float,
     """A warning when the energy changed by more than ``ENERGY_DRIFT_SHARE`` of its scale over a
     run of a model that conserves it (else ""): a run that went wrong without failing, such as
     heyoka's step fooled by a Taylor series with gaps (a motion from rest at a symmetric
-    position, benchmarks/README.md). The scale is the energy the motion exchanges, its largest
+    position, benchmarks/HISTORY.md). The scale is the energy the motion exchanges, its largest
     kinetic energy, not ``|E|``, which an offset of the potential can make as large as it likes;
     ``ENERGY_FLOOR_SHARE |E|`` below it."""
     scale = max(T_max, ENERGY_FLOOR_SHARE * abs(E0))
