@@ -9,8 +9,10 @@ bring the code generators and their templates, which deriving alone never needs.
 from __future__ import annotations
 
 import dataclasses
+import re
 import warnings
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Callable, Mapping, Sequence
 
 import numpy as np
@@ -24,6 +26,7 @@ from .errors import KronsubError, Location, ModelError, Problem, near_names
 from .model.expressions import parse_expression
 from .model.loader import load_model
 from .model.model import Model
+from .model.scenes import derive_scene, scene_system, select_scene
 from .model.requirements import parameters_in, unmet
 
 
@@ -32,9 +35,15 @@ class UnknownName(KronsubError):
 
 
 def names(system: KnownSystem) -> dict[str, sympy.Symbol]:
-    """Every name of the system: coordinates, velocities, accelerations, parameters, ``t``."""
+    """Every name a printed equation of the system uses: coordinates, velocities,
+    accelerations, parameters, ``t`` and, for a closed loop, the dependent coordinates and the
+    named intermediates ``lambda_...``, ``gamma_...`` (26)-(29) with their printed closed forms."""
     out = {"t": TIME}
-    for group in (system.coordinates, system.velocities, system.accelerations):
+    groups = [system.coordinates, system.velocities, system.accelerations]
+    imp = system.implicit
+    if imp is not None:
+        groups += [imp.intermediate, imp.intermediates, [name for name, _ in imp.definitions]]
+    for group in groups:
         out.update({s.name: s for s in group})
     out.update({p.name: p.symbol for p in system.parameters})
     return out
@@ -42,7 +51,13 @@ def names(system: KnownSystem) -> dict[str, sympy.Symbol]:
 
 def symbol(system: KnownSystem, name: str) -> sympy.Symbol:
     """The system's own symbol called ``name`` (they are ``real=True``: a plain
-    ``sympy.Symbol(name)`` is a different symbol)."""
+    ``sympy.Symbol(name)`` is a different symbol).
+
+    >>> system = load("models/hoffmann/system1.yaml").derive(scene="pushed")
+    >>> theta = system.symbol("theta")
+    >>> theta in system.mass_matrix.free_symbols, theta.is_real
+    (True, True)
+    """
     known = names(system)
     if name not in known:
         near = near_names(name, sorted(known))
@@ -139,7 +154,13 @@ def linearize(system: KnownSystem, at: Mapping[str, object] | None = None, input
 
 @dataclass(frozen=True)
 class Run:
-    """A simulated trajectory as arrays: ``t``, ``y = [q; qdot]`` per row, energies."""
+    """A simulated trajectory: what ``kronsub simulate`` writes, as arrays.
+
+    ``table`` holds the CSV's rows (its first column ``t``) under the CSV's header
+    ``table_columns`` (coordinates, velocities, energies, the dependent coordinates of a closed
+    loop, points and reactions when asked for); ``metadata`` is what ``--meta`` writes.
+    ``y = [q; qdot]`` per row with ``columns`` its names; ``notes`` the corrections the
+    projection onto the constraints made to the initial values."""
 
     t: np.ndarray
     y: np.ndarray
@@ -149,6 +170,10 @@ class Run:
     complete: bool
     message: str
     parameters: dict[str, float]
+    table_columns: tuple[str, ...] = ()
+    table: np.ndarray | None = None
+    metadata: dict = dataclasses.field(default_factory=dict)
+    notes: tuple[str, ...] = ()
 
     @property
     def q(self) -> np.ndarray:
@@ -158,31 +183,39 @@ class Run:
     def qdot(self) -> np.ndarray:
         return self.y[:, self.y.shape[1] // 2:]
 
+    def _extra(self) -> dict[str, np.ndarray]:
+        return {"kinetic_energy": self.kinetic_energy, "potential_energy": self.potential_energy,
+                "total_energy": self.kinetic_energy + self.potential_energy}
+
     def __getitem__(self, name: str) -> np.ndarray:
-        """A column by name: ``run["theta"]``, ``run["t"]``, ``run["total_energy"]``."""
+        """A column by name: ``run["theta"]``, ``run["t"]``, ``run["total_energy"]``, any column
+        of the CSV."""
         if name == "t":
             return self.t
         if name in self.columns:
             return self.y[:, self.columns.index(name)]
-        extra = {"kinetic_energy": self.kinetic_energy, "potential_energy": self.potential_energy,
-                 "total_energy": self.kinetic_energy + self.potential_energy}
+        if name in self.table_columns:
+            return self.table[:, self.table_columns.index(name)]
+        extra = self._extra()
         if name in extra:
             return extra[name]
-        raise KeyError(f"no column '{name}'; columns: t, {', '.join(self.columns)}, {', '.join(extra)}")
+        known = dict.fromkeys((*self.columns, *self.table_columns[1:], *extra))
+        raise KeyError(f"no column '{name}'; columns: t, {', '.join(known)}")
 
     def to_dataframe(self):
-        """A pandas DataFrame indexed by ``t`` (pandas is optional: ImportError without it)."""
+        """A pandas DataFrame indexed by ``t``: the CSV's columns, and the energies when the
+        scene left them out of it (pandas is optional: ImportError without it)."""
         import pandas
 
-        data = {name: self.y[:, i] for i, name in enumerate(self.columns)}
-        data.update(kinetic_energy=self.kinetic_energy, potential_energy=self.potential_energy,
-                    total_energy=self.kinetic_energy + self.potential_energy)
+        data = {name: self.table[:, i] for i, name in enumerate(self.table_columns) if i} \
+            if self.table is not None else {name: self.y[:, i] for i, name in enumerate(self.columns)}
+        for name, values in self._extra().items():
+            data.setdefault(name, values)
         return pandas.DataFrame(data, index=pandas.Index(self.t, name="t"))
 
 
-def _run_values(system: KnownSystem, settings: Mapping[str, object] | None):
-    from .simulation.values import resolve
-
+def _settings(settings: Mapping[str, object] | None) -> dict[str, str]:
+    """``set=`` values as the text ``--set`` takes: numbers, or expressions as text."""
     text = {}
     for name, value in (settings or {}).items():
         if isinstance(value, bool) or not isinstance(value, (str, int, float, np.integer, np.floating)):
@@ -191,26 +224,83 @@ def _run_values(system: KnownSystem, settings: Mapping[str, object] | None):
         if not isinstance(value, str) and not np.isfinite(value):
             raise ModelError([Problem(None, f"set {name}: {value!r} is not a finite number")])
         text[name] = value if isinstance(value, str) else repr(float(value))
-    return resolve(system, dict(system.initial), text)
+    return text
 
 
-def simulate(system: KnownSystem, t: float = 10.0, dt: float = 0.01, method: str = "dop853",
-             set: Mapping[str, object] | None = None, rtol: float = 1e-10, atol: float = 1e-10,
-             dataframe: bool | None = None):
-    """Integrate from the model's initial values (``set`` overrides parameters and the
-    initial state by name) to ``t``, rows every ``dt``: the arrays of a :class:`Run`, or
-    its pandas DataFrame when ``dataframe`` is true (default: when pandas is installed)."""
+def scene_of(system: KnownSystem):
+    """The scene a :class:`System` was derived for (None: the whole model, or not known)."""
+    return getattr(system, "scene", None)
+
+
+def run_span(system: KnownSystem, t: float | None = None, dt: float | None = None, method: str | None = None,
+             defaults: tuple[float, float, str] = (10.0, 0.01, "dop853")) -> tuple[float, float, str]:
+    """``(t_end, dt, method)`` of a run: each one given, else the scene's, else ``defaults``."""
+    scene = scene_of(system)
+
+    def pick(given, own, default):
+        if given is not None:
+            return given
+        return own if own is not None else default
+
+    return (pick(t, scene and scene.t_end, defaults[0]), pick(dt, scene and scene.dt, defaults[1]),
+            pick(method, scene and scene.method, defaults[2]))
+
+
+def _trajectory(system: KnownSystem, t, dt, method, set, rtol, atol, outputs=None):
+    """The run of ``simulate`` and ``animate``: from :func:`~.simulation.start.starting_values`."""
+    from .simulation.constrained import newton_tolerance
+    from .simulation.run import check_tolerances, explicit_only
     from .simulation.run import simulate as run
-    from .simulation.table import energies
+    from .simulation.start import starting_values
 
-    values = _run_values(system, set)
-    traj = run(system, values, t, dt, method, rtol, atol, progress=False)
+    check_tolerances(rtol, atol)
+    explicit_only(system, method)
+    begin = starting_values(system, _settings(set), tolerance=newton_tolerance(rtol, atol))
+    traj = run(system, begin.values, t, dt, method, rtol, atol, progress=False, outputs=outputs,
+               constrained=begin.constrained)
     if not traj.complete:
         warnings.warn(f"the run stopped at t = {traj.t_fail:.6g}: {traj.message}; the rows so far are kept")
-    T, V = energies(system, traj, np.array(values.parameters))
+    return begin, traj
+
+
+def simulate(system: KnownSystem, t: float | None = None, dt: float | None = None, method: str | None = None,
+             set: Mapping[str, object] | None = None, rtol: float = 1e-10, atol: float = 1e-10,
+             dataframe: bool | None = None, *, points: bool = False, reactions: bool = False):
+    """Integrate from the model's initial values (a scene's over them; ``set`` overrides
+    parameters and the initial state by name; a closed loop's projected onto its
+    constraints) to ``t``, rows every ``dt`` (default: the scene's, else 10 and 0.01), as
+    ``kronsub simulate`` does: a :class:`Run`, or its pandas DataFrame when ``dataframe`` is
+    true (default: when pandas is installed). ``points`` adds the named points' positions,
+    ``reactions`` the workless reactions (viewpoint (alpha)).
+
+    >>> system = load("models/hoffmann/system1.yaml").derive(scene="free")
+    >>> run = system.simulate(t=0.1, dt=0.05, set={"theta": 0.2}, dataframe=False)
+    >>> run.table_columns[:3], run["theta"][0]
+    (('t', 'theta', 'phi'), 0.2)
+    >>> run.metadata["scene"], run.metadata["status"]
+    ('free', 'complete')
+    """
+    from .simulation.fallback import numpy_module
+    from .simulation.reactions import reaction_columns
+    from .simulation.table import energies, trajectory_table
+
+    scene = scene_of(system)
+    t, dt, method = run_span(system, t, dt, method)
+    outputs = scene.outputs if scene is not None else None
+    begin, traj = _trajectory(system, t, dt, method, set, rtol, atol, outputs)
+    values = begin.values
+    param = np.array(values.parameters)
+    extra = reaction_columns(system, traj, param, numpy_module(system), begin.constrained) if reactions else None
+    model = getattr(system, "model", None)
+    table_columns, table, metadata = trajectory_table(
+        system, Path(model.path).as_posix() if model is not None else None, traj, values, rtol, atol, points, outputs, extra,
+        t_end=t, dt=dt, scene=scene.name if scene is not None else None,
+        source=model.source if model is not None else None, uses=model.uses if model is not None else ())
+    T, V = energies(system, traj, param)
     columns = tuple(s.name for s in system.coordinates) + tuple(s.name for s in system.velocities)
-    result = Run(traj.t, traj.y.reshape(len(traj.t), len(columns)), columns, T, V, traj.complete,
-                 traj.message, {p.name: v for p, v in zip(system.parameters, values.parameters)})
+    result = Run(traj.t, traj.y.reshape(len(traj.t), len(columns)), columns, T, V, traj.complete, traj.message,
+                 {p.name: v for p, v in zip(system.parameters, values.parameters)}, tuple(table_columns), table,
+                 metadata, begin.notes)
     if dataframe is None:
         try:
             import pandas  # noqa: F401
@@ -248,7 +338,9 @@ def numeric(system: KnownSystem, set: Mapping[str, object] | None = None) -> Num
     from .simulation.native import CompilerNotFound
     from .simulation.fallback import numpy_module
 
-    values = _run_values(system, set)
+    from .simulation.start import starting_values
+
+    values = starting_values(system, _settings(set)).values
     param = np.array(values.parameters, dtype=float)
     n = len(system.coordinates)
     module = numpy_module(system)  # mass matrix, forces, velocity terms (numpy)
@@ -309,6 +401,184 @@ def numeric(system: KnownSystem, set: Mapping[str, object] | None = None) -> Num
 
 
 # ------------------------------------------------------------------------------------------
+# Generated code, accuracy, animation, reactions: the commands' reach
+# ------------------------------------------------------------------------------------------
+
+C_IDENTIFIER = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
+ANIMATION_DEFAULTS = (5.0, 0.02, "dop853")  # t_end, dt, method of `animate` without a scene's
+
+
+def _model_file(system: KnownSystem) -> str | None:
+    model = getattr(system, "model", None)
+    return Path(model.path).as_posix() if model is not None else None
+
+
+def code_files(system: KnownSystem, stem: str, lang: str = "c", *, prefix: str = "ks", precision: str = "double",
+               source: str | None = None) -> list[tuple[str, str]]:
+    """``(file name, text)`` of the generated code (what ``kronsub codegen`` writes): C (header +
+    source, in ``precision``: double, long or quad) or a numpy module (``lang="python"``), with
+    the scene's outputs; ``source`` names the model file in the files' heads."""
+    from .emitters.code import LANGUAGES
+
+    if lang not in LANGUAGES:
+        raise KronsubError(f"unknown language '{lang}'; choose one of {', '.join(LANGUAGES)}")
+    if not C_IDENTIFIER.fullmatch(prefix):
+        raise KronsubError(f"prefix {prefix!r} is not a C identifier (letters, digits and _, not starting with a digit)")
+    if precision not in ("double", "long", "quad") or precision != "double" and lang != "c":
+        raise KronsubError(f"precision {precision!r}: double for every language, long or quad for C")
+    scene = scene_of(system)
+    outputs = scene.outputs if scene is not None else None
+    source = _model_file(system) or "" if source is None else source
+    files = []
+    for generated in LANGUAGES[lang](system, stem, source=source, prefix=prefix, outputs=outputs):
+        text = generated.text
+        if precision != "double":
+            from .simulation.extended import prelude, retype
+
+            text = prelude(precision) + retype(text, precision)
+        files.append((generated.name, text))
+    return files
+
+
+def codegen(system: KnownSystem, folder=".", lang: str = "c", *, name: str | None = None, prefix: str = "ks",
+            precision: str = "double") -> list[Path]:
+    """Write the generated code of ``system`` into ``folder`` (created when missing), as
+    ``kronsub codegen`` does; ``name`` is the stem of the files (default: the model file's).
+    The paths written, in order.
+
+    >>> import tempfile
+    >>> system = load("models/hoffmann/system1.yaml").derive(scene="free")
+    >>> with tempfile.TemporaryDirectory() as folder:
+    ...     [p.name for p in system.codegen(folder, "python")]
+    ['system1.py']
+    """
+    from .atomic import write_atomically
+
+    model = getattr(system, "model", None)
+    stem = name or (Path(model.path).stem if model is not None else "model")
+    folder = Path(folder)
+    files = code_files(system, stem, lang, prefix=prefix, precision=precision)
+    folder.mkdir(parents=True, exist_ok=True)
+    for file_name, text in files:
+        write_atomically(folder / file_name, text)
+    return [folder / file_name for file_name, _ in files]
+
+
+@dataclass(frozen=True)
+class Accuracy:
+    """What ``kronsub accuracy`` measures: ``measurement`` (a
+    :class:`~kronsub.simulation.accuracy.WorkPrecision`: the reference and one point per method
+    and tolerance), with the table and metadata the command prints and writes."""
+
+    measurement: object
+    methods: tuple[str, ...]
+    tolerances: tuple[float, ...]
+    scene: str | None = None
+    model: Model | None = None
+    notes: tuple[str, ...] = ()  # corrections of the projection onto the constraints
+
+    def markdown(self, target: float | None = None) -> str:
+        """The table ``kronsub accuracy`` prints (``target``: name the cheapest point reaching it)."""
+        from .simulation import accuracy_report
+
+        return accuracy_report.markdown(self.measurement, target)
+
+    def to_csv(self) -> str:
+        """The CSV of ``--output``: one row per method and tolerance."""
+        from .simulation import accuracy_report
+
+        return accuracy_report.to_csv(self.measurement)
+
+    def metadata(self, target: float | None = None, csv: str | None = None) -> dict:
+        """The metadata of ``--meta``."""
+        from .simulation import accuracy_report
+
+        model = self.model
+        return accuracy_report.metadata(self.measurement, model_file=Path(model.path).as_posix() if model else None,
+                                        source=model.source if model else None, uses=model.uses if model else (),
+                                        scene=self.scene, methods=self.methods, tolerances=self.tolerances,
+                                        target=target, csv=csv)
+
+    def plot(self, path, target: float | None = None) -> None:
+        """The work-precision PNG of ``--plot`` (needs matplotlib)."""
+        from .simulation import accuracy_report
+
+        accuracy_report.plot(self.measurement, path, target)
+
+
+def accuracy_plan(methods="all", tolerances="1e-4:1e-14", *, quick: bool = False,
+                  precision: str = "double") -> tuple[tuple[str, ...], tuple[float, ...]]:
+    """The methods and tolerances of an accuracy experiment, read as ``--methods``,
+    ``--tolerances``, ``--quick`` and ``--precision`` are (text, or sequences)."""
+    from .simulation import accuracy as acc
+
+    chosen = acc.parse_methods(methods if isinstance(methods, str) else ",".join(methods))
+    if precision != "double" and f"gbs-{precision}" not in chosen:
+        chosen = chosen + (f"gbs-{precision}",)
+    grid = acc.parse_tolerances(tolerances) if isinstance(tolerances, str) else tuple(float(x) for x in tolerances)
+    return chosen, acc.quick_tolerances(grid) if quick else grid
+
+
+def accuracy(system: KnownSystem, t: float = 10.0, methods="all", tolerances="1e-4:1e-14", *, quick: bool = False,
+             digits: int | None = None, precision: str = "double", set: Mapping[str, object] | None = None) -> Accuracy:
+    """The experiment of ``kronsub accuracy``: each method at each tolerance run to ``t`` from
+    the model's initial values (``set`` overrides them), its error against a high-precision
+    reference and its time.
+
+    >>> system = load("models/hoffmann/system1.yaml").derive(scene="free")
+    >>> result = system.accuracy(t=0.2, methods="dop853", tolerances="1e-6", quick=True)
+    >>> [(p.method, p.setting) for p in result.measurement.points]
+    [('dop853', 1e-06)]
+    >>> print(result.markdown().splitlines()[0])  # doctest: +ELLIPSIS
+    # Accuracy ...
+    """
+    from .simulation import accuracy as acc
+    from .simulation.start import starting_values
+
+    chosen, grid = accuracy_plan(methods, tolerances, quick=quick, precision=precision)
+    begin = starting_values(system, _settings(set))  # Newton's tolerance 1e-14: the reference's
+    default_digits = 34 if "gbs-quad" in chosen else (16 if quick else 20)
+    wp = acc.measure(system, begin.values, t, chosen, grid, digits=digits or default_digits, quick=quick,
+                     dependent=begin.constrained.guess if begin.constrained is not None else None)
+    scene = scene_of(system)
+    return Accuracy(wp, chosen, grid, scene.name if scene is not None else None, getattr(system, "model", None),
+                    begin.notes)
+
+
+def _every_point(system: KnownSystem) -> KnownSystem:
+    """``system`` with every named point of its model (a scene keeps only those it asks for)."""
+    model, scene = getattr(system, "model", None), scene_of(system)
+    if model is None or scene is None or set(scene.outputs.points or ()) >= set(model.primitive.points()):
+        return system
+    chosen, whole = scene_system(model, scene.name, all_points=True)
+    return System.of(whole, model, chosen)
+
+
+def animate(system: KnownSystem, output, t: float | None = None, dt: float | None = None, method: str | None = None,
+            set: Mapping[str, object] | None = None, *, fps: int = 30, size: int = 480) -> int:
+    """Simulate as :func:`simulate` does (default span and step: the scene's, else 5 and 0.02)
+    and draw the mechanism over time into ``output``, a .gif (pillow) or .mp4 (ffmpeg), as
+    ``kronsub animate MODEL`` does; the number of frames (needs matplotlib)."""
+    from .simulation.animate import animate as draw
+    from .simulation.table import point_columns
+
+    t, dt, method = run_span(system, t, dt, method, ANIMATION_DEFAULTS)
+    drawn = _every_point(system)
+    begin, traj = _trajectory(drawn, t, dt, method, set, 1e-10, 1e-10)
+    names, values = point_columns(drawn, traj, np.array(begin.values.parameters))
+    return draw(traj.t, names, values, Path(output), fps=fps, size=size, title=drawn.name)
+
+
+def reactions(system: KnownSystem, fmt: str = "markdown") -> str:
+    """The text of ``kronsub derive --reactions``: the equations in ``fmt`` (markdown, latex,
+    json) with the workless reactions of viewpoint (alpha) as functions of the state."""
+    from .emitters import EMITTERS
+    from .emitters.reactions import with_reactions
+
+    return with_reactions(EMITTERS[fmt](system), system, fmt)
+
+
+# ------------------------------------------------------------------------------------------
 # Display in Jupyter
 # ------------------------------------------------------------------------------------------
 
@@ -341,19 +611,52 @@ class System(KnownSystem):
     display. The conveniences add no data: a ``System`` goes wherever a ``KnownSystem`` does."""
 
     @classmethod
-    def of(cls, known: KnownSystem) -> System:
-        """``known``'s data, with the notebook's conveniences."""
-        if isinstance(known, cls):
+    def of(cls, known: KnownSystem, model: Model | None = None, scene=None) -> System:
+        """``known``'s data, with the notebook's conveniences; ``model`` and ``scene`` say what
+        it was derived from (its runs take the scene's span, step, method and outputs, and
+        their metadata names the model file)."""
+        if isinstance(known, cls) and model is None and scene is None:
             return known
-        return cls(**{f.name: getattr(known, f.name) for f in dataclasses.fields(KnownSystem)})
+        system = cls(**{f.name: getattr(known, f.name) for f in dataclasses.fields(KnownSystem)})
+        object.__setattr__(system, "_origin", (model, scene))
+        return system
+
+    @property
+    def model(self) -> Model | None:
+        """The model this system was derived from (None when not known)."""
+        return getattr(self, "_origin", (None, None))[0]
+
+    @property
+    def scene(self):
+        """The :class:`~kronsub.model.scenes.Scene` this system was derived for (None: the
+        whole model)."""
+        return getattr(self, "_origin", (None, None))[1]
 
     def symbol(self, name: str) -> sympy.Symbol:
         """The system's symbol called ``name`` (kronsub's symbols are ``real=True``)."""
         return symbol(self, name)
 
-    def simulate(self, t: float = 10.0, dt: float = 0.01, method: str = "dop853", set=None, **options):
+    def simulate(self, t: float | None = None, dt: float | None = None, method: str | None = None, set=None,
+                 **options):
         """Simulate from the model's initial values; see :func:`simulate`."""
         return simulate(self, t, dt, method, set, **options)
+
+    def codegen(self, folder=".", lang: str = "c", **options) -> list[Path]:
+        """Write C (header + source) or a numpy module into ``folder``; see :func:`codegen`."""
+        return codegen(self, folder, lang, **options)
+
+    def accuracy(self, t: float = 10.0, methods="all", tolerances="1e-4:1e-14", **options) -> Accuracy:
+        """Error against a high-precision reference, per method and tolerance; see :func:`accuracy`."""
+        return accuracy(self, t, methods, tolerances, **options)
+
+    def animate(self, output, t: float | None = None, dt: float | None = None, method: str | None = None,
+                set=None, **options) -> int:
+        """Write a GIF or MP4 of a run; see :func:`animate`."""
+        return animate(self, output, t, dt, method, set, **options)
+
+    def reactions(self, fmt: str = "markdown") -> str:
+        """The derived equations with the workless reactions (viewpoint (alpha)); see :func:`reactions`."""
+        return reactions(self, fmt)
 
     def numeric(self, set=None) -> NumericSystem:
         """Compiled ``rhs``, ``mass_matrix``, energies...; see :func:`numeric`."""
@@ -374,9 +677,20 @@ class LoadedModel(Model):
     """A model as :func:`load` gives it: a :class:`~kronsub.model.model.Model` whose
     :meth:`derive` returns a :class:`System`."""
 
-    def derive(self, *, cache: bool = True) -> System:
-        """The equations of motion by projection onto the subspace (9'), (E), (F)."""
-        return System.of(super().derive(cache=cache))
+    def derive(self, *, scene: str | None = None, cache: bool = True) -> System:
+        """The equations of motion by projection onto the subspace (9'), (E), (F), of the
+        ``scene`` called so (default: the model's only scene if it has exactly one, else every
+        effect; the rule of ``--scene``). An unknown scene is a ``ModelError`` naming the valid ones.
+
+        >>> system = load("models/hoffmann/system1.yaml").derive(scene="free")
+        >>> system.name, [q.name for q in system.coordinates]
+        ('System I (scene free)', ['theta', 'phi'])
+        >>> sorted(system.effect_forces)
+        ['gravity']
+        """
+        chosen = select_scene(self, scene)
+        system = super().derive(cache=cache) if chosen is None else derive_scene(self, chosen, cache=cache)
+        return System.of(system, self, chosen)
 
 
 def load(path, *, text: str | None = None, cache: bool = True) -> LoadedModel:
@@ -385,5 +699,7 @@ def load(path, *, text: str | None = None, cache: bool = True) -> LoadedModel:
     return LoadedModel(**{f.name: getattr(model, f.name) for f in dataclasses.fields(Model)})
 
 
-__all__ = ["LoadedModel", "NumericSystem", "Run", "System", "UnknownName", "linearize", "load", "names", "numeric",
-           "repr_latex", "repr_markdown", "simulate", "split_assignments", "symbol"]
+__all__ = ["ANIMATION_DEFAULTS", "Accuracy", "C_IDENTIFIER", "LoadedModel", "NumericSystem", "Run", "System",
+           "UnknownName", "accuracy", "accuracy_plan", "animate", "code_files", "codegen", "linearize", "load", "names",
+           "numeric", "reactions", "repr_latex", "repr_markdown", "run_span", "scene_of", "simulate",
+           "split_assignments", "symbol"]

@@ -43,20 +43,15 @@ def accuracy(model: Path, t_end: float, methods: str, tolerances: str, target: f
              output: Path | None, meta: Path | None, plot: Path | None, quick: bool, digits: int | None,
              precision: str, settings: tuple[str, ...], scene_name: str | None):
     """What accuracy costs in time: error against a high-precision reference, per method and tolerance."""
-    from ..model.scenes import initial_values
+    from ..api import System, accuracy_plan
+    from ..api import accuracy as experiment
     from ..simulation import accuracy as acc
-    from ..simulation import accuracy_report as report
     from ..simulation.table import metadata_json
-    from ..simulation.values import parse_assignments, resolve
+    from ..simulation.values import parse_assignments
 
     def job():
         check_times(t_end, None)
-        chosen = acc.parse_methods(methods)
-        if precision != "double" and f"gbs-{precision}" not in chosen:
-            chosen = chosen + (f"gbs-{precision}",)
-        grid = acc.parse_tolerances(tolerances)
-        if quick:
-            grid = acc.quick_tolerances(grid)
+        accuracy_plan(methods, tolerances, quick=quick, precision=precision)  # before deriving
         if target is not None and not (target > 0 and math.isfinite(target)):
             fail("Error: --target must be a positive finite error, e.g. --target 1e-8")
         meta_path = meta if meta is not None else default_sidecar(output)
@@ -65,37 +60,25 @@ def accuracy(model: Path, t_end: float, methods: str, tolerances: str, target: f
         writable_outputs(output, plot)
         writable(meta_path, "--meta")
         loaded, scene, system = scene_system(model, scene_name)
-        initial, assignments = initial_values(loaded, scene), parse_assignments(settings)
-        dependent = None
-        if system.implicit is not None:  # initial conditions onto the constraints, as simulate does
-            from ..simulation.constrained import project_initial, split_settings
-
-            assignments, dependent_settings = split_settings(system, assignments)
-            values = resolve(system, initial, assignments)
-            values, notes, closure = project_initial(system, initial, dependent_settings, values, 1e-14)
-            dependent = closure.guess
-            for note in notes:
-                say(f"note: initial conditions projected onto the constraints: {note}")
-        else:
-            values = resolve(system, initial, assignments)
+        assignments = parse_assignments(settings)
         say(f"computing the reference to t = {t_end:g} ...")
-        default_digits = 34 if "gbs-quad" in chosen else (16 if quick else 20)
         try:
-            wp = acc.measure(system, values, t_end, chosen, grid, digits=digits or default_digits, quick=quick,
-                             dependent=dependent)
+            result = experiment(System.of(system, loaded, scene), t_end, methods, tolerances, quick=quick,
+                                digits=digits, precision=precision, set=assignments)
         except acc.AccuracyError:
-            coincident_at_start(loaded, system, initial, assignments)
+            coincident_at_start(loaded, system, assignments)
             raise
-        click.echo(report.markdown(wp, target), nl=False)
+        wp = result.measurement
+        for note in result.notes:
+            say(f"note: initial conditions projected onto the constraints: {note}")
+        click.echo(result.markdown(target), nl=False)
         if output is not None:
-            write_atomically(output, report.to_csv(wp))
+            write_atomically(output, result.to_csv())
             say(f"wrote {output} ({len(wp.points)} points)")
         if meta_path is not None:
             csv_name = None if output is None else (
                 output.name if output.parent.resolve() == meta_path.parent.resolve() else str(output))
-            info = report.metadata(wp, model_file=model.as_posix(), source=loaded.source, uses=loaded.uses,
-                                scene=scene.name if scene is not None else None, methods=chosen, tolerances=grid,
-                                target=target, csv=csv_name)
+            info = result.metadata(target, csv_name)
             write_atomically(meta_path, metadata_json(info))
             say(f"wrote {meta_path}")
         if wp.points and wp.best_error() is None:
@@ -111,7 +94,7 @@ def accuracy(model: Path, t_end: float, methods: str, tolerances: str, target: f
                   "near it are not measured" + (", so no plot was written" if plot is not None else "")
                   + "\n  hint: raise --digits")
         if plot is not None:
-            report.plot(wp, plot, target)
+            result.plot(plot, target)
             say(f"wrote {plot}")
 
     run_command(job)

@@ -5,37 +5,40 @@ from pathlib import Path
 
 import click
 
-from .common import (USAGE_ERROR, budget_option, check_times, fail, output_option, run_command, say,
-                     separate_outputs, set_option, writable)
+from .common import (USAGE_ERROR, budget_option, check_times, fail, output_option, run_command, say, scene_option,
+                     scene_system, separate_outputs, set_option, writable)
+
+_MODEL_ONLY = {"t_end": "--t", "dt": "--dt", "method": "--method", "settings": "--set", "scene_name": "--scene"}
 
 
 @click.command()
 @click.argument("source", type=click.Path(dir_okay=False, path_type=Path))
 @output_option("The animation: a .gif (pillow) or .mp4 (ffmpeg).", required=True)
-@click.option("--t", "t_end", type=float, default=5.0, show_default=True, help="End time (MODEL only).")
-@click.option("--dt", type=float, default=0.02, show_default=True, help="Output interval (MODEL only).")
-@click.option("--method", default="dop853", show_default=True, help="Integration method (MODEL only).")
+@click.option("--t", "t_end", type=float, default=None, help="End time (MODEL only; default: the scene's, else 5).")
+@click.option("--dt", type=float, default=None,
+              help="Output interval (MODEL only; default: the scene's, else 0.02).")
+@click.option("--method", default=None, help="Integration method (MODEL only; default: the scene's, else dop853).")
 @set_option("Set a parameter or an initial coordinate/velocity (MODEL only; repeatable).")
 @click.option("--fps", type=click.IntRange(1, 120), default=30, show_default=True,
               help="Frames per second; rows are skipped so that the animation plays in real time.")
 @click.option("--size", type=click.IntRange(64, 4096), default=480, show_default=True,
               help="Width and height of the frames in pixels.")
+@scene_option(help="Use the model's scene NAME (MODEL only): its effects, values, initial values, span, step "
+                   "and method (default: the model's only scene if it has exactly one, else every effect).")
 @budget_option
-def animate(source: Path, output: Path, t_end: float, dt: float, method: str, settings: tuple[str, ...],
-            fps: int, size: int):
+def animate(source: Path, output: Path, t_end: float | None, dt: float | None, method: str | None,
+            settings: tuple[str, ...], fps: int, size: int, scene_name: str | None):
     """Draw the mechanism of SOURCE over time: a MODEL (simulated first) or a trajectory CSV
     written with `kronsub simulate --points`. Bodies are segments between their named
     points, discs are circles; needs matplotlib (pip install 'kronsub[plot]')."""
     from ..simulation.methods import SIMULATE
-    from ..simulation.run import SimulationError, row_count
 
     def job():
         separate_outputs(source, ("--output", output, "animation"))
         from_csv = source.suffix.lower() == ".csv"
         ctx = click.get_current_context()
         if from_csv:  # a trajectory has its times and values: the options that make one do not apply
-            given = [f"--{name.replace('t_end', 't').replace('settings', 'set')}" for name in
-                     ("t_end", "dt", "method", "settings")
+            given = [flag for name, flag in _MODEL_ONLY.items()
                      if ctx.get_parameter_source(name) is not click.core.ParameterSource.DEFAULT]
             if given:
                 fail(f"Error: {', '.join(given)} {'applies' if len(given) == 1 else 'apply'} to a MODEL, not to "
@@ -43,12 +46,8 @@ def animate(source: Path, output: Path, t_end: float, dt: float, method: str, se
                       USAGE_ERROR)
         else:
             check_times(t_end, dt)
-            if method not in SIMULATE:
+            if method is not None and method not in SIMULATE:
                 fail(f"Error: unknown method '{method}'\n  hint: choose one of {', '.join(SIMULATE)}", USAGE_ERROR)
-            try:
-                row_count(t_end, dt)
-            except SimulationError as exc:
-                fail(f"Error: {exc}", USAGE_ERROR)
         writable(output, "--output")
         try:
             import matplotlib  # noqa: F401
@@ -59,29 +58,26 @@ def animate(source: Path, output: Path, t_end: float, dt: float, method: str, se
 
         if from_csv:
             t, names, values = read_points_csv(source)
-            title = ""
+            frames = draw(t, names, values, output, fps=fps, size=size, title="")
         else:
-            t, names, values, title = _simulate(source, t_end, dt, method, settings)
-        frames = draw(t, names, values, output, fps=fps, size=size, title=title)
+            frames = _animate_model(source, output, t_end, dt, method, settings, fps, size, scene_name)
         say(f"wrote {output} ({frames} frames)")
 
     run_command(job)
 
 
-def _simulate(model: Path, t_end: float, dt: float, method: str, settings):
-    import numpy as np
+def _animate_model(model: Path, output: Path, t_end, dt, method, settings, fps: int, size: int, scene_name):
+    """Derive MODEL's scene with every named point, then :func:`kronsub.api.animate`."""
+    from ..api import ANIMATION_DEFAULTS, System, run_span
+    from ..api import animate as animate_system
+    from ..simulation.run import SimulationError, row_count
+    from ..simulation.values import parse_assignments
 
-    from ..model.loader import load_model
-    from ..simulation.run import simulate
-    from ..simulation.table import point_columns
-    from ..simulation.values import parse_assignments, resolve
-
-    loaded = load_model(model)
-    system = loaded.derive()
-    values = resolve(system, dict(loaded.initial), parse_assignments(settings))
-    traj = simulate(system, values, t_end, dt, method)
-    if not traj.complete:
-        say(f"Warning: the run stopped at t = {traj.t_fail:.6g}: {traj.message}; "
-            f"animating the {len(traj.t)} rows computed")
-    names, pts = point_columns(system, traj, np.array(values.parameters))
-    return traj.t, names, pts, system.name
+    loaded, scene, system = scene_system(model, scene_name, all_points=True)
+    system = System.of(system, loaded, scene)
+    span, step, chosen = run_span(system, t_end, dt, method, ANIMATION_DEFAULTS)
+    try:
+        row_count(span, step)
+    except SimulationError as exc:
+        fail(f"Error: {exc}", USAGE_ERROR)
+    return animate_system(system, output, span, step, chosen, parse_assignments(settings), fps=fps, size=size)

@@ -1,15 +1,12 @@
 """``kronsub codegen MODEL``: C (header + source) or a numpy module of the equations."""
 from __future__ import annotations
 
-import re
 from pathlib import Path
 
 import click
 
 from ..atomic import write_atomically
 from .common import USAGE_ERROR, budget_option, fail, run_command, say, scene_option, scene_system, separate_outputs
-
-_C_IDENTIFIER = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
 
 
 @click.command()
@@ -28,11 +25,11 @@ _C_IDENTIFIER = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
 def codegen(model: Path, lang: str, outdir: Path, name: str | None, prefix: str, scene_name: str | None,
             precision: str):
     """Generate C (header + source) or a numpy module for MODEL."""
-    from ..emitters.code import LANGUAGES
+    from ..api import C_IDENTIFIER, System, code_files
     from ..emitters.numeric import identifier
 
     def job():
-        if not _C_IDENTIFIER.fullmatch(prefix):
+        if not C_IDENTIFIER.fullmatch(prefix):
             fail(f"Error: --prefix {prefix!r} is not a C identifier (letters, digits and _, not starting "
                   f"with a digit)\n  hint: e.g. --prefix {identifier(prefix)}", USAGE_ERROR)
         if outdir.exists() and not outdir.is_dir():
@@ -44,19 +41,14 @@ def codegen(model: Path, lang: str, outdir: Path, name: str | None, prefix: str,
                   "  hint: choose another --output")
         if precision != "double" and lang != "c":
             fail("Error: --precision long|quad is for --lang c\n  hint: drop --precision, or use --lang c")
-        _, scene, system = scene_system(model, scene_name)
+        loaded, scene, system = scene_system(model, scene_name)
         stem = name or model.stem
-        outputs = scene.outputs if scene is not None else None
-        files = list(LANGUAGES[lang](system, stem, source=model.as_posix(), prefix=prefix, outputs=outputs))
-        separate_outputs(model, *((f"--output {outdir} --name {stem}", outdir / g.name, "generated") for g in files))
-        for generated in files:
-            text = generated.text
-            if precision != "double":
-                from ..simulation.extended import prelude, retype
-
-                text = prelude(precision) + retype(text, precision)
-            write_atomically(outdir / generated.name, text)
-            say(f"wrote {outdir / generated.name}")
+        files = code_files(System.of(system, loaded, scene), stem, lang, prefix=prefix, precision=precision,
+                           source=model.as_posix())
+        separate_outputs(model, *((f"--output {outdir} --name {stem}", outdir / n, "generated") for n, _ in files))
+        for file_name, text in files:
+            write_atomically(outdir / file_name, text)
+            say(f"wrote {outdir / file_name}")
 
     run_command(job)
 

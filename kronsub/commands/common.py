@@ -223,18 +223,13 @@ def plot_option(help: str):
 def scene_system(model: Path, scene_name: str | None, *, cache: bool = True, all_points: bool = False):
     """``(model, scene, system)``: the model loaded, its scene chosen (None: the whole model)
     and the scene's equations derived. ``all_points`` asks the scene for every named point."""
-    import dataclasses
-
     from ..model.loader import load_model
-    from ..model.scenes import derive_scene, select_scene
+    from ..model.scenes import scene_system as chosen_scene
 
     with budget.cpu_backstop():
         loaded = load_model(model, cache=cache)
-        scene = select_scene(loaded, scene_name)
-        if scene is not None and all_points:
-            points = tuple(sorted(loaded.primitive.points()))
-            scene = dataclasses.replace(scene, outputs=dataclasses.replace(scene.outputs, points=points))
-        return loaded, scene, derive_scene(loaded, scene, cache=cache)
+        scene, system = chosen_scene(loaded, scene_name, cache=cache, all_points=all_points)
+        return loaded, scene, system
 
 
 def note_choice(system) -> None:
@@ -303,15 +298,15 @@ def coincident_ends(loaded, system, t, y, param):
     return loaded.coincident_ends(system, t, y[:n], param)
 
 
-def coincident_at_start(loaded, system, initial, settings) -> None:
+def coincident_at_start(loaded, system, settings) -> None:
     """Raise the :func:`coincident_ends` problem at the initial state (``settings``: ``--set`` or
     ``--at`` values, a ``t`` among them) when there is one: ``linearize`` and ``accuracy`` found
     equations without a value there, and this names the spring or damper why."""
-    from ..simulation.values import resolve
+    from ..simulation.start import starting_values
 
     t = settings.get("t", "0")
     try:
-        values = resolve(system, initial, {k: v for k, v in settings.items() if k != "t"})
+        values = starting_values(system, {k: v for k, v in settings.items() if k != "t"}).values
         t = float(t)
     except (KronsubError, ValueError):
         return  # the values are reported as they are

@@ -33,7 +33,6 @@ def linearize(model: Path, at: tuple[str, ...], inputs: str, symbolic: bool, fmt
     from ..api import linearize as linearize_system
     from ..core.linearize import LinearizationError
     from ..emitters.linearization import EMITTERS
-    from ..model.scenes import initial_values
     from ..simulation.values import parse_assignments
 
     def job():
@@ -44,12 +43,11 @@ def linearize(model: Path, at: tuple[str, ...], inputs: str, symbolic: bool, fmt
         twice = sorted({n for n in names if names.count(n) > 1})
         if twice:
             fail(f"Error: --inputs names {', '.join(twice)} more than once\n  hint: name each input once", USAGE_ERROR)
-        loaded, scene, system = scene_system(model, scene_name)
+        loaded, _, system = scene_system(model, scene_name)
         try:
-            lin = linearize_system(system, assignments, names, symbolic=symbolic,
-                                   initial=initial_values(loaded, scene), option="--at")
+            lin = linearize_system(system, assignments, names, symbolic=symbolic, option="--at")
         except LinearizationError:
-            coincident_at_start(loaded, system, initial_values(loaded, scene), assignments)
+            coincident_at_start(loaded, system, assignments)
             raise
         if not lin.equilibrium:
             moving = [f"{s}={v}" for s, v in lin.point if s in set(system.velocities) and v.is_zero is not True]

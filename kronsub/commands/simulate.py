@@ -44,10 +44,11 @@ def simulate(model: Path, t_end: float | None, dt: float | None, method: str | N
              plot: Path | None, scene_name: str | None, with_reactions: bool = False):
     """Simulate MODEL from t = 0 to --t; the trajectory is plain CSV (a header row, then numbers),
     its metadata JSON (--meta, or beside --output)."""
-    from ..model.scenes import initial_values
+    from ..simulation.constrained import newton_tolerance
     from ..simulation.run import SimulationError, check_tolerances, collect, explicit_only, row_count, start
+    from ..simulation.start import starting_values
     from ..simulation.table import CsvWriter, metadata_json, trajectory_csv
-    from ..simulation.values import parse_assignments, resolve
+    from ..simulation.values import parse_assignments
 
     def job():
         if method is not None and method not in SIMULATE:
@@ -75,20 +76,10 @@ def simulate(model: Path, t_end: float | None, dt: float | None, method: str | N
             explicit_only(system, _pick(method, scene and scene.method, "dop853"))
         except SimulationError as exc:
             fail(f"Error: {exc}")
-        initial = initial_values(loaded, scene)
-        assignments = parse_assignments(settings)
-        constrained = None
-        if system.implicit is not None:  # initial conditions onto the constraints (simulation/constrained.py)
-            from ..simulation.constrained import newton_tolerance, project_initial, split_settings
-
-            assignments, dependent_settings = split_settings(system, assignments)
-            values = resolve(system, initial, assignments)
-            values, notes, constrained = project_initial(system, initial, dependent_settings, values,
-                                                         newton_tolerance(rtol, atol))
-            for note in notes:
-                say(f"note: initial conditions projected onto the constraints: {note}")
-        else:
-            values = resolve(system, initial, assignments)
+        begin = starting_values(system, parse_assignments(settings), tolerance=newton_tolerance(rtol, atol))
+        for note in begin.notes:
+            say(f"note: initial conditions projected onto the constraints: {note}")
+        values, constrained = begin.values, begin.constrained
         run = start(system, values, span, step, _pick(method, scene and scene.method, "dop853"), rtol, atol,
                     outputs=outputs, constrained=constrained)
         kept = [] if plot is not None or with_reactions else None

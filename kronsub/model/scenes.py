@@ -221,8 +221,9 @@ def derive_scene(model, scene: Scene | None, *, cache: bool = True) -> KnownSyst
     """The equations of a scene: only its effects are projected (and cached apart, shared
     with every other scene), parameters of switched-off effects are dropped unless something
     kept uses them (the equations, constraints and intermediates, the points asked for, the
-    initial values), the scene's values become the defaults, and only the named points it
-    asks for are kept."""
+    initial values), the scene's values become the defaults (its parameters' values and its
+    ``initial:`` over the model's, in ``system.initial``), and only the named points it asks
+    for are kept."""
     if scene is None:
         return model.derive(cache=cache)
     system = derive_model(model, cache=cache, effects=scene.effects)
@@ -239,7 +240,20 @@ def derive_scene(model, scene: Scene | None, *, cache: bool = True) -> KnownSyst
     if scene.description:
         description = (description + "\n\n" if description else "") + f"Scene {scene.name}: {scene.description}"
     return dataclasses.replace(system, name=f"{system.name} (scene {scene.name})", description=description,
-                               parameters=parameters, points=points)
+                               parameters=parameters, points=points, initial=kept.initial)
+
+
+def scene_system(model, name: str | None, *, cache: bool = True,
+                 all_points: bool = False) -> tuple[Scene | None, KnownSystem]:
+    """``(scene, system)``: the scene called ``name`` chosen by :func:`select_scene` (without a
+    name the model's only scene, if it has exactly one; None: the whole model) and its equations
+    derived by :func:`derive_scene`. ``all_points`` asks the scene for every named point. The one
+    rule of every command and of the notebook (``load(path).derive(scene=...)``)."""
+    scene = select_scene(model, name)
+    if scene is not None and all_points:
+        points = tuple(sorted(model.primitive.points()))
+        scene = dataclasses.replace(scene, outputs=dataclasses.replace(scene.outputs, points=points))
+    return scene, derive_scene(model, scene, cache=cache)
 
 
 def initial_values(model, scene: Scene | None) -> dict:
@@ -276,4 +290,5 @@ def _symbols(value) -> set:
     return set()
 
 
-__all__ = ["KEYS", "OUTPUT_KINDS", "Outputs", "Scene", "build_scenes", "derive_scene", "initial_values", "select_scene"]
+__all__ = ["KEYS", "OUTPUT_KINDS", "Outputs", "Scene", "build_scenes", "derive_scene", "initial_values", "scene_system",
+           "select_scene"]

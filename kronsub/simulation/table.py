@@ -227,6 +227,21 @@ class CsvWriter:
         return json.loads(json.dumps(self._meta))
 
     def block(self, block: Block, extra: np.ndarray | None = None) -> None:
+        """Write the rows of ``block`` (``extra``: the values of the appended columns)."""
+        text = format_rows(self.data(block, extra))
+        with _whole_rows():
+            self.out.write(text)
+            self.counted(block)
+
+    def counted(self, block: Block) -> None:
+        """Count the rows of ``block`` as written (in the metadata: ``rows``, ``last_t``)."""
+        n = len(block.t)
+        self.rows += n
+        self.last_t = float(block.t[-1]) if n else self.last_t
+        self._meta.update(rows=self.rows, last_t=json_number(self.last_t))
+
+    def data(self, block: Block, extra: np.ndarray | None = None) -> np.ndarray:
+        """The numbers of the rows of ``block``, one column per name of :attr:`columns`."""
         n = len(block.t)
         Y = block.y.reshape(n, -1)
         nq = Y.shape[1] // 2
@@ -246,12 +261,7 @@ class CsvWriter:
             data.append(np.array([self.module["points"](y, self.param) for y in block.y]).reshape(n, -1))
         if extra is not None:
             data.append(np.asarray(extra, dtype=float).reshape(n, -1))
-        text = format_rows(np.hstack(data))
-        with _whole_rows():
-            self.out.write(text)
-            self.rows += n
-            self.last_t = float(block.t[-1]) if n else self.last_t
-            self._meta.update(rows=self.rows, last_t=json_number(self.last_t))
+        return np.hstack(data)
 
     def end(self, stats: dict, complete: bool, t_fail: float | None = None, message: str = "",
             switches=()) -> None:
@@ -312,15 +322,27 @@ def trajectory_csv(system: KnownSystem, model_path: str, traj: Trajectory, value
                    atol: float, with_points: bool = False, outputs=None, extra=None, **run_info) -> tuple[str, dict]:
     """The CSV text of a whole trajectory and its metadata; ``extra`` is ``(names, values)`` of
     columns to append (the reactions)."""
+    columns, data, metadata = trajectory_table(system, model_path, traj, values, rtol, atol, with_points, outputs,
+                                               extra, **run_info)
+    return ",".join(columns) + "\n" + (format_rows(data) if len(data) else ""), metadata
+
+
+def trajectory_table(system: KnownSystem, model_path: str | None, traj: Trajectory, values: RunValues, rtol: float,
+                     atol: float, with_points: bool = False, outputs=None, extra=None,
+                     **run_info) -> tuple[list[str], np.ndarray, dict]:
+    """The CSV's columns, its rows as numbers and the run's metadata, for a whole trajectory
+    (what :func:`trajectory_csv` writes); ``extra`` as there."""
     names, data = extra if extra is not None else ((), None)
-    out = io.StringIO()
-    writer = CsvWriter(out, system, model_path, values, traj.method, traj.backend, rtol, atol, with_points, outputs,
-                       extra_columns=tuple(names), **run_info)
+    writer = CsvWriter(io.StringIO(), system, model_path, values, traj.method, traj.backend, rtol, atol, with_points,
+                       outputs, extra_columns=tuple(names), **run_info)
+    rows = np.zeros((0, len(writer.columns)))
     if len(traj.t):
-        writer.block(Block(traj.t, traj.y, traj.energies, traj.dependent), data)
+        block = Block(traj.t, traj.y, traj.energies, traj.dependent)
+        rows = writer.data(block, data)
+        writer.counted(block)
     writer.end(traj.stats, traj.complete, traj.t_fail, traj.message, traj.switches)
-    return out.getvalue(), writer.metadata()
+    return list(writer.columns), rows, writer.metadata()
 
 
 __all__ = ["METADATA_FORMAT", "CsvWriter", "energies", "format_rows", "json_number", "metadata_json",
-           "model_record", "point_columns", "sidecar_path", "to_csv", "trajectory_csv"]
+           "model_record", "point_columns", "sidecar_path", "to_csv", "trajectory_csv", "trajectory_table"]
