@@ -1,6 +1,7 @@
 """The notebook API: system.simulate, system.numeric, system.symbol, Jupyter display."""
 from __future__ import annotations
 
+import json
 import math
 import subprocess
 import sys
@@ -144,3 +145,82 @@ def test_simulate_a_model_with_implicit_constraints():
     assert run["theta"][0] == pytest.approx(0.3)
     energy = run["total_energy"]
     assert np.ptp(energy) < 1e-7 * max(1.0, abs(energy[0]))
+
+
+FOUR_BAR = MODELS / "examples" / "four_bar.yaml"
+
+
+def test_every_name_of_the_printed_equations_is_reachable():
+    """A closed loop's dependent coordinates and named intermediates (26)-(29) by name."""
+    system = kronsub.load(FOUR_BAR).derive()
+    printed = set().union(system.mass_matrix.free_symbols, system.velocity_terms.free_symbols,
+                          *(f.free_symbols for f in system.effect_forces.values()))
+    assert {"theta2", "theta3", "lambda_theta2_theta1", "gamma_theta3"} <= {s.name for s in printed}
+    for s in printed:
+        assert system.symbol(s.name) is s
+    for name, value in system.implicit.definitions:  # the closed forms printed under the equations
+        assert system.symbol(name.name) is name and value.free_symbols <= set(kronsub.api.names(system).values())
+
+
+def test_a_closed_loop_run_has_the_columns_and_numbers_of_the_command_line(tmp_path):
+    """``system.simulate()`` and ``kronsub simulate`` from the same model: the same CSV columns
+    (the dependent coordinates among them), the same numbers, the same metadata."""
+    from click.testing import CliRunner
+
+    from kronsub.cli import main
+
+    meta = tmp_path / "run.json"
+    result = CliRunner().invoke(main, ["simulate", str(FOUR_BAR), "--t", "0.3", "--dt", "0.05", "--set", "tau=0.5",
+                                       "--reactions", "--meta", str(meta)])
+    assert result.exit_code == 0, result.output
+    header, *rows = result.stdout.splitlines()
+    run = kronsub.load(FOUR_BAR).derive().simulate(t=0.3, dt=0.05, set={"tau": 0.5}, reactions=True,
+                                                    dataframe=False)
+    assert run.table_columns == tuple(header.split(",")) and {"theta2", "theta3"} <= set(run.table_columns)
+    assert np.array_equal(run.table, np.array([[float(x) for x in r.split(",")] for r in rows]))
+    assert run["theta2"].shape == (7,) and run.notes  # the projection's corrections, as the CLI's notes
+    expected = json.loads(meta.read_text())
+    for key in ("model", "scene", "method", "parameters", "initial_state", "dependent_coordinates", "columns",
+                "status", "rows"):
+        assert run.metadata[key] == expected[key], key
+    pandas = pytest.importorskip("pandas")
+    frame = kronsub.load(FOUR_BAR).derive().simulate(t=0.3, dt=0.05, set={"tau": 0.5}, reactions=True)
+    assert isinstance(frame, pandas.DataFrame) and list(frame.columns) == header.split(",")[1:]
+    assert np.array_equal(frame.to_numpy(), run.table[:, 1:]) and np.array_equal(frame.index, run.t)
+
+
+def test_codegen_writes_the_files_of_the_command_line(tmp_path):
+    from click.testing import CliRunner
+
+    from kronsub.cli import main
+
+    model = MODELS / "hoffmann" / "system1.yaml"
+    result = CliRunner().invoke(main, ["codegen", str(model), "-o", str(tmp_path / "cli"), "--scene", "pushed"])
+    assert result.exit_code == 0, result.output
+    written = kronsub.load(model).derive(scene="pushed").codegen(tmp_path / "api")
+    assert sorted(p.name for p in written) == sorted(p.name for p in (tmp_path / "cli").iterdir())
+    for path in written:
+        assert path.read_text() == (tmp_path / "cli" / path.name).read_text()
+
+
+def test_reactions_are_the_text_of_derive_reactions():
+    from click.testing import CliRunner
+
+    from kronsub.cli import main
+
+    model = MODELS / "hoffmann" / "system2_implicit.yaml"
+    result = CliRunner().invoke(main, ["derive", str(model), "--reactions"])
+    assert result.exit_code == 0, result.output
+    assert kronsub.load(model).derive().reactions() == result.stdout
+
+
+def test_accuracy_and_animate_from_the_notebook(tmp_path):
+    system = kronsub.load(MODELS / "hoffmann" / "system1.yaml").derive(scene="free")
+    result = system.accuracy(t=0.2, methods="dop853,RK45", tolerances="1e-5,1e-7", quick=True)
+    assert sorted((p.method, p.setting) for p in result.measurement.points) == \
+        [("RK45", "tol 1e-05"), ("RK45", "tol 1e-07"), ("dop853", "tol 1e-05"), ("dop853", "tol 1e-07")]
+    assert all(p.error < 1e-3 for p in result.measurement.points)  # against the reference
+    assert result.to_csv().startswith("method,") and result.metadata()["scene"] == "free"
+    pytest.importorskip("matplotlib")
+    frames = system.animate(tmp_path / "free.gif", t=0.2, fps=10)
+    assert frames == 3 and (tmp_path / "free.gif").stat().st_size > 0
