@@ -118,8 +118,14 @@ def linearize(system: KnownSystem, at: Mapping[str, object] | None = None, input
     """:func:`kronsub.core.linearize.linearize` with names: ``at={"theta": "pi", "b": 0}``
     fixes coordinates, velocities, ``t`` and parameter values; ``inputs=["u"]`` names the
     parameters that are inputs. ``initial`` (default: the model's initial values carried
-    by the system) starts the search for an equilibrium. ``option`` (``"--at"``) places problems
-    with the values at ``--at NAME``."""
+    by the system: the model's, a scene's over them) starts the search for an equilibrium.
+    ``option`` (``"--at"``) places problems with the values at ``--at NAME``.
+
+    >>> system = load("models/hoffmann/system1.yaml").derive(scene="free")
+    >>> lin = system.linearize(at={"theta": 0, "phi": 0})
+    >>> lin.equilibrium, lin.A.shape
+    (True, (4, 4))
+    """
     problems = []
     try:
         point, values = split_assignments(system, at, option)
@@ -275,7 +281,7 @@ def simulate(system: KnownSystem, t: float | None = None, dt: float | None = Non
 
     >>> system = load("models/hoffmann/system1.yaml").derive(scene="free")
     >>> run = system.simulate(t=0.1, dt=0.05, set={"theta": 0.2}, dataframe=False)
-    >>> run.table_columns[:3], run["theta"][0]
+    >>> run.table_columns[:3], float(run["theta"][0])
     (('t', 'theta', 'phi'), 0.2)
     >>> run.metadata["scene"], run.metadata["status"]
     ('free', 'complete')
@@ -528,9 +534,9 @@ def accuracy(system: KnownSystem, t: float = 10.0, methods="all", tolerances="1e
     >>> system = load("models/hoffmann/system1.yaml").derive(scene="free")
     >>> result = system.accuracy(t=0.2, methods="dop853", tolerances="1e-6", quick=True)
     >>> [(p.method, p.setting) for p in result.measurement.points]
-    [('dop853', 1e-06)]
-    >>> print(result.markdown().splitlines()[0])  # doctest: +ELLIPSIS
-    # Accuracy ...
+    [('dop853', 'tol 1e-06')]
+    >>> print(result.markdown().splitlines()[0])
+    # Work-precision: System I (scene free), t = 0 .. 0.2
     """
     from .simulation import accuracy as acc
     from .simulation.start import starting_values
