@@ -517,7 +517,7 @@ def measure(system: KnownSystem, values: RunValues, t_end: float, methods: tuple
     if implicit is not None and dependent is None:
         from .constrained import project_initial
 
-        values, _, closure = project_initial(system, {}, {}, values, 1e-14)
+        values, _, closure = project_initial(system, dict(system.initial), {}, values, 1e-14)
         dependent = closure.guess
     param, y0 = np.array(values.parameters, dtype=float), np.array(values.y0, dtype=float)
     from ..core.finite import at_state

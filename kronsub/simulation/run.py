@@ -181,7 +181,7 @@ def start(system: KnownSystem, values: RunValues, t_end: float, dt: float, metho
     if system.implicit is not None and constrained is None:
         from .constrained import project_initial
 
-        values, _, constrained = project_initial(system, {}, {}, values, _newton_tol(rtol, atol))
+        values, _, constrained = project_initial(system, dict(system.initial), {}, values, _newton_tol(rtol, atol))
     param = np.array(values.parameters, dtype=float)
     y0 = np.array(values.y0, dtype=float)
     grid = Grid(t_end, dt)
