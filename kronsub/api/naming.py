@@ -1,0 +1,149 @@
+"""Names of a derived system: its symbols by name, values by name, and the linearisation
+about an operating point given by name.
+
+Everything a printed equation names is reachable: coordinates, velocities, accelerations,
+parameters, ``t`` and, of a closed loop, the dependent coordinates and the named
+intermediates (26)-(29).
+"""
+from __future__ import annotations
+
+from typing import Mapping, Sequence
+
+import numpy as np
+import sympy
+
+from ..core.known_system import KnownSystem
+from ..core.linearize import Linearization
+from ..core.linearize import linearize as core_linearize
+from ..core.symbols import TIME
+from ..errors import KronsubError, Location, ModelError, Problem, near_names
+from ..model.expressions import parse_expression
+from ..model.requirements import parameters_in, unmet
+
+__all__ = ["UnknownName", "linearize", "names", "split_assignments", "symbol"]
+
+
+class UnknownName(KronsubError):
+    """A name that is not a coordinate, velocity or parameter of the system."""
+
+
+def names(system: KnownSystem) -> dict[str, sympy.Symbol]:
+    """Every name a printed equation of the system uses: coordinates, velocities,
+    accelerations, parameters, ``t`` and, for a closed loop, the dependent coordinates and the
+    named intermediates ``lambda_...``, ``gamma_...`` (26)-(29) with their printed closed forms."""
+    out = {"t": TIME}
+    groups = [system.coordinates, system.velocities, system.accelerations]
+    imp = system.implicit
+    if imp is not None:
+        groups += [imp.intermediate, imp.intermediates, [name for name, _ in imp.definitions]]
+    for group in groups:
+        out.update({s.name: s for s in group})
+    out.update({p.name: p.symbol for p in system.parameters})
+    return out
+
+
+def symbol(system: KnownSystem, name: str) -> sympy.Symbol:
+    """The system's own symbol called ``name`` (they are ``real=True``: a plain
+    ``sympy.Symbol(name)`` is a different symbol).
+
+    >>> import kronsub
+    >>> system = kronsub.load("models/hoffmann/system1.yaml").derive(scene="pushed")
+    >>> theta = system.symbol("theta")
+    >>> theta in system.mass_matrix.free_symbols, theta.is_real
+    (True, True)
+    """
+    known = names(system)
+    if name not in known:
+        near = near_names(name, sorted(known))
+        hint = ("did you mean " + ", ".join(f"'{n}'" for n in near) + "?") if near else \
+            "names: " + ", ".join(sorted(known))
+        raise UnknownName(f"{system.name} has no symbol '{name}'; {hint}")
+    return known[name]
+
+
+def _value(system: KnownSystem, name: str, value, *, constant: bool, option: str | None = None) -> sympy.Expr:
+    """A value given as a number or as text read by the whitelisted parser (never sympify
+    of raw text); ``constant`` forbids names. ``option`` (``--at``) places problems at ``--at NAME``."""
+    if isinstance(value, sympy.Basic):
+        return value
+    if isinstance(value, bool):
+        raise ModelError([Problem(None, f"value of {name}: expected a number, got {value!r}")])
+    if isinstance(value, (int, float, np.integer, np.floating)):
+        return sympy.Float(float(value)) if isinstance(value, (float, np.floating)) else sympy.Integer(int(value))
+    allowed = {} if constant else {p.name: p.symbol for p in system.parameters}
+    where = Location(f"{option} {name}") if option else None
+    return parse_expression(str(value), allowed, where, what=f"value of {name}")
+
+
+def split_assignments(system: KnownSystem, at: Mapping[str, object] | None, option: str | None = None):
+    """``{name: value}`` into the state/time part and the parameter part, all problems at once
+    (placed at ``option NAME`` when the values came from that command-line option)."""
+    point, values, problems = {}, {}, []
+    params = {p.name: p.symbol for p in system.parameters}
+    state = {s.name: s for s in tuple(system.coordinates) + tuple(system.velocities)}
+    for name, raw in (at or {}).items():
+        try:
+            if name in state:
+                point[state[name]] = _value(system, name, raw, constant=False, option=option)
+            elif name in params:
+                values[params[name]] = _value(system, name, raw, constant=True, option=option)
+            elif name == "t":
+                point[TIME] = _value(system, name, raw, constant=False, option=option)
+            elif system.implicit is not None and name in {d.name for d in system.implicit.dependent}:
+                problems.append(Problem(None, f"'{name}' is a dependent coordinate of {system.name}: the "
+                                              "constraints set it", "fix the independent coordinates ("
+                                        + ", ".join(q.name for q in system.coordinates) + ") instead"))
+            else:
+                known = sorted({*params, *state, "t"})
+                near = near_names(name, known)
+                problems.append(Problem(None, f"'{name}' is not a coordinate, velocity or parameter of "
+                                              f"{system.name}",
+                                        ("did you mean " + ", ".join(near) + "?") if near else
+                                        "names: " + ", ".join(known)))
+        except ModelError as exc:
+            problems.extend(exc.problems)
+    if problems:
+        raise ModelError(problems)
+    return point, values
+
+
+def linearize(system: KnownSystem, at: Mapping[str, object] | None = None, inputs: Sequence[str] = (),
+              *, symbolic: bool = False, initial: Mapping | None = None, option: str | None = None) -> Linearization:
+    """:func:`kronsub.core.linearize.linearize` with names: ``at={"theta": "pi", "b": 0}``
+    fixes coordinates, velocities, ``t`` and parameter values; ``inputs=["u"]`` names the
+    parameters that are inputs. ``initial`` (default: the model's initial values carried
+    by the system: the model's, a scene's over them) starts the search for an equilibrium.
+    ``option`` (``"--at"``) places problems with the values at ``--at NAME``.
+
+    >>> import kronsub
+    >>> system = kronsub.load("models/hoffmann/system1.yaml").derive(scene="free")
+    >>> lin = system.linearize(at={"theta": 0, "phi": 0})
+    >>> lin.equilibrium, lin.A.shape
+    (True, (4, 4))
+    """
+    problems = []
+    try:
+        point, values = split_assignments(system, at, option)
+    except ModelError as exc:
+        problems.extend(exc.problems)
+    params = {p.name: p.symbol for p in system.parameters}
+    chosen = []
+    for name in inputs:
+        if name not in params:
+            near = near_names(name, sorted(params))
+            problems.append(Problem(None, f"input '{name}' is not a parameter of {system.name}",
+                                    ("did you mean " + ", ".join(near) + "?") if near else
+                                    "inputs are parameters: " + ", ".join(sorted(params))))
+        else:
+            chosen.append(params[name])
+    if not problems:  # what the components need of the values (model/requirements.py)
+        numbers = {p.symbol: p.value for p in system.parameters if p.value is not None}
+        numbers.update(values)
+        given = {s.name for s in values}
+        problems.extend(unmet(system.requirements, numbers, lambda req: next(
+            (Location(f"{option} {s.name}") for s in parameters_in(req) if option and s.name in given), None)))
+    if problems:
+        raise ModelError(problems)
+    start = dict(system.initial) if initial is None else {symbol(system, k) if isinstance(k, str) else k: v
+                                                           for k, v in initial.items()}
+    return core_linearize(system, inputs=chosen, point=point, values=values, initial=start, symbolic=symbolic)
