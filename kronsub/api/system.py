@@ -93,10 +93,11 @@ class LoadedModel(Model):
     """A model as :func:`load` gives it: a :class:`~kronsub.model.model.Model` whose
     :meth:`derive` returns a :class:`System`."""
 
-    def derive(self, *, scene: str | None = None, cache: bool = True) -> System:
+    def derive(self, *, scene: str | bool | None = None, cache: bool = True) -> System:
         """The equations of motion by projection onto the subspace (9'), (E), (F), of the
         ``scene`` called so (default: the model's only scene if it has exactly one, else every
-        effect; the rule of ``--scene``). An unknown scene is a ``ModelError`` naming the valid ones.
+        effect; the rule of ``--scene``; ``scene=False``: every effect, the whole model). An
+        unknown scene is a ``ModelError`` naming the valid ones.
 
         >>> import kronsub
         >>> system = kronsub.load("models/hoffmann/system1.yaml").derive(scene="free")
@@ -105,7 +106,7 @@ class LoadedModel(Model):
         >>> sorted(system.effect_forces)
         ['gravity']
         """
-        chosen = select_scene(self, scene)
+        chosen = None if scene is False else select_scene(self, scene)
         system = super().derive(cache=cache) if chosen is None else derive_scene(self, chosen, cache=cache)
         return System.of(system, self, chosen)
 

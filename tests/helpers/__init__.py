@@ -150,7 +150,7 @@ def generated_numpy_module(tmp_path, model_path):
 
 def sweep_models(folder):
     """``(loaded, derived)``: a sweep folder's models by file name, each loaded and derived
-    once per test process."""
+    (whole: every effect) once per test process."""
     from functools import lru_cache
 
     import kronsub
@@ -161,7 +161,7 @@ def sweep_models(folder):
 
     @lru_cache(maxsize=None)
     def derived(name):
-        return loaded(name).derive()
+        return loaded(name).derive(scene=False)  # the whole model, also of a model with one scene
 
     return loaded, derived
 
