@@ -20,7 +20,7 @@ SWEEP = Path(__file__).resolve().parent.parent / "models" / "sweep"
 
 @lru_cache(maxsize=None)
 def derived(name):
-    return kronsub.load(SWEEP / name).derive()
+    return kronsub.load(SWEEP / name).derive(scene=False)  # the whole model, also of a model with one scene
 
 
 @lru_cache(maxsize=None)

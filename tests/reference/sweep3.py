@@ -34,7 +34,7 @@ HERE = Path(__file__).resolve().parent.parent / "models" / "sweep3"
 
 @lru_cache(maxsize=None)
 def derived(name):
-    return kronsub.load(HERE / name).derive()
+    return kronsub.load(HERE / name).derive(scene=False)  # the whole model, also of a model with one scene
 
 
 def numpy_module(tmp_path, name):
