@@ -188,6 +188,7 @@ def test_a_closed_loop_run_has_the_columns_and_numbers_of_the_command_line(tmp_p
     frame = kronsub.load(FOUR_BAR).derive().simulate(t=0.3, dt=0.05, set={"tau": 0.5}, reactions=True)
     assert isinstance(frame, pandas.DataFrame) and list(frame.columns) == header.split(",")[1:]
     assert np.array_equal(frame.to_numpy(), run.table[:, 1:]) and np.array_equal(frame.index, run.t)
+    assert frame.attrs["metadata"]["dependent_coordinates"] == expected["dependent_coordinates"]
 
 
 def test_codegen_writes_the_files_of_the_command_line(tmp_path):

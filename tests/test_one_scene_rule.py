@@ -102,3 +102,11 @@ def test_an_unknown_scene_is_the_command_lines_error():
     assert result.exit_code == 1
     assert result.stderr.splitlines()[0] == "Error: " + exc.value.problems[0].format().splitlines()[0]
     assert "did you mean 'swing'" in str(exc.value.problems[0].hint)
+
+
+def test_the_whole_model_is_asked_for_by_name_and_cannot_run():
+    """What the rule spares: the whole model (``scene=False``) has the push, whose F has no value."""
+    whole = kronsub.load(ONE_SCENE).derive(scene=False)
+    assert whole.scene is None and "F" in {p.name for p in whole.parameters}
+    with pytest.raises(ModelError, match="no value for parameter F"):
+        whole.simulate(t=0.1, dataframe=False)

@@ -75,14 +75,17 @@ class Run:
 
     def to_dataframe(self):
         """A pandas DataFrame indexed by ``t``: the CSV's columns, and the energies when the
-        scene left them out of it (pandas is optional: ImportError without it)."""
+        scene left them out of it; ``frame.attrs["metadata"]`` is the run's metadata (pandas is
+        optional: ImportError without it)."""
         import pandas
 
         data = {name: self.table[:, i] for i, name in enumerate(self.table_columns) if i} \
             if self.table is not None else {name: self.y[:, i] for i, name in enumerate(self.columns)}
         for name, values in self._extra().items():
             data.setdefault(name, values)
-        return pandas.DataFrame(data, index=pandas.Index(self.t, name="t"))
+        frame = pandas.DataFrame(data, index=pandas.Index(self.t, name="t"))
+        frame.attrs.update(metadata=self.metadata, notes=self.notes)  # what the sidecar JSON has
+        return frame
 
 
 def settings_text(settings: Mapping[str, object] | None) -> dict[str, str]:
