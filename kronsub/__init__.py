@@ -11,7 +11,8 @@ from .version import __version__
 
 def load(path, *, text=None, cache=True):
     """Load and validate a model file; returns a :class:`kronsub.api.LoadedModel`, whose
-    ``derive()`` gives a :class:`kronsub.api.System`.
+    ``derive(scene=...)`` gives a :class:`kronsub.api.System` (a model with exactly one scene
+    uses it unless told otherwise, as every command does).
 
     ``text`` gives the YAML directly (``path`` then names it in messages);
     ``cache=False`` derives sub-models from scratch.

@@ -44,6 +44,7 @@ def simulate(model: Path, t_end: float | None, dt: float | None, method: str | N
              plot: Path | None, scene_name: str | None, with_reactions: bool = False):
     """Simulate MODEL from t = 0 to --t; the trajectory is plain CSV (a header row, then numbers),
     its metadata JSON (--meta, or beside --output)."""
+    from ..api import System, run_span
     from ..simulation.constrained import newton_tolerance
     from ..simulation.run import SimulationError, check_tolerances, collect, explicit_only, row_count, start
     from ..simulation.start import starting_values
@@ -66,21 +67,20 @@ def simulate(model: Path, t_end: float | None, dt: float | None, method: str | N
         loaded, scene, system = scene_system(model, scene_name, all_points=with_points)
         note_choice(system)
         outputs = scene.outputs if scene is not None else None
-        span = _pick(t_end, scene and scene.t_end, 10.0)
-        step = _pick(dt, scene and scene.dt, 0.01)
+        span, step, chosen = run_span(System.of(system, loaded, scene), t_end, dt, method)
         try:
             row_count(span, step)
         except SimulationError as exc:
             fail(f"Error: {exc}", USAGE_ERROR)
         try:  # before the initial values are projected onto the constraints
-            explicit_only(system, _pick(method, scene and scene.method, "dop853"))
+            explicit_only(system, chosen)
         except SimulationError as exc:
             fail(f"Error: {exc}")
         begin = starting_values(system, parse_assignments(settings), tolerance=newton_tolerance(rtol, atol))
         for note in begin.notes:
             say(f"note: initial conditions projected onto the constraints: {note}")
         values, constrained = begin.values, begin.constrained
-        run = start(system, values, span, step, _pick(method, scene and scene.method, "dop853"), rtol, atol,
+        run = start(system, values, span, step, chosen, rtol, atol,
                     outputs=outputs, constrained=constrained)
         kept = [] if plot is not None or with_reactions else None
         run_info = dict(t_end=span, dt=step, scene=scene.name if scene is not None else None,
@@ -180,10 +180,3 @@ def _constraint_hints(system, run, step: float) -> str:
         hints.append("`coordinates: auto` changes the independent coordinates where this choice's dg/dy_d "
                      "goes singular, and the run goes on")
     return "".join(f"\n  hint: {h}" for h in hints)
-
-
-def _pick(given, from_scene, default):
-    """A command-line value, else the scene's, else the default."""
-    if given is not None:
-        return given
-    return from_scene if from_scene is not None else default

@@ -9,7 +9,7 @@ velocities onto the tangent space ``G ydot = 0`` (:func:`.constrained.project_in
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Mapping
 
 from ..core.constraints import Intermediates
@@ -24,13 +24,11 @@ __all__ = ["Start", "starting_values"]
 class Start:
     """Where a run starts: ``values`` (parameters and ``y0 = [q0; qdot0]``), for a closed loop
     ``constrained`` (the dependent coordinates there, for the run to follow their branch), the
-    ``notes`` on the corrections the projection made, and ``initial``, the values it started
-    from before the settings."""
+    ``notes`` on the corrections the projection made."""
 
     values: RunValues
     constrained: Intermediates | None = None
     notes: tuple[str, ...] = ()
-    initial: Mapping = field(default_factory=dict)
 
 
 def starting_values(system: KnownSystem, settings: Mapping[str, str] | None = None, *,
@@ -42,8 +40,8 @@ def starting_values(system: KnownSystem, settings: Mapping[str, str] | None = No
     start = dict(system.initial) if initial is None else dict(initial)
     settings = dict(settings or {})
     if system.implicit is None:
-        return Start(resolve(system, start, settings), None, (), start)
+        return Start(resolve(system, start, settings))
     independent, dependent = split_settings(system, settings)
     values = resolve(system, start, independent)
     values, notes, constrained = project_initial(system, start, dependent, values, tolerance)
-    return Start(values, constrained, tuple(notes), start)
+    return Start(values, constrained, tuple(notes))
