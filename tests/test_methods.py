@@ -104,3 +104,13 @@ def test_every_engine_has_its_module():
         assert engines.engine_of(m) is engines.ENGINES[m.engine]
         assert m.fallback is None or (METHODS[m.fallback].simulate and engines.engine_of(METHODS[m.fallback]).EVENTS
                                       and engines.engine_of(METHODS[m.fallback]).COMPILED_RHS), m.name
+
+
+@pytest.mark.parametrize("command, names", [("simulate", SIMULATE), ("accuracy", MEASURED)])
+def test_help_texts_are_the_table(command, names):
+    """The help of ``--method`` / ``--methods`` is the table's description of its methods, whole."""
+    from kronsub.simulation.methods import help_text
+
+    result = CliRunner().invoke(main, [command, "--help"], terminal_width=10_000)
+    assert result.exit_code == 0
+    assert " ".join(help_text(names).split()) in " ".join(result.output.split())
