@@ -12,7 +12,7 @@ from scipy.linalg import expm
 
 from conftest import ROOT
 from kronsub.cli import main
-from kronsub.simulation import accuracy, run
+from kronsub.simulation import accuracy, native, run
 from kronsub.simulation.methods import ENGINES, MEASURED, METHODS, SIMULATE, by_engine
 
 SCHEMA = ROOT / "kronsub" / "model" / "schema.json"
@@ -38,6 +38,7 @@ def test_simulate_and_accuracy_read_the_table():
     assert list(run.METHODS) == list(SIMULATE)
     assert run.FIXED_STEP == ("gauss4", "rk4")
     assert by_engine("c") == ("dop853", "gauss4", "rk4")
+    assert native.METHODS == by_engine("c")  # the integrators in the compiled C are the c engine's methods
     assert accuracy.ALL_METHODS == ("dop853", "gauss4", "rk4", "taylor", "RK45", "DOP853", "Radau", "LSODA", "heyoka")
     assert accuracy.KNOWN_METHODS == accuracy.ALL_METHODS + ("gbs-long", "gbs-quad")
     assert accuracy.CLOSED_LOOP == by_engine("c") + by_engine("scipy")

@@ -216,10 +216,11 @@ class Bench:
 
     def available(self, method: str) -> str:
         """Why ``method`` cannot run, or '' (what it needs is built now)."""
+        method_runner = self.runner(method)
         if self.dependent is not None and not METHODS[method].closed_loops:
             return ("it runs explicit equations only, and a closed loop's dependent coordinates come from "
                     "Newton's method on the constraints (methods here: " + ", ".join(CLOSED_LOOP) + ")")
-        return self.runner(method).unavailable()
+        return method_runner.unavailable()
 
     def _step(self, method: str, tol: float) -> float | None:
         return fixed_step(method, tol, self.t_end) if METHODS[method].fixed_step else None

@@ -13,7 +13,7 @@ __all__ = ["ALL_METHODS", "AccuracyError", "CLOSED_LOOP", "KNOWN_METHODS", "fixe
            "parse_tolerances", "quick_tolerances", "setting"]
 
 KNOWN_METHODS = MEASURED
-ALL_METHODS = tuple(name for name in MEASURED if METHODS[name].precision == "double")  # "all"; the extended ones by name
+ALL_METHODS = tuple(name for name in MEASURED if METHODS[name].precision == "double")  # "all"; extended ones by name
 CLOSED_LOOP = tuple(name for name in MEASURED if METHODS[name].closed_loops)  # Newton's method finds y_d
 
 

@@ -208,8 +208,8 @@ def start(system: KnownSystem, values: RunValues, t_end: float, dt: float, metho
         chunks = 1  # one call: no restarts of the step-size control
     chunks = max(chunks, math.ceil(len(grid) / BLOCK_ROWS))
     if system.implicit is not None and system.implicit.choice == "auto":  # may switch coordinates
-        run.blocks = _auto_blocks(run, system, spec, native, constrained, grid, y0, param, Steps(rtol, atol, dt, chunks),
-                                  bar, outputs, with_energies)
+        run.blocks = _auto_blocks(run, system, spec, native, constrained, grid, y0, param,
+                                  Steps(rtol, atol, dt, chunks), bar, outputs, with_energies)
         return run
     rows = rows_of.blocks(run, grid, y0, Steps(rtol, atol, dt, chunks), bar)
     run.blocks = _finish(run, rows, bar, native, param, system, constrained, with_energies, grid)
@@ -218,7 +218,8 @@ def start(system: KnownSystem, values: RunValues, t_end: float, dt: float, metho
 
 def _problem(system, param, native, outputs, constrained, rtol, atol) -> Problem:
     """What the engines receive: the right-hand side is the compiled model's, or the numpy
-    module's when nothing compiled (made when an engine asks for it)."""
+    module's when nothing compiled (made when an engine asks for it; a run's tolerances, and
+    with them its Newton's method, are set already, so it does not depend on ``tol``)."""
     def restart(tol):
         return (native_rhs(native, param) if native is not None else
                 numpy_rhs(system, param, outputs, constrained, _newton_tol(rtol, atol)))
@@ -270,13 +271,14 @@ def _auto_blocks(run, system, spec, native, constrained, grid, y0, param, steps,
             module = None
             if native is not None:
                 configure_native(native, split.evaluator.guess, tol)
-                rhs = native_rhs(native, param)
             else:
                 module = numpy_module(split.system, outputs)
                 configure_module(module, split.evaluator.guess, tol)
-                rhs = numpy_rhs_of(module, param)
-            problem = Problem(split.system, param, native, lambda _, rhs=rhs: rhs, events=_toggle_event(split),
-                              diagnosed=False)
+
+            def restart(_, native=native, module=module):
+                return native_rhs(native, param) if native is not None else numpy_rhs_of(module, param)
+
+            problem = Problem(split.system, param, native, restart, events=_toggle_event(split), diagnosed=False)
             rows = runner(problem, METHODS[spec.fallback] if watched and spec.fallback else spec).blocks(
                 run, Tail(grid, offset, start), y0, steps, bar)
             switch = None
