@@ -15,6 +15,7 @@ from conftest import ROOT
 from kronsub.cli import main
 from kronsub.simulation import accuracy as A
 from kronsub.simulation import accuracy_report as report
+from kronsub.simulation.methods import by_engine
 from kronsub.simulation.reference import Reference
 from kronsub.simulation.values import resolve
 from conftest import MODELS
@@ -33,7 +34,7 @@ def exact_reference(values, t_end, exact) -> Reference:
 def available_methods():
     from kronsub.simulation import heyoka_backend
 
-    return A.ALL_METHODS if heyoka_backend.available() else A.NATIVE + A.SCIPY
+    return A.ALL_METHODS if heyoka_backend.available() else by_engine("c") + by_engine("scipy")
 
 
 @pytest.mark.parametrize("name, exact, t_end", [("spring_chain", spring_chain_exact, 2.0),
@@ -273,7 +274,7 @@ def test_accuracy_uses_the_library_simulate_built(tmp_path, monkeypatch):
         raise AssertionError("emit_c called again")
 
     monkeypatch.setattr(code, "emit_c", refuse)
-    runners = A._Runners(system, np.array(values.parameters), np.array(values.y0), 0.5)
-    assert runners.native is not None and runners.compile_seconds < 5
-    y = runners.prepare("dop853", 1e-10)()[0]
+    bench = A.Bench(system, np.array(values.parameters), np.array(values.y0), 0.5)
+    assert bench.native is not None and bench.compile_seconds < 5
+    y = bench.prepare("dop853", 1e-10).run()[0]
     assert np.all(np.isfinite(y)) and len(y) == len(values.y0)

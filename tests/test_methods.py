@@ -12,7 +12,7 @@ from scipy.linalg import expm
 
 from conftest import ROOT
 from kronsub.cli import main
-from kronsub.simulation import accuracy, run
+from kronsub.simulation import accuracy, native, run
 from kronsub.simulation.methods import ENGINES, MEASURED, METHODS, SIMULATE, by_engine
 
 SCHEMA = ROOT / "kronsub" / "model" / "schema.json"
@@ -37,12 +37,14 @@ def test_every_method_is_well_formed():
 def test_simulate_and_accuracy_read_the_table():
     assert list(run.METHODS) == list(SIMULATE)
     assert run.FIXED_STEP == ("gauss4", "rk4")
-    assert accuracy.NATIVE == by_engine("c") == ("dop853", "gauss4", "rk4")
+    assert by_engine("c") == ("dop853", "gauss4", "rk4")
+    assert native.METHODS == by_engine("c")  # the integrators in the compiled C are the c engine's methods
     assert accuracy.ALL_METHODS == ("dop853", "gauss4", "rk4", "taylor", "RK45", "DOP853", "Radau", "LSODA", "heyoka")
     assert accuracy.KNOWN_METHODS == accuracy.ALL_METHODS + ("gbs-long", "gbs-quad")
-    assert accuracy.CLOSED_LOOP == accuracy.NATIVE + accuracy.SCIPY
-    assert accuracy.FIXED_STEP_ORDER == {"gauss4": 4, "rk4": 4}
-    assert accuracy.EXTENDED == {"gbs-long": "long", "gbs-quad": "quad"}
+    assert accuracy.CLOSED_LOOP == by_engine("c") + by_engine("scipy")
+    assert {m: accuracy.fixed_step(m, 1e-8, 1.0) for m in MEASURED if METHODS[m].fixed_step} == \
+        {"gauss4": pytest.approx(1e-2), "rk4": pytest.approx(1e-2)}  # tol^(1/4)
+    assert [m for m in MEASURED if METHODS[m].precision != "double"] == ["gbs-long", "gbs-quad"]
 
 
 @pytest.mark.parametrize("command, names", [("simulate", SIMULATE), ("accuracy", MEASURED)])
@@ -87,12 +89,29 @@ def test_rk4_in_simulate_is_fourth_order_against_the_exact_solution():
 
 
 def test_every_engine_has_its_module():
-    """A method's engine runs it for both commands: ``blocks`` (simulate's streamed rows, for an
-    engine of a simulate method) and ``final_state`` (accuracy's timed run)."""
+    """A method's engine (its module in ``simulation/engines``, one interface) runs it for both
+    commands: the engines' table names exactly the engines of the method table, and each has
+    the interface's flags and its ``runner``."""
     import importlib
 
-    for engine in ENGINES:
-        module = importlib.import_module(f"kronsub.simulation.engines.{engine}")
-        assert callable(module.final_state), engine
-        if any(m.simulate for m in METHODS.values() if m.engine == engine):
-            assert callable(module.blocks), engine
+    from kronsub.simulation import engines
+
+    assert tuple(engines.ENGINES) == ENGINES
+    for name, engine in engines.ENGINES.items():
+        assert engine is importlib.import_module(f"kronsub.simulation.engines.{name}")
+        assert isinstance(engine.COMPILED_RHS, bool) and isinstance(engine.EVENTS, bool), name
+        assert callable(engine.runner), name
+    for m in METHODS.values():
+        assert engines.engine_of(m) is engines.ENGINES[m.engine]
+        assert m.fallback is None or (METHODS[m.fallback].simulate and engines.engine_of(METHODS[m.fallback]).EVENTS
+                                      and engines.engine_of(METHODS[m.fallback]).COMPILED_RHS), m.name
+
+
+@pytest.mark.parametrize("command, names", [("simulate", SIMULATE), ("accuracy", MEASURED)])
+def test_help_texts_are_the_table(command, names):
+    """The help of ``--method`` / ``--methods`` is the table's description of its methods, whole."""
+    from kronsub.simulation.methods import help_text
+
+    result = CliRunner().invoke(main, [command, "--help"], terminal_width=10_000)
+    assert result.exit_code == 0
+    assert " ".join(help_text(names).split()) in " ".join(result.output.split())

@@ -16,8 +16,10 @@ Gragg-Bulirsch-Stoer routes in mpmath, cross-checked). A point records
   (27). The state is ``[xbar; xbardot]`` (the independent coordinates): the error is measured
   there, and the residuals show how well each method's run keeps the loop closed.
 
-The reports (:mod:`.accuracy_report`): the points go to a plain CSV, everything else (model,
-reference, skipped methods, failures) to JSON metadata beside it.
+Each method runs through its engine's runner (:mod:`.engines`, the interface ``simulate`` uses);
+what is measured comes from the options (:mod:`.accuracy_options`); the reports
+(:mod:`.accuracy_report`): the points go to a plain CSV, everything else (model, reference,
+skipped methods, failures) to JSON metadata beside it.
 
 Adaptive methods take ``rtol = atol = tol``; ``taylor`` is a Taylor integrator generated as C for
 the model (:mod:`.taylor_c`), of order ``2 ceil(ln(1/tol)/4) + 4`` (:func:`.taylor_c.order_for`; one library per order, its
@@ -32,7 +34,6 @@ import math
 import statistics
 import sys
 import time
-import warnings
 from dataclasses import dataclass, field
 from typing import Callable
 
@@ -40,43 +41,24 @@ import mpmath
 import numpy as np
 
 from ..core.known_system import KnownSystem
-from ..errors import KronsubError
 from . import native as native_module
-from .engines import c as c_engine
-from .engines import extended as extended_engine
-from .engines import heyoka as heyoka_engine
-from .engines import scipy as scipy_engine
-from .engines import taylor as taylor_engine
+from .accuracy_options import (ALL_METHODS, CLOSED_LOOP, KNOWN_METHODS, AccuracyError, fixed_step, parse_methods,
+                               parse_tolerances, quick_tolerances, setting)
+from .engines import Problem, Runner, Timed
+from .engines import runner as runner_of
 from .fallback import numpy_module
-from .methods import MEASURED, METHODS, by_engine
+from .methods import METHODS
 from .reference import Reference, reference as compute_reference
 from .values import RunValues
 
-__all__ = ["ALL_METHODS", "AccuracyError", "CLOSED_LOOP", "EXTENDED", "FIXED_STEP_ORDER", "FLOAT64_FLOOR",
-           "GENERATED", "HEYOKA", "KNOWN_METHODS", "NATIVE", "Point", "Progress", "REFERENCE_MARGIN",
-           "RESIDUAL_ROWS", "RUN_STEPS", "SCIPY", "SLOW_SECONDS", "STALLED_STEPS", "WorkPrecision", "fixed_step",
-           "measure", "parse_methods", "parse_tolerances", "quick_tolerances", "sample_times"]
+__all__ = ["ALL_METHODS", "AccuracyError", "Bench", "CLOSED_LOOP", "FLOAT64_FLOOR", "KNOWN_METHODS", "Point",
+           "Progress", "REFERENCE_MARGIN", "RESIDUAL_ROWS", "SLOW_SECONDS", "WorkPrecision", "fixed_step", "measure",
+           "parse_methods", "parse_tolerances", "quick_tolerances", "sample_times"]
 
-# the method table's (.methods) lists, as this module reads them
-NATIVE = by_engine("c")
-SCIPY = by_engine("scipy")
-HEYOKA = by_engine("heyoka")
-GENERATED = by_engine("taylor")  # a Taylor integrator generated as C for the model (.taylor_c)
-EXTENDED = {name: METHODS[name].precision for name in by_engine("extended")}  # long double / _Float128 C
-KNOWN_METHODS = MEASURED
-ALL_METHODS = tuple(name for name in MEASURED if name not in EXTENDED)  # "all"; the extended ones by name
-CLOSED_LOOP = tuple(name for name in MEASURED if METHODS[name].closed_loops)  # Newton's method finds y_d
-FIXED_STEP_ORDER = {name: METHODS[name].order for name in MEASURED if METHODS[name].fixed_step}
 REFERENCE_MARGIN = 100.0  # the reference must be this much more accurate than the best point
 SLOW_SECONDS = 5.0  # a method whose run took longer skips its tighter tolerances
 FLOAT64_FLOOR = 1e-15  # float64 methods skip tighter tolerances
 RESIDUAL_ROWS = 2000  # the constraint residuals are evaluated at most at this many steps of a run
-RUN_STEPS = 1_000_000  # a SciPy run that takes more steps is a failed point
-STALLED_STEPS = 100  # so is one whose time stays where it is for this many steps (a step size of 0)
-
-
-class AccuracyError(KronsubError):
-    """A work-precision measurement that could not be made."""
 
 
 @dataclass(frozen=True)
@@ -149,64 +131,6 @@ class WorkPrecision:
 
 
 # ---------------------------------------------------------------------------------------------
-# Tolerances
-# ---------------------------------------------------------------------------------------------
-
-def parse_tolerances(text: str) -> tuple[float, ...]:
-    """``1e-4:1e-14`` (every decade between, both ends included), ``1e-4:1e-14:2`` (every
-    second decade) or a list ``1e-6,1e-9``."""
-    hint = "write e.g. --tolerances 1e-4:1e-14, 1e-4:1e-14:2 or 1e-6,1e-9,1e-12"
-    try:
-        if ":" in text:
-            parts = text.split(":")
-            if len(parts) not in (2, 3):
-                raise ValueError
-            first, last = float(parts[0]), float(parts[1])
-            every = int(parts[2]) if len(parts) == 3 else 1
-            if not (0 < first < 1 and 0 < last < 1 and every >= 1):
-                raise ValueError
-            a, b = math.log10(first), math.log10(last)
-            count = int(math.floor(abs(b - a) / every + 1e-9)) + 1
-            sign = -1 if b < a else 1
-            values = [first * 10.0 ** (sign * every * i) for i in range(count)]
-        else:
-            values = [float(v) for v in text.split(",") if v.strip()]
-    except ValueError:
-        raise AccuracyError(f"--tolerances '{text}' is not a range or list of positive numbers below 1\n"
-                            f"  hint: {hint}") \
-            from None
-    if not values or not all(0 < v < 1 for v in values):
-        raise AccuracyError(f"--tolerances '{text}' must give positive numbers below 1 (relative tolerances)\n"
-                            f"  hint: {hint}")
-    return tuple(dict.fromkeys(float(f"{v:.6g}") for v in values))
-
-
-def quick_tolerances(tolerances: tuple[float, ...]) -> tuple[float, ...]:
-    """A coarse grid: every third tolerance, and the last."""
-    picked = list(tolerances[::3])
-    if tolerances[-1] not in picked:
-        picked.append(tolerances[-1])
-    return tuple(picked)
-
-
-def fixed_step(method: str, tol: float, t_end: float) -> float:
-    """The step of a fixed-step method of order p at tolerance ``tol``: ``tol^(1/p)``."""
-    return min(tol ** (1.0 / FIXED_STEP_ORDER[method]), t_end / 8)
-
-
-def parse_methods(text: str | None) -> tuple[str, ...]:
-    """``dop853,RK45`` or ``all`` (the default)."""
-    if text is None or text.strip() == "all":
-        return ALL_METHODS
-    names = [m.strip() for m in text.split(",") if m.strip()]
-    unknown = [m for m in names if m not in KNOWN_METHODS]
-    if unknown or not names:
-        raise AccuracyError(f"unknown method{'s' if len(unknown) > 1 else ''} {', '.join(unknown) or '(none)'}\n"
-                            f"  hint: choose from {', '.join(KNOWN_METHODS)} (comma-separated), or all")
-    return tuple(dict.fromkeys(names))
-
-
-# ---------------------------------------------------------------------------------------------
 # Measuring
 # ---------------------------------------------------------------------------------------------
 
@@ -241,17 +165,18 @@ def _timed(run: Callable[[], tuple], budget: float, max_repeats: int) -> tuple[t
     return result, statistics.median(times), len(times)
 
 
-class _Runners:
-    """Integrations of one system with one parameter set: ``run(method, tol) -> (y_end,
-    evaluations, steps, status)`` and what compiling cost. With implicit constraints,
-    ``dependent`` is ``y_d`` at ``y0``: every run starts its Newton's method from it."""
+class Bench:
+    """Integrations of one system with one parameter set, each method through its engine's
+    runner (:mod:`.engines`): ``prepare(method, tol)`` is the timed run, ``available(method)``
+    why it cannot run. With implicit constraints, ``dependent`` is ``y_d`` at ``y0``: every run
+    starts its Newton's method from it."""
 
     def __init__(self, system: KnownSystem, param: np.ndarray, y0: np.ndarray, t_end: float, dependent=None):
         self.system, self.param, self.y0, self.t_end = system, param, y0, t_end
         self.dependent = None if system.implicit is None else np.array(dependent, dtype=float)
         self.native = None
         self.compile_seconds = None
-        self.skipped: dict[str, str] = {}
+        missing = ""
         from .compiled import native_model
 
         t0 = time.perf_counter()
@@ -259,18 +184,14 @@ class _Runners:
             self.native = native_model(system)
             self.compile_seconds = time.perf_counter() - t0
         except native_module.CompilerNotFound as exc:
-            for m in NATIVE:
-                self.skipped[m] = f"no C compiler ({exc})"
+            missing = f"no C compiler ({exc})"
         if self.native is not None:
             self.rhs = self.native.scipy_rhs(param)
         else:
             module = self.module = numpy_module(system)
             self.rhs = lambda t, y: module["rhs"](t, y, param)
-        self._heyoka = None
-        self.heyoka_compile: dict[float, float] = {}
-        self.extended: dict[str, object] = {}
-        self.extended_compile: dict[str, float] = {}
-        self.taylor_compile: dict[float, float] = {}  # per tolerance: generating and compiling its order
+        self.problem = Problem(system, param, self.native, self._fresh_rhs, missing=missing)
+        self.runners: dict[str, Runner] = {}
 
     def _fresh_rhs(self, tol: float) -> Callable:
         """The right-hand side for one run: with implicit constraints, Newton's method starts
@@ -285,84 +206,28 @@ class _Runners:
         configure_module(self.module, self.dependent, newton_tolerance(tol, tol))
         return self.rhs
 
+    def runner(self, method: str) -> Runner:
+        """The runner of ``method`` on this system, from its engine (one per method)."""
+        if method not in METHODS:
+            raise AccuracyError(f"unknown method '{method}'")
+        if method not in self.runners:
+            self.runners[method] = runner_of(self.problem, METHODS[method])
+        return self.runners[method]
+
     def available(self, method: str) -> str:
-        """Why ``method`` cannot run, or ''."""
-        if method in self.skipped:
-            return self.skipped[method]
-        if self.dependent is not None and method not in CLOSED_LOOP:
+        """Why ``method`` cannot run, or '' (what it needs is built now)."""
+        method_runner = self.runner(method)
+        if self.dependent is not None and not METHODS[method].closed_loops:
             return ("it runs explicit equations only, and a closed loop's dependent coordinates come from "
                     "Newton's method on the constraints (methods here: " + ", ".join(CLOSED_LOOP) + ")")
-        if method == "heyoka":
-            from . import heyoka_backend
+        return method_runner.unavailable()
 
-            if not heyoka_backend.available():
-                return f"heyoka is not installed ({heyoka_backend.INSTALL_HINT})"
-        if method == "taylor" and "taylor" not in self.extended:
-            from .taylor_c import TaylorC, TaylorUnavailable
+    def _step(self, method: str, tol: float) -> float | None:
+        return fixed_step(method, tol, self.t_end) if METHODS[method].fixed_step else None
 
-            t0 = time.perf_counter()
-            try:
-                self.extended["taylor"] = TaylorC(self.system)
-            except (native_module.NativeError, TaylorUnavailable) as exc:
-                self.extended["taylor"] = None
-                self.skipped[method] = str(exc).splitlines()[0]
-            self.extended_compile["taylor"] = time.perf_counter() - t0
-        if method == "taylor" and self.extended["taylor"] is None:
-            return self.skipped[method]
-        if method in EXTENDED:
-            from .extended import ExtendedError, ExtendedModel
-
-            precision = EXTENDED[method]
-            if precision not in self.extended:
-                t0 = time.perf_counter()
-                try:
-                    self.extended[precision] = ExtendedModel(self.system, precision)
-                except (ExtendedError, native_module.NativeError) as exc:
-                    self.extended[precision] = None
-                    self.skipped[method] = str(exc).splitlines()[0]
-                self.extended_compile[precision] = time.perf_counter() - t0
-            if self.extended[precision] is None:
-                return self.skipped[method]
-        return ""
-
-    def prepare(self, method: str, tol: float) -> Callable[[], tuple]:
-        """The timed run of ``method`` at ``tol``: a function returning ``(y_end, evaluations,
-        steps, status)``, the ``final_state`` of the method's engine (:mod:`.engines`, as the
-        method table says); what it compiles for this tolerance is timed apart."""
-        t_end, y0, param = self.t_end, self.y0, self.param
-        engine = METHODS[method].engine if method in KNOWN_METHODS else None
-        if engine == "c":
-            native, h = self.native, fixed_step(method, tol, t_end) if method in FIXED_STEP_ORDER else None
-            restart = (lambda: self._fresh_rhs(tol)) if self.dependent is not None else (lambda: None)
-
-            def run():
-                restart()
-                return c_engine.final_state(native, method, y0, t_end, param, tol, h)
-            return run
-        if engine == "scipy":
-            return lambda: scipy_engine.final_state(self._fresh_rhs(tol), method, y0, t_end, tol, RUN_STEPS,
-                                                    STALLED_STEPS)
-        if engine == "taylor":
-            from .taylor_c import order_for
-
-            taylor = self.extended["taylor"]
-            t0 = time.perf_counter()
-            taylor.build(order_for(tol))  # one library per order, compiled apart from the timing
-            self.taylor_compile[tol] = time.perf_counter() - t0
-            return lambda: taylor_engine.final_state(taylor, param, y0, t_end, tol)
-        if engine == "extended":
-            model = self.extended[EXTENDED[method]]
-            param_list, y0_list = [float(v) for v in param], [float(v) for v in y0]
-            return lambda: extended_engine.final_state(model, param_list, y0_list, t_end, tol)
-        if engine == "heyoka":
-            from .heyoka_backend import HeyokaIntegrator
-
-            t0 = time.perf_counter()
-            integrator = HeyokaIntegrator(self.system, tol)
-            self.heyoka_compile[tol] = time.perf_counter() - t0
-            grid = np.array([0.0, t_end])
-            return lambda: heyoka_engine.final_state(integrator, param, y0, grid)
-        raise AccuracyError(f"unknown method '{method}'")
+    def prepare(self, method: str, tol: float) -> Timed:
+        """The timed run of ``method`` at ``tol`` (what it compiles for this tolerance is timed apart)."""
+        return self.runner(method).timed(self.y0, self.t_end, tol, self._step(method, tol))
 
     def intermediates(self):
         """The constraints' numbers at this run's parameters (:class:`~kronsub.core.constraints.Intermediates`)."""
@@ -396,30 +261,7 @@ class _Runners:
 
     def trace(self, method: str, tol: float) -> tuple[np.ndarray, np.ndarray]:
         """One more (untimed) run of ``method`` at ``tol``: the times and states of its steps."""
-        t_end, y0, param = self.t_end, self.y0, self.param
-        if METHODS[method].engine == "c":
-            self._fresh_rhs(tol)
-            if method == "dop853":
-                T, Y, _ = self.native.integrate("dop853", 0.0, y0, t_end, 0.0, param, rtol=tol, atol=tol)
-            else:  # the step of the timed run: t_end over a whole number of steps
-                h = t_end / max(1, math.ceil(t_end / fixed_step(method, tol, t_end) - 1e-9))
-                T, Y, _ = self.native.integrate(method, 0.0, y0, t_end, h, param, h=h)
-            return T, Y
-        import scipy.integrate
-
-        rhs = self._fresh_rhs(tol)
-        times, states = [0.0], [y0.copy()]
-        with warnings.catch_warnings(), np.errstate(all="ignore"):
-            warnings.simplefilter("ignore")
-            solver = getattr(scipy.integrate, method)(rhs, 0.0, y0.copy(), t_end, rtol=tol, atol=tol)
-            try:
-                while solver.status == "running":
-                    solver.step()
-                    times.append(solver.t)
-                    states.append(solver.y.copy())
-            except Exception:  # the timed run reports the failure
-                pass
-        return np.array(times), np.array(states)
+        return self.runner(method).trace(self.y0, self.t_end, tol, self._step(method, tol))
 
     def residuals(self, method: str, tol: float) -> tuple[float, float, np.ndarray | None]:
         """The largest ``|g(y)|`` and ``|G ydot|`` over the steps of a run (at most
@@ -462,16 +304,16 @@ class _Runners:
         return worst_g, worst_v, guess
 
 
-def _conservative(runners: _Runners, ref: Reference) -> tuple[bool, float | None, float]:
+def _conservative(bench: Bench, ref: Reference) -> tuple[bool, float | None, float]:
     """Whether energy is conserved along the reference (to 1e-9 relative): (flag, E(0), scale)."""
-    E0 = runners.energy(runners.y0, runners.dependent)
+    E0 = bench.energy(bench.y0, bench.dependent)
     if E0 is None:
         return False, None, 1.0
     dependent = [[float(v) for v in d] for d in ref.dependent] or [None] * len(ref.times)
     energies, kinetic = [], []
     for i in range(len(ref.times)):
-        energies.append(runners.energy(np.array(ref.at(i)), dependent[i]))
-        kinetic.append(runners.native.kinetic_energy(np.array(ref.at(i)), runners.param))  # at that y_d
+        energies.append(bench.energy(np.array(ref.at(i)), dependent[i]))
+        kinetic.append(bench.native.kinetic_energy(np.array(ref.at(i)), bench.param))  # at that y_d
     scale = max([abs(E0), *map(abs, kinetic), 1e-300])
     conserved = all(e is not None and abs(e - E0) <= 1e-9 * scale for e in energies)
     return conserved, E0, scale
@@ -532,14 +374,14 @@ def measure(system: KnownSystem, values: RunValues, t_end: float, methods: tuple
     if abs(ref.times[-1] - t_end) > 1e-12 * t_end:
         raise AccuracyError(f"the reference ends at t = {ref.times[-1]}, not at {t_end}")
     want = np.array(ref.at(len(ref.times) - 1))
-    runners = _Runners(system, param, y0, t_end, dependent)
-    conservative, E0, scale = _conservative(runners, ref)
+    bench = Bench(system, param, y0, t_end, dependent)
+    conservative, E0, scale = _conservative(bench, ref)
     budget = (0.05 if quick else 0.3) if budget is None else budget
     max_repeats = (3 if quick else 9) if max_repeats is None else max_repeats
     skipped = {}
     plan = []
     for method in methods:
-        why = runners.available(method)
+        why = bench.available(method)
         if why:
             skipped[method] = why
         else:
@@ -550,42 +392,38 @@ def measure(system: KnownSystem, values: RunValues, t_end: float, methods: tuple
     try:
         for method, tol in plan:
             bar.step(f"{method} {tol:.0e}")
-            if method not in EXTENDED and tol < FLOAT64_FLOOR:
+            if METHODS[method].precision == "double" and tol < FLOAT64_FLOOR:
                 skipped.setdefault(method, f"tolerances below {FLOAT64_FLOOR:.0e} skipped (float64 cannot meet them)")
                 continue
             if method in slow:
                 skipped.setdefault(method, f"tolerances {tol:.0e} and tighter skipped: one run took "
                                            f"{slow[method]:.1f} s (over {SLOW_SECONDS:g} s)")
                 continue
-            run = runners.prepare(method, tol)
-            (y_end, evals, steps, status), seconds, repeats = _timed(run, budget, max_repeats)
-            if method in EXTENDED:  # the error in the type's precision, before rounding to float64
+            timed = bench.prepare(method, tol)
+            (y_end, evals, steps, status), seconds, repeats = _timed(timed.run, budget, max_repeats)
+            extended = METHODS[method].precision != "double"
+            if extended:  # the error in the type's precision, before rounding to float64
                 with mpmath.workdps(50):
                     error = float(max(abs(a - b) for a, b in zip(y_end, ref.states[-1])))
             y_end = np.array([float(v) for v in y_end])
-            if method not in EXTENDED:
+            if not extended:
                 error = float(np.max(np.abs(y_end - want))) if np.all(np.isfinite(y_end)) else math.nan
             residual = velocity_residual = dependent_end = None
             if implicit is not None:
-                residual, velocity_residual, dependent_end = runners.residuals(method, tol)
+                residual, velocity_residual, dependent_end = bench.residuals(method, tol)
             drift = None
-            if conservative and method not in EXTENDED and np.all(np.isfinite(y_end)) and \
+            if conservative and not extended and np.all(np.isfinite(y_end)) and \
                     (implicit is None or dependent_end is not None):
-                E = runners.energy(y_end, dependent_end)
+                E = bench.energy(y_end, dependent_end)
                 drift = None if E is None else abs(E - E0) / scale
-            setting = f"h {fixed_step(method, tol, t_end):.3g}" if method in FIXED_STEP_ORDER else f"tol {tol:.0e}"
-            compiled = runners.heyoka_compile.get(tol) if method == "heyoka" else \
-                runners.taylor_compile.get(tol) if method == "taylor" else \
-                runners.extended_compile.get(EXTENDED.get(method, method))
-            points.append(Point(method, tol, setting, error, drift, seconds, evals, steps, repeats, compiled, status,
-                                residual, velocity_residual))
+            points.append(Point(method, tol, setting(method, tol, t_end), error, drift, seconds, evals, steps, repeats,
+                                timed.compile_seconds, status, residual, velocity_residual))
             if seconds > SLOW_SECONDS:
                 slow[method] = seconds
     finally:
         bar.close()
     state = [q.name for q in system.coordinates] + [v.name for v in system.velocities]
-    return WorkPrecision(system.name, t_end, points, ref, runners.compile_seconds, conservative,
-                         {**runners.skipped, **skipped},
+    return WorkPrecision(system.name, t_end, points, ref, bench.compile_seconds, conservative, skipped,
                          tuple(c.name for c in implicit.constraints) if implicit is not None else (),
                          {p.name: float(v) for p, v in zip(system.parameters, param)},
                          dict(zip(state, map(float, y0))),

@@ -4,7 +4,8 @@ Each :class:`Method` says which engine runs it, its order, whether it takes fixe
 ``--dt`` or adapts its step to ``--rtol``/``--atol``, whether it runs closed loops (implicit
 constraints (25)-(29): the dependent coordinates come from Newton's method inside the
 right-hand side, so a method needing explicit equations, a Taylor series, cannot), the
-floating-point precision it computes in, and a one-line summary. The schema's enum of a
+floating-point precision it computes in, the method run in its place where it cannot run, and a
+one-line summary. Its engine (:mod:`.engines`, one interface) runs it for both commands. The schema's enum of a
 scene's ``method`` (``model/schema.json``) lists :data:`SIMULATE` (tested equal).
 """
 from __future__ import annotations
@@ -28,7 +29,9 @@ class Method:
     ``fixed_step``: it steps ``--dt`` at a time (else adaptive to the tolerances);
     ``closed_loops``: it runs systems with implicit constraints; ``precision``: ``double``,
     ``long`` (long double) or ``quad`` (``_Float128``); ``simulate``: a method of
-    ``simulate`` (else of ``accuracy`` only)."""
+    ``simulate`` (else of ``accuracy`` only); ``fallback``: the method ``simulate`` runs
+    instead where this one cannot, when the model did not compile or to watch an event
+    between rows (None: none is needed)."""
 
     name: str
     engine: str
@@ -38,19 +41,23 @@ class Method:
     precision: str
     summary: str
     simulate: bool = True
+    fallback: str | None = None
 
 
 METHODS: dict[str, Method] = {
     m.name: m
     for m in (
         Method(name="dop853", engine="c", order=8, fixed_step=False, closed_loops=True, precision="double",
+               fallback="DOP853",
                summary="Dormand-Prince 8(5,3), adaptive, dense output at --dt; wholly in C (default: accurate and "
                        "fast for smooth non-stiff problems)"),
         Method(name="gauss4", engine="c", order=4, fixed_step=True, closed_loops=True, precision="double",
+               fallback="DOP853",
                summary="2-stage Gauss-Legendre, fixed step --dt, symplectic in (q, p = Mbar qdot); for long "
                        "conservative runs: energy error stays bounded instead of drifting (with implicit "
                        "constraints: order 4 in (q, qdot))"),
         Method(name="rk4", engine="c", order=4, fixed_step=True, closed_loops=True, precision="double",
+               fallback="DOP853",
                summary="the classical Runge-Kutta method, fixed step --dt, wholly in C: the cheap baseline"),
         Method(name="RK45", engine="scipy", order=5, fixed_step=False, closed_loops=True, precision="double",
                summary="scipy's Dormand-Prince 5(4) calling the compiled right-hand side"),

@@ -3,8 +3,8 @@
 The right-hand side ``ydot = [qdot; Mbar^-1 (fbar - hbar)]`` is the generated
 C, compiled once and cached by content hash; without a C compiler, or when
 the compilation fails, the generated numpy module (:mod:`.fallback`) stands in
-(with a one-line warning). The method table is :mod:`.methods`; each engine
-computes its rows in a module of :mod:`.engines`. A run is split into chunks so
+(with a one-line warning). The method table is :mod:`.methods`; each method's engine
+(:mod:`.engines`, one interface) computes its rows. A run is split into chunks so
 long runs can show progress and stream their rows (:func:`start` yields blocks
 of at most :data:`BLOCK_ROWS` rows, so memory does not grow with the run); a
 non-finite state or a mass matrix that is not positive definite stops it,
@@ -22,10 +22,8 @@ import numpy as np
 from ..core.known_system import KnownSystem
 from .advice import EnergyWarning, StiffnessWarning, energy_advice, is_stiff, stiffness_advice
 from .compiled import native_model
-from .engines import c as c_engine
-from .engines import heyoka as heyoka_engine
-from .engines import scipy as scipy_engine
-from .engines import taylor as taylor_engine
+from .engines import Problem, Steps, engine_of, runner
+from .engines.scipy import native_rhs
 from .failure import failed_state
 from .fallback import module_energies, numpy_module, numpy_rhs, numpy_rhs_of
 from .grid import Grid, Tail
@@ -185,44 +183,48 @@ def start(system: KnownSystem, values: RunValues, t_end: float, dt: float, metho
     param = np.array(values.parameters, dtype=float)
     y0 = np.array(values.y0, dtype=float)
     grid = Grid(t_end, dt)
-    if METHODS[method].engine in ("heyoka", "taylor"):  # the compiled model for the energies and their check
-        heyoka = METHODS[method].engine == "heyoka"
-        run = Run("heyoka", "heyoka") if heyoka else Run("taylor", "C")
-        engine = heyoka_engine if heyoka else taylor_engine
-        chunks = math.ceil(len(grid) / BLOCK_ROWS)
-        rows = ((b.t, b.y) for b in engine.blocks(run, system, param, y0, grid, rtol, chunks))
-        with_energies = outputs is None or outputs.energies
+    spec = METHODS[method]
+    with_energies = outputs is None or outputs.energies
+    if not engine_of(spec).COMPILED_RHS:  # its own integrator; the compiled model for the energies and their check
         native = _compiled_quietly(system, outputs) if with_energies else None
-        run.blocks = _finish(run, rows, Progress(t_end, False), native, param, system, None, with_energies)
+        rows_of = runner(_problem(system, param, native, outputs, constrained, rtol, atol), spec)
+        run = Run(spec.name, rows_of.backend)
+        bar = Progress(t_end, False)
+        rows = rows_of.blocks(run, grid, y0, Steps(rtol, atol, dt, math.ceil(len(grid) / BLOCK_ROWS)), bar)
+        run.blocks = _finish(run, rows, bar, native, param, system, None, with_energies)
         return run
     native = _compiled(system, outputs)
     if constrained is not None and native is not None:
         from .constrained import configure_native
 
         configure_native(native, constrained.guess, _newton_tol(rtol, atol))
-    spec = METHODS[method]
-    if native is None and spec.engine == "c":
-        fallback = "DOP853"
-        warnings.warn(f"method '{method}' runs in compiled C; using scipy's {fallback} instead")
-        spec = METHODS[fallback]
-    run = Run(spec.name, "C" if native is not None else "numpy")
+    if native is None and spec.fallback is not None:
+        warnings.warn(f"method '{method}' runs in compiled C; using scipy's {spec.fallback} instead")
+        spec = METHODS[spec.fallback]
+    rows_of = runner(_problem(system, param, native, outputs, constrained, rtol, atol), spec)
+    run = Run(spec.name, rows_of.backend)
     bar = Progress(t_end, progress)
     if not bar.enabled:
         chunks = 1  # one call: no restarts of the step-size control
     chunks = max(chunks, math.ceil(len(grid) / BLOCK_ROWS))
-    with_energies = outputs is None or outputs.energies
     if system.implicit is not None and system.implicit.choice == "auto":  # may switch coordinates
-        run.blocks = _auto_blocks(run, system, spec, native, constrained, grid, y0, param, rtol, atol, dt, chunks, bar,
-                                  outputs, with_energies)
+        run.blocks = _auto_blocks(run, system, spec, native, constrained, grid, y0, param,
+                                  Steps(rtol, atol, dt, chunks), bar, outputs, with_energies)
         return run
-    if spec.engine == "c":
-        rows = c_engine.blocks(run, native, spec.name, grid, y0, param, rtol, atol, dt, chunks, bar, system)
-    else:
-        rhs = (scipy_engine.native_rhs(native, param) if native is not None else
-               numpy_rhs(system, param, outputs, constrained, _newton_tol(rtol, atol)))
-        rows = scipy_engine.blocks(run, rhs, spec.name, grid, y0, rtol, atol, chunks, bar, system, param=param)
+    rows = rows_of.blocks(run, grid, y0, Steps(rtol, atol, dt, chunks), bar)
     run.blocks = _finish(run, rows, bar, native, param, system, constrained, with_energies, grid)
     return run
+
+
+def _problem(system, param, native, outputs, constrained, rtol, atol) -> Problem:
+    """What the engines receive: the right-hand side is the compiled model's, or the numpy
+    module's when nothing compiled (made when an engine asks for it; a run's tolerances, and
+    with them its Newton's method, are set already, so it does not depend on ``tol``)."""
+    def restart(tol):
+        return (native_rhs(native, param) if native is not None else
+                numpy_rhs(system, param, outputs, constrained, _newton_tol(rtol, atol)))
+
+    return Problem(system, param, native, restart)
 
 
 def _compiled(system, outputs):
@@ -246,38 +248,39 @@ def _compiled_quietly(system, outputs):
         return None
 
 
-def _auto_blocks(run, system, spec, native, constrained, grid, y0, param, rtol, atol, dt, chunks, bar, outputs,
-                 with_energies):
+def _auto_blocks(run, system, spec, native, constrained, grid, y0, param, steps, bar, outputs, with_energies):
     """The blocks of a run with ``coordinates: auto``, switching the independent coordinates where
-    ``G_d`` nears singular (:mod:`.switching`); rows in the layout of the first choice."""
+    ``G_d`` nears singular (:mod:`.switching`); rows in the layout of the first choice. An engine
+    that does not watch events between rows runs a stretch again in the method's fallback, which
+    does, when it stopped in Newton's method or at a singular ``G_d``."""
     from ..core.constraints import ConstraintFailure
     from . import switching as sw
     from .constrained import configure_module, configure_native, diagnose
 
-    tol = _newton_tol(rtol, atol)
+    tol = _newton_tol(steps.rtol, steps.atol)
     first = split = sw.Split(system, constrained)
     offset, start, total = 0, None, {}
     last = None  # (t, y, ydot) of the last row written
-    watched = False  # this stretch again in scipy, whose event watches G_d between the rows
+    watched = False  # this stretch again in the fallback, whose event watches G_d between the rows
     try:
         while True:
             if offset:
                 native = _compiled(split.system, outputs)
-                if native is None and spec.engine == "c":
-                    spec = METHODS["DOP853"]
+                if native is None and spec.fallback is not None:
+                    spec = METHODS[spec.fallback]
             module = None
             if native is not None:
                 configure_native(native, split.evaluator.guess, tol)
             else:
                 module = numpy_module(split.system, outputs)
                 configure_module(module, split.evaluator.guess, tol)
-            if spec.engine == "c" and not watched:  # (start() made it a scipy method when nothing compiled)
-                rows = c_engine.blocks(run, native, spec.name, Tail(grid, offset, start), y0, param, rtol, atol, dt,
-                                      chunks, bar, split.system)
-            else:
-                rhs = scipy_engine.native_rhs(native, param) if native is not None else numpy_rhs_of(module, param)
-                rows = scipy_engine.blocks(run, rhs, "DOP853" if watched else spec.name, Tail(grid, offset, start), y0,
-                                     rtol, atol, chunks, bar, split.system, events=_toggle_event(split))
+
+            def restart(_, native=native, module=module):
+                return native_rhs(native, param) if native is not None else numpy_rhs_of(module, param)
+
+            problem = Problem(split.system, param, native, restart, events=_toggle_event(split), diagnosed=False)
+            rows = runner(problem, METHODS[spec.fallback] if watched and spec.fallback else spec).blocks(
+                run, Tail(grid, offset, start), y0, steps, bar)
             switch = None
             for index, (t, Y) in enumerate(rows):
                 if last is not None and index == 0:
@@ -321,8 +324,8 @@ def _auto_blocks(run, system, spec, native, constrained, grid, y0, param, rtol, 
                 best = split.numeric.pivot(last[1])
                 if sorted(best) != sorted(split.dependent_idx) and len(run.switches) < sw.MAX_SWITCHES:
                     switch = best
-                elif spec.engine == "c" and not watched and len(run.switches) < sw.MAX_SWITCHES:
-                    again = True  # C watched only the rows: from the last one again, watched between rows
+                elif not engine_of(spec).EVENTS and not watched and len(run.switches) < sw.MAX_SWITCHES:
+                    again = True  # it watched only the rows: from the last one again, watched between rows
                 if switch is not None or again:
                     run.complete, run.message, run.t_fail, run.y_fail = True, "", None, None
             watched = again

@@ -1,25 +1,26 @@
-"""The engines of the integration methods, one module each: ``c`` (the methods wholly in C),
-``scipy`` (scipy's solvers on the compiled right-hand side), ``taylor`` (a Taylor integrator
-generated as C) and ``heyoka``. Each ``blocks`` generator yields the rows ``(t, Y)`` of a run on
-its output grid and records on the :class:`~kronsub.simulation.rows.Run` how it ended; the
-method table (:mod:`..methods`) says which engine runs which method."""
+"""The engines of the integration methods, one module each, all with the one interface of
+:mod:`.interface`: ``c`` (the methods wholly in C), ``taylor`` (a Taylor integrator generated as
+C), ``scipy`` (scipy's solvers on the compiled right-hand side), ``heyoka`` and ``extended``
+(extrapolation in extended precision, ``accuracy`` only). The method table
+(:mod:`..methods`) names each method's engine; :func:`engine_of` is that engine."""
 from __future__ import annotations
 
-from collections.abc import Callable, Iterator
-from typing import Protocol
+from ..methods import Method
+from . import c, extended, heyoka, scipy, taylor
+from .interface import Engine, Final, Problem, ProgressBar, Rhs, Rows, Runner, Steps, Timed
 
-import numpy as np
+__all__ = ["ENGINES", "Engine", "Final", "Problem", "ProgressBar", "Rhs", "Rows", "Runner", "Steps", "Timed",
+           "engine_of", "runner"]
 
-__all__ = ["ProgressBar", "Rhs", "Rows"]
-
-Rows = Iterator[tuple[np.ndarray, np.ndarray]]
-"""What an engine's ``blocks`` yields: times and states ``[q; qdot]``, a block at a time."""
-
-Rhs = Callable[[float, np.ndarray], np.ndarray]
-"""A right-hand side ``ydot = f(t, y)`` as scipy calls it."""
+ENGINES: dict[str, Engine] = {"c": c, "taylor": taylor, "scipy": scipy, "heyoka": heyoka, "extended": extended}
+"""The engine of each name a method's ``engine`` may take (:data:`..methods.ENGINES`, tested equal)."""
 
 
-class ProgressBar(Protocol):
-    """Where an engine reports how far a run got (the driver's bar on stderr)."""
+def engine_of(method: Method) -> Engine:
+    """The engine that runs ``method``."""
+    return ENGINES[method.engine]
 
-    def update(self, t: float) -> None: ...
+
+def runner(problem: Problem, method: Method) -> Runner:
+    """The runner of ``method`` on ``problem``, from the method's engine."""
+    return engine_of(method).runner(problem, method)

@@ -1,32 +1,78 @@
-"""The engine of the methods wholly in C (:mod:`..native`: dop853, gauss4, rk4): blocks of rows,
-one per chunk of the grid; fixed-step methods step ``--dt`` at a time."""
+"""The engine of the methods wholly in C (:mod:`..native`: dop853, gauss4, rk4) on the compiled
+model: blocks of rows, one per chunk of the grid; fixed-step methods step ``--dt`` at a time."""
 from __future__ import annotations
+
+import math
 
 import numpy as np
 
 from ..failure import at_configuration, cause_of, not_finite, rank_loss_note, real_at
 from ...core.known_system import KnownSystem
-from ..methods import METHODS
+from ..methods import Method
 from ..native import NativeModel
 from ..rows import Run
-from . import ProgressBar, Rows
+from .interface import Problem, ProgressBar, Rows, Steps, Timed
 from ..grid import Grid, Tail, aligned_pieces, chunk_ranges, fixed_pieces
 
-__all__ = ["blocks", "final_state"]
+__all__ = ["COMPILED_RHS", "EVENTS", "CRunner", "blocks", "final_state", "runner"]
+
+COMPILED_RHS = True
+EVENTS = False
 
 
-def blocks(run: Run, native: NativeModel, method: str, grid: Grid | Tail, y0: np.ndarray, param: np.ndarray,
+class CRunner:
+    """A method wholly in C on the problem's compiled model (:class:`.interface.Runner`)."""
+
+    def __init__(self, problem: Problem, method: Method):
+        self.problem, self.method = problem, method
+
+    @property
+    def backend(self) -> str:
+        return "C" if self.problem.native is not None else "numpy"
+
+    def unavailable(self) -> str:
+        return "" if self.problem.native is not None else self.problem.missing or "the model is not compiled"
+
+    def blocks(self, run: Run, grid: Grid | Tail, y0: np.ndarray, steps: Steps, bar: ProgressBar) -> Rows:
+        p = self.problem
+        return blocks(run, p.native, self.method, grid, y0, p.param, steps.rtol, steps.atol, steps.dt, steps.chunks,
+                      bar, p.system)
+
+    def timed(self, y0: np.ndarray, t_end: float, tol: float, h: float | None) -> Timed:
+        p, method = self.problem, self.method
+
+        def run():
+            p.restart(tol)  # (a closed loop's Newton's method from y_d(0), at this tolerance)
+            return final_state(p.native, method, y0, t_end, p.param, tol, h)
+        return Timed(run)
+
+    def trace(self, y0: np.ndarray, t_end: float, tol: float, h: float | None) -> tuple[np.ndarray, np.ndarray]:
+        p, method = self.problem, self.method
+        p.restart(tol)
+        if not method.fixed_step:
+            T, Y, _ = p.native.integrate(method.name, 0.0, y0, t_end, 0.0, p.param, rtol=tol, atol=tol)
+        else:  # the step of the timed run: t_end over a whole number of steps
+            h = t_end / max(1, math.ceil(t_end / h - 1e-9))
+            T, Y, _ = p.native.integrate(method.name, 0.0, y0, t_end, h, p.param, h=h)
+        return T, Y
+
+
+def runner(problem: Problem, method: Method) -> CRunner:
+    return CRunner(problem, method)
+
+
+def blocks(run: Run, native: NativeModel, method: Method, grid: Grid | Tail, y0: np.ndarray, param: np.ndarray,
            rtol: float, atol: float, dt: float, chunks: int, bar: ProgressBar, system: KnownSystem) -> Rows:
     """Blocks ``(t, Y)`` of a run wholly in C, one per chunk of the grid."""
     last = grid[0]
     yield np.array([last]), np.array([y0])
     stats = run.stats = {"steps": 0, "rejected": 0, "evaluations": 0}
     y = y0
-    fixed = METHODS[method].fixed_step
+    fixed, name = method.fixed_step, method.name
     pieces = [p for a, b in chunk_ranges(grid, chunks)
               for p in (fixed_pieces(grid[a], grid[b], dt) if fixed else aligned_pieces(grid[a], grid[b], dt))]
     for t0, t1 in pieces:
-        t, Y, result = native.integrate(method, t0, y, t1, dt, param, rtol=rtol, atol=atol,
+        t, Y, result = native.integrate(name, t0, y, t1, dt, param, rtol=rtol, atol=atol,
                                         h=dt if fixed else None)
         stats["steps"] += result.n_steps
         stats["rejected"] += result.n_rejected
@@ -60,13 +106,13 @@ def blocks(run: Run, native: NativeModel, method: str, grid: Grid | Tail, y0: np
         bar.update(t1)
 
 
-def final_state(native: NativeModel, method: str, y0: np.ndarray, t_end: float, param: np.ndarray, tol: float,
+def final_state(native: NativeModel, method: Method, y0: np.ndarray, t_end: float, param: np.ndarray, tol: float,
                 h: float | None) -> tuple[np.ndarray, int, int, str]:
     """One run of ``method`` from t = 0 to ``t_end`` with a row at the end only: ``(y_end,
     evaluations, steps, status)`` (status '' when it got there). A fixed-step method takes the
     step ``h``, an adaptive one ``rtol = atol = tol``."""
-    if METHODS[method].fixed_step:
-        _, Y, res = native.integrate(method, 0.0, y0, t_end, t_end, param, h=h)
+    if method.fixed_step:
+        _, Y, res = native.integrate(method.name, 0.0, y0, t_end, t_end, param, h=h)
     else:
-        _, Y, res = native.integrate(method, 0.0, y0, t_end, t_end, param, rtol=tol, atol=tol)
+        _, Y, res = native.integrate(method.name, 0.0, y0, t_end, t_end, param, rtol=tol, atol=tol)
     return Y[-1], res.n_evals, res.n_steps, "" if res.ok else res.message

@@ -7,19 +7,72 @@ import numpy as np
 from collections.abc import Callable
 
 from ...core.known_system import KnownSystem
+from ..methods import Method
 from ..native import NativeModel, SingularMassMatrix
 from ..rows import Run
-from . import ProgressBar, Rhs, Rows
+from .interface import Problem, ProgressBar, Rhs, Rows, Steps, Timed
 from ..failure import at_configuration, not_finite, rank_loss_note, Singular
 from ..grid import Cursor, Grid, Tail
 
-__all__ = ["STALL_STEPS", "STALL_SPAN", "blocks", "final_state", "native_rhs"]
+__all__ = ["COMPILED_RHS", "EVENTS", "RUN_STEPS", "STALLED_STEPS", "STALL_STEPS", "STALL_SPAN", "ScipyRunner",
+           "blocks", "final_state", "native_rhs", "runner"]
+
+COMPILED_RHS = True
+EVENTS = True
 
 
 STALL_STEPS = 1000
 """A scipy run whose last this many steps advanced time by less than `STALL_SPAN` of ``max(1, |t|)``
 has stalled (an implicit method creeping towards a singular configuration takes steps of 1e-12)."""
 STALL_SPAN = 1e-8
+RUN_STEPS = 1_000_000  # a timed run that takes more steps is a failed point
+STALLED_STEPS = 100  # so is one whose time stays where it is for this many steps (a step size of 0)
+
+
+class ScipyRunner:
+    """One of scipy's solvers on the problem's right-hand side (:class:`.interface.Runner`)."""
+
+    def __init__(self, problem: Problem, method: Method):
+        self.problem, self.method = problem, method
+
+    @property
+    def backend(self) -> str:
+        return "C" if self.problem.native is not None else "numpy"
+
+    def unavailable(self) -> str:
+        return ""
+
+    def blocks(self, run: Run, grid: Grid | Tail, y0: np.ndarray, steps: Steps, bar: ProgressBar) -> Rows:
+        p = self.problem
+        return blocks(run, p.restart(steps.rtol), self.method.name, grid, y0, steps.rtol, steps.atol, steps.chunks,
+                      bar, p.system, events=p.events, param=p.param if p.diagnosed else None)
+
+    def timed(self, y0: np.ndarray, t_end: float, tol: float, h: float | None) -> Timed:
+        p, name = self.problem, self.method.name
+        return Timed(lambda: final_state(p.restart(tol), name, y0, t_end, tol, RUN_STEPS, STALLED_STEPS))
+
+    def trace(self, y0: np.ndarray, t_end: float, tol: float, h: float | None) -> tuple[np.ndarray, np.ndarray]:
+        import warnings
+
+        from scipy import integrate
+
+        rhs = self.problem.restart(tol)
+        times, states = [0.0], [y0.copy()]
+        with warnings.catch_warnings(), np.errstate(all="ignore"):
+            warnings.simplefilter("ignore")
+            solver = getattr(integrate, self.method.name)(rhs, 0.0, y0.copy(), t_end, rtol=tol, atol=tol)
+            try:
+                while solver.status == "running":
+                    solver.step()
+                    times.append(solver.t)
+                    states.append(solver.y.copy())
+            except Exception:  # noqa: BLE001 - the timed run reports the failure
+                pass
+        return np.array(times), np.array(states)
+
+
+def runner(problem: Problem, method: Method) -> ScipyRunner:
+    return ScipyRunner(problem, method)
 
 
 def native_rhs(native: NativeModel, param: np.ndarray) -> Rhs:

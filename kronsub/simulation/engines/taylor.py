@@ -1,7 +1,7 @@
 """The engine of ``taylor``: a Taylor integrator generated as C for the model (:mod:`..taylor_c`)."""
 from __future__ import annotations
 
-from collections.abc import Iterator
+import time
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -9,17 +9,61 @@ import numpy as np
 from ...core.known_system import KnownSystem
 from ..failure import at_configuration, not_finite
 from ..grid import Grid, chunk_ranges
+from ..methods import Method
 from ..native import NativeError
-from ..rows import Block, Run, SimulationError
+from ..rows import Run, SimulationError
+from .interface import Problem, ProgressBar, Rows, Steps, Timed
 
 if TYPE_CHECKING:
     from ..taylor_c import TaylorC
 
-__all__ = ["blocks", "final_state"]
+__all__ = ["COMPILED_RHS", "EVENTS", "TaylorRunner", "blocks", "final_state", "runner"]
+
+COMPILED_RHS = False
+EVENTS = False
+
+
+class TaylorRunner:
+    """The Taylor integrator generated as C for the problem's system (:class:`.interface.Runner`),
+    built once, compiled once per order."""
+
+    def __init__(self, problem: Problem, method: Method):
+        self.problem, self.method = problem, method
+        self.taylor: TaylorC | None = None
+        self.why = None
+        self.backend = "C"
+
+    def unavailable(self) -> str:
+        from ..taylor_c import TaylorC, TaylorUnavailable
+
+        if self.why is None:
+            try:
+                self.taylor, self.why = TaylorC(self.problem.system), ""
+            except (NativeError, TaylorUnavailable) as exc:
+                self.why = str(exc).splitlines()[0]
+        return self.why
+
+    def blocks(self, run: Run, grid: Grid, y0: np.ndarray, steps: Steps, bar: ProgressBar) -> Rows:
+        return blocks(run, self.problem.system, self.problem.param, y0, grid, steps.rtol, steps.chunks)
+
+    def timed(self, y0: np.ndarray, t_end: float, tol: float, h: float | None) -> Timed:
+        from ..taylor_c import order_for
+
+        taylor, param = self.taylor, self.problem.param
+        t0 = time.perf_counter()
+        taylor.build(order_for(tol))  # one library per order, compiled apart from the timing
+        return Timed(lambda: final_state(taylor, param, y0, t_end, tol), time.perf_counter() - t0)
+
+    def trace(self, y0: np.ndarray, t_end: float, tol: float, h: float | None) -> tuple[np.ndarray, np.ndarray]:
+        raise NotImplementedError("taylor runs explicit equations only: no closed loop to trace")
+
+
+def runner(problem: Problem, method: Method) -> TaylorRunner:
+    return TaylorRunner(problem, method)
 
 
 def blocks(run: Run, system: KnownSystem, param: np.ndarray, y0: np.ndarray, grid: Grid, tol: float,
-           chunks: int) -> Iterator[Block]:
+           chunks: int) -> Rows:
     from ..taylor_c import TaylorC, TaylorUnavailable, order_for
 
     try:
@@ -37,7 +81,7 @@ def blocks(run: Run, system: KnownSystem, param: np.ndarray, y0: np.ndarray, gri
         stats["steps"] += integrator.last_steps
         start = 0 if first else 1  # a chunk starts on the last row of the one before
         if len(t) > start:
-            yield Block(t[start:], Y[start:])
+            yield t[start:], Y[start:]
         if not complete:
             last = Y[-1] if len(Y) else y
             if np.all(np.isfinite(last)):  # from the last row: an overflow, or a function outside its domain
