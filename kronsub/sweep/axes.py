@@ -1,0 +1,203 @@
+"""The axes of a sweep, read from ``--grid`` and ``--sample``: grids (linear ``a:b:n``,
+logarithmic ``log:a:b:n``, lists ``[v1, v2, ...]``) and distributions (``uniform(a, b)``,
+``normal(mu, sd)``, ``loguniform(a, b)``). Every bound is a constant read by the model's safe
+expression reader (:mod:`kronsub.model.expressions`); every problem is collected and reported at
+its option, e.g. ``--grid m2=2:1:16``."""
+from __future__ import annotations
+
+import math
+import re
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import Location, ModelError, Problem
+from ..model.expressions import constant_value, parse_expression
+
+__all__ = ["DISTRIBUTIONS", "GridAxis", "MAX_GRID_POINTS", "SampleAxis", "parse_grid", "parse_sample", "read_axes"]
+
+MAX_GRID_POINTS = 10**7  # points of one grid axis: more is a typing mistake, not a study
+
+DISTRIBUTIONS = {  # name: (its arguments, a one-line description)
+    "uniform": (("a", "b"), "uniform on [a, b], a < b"),
+    "normal": (("mu", "sd"), "normal with mean mu and standard deviation sd > 0"),
+    "loguniform": (("a", "b"), "log-uniform on [a, b], 0 < a < b"),
+}
+
+
+@dataclass(frozen=True)
+class GridAxis:
+    """A grid over one name: its values, in order."""
+
+    name: str
+    values: tuple[float, ...]
+    text: str
+
+    def __len__(self) -> int:
+        return len(self.values)
+
+
+@dataclass(frozen=True)
+class SampleAxis:
+    """A distribution over one name: ``kind`` of :data:`DISTRIBUTIONS` with its arguments."""
+
+    name: str
+    kind: str
+    args: tuple[float, ...]
+    text: str
+
+    def transform(self, u: np.ndarray) -> np.ndarray:
+        """Values of the distribution at the uniform numbers ``u`` in (0, 1) (its inverse CDF)."""
+        if self.kind == "uniform":
+            a, b = self.args
+            return a + (b - a) * u
+        if self.kind == "loguniform":
+            a, b = self.args
+            return np.exp(math.log(a) + (math.log(b) - math.log(a)) * u)
+        from scipy.special import ndtri
+
+        mu, sd = self.args
+        return mu + sd * ndtri(u)
+
+
+def _split(text: str, sep: str) -> list[str]:
+    """``text`` split at ``sep`` outside parentheses and brackets."""
+    parts, depth, start = [], 0, 0
+    for i, ch in enumerate(text):
+        if ch in "([":
+            depth += 1
+        elif ch in ")]":
+            depth -= 1
+        elif ch == sep and depth == 0:
+            parts.append(text[start:i])
+            start = i + 1
+    parts.append(text[start:])
+    return [p.strip() for p in parts]
+
+
+def _constant(text: str, where: Location, what: str, problems: list[Problem]) -> float | None:
+    try:
+        value = constant_value(parse_expression(text, {}, where, what=what), where, what=what)
+    except ModelError as exc:
+        problems.extend(exc.problems)
+        return None
+    if not math.isfinite(value):
+        problems.append(Problem(where, f"{what} is not finite ({text})", "give a finite number"))
+        return None
+    return value
+
+
+def _assignment(option: str, item: str, example: str, problems: list[Problem]) -> tuple[str, str, Location] | None:
+    name, sep, value = item.partition("=")
+    name, value = name.strip(), value.strip()
+    where = Location(f"{option} {item}")
+    if not sep or not name or not value:
+        problems.append(Problem(where, f"{option} takes NAME=VALUES", f"e.g. {option} {example}"))
+        return None
+    return name, value, where
+
+
+GRID_HINT = "a grid is a:b:n (n values from a to b), log:a:b:n (logarithmic, 0 < a) or a list [v1, v2, ...]"
+
+
+def parse_grid(item: str, problems: list[Problem]) -> GridAxis | None:
+    """One ``--grid NAME=...``; its problems appended to ``problems``."""
+    got = _assignment("--grid", item, "m2=0.5:2:16", problems)
+    if got is None:
+        return None
+    name, text, where = got
+    before = len(problems)
+    if text.startswith("[") and text.endswith("]") or ":" not in text:
+        body = text[1:-1] if text.startswith("[") else text
+        items = [p for p in _split(body, ",")]
+        if not body.strip() or any(not p for p in items):
+            problems.append(Problem(where, f"the list of {name} has an empty entry", GRID_HINT))
+            return None
+        values = [_constant(p, where, f"value of {name}", problems) for p in items]
+        return None if len(problems) > before else GridAxis(name, tuple(values), text)
+    parts = _split(text, ":")
+    log = parts[0] == "log"
+    if log:
+        parts = parts[1:]
+    if len(parts) != 3:
+        problems.append(Problem(where, f"the grid of {name} is not a:b:n", GRID_HINT))
+        return None
+    a = _constant(parts[0], where, f"start of {name}'s grid", problems)
+    b = _constant(parts[1], where, f"end of {name}'s grid", problems)
+    try:
+        n = int(parts[2])
+    except ValueError:
+        n = None
+    if n is None or n < 1 or n > MAX_GRID_POINTS:
+        problems.append(Problem(where, f"the number of values of {name} must be a whole number from 1 to "
+                                       f"{MAX_GRID_POINTS:,} (got {parts[2]!r})", GRID_HINT))
+    if len(problems) > before:
+        return None
+    if a > b:
+        problems.append(Problem(where, f"the grid of {name} is inverted: it starts at {a:g}, above its end {b:g}",
+                                f"write {name}={parts[1]}:{parts[0]}:{n}"))
+        return None
+    if a == b and n > 1:
+        problems.append(Problem(where, f"the grid of {name} is empty: {n} values from {a:g} to {b:g}",
+                                "give two different ends, or one value"))
+        return None
+    if log and not a > 0:
+        problems.append(Problem(where, f"a logarithmic grid of {name} needs a start above 0 (got {a:g})",
+                                "use a linear grid a:b:n for ranges through 0"))
+        return None
+    values = np.geomspace(a, b, n) if log else np.linspace(a, b, n)
+    return GridAxis(name, tuple(float(v) for v in values), text)
+
+
+_CALL = re.compile(r"^([A-Za-z_][A-Za-z0-9_]*)\s*\((.*)\)$", re.S)
+
+
+def parse_sample(item: str, problems: list[Problem]) -> SampleAxis | None:
+    """One ``--sample "NAME=dist(args)"``; its problems appended to ``problems``."""
+    got = _assignment("--sample", item, "k=uniform(90, 110)", problems)
+    if got is None:
+        return None
+    name, text, where = got
+    hint = "distributions: " + "; ".join(f"{k}({', '.join(a)}): {d}" for k, (a, d) in DISTRIBUTIONS.items())
+    call = _CALL.match(text)
+    if call is None or call.group(1) not in DISTRIBUTIONS:
+        told = f"unknown distribution '{call.group(1)}'" if call is not None else f"'{text}' is not a distribution"
+        problems.append(Problem(where, f"{told} for {name}", hint))
+        return None
+    kind, body = call.group(1), call.group(2)
+    names = DISTRIBUTIONS[kind][0]
+    items = _split(body, ",") if body.strip() else []
+    if len(items) != len(names):
+        problems.append(Problem(where, f"{kind} takes {len(names)} arguments ({', '.join(names)}), got {len(items)}",
+                                hint))
+        return None
+    before = len(problems)
+    args = [_constant(p, where, f"{a} of {name}'s {kind}", problems) for p, a in zip(items, names)]
+    if len(problems) > before:
+        return None
+    if kind == "normal" and not args[1] > 0:
+        problems.append(Problem(where, f"the standard deviation of {name} must be above 0 (got {args[1]:g})", hint))
+    elif kind != "normal" and not args[0] < args[1]:
+        problems.append(Problem(where, f"{kind}({args[0]:g}, {args[1]:g}) of {name} is empty or inverted: "
+                                       "it needs a < b", hint))
+    elif kind == "loguniform" and not args[0] > 0:
+        problems.append(Problem(where, f"loguniform of {name} needs a > 0 (got {args[0]:g})", hint))
+    if len(problems) > before:
+        return None
+    return SampleAxis(name, kind, tuple(args), text)
+
+
+def read_axes(grids: tuple[str, ...], samples: tuple[str, ...]) -> tuple[list[GridAxis], list[SampleAxis]]:
+    """Every ``--grid`` and ``--sample``, each name once; raises :class:`ModelError` with every problem."""
+    problems: list[Problem] = []
+    grid_axes = [a for a in (parse_grid(item, problems) for item in grids) if a is not None]
+    sample_axes = [a for a in (parse_sample(item, problems) for item in samples) if a is not None]
+    seen: dict[str, str] = {}
+    for axis, option in [(a, "--grid") for a in grid_axes] + [(a, "--sample") for a in sample_axes]:
+        if axis.name in seen:
+            problems.append(Problem(Location(f"{option} {axis.name}={axis.text}"),
+                                    f"{axis.name} is swept twice (also by {seen[axis.name]})", "sweep each name once"))
+        seen.setdefault(axis.name, f"{option} {axis.name}={axis.text}")
+    if problems:
+        raise ModelError(problems)
+    return grid_axes, sample_axes

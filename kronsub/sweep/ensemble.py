@@ -1,0 +1,165 @@
+"""The compiled ensemble: one library for a whole sweep, a block of runs a call.
+
+The library is the model's generated C (parameters are arguments: never recompiled for new
+values), kronsub's integrators and ``csrc/ensemble.c``, whose ``ks_ensemble_run`` integrates each
+run exactly as one run of ``kronsub simulate`` does (the same integrator on the same pieces of
+the output grid) and writes its summary. The client ships the sources with their sha256
+(:class:`Sources`); a worker checks the digest, builds them once (cached by content,
+:func:`kronsub.simulation.native.compile_library`) and keeps the loaded library per process."""
+from __future__ import annotations
+
+import ctypes
+import hashlib
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import KronsubError
+from ..simulation.compiled import fingerprint, identity_source
+from ..simulation.grid import Grid, aligned_pieces, chunk_ranges, fixed_pieces
+from ..simulation.methods import METHODS
+from ..simulation.native import NativeModel, compile_library, data_address
+from ..simulation.run import BLOCK_ROWS
+
+__all__ = ["BATCH_METHODS", "Ensemble", "EnsembleError", "Sources", "ensemble_sources", "load", "pieces",
+           "summary_width"]
+
+ENSEMBLE_C = Path(__file__).resolve().parent / "csrc" / "ensemble.c"
+BATCH_METHODS = {"dop853": 0, "gauss4": 1, "rk4": 2}  # the methods wholly in C, as ensemble.c numbers them
+MAX_STEPS = 10_000_000  # as a run of simulate (NativeModel.integrate's bound on step attempts)
+
+
+class EnsembleError(KronsubError):
+    """Shipped sources that do not match their digest, or a library without the ensemble."""
+
+
+@dataclass(frozen=True)
+class Sources:
+    """The C files of a sweep's library, their sha256, and the model's sizes."""
+
+    files: tuple[tuple[str, str], ...]
+    sha256: str
+    nq: int
+    nparam: int
+
+
+def _digest(files) -> str:
+    digest = hashlib.sha256()
+    for name, text in files:
+        digest.update(name.encode() + b"\0" + text.encode() + b"\0")
+    return digest.hexdigest()
+
+
+def ensemble_sources(system, outputs=None) -> Sources:
+    """The sources of ``system``'s sweep library: the generated C as ``simulate`` builds it
+    (:func:`kronsub.simulation.compiled.compiled_library`) and the ensemble."""
+    from ..emitters.code import emit_c
+
+    nq, nparam = len(system.coordinates), len(system.parameters)
+    files = [(g.name, g.text) for g in emit_c(system, "model", outputs=outputs)]
+    key = fingerprint(system, outputs)
+    if key is not None:
+        files.append(identity_source(key, nq, nparam))
+    files.append(("ks_ensemble.c", ENSEMBLE_C.read_text()))
+    return Sources(tuple(files), _digest(files), nq, nparam)
+
+
+def summary_width(nq: int) -> int:
+    """Doubles per run's summary (``ks_ensemble_nsum``)."""
+    return 7 + 4 * nq
+
+
+def pieces(t_end: float, dt: float, method: str) -> np.ndarray:
+    """The pieces ``[t0, t1]`` of the output grid a run of ``simulate`` integrates one call each
+    (:func:`kronsub.simulation.engines.c.blocks` without a progress bar)."""
+    grid = Grid(t_end, dt)
+    chunks = max(1, math.ceil(len(grid) / BLOCK_ROWS))
+    cut = fixed_pieces if METHODS[method].fixed_step else aligned_pieces
+    return np.array([p for a, b in chunk_ranges(grid, chunks) for p in cut(grid[a], grid[b], dt)], dtype=float)
+
+
+class _Settings(ctypes.Structure):
+    """``ks_ensemble`` of ``csrc/ensemble.c``."""
+
+    _fields_ = [(name, ctypes.c_void_p) for name in
+                ("rhs", "rhs_circle", "circle_state", "prepare", "momentum", "velocity", "kinetic", "potential")] + [
+        ("method", ctypes.c_int), ("nq", ctypes.c_int), ("nc", ctypes.c_int), ("nfull", ctypes.c_int),
+        ("npre", ctypes.c_int), ("n_pieces", ctypes.c_int), ("pieces", ctypes.c_void_p),
+        ("dt", ctypes.c_double), ("rtol", ctypes.c_double), ("atol", ctypes.c_double),
+        ("max_steps", ctypes.c_long), ("max_rows", ctypes.c_long)]
+
+
+def _address(lib, name: str) -> int | None:
+    try:
+        return ctypes.cast(getattr(lib, name), ctypes.c_void_p).value
+    except AttributeError:
+        return None
+
+
+class Ensemble:
+    """A sweep's library, built from checked :class:`Sources` and loaded."""
+
+    def __init__(self, sources: Sources):
+        if _digest(sources.files) != sources.sha256:
+            raise EnsembleError("the sweep's C sources do not match their sha256: not built")
+        self.native = NativeModel(compile_library(list(sources.files), "sweep"), sources.nq, sources.nparam)
+        lib = self.lib = ctypes.CDLL(str(self.native.path))  # the same library, for the ensemble's functions
+        self.run_block = lib.ks_ensemble_run
+        self.run_block.restype = ctypes.c_long
+        self.run_block.argtypes = [ctypes.c_void_p, ctypes.c_long] + [ctypes.c_void_p] * 7
+        self.addresses = {name: _address(lib, name) for name in (
+            "ks_rhs_pre", "ks_rhs_canonical_pre", "ks_rhs_circle_pre", "ks_circle_state", "ks_prepare",
+            "ks_momentum", "ks_velocity", "ks_kinetic_energy", "ks_potential_energy")}
+        self.npre = int(lib.ks_npre())
+        self.nq, self.nparam = sources.nq, sources.nparam
+
+    def run(self, method: str, cuts: np.ndarray, dt: float, rtol: float, atol: float, param: np.ndarray,
+            y0: np.ndarray, energies: bool) -> np.ndarray:
+        """Summaries (``runs x summary_width``) of the runs from the rows of ``y0`` with the rows
+        of ``param`` (parameters, then a closed loop's Newton state)."""
+        a, native = self.addresses, self.native
+        nq, ny, nc = self.nq, 2 * self.nq, native.nc
+        param = np.ascontiguousarray(param, dtype=float)
+        y0 = np.ascontiguousarray(y0, dtype=float)
+        runs = len(y0)
+        nfull = self.nparam + native.nstate
+        if param.shape != (runs, nfull) or y0.shape != (runs, ny):
+            raise ValueError(f"param {param.shape} and y0 {y0.shape} do not match {runs} runs of "
+                             f"{nfull} parameters and {ny} states")
+        cuts = np.ascontiguousarray(cuts, dtype=float)
+        nz = ny + 2 * nc
+        longest = float(np.max(cuts[:, 1] - cuts[:, 0]))
+        rows = math.floor(longest / dt) + 3 if method == "dop853" else max(1, math.ceil(longest / dt * (1 - 2e-7))) + 3
+        s = _Settings(
+            rhs=a["ks_rhs_canonical_pre"] if method == "gauss4" else a["ks_rhs_pre"],
+            rhs_circle=a["ks_rhs_circle_pre"] if nc else None, circle_state=a["ks_circle_state"] if nc else None,
+            prepare=a["ks_prepare"], momentum=a["ks_momentum"], velocity=a["ks_velocity"],
+            kinetic=a["ks_kinetic_energy"] if energies else None, potential=a["ks_potential_energy"],
+            method=BATCH_METHODS[method], nq=nq, nc=nc, nfull=nfull, npre=self.npre, n_pieces=len(cuts),
+            pieces=data_address(cuts), dt=dt, rtol=rtol, atol=atol, max_steps=MAX_STEPS, max_rows=rows)
+        summary = np.empty((runs, summary_width(nq)))
+        out = np.empty(rows * (nz + 1))
+        work = np.empty(27 * nz)
+        pre = np.empty(max(self.npre, nfull) + 1)
+        start = np.empty(nz)
+        if runs:
+            self.run_block(ctypes.byref(s), runs, data_address(param), data_address(y0), data_address(summary),
+                           data_address(out), data_address(work), data_address(pre), data_address(start))
+        return summary
+
+    def message(self, status: int) -> str:
+        told = self.lib.ks_status_message
+        told.restype, told.argtypes = ctypes.c_char_p, [ctypes.c_int]
+        return told(int(status)).decode()
+
+
+_LOADED: dict[str, Ensemble] = {}
+
+
+def load(sources: Sources) -> Ensemble:
+    """The :class:`Ensemble` of ``sources``, built and loaded once per process."""
+    if sources.sha256 not in _LOADED:
+        _LOADED[sources.sha256] = Ensemble(sources)
+    return _LOADED[sources.sha256]
