@@ -220,6 +220,40 @@ def simulate(system: KnownSystem, t: float = 10.0, dt: float = 0.01, method: str
     return result.to_dataframe() if dataframe else result
 
 
+def sweep(system: KnownSystem, grid: Mapping[str, object] | None = None, sample: Mapping[str, str] | None = None,
+          runs: int | None = None, seed: int = 0, t: float = 10.0, dt: float = 0.01, method: str = "dop853",
+          set: Mapping[str, object] | None = None, rtol: float = 1e-10, atol: float = 1e-10, *,
+          latin: bool = False, scheduler: str | None = None, workers: int | None = None, chunk: int | None = None):
+    """Many runs over a grid (``grid``: name -> ``"a:b:n"``, ``"log:a:b:n"`` or a list of values)
+    and a sample (``sample``: name -> ``"uniform(a, b)"``, ``"normal(mu, sd)"``,
+    ``"loguniform(a, b)"``, ``runs`` draws) of parameters and initial values, on Dask
+    (``scheduler``, else a local cluster of ``workers``): a pandas DataFrame of a row per run,
+    as the rows ``kronsub sweep`` writes (:mod:`kronsub.sweep`). It holds every row in memory:
+    for sweeps larger than memory, the command writes a Parquet dataset a chunk at a time."""
+    import os
+
+    import pandas
+
+    from .sweep.axes import read_axes
+    from .sweep.driver import ENV_SCHEDULER, execute
+    from .sweep.study import DEFAULT_CHUNK, make_job, make_plan
+
+    grids = tuple(f"{name}={spec}" if isinstance(spec, str) else
+                  f"{name}=[{', '.join(repr(float(v)) for v in spec)}]" for name, spec in (grid or {}).items())
+    samples = tuple(f"{name}={spec}" for name, spec in (sample or {}).items())
+    plan = make_plan(*read_axes(grids, samples), runs, seed, latin)
+    values = _run_values(system, set)  # checks the fixed values
+    settings = {p.name: repr(v) for p, v in zip(system.parameters, values.parameters) if p.name in (set or {})}
+    names = [q.name for q in system.coordinates] + [v.name for v in system.velocities]
+    settings.update({name: repr(v) for name, v in zip(names, values.y0) if name in (set or {})})
+    job = make_job(system, plan, dict(system.initial), settings, method=method, t_end=t, dt=dt, rtol=rtol,
+                   atol=atol, chunk=chunk or DEFAULT_CHUNK)
+    parts: dict[int, pandas.DataFrame] = {}
+    execute(job, range(job.chunks), lambda index, rows: parts.__setitem__(index, pandas.DataFrame(rows)),
+            scheduler=scheduler or os.environ.get(ENV_SCHEDULER) or None, workers=workers)
+    return pandas.concat([parts[i] for i in sorted(parts)], ignore_index=True)
+
+
 @dataclass(frozen=True)
 class NumericSystem:
     """Compiled functions of a system at fixed parameter values (the cached C library of
@@ -337,7 +371,7 @@ def repr_latex(system: KnownSystem) -> str:
 class System(KnownSystem):
     """A derived system as a notebook sees it: the :class:`KnownSystem`'s data (``mass_matrix``
     is ``Mbar = Cᵀ M C`` (9'), ``velocity_terms``, ``forces``, ``coordinates``, energies...),
-    with :meth:`symbol`, :meth:`simulate`, :meth:`numeric`, :meth:`linearize` and its Jupyter
+    with :meth:`symbol`, :meth:`simulate`, :meth:`sweep`, :meth:`numeric`, :meth:`linearize` and its Jupyter
     display. The conveniences add no data: a ``System`` goes wherever a ``KnownSystem`` does."""
 
     @classmethod
@@ -354,6 +388,10 @@ class System(KnownSystem):
     def simulate(self, t: float = 10.0, dt: float = 0.01, method: str = "dop853", set=None, **options):
         """Simulate from the model's initial values; see :func:`simulate`."""
         return simulate(self, t, dt, method, set, **options)
+
+    def sweep(self, grid=None, sample=None, runs=None, seed=0, t: float = 10.0, dt: float = 0.01, **options):
+        """A row of summaries per run over a grid or a sample (a pandas DataFrame); see :func:`sweep`."""
+        return sweep(self, grid, sample, runs, seed, t, dt, **options)
 
     def numeric(self, set=None) -> NumericSystem:
         """Compiled ``rhs``, ``mass_matrix``, energies...; see :func:`numeric`."""

@@ -206,3 +206,14 @@ def test_without_dask_the_command_says_how_to_install(tmp_path, monkeypatch):
     monkeypatch.setattr(builtins, "__import__", refuse)
     result = run([SYSTEM1, "--grid", "theta=0:1:2", "-o", tmp_path / "out.parquet"])
     assert result.exit_code == 1 and "pip install 'kronsub[sweep]'" in result.output
+
+
+def test_system_sweep_returns_the_rows_as_a_dataframe():
+    import kronsub
+
+    system = kronsub.load(SYSTEM1).derive()
+    rows = system.sweep(grid={"theta": [0.5, 1.0]}, sample={"phi": "uniform(-1, 1)"}, runs=2, seed=4, t=1.0, dt=0.05,
+                        workers=1)
+    expected = rows_of(job_of(SYSTEM1, None, ("theta=[0.5, 1.0]",), ("phi=uniform(-1, 1)",), runs=2, seed=4,
+                              t_end=1.0, dt=0.05))
+    pd.testing.assert_frame_equal(rows, expected)
