@@ -12,11 +12,13 @@ from __future__ import annotations
 
 import logging
 import os
+import signal
 import sys
 import time
 from collections.abc import Callable, Iterable
 
 from ..errors import KronsubError
+from ..interrupts import handled
 from .chunk import Job, run_chunk
 
 __all__ = ["CONNECT_SECONDS", "ENV_SCHEDULER", "SchedulerError", "SweepProgress", "execute", "window"]
@@ -76,8 +78,11 @@ def _connect(scheduler: str | None, workers: int | None):
                                  f"`dask worker ADDRESS`, or leave out --scheduler (and {ENV_SCHEDULER}) for a "
                                  "local cluster") from None
     count = workers or os.cpu_count() or 1
-    cluster = LocalCluster(n_workers=count, threads_per_worker=1, processes=True, dashboard_address=None,
-                           silence_logs=logging.ERROR)
+    # the workers ignore Ctrl-C, which the terminal sends the whole process group: the client
+    # keeps the finished chunks and closes the cluster
+    with handled(lambda signum: signum == signal.SIGINT, signal.SIG_IGN):
+        cluster = LocalCluster(n_workers=count, threads_per_worker=1, processes=True, dashboard_address=None,
+                               silence_logs=logging.ERROR)
     return Client(cluster, set_as_default=False), cluster
 
 
@@ -111,6 +116,10 @@ def execute(job: Job, todo: Iterable[int], done: Callable[[int, dict], None], *,
                 future.release()
                 if pending:
                     futures.add(submit())
+    except BaseException:
+        for name in ("distributed", "distributed.client", "distributed.scheduler", "tornado", "tornado.application"):
+            logging.getLogger(name).setLevel(logging.CRITICAL + 1)  # the cancelled futures are not news
+        raise
     finally:
         if progress is not None:
             progress.close()
