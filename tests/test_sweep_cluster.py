@@ -5,6 +5,7 @@ only the chunks it had not written."""
 from __future__ import annotations
 
 import functools
+import json
 import os
 import signal
 import socket
@@ -126,3 +127,20 @@ def test_a_worker_lost_mid_sweep_leaves_the_result_complete(cluster, tmp_path):
     assert client.returncode == 0, stderr.decode()
     assert "400 complete" in stderr.decode()
     pd.testing.assert_frame_equal(read(out), local_rows().copy(), check_dtype=False)
+
+
+def test_ctrl_c_keeps_the_finished_chunks(cluster, tmp_path):
+    address, _ = cluster
+    out = tmp_path / "runs.parquet"
+    client = sweep(address, out)
+    until(lambda: len(parts(out)) >= 2 or client.poll() is not None, "the first chunks")
+    client.send_signal(signal.SIGINT)
+    stdout, stderr = client.communicate(timeout=WAIT)
+    kept = len(parts(out))
+    assert client.returncode == 130, stderr.decode()
+    assert f"Interrupted: {kept} of 40 chunks kept in {out}" in stderr.decode() and "Traceback" not in stderr.decode()
+    meta = json.loads((tmp_path / "runs.parquet.json").read_text())
+    assert meta["state"] == "interrupted" and meta["chunks_written"] == kept
+    assert sum(meta["counts"].values()) == 10 * kept
+    rows = read(out)
+    pd.testing.assert_frame_equal(rows, local_rows().set_index("run").loc[rows["run"]].reset_index(), check_dtype=False)
