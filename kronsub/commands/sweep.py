@@ -11,7 +11,7 @@ import click
 from ..simulation.methods import help_text as method_help
 from ..version import __version__
 from .common import (USAGE_ERROR, budget_option, check_times, fail, interrupted_by, note_safely, run_command, say,
-                     scene_option, scene_system, separate_outputs, set_option)
+                     scene_option, scene_system, separate_outputs, set_option, writable_outputs)
 
 INSTALL_HINT = "pip install 'kronsub[sweep]'"
 
@@ -35,6 +35,14 @@ INSTALL_HINT = "pip install 'kronsub[sweep]'"
 @click.option("--method", default=None, help="Default: the scene's, else dop853. " + method_help())
 @click.option("--rtol", type=float, default=1e-10, show_default=True, help="Relative tolerance (adaptive methods).")
 @click.option("--atol", type=float, default=1e-10, show_default=True, help="Absolute tolerance (adaptive methods).")
+@click.option("--summary", "summaries", multiple=True, metavar="[NAME=]OUTPUT",
+              help="A column of your own (repeatable): max, min, mean, initial or final of an expression of the "
+                   "model's names and t, e.g. 'max(abs(theta))', or first_time of a comparison, e.g. "
+                   "'flip=first_time(phi > pi)' (NaN when never).")
+@click.option("--plot", type=click.Path(dir_okay=False, path_type=Path), default=None,
+              help="A PNG heat map of one column (--plot-column) over a sweep's two --grid axes.")
+@click.option("--plot-column", default=None, metavar="COLUMN",
+              help="The column --plot maps (default: the last --summary, else the first final coordinate).")
 @set_option("Set a parameter or initial value shared by every run (repeatable).")
 @click.option("--output", "-o", type=click.Path(path_type=Path), required=True,
               help="The output folder: one Parquet part per chunk (a dataset), the metadata beside it as JSON "
@@ -49,8 +57,8 @@ INSTALL_HINT = "pip install 'kronsub[sweep]'"
 @click.option("--force", is_flag=True, help="Replace an existing --output.")
 @scene_option
 @budget_option
-def sweep(model: Path, grids, samples, runs, seed, latin, t_end, dt, method, rtol, atol, settings, output, chunk,
-          scheduler, workers, resume, force, scene_name):
+def sweep(model: Path, grids, samples, runs, seed, latin, t_end, dt, method, rtol, atol, summaries, plot, plot_column,
+          settings, output, chunk, scheduler, workers, resume, force, scene_name):
     """Run MODEL over a grid or a sample of its parameters and initial values: a row per run
     (inputs, status, final state, min and max of each coordinate, energy drift, cost)."""
     def job():
@@ -73,7 +81,12 @@ def sweep(model: Path, grids, samples, runs, seed, latin, t_end, dt, method, rto
             plan = make_plan(grid_axes, sample_axes, runs, seed, latin)
         except SweepError as exc:
             fail(f"Error: {exc}", USAGE_ERROR)
-        separate_outputs(model, ("--output", output, "output"))
+        separate_outputs(model, ("--output", output, "output"), ("--plot", plot, "plot"))
+        if plot is not None:
+            if len(grid_axes) != 2 or sample_axes:
+                fail("Error: --plot maps a sweep over exactly two --grid axes (and no --sample)\n"
+                     "  hint: give two --grid NAME=a:b:n", USAGE_ERROR)
+            writable_outputs(None, plot)
         if (output.exists() or Path(str(output) + ".json").exists()) and not (resume or force):
             fail(f"Error: {output} exists\n  hint: --resume finishes the sweep written there, --force replaces it, "
                  "or choose another -o")
@@ -90,14 +103,21 @@ def sweep(model: Path, grids, samples, runs, seed, latin, t_end, dt, method, rto
         try:
             job_ = make_job(system, plan, initial_values(loaded, scene), assignments, method=chosen, t_end=span,
                             dt=step, rtol=rtol, atol=atol, outputs=scene.outputs if scene is not None else None,
-                            chunk=chunk or DEFAULT_CHUNK, axes_text=where)
+                            chunk=chunk or DEFAULT_CHUNK, axes_text=where, summaries=summaries)
         except SweepError as exc:
             fail(f"Error: {exc}", USAGE_ERROR)
         identity = {"model": loaded.source.sha256 if loaded.source is not None else None,
                     "uses": [f.sha256 for f in loaded.uses], "scene": scene.name if scene is not None else None,
                     "spec": plan.describe(), "set": dict(sorted(assignments.items())), "method": chosen,
-                    "rtol": rtol, "atol": atol, "t_end": span, "dt": step, "chunk": job_.chunk}
+                    "rtol": rtol, "atol": atol, "t_end": span, "dt": step, "chunk": job_.chunk,
+                    "summaries": {out.name: out.text for out in job_.summaries}}
         dataset = Dataset(output, columns(job_))
+        mapped = None
+        if plot is not None:
+            mapped = plot_column or (job_.summaries[-1].name if job_.summaries else f"final_{system.coordinates[0].name}")
+            if mapped not in {name for name, kind in dataset.columns if kind == "float64"} or mapped in plan.names:
+                fail(f"Error: --plot-column {mapped}: no numeric output column of that name\n  hint: choose one of "
+                     + ", ".join(n for n, k in dataset.columns if k == "float64" and n not in plan.names), USAGE_ERROR)
         try:
             written = dataset.prepare(identity, resume=resume, force=force)
         except DatasetError as exc:
@@ -141,6 +161,11 @@ def sweep(model: Path, grids, samples, runs, seed, latin, t_end, dt, method, rto
                  f"{output}\n  hint: --resume finishes it", exit_code(exc))
         counts = dataset.counts()
         sidecar("complete", finished[0], counts)
+        if plot is not None:
+            from ..sweep.plot import heat_map
+
+            heat_map(dataset.folder, plan, mapped, system, plot)
+            say(f"wrote {plot}")
         note_safely(f"wrote {output} ({plan.count:,} runs: "
                     + ", ".join(f"{n:,} {status}" for status, n in counts.items()) + f"; metadata {dataset.sidecar})")
 

@@ -46,6 +46,7 @@ class Job:
     initial: dict = field(default_factory=dict)  # the model's and scene's initial values (closed loops)
     dependent_settings: dict = field(default_factory=dict)  # --set of a closed loop's dependent coordinates
     derived_initial: tuple = ()  # (state index, expression of swept parameters) per such initial value
+    summaries: tuple = ()  # user outputs (:class:`.outputs.UserOutput`), a column each
 
     @property
     def chunks(self) -> int:
@@ -67,7 +68,8 @@ def columns(job: Job) -> list[tuple[str, str]]:
             [("status", "string"), ("reason", "string"), ("t_final", "float64")] +
             [(f"final_{name}", "float64") for name in state_names(job.system)] +
             [(f"min_{name}", "float64") for name in q] + [(f"max_{name}", "float64") for name in q] +
-            [("energy_drift", "float64"), ("steps", "int64"), ("rejected", "int64"), ("evaluations", "int64")])
+            [("energy_drift", "float64"), ("steps", "int64"), ("rejected", "int64"), ("evaluations", "int64")] +
+            [(out.name, "float64") for out in job.summaries])
 
 
 def _values(job: Job, start: int, stop: int) -> tuple[dict, np.ndarray, np.ndarray]:
@@ -119,9 +121,9 @@ def run_chunk(job: Job, index: int) -> dict[str, object]:
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         if job.route == ENSEMBLE:
-            summary, reasons = _ensemble(job, param, y0)
+            summary, reasons, users = _ensemble(job, param, y0)
         else:
-            summary, reasons = _one_by_one(job, param, y0)
+            summary, reasons, users = _one_by_one(job, param, y0)
     ny = 2 * nq
     status = summary[:, 0]
     out: dict[str, object] = {"run": np.arange(start, stop, dtype=np.int64), **inputs}
@@ -137,15 +139,50 @@ def run_chunk(job: Job, index: int) -> dict[str, object]:
     out["energy_drift"] = summary[:, 6 + ny + 2 * nq] - summary[:, 5 + ny + 2 * nq]
     for k, name in ((2, "steps"), (3, "rejected"), (4, "evaluations")):
         out[name] = summary[:, k].astype(np.int64)
+    for k, user in enumerate(job.summaries):
+        out[user.name] = users[:, k]
     assert all(len(v) == n for v in out.values())
     return out
 
 
-def _ensemble(job: Job, param: np.ndarray, y0: np.ndarray) -> tuple[np.ndarray, list[str]]:
+ROWS_BYTES = 1 << 26  # the rows of the runs of one call to the ensemble, when user outputs need them
+
+
+def _functions(job: Job):
+    """The user outputs as numpy functions of ``(t, state..., parameters...)``."""
+    from ..core.symbols import TIME
+    from .outputs import evaluator
+
+    system = job.system
+    return evaluator(list(job.summaries), [TIME, *system.coordinates, *system.velocities,
+                                           *(p.symbol for p in system.parameters)])
+
+
+def _ensemble(job: Job, param: np.ndarray, y0: np.ndarray) -> tuple[np.ndarray, list[str], np.ndarray]:
     ensemble = load(job.sources)
     energies = _conserves(job, ensemble.native)
-    summary = ensemble.run(job.method, pieces(job.t_end, job.dt, job.method), job.dt, job.rtol, job.atol, param, y0,
-                           energies)
+    cuts = pieces(job.t_end, job.dt, job.method)
+    users = np.full((len(y0), len(job.summaries)), np.nan)
+    if not job.summaries:
+        summary = ensemble.run(job.method, cuts, job.dt, job.rtol, job.atol, param, y0, energies)
+    else:
+        from ..simulation.grid import Grid
+        from .outputs import evaluate
+
+        grid, functions = Grid(job.t_end, job.dt), _functions(job)
+        per_run = sum(int((b - a) / job.dt) + 3 for a, b in cuts) * (y0.shape[1] + 1) * 8
+        block = max(1, ROWS_BYTES // per_run)
+        parts = []
+        for a in range(0, len(y0), block):
+            b = min(a + block, len(y0))
+            part, rows, written = ensemble.run(job.method, cuts, job.dt, job.rtol, job.atol, param[a:b], y0[a:b],
+                                               energies, with_rows=True)
+            parts.append(part)
+            for r in range(b - a):
+                kept = rows[r, :written[r]]
+                users[a + r] = evaluate(list(job.summaries), functions, grid.snap(kept[:, 0]), kept[:, 1:],
+                                        param[a + r, :len(job.system.parameters)])
+        summary = np.concatenate(parts)
     messages: dict[int, str] = {}
     reasons = []
     for s, t in zip(summary[:, 0], summary[:, 1]):
@@ -156,10 +193,10 @@ def _ensemble(job: Job, param: np.ndarray, y0: np.ndarray) -> tuple[np.ndarray, 
         if status not in messages:
             messages[status] = ensemble.message(status)
         reasons.append(f"{messages[status]} at t = {t:.6g}")
-    return summary, reasons
+    return summary, reasons, users
 
 
-def _one_by_one(job: Job, param: np.ndarray, y0: np.ndarray) -> tuple[np.ndarray, list[str]]:
+def _one_by_one(job: Job, param: np.ndarray, y0: np.ndarray) -> tuple[np.ndarray, list[str], np.ndarray]:
     """Each run as ``simulate`` runs it (closed loops projected onto their constraints first)."""
     from ..simulation.run import start
     from ..simulation.values import RunValues
@@ -178,6 +215,8 @@ def _one_by_one(job: Job, param: np.ndarray, y0: np.ndarray) -> tuple[np.ndarray
         except KronsubError:
             native = None
     energies = native is not None and _conserves(job, native)
+    users = np.full((len(y0), len(job.summaries)), np.nan)
+    functions = _functions(job) if job.summaries else None
     for r in range(len(y0)):
         row = summary[r]
         row[5:5 + ny] = y0[r]
@@ -195,10 +234,13 @@ def _one_by_one(job: Job, param: np.ndarray, y0: np.ndarray) -> tuple[np.ndarray
             run = start(system, values, job.t_end, job.dt, job.method, job.rtol, job.atol, progress=False,
                         outputs=job.outputs, constrained=constrained)
             first = last = None
+            kept = [] if functions is not None else None
             for block in run:
                 Y = np.asarray(block.y).reshape(len(block.t), -1)
                 if not len(Y):
                     continue
+                if kept is not None:
+                    kept.append((np.asarray(block.t, dtype=float), Y))
                 row[5 + ny:5 + ny + nq] = np.minimum(row[5 + ny:5 + ny + nq], Y[:, :nq].min(axis=0))
                 row[5 + ny + nq:5 + ny + 2 * nq] = np.maximum(row[5 + ny + nq:5 + ny + 2 * nq], Y[:, :nq].max(axis=0))
                 row[5:5 + ny] = Y[-1]
@@ -207,6 +249,11 @@ def _one_by_one(job: Job, param: np.ndarray, y0: np.ndarray) -> tuple[np.ndarray
                     T, V = block.energies
                     first = float(T[0] + V[0]) if first is None else first
                     last = float(T[-1] + V[-1])
+            if kept:
+                from .outputs import evaluate
+
+                users[r] = evaluate(list(job.summaries), functions, np.concatenate([k[0] for k in kept]),
+                                    np.concatenate([k[1] for k in kept]), param[r])
             stats = run.stats
             row[2:5] = (stats.get("steps", 0), stats.get("rejected", 0), stats.get("evaluations", 0))
             if run.complete:
@@ -221,4 +268,4 @@ def _one_by_one(job: Job, param: np.ndarray, y0: np.ndarray) -> tuple[np.ndarray
         except KronsubError as exc:
             row[0] = 1
             reasons.append(str(exc).splitlines()[0])
-    return summary, reasons
+    return summary, reasons, users

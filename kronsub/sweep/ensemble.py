@@ -88,7 +88,8 @@ class _Settings(ctypes.Structure):
         ("method", ctypes.c_int), ("nq", ctypes.c_int), ("nc", ctypes.c_int), ("nfull", ctypes.c_int),
         ("npre", ctypes.c_int), ("n_pieces", ctypes.c_int), ("pieces", ctypes.c_void_p),
         ("dt", ctypes.c_double), ("rtol", ctypes.c_double), ("atol", ctypes.c_double),
-        ("max_steps", ctypes.c_long), ("max_rows", ctypes.c_long)]
+        ("max_steps", ctypes.c_long), ("max_rows", ctypes.c_long), ("rows", ctypes.c_void_p),
+        ("rows_per_run", ctypes.c_long), ("rows_written", ctypes.c_void_p)]
 
 
 def _address(lib, name: str) -> int | None:
@@ -116,9 +117,10 @@ class Ensemble:
         self.nq, self.nparam = sources.nq, sources.nparam
 
     def run(self, method: str, cuts: np.ndarray, dt: float, rtol: float, atol: float, param: np.ndarray,
-            y0: np.ndarray, energies: bool) -> np.ndarray:
+            y0: np.ndarray, energies: bool, with_rows: bool = False):
         """Summaries (``runs x summary_width``) of the runs from the rows of ``y0`` with the rows
-        of ``param`` (parameters, then a closed loop's Newton state)."""
+        of ``param`` (parameters, then a closed loop's Newton state); ``with_rows``: also each
+        run's rows ``[t, q, qdot]`` on the output grid, ``(summary, rows, count per run)``."""
         a, native = self.addresses, self.native
         nq, ny, nc = self.nq, 2 * self.nq, native.nc
         param = np.ascontiguousarray(param, dtype=float)
@@ -139,6 +141,11 @@ class Ensemble:
             kinetic=a["ks_kinetic_energy"] if energies else None, potential=a["ks_potential_energy"],
             method=BATCH_METHODS[method], nq=nq, nc=nc, nfull=nfull, npre=self.npre, n_pieces=len(cuts),
             pieces=data_address(cuts), dt=dt, rtol=rtol, atol=atol, max_steps=MAX_STEPS, max_rows=rows)
+        if with_rows:
+            per_run = sum(math.floor((b - a) / dt) + 3 for a, b in cuts)
+            kept = np.zeros((runs, per_run, ny + 1))
+            written = np.zeros(runs, dtype=np.int64)
+            s.rows, s.rows_per_run, s.rows_written = data_address(kept), per_run, data_address(written)
         summary = np.empty((runs, summary_width(nq)))
         out = np.empty(rows * (nz + 1))
         work = np.empty(27 * nz)
@@ -147,7 +154,7 @@ class Ensemble:
         if runs:
             self.run_block(ctypes.byref(s), runs, data_address(param), data_address(y0), data_address(summary),
                            data_address(out), data_address(work), data_address(pre), data_address(start))
-        return summary
+        return (summary, kept, written) if with_rows else summary
 
     def message(self, status: int) -> str:
         told = self.lib.ks_status_message

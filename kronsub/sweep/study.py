@@ -7,8 +7,10 @@ from ..errors import Location, ModelError, Problem, near_names
 from ..simulation.methods import METHODS, SIMULATE, unknown_method
 from ..simulation.run import SimulationError, check_tolerances, explicit_only, row_count
 from .axes import GridAxis, SampleAxis
-from .chunk import ENSEMBLE, ONE_BY_ONE, Job, state_names
+from ..core.symbols import TIME
+from .chunk import ENSEMBLE, ONE_BY_ONE, Job, columns, state_names
 from .ensemble import BATCH_METHODS, ensemble_sources
+from .outputs import read_outputs
 from .plan import MAX_RUNS, Plan
 
 __all__ = ["DEFAULT_CHUNK", "SweepError", "make_job", "make_plan"]
@@ -43,7 +45,8 @@ def make_plan(grids: list[GridAxis], samples: list[SampleAxis], runs: int | None
 
 def make_job(system, plan: Plan, initial: dict, settings: dict[str, str], *, method: str, t_end: float, dt: float,
              rtol: float, atol: float, outputs=None, chunk: int = DEFAULT_CHUNK,
-             axes_text: dict[str, str] | None = None, compiled: bool = True) -> Job:
+             axes_text: dict[str, str] | None = None, compiled: bool = True, summaries: tuple[str, ...] = (),
+             summary_option: str = "--summary") -> Job:
     """The :class:`Job` of ``plan`` over ``system``; ``settings`` the fixed ``--set`` values. Raises
     :class:`ModelError` (unknown or doubly given names, bad values) or :class:`SweepError`."""
     from ..simulation.values import resolve
@@ -77,6 +80,19 @@ def make_job(system, plan: Plan, initial: dict, settings: dict[str, str], *, met
                 problems.append(Problem(Location(where.get(name, name)), f"{name} is a dependent coordinate of the "
                                         "closed loop: it follows from the independent ones",
                                         "sweep the independent coordinates: " + ", ".join(states)))
+    names = {"t": TIME, **{q.name: q for q in system.coordinates}, **{v.name: v for v in system.velocities},
+             **{p.name: p.symbol for p in system.parameters}}
+    user = []
+    try:
+        user = read_outputs(summaries, names, summary_option)
+    except ModelError as exc:
+        problems.extend(exc.problems)
+    taken = {name for name, _ in columns(Job(system=system, plan=plan, chunk=1, method=method, t_end=t_end, dt=dt,
+                                                 rtol=rtol, atol=atol, base_param=(), base_y0=(), route=""))}
+    for out in user:
+        if out.name in taken:
+            problems.append(Problem(Location(f"{summary_option} {out.text}"), f"the output name {out.name} is a column "
+                                    "of every row already", f"name it: {summary_option} NAME={out.text}"))
     if problems:
         raise ModelError(problems)
     fixed = {k: v for k, v in settings.items() if k not in dependent}
@@ -99,4 +115,5 @@ def make_job(system, plan: Plan, initial: dict, settings: dict[str, str], *, met
     sources = ensemble_sources(system, outputs) if route == ENSEMBLE else None
     return Job(system=system, plan=plan, chunk=chunk, method=method, t_end=t_end, dt=dt, rtol=rtol, atol=atol,
                base_param=values.parameters, base_y0=values.y0, route=route, sources=sources, outputs=outputs,
-               initial=dict(initial), dependent_settings=dependent_settings, derived_initial=tuple(derived))
+               initial=dict(initial), dependent_settings=dependent_settings, derived_initial=tuple(derived),
+               summaries=tuple(user))

@@ -10,7 +10,8 @@
  * [q; p = Mbar qdot] for gauss4. Its summary, nsum = 7 + 2 ny doubles, is
  *     [status, t_last, steps, rejected, evaluations, y_last (ny), min q (nq), max q (nq), E0, E1]
  * with min and max over the rows on the output grid, E = T + V (24) at the start and at the end
- * (NaN unless asked for). No allocation: out holds max_rows * (nz + 1) doubles, work
+ * (NaN unless asked for); given e->rows, the run's rows themselves (a piece's first row, the last
+ * of the piece before it, once). No allocation: out holds max_rows * (nz + 1) doubles, work
  * KS_DOP853_WORK(nz), pre npre
  * and start nz doubles, nz = ny + 2 nc.
  */
@@ -40,6 +41,9 @@ typedef struct {
     double dt, rtol, atol;
     long max_steps;
     long max_rows;
+    double *rows;              /* NULL, or each run's rows [t, q, qdot] on the output grid: */
+    long rows_per_run;         /*   rows_per_run rows of 2 nq + 1 doubles from rows + r rows_per_run (2 nq + 1) */
+    long *rows_written;        /*   and their count per run */
 } ks_ensemble;
 
 int ks_ensemble_nsum(int nq);
@@ -97,6 +101,8 @@ long ks_ensemble_run(const ks_ensemble *e, long n_runs, const double *param, con
         if (e->kinetic != NULL)
             s[5 + ny + 2 * nq] = e->kinetic(y, p) + e->potential(e->pieces[0], y, p);
         t_last = e->pieces[0];
+        if (e->rows != NULL)
+            e->rows_written[r] = 0;
         for (k = 0; k < e->n_pieces && status == 0; ++k) {
             const double t0 = e->pieces[2 * k], t1 = e->pieces[2 * k + 1];
             int circle = with_circle, width;
@@ -117,6 +123,21 @@ long ks_ensemble_run(const ks_ensemble *e, long n_runs, const double *param, con
                     if (v < lo[i]) lo[i] = v;
                     if (v > hi[i]) hi[i] = v;
                 }
+            if (e->rows != NULL) {
+                double *to = e->rows + r * e->rows_per_run * (ny + 1);
+                for (row = k > 0 ? 1 : 0; row < res.n_rows && e->rows_written[r] < e->rows_per_run; ++row) {
+                    double *dst = to + e->rows_written[r] * (ny + 1);
+                    const double *src = out + row * width;
+                    dst[0] = src[0];
+                    if (e->method == 1) {
+                        if (e->velocity(src + 1, pre, dst + 1))
+                            for (i = 0; i < nq; ++i) dst[1 + nq + i] = NAN;
+                        for (i = 0; i < nq; ++i) dst[1 + i] = src[1 + i];
+                    } else
+                        for (i = 0; i < ny; ++i) dst[1 + i] = src[1 + i];
+                    ++e->rows_written[r];
+                }
+            }
             if (res.n_rows > 0) {
                 last = out + (res.n_rows - 1) * width;
                 t_last = last[0];
