@@ -217,3 +217,50 @@ def test_system_sweep_returns_the_rows_as_a_dataframe():
     expected = rows_of(job_of(SYSTEM1, None, ("theta=[0.5, 1.0]",), ("phi=uniform(-1, 1)",), runs=2, seed=4,
                               t_end=1.0, dt=0.05))
     pd.testing.assert_frame_equal(rows, expected)
+
+
+def test_user_outputs_equal_the_rows_of_simulate(tmp_path):
+    summaries = ("max(abs(theta))", "flip=first_time(abs(phi) > pi)", "final(theta)", "e=mean(m1*theta_dot)")
+    for route in (ENSEMBLE, ONE_BY_ONE):
+        loaded, scene, system = scene_system(SYSTEM1, "free")
+        plan = make_plan(*read_axes(("theta=[2.5, 0.3]",), ()), None, 0)
+        job = make_job(system, plan, initial_values(loaded, scene), {}, method="dop853", t_end=5.0, dt=0.05,
+                       rtol=1e-10, atol=1e-10, outputs=scene.outputs, summaries=summaries,
+                       compiled=route == ENSEMBLE)
+        assert job.route == route
+        rows = rows_of(job)
+        for _, row in rows.iterrows():
+            header, data, _ = simulated(tmp_path, SYSTEM1, "free", {"theta": row["theta"]}, "dop853", 5.0, 0.05)
+            theta, phi = data[:, header.index("theta")], data[:, header.index("phi")]
+            assert row["max(abs(theta))"] == np.max(np.abs(theta))
+            assert row["final(theta)"] == theta[-1] == row["final_theta"]
+            assert row["e"] == pytest.approx(np.mean(data[:, header.index("theta_dot")]), rel=1e-15)
+            flips = np.flatnonzero(np.abs(phi) > np.pi)
+            assert (row["flip"] == data[flips[0], 0]) if len(flips) else np.isnan(row["flip"])
+        assert not np.isnan(rows["flip"][0]) and np.isnan(rows["flip"][1])  # from 2.5 rad it flips, from 0.3 never
+
+
+@pytest.mark.parametrize("summary, told", [
+    ("max(abs(thetx))", "unknown name 'thetx'"),
+    ("largest(theta)", "'largest(theta)' is not an output"),
+    ("first_time(phi)", "first_time takes one comparison"),
+    ("max(phi > 1)", "max takes an expression, not a comparison"),
+    ("final(__import__('os'))", "--summary final(__import__('os'))"),
+    ("status=final(theta)", "the output name status is a column of every row already"),
+])
+def test_bad_outputs_are_located_errors(tmp_path, summary, told):
+    result = run([SYSTEM1, "--scene", "free", "--grid", "theta=0:1:2", "--summary", summary, "-o",
+                  tmp_path / "out.parquet"])
+    assert result.exit_code == 1, result.output
+    assert told in result.output and "Traceback" not in result.output
+
+
+def test_plot_maps_a_column_over_two_grid_axes(tmp_path):
+    plot = tmp_path / "map.png"
+    result = run([SYSTEM1, "--scene", "free", "--grid", "theta=-3:3:4", "--grid", "phi=-3:3:3", "--t", "3",
+                  "--summary", "flip=first_time(abs(phi) > pi)", "--plot", plot, "--workers", "1",
+                  "-o", tmp_path / "flip.parquet"])
+    assert result.exit_code == 0, result.output
+    assert plot.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    one_axis = run([SYSTEM1, "--scene", "free", "--grid", "theta=-3:3:4", "--plot", plot, "-o", tmp_path / "x"])
+    assert one_axis.exit_code == 2 and "exactly two --grid axes" in one_axis.output
