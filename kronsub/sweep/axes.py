@@ -27,14 +27,40 @@ DISTRIBUTIONS = {  # name: (its arguments, a one-line description)
 
 @dataclass(frozen=True)
 class GridAxis:
-    """A grid over one name: its values, in order."""
+    """A grid over one name: ``count`` values from ``start`` to ``stop`` (value ``i`` is
+    ``start + (stop - start) i / (count - 1)``, or its logarithmic kind, the ends exact), or the
+    ``listed`` values. Values are made when asked for (:meth:`at`): a long grid costs nothing
+    to send to the workers."""
 
     name: str
-    values: tuple[float, ...]
     text: str
+    start: float = 0.0
+    stop: float = 0.0
+    count: int = 1
+    log: bool = False
+    listed: tuple[float, ...] | None = None
 
     def __len__(self) -> int:
-        return len(self.values)
+        return len(self.listed) if self.listed is not None else self.count
+
+    def at(self, index: np.ndarray) -> np.ndarray:
+        """The values at ``index`` (integers from 0 to ``len - 1``)."""
+        index = np.asarray(index)
+        if self.listed is not None:
+            return np.asarray(self.listed, dtype=float)[index]
+        if self.count == 1:
+            return np.full(index.shape, self.start)
+        share = index / (self.count - 1)
+        if self.log:
+            values = np.exp(math.log(self.start) + (math.log(self.stop) - math.log(self.start)) * share)
+        else:
+            values = self.start + (self.stop - self.start) * share
+        values = np.where(index == 0, self.start, values)
+        return np.where(index == self.count - 1, self.stop, values)
+
+    @property
+    def values(self) -> np.ndarray:
+        return self.at(np.arange(len(self)))
 
 
 @dataclass(frozen=True)
@@ -114,7 +140,7 @@ def parse_grid(item: str, problems: list[Problem]) -> GridAxis | None:
             problems.append(Problem(where, f"the list of {name} has an empty entry", GRID_HINT))
             return None
         values = [_constant(p, where, f"value of {name}", problems) for p in items]
-        return None if len(problems) > before else GridAxis(name, tuple(values), text)
+        return None if len(problems) > before else GridAxis(name, text, listed=tuple(values))
     parts = _split(text, ":")
     log = parts[0] == "log"
     if log:
@@ -145,8 +171,7 @@ def parse_grid(item: str, problems: list[Problem]) -> GridAxis | None:
         problems.append(Problem(where, f"a logarithmic grid of {name} needs a start above 0 (got {a:g})",
                                 "use a linear grid a:b:n for ranges through 0"))
         return None
-    values = np.geomspace(a, b, n) if log else np.linspace(a, b, n)
-    return GridAxis(name, tuple(float(v) for v in values), text)
+    return GridAxis(name, text, start=a, stop=b, count=n, log=log)
 
 
 _CALL = re.compile(r"^([A-Za-z_][A-Za-z0-9_]*)\s*\((.*)\)$", re.S)

@@ -72,7 +72,7 @@ class Plan:
         point = runs // self.samples
         for axis in reversed(self.grids):  # the last axis varies fastest
             n = len(axis)
-            out[axis.name] = np.asarray(axis.values)[point % n]
+            out[axis.name] = axis.at(point % n)
             point = point // n
         for j, axis in enumerate(self.draws):
             u = uniforms(self.seed, j, runs)
