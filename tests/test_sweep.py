@@ -264,3 +264,33 @@ def test_plot_maps_a_column_over_two_grid_axes(tmp_path):
     assert plot.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     one_axis = run([SYSTEM1, "--scene", "free", "--grid", "theta=-3:3:4", "--plot", plot, "-o", tmp_path / "x"])
     assert one_axis.exit_code == 2 and "exactly two --grid axes" in one_axis.output
+
+
+def study(tmp_path, body: str) -> Path:
+    path = tmp_path / "STUDY.yaml"
+    path.write_text(f"sweep:\n  model: {SYSTEM1}\n  scene: free\n" + body)
+    return path
+
+
+def test_a_sweep_file_runs_as_the_options_would(tmp_path):
+    path = study(tmp_path, '  t: 1\n  dt: 0.05\n  grid: {theta: "-1:1:3", phi: [0.5, 1]}\n  chunk: 4\n'
+                           '  summaries: {top: "max(abs(theta))"}\n  output: runs.parquet\n')
+    result = run([path, "--workers", "1"])
+    assert result.exit_code == 0, result.output
+    rows = pd.read_parquet(tmp_path / "runs.parquet").sort_values("run", ignore_index=True)
+    loaded, scene, system = scene_system(SYSTEM1, "free")
+    plan = make_plan(*read_axes(("theta=-1:1:3", "phi=[0.5, 1]"), ()), None, 0)
+    job = make_job(system, plan, initial_values(loaded, scene), {}, method="dop853", t_end=1.0, dt=0.05, rtol=1e-10,
+                   atol=1e-10, outputs=scene.outputs, chunk=4, summaries=("top=max(abs(theta))",))
+    pd.testing.assert_frame_equal(rows, rows_of(job), check_dtype=False)
+
+
+@pytest.mark.parametrize("body, told", [
+    ('  grid: {theta: "1:0:3"}\n  output: o.parquet\n', "STUDY.yaml:4:17: the grid of theta is inverted"),
+    ('  grid: {theta: "0:1:3"}\n  seeds: 3\n  output: o.parquet\n', "STUDY.yaml:5:3: unknown key 'seeds'"),
+    ('  grid: {theta: "0:1:3"}\n  t: ten\n  output: o.parquet\n', "STUDY.yaml:5:6: t must be a number"),
+    ('  grid: {theta: "0:1:3"}\n', "no output folder"),
+])
+def test_a_bad_sweep_file_is_a_located_error(tmp_path, body, told):
+    result = run([study(tmp_path, body)])
+    assert result.exit_code in (1, 2) and told in result.output, result.output

@@ -8,6 +8,7 @@ from pathlib import Path
 
 import click
 
+from ..errors import ModelError
 from ..simulation.methods import help_text as method_help
 from ..version import __version__
 from .common import (USAGE_ERROR, budget_option, check_times, fail, interrupted_by, note_safely, run_command, say,
@@ -25,16 +26,16 @@ INSTALL_HINT = "pip install 'kronsub[sweep]'"
               help="Draw a parameter or initial value from uniform(a, b), normal(mu, sd) or loguniform(a, b), "
                    "--runs times (per grid point).")
 @click.option("--runs", type=int, default=None, help="Draws of the --sample axes.")
-@click.option("--seed", type=click.IntRange(min=0, max=2**63 - 1), default=0, show_default=True,
-              help="Seed of the draws: the same spec and seed give the same runs, however they are split.")
+@click.option("--seed", type=click.IntRange(min=0, max=2**63 - 1), default=None,
+              help="Seed of the draws (default 0): the same spec and seed give the same runs, however they are split.")
 @click.option("--latin", is_flag=True, help="Latin hypercube: one draw in each of --runs strata of every --sample axis.")
 @click.option("--t", "t_end", type=float, default=None, help="End time (default: the scene's, else 10).")
 @click.option("--dt", type=float, default=None,
               help="Output interval over which min and max are taken, and step of fixed-step methods "
                    "(default: the scene's, else 0.01).")
 @click.option("--method", default=None, help="Default: the scene's, else dop853. " + method_help())
-@click.option("--rtol", type=float, default=1e-10, show_default=True, help="Relative tolerance (adaptive methods).")
-@click.option("--atol", type=float, default=1e-10, show_default=True, help="Absolute tolerance (adaptive methods).")
+@click.option("--rtol", type=float, default=None, help="Relative tolerance (adaptive methods; default 1e-10).")
+@click.option("--atol", type=float, default=None, help="Absolute tolerance (adaptive methods; default 1e-10).")
 @click.option("--summary", "summaries", multiple=True, metavar="[NAME=]OUTPUT",
               help="A column of your own (repeatable): max, min, mean, initial or final of an expression of the "
                    "model's names and t, e.g. 'max(abs(theta))', or first_time of a comparison, e.g. "
@@ -44,7 +45,7 @@ INSTALL_HINT = "pip install 'kronsub[sweep]'"
 @click.option("--plot-column", default=None, metavar="COLUMN",
               help="The column --plot maps (default: the last --summary, else the first final coordinate).")
 @set_option("Set a parameter or initial value shared by every run (repeatable).")
-@click.option("--output", "-o", type=click.Path(path_type=Path), required=True,
+@click.option("--output", "-o", type=click.Path(path_type=Path), default=None,
               help="The output folder: one Parquet part per chunk (a dataset), the metadata beside it as JSON "
                    "(runs.parquet -> runs.parquet.json).")
 @click.option("--chunk", type=click.IntRange(min=1), default=None, help="Runs per task (default 1000).")
@@ -60,8 +61,12 @@ INSTALL_HINT = "pip install 'kronsub[sweep]'"
 def sweep(model: Path, grids, samples, runs, seed, latin, t_end, dt, method, rtol, atol, summaries, plot, plot_column,
           settings, output, chunk, scheduler, workers, resume, force, scene_name):
     """Run MODEL over a grid or a sample of its parameters and initial values: a row per run
-    (inputs, status, final state, min and max of each coordinate, energy drift, cost)."""
+    (inputs, status, final state, min and max of each coordinate, energy drift, cost). MODEL
+    may be a sweep file (STUDY.yaml, with `sweep:` at its top), whose values the options
+    override or add to."""
     def job():
+        nonlocal model, grids, samples, runs, seed, latin, t_end, dt, method, rtol, atol, summaries, settings, output
+        nonlocal chunk, scene_name
         try:
             import distributed  # noqa: F401
             import pyarrow  # noqa: F401
@@ -75,8 +80,44 @@ def sweep(model: Path, grids, samples, runs, seed, latin, t_end, dt, method, rto
         from ..sweep.driver import ENV_SCHEDULER, SweepProgress, execute
         from ..sweep.study import DEFAULT_CHUNK, SweepError, make_job, make_plan
 
+        from ..sweep.study_file import is_study, read_study
+
+        located: dict[str, object] = {}  # an option's text -> where the sweep file wrote it
+        if is_study(model):
+            study = read_study(model)
+            v = study.values
+            model = v["model"]
+            study_grids = tuple(f"{k}={t}" for k, t in v.get("grid", {}).items())
+            study_samples = tuple(f"{k}={t}" for k, t in v.get("sample", {}).items())
+            study_summaries = tuple(f"{k}={t}" for k, t in v.get("summaries", {}).items())
+            for option, key, items in (("--grid", "grid", study_grids), ("--sample", "sample", study_samples),
+                                       ("--summary", "summaries", study_summaries)):
+                for item in items:
+                    located[f"{option} {item}"] = study.where[(key, item.partition("=")[0])]
+            grids, samples, summaries = study_grids + grids, study_samples + samples, study_summaries + summaries
+            settings = tuple(f"{k}={t}" for k, t in v.get("set", {}).items() if not any(
+                s.partition("=")[0].strip() == k for s in settings)) + settings
+            runs = runs if runs is not None else v.get("runs")
+            seed = seed if seed is not None else v.get("seed")
+            latin = latin or v.get("latin", False)
+            t_end = t_end if t_end is not None else v.get("t")
+            dt = dt if dt is not None else v.get("dt")
+            method = method if method is not None else v.get("method")
+            rtol = rtol if rtol is not None else v.get("rtol")
+            atol = atol if atol is not None else v.get("atol")
+            chunk = chunk if chunk is not None else v.get("chunk")
+            output = output if output is not None else v.get("output")
+            scene_name = scene_name if scene_name is not None else v.get("scene")
+        rtol = 1e-10 if rtol is None else rtol
+        atol = 1e-10 if atol is None else atol
+        seed = 0 if seed is None else seed
+        if output is None:
+            fail("Error: no output folder\n  hint: give -o runs.parquet (or output: in the sweep file)", USAGE_ERROR)
         check_times(t_end, dt)
-        grid_axes, sample_axes = read_axes(grids, samples)
+        try:
+            grid_axes, sample_axes = read_axes(grids, samples)
+        except ModelError as exc:
+            raise relocated(exc, located) from None
         try:
             plan = make_plan(grid_axes, sample_axes, runs, seed, latin)
         except SweepError as exc:
@@ -106,6 +147,8 @@ def sweep(model: Path, grids, samples, runs, seed, latin, t_end, dt, method, rto
                             chunk=chunk or DEFAULT_CHUNK, axes_text=where, summaries=summaries)
         except SweepError as exc:
             fail(f"Error: {exc}", USAGE_ERROR)
+        except ModelError as exc:
+            raise relocated(exc, located) from None
         identity = {"model": loaded.source.sha256 if loaded.source is not None else None,
                     "uses": [f.sha256 for f in loaded.uses], "scene": scene.name if scene is not None else None,
                     "spec": plan.describe(), "set": dict(sorted(assignments.items())), "method": chosen,
@@ -170,3 +213,19 @@ def sweep(model: Path, grids, samples, runs, seed, latin, t_end, dt, method, rto
                     + ", ".join(f"{n:,} {status}" for status, n in counts.items()) + f"; metadata {dataset.sidecar})")
 
     run_command(job)
+
+
+def relocated(exc, located: dict):
+    """``exc`` with the problems of values a sweep file wrote placed at their line and column."""
+    import dataclasses
+
+    from ..errors import ModelError
+
+    problems = []
+    for problem in exc.problems:
+        where = located.get(str(problem.location)) if problem.location is not None else None
+        if where is None and problem.location is not None:  # the axis named by make_job: its name only
+            where = next((at for text, at in located.items() if text.split("=")[0] == str(problem.location).split("=")[0]
+                          and str(problem.location).startswith(text.split("=")[0] + "=")), None)
+        problems.append(dataclasses.replace(problem, location=where) if where is not None else problem)
+    return ModelError(problems)
