@@ -18,12 +18,12 @@ import numpy as np
 
 from ..core.known_system import KnownSystem
 from ..errors import KronsubError
-from .ensemble import Sources, load, pieces, summary_width
+from .ensemble import Sources, load, load_taylor, pieces, summary_width
 from .plan import Plan
 
-__all__ = ["ENSEMBLE", "ONE_BY_ONE", "Job", "columns", "run_chunk"]
+__all__ = ["ENSEMBLE", "ONE_BY_ONE", "TAYLOR", "Job", "columns", "run_chunk", "state_names"]
 
-ENSEMBLE, ONE_BY_ONE = "ensemble", "one by one"  # the routes of a sweep's runs
+ENSEMBLE, TAYLOR, ONE_BY_ONE = "ensemble", "taylor ensemble", "one by one"  # the routes of a sweep's runs
 
 
 @dataclass(frozen=True)
@@ -47,6 +47,7 @@ class Job:
     dependent_settings: dict = field(default_factory=dict)  # --set of a closed loop's dependent coordinates
     derived_initial: tuple = ()  # (state index, expression of swept parameters) per such initial value
     summaries: tuple = ()  # user outputs (:class:`.outputs.UserOutput`), a column each
+    taylor_sources: Sources | None = None  # the Taylor integrator's (route TAYLOR)
 
     @property
     def chunks(self) -> int:
@@ -120,7 +121,7 @@ def run_chunk(job: Job, index: int) -> dict[str, object]:
     n, nq = stop - start, len(job.system.coordinates)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        if job.route == ENSEMBLE:
+        if job.route in (ENSEMBLE, TAYLOR):
             summary, reasons, users = _ensemble(job, param, y0)
         else:
             summary, reasons, users = _one_by_one(job, param, y0)
@@ -159,24 +160,36 @@ def _functions(job: Job):
 
 
 def _ensemble(job: Job, param: np.ndarray, y0: np.ndarray) -> tuple[np.ndarray, list[str], np.ndarray]:
+    from ..simulation.grid import Grid
+
     ensemble = load(job.sources)
     energies = _conserves(job, ensemble.native)
-    cuts = pieces(job.t_end, job.dt, job.method)
+    cuts = pieces(job.t_end, job.dt, "dop853" if job.route == TAYLOR else job.method)
+    grid = Grid(job.t_end, job.dt)
+    if job.route == TAYLOR:
+        from ..simulation.taylor_c import STATUS
+
+        taylor, times = load_taylor(job.taylor_sources), grid[0:len(grid)]
+
+        def block_of(a, b, with_rows=False):
+            return taylor.run(times, job.rtol, param[a:b], y0[a:b], ensemble if energies else None, with_rows)
+    else:
+        def block_of(a, b, with_rows=False):
+            return ensemble.run(job.method, cuts, job.dt, job.rtol, job.atol, param[a:b], y0[a:b], energies,
+                                with_rows=with_rows)
     users = np.full((len(y0), len(job.summaries)), np.nan)
     if not job.summaries:
-        summary = ensemble.run(job.method, cuts, job.dt, job.rtol, job.atol, param, y0, energies)
+        summary = block_of(0, len(y0))
     else:
-        from ..simulation.grid import Grid
         from .outputs import evaluate
 
-        grid, functions = Grid(job.t_end, job.dt), _functions(job)
-        per_run = sum(int((b - a) / job.dt) + 3 for a, b in cuts) * (y0.shape[1] + 1) * 8
+        functions = _functions(job)
+        per_run = (len(grid) + 3 * len(cuts)) * (y0.shape[1] + 1) * 8
         block = max(1, ROWS_BYTES // per_run)
         parts = []
         for a in range(0, len(y0), block):
             b = min(a + block, len(y0))
-            part, rows, written = ensemble.run(job.method, cuts, job.dt, job.rtol, job.atol, param[a:b], y0[a:b],
-                                               energies, with_rows=True)
+            part, rows, written = block_of(a, b, with_rows=True)
             parts.append(part)
             for r in range(b - a):
                 kept = rows[r, :written[r]]
@@ -191,7 +204,8 @@ def _ensemble(job: Job, param: np.ndarray, y0: np.ndarray) -> tuple[np.ndarray, 
             continue
         status = int(s)
         if status not in messages:
-            messages[status] = ensemble.message(status)
+            messages[status] = STATUS.get(status, f"status {status}") if job.route == TAYLOR else \
+                ensemble.message(status)
         reasons.append(f"{messages[status]} at t = {t:.6g}")
     return summary, reasons, users
 

@@ -23,8 +23,8 @@ from ..simulation.methods import METHODS
 from ..simulation.native import NativeModel, compile_library, data_address
 from ..simulation.run import BLOCK_ROWS
 
-__all__ = ["BATCH_METHODS", "Ensemble", "EnsembleError", "Sources", "ensemble_sources", "load", "pieces",
-           "summary_width"]
+__all__ = ["BATCH_METHODS", "Ensemble", "EnsembleError", "Sources", "TaylorEnsemble", "ensemble_sources", "load",
+           "load_taylor", "pieces", "summary_width", "taylor_sources"]
 
 ENSEMBLE_C = Path(__file__).resolve().parent / "csrc" / "ensemble.c"
 BATCH_METHODS = {"dop853": 0, "gauss4": 1, "rk4": 2}  # the methods wholly in C, as ensemble.c numbers them
@@ -170,3 +170,73 @@ def load(sources: Sources) -> Ensemble:
     if sources.sha256 not in _LOADED:
         _LOADED[sources.sha256] = Ensemble(sources)
     return _LOADED[sources.sha256]
+
+
+TAYLOR_C = Path(__file__).resolve().parent / "csrc" / "taylor_ensemble.c"
+
+
+def taylor_sources(system, tol: float) -> Sources:
+    """The sources of ``system``'s Taylor integrator at the order for ``tol``, as ``simulate
+    --method taylor`` builds it (:class:`kronsub.simulation.taylor_c.TaylorC`), and its ensemble."""
+    from ..simulation.taylor_c import generated_c, order_for
+
+    files = [("taylor.c", generated_c(system, order_for(tol))), ("ks_taylor_ensemble.c", TAYLOR_C.read_text())]
+    return Sources(tuple(files), _digest(files), len(system.coordinates), len(system.parameters))
+
+
+class TaylorEnsemble:
+    """A sweep's Taylor library, built from checked :class:`Sources` and loaded."""
+
+    def __init__(self, sources: Sources):
+        if _digest(sources.files) != sources.sha256:
+            raise EnsembleError("the sweep's C sources do not match their sha256: not built")
+        order = re_order(sources.files[0][1])
+        self.lib = ctypes.CDLL(str(compile_library(list(sources.files), f"taylor{order}")))
+        self.run_block = self.lib.ks_taylor_ensemble
+        self.run_block.restype = ctypes.c_long
+        self.run_block.argtypes = [ctypes.c_long, ctypes.c_int, ctypes.c_int, ctypes.c_double, ctypes.c_double,
+                                   ctypes.c_long] + [ctypes.c_void_p] * 9
+        self.nq, self.nparam = sources.nq, sources.nparam
+
+    def run(self, times: np.ndarray, tol: float, param: np.ndarray, y0: np.ndarray, energies: Ensemble | None,
+            with_rows: bool = False, max_steps: int = MAX_STEPS):
+        """As :meth:`Ensemble.run`, the rows at ``times`` (the output grid); ``energies``: the
+        model's library whose ``T`` and ``V`` give the energy drift, or None."""
+        nq, ny = self.nq, 2 * self.nq
+        param = np.ascontiguousarray(param, dtype=float).reshape(len(y0), self.nparam)
+        y0 = np.ascontiguousarray(y0, dtype=float)
+        times = np.ascontiguousarray(times, dtype=float)
+        runs, m = len(y0), len(times)
+        summary = np.empty((runs, summary_width(nq)))
+        io = np.empty(8 + max(1, self.nparam) + 2 * ny + m + m * ny)
+        kept = np.zeros((runs, m, ny + 1)) if with_rows else None
+        written = np.zeros(runs, dtype=np.int64) if with_rows else None
+        kinetic = potential = None
+        if energies is not None:
+            kinetic, potential = energies.addresses["ks_kinetic_energy"], energies.addresses["ks_potential_energy"]
+        if runs:
+            self.run_block(runs, nq, self.nparam, tol, float(max_steps), m, data_address(times),
+                           data_address(param) if param.size else None, data_address(y0), data_address(summary),
+                           data_address(io), kinetic, potential,
+                           data_address(kept) if with_rows else None, data_address(written) if with_rows else None)
+        return (summary, kept, written) if with_rows else summary
+
+
+def re_order(text: str) -> int:
+    """The order a generated Taylor integrator's source declares (``#define TN_ORDER``)."""
+    import re
+
+    found = re.search(r"#define TN_ORDER (\d+)", text)
+    if found is None:
+        raise EnsembleError("the Taylor source does not declare its order")
+    return int(found.group(1))
+
+
+_LOADED_TAYLOR: dict[str, TaylorEnsemble] = {}
+
+
+def load_taylor(sources: Sources) -> TaylorEnsemble:
+    """The :class:`TaylorEnsemble` of ``sources``, built and loaded once per process."""
+    if sources.sha256 not in _LOADED_TAYLOR:
+        _LOADED_TAYLOR[sources.sha256] = TaylorEnsemble(sources)
+    return _LOADED_TAYLOR[sources.sha256]

@@ -8,8 +8,9 @@ from ..simulation.methods import METHODS, SIMULATE, unknown_method
 from ..simulation.run import SimulationError, check_tolerances, explicit_only, row_count
 from .axes import GridAxis, SampleAxis
 from ..core.symbols import TIME
-from .chunk import ENSEMBLE, ONE_BY_ONE, Job, columns, state_names
-from .ensemble import BATCH_METHODS, ensemble_sources
+from ..simulation.run import BLOCK_ROWS
+from .chunk import ENSEMBLE, ONE_BY_ONE, TAYLOR, Job, columns, state_names
+from .ensemble import BATCH_METHODS, ensemble_sources, taylor_sources
 from .outputs import read_outputs
 from .plan import MAX_RUNS, Plan
 
@@ -110,10 +111,21 @@ def make_job(system, plan: Plan, initial: dict, settings: dict[str, str], *, met
             expr = sympy.sympify(by_name[name])
             if expr.free_symbols & swept:
                 derived.append((index, expr))
-    route = ENSEMBLE if (compiled and system.implicit is None and method in BATCH_METHODS
-                         and METHODS[method].engine == "c") else ONE_BY_ONE
-    sources = ensemble_sources(system, outputs) if route == ENSEMBLE else None
+    route = ONE_BY_ONE
+    if compiled and system.implicit is None and method in BATCH_METHODS and METHODS[method].engine == "c":
+        route = ENSEMBLE
+    elif compiled and system.implicit is None and method == "taylor" and row_count(t_end, dt) <= BLOCK_ROWS:
+        route = TAYLOR  # one call of the Taylor integrator per run, as simulate makes it
+    sources = ensemble_sources(system, outputs) if route in (ENSEMBLE, TAYLOR) else None
+    taylor = None
+    if route == TAYLOR:
+        from ..simulation.taylor_c import TaylorUnavailable
+
+        try:
+            taylor = taylor_sources(system, rtol)
+        except (TaylorUnavailable, ValueError):
+            route, sources = ONE_BY_ONE, None
     return Job(system=system, plan=plan, chunk=chunk, method=method, t_end=t_end, dt=dt, rtol=rtol, atol=atol,
                base_param=values.parameters, base_y0=values.y0, route=route, sources=sources, outputs=outputs,
                initial=dict(initial), dependent_settings=dependent_settings, derived_initial=tuple(derived),
-               summaries=tuple(user))
+               summaries=tuple(user), taylor_sources=taylor)
