@@ -21,7 +21,7 @@ from ..errors import KronsubError
 from .ensemble import Sources, load, load_taylor, pieces, summary_width
 from .plan import Plan
 
-__all__ = ["ENSEMBLE", "ONE_BY_ONE", "TAYLOR", "Job", "columns", "run_chunk", "state_names"]
+__all__ = ["ENSEMBLE", "ONE_BY_ONE", "TAYLOR", "Job", "columns", "inputs_of", "run_chunk", "state_names"]
 
 ENSEMBLE, TAYLOR, ONE_BY_ONE = "ensemble", "taylor ensemble", "one by one"  # the routes of a sweep's runs
 
@@ -73,7 +73,7 @@ def columns(job: Job) -> list[tuple[str, str]]:
             [(out.name, "float64") for out in job.summaries])
 
 
-def _values(job: Job, start: int, stop: int) -> tuple[dict, np.ndarray, np.ndarray]:
+def inputs_of(job: Job, start: int, stop: int) -> tuple[dict, np.ndarray, np.ndarray]:
     """The swept inputs, and each run's parameters and initial state."""
     import sympy
 
@@ -117,7 +117,7 @@ def _conserves(job: Job, native) -> bool:
 def run_chunk(job: Job, index: int) -> dict[str, object]:
     """The rows of chunk ``index``, as columns (:func:`columns`)."""
     start, stop = job.span(index)
-    inputs, param, y0 = _values(job, start, stop)
+    inputs, param, y0 = inputs_of(job, start, stop)
     n, nq = stop - start, len(job.system.coordinates)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
