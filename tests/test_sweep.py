@@ -295,3 +295,36 @@ def test_a_sweep_file_runs_as_the_options_would(tmp_path):
 def test_a_bad_sweep_file_is_a_located_error(tmp_path, body, told):
     result = run([study(tmp_path, body)])
     assert result.exit_code in (1, 2) and told in result.output, result.output
+
+
+def test_a_table_of_runs(tmp_path):
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    (tmp_path / "runs.csv").write_text("theta,m2\n0.5,1\n-1.25,2.5\n")
+    pq.write_table(pa.table({"theta": [0.5, -1.25], "m2": [1.0, 2.5]}), tmp_path / "runs.parquet")
+    for name in ("runs.csv", "runs.parquet"):
+        loaded, scene, system = scene_system(SYSTEM1, "free")
+        plan = make_plan(*read_axes(("phi=[0, 1]",), (), (str(tmp_path / name),)), None, 0)
+        assert plan.count == 4 and plan.names == ("theta", "m2", "phi")
+        job = make_job(system, plan, initial_values(loaded, scene), {}, method="dop853", t_end=1.0, dt=0.05,
+                       rtol=1e-10, atol=1e-10, outputs=scene.outputs)
+        rows = rows_of(job)
+        assert list(rows["theta"]) == [0.5, 0.5, -1.25, -1.25] and list(rows["m2"]) == [1, 1, 2.5, 2.5]
+        assert list(rows["phi"]) == [0, 1, 0, 1]
+        header, data, _ = simulated(tmp_path, SYSTEM1, "free", {"theta": -1.25, "m2": 2.5, "phi": 1.0}, "dop853",
+                                    1.0, 0.05)
+        assert rows["final_theta"][3] == data[-1, header.index("theta")]
+
+
+@pytest.mark.parametrize("text, told", [
+    ("theta,m3\n1,2\n", "--table T.csv: column m3: m3: no parameter, coordinate or velocity"),
+    ("theta,m2\n1,x\n", "--table T.csv: column m2 is not numeric"),
+    ("theta,m2\n1,\n", "--table T.csv: column m2, row 1: not a finite number"),
+    ("theta\n", "--table T.csv: the table has no rows"),
+])
+def test_a_bad_table_is_a_located_error(tmp_path, monkeypatch, text, told):
+    monkeypatch.chdir(tmp_path)
+    Path("T.csv").write_text(text)
+    result = run([SYSTEM1, "--scene", "free", "--table", "T.csv", "-o", "out.parquet"])
+    assert result.exit_code == 1 and told in result.output, result.output

@@ -25,6 +25,9 @@ INSTALL_HINT = "pip install 'kronsub[sweep]'"
 @click.option("--sample", "samples", multiple=True, metavar="NAME=DIST",
               help="Draw a parameter or initial value from uniform(a, b), normal(mu, sd) or loguniform(a, b), "
                    "--runs times (per grid point).")
+@click.option("--table", "tables", multiple=True, metavar="FILE",
+              help="A table of runs, CSV (a header row of names, then numbers) or Parquet: a run per row, its "
+                   "columns parameters and initial values (crossed with --grid axes).")
 @click.option("--runs", type=int, default=None, help="Draws of the --sample axes.")
 @click.option("--seed", type=click.IntRange(min=0, max=2**63 - 1), default=None,
               help="Seed of the draws (default 0): the same spec and seed give the same runs, however they are split.")
@@ -58,7 +61,7 @@ INSTALL_HINT = "pip install 'kronsub[sweep]'"
 @click.option("--force", is_flag=True, help="Replace an existing --output.")
 @scene_option
 @budget_option
-def sweep(model: Path, grids, samples, runs, seed, latin, t_end, dt, method, rtol, atol, summaries, plot, plot_column,
+def sweep(model: Path, grids, samples, tables, runs, seed, latin, t_end, dt, method, rtol, atol, summaries, plot, plot_column,
           settings, output, chunk, scheduler, workers, resume, force, scene_name):
     """Run MODEL over a grid or a sample of its parameters and initial values: a row per run
     (inputs, status, final state, min and max of each coordinate, energy drift, cost). MODEL
@@ -66,7 +69,7 @@ def sweep(model: Path, grids, samples, runs, seed, latin, t_end, dt, method, rto
     override or add to."""
     def job():
         nonlocal model, grids, samples, runs, seed, latin, t_end, dt, method, rtol, atol, summaries, settings, output
-        nonlocal chunk, scene_name
+        nonlocal chunk, scene_name, tables
         try:
             import distributed  # noqa: F401
             import pyarrow  # noqa: F401
@@ -90,6 +93,7 @@ def sweep(model: Path, grids, samples, runs, seed, latin, t_end, dt, method, rto
             study_grids = tuple(f"{k}={t}" for k, t in v.get("grid", {}).items())
             study_samples = tuple(f"{k}={t}" for k, t in v.get("sample", {}).items())
             study_summaries = tuple(f"{k}={t}" for k, t in v.get("summaries", {}).items())
+            tables = ((str(v["table"]),) if "table" in v else ()) + tables
             for option, key, items in (("--grid", "grid", study_grids), ("--sample", "sample", study_samples),
                                        ("--summary", "summaries", study_summaries)):
                 for item in items:
@@ -115,7 +119,7 @@ def sweep(model: Path, grids, samples, runs, seed, latin, t_end, dt, method, rto
             fail("Error: no output folder\n  hint: give -o runs.parquet (or output: in the sweep file)", USAGE_ERROR)
         check_times(t_end, dt)
         try:
-            grid_axes, sample_axes = read_axes(grids, samples)
+            grid_axes, sample_axes = read_axes(grids, samples, tables)
         except ModelError as exc:
             raise relocated(exc, located) from None
         try:
@@ -124,7 +128,7 @@ def sweep(model: Path, grids, samples, runs, seed, latin, t_end, dt, method, rto
             fail(f"Error: {exc}", USAGE_ERROR)
         separate_outputs(model, ("--output", output, "output"), ("--plot", plot, "plot"))
         if plot is not None:
-            if len(grid_axes) != 2 or sample_axes:
+            if len(grid_axes) != 2 or sample_axes or any(not hasattr(a, "at") for a in grid_axes):
                 fail("Error: --plot maps a sweep over exactly two --grid axes (and no --sample)\n"
                      "  hint: give two --grid NAME=a:b:n", USAGE_ERROR)
             writable_outputs(None, plot)
@@ -139,7 +143,8 @@ def sweep(model: Path, grids, samples, runs, seed, latin, t_end, dt, method, rto
         step = pick(dt, scene and scene.dt, 0.01)
         chosen = pick(method, scene and scene.method, "dop853")
         assignments = parse_assignments(settings)
-        where = {a.name: f"--grid {a.name}={a.text}" for a in grid_axes}
+        where = {name: (f"--table {a.text}: column {name}" if hasattr(a, "sha256") else f"--grid {a.name}={a.text}")
+                 for a in grid_axes for name in a.names}
         where.update({a.name: f"--sample {a.name}={a.text}" for a in sample_axes})
         try:
             job_ = make_job(system, plan, initial_values(loaded, scene), assignments, method=chosen, t_end=span,

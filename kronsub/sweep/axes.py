@@ -14,7 +14,8 @@ import numpy as np
 from ..errors import Location, ModelError, Problem
 from ..model.expressions import constant_value, parse_expression
 
-__all__ = ["DISTRIBUTIONS", "GridAxis", "MAX_GRID_POINTS", "SampleAxis", "parse_grid", "parse_sample", "read_axes"]
+__all__ = ["DISTRIBUTIONS", "GridAxis", "MAX_GRID_POINTS", "SampleAxis", "TableAxis", "parse_grid", "parse_sample",
+           "read_axes", "read_table"]
 
 MAX_GRID_POINTS = 10**7  # points of one grid axis: more is a typing mistake, not a study
 
@@ -61,6 +62,98 @@ class GridAxis:
     @property
     def values(self) -> np.ndarray:
         return self.at(np.arange(len(self)))
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        return (self.name,)
+
+    def take(self, index: np.ndarray) -> dict[str, np.ndarray]:
+        return {self.name: self.at(index)}
+
+    def describe(self) -> dict:
+        return {self.name: self.text}
+
+
+@dataclass(frozen=True)
+class TableAxis:
+    """A table of runs (``--table FILE``, CSV or Parquet): row ``i`` gives every named column's
+    value to one run, the columns together one axis (crossed with the grids)."""
+
+    text: str
+    sha256: str
+    columns: tuple[tuple[str, tuple[float, ...]], ...]
+
+    def __len__(self) -> int:
+        return len(self.columns[0][1]) if self.columns else 0
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        return tuple(name for name, _ in self.columns)
+
+    @property
+    def name(self) -> str:
+        return ", ".join(self.names)
+
+    def take(self, index: np.ndarray) -> dict[str, np.ndarray]:
+        return {name: np.asarray(values, dtype=float)[index] for name, values in self.columns}
+
+    def describe(self) -> dict:
+        return {f"table {self.text}": {"sha256": self.sha256, "columns": list(self.names), "rows": len(self)}}
+
+
+MAX_TABLE_BYTES = 1 << 30  # a table of runs larger than this is a dataset to split into sweeps
+
+
+def read_table(path: str, problems: list[Problem]) -> TableAxis | None:
+    """``--table FILE``: a CSV file (a header row, then numbers) or Parquet (a file or a folder);
+    every column a name swept, every row a run."""
+    import hashlib
+    from pathlib import Path
+
+    where = Location(f"--table {path}")
+    file = Path(path)
+    try:
+        import pyarrow as pa
+
+        if file.suffix.lower() == ".csv":
+            import pyarrow.csv as pcsv
+
+            if file.stat().st_size > MAX_TABLE_BYTES:
+                problems.append(Problem(where, f"the table is larger than {MAX_TABLE_BYTES:,} bytes",
+                                        "split it into several sweeps"))
+                return None
+            table = pcsv.read_csv(file)
+            digest = hashlib.sha256(file.read_bytes()).hexdigest()
+        else:
+            import pyarrow.parquet as pq
+
+            table = pq.read_table(file)
+            digest = hashlib.sha256(repr(table.schema).encode() + str(table.to_pydict()).encode()).hexdigest()
+    except (OSError, ValueError, pa.ArrowException) as exc:
+        first = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        problems.append(Problem(where, f"cannot read the table: {first}",
+                                "give a CSV file (a header row of names, then numbers) or a Parquet file"))
+        return None
+    if table.num_columns == 0 or table.num_rows == 0:
+        problems.append(Problem(where, "the table has no rows" if table.num_columns else "the table has no columns",
+                                "a header row of names, then a row of numbers per run"))
+        return None
+    columns = []
+    for name in table.column_names:
+        try:
+            values = table.column(name).cast(pa.float64()).to_numpy(zero_copy_only=False)
+        except (pa.ArrowException, ValueError):
+            problems.append(Problem(where, f"column {name} is not numeric", "every column holds numbers"))
+            continue
+        bad = np.flatnonzero(~np.isfinite(values))
+        if len(bad):
+            problems.append(Problem(where, f"column {name}, row {int(bad[0]) + 1}: not a finite number",
+                                    "fill every cell with a number"))
+            continue
+        columns.append((str(name), tuple(float(v) for v in values)))
+    if len(columns) < table.num_columns:
+        return None
+    return TableAxis(str(path), digest, tuple(columns))
 
 
 @dataclass(frozen=True)
@@ -212,17 +305,26 @@ def parse_sample(item: str, problems: list[Problem]) -> SampleAxis | None:
     return SampleAxis(name, kind, tuple(args), text)
 
 
-def read_axes(grids: tuple[str, ...], samples: tuple[str, ...]) -> tuple[list[GridAxis], list[SampleAxis]]:
-    """Every ``--grid`` and ``--sample``, each name once; raises :class:`ModelError` with every problem."""
+def read_axes(grids: tuple[str, ...], samples: tuple[str, ...],
+              tables: tuple[str, ...] = ()) -> tuple[list, list[SampleAxis]]:
+    """Every ``--table``, ``--grid`` and ``--sample``, each name once; raises :class:`ModelError`
+    with every problem."""
     problems: list[Problem] = []
-    grid_axes = [a for a in (parse_grid(item, problems) for item in grids) if a is not None]
+    grid_axes = [a for a in (read_table(item, problems) for item in tables) if a is not None]
+    grid_axes += [a for a in (parse_grid(item, problems) for item in grids) if a is not None]
     sample_axes = [a for a in (parse_sample(item, problems) for item in samples) if a is not None]
     seen: dict[str, str] = {}
-    for axis, option in [(a, "--grid") for a in grid_axes] + [(a, "--sample") for a in sample_axes]:
-        if axis.name in seen:
-            problems.append(Problem(Location(f"{option} {axis.name}={axis.text}"),
-                                    f"{axis.name} is swept twice (also by {seen[axis.name]})", "sweep each name once"))
-        seen.setdefault(axis.name, f"{option} {axis.name}={axis.text}")
+
+    def said(axis, name) -> str:
+        return f"--table {axis.text}" if isinstance(axis, TableAxis) else \
+            f"{'--sample' if isinstance(axis, SampleAxis) else '--grid'} {name}={axis.text}"
+
+    for axis in [*grid_axes, *sample_axes]:
+        for name in getattr(axis, "names", (axis.name,)):
+            if name in seen:
+                problems.append(Problem(Location(said(axis, name)), f"{name} is swept twice (also by {seen[name]})",
+                                        "sweep each name once"))
+            seen.setdefault(name, said(axis, name))
     if problems:
         raise ModelError(problems)
     return grid_axes, sample_axes

@@ -1,6 +1,7 @@
 """The runs of a sweep, numbered 0 .. count-1, and the inputs of any range of them.
 
-The grid axes are crossed (the last varies fastest); with sample axes each grid point gets
+The grid axes (and a table of runs, one axis of several names) are crossed (the last varies
+fastest); with sample axes each grid point gets
 ``samples`` runs, run ``i`` at grid point ``i // samples``. Run ``i``'s uniform number on sample
 axis ``j`` is a counter-based hash of ``(seed, j, i)`` (:func:`uniforms`, splitmix64), so the same
 spec and seed give the same inputs whichever chunks the runs are cut into; a distribution turns
@@ -16,7 +17,7 @@ from functools import lru_cache
 
 import numpy as np
 
-from .axes import GridAxis, SampleAxis
+from .axes import GridAxis, SampleAxis, TableAxis
 
 __all__ = ["MAX_RUNS", "Plan", "uniforms"]
 
@@ -51,7 +52,7 @@ def _strata(seed: int, axis: int, count: int) -> np.ndarray:
 class Plan:
     """The runs of a sweep: ``grids`` crossed, times ``samples`` draws of the ``draws`` axes."""
 
-    grids: tuple[GridAxis, ...]
+    grids: tuple[GridAxis | TableAxis, ...]
     draws: tuple[SampleAxis, ...]
     samples: int
     seed: int
@@ -63,7 +64,7 @@ class Plan:
 
     @property
     def names(self) -> tuple[str, ...]:
-        return tuple(a.name for a in self.grids) + tuple(a.name for a in self.draws)
+        return tuple(name for a in self.grids for name in a.names) + tuple(a.name for a in self.draws)
 
     def inputs(self, start: int, stop: int) -> dict[str, np.ndarray]:
         """The swept values of runs ``start .. stop-1``, by name."""
@@ -72,7 +73,7 @@ class Plan:
         point = runs // self.samples
         for axis in reversed(self.grids):  # the last axis varies fastest
             n = len(axis)
-            out[axis.name] = axis.at(point % n)
+            out.update(axis.take(point % n))
             point = point // n
         for j, axis in enumerate(self.draws):
             u = uniforms(self.seed, j, runs)
@@ -84,7 +85,8 @@ class Plan:
 
     def describe(self) -> dict:
         """The plan as JSON data (the sidecar's ``spec``)."""
-        return {"grid": {a.name: a.text for a in self.grids}, "sample": {a.name: a.text for a in self.draws},
+        return {"grid": {k: v for a in self.grids for k, v in a.describe().items()},
+                "sample": {a.name: a.text for a in self.draws},
                 "samples": self.samples, "seed": self.seed, "latin": self.latin, "runs": self.count}
 
     def digest(self) -> str:

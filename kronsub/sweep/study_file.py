@@ -30,6 +30,7 @@ KEYS = {  # key: (kind, what it is)
     "seed": ("integer", "the seed"), "latin": ("flag", "a Latin hypercube"),
     "set": ("mapping", "fixed values: NAME: value"), "summaries": ("mapping", "outputs: NAME: max(...) ..."),
     "chunk": ("integer", "runs per task"), "output": ("path", "the output folder"),
+    "table": ("path", "a table of runs, CSV or Parquet"),
 }
 
 
