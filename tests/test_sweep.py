@@ -324,3 +324,18 @@ def test_a_bad_table_is_a_located_error(tmp_path, monkeypatch, text, told):
     Path("T.csv").write_text(text)
     result = run([SYSTEM1, "--scene", "free", "--table", "T.csv", "-o", "out.parquet"])
     assert result.exit_code == 1 and told in result.output, result.output
+
+
+def test_a_worker_without_a_compiler_uses_the_numpy_module(monkeypatch, tmp_path):
+    from kronsub.sweep import ensemble
+
+    job = job_of(SYSTEM1, "free", ("theta=0.5:1:2",), t_end=1.0)
+    compiled = rows_of(job)
+    monkeypatch.setattr(ensemble, "_LOADED", {})  # a fresh worker
+    monkeypatch.setenv("CC", str(tmp_path / "no-such-compiler"))
+    monkeypatch.setenv("KRONSUB_CACHE_DIR", str(tmp_path / "cache"))
+    fallback = rows_of(job)
+    assert list(fallback["status"]) == ["complete", "complete"]
+    assert not np.array_equal(fallback["evaluations"], compiled["evaluations"])  # another integrator ran
+    for name in ("final_theta", "final_phi", "final_theta_dot", "final_phi_dot", "max_theta", "min_phi"):
+        assert np.allclose(fallback[name], compiled[name], rtol=0, atol=1e-7), name  # scipy's DOP853 on numpy

@@ -6,8 +6,9 @@ it got to, its final state, the least and greatest value of each coordinate on t
 the energy drift ``E(t_end) - E(0)`` (24) of a model that conserves energy, and its cost
 (steps, rejected steps, evaluations of the right-hand side). A run that fails is a row, never
 the end of the chunk. Runs wholly in C go through the compiled ensemble (:mod:`.ensemble`), a
-block at a time; the others (scipy's and the Taylor methods, closed loops, no compiler) run
-one by one as ``simulate`` runs them (:func:`kronsub.simulation.run.start`)."""
+block at a time (``taylor`` through its own generated integrator); the others (scipy's methods,
+heyoka, closed loops, a worker without a C compiler) run one by one as ``simulate`` runs them
+(:func:`kronsub.simulation.run.start`, with the generated numpy module where nothing compiles)."""
 from __future__ import annotations
 
 import math
@@ -18,6 +19,7 @@ import numpy as np
 
 from ..core.known_system import KnownSystem
 from ..errors import KronsubError
+from ..simulation.native import NativeError
 from .ensemble import Sources, load, load_taylor, pieces, summary_width
 from .plan import Plan
 
@@ -121,8 +123,12 @@ def run_chunk(job: Job, index: int) -> dict[str, object]:
     n, nq = stop - start, len(job.system.coordinates)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        if job.route in (ENSEMBLE, TAYLOR):
-            summary, reasons, users = _ensemble(job, param, y0)
+        try:
+            compiled = _ensemble(job, param, y0) if job.route in (ENSEMBLE, TAYLOR) else None
+        except NativeError:  # no C compiler on this worker: the generated numpy module, run by run
+            compiled = None
+        if compiled is not None:
+            summary, reasons, users = compiled
         else:
             summary, reasons, users = _one_by_one(job, param, y0)
     ny = 2 * nq
