@@ -176,7 +176,7 @@ def sweep(model: Path, grids, samples, tables, runs, seed, latin, t_end, dt, met
             from ..simulation.table import model_record
 
             import dask
-            import pyarrow
+            import pyarrow as arrow
 
             dataset.write_sidecar({
                 "identity": identity, "state": state, "route": job_.route,
@@ -185,7 +185,7 @@ def sweep(model: Path, grids, samples, tables, runs, seed, latin, t_end, dt, met
                 "counts": counts if counts is not None else dataset.counts(),
                 "columns": [name for name, _ in dataset.columns],
                 "library_sha256": job_.sources.sha256 if job_.sources is not None else None,
-                "versions": {"kronsub": __version__, "dask": dask.__version__, "pyarrow": pyarrow.__version__,
+                "versions": {"kronsub": __version__, "dask": dask.__version__, "pyarrow": arrow.__version__,
                              "python": platform.python_version()}})
 
         sidecar("running", len(written), {})
