@@ -182,14 +182,18 @@ def test_bad_input_is_a_located_error(tmp_path, extra, code, told):
     assert not (tmp_path / "out.parquet").exists()
 
 
-def test_unreachable_scheduler_is_an_error(tmp_path):
+@pytest.mark.parametrize("how", ["option", "environment"])
+def test_unreachable_scheduler_is_an_error(tmp_path, monkeypatch, how):
     import socket
 
     with socket.socket() as s:  # a port nothing listens on
         s.bind(("127.0.0.1", 0))
         port = s.getsockname()[1]
-    result = run([SYSTEM1, "--scene", "free", "--grid", "theta=0:1:2", "--t", "0.1", "--scheduler",
-                  f"tcp://127.0.0.1:{port}", "-o", tmp_path / "out.parquet"])
+    address = f"tcp://127.0.0.1:{port}"
+    if how == "environment":
+        monkeypatch.setenv("DASK_SCHEDULER_ADDRESS", address)
+    result = run([SYSTEM1, "--scene", "free", "--grid", "theta=0:1:2", "--t", "0.1",
+                  *(["--scheduler", address] if how == "option" else []), "-o", tmp_path / "out.parquet"])
     assert result.exit_code == 1, result.output
     assert f"cannot reach the Dask scheduler at tcp://127.0.0.1:{port} within 5 s" in result.output
 
@@ -339,3 +343,17 @@ def test_a_worker_without_a_compiler_uses_the_numpy_module(monkeypatch, tmp_path
     assert not np.array_equal(fallback["evaluations"], compiled["evaluations"])  # another integrator ran
     for name in ("final_theta", "final_phi", "final_theta_dot", "final_phi_dot", "max_theta", "min_phi"):
         assert np.allclose(fallback[name], compiled[name], rtol=0, atol=1e-7), name  # scipy's DOP853 on numpy
+
+
+def test_progress_shows_runs_rate_and_time_left(capsys):
+    from kronsub.sweep.driver import SweepProgress
+
+    bar = SweepProgress(1000, enabled=True)
+    bar.update(250)
+    bar.close()
+    shown = capsys.readouterr().err
+    assert "250/1,000 runs" in shown and "runs/s" in shown and "s left" in shown and shown.endswith("\n")
+    quiet = SweepProgress(10, enabled=False)
+    quiet.update(5)
+    quiet.close()
+    assert capsys.readouterr().err == ""
