@@ -106,7 +106,13 @@ def _conserves(job: Job, native) -> bool:
     base values: a property of the equations, the same for every chunk)."""
     from ..simulation.advice import conserves_energy
 
-    key = job.sources.sha256 if job.sources is not None else job.system.name
+    if job.sources is not None:
+        key = job.sources.sha256
+    else:
+        from ..simulation.compiled import fingerprint
+
+        key = fingerprint(job.system, job.outputs) or repr(job.system)
+    key = f"{key} {job.base_param} {job.base_y0}"
     if key not in _CONSERVES:
         try:
             _CONSERVES[key] = bool(conserves_energy(native, np.asarray(job.base_param), len(job.system.coordinates),
