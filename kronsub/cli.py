@@ -15,6 +15,7 @@ from .commands.derive import derive
 from .commands.discovery import check, components, new
 from .commands.linearize import linearize
 from .commands.simulate import simulate
+from .commands.sweep import sweep
 from .version import __version__
 
 __all__ = ["EXIT_CODES", "main"]
@@ -29,7 +30,7 @@ def main(debug: bool):
         os.environ[DEBUG_ENV] = "1"
 
 
-for _command in (derive, codegen, simulate, accuracy, cache, components, new, check, linearize, animate):
+for _command in (derive, codegen, simulate, accuracy, cache, components, new, check, linearize, animate, sweep):
     main.add_command(_command)
 
 if __name__ == "__main__":

@@ -16,9 +16,10 @@ from .outputs import (C_IDENTIFIER, Accuracy, accuracy, accuracy_plan, code_file
                       repr_markdown)
 from .runs import (ANIMATION_DEFAULTS, NumericSystem, Run, animate, model_file, numeric, run_span, scene_of,
                    settings_text, simulate)
+from .sweeps import sweep
 from .system import LoadedModel, System, load
 
 __all__ = ["ANIMATION_DEFAULTS", "Accuracy", "C_IDENTIFIER", "LoadedModel", "NumericSystem", "Run", "System",
            "UnknownName", "accuracy", "accuracy_plan", "animate", "code_files", "codegen", "linearize", "load",
            "model_file", "names", "numeric", "reactions", "repr_latex", "repr_markdown", "run_span", "scene_of",
-           "settings_text", "simulate", "split_assignments", "symbol"]
+           "settings_text", "simulate", "split_assignments", "sweep", "symbol"]

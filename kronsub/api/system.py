@@ -16,6 +16,7 @@ from ..model.scenes import derive_scene, select_scene
 from .naming import linearize, symbol
 from .outputs import Accuracy, accuracy, codegen, reactions, repr_latex, repr_markdown
 from .runs import NumericSystem, animate, numeric, simulate
+from .sweeps import sweep
 
 __all__ = ["LoadedModel", "System", "load"]
 
@@ -23,7 +24,7 @@ __all__ = ["LoadedModel", "System", "load"]
 class System(KnownSystem):
     """A derived system as a notebook sees it: the :class:`KnownSystem`'s data (``mass_matrix``
     is ``Mbar = Cᵀ M C`` (9'), ``velocity_terms``, ``forces``, ``coordinates``, energies...),
-    with :meth:`symbol`, :meth:`simulate`, :meth:`numeric`, :meth:`linearize` and its Jupyter
+    with :meth:`symbol`, :meth:`simulate`, :meth:`sweep`, :meth:`numeric`, :meth:`linearize` and its Jupyter
     display. The conveniences add no data: a ``System`` goes wherever a ``KnownSystem`` does."""
 
     @classmethod
@@ -73,6 +74,10 @@ class System(KnownSystem):
     def reactions(self, fmt: str = "markdown") -> str:
         """The derived equations with the workless reactions (viewpoint (alpha)); see :func:`reactions`."""
         return reactions(self, fmt)
+
+    def sweep(self, grid=None, sample=None, runs=None, seed=0, t: float = 10.0, dt: float = 0.01, **options):
+        """A row of summaries per run over a grid or a sample (a pandas DataFrame); see :func:`~.sweeps.sweep`."""
+        return sweep(self, grid, sample, runs, seed, t, dt, **options)
 
     def numeric(self, set=None) -> NumericSystem:
         """Compiled ``rhs``, ``mass_matrix``, energies...; see :func:`numeric`."""

@@ -1,0 +1,166 @@
+"""kronsub sweep against its peers: 10^4 double-pendulum runs (System I's defaults, initial angles
+uniform in [-2, 2], at rest, t = 10) through `kronsub sweep`'s driver on 1 and 2 local workers,
+the compiled ensemble called directly in this process, heyoka's `ensemble_propagate_until`
+(threads, 1 and 2) and a Python loop over `system.simulate()`; each at the loosest tolerance whose
+error at t = 10 is <= 1e-8 on a sample of runs against the Taylor integrator at 1e-15. Prints runs per second, the
+ratios the issue sets as goals, min and median of --repeats.
+
+    python benchmarks/sweep.py [--runs 10000] [--repeats 3] [--quick]
+"""
+from __future__ import annotations
+
+import argparse
+import statistics
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parent.parent
+MODEL = ROOT / "models" / "hoffmann" / "system1.yaml"
+T_END, DT = 10.0, 0.01
+ERROR = 1e-8  # at t = 10, on the sample, against the tight run
+SAMPLE = 20
+
+
+def timed(fn, repeats):
+    times = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        fn()
+        times.append(time.perf_counter() - t0)
+    return min(times), statistics.median(times)
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--runs", type=int, default=10_000)
+    parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument("--quick", action="store_true", help="2,000 runs, one repeat")
+    args = parser.parse_args()
+    runs, repeats = (2000, 1) if args.quick else (args.runs, args.repeats)
+
+    import kronsub
+    from kronsub.commands.common import scene_system
+    from kronsub.model.scenes import initial_values
+    from kronsub.sweep.axes import read_axes
+    from kronsub.sweep.chunk import inputs_of
+    from kronsub.sweep.driver import execute
+    from kronsub.sweep.ensemble import load, pieces
+    from kronsub.sweep.study import make_job, make_plan
+
+    loaded, _, system = scene_system(MODEL, None)
+    plan = make_plan(*read_axes((), ("theta=uniform(-2, 2)", "phi=uniform(-2, 2)")), runs, 1)
+
+    def job_at(tol, chunk=1000):  # noqa: D401
+        return make_job(system, plan, initial_values(loaded, None), {}, method="dop853", t_end=T_END, dt=DT,
+                        rtol=tol, atol=tol, chunk=chunk)
+
+    from kronsub.simulation.grid import Grid
+    from kronsub.sweep.ensemble import load_taylor, taylor_sources
+
+    base = job_at(1e-10)
+    _, param, y0 = inputs_of(base, 0, runs)
+    ensemble = load(base.sources)
+    cuts = pieces(T_END, DT, "dop853")
+    times = Grid(T_END, DT)[0:len(Grid(T_END, DT))]
+    reference = load_taylor(taylor_sources(system, 1e-15)).run(times, 1e-15, param[:SAMPLE], y0[:SAMPLE], None)[:, 5:9]
+
+    def loosest(errors):
+        return next((t for t, e in errors.items() if e <= ERROR), min(errors))
+
+    dop = {t: float(np.max(np.abs(ensemble.run("dop853", cuts, DT, t, t, param[:SAMPLE], y0[:SAMPLE], False)[:, 5:9]
+                                  - reference))) for t in (1e-10, 1e-11, 1e-12, 1e-13, 1e-14)}
+    tay = {t: float(np.max(np.abs(load_taylor(taylor_sources(system, t)).run(times, t, param[:SAMPLE], y0[:SAMPLE],
+                                                                             None)[:, 5:9] - reference)))
+           for t in (1e-9, 1e-10, 1e-11, 1e-12, 1e-13, 1e-14)}
+    print(f"{runs:,} runs of System I to t = {T_END:g}, rows every {DT:g}; error at t = {T_END:g} on {SAMPLE} runs "
+          "against the Taylor integrator at 1e-15:")
+    print("  dop853: " + ", ".join(f"{t:.0e}: {e:.1e}" for t, e in dop.items()))
+    print("  taylor: " + ", ".join(f"{t:.0e}: {e:.1e}" for t, e in tay.items()))
+    dop_tol, tol = loosest(dop), loosest(tay)
+    print(f"  the loosest at <= {ERROR:g}: dop853 {dop_tol:.0e}, taylor {tol:.0e}")
+    rates = {}
+
+    def report(name, seconds, count=runs):
+        low, med = seconds
+        rates[name] = count / low
+        print(f"  {name:<44} {count / low:>10,.0f} runs/s (best)   {count / med:>10,.0f} (median)")
+
+    taylor = load_taylor(taylor_sources(system, tol))
+    report("Taylor ensemble directly, this process", timed(
+        lambda: taylor.run(times, tol, param, y0, None), repeats))
+    report("dop853 ensemble directly, this process", timed(
+        lambda: ensemble.run("dop853", cuts, DT, dop_tol, dop_tol, param, y0, False), repeats))
+    job = make_job(system, plan, initial_values(loaded, None), {}, method="taylor", t_end=T_END, dt=DT,
+                   rtol=tol, atol=tol, chunk=1000)
+    import logging
+
+    from distributed import LocalCluster
+
+    for workers in (1, 2):  # the cluster started (and the workers' library loaded) before the clock
+        t0 = time.perf_counter()
+        with LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=None,
+                          silence_logs=logging.ERROR) as cluster:
+            execute(job, range(workers), lambda i, rows: None, scheduler=cluster.scheduler_address)
+            print(f"  (a local cluster of {workers} started and warmed in {time.perf_counter() - t0:.1f} s)")
+            report(f"kronsub sweep (taylor), {workers} local worker(s)", timed(
+                lambda: execute(job, range(job.chunks), lambda i, rows: None, scheduler=cluster.scheduler_address),
+                repeats))
+    try:
+        import heyoka
+
+        from kronsub.simulation.heyoka_backend import HeyokaIntegrator
+    except ImportError as exc:
+        print(f"  heyoka not available ({exc})")
+    else:
+        errors = {}
+        for t in (1e-9, 1e-10, 1e-11, 1e-12, 1e-13, 1e-14, 1e-15):
+            integ = HeyokaIntegrator(system, t)
+            worst = 0.0
+            for r in range(SAMPLE):
+                integ.start(0.0, y0[r], param[r])
+                integ.ta.propagate_until(T_END)
+                worst = max(worst, float(np.max(np.abs(integ.ta.state - reference[r]))))
+            errors[t] = worst
+            if worst <= ERROR:
+                break
+        hy_tol = loosest(errors)
+        print("  heyoka: " + ", ".join(f"{t:.0e}: {e:.1e}" for t, e in errors.items()))
+        integ = HeyokaIntegrator(system, hy_tol)
+        used = integ.used
+
+        def gen(ta, i):
+            ta.time = 0.0
+            ta.state[:] = y0[i]
+            ta.pars[:] = param[i, :used]
+            return ta
+
+        for threads in (1, 2):
+            report(f"heyoka ensemble, {threads} thread(s), tol {hy_tol:.0e}", timed(
+                lambda: heyoka.ensemble_propagate_until(integ.ta, T_END, runs, gen, algorithm="thread",
+                                                        max_workers=threads), repeats))
+    api = kronsub.load(MODEL).derive()
+    loop = min(runs, 200)
+
+    def python_loop():
+        for r in range(loop):
+            api.simulate(t=T_END, dt=DT, method="taylor", set={"theta": y0[r, 0], "phi": y0[r, 1]}, rtol=tol,
+                         atol=tol, dataframe=False)
+
+    report("Python loop over system.simulate(method='taylor')", timed(python_loop, 1), loop)
+    print("ratios:")
+    direct = rates["Taylor ensemble directly, this process"]
+    one, two = rates["kronsub sweep (taylor), 1 local worker(s)"], rates["kronsub sweep (taylor), 2 local worker(s)"]
+    print(f"  sweep on 1 worker / compiled ensemble directly: {one / direct:.2f} (goal >= 0.8)")
+    print(f"  sweep on 2 workers / 1 worker: {two / one:.2f} (goal >= 1.8)")
+    heyoka_one = next((v for k, v in rates.items() if k.startswith("heyoka ensemble, 1")), None)
+    if heyoka_one:
+        print(f"  sweep on 1 worker / heyoka ensemble on 1 thread: {one / heyoka_one:.2f} (goal >= 5)")
+    looped = rates["Python loop over system.simulate(method='taylor')"]
+    print(f"  sweep on 1 worker / Python loop: {one / looped:.0f}")
+    print(f"  per core: {one:,.0f} runs/s through kronsub sweep (goal >= 5,000)")
+
+
+if __name__ == "__main__":
+    main()

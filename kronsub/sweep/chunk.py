@@ -1,0 +1,297 @@
+"""The chunk task: the runs ``start .. stop-1`` of a sweep, each summarised in a row.
+
+A row holds the run's swept inputs, its status (``complete``, or ``stopped`` with the reason: a
+singular metric ``Mbar``, a non-finite state, a toggle position of a closed loop, ...), the time
+it got to, its final state, the least and greatest value of each coordinate on the output grid,
+the energy drift ``E(t_end) - E(0)`` (24) of a model that conserves energy, and its cost
+(steps, rejected steps, evaluations of the right-hand side). A run that fails is a row, never
+the end of the chunk. Runs wholly in C go through the compiled ensemble (:mod:`.ensemble`), a
+block at a time (``taylor`` through its own generated integrator); the others (scipy's methods,
+heyoka, closed loops, a worker without a C compiler) run one by one as ``simulate`` runs them
+(:func:`kronsub.simulation.run.start`, with the generated numpy module where nothing compiles)."""
+from __future__ import annotations
+
+import math
+import warnings
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..core.known_system import KnownSystem
+from ..errors import KronsubError
+from ..simulation.native import NativeError
+from .ensemble import Sources, load, load_taylor, pieces, summary_width
+from .plan import Plan
+
+__all__ = ["ENSEMBLE", "ONE_BY_ONE", "TAYLOR", "Job", "columns", "inputs_of", "run_chunk", "state_names"]
+
+ENSEMBLE, TAYLOR, ONE_BY_ONE = "ensemble", "taylor ensemble", "one by one"  # the routes of a sweep's runs
+
+
+@dataclass(frozen=True)
+class Job:
+    """Everything a worker needs for any chunk of a sweep (sent to each worker once)."""
+
+    system: KnownSystem
+    plan: Plan
+    chunk: int
+    method: str
+    t_end: float
+    dt: float
+    rtol: float
+    atol: float
+    base_param: tuple[float, ...]
+    base_y0: tuple[float, ...]
+    route: str
+    sources: Sources | None = None
+    outputs: object = None
+    initial: dict = field(default_factory=dict)  # the model's and scene's initial values (closed loops)
+    dependent_settings: dict = field(default_factory=dict)  # --set of a closed loop's dependent coordinates
+    derived_initial: tuple = ()  # (state index, expression of swept parameters) per such initial value
+    summaries: tuple = ()  # user outputs (:class:`.outputs.UserOutput`), a column each
+    taylor_sources: Sources | None = None  # the Taylor integrator's (route TAYLOR)
+
+    @property
+    def chunks(self) -> int:
+        return max(1, math.ceil(self.plan.count / self.chunk))
+
+    def span(self, index: int) -> tuple[int, int]:
+        """The runs of chunk ``index``."""
+        return index * self.chunk, min((index + 1) * self.chunk, self.plan.count)
+
+
+def state_names(system: KnownSystem) -> list[str]:
+    return [q.name for q in system.coordinates] + [v.name for v in system.velocities]
+
+
+def columns(job: Job) -> list[tuple[str, str]]:
+    """The columns of a row ``(name, type)``: ``int64``, ``float64`` or ``string``."""
+    q = [c.name for c in job.system.coordinates]
+    return ([("run", "int64")] + [(name, "float64") for name in job.plan.names] +
+            [("status", "string"), ("reason", "string"), ("t_final", "float64")] +
+            [(f"final_{name}", "float64") for name in state_names(job.system)] +
+            [(f"min_{name}", "float64") for name in q] + [(f"max_{name}", "float64") for name in q] +
+            [("energy_drift", "float64"), ("steps", "int64"), ("rejected", "int64"), ("evaluations", "int64")] +
+            [(out.name, "float64") for out in job.summaries])
+
+
+def inputs_of(job: Job, start: int, stop: int) -> tuple[dict, np.ndarray, np.ndarray]:
+    """The swept inputs, and each run's parameters and initial state."""
+    import sympy
+
+    system = job.system
+    inputs = job.plan.inputs(start, stop)
+    n = stop - start
+    param = np.tile(np.asarray(job.base_param, dtype=float), (n, 1)).reshape(n, len(job.base_param))
+    y0 = np.tile(np.asarray(job.base_y0, dtype=float), (n, 1))
+    p_index = {p.name: i for i, p in enumerate(system.parameters)}
+    s_index = {name: i for i, name in enumerate(state_names(system))}
+    for name, values in inputs.items():
+        if name in p_index:
+            param[:, p_index[name]] = values
+        else:
+            y0[:, s_index[name]] = values
+    symbols = [p.symbol for p in system.parameters]
+    for index, expr in job.derived_initial:  # initial values written with swept parameters
+        for r in range(n):
+            y0[r, index] = float(sympy.sympify(expr).xreplace(dict(zip(symbols, param[r]))).evalf(17))
+    return inputs, param, y0
+
+
+_CONSERVES: dict[str, bool] = {}
+
+
+def _conserves(job: Job, native) -> bool:
+    """Whether the model conserves energy (:func:`kronsub.simulation.advice.conserves_energy` at the
+    base values: a property of the equations, the same for every chunk)."""
+    from ..simulation.advice import conserves_energy
+
+    if job.sources is not None:
+        key = job.sources.sha256
+    else:
+        from ..simulation.compiled import fingerprint
+
+        key = fingerprint(job.system, job.outputs) or repr(job.system)
+    key = f"{key} {job.base_param} {job.base_y0}"
+    if key not in _CONSERVES:
+        try:
+            _CONSERVES[key] = bool(conserves_energy(native, np.asarray(job.base_param), len(job.system.coordinates),
+                                                    0.0, np.asarray(job.base_y0)))
+        except Exception:  # noqa: BLE001 - a model whose energy cannot be evaluated reports no drift
+            _CONSERVES[key] = False
+    return _CONSERVES[key]
+
+
+def run_chunk(job: Job, index: int) -> dict[str, object]:
+    """The rows of chunk ``index``, as columns (:func:`columns`)."""
+    start, stop = job.span(index)
+    inputs, param, y0 = inputs_of(job, start, stop)
+    n, nq = stop - start, len(job.system.coordinates)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        try:
+            compiled = _ensemble(job, param, y0) if job.route in (ENSEMBLE, TAYLOR) else None
+        except NativeError:  # no C compiler on this worker: the generated numpy module, run by run
+            compiled = None
+        if compiled is not None:
+            summary, reasons, users = compiled
+        else:
+            summary, reasons, users = _one_by_one(job, param, y0)
+    ny = 2 * nq
+    status = summary[:, 0]
+    out: dict[str, object] = {"run": np.arange(start, stop, dtype=np.int64), **inputs}
+    out["status"] = ["complete" if s == 0 else "stopped" for s in status]
+    out["reason"] = reasons
+    out["t_final"] = summary[:, 1]
+    for k, name in enumerate(state_names(job.system)):
+        out[f"final_{name}"] = summary[:, 5 + k]
+    for k, q in enumerate(job.system.coordinates):
+        out[f"min_{q.name}"] = summary[:, 5 + ny + k]
+    for k, q in enumerate(job.system.coordinates):
+        out[f"max_{q.name}"] = summary[:, 5 + ny + nq + k]
+    out["energy_drift"] = summary[:, 6 + ny + 2 * nq] - summary[:, 5 + ny + 2 * nq]
+    for k, name in ((2, "steps"), (3, "rejected"), (4, "evaluations")):
+        out[name] = summary[:, k].astype(np.int64)
+    for k, user in enumerate(job.summaries):
+        out[user.name] = users[:, k]
+    assert all(len(v) == n for v in out.values())
+    return out
+
+
+ROWS_BYTES = 1 << 26  # the rows of the runs of one call to the ensemble, when user outputs need them
+
+
+def _functions(job: Job):
+    """The user outputs as numpy functions of ``(t, state..., parameters...)``."""
+    from ..core.symbols import TIME
+    from .outputs import evaluator
+
+    system = job.system
+    return evaluator(list(job.summaries), [TIME, *system.coordinates, *system.velocities,
+                                           *(p.symbol for p in system.parameters)])
+
+
+def _ensemble(job: Job, param: np.ndarray, y0: np.ndarray) -> tuple[np.ndarray, list[str], np.ndarray]:
+    from ..simulation.grid import Grid
+
+    ensemble = load(job.sources)
+    energies = _conserves(job, ensemble.native)
+    cuts = pieces(job.t_end, job.dt, "dop853" if job.route == TAYLOR else job.method)
+    grid = Grid(job.t_end, job.dt)
+    if job.route == TAYLOR:
+        from ..simulation.taylor_c import STATUS
+
+        taylor, times = load_taylor(job.taylor_sources), grid[0:len(grid)]
+
+        def block_of(a, b, with_rows=False):
+            return taylor.run(times, job.rtol, param[a:b], y0[a:b], ensemble if energies else None, with_rows)
+    else:
+        def block_of(a, b, with_rows=False):
+            return ensemble.run(job.method, cuts, job.dt, job.rtol, job.atol, param[a:b], y0[a:b], energies,
+                                with_rows=with_rows)
+    users = np.full((len(y0), len(job.summaries)), np.nan)
+    if not job.summaries:
+        summary = block_of(0, len(y0))
+    else:
+        from .outputs import evaluate
+
+        functions = _functions(job)
+        per_run = (len(grid) + 3 * len(cuts)) * (y0.shape[1] + 1) * 8
+        block = max(1, ROWS_BYTES // per_run)
+        parts = []
+        for a in range(0, len(y0), block):
+            b = min(a + block, len(y0))
+            part, rows, written = block_of(a, b, with_rows=True)
+            parts.append(part)
+            for r in range(b - a):
+                kept = rows[r, :written[r]]
+                users[a + r] = evaluate(list(job.summaries), functions, grid.snap(kept[:, 0]), kept[:, 1:],
+                                        param[a + r, :len(job.system.parameters)])
+        summary = np.concatenate(parts)
+    messages: dict[int, str] = {}
+    reasons = []
+    for s, t in zip(summary[:, 0], summary[:, 1]):
+        if s == 0:
+            reasons.append("")
+            continue
+        status = int(s)
+        if status not in messages:
+            messages[status] = STATUS.get(status, f"status {status}") if job.route == TAYLOR else \
+                ensemble.message(status)
+        reasons.append(f"{messages[status]} at t = {t:.6g}")
+    return summary, reasons, users
+
+
+def _one_by_one(job: Job, param: np.ndarray, y0: np.ndarray) -> tuple[np.ndarray, list[str], np.ndarray]:
+    """Each run as ``simulate`` runs it (closed loops projected onto their constraints first)."""
+    from ..simulation.run import start
+    from ..simulation.values import RunValues
+
+    system = job.system
+    nq = len(system.coordinates)
+    ny = 2 * nq
+    summary = np.full((len(y0), summary_width(nq)), np.nan)
+    reasons = []
+    native = None
+    if system.implicit is None:
+        try:
+            from ..simulation.compiled import native_model
+
+            native = native_model(system, job.outputs)
+        except KronsubError:
+            native = None
+    energies = native is not None and _conserves(job, native)
+    users = np.full((len(y0), len(job.summaries)), np.nan)
+    functions = _functions(job) if job.summaries else None
+    for r in range(len(y0)):
+        row = summary[r]
+        row[5:5 + ny] = y0[r]
+        row[5 + ny:5 + ny + nq] = row[5 + ny + nq:5 + ny + 2 * nq] = y0[r, :nq]
+        row[1:5] = (0.0, 0, 0, 0)
+        values = RunValues(tuple(float(v) for v in param[r]), tuple(float(v) for v in y0[r]))
+        try:
+            constrained = None
+            if system.implicit is not None:
+                from ..simulation.constrained import newton_tolerance, project_initial
+
+                values, _, constrained = project_initial(system, job.initial, job.dependent_settings, values,
+                                                         newton_tolerance(job.rtol, job.atol))
+                row[5:5 + ny] = values.y0
+            run = start(system, values, job.t_end, job.dt, job.method, job.rtol, job.atol, progress=False,
+                        outputs=job.outputs, constrained=constrained)
+            first = last = None
+            kept = [] if functions is not None else None
+            for block in run:
+                Y = np.asarray(block.y).reshape(len(block.t), -1)
+                if not len(Y):
+                    continue
+                if kept is not None:
+                    kept.append((np.asarray(block.t, dtype=float), Y))
+                row[5 + ny:5 + ny + nq] = np.minimum(row[5 + ny:5 + ny + nq], Y[:, :nq].min(axis=0))
+                row[5 + ny + nq:5 + ny + 2 * nq] = np.maximum(row[5 + ny + nq:5 + ny + 2 * nq], Y[:, :nq].max(axis=0))
+                row[5:5 + ny] = Y[-1]
+                row[1] = float(block.t[-1])
+                if block.energies is not None:
+                    T, V = block.energies
+                    first = float(T[0] + V[0]) if first is None else first
+                    last = float(T[-1] + V[-1])
+            if kept:
+                from .outputs import evaluate
+
+                users[r] = evaluate(list(job.summaries), functions, np.concatenate([k[0] for k in kept]),
+                                    np.concatenate([k[1] for k in kept]), param[r])
+            stats = run.stats
+            row[2:5] = (stats.get("steps", 0), stats.get("rejected", 0), stats.get("evaluations", 0))
+            if run.complete:
+                row[0] = 0
+                reasons.append("")
+                if energies and first is not None:
+                    row[5 + ny + 2 * nq], row[6 + ny + 2 * nq] = first, last
+            else:
+                row[0] = 1
+                row[1] = run.t_fail if run.t_fail is not None else row[1]
+                reasons.append(f"{run.message} at t = {row[1]:.6g}")
+        except KronsubError as exc:
+            row[0] = 1
+            reasons.append(str(exc).splitlines()[0])
+    return summary, reasons, users

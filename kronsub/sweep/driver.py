@@ -1,0 +1,128 @@
+"""The Dask driver: a sweep's chunks as tasks on a ``dask.distributed`` cluster.
+
+By default a local cluster on this machine (processes, one per core, one thread each: the
+ensemble holds the GIL); ``scheduler`` (or ``DASK_SCHEDULER_ADDRESS``) sends the chunks to a
+running cluster instead, and one that cannot be reached is an error within
+:data:`CONNECT_SECONDS`. The job (model, plan, C sources) goes to the workers once; at most
+:func:`window` chunks are in flight, so the client's memory does not grow with the number of
+runs; each finished chunk is handed to ``done`` (which writes it) as it arrives, so an
+interrupt keeps every chunk finished before it. A worker lost mid-sweep has its chunks rerun
+elsewhere by the scheduler."""
+from __future__ import annotations
+
+import logging
+import os
+import signal
+import sys
+import time
+from collections.abc import Callable, Iterable
+
+from ..errors import KronsubError
+from ..interrupts import handled
+from .chunk import Job, run_chunk
+
+__all__ = ["CONNECT_SECONDS", "ENV_SCHEDULER", "SchedulerError", "SweepProgress", "execute", "window"]
+
+CONNECT_SECONDS = 5  # a scheduler that does not answer by then is reported, not waited for
+ENV_SCHEDULER = "DASK_SCHEDULER_ADDRESS"
+INSTALL_HINT = "pip install 'kronsub[sweep]'"
+
+
+class SchedulerError(KronsubError):
+    """The Dask scheduler could not be reached, or Dask is not installed."""
+
+
+def window(workers: int) -> int:
+    """Chunks in flight: two per worker keeps each busy while its next one is sent."""
+    return 2 * max(workers, 1) + 2
+
+
+class SweepProgress:
+    """Runs done, runs per second and time left on stderr (only on a terminal)."""
+
+    def __init__(self, total: int, enabled: bool | None = None):
+        self.total, self.done, self.start = total, 0, time.perf_counter()
+        self.enabled = sys.stderr.isatty() if enabled is None else enabled
+        self.shown = False
+
+    def update(self, runs: int) -> None:
+        self.done += runs
+        if not self.enabled:
+            return
+        elapsed = max(time.perf_counter() - self.start, 1e-9)
+        rate = self.done / elapsed
+        left = (self.total - self.done) / rate if rate > 0 else float("inf")
+        bar = "#" * int(30 * self.done / max(self.total, 1))
+        sys.stderr.write(f"\r[{bar:<30}] {self.done:,}/{self.total:,} runs  {rate:,.0f} runs/s  {left:,.0f} s left ")
+        sys.stderr.flush()
+        self.shown = True
+
+    def close(self) -> None:
+        if self.shown:
+            sys.stderr.write("\n")
+
+
+def _connect(scheduler: str | None, workers: int | None):
+    """A client of ``scheduler``, or of a new local cluster: ``(client, cluster or None)``."""
+    try:
+        from distributed import Client, LocalCluster
+    except ImportError:
+        raise SchedulerError(f"kronsub sweep needs dask.distributed and pyarrow\n  hint: {INSTALL_HINT}") from None
+    if scheduler:
+        try:
+            return Client(scheduler, timeout=f"{CONNECT_SECONDS}s", set_as_default=False), None
+        except (OSError, TimeoutError, ValueError, TypeError) as exc:
+            first = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+            raise SchedulerError(f"cannot reach the Dask scheduler at {scheduler} within {CONNECT_SECONDS} s "
+                                 f"({first})\n  hint: start one with `dask scheduler` and workers with "
+                                 f"`dask worker ADDRESS`, or leave out --scheduler (and {ENV_SCHEDULER}) for a "
+                                 "local cluster") from None
+    count = workers or os.cpu_count() or 1
+    # the workers ignore Ctrl-C, which the terminal sends the whole process group: the client
+    # keeps the finished chunks and closes the cluster
+    with handled(lambda signum: signum == signal.SIGINT, signal.SIG_IGN):
+        cluster = LocalCluster(n_workers=count, threads_per_worker=1, processes=True, dashboard_address=None,
+                               silence_logs=logging.ERROR)
+    return Client(cluster, set_as_default=False), cluster
+
+
+def execute(job: Job, todo: Iterable[int], done: Callable[[int, dict], None], *, scheduler: str | None = None,
+            workers: int | None = None, progress: SweepProgress | None = None) -> None:
+    """Run the chunks ``todo`` of ``job``, calling ``done(index, rows)`` on the client as each
+    finishes (in the order they finish)."""
+    from distributed import as_completed
+
+    client, cluster = _connect(scheduler, workers)
+    pending = list(todo)[::-1]
+    try:
+        count = len(client.scheduler_info().get("workers", {})) or (workers or 1)
+        shared = client.scatter(job, broadcast=True, hash=False)
+        chunk_of = {}
+
+        def submit():
+            index = pending.pop()
+            future = client.submit(run_chunk, shared, index, pure=False,
+                                   key=f"kronsub-sweep-{index}-{os.urandom(4).hex()}")
+            chunk_of[future.key] = index
+            return future
+
+        with client.as_current():  # as_completed asks for the current client
+            futures = as_completed([submit() for _ in range(min(window(count), len(pending)))], with_results=True)
+            for future, rows in futures:
+                index = chunk_of.pop(future.key)
+                done(index, rows)
+                if progress is not None:
+                    progress.update(len(rows["run"]))
+                future.release()
+                if pending:
+                    futures.add(submit())
+    except BaseException:
+        for name in ("distributed", "distributed.client", "distributed.scheduler", "tornado", "tornado.application"):
+            logging.getLogger(name).setLevel(logging.CRITICAL + 1)  # the cancelled futures are not news
+        raise
+    finally:
+        if progress is not None:
+            progress.close()
+        client.close()
+        if cluster is not None:
+            cluster.close()

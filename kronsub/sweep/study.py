@@ -1,0 +1,131 @@
+"""A sweep set up from a derived model: the swept names checked against the system's
+parameters, coordinates and velocities, the values the runs share resolved as ``simulate``
+resolves them (the model's, the scene's, ``--set``), and the route of its runs chosen."""
+from __future__ import annotations
+
+from ..errors import Location, ModelError, Problem, near_names
+from ..simulation.methods import METHODS, SIMULATE, unknown_method
+from ..simulation.run import SimulationError, check_tolerances, explicit_only, row_count
+from .axes import GridAxis, SampleAxis
+from ..core.symbols import TIME
+from ..simulation.run import BLOCK_ROWS
+from .chunk import ENSEMBLE, ONE_BY_ONE, TAYLOR, Job, columns, state_names
+from .ensemble import BATCH_METHODS, ensemble_sources, taylor_sources
+from .outputs import read_outputs
+from .plan import MAX_RUNS, Plan
+
+__all__ = ["DEFAULT_CHUNK", "SweepError", "make_job", "make_plan"]
+
+DEFAULT_CHUNK = 1000  # runs per task: ~0.1 s of a small model in C, enough to hide a task's overhead
+
+
+class SweepError(SimulationError):
+    """A sweep that cannot start: too many runs, a method or time it cannot use."""
+
+
+def make_plan(grids: list[GridAxis], samples: list[SampleAxis], runs: int | None, seed: int,
+              latin: bool = False) -> Plan:
+    """The runs of the axes; ``runs`` draws per grid point when there are sample axes."""
+    if samples and runs is None:
+        raise SweepError("--sample needs --runs N, the number of draws")
+    if not samples and runs is not None and runs != 1:
+        raise SweepError("--runs is the number of draws of --sample axes; a grid alone has as many runs as points\n"
+                         "  hint: add --sample NAME=..., or leave out --runs")
+    if latin and not samples:
+        raise SweepError("--latin stratifies --sample axes; there are none")
+    if runs is not None and runs < 1:
+        raise SweepError(f"--runs must be at least 1 (got {runs})")
+    if not grids and not samples:
+        raise SweepError("nothing to sweep\n  hint: add --grid NAME=a:b:n or --sample NAME=uniform(a, b) --runs N")
+    plan = Plan(tuple(grids), tuple(samples), runs or 1, seed, latin)
+    if plan.count > MAX_RUNS:
+        raise SweepError(f"the sweep has {plan.count:,} runs, more than {MAX_RUNS:,}\n"
+                         "  hint: coarsen the grid or draw fewer samples; split a larger study into sweeps")
+    return plan
+
+
+def make_job(system, plan: Plan, initial: dict, settings: dict[str, str], *, method: str, t_end: float, dt: float,
+             rtol: float, atol: float, outputs=None, chunk: int = DEFAULT_CHUNK,
+             axes_text: dict[str, str] | None = None, compiled: bool = True, summaries: tuple[str, ...] = (),
+             summary_option: str = "--summary") -> Job:
+    """The :class:`Job` of ``plan`` over ``system``; ``settings`` the fixed ``--set`` values. Raises
+    :class:`ModelError` (unknown or doubly given names, bad values) or :class:`SweepError`."""
+    from ..simulation.values import resolve
+
+    if method not in SIMULATE:
+        raise SweepError(unknown_method(method))
+    explicit_only(system, method)
+    row_count(t_end, dt)
+    check_tolerances(rtol, atol)
+    params = [p.name for p in system.parameters]
+    states = state_names(system)
+    known = set(params) | set(states)
+    where = axes_text or {}
+    problems = []
+    for name in plan.names:
+        at = Location(where.get(name, name))
+        if name not in known:
+            near = near_names(name, known)
+            problems.append(Problem(at, f"{name}: no parameter, coordinate or velocity of that name",
+                                    ("did you mean " + ", ".join(near) + "?") if near else
+                                    "parameters: " + ", ".join(params) + "; state: " + ", ".join(states)))
+        elif name in settings:
+            problems.append(Problem(at, f"{name} is swept and also given by --set", "give it one or the other"))
+    dependent = set()
+    if system.implicit is not None:
+        from ..simulation.constrained import dependent_names
+
+        dependent = dependent_names(system)
+        for name in plan.names:
+            if name in dependent:
+                problems.append(Problem(Location(where.get(name, name)), f"{name} is a dependent coordinate of the "
+                                        "closed loop: it follows from the independent ones",
+                                        "sweep the independent coordinates: " + ", ".join(states)))
+    names = {"t": TIME, **{q.name: q for q in system.coordinates}, **{v.name: v for v in system.velocities},
+             **{p.name: p.symbol for p in system.parameters}}
+    user = []
+    try:
+        user = read_outputs(summaries, names, summary_option)
+    except ModelError as exc:
+        problems.extend(exc.problems)
+    taken = {name for name, _ in columns(Job(system=system, plan=plan, chunk=1, method=method, t_end=t_end, dt=dt,
+                                                 rtol=rtol, atol=atol, base_param=(), base_y0=(), route=""))}
+    for out in user:
+        if out.name in taken:
+            problems.append(Problem(Location(f"{summary_option} {out.text}"), f"the output name {out.name} is a column "
+                                    "of every row already", f"name it: {summary_option} NAME={out.text}"))
+    if problems:
+        raise ModelError(problems)
+    fixed = {k: v for k, v in settings.items() if k not in dependent}
+    dependent_settings = {k: v for k, v in settings.items() if k in dependent}
+    values = resolve(system, initial, fixed)
+    swept = {p.symbol for p in system.parameters if p.name in plan.names}
+    derived = []
+    if swept:
+        by_name = {k.name: v for k, v in initial.items()}
+        import sympy
+
+        for index, name in enumerate(states):
+            if name in plan.names or name in fixed or name not in by_name:
+                continue
+            expr = sympy.sympify(by_name[name])
+            if expr.free_symbols & swept:
+                derived.append((index, expr))
+    route = ONE_BY_ONE
+    if compiled and system.implicit is None and method in BATCH_METHODS and METHODS[method].engine == "c":
+        route = ENSEMBLE
+    elif compiled and system.implicit is None and method == "taylor" and row_count(t_end, dt) <= BLOCK_ROWS:
+        route = TAYLOR  # one call of the Taylor integrator per run, as simulate makes it
+    sources = ensemble_sources(system, outputs) if route in (ENSEMBLE, TAYLOR) else None
+    taylor = None
+    if route == TAYLOR:
+        from ..simulation.taylor_c import TaylorUnavailable
+
+        try:
+            taylor = taylor_sources(system, rtol)
+        except (TaylorUnavailable, ValueError):
+            route, sources = ONE_BY_ONE, None
+    return Job(system=system, plan=plan, chunk=chunk, method=method, t_end=t_end, dt=dt, rtol=rtol, atol=atol,
+               base_param=values.parameters, base_y0=values.y0, route=route, sources=sources, outputs=outputs,
+               initial=dict(initial), dependent_settings=dependent_settings, derived_initial=tuple(derived),
+               summaries=tuple(user), taylor_sources=taylor)
