@@ -27,7 +27,7 @@ import numpy as np
 import sympy
 
 from ..components.base import common_world, in_world
-from ..core.constraints import Constraint, ConstraintFailure, NumericConstraints, closed_forms
+from ..core.constraints import Constraint, ConstraintFailure, NumericConstraints, closed_forms, multiplier_name
 from ..core.symbols import free_symbols_of
 from ..errors import close_matches
 from .effects import named_body, zero_vector
@@ -368,3 +368,33 @@ def _redundant(loader: ModelReader, where, numeric, bad, constraints):
     loader.error(where, f"redundant constraints: {names} {'depends' if len(bad) == 1 else 'depend'} on "
                         f"{others or 'the others'} (the Jacobian dg/dx is rank-deficient at the initial "
                         "configuration)", f"remove {names}")
+
+
+def check_multiplier_names(reader: ModelReader, constraints, carried) -> None:
+    """Two constraints whose multipliers get one name (a joint `B`'s `B.x` and a constraint
+    `B_x` are both `mu_B_x`) would be one entry of the reactions: refused, naming both."""
+    seen: dict[str, Constraint] = {}
+    own = {id(c) for c in carried}
+    owner = {id(c): part.name for part in reader.parts for c in part.constraints}  # the component of each
+    for c in constraints:
+        name = multiplier_name(c.name)
+        first = seen.setdefault(name, c)
+        if first is c:
+            continue
+        here = next((x for x in (c, first) if id(x) not in own), None)
+        if here is None:  # both from known systems: at the component entries that bring them in
+            parts = [owner.get(id(x), x.name.split(".", 1)[0]) for x in (first, c)]
+            at = [reader.locations.get(f"component:{p}") for p in parts]
+            came = (f"both come from the component '{parts[0]}'" if parts[0] == parts[1] else
+                    f"they come from the component '{parts[0]}'" + (f" (at {at[0]})" if at[0] else "")
+                    + f" and this one, '{parts[1]}'")
+            reader.error(at[1] or at[0] or reader.root, f"constraints '{first.name}' and '{c.name}' have the "
+                         f"same multiplier name '{name}' in the reactions: {came}",
+                         "rename one of the components: a known system's constraints are named after its "
+                         "component (`left.cx`, multiplier `mu_left_cx`)")
+            continue
+        key = here.name if f"constraint:{here.name}" in reader.locations else here.name.rsplit(".", 1)[0]
+        reader.error(reader.locations.get(f"constraint:{key}", reader.root), f"constraints '{first.name}' and "
+                     f"'{c.name}' have the same multiplier name '{name}' in the reactions",
+                     "rename one of them (a joint `B` names its equations `B.x`, `B.y`, whose multipliers "
+                     "are `mu_B_x`, `mu_B_y`)")

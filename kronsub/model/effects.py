@@ -1,9 +1,10 @@
-"""Reading the ``effects:`` section: one builder per effect type (the effect registry)."""
+"""Reading the ``effects:`` section (:func:`read_effects`): one builder per effect type (the effect
+registry, ``BUILDERS``)."""
 from __future__ import annotations
 
 import sympy
 
-from ..core.symbols import free_symbols_of
+from ..core.symbols import free_symbols_of, velocity_symbol
 from ..effects.base import Effect
 from ..effects.elements import Damper, Spring, TorsionalDamper, TorsionalSpring, separation
 from ..effects.gravity import Gravity
@@ -374,3 +375,22 @@ def build_effect(loader: ModelReader, ename: str, spec: Node, primitive) -> Effe
     builder, keys = entry
     loader.check_keys(spec, ("type", "description") + keys, f"effect '{ename}'")
     return builder(loader, ename, spec, primitive)
+
+
+def read_effects(reader: ModelReader, node: Node | None, primitive, coords) -> list[Effect]:
+    """The effects, written in the primitive coordinates or in the subspace's ``coords``
+    (those are applied directly in the subspace: core/subspace.py)."""
+    for q in coords:
+        reader.subspace_names[q.name] = q
+        reader.names.setdefault(q.name, q)
+        reader.names.setdefault(velocity_symbol(q).name, velocity_symbol(q))
+    effects = []
+    for ename, spec in reader.mapping(node, "effects", "write `gravity: {type: gravity, g: g}`").items():
+        loc = node.key_locations[ename]
+        if not reader.identifier(ename, loc, "effect"):
+            continue
+        effect = build_effect(reader, ename, spec, primitive)
+        if effect is not None:
+            reader.locations[f"effect:{ename}"] = loc
+            effects.append(effect)
+    return effects
