@@ -1,7 +1,8 @@
 """The reading context of a model file: its problems, names, parameters and the shared readers.
 
-Every section reader (``loader.py``, ``parts.py``, ``connection.py``, ``constraints.py``,
-``definitions.py``, ``effects.py``, ``initial.py``, ``scenes.py``) takes the one
+Every section reader (``parameters.py``, ``components.py``, ``parts.py``, ``known_systems.py``,
+``coordinates.py``, ``connection.py``, ``constraints.py``, ``definitions.py``, ``effects.py``,
+``initial.py``, ``scenes.py``; ``loader.py`` calls them in order) takes the one
 :class:`ModelReader` of the file being read; every problem is collected with its file, line and
 column and raised together as one :class:`ModelError`.
 """
