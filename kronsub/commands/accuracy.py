@@ -88,7 +88,7 @@ def accuracy(model: Path, t_end: float, methods: str, tolerances: str, target: f
             raise
         click.echo(report.markdown(wp, target), nl=False)
         if output is not None:
-            write_atomically(output, report.to_csv(wp))
+            write_atomically(output, report.work_precision_csv(wp))
             say(f"wrote {output} ({len(wp.points)} points)")
         if meta_path is not None:
             csv_name = None if output is None else (

@@ -49,7 +49,7 @@ def fingerprint(system: KnownSystem, outputs=None) -> str | None:
 
 
 def _index_file(key: str) -> Path:
-    return native._build_root() / "index" / f"{key}.json"
+    return native.build_root() / "index" / f"{key}.json"
 
 
 INDEX_BYTES = 4096  # an index entry names a folder, a library and a digest
@@ -66,7 +66,7 @@ def lookup(key: str) -> Path | None:
     if not (isinstance(folder, str) and _FOLDER.fullmatch(folder) and isinstance(name, str)
             and _LIBRARY.fullmatch(name) and isinstance(digest, str)):
         return None
-    library = native._build_root() / folder / name
+    library = native.build_root() / folder / name
     recorded = native.recorded_digest(library)
     return library if recorded == digest and native.verified(library) else None
 
