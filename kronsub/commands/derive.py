@@ -55,3 +55,6 @@ def derive(model: Path, fmt: str, output: Path | None, check: Path | None, no_ca
         emit_text(text, output)
 
     run_command(job)
+
+
+__all__ = ["derive"]

@@ -187,3 +187,6 @@ def rotation2(angle: sympy.Expr) -> sympy.Matrix:
     c, s = sympy.cos(angle), sympy.sin(angle)
     return sympy.Matrix([[c, -s], [s, c]])
 
+
+__all__ = ["Body", "Component", "ComponentPoints", "OptionSpec", "ParameterSpec", "PointsOnRead", "common_world",
+           "in_world", "rotation2"]

@@ -128,3 +128,6 @@ _DERIVATIVES = {  # f -> x -> (f(x), f'(x))
     sympy.Abs: _abs,
     sympy.sign: _sign,
 }
+
+
+__all__ = ["Unsupported", "complex_value", "graph_nodes"]

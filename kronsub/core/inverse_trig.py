@@ -293,3 +293,6 @@ def _put(out, key, mono, value) -> None:
 
 def _num(value: Fraction):
     return value.numerator if value.denominator == 1 else value
+
+
+__all__ = ["INVERSE", "MAX_DIVISIONS", "Radicands", "divide_out", "exact_quotient", "expand_multiple", "needed"]

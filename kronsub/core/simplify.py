@@ -615,3 +615,7 @@ def recompact(expr: sympy.Expr, coordinates) -> sympy.Expr:
     except Exception:  # too large to expand: it keeps its form
         return expr
     return min((expr, whole, _factor_terms(whole)), key=_key)
+
+
+__all__ = ["ATOM_SYMBOLS", "FACTORED", "MULTIPLE", "REMEMBERED", "SMALL", "TIE_OPS", "VARIANTS", "compact",
+           "rational_content", "recompact", "tidy"]

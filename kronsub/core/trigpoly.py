@@ -817,3 +817,9 @@ class NumericPoint:
                 raise ValueError("complex value: outside the domain")
             total = total.real
         return total
+
+
+__all__ = ["Coef", "EXPANSION_HINT", "ExpansionTooLarge", "Freq", "MAX_EXPANDED_POWER", "MAX_EXPANSION_TERMS",
+           "MAX_SQUARE_TERMS", "Mono", "NumericPoint", "ONE", "Q", "TrigAlgebra", "TrigPoly", "ZERO_FREQ",
+           "check_expansion", "coef_add_into", "common_monomial", "expansion_problem", "expansion_terms",
+           "rational_content", "used_atoms"]

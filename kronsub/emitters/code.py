@@ -19,7 +19,8 @@ from ..core.known_system import KnownSystem
 from ..version import __version__
 from .escape import Markup
 from .circle import circle_equations
-from .numeric import GUARD, Block, NumericModel, identifier, prepare
+from .block import Block
+from .numeric import GUARD, NumericModel, identifier, prepare
 from .text import template_environment
 
 
@@ -202,3 +203,6 @@ def emit_python(system: KnownSystem, stem: str, source: str = "", prefix: str = 
 
 
 LANGUAGES = {"c": emit_c, "python": emit_python}
+
+
+__all__ = ["EXACT", "GeneratedFile", "LANGUAGES", "WRITTEN_OUT", "emit_c", "emit_python", "file_stem", "ldlt_lines"]

@@ -123,3 +123,6 @@ def _implicit_json(imp: dict) -> dict:
 
 
 EMITTERS = {"markdown": emit_markdown, "latex": emit_latex, "json": emit_json}
+
+
+__all__ = ["EMITTERS", "emit_json", "emit_latex", "emit_markdown", "template_environment"]

@@ -378,3 +378,7 @@ def loads(text: str | bytes, expected: type | None = None):
     if expected is not None and not isinstance(value, expected):
         _fail(f"expected a {expected.__name__}")
     return value
+
+
+__all__ = ["CLASSES", "CONSTANTS", "CacheFormatError", "FORMAT", "FUNCTIONS", "MATRICES", "TREE_NODES", "dumps",
+           "loads", "stored_class"]

@@ -398,3 +398,6 @@ def check_multiplier_names(reader: ModelReader, constraints, carried) -> None:
                      f"'{c.name}' have the same multiplier name '{name}' in the reactions",
                      "rename one of them (a joint `B` names its equations `B.x`, `B.y`, whose multipliers "
                      "are `mu_B_x`, `mu_B_y`)")
+
+
+__all__ = ["AXES", "JOINTS", "analyse", "check_multiplier_names", "read_constraints"]

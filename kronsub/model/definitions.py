@@ -141,3 +141,6 @@ def _order(uses: dict[str, list[str]]) -> tuple[list[str], list[list[str]]]:
                 changed = True
     return [n for n in order if n not in blocked] + [n for n in order if n in blocked and n not in in_cycle] \
         + [n for n in order if n in in_cycle], cycles
+
+
+__all__ = ["read_definitions"]

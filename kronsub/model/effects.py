@@ -55,8 +55,6 @@ def _positional(loader: ModelReader, node: Node, value, primitive, ename: str, w
     a spring's or a torsional spring's terms and a torsional damper's angle are functions of
     the configuration (and ``t``); with a velocity inside, ``-dV/dx`` (and ``angledot``)
     would leave out its ``d/dt dV/dxdot`` terms, silently."""
-    from ..core.symbols import velocity_symbol
-
     if value is None:
         return None
     rates = set(primitive.velocities) | {velocity_symbol(q) for q in loader.subspace_names.values()}
@@ -394,3 +392,7 @@ def read_effects(reader: ModelReader, node: Node | None, primitive, coords) -> l
             reader.locations[f"effect:{ename}"] = loc
             effects.append(effect)
     return effects
+
+
+__all__ = ["BUILDERS", "DEFAULT_DOWN", "IN_WORLD", "WORLDS", "build_effect", "named_body", "read_effects",
+           "zero_vector"]

@@ -130,3 +130,6 @@ def _g(value) -> str:
         return f"{float(value):.6g}"
     except (TypeError, ValueError):
         return sympy.sstr(value)
+
+
+__all__ = ["Requirement", "body_requirements", "component_requirements", "parameters_in", "unmet"]

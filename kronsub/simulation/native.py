@@ -740,3 +740,9 @@ class NativeModel:
             t_stiff=cres.t_stiff if cres.n_stiff > 0 else None,
         )
         return t, Y, result
+
+
+__all__ = ["COMPILE_TIMEOUT", "CSRC", "CompileError", "CompilerNotFound", "FLAGS", "HOST_FLAGS", "INTEGRATOR_FILES",
+           "IntegrationResult", "LIBS", "METHODS", "NativeError", "NativeModel", "SingularMassMatrix", "build_flags",
+           "build_identity", "build_root", "compile_library", "compiler_command", "data_address", "host_flags",
+           "recorded_digest", "sidecar", "verified"]
