@@ -14,6 +14,7 @@ from typing import Mapping
 import sympy
 
 from ..budget import scope
+from ..components.base import Requirement
 from ..core.finite import state_values
 from ..core.known_system import Constraint, KnownSystem, ParameterInfo
 from ..core.primitive import Primitive
@@ -22,7 +23,6 @@ from ..effects.base import Effect
 from ..effects.elements import Damper, squared_distance
 from ..errors import Location, Problem
 from .derive import content_key, derive_model
-from .requirements import Requirement
 from .scenes import Scene
 from .source import SourceFile
 

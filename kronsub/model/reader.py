@@ -15,12 +15,12 @@ from pathlib import Path
 import sympy
 
 from ..budget import WorkBudgetExceeded
+from ..components.base import Requirement
 from ..core.known_system import ParameterInfo
 from ..core.primitive import Part
 from ..core.symbols import TIME, free_symbols_of
 from ..errors import Location, ModelError, ProblemCollector, close_matches
 from .expressions import parse_expression
-from .requirements import Requirement
 from .files import resolved_path
 from .source import Node, SourceFile, excerpt
 
