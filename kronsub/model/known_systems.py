@@ -22,7 +22,8 @@ from .parts import (component_origin, component_parameters, coordinate_names, in
                     inherit_parameter, known_system_part, placed)
 from .reader import ModelReader, node_kind
 from .requirements import body_requirements
-from .source import Node, read_model_text, system_root
+from .file_reading import read_model_text, system_root
+from .source import Node
 
 
 def read_known_system(reader: ModelReader, cname: str, spec: Node, derived: Callable[[Path], KnownSystem]

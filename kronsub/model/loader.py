@@ -31,7 +31,8 @@ from .model import Model
 from .parameters import check_values, read_parameters
 from .reader import ModelReader, node_kind
 from .scenes import build_scenes
-from .source import load_yaml, read_model_file
+from .file_reading import read_model_file
+from .source import load_yaml
 
 
 def load_model(path, *, text: str | None = None, cache: bool = True, _stack: tuple[str, ...] = ()) -> Model:

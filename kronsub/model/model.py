@@ -24,7 +24,7 @@ from ..effects.elements import Damper, squared_distance
 from ..errors import Location, Problem
 from .derive import content_key, derive_model
 from .scenes import Scene
-from .source import SourceFile
+from .file_reading import SourceFile
 
 
 @dataclass(frozen=True)

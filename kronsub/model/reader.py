@@ -22,7 +22,8 @@ from ..core.symbols import TIME, free_symbols_of
 from ..errors import Location, ModelError, ProblemCollector, close_matches
 from .expressions import parse_expression
 from .files import resolved_path
-from .source import Node, SourceFile, excerpt
+from .file_reading import SourceFile
+from .source import Node, excerpt
 
 IDENTIFIER = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")  # whole names only: fullmatch
 RESERVED = {"t", "pi"}

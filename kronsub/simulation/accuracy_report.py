@@ -7,7 +7,7 @@ import math
 import mpmath
 
 from ..emitters.escape import markdown_text, plot_text
-from ..model.source import SourceFile
+from ..model.file_reading import SourceFile
 from .accuracy import REFERENCE_MARGIN, WorkPrecision
 
 __all__ = ["CSV_COLUMNS", "METADATA_FORMAT", "markdown", "metadata", "plot", "target_sentence", "work_precision_csv"]

@@ -18,7 +18,7 @@ import numpy as np
 from ..atomic import atomic_path
 from ..emitters.escape import plot_text
 from ..errors import KronsubError, Location, ModelError, Problem
-from ..model.source import read_user_text
+from ..model.file_reading import read_user_text
 from .plot import point_paths
 
 FORMATS = (".gif", ".mp4")

@@ -31,7 +31,7 @@ import numpy as np
 from ..core.known_system import KnownSystem
 from ..emitters.escape import json_document
 from ..interrupts import handled, signal_name, signal_of
-from ..model.source import SourceFile
+from ..model.file_reading import SourceFile
 from ..version import __version__
 from .fallback import numpy_module
 from .rows import Block, Run, Trajectory
