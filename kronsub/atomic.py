@@ -262,3 +262,7 @@ def write_atomically(path: Path, data: str | bytes) -> None:
     """Write ``data`` to ``path`` as :func:`atomic_file` does."""
     with atomic_file(path, binary=isinstance(data, bytes)) as fh:
         fh.write(data)
+
+
+__all__ = ["STALE_AFTER", "atomic_file", "atomic_path", "cannot_create", "clean_stale", "final_mode", "output_target",
+           "temporary_pattern", "umask", "write_atomically"]

@@ -187,3 +187,8 @@ def cpu_backstop() -> Iterator[None]:
         signal.setitimer(signal.ITIMER_VIRTUAL, 0)
         _BACKSTOP.reset(token)
         signal.signal(signal.SIGVTALRM, previous)
+
+
+__all__ = ["DEFAULT_UNITS", "GROWS_FROM", "HINT", "MIN_SECONDS", "PER_OPERATION", "SECONDS_PER_MILLION", "WorkBudget",
+           "WorkBudgetExceeded", "active", "allow_for", "charge", "check", "cpu_backstop", "default_units", "limited",
+           "scope"]

@@ -369,3 +369,9 @@ def clear() -> CacheInfo:
             except OSError:
                 pass
     return before
+
+
+__all__ = ["CACHE_ENV", "CacheInfo", "CacheWarning", "ENTRY_BYTES", "Entries", "INDEX_FILE", "NATIVE_DIR", "PROBE",
+           "SEAL", "SYSTEM_FILE", "TEMPORARY", "TEMPORARY_INDEX", "cache_dir", "clear", "entries", "info", "load_entry",
+           "missing_reason", "private_folder", "read_private", "safe_folder", "store_entry", "unsafe_reason",
+           "unwritable_reason", "usable_cache_dir", "write_private"]

@@ -23,3 +23,6 @@ def collector_paused():
     finally:
         if was_on:
             gc.enable()
+
+
+__all__ = ["collector_paused"]

@@ -119,3 +119,7 @@ def close_matches(name: str, options) -> str:
     if near:
         return "did you mean " + ", ".join(f"'{n}'" for n in near) + "?"
     return "valid names: " + ", ".join(sorted(options)) if options else "none are defined"
+
+
+__all__ = ["KronsubError", "Location", "ModelError", "Problem", "ProblemCollector", "close_matches", "near_names",
+           "printable"]

@@ -75,3 +75,6 @@ def signals_as_interrupts():
     with handled(lambda signum: signum != signal.SIGINT and signal.getsignal(signum) is not signal.SIG_IGN,
                  _raise):
         yield
+
+
+__all__ = ["HELD", "Interrupted", "exit_code", "handled", "signal_name", "signal_of", "signals_as_interrupts"]

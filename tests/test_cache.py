@@ -509,7 +509,7 @@ def test_cache_clear_never_follows_a_linked_native_folder(cache, tmp_path):
     assert (cache / "native").is_symlink()  # not kronsub's: left as it is
     from kronsub.simulation import native
 
-    assert outside not in native._build_root().parents and native._build_root() != outside  # nor built in
+    assert outside not in native.build_root().parents and native.build_root() != outside  # nor built in
 
 
 def test_cache_clear_removes_linked_entries_as_links_only(cache, tmp_path):

@@ -92,7 +92,7 @@ def test_monomial_products_merge_like_a_dictionary_would():
 def test_a_coefficient_is_divided_by_its_common_monomial_as_a_dictionary_would():
     """`_common_monomial` and `_divided` (the common factor pulled out of a coefficient by
     `to_expr`) against the plain dictionary arithmetic they stand for."""
-    from kronsub.core.trigpoly import _Q, _common_monomial, _content, _divided
+    from kronsub.core.trigpoly import Q as _Q, common_monomial as _common_monomial, rational_content as _content, _divided
 
     def common_reference(coef):
         monos = [dict(m) for m in coef]
@@ -151,7 +151,7 @@ def test_sines_and_cosines_are_the_objects_sympy_evaluates_to():
         freq = tuple(sorted((i, sympy.Integer(rng.choice([1, -1, 2, -2, 3])) / rng.choice([1, 1, 2]))
                             for i in picked))
         arg = sympy.Add(*[c * coords[i] for i, c in freq])
-        freq = tuple((i, int(c) if c.is_Integer else trigpoly._Q(int(c.p), int(c.q))) for i, c in freq)
+        freq = tuple((i, int(c) if c.is_Integer else trigpoly.Q(int(c.p), int(c.q))) for i, c in freq)
         if freq[0][1] < 0:
             continue  # the algebra keeps the first frequency positive
         assert sympy.srepr(algebra.trig_expr(COS, freq)) == sympy.srepr(sympy.cos(arg))

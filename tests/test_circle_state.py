@@ -17,7 +17,8 @@ import sympy
 import kronsub
 from conftest import MODELS
 from kronsub.emitters.circle import circle_equations
-from kronsub.emitters.numeric import Block, NearAxis
+from kronsub.emitters.block import Block
+from kronsub.emitters.numeric import NearAxis
 from kronsub.model.scenes import derive_scene, select_scene
 from kronsub.simulation.compiled import compiled_library
 from kronsub.simulation.native import NativeModel

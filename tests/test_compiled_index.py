@@ -69,7 +69,7 @@ def test_a_tampered_index_never_loads_an_unverified_library(cache, emissions, ta
     key = compiled.fingerprint(system)
     index = compiled._index_file(key)
     entry = json.loads(kcache.load_entry(index))  # sealed with its digest (kronsub.cache.store_entry)
-    library = native._build_root() / entry["folder"] / entry["library"]
+    library = native.build_root() / entry["folder"] / entry["library"]
     if tamper == "digest":
         entry["sha256"] = "0" * 64
     elif tamper == "folder":

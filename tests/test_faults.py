@@ -39,7 +39,7 @@ def rows_of(text: str) -> np.ndarray:
 
 def test_the_documented_exit_codes():
     assert sorted(EXIT_CODES) == [0, 1, 2, 3, 4, 129, 130, 143]
-    readme = (MODELS.parent / "README.md").read_text()
+    readme = (MODELS.parent / "docs" / "cli.md").read_text()
     for code in EXIT_CODES:
         assert f"| {code} |" in readme
 

@@ -30,10 +30,10 @@ from kronsub.core.trigpoly import (MAX_EXPANDED_POWER, MAX_EXPANSION_TERMS, Expa
                                    _expansion_width, expansion_terms)
 from kronsub.core.symbols import symbol
 from kronsub.errors import ModelError
-from kronsub.model import source
+from kronsub.model import file_reading
 from kronsub.model.expressions import constant_value, parse_expression
 from kronsub.model.loader import load_model
-from kronsub.model.source import MAX_MODEL_BYTES, read_model_text
+from kronsub.model.file_reading import MAX_MODEL_BYTES, read_model_text
 
 SLIDER = ("name: slider\nparameters: {m: 1, k: 2}\ncomponents:\n"
           "  s: {type: particle1d, parameters: {mass: m}, coordinates: [x]}\ncoordinates: [x]\n")
@@ -116,7 +116,7 @@ def test_a_file_swapped_for_a_fifo_after_the_check_is_refused(tmp_path, monkeypa
     model.write_text(SLIDER)
     regular = os.stat(model)
     real_stat = os.stat
-    monkeypatch.setattr(source.os, "stat", lambda p, *a, **k: regular if str(p) == str(fifo) else real_stat(p, *a, **k))
+    monkeypatch.setattr(file_reading.os, "stat", lambda p, *a, **k: regular if str(p) == str(fifo) else real_stat(p, *a, **k))
     with within(LIMIT), pytest.raises(ModelError, match="named pipe"):
         read_model_text(fifo)
 
@@ -142,7 +142,7 @@ def test_an_unreadable_file(tmp_path, monkeypatch):
             raise PermissionError(errno.EACCES, "Permission denied", str(p))
         return real_open(p, *args, **kwargs)
 
-    monkeypatch.setattr(source.os, "open", refuse)
+    monkeypatch.setattr(file_reading.os, "open", refuse)
     path, text = including(tmp_path, "sub.yaml")
     err = error_of(run("derive", str(path)))
     assert err.startswith(f"Error: {path}:{place(text, 'sub.yaml')}: model file '{model}': permission denied\n"
@@ -159,7 +159,7 @@ def test_size_limit_is_checked_before_reading(tmp_path, monkeypatch):
     big = tmp_path / "big.yaml"
     with open(big, "wb") as fh:  # sparse: 10 MB that cost no disk
         fh.truncate(10 * 2 ** 20)
-    monkeypatch.setattr(source, "_read_at_most", lambda *a: pytest.fail("read a file over the limit"))
+    monkeypatch.setattr(file_reading, "_read_at_most", lambda *a: pytest.fail("read a file over the limit"))
     err = error_of(run("derive", str(big)))
     assert err.startswith(f"Error: {big}: is too large (10,485,760 bytes; a model file may have at most "
                           f"{MAX_MODEL_BYTES:,} bytes)\n"), err

@@ -16,55 +16,14 @@ import pytest
 import sympy
 from sympy import cos, sin, sqrt
 
-import kronsub
-from conftest import MODELS, ROOT
+from conftest import MODELS
 from helpers import S
+from helpers.readable import (BUNDLED, EXTRA, PARSEABLE, YARDSTICK_MODELS, YARDSTICK_OPS, entries, printed,
+                              system_of, yardstick_key, yardsticks)
 from kronsub.emitters.latex_layout import WIDTH, measure
-from kronsub.emitters.report import build_report, model_names, plain_printer
+from kronsub.emitters.report import model_names, plain_printer
 from kronsub.emitters.text import emit_latex
 from kronsub.model.expressions import parse_expression
-
-BUNDLED = sorted(str(p.relative_to(MODELS)) for p in MODELS.rglob("*.yaml"))
-PARSEABLE = list(BUNDLED)
-EXTRA = ["disc_on_incline.yaml", "polar_spring.yaml", "internal_names.yaml"]
-_SYSTEMS: dict = {}
-
-
-def system_of(name: str):
-    if name not in _SYSTEMS:
-        path = MODELS / name if (MODELS / name).exists() else ROOT / "tests" / "models" / name
-        _SYSTEMS[name] = kronsub.load(path).derive()
-    return _SYSTEMS[name]
-
-
-def printed(name: str):
-    """(system, report, names): the report in the model's str form, and the names a parser
-    needs to read it back (the model's own and the where block's)."""
-    system = system_of(name)
-    report = build_report(system, plain_printer(model_names(system)))
-    everything = [*system.mass_matrix, *system.velocity_terms, *system.forces,
-                  system.kinetic_energy, system.potential_energy]
-    if system.transition is not None:
-        tr = system.transition
-        everything += [*tr.primitive_metric, *tr.primitive_velocity_terms, *tr.transformation,
-                       *[e for f in tr.primitive_forces.values() for e in f], *[e for _, e in tr.connection]]
-    names = {s.name: s for e in everything for s in sympy.sympify(e).free_symbols}
-    names.update({p.name: p.symbol for p in system.parameters})
-    names.update({a.name: a for a in system.accelerations})
-    for w in report["where"]:
-        assert w["plain"] not in names, f"{w['plain']} clashes with a name of the model"
-        names[w["plain"]] = sympy.Symbol(w["plain"])
-    return system, report, names
-
-
-def entries(report):
-    """The printed ``Mbar`` (upper triangle), ``hbar`` and ``fbar`` entries, labelled."""
-    n = len(report["mass_matrix"])
-    out = [(f"Mbar[{i},{j}]", report["mass_matrix"][i][j]) for i in range(n) for j in range(i, n)]
-    out += [(f"hbar[{i}]", e) for i, e in enumerate(report["velocity_terms"])]
-    out += [(f"fbar[{i}]", e) for i, e in enumerate(report["forces"])]
-    return out
-
 
 def inline(expr, report, names):
     """``expr`` with the where block's names replaced by what they stand for."""
@@ -113,56 +72,6 @@ def test_abs_and_euler_number_print_in_the_model_language():
         assert same_value(parse_expression(show(e), names), e)
 
 
-YARDSTICK_OPS = 120
-"""Entries up to this many operations are measured against ``trigsimp``, ..."""
-FU_OPS = 40
-"""... and up to this many against ``fu`` too: its factorisations ran for minutes on System
-II's 70-operation ``hbar`` in a full run (seconds alone: it depends on sympy's caches)."""
-
-
-YARDSTICKS = ROOT / "tests" / "data" / "yardsticks.json"
-"""The yardsticks of the entries printed when it was written (``python tests/data/yardsticks.py``
-rewrites it), keyed by model, label and printed text, for the sympy version that measured them.
-An entry printed otherwise, or another sympy, is measured afresh: the file only saves time."""
-
-
-def _stored_yardsticks() -> dict:
-    import json
-
-    if not YARDSTICKS.is_file():
-        return {}
-    data = json.loads(YARDSTICKS.read_text(encoding="utf-8"))
-    return data["entries"] if data.get("sympy") == sympy.__version__ else {}
-
-
-_STORED = _stored_yardsticks()
-
-
-def yardstick_key(name: str, label: str, text: str) -> str:
-    return f"{name} {label} {text}"
-
-
-def _yardsticks(expr, key: str | None = None):
-    if key is not None and key in _STORED:
-        return tuple(_STORED[key])
-    trig = sympy.count_ops(sympy.trigsimp(expr))
-    return trig, (sympy.count_ops(sympy.fu(expr)) if sympy.count_ops(expr) <= FU_OPS else trig)
-
-
-def measured_yardsticks(name: str) -> dict:
-    """``{key: (trigsimp ops, fu ops)}`` of the model's entries the test measures, afresh."""
-    _, report, names = printed(name)
-    out = {}
-    for label, text in entries(report):
-        expr = parse_expression(text, names)
-        if sympy.count_ops(expr) <= YARDSTICK_OPS:
-            out[yardstick_key(name, label, text)] = list(_yardsticks(expr))
-    return out
-
-
-YARDSTICK_MODELS = PARSEABLE + ["disc_on_incline.yaml"]
-
-
 @pytest.mark.parametrize("name", YARDSTICK_MODELS)
 def test_no_printed_entry_is_shortened_by_sympys_simplifiers(name):
     """The printed entry (named subexpressions as the names they are printed as) against
@@ -175,7 +84,7 @@ def test_no_printed_entry_is_shortened_by_sympys_simplifiers(name):
         ops = sympy.count_ops(expr)
         if ops > YARDSTICK_OPS:
             continue  # fu factorises: on a large entry it runs for minutes (the next test still applies)
-        trig, fu = _yardsticks(expr, yardstick_key(name, label, text))
+        trig, fu = yardsticks(expr, yardstick_key(name, label, text))
         assert ops <= min(trig, fu), f"{name} {label}: {text} ({ops} ops; trigsimp {trig}, fu {fu})"
         checked += 1
     assert checked, f"{name}: no entry small enough for the yardsticks"

@@ -89,7 +89,7 @@ def test_the_handlers_are_restored_and_an_ignored_signal_stays_ignored():
 
 def test_the_signal_codes_are_documented():
     assert {129, 130, 143} <= set(EXIT_CODES)
-    for doc in (MODELS.parent / "README.md", MODELS.parent / "docs" / "errors.md"):
+    for doc in (MODELS.parent / "docs" / "cli.md", MODELS.parent / "docs" / "errors.md"):
         text = doc.read_text()
         for code in (129, 130, 143):
             assert f"| {code} |" in text or f"| `{code}` |" in text, (doc, code)

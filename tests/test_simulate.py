@@ -92,9 +92,9 @@ def test_energy_drift_of_conservative_models(path):
 
 
 def _csv(system, path, traj, values):
-    from kronsub.simulation.table import to_csv
+    from kronsub.simulation.table import trajectory_csv
 
-    return to_csv(system, path, traj, values, 1e-13, 1e-13)
+    return trajectory_csv(system, path, traj, values, 1e-13, 1e-13)[0]
 
 
 def test_csv_columns_are_as_documented(tmp_path):

@@ -16,7 +16,7 @@ from conftest import MODELS
 from kronsub.cli import main
 from kronsub.simulation.grid import Grid
 from kronsub.simulation.run import simulate
-from kronsub.simulation.table import format_rows, sidecar_path, to_csv
+from kronsub.simulation.table import format_rows, sidecar_path, trajectory_csv
 from kronsub.simulation.values import resolve
 
 SYSTEM1 = MODELS / "hoffmann" / "system1.yaml"
@@ -54,7 +54,7 @@ def _readers(text: str) -> dict[str, dict[str, np.ndarray]]:
 
 def test_every_reader_gets_back_the_exact_doubles():
     system, values, traj = _trajectory()
-    text = to_csv(system, "system1.yaml", traj, values, 1e-10, 1e-10)
+    text = trajectory_csv(system, "system1.yaml", traj, values, 1e-10, 1e-10)[0]
     assert not any(line.startswith("#") for line in text.splitlines())
     names = ["t"] + [q.name for q in system.coordinates] + [v.name for v in system.velocities]
     readers = _readers(text)
@@ -69,7 +69,7 @@ def test_every_reader_gets_back_the_exact_doubles():
 def test_pandas_reads_it_without_options():
     pandas = pytest.importorskip("pandas")
     system, values, traj = _trajectory()
-    frame = pandas.read_csv(io.StringIO(to_csv(system, "m.yaml", traj, values, 1e-10, 1e-10)))
+    frame = pandas.read_csv(io.StringIO(trajectory_csv(system, "m.yaml", traj, values, 1e-10, 1e-10)[0]))
     assert list(frame.columns[:5]) == ["t", "theta", "phi", "theta_dot", "phi_dot"]
     assert frame.shape[0] == len(traj.t) and frame.dtypes.map(lambda d: d.kind == "f").all()
     # pandas before 3 parses to within an ulp by default (exactly with float_precision="round_trip")

@@ -98,7 +98,7 @@ class Accuracy:
         """The CSV of ``--output``: one row per method and tolerance."""
         from ..simulation import accuracy_report
 
-        return accuracy_report.to_csv(self.measurement)
+        return accuracy_report.work_precision_csv(self.measurement)
 
     def metadata(self, target: float | None = None, csv: str | None = None) -> dict:
         """The metadata of ``--meta``."""

@@ -54,3 +54,6 @@ def cache_clear():
             f"({_size(removed.libraries_bytes)})", err=False)
 
     run_command(job)
+
+
+__all__ = ["cache", "cache_clear", "cache_info"]

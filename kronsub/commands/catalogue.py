@@ -127,3 +127,6 @@ def detail_text(name: str) -> str:
         lines.append("  needs one of: " + " | ".join(" + ".join(alt) for alt in e["one_of"]))
     lines.append("  description: free text (optional)")
     return "\n".join(lines) + "\n"
+
+
+__all__ = ["WORLD", "catalogue", "component", "detail_text", "effect", "names", "overview_text"]

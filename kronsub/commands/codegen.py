@@ -52,3 +52,5 @@ def codegen(model: Path, lang: str, outdir: Path, name: str | None, prefix: str,
 
     run_command(job)
 
+
+__all__ = ["codegen"]

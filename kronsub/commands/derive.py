@@ -6,6 +6,8 @@ from pathlib import Path
 
 import click
 
+from ..emitters.reactions import with_reactions as add_reactions
+from ..model.file_reading import read_user_text
 from .common import (budget_option, emit_text, fail, note_choice, output_option, run_command, say, scene_option,
                      scene_system, separate_outputs)
 
@@ -36,12 +38,8 @@ def derive(model: Path, fmt: str, output: Path | None, check: Path | None, no_ca
         note_choice(system)
         text = EMITTERS[fmt](system)
         if with_reactions:
-            from ..emitters.reactions import with_reactions as add_reactions
-
             text = add_reactions(text, system, fmt)
         if check is not None:
-            from ..model.source import read_user_text
-
             if not check.exists():
                 fail(f"Error: {check}: No such file or directory\n  hint: write it first with --output {check}")
             expected = read_user_text(check, "file of derived equations (--check)")
@@ -55,3 +53,6 @@ def derive(model: Path, fmt: str, output: Path | None, check: Path | None, no_ca
         emit_text(text, output)
 
     run_command(job)
+
+
+__all__ = ["derive"]

@@ -119,3 +119,6 @@ def _check_rank(model) -> None:
     from ..model.derive import check_rank
 
     check_rank(model, [model.connection.get(c, c) for c in model.primitive.coordinates])
+
+
+__all__ = ["check", "components", "new"]

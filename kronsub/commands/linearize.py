@@ -69,3 +69,6 @@ def _at_rest(acceleration) -> bool:
     from ..core.linearize import EQUILIBRIUM_TOLERANCE
 
     return all(abs(a) <= EQUILIBRIUM_TOLERANCE for a in acceleration)
+
+
+__all__ = ["linearize"]

@@ -128,3 +128,6 @@ def starter(kind: str, name: str, links: int = 3) -> str:
     """The YAML text of starter ``kind`` named ``name``."""
     head = yaml.safe_dump({"name": name}, allow_unicode=True, default_flow_style=False, width=10**6)
     return head + STARTERS[kind](links)
+
+
+__all__ = ["CART_POLE", "DOUBLE_PENDULUM", "PENDULUM", "SPRING_MASS", "STARTERS", "chain", "starter"]

@@ -12,6 +12,8 @@ from typing import ClassVar
 
 import sympy
 
+from ..errors import Location
+
 
 def in_world(point, dimension: int) -> tuple:
     """``point`` in a world of ``dimension`` axes (at least its own): a point of the line lies on
@@ -31,6 +33,18 @@ POSITIVE, NONNEGATIVE, INERTIA = "positive", "nonnegative", "inertia"
 """What a component needs of a value (:meth:`Component.requirements`): above zero (a length),
 not below zero (a mass, a moment of inertia: zero is a massless part), or an inertia tensor of
 a body (principal moments not below zero, each at most the sum of the other two)."""
+
+
+@dataclass(frozen=True)
+class Requirement:
+    """``value`` (an expression, or a tensor, in the model's parameters) must meet ``kind``
+    (:data:`POSITIVE`, :data:`NONNEGATIVE`, :data:`INERTIA`); ``what`` names it, ``location`` is
+    where it is written (checked by :mod:`kronsub.model.requirements`)."""
+
+    what: str
+    value: object
+    kind: str
+    location: Location | None = None
 
 
 @dataclass(frozen=True)
@@ -187,3 +201,6 @@ def rotation2(angle: sympy.Expr) -> sympy.Matrix:
     c, s = sympy.cos(angle), sympy.sin(angle)
     return sympy.Matrix([[c, -s], [s, c]])
 
+
+__all__ = ["INERTIA", "NONNEGATIVE", "POSITIVE", "Body", "Component", "ComponentPoints", "OptionSpec", "ParameterSpec",
+           "PointsOnRead", "Requirement", "common_world", "in_world", "rotation2"]

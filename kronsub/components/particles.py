@@ -85,3 +85,6 @@ class ParticleSpherical(Component):
 
     def bodies(self):
         return (Body(self.p["mass"], self.points()["centre"]),)
+
+
+__all__ = ["MASS", "Particle1D", "Particle2D", "Particle3D", "ParticlePolar", "ParticleSpherical"]

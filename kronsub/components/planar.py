@@ -135,3 +135,6 @@ class Flywheel(Component):
     def bodies(self):
         z = sympy.Integer(0)
         return (Body(z, (z, z), rotation2(self.x["angle"]), sympy.Matrix([[self.p["inertia"]]])),)
+
+
+__all__ = ["Disc", "Flywheel", "MASS", "PinnedRod", "PlanarBody", "Rod"]

@@ -185,3 +185,6 @@ def add(terms: list[sympy.Expr]) -> sympy.Expr:
     if number != 0:
         flat.insert(0, number)
     return add_from_args(flat)
+
+
+__all__ = ["add", "function", "matrix", "mul", "nonzero", "ones_at", "order_key", "total"]

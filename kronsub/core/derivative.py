@@ -61,3 +61,6 @@ def matrix_derivative(m: sympy.Matrix, wrt) -> sympy.Matrix:
     if isinstance(wrt, (list, tuple, sympy.MatrixBase)):
         return jacobian(m, wrt)
     return where_defined(m.diff(wrt))
+
+
+__all__ = ["derivative", "jacobian", "matrix_derivative", "where_defined"]

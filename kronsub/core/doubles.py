@@ -101,30 +101,4 @@ def graph_nodes(exprs) -> set[sympy.Basic]:
     return seen
 
 
-def _abs(x: complex) -> tuple[complex, complex]:
-    if x.imag:
-        raise Unsupported("Abs")
-    return complex(abs(x.real)), complex((x.real > 0) - (x.real < 0))
-
-
-def _sign(x: complex) -> tuple[complex, complex]:
-    if x.imag:
-        raise Unsupported("sign")
-    return complex((x.real > 0) - (x.real < 0)), 0j
-
-
-_DERIVATIVES = {  # f -> x -> (f(x), f'(x))
-    sympy.sin: lambda x: (cmath.sin(x), cmath.cos(x)),
-    sympy.cos: lambda x: (cmath.cos(x), -cmath.sin(x)),
-    sympy.tan: lambda x: (cmath.tan(x), 1 + cmath.tan(x) ** 2),
-    sympy.asin: lambda x: (cmath.asin(x), 1 / cmath.sqrt(1 - x * x)),
-    sympy.acos: lambda x: (cmath.acos(x), -1 / cmath.sqrt(1 - x * x)),
-    sympy.atan: lambda x: (cmath.atan(x), 1 / (1 + x * x)),
-    sympy.exp: lambda x: (cmath.exp(x), cmath.exp(x)),
-    sympy.log: lambda x: (cmath.log(x), 1 / x),
-    sympy.sinh: lambda x: (cmath.sinh(x), cmath.cosh(x)),
-    sympy.cosh: lambda x: (cmath.cosh(x), cmath.sinh(x)),
-    sympy.tanh: lambda x: (cmath.tanh(x), 1 - cmath.tanh(x) ** 2),
-    sympy.Abs: _abs,
-    sympy.sign: _sign,
-}
+__all__ = ["Unsupported", "complex_value", "graph_nodes"]

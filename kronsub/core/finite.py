@@ -212,3 +212,6 @@ def describe_rank_loss(M, names) -> str | None:
     return (f"Mbar loses rank here: a motion along ({along}) has no inertia, as at a singularity of "
             "the coordinates (Euler angles in gimbal lock, spherical coordinates at a pole) or where "
             "nothing with mass moves that way")
+
+
+__all__ = ["Cause", "DOUBLE_MAX", "at_state", "describe_rank_loss", "nonfinite_cause", "rank_loss", "state_values"]

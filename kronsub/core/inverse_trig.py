@@ -30,7 +30,7 @@ from sympy.polys.rings import ring
 
 from .doubles import graph_nodes
 from .symbols import free_symbols_of
-from .trigpoly import COS, SIN, TrigAlgebra, TrigPoly, _Q
+from .trigpoly import COS, SIN, TrigAlgebra, TrigPoly, Q
 
 INVERSE = (sympy.asin, sympy.acos, sympy.atan, sympy.atan2)
 MAX_DIVISIONS = 8
@@ -264,7 +264,7 @@ def _from_laurent(q, shift, coords, atoms, scale, ascale) -> TrigPoly | None:
     for exps, c in q.items():
         exps = [x + s for x, s in zip(exps, shift)]
         k = tuple(exps[:nz])
-        mono = tuple((a, _num(_Q(int(exps[nz + j]), int(ascale[a])))) for j, a in enumerate(atoms) if exps[nz + j])
+        mono = tuple((a, _num(Q(int(exps[nz + j]), int(ascale[a])))) for j, a in enumerate(atoms) if exps[nz + j])
         neg = next((x < 0 for x in k if x), False)
         canon = tuple(-x for x in k) if neg else k
         slot = pairs.setdefault((canon, mono), {"plus": QQ_I.zero, "minus": QQ_I.zero})
@@ -272,7 +272,7 @@ def _from_laurent(q, shift, coords, atoms, scale, ascale) -> TrigPoly | None:
     out: dict[tuple, dict] = {}
     for (k, mono), slot in pairs.items():
         cp, cm = slot["plus"], slot["minus"]
-        freq = tuple((coords[j], _num(_Q(int(x), int(scale[coords[j]])))) for j, x in enumerate(k) if x)
+        freq = tuple((coords[j], _num(Q(int(x), int(scale[coords[j]])))) for j, x in enumerate(k) if x)
         if not freq:
             if cp.y != 0:
                 return None
@@ -288,8 +288,11 @@ def _from_laurent(q, shift, coords, atoms, scale, ascale) -> TrigPoly | None:
 
 def _put(out, key, mono, value) -> None:
     if value:
-        out.setdefault(key, {})[mono] = _num(_Q(int(value.numerator), int(value.denominator)))
+        out.setdefault(key, {})[mono] = _num(Q(int(value.numerator), int(value.denominator)))
 
 
 def _num(value: Fraction):
     return value.numerator if value.denominator == 1 else value
+
+
+__all__ = ["INVERSE", "MAX_DIVISIONS", "Radicands", "divide_out", "exact_quotient", "expand_multiple", "needed"]

@@ -12,7 +12,7 @@ from typing import Mapping
 
 import sympy
 
-from ..components.base import Body
+from ..components.base import Body, Requirement
 from .symbols import acceleration_symbol, velocity_symbol
 
 
@@ -117,7 +117,7 @@ class KnownSystem:
     ``velocity_terms`` is ``hbar`` (E) and ``effect_forces`` the ``fbar`` of each named effect (F).
     ``effect_translations`` holds, per effect of a world field, ``dV/do`` under a translation
     ``o`` of the whole system; ``requirements`` what its components need of the parameters'
-    values (:class:`kronsub.model.requirements.Requirement`, checked by the model above);
+    values (:class:`~kronsub.components.base.Requirement`, checked by the model above);
     ``initial`` the model's initial values.
     """
 
@@ -137,7 +137,7 @@ class KnownSystem:
     effect_translations: Mapping[str, tuple[sympy.Expr, ...]] = field(default_factory=dict)
     implicit: ImplicitSubspace | None = None  # the named intermediates (26)-(29)
     initial: Mapping[sympy.Symbol, sympy.Expr] = field(default_factory=dict)
-    requirements: tuple[object, ...] = ()
+    requirements: tuple[Requirement, ...] = ()
 
     @property
     def velocities(self) -> tuple[sympy.Symbol, ...]:

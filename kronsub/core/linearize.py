@@ -26,11 +26,12 @@ from typing import Mapping, Sequence
 import numpy as np
 import sympy
 
+from .derivative import matrix_derivative
 from .finite import describe_rank_loss
 from .known_system import KnownSystem
 from .linearize_implicit import linearize_implicit
 from .linearize_numerics import (EQUILIBRIUM_TOLERANCE, Evaluator, Linearization, LinearizationError, at_equilibrium,
-                                 checked_inputs, derivative, least_squares_equilibrium, numeric_value,
+                                 checked_inputs, least_squares_equilibrium, numeric_value,
                                  parameter_defaults, parameter_numbers, residual, solve_mass, sorted_eigenvalues,
                                  unevaluable)
 from .seeded import seeded, sympy_seeded
@@ -74,10 +75,10 @@ def linearize(system: KnownSystem, *, inputs: Sequence[sympy.Symbol] = (),
     r = residual(system)
     M = system.mass_matrix
     x_q = sympy.Matrix(q)
-    K0 = derivative(r, x_q)
-    D0 = derivative(r, list(qd)) if n else sympy.zeros(n, 0)
-    G0 = derivative(r, list(inputs)) if inputs else sympy.zeros(n, 0)
-    dM = [derivative(M, qk) for qk in q]
+    K0 = matrix_derivative(r, x_q)
+    D0 = matrix_derivative(r, list(qd)) if n else sympy.zeros(n, 0)
+    G0 = matrix_derivative(r, list(inputs)) if inputs else sympy.zeros(n, 0)
+    dM = [matrix_derivative(M, qk) for qk in q]
 
     # the operating point, numerically
     start = {qk: numeric_value(initial.get(qk, 0), numbers) for qk in q}

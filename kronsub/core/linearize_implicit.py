@@ -25,7 +25,7 @@ from .constraints import ConstraintFailure, Intermediates
 from .derivative import matrix_derivative
 from .known_system import KnownSystem
 from .linearize_numerics import (EQUILIBRIUM_TOLERANCE, Evaluator, Linearization, LinearizationError, at_equilibrium,
-                                 checked_inputs, derivative, least_squares_equilibrium, numeric_value,
+                                 checked_inputs, least_squares_equilibrium, numeric_value,
                                  parameter_defaults, parameter_numbers, residual, solve_mass, sorted_eigenvalues,
                                  unevaluable)
 from .symbols import TIME
@@ -50,7 +50,7 @@ class _Reduced:
         quad = sympy.Matrix(imp.quadratic)
 
         def jac(m, wrt):
-            return derivative(m, list(wrt)) if wrt else sympy.zeros(m.shape[0], 0)
+            return matrix_derivative(m, list(wrt)) if wrt else sympy.zeros(m.shape[0], 0)
 
         matrices = {
             "M": M, "r": r, "r_q": jac(r, self.q), "r_qd": jac(r, self.qd), "r_u": jac(r, list(inputs)),
@@ -60,7 +60,7 @@ class _Reduced:
         }
         for label, symbols in (("q", self.q), ("yd", yd), ("L", lam)):
             for i, s in enumerate(symbols):
-                matrices[f"M_{label}{i}"] = derivative(M, s)
+                matrices[f"M_{label}{i}"] = matrix_derivative(M, s)
                 if label != "L":
                     matrices[f"Gd_{label}{i}"] = matrix_derivative(Gd, s)
                     matrices[f"Gi_{label}{i}"] = matrix_derivative(Gi, s)

@@ -12,7 +12,6 @@ import numpy as np
 import sympy
 
 from ..errors import KronsubError
-from .derivative import matrix_derivative
 from .finite import describe_rank_loss, nonfinite_cause
 from .known_system import KnownSystem
 
@@ -53,13 +52,6 @@ class Linearization:
         if self.eigenvalues is None:
             return None
         return all(e.real < 0 for e in self.eigenvalues)
-
-
-def derivative(m: sympy.Matrix, wrt) -> sympy.Matrix:
-    """``dm/dwrt`` (a Jacobian, or ``diff`` by one symbol) where it exists: ``d sign(x)/dx``
-    (a spring of rest length on a line, ``|x| - l0``) is zero away from ``x = 0``
-    (:func:`kronsub.core.derivative.matrix_derivative`)."""
-    return matrix_derivative(m, wrt)
 
 
 def residual(system: KnownSystem) -> sympy.Matrix:
@@ -213,5 +205,5 @@ def sorted_eigenvalues(A: np.ndarray) -> tuple[complex, ...]:
 
 
 __all__ = ["EQUILIBRIUM_TOLERANCE", "Evaluator", "Linearization", "LinearizationError", "at_equilibrium",
-           "checked_inputs", "derivative", "least_squares_equilibrium", "numeric_value", "parameter_defaults",
+           "checked_inputs", "least_squares_equilibrium", "numeric_value", "parameter_defaults",
            "parameter_numbers", "residual", "solve_mass", "sorted_eigenvalues", "unevaluable"]

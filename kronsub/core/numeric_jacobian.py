@@ -139,3 +139,6 @@ def _float(value) -> float:
 def _add_into(grad: dict, other: dict, factor: float) -> None:
     for j, d in other.items():
         grad[j] = grad.get(j, 0.0) + factor * d
+
+
+__all__ = ["jacobian"]

@@ -107,3 +107,6 @@ def _own(a) -> int:
         for arg in a.args:
             n += _count(arg)
     return n
+
+
+__all__ = ["LIMIT", "S", "count_ops"]

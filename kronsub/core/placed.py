@@ -114,3 +114,6 @@ class PlacedBodies(_PlacedOnRead, Sequence):
 
     def __repr__(self) -> str:
         return f"PlacedBodies({tuple(self)!r})"
+
+
+__all__ = ["PlacedBodies", "PlacedPoints", "Placer"]

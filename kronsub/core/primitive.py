@@ -171,3 +171,7 @@ class Primitive:
     def rate(self, expr: sympy.Expr) -> sympy.Expr:
         """Time derivative of a function of the coordinates: ``(d expr/d x^a) xdot^a``."""
         return sympy.Add(*[g * v for g, v in zip(self.gradient(expr), self.velocities)])
+
+
+__all__ = ["Part", "Primitive", "PrimitivePoints", "body_label", "christoffel_terms", "part_from_component",
+           "point_symbols"]

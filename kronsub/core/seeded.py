@@ -42,3 +42,6 @@ def seeded(function):
         with sympy_seeded():
             return function(*args, **kwargs)
     return wrapper
+
+
+__all__ = ["SEED", "seeded", "sympy_seeded"]

@@ -30,7 +30,7 @@ from .operations import count_ops
 from .printed import LexStrPrinter
 from .seeded import seeded, sympy_seeded
 from . import trigpoly
-from .trigpoly import TrigAlgebra, TrigPoly, _coef_add_into, _common_monomial
+from .trigpoly import TrigAlgebra, TrigPoly, coef_add_into, common_monomial
 
 COS, SIN = 0, 1
 SMALL = 40
@@ -338,7 +338,7 @@ def _products(view: "_View", p: TrigPoly) -> sympy.Expr:
         for mono, (re, im) in expansion.items():
             n = re if kind == COS else im
             if n:
-                _coef_add_into(poly.setdefault(mono, {}), coef, n)
+                coef_add_into(poly.setdefault(mono, {}), coef, n)
     coordinates = sorted({i for mono in poly for i, _, _ in mono})
     chosen: dict[int, int] = {}
     for i in coordinates:
@@ -382,7 +382,7 @@ def _reduce_products(poly: dict, chosen: dict[int, int]) -> dict:
             terms = {t + ((i, x, y),): n * m for t, n in terms.items() for (x, y), m in single.items()}
         for t, n in terms.items():
             key = tuple(e for e in t if e[1] or e[2])
-            _coef_add_into(out.setdefault(key, {}), coef, n)
+            coef_add_into(out.setdefault(key, {}), coef, n)
     return {k: v for k, v in out.items() if v}
 
 
@@ -403,12 +403,12 @@ class _View:
     def atom(self, i: int) -> sympy.Expr:
         hit = self._atom.get(i)
         if hit is None:
-            hit = self._atom[i] = _shorter_atom(self.algebra, self.algebra._atoms[i])
+            hit = self._atom[i] = _shorter_atom(self.algebra, self.algebra.atoms[i])
         return hit
 
     def pairs(self) -> dict[int, int]:
         """``cos`` atom index -> ``sin`` atom index of the same argument."""
-        atoms = self.algebra._atoms
+        atoms = self.algebra.atoms
         if self._pairs is None or self._seen != len(atoms):
             sines = {a.args[0]: i for i, a in enumerate(atoms) if isinstance(a, sympy.sin)}
             self._pairs = {i: sines[a.args[0]] for i, a in enumerate(atoms)
@@ -423,13 +423,13 @@ class _View:
         pairs = self.pairs()
         if any(c in used and s in used for c, s in pairs.items()):
             return True
-        return any(self.atom(a) is not self.algebra._atoms[a] for a in used)
+        return any(self.atom(a) is not self.algebra.atoms[a] for a in used)
 
     def varies(self, i: int) -> bool:
         """Whether atom ``i`` depends on the coordinates (``sqrt(1 - (c - a1 sin(theta))^2)``)."""
         hit = self._varies.get(i)
         if hit is None:
-            hit = self._varies[i] = bool(self.algebra._atoms[i].free_symbols & set(self.algebra.coordinates))
+            hit = self._varies[i] = bool(self.algebra.atoms[i].free_symbols & set(self.algebra.coordinates))
         return hit
 
     def varying_in(self, used: set[int]) -> bool:
@@ -471,8 +471,8 @@ class _View:
         if len(coef) == 1:
             (mono, n), = coef.items()
             return _rational(n) * self.monomial(mono)
-        common = _common_monomial(coef)
-        content = _content(coef.values())
+        common = common_monomial(coef)
+        content = rational_content(coef.values())
         inner = sympy.Add(*[_rational(_fraction(n) / content) * self.monomial(_divide(m, common))
                             for m, n in coef.items()])
         return sympy.Mul(_rational(content), self.monomial(common), inner)
@@ -503,7 +503,7 @@ class _View:
                 if (kind, k) in kept:
                     continue
                 for m, n in _reduced(_chebyshev(kind, k), variant).items():
-                    _coef_add_into(poly.setdefault(m, {}), coef, n)
+                    coef_add_into(poly.setdefault(m, {}), coef, n)
             s, c = algebra.trig_expr(SIN, base), algebra.trig_expr(COS, base)
             for (i, j), coef in sorted(poly.items()):
                 if coef:
@@ -589,9 +589,9 @@ def _fraction(value) -> Fraction:
     return Fraction(int(value.numerator), int(value.denominator))
 
 
-def _content(values) -> Fraction:
+def rational_content(values) -> Fraction:
     """Rational content of the coefficients, signed like the first (as a Fraction)."""
-    return _fraction(trigpoly._content(values))
+    return _fraction(trigpoly.rational_content(values))
 
 
 def _rational(v) -> sympy.Rational:
@@ -615,3 +615,7 @@ def recompact(expr: sympy.Expr, coordinates) -> sympy.Expr:
     except Exception:  # too large to expand: it keeps its form
         return expr
     return min((expr, whole, _factor_terms(whole)), key=_key)
+
+
+__all__ = ["ATOM_SYMBOLS", "FACTORED", "MULTIPLE", "REMEMBERED", "SMALL", "TIE_OPS", "VARIANTS", "compact",
+           "rational_content", "recompact", "tidy"]

@@ -47,3 +47,6 @@ def free_symbols_of(exprs) -> set:
         else:
             stack.extend(e.args)
     return found
+
+
+__all__ = ["TIME", "acceleration_symbol", "free_symbols_of", "symbol", "velocity_symbol"]

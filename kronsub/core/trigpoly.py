@@ -19,9 +19,9 @@ import math
 from fractions import Fraction
 
 try:  # exact rationals in C when gmpy2 is installed (the `fast` extra); Python's otherwise
-    from gmpy2 import mpq as _Q
+    from gmpy2 import mpq as Q
 except ImportError:  # pragma: no cover - depends on the installation
-    _Q = Fraction
+    Q = Fraction
 from typing import Iterable, Iterator
 
 import sympy
@@ -181,7 +181,7 @@ def _coef_mul(a: Coef, b: Coef) -> Coef:
     return out
 
 
-def _coef_add_into(target: Coef, src: Coef, scale: int | Fraction = 1) -> None:
+def coef_add_into(target: Coef, src: Coef, scale: int | Fraction = 1) -> None:
     if type(scale) is int and scale == 1:  # no product to form (and the types stay as they are)
         for m, c in src.items():
             v = target.get(m, 0) + c
@@ -203,7 +203,7 @@ def _add_derivative(out: dict, kind: int, freq: Freq, k, coef: Coef) -> None:
     frequency: ``d cos(f.q) = -k sin(f.q)``, ``d sin(f.q) = k cos(f.q)``."""
     key, scale = ((SIN, freq), -k) if kind == COS else ((COS, freq), k)
     tgt = out.setdefault(key, {})
-    _coef_add_into(tgt, coef, scale)
+    coef_add_into(tgt, coef, scale)
     if not tgt:
         del out[key]
 
@@ -234,7 +234,7 @@ class TrigPoly:
         out = self.terms
         for k, c in other.terms.items():
             tgt = out.setdefault(k, {})
-            _coef_add_into(tgt, c)
+            coef_add_into(tgt, c)
             if not tgt:
                 del out[k]
         return self
@@ -252,7 +252,7 @@ class TrigPoly:
                     continue
                 for key, scale in _product_to_sum(ka, fa, kb, fb):
                     tgt = out.setdefault(key, {})
-                    _coef_add_into(tgt, coef, scale)
+                    coef_add_into(tgt, coef, scale)
                     if not tgt:
                         del out[key]
         return self
@@ -294,7 +294,7 @@ def _trig_key(kind: int, freq: Freq, scale: int | Fraction) -> tuple[tuple[int, 
     return (kind, freq), scale
 
 
-_HALF = _Q(1, 2)
+_HALF = Q(1, 2)
 
 
 def _product_to_sum(ka: int, fa: Freq, kb: int, fb: Freq):
@@ -331,7 +331,7 @@ class TrigAlgebra:
     def __init__(self, coordinates: Iterable[sympy.Symbol]):
         self.coordinates = tuple(coordinates)
         self.index = {q: i for i, q in enumerate(self.coordinates)}
-        self._atoms: list[sympy.Expr] = []
+        self.atoms: list[sympy.Expr] = []
         self._atom_index: dict[sympy.Expr, int] = {}
         self._atom_deps: list[frozenset[int]] = []
         self._atom_diff: dict[tuple[int, int], TrigPoly] = {}
@@ -356,8 +356,8 @@ class TrigAlgebra:
     def _atom_id(self, expr: sympy.Expr) -> int:
         idx = self._atom_index.get(expr)
         if idx is None:
-            idx = len(self._atoms)
-            self._atoms.append(expr)
+            idx = len(self.atoms)
+            self.atoms.append(expr)
             self._atom_index[expr] = idx
             deps = frozenset(self.index[s] for s in expr.free_symbols if s in self.index)
             self._atom_deps.append(deps)
@@ -365,7 +365,7 @@ class TrigAlgebra:
 
     def atom_expr(self, atom: int) -> sympy.Expr:
         """The expression of an atom (by its index in the monomials)."""
-        return self._atoms[atom]
+        return self.atoms[atom]
 
     def atom_depends(self, atom: int) -> bool:
         """Whether an atom depends on the coordinates."""
@@ -382,7 +382,7 @@ class TrigAlgebra:
 
     def _convert(self, e: sympy.Expr) -> TrigPoly:
         if e.is_Rational:
-            return self.constant(_num(_Q(int(e.p), int(e.q))))
+            return self.constant(_num(Q(int(e.p), int(e.q))))
         if e.is_Add:
             out = TrigPoly()
             for a in e.args:
@@ -414,7 +414,7 @@ class TrigAlgebra:
             n = int(exp)
             if single is not None:
                 mono, c = single
-                return TrigPoly({(COS, ZERO_FREQ): {tuple((i, _num(_Q(k) * n)) for i, k in mono): _num(_Q(c) ** n)}})
+                return TrigPoly({(COS, ZERO_FREQ): {tuple((i, _num(Q(k) * n)) for i, k in mono): _num(Q(c) ** n)}})
             if n > 0:
                 check_expansion(inner, n, _short(base))
                 return _power(inner, n, self.constant(1))
@@ -423,8 +423,8 @@ class TrigAlgebra:
             if c == 1 and len(mono) == 1:  # (atom**k)**r -> atom**(k r) only for k = 1
                 (i, k), = mono
                 if k == 1:
-                    return TrigPoly({(COS, ZERO_FREQ): {((i, _num(_Q(int(exp.p), int(exp.q)))),): 1}})
-        return self.atom(base, _num(_Q(int(exp.p), int(exp.q))))
+                    return TrigPoly({(COS, ZERO_FREQ): {((i, _num(Q(int(exp.p), int(exp.q)))),): 1}})
+        return self.atom(base, _num(Q(int(exp.p), int(exp.q))))
 
     def _convert_trig(self, e: sympy.Expr) -> TrigPoly:
         arg = e.args[0]
@@ -434,7 +434,7 @@ class TrigAlgebra:
             coeff, sym = term.as_coeff_Mul()
             if sym in self.index and coeff.is_Rational:
                 i = self.index[sym]
-                linear[i] = linear.get(i, 0) + _Q(int(coeff.p), int(coeff.q))
+                linear[i] = linear.get(i, 0) + Q(int(coeff.p), int(coeff.q))
             else:
                 rest.append(term)
         freq = tuple(sorted((i, _num(v)) for i, v in linear.items() if v))
@@ -489,7 +489,7 @@ class TrigAlgebra:
         key = (atom, coordinate)
         hit = self._atom_diff.get(key)
         if hit is None:
-            d = derivative(self._atoms[atom], self.coordinates[coordinate])
+            d = derivative(self.atoms[atom], self.coordinates[coordinate])
             hit = self.from_expr(d if self.prepare is None else self.prepare(d))
             self._atom_diff[key] = hit
         return hit
@@ -499,7 +499,7 @@ class TrigAlgebra:
         """The product of atoms of a monomial (cached: the same ones recur across entries)."""
         hit = self._mono_cache.get(mono)
         if hit is None:
-            hit = sympy.Mul(*[self._atoms[i] ** _rational(e) for i, e in mono])
+            hit = sympy.Mul(*[self.atoms[i] ** _rational(e) for i, e in mono])
             self._mono_cache[mono] = hit
         return hit
 
@@ -548,13 +548,13 @@ class TrigAlgebra:
         """A coefficient with the monomial common to all its terms pulled out."""
         if len(coef) == 1:
             return self.coefficient_expr(coef)
-        common = _common_monomial(coef)
+        common = common_monomial(coef)
         if not common:
             return self.coefficient_expr(coef)
-        content = _content(coef.values())
+        content = rational_content(coef.values())
         inner = _divided(coef, common, content)
-        outer = [self._atoms[i] ** _rational(e) for i, e in common]
-        return sympy.Mul(_rational(_num(_Q(content))), *outer, self.coefficient_expr(inner))
+        outer = [self.atoms[i] ** _rational(e) for i, e in common]
+        return sympy.Mul(_rational(_num(Q(content))), *outer, self.coefficient_expr(inner))
 
     def to_expr(self, p: TrigPoly) -> sympy.Expr:
         """A compact sympy expression: common factors of each coefficient pulled out.
@@ -574,11 +574,11 @@ class TrigAlgebra:
                 else:
                     parts.append(canonical.mul(self._times_sign(c, sign), [*powers, *trig]))
                 continue
-            common = _common_monomial(coef)
+            common = common_monomial(coef)
             if not common:
                 parts.append(canonical.mul(sign, [self._coefficient(coef), *trig]))
                 continue
-            content = _content(coef.values())
+            content = rational_content(coef.values())
             inner = _divided(coef, common, content)
             parts.append(canonical.mul(self._times_sign(content, sign),
                                        [*self._powers(common), self._coefficient(inner), *trig]))
@@ -597,7 +597,7 @@ class TrigAlgebra:
             key = (i, e)
             hit = self._power_cache.get(key)
             if hit is None:
-                hit = self._power_cache[key] = self._atoms[i] ** _rational(e)
+                hit = self._power_cache[key] = self.atoms[i] ** _rational(e)
             out.append(hit)
         return out
 
@@ -633,7 +633,7 @@ class TrigAlgebra:
         key = (c, sign)
         hit = self._signed.get(key)
         if hit is None:
-            hit = self._signed[key] = _rational(_num(_Q(c))) * sign
+            hit = self._signed[key] = _rational(_num(Q(c))) * sign
         return hit
 
     def numeric(self, values: dict) -> "NumericPoint":
@@ -643,7 +643,7 @@ class TrigAlgebra:
 
     def atoms_of(self, p: TrigPoly) -> list[sympy.Expr]:
         """The atoms ``p``'s coefficients are made of, in the order met."""
-        return [self._atoms[i] for i in sorted(used_atoms(p))]
+        return [self.atoms[i] for i in sorted(used_atoms(p))]
 
     def gradient(self, p: TrigPoly) -> list[TrigPoly]:
         """``[d p / d q[j] for every coordinate j]``: zero, untouched, where ``p`` does not
@@ -702,7 +702,7 @@ def _divided(coef: Coef, common: Mono, content) -> Coef:
     return out
 
 
-def _common_monomial(coef: Coef) -> Mono:
+def common_monomial(coef: Coef) -> Mono:
     """Atoms (with exponents) that divide every monomial of ``coef``."""
     monos = iter(coef)
     exps = dict(next(monos))
@@ -719,15 +719,15 @@ def _common_monomial(coef: Coef) -> Mono:
     return tuple(sorted(exps.items()))
 
 
-def _content(values) -> Fraction:
+def rational_content(values) -> Fraction:
     """Rational content of the coefficients, signed like the first."""
-    values = [_Q(v) for v in values]
+    values = [Q(v) for v in values]
     num = 0
     den = 1
     for v in values:
         num = math.gcd(num, v.numerator)
         den = den * v.denominator // math.gcd(den, v.denominator)
-    content = _Q(num, den)
+    content = Q(num, den)
     return -content if values[0] < 0 else content
 
 
@@ -794,7 +794,7 @@ class NumericPoint:
         multiprecision, in which ``exp(exp(...))`` can abort the process)."""
         hit = self.atoms.get(i)
         if hit is None:
-            atom = self.algebra._atoms[i]
+            atom = self.algebra.atoms[i]
             try:
                 hit = complex_value(atom, self.values, self._memo)
             except Unsupported:  # a Piecewise: sympy's evaluation
@@ -817,3 +817,9 @@ class NumericPoint:
                 raise ValueError("complex value: outside the domain")
             total = total.real
         return total
+
+
+__all__ = ["Coef", "EXPANSION_HINT", "ExpansionTooLarge", "Freq", "MAX_EXPANDED_POWER", "MAX_EXPANSION_TERMS",
+           "MAX_SQUARE_TERMS", "Mono", "NumericPoint", "ONE", "Q", "TrigAlgebra", "TrigPoly", "ZERO_FREQ",
+           "check_expansion", "coef_add_into", "common_monomial", "expansion_problem", "expansion_terms",
+           "rational_content", "used_atoms"]

@@ -72,3 +72,6 @@ def _normal(p, u, K):
     """``p`` primitive, with a positive leading coefficient (as Wang returns its factors)."""
     _, p = dmp_ground_primitive(p, u, K)
     return dmp_neg(p, u, K) if K.is_negative(dmp_ground_LC(p, u, K)) else p
+
+
+__all__ = ["factor_sqf", "peeled"]

@@ -90,3 +90,6 @@ def dot(u, v) -> sympy.Expr:
 def virtual_work_force(primitive: Primitive, point, vector) -> list[sympy.Expr]:
     """Generalized force of a force ``vector`` applied at ``point``: ``F . dp/dx^a``."""
     return [sympy.expand(dot(vector, [derivative(c, q) for c in point])) for q in primitive.coordinates]
+
+
+__all__ = ["Effect", "dot", "virtual_work_force"]

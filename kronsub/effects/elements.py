@@ -8,6 +8,7 @@ import sympy
 from ..components.base import common_world
 from ..core.derivative import derivative
 from ..core.seeded import seeded
+from ..core.symbols import velocity_symbol
 from .base import Effect
 
 
@@ -92,9 +93,10 @@ class TorsionalDamper(Effect):
 
     def direct_force(self, primitive, coordinates, moved):
         """In the subspace: ``fbar = -c angledot d angle/dxbar``, ``angle`` carried to ``xbar``."""
-        from ..core.symbols import velocity_symbol
-
         angle, c = moved(self.angle), moved(self.coefficient)
         gradient = [derivative(angle, q) for q in coordinates]
         rate = sympy.Add(*[g * velocity_symbol(q) for g, q in zip(gradient, coordinates)])
         return [sympy.expand(-c * rate * g) for g in gradient]
+
+
+__all__ = ["Damper", "Spring", "TorsionalDamper", "TorsionalSpring", "separation", "squared_distance"]

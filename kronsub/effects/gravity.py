@@ -43,3 +43,6 @@ class Gravity(Effect):
             for i, c in enumerate(unit):
                 total[i].append(-(mass * self.g * c))
         return tuple(sympy.expand(sympy.Add(*t)) for t in total)
+
+
+__all__ = ["Gravity"]

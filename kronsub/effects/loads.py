@@ -7,6 +7,8 @@ from dataclasses import dataclass
 import sympy
 
 from ..core.derivative import derivative
+from ..core.symbols import velocity_symbol
+from ..core.trigpoly import TrigAlgebra
 from .base import Effect, virtual_work_force
 
 
@@ -25,8 +27,6 @@ def angular_velocity(primitive, rotation: sympy.Matrix):
     """World angular velocity of a rotation ``R(x)``: from ``Rdot R^T`` (skew), each entry
     reduced in the trigonometric algebra of the coordinates, where ``cos^2 + sin^2 = 1`` holds
     as the products are formed (exact, and far cheaper than ``simplify`` in space)."""
-    from ..core.trigpoly import TrigAlgebra
-
     rdot = sympy.Matrix(rotation.shape[0], rotation.shape[1],
                         lambda i, j: primitive.rate(rotation[i, j]))
     algebra = TrigAlgebra(primitive.coordinates)
@@ -73,8 +73,6 @@ class GeneralizedForce(Effect):
     def written_in(self, through):
         """On ``q`` with ``x^a = q + c``: on ``x^a`` (its row of ``C`` is that of ``q``, so
         ``C^T f`` is ``value`` on row ``q`` as before)."""
-        from ..core.symbols import velocity_symbol
-
         moved = super().written_in(through)
         if self.coordinate not in through:
             return moved
@@ -98,3 +96,6 @@ class Potential(Effect):
 
     def potential(self, primitive):
         return self.value
+
+
+__all__ = ["Force", "GeneralizedForce", "Potential", "Torque", "angular_velocity"]

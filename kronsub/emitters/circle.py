@@ -21,7 +21,8 @@ from __future__ import annotations
 
 import sympy
 
-from .numeric import Block, NearAxis
+from .block import Block
+from .numeric import NearAxis
 
 
 def _depends(block: Block, coordinates) -> dict:
@@ -87,3 +88,6 @@ def circle_equations(block: Block, coordinates) -> tuple[tuple[int, ...], Block 
             return tuple(circle), Block(tuple(temporaries), outputs)
         circle = kept  # an angle still needed as itself (a spring's, inside sqrt): not a circle one
     return (), None
+
+
+__all__ = ["circle_equations"]

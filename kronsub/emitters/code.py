@@ -19,8 +19,9 @@ from ..core.known_system import KnownSystem
 from ..version import __version__
 from .escape import Markup
 from .circle import circle_equations
-from .numeric import GUARD, Block, NumericModel, identifier, prepare
-from .text import _environment
+from .block import Block
+from .numeric import GUARD, NumericModel, identifier, prepare
+from .text import template_environment
 
 
 def _number(self, expr) -> str:
@@ -184,7 +185,7 @@ def emit_c(system: KnownSystem, stem: str, source: str = "", prefix: str = "ks",
     ctx.update(near_axis=printer.near_axis, ldlt=ldlt_lines(model.n) if 0 < model.n <= WRITTEN_OUT else None,
                p=Markup(p), P=Markup(p.upper()), header=Markup(f"{stem}.h"),
                guard=Markup(f"{p.upper()}_{identifier(stem).upper()}_H"))
-    env = _environment()
+    env = template_environment()
     return [GeneratedFile(f"{stem}.h", env.get_template("model.h.j2").render(**ctx)),
             GeneratedFile(f"{stem}.c", env.get_template("model.c.j2").render(**ctx))]
 
@@ -197,8 +198,11 @@ def emit_python(system: KnownSystem, stem: str, source: str = "", prefix: str = 
     model = prepare(system, source, outputs)
     printer = _PyPrinter({"fully_qualified_modules": False})
     ctx = _context(model, printer.doprint, "", "")
-    text = _environment().get_template("model.py.j2").render(**ctx)
+    text = template_environment().get_template("model.py.j2").render(**ctx)
     return [GeneratedFile(f"{file_stem(stem)}.py", text)]
 
 
 LANGUAGES = {"c": emit_c, "python": emit_python}
+
+
+__all__ = ["EXACT", "GeneratedFile", "LANGUAGES", "WRITTEN_OUT", "emit_c", "emit_python", "file_stem", "ldlt_lines"]

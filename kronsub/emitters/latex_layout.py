@@ -173,3 +173,6 @@ def _command(s: str, i: int) -> tuple[float, int]:
     if name in _NAMED:
         return 0.55 * len(name) + 0.3, j
     return 0.7, j  # a Greek letter, \cdot, \partial...
+
+
+__all__ = ["BREAK", "LatexPrinter", "WIDTH", "lines", "measure", "unbroken"]

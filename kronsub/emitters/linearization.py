@@ -178,3 +178,6 @@ def emit_latex(lin: Linearization, name: str) -> str:
 
 
 EMITTERS = {"markdown": emit_markdown, "json": emit_json, "latex": emit_latex}
+
+
+__all__ = ["EMITTERS", "emit_json", "emit_latex", "emit_markdown"]

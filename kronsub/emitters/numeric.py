@@ -21,14 +21,9 @@ from ..core.derivative import derivative
 from ..core.known_system import KnownSystem
 from ..core.sympy_internals import eval_evalf
 from ..core.symbols import TIME
-
-
-@dataclass(frozen=True)
-class Block:
-    """A function body: ``temporaries`` (name, expr) then ``outputs`` (target, expr)."""
-
-    temporaries: tuple[tuple[sympy.Symbol, sympy.Expr], ...]
-    outputs: tuple[tuple[str, sympy.Expr], ...]
+from ..errors import KronsubError
+from .block import Block
+from .numeric_implicit import ImplicitCode, implicit_code, intermediate_slots
 
 
 @dataclass(frozen=True)
@@ -52,7 +47,7 @@ class NumericModel:
     energies: bool = True  # emit T and V (a scene may not ask for them)
     with_points: bool = True  # emit the named points' positions
 
-    implicit: object | None = None  # numeric_implicit.ImplicitCode: the dependent-coordinate solve
+    implicit: ImplicitCode | None = None  # the dependent-coordinate solve
 
     @property
     def n(self) -> int:
@@ -268,23 +263,17 @@ def prepare(system: KnownSystem, source: str = "", outputs=None, guarded_angles:
     p_slots = {p.symbol: sympy.Symbol(f"param[{i}]") for i, p in enumerate(params)}
     slots = {**q_slots, **qd_slots, **p_slots, TIME: sympy.Symbol("t")}
     if len(slots) != len(q_slots) + len(qd_slots) + len(p_slots) + 1:
-        from ..errors import KronsubError
-
         shared = sorted(s.name for s in set(q_slots) & set(qd_slots) | set(p_slots) & (set(q_slots) | set(qd_slots))
                         | {TIME} & (set(q_slots) | set(qd_slots) | set(p_slots)))
         raise KronsubError(f"cannot generate code: {', '.join(shared)} would be two things at once (a parameter, "
                            "a coordinate, a velocity or t); rename the model's name")
     if system.implicit is not None:  # y_d, lambda, gamma: the named intermediates in w[]
-        from .numeric_implicit import intermediate_slots
-
         slots.update(intermediate_slots(system))
 
     def slot(expr) -> sympy.Expr:
         expr = sympy.sympify(expr)
         unknown = expr.free_symbols - set(slots)
         if unknown:
-            from ..errors import KronsubError
-
             names = ", ".join(sorted(s.name for s in unknown))
             raise KronsubError(f"cannot generate code: {names} is neither a parameter, a coordinate, "
                                "a velocity nor t")
@@ -339,8 +328,6 @@ def prepare(system: KnownSystem, source: str = "", outputs=None, guarded_angles:
     positions = block(pos_targets, pos_exprs, "x", qs)
     implicit = None
     if system.implicit is not None:
-        from .numeric_implicit import implicit_code
-
         implicit = implicit_code(system, slot, lambda t, e, c: block(t, e, "x", qs))
         canonical = block(r_targets, [sympy.Integer(0)] * n, "x", qs)  # unused: no canonical form here
     return NumericModel(
@@ -362,3 +349,6 @@ def prepare(system: KnownSystem, source: str = "", outputs=None, guarded_angles:
         with_points=with_points,
         implicit=implicit,
     )
+
+
+__all__ = ["BASIC_NODES", "GUARD", "NearAxis", "NumericModel", "identifier", "prepare"]

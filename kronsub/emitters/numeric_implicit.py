@@ -11,6 +11,8 @@ from dataclasses import dataclass
 
 import sympy
 
+from .block import Block
+
 
 @dataclass(frozen=True)
 class ImplicitCode:
@@ -22,10 +24,10 @@ class ImplicitCode:
     constraints: tuple[str, ...]
     branch: tuple[float, ...]
     closed: bool  # every dependent coordinate has a closed form
-    closed_form: object  # Block: w[0:nd] from q, param
-    residual: object  # Block: g[nd], Gd[nd*nd] from q, w, param
-    sensitivity: object  # Block: Gi[nd*n] from q, w, param
-    quadratic: object  # Block: c[nd] from q, qd, w, param
+    closed_form: Block  # w[0:nd] from q, param
+    residual: Block  # g[nd], Gd[nd*nd] from q, w, param
+    sensitivity: Block  # Gi[nd*n] from q, w, param
+    quadratic: Block  # c[nd] from q, qd, w, param
 
 
 def intermediate_slots(system) -> dict:

@@ -84,3 +84,6 @@ def _latex_section(text: str, note: str, rows) -> str:
     section = ("\\section*{Reactions}\n" + latex_text(note.replace("`", "")) + "\n\\begin{align*}\n" + body
                + "\n\\end{align*}\n")
     return text.replace("\\end{document}", section + "\\end{document}")
+
+
+__all__ = ["NOTE", "with_reactions"]

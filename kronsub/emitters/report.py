@@ -319,3 +319,8 @@ def implicit_report(imp, show: Printer) -> dict:
         "sensitivities": lams,
         "convective": gammas,
     }
+
+
+__all__ = ["MIN_NAMED_OPS", "ModelStrPrinter", "NAME_PREFIX", "Printer", "build_report", "implicit_report",
+           "kinetic_energy", "latex_printer", "matrix_rows", "model_names", "named_subexpressions", "plain",
+           "plain_printer"]

@@ -12,7 +12,7 @@ from .latex_layout import WIDTH, lines, measure, unbroken
 from .report import build_report, latex_printer, model_names, plain_printer
 
 
-def _environment() -> jinja2.Environment:
+def template_environment() -> jinja2.Environment:
     """The templates' environment: free text reaches them only through an escaping filter."""
     loader = jinja2.FunctionLoader(lambda name: resources.files("kronsub.templates").joinpath(name).read_text("utf-8"))
     return environment(loader)
@@ -50,7 +50,7 @@ def _trusted(show):
 def emit_markdown(system: KnownSystem) -> str:
     """Markdown: the derivation step by step, expressions in sympy's ``str`` form."""
     show = plain_printer(model_names(system))
-    return _environment().get_template("derive.md.j2").render(r=build_report(system, _trusted(show)))
+    return template_environment().get_template("derive.md.j2").render(r=build_report(system, _trusted(show)))
 
 
 @collector_paused()  # see kronsub.collector
@@ -58,7 +58,7 @@ def emit_latex(system: KnownSystem) -> str:
     """A standalone LaTeX document of the derivation."""
     show = latex_printer(tuple(system.coordinates) + tuple(
         system.transition.primitive_coordinates if system.transition else ()), system.implicit, breaks=True)
-    env = _environment()
+    env = template_environment()
     env.filters["fits"] = _fits
     env.filters["broken"] = _broken
     env.filters["symbol"] = _symbol
@@ -123,3 +123,6 @@ def _implicit_json(imp: dict) -> dict:
 
 
 EMITTERS = {"markdown": emit_markdown, "latex": emit_latex, "json": emit_json}
+
+
+__all__ = ["EMITTERS", "emit_json", "emit_latex", "emit_markdown", "template_environment"]

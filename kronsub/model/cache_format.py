@@ -25,13 +25,13 @@ from sympy.matrices.immutable import ImmutableDenseMatrix
 
 from ..components.base import Body
 from ..collector import collector_paused
+from ..components.base import Requirement
 from ..core import canonical
 from ..core.known_system import Constraint, ImplicitSubspace, KnownSystem, ParameterInfo, ProjectedEffect, Transition
 from ..core.placed import PlacedBodies, PlacedPoints
 from ..core.sympy_internals import (assume_defined, assumptions_given, basic_new, float_new, float_parts,
                                      valid_nargs)
 from ..errors import Location
-from .requirements import Requirement
 
 FORMAT = "kronsub-known-system/1"
 
@@ -378,3 +378,7 @@ def loads(text: str | bytes, expected: type | None = None):
     if expected is not None and not isinstance(value, expected):
         _fail(f"expected a {expected.__name__}")
     return value
+
+
+__all__ = ["CLASSES", "CONSTANTS", "CacheFormatError", "FORMAT", "FUNCTIONS", "MATRICES", "TREE_NODES", "dumps",
+           "loads", "stored_class"]

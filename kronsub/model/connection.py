@@ -9,6 +9,7 @@ from __future__ import annotations
 import sympy
 
 from ..components.base import in_world
+from ..components.planar import PinnedRod, Rod
 from ..core.constraints import Constraint
 from ..core.primitive import Part, Primitive, part_from_component
 from ..core.symbols import free_symbols_of, symbol
@@ -92,8 +93,6 @@ def pivoted_part(reader: ModelReader, cname: str, cls, spec: Node, params: dict,
                  extra: dict) -> Part | None:
     """A pinned part hanging from a moving point: in the primitive a free rod whose centre and
     axis the connection ties to the pivot point and the part's own angle (Kron's way)."""
-    from ..components.planar import PinnedRod, Rod
-
     pnode = spec.get("pivot")
     if cls is not PinnedRod:
         reader.error(pnode, f"component '{cname}' ({cls.type_name}) takes no `pivot:`",
@@ -209,6 +208,10 @@ def implicit_spec(reader: ModelReader, node: Node, constraints, connection, y, c
     return ImplicitSpec(intermediate=tuple(y), independent=tuple(independent), dependent=tuple(dependent),
                         constraints=in_y, branch=branch, closed_form=closed,
                         choice="auto" if auto else "given", configuration=tuple(point.items()))
+
+
+__all__ = ["implicit_spec", "pivot_connection", "pivoted_part", "read_connection", "read_intermediate",
+           "read_pivot_angles"]
 
 
 __all__ = ["implicit_spec", "pivot_connection", "pivoted_part", "read_connection", "read_intermediate",

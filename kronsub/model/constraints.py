@@ -27,7 +27,7 @@ import numpy as np
 import sympy
 
 from ..components.base import common_world, in_world
-from ..core.constraints import Constraint, ConstraintFailure, NumericConstraints, closed_forms
+from ..core.constraints import Constraint, ConstraintFailure, NumericConstraints, closed_forms, multiplier_name
 from ..core.symbols import free_symbols_of
 from ..errors import close_matches
 from .effects import named_body, zero_vector
@@ -38,72 +38,72 @@ JOINTS = ("pin", "point_on_line", "slider")
 AXES = "xyz"
 
 
-def read_constraints(loader: ModelReader, node: Node, primitive) -> list[Constraint]:
+def read_constraints(reader: ModelReader, node: Node, primitive) -> list[Constraint]:
     """The constraints of the model, in primitive coordinates, each with its location kept."""
     out: list[Constraint] = []
-    entries = loader.mapping(node, "constraints", "write `name: expression` (= 0) or `name: {pin: [P, Q]}`")
-    names = {k: v for k, v in loader.parameter_names().items()}
-    names.update(loader.primitive_names)
+    entries = reader.mapping(node, "constraints", "write `name: expression` (= 0) or `name: {pin: [P, Q]}`")
+    names = {k: v for k, v in reader.parameter_names().items()}
+    names.update(reader.primitive_names)
     for cname, spec in entries.items():
         loc = node.key_locations[cname]
-        if not loader.identifier(cname, loc, "constraint"):
+        if not reader.identifier(cname, loc, "constraint"):
             continue
-        loader.locations[f"constraint:{cname}"] = loc
+        reader.locations[f"constraint:{cname}"] = loc
         if spec.is_mapping:
             keys = [k for k in spec.value if k != "description"]
             if len(keys) != 1 or keys[0] not in JOINTS:
                 bad = next((k for k in keys if k not in JOINTS), keys[0] if keys else "")
-                loader.error(spec.key_locations.get(bad, spec.location) if bad else spec,
+                reader.error(spec.key_locations.get(bad, spec.location) if bad else spec,
                              f"constraint '{cname}' must be an expression or one joint ({', '.join(JOINTS)})",
                              close_matches(bad, JOINTS) if bad else "e.g. `B: {pin: [left.b, right.b]}`")
                 continue
             kind = keys[0]
-            built = _JOINT_BUILDERS[kind](loader, cname, spec.get(kind), primitive, names)
+            built = _JOINT_BUILDERS[kind](reader, cname, spec.get(kind), primitive, names)
             if built is not None:
                 out.extend(built)
             continue
-        value = loader.expr(spec, names, what=f"constraint '{cname}'")
+        value = reader.expr(spec, names, what=f"constraint '{cname}'")
         if value is None:
             continue
         value = sympy.sympify(value)
         if not (free_symbols_of([value]) & set(primitive.coordinates)):
-            loader.error(spec, f"constraint '{cname}' does not involve any coordinate",
+            reader.error(spec, f"constraint '{cname}' does not involve any coordinate",
                          "write g(x) with `g = 0`, e.g. `a1*sin(theta) + a2*sin(phi) - c`")
             continue
         out.append(Constraint(cname, value, "expression"))
     return out
 
 
-def _point(loader: ModelReader, node: Node, primitive, cname: str, names):
+def _point(reader: ModelReader, node: Node, primitive, cname: str, names):
     """A named point (``component.point``) or a fixed place ``[x, y]``: its world position."""
     if node is not None and node.is_sequence:
-        values = [loader.expr(v, names, what=f"fixed place in constraint '{cname}'") for v in node.value]
+        values = [reader.expr(v, names, what=f"fixed place in constraint '{cname}'") for v in node.value]
         return None if any(v is None for v in values) else tuple(values)
     points = primitive.points()
     label = None if node is None else node.value
     if not isinstance(label, str) or label not in points:
-        loader.error(node if node is not None else loader.root, f"unknown point '{label}' in constraint '{cname}'",
+        reader.error(node if node is not None else reader.root, f"unknown point '{label}' in constraint '{cname}'",
                      close_matches(str(label), points))
         return None
     return points[label]
 
 
-def _vector(loader: ModelReader, node: Node, cname: str, what: str, names):
+def _vector(reader: ModelReader, node: Node, cname: str, what: str, names):
     if node is None or not node.is_sequence or not node.value:
-        loader.error(node if node is not None else loader.root,
+        reader.error(node if node is not None else reader.root,
                      f"{what} of constraint '{cname}' must be a list, e.g. `[0, 1]`", "one entry per world axis")
         return None
-    values = [loader.expr(v, names, what=f"{what} of constraint '{cname}'") for v in node.value]
+    values = [reader.expr(v, names, what=f"{what} of constraint '{cname}'") for v in node.value]
     return None if any(v is None for v in values) else tuple(values)
 
 
-def _pin(loader: ModelReader, cname, node, primitive, names):
+def _pin(reader: ModelReader, cname, node, primitive, names):
     if node is None or not node.is_sequence or len(node.value) != 2:
-        loader.error(node if node is not None else loader.root, f"pin '{cname}' needs two points",
+        reader.error(node if node is not None else reader.root, f"pin '{cname}' needs two points",
                      "e.g. `pin: [left.lower.end, right.lower.end]` or a fixed place `[0, 0]`")
         return None
-    p = _point(loader, node.value[0], primitive, cname, names)
-    q = _point(loader, node.value[1], primitive, cname, names)
+    p = _point(reader, node.value[0], primitive, cname, names)
+    q = _point(reader, node.value[1], primitive, cname, names)
     if p is None or q is None:
         return None
     p, q = common_world(p, q)
@@ -117,9 +117,9 @@ def _pin(loader: ModelReader, cname, node, primitive, names):
     return out
 
 
-def _line(loader: ModelReader, cname, node, names, what):
+def _line(reader: ModelReader, cname, node, names, what):
     if node is None or not node.is_mapping:
-        loader.error(node if node is not None else loader.root, f"{what} '{cname}' needs a mapping",
+        reader.error(node if node is not None else reader.root, f"{what} '{cname}' needs a mapping",
                      "e.g. `{point: lower.end, through: [1.2, 0], direction: [0, 1]}`")
         return None
     return node
@@ -172,8 +172,8 @@ def _on_line(v, d, values) -> list[sympy.Expr]:
     return [sympy.sympify(cross[i]) for i in range(3) if i != k]
 
 
-def _values(loader: ModelReader) -> dict:
-    return {p.symbol: p.value for p in loader.parameters.values()
+def _values(reader: ModelReader) -> dict:
+    return {p.symbol: p.value for p in reader.parameters.values()
             if p.value is not None and sympy.sympify(p.value).is_number}
 
 
@@ -184,69 +184,69 @@ def _named(cname: str, equations, source: str) -> list[Constraint]:
     return [Constraint(f"{cname}.{i + 1}", e, source) for i, e in enumerate(equations)]
 
 
-def _point_on_line(loader: ModelReader, cname, node, primitive, names):
-    node = _line(loader, cname, node, names, "point_on_line")
+def _point_on_line(reader: ModelReader, cname, node, primitive, names):
+    node = _line(reader, cname, node, names, "point_on_line")
     if node is None:
         return None
-    loader.check_keys(node, ("point", "through", "direction"), f"point_on_line '{cname}'")
-    p = _point(loader, node.get("point"), primitive, cname, names)
+    reader.check_keys(node, ("point", "through", "direction"), f"point_on_line '{cname}'")
+    p = _point(reader, node.get("point"), primitive, cname, names)
     through = node.get("through")
-    q = _point(loader, through, primitive, cname, names) if through is not None else None
-    d = _vector(loader, node.get("direction") or node, cname, "direction", names)
+    q = _point(reader, through, primitive, cname, names) if through is not None else None
+    d = _vector(reader, node.get("direction") or node, cname, "direction", names)
     if through is None:
-        loader.error(node, f"point_on_line '{cname}' needs `through:`", "a named point or a fixed place [x, y]")
+        reader.error(node, f"point_on_line '{cname}' needs `through:`", "a named point or a fixed place [x, y]")
     if p is None or q is None or d is None:
         return None
     dim = max(len(p), len(q), 2)
     if dim > 3 or len(d) != dim:
-        loader.error(node.get("direction") or node, f"direction of point_on_line '{cname}' needs {dim} entries "
+        reader.error(node.get("direction") or node, f"direction of point_on_line '{cname}' needs {dim} entries "
                      f"(one per world axis of its points), found {len(d)}",
                      "e.g. `direction: [0, 1]` in the plane, `[0, 0, 1]` in space")
         return None
-    if zero_vector(loader, node.get("direction") or node, d, f"direction of point_on_line '{cname}'", "[0, 1]"):
+    if zero_vector(reader, node.get("direction") or node, d, f"direction of point_on_line '{cname}'", "[0, 1]"):
         return None
     p, q, d = in_world(p, dim), in_world(q, dim), _unit(d)
     v = tuple(a - b for a, b in zip(p, q))
-    return _named(cname, _on_line(v, d, _values(loader)), f"point_on_line: {_text(node.get('point'))}")
+    return _named(cname, _on_line(v, d, _values(reader)), f"point_on_line: {_text(node.get('point'))}")
 
 
-def _slider(loader: ModelReader, cname, node, primitive, names):
-    node = _line(loader, cname, node, names, "slider")
+def _slider(reader: ModelReader, cname, node, primitive, names):
+    node = _line(reader, cname, node, names, "slider")
     if node is None:
         return None
-    loader.check_keys(node, ("point", "body", "through", "direction"), f"slider '{cname}'")
-    p = _point(loader, node.get("point"), primitive, cname, names)
+    reader.check_keys(node, ("point", "body", "through", "direction"), f"slider '{cname}'")
+    p = _point(reader, node.get("point"), primitive, cname, names)
     bnode = node.get("body")
     part = index = None
     needs = f"slider '{cname}' needs `body:` a component"
     if bnode is None or not isinstance(bnode.value, str):
-        loader.error(bnode if bnode is not None else node, needs,
+        reader.error(bnode if bnode is not None else node, needs,
                      close_matches(str(bnode.value) if bnode is not None else "", [x.name for x in primitive.parts]))
-    elif (found := named_body(loader, bnode, primitive, f"slider '{cname}'", unknown=needs)) is not None:
+    elif (found := named_body(reader, bnode, primitive, f"slider '{cname}'", unknown=needs)) is not None:
         part, index = found
         if part.bodies[index].rotation is None or part.dimension not in (2, 3):
-            loader.error(bnode, f"slider '{cname}': component '{bnode.value}' is not a rigid body",
+            reader.error(bnode, f"slider '{cname}': component '{bnode.value}' is not a rigid body",
                          "use a rod, disc, planar_body, pinned_rod or rigid_body3d")
             part = None
     if part is None:
         return None
     dim = part.dimension
     zero, one = sympy.Integer(0), sympy.Integer(1)
-    through = (_vector(loader, node.get("through"), cname, "through", loader.parameter_names())
+    through = (_vector(reader, node.get("through"), cname, "through", reader.parameter_names())
                if node.get("through") is not None else (zero,) * dim)
-    d = (_vector(loader, node.get("direction"), cname, "direction", loader.parameter_names())
+    d = (_vector(reader, node.get("direction"), cname, "direction", reader.parameter_names())
          if node.get("direction") is not None else (one,) + (zero,) * (dim - 1))
     if p is None or through is None or d is None:
         return None
-    if zero_vector(loader, node.get("direction"), d, f"direction of slider '{cname}'", "[0, 1]"):
+    if zero_vector(reader, node.get("direction"), d, f"direction of slider '{cname}'", "[0, 1]"):
         return None
     for what, vec in (("through", through), ("direction", d)):
         if len(vec) != dim:
-            loader.error(node.get(what), f"{what} of slider '{cname}' needs {dim} entries (body axes of "
+            reader.error(node.get(what), f"{what} of slider '{cname}' needs {dim} entries (body axes of "
                          f"'{part.name}'), found {len(vec)}", "one entry per body axis")
             return None
     if len(p) > dim:
-        loader.error(node.get("point"), f"slider '{cname}': the point is in space but '{part.name}' is planar",
+        reader.error(node.get("point"), f"slider '{cname}': the point is in space but '{part.name}' is planar",
                      "slide on a rigid_body3d, or use a planar point")
         return None
     body = part.bodies[index]
@@ -258,7 +258,7 @@ def _slider(loader: ModelReader, cname, node, primitive, names):
         return [Constraint(cname, _cross(R * sympy.Matrix(_unit(d)), v), source)]
     # in space: v in the body's axes is along the (constant) body-frame direction
     if not all(sympy.sympify(c).is_number for c in d):
-        loader.error(node.get("direction"), f"direction of slider '{cname}' must be numbers in space",
+        reader.error(node.get("direction"), f"direction of slider '{cname}' must be numbers in space",
                      "the line is fixed in the body: give its body-frame direction, e.g. `[1, 0, 0]`")
         return None
     return _named(cname, _on_line(tuple(R.T * v), _unit(d), {}), source)
@@ -279,7 +279,7 @@ def _text(node: Node | None) -> str:
 # The analysis at the initial configuration
 # --------------------------------------------------------------------------------------------
 
-def analyse(loader: ModelReader, constraints, y, independent, auto: bool, initial: dict, where):
+def analyse(reader: ModelReader, constraints, y, independent, auto: bool, initial: dict, where):
     """Dependent coordinates, the branch (their values at the initial configuration) and the
     closed forms; every problem reported at ``where`` naming the constraints involved.
 
@@ -288,31 +288,31 @@ def analyse(loader: ModelReader, constraints, y, independent, auto: bool, initia
     k, ny = len(constraints), len(y)
     listed = ", ".join(f"'{c.name}'" for c in constraints)
     if k >= ny:
-        loader.error(where, f"too many constraints: {k} ({listed}) on {ny} coordinates "
+        reader.error(where, f"too many constraints: {k} ({listed}) on {ny} coordinates "
                             f"({', '.join(q.name for q in y)})",
                      "a system needs at least one degree of freedom: remove constraints or add components")
         return None
     if not auto:
         dependent = tuple(q for q in y if q not in independent)
         if k > len(dependent):
-            loader.error(where, f"more constraints ({k}: {listed}) than dependent coordinates "
+            reader.error(where, f"more constraints ({k}: {listed}) than dependent coordinates "
                                 f"({len(dependent)}: {', '.join(q.name for q in dependent) or 'none'})",
                          f"list {ny - k} independent coordinates under `coordinates:`, or `coordinates: auto`")
             return None
         if k < len(dependent):
-            loader.error(where, f"the independent coordinates do not determine the others: {len(dependent)} "
+            reader.error(where, f"the independent coordinates do not determine the others: {len(dependent)} "
                                 f"dependent coordinates ({', '.join(q.name for q in dependent)}) but {k} "
                                 f"constraint{'s' if k != 1 else ''} ({listed})",
                          f"list {ny - k} independent coordinates under `coordinates:`, or `coordinates: auto`")
             return None
     values = {}
-    for p in loader.parameters.values():
+    for p in reader.parameters.values():
         if p.value is not None and sympy.sympify(p.value).is_number:
             values[p.symbol] = p.value
     try:
         numeric = NumericConstraints(constraints, y, values)
     except ConstraintFailure as exc:
-        loader.error(where, f"the constraints ({listed}) need values of the parameters {exc.message} to fix "
+        reader.error(where, f"the constraints ({listed}) need values of the parameters {exc.message} to fix "
                             "the branch at the initial configuration", "give them a `value:`")
         return None
     y0 = np.array([float(sympy.sympify(initial.get(q, 0)).xreplace(values)) for q in y])
@@ -320,13 +320,13 @@ def analyse(loader: ModelReader, constraints, y, independent, auto: bool, initia
     try:
         y1 = numeric.solve(y0, free)
     except ConstraintFailure as exc:
-        loader.error(where, f"inconsistent constraints ({listed}): no configuration near the initial one "
+        reader.error(where, f"inconsistent constraints ({listed}): no configuration near the initial one "
                             f"satisfies them ({exc.message})",
                      "check the constraints and the initial values (`initial:`), which pick the branch")
         return None
     bad = numeric.redundant_rows(y1)
     if bad:
-        _redundant(loader, where, numeric, bad, constraints)
+        _redundant(reader, where, numeric, bad, constraints)
         return None
     if auto:
         dep_idx = numeric.pivot(y1)
@@ -346,7 +346,7 @@ def analyse(loader: ModelReader, constraints, y, independent, auto: bool, initia
         G = numeric.jacobian(y1)[:, dep_idx]
         if np.linalg.matrix_rank(G) < k:
             better = [y[i].name for i in range(ny) if i not in numeric.pivot(y1)]
-            loader.error(where, f"the independent coordinates do not determine the others: dg/d("
+            reader.error(where, f"the independent coordinates do not determine the others: dg/d("
                                 f"{', '.join(q.name for q in dependent)}) is singular at the initial "
                                 f"configuration for the constraints {listed}",
                          f"choose other independent coordinates, e.g. `coordinates: [{', '.join(better)}]`, "
@@ -362,9 +362,42 @@ def analyse(loader: ModelReader, constraints, y, independent, auto: bool, initia
     return independent, dependent, branch, closed, point
 
 
-def _redundant(loader: ModelReader, where, numeric, bad, constraints):
+def _redundant(reader: ModelReader, where, numeric, bad, constraints):
     names = numeric.names(bad)
     others = numeric.names([i for i in range(len(constraints)) if i not in bad])
-    loader.error(where, f"redundant constraints: {names} {'depends' if len(bad) == 1 else 'depend'} on "
+    reader.error(where, f"redundant constraints: {names} {'depends' if len(bad) == 1 else 'depend'} on "
                         f"{others or 'the others'} (the Jacobian dg/dx is rank-deficient at the initial "
                         "configuration)", f"remove {names}")
+
+
+def check_multiplier_names(reader: ModelReader, constraints, carried) -> None:
+    """Two constraints whose multipliers get one name (a joint `B`'s `B.x` and a constraint
+    `B_x` are both `mu_B_x`) would be one entry of the reactions: refused, naming both."""
+    seen: dict[str, Constraint] = {}
+    own = {id(c) for c in carried}
+    owner = {id(c): part.name for part in reader.parts for c in part.constraints}  # the component of each
+    for c in constraints:
+        name = multiplier_name(c.name)
+        first = seen.setdefault(name, c)
+        if first is c:
+            continue
+        here = next((x for x in (c, first) if id(x) not in own), None)
+        if here is None:  # both from known systems: at the component entries that bring them in
+            parts = [owner.get(id(x), x.name.split(".", 1)[0]) for x in (first, c)]
+            at = [reader.locations.get(f"component:{p}") for p in parts]
+            came = (f"both come from the component '{parts[0]}'" if parts[0] == parts[1] else
+                    f"they come from the component '{parts[0]}'" + (f" (at {at[0]})" if at[0] else "")
+                    + f" and this one, '{parts[1]}'")
+            reader.error(at[1] or at[0] or reader.root, f"constraints '{first.name}' and '{c.name}' have the "
+                         f"same multiplier name '{name}' in the reactions: {came}",
+                         "rename one of the components: a known system's constraints are named after its "
+                         "component (`left.cx`, multiplier `mu_left_cx`)")
+            continue
+        key = here.name if f"constraint:{here.name}" in reader.locations else here.name.rsplit(".", 1)[0]
+        reader.error(reader.locations.get(f"constraint:{key}", reader.root), f"constraints '{first.name}' and "
+                     f"'{c.name}' have the same multiplier name '{name}' in the reactions",
+                     "rename one of them (a joint `B` names its equations `B.x`, `B.y`, whose multipliers "
+                     "are `mu_B_x`, `mu_B_y`)")
+
+
+__all__ = ["AXES", "JOINTS", "analyse", "check_multiplier_names", "read_constraints"]

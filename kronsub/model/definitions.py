@@ -20,33 +20,33 @@ from .source import Node
 _HINT = "write `name: expression`, e.g. `beta: asin(r*sin(theta)/l)`"
 
 
-def read_definitions(loader: ModelReader, node: Node | None, coords, primitive) -> None:
-    """Parse ``definitions:`` into ``loader.definitions``: each name's placeholder and its
+def read_definitions(reader: ModelReader, node: Node | None, coords, primitive) -> None:
+    """Parse ``definitions:`` into ``reader.definitions``: each name's placeholder and its
     expansion (definitions used inside it expanded too); cycles and name clashes are problems."""
-    entries = loader.mapping(node, "definitions", _HINT)
+    entries = reader.mapping(node, "definitions", _HINT)
     if not entries:
         return
-    universal = _usable_names(loader, coords)
-    taken = _taken_names(loader, universal, primitive)
+    universal = _usable_names(reader, coords)
+    taken = _taken_names(reader, universal, primitive)
     placeholders: dict[str, sympy.Symbol] = {}
     for name in entries:
         loc = node.key_locations[name]
-        if not loader.identifier(name, loc, "definition"):
+        if not reader.identifier(name, loc, "definition"):
             continue
         if name in taken:
-            loader.error(loc, f"definition '{name}' has the name of {taken[name]}",
+            reader.error(loc, f"definition '{name}' has the name of {taken[name]}",
                          "give the definition a name of its own")
             continue
         placeholders[name] = sympy.Dummy(name, real=True)
-        loader.locations[f"definition:{name}"] = loc
+        reader.locations[f"definition:{name}"] = loc
     raw: dict[str, sympy.Expr | None] = {}
     for name, placeholder in placeholders.items():
-        raw[name] = _parse(loader, entries[name], {**universal, **placeholders}, f"definition '{name}'")
+        raw[name] = _parse(reader, entries[name], {**universal, **placeholders}, f"definition '{name}'")
     uses = {name: [other for other, ph in placeholders.items() if expr is not None and ph in expr.free_symbols]
             for name, expr in raw.items()}
     order, cycles = _order(uses)
     for cycle in cycles:
-        loader.error(loader.locations[f"definition:{cycle[0]}"],
+        reader.error(reader.locations[f"definition:{cycle[0]}"],
                      "definitions form a cycle: " + " -> ".join(cycle + [cycle[0]]),
                      "a definition cannot use itself, directly or through other definitions")
     expanded: dict[str, sympy.Expr | None] = {}
@@ -56,27 +56,27 @@ def read_definitions(loader: ModelReader, node: Node | None, coords, primitive) 
             expanded[name] = None  # its problem (or that of one it uses) is reported already
             continue
         expanded[name] = expr.xreplace({placeholders[other]: expanded[other] for other in uses[name]})
-    loader.definitions = {name: (placeholders[name], expanded.get(name)) for name in placeholders}
+    reader.definitions = {name: (placeholders[name], expanded.get(name)) for name in placeholders}
 
 
-def _usable_names(loader: ModelReader, coords) -> dict[str, sympy.Basic]:
+def _usable_names(reader: ModelReader, coords) -> dict[str, sympy.Basic]:
     """What a definition may use: t, parameters, generalized and primitive coordinates and
-    their velocities (``loader.names`` holds the primitive ones by now)."""
-    names: dict[str, sympy.Basic] = {"t": TIME, **loader.parameter_names()}
-    for q in list(coords) + [angle for _, _, angle, _, _ in loader.pivots]:
+    their velocities (``reader.names`` holds the primitive ones by now)."""
+    names: dict[str, sympy.Basic] = {"t": TIME, **reader.parameter_names()}
+    for q in list(coords) + [angle for _, _, angle, _, _ in reader.pivots]:
         names.setdefault(q.name, q)
         names.setdefault(velocity_symbol(q).name, velocity_symbol(q))
-    for key, value in loader.names.items():
+    for key, value in reader.names.items():
         names.setdefault(key, value)
     return names
 
 
-def _taken_names(loader: ModelReader, universal: dict, primitive) -> dict[str, str]:
+def _taken_names(reader: ModelReader, universal: dict, primitive) -> dict[str, str]:
     """Names a definition may not take, with what they are."""
     taken: dict[str, str] = {name: f"the function '{name}'" for name in FUNCTIONS}
     taken.update({"t": "time 't'", "pi": "the constant 'pi'"})
     for name in universal:
-        if name in loader.parameters:
+        if name in reader.parameters:
             taken[name] = f"the parameter '{name}'"
         elif "." not in name and name not in taken:
             kind = "velocity" if name.endswith("_dot") else "coordinate"
@@ -84,14 +84,14 @@ def _taken_names(loader: ModelReader, universal: dict, primitive) -> dict[str, s
     for part in primitive.parts:
         taken.setdefault(part.name, f"the component '{part.name}'")
     for name in list(universal):
-        if "." not in name and not name.endswith("_dot") and name not in loader.parameters and name != "t":
+        if "." not in name and not name.endswith("_dot") and name not in reader.parameters and name != "t":
             taken.setdefault(f"{name}_ddot", f"the acceleration '{name}_ddot'")
     return taken
 
 
-def _parse(loader: ModelReader, vnode: Node, names: dict, what: str) -> sympy.Expr | None:
+def _parse(reader: ModelReader, vnode: Node, names: dict, what: str) -> sympy.Expr | None:
     if not vnode.is_scalar or vnode.value is None or isinstance(vnode.value, bool):
-        loader.error(vnode, f"{what} must be an expression (a number or a formula)", _HINT)
+        reader.error(vnode, f"{what} must be an expression (a number or a formula)", _HINT)
         return None
     text = vnode.text if vnode.text is not None else str(vnode.value)
     try:
@@ -102,9 +102,9 @@ def _parse(loader: ModelReader, vnode: Node, names: dict, what: str) -> sympy.Ex
             raise
         for problem in problems:
             name = problem.message.partition("unknown name '")[2].partition("'")[0]
-            if name and loader.is_broken(name):
+            if name and reader.is_broken(name):
                 continue  # a consequence of a component reported already
-            loader.problems.problems.append(problem)
+            reader.problems.problems.append(problem)
         return None
 
 
@@ -141,3 +141,6 @@ def _order(uses: dict[str, list[str]]) -> tuple[list[str], list[list[str]]]:
                 changed = True
     return [n for n in order if n not in blocked] + [n for n in order if n in blocked and n not in in_cycle] \
         + [n for n in order if n in in_cycle], cycles
+
+
+__all__ = ["read_definitions"]

@@ -13,6 +13,7 @@ import sympy
 from ..budget import PER_OPERATION, WorkBudgetExceeded, charge
 from ..cache import load_entry, store_entry, usable_cache_dir
 from ..collector import collector_paused
+from ..core.constraints import project_implicit
 from ..core.doubles import graph_nodes
 from ..core.known_system import KnownSystem, ProjectedEffect, Transition
 from ..core.numeric_jacobian import jacobian
@@ -184,8 +185,6 @@ def derive_implicit(model, intermediate: KnownSystem) -> KnownSystem:
     """The second of two steps, the paper's resting place between (13) and its group property:
     the primitive onto ``y`` (the explicit connection, ``intermediate``), then ``y`` onto
     ``g(y) = 0`` (25)-(29)."""
-    from ..core.constraints import project_implicit
-
     spec = model.implicit
     taken = {q.name for q in model.primitive.coordinates}
     return project_implicit(intermediate, spec.independent, spec.dependent, spec.constraints,
@@ -285,3 +284,7 @@ def _sample_rank(model, f, symbols, samples: int, constant: bool, analytic: bool
             return
         if analytic:
             return
+
+
+__all__ = ["RankWarning", "cache_dir", "check_rank", "check_subspace_rank", "content_key", "derive_implicit",
+           "derive_model", "load_cached", "store_cached"]

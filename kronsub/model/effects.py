@@ -1,9 +1,10 @@
-"""Reading the ``effects:`` section: one builder per effect type (the effect registry)."""
+"""Reading the ``effects:`` section (:func:`read_effects`): one builder per effect type (the effect
+registry, ``BUILDERS``)."""
 from __future__ import annotations
 
 import sympy
 
-from ..core.symbols import free_symbols_of
+from ..core.symbols import free_symbols_of, velocity_symbol
 from ..effects.base import Effect
 from ..effects.elements import Damper, Spring, TorsionalDamper, TorsionalSpring, separation
 from ..effects.gravity import Gravity
@@ -18,72 +19,70 @@ IN_WORLD = {1: {2: "the plane's x axis", 3: "space's x axis"}, 2: {3: "space's z
 """Where a smaller world lies in a larger one (:func:`~kronsub.components.base.in_world`)."""
 
 
-def _required(loader: ModelReader, spec: Node, key: str, ename: str, hint: str) -> Node | None:
+def _required(reader: ModelReader, spec: Node, key: str, ename: str, hint: str) -> Node | None:
     node = spec.get(key)
     if node is None:
-        loader.error(spec, f"effect '{ename}' needs `{key}:`", hint)
+        reader.error(spec, f"effect '{ename}' needs `{key}:`", hint)
     return node
 
 
-def _vector(loader: ModelReader, node: Node, what: str):
+def _vector(reader: ModelReader, node: Node, what: str):
     if not node.is_sequence or not node.value:
-        loader.error(node, f"{what} must be a list of components, e.g. `[F, 0]`", "write `[x, y]` or `[x, y, z]`")
+        reader.error(node, f"{what} must be a list of components, e.g. `[F, 0]`", "write `[x, y]` or `[x, y, z]`")
         return None
-    values = [loader.expr(item, what=what) for item in node.value]
+    values = [reader.expr(item, what=what) for item in node.value]
     return None if any(v is None for v in values) else tuple(values)
 
 
-def zero_vector(loader: ModelReader, node: Node, d, what: str, example: str = "[0, -1]") -> bool:
+def zero_vector(reader: ModelReader, node: Node, d, what: str, example: str = "[0, -1]") -> bool:
     """Whether the direction ``d`` is the zero vector, which is reported at ``node`` (a direction
     is divided by its length: the zero one gave NaN forces or constraints)."""
     if not sympy.Add(*[c**2 for c in d]).is_zero:
         return False
-    loader.error(node, f"{what} is the zero vector, which points nowhere",
+    reader.error(node, f"{what} is the zero vector, which points nowhere",
                  f"give a direction with a nonzero entry, e.g. `{example}` (its length does not matter)")
     return True
 
 
-def _direction(loader: ModelReader, node: Node, what: str):
+def _direction(reader: ModelReader, node: Node, what: str):
     """A direction: a vector that is not zero."""
-    d = _vector(loader, node, what)
-    return None if d is None or zero_vector(loader, node, d, what) else d
+    d = _vector(reader, node, what)
+    return None if d is None or zero_vector(reader, node, d, what) else d
 
 
-def _positional(loader: ModelReader, node: Node, value, primitive, ename: str, what: str):
+def _positional(reader: ModelReader, node: Node, value, primitive, ename: str, what: str):
     """``value`` if it has no velocity in it, else ``None`` (reported at ``node``): a potential,
     a spring's or a torsional spring's terms and a torsional damper's angle are functions of
     the configuration (and ``t``); with a velocity inside, ``-dV/dx`` (and ``angledot``)
     would leave out its ``d/dt dV/dxdot`` terms, silently."""
-    from ..core.symbols import velocity_symbol
-
     if value is None:
         return None
-    rates = set(primitive.velocities) | {velocity_symbol(q) for q in loader.subspace_names.values()}
+    rates = set(primitive.velocities) | {velocity_symbol(q) for q in reader.subspace_names.values()}
     used = sorted(s.name for s in free_symbols_of([value]) & rates)
     if not used:
         return value
-    loader.error(node, f"{what} of '{ename}' depends on the velocity '{used[0]}'",
+    reader.error(node, f"{what} of '{ename}' depends on the velocity '{used[0]}'",
                  "it is a function of the coordinates (and t) alone; a load in the velocities is a "
                  "`force`, `generalized_force`, `damper` or `torsional_damper` (in its `coefficient:`)")
     return None
 
 
-def _point(loader: ModelReader, node: Node, primitive, ename: str):
+def _point(reader: ModelReader, node: Node, primitive, ename: str):
     """A named point ``component.point``, or a fixed place given as a list."""
     if node.is_sequence:
-        return _vector(loader, node, f"fixed point of '{ename}'")
+        return _vector(reader, node, f"fixed point of '{ename}'")
     name = str(node.value)
     points = primitive.points()
-    if name not in points and loader.is_broken(name):
+    if name not in points and reader.is_broken(name):
         return None  # its component's problem is reported already
     if name not in points:
 
-        loader.error(node, f"unknown point '{name}' in effect '{ename}'", close_matches(name, points))
+        reader.error(node, f"unknown point '{name}' in effect '{ename}'", close_matches(name, points))
         return None
     return name
 
 
-def _gravity(loader: ModelReader, ename, spec, primitive):
+def _gravity(reader: ModelReader, ename, spec, primitive):
     """Gravity on the chosen components (default: every library component with mass).
 
     Known systems bring their own effects, so they are included only when named.
@@ -94,40 +93,40 @@ def _gravity(loader: ModelReader, ename, spec, primitive):
     """
 
     if spec.get("g") is not None:
-        g = _positional(loader, spec.get("g"), loader.expr(spec.get("g"), what="g"), primitive, ename, "`g:`")
+        g = _positional(reader, spec.get("g"), reader.expr(spec.get("g"), what="g"), primitive, ename, "`g:`")
         if g is None:
             return None
-    elif "g" in loader.parameters:
-        g = loader.parameters["g"].symbol
+    elif "g" in reader.parameters:
+        g = reader.parameters["g"].symbol
     else:
         g = None
-        loader.error(spec, f"gravity '{ename}' needs `g:`", "give `g: 9.81` or declare a parameter `g`")
-    reported = len(loader.problems.problems)  # a gravity on nothing is an error, unless said already
+        reader.error(spec, f"gravity '{ename}' needs `g:`", "give `g: 9.81` or declare a parameter `g`")
+    reported = len(reader.problems.problems)  # a gravity on nothing is an error, unless said already
     names = [p.name for p in primitive.parts]
     cnode = spec.get("components")
     if cnode is None:
         chosen = [p.name for p in primitive.parts if p.type_name and any(b.mass != 0 for b in p.bodies)]
     elif not cnode.is_sequence:
-        loader.error(cnode, f"`components:` of gravity '{ename}' must be a list", f"e.g. `components: [{names[0]}]`")
+        reader.error(cnode, f"`components:` of gravity '{ename}' must be a list", f"e.g. `components: [{names[0]}]`")
         return None
     else:
         chosen = []
         for n in cnode.value:
-            if str(n.value) not in names and loader.is_broken(str(n.value)):
+            if str(n.value) not in names and reader.is_broken(str(n.value)):
                 continue  # its component's problem is reported already
             if str(n.value) not in names:
-                loader.error(n, f"unknown component '{n.value}' in gravity '{ename}'", close_matches(str(n.value), names))
+                reader.error(n, f"unknown component '{n.value}' in gravity '{ename}'", close_matches(str(n.value), names))
             else:
                 chosen.append(str(n.value))
     direction = None
     if spec.get("direction") is not None:
-        direction = _direction(loader, spec.get("direction"), "direction of gravity")
-        if direction is None or _positional(loader, spec.get("direction"), sympy.Matrix(direction), primitive,
+        direction = _direction(reader, spec.get("direction"), "direction of gravity")
+        if direction is None or _positional(reader, spec.get("direction"), sympy.Matrix(direction), primitive,
                                             ename, "the direction") is None:
             return None
     worlds = sorted({primitive.part(n).dimension for n in chosen if primitive.part(n).dimension})
     if direction is None and len(worlds) > 1:
-        _mixed_worlds(loader, spec, ename, primitive, chosen, worlds)
+        _mixed_worlds(reader, spec, ename, primitive, chosen, worlds)
         return None
     parts = []
     for name in chosen:
@@ -137,13 +136,13 @@ def _gravity(loader: ModelReader, ename, spec, primitive):
         d = direction if direction is not None else DEFAULT_DOWN.get(part.dimension)
         if len(d) < part.dimension:
             if cnode is not None:
-                loader.error(spec, f"gravity '{ename}' has a {len(d)}-D direction but component "
+                reader.error(spec, f"gravity '{ename}' has a {len(d)}-D direction but component "
                                    f"'{name}' lives in {part.dimension}-D",
                              "give a direction with one entry per world axis of the component")
             continue
         if not _along(d, part.dimension):
             if cnode is not None:
-                loader.error(spec, f"gravity '{ename}' does nothing on component '{name}': its direction is "
+                reader.error(spec, f"gravity '{ename}' does nothing on component '{name}': its direction is "
                                    f"across the {WORLDS[part.dimension]} the component moves in "
                                    f"({IN_WORLD[part.dimension][len(d)]})",
                              f"leave '{name}' out of `components:`, or give a direction with a part along its "
@@ -151,16 +150,16 @@ def _gravity(loader: ModelReader, ename, spec, primitive):
             continue
         parts.append((name, tuple(d)))
     if direction is not None and not parts and worlds and cnode is None:
-        loader.error(spec.get("direction"), f"gravity '{ename}' acts on no component: its direction has "
+        reader.error(spec.get("direction"), f"gravity '{ename}' acts on no component: its direction has "
                      f"{len(direction)} entries, but the components live in "
                      + " and ".join(f"{w}-D" for w in worlds),
                      "give a direction with one entry per world axis, e.g. `[0, -1]` in the plane")
         return None
-    if not parts and len(loader.problems.problems) == reported and not loader.failed_components:
+    if not parts and len(reader.problems.problems) == reported and not reader.failed_components:
         known = [p.name for p in primitive.parts if not p.type_name and any(b.mass != 0 for b in p.bodies)]
         why = ("without `components:` it acts on the library components with mass, and known systems "
                "bring their own gravity" if cnode is None else "nothing of the components named moves in a world")
-        loader.error(spec, f"gravity '{ename}' acts on no component: {why}",
+        reader.error(spec, f"gravity '{ename}' acts on no component: {why}",
                      f"name the components it acts on, e.g. `components: [{known[0]}]`" if known and cnode is None
                      else "leave it out, or name components with mass")
         return None
@@ -175,52 +174,52 @@ def _along(d, dimension: int) -> bool:
     return not sympy.Add(*[c**2 for c in d[:dimension]]).is_zero
 
 
-def _mixed_worlds(loader: ModelReader, spec: Node, ename: str, primitive, chosen, worlds) -> None:
+def _mixed_worlds(reader: ModelReader, spec: Node, ename: str, primitive, chosen, worlds) -> None:
     """Report a gravity without ``direction:`` over components of different worlds: each world's
     own "down" (along a line, -y in the plane, -z in space) disagrees with the others', since a
     line lies on the plane's x axis and the plane in space's z = 0 plane."""
     by_world = "; ".join(f"{WORLDS[w]}: " + ", ".join(n for n in chosen if primitive.part(n).dimension == w)
                          for w in worlds)
     example = str(list(DEFAULT_DOWN[worlds[-1]]))
-    loader.error(spec, f"gravity '{ename}' has no `direction:` and acts on components of different worlds "
+    reader.error(spec, f"gravity '{ename}' has no `direction:` and acts on components of different worlds "
                        f"({by_world})",
                  f"give `direction:` in the {WORLDS[worlds[-1]]}, e.g. `{example}`: a line lies on the plane's x "
                  f"axis (a horizontal rail, which feels none of it), the plane in space's z = 0 plane; or list one "
                  f"world's components in `components:`")
 
 
-def _force(loader: ModelReader, ename, spec, primitive):
-    pnode = _required(loader, spec, "point", ename, "e.g. `point: lower.centre`")
+def _force(reader: ModelReader, ename, spec, primitive):
+    pnode = _required(reader, spec, "point", ename, "e.g. `point: lower.centre`")
     if pnode is None:
         return None
-    point = _point(loader, pnode, primitive, ename)
+    point = _point(reader, pnode, primitive, ename)
     if "vector" in spec.value:
-        vector = _vector(loader, spec.get("vector"), f"force vector of '{ename}'")
+        vector = _vector(reader, spec.get("vector"), f"force vector of '{ename}'")
     elif "direction" in spec.value and "magnitude" in spec.value:
-        d = _direction(loader, spec.get("direction"), f"direction of '{ename}'")
-        mag = loader.expr(spec.get("magnitude"), what=f"magnitude of '{ename}'")
+        d = _direction(reader, spec.get("direction"), f"direction of '{ename}'")
+        mag = reader.expr(spec.get("magnitude"), what=f"magnitude of '{ename}'")
         vector = None
         if d is not None and mag is not None:
             norm = sympy.sqrt(sum(c**2 for c in d))
             vector = tuple(mag * c / norm for c in d)
     else:
-        loader.error(spec, f"force '{ename}' needs `vector:` or `direction:` and `magnitude:`",
+        reader.error(spec, f"force '{ename}' needs `vector:` or `direction:` and `magnitude:`",
                      "e.g. `vector: [F, 0]`")
         return None
     if isinstance(point, tuple):
-        loader.error(pnode, f"force '{ename}' must act at a named point of a component",
+        reader.error(pnode, f"force '{ename}' must act at a named point of a component",
                      "e.g. `point: lower.centre`; a force at a fixed place does no work")
         return None
     if point is None or vector is None:
         return None
     if len(vector) != len(primitive.points()[point]):
-        loader.error(spec, f"force '{ename}' has {len(vector)} components but point '{point}' has "
+        reader.error(spec, f"force '{ename}' has {len(vector)} components but point '{point}' has "
                            f"{len(primitive.points()[point])}", "give one component per world axis")
         return None
     return Force(ename, point=point, vector=vector)
 
 
-def named_body(loader: ModelReader, node: Node, primitive, what: str, unknown: str = ""):
+def named_body(reader: ModelReader, node: Node, primitive, what: str, unknown: str = ""):
     """The body ``node`` names, as ``(part, index)``: a component's own (``lower``), or one of a
     known system's by its dotted name (``s.lower``, ``pair.left.pole``; ``s`` alone when it has
     just one body). None after reporting why: unknown (``unknown``: the message then), or a
@@ -233,64 +232,64 @@ def named_body(loader: ModelReader, node: Node, primitive, what: str, unknown: s
     if len(inner) == 1:
         return bodies[inner[0]]
     if inner:
-        loader.error(node, f"{what}: component '{name}' is a known system of {len(inner)} bodies",
+        reader.error(node, f"{what}: component '{name}' is a known system of {len(inner)} bodies",
                      "say which one: " + ", ".join(f"`{label}`" for label in inner))
         return None
     names = [p.name for p in primitive.parts if p.bodies] + [label for label in bodies if "." in label]
-    loader.error(node, unknown or f"unknown component '{name}'", close_matches(name, names))
+    reader.error(node, unknown or f"unknown component '{name}'", close_matches(name, names))
     return None
 
 
-def _torque(loader: ModelReader, ename, spec, primitive):
-    cnode = _required(loader, spec, "component", ename, "e.g. `component: wheel`")
-    vnode = _required(loader, spec, "value", ename, "e.g. `value: tau`")
+def _torque(reader: ModelReader, ename, spec, primitive):
+    cnode = _required(reader, spec, "component", ename, "e.g. `component: wheel`")
+    vnode = _required(reader, spec, "value", ename, "e.g. `value: tau`")
     if cnode is None or vnode is None:
         return None
-    found = named_body(loader, cnode, primitive, f"torque '{ename}'")
+    found = named_body(reader, cnode, primitive, f"torque '{ename}'")
     if found is None:
         return None
     part, index = found
     if part.bodies[index].rotation is None:
-        loader.error(cnode, f"component '{cnode.value}' has no rotating body to take a torque",
+        reader.error(cnode, f"component '{cnode.value}' has no rotating body to take a torque",
                      "apply a torque to a rod, disc, body, pinned rod or flywheel")
         return None
-    value = _vector(loader, vnode, "torque") if vnode.is_sequence else loader.expr(vnode, what="torque")
+    value = _vector(reader, vnode, "torque") if vnode.is_sequence else reader.expr(vnode, what="torque")
     if value is None:
         return None
     value = value if isinstance(value, tuple) else (value,)
     axes = 1 if part.bodies[index].rotation.shape == (2, 2) else 3
     if len(value) != axes:
-        loader.error(vnode, f"torque '{ename}' on '{part.name}' needs {axes} component(s), found {len(value)}",
+        reader.error(vnode, f"torque '{ename}' on '{part.name}' needs {axes} component(s), found {len(value)}",
                      "one value about the plane's normal for planar bodies; [x, y, z] in space")
         return None
     return Torque(ename, part=part.name, value=value, body=index)
 
 
-def _spring(loader: ModelReader, ename, spec, primitive, damper=False):
-    bnode = _required(loader, spec, "between", ename, "e.g. `between: [upper.tip, [0, 0]]`")
+def _spring(reader: ModelReader, ename, spec, primitive, damper=False):
+    bnode = _required(reader, spec, "between", ename, "e.g. `between: [upper.tip, [0, 0]]`")
     if bnode is None:
         return None
     if not bnode.is_sequence or len(bnode.value) != 2:
-        loader.error(bnode, f"`between:` of '{ename}' must list two points", "e.g. `between: [a.tip, b.centre]`")
+        reader.error(bnode, f"`between:` of '{ename}' must list two points", "e.g. `between: [a.tip, b.centre]`")
         return None
-    ends = tuple(_point(loader, n, primitive, ename) for n in bnode.value)
+    ends = tuple(_point(reader, n, primitive, ename) for n in bnode.value)
     key = "coefficient" if damper else "stiffness"
-    knode = _required(loader, spec, key, ename, f"e.g. `{key}: k`")
+    knode = _required(reader, spec, key, ename, f"e.g. `{key}: k`")
     if knode is None or any(e is None for e in ends):
         return None
     together = _always_together(primitive, ends)
     if together:
         kind = "damper" if damper else "spring"
-        loader.error(bnode, f"the two ends of {kind} '{ename}' are the same point, whatever the motion",
+        reader.error(bnode, f"the two ends of {kind} '{ename}' are the same point, whatever the motion",
                      f"a {kind} acts between two points that move apart: join it to another point, or remove it")
-    k = loader.expr(knode, what=key)
+    k = reader.expr(knode, what=key)
     if not damper:
-        k = _positional(loader, knode, k, primitive, ename, "the stiffness")
+        k = _positional(reader, knode, k, primitive, ename, "the stiffness")
     if k is None or together:
         return None
     if damper:
         return Damper(ename, ends=ends, coefficient=k)
-    length = (_positional(loader, spec.get("length"), loader.expr(spec.get("length"), what="rest length"), primitive,
+    length = (_positional(reader, spec.get("length"), reader.expr(spec.get("length"), what="rest length"), primitive,
                           ename, "the rest length") if "length" in spec.value else sympy.Integer(0))
     return None if length is None else Spring(ename, ends=ends, stiffness=k, length=length)
 
@@ -302,45 +301,45 @@ def _always_together(primitive, ends) -> bool:
     return all(sympy.expand(c) == 0 for c in separation(primitive, ends))
 
 
-def _torsional(loader: ModelReader, ename, spec, primitive, damper=False):
-    anode = _required(loader, spec, "angle", ename, "e.g. `angle: phi - theta` (primitive coordinates)")
+def _torsional(reader: ModelReader, ename, spec, primitive, damper=False):
+    anode = _required(reader, spec, "angle", ename, "e.g. `angle: phi - theta` (primitive coordinates)")
     key = "coefficient" if damper else "stiffness"
-    knode = _required(loader, spec, key, ename, f"e.g. `{key}: k`")
+    knode = _required(reader, spec, key, ename, f"e.g. `{key}: k`")
     if anode is None or knode is None:
         return None
-    angle, k = loader.expr(anode, what="angle"), loader.expr(knode, what=key)
-    angle = _positional(loader, anode, angle, primitive, ename, "the angle")
+    angle, k = reader.expr(anode, what="angle"), reader.expr(knode, what=key)
+    angle = _positional(reader, anode, angle, primitive, ename, "the angle")
     if not damper:
-        k = _positional(loader, knode, k, primitive, ename, "the stiffness")
+        k = _positional(reader, knode, k, primitive, ename, "the stiffness")
     if angle is None or k is None:
         return None
     if damper:
         return TorsionalDamper(ename, angle=angle, coefficient=k)
-    rest = (_positional(loader, spec.get("rest"), loader.expr(spec.get("rest"), what="rest angle"), primitive,
+    rest = (_positional(reader, spec.get("rest"), reader.expr(spec.get("rest"), what="rest angle"), primitive,
                         ename, "the rest angle") if "rest" in spec.value else sympy.Integer(0))
     return None if rest is None else TorsionalSpring(ename, angle=angle, stiffness=k, rest=rest)
 
 
-def _generalized(loader: ModelReader, ename, spec, primitive):
-    cnode = _required(loader, spec, "coordinate", ename, "e.g. `coordinate: lower.phi`")
-    vnode = _required(loader, spec, "value", ename, "e.g. `value: -c*phi_dot`")
+def _generalized(reader: ModelReader, ename, spec, primitive):
+    cnode = _required(reader, spec, "coordinate", ename, "e.g. `coordinate: lower.phi`")
+    vnode = _required(reader, spec, "value", ename, "e.g. `value: -c*phi_dot`")
     if cnode is None or vnode is None:
         return None
     name = str(cnode.value)
-    q = loader.primitive_names.get(name, loader.subspace_names.get(name))
+    q = reader.primitive_names.get(name, reader.subspace_names.get(name))
     if q is None:
-        loader.error(cnode, f"'{name}' is not a primitive or generalized coordinate",
-                     close_matches(name, [*loader.primitive_names, *loader.subspace_names]))
+        reader.error(cnode, f"'{name}' is not a primitive or generalized coordinate",
+                     close_matches(name, [*reader.primitive_names, *reader.subspace_names]))
         return None
-    value = loader.expr(vnode, what="generalized force")
+    value = reader.expr(vnode, what="generalized force")
     return None if value is None else GeneralizedForce(ename, coordinate=q, value=value)
 
 
-def _potential(loader: ModelReader, ename, spec, primitive):
-    vnode = _required(loader, spec, "value", ename, "e.g. `value: k*x**4/4`")
+def _potential(reader: ModelReader, ename, spec, primitive):
+    vnode = _required(reader, spec, "value", ename, "e.g. `value: k*x**4/4`")
     if vnode is None:
         return None
-    value = _positional(loader, vnode, loader.expr(vnode, what="potential"), primitive, ename, "the potential")
+    value = _positional(reader, vnode, reader.expr(vnode, what="potential"), primitive, ename, "the potential")
     return None if value is None else Potential(ename, value=value)
 
 
@@ -357,20 +356,43 @@ BUILDERS = {
 }
 
 
-def build_effect(loader: ModelReader, ename: str, spec: Node, primitive) -> Effect | None:
-    """Build one named effect from its YAML mapping (problems go to the loader)."""
+def build_effect(reader: ModelReader, ename: str, spec: Node, primitive) -> Effect | None:
+    """Build one named effect from its YAML mapping (problems go to the reader)."""
 
     if not spec.is_mapping:
-        loader.error(spec, f"effect '{ename}' must be a mapping", "e.g. `{type: gravity, g: g}`")
+        reader.error(spec, f"effect '{ename}' must be a mapping", "e.g. `{type: gravity, g: g}`")
         return None
     tnode = spec.get("type")
     if tnode is None:
-        loader.error(spec, f"effect '{ename}' has no `type:`", "valid types: " + ", ".join(sorted(BUILDERS)))
+        reader.error(spec, f"effect '{ename}' has no `type:`", "valid types: " + ", ".join(sorted(BUILDERS)))
         return None
     entry = BUILDERS.get(str(tnode.value))
     if entry is None:
-        loader.error(tnode, f"unknown effect type '{tnode.value}'", close_matches(str(tnode.value), BUILDERS))
+        reader.error(tnode, f"unknown effect type '{tnode.value}'", close_matches(str(tnode.value), BUILDERS))
         return None
     builder, keys = entry
-    loader.check_keys(spec, ("type", "description") + keys, f"effect '{ename}'")
-    return builder(loader, ename, spec, primitive)
+    reader.check_keys(spec, ("type", "description") + keys, f"effect '{ename}'")
+    return builder(reader, ename, spec, primitive)
+
+
+def read_effects(reader: ModelReader, node: Node | None, primitive, coords) -> list[Effect]:
+    """The effects, written in the primitive coordinates or in the subspace's ``coords``
+    (those are applied directly in the subspace: core/subspace.py)."""
+    for q in coords:
+        reader.subspace_names[q.name] = q
+        reader.names.setdefault(q.name, q)
+        reader.names.setdefault(velocity_symbol(q).name, velocity_symbol(q))
+    effects = []
+    for ename, spec in reader.mapping(node, "effects", "write `gravity: {type: gravity, g: g}`").items():
+        loc = node.key_locations[ename]
+        if not reader.identifier(ename, loc, "effect"):
+            continue
+        effect = build_effect(reader, ename, spec, primitive)
+        if effect is not None:
+            reader.locations[f"effect:{ename}"] = loc
+            effects.append(effect)
+    return effects
+
+
+__all__ = ["BUILDERS", "DEFAULT_DOWN", "IN_WORLD", "WORLDS", "build_effect", "named_body", "read_effects",
+           "zero_vector"]

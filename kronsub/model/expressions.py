@@ -665,3 +665,7 @@ class _Builder:
         args = [self.build(arg, depth) for arg in node.args]
         _charge_evaluation(*(arg.expr for arg in args))
         return _Value(function(*(arg.expr for arg in args)), sum(arg.bits for arg in args) + 8)
+
+
+__all__ = ["FUNCTIONS", "MAX_BITS", "MAX_DEPTH", "MAX_EXPONENT", "MAX_FACTORS", "MAX_LENGTH", "NOT_FINITE",
+           "NumericProblem", "approximate", "constant_value", "parse_expression", "parse_number"]

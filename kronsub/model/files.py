@@ -11,7 +11,8 @@ from pathlib import Path
 
 from ..errors import ModelError
 from .derive import content_key
-from .source import Node, SourceFile, load_yaml, read_model_file
+from .file_reading import SourceFile, read_model_file
+from .source import Node, load_yaml
 
 TOP_LEVEL = ("name", "description", "parameters", "components", "coordinates", "definitions", "connection",
              "constraints", "effects", "initial", "scenes")

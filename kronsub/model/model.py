@@ -5,19 +5,26 @@ equations. Deriving returns a new :class:`~kronsub.core.known_system.KnownSystem
 """
 from __future__ import annotations
 
+import dataclasses
 import functools
+import math
 from dataclasses import dataclass, field
 from typing import Mapping
 
 import sympy
 
+from ..budget import scope
+from ..components.base import Requirement
+from ..core.finite import state_values
 from ..core.known_system import Constraint, KnownSystem, ParameterInfo
 from ..core.primitive import Primitive
+from ..core.trigpoly import ExpansionTooLarge
 from ..effects.base import Effect
+from ..effects.elements import Damper, squared_distance
 from ..errors import Location, Problem
-from .requirements import Requirement
+from .derive import content_key, derive_model
 from .scenes import Scene
-from .source import SourceFile
+from .file_reading import SourceFile
 
 
 @dataclass(frozen=True)
@@ -64,18 +71,10 @@ class Model:
     def content_hash(self) -> str:
         """The model's cache key (:func:`~kronsub.model.derive.content_key`), made when first
         asked for: a derivation without the cache never needs it (nor hashes kronsub's code)."""
-        from .derive import content_key
-
         return content_key(*self.key_texts) if self.key_texts else ""
 
     def derive(self, *, cache: bool = True) -> KnownSystem:
         """The equations of motion by projection onto the subspace (9'), (E), (F)."""
-        import dataclasses
-
-        from ..budget import scope
-        from ..core.trigpoly import ExpansionTooLarge
-        from .derive import derive_model
-
         try:
             with scope():  # the active work budget, or a default one
                 system = derive_model(self, cache=cache)
@@ -94,11 +93,6 @@ class Model:
         ``(p_b - p_a)/|p_b - p_a|``, which is 0/0, so the equations are NaN. Reported at the
         effect's entry; None when no such effect meets its other end (or with implicit
         constraints, whose dependent coordinates are not in ``y``)."""
-        import math
-
-        from ..core.finite import state_values
-        from ..effects.elements import Damper, squared_distance
-
         q = system.coordinates
         values = state_values(system, t, y, param)
         for effect in self.effects:

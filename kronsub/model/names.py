@@ -57,3 +57,6 @@ def generated_name_clashes(declared: Iterable[Declared], coordinates: Iterable[D
             f"rename {item}: the velocity of a coordinate `x` is `x_dot`, its acceleration "
             "`x_ddot`"))
     return problems
+
+
+__all__ = ["Declared", "SUFFIXES", "generated_name_clashes"]

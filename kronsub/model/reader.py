@@ -1,7 +1,8 @@
 """The reading context of a model file: its problems, names, parameters and the shared readers.
 
-Every section reader (``loader.py``, ``parts.py``, ``connection.py``, ``constraints.py``,
-``definitions.py``, ``effects.py``, ``initial.py``, ``scenes.py``) takes the one
+Every section reader (``parameters.py``, ``components.py``, ``parts.py``, ``known_systems.py``,
+``coordinates.py``, ``connection.py``, ``constraints.py``, ``definitions.py``, ``effects.py``,
+``initial.py``, ``scenes.py``; ``loader.py`` calls them in order) takes the one
 :class:`ModelReader` of the file being read; every problem is collected with its file, line and
 column and raised together as one :class:`ModelError`.
 """
@@ -14,14 +15,15 @@ from pathlib import Path
 import sympy
 
 from ..budget import WorkBudgetExceeded
+from ..components.base import Requirement
 from ..core.known_system import ParameterInfo
 from ..core.primitive import Part
 from ..core.symbols import TIME, free_symbols_of
 from ..errors import Location, ModelError, ProblemCollector, close_matches
 from .expressions import parse_expression
-from .requirements import Requirement
 from .files import resolved_path
-from .source import Node, SourceFile, excerpt
+from .file_reading import SourceFile
+from .source import Node, excerpt
 
 IDENTIFIER = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")  # whole names only: fullmatch
 RESERVED = {"t", "pi"}

@@ -8,12 +8,11 @@ inertias. The loader checks the model's values and each scene's; a run checks ``
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass
 
 import numpy as np
 import sympy
 
-from ..components.base import INERTIA, NONNEGATIVE, POSITIVE
+from ..components.base import INERTIA, NONNEGATIVE, POSITIVE, Requirement
 from ..errors import Location, Problem
 from .source import Node
 
@@ -23,18 +22,6 @@ _HINT = {POSITIVE: "give it a value above zero",
          INERTIA: "each principal moment of a body is at least 0 and at most the sum of the other two: check "
                   "the moments, and the signs of the products of inertia (the tensor's entries, "
                   "docs/model-format.md)"}
-
-
-@dataclass(frozen=True)
-class Requirement:
-    """``value`` (an expression, or a tensor, in the model's parameters) must meet ``kind``
-    (``positive``, ``nonnegative``, ``inertia``); ``what`` names it, ``location`` is where it
-    is written."""
-
-    what: str
-    value: object
-    kind: str
-    location: Location | None = None
 
 
 def component_requirements(cname: str, component, given: Node | None) -> list[Requirement]:
@@ -130,3 +117,6 @@ def _g(value) -> str:
         return f"{float(value):.6g}"
     except (TypeError, ValueError):
         return sympy.sstr(value)
+
+
+__all__ = ["body_requirements", "component_requirements", "parameters_in", "unmet"]

@@ -57,64 +57,64 @@ class Scene:
 
 
 # ------------------------------------------------------------------------------------ reading
-def build_scenes(loader: ModelReader, node: Node | None, declared_effects, primitive, coords) -> tuple[Scene, ...]:
-    """Read ``scenes:``; problems go to the loader. ``declared_effects`` are the names under
+def build_scenes(reader: ModelReader, node: Node | None, declared_effects, primitive, coords) -> tuple[Scene, ...]:
+    """Read ``scenes:``; problems go to the reader. ``declared_effects`` are the names under
     ``effects:``; a known system's own effects are named ``part.effect``."""
     labels = [label for label in effect_labels(primitive, ()) if "." in label] + list(declared_effects)
     points = primitive.points()  # listed (every part's points built) only for a scene's `outputs:`
     scenes = []
-    for sname, spec in loader.mapping(node, "scenes", "write `scenes: {free: {effects: [gravity]}}`").items():
-        if not loader.identifier(sname, node.key_locations[sname], "scene"):
+    for sname, spec in reader.mapping(node, "scenes", "write `scenes: {free: {effects: [gravity]}}`").items():
+        if not reader.identifier(sname, node.key_locations[sname], "scene"):
             continue
         if spec.value is None:
             spec = Node({}, None, spec.location)
         if not spec.is_mapping:
-            loader.error(spec, f"scene '{sname}' must be a mapping", "e.g. `free: {effects: [gravity]}`")
+            reader.error(spec, f"scene '{sname}' must be a mapping", "e.g. `free: {effects: [gravity]}`")
             continue
-        loader.check_keys(spec, KEYS, f"scene '{sname}'")
-        scene = _scene(loader, sname, spec, labels, points, coords)
+        reader.check_keys(spec, KEYS, f"scene '{sname}'")
+        scene = _scene(reader, sname, spec, labels, points, coords)
         if scene is not None:
             scenes.append(scene)
     if node is not None and node.is_mapping:
-        loader.locations["scenes"] = node.location
+        reader.locations["scenes"] = node.location
     return tuple(scenes)
 
 
-def _scene(loader: ModelReader, sname: str, spec: Node, labels, points, coords) -> Scene | None:
+def _scene(reader: ModelReader, sname: str, spec: Node, labels, points, coords) -> Scene | None:
     on, off = spec.get("effects"), spec.get("without")
     if on is not None and off is not None:
-        loader.error(spec.key_locations["without"], f"scene '{sname}' has both `effects:` and `without:`",
+        reader.error(spec.key_locations["without"], f"scene '{sname}' has both `effects:` and `without:`",
                      "list the effects it switches on, or those it switches off, not both")
         return None
     chosen = set(labels)
     for what, listed in (("effects", on), ("without", off)):
         if listed is None:
             continue
-        names = _names(loader, listed, labels, f"`{what}:` of scene '{sname}'", "effect")
+        names = _names(reader, listed, labels, f"`{what}:` of scene '{sname}'", "effect")
         if names is None:
             return None
         chosen = set(names) if what == "effects" else chosen - set(names)
     parameters = {}
-    allowed = loader.parameter_names()
+    allowed = reader.parameter_names()
     pnode = spec.get("parameters")
-    for pname, vnode in loader.mapping(pnode, f"{sname}.parameters", "write `parameters: {F: 2}`").items():
+    for pname, vnode in reader.mapping(pnode, f"{sname}.parameters", "write `parameters: {F: 2}`").items():
         if pname not in allowed:
-            loader.error(pnode.key_locations[pname], f"scene '{sname}' sets '{pname}', which is not a parameter",
+            reader.error(pnode.key_locations[pname], f"scene '{sname}' sets '{pname}', which is not a parameter",
                          close_matches(pname, allowed))
             continue
-        value = loader.expr(vnode, {}, what=f"value of parameter '{pname}' in scene '{sname}'")
+        value = reader.expr(vnode, {}, what=f"value of parameter '{pname}' in scene '{sname}'")
         if value is not None:
             parameters[pname] = value
-    _check_values(loader, pnode, parameters)
-    initial = read_initial(loader, spec.get("initial"), coords)
-    t_end = _positive(loader, spec.get("t_end"), f"`t_end:` of scene '{sname}'")
-    dt = _positive(loader, spec.get("dt"), f"`dt:` of scene '{sname}'")
-    method = _method(loader, spec.get("method"), sname)
-    outputs = _outputs(loader, spec.get("outputs"), points, sname)
+    _check_values(reader, pnode, parameters)
+    initial = read_initial(reader, spec.get("initial"), coords)
+    t_end = _positive(reader, spec.get("t_end"), f"`t_end:` of scene '{sname}'")
+    dt = _positive(reader, spec.get("dt"), f"`dt:` of scene '{sname}'")
+    method = _method(reader, spec.get("method"), sname)
+    outputs = _outputs(reader, spec.get("outputs"), points, sname)
     return Scene(
         name=sname,
         effects=tuple(label for label in labels if label in chosen),
-        description=loader.string(spec.get("description"), ""),
+        description=reader.string(spec.get("description"), ""),
         parameters=parameters,
         initial=initial,
         t_end=t_end,
@@ -124,24 +124,24 @@ def _scene(loader: ModelReader, sname: str, spec: Node, labels, points, coords) 
     )
 
 
-def _check_values(loader: ModelReader, pnode: Node | None, parameters: dict) -> None:
+def _check_values(reader: ModelReader, pnode: Node | None, parameters: dict) -> None:
     """The components' requirements on the values a scene sets (:mod:`.requirements`), each
     problem at the scene's value."""
     if not parameters:
         return
-    values = {**loader.parameter_values(), **{symbol(k): v for k, v in parameters.items()}}
-    concerned = [r for r in loader.requirements if {s.name for s in parameters_in(r)} & set(parameters)]
+    values = {**reader.parameter_values(), **{symbol(k): v for k, v in parameters.items()}}
+    concerned = [r for r in reader.requirements if {s.name for s in parameters_in(r)} & set(parameters)]
     for problem in unmet(concerned, values, lambda req: next(
             (pnode.get(s.name).location for s in parameters_in(req) if s.name in parameters), None)):
-        loader.problems.add(problem.location, problem.message, problem.hint)
+        reader.problems.add(problem.location, problem.message, problem.hint)
 
 
-def _names(loader: ModelReader, node: Node, valid, what: str, kind: str) -> list[str] | None:
+def _names(reader: ModelReader, node: Node, valid, what: str, kind: str) -> list[str] | None:
     """A list of names, each one of ``valid`` (an unknown name lists the valid ones)."""
     if node.value is None:
         return []
     if not node.is_sequence:
-        loader.error(node, f"{what} must be a list of names", f"e.g. `[{valid[0] if valid else 'gravity'}]`")
+        reader.error(node, f"{what} must be a list of names", f"e.g. `[{valid[0] if valid else 'gravity'}]`")
         return None
     names, ok = [], True
     for item in node.value:
@@ -152,42 +152,42 @@ def _names(loader: ModelReader, node: Node, valid, what: str, kind: str) -> list
             hint = close_matches(shown, valid)
             if hint.startswith("did you mean"):
                 hint += f" (valid {kind}s: {', '.join(valid) or 'none'})"
-            loader.error(item, f"unknown {kind} '{shown}' in {what}", hint)
+            reader.error(item, f"unknown {kind} '{shown}' in {what}", hint)
             continue
         names.append(name)
     return names if ok else None
 
 
-def _positive(loader: ModelReader, node: Node | None, what: str) -> float | None:
+def _positive(reader: ModelReader, node: Node | None, what: str) -> float | None:
     if node is None:
         return None
-    value = loader.expr(node, {}, what=what)
+    value = reader.expr(node, {}, what=what)
     if value is None:
         return None
     if not value.is_number or not value.is_real or not value > 0:
-        loader.error(node, f"{what} must be a positive number", "e.g. `t_end: 10` and `dt: 0.01`")
+        reader.error(node, f"{what} must be a positive number", "e.g. `t_end: 10` and `dt: 0.01`")
         return None
     return float(value)
 
 
-def _method(loader: ModelReader, node: Node | None, sname: str) -> str | None:
+def _method(reader: ModelReader, node: Node | None, sname: str) -> str | None:
     if node is None:
         return None
     methods = scene_methods()
     if not isinstance(node.value, str) or node.value not in methods:
         shown = node.text if node.text is not None else str(node.value)
-        loader.error(node, f"unknown method '{shown}' in scene '{sname}'", close_matches(shown, methods))
+        reader.error(node, f"unknown method '{shown}' in scene '{sname}'", close_matches(shown, methods))
         return None
     return node.value
 
 
-def _outputs(loader: ModelReader, node: Node | None, points, sname: str) -> Outputs:
+def _outputs(reader: ModelReader, node: Node | None, points, sname: str) -> Outputs:
     """``outputs: [coordinates, velocities, energies, points | <named point>...]``."""
     if node is None:
         return Outputs(points=())
     points = sorted(points)
     valid = list(OUTPUT_KINDS) + points
-    names = _names(loader, node, valid, f"`outputs:` of scene '{sname}'", "output") or []
+    names = _names(reader, node, valid, f"`outputs:` of scene '{sname}'", "output") or []
     chosen = [n for n in names if n in points]
     if "points" in names:
         chosen = list(points)

@@ -7,10 +7,10 @@ import math
 import mpmath
 
 from ..emitters.escape import markdown_text, plot_text
-from ..model.source import SourceFile
+from ..model.file_reading import SourceFile
 from .accuracy import REFERENCE_MARGIN, WorkPrecision
 
-__all__ = ["CSV_COLUMNS", "METADATA_FORMAT", "markdown", "metadata", "plot", "target_sentence", "to_csv"]
+__all__ = ["CSV_COLUMNS", "METADATA_FORMAT", "markdown", "metadata", "plot", "target_sentence", "work_precision_csv"]
 
 
 def _number(value, fmt: str) -> str:
@@ -72,7 +72,7 @@ CSV_COLUMNS = ("method", "tolerance", "setting", "error", "energy_drift", "const
 METADATA_FORMAT = "kronsub-accuracy-metadata/1"
 
 
-def to_csv(wp: WorkPrecision) -> str:
+def work_precision_csv(wp: WorkPrecision) -> str:
     """One header row (:data:`CSV_COLUMNS`), then one row per point: plain CSV that
     ``numpy.genfromtxt``, ``csv.DictReader`` and ``pandas.read_csv`` read without options.
     Numbers in their shortest round-trip form, ``nan`` where a value does not apply (no energy

@@ -17,7 +17,8 @@ import numpy as np
 
 from ..atomic import atomic_path
 from ..emitters.escape import plot_text
-from ..errors import KronsubError
+from ..errors import KronsubError, Location, ModelError, Problem
+from ..model.file_reading import read_user_text
 from .plot import point_paths
 
 FORMATS = (".gif", ".mp4")
@@ -37,9 +38,6 @@ def read_points_csv(path: Path) -> tuple[np.ndarray, list[str], np.ndarray]:
 
     Every row has the header's number of values, each a finite number, and ``t``
     increases from row to row; else a `ModelError` at the line and column."""
-    from ..errors import Location, ModelError, Problem
-    from ..model.source import read_user_text
-
     def bad(line: int, column: int, message: str, hint: str = f"write it again with {WRITE_POINTS}"):
         return ModelError([Problem(Location(str(path), line, column), message, hint)])
 
@@ -190,3 +188,6 @@ def animate(t: np.ndarray, names: list[str], values: np.ndarray, path: Path, *, 
     finally:
         plt.close(fig)
     return len(rows)
+
+
+__all__ = ["AnimationError", "FORMATS", "TRAJECTORY", "WRITE_POINTS", "animate", "frame_times", "read_points_csv"]

@@ -22,6 +22,8 @@ from pathlib import Path
 
 from ..cache import load_entry, private_folder, store_entry
 from ..core.known_system import KnownSystem
+from ..model import cache_format
+from ..model.derive import content_key
 from . import native
 
 _FOLDER = re.compile(r"[A-Za-z0-9_]+-[0-9a-f]{24}")
@@ -32,9 +34,6 @@ def fingerprint(system: KnownSystem, outputs=None) -> str | None:
     """sha256 of what the generated C computes: the equations (without the names, texts,
     parameter values and initial values that only its comments and defaults show), the
     outputs, the integrators and the compiler; None when the system cannot be fingerprinted."""
-    from ..model import cache_format
-    from ..model.derive import content_key
-
     bare = dataclasses.replace(
         system, name="", description="", initial={}, transition=None,
         parameters=tuple(dataclasses.replace(p, value=None, description="", unit="") for p in system.parameters))
@@ -49,7 +48,7 @@ def fingerprint(system: KnownSystem, outputs=None) -> str | None:
 
 
 def _index_file(key: str) -> Path:
-    return native._build_root() / "index" / f"{key}.json"
+    return native.build_root() / "index" / f"{key}.json"
 
 
 INDEX_BYTES = 4096  # an index entry names a folder, a library and a digest
@@ -66,7 +65,7 @@ def lookup(key: str) -> Path | None:
     if not (isinstance(folder, str) and _FOLDER.fullmatch(folder) and isinstance(name, str)
             and _LIBRARY.fullmatch(name) and isinstance(digest, str)):
         return None
-    library = native._build_root() / folder / name
+    library = native.build_root() / folder / name
     recorded = native.recorded_digest(library)
     return library if recorded == digest and native.verified(library) else None
 
@@ -116,7 +115,7 @@ def compiled_library(system: KnownSystem, outputs=None) -> Path:
     when its fingerprint is there and the library says it computes these equations
     (:func:`belongs`), else emitted, built (:func:`.native.compile_library`) and indexed.
     Raises what ``compile_library`` raises."""
-    from ..emitters.code import emit_c
+    from ..emitters.code import emit_c  # heavy (jinja2, the C printer): only when the index misses
 
     key = fingerprint(system, outputs)
     nq, nparam = len(system.coordinates), len(system.parameters)
@@ -147,3 +146,7 @@ def native_model(system: KnownSystem, outputs=None) -> native.NativeModel:
             if attempt == 2 or library.exists():
                 raise
     raise AssertionError("unreachable")
+
+
+__all__ = ["IDENTITY_FILE", "INDEX_BYTES", "belongs", "compiled_library", "fingerprint", "identity_source", "lookup",
+           "native_model", "record"]

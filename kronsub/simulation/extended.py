@@ -133,3 +133,7 @@ class ExtendedModel:
         with mpmath.workdps(45):
             state = [mpmath.mpf(raw[i * TEXT:(i + 1) * TEXT].split(b"\0")[0].decode()) for i in range(self.ny)]
         return ExtendedResult(state, int(status), counts[0], counts[1], counts[2])
+
+
+__all__ = ["ExtendedError", "ExtendedModel", "ExtendedResult", "PRECISIONS", "TEXT", "exact_text", "prelude", "retype",
+           "sources"]

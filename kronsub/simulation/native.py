@@ -167,7 +167,7 @@ def _scratch_root() -> Path:
     return _SCRATCH[0]
 
 
-def _build_root() -> Path:
+def build_root() -> Path:
     """``<kronsub cache>/native``; a private temporary folder when the cache is off, not
     writable, or not safe (see :mod:`kronsub.cache`)."""
     folder = usable_cache_dir()
@@ -265,7 +265,7 @@ def compile_library(sources: Sequence[str | tuple[str, str]], name_hint: str = "
 
     # a folder removed meanwhile (`kronsub cache clear`) is made again; removed twice, the build
     # goes to this process's private temporary folder, which nothing else clears
-    for root in (_build_root, _build_root, _scratch_root, _scratch_root):
+    for root in (build_root, build_root, _scratch_root, _scratch_root):
         folder = root() / f"{stem}-{key[:24]}"
         try:
             try:
@@ -740,3 +740,9 @@ class NativeModel:
             t_stiff=cres.t_stiff if cres.n_stiff > 0 else None,
         )
         return t, Y, result
+
+
+__all__ = ["COMPILE_TIMEOUT", "CSRC", "CompileError", "CompilerNotFound", "FLAGS", "HOST_FLAGS", "INTEGRATOR_FILES",
+           "IntegrationResult", "LIBS", "METHODS", "NativeError", "NativeModel", "SingularMassMatrix", "build_flags",
+           "build_identity", "build_root", "compile_library", "compiler_command", "data_address", "host_flags",
+           "recorded_digest", "sidecar", "verified"]

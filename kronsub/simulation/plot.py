@@ -15,6 +15,7 @@ import sympy
 
 from ..atomic import atomic_file
 from ..emitters.escape import plot_text
+from .table import energies, point_columns
 
 
 def angle_coordinates(system) -> set:
@@ -56,8 +57,6 @@ def plot_trajectory(system, traj, values, path: Path, with_points: bool = False)
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-
-    from .table import energies, point_columns
 
     param = np.array(values.parameters)
     T, V = energies(system, traj, param)
@@ -110,3 +109,6 @@ def save_figure(fig, path: Path, fmt: str) -> None:
             fig.savefig(fh, dpi=100, format=fmt, bbox_inches="tight")
     finally:
         plt.close(fig)
+
+
+__all__ = ["angle_coordinates", "plane", "plot_trajectory", "point_paths", "save_figure"]

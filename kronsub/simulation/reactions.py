@@ -83,3 +83,6 @@ def _switched_columns(traj, param) -> tuple[list[str], np.ndarray]:
         split.evaluator.guess = np.array(y[split.dependent_idx], dtype=float)
         out[start:stop] = _rows(split.system, fn, len(names), traj.t[start:stop], own, param, module, split.evaluator)
     return names or [], out
+
+
+__all__ = ["reaction_columns"]

@@ -31,7 +31,7 @@ import numpy as np
 from ..core.known_system import KnownSystem
 from ..emitters.escape import json_document
 from ..interrupts import handled, signal_name, signal_of
-from ..model.source import SourceFile
+from ..model.file_reading import SourceFile
 from ..version import __version__
 from .fallback import numpy_module
 from .rows import Block, Run, Trajectory
@@ -312,12 +312,6 @@ class CsvWriter:
         self.end(run.stats, run.complete, run.t_fail, run.message, run.switches)
 
 
-def to_csv(system: KnownSystem, model_path: str, traj: Trajectory, values: RunValues,
-           rtol: float, atol: float, with_points: bool = False, outputs=None) -> str:
-    """The CSV text of a whole trajectory."""
-    return trajectory_csv(system, model_path, traj, values, rtol, atol, with_points, outputs)[0]
-
-
 def trajectory_csv(system: KnownSystem, model_path: str, traj: Trajectory, values: RunValues, rtol: float,
                    atol: float, with_points: bool = False, outputs=None, extra=None, **run_info) -> tuple[str, dict]:
     """The CSV text of a whole trajectory and its metadata; ``extra`` is ``(names, values)`` of
@@ -345,4 +339,4 @@ def trajectory_table(system: KnownSystem, model_path: str | None, traj: Trajecto
 
 
 __all__ = ["METADATA_FORMAT", "CsvWriter", "energies", "format_rows", "json_number", "metadata_json",
-           "model_record", "point_columns", "sidecar_path", "to_csv", "trajectory_csv", "trajectory_table"]
+           "model_record", "point_columns", "sidecar_path", "trajectory_csv", "trajectory_table"]

@@ -1,5 +1,6 @@
 """Writes tests/data/yardsticks.json: what ``sympy.trigsimp`` and ``sympy.fu`` make of each
-printed entry of every bundled model that tests/test_readable.py measures (minutes of sympy).
+printed entry of every bundled model that tests/test_readable.py measures (minutes of sympy;
+the measuring is tests/helpers/readable.py's).
 
 The test reads it to save that time, for an entry printed exactly as stored and the same
 sympy version; anything else it measures afresh. Run after a change of the printed forms:
@@ -20,11 +21,11 @@ os.environ.setdefault("KRONSUB_CACHE_DIR", tempfile.mkdtemp())
 
 import sympy  # noqa: E402
 
-import test_readable as readable  # noqa: E402
+from helpers import readable  # noqa: E402
 
 
 def main() -> None:
-    readable._STORED.clear()  # measure everything afresh
+    readable.STORED.clear()  # measure everything afresh
     entries: dict = {}
     for name in readable.YARDSTICK_MODELS:
         entries.update(readable.measured_yardsticks(name))
