@@ -13,6 +13,8 @@ from .common import (budget_option, check_times, coincident_at_start, default_si
                      output_option, plot_option, run_command, say, scene_option, scene_system, separate_outputs,
                      set_option, writable, writable_outputs)
 
+__all__ = ["accuracy"]
+
 
 @click.command()
 @click.argument("model", type=click.Path(dir_okay=False, path_type=Path))

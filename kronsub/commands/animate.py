@@ -8,6 +8,8 @@ import click
 from .common import (USAGE_ERROR, budget_option, check_times, fail, output_option, run_command, say, scene_option,
                      scene_system, separate_outputs, set_option, writable)
 
+__all__ = ["animate"]
+
 _MODEL_ONLY = {"t_end": "--t", "dt": "--dt", "method": "--method", "settings": "--set", "scene_name": "--scene"}
 
 

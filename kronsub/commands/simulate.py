@@ -17,6 +17,8 @@ from .common import (INTERRUPTED, NUMERICAL_FAILURE, USAGE_ERROR, budget_option,
                      plot_option, run_command, say, scene_option, scene_system, separate_outputs, set_option,
                      writable, writable_outputs)
 
+__all__ = ["simulate"]
+
 
 @click.command()
 @click.argument("model", type=click.Path(dir_okay=False, path_type=Path))

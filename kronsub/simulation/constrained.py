@@ -21,6 +21,9 @@ from ..errors import KronsubError
 from ..model.expressions import parse_expression
 from .values import RunValues
 
+__all__ = ["TOLERANCE", "ConstraintError", "configure_module", "configure_native", "dependent_names",
+           "diagnose", "energies_on_branch", "newton_tolerance", "project_initial", "split_settings"]
+
 TOLERANCE = 1e-2  # largest correction of a given initial value, times (1 + |value|)
 
 

@@ -13,7 +13,7 @@ from ..errors import KronsubError
 if TYPE_CHECKING:
     from .switching import Split
 
-__all__ = ["SimulationError", "Trajectory", "Block", "Run"]
+__all__ = ["SimulationError", "Trajectory", "Block", "RunInProgress"]
 
 
 class SimulationError(KronsubError):
@@ -54,7 +54,7 @@ class Block:
 
 
 @dataclass
-class Run:
+class RunInProgress:
     """A run in progress: iterate over it for its :class:`Block` s of rows, as they are
     computed; once the iteration ends, ``complete``, ``message``, ``t_fail`` and ``stats``
     say how the run ended."""

@@ -30,11 +30,11 @@ from .grid import Grid, Tail
 from .methods import METHODS as REGISTRY
 from .methods import SIMULATE, unknown_method
 from .native import CompileError, CompilerNotFound
-from .rows import Block, Run, SimulationError, Trajectory
+from .rows import Block, RunInProgress, SimulationError, Trajectory
 from .values import RunValues
 
 __all__ = ["BLOCK_ROWS", "Block", "EnergyWarning", "FIXED_STEP", "MAX_ROWS", "METHODS", "MIN_ATOL", "MIN_TIME",
-           "Progress", "RTOL_RANGE", "Run", "SimulationError", "StiffnessWarning", "Trajectory", "check_tolerances",
+           "Progress", "RTOL_RANGE", "RunInProgress", "SimulationError", "StiffnessWarning", "Trajectory", "check_tolerances",
            "collect", "explicit_only", "row_count", "simulate", "start", "time_problem"]
 
 
@@ -133,7 +133,7 @@ def simulate(system: KnownSystem, values: RunValues, t_end: float, dt: float, me
     return collect(run, list(run), len(system.coordinates))
 
 
-def collect(run: Run, blocks: list[Block], nq: int) -> Trajectory:
+def collect(run: RunInProgress, blocks: list[Block], nq: int) -> Trajectory:
     """The trajectory of ``blocks`` of ``run`` (all of them, or those before an interrupt)."""
     n = 2 * nq
     t = np.concatenate([b.t for b in blocks]) if blocks else np.zeros(0)
@@ -163,10 +163,10 @@ def explicit_only(system: KnownSystem, method: str) -> None:
 
 def start(system: KnownSystem, values: RunValues, t_end: float, dt: float, method: str = "dop853",
           rtol: float = 1e-10, atol: float = 1e-10, chunks: int = 20, progress: bool | None = None,
-          outputs=None, constrained=None) -> Run:
+          outputs=None, constrained=None) -> RunInProgress:
     """A run from t = 0 to ``t_end`` with rows every ``dt``, streamed: the model is compiled
     now, the rows are computed in blocks (at most :data:`BLOCK_ROWS` each) while the
-    :class:`Run` is iterated.
+    :class:`RunInProgress` is iterated.
 
     ``outputs`` (a scene's; None: everything) decides whether the energies are computed. With
     implicit constraints, ``constrained`` is the :class:`~kronsub.core.constraints.Intermediates`
@@ -188,7 +188,7 @@ def start(system: KnownSystem, values: RunValues, t_end: float, dt: float, metho
     if not engine_of(spec).COMPILED_RHS:  # its own integrator; the compiled model for the energies and their check
         native = _compiled_quietly(system, outputs) if with_energies else None
         rows_of = runner(_problem(system, param, native, outputs, constrained, rtol, atol), spec)
-        run = Run(spec.name, rows_of.backend)
+        run = RunInProgress(spec.name, rows_of.backend)
         bar = Progress(t_end, False)
         rows = rows_of.blocks(run, grid, y0, Steps(rtol, atol, dt, math.ceil(len(grid) / BLOCK_ROWS)), bar)
         run.blocks = _finish(run, rows, bar, native, param, system, None, with_energies)
@@ -202,7 +202,7 @@ def start(system: KnownSystem, values: RunValues, t_end: float, dt: float, metho
         warnings.warn(f"method '{method}' runs in compiled C; using scipy's {spec.fallback} instead")
         spec = METHODS[spec.fallback]
     rows_of = runner(_problem(system, param, native, outputs, constrained, rtol, atol), spec)
-    run = Run(spec.name, rows_of.backend)
+    run = RunInProgress(spec.name, rows_of.backend)
     bar = Progress(t_end, progress)
     if not bar.enabled:
         chunks = 1  # one call: no restarts of the step-size control

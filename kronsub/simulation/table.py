@@ -34,7 +34,7 @@ from ..interrupts import handled, signal_name, signal_of
 from ..model.file_reading import SourceFile
 from ..version import __version__
 from .fallback import numpy_module
-from .rows import Block, Run, Trajectory
+from .rows import Block, RunInProgress, Trajectory
 from .values import RunValues
 
 METADATA_FORMAT = "kronsub-trajectory-metadata/1"
@@ -291,7 +291,7 @@ class CsvWriter:
                           stop_reason=f"interrupted ({'Ctrl-C' if signum == signal.SIGINT else name})",
                           signal=name)
 
-    def stream(self, run: Run, keep=None) -> None:
+    def stream(self, run: RunInProgress, keep=None) -> None:
         """Write the blocks of ``run`` as they are computed, then record how it ended; ``keep(block)``,
         when given, sees every block too (for a plot). An interrupt (KeyboardInterrupt) is
         recorded (:meth:`interrupted`) and raised again, so the caller keeps the file and reports it."""

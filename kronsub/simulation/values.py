@@ -18,6 +18,8 @@ from ..errors import Location, ModelError, Problem, near_names
 from ..model.expressions import constant_value, parse_expression
 from ..model.requirements import parameters_in, unmet
 
+__all__ = ["CONSTANT_HINT", "RunValues", "parse_assignments", "resolve"]
+
 
 _UNKNOWN_NAME = re.compile(r"unknown name '([^']*)'")
 CONSTANT_HINT = ("--set takes a constant: a number or a formula of numbers, e.g. 2.5 or 2*pi/3 (no parameter, "

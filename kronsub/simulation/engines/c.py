@@ -10,7 +10,7 @@ from ..failure import at_configuration, cause_of, not_finite, rank_loss_note, re
 from ...core.known_system import KnownSystem
 from ..methods import Method
 from ..native import NativeModel
-from ..rows import Run
+from ..rows import RunInProgress
 from .interface import Problem, ProgressBar, Rows, Steps, Timed
 from ..grid import Grid, Tail, aligned_pieces, chunk_ranges, fixed_pieces
 
@@ -33,7 +33,7 @@ class CRunner:
     def unavailable(self) -> str:
         return "" if self.problem.native is not None else self.problem.missing or "the model is not compiled"
 
-    def blocks(self, run: Run, grid: Grid | Tail, y0: np.ndarray, steps: Steps, bar: ProgressBar) -> Rows:
+    def blocks(self, run: RunInProgress, grid: Grid | Tail, y0: np.ndarray, steps: Steps, bar: ProgressBar) -> Rows:
         p = self.problem
         return blocks(run, p.native, self.method, grid, y0, p.param, steps.rtol, steps.atol, steps.dt, steps.chunks,
                       bar, p.system)
@@ -61,7 +61,7 @@ def runner(problem: Problem, method: Method) -> CRunner:
     return CRunner(problem, method)
 
 
-def blocks(run: Run, native: NativeModel, method: Method, grid: Grid | Tail, y0: np.ndarray, param: np.ndarray,
+def blocks(run: RunInProgress, native: NativeModel, method: Method, grid: Grid | Tail, y0: np.ndarray, param: np.ndarray,
            rtol: float, atol: float, dt: float, chunks: int, bar: ProgressBar, system: KnownSystem) -> Rows:
     """Blocks ``(t, Y)`` of a run wholly in C, one per chunk of the grid."""
     last = grid[0]

@@ -8,7 +8,7 @@ import numpy as np
 
 from ..grid import Grid, Tail
 from ..methods import Method
-from ..rows import Run, SimulationError
+from ..rows import RunInProgress, SimulationError
 from .interface import Problem, ProgressBar, Rows, Steps, Timed
 
 __all__ = ["COMPILED_RHS", "EVENTS", "ExtendedRunner", "final_state", "runner"]
@@ -40,7 +40,7 @@ class ExtendedRunner:
             self.compile_seconds = time.perf_counter() - t0
         return self.why
 
-    def blocks(self, run: Run, grid: Grid | Tail, y0: np.ndarray, steps: Steps, bar: ProgressBar) -> Rows:
+    def blocks(self, run: RunInProgress, grid: Grid | Tail, y0: np.ndarray, steps: Steps, bar: ProgressBar) -> Rows:
         raise SimulationError(f"method '{self.method.name}' is a method of accuracy only (it returns the state "
                               "at the end, not rows)")
 

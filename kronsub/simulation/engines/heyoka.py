@@ -9,7 +9,7 @@ import numpy as np
 from ...core.known_system import KnownSystem
 from ..grid import Grid, chunk_ranges
 from ..methods import Method
-from ..rows import Run, SimulationError
+from ..rows import RunInProgress, SimulationError
 from .interface import Problem, ProgressBar, Rows, Steps, Timed
 
 if TYPE_CHECKING:
@@ -34,7 +34,7 @@ class HeyokaRunner:
 
         return "" if heyoka_backend.available() else f"heyoka is not installed ({heyoka_backend.INSTALL_HINT})"
 
-    def blocks(self, run: Run, grid: Grid, y0: np.ndarray, steps: Steps, bar: ProgressBar) -> Rows:
+    def blocks(self, run: RunInProgress, grid: Grid, y0: np.ndarray, steps: Steps, bar: ProgressBar) -> Rows:
         return blocks(run, self.problem.system, self.problem.param, y0, grid, steps.rtol, steps.chunks)
 
     def timed(self, y0: np.ndarray, t_end: float, tol: float, h: float | None) -> Timed:
@@ -54,7 +54,7 @@ def runner(problem: Problem, method: Method) -> HeyokaRunner:
     return HeyokaRunner(problem, method)
 
 
-def blocks(run: Run, system: KnownSystem, param: np.ndarray, y0: np.ndarray, grid: Grid, tol: float,
+def blocks(run: RunInProgress, system: KnownSystem, param: np.ndarray, y0: np.ndarray, grid: Grid, tol: float,
            chunks: int) -> Rows:
     try:
         from .. import heyoka_backend

@@ -22,7 +22,7 @@ if TYPE_CHECKING:
     from ..grid import Grid, Tail
     from ..methods import Method
     from ..native import NativeModel
-    from ..rows import Run
+    from ..rows import RunInProgress
 
 __all__ = ["Engine", "Final", "Problem", "ProgressBar", "Rhs", "Rows", "Runner", "Steps", "Timed"]
 
@@ -96,9 +96,9 @@ class Runner(Protocol):
         """Why the method cannot run on this problem ('' when it can)."""
         ...
 
-    def blocks(self, run: Run, grid: Grid | Tail, y0: np.ndarray, steps: Steps, bar: ProgressBar) -> Rows:
+    def blocks(self, run: RunInProgress, grid: Grid | Tail, y0: np.ndarray, steps: Steps, bar: ProgressBar) -> Rows:
         """The rows ``(t, Y)`` of a run on ``grid`` from ``y0``, a block at a time; how the run
-        ended is recorded on ``run`` (:meth:`~kronsub.simulation.rows.Run.stop`)."""
+        ended is recorded on ``run`` (:meth:`~kronsub.simulation.rows.RunInProgress.stop`)."""
         ...
 
     def timed(self, y0: np.ndarray, t_end: float, tol: float, h: float | None) -> Timed:

@@ -9,7 +9,7 @@ from collections.abc import Callable
 from ...core.known_system import KnownSystem
 from ..methods import Method
 from ..native import NativeModel, SingularMassMatrix
-from ..rows import Run
+from ..rows import RunInProgress
 from .interface import Problem, ProgressBar, Rhs, Rows, Steps, Timed
 from ..failure import at_configuration, not_finite, rank_loss_note, Singular
 from ..grid import Cursor, Grid, Tail
@@ -42,7 +42,7 @@ class ScipyRunner:
     def unavailable(self) -> str:
         return ""
 
-    def blocks(self, run: Run, grid: Grid | Tail, y0: np.ndarray, steps: Steps, bar: ProgressBar) -> Rows:
+    def blocks(self, run: RunInProgress, grid: Grid | Tail, y0: np.ndarray, steps: Steps, bar: ProgressBar) -> Rows:
         p = self.problem
         return blocks(run, p.restart(steps.rtol), self.method.name, grid, y0, steps.rtol, steps.atol, steps.chunks,
                       bar, p.system, events=p.events, param=p.param if p.diagnosed else None)
@@ -87,7 +87,7 @@ def native_rhs(native: NativeModel, param: np.ndarray) -> Rhs:
     return f
 
 
-def blocks(run: Run, rhs: Rhs, method: str, grid: Grid | Tail, y0: np.ndarray, rtol: float, atol: float, chunks: int,
+def blocks(run: RunInProgress, rhs: Rhs, method: str, grid: Grid | Tail, y0: np.ndarray, rtol: float, atol: float, chunks: int,
            bar: ProgressBar, system: KnownSystem, events: Callable[[float, np.ndarray], float] | None = None,
            param: np.ndarray | None = None) -> Rows:
     """Blocks ``(t, Y)`` of a run with one of scipy's solvers, stepped here: the rows of each

@@ -11,7 +11,7 @@ from ..failure import at_configuration, not_finite
 from ..grid import Grid, chunk_ranges
 from ..methods import Method
 from ..native import NativeError
-from ..rows import Run, SimulationError
+from ..rows import RunInProgress, SimulationError
 from .interface import Problem, ProgressBar, Rows, Steps, Timed
 
 if TYPE_CHECKING:
@@ -43,7 +43,7 @@ class TaylorRunner:
                 self.why = str(exc).splitlines()[0]
         return self.why
 
-    def blocks(self, run: Run, grid: Grid, y0: np.ndarray, steps: Steps, bar: ProgressBar) -> Rows:
+    def blocks(self, run: RunInProgress, grid: Grid, y0: np.ndarray, steps: Steps, bar: ProgressBar) -> Rows:
         return blocks(run, self.problem.system, self.problem.param, y0, grid, steps.rtol, steps.chunks)
 
     def timed(self, y0: np.ndarray, t_end: float, tol: float, h: float | None) -> Timed:
@@ -62,7 +62,7 @@ def runner(problem: Problem, method: Method) -> TaylorRunner:
     return TaylorRunner(problem, method)
 
 
-def blocks(run: Run, system: KnownSystem, param: np.ndarray, y0: np.ndarray, grid: Grid, tol: float,
+def blocks(run: RunInProgress, system: KnownSystem, param: np.ndarray, y0: np.ndarray, grid: Grid, tol: float,
            chunks: int) -> Rows:
     from ..taylor_c import TaylorC, TaylorUnavailable, order_for
 
