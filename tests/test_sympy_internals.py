@@ -97,7 +97,18 @@ def _matrices():
     assert ones == sympy.Matrix([[0, 1]])
 
 
+def _assumptions_rng():
+    from sympy.core import random as sympy_random
+
+    rng = si.assumptions_rng()
+    sympy_random.seed(7)
+    first = rng.random()
+    sympy_random.seed(7)
+    assert rng.random() == first  # seed() seeds it too, so seeded.py must restore it
+
+
 CHECKS = {
+    "sympy.core.random._assumptions_rng": _assumptions_rng,
     "sympy.core.basic._args_sortkey": _canonical_order,
     "sympy.core.basic.ordering_of_classes": _ordering_of_classes,
     "sympy.core.assumptions._assume_defined": _assume_defined,
@@ -155,7 +166,7 @@ def test_latex_printer_keeps_its_settings_where_kronsub_reads_them():
 def test_no_module_reaches_for_a_sympy_internal_elsewhere():
     """Private SymPy names are taken from kronsub/core/sympy_internals.py only."""
     pattern = re.compile(r"\._(args_sortkey|from_args|fromrep|new_rawargs|hashable_content|mpf_|prec|"
-                         r"assumptions_orig|valid_nargs|parse_order|dod_to_DomainMatrix|new)\b"
+                         r"assumptions_orig|assumptions_rng|valid_nargs|parse_order|dod_to_DomainMatrix|new)\b"
                          r"|_assume_defined|Basic\.__new__\(|basic\.ordering_of_classes")
     found = []
     for path in sorted((ROOT / "kronsub").rglob("*.py")):

@@ -7,6 +7,7 @@ import functools
 
 from sympy.core import random as sympy_random
 
+from .sympy_internals import assumptions_rng
 from .wang import peeled
 
 SEED = 20261124
@@ -25,14 +26,14 @@ def sympy_seeded():
     The variables of degree one are peeled off before Wang's algorithm (:func:`.wang.peeled`),
     whose time at any seed grows steeply with the number of variables.
     """
-    states = sympy_random.rng.getstate(), sympy_random._assumptions_rng.getstate()
+    states = sympy_random.rng.getstate(), assumptions_rng().getstate()
     sympy_random.seed(SEED)
     try:
         with peeled():
             yield
     finally:
         sympy_random.rng.setstate(states[0])
-        sympy_random._assumptions_rng.setstate(states[1])
+        assumptions_rng().setstate(states[1])
 
 
 def seeded(function):

@@ -17,13 +17,20 @@ import sympy
 from sympy.core import basic
 from sympy.core.assumptions import _assume_defined
 from sympy.core.basic import _args_sortkey
+from sympy.core import random as sympy_random
 
-__all__ = ["HOOKS", "add_from_args", "args_sortkey", "assume_defined", "assumptions_given", "basic_new",
-           "eval_evalf", "float_new", "float_parts", "hashable_content", "matrix_from_dod", "matrix_fromrep", "matrix_new",
+__all__ = ["HOOKS", "add_from_args", "args_sortkey", "assume_defined", "assumptions_given", "assumptions_rng",
+           "basic_new", "eval_evalf", "float_new", "float_parts", "hashable_content", "matrix_from_dod", "matrix_fromrep", "matrix_new",
            "mul_from_args", "ordering_of_classes", "parse_order", "valid_nargs"]
 
 args_sortkey = _args_sortkey
 """``Basic``'s sort key of arguments: the canonical order of an ``Add``'s or a ``Mul``'s."""
+
+
+def assumptions_rng():
+    """The second random generator of ``sympy.core.random`` (``_assumptions_rng``), which
+    ``sympy.core.random.seed`` also seeds: :mod:`.seeded` saves and restores its state."""
+    return sympy_random._assumptions_rng
 
 ordering_of_classes = basic.ordering_of_classes
 """The class names in the order ``Basic.compare`` ranks classes first."""
