@@ -201,11 +201,12 @@ class _Constants:
         return [s.name for s in self.derived.values()], list(self.derived)
 
 
-BASIC_NODES = 20000
+BASIC_NODES = 1000
 """Expression nodes of a block up to which ``cse`` also tries its "basic" rewritings (pulling
-out negated and common factors of sums). They save up to 15 % of the operations of a small 3-D
-body's blocks, and none of a chain's right-hand side, where they took four times as long as
-the elimination itself (16 s of the 20-link chain's 27)."""
+out negated and common factors of sums). They save a few operations in the small blocks of
+3-D bodies and of the velocity terms, and none in the right-hand side of a chain or of a
+spatial chain, whose blocks pass this size at five links and take several times as long to
+rewrite as to eliminate (benchmarks/HISTORY.md, issue 34)."""
 
 
 def _more_nodes_than(exprs, limit: int) -> bool:
