@@ -1,13 +1,14 @@
 """From a model file to the first trajectory: ``kronsub simulate MODEL --t 10``, cold and warm,
 beside PyDy (its cython and lambdify backends) and MuJoCo, each run in a fresh process.
 
-    python benchmarks/first_trajectory.py [--sizes 2,5,10,20,50,100] [--spatial 3,5,10]
+    python benchmarks/first_trajectory.py [--sizes 2,5,10,20,50,100] [--spatial 3,5,10] [--pins 3]
                                           [--repeats 3] [--timeout 600]
                                           [--tools kronsub,pydy-cython,pydy-lambdify,mujoco]
 
 Models: the n-link chain of uniform rods (``models/chain/generate.py``: mass 1, length 1, the
 angles 0.1 at rest) and the spatial chain of n rods on ball joints
-(``models/chain/generate_spatial.py``: mass 1, length 1, radius 0.05).
+(``models/chain/generate_spatial.py``: mass 1, length 1, radius 0.05), its joints as the
+connection (``spatial``) or as ``pin`` constraints (``spatial-pins``, ``--pins``).
 
 * ``kronsub cold``: ``kronsub simulate MODEL --t 10`` with an empty cache folder; ``warm``: the
   same command again on that folder. The run is the command's own (``kronsub.cli.main``), in a
@@ -237,7 +238,7 @@ def _goal(values: list[float], goal: float | None) -> str:
 
 
 def case(label: str, runs: list[tuple[float, float, dict | None]], goal: float | None = None,
-         memory_goal: float | None = None) -> None:
+         memory_goal: float | None = None) -> list[float]:
     walls = [w for w, _, _ in runs]
     peaks = [p for _, p, _ in runs if p == p]
     done = [ph for _, _, ph in runs if ph]
@@ -248,6 +249,15 @@ def case(label: str, runs: list[tuple[float, float, dict | None]], goal: float |
     if memory_goal is not None and peaks:
         note += f"; peak {max(peaks):.0f} <= {memory_goal:g} MB {'met' if max(peaks) <= memory_goal else 'missed'}"
     print(f"  {label:<24} {_cell(walls):>13}  {memory:>7}  {phases}  {note}")
+    return walls
+
+
+def ratios(ours: list[float], peers: dict[str, list[float]]) -> None:
+    """kronsub cold over each peer measured in the same run (min/median)."""
+    parts = [f"{name} x{min(ours) / min(walls):.2f}/x{statistics.median(ours) / statistics.median(walls):.2f}"
+             for name, walls in peers.items() if walls and ours and float("inf") not in walls + ours]
+    if parts:
+        print(f"  {'kronsub cold / peer':<24} " + ", ".join(parts))
 
 
 def kronsub_runs(model: Path, repeats: int, timeout: float) -> tuple[list, list]:
@@ -282,6 +292,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--sizes", default="2,5,10,20,50,100")
     parser.add_argument("--spatial", default="3,5,10")
+    parser.add_argument("--pins", default="3", help="sizes of the spatial chain with its joints as pin constraints")
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--timeout", type=float, default=600.0)
     parser.add_argument("--tools", default=",".join(TOOLS))
@@ -300,6 +311,7 @@ def main() -> None:
     tools = [t for t in args.tools.split(",") if t]
     sizes = [int(s) for s in args.sizes.split(",") if s]
     spatial = [int(s) for s in args.spatial.split(",") if s]
+    pins = [int(s) for s in args.pins.split(",") if s]
     sys.path.insert(0, str(ROOT / "models" / "chain"))
     from generate import chain_yaml
     from generate_spatial import spatial_chain_yaml
@@ -316,35 +328,37 @@ def main() -> None:
         if "kronsub" in tools:
             _, warm = kronsub_runs(ROOT / "models" / "hoffmann" / "system1.yaml", args.repeats, args.timeout)
             case("system1 warm", warm, STARTUP_GOALS["system1 warm"])
-        for kind, ns, writer in (("chain", sizes, chain_yaml), ("spatial", spatial, spatial_chain_yaml)):
-            for n in ns:
-                print(f"\n{kind} n = {n}")
-                model = Path(folder) / f"{kind}{n}.yaml"
-                model.write_text(writer(n))
-                goals = CHAIN_GOALS if kind == "chain" else SPATIAL_GOALS
-                for tool in tools:
-                    if missing[tool]:
-                        print(f"  {tool:<24} {missing[tool]}")
+        plan = [("chain", n, chain_yaml) for n in sizes] + [("spatial", n, spatial_chain_yaml) for n in spatial]
+        plan += [("spatial-pins", n, lambda n: spatial_chain_yaml(n, pins=True)) for n in pins]
+        for kind, n, writer in plan:
+            print(f"\n{kind} n = {n}")
+            model = Path(folder) / f"{kind}{n}.yaml"
+            model.write_text(writer(n))
+            goals = CHAIN_GOALS if kind == "chain" else SPATIAL_GOALS
+            ours, peers = [], {}
+            for tool in tools:
+                if missing[tool]:
+                    print(f"  {tool:<24} {missing[tool]}")
+                    continue
+                if tool == "kronsub":
+                    cold, warm = kronsub_runs(model, args.repeats, args.timeout)
+                    ours = case("kronsub cold", cold, goals.get(n),
+                                MEMORY_GOAL[1] if kind == "chain" and n == MEMORY_GOAL[0] else None)
+                    case("kronsub warm", warm)
+                elif tool.startswith("pydy"):
+                    if kind != "chain":
+                        print(f"  {tool:<24} not run (the spatial chain is not written for KanesMethod here)")
                         continue
-                    if tool == "kronsub":
-                        cold, warm = kronsub_runs(model, args.repeats, args.timeout)
-                        case("kronsub cold", cold, goals.get(n),
-                             MEMORY_GOAL[1] if kind == "chain" and n == MEMORY_GOAL[0] else None)
-                        case("kronsub warm", warm)
-                    elif tool.startswith("pydy"):
-                        if kind != "chain":
-                            print(f"  {tool:<24} not run (the spatial chain is not written for KanesMethod here)")
-                            continue
-                        runs = [run_child([__file__, "--child", tool, str(n)], args.timeout, _env())
-                                for _ in range(args.repeats)]
-                        case(tool, runs)
-                        if runs and all(w == float("inf") for w, _, _ in runs):
-                            tools = [t for t in tools if t != tool]  # larger n would time out too
-                    else:
-                        runs = [run_child([__file__, "--child", "mujoco", kind, str(n)], args.timeout, _env())
-                                for _ in range(args.repeats)]
-                        case("mujoco", runs)
-
+                    runs = [run_child([__file__, "--child", tool, str(n)], args.timeout, _env())
+                            for _ in range(args.repeats)]
+                    peers[tool] = case(tool, runs)
+                    if runs and all(w == float("inf") for w, _, _ in runs):
+                        tools = [t for t in tools if t != tool]  # larger n would time out too
+                else:
+                    runs = [run_child([__file__, "--child", "mujoco", kind.split("-")[0], str(n)], args.timeout,
+                                      _env()) for _ in range(args.repeats)]
+                    peers["mujoco"] = case("mujoco", runs)
+            ratios(ours, peers)
 
 if __name__ == "__main__":
     main()
