@@ -312,7 +312,7 @@ def prepare(system: KnownSystem, source: str = "", outputs=None, guarded_angles:
     depends = [[M[i, j].free_symbols for j in range(n)] for i in range(n)]
     derivatives: dict = {}  # (entry, q): the symmetric entries are differentiated once
     for k, qk in enumerate(system.coordinates):
-        total = sympy.Integer(0)
+        terms = []  # summed at once: a sum grown term by term is rebuilt n^2 times
         for i in range(n):
             for j in range(n):
                 if qk not in depends[i][j]:
@@ -321,8 +321,8 @@ def prepare(system: KnownSystem, source: str = "", outputs=None, guarded_angles:
                 if d is None:
                     d = derivatives[M[i, j], qk] = derivative(M[i, j], qk)
                 if d != 0:
-                    total += d * qd[i] * qd[j] / 2
-        dTdq.append(total + system.forces[k])
+                    terms.append(d * qd[i] * qd[j] / 2)
+        dTdq.append(sympy.Add(*terms, system.forces[k]))
     canonical = block(r_targets, [constants(slot(e)) for e in dTdq], "x", qs, guarded_angles)
     prepare = block(*constants.definitions(), "c")
 
