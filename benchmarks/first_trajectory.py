@@ -22,7 +22,8 @@ connection (``spatial``) or as ``pin`` constraints (``spatial-pins``, ``--pins``
   output every 0.01) integrates to t = 10.
 * ``mujoco``: the same rods as MJCF (hinges, or ball joints for the spatial chain; exact
   inertias, no contacts), loaded (``compile``) and stepped with RK4 at h = 1e-3 to t = 10.
-* ``start-up``: ``python -c "import kronsub"``, ``kronsub --help`` and ``kronsub simulate
+* ``start-up``: ``python -c pass`` (the interpreter alone, the floor of every row),
+  ``python -c "import kronsub"``, ``python -m kronsub --help`` and ``kronsub simulate
   models/hoffmann/system1.yaml --t 10`` warm.
 
 Peak memory: the child's largest resident set (``wait4``). Each cell: min/median of
@@ -321,6 +322,8 @@ def main() -> None:
     missing = {t: available(t) for t in tools}
     with tempfile.TemporaryDirectory() as folder:
         print("\nstart-up")
+        runs = [run_child(["-c", "pass"], args.timeout, _env()) for _ in range(args.repeats)]
+        case("python -c pass", runs)  # the interpreter alone: the floor of every row
         runs = [run_child(["-c", "import kronsub"], args.timeout, _env()) for _ in range(args.repeats)]
         case("import kronsub", runs, STARTUP_GOALS["import kronsub"])
         runs = [run_child(["-m", "kronsub", "--help"], args.timeout, _env()) for _ in range(args.repeats)]
