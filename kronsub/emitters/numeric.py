@@ -280,8 +280,15 @@ def prepare(system: KnownSystem, source: str = "", outputs=None, guarded_angles:
 
         slots.update(intermediate_slots(system))
 
+    slotted: dict = {}  # Mbar's entries come in equal pairs
+
     def slot(expr) -> sympy.Expr:
         expr = sympy.sympify(expr)
+        if expr not in slotted:
+            slotted[expr] = slot_once(expr)
+        return slotted[expr]
+
+    def slot_once(expr: sympy.Expr) -> sympy.Expr:
         unknown = expr.free_symbols - set(slots)
         if unknown:
             from ..errors import KronsubError
