@@ -201,12 +201,12 @@ class _Constants:
         return [s.name for s in self.derived.values()], list(self.derived)
 
 
-BASIC_NODES = 1000
+BASIC_NODES = 2500
 """Expression nodes of a block up to which ``cse`` also tries its "basic" rewritings (pulling
-out negated and common factors of sums). They save a few operations in the small blocks of
-3-D bodies and of the velocity terms, and none in the right-hand side of a chain or of a
-spatial chain, whose blocks pass this size at five links and take several times as long to
-rewrite as to eliminate (benchmarks/HISTORY.md, issue 34)."""
+out negated and common factors of sums). They save up to a tenth of the operations of some
+blocks of this size (a 3-D body's, a tethered body's forces, a chain's velocity terms), and
+none of the right-hand side of a chain, whose blocks pass this size at about eight links and
+take several times as long to rewrite as to eliminate (benchmarks/HISTORY.md, issue 34)."""
 
 
 def _more_nodes_than(exprs, limit: int) -> bool:
