@@ -18,16 +18,22 @@ __all__ = ["COMMANDS", "EXIT_CODES", "main"]
 
 # command name: (its module in kronsub.commands, its summary in the listing of --help)
 COMMANDS = {
-    "accuracy": ("accuracy", "What accuracy costs in time: error against a high-precision reference, per method and tolerance."),
-    "animate": ("animate", "Draw the mechanism of SOURCE over time: a MODEL (simulated first) or a trajectory CSV written with `kronsub simulate --points`."),
+    "accuracy": ("accuracy", "What accuracy costs in time: error against a high-precision reference, "
+                             "per method and tolerance."),
+    "animate": ("animate", "Draw the mechanism of SOURCE over time: a MODEL (simulated first) or a trajectory CSV "
+                           "written with `kronsub simulate --points`."),
     "cache": ("cache", "Show or clear kronsub's caches (derived known systems, compiled models)."),
     "check": ("discovery", "Validate MODEL without deriving it: every problem at once, exit 1 when there are any."),
     "codegen": ("codegen", "Generate C (header + source) or a numpy module for MODEL."),
-    "components": ("discovery", "The component library and the effect types; with TYPE, the details of one (coordinates, parameters with defaults and units, named points, conventions; or an effect's keys)."),
+    "components": ("discovery", "The component library and the effect types; with TYPE, the details of one "
+                                "(coordinates, parameters with defaults and units, named points, conventions; "
+                                "or an effect's keys)."),
     "derive": ("derive", "Derive the equations of motion of MODEL (a YAML file)."),
-    "linearize": ("linearize", "Linearise MODEL: ydot ~ A (y - y*) + B (u - u*), y = [q; qdot], with the eigenvalues of A."),
+    "linearize": ("linearize", "Linearise MODEL: ydot ~ A (y - y*) + B (u - u*), y = [q; qdot], "
+                               "with the eigenvalues of A."),
     "new": ("discovery", "Write a starter model NAME.yaml that derives (never overwrites a file)."),
-    "simulate": ("simulate", "Simulate MODEL from t = 0 to --t; the trajectory is plain CSV (a header row, then numbers), its metadata JSON (--meta, or beside --output)."),
+    "simulate": ("simulate", "Simulate MODEL from t = 0 to --t; the trajectory is plain CSV (a header row, then "
+                             "numbers), its metadata JSON (--meta, or beside --output)."),
 }
 
 
