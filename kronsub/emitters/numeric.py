@@ -201,12 +201,12 @@ class _Constants:
         return [s.name for s in self.derived.values()], list(self.derived)
 
 
-BASIC_NODES = 2500
+BASIC_NODES = 20000
 """Expression nodes of a block up to which ``cse`` also tries its "basic" rewritings (pulling
-out negated and common factors of sums). They save up to a tenth of the operations of some
-blocks of this size (a 3-D body's, a tethered body's forces, a chain's velocity terms), and
-none of the right-hand side of a chain, whose blocks pass this size at about eight links and
-take several times as long to rewrite as to eliminate (benchmarks/HISTORY.md, issue 34)."""
+out negated and common factors of sums). They save a tenth of the operations of a 3-D box on
+springs' right-hand side (5,664 nodes) and none of a chain's, where they take several times as
+long as the elimination itself; a block's size does not tell the two apart, so the bound only
+keeps the rewritings of very large blocks from taking minutes (benchmarks/HISTORY.md)."""
 
 
 def _more_nodes_than(exprs, limit: int) -> bool:
