@@ -277,11 +277,10 @@ def kronsub_runs(model: Path, repeats: int, timeout: float) -> tuple[list, list]
 def available(tool: str) -> str | None:
     """None when ``tool``'s peer can run here, else why not."""
     modules = {"pydy-cython": ("pydy", "Cython"), "pydy-lambdify": ("pydy",), "mujoco": ("mujoco",)}
-    for name in modules.get(tool, ()):
-        try:
-            __import__(name)
-        except ImportError as exc:
-            return f"not available ({exc})"
+    for name in modules.get(tool, ()):  # in a child: the parent stays small (a child's peak counts the parent's at fork)
+        done = subprocess.run([sys.executable, "-c", f"import {name}"], capture_output=True, text=True)
+        if done.returncode != 0:
+            return f"not available ({done.stderr.strip().splitlines()[-1] if done.stderr.strip() else name})"
     return None
 
 
