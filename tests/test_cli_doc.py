@@ -26,9 +26,10 @@ CELL = re.compile(r"(?<!\\)\|")
 def commands(group: click.Command = main, path: tuple[str, ...] = ("kronsub",)):
     """``{("kronsub", "cache", "info"): command}`` for the group and every command under it."""
     out = {path: group}
-    if isinstance(group, click.Group):
-        for name, sub in group.commands.items():
-            out.update(commands(sub, path + (name,)))
+    if isinstance(group, click.Group):  # through list_commands: the group imports its commands when used
+        ctx = click.Context(group, info_name=path[-1])
+        for name in group.list_commands(ctx):
+            out.update(commands(group.get_command(ctx, name), path + (name,)))
     return out
 
 

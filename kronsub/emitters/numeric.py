@@ -198,9 +198,10 @@ class _Constants:
 
 BASIC_NODES = 20000
 """Expression nodes of a block up to which ``cse`` also tries its "basic" rewritings (pulling
-out negated and common factors of sums). They save up to 15 % of the operations of a small 3-D
-body's blocks, and none of a chain's right-hand side, where they took four times as long as
-the elimination itself (16 s of the 20-link chain's 27)."""
+out negated and common factors of sums). They save a tenth of the operations of a 3-D box on
+springs' right-hand side (5,664 nodes) and none of a chain's, where they take several times as
+long as the elimination itself; a block's size does not tell the two apart, so the bound only
+keeps the rewritings of very large blocks from taking minutes (benchmarks/HISTORY.md)."""
 
 
 def _more_nodes_than(exprs, limit: int) -> bool:
@@ -270,8 +271,15 @@ def prepare(system: KnownSystem, source: str = "", outputs=None, guarded_angles:
     if system.implicit is not None:  # y_d, lambda, gamma: the named intermediates in w[]
         slots.update(intermediate_slots(system))
 
+    slotted: dict = {}  # Mbar's entries come in equal pairs
+
     def slot(expr) -> sympy.Expr:
         expr = sympy.sympify(expr)
+        if expr not in slotted:
+            slotted[expr] = slot_once(expr)
+        return slotted[expr]
+
+    def slot_once(expr: sympy.Expr) -> sympy.Expr:
         unknown = expr.free_symbols - set(slots)
         if unknown:
             names = ", ".join(sorted(s.name for s in unknown))
@@ -300,7 +308,7 @@ def prepare(system: KnownSystem, source: str = "", outputs=None, guarded_angles:
     depends = [[M[i, j].free_symbols for j in range(n)] for i in range(n)]
     derivatives: dict = {}  # (entry, q): the symmetric entries are differentiated once
     for k, qk in enumerate(system.coordinates):
-        total = sympy.Integer(0)
+        terms = []  # summed at once: a sum grown term by term is rebuilt n^2 times
         for i in range(n):
             for j in range(n):
                 if qk not in depends[i][j]:
@@ -309,8 +317,8 @@ def prepare(system: KnownSystem, source: str = "", outputs=None, guarded_angles:
                 if d is None:
                     d = derivatives[M[i, j], qk] = derivative(M[i, j], qk)
                 if d != 0:
-                    total += d * qd[i] * qd[j] / 2
-        dTdq.append(total + system.forces[k])
+                    terms.append(d * qd[i] * qd[j] / 2)
+        dTdq.append(sympy.Add(*terms, system.forces[k]))
     canonical = block(r_targets, [constants(slot(e)) for e in dTdq], "x", qs, guarded_angles)
     prepare = block(*constants.definitions(), "c")
 
