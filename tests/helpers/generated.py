@@ -11,6 +11,7 @@ import numpy as np
 import sympy
 
 import kronsub
+from kronsub.model.requirements import unmet
 from conftest import ROOT, explicit_model_paths
 from kronsub.emitters.code import emit_c, emit_python
 
@@ -40,7 +41,10 @@ def random_states(system, rng, count):
     n = len(system.coordinates)
     for _ in range(count):
         y = rng.uniform(-1.0, 1.0, 2 * n)
-        param = rng.uniform(0.5, 1.5, len(system.parameters))
+        for _ in range(100):  # parameters the components accept (coupled coils: M^2 <= L1 L2)
+            param = rng.uniform(0.5, 1.5, len(system.parameters))
+            if not unmet(system.requirements, {p.symbol: v for p, v in zip(system.parameters, param)}):
+                break
         names = [p.name for p in system.parameters]
         if system.name == "System II":  # keep the subspace (26) real
             param[names.index("c")] = 0.1
