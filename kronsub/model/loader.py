@@ -40,6 +40,7 @@ from .reader import ModelReader, node_kind
 from .requirements import body_requirements, unmet
 from .scenes import build_scenes
 from .source import Node, load_yaml, read_model_file, read_model_text, system_root
+from .textbook import textbook_part
 
 
 def load_model(path, *, text: str | None = None, cache: bool = True, _stack: tuple[str, ...] = ()) -> Model:
@@ -214,6 +215,8 @@ class ModelLoader(ModelReader):
                 continue
             if spec.get("model") is not None:
                 part = self._known_system(cname, spec)
+            elif spec.get("metric") is not None:
+                part = textbook_part(self, cname, spec)
             else:
                 part = library_component(self, cname, spec)
             if part is not None:

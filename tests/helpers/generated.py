@@ -51,6 +51,8 @@ def random_states(system, rng, count):
             param[names.index("a1")] = 0.4
             param[names.index("a2")] = 1.0
             y[0] = rng.uniform(-0.3, 0.3)
+        if system.name == "Magnetic suspension of a ball":  # the ball below the magnet: L(y) > 0
+            y[0] = abs(y[0])
         yield rng.uniform(0, 2), y, param
 
 

@@ -1,0 +1,169 @@
+"""Electromechanical systems by the same projection: a known system from its textbook
+equations (model/textbook.py) and the DC machine's gyrator (effects/electrical.py), against
+the equations published for them and the exact solution of a linear model."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import sympy
+from click.testing import CliRunner
+from scipy.linalg import expm
+
+import kronsub
+from conftest import MODELS
+from kronsub.cli import main
+
+CIRCUITS = MODELS / "electrical"
+
+
+def simulated(path, *args):
+    result = CliRunner().invoke(main, ["simulate", str(path), "--rtol", "1e-11", "--atol", "1e-12", *args])
+    assert result.exit_code == 0, result.output
+    lines = result.output.strip().splitlines()
+    return lines[0].split(","), np.array([[float(v) for v in line.split(",")] for line in lines[1:]])
+
+
+def named(system):
+    return {p.name: p.symbol for p in system.parameters} | {q.name: q for q in system.coordinates} | \
+        {v.name: v for v in system.velocities}
+
+
+def accelerations(system):
+    return system.mass_matrix.LUsolve(system.forces - system.velocity_terms)
+
+
+def test_magnetic_force_comes_from_the_metric():
+    """``hbar_y = -i^2/2 dL/dy``: the force ``i^2/2 dL/dy`` of the magnet on the ball is a
+    velocity term of the projection, and the coil sees the motional EMF ``i ydot dL/dy``."""
+    system = kronsub.load(CIRCUITS / "magnetic_suspension.yaml", cache=False).derive(cache=False)
+    s = named(system)
+    y, i, ydot = s["y"], s["q_dot"], s["y_dot"]
+    L = s["L1"] + s["L0"] * s["a"] / (s["a"] + y)
+    assert sympy.simplify(system.mass_matrix - sympy.diag(s["m"], L)) == sympy.zeros(2, 2)
+    assert sympy.simplify(system.velocity_terms[0] + i**2 / 2 * sympy.diff(L, y)) == 0
+    assert sympy.simplify(system.velocity_terms[1] - i * ydot * sympy.diff(L, y)) == 0
+
+
+def test_magnetic_suspension_is_khalils_model_at_random_states():
+    """Khalil, Nonlinear Systems, exercise 1.18: ``m yddot = -k ydot + m g + F``,
+    ``F = -L0 i^2/(2 a (1 + y/a)^2)``, and ``d(L(y) i)/dt = -R i + v``."""
+    system = kronsub.load(CIRCUITS / "magnetic_suspension.yaml", cache=False).derive(cache=False)
+    s = named(system)
+    derived = sympy.lambdify([s[n] for n in ("y", "y_dot", "q_dot", "v")], list(accelerations(system).xreplace(
+        {p.symbol: p.value for p in system.parameters if p.name != "v"})))
+    m, a, L0, L1, R, k, g = 0.1, 0.05, 0.01, 0.02, 1.0, 0.001, 9.81
+    rng = np.random.default_rng(1944)
+    for _ in range(20):
+        y, ydot, i, v = rng.uniform(0, 0.2), rng.uniform(-1, 1), rng.uniform(-10, 10), rng.uniform(-20, 20)
+        F = -L0 * i**2 / (2 * a * (1 + y / a) ** 2)
+        Ly = L1 + L0 / (1 + y / a)
+        dLdy = -L0 / (a * (1 + y / a) ** 2)
+        expected = [g - k / m * ydot + F / m, (v - R * i - dLdy * ydot * i) / Ly]
+        np.testing.assert_allclose(derived(y, ydot, i, v), expected, rtol=1e-12, atol=1e-12)
+
+
+def test_balanced_ball_stays_at_its_equilibrium_for_a_while():
+    header, rows = simulated(CIRCUITS / "magnetic_suspension.yaml", "--scene", "balanced")
+    assert np.max(np.abs(rows[:, header.index("y")] - 0.05)) < 1e-5
+    assert np.max(np.abs(rows[:, header.index("q_dot")] - 6.264184)) < 1e-4
+
+
+DC = dict(R=0.5, L=4.5e-3, k=0.5, J=0.02, f=0.01, V=1.0, tau_L=0.25, t_load=1.0)
+
+
+def dc_motor_exact(times):
+    """``[q, theta, i, omega]`` of ``L i' = V - R i - k omega``, ``J omega' = k i - f omega - tau``
+    from rest, ``tau`` stepping from 0 to ``tau_L`` at ``t_load``: each piece is affine with
+    constant input, solved by the exponential of its augmented matrix."""
+    R, L, k, J, f, V = (DC[n] for n in ("R", "L", "k", "J", "f", "V"))
+
+    def flow(y0, tau, t):
+        big = np.zeros((5, 5))
+        big[0, 2] = big[1, 3] = 1
+        big[2, 2:4] = [-R / L, -k / L]
+        big[3, 2:4] = [k / J, -f / J]
+        big[2, 4], big[3, 4] = V / L, -tau / J
+        return (expm(big * t) @ np.append(y0, 1.0))[:4]
+
+    at_load = flow(np.zeros(4), 0.0, DC["t_load"])
+    return np.array([flow(np.zeros(4), 0.0, t) if t <= DC["t_load"] else
+                     flow(at_load, DC["tau_L"], t - DC["t_load"]) for t in times])
+
+
+def test_dc_motor_with_a_load_step_is_the_exact_solution():
+    header, rows = simulated(CIRCUITS / "dc_motor.yaml", "--dt", "0.01")
+    exact = dc_motor_exact(rows[:, 0])
+    got = rows[:, [header.index(c) for c in ("q", "theta", "q_dot", "theta_dot")]]
+    scale = np.max(np.abs(exact), axis=0)
+    np.testing.assert_allclose(got / scale, exact / scale, rtol=0, atol=1e-7)
+    # the speed before and after the step: omega = k V/(R f + k^2), then less by the load's share
+    R, k, f, V, tau = DC["R"], DC["k"], DC["f"], DC["V"], DC["tau_L"]
+    assert got[rows[:, 0] == 1.0, 3][0] == pytest.approx(k * V / (R * f + k**2), rel=1e-6)
+    assert got[-1, 3] == pytest.approx((k * V - R * tau) / (R * f + k**2), rel=1e-6)
+
+
+def test_dc_motor_energy_balance():
+    """Supplied ``V q`` = stored ``T`` + heat ``integral (R i^2 + f omega^2) dt`` + the load's
+    work ``integral tau omega dt``: the gyrator itself neither makes nor loses energy."""
+    header, rows = simulated(CIRCUITS / "dc_motor.yaml", "--dt", "0.0005")
+    t, q, i, w = (rows[:, header.index(c)] for c in ("t", "q", "q_dot", "theta_dot"))
+    theta = rows[:, header.index("theta")]
+    power = DC["R"] * i**2 + DC["f"] * w**2
+    heat = np.concatenate([[0], np.cumsum(np.diff(t) * (power[1:] + power[:-1]) / 2)])
+    loaded = np.flatnonzero(t == DC["t_load"])[0]
+    spent = heat + DC["tau_L"] * np.maximum(theta - theta[loaded], 0) * (t > DC["t_load"])  # tau (theta - theta_1)
+    stored = rows[:, header.index("kinetic_energy")]
+    np.testing.assert_allclose(stored + spent, DC["V"] * q, rtol=0, atol=1e-5 * np.max(DC["V"] * q))
+
+
+def test_a_textbook_component_is_the_library_component_it_writes():
+    """Mechanics too: a point mass in polar coordinates given by its metric and potential
+    derives the same equations as the library's ``particle_polar`` under a spring to the origin."""
+    textbook = """
+name: polar by its textbook equations
+parameters: {m: 2, k: 3}
+components:
+  bob: {coordinates: [r, th], metric: [[m, 0], [0, m*r**2]], potential: k*r**2/2}
+coordinates: [r, th]
+connection: {r: r, th: th}
+"""
+    library = """
+name: polar from the library
+parameters: {m: 2, k: 3}
+components:
+  bob: {type: particle_polar, parameters: {mass: m}, coordinates: [r, th]}
+coordinates: [r, th]
+connection: {r: r, th: th}
+effects:
+  spring: {type: spring, between: [bob.centre, [0, 0]], stiffness: k}
+"""
+    a = kronsub.load("textbook.yaml", text=textbook, cache=False).derive(cache=False)
+    b = kronsub.load("library.yaml", text=library, cache=False).derive(cache=False)
+    assert sympy.simplify(a.mass_matrix - b.mass_matrix) == sympy.zeros(2, 2)
+    assert sympy.simplify(accelerations(a) - accelerations(b)) == sympy.zeros(2, 1)
+    assert sympy.simplify(a.potential_energy - b.potential_energy) == 0
+
+
+BAD = """
+name: bad
+parameters: {m: 1, L: 1}
+components:
+  c: {coordinates: [y, q], metric: METRIC, potential: POTENTIAL}
+coordinates: [y, q]
+connection: {y: y, q: q}
+"""
+
+
+@pytest.mark.parametrize("metric, potential, message", [
+    ("[[m, 0], [1, L]]", "0", "`metric:` of 'c' is not symmetric: entry (2, 1) is not entry (1, 2)"),
+    ("[[m, 0]]", "0", "`metric:` of 'c' must be 2 rows of 2 entries"),
+    ("[[m, 0], [0, L]]", "m*t", "in potential of 'c' 'm*t': unknown name 't'"),
+    ("[[m, 0], [0, L*y_dot]]", "0", "unknown name 'y_dot'"),
+])
+def test_bad_textbook_components_are_located_errors(tmp_path, metric, potential, message):
+    path = tmp_path / "bad.yaml"
+    path.write_text(BAD.replace("METRIC", metric).replace("POTENTIAL", potential), encoding="utf-8")
+    result = CliRunner().invoke(main, ["check", str(path)])
+    assert result.exit_code == 1, result.output
+    assert message in result.output and "bad.yaml:5:" in result.output
+    assert "Traceback" not in result.output
