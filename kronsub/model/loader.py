@@ -23,6 +23,7 @@ from ..core.known_system import ParameterInfo
 from ..core.primitive import Part, Primitive
 from ..core.symbols import TIME, symbol, velocity_symbol
 from ..errors import Location, ModelError
+from .circuits import check_circuit
 from .connection import (implicit_spec, pivot_connection, read_connection, read_intermediate,
                          read_pivot_angles)
 from .constraints import read_constraints
@@ -140,6 +141,8 @@ class ModelLoader(ModelReader):
         read_pivot_angles(self, root.get("connection"), y)
         connection = read_connection(self, root.get("connection"), primitive, y)
         effects = self._effects(root.get("effects"), primitive, y)
+        if not constrained and not self.problems:
+            check_circuit(self, primitive, connection, y, effects)
         initial = read_initial(self, root.get("initial"), y)
         declared = root.get("effects")
         scenes = build_scenes(self, root.get("scenes"), list(declared.value) if declared is not None and
