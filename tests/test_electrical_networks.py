@@ -86,8 +86,12 @@ def test_ladder_loop_inductance_and_loop_voltages():
     assert system.velocity_terms == sympy.zeros(2, 1)
 
 
-def test_ladder_step_response_is_exact():
-    header, rows = simulated(CIRCUITS / "rlc_ladder.yaml", "--scene", "step")
+@pytest.mark.parametrize("path, columns", [
+    ("rlc_ladder.yaml", ("q1", "q2", "q1_dot", "q2_dot")),  # the mesh transformation under `connection:`
+    ("rlc_ladder_nodes.yaml", ("q_L1", "q_L2", "q_L1_dot", "q_L2_dot")),  # the current law under `constraints:`
+])
+def test_ladder_step_response_is_exact(path, columns):
+    header, rows = simulated(CIRCUITS / path, "--scene", "step")
     L1, L2, R1, R2, C1, C2, E = 0.1, 0.2, 2.0, 5.0, 0.01, 0.005, 12.0
     # y = [q1, q2, i1, i2], written from the diagram: L1 i1' = E - R1 i1 - (q1 - q2)/C1, ...
     A = np.array([[0, 0, 1, 0], [0, 0, 0, 1],
@@ -95,7 +99,7 @@ def test_ladder_step_response_is_exact():
                   [1 / (C1 * L2), -(1 / C1 + 1 / C2) / L2, 0, -R2 / L2]])
     b = np.array([0, 0, E / L1, 0])
     exact = affine_solution(A, b, np.zeros(4), rows[:, 0])
-    got = rows[:, [header.index(c) for c in ("q1", "q2", "q1_dot", "q2_dot")]]
+    got = rows[:, [header.index(c) for c in columns]]
     scale = np.max(np.abs(exact), axis=0)
     np.testing.assert_allclose(got / scale, exact / scale, rtol=0, atol=1e-8)
 
