@@ -167,3 +167,53 @@ def test_bad_textbook_components_are_located_errors(tmp_path, metric, potential,
     assert result.exit_code == 1, result.output
     assert message in result.output and "bad.yaml:5:" in result.output
     assert "Traceback" not in result.output
+
+
+def park(theta):
+    """Park's transformation ``x_dq0 = P(theta) x_abc`` (Kundur, 3.3)."""
+    angles = np.array([theta, theta - 2 * np.pi / 3, theta + 2 * np.pi / 3])
+    return 2 / 3 * np.array([np.cos(angles), -np.sin(angles), [0.5, 0.5, 0.5]])
+
+
+def test_synchronous_machine_in_phase_variables_is_parks_dq0_model_at_random_states():
+    """The machine's phase-variable equations, derived by the projection, turned into Park's
+    axes at random states, are Park's equations written here by hand (motor convention,
+    ``v = R i + dpsi/dt``): ``psi_d = Ld i_d + Lafd i_f``, ``psi_q = Lq i_q``, ``psi_0 = L0 i_0``,
+    ``psi_f = Lffd i_f + 3/2 Lafd i_d``; ``v_d = R i_d + psi_d' - omega psi_q``,
+    ``v_q = R i_q + psi_q' + omega psi_d``, ``v_0 = R i_0 + psi_0'``, ``v_f = R_f i_f + psi_f'``;
+    ``J omega' = 3/2 (psi_d i_q - psi_q i_d) + Tm - D omega``, with the constant
+    ``Ld = Laa0 + Lab0 + 3/2 Laa2``, ``Lq = Laa0 + Lab0 - 3/2 Laa2``, ``L0 = Laa0 - 2 Lab0``."""
+    system = kronsub.load(CIRCUITS / "synchronous_machine.yaml", cache=False).derive(cache=False)
+    p = {info.name: float(info.value) for info in system.parameters}
+    s = named(system)
+    state = [s[n] for n in ("q_a", "q_b", "q_c", "q_f", "theta", "q_a_dot", "q_b_dot", "q_c_dot", "q_f_dot",
+                            "theta_dot")]
+    t = sympy.Symbol("t", real=True)
+    derived = sympy.lambdify([t, *state], list(accelerations(system).xreplace(
+        {info.symbol: info.value for info in system.parameters})))
+    Ld = p["Laa0"] + p["Lab0"] + 1.5 * p["Laa2"]
+    Lq = p["Laa0"] + p["Lab0"] - 1.5 * p["Laa2"]
+    L0 = p["Laa0"] - 2 * p["Lab0"]
+    flux = np.array([[Ld, 0, 0, p["Lafd"]], [0, Lq, 0, 0], [0, 0, L0, 0], [1.5 * p["Lafd"], 0, 0, p["Lffd"]]])
+    rng = np.random.default_rng(36)
+    for _ in range(25):
+        tt, theta, omega = rng.uniform(0, 0.1), rng.uniform(-np.pi, np.pi), rng.uniform(-400, 400)
+        i_abc, i_f = rng.uniform(-50, 50, 3), rng.uniform(-20, 20)
+        got = np.array(derived(tt, 0, 0, 0, 0, theta, *i_abc, i_f, omega), dtype=float)
+        # Park's side
+        P = park(theta)
+        i_d, i_q, i_0 = P @ i_abc
+        v_abc = p["Vm"] * np.cos(p["w"] * tt - np.array([0, 2 * np.pi / 3, -2 * np.pi / 3]))
+        v_d, v_q, v_0 = P @ v_abc
+        psi_d, psi_q = Ld * i_d + p["Lafd"] * i_f, Lq * i_q
+        rates = np.linalg.solve(flux, [v_d - p["Rs"] * i_d + omega * psi_q, v_q - p["Rs"] * i_q - omega * psi_d,
+                                       v_0 - p["Rs"] * i_0, p["vf"] - p["Rf"] * i_f])
+        torque = 1.5 * (psi_d * i_q - psi_q * i_d)
+        omega_rate = (torque + p["Tm"] - p["D"] * omega) / p["J"]
+        # the projection's phase currents' rates, in Park's axes: d(P i)/dt = P i' + omega dP/dtheta i
+        dP = (park(theta + 1e-6) - park(theta - 1e-6)) / 2e-6
+        dq0_rates = P @ got[:3] + omega * dP @ i_abc
+        scale = np.max(np.abs(rates))
+        np.testing.assert_allclose(dq0_rates, rates[:3], rtol=0, atol=1e-7 * scale)
+        np.testing.assert_allclose(got[3], rates[3], rtol=0, atol=1e-7 * scale)
+        np.testing.assert_allclose(got[4], omega_rate, rtol=1e-9, atol=1e-9 * abs(omega_rate))

@@ -53,6 +53,8 @@ def random_states(system, rng, count):
             y[0] = rng.uniform(-0.3, 0.3)
         if system.name == "Magnetic suspension of a ball":  # the ball below the magnet: L(y) > 0
             y[0] = abs(y[0])
+        if system.name == "Synchronous machine on an infinite bus":  # inductances of a machine (L0 = Laa0 - 2 Lab0 > 0...)
+            param = np.array([float(p.value) for p in system.parameters]) * rng.uniform(0.9, 1.1, len(param))
         yield rng.uniform(0, 2), y, param
 
 
