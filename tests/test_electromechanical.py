@@ -217,3 +217,30 @@ def test_synchronous_machine_in_phase_variables_is_parks_dq0_model_at_random_sta
         np.testing.assert_allclose(dq0_rates, rates[:3], rtol=0, atol=1e-7 * scale)
         np.testing.assert_allclose(got[3], rates[3], rtol=0, atol=1e-7 * scale)
         np.testing.assert_allclose(got[4], omega_rate, rtol=1e-9, atol=1e-9 * abs(omega_rate))
+
+
+def test_machines_in_parallel_add_their_stator_inductances():
+    """Kron's ``Zbar = Cᵀ Z C`` for two machines in one loop per phase: the loop inductances
+    are the sum of the machines' stator inductances, each field couples with its own sign, and
+    the rotors keep their inertia."""
+    machine = kronsub.load(CIRCUITS / "machine.yaml", cache=False).derive(cache=False)
+    pair = kronsub.load(CIRCUITS / "machine_pair.yaml", cache=False).derive(cache=False)
+    m, s = named(machine), named(pair)
+    L = machine.mass_matrix
+    left, right = (L.xreplace({m["theta"]: s[name]}) for name in ("th1", "th2"))
+    M = pair.mass_matrix
+    assert [q.name for q in pair.coordinates] == ["qa", "qb", "qc", "qf1", "qf2", "th1", "th2"]
+    assert sympy.simplify(M[:3, :3] - (left[:3, :3] + right[:3, :3])) == sympy.zeros(3, 3)
+    assert sympy.simplify(M[:3, 3] - left[:3, 3]) == sympy.zeros(3, 1)
+    assert sympy.simplify(M[:3, 4] + right[:3, 3]) == sympy.zeros(3, 1)
+    assert M[3:, 3:] == sympy.diag(L[3, 3], L[3, 3], L[4, 4], L[4, 4])
+
+
+def test_machines_in_parallel_stay_in_step():
+    """The left machine drives the right one through the phases: after the swing the angle
+    between the rotors stays bounded (they are synchronized), and the driven one turns with it."""
+    header, rows = simulated(CIRCUITS / "machine_pair.yaml", "--t", "2", "--dt", "0.01")
+    delta = rows[:, header.index("th1")] - rows[:, header.index("th2")]
+    assert np.all(np.abs(delta) < 1.0)
+    speeds = rows[:, [header.index("th1_dot"), header.index("th2_dot")]]
+    assert np.max(np.abs(speeds[:, 0] - speeds[:, 1])) < 2.0  # rad/s, against about 300
