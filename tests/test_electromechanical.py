@@ -244,3 +244,19 @@ def test_machines_in_parallel_stay_in_step():
     assert np.all(np.abs(delta) < 1.0)
     speeds = rows[:, [header.index("th1_dot"), header.index("th2_dot")]]
     assert np.max(np.abs(speeds[:, 0] - speeds[:, 1])) < 2.0  # rad/s, against about 300
+
+
+def test_loudspeaker_draws_the_current_of_its_textbook_impedance():
+    """In the steady state the coil's current is ``E/Z(jw)`` with the loudspeaker's input
+    impedance ``Z = Re + jw Le + Bl^2/(Rms + jw Mms + 1/(jw Cms))`` (the cone's motional
+    impedance seen through the gyrator): amplitude and phase fitted over the last periods."""
+    header, rows = simulated(CIRCUITS / "loudspeaker.yaml", "--t", "0.2", "--dt", "0.0001")
+    Le, Re, Bl, Mms, Cms, Rms, E, w = 0.5e-3, 6.0, 7.0, 0.015, 0.8e-3, 1.5, 2.0, 400.0
+    Z = Re + 1j * w * Le + Bl**2 / (Rms + 1j * w * Mms + 1 / (1j * w * Cms))
+    current = E / Z  # phasor of i against sin(w t): i = Im(current exp(j w t))
+    late = rows[:, 0] > 0.1
+    t, i = rows[late, 0], rows[late, header.index("q_dot")]
+    basis = np.column_stack([np.sin(w * t), np.cos(w * t)])
+    (a, b), *_ = np.linalg.lstsq(basis, i, rcond=None)  # i = a sin + b cos = Im((a + j b) exp(j w t))
+    assert a + 1j * b == pytest.approx(current, rel=1e-6)
+    np.testing.assert_allclose(basis @ [a, b], i, rtol=0, atol=1e-6 * abs(current))
