@@ -164,3 +164,15 @@ def test_energy_balance_on_every_bundled_circuit(path):
     scale = max(np.max(np.abs(energy)), np.max(np.abs(work)))
     assert np.max(np.abs(work)) > 1e-3 * scale  # the effects do work
     np.testing.assert_allclose(energy - energy[0], work, rtol=0, atol=1e-5 * scale)
+
+
+def test_series_rlc_linearised_has_the_circuits_natural_frequencies():
+    """``linearize``: the equilibrium is the charged capacitor ``q = C E``, the eigenvalues
+    ``-R/(2L) +- j sqrt(1/(L C) - (R/(2L))^2)``, and ``B`` the source's ``1/L``."""
+    system = kronsub.load(CIRCUITS / "series_rlc.yaml", cache=False).derive(cache=False)
+    lin = system.linearize(inputs=["E"])
+    L, R, C, E = 0.5, 1.0, 0.02, 10.0
+    assert lin.equilibrium and float(dict(lin.point)[symbols(system)["q"]]) == pytest.approx(C * E)
+    alpha, wd = R / (2 * L), np.sqrt(1 / (L * C) - (R / (2 * L)) ** 2)
+    assert sorted(lin.eigenvalues, key=lambda z: z.imag) == pytest.approx([-alpha - 1j * wd, -alpha + 1j * wd])
+    np.testing.assert_allclose(np.asarray(lin.B, dtype=float).ravel(), [0, 1 / L])
