@@ -84,3 +84,14 @@ def test_bad_values_are_located_errors(tmp_path, change, message, line):
     assert message in result.output
     assert f"circuit.yaml:{line}:" in result.output
     assert "Traceback" not in result.output
+
+
+def test_a_gyrator_on_a_removed_branch_is_a_located_error(tmp_path):
+    text = (MODELS / "electrical" / "dc_motor.yaml").read_text(encoding="utf-8")
+    text = text.replace("coordinates: [q]}\n", "coordinates: [q]}\n  extra: {type: branch, coordinates: [q_x]}\n")
+    text = text.replace("connection: {q: q, theta: theta}", "connection: {q: q, theta: theta, q_x: 0}")
+    text = text.replace("between: [q, theta]", "between: [q_x, theta]")
+    result = check(tmp_path, text)
+    assert result.exit_code == 1, result.output
+    line = text.splitlines().index(next(l for l in text.splitlines() if l.startswith("  machine:"))) + 1
+    assert f"circuit.yaml:{line}:3: gyrator 'machine' couples nothing: its end q_x is 0" in result.output

@@ -176,3 +176,18 @@ def test_series_rlc_linearised_has_the_circuits_natural_frequencies():
     alpha, wd = R / (2 * L), np.sqrt(1 / (L * C) - (R / (2 * L)) ** 2)
     assert sorted(lin.eigenvalues, key=lambda z: z.imag) == pytest.approx([-alpha - 1j * wd, -alpha + 1j * wd])
     np.testing.assert_allclose(np.asarray(lin.B, dtype=float).ravel(), [0, 1 / L])
+
+
+def test_elements_written_on_loop_charges_give_the_same_loop_voltages():
+    """An element's ``charge:`` may name the loop charges themselves (applied in the subspace,
+    ``Effect.direct_force``): the ladder's loop voltages are the same."""
+    text = (CIRCUITS / "rlc_ladder.yaml").read_text(encoding="utf-8")
+    for branch, loop in (("q_E", "q1"), ("q_R1", "q1"), ("q_C1", "q1 - q2"), ("q_R2", "q2"), ("q_C2", "q2")):
+        text = text.replace(f"charge: {branch},", f"charge: {loop},")
+    assert "charge: q_" not in text
+    by_loops = kronsub.load("loops.yaml", text=text, cache=False).derive(cache=False)
+    by_branches = kronsub.load(CIRCUITS / "rlc_ladder.yaml", cache=False).derive(cache=False)
+    assert set(by_loops.effect_forces) == set(by_branches.effect_forces)
+    for label, force in by_branches.effect_forces.items():
+        assert sympy.simplify(by_loops.effect_forces[label] - force) == sympy.zeros(2, 1), label
+    assert sympy.simplify(by_loops.potential_energy - by_branches.potential_energy) == 0

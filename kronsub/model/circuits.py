@@ -14,7 +14,7 @@ import sympy
 
 from ..components.electrical import Branch, CoupledInductors, Inductor
 from ..core.symbols import TIME
-from ..effects.electrical import Capacitor, Resistor, VoltageSource
+from ..effects.electrical import Capacitor, Gyrator, Resistor, VoltageSource
 from .reader import ModelReader
 
 CIRCUIT_TYPES = frozenset(cls.type_name for cls in (Inductor, CoupledInductors, Branch))
@@ -25,12 +25,23 @@ circuit is a sum of inductances, exact up to rounding)."""
 
 
 def check_circuit(reader: ModelReader, primitive, connection: dict, coords, effects) -> None:
-    """Report elements the connection removes and loops without inductance (see the module)."""
+    """Report elements (and gyrators) the connection removes and loops without inductance
+(see the module)."""
     if not any(part.type_name in CIRCUIT_TYPES for part in primitive.parts) or not coords:
         return
     if set(primitive.coordinates) - set(connection):
         return  # a primitive coordinate left unconnected is reported already
     for effect in effects:
+        if isinstance(effect, Gyrator):
+            for end in (effect.first, effect.second):
+                image = sympy.sympify(end).xreplace(connection)
+                if not image.free_symbols & set(coords):
+                    reader.error(reader.locations.get(f"effect:{effect.name}"),
+                                 f"gyrator '{effect.name}' couples nothing: its end {end} is {image} whatever "
+                                 "the generalized coordinates, under the connection",
+                                 "couple a charge and a coordinate that both move (an armature's charge and "
+                                 "its shaft's angle)")
+                    break
         if isinstance(effect, ELEMENTS):
             image = sympy.sympify(effect.charge).xreplace(connection)
             if not image.free_symbols & set(coords):
