@@ -39,7 +39,7 @@ def test_coupled_coils_store_the_magnetic_energy(L1, L2, k, i1, i2):
 
 def test_coupling_beyond_one_is_refused_and_a_lone_branch_has_no_inductance():
     (_, value, kind), = [r for r in coils(1, 4, 3).requirements() if r[0] == "mutual"]
-    assert kind == "nonnegative" and value == 1 * 4 - 3**2
+    assert kind == "coupling" and value == 1 * 4 - 3**2
     branch = REGISTRY["branch"](x={"q": symbol("q")})
     assert branch.metric() == sympy.zeros(1, 1) and branch.requirements() == ()
     inductor = REGISTRY["inductor"](x={"q": symbol("q")}, p={"inductance": symbol("L")})
@@ -95,3 +95,14 @@ def test_a_gyrator_on_a_removed_branch_is_a_located_error(tmp_path):
     assert result.exit_code == 1, result.output
     line = text.splitlines().index(next(l for l in text.splitlines() if l.startswith("  machine:"))) + 1
     assert f"circuit.yaml:{line}:3: gyrator 'machine' couples nothing: its end q_x is 0" in result.output
+
+
+def test_coils_coupled_beyond_their_inductances_are_refused_at_the_value(tmp_path):
+    text = (MODELS / "electrical" / "transformer.yaml").read_text(encoding="utf-8")
+    result = check(tmp_path, text.replace("M: {value: 0.09,", "M: {value: 0.2,"))
+    assert result.exit_code == 1, result.output
+    assert ("mutual of component 'coils' couples more than the coils allow (M^2 <= L1 L2): "
+            "L1*L2 - M**2 = -0.03 (L1 = 0.2, L2 = 0.05, M = 0.2)") in result.output
+    ideal = check(tmp_path, text.replace("M: {value: 0.09,", "M: {value: -0.1,"))  # |k| = 1: allowed, but then
+    assert "the loop (0.5*q1 + q2) has resistance but no inductance" in ideal.output  # a loop has no inductance
+    assert "couples more" not in ideal.output

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import sympy
 
-from .base import NONNEGATIVE, POSITIVE, Component, ParameterSpec
+from .base import COUPLING, POSITIVE, Component, ParameterSpec
 
 INDUCTANCE = ParameterSpec("inductance", "self-inductance of the branch", unit="H", sign=POSITIVE)
 
@@ -62,4 +62,4 @@ class CoupledInductors(Component):
         """The signs, and ``L1 L2 - M^2`` not below zero (the magnetic energy is never
         negative), named by ``mutual``."""
         L1, L2, M = self.p["inductance1"], self.p["inductance2"], self.p["mutual"]
-        return super().requirements() + (("mutual", L1 * L2 - M**2, NONNEGATIVE),)
+        return super().requirements() + (("mutual", L1 * L2 - M**2, COUPLING),)

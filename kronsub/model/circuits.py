@@ -77,8 +77,7 @@ def _loops_without_inductance(reader: ModelReader, primitive, connection, coords
         direction = vt[k] / np.max(np.abs(vt[k]))
         if np.any(np.abs((Cn @ direction)[mechanical]) > 1e-9):
             continue  # a motion without inertia that moves a mechanical part: left to the run's message
-        loop = " ".join(f"{'+' if c > 0 else '-'}{'' if abs(abs(c) - 1) < 1e-9 else f'{abs(c):.3g}*'}{q.name}"
-                        for c, q in zip(direction, coords) if abs(c) > 1e-9)
+        loop = _combination(direction, coords)
         resisted = _dissipation_along(primitive, effects, coords, connection, direction, values) > 0
         first = next(q for c, q in zip(direction, coords) if abs(c) > 1e-9)
         where = reader.locations.get(f"coordinate:{first.name}") or reader.locations.get("connection")
@@ -92,6 +91,17 @@ def _loops_without_inductance(reader: ModelReader, primitive, connection, coords
                                 "sources, so Kirchhoff's voltage law fixes its charge and there is no motion",
                          "give the loop an inductance or a resistance, or leave it out of `coordinates:` "
                          "(docs/electrical.md)")
+
+
+def _combination(direction, coords) -> str:
+    """``0.5*q1 + q2``: the loop along ``direction``, its largest entry 1."""
+    text = ""
+    for c, q in zip(direction, coords):
+        if abs(c) <= 1e-9:
+            continue
+        term = q.name if abs(abs(c) - 1) < 1e-9 else f"{abs(c):.3g}*{q.name}"
+        text += ("-" if c < 0 else "") + term if not text else f" {'-' if c < 0 else '+'} {term}"
+    return text
 
 
 def _charges(primitive) -> set:
