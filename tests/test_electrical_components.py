@@ -106,3 +106,26 @@ def test_coils_coupled_beyond_their_inductances_are_refused_at_the_value(tmp_pat
     ideal = check(tmp_path, text.replace("M: {value: 0.09,", "M: {value: -0.1,"))  # |k| = 1: allowed, but then
     assert "the loop (0.5*q1 + q2) has resistance but no inductance" in ideal.output  # a loop has no inductance
     assert "couples more" not in ideal.output
+
+
+RC = """name: rc
+parameters: {C: 1, R: 2}
+components:
+  cap: {type: branch, coordinates: [q_C]}
+  res: {type: branch, coordinates: [q_R]}
+coordinates: [q]
+connection: {q_C: q, q_R: q}
+effects:
+  cap: {type: capacitor, charge: q_C, capacitance: C}
+  res: {type: resistor, charge: q_R, resistance: RESISTANCE}
+"""
+
+
+@pytest.mark.parametrize("resistance, message", [
+    ("R", "the loop (q) has resistance but no inductance: its charge is a first-order coordinate"),
+    ("R*(2 + sin(t))", "the loop (q) has no inductance: its charge is no second-order coordinate"),
+])
+def test_a_loop_without_inductance_is_a_located_error(tmp_path, resistance, message):
+    result = check(tmp_path, RC.replace("RESISTANCE", resistance))
+    assert result.exit_code == 1, result.output
+    assert f"circuit.yaml:6:15: {message}" in result.output and "Traceback" not in result.output

@@ -78,10 +78,18 @@ def _loops_without_inductance(reader: ModelReader, primitive, connection, coords
         if np.any(np.abs((Cn @ direction)[mechanical]) > 1e-9):
             continue  # a motion without inertia that moves a mechanical part: left to the run's message
         loop = _combination(direction, coords)
-        resisted = _dissipation_along(primitive, effects, coords, connection, direction, values) > 0
+        try:
+            resisted = _dissipation_along(primitive, effects, coords, connection, direction, values) > 0
+        except (TypeError, ValueError):
+            resisted = None  # a resistance that is no number here (one in t)
         first = next(q for c, q in zip(direction, coords) if abs(c) > 1e-9)
         where = reader.locations.get(f"coordinate:{first.name}") or reader.locations.get("connection")
-        if resisted:
+        if resisted is None:
+            reader.error(where, f"the loop ({loop}) has no inductance: its charge is no second-order coordinate, "
+                                "which is all kronsub integrates",
+                         "give the loop an inductance (an `inductor` branch in it, however small) "
+                         "(docs/electrical.md)")
+        elif resisted:
             reader.error(where, f"the loop ({loop}) has resistance but no inductance: its charge is a first-order "
                                 "coordinate, which kronsub does not integrate yet",
                          "give the loop an inductance (an `inductor` branch in it, however small), or eliminate "
