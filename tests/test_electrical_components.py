@@ -3,6 +3,9 @@ their own: the metric is the magnetic energy's, the elements' forces are the tex
 voltages, and bad values are located errors."""
 from __future__ import annotations
 
+import tempfile
+from pathlib import Path
+
 import numpy as np
 import pytest
 import sympy
@@ -129,3 +132,31 @@ def test_a_loop_without_inductance_is_a_located_error(tmp_path, resistance, mess
     result = check(tmp_path, RC.replace("RESISTANCE", resistance))
     assert result.exit_code == 1, result.output
     assert f"circuit.yaml:6:15: {message}" in result.output and "Traceback" not in result.output
+
+
+LEAVES = st.one_of(st.sampled_from(["m", "L", "y", "q", "y_dot", "q_dot", "t", "0", "1/0", "sqrt(-1)", "cos(y)",
+                                    "m*y**2", "", "[", "x.y", "L*q_dot"]),
+                   st.integers(-3, 3), st.none(), st.booleans(), st.floats(allow_nan=True, allow_infinity=True))
+NESTED = st.recursive(LEAVES, lambda inner: st.lists(inner, max_size=3) | st.dictionaries(st.sampled_from(["a", "y"]),
+                                                                                          inner, max_size=2),
+                      max_leaves=8)
+
+
+@settings(max_examples=60, deadline=None)
+@given(coordinates=st.one_of(NESTED, st.lists(st.sampled_from(["y", "q", "m", "t", "y_dot", "1y"]), max_size=3)),
+       metric=NESTED, potential=NESTED, dissipation=NESTED)
+def test_any_textbook_component_is_read_or_refused_never_a_crash(coordinates, metric, potential, dissipation):
+    """Whatever a component given by its equations holds, ``check`` accepts it or reports
+    located problems: never an internal error."""
+    import yaml
+
+    model = {"name": "fuzz", "parameters": {"m": 1, "L": 2},
+             "components": {"c": {"coordinates": coordinates, "metric": metric, "potential": potential,
+                                  "dissipation": dissipation}},
+             "coordinates": "auto" if not isinstance(coordinates, list) else coordinates}
+    with tempfile.TemporaryDirectory() as folder:
+        path = Path(folder) / "fuzz.yaml"
+        path.write_text(yaml.safe_dump(model), encoding="utf-8")
+        result = CliRunner().invoke(main, ["check", str(path)])
+    assert result.exit_code in (0, 1), result.output
+    assert "internal error" not in result.output
