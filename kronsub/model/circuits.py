@@ -16,6 +16,7 @@ from ..components.electrical import Branch, CoupledInductors, Inductor
 from ..core.symbols import TIME
 from ..effects.electrical import Capacitor, Gyrator, Resistor, VoltageSource
 from .reader import ModelReader
+from .source import excerpt
 
 CIRCUIT_TYPES = frozenset(cls.type_name for cls in (Inductor, CoupledInductors, Branch))
 ELEMENTS = (Capacitor, Resistor, VoltageSource)
@@ -25,8 +26,8 @@ circuit is a sum of inductances, exact up to rounding)."""
 
 
 def check_circuit(reader: ModelReader, primitive, connection: dict, coords, effects) -> None:
-    """Report elements (and gyrators) the connection removes and loops without inductance
-(see the module)."""
+    """Report elements (and gyrators) the connection removes, and loops without inductance
+    (see the module)."""
     if not any(part.type_name in CIRCUIT_TYPES for part in primitive.parts) or not coords:
         return
     if set(primitive.coordinates) - set(connection):
@@ -37,7 +38,8 @@ def check_circuit(reader: ModelReader, primitive, connection: dict, coords, effe
                 image = sympy.sympify(end).xreplace(connection)
                 if not image.free_symbols & set(coords):
                     reader.error(reader.locations.get(f"effect:{effect.name}"),
-                                 f"gyrator '{effect.name}' couples nothing: its end {end} is {image} whatever "
+                                 f"gyrator '{effect.name}' couples nothing: its end {excerpt(str(end))} is "
+                                 f"{excerpt(str(image))} whatever "
                                  "the generalized coordinates, under the connection",
                                  "couple a charge and a coordinate that both move (an armature's charge and "
                                  "its shaft's angle)")
@@ -47,8 +49,8 @@ def check_circuit(reader: ModelReader, primitive, connection: dict, coords, effe
             if not image.free_symbols & set(coords):
                 kind = {Capacitor: "capacitor", Resistor: "resistor", VoltageSource: "source"}[type(effect)]
                 reader.error(reader.locations.get(f"effect:{effect.name}"),
-                             f"{kind} '{effect.name}' acts in no loop: its charge {effect.charge} is "
-                             f"{image} whatever the loop charges, under the connection",
+                             f"{kind} '{effect.name}' acts in no loop: its charge {excerpt(str(effect.charge))} is "
+                             f"{excerpt(str(image))} whatever the loop charges, under the connection",
                              "Kirchhoff's connection leaves this branch out (an open branch carries no current): "
                              "write its charge as the loop charges through it, or leave the element out")
     _loops_without_inductance(reader, primitive, connection, coords, effects)
