@@ -71,12 +71,14 @@ def test_every_bundled_model_round_trips_exactly(path):
     """derive -> store -> load gives the same tree, node for node (srepr), for the known
     system and its transition, parameters and bodies."""
     system = fresh(path)
-    assert system.bodies and system.parameters and system.transition is not None
+    assert system.parameters and system.transition is not None
+    assert system.bodies or path.parent.name == "electrical"  # circuits have no bodies
     back = cache_format.loads(cache_format.dumps(system), KnownSystem)
     assert back == system
     assert list(_walk(back)) == list(_walk(system))
-    for part, cls in ((system.transition, Transition), (system.parameters[0], ParameterInfo),
-                      (system.bodies[0], Body)):
+    parts = ((system.transition, Transition), (system.parameters[0], ParameterInfo),
+             *(((system.bodies[0], Body),) if system.bodies else ()))
+    for part, cls in parts:
         again = cache_format.loads(cache_format.dumps(part), cls)
         assert list(_walk(again)) == list(_walk(part))
 

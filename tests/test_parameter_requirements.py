@@ -149,11 +149,13 @@ SIGNED = [(t, ps.name, ps.sign) for t, cls in sorted(REGISTRY.items()) for ps in
 
 
 def test_the_components_declare_what_they_need():
-    """Masses and moments of inertia not negative, lengths and radii positive; no other
-    parameter of the library (pivot places, products of inertia) has a sign."""
+    """Masses and moments of inertia not negative, lengths, radii and inductances positive; no
+    other parameter of the library (pivot places, products of inertia, a mutual inductance) has
+    a sign."""
+    inductances = ("inductance", "inductance1", "inductance2")
     for type_name, name, sign in SIGNED:
-        expected = POSITIVE if name in ("length", "radius") else NONNEGATIVE
-        assert sign == expected and name in ("mass", "inertia", "length", "radius"), (type_name, name)
+        expected = POSITIVE if name in ("length", "radius", *inductances) else NONNEGATIVE
+        assert sign == expected and name in ("mass", "inertia", "length", "radius", *inductances), (type_name, name)
     assert {(t, n) for t, n, _ in SIGNED} >= {("particle1d", "mass"), ("rod", "length"), ("disc", "radius"),
                                                ("flywheel", "inertia"), ("rigid_body3d", "mass")}
 

@@ -183,6 +183,10 @@ EFFECTS = {
     "torsional_damper": {"type": "torsional_damper", "angle": "a", "coefficient": 0.5},
     "generalized_force": {"type": "generalized_force", "coordinate": "p.x", "value": "-c*x_dot"},
     "potential": {"type": "potential", "value": "k*u**4/4", "description": "quartic"},
+    "capacitor": {"type": "capacitor", "charge": "u", "capacitance": "k"},
+    "resistor": {"type": "resistor", "charge": "u - v", "resistance": "c"},
+    "voltage_source": {"type": "voltage_source", "charge": "u", "voltage": "F*sin(t)"},
+    "gyrator": {"type": "gyrator", "between": ["u", "a"], "constant": "k"},
 }
 EFFECT_MODEL = {
     "parameters": {"m": 1, "g": {"value": 9.81, "unit": "m/s^2"}, "F": None, "tau": 0, "k": 1, "c": 0.5},

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 from .base import Body, Component, ParameterSpec
+from .electrical import Branch, CoupledInductors, Inductor
 from .particles import Particle1D, Particle2D, Particle3D, ParticlePolar, ParticleSpherical
 from .planar import Disc, Flywheel, PinnedRod, PlanarBody, Rod
 from .spatial import RigidBody3D
@@ -9,7 +10,8 @@ from .spatial import RigidBody3D
 REGISTRY: dict[str, type[Component]] = {
     cls.type_name: cls
     for cls in (Particle1D, Particle2D, Particle3D, ParticlePolar, ParticleSpherical,
-                PlanarBody, Rod, Disc, PinnedRod, Flywheel, RigidBody3D)
+                PlanarBody, Rod, Disc, PinnedRod, Flywheel, RigidBody3D,
+                Inductor, CoupledInductors, Branch)
 }
 
 __all__ = ["REGISTRY", "Body", "Component", "ParameterSpec"]

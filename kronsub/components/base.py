@@ -29,10 +29,11 @@ def common_world(a, b) -> tuple[tuple, tuple]:
     return in_world(a, dimension), in_world(b, dimension)
 
 
-POSITIVE, NONNEGATIVE, INERTIA = "positive", "nonnegative", "inertia"
+POSITIVE, NONNEGATIVE, INERTIA, COUPLING = "positive", "nonnegative", "inertia", "coupling"
 """What a component needs of a value (:meth:`Component.requirements`): above zero (a length),
-not below zero (a mass, a moment of inertia: zero is a massless part), or an inertia tensor of
-a body (principal moments not below zero, each at most the sum of the other two)."""
+not below zero (a mass, a moment of inertia: zero is a massless part), an inertia tensor of
+a body (principal moments not below zero, each at most the sum of the other two), or a
+coupling no larger than what it couples (``L1 L2 - M^2`` not below zero: coupled coils)."""
 
 
 @dataclass(frozen=True)

@@ -1,7 +1,7 @@
 """Reading the ``components:`` section: the parts of the primitive system, in the order written.
 
 A library component (``type:``) is read by :mod:`.parts`, a known system (``model:``) by
-:mod:`.known_systems`; a component that fails is remembered, so a later reference to it
+:mod:`.known_systems`, a component given by its equations (``metric:``) by :mod:`.textbook`; a component that fails is remembered, so a later reference to it
 reports nothing more.
 """
 from __future__ import annotations
@@ -15,6 +15,7 @@ from .known_systems import read_known_system
 from .parts import library_component, mark_broken
 from .reader import ModelReader
 from .source import Node
+from .textbook import textbook_part
 
 
 def read_components(reader: ModelReader, node: Node | None, derived: Callable[[Path], KnownSystem]) -> None:
@@ -36,6 +37,8 @@ def read_components(reader: ModelReader, node: Node | None, derived: Callable[[P
             continue
         if spec.get("model") is not None:
             part = read_known_system(reader, cname, spec, derived)
+        elif spec.get("metric") is not None:
+            part = textbook_part(reader, cname, spec)
         else:
             part = library_component(reader, cname, spec)
         if part is not None:

@@ -20,6 +20,7 @@ from ..core.primitive import Primitive
 from .components import read_components
 from .connection import (implicit_spec, pivot_connection, read_connection, read_intermediate,
                          read_pivot_angles)
+from .circuits import check_circuit
 from .constraints import check_multiplier_names, read_constraints
 from .coordinates import check_generated_names, name_primitive_coordinates, read_coordinates
 from .definitions import read_definitions
@@ -112,6 +113,8 @@ class ModelLoader(ModelReader):
         read_pivot_angles(self, root.get("connection"), y)
         connection = read_connection(self, root.get("connection"), primitive, y)
         effects = read_effects(self, root.get("effects"), primitive, y)
+        if not constrained and not self.problems:
+            check_circuit(self, primitive, connection, y, effects)
         initial = read_initial(self, root.get("initial"), y)
         declared = root.get("effects")
         scenes = build_scenes(self, root.get("scenes"), list(declared.value) if declared is not None and

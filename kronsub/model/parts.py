@@ -42,7 +42,8 @@ def library_component(reader: ModelReader, cname: str, spec: Node) -> Part | Non
                       f"component '{cname}'")
     if tnode is None:
         reader.error(spec, f"component '{cname}' has no `type:`",
-                     "valid types: " + ", ".join(sorted(REGISTRY)) + " (or `model: file.yaml`)")
+                     "valid types: " + ", ".join(sorted(REGISTRY)) + " (or `model: file.yaml`, or `metric:` for "
+                     "a component given by its equations)")
         return None
     if not isinstance(tnode.value, str):
         reader.error(tnode, f"`type:` of component '{cname}' must be a name, found {node_kind(tnode)}",

@@ -12,16 +12,19 @@ from collections.abc import Callable, Mapping
 import numpy as np
 import sympy
 
-from ..components.base import INERTIA, NONNEGATIVE, POSITIVE, Requirement
+from ..components.base import COUPLING, INERTIA, NONNEGATIVE, POSITIVE, Requirement
 from ..errors import Location, Problem
 from .source import Node
 
-_PHRASE = {POSITIVE: "must be positive", NONNEGATIVE: "must not be negative"}
+_PHRASE = {POSITIVE: "must be positive", NONNEGATIVE: "must not be negative",
+           COUPLING: "couples more than the coils allow (M^2 <= L1 L2)"}
 _HINT = {POSITIVE: "give it a value above zero",
          NONNEGATIVE: "give it a value of zero or more (zero: a massless part, docs/model-format.md)",
          INERTIA: "each principal moment of a body is at least 0 and at most the sum of the other two: check "
                   "the moments, and the signs of the products of inertia (the tensor's entries, "
-                  "docs/model-format.md)"}
+                  "docs/model-format.md)",
+         COUPLING: "the coupling coefficient M/sqrt(L1 L2) is at most 1 in size: lower |M|, or raise the "
+                   "self-inductances (docs/electrical.md)"}
 
 
 def component_requirements(cname: str, component, given: Node | None) -> list[Requirement]:
@@ -66,7 +69,7 @@ def unmet(requirements, values: Mapping, where: Callable[[Requirement], Location
         if number is None:
             continue
         why = _inertia_problem(number) if req.kind == INERTIA else \
-            None if number > 0 or (number == 0 and req.kind == NONNEGATIVE) else _PHRASE[req.kind]
+            None if number > 0 or (number == 0 and req.kind in (NONNEGATIVE, COUPLING)) else _PHRASE[req.kind]
         if why is None:
             continue
         shown = _shown(req.value, number, parameters_in(req), values)

@@ -1,0 +1,134 @@
+"""Kirchhoff's laws as the connection, checked: every circuit element acts in some loop, and
+every loop has inductance (the metric ``Mbar = Cᵀ L C`` (9') of the loop charges is regular).
+
+A loop of capacitors and sources alone has no inductance and no resistance: Kirchhoff's
+voltage law fixes its charge outright, there is no motion to integrate. One with resistance
+but no inductance is a first-order coordinate, which the integrators do not take either.
+Both are reported at the model's coordinates, naming the loop; the check is numeric, at
+random values of the coordinates and of the parameters that have none.
+"""
+from __future__ import annotations
+
+import numpy as np
+import sympy
+
+from ..components.electrical import Branch, CoupledInductors, Inductor
+from ..core.symbols import TIME
+from ..effects.electrical import Capacitor, Gyrator, Resistor, VoltageSource
+from .reader import ModelReader
+from .source import excerpt
+
+CIRCUIT_TYPES = frozenset(cls.type_name for cls in (Inductor, CoupledInductors, Branch))
+ELEMENTS = (Capacitor, Resistor, VoltageSource)
+RANK_TOLERANCE = 1e-9
+"""Relative size below which a singular value of ``Mbar`` counts as zero (the metric of a
+circuit is a sum of inductances, exact up to rounding)."""
+
+
+def check_circuit(reader: ModelReader, primitive, connection: dict, coords, effects) -> None:
+    """Report elements (and gyrators) the connection removes, and loops without inductance
+    (see the module)."""
+    if not any(part.type_name in CIRCUIT_TYPES for part in primitive.parts) or not coords:
+        return
+    if set(primitive.coordinates) - set(connection):
+        return  # a primitive coordinate left unconnected is reported already
+    for effect in effects:
+        if isinstance(effect, Gyrator):
+            for end in (effect.first, effect.second):
+                image = sympy.sympify(end).xreplace(connection)
+                if not image.free_symbols & set(coords):
+                    reader.error(reader.locations.get(f"effect:{effect.name}"),
+                                 f"gyrator '{effect.name}' couples nothing: its end {excerpt(str(end))} is "
+                                 f"{excerpt(str(image))} whatever "
+                                 "the generalized coordinates, under the connection",
+                                 "couple a charge and a coordinate that both move (an armature's charge and "
+                                 "its shaft's angle)")
+                    break
+        if isinstance(effect, ELEMENTS):
+            image = sympy.sympify(effect.charge).xreplace(connection)
+            if not image.free_symbols & set(coords):
+                kind = {Capacitor: "capacitor", Resistor: "resistor", VoltageSource: "source"}[type(effect)]
+                reader.error(reader.locations.get(f"effect:{effect.name}"),
+                             f"{kind} '{effect.name}' acts in no loop: its charge {excerpt(str(effect.charge))} is "
+                             f"{excerpt(str(image))} whatever the loop charges, under the connection",
+                             "Kirchhoff's connection leaves this branch out (an open branch carries no current): "
+                             "write its charge as the loop charges through it, or leave the element out")
+    _loops_without_inductance(reader, primitive, connection, coords, effects)
+
+
+def _loops_without_inductance(reader: ModelReader, primitive, connection, coords, effects) -> None:
+    rng = np.random.default_rng(0)
+    values = {s: sympy.Float(v) for s, v in reader.parameter_values().items()}
+    C = sympy.Matrix([[sympy.diff(connection[x], q) for q in coords] for x in primitive.coordinates])
+    free = (C.free_symbols | primitive.metric.free_symbols) - set(values) - {TIME}
+    values.update({s: sympy.Float(rng.uniform(0.5, 1.5)) for s in sorted(free, key=lambda s: s.name)})
+    try:
+        Cn = np.array(C.xreplace(values).evalf(), dtype=float)
+        Mn = np.array(primitive.metric.xreplace(values).evalf(), dtype=float)
+    except (TypeError, ValueError):
+        return  # not numbers at these values: left to the derivation and the run
+    Mbar = Cn.T @ Mn @ Cn
+    if not np.all(np.isfinite(Mbar)):
+        return
+    _, sigma, vt = np.linalg.svd(Mbar)
+    scale = max(float(sigma[0]) if len(sigma) else 0.0, 1e-300)
+    mechanical = [a for a, x in enumerate(primitive.coordinates) if x not in _charges(primitive)]
+    for k, s in enumerate(sigma):
+        if s > RANK_TOLERANCE * scale and s > 0:
+            continue
+        direction = vt[k] / np.max(np.abs(vt[k]))
+        if np.any(np.abs((Cn @ direction)[mechanical]) > 1e-9):
+            continue  # a motion without inertia that moves a mechanical part: left to the run's message
+        loop = _combination(direction, coords)
+        try:
+            resisted = _dissipation_along(primitive, effects, coords, connection, direction, values) > 0
+        except (TypeError, ValueError):
+            resisted = None  # a resistance that is no number here (one in t)
+        first = next(q for c, q in zip(direction, coords) if abs(c) > 1e-9)
+        where = reader.locations.get(f"coordinate:{first.name}") or reader.locations.get("connection")
+        if resisted is None:
+            reader.error(where, f"the loop ({loop}) has no inductance: its charge is no second-order coordinate, "
+                                "which is all kronsub integrates",
+                         "give the loop an inductance (an `inductor` branch in it, however small) "
+                         "(docs/electrical.md)")
+        elif resisted:
+            reader.error(where, f"the loop ({loop}) has resistance but no inductance: its charge is a first-order "
+                                "coordinate, which kronsub does not integrate yet",
+                         "give the loop an inductance (an `inductor` branch in it, however small), or eliminate "
+                         "the loop by hand (docs/electrical.md)")
+        else:
+            reader.error(where, f"the loop ({loop}) has no inductance and no resistance: only capacitors and "
+                                "sources, so Kirchhoff's voltage law fixes its charge and there is no motion",
+                         "give the loop an inductance or a resistance, or leave it out of `coordinates:` "
+                         "(docs/electrical.md)")
+
+
+def _combination(direction, coords) -> str:
+    """``0.5*q1 + q2``: the loop along ``direction``, its largest entry 1."""
+    text = ""
+    for c, q in zip(direction, coords):
+        if abs(c) <= 1e-9:
+            continue
+        term = q.name if abs(abs(c) - 1) < 1e-9 else f"{abs(c):.3g}*{q.name}"
+        text += ("-" if c < 0 else "") + term if not text else f" {'-' if c < 0 else '+'} {term}"
+    return text
+
+
+def _charges(primitive) -> set:
+    """The primitive coordinates that are branch charges."""
+    return {q for part in primitive.parts if part.type_name in CIRCUIT_TYPES for q in part.coordinates}
+
+
+def _dissipation_along(primitive, effects, coords, connection, direction, values) -> float:
+    """``sum R (dq/dv)^2``: the resistors' dissipation of a unit loop current along ``direction``."""
+    total = 0.0
+    for effect in effects:
+        if not isinstance(effect, Resistor):
+            continue
+        image = sympy.sympify(effect.charge).xreplace(connection)
+        rate = sum(float(sympy.diff(image, q).xreplace(values)) * c for q, c in zip(coords, direction))
+        total += float(sympy.sympify(effect.resistance).xreplace(values)) * rate**2
+    return total
+
+
+__all__ = ["CIRCUIT_TYPES", "check_circuit"]
