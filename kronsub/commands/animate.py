@@ -20,12 +20,16 @@ from .common import (USAGE_ERROR, budget_option, check_times, fail, output_optio
               help="Frames per second; rows are skipped so that the animation plays in real time.")
 @click.option("--size", type=click.IntRange(64, 4096), default=480, show_default=True,
               help="Width and height of the frames in pixels.")
+@click.option("--progress/--no-progress", default=None,
+              help="A bar counting the frames on stderr (default: on a terminal only).")
 @budget_option
 def animate(source: Path, output: Path, t_end: float, dt: float, method: str, settings: tuple[str, ...],
-            fps: int, size: int):
+            fps: int, size: int, progress: bool | None):
     """Draw the mechanism of SOURCE over time: a MODEL (simulated first) or a trajectory CSV
-    written with `kronsub simulate --points`. Bodies are segments between their named
-    points, discs are circles; needs matplotlib (pip install 'kronsub[plot]')."""
+    written with `kronsub simulate --points`. From a MODEL: rods, discs with a mark at their
+    angle, flywheels as dials, bodies' axes, springs (zigzag) and dampers (dashpot), fixed
+    pivots on hatched ground, walls, rails and sliders, joints; from a CSV: the named
+    points. Needs matplotlib (pip install 'kronsub[plot]')."""
     from ..simulation.methods import SIMULATE
     from ..simulation.run import SimulationError, row_count
 
@@ -56,13 +60,14 @@ def animate(source: Path, output: Path, t_end: float, dt: float, method: str, se
             fail("Error: animate needs matplotlib\n  hint: pip install 'kronsub[plot]'")
         from ..simulation.animate import animate as draw
         from ..simulation.animate import read_points_csv
+        from ..simulation.mechanism import from_points
 
         if from_csv:
             t, names, values = read_points_csv(source)
-            title = ""
+            shapes, title = from_points(names, values), ""
         else:
-            t, names, values, title = _simulate(source, t_end, dt, method, settings)
-        frames = draw(t, names, values, output, fps=fps, size=size, title=title)
+            t, shapes, title = _simulate(source, t_end, dt, method, settings)
+        frames = draw(t, shapes, output, fps=fps, size=size, title=title, progress=progress)
         say(f"wrote {output} ({frames} frames)")
 
     run_command(job)
@@ -73,7 +78,7 @@ def _simulate(model: Path, t_end: float, dt: float, method: str, settings):
 
     from ..model.loader import load_model
     from ..simulation.run import simulate
-    from ..simulation.table import point_columns
+    from ..simulation.mechanism import describe, place
     from ..simulation.values import parse_assignments, resolve
 
     loaded = load_model(model)
@@ -83,5 +88,5 @@ def _simulate(model: Path, t_end: float, dt: float, method: str, settings):
     if not traj.complete:
         say(f"Warning: the run stopped at t = {traj.t_fail:.6g}: {traj.message}; "
             f"animating the {len(traj.t)} rows computed")
-    names, pts = point_columns(system, traj, np.array(values.parameters))
-    return traj.t, names, pts, system.name
+    shapes = place(describe(loaded, system), system, traj, np.array(values.parameters))
+    return traj.t, shapes, system.name

@@ -166,6 +166,7 @@ class ModelLoader(ModelReader):
             requirements=tuple(self.requirements),
             source=self.source,
             uses=each_once(self.used),
+            joints=tuple(self.joints),
         )
 
     def _check_values(self) -> None:

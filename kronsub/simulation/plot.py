@@ -29,13 +29,13 @@ def angle_coordinates(system) -> set:
 
 
 def plane(position: np.ndarray) -> np.ndarray:
-    """World positions (rows) in the drawing plane: a line on x, the plane as it is,
-    space seen along y (x horizontal, z up)."""
-    if position.shape[1] == 1:
-        return np.column_stack([position[:, 0], np.zeros(len(position))])
-    if position.shape[1] == 2:
+    """World positions (..., axes: the last index the world axis) in the drawing plane: a line
+    on x, the plane as it is, space seen along +y (x to the right, z up)."""
+    if position.shape[-1] == 1:
+        return np.concatenate([position, np.zeros_like(position)], axis=-1)
+    if position.shape[-1] == 2:
         return position
-    return position[:, [0, 2]]
+    return position[..., [0, 2]]
 
 
 def _panels(system, traj, T, V) -> list[tuple[str, list[tuple[str, np.ndarray]]]]:
