@@ -156,6 +156,27 @@ def hatch(start: np.ndarray, end: np.ndarray, side: np.ndarray, step: float) -> 
     return np.vstack(rows)
 
 
+class _Clock:
+    """The time over the axes' top right corner, written into each picture with Pillow in
+    matplotlib's font (a text artist is most of the cost of a blitted frame)."""
+
+    def __init__(self, fig, ax):
+        from matplotlib import font_manager
+        from PIL import ImageFont
+
+        size = fig.dpi * 10 / 72  # matplotlib's 10 points
+        self.font = ImageFont.truetype(font_manager.findfont(font_manager.FontProperties()), round(size))
+        box = ax.get_window_extent()
+        self.corner = (box.x1, fig.bbox.height - box.y1 - 0.2 * size)
+
+    def stamp(self, rgb: np.ndarray, t: float) -> np.ndarray:
+        from PIL import Image, ImageDraw
+
+        image = Image.fromarray(rgb)
+        ImageDraw.Draw(image).text(self.corner, f"t = {t:.2f} s", font=self.font, fill=(0, 0, 0), anchor="rs")
+        return np.asarray(image)
+
+
 class _Canvas:
     """The figure: the fixed shapes drawn once (the background), the moving ones as artists
     updated in place and drawn over a copy of it for each frame (blitting)."""
@@ -184,7 +205,7 @@ class _Canvas:
         ax.set_xlabel("x [m]")
         ax.set_ylabel("z [m]" if self.space else "y [m]")
         if self.space:
-            ax.text(1.0, 1.02, "seen along +y", transform=ax.transAxes, ha="right", va="bottom", fontsize="small")
+            ax.text(0.99, 0.01, "seen along +y", transform=ax.transAxes, ha="right", va="bottom", fontsize="small")
         self.unit = u = 0.05 * half
         colours: dict[str, str] = {}
 
@@ -195,10 +216,10 @@ class _Canvas:
         self.updates = []  # per moving shape: (artists, update(frame, artists))
         for shape, xy in zip(shapes, drawn):
             self._add(shape, xy, colour(shape.label), u, centre, half)
-        self.clock = ax.text(0.0, 1.02, "", transform=ax.transAxes, ha="left", va="bottom", animated=True)
-        self.title = plot_text(title)
+        ax.text(0.0, 1.02, plot_text(title), transform=ax.transAxes, ha="left", va="bottom")
         self.fig.canvas.draw()
         self.background = self.fig.canvas.copy_from_bbox(self.fig.bbox)
+        self.clock = _Clock(self.fig, ax)
 
     @staticmethod
     def _extent(shapes, drawn):
@@ -336,9 +357,7 @@ class _Canvas:
             update(k)
             for artist in artists:
                 self.ax.draw_artist(artist)
-        self.clock.set_text(f"{self.title}  t = {t:.2f} s".strip())
-        self.ax.draw_artist(self.clock)
-        return np.asarray(canvas.buffer_rgba())[..., :3].copy()
+        return self.clock.stamp(np.asarray(canvas.buffer_rgba())[..., :3].copy(), t)
 
 
 def animate(t: np.ndarray, shapes, path: Path, *, fps: int = 30, size: int = 480, title: str = "",
@@ -395,7 +414,7 @@ def _write_gif(canvas, times, interval: float, path: Path, bar) -> None:
         else:
             images.append(image.quantize(palette=palette, dither=Image.Dither.NONE))
     images[0].save(path, format="GIF", save_all=True, append_images=images[1:],
-                   duration=int(round(1000 * interval)), loop=0)
+                   duration=int(round(1000 * interval)), loop=0, optimize=False)
 
 
 def _ffmpeg() -> str:
