@@ -53,7 +53,7 @@ def test_animate_formats(tmp_path, monkeypatch):
     csv = tmp_path / "run.csv"
     assert invoke("simulate", CART_POLE, "--t", 0.1, "--points", "--output", csv).exit_code == 0
     other = invoke("animate", csv, "--output", tmp_path / "run.avi")
-    assert other.exit_code == 1 and ".gif or .mp4" in other.output
+    assert other.exit_code == 2 and "--output" in other.output and ".gif or .mp4" in other.output
     from matplotlib import animation
 
     monkeypatch.setattr(animation.writers, "is_available", lambda name: False)
@@ -92,7 +92,8 @@ def test_plot_has_one_panel_per_unit_and_legends_outside(tmp_path, monkeypatch):
     assert result.exit_code == 0, result.output
     (fig,) = figures
     labels = [ax.get_ylabel() for ax in fig.axes]
-    assert labels == ["angles [rad]", "lengths", "velocities [per s]", "energy change", "height"]
+    assert labels == ["angles [rad]", "lengths [m]", "angular velocities [rad/s]", "velocities [m/s]",
+                      "energy change [J]", "y [m]"]
     for ax in fig.axes:
         legend = ax.get_legend()
         anchor = legend.get_bbox_to_anchor().transformed(ax.transAxes.inverted())
@@ -100,5 +101,7 @@ def test_plot_has_one_panel_per_unit_and_legends_outside(tmp_path, monkeypatch):
     angles, lengths = fig.axes[0], fig.axes[1]
     assert [line.get_label() for line in angles.get_lines()] == ["theta"]
     assert [line.get_label() for line in lengths.get_lines()] == ["x"]
-    assert {line.get_label() for line in fig.axes[4].get_lines()} == {"cart.centre", "pole.a", "pole.b",
-                                                                     "pole.centre"}
+    assert [line.get_label() for line in fig.axes[2].get_lines()] == ["theta_dot"]
+    assert [line.get_label() for line in fig.axes[3].get_lines()] == ["x_dot"]
+    # the pole hangs from the cart's centre: one path for both
+    assert [line.get_label() for line in fig.axes[5].get_lines()] == ["cart.centre = pole.a", "pole.b", "pole.centre"]

@@ -35,6 +35,12 @@ def animate(source: Path, output: Path, t_end: float, dt: float, method: str, se
 
     def job():
         separate_outputs(source, ("--output", output, "animation"))
+        from ..simulation.animate import FORMATS
+
+        if output.suffix.lower() not in FORMATS:  # before the run
+            suffix = f"'{output.suffix}'" if output.suffix else "suffix-less"
+            fail(f"Error: --output {output}: cannot write {suffix} animations\n  hint: end the name in .gif or .mp4",
+                 USAGE_ERROR)
         from_csv = source.suffix.lower() == ".csv"
         ctx = click.get_current_context()
         if from_csv:  # a trajectory has its times and values: the options that make one do not apply

@@ -167,7 +167,7 @@ class _Clock:
         size = fig.dpi * 10 / 72  # matplotlib's 10 points
         self.font = ImageFont.truetype(font_manager.findfont(font_manager.FontProperties()), round(size))
         box = ax.get_window_extent()
-        self.corner = (box.x1, fig.bbox.height - box.y1 - 0.2 * size)
+        self.corner = (box.x1, fig.bbox.height - box.y1 - 0.45 * size)
 
     def stamp(self, rgb: np.ndarray, t: float) -> np.ndarray:
         from PIL import Image, ImageDraw
