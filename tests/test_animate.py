@@ -105,3 +105,15 @@ def test_plot_has_one_panel_per_unit_and_legends_outside(tmp_path, monkeypatch):
     assert [line.get_label() for line in fig.axes[3].get_lines()] == ["x_dot"]
     # the pole hangs from the cart's centre: one path for both
     assert [line.get_label() for line in fig.axes[5].get_lines()] == ["cart.centre = pole.a", "pole.b", "pole.centre"]
+
+
+@pytest.mark.parametrize("flag, shown", [("--progress", True), ("--no-progress", False), (None, False)])
+def test_a_bar_counts_the_frames_on_request(tmp_path, flag, shown):
+    pytest.importorskip("PIL")
+    csv = tmp_path / "run.csv"
+    assert invoke("simulate", CART_POLE, "--t", 0.2, "--dt", 0.05, "--points", "--output", csv).exit_code == 0
+    args = ["animate", csv, "--output", tmp_path / "run.gif", "--fps", 10, "--size", 64] + ([flag] if flag else [])
+    result = CliRunner().invoke(main, [str(a) for a in args])
+    assert result.exit_code == 0, result.output
+    assert ("] 3/3 frames" in result.stderr) is shown  # the runner is no terminal: no bar unless asked
+    assert "wrote" in result.stderr and "3 frames" in result.stderr
