@@ -113,11 +113,14 @@ def _normal(e: np.ndarray) -> np.ndarray:
     return np.stack([-e[..., 1], e[..., 0]], axis=-1)
 
 
-def zigzag(a: np.ndarray, b: np.ndarray, width: float, coils: int = 6) -> np.ndarray:
+def zigzag(a: np.ndarray, b: np.ndarray, width: float, coils: int | None = None) -> np.ndarray:
     """A spring from ``a`` to ``b`` (points of the plane): straight leads, then ``2 coils``
-    strokes of half-width ``width`` across the line."""
+    strokes of half-width ``width`` across the line (by default one coil per two widths of
+    length, 4 to 16)."""
     d = b - a
     length = float(np.hypot(*d))
+    if coils is None:
+        coils = int(np.clip(length / (2 * width), 4, 16)) if width > 0 else 4
     e = _unit(d)
     n = _normal(e)
     lead = min(0.15 * length, width)
@@ -197,7 +200,9 @@ class _Canvas:
         drawn = [plane(s.places) if s.kind != "dial" else s.places for s in shapes]
         low, high = self._extent(shapes, drawn)
         centre = (low + high) / 2
-        half = max(float(np.max(high - low)) / 2, 1e-9) * 1.15 if np.all(high >= low) else 1.0
+        half = 1.15 * max(float(np.max(high - low)) / 2, 1e-3 * float(np.max(np.abs([low, high]))))
+        if not half > 1e-6:  # nothing apart, nothing far: a metre around it
+            half = 1.0
         self.half = half
         ax.set_xlim(centre[0] - half, centre[0] + half)
         ax.set_ylim(centre[1] - half, centre[1] + half)

@@ -20,6 +20,7 @@ import numpy as np
 import sympy
 
 from ..components.base import in_world
+from ..effects.elements import Damper, Spring
 
 KINDS = {
     "link": "segments from the first place to each of the others (a rod, a body's points)",
@@ -63,11 +64,15 @@ class Sketch:
 
 
 def _part_shapes(part, points: dict) -> list[Sketch]:
-    """The shapes of one part: a star of links over its named points, and what its type adds."""
+    """The shapes of one part: a star of links over the named points of each of its bodies
+    (the label up to its last dot: the part, or a component of a known system), and what
+    its type adds."""
     own = [label for label in points if label.startswith(part.name + ".")]
-    shapes = []
-    if len(own) > 1:
-        shapes.append(Sketch("link", part.name, tuple(points[label] for label in own)))
+    bodies: dict[str, list[str]] = {}
+    for label in own:
+        bodies.setdefault(label.rpartition(".")[0], []).append(label)
+    shapes = [Sketch("link", body, tuple(points[label] for label in labels))
+              for body, labels in bodies.items() if len(labels) > 1]
     kind = part.type_name
     if kind == "disc":
         shapes.append(Sketch("disc", part.name, (points[f"{part.name}.centre"], points[f"{part.name}.rim"])))
@@ -83,15 +88,13 @@ def _part_shapes(part, points: dict) -> list[Sketch]:
         R = body.rotation
         shapes.append(Sketch("axes", part.name, (tuple(body.centre),) + tuple(
             tuple(body.centre[i] + R[i, j] for i in range(R.rows)) for j in range(R.cols))))
-    elif len(own) == 1:
-        shapes.append(Sketch("mass", part.name, (points[own[0]],)))
+    else:
+        shapes += [Sketch("mass", body, (points[labels[0]],)) for body, labels in bodies.items() if len(labels) == 1]
     return shapes
 
 
 def _effect_shapes(effect, points: dict) -> list[Sketch]:
     """A spring or damper between its ends; a wall at an end that is a fixed place."""
-    from ..effects.elements import Damper, Spring
-
     if not isinstance(effect, (Spring, Damper)):
         return []
     ends = [points[e] if isinstance(e, str) else tuple(e) for e in effect.ends]
@@ -168,15 +171,20 @@ def place(sketches: list[Sketch], system, traj, param) -> list[Shape]:
             for axis in range(len(pl)):
                 out[:, j, axis] = numbers[k]
                 k += 1
-        fixed = s.kind in ("pivot", "wall") or (s.kind == "rail" and not any(_moves(pl, system) for pl in s.places))
+        still = [j for j, pl in enumerate(s.places) if not _moves(pl, system)]
+        if s.kind == "joint" and still:  # a pin to a fixed place: a pivot there
+            shapes.append(Shape("pivot", s.label, out[:, still[0]:still[0] + 1], True))
+            continue
+        if s.kind == "joint":
+            out = out[:, :1]
+        fixed = s.kind in ("pivot", "wall") or (s.kind == "rail" and len(still) == len(s.places))
         shapes.append(Shape(s.kind, s.label, out, fixed))
     return _tidy(shapes)
 
 
 def _tidy(shapes: list[Shape]) -> list[Shape]:
     """Named points that coincide throughout the run (hidden ``named`` shapes) become one joint;
-    a pin to a fixed place is a pivot there, a pin between two points a joint at the first; a
-    fixed shape, or a joint, drawn once where several are alike."""
+    a fixed shape, or a joint, drawn once where several are alike."""
     named = [s for s in shapes if s.kind == "named"]
     out = [s for s in shapes if s.kind != "named"]
     if named:
@@ -188,12 +196,6 @@ def _tidy(shapes: list[Shape]) -> list[Shape]:
                 out.append(Shape("joint", " = ".join(named[j].label for j in group), paths[:, group[0]:group[0] + 1]))
     kept: list[Shape] = []
     for s in out:
-        if s.kind == "joint":
-            still = [j for j in range(s.places.shape[1]) if np.ptp(s.places[:, j], axis=0).max(initial=0.0) == 0.0]
-            if still:
-                s = Shape("pivot", s.label, s.places[:, still[0]:still[0] + 1], True)
-            else:
-                s = Shape("joint", s.label, s.places[:, :1])
         if (s.fixed or s.kind == "joint") and any(
                 k.kind == s.kind and k.places.shape == s.places.shape and np.allclose(k.places, s.places, rtol=0,
                                                                                        atol=1e-12) for k in kept):
