@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+import sympy
 
 from conftest import MODELS
 from kronsub.model.loader import load_model
@@ -113,3 +114,15 @@ def test_every_kind_is_drawn(tmp_path):
     frames = animate(traj.t, shapes, gif, fps=20, size=120, progress=False)
     with Image.open(gif) as image:
         assert image.n_frames == frames == 5 and image.size == (120, 120)
+
+
+def test_every_component_type_is_drawn():
+    """Each type of the library has named points (its links or dot) or a drawing of its own."""
+    from kronsub.components import REGISTRY
+    from kronsub.simulation.mechanism import BY_TYPE
+
+    assert set(BY_TYPE) <= set(REGISTRY)
+    for name, cls in REGISTRY.items():
+        x = {c: sympy.Symbol(c) for c in cls.coordinates}
+        p = {spec.name: sympy.Integer(1) for spec in cls.parameters}
+        assert name in BY_TYPE or cls(x=x, p=p).points(), name

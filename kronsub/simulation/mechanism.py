@@ -63,34 +63,49 @@ class Sketch:
     places: tuple[tuple, ...]
 
 
+def _disc(part, points):
+    return [Sketch("disc", part.name, (points[f"{part.name}.centre"], points[f"{part.name}.rim"]))]
+
+
+def _dial(part, points):
+    R = part.bodies[0].rotation
+    return [Sketch("dial", part.name, ((R[0, 0], R[1, 0]),))]
+
+
+def _on_rail(part, points):
+    """A particle on a line: a block on the world x axis."""
+    zero, one = sympy.Integer(0), sympy.Integer(1)
+    return [Sketch("block", part.name, (points[f"{part.name}.centre"],)), Sketch("rail", part.name, ((zero,), (one,)))]
+
+
+def _body_axes(part, points):
+    """A body known by its centre: its axes show its angle (in space, its orientation)."""
+    body = part.bodies[0]
+    R = body.rotation
+    return [Sketch("axes", part.name, (tuple(body.centre),) + tuple(
+        tuple(body.centre[i] + R[i, j] for i in range(R.rows)) for j in range(R.cols)))]
+
+
+BY_TYPE = {"disc": _disc, "flywheel": _dial, "particle1d": _on_rail, "planar_body": _body_axes,
+           "rigid_body3d": _body_axes}
+"""What a component type adds to the links of its named points (``components.REGISTRY``
+names); a type not listed (a particle, a rod, a known system) is its links, or a dot for a
+lone point."""
+
+
 def _part_shapes(part, points: dict) -> list[Sketch]:
     """The shapes of one part: a star of links over the named points of each of its bodies
     (the label up to its last dot: the part, or a component of a known system), and what
-    its type adds."""
+    its type adds (:data:`BY_TYPE`)."""
     own = [label for label in points if label.startswith(part.name + ".")]
     bodies: dict[str, list[str]] = {}
     for label in own:
         bodies.setdefault(label.rpartition(".")[0], []).append(label)
     shapes = [Sketch("link", body, tuple(points[label] for label in labels))
               for body, labels in bodies.items() if len(labels) > 1]
-    kind = part.type_name
-    if kind == "disc":
-        shapes.append(Sketch("disc", part.name, (points[f"{part.name}.centre"], points[f"{part.name}.rim"])))
-    elif kind == "flywheel":
-        R = part.bodies[0].rotation
-        shapes.append(Sketch("dial", part.name, ((R[0, 0], R[1, 0]),)))
-    elif kind == "particle1d":  # on the world x axis
-        zero, one = sympy.Integer(0), sympy.Integer(1)
-        shapes.append(Sketch("block", part.name, (points[f"{part.name}.centre"],)))
-        shapes.append(Sketch("rail", part.name, ((zero,), (one,))))
-    elif kind in ("planar_body", "rigid_body3d"):  # a body known by its centre: its axes show its angle
-        body = part.bodies[0]
-        R = body.rotation
-        shapes.append(Sketch("axes", part.name, (tuple(body.centre),) + tuple(
-            tuple(body.centre[i] + R[i, j] for i in range(R.rows)) for j in range(R.cols))))
-    else:
-        shapes += [Sketch("mass", body, (points[labels[0]],)) for body, labels in bodies.items() if len(labels) == 1]
-    return shapes
+    if part.type_name in BY_TYPE:
+        return shapes + BY_TYPE[part.type_name](part, points)
+    return shapes + [Sketch("mass", body, (points[labels[0]],)) for body, labels in bodies.items() if len(labels) == 1]
 
 
 def _effect_shapes(effect, points: dict) -> list[Sketch]:
@@ -251,4 +266,4 @@ def from_points(names: list[str], values: np.ndarray) -> list[Shape]:
     return _tidy(shapes)
 
 
-__all__ = ["COINCIDENT", "KINDS", "Shape", "Sketch", "coincident", "describe", "from_points", "place"]
+__all__ = ["BY_TYPE", "COINCIDENT", "KINDS", "Shape", "Sketch", "coincident", "describe", "from_points", "place"]
