@@ -126,3 +126,9 @@ def test_every_component_type_is_drawn():
         x = {c: sympy.Symbol(c) for c in cls.coordinates}
         p = {spec.name: sympy.Integer(1) for spec in cls.parameters}
         assert name in BY_TYPE or cls(x=x, p=p).points(), name
+
+
+def test_every_kind_has_a_drawing():
+    from kronsub.simulation import animate
+
+    assert all(callable(getattr(animate._Canvas, f"_{kind}", None)) for kind in KINDS)

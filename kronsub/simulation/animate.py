@@ -184,7 +184,7 @@ class _Canvas:
     """The figure: the fixed shapes drawn once (the background), the moving ones as artists
     updated in place and drawn over a copy of it for each frame (blitting)."""
 
-    def __init__(self, shapes, frames: int, size: int, title: str):
+    def __init__(self, shapes, size: int, title: str):
         import matplotlib
 
         matplotlib.use("Agg")
@@ -195,7 +195,6 @@ class _Canvas:
         self.fig = Figure(figsize=(size / self.dpi, size / self.dpi), dpi=self.dpi)
         FigureCanvasAgg(self.fig)
         self.ax = ax = self.fig.add_axes((0.13, 0.1, 0.82, 0.8))
-        self.shapes = shapes
         self.space = any(s.places.shape[-1] == 3 for s in shapes if s.kind != "dial")
         drawn = [plane(s.places) if s.kind != "dial" else s.places for s in shapes]
         low, high = self._extent(shapes, drawn)
@@ -203,7 +202,7 @@ class _Canvas:
         half = 1.15 * max(float(np.max(high - low)) / 2, 1e-3 * float(np.max(np.abs([low, high]))))
         if not half > 1e-6:  # nothing apart, nothing far: a metre around it
             half = 1.0
-        self.half = half
+        self.half, self.centre, self.dials = half, centre, 0
         ax.set_xlim(centre[0] - half, centre[0] + half)
         ax.set_ylim(centre[1] - half, centre[1] + half)
         ax.set_aspect("equal")
@@ -211,16 +210,16 @@ class _Canvas:
         ax.set_ylabel("z [m]" if self.space else "y [m]")
         if self.space:
             ax.text(0.99, 0.01, "seen along +y", transform=ax.transAxes, ha="right", va="bottom", fontsize="small")
-        self.unit = u = 0.05 * half
+        self.unit = 0.05 * half  # the size of pivots, walls, springs' coils
         colours: dict[str, str] = {}
 
         def colour(label):
             part = label.split(".")[0]
             return colours.setdefault(part, f"C{len(colours) % 10}")
 
-        self.updates = []  # per moving shape: (artists, update(frame, artists))
+        self.updates = []  # per moving shape: (its artists, update(frame))
         for shape, xy in zip(shapes, drawn):
-            self._add(shape, xy, colour(shape.label), u, centre, half)
+            self._add(shape, xy, colour(shape.label))
         ax.text(0.0, 1.02, plot_text(title), transform=ax.transAxes, ha="left", va="bottom")
         self.fig.canvas.draw()
         self.background = self.fig.canvas.copy_from_bbox(self.fig.bbox)
@@ -230,9 +229,9 @@ class _Canvas:
     def _extent(shapes, drawn):
         seen = []
         for shape, xy in zip(shapes, drawn):
-            if shape.kind in ("dial",):
+            if shape.kind in ("dial", "rail"):  # a dial is apart from the world, a rail a whole line
                 continue
-            if shape.kind in ("axes", "rail", "wall"):
+            if shape.kind in ("axes", "wall"):
                 seen.append(xy[:, :1].reshape(-1, 2))
             elif shape.kind == "disc":
                 radius = np.hypot(*(xy[:, 1] - xy[:, 0]).T)[:, None]
@@ -247,112 +246,128 @@ class _Canvas:
     def _line(self, *args, **kw):
         return self.ax.plot(*args, animated=True, **kw)[0]
 
-    def _add(self, shape, xy, colour, u, centre, half):  # noqa: C901 (one case per kind)
-        ax, kind = self.ax, shape.kind
-        first = xy[0]
-        if kind == "pivot":
-            p = first[0]
-            tri = np.array([p, p + [-0.8 * u, -1.4 * u], p + [0.8 * u, -1.4 * u], p])
-            ax.plot(tri[:, 0], tri[:, 1], "-", color="0.2", lw=1.2, zorder=3)
-            ground = hatch(p + [-1.4 * u, -1.4 * u], p + [1.4 * u, -1.4 * u], np.array([0, -1.0]), 0.5 * u)
-            ax.plot(ground[:, 0], ground[:, 1], "-", color="0.2", lw=1, zorder=3)
-            ax.plot([p[0]], [p[1]], "o", color="0.2", mfc="white", ms=5, zorder=4)
-            return
-        if kind == "wall":
-            p, e = first[0], _unit(first[1] - first[0])
-            if not e.any():
-                e = np.array([1.0, 0.0])
-            n = _normal(e)
-            ground = hatch(p - 2 * u * n, p + 2 * u * n, -e, 0.6 * u)
-            ax.plot(ground[:, 0], ground[:, 1], "-", color="0.2", lw=1.2, zorder=3)
-            return
-        if kind == "rail" and shape.fixed:
-            p, e = first[0], _unit(first[1] - first[0])
+    def _add(self, shape, xy, colour: str) -> None:
+        """Draw a fixed shape into the background, or add a moving one's artists and update."""
+        drawn = getattr(self, f"_{shape.kind}")(shape, xy, colour)
+        if drawn is not None:
+            self.updates.append(drawn)
+
+    def _pivot(self, shape, xy, colour):
+        u, p = self.unit, xy[0, 0]
+        tri = np.array([p, p + [-0.8 * u, -1.4 * u], p + [0.8 * u, -1.4 * u], p])
+        self.ax.plot(tri[:, 0], tri[:, 1], "-", color="0.2", lw=1.2, zorder=3)
+        ground = hatch(p + [-1.4 * u, -1.4 * u], p + [1.4 * u, -1.4 * u], np.array([0, -1.0]), 0.5 * u)
+        self.ax.plot(ground[:, 0], ground[:, 1], "-", color="0.2", lw=1, zorder=3)
+        self.ax.plot([p[0]], [p[1]], "o", color="0.2", mfc="white", ms=5, zorder=4)
+
+    def _wall(self, shape, xy, colour):
+        u, (p, towards) = self.unit, xy[0]
+        e = _unit(towards - p)
+        if not e.any():
+            e = np.array([1.0, 0.0])
+        n = _normal(e)
+        ground = hatch(p - 2 * u * n, p + 2 * u * n, -e, 0.6 * u)
+        self.ax.plot(ground[:, 0], ground[:, 1], "-", color="0.2", lw=1.2, zorder=3)
+
+    def _rail(self, shape, xy, colour):
+        u, reach = self.unit, 3 * self.half + float(np.hypot(*(xy[0, 0] - self.centre)))
+        if shape.fixed:  # hatched on its lower side
+            p, e = xy[0, 0], _unit(xy[0, 1] - xy[0, 0])
             n = _normal(e)
             below = -n if n[1] > 0 or (n[1] == 0 and n[0] > 0) else n
-            reach = 3 * half + float(np.hypot(*(p - centre)))
             ground = hatch(p - reach * e + 0.6 * u * below, p + reach * e + 0.6 * u * below, below, 0.8 * u)
-            ax.plot(ground[:, 0], ground[:, 1], "-", color="0.45", lw=1, zorder=1)
-            return
-        if kind == "rail":
-            line = self._line([], [], "--", color=colour, lw=1, zorder=1)
-            reach = 3 * half
+            self.ax.plot(ground[:, 0], ground[:, 1], "-", color="0.45", lw=1, zorder=1)
+            return None
+        line = self._line([], [], "--", color=colour, lw=1, zorder=1)
 
-            def update(k, line=line, xy=xy):
-                p, e = xy[k, 0], _unit(xy[k, 1] - xy[k, 0])
-                line.set_data([p[0] - reach * e[0], p[0] + reach * e[0]], [p[1] - reach * e[1], p[1] + reach * e[1]])
-            self.updates.append(([line], update))
-            return
-        if kind == "link":
-            line = self._line([], [], "-", color=colour, lw=3, solid_capstyle="round", zorder=2)
-            dots = self._line([], [], "o", color=colour, ms=4, zorder=2)
-            star = np.full((xy.shape[0], 3 * (xy.shape[1] - 1), 2), np.nan)
-            star[:, 0::3], star[:, 1::3] = xy[:, :1], xy[:, 1:]
+        def update(k):
+            p, e = xy[k, 0], _unit(xy[k, 1] - xy[k, 0])
+            line.set_data([p[0] - reach * e[0], p[0] + reach * e[0]], [p[1] - reach * e[1], p[1] + reach * e[1]])
+        return [line], update
 
-            def update(k, line=line, dots=dots, star=star, xy=xy):
-                line.set_data(star[k, :, 0], star[k, :, 1])
-                dots.set_data(xy[k, :, 0], xy[k, :, 1])
-            self.updates.append(([line, dots], update))
-            return
-        if kind == "disc":
-            from matplotlib.patches import Circle
+    def _link(self, shape, xy, colour):
+        line = self._line([], [], "-", color=colour, lw=3, solid_capstyle="round", zorder=2)
+        dots = self._line([], [], "o", color=colour, ms=4, zorder=2)
+        star = np.full((xy.shape[0], 3 * (xy.shape[1] - 1), 2), np.nan)  # first-other pairs, NaN between
+        star[:, 0::3], star[:, 1::3] = xy[:, :1], xy[:, 1:]
 
-            disc = Circle((0, 0), 0, fill=True, fc=colour, alpha=0.25, ec=colour, lw=2, animated=True, zorder=1)
-            ax.add_patch(disc)
-            mark = self._line([], [], "-", color=colour, lw=2, zorder=2)
-            radius = np.hypot(*(xy[:, 1] - xy[:, 0]).T)
+        def update(k):
+            line.set_data(star[k, :, 0], star[k, :, 1])
+            dots.set_data(xy[k, :, 0], xy[k, :, 1])
+        return [line, dots], update
 
-            def update(k, disc=disc, mark=mark, xy=xy, radius=radius):
-                disc.center = tuple(xy[k, 0])
-                disc.set_radius(float(radius[k]))
-                mark.set_data(xy[k, :, 0], xy[k, :, 1])
-            self.updates.append(([disc, mark], update))
-            return
-        if kind == "dial":
-            from matplotlib.patches import Circle
+    def _disc(self, shape, xy, colour):
+        from matplotlib.patches import Circle
 
-            slot = sum(1 for s in self.shapes[:self.shapes.index(shape)] if s.kind == "dial")
-            where = np.array([0.09 + 0.14 * slot, 0.89])
-            ax.add_patch(Circle(where, 0.05, transform=ax.transAxes, fill=False, ec=colour, lw=2))
-            ax.text(where[0], where[1] - 0.065, plot_text(shape.label), transform=ax.transAxes, ha="center",
-                    va="top", fontsize="x-small", color=colour)
-            mark = self._line([], [], "-", color=colour, lw=2, transform=ax.transAxes)
-            ends = where + 0.05 * _unit(xy[:, 0, :2])
+        disc = Circle((0, 0), 0, fill=True, fc=colour, alpha=0.25, ec=colour, lw=2, animated=True, zorder=1)
+        self.ax.add_patch(disc)
+        mark = self._line([], [], "-", color=colour, lw=2, zorder=2)
+        radius = np.hypot(*(xy[:, 1] - xy[:, 0]).T)
 
-            def update(k, mark=mark, ends=ends, where=where):
-                mark.set_data([where[0], ends[k, 0]], [where[1], ends[k, 1]])
-            self.updates.append(([mark], update))
-            return
-        if kind == "axes":
-            length = 2.5 * u
-            lines = [self._line([], [], "-", color=c, lw=2, zorder=3) for c in ("tab:red", "tab:green", "tab:blue")]
-            lines = lines[:xy.shape[1] - 1]
+        def update(k):
+            disc.center = tuple(xy[k, 0])
+            disc.set_radius(float(radius[k]))
+            mark.set_data(xy[k, :, 0], xy[k, :, 1])
+        return [disc, mark], update
 
-            def update(k, lines=lines, xy=xy):
-                c = xy[k, 0]
-                for line, end in zip(lines, xy[k, 1:]):
-                    tip = c + length * (end - c)
-                    line.set_data([c[0], tip[0]], [c[1], tip[1]])
-            self.updates.append((lines, update))
-            return
-        if kind in ("spring", "damper"):
-            line = self._line([], [], "-", color="0.25", lw=1.3, zorder=2)
-            make = zigzag if kind == "spring" else dashpot
-            width = 0.7 * u
+    def _dial(self, shape, xy, colour):
+        from matplotlib.patches import Circle
 
-            def update(k, line=line, xy=xy, make=make):
-                path = make(xy[k, 0], xy[k, 1], width)
-                line.set_data(path[:, 0], path[:, 1])
-            self.updates.append(([line], update))
-            return
-        style = {"mass": dict(marker="o", ms=10, color=colour, zorder=3),
-                 "block": dict(marker="s", ms=13, mfc="white", mec=colour, mew=2, color=colour, zorder=3),
-                 "joint": dict(marker="o", ms=6, mfc="white", mec="0.1", mew=1.3, color="0.1", zorder=5)}[kind]
+        ax = self.ax
+        where = np.array([0.09 + 0.14 * self.dials, 0.89])  # in the top left corner, one beside the other
+        self.dials += 1
+        ax.add_patch(Circle(where, 0.05, transform=ax.transAxes, fill=False, ec=colour, lw=2))
+        ax.text(where[0], where[1] - 0.065, plot_text(shape.label), transform=ax.transAxes, ha="center",
+                va="top", fontsize="x-small", color=colour)
+        mark = self._line([], [], "-", color=colour, lw=2, transform=ax.transAxes)
+        ends = where + 0.05 * _unit(xy[:, 0, :2])
+
+        def update(k):
+            mark.set_data([where[0], ends[k, 0]], [where[1], ends[k, 1]])
+        return [mark], update
+
+    def _axes(self, shape, xy, colour):
+        length = 2.5 * self.unit
+        lines = [self._line([], [], "-", color=c, lw=2, zorder=3)
+                 for c in ("tab:red", "tab:green", "tab:blue")[:xy.shape[1] - 1]]
+
+        def update(k):
+            c = xy[k, 0]
+            for line, end in zip(lines, xy[k, 1:]):
+                tip = c + length * (end - c)
+                line.set_data([c[0], tip[0]], [c[1], tip[1]])
+        return lines, update
+
+    def _element(self, xy, make):
+        line = self._line([], [], "-", color="0.25", lw=1.3, zorder=2)
+        width = 0.7 * self.unit
+
+        def update(k):
+            path = make(xy[k, 0], xy[k, 1], width)
+            line.set_data(path[:, 0], path[:, 1])
+        return [line], update
+
+    def _spring(self, shape, xy, colour):
+        return self._element(xy, zigzag)
+
+    def _damper(self, shape, xy, colour):
+        return self._element(xy, dashpot)
+
+    def _marker(self, xy, **style):
         dot = self._line([], [], linestyle="none", **style)
 
-        def update(k, dot=dot, xy=xy):
+        def update(k):
             dot.set_data(xy[k, :1, 0], xy[k, :1, 1])
-        self.updates.append(([dot], update))
+        return [dot], update
+
+    def _mass(self, shape, xy, colour):
+        return self._marker(xy, marker="o", ms=10, color=colour, zorder=3)
+
+    def _block(self, shape, xy, colour):
+        return self._marker(xy, marker="s", ms=13, mfc="white", mec=colour, mew=2, color=colour, zorder=3)
+
+    def _joint(self, shape, xy, colour):
+        return self._marker(xy, marker="o", ms=6, mfc="white", mec="0.1", mew=1.3, color="0.1", zorder=5)
 
     def frame(self, k: int, t: float) -> np.ndarray:
         """The picture at frame ``k`` (time ``t``), as rows x columns x RGB."""
@@ -386,7 +401,7 @@ def animate(t: np.ndarray, shapes, path: Path, *, fps: int = 30, size: int = 480
     from .mechanism import Shape
 
     shapes = [s if s.fixed else Shape(s.kind, s.label, at_frames(t, times, s.places), s.fixed) for s in shapes]
-    canvas = _Canvas(shapes, len(times), size, title)
+    canvas = _Canvas(shapes, size, title)
     bar = Progress(len(times), progress)
     try:
         with atomic_path(path) as tmp:  # the writers want a file name with the format's suffix
