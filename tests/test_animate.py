@@ -117,3 +117,32 @@ def test_a_bar_counts_the_frames_on_request(tmp_path, flag, shown):
     assert result.exit_code == 0, result.output
     assert ("] 3/3 frames" in result.stderr) is shown  # the runner is no terminal: no bar unless asked
     assert "wrote" in result.stderr and "3 frames" in result.stderr
+
+
+def test_too_many_frames_are_refused_before_drawing(tmp_path):
+    csv = tmp_path / "long.csv"
+    csv.write_text("t,bob.centre.x,bob.centre.y\n0,0,0\n1000,1,0\n")
+    result = invoke("animate", csv, "--output", tmp_path / "long.gif", "--fps", 30)
+    assert result.exit_code == 1
+    assert "are more than 20000" in result.output and "lower --fps" in result.output
+    assert list(tmp_path.iterdir()) == [csv]
+
+
+def test_mp4_frames_go_to_ffmpeg(tmp_path, monkeypatch):
+    """The raw frames reach ffmpeg (here a stand-in that counts the bytes it is given)."""
+    import matplotlib
+
+    fake = tmp_path / "ffmpeg"
+    fake.write_text("#!/usr/bin/env python3\nimport sys\n"
+                    "data = sys.stdin.buffer.read()\nopen(sys.argv[-1], 'w').write(' '.join(sys.argv[1:]) + '\\n'"
+                    " + str(len(data)))\n")
+    fake.chmod(0o755)
+    monkeypatch.setitem(matplotlib.rcParams, "animation.ffmpeg_path", str(fake))
+    csv = tmp_path / "run.csv"
+    assert invoke("simulate", CART_POLE, "--t", 0.2, "--dt", 0.05, "--points", "--output", csv).exit_code == 0
+    out = tmp_path / "run.mp4"
+    result = invoke("animate", csv, "--output", out, "--fps", 10, "--size", 64)
+    assert result.exit_code == 0, result.output
+    arguments, count = out.read_text().splitlines()
+    assert "-s 64x64" in arguments and "-pix_fmt rgb24" in arguments and "-r 10.0" in arguments
+    assert int(count) == 3 * 64 * 64 * 3  # frames at 0, 0.1, 0.2 s, 64 x 64 RGB each

@@ -21,6 +21,10 @@ from .plot import plane
 
 FORMATS = (".gif", ".mp4")
 
+MAX_FRAMES = 20_000
+"""More frames is a mistake (11 minutes at 30 per second): a GIF's frames are held in memory
+until written, 230 kB each at 480 px."""
+
 
 class AnimationError(KronsubError):
     """The animation cannot be written (format, writer or input)."""
@@ -398,6 +402,9 @@ def animate(t: np.ndarray, shapes, path: Path, *, fps: int = 30, size: int = 480
         raise AnimationError("nothing to draw: the model has no named points and no flywheel"
                              "\n  hint: `kronsub simulate` writes its coordinates over time")
     times, interval = frame_times(t, fps, suffix == ".gif")
+    if len(times) > MAX_FRAMES:
+        raise AnimationError(f"{len(times)} frames ({float(t[-1] - t[0]):.6g} s at {fps} per second) are more than "
+                             f"{MAX_FRAMES}\n  hint: lower --fps, or animate a shorter run")
     from .mechanism import Shape
 
     shapes = [s if s.fixed else Shape(s.kind, s.label, at_frames(t, times, s.places), s.fixed) for s in shapes]
