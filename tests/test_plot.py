@@ -87,3 +87,9 @@ def test_animate_refuses_a_format_before_the_run(tmp_path):
     assert result.exit_code == 2
     assert result.output == f"Error: --output {out}: cannot write '.avi' animations\n  hint: end the name in .gif or .mp4\n"
     assert list(tmp_path.iterdir()) == []
+
+
+def test_paths_in_space_are_seen_along_y(tmp_path, monkeypatch):
+    fig = figure_of(monkeypatch, tmp_path, MODELS / "examples" / "particle_on_sphere.yaml", "--t", 0.1, "--points")
+    ax = fig.axes[-1]
+    assert ax.get_ylabel() == "z [m]" and "seen along +y" in ax.get_title()

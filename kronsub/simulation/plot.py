@@ -76,7 +76,9 @@ def plot_trajectory(system, traj, values, path: Path, with_points: bool = False)
     param = np.array(values.parameters)
     T, V = energies(system, traj, param)
     panels = _panels(system, traj, T, V)
-    paths = point_paths(*point_columns(system, traj, param)) if with_points and len(traj.t) else []
+    names, places = point_columns(system, traj, param) if with_points and len(traj.t) else ([], None)
+    paths = point_paths(names, places) if names else []
+    space = any(name.endswith(".z") for name in names)
     rows = len(panels) + (1 if paths else 0)
     fig = plt.figure(figsize=(9, 2.3 * len(panels) + (4 if paths else 0)), layout="constrained")
     heights = [1] * len(panels) + ([2] if paths else [])
@@ -86,7 +88,7 @@ def plot_trajectory(system, traj, values, path: Path, with_points: bool = False)
         ax = fig.add_subplot(grid[k], sharex=axes[0] if axes else None)
         axes.append(ax)
         for name, data in curves:
-            ax.plot(traj.t, data, label=name)
+            ax.plot(traj.t, data, label=plot_text(name))
         ax.set_ylabel(label)
         ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize="small", borderaxespad=0)
         if k < len(panels) - 1:
@@ -96,14 +98,15 @@ def plot_trajectory(system, traj, values, path: Path, with_points: bool = False)
         ax = fig.add_subplot(grid[len(panels)])
         for k, (label, xy, fixed) in enumerate(paths):
             if fixed:
-                ax.plot(xy[:1, 0], xy[:1, 1], "s", color=f"C{k % 10}", ms=7, label=f"{label} (fixed)")
+                ax.plot(xy[:1, 0], xy[:1, 1], "s", color=f"C{k % 10}", ms=7, label=plot_text(f"{label} (fixed)"))
             else:
-                ax.plot(xy[:, 0], xy[:, 1], color=f"C{k % 10}", marker="o", markevery=[0], ms=5, label=label)
+                ax.plot(xy[:, 0], xy[:, 1], color=f"C{k % 10}", marker="o", markevery=[0], ms=5,
+                        label=plot_text(label))
         ax.set_aspect("equal", adjustable="datalim")
         ax.set_xlabel("x [m]")
-        ax.set_ylabel("z [m]" if system.dimension == 3 else "y [m]")
-        ax.set_title("paths of the named points (a dot where each starts)"
-                     + (", seen along +y" if system.dimension == 3 else ""), fontsize="small")
+        ax.set_ylabel("z [m]" if space else "y [m]")
+        ax.set_title("paths of the named points (a dot where each starts)" + (", seen along +y" if space else ""),
+                     fontsize="small")
         ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize="small", borderaxespad=0)
     fig.suptitle(f"{plot_text(system.name)}, method {plot_text(traj.method)}")
     save_figure(fig, path, plot_format(path) or "png")
