@@ -105,7 +105,7 @@ def test_points_of_a_csv_and_their_coincidences():
     assert groups == [[0], [1, 2]]
 
 
-def test_every_kind_is_drawn(tmp_path):
+def test_a_gif_of_the_shapes_has_its_frames_and_size(tmp_path):
     Image = pytest.importorskip("PIL.Image")
     from kronsub.simulation.animate import animate
 

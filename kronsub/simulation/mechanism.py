@@ -20,6 +20,7 @@ import numpy as np
 import sympy
 
 from ..components.base import in_world
+from ..core.symbols import TIME
 from ..effects.elements import Damper, Spring
 
 KINDS = {
@@ -160,8 +161,9 @@ def _coordinates(system) -> tuple:
 
 
 def _moves(place, system) -> bool:
+    """Whether a place depends on the coordinates or on the time (a driven point)."""
     symbols = set().union(*(sympy.sympify(c).free_symbols for c in place))
-    return bool(symbols & set(_coordinates(system)))
+    return bool(symbols & (set(_coordinates(system)) | {TIME}))
 
 
 def place(sketches: list[Sketch], system, traj, param) -> list[Shape]:
@@ -173,8 +175,8 @@ def place(sketches: list[Sketch], system, traj, param) -> list[Shape]:
     if system.implicit is not None:
         dependent = traj.dependent if traj.dependent is not None else np.full((rows, len(coords) - len(columns)), np.nan)
         columns += [dependent[:, i] for i in range(dependent.shape[1])]
-    symbols = list(coords) + [p.symbol for p in system.parameters]
-    values = columns + [np.full(rows, float(v)) for v in param]
+    symbols = list(coords) + [TIME] + [p.symbol for p in system.parameters]
+    values = columns + [np.asarray(traj.t, dtype=float)] + [np.full(rows, float(v)) for v in param]
     flat = [sympy.sympify(c) for s in sketches for pl in s.places for c in pl]
     evaluate = sympy.lambdify(symbols, flat, "numpy")
     numbers = [np.broadcast_to(np.asarray(v, dtype=float), (rows,)) for v in evaluate(*values)] if flat else []
