@@ -211,11 +211,13 @@ def _tidy(shapes: list[Shape]) -> list[Shape]:
             parts = {named[j].label.rpartition(".")[0] for j in group}
             if len(parts) > 1:
                 out.append(Shape("joint", " = ".join(named[j].label for j in group), paths[:, group[0]:group[0] + 1]))
+    seen = [s.places.reshape(-1, s.places.shape[-1]) for s in out if s.kind != "dial"]
+    scale = float(np.ptp(np.vstack(seen), axis=0).max(initial=0.0)) if seen else 0.0
     kept: list[Shape] = []
     for s in out:
         if (s.fixed or s.kind == "joint") and any(
-                k.kind == s.kind and k.places.shape == s.places.shape and np.allclose(k.places, s.places, rtol=0,
-                                                                                       atol=1e-12) for k in kept):
+                k.kind == s.kind and k.places.shape == s.places.shape
+                and np.allclose(k.places, s.places, rtol=0, atol=COINCIDENT * scale) for k in kept):
             continue
         kept.append(s)
     return kept
