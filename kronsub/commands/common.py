@@ -235,7 +235,7 @@ def meta_option(help: str):
 
 
 def plot_option(help: str):
-    """``--plot FILE``: a PNG of the run."""
+    """``--plot FILE``: a plot of the run, PNG, PDF or SVG by the name (:func:`plot_formats`)."""
     return click.option("--plot", type=FILE, help=help)
 
 
