@@ -68,6 +68,12 @@ def test_planar_shapes_are_where_the_coordinates_put_them():
     offset = block.places[:, 0] - rail.places[:, 0]
     assert np.allclose(offset[:, 0] * along[:, 1] - offset[:, 1] * along[:, 0], 0, atol=1e-8)
     assert not [s for s in shapes if s.kind == "pivot" and s.label != "arm.pivot"]
+    fa, cx = column(system, traj, "fa"), column(system, traj, "cx")
+    same(only(shapes, "dial", "fly"), np.column_stack([np.cos(fa), np.sin(fa)]))  # the flywheel's angle
+    same(only(shapes, "block", "cart"), np.column_stack([cx, np.zeros_like(cx)]))  # on the x axis
+    rail = only(shapes, "rail", "cart")
+    assert rail.fixed and np.allclose(rail.places[0], [[0.0, 0.0], [1.0, 0.0]])
+    assert np.ptp(fa) > 0.5 and np.ptp(cx) > 0.1
 
 
 def test_a_body_in_space_shows_its_axes():
