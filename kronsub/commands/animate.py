@@ -17,7 +17,8 @@ from .common import (USAGE_ERROR, budget_option, check_times, fail, output_optio
 @click.option("--method", default="dop853", show_default=True, help="Integration method (MODEL only).")
 @set_option("Set a parameter or an initial coordinate/velocity (MODEL only; repeatable).")
 @click.option("--fps", type=click.IntRange(1, 120), default=30, show_default=True,
-              help="Frames per second; rows are skipped so that the animation plays in real time.")
+              help="Frames per second; the places between the rows are interpolated so that the animation "
+                   "plays in real time.")
 @click.option("--size", type=click.IntRange(64, 4096), default=480, show_default=True,
               help="Width and height of the frames in pixels.")
 @click.option("--progress/--no-progress", default=None,
@@ -29,7 +30,7 @@ def animate(source: Path, output: Path, t_end: float, dt: float, method: str, se
     written with `kronsub simulate --points`. From a MODEL: rods, discs with a mark at their
     angle, flywheels as dials, bodies' axes, springs (zigzag) and dampers (dashpot), fixed
     pivots on hatched ground, walls, rails and sliders, joints; from a CSV: the named
-    points. Needs matplotlib (pip install 'kronsub[plot]')."""
+    points. Needs matplotlib and Pillow (pip install 'kronsub[plot]')."""
     from ..simulation.methods import SIMULATE
     from ..simulation.run import SimulationError, row_count
 
