@@ -53,7 +53,7 @@ def test_animate_formats(tmp_path, monkeypatch):
     csv = tmp_path / "run.csv"
     assert invoke("simulate", CART_POLE, "--t", 0.1, "--points", "--output", csv).exit_code == 0
     other = invoke("animate", csv, "--output", tmp_path / "run.avi")
-    assert other.exit_code == 1 and ".gif or .mp4" in other.output
+    assert other.exit_code == 2 and "--output" in other.output and ".gif or .mp4" in other.output
     from matplotlib import animation
 
     monkeypatch.setattr(animation.writers, "is_available", lambda name: False)
@@ -92,7 +92,8 @@ def test_plot_has_one_panel_per_unit_and_legends_outside(tmp_path, monkeypatch):
     assert result.exit_code == 0, result.output
     (fig,) = figures
     labels = [ax.get_ylabel() for ax in fig.axes]
-    assert labels == ["angles [rad]", "lengths", "velocities [per s]", "energy change", "height"]
+    assert labels == ["angles [rad]", "lengths [m]", "angular velocities [rad/s]", "velocities [m/s]",
+                      "energy change [J]", "y [m]"]
     for ax in fig.axes:
         legend = ax.get_legend()
         anchor = legend.get_bbox_to_anchor().transformed(ax.transAxes.inverted())
@@ -100,5 +101,48 @@ def test_plot_has_one_panel_per_unit_and_legends_outside(tmp_path, monkeypatch):
     angles, lengths = fig.axes[0], fig.axes[1]
     assert [line.get_label() for line in angles.get_lines()] == ["theta"]
     assert [line.get_label() for line in lengths.get_lines()] == ["x"]
-    assert {line.get_label() for line in fig.axes[4].get_lines()} == {"cart.centre", "pole.a", "pole.b",
-                                                                     "pole.centre"}
+    assert [line.get_label() for line in fig.axes[2].get_lines()] == ["theta_dot"]
+    assert [line.get_label() for line in fig.axes[3].get_lines()] == ["x_dot"]
+    # the pole hangs from the cart's centre: one path for both
+    assert [line.get_label() for line in fig.axes[5].get_lines()] == ["cart.centre = pole.a", "pole.b", "pole.centre"]
+
+
+@pytest.mark.parametrize("flag, shown", [("--progress", True), ("--no-progress", False), (None, False)])
+def test_a_bar_counts_the_frames_on_request(tmp_path, flag, shown):
+    pytest.importorskip("PIL")
+    csv = tmp_path / "run.csv"
+    assert invoke("simulate", CART_POLE, "--t", 0.2, "--dt", 0.05, "--points", "--output", csv).exit_code == 0
+    args = ["animate", csv, "--output", tmp_path / "run.gif", "--fps", 10, "--size", 64] + ([flag] if flag else [])
+    result = CliRunner().invoke(main, [str(a) for a in args])
+    assert result.exit_code == 0, result.output
+    assert ("] 3/3 frames" in result.stderr) is shown  # the runner is no terminal: no bar unless asked
+    assert "wrote" in result.stderr and "3 frames" in result.stderr
+
+
+def test_too_many_frames_are_refused_before_drawing(tmp_path):
+    csv = tmp_path / "long.csv"
+    csv.write_text("t,bob.centre.x,bob.centre.y\n0,0,0\n1000,1,0\n")
+    result = invoke("animate", csv, "--output", tmp_path / "long.gif", "--fps", 30)
+    assert result.exit_code == 1
+    assert "are more than 20000" in result.output and "lower --fps" in result.output
+    assert list(tmp_path.iterdir()) == [csv]
+
+
+def test_mp4_frames_go_to_ffmpeg(tmp_path, monkeypatch):
+    """The raw frames reach ffmpeg (here a stand-in that counts the bytes it is given)."""
+    import matplotlib
+
+    fake = tmp_path / "ffmpeg"
+    fake.write_text("#!/usr/bin/env python3\nimport sys\n"
+                    "data = sys.stdin.buffer.read()\nopen(sys.argv[-1], 'w').write(' '.join(sys.argv[1:]) + '\\n'"
+                    " + str(len(data)))\n")
+    fake.chmod(0o755)
+    monkeypatch.setitem(matplotlib.rcParams, "animation.ffmpeg_path", str(fake))
+    csv = tmp_path / "run.csv"
+    assert invoke("simulate", CART_POLE, "--t", 0.2, "--dt", 0.05, "--points", "--output", csv).exit_code == 0
+    out = tmp_path / "run.mp4"
+    result = invoke("animate", csv, "--output", out, "--fps", 10, "--size", 64)
+    assert result.exit_code == 0, result.output
+    arguments, count = out.read_text().splitlines()
+    assert "-s 64x64" in arguments and "-pix_fmt rgb24" in arguments and "-r 10.0" in arguments
+    assert int(count) == 3 * 64 * 64 * 3  # frames at 0, 0.1, 0.2 s, 64 x 64 RGB each

@@ -183,7 +183,7 @@ BAD = [
     (["animate", "binary.csv", "-o", "a.gif"], 1, ["binary.csv:2:3", "UTF-8"]),
     (["animate", "fifo.csv", "-o", "a.gif"], 1, ["fifo.csv", "named pipe"]),
     (["animate", "nowhere.csv", "-o", "a.gif"], 1, ["nowhere.csv"]),
-    (["animate", "points.csv", "-o", "a.txt"], 1, ["a.txt", ".gif or .mp4"]),
+    (["animate", "points.csv", "-o", "a.txt"], 2, ["--output a.txt", ".gif or .mp4"]),
     # new
     (["new", "m"], 1, ["m.yaml exists", "never overwrites"]),
     (["new", ""], 2, ["NAME", "no usable file name"]),

@@ -293,15 +293,25 @@ def _every_point(system: KnownSystem) -> KnownSystem:
 
 
 def animate(system: KnownSystem, output, t: float | None = None, dt: float | None = None, method: str | None = None,
-            set: Mapping[str, object] | None = None, *, fps: int = 30, size: int = 480) -> int:
+            set: Mapping[str, object] | None = None, *, fps: int = 30, size: int = 480,
+            progress: bool | None = False) -> int:
     """Simulate as :func:`simulate` does (default span and step: the scene's, else 5 and 0.02)
-    and draw the mechanism over time into ``output``, a .gif (pillow) or .mp4 (ffmpeg), as
-    ``kronsub animate MODEL`` does; the number of frames (needs matplotlib)."""
+    and draw the mechanism over time into ``output``, a .gif (Pillow) or .mp4 (ffmpeg), as
+    ``kronsub animate MODEL`` does (its shapes from the model's components, effects and joints,
+    :mod:`kronsub.simulation.mechanism`; a system without its model: from its named points);
+    a bar on stderr counts the frames with ``progress`` (None: on a terminal); the number of
+    frames (needs matplotlib and Pillow)."""
     from ..simulation.animate import animate as draw
+    from ..simulation.mechanism import describe, from_points, place
     from ..simulation.table import point_columns
 
     t, dt, method = run_span(system, t, dt, method, ANIMATION_DEFAULTS)
     drawn = _every_point(system)
     begin, traj = _trajectory(drawn, t, dt, method, set, 1e-10, 1e-10)
-    names, values = point_columns(drawn, traj, np.array(begin.values.parameters))
-    return draw(traj.t, names, values, Path(output), fps=fps, size=size, title=drawn.name)
+    param = np.array(begin.values.parameters)
+    model = getattr(system, "model", None)
+    if model is not None:
+        shapes = place(describe(model, drawn), drawn, traj, param)
+    else:
+        shapes = from_points(*point_columns(drawn, traj, param))
+    return draw(traj.t, shapes, Path(output), fps=fps, size=size, title=drawn.name, progress=progress)

@@ -31,7 +31,7 @@ __all__ = ["accuracy"]
                    "beside it as JSON (wp.csv -> wp.json).")
 @meta_option("Write the metadata (JSON: model, reference routes and estimated error, t_end, skipped methods, "
                    "failures, target) to FILE (default: beside --output).")
-@plot_option("Write the work-precision PNG (error against time, log-log) to FILE.")
+@plot_option("Write the work-precision plot (error against time, log-log; PNG, PDF or SVG by the name).")
 @click.option("--quick", is_flag=True, help="A coarse grid (every third tolerance), few repeats, a cheaper reference.")
 @click.option("--digits", type=click.IntRange(12, 200), default=None,
               help="Digits of the reference's cross-check run (default 20; --quick 16); the reference runs at 8 more.")

@@ -22,21 +22,32 @@ _MODEL_ONLY = {"t_end": "--t", "dt": "--dt", "method": "--method", "settings": "
 @click.option("--method", default=None, help="Integration method (MODEL only; default: the scene's, else dop853).")
 @set_option("Set a parameter or an initial coordinate/velocity (MODEL only; repeatable).")
 @click.option("--fps", type=click.IntRange(1, 120), default=30, show_default=True,
-              help="Frames per second; rows are skipped so that the animation plays in real time.")
+              help="Frames per second; the places between the rows are interpolated so that the animation "
+                   "plays in real time.")
 @click.option("--size", type=click.IntRange(64, 4096), default=480, show_default=True,
               help="Width and height of the frames in pixels.")
 @scene_option(help="Use the model's scene NAME (MODEL only): its effects, values, initial values, span, step "
                    "and method (default: the model's only scene if it has exactly one, else every effect).")
+@click.option("--progress/--no-progress", default=None,
+              help="A bar counting the frames on stderr (default: on a terminal only).")
 @budget_option
 def animate(source: Path, output: Path, t_end: float | None, dt: float | None, method: str | None,
-            settings: tuple[str, ...], fps: int, size: int, scene_name: str | None):
+            settings: tuple[str, ...], fps: int, size: int, scene_name: str | None, progress: bool | None):
     """Draw the mechanism of SOURCE over time: a MODEL (simulated first) or a trajectory CSV
-    written with `kronsub simulate --points`. Bodies are segments between their named
-    points, discs are circles; needs matplotlib (pip install 'kronsub[plot]')."""
+    written with `kronsub simulate --points`. From a MODEL: rods, discs with a mark at their
+    angle, flywheels as dials, bodies' axes, springs (zigzag) and dampers (dashpot), fixed
+    pivots on hatched ground, walls, rails and sliders, joints; from a CSV: the named
+    points. Needs matplotlib and Pillow (pip install 'kronsub[plot]')."""
     from ..simulation.methods import SIMULATE
 
     def job():
         separate_outputs(source, ("--output", output, "animation"))
+        from ..simulation.animate import FORMATS
+
+        if output.suffix.lower() not in FORMATS:  # before the run
+            suffix = f"'{output.suffix}'" if output.suffix else "suffix-less"
+            fail(f"Error: --output {output}: cannot write {suffix} animations\n  hint: end the name in .gif or .mp4",
+                 USAGE_ERROR)
         from_csv = source.suffix.lower() == ".csv"
         ctx = click.get_current_context()
         if from_csv:  # a trajectory has its times and values: the options that make one do not apply
@@ -57,18 +68,20 @@ def animate(source: Path, output: Path, t_end: float | None, dt: float | None, m
             fail("Error: animate needs matplotlib\n  hint: pip install 'kronsub[plot]'")
         from ..simulation.animate import animate as draw
         from ..simulation.animate import read_points_csv
+        from ..simulation.mechanism import from_points
 
         if from_csv:
             t, names, values = read_points_csv(source)
-            frames = draw(t, names, values, output, fps=fps, size=size, title="")
+            frames = draw(t, from_points(names, values), output, fps=fps, size=size, title="", progress=progress)
         else:
-            frames = _animate_model(source, output, t_end, dt, method, settings, fps, size, scene_name)
+            frames = _animate_model(source, output, t_end, dt, method, settings, fps, size, scene_name, progress)
         say(f"wrote {output} ({frames} frames)")
 
     run_command(job)
 
 
-def _animate_model(model: Path, output: Path, t_end, dt, method, settings, fps: int, size: int, scene_name):
+def _animate_model(model: Path, output: Path, t_end, dt, method, settings, fps: int, size: int, scene_name,
+                   progress: bool | None):
     """Derive MODEL's scene with every named point, then :func:`kronsub.api.animate`."""
     from ..api import ANIMATION_DEFAULTS, System, run_span
     from ..api import animate as animate_system
@@ -82,4 +95,5 @@ def _animate_model(model: Path, output: Path, t_end, dt, method, settings, fps: 
         row_count(span, step)
     except SimulationError as exc:
         fail(f"Error: {exc}", USAGE_ERROR)
-    return animate_system(system, output, span, step, chosen, parse_assignments(settings), fps=fps, size=size)
+    return animate_system(system, output, span, step, chosen, parse_assignments(settings), fps=fps, size=size,
+                          progress=progress)

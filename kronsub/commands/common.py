@@ -56,8 +56,11 @@ def emit_text(text: str, output: Path | None) -> None:
 
 
 def writable_outputs(output: Path | None, plot: Path | None) -> None:
-    """Before a long run: ``--output`` and ``--plot`` can be written, and matplotlib is there
-    for a plot."""
+    """Before a long run: ``--output`` and ``--plot`` can be written, ``--plot`` is named for a
+    format it writes (a FIFO or a device without one gets PNG), and matplotlib is there for a
+    plot."""
+    if plot is not None:
+        plot_formats(plot)
     writable(output, "--output")
     writable(plot, "--plot")
     if plot is not None:
@@ -65,6 +68,22 @@ def writable_outputs(output: Path | None, plot: Path | None) -> None:
             import matplotlib  # noqa: F401
         except ImportError:
             fail("Error: --plot needs matplotlib\n  hint: pip install 'kronsub[plot]'")
+
+
+def plot_formats(plot: Path) -> None:
+    """A usage error unless ``--plot`` ends in a suffix it writes (or is a FIFO or a device)."""
+    from ..simulation.plot import FORMATS, plot_format
+
+    if plot_format(plot) is not None:
+        return
+    try:
+        if output_target(plot)[0] == STREAM:
+            return
+    except OSError:
+        pass
+    suffix = f"'{plot.suffix}'" if plot.suffix else "suffix-less"
+    names = ", ".join(FORMATS)
+    fail(f"Error: --plot {plot}: cannot write {suffix} plots\n  hint: end the name in one of {names}", USAGE_ERROR)
 
 
 def _same_file(a: Path, b: Path) -> bool:
@@ -216,7 +235,7 @@ def meta_option(help: str):
 
 
 def plot_option(help: str):
-    """``--plot FILE``: a PNG of the run."""
+    """``--plot FILE``: a plot of the run, PNG, PDF or SVG by the name (:func:`plot_formats`)."""
     return click.option("--plot", type=FILE, help=help)
 
 

@@ -36,7 +36,7 @@ __all__ = ["simulate"]
                    "state, cost, complete or where it stopped) to FILE (default: beside --output; none for "
                    "standard output).")
 @click.option("--points", "with_points", is_flag=True, help="Add the named points' positions to the CSV.")
-@plot_option("Write a PNG of coordinates and energy.")
+@plot_option("Write a plot of coordinates, velocities and energy (PNG, PDF or SVG by the name).")
 @scene_option
 @budget_option
 @click.option("--reactions", "with_reactions", is_flag=True,

@@ -23,6 +23,8 @@ the best-conditioned columns of ``G`` by pivoted QR.
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 import sympy
 
@@ -36,6 +38,20 @@ from .source import Node
 
 JOINTS = ("pin", "point_on_line", "slider")
 AXES = "xyz"
+
+
+@dataclass(frozen=True)
+class Joint:
+    """Where a joint acts, in primitive coordinates and world axes, for drawing: ``point`` is
+    ``P``; for a pin ``other`` is ``Q`` (a named point or a fixed place) and ``direction`` is
+    empty; for a line (``point_on_line``, ``slider``) ``other`` is a place on the line and
+    ``direction`` its world direction (a slider's turns with its body)."""
+
+    name: str
+    kind: str
+    point: tuple
+    other: tuple
+    direction: tuple = ()
 
 
 def read_constraints(reader: ModelReader, node: Node, primitive) -> list[Constraint]:
@@ -109,6 +125,7 @@ def _pin(reader: ModelReader, cname, node, primitive, names):
     p, q = common_world(p, q)
     dim = len(p)
     source = f"pin: [{_text(node.value[0])}, {_text(node.value[1])}]"
+    reader.joints.append(Joint(cname, "pin", p, q))
     out = []
     for axis in range(dim):
         e = sympy.sympify(p[axis] - q[axis])
@@ -207,6 +224,7 @@ def _point_on_line(reader: ModelReader, cname, node, primitive, names):
         return None
     p, q, d = in_world(p, dim), in_world(q, dim), _unit(d)
     v = tuple(a - b for a, b in zip(p, q))
+    reader.joints.append(Joint(cname, "point_on_line", p, q, d))
     return _named(cname, _on_line(v, d, _values(reader)), f"point_on_line: {_text(node.get('point'))}")
 
 
@@ -254,6 +272,7 @@ def _slider(reader: ModelReader, cname, node, primitive, names):
     q = sympy.Matrix(body.centre) + R * sympy.Matrix(through)
     v = sympy.Matrix(in_world(p, dim)) - q
     source = f"slider: {_text(node.get('point'))} on {part.name}"
+    reader.joints.append(Joint(cname, "slider", in_world(p, dim), tuple(q), tuple(R * sympy.Matrix(_unit(d)))))
     if dim == 2:
         return [Constraint(cname, _cross(R * sympy.Matrix(_unit(d)), v), source)]
     # in space: v in the body's axes is along the (constant) body-frame direction
@@ -400,4 +419,4 @@ def check_multiplier_names(reader: ModelReader, constraints, carried) -> None:
                      "are `mu_B_x`, `mu_B_y`)")
 
 
-__all__ = ["AXES", "JOINTS", "analyse", "check_multiplier_names", "read_constraints"]
+__all__ = ["AXES", "JOINTS", "Joint", "analyse", "check_multiplier_names", "read_constraints"]

@@ -142,6 +142,7 @@ class ModelLoader(ModelReader):
             requirements=tuple(self.requirements),
             source=self.source,
             uses=each_once(self.used),
+            joints=tuple(self.joints),
         )
 
 

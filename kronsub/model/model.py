@@ -66,6 +66,7 @@ class Model:
     requirements: tuple[Requirement, ...] = ()  # checked on values
     source: SourceFile | None = None  # the file as read (None when its text was given)
     uses: tuple[SourceFile, ...] = ()  # the model files it uses as known systems, recursively, each once
+    joints: tuple = ()  # where the joints of `constraints:` act (model.constraints.Joint), for drawing
 
     @functools.cached_property
     def content_hash(self) -> str:

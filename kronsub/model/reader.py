@@ -77,6 +77,7 @@ class ModelReader:
         self.subspace_names: dict[str, sympy.Symbol] = {}  # the connection's coordinates, for effects
         self.pivots: list[tuple] = []  # pinned parts hanging from a moving point (`pivot:`)
         self.auto_connection: dict[sympy.Symbol, tuple] = {}
+        self.joints: list = []  # where the joints of `constraints:` act (constraints.Joint), for drawing
         # `definitions:` (definitions.py): name -> (placeholder, expansion; None when it failed)
         self.definitions: dict[str, tuple[sympy.Symbol, sympy.Expr | None]] = {}
         self.definition_keys: set[str] = set()  # their names, known before they are read

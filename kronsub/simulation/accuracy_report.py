@@ -9,6 +9,7 @@ import mpmath
 from ..emitters.escape import markdown_text, plot_text
 from ..model.file_reading import SourceFile
 from .accuracy import REFERENCE_MARGIN, WorkPrecision
+from .plot import plot_format
 
 __all__ = ["CSV_COLUMNS", "METADATA_FORMAT", "markdown", "metadata", "plot", "target_sentence", "work_precision_csv"]
 
@@ -178,6 +179,6 @@ def plot(wp: WorkPrecision, path, target: float | None = None) -> None:
     fig.tight_layout()
     try:
         with atomic_file(Path(path), binary=True) as fh:  # the user's umask, no stray temporary file
-            fig.savefig(fh, dpi=100, format="png")
+            fig.savefig(fh, dpi=100, format=plot_format(path) or "png")  # a FIFO or a device: PNG
     finally:
         plt.close(fig)

@@ -1,8 +1,10 @@
-"""``--plot``: a run as a PNG (matplotlib, an optional extra).
+"""``--plot``: a run as a picture (matplotlib, an optional extra): PNG, PDF or SVG by its name.
 
-One panel per kind of quantity, so that no axis mixes units: angles, lengths,
-velocities, and the energy change ``E - E(0)``; legends sit outside the axes.
-With ``--points``, a last panel draws the named points' paths in the plane.
+One panel per unit, so that no axis mixes them: angles [rad], lengths [m], angular
+velocities [rad/s], velocities [m/s], and the energy change ``E - E(0)`` [J]; legends sit
+outside the axes. With ``--points``, a last panel draws the named points' paths in the
+plane (space seen along +y), axes equal: points that are one throughout the run (a joint)
+drawn once under their joined names, a point that never moves as one marker.
 A generalized coordinate is an angle when it enters the system only through the
 arguments of sines and cosines (of the named points, the metric and the potential).
 """
@@ -15,7 +17,16 @@ import sympy
 
 from ..atomic import atomic_file
 from ..emitters.escape import plot_text
+from .mechanism import coincident
 from .table import energies, point_columns
+
+FORMATS = {".png": "png", ".pdf": "pdf", ".svg": "svg"}
+"""The names ``--plot`` writes, by their suffix, and matplotlib's format for each."""
+
+
+def plot_format(path: Path) -> str | None:
+    """matplotlib's format for a ``--plot`` file, from its suffix; None for one it does not write."""
+    return FORMATS.get(Path(path).suffix.lower())
 
 
 def angle_coordinates(system) -> set:
@@ -30,13 +41,13 @@ def angle_coordinates(system) -> set:
 
 
 def plane(position: np.ndarray) -> np.ndarray:
-    """World positions (rows) in the drawing plane: a line on x, the plane as it is,
-    space seen along y (x horizontal, z up)."""
-    if position.shape[1] == 1:
-        return np.column_stack([position[:, 0], np.zeros(len(position))])
-    if position.shape[1] == 2:
+    """World positions (..., axes: the last index the world axis) in the drawing plane: a line
+    on x, the plane as it is, space seen along +y (x to the right, z up)."""
+    if position.shape[-1] == 1:
+        return np.concatenate([position, np.zeros_like(position)], axis=-1)
+    if position.shape[-1] == 2:
         return position
-    return position[:, [0, 2]]
+    return position[..., [0, 2]]
 
 
 def _panels(system, traj, T, V) -> list[tuple[str, list[tuple[str, np.ndarray]]]]:
@@ -44,11 +55,14 @@ def _panels(system, traj, T, V) -> list[tuple[str, list[tuple[str, np.ndarray]]]
     angles = angle_coordinates(system)
     angle_rows = [(q.name, traj.y[:, i]) for i, q in enumerate(system.coordinates) if q in angles]
     length_rows = [(q.name, traj.y[:, i]) for i, q in enumerate(system.coordinates) if q not in angles]
-    velocity_rows = [(v.name, traj.y[:, n + i]) for i, v in enumerate(system.velocities)]
+    turning = [(v.name, traj.y[:, n + i]) for i, (q, v) in enumerate(zip(system.coordinates, system.velocities))
+               if q in angles]
+    moving = [(v.name, traj.y[:, n + i]) for i, (q, v) in enumerate(zip(system.coordinates, system.velocities))
+              if q not in angles]
     E = T + V
     energy_rows = [("E - E(0)", E - E[0] if len(E) else E)]
-    panels = [("angles [rad]", angle_rows), ("lengths", length_rows),
-              ("velocities [per s]", velocity_rows), ("energy change", energy_rows)]
+    panels = [("angles [rad]", angle_rows), ("lengths [m]", length_rows), ("angular velocities [rad/s]", turning),
+              ("velocities [m/s]", moving), ("energy change [J]", energy_rows)]
     return [(label, rows) for label, rows in panels if rows]
 
 
@@ -61,7 +75,9 @@ def plot_trajectory(system, traj, values, path: Path, with_points: bool = False)
     param = np.array(values.parameters)
     T, V = energies(system, traj, param)
     panels = _panels(system, traj, T, V)
-    paths = point_paths(*point_columns(system, traj, param)) if with_points and len(traj.t) else {}
+    names, places = point_columns(system, traj, param) if with_points and len(traj.t) else ([], None)
+    paths = point_paths(names, places) if names else []
+    space = any(name.endswith(".z") for name in names)
     rows = len(panels) + (1 if paths else 0)
     fig = plt.figure(figsize=(9, 2.3 * len(panels) + (4 if paths else 0)), layout="constrained")
     heights = [1] * len(panels) + ([2] if paths else [])
@@ -71,33 +87,52 @@ def plot_trajectory(system, traj, values, path: Path, with_points: bool = False)
         ax = fig.add_subplot(grid[k], sharex=axes[0] if axes else None)
         axes.append(ax)
         for name, data in curves:
-            ax.plot(traj.t, data, label=name)
+            ax.plot(traj.t, data, label=plot_text(name))
         ax.set_ylabel(label)
         ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize="small", borderaxespad=0)
         if k < len(panels) - 1:
             ax.tick_params(labelbottom=False)
-    axes[-1].set_xlabel("t")
+    axes[-1].set_xlabel("t [s]")
     if paths:
         ax = fig.add_subplot(grid[len(panels)])
-        for label, xy in paths.items():
-            ax.plot(xy[:, 0], xy[:, 1], label=label)
+        for k, (label, xy, fixed) in enumerate(paths):
+            if fixed:
+                ax.plot(xy[:1, 0], xy[:1, 1], "s", color=f"C{k % 10}", ms=7, label=plot_text(f"{label} (fixed)"))
+            else:
+                ax.plot(xy[:, 0], xy[:, 1], color=f"C{k % 10}", marker="o", markevery=[0], ms=5,
+                        label=plot_text(label))
         ax.set_aspect("equal", adjustable="datalim")
-        ax.set_xlabel("x")
-        ax.set_ylabel("height")
-        ax.set_title("paths of the named points", fontsize="small")
+        ax.set_xlabel("x [m]")
+        ax.set_ylabel("z [m]" if space else "y [m]")
+        ax.set_title("paths of the named points (a dot where each starts)" + (", seen along +y" if space else ""),
+                     fontsize="small")
         ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize="small", borderaxespad=0)
-    fig.suptitle(f"{plot_text(system.name)} ({traj.method})")
-    save_figure(fig, path, "png")
+    fig.suptitle(f"{plot_text(system.name)}, method {plot_text(traj.method)}")
+    save_figure(fig, path, plot_format(path) or "png")
 
 
-def point_paths(names: list[str], values: np.ndarray) -> dict[str, np.ndarray]:
-    """``label.x``, ``label.y``... columns as ``{label: rows of (x, height)}``."""
+def point_paths(names: list[str], values: np.ndarray) -> list[tuple[str, np.ndarray, bool]]:
+    """``label.x``, ``label.y``... columns as ``(label, rows of (x, y) in the drawing plane,
+    fixed)``: points that are one throughout the run (:func:`~.mechanism.coincident`) once,
+    under their labels joined by `` = ``; ``fixed`` for a point that never moves."""
     groups: dict[str, list[int]] = {}
     for j, name in enumerate(names):
         label, _, axis = name.rpartition(".")
         if axis in ("x", "y", "z") and label:
             groups.setdefault(label, []).append(j)
-    return {label: plane(values[:, cols]) for label, cols in groups.items()}
+    if not groups:
+        return []
+    dimension = max(len(cols) for cols in groups.values())
+    labels = list(groups)
+    world = np.stack([np.column_stack([values[:, c] for c in groups[label]]
+                                      + [np.zeros(len(values))] * (dimension - len(groups[label])))
+                      for label in labels], axis=1)
+    scale = float(np.ptp(world.reshape(-1, dimension), axis=0).max(initial=0.0)) or 1.0
+    out = []
+    for group in coincident(labels, world, scale):
+        xy = plane(world[:, group[0]])
+        out.append((" = ".join(labels[j] for j in group), xy, bool(np.ptp(xy, axis=0).max(initial=0.0) == 0.0)))
+    return out
 
 
 def save_figure(fig, path: Path, fmt: str) -> None:
@@ -111,4 +146,4 @@ def save_figure(fig, path: Path, fmt: str) -> None:
         plt.close(fig)
 
 
-__all__ = ["angle_coordinates", "plane", "plot_trajectory", "point_paths", "save_figure"]
+__all__ = ["FORMATS", "angle_coordinates", "plane", "plot_format", "plot_trajectory", "point_paths", "save_figure"]
