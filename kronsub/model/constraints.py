@@ -188,7 +188,7 @@ def _point_on_line(loader: ModelReader, cname, node, primitive, names):
     node = _line(loader, cname, node, names, "point_on_line")
     if node is None:
         return None
-    loader.check_keys(node, ("point", "through", "direction"), f"point_on_line '{cname}'")
+    node = loader.check_keys(node, ("point", "through", "direction"), f"point_on_line '{cname}'")
     p = _point(loader, node.get("point"), primitive, cname, names)
     through = node.get("through")
     q = _point(loader, through, primitive, cname, names) if through is not None else None
@@ -214,7 +214,7 @@ def _slider(loader: ModelReader, cname, node, primitive, names):
     node = _line(loader, cname, node, names, "slider")
     if node is None:
         return None
-    loader.check_keys(node, ("point", "body", "through", "direction"), f"slider '{cname}'")
+    node = loader.check_keys(node, ("point", "body", "through", "direction"), f"slider '{cname}'")
     p = _point(loader, node.get("point"), primitive, cname, names)
     bnode = node.get("body")
     part = index = None

@@ -372,5 +372,5 @@ def build_effect(loader: ModelReader, ename: str, spec: Node, primitive) -> Effe
         loader.error(tnode, f"unknown effect type '{tnode.value}'", close_matches(str(tnode.value), BUILDERS))
         return None
     builder, keys = entry
-    loader.check_keys(spec, ("type", "description") + keys, f"effect '{ename}'")
+    spec = loader.check_keys(spec, ("type", "description") + keys, f"effect '{ename}'")
     return builder(loader, ename, spec, primitive)

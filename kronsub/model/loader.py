@@ -103,7 +103,7 @@ class ModelLoader(ModelReader):
             self.error(root.key_locations[first], "this is not a kronsub model: no key is a model section",
                        "a model has `name:`, `components:`, `coordinates:` and `connection:`; check the path")
             self.problems.raise_if_any()
-        self.check_keys(root, TOP_LEVEL, "the model")
+        root = self.check_keys(root, TOP_LEVEL, "the model")
         dnode = root.get("definitions")
         self.definition_keys = set(dnode.value) if dnode is not None and dnode.is_mapping else set()
         name = self.string(root.get("name"), self.path.stem)
@@ -187,7 +187,7 @@ class ModelLoader(ModelReader):
                 continue
             value_node, unit, description = spec, "", ""
             if spec.is_mapping:
-                self.check_keys(spec, ("value", "unit", "description"), f"parameter '{pname}'")
+                spec = self.check_keys(spec, ("value", "unit", "description"), f"parameter '{pname}'")
                 value_node = spec.get("value")
                 unit = self.string(spec.get("unit"), "")
                 description = self.string(spec.get("description"), "")
@@ -225,7 +225,7 @@ class ModelLoader(ModelReader):
 
     def _known_system(self, cname: str, spec: Node) -> Part | None:
         """A derived model used as a component (examples II and III)."""
-        self.check_keys(spec, ("model", "parameters", "coordinates", "origin", "description"), f"component '{cname}'")
+        spec = self.check_keys(spec, ("model", "parameters", "coordinates", "origin", "description"), f"component '{cname}'")
         mnode = spec.get("model")
         if not isinstance(mnode.value, str) or not mnode.value:
             self.error(mnode, f"`model:` of component '{cname}' must be a file name, found {node_kind(mnode)}",

@@ -71,7 +71,7 @@ def build_scenes(loader: ModelReader, node: Node | None, declared_effects, primi
         if not spec.is_mapping:
             loader.error(spec, f"scene '{sname}' must be a mapping", "e.g. `free: {effects: [gravity]}`")
             continue
-        loader.check_keys(spec, KEYS, f"scene '{sname}'")
+        spec = loader.check_keys(spec, KEYS, f"scene '{sname}'")
         scene = _scene(loader, sname, spec, labels, points, coords)
         if scene is not None:
             scenes.append(scene)
