@@ -225,7 +225,8 @@ class ModelLoader(ModelReader):
 
     def _known_system(self, cname: str, spec: Node) -> Part | None:
         """A derived model used as a component (examples II and III)."""
-        spec = self.check_keys(spec, ("model", "parameters", "coordinates", "origin", "description"), f"component '{cname}'")
+        spec = self.check_keys(spec, ("model", "parameters", "coordinates", "origin", "description"),
+                               f"component '{cname}'")
         mnode = spec.get("model")
         if not isinstance(mnode.value, str) or not mnode.value:
             self.error(mnode, f"`model:` of component '{cname}' must be a file name, found {node_kind(mnode)}",
