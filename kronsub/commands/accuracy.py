@@ -5,6 +5,7 @@ import math
 from pathlib import Path
 
 import click
+from click.core import ParameterSource
 
 from ..atomic import write_atomically
 from ..simulation.methods import MEASURED
@@ -30,7 +31,8 @@ from .common import (budget_option, check_times, coincident_at_start, default_si
 @meta_option("Write the metadata (JSON: model, reference routes and estimated error, t_end, skipped methods, "
                    "failures, target) to FILE (default: beside --output).")
 @plot_option("Write the work-precision PNG (error against time, log-log) to FILE.")
-@click.option("--quick", is_flag=True, help="A coarse grid (every third tolerance), few repeats, a cheaper reference.")
+@click.option("--quick", is_flag=True, help="A coarse grid (every third tolerance of the default --tolerances; tolerances given "
+                   "are kept), few repeats, a cheaper reference.")
 @click.option("--digits", type=click.IntRange(12, 200), default=None,
               help="Digits of the reference's cross-check run (default 20; --quick 16); the reference runs at 8 more.")
 @click.option("--precision", type=click.Choice(["double", "long", "quad"]), default="double", show_default=True,
@@ -49,13 +51,15 @@ def accuracy(model: Path, t_end: float, methods: str, tolerances: str, target: f
     from ..simulation.table import metadata_json
     from ..simulation.values import parse_assignments, resolve
 
+    thin = click.get_current_context().get_parameter_source("tolerances") is ParameterSource.DEFAULT
+
     def job():
         check_times(t_end, None)
         chosen = acc.parse_methods(methods)
         if precision != "double" and f"gbs-{precision}" not in chosen:
             chosen = chosen + (f"gbs-{precision}",)
         grid = acc.parse_tolerances(tolerances)
-        if quick:
+        if quick and thin:  # tolerances the user wrote are kept as written
             grid = acc.quick_tolerances(grid)
         if target is not None and not (target > 0 and math.isfinite(target)):
             fail("Error: --target must be a positive finite error, e.g. --target 1e-8")

@@ -573,6 +573,8 @@ def measure(system: KnownSystem, values: RunValues, t_end: float, methods: tuple
                     (implicit is None or dependent_end is not None):
                 E = runners.energy(y_end, dependent_end)
                 drift = None if E is None else abs(E - E0) / scale
+            if status:  # a run that stopped measured no error at t_end
+                error, drift, residual, velocity_residual = math.nan, None, None, None
             setting = f"h {fixed_step(method, tol, t_end):.3g}" if method in FIXED_STEP_ORDER else f"tol {tol:.0e}"
             compiled = runners.heyoka_compile.get(tol) if method == "heyoka" else \
                 runners.taylor_compile.get(tol) if method == "taylor" else \
