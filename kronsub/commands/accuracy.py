@@ -10,14 +10,14 @@ from click.core import ParameterSource
 from ..atomic import write_atomically
 from ..simulation.methods import MEASURED
 from ..simulation.methods import help_text as method_help
-from .common import (budget_option, check_times, coincident_at_start, default_sidecar, fail, meta_option,
+from .common import (T_END, budget_option, check_times, coincident_at_start, default_sidecar, fail, meta_option,
                      output_option, plot_option, run_command, say, scene_option, scene_system, separate_outputs,
                      set_option, writable, writable_outputs)
 
 
 @click.command()
 @click.argument("model", type=click.Path(dir_okay=False, path_type=Path))
-@click.option("--t", "t_end", type=float, default=10.0, show_default=True, help="End time.")
+@click.option("--t", "t_end", type=float, default=T_END, show_default=True, help="End time.")
 @click.option("--methods", default="all", show_default=True,
               help="Comma-separated (all: every one but the extended-precision ones, see --precision): "
                    + method_help(MEASURED))

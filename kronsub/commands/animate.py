@@ -5,14 +5,15 @@ from pathlib import Path
 
 import click
 
-from .common import (USAGE_ERROR, budget_option, check_times, fail, output_option, run_command, say,
+from .common import (T_END, USAGE_ERROR, budget_option, check_times, fail, output_option, run_command, say,
                      separate_outputs, set_option, writable)
 
 
 @click.command()
 @click.argument("source", type=click.Path(dir_okay=False, path_type=Path))
 @output_option("The animation: a .gif (pillow) or .mp4 (ffmpeg).", required=True)
-@click.option("--t", "t_end", type=float, default=5.0, show_default=True, help="End time (MODEL only).")
+@click.option("--t", "t_end", type=float, default=T_END, show_default=True,
+              help="End time (MODEL only; the same default as simulate).")
 @click.option("--dt", type=float, default=0.02, show_default=True, help="Output interval (MODEL only).")
 @click.option("--method", default="dop853", show_default=True, help="Integration method (MODEL only).")
 @set_option("Set a parameter or an initial coordinate/velocity (MODEL only; repeatable).")

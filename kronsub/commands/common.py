@@ -25,7 +25,7 @@ from ..interrupts import exit_code, signal_name, signal_of, signals_as_interrupt
 from ..version import __version__
 
 __all__ = ["DEBUG_ENV", "EXIT_CODES", "FILE", "HANGUP", "INPUT_ERROR", "INTERNAL_ERROR", "INTERRUPTED",
-           "NUMERICAL_FAILURE", "OK", "OUTPUT_HELP", "SCENE_HELP", "SET_HELP", "TERMINATED", "USAGE_ERROR",
+           "NUMERICAL_FAILURE", "OK", "OUTPUT_HELP", "SCENE_HELP", "SET_HELP", "T_END", "TERMINATED", "USAGE_ERROR",
            "budget_option", "check_times", "coincident_at_start", "coincident_ends", "default_sidecar",
            "emit_text", "fail", "interrupted_by", "meta_option", "note_choice", "note_safely", "output_option",
            "plot_option", "run_command", "say", "scene_option", "scene_system", "separate_outputs", "set_option",
@@ -33,6 +33,7 @@ __all__ = ["DEBUG_ENV", "EXIT_CODES", "FILE", "HANGUP", "INPUT_ERROR", "INTERNAL
 
 OK, INPUT_ERROR, USAGE_ERROR, NUMERICAL_FAILURE, INTERNAL_ERROR, INTERRUPTED = 0, 1, 2, 3, 4, 130
 HANGUP, TERMINATED = 129, 143  # 128 + SIGHUP, 128 + SIGTERM (kronsub/interrupts.py)
+T_END = 10.0  # the end time of a run when neither --t nor the scene gives one: simulate, animate, accuracy
 EXIT_CODES = {
     OK: "success",
     INPUT_ERROR: "model or input error (the message names the file, line and column)",

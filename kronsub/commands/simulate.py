@@ -12,7 +12,7 @@ import click
 from ..atomic import atomic_file, write_atomically
 from ..simulation.methods import SIMULATE
 from ..simulation.methods import help_text as method_help
-from .common import (INTERRUPTED, NUMERICAL_FAILURE, USAGE_ERROR, budget_option, check_times, coincident_ends,
+from .common import (INTERRUPTED, NUMERICAL_FAILURE, T_END, USAGE_ERROR, budget_option, check_times, coincident_ends,
                      default_sidecar, fail, interrupted_by, meta_option, note_choice, note_safely, output_option,
                      plot_option, run_command, say, scene_option, scene_system, separate_outputs, set_option,
                      writable, writable_outputs)
@@ -20,7 +20,7 @@ from .common import (INTERRUPTED, NUMERICAL_FAILURE, USAGE_ERROR, budget_option,
 
 @click.command()
 @click.argument("model", type=click.Path(dir_okay=False, path_type=Path))
-@click.option("--t", "t_end", type=float, default=None, help="End time (default: the scene's, else 10).")
+@click.option("--t", "t_end", type=float, default=None, help=f"End time (default: the scene's, else {T_END:g}).")
 @click.option("--dt", type=float, default=None,
               help="Output interval (and step of fixed-step methods; default: the scene's, else 0.01).")
 @click.option("--method", default=None,
@@ -65,7 +65,7 @@ def simulate(model: Path, t_end: float | None, dt: float | None, method: str | N
         loaded, scene, system = scene_system(model, scene_name, all_points=with_points)
         note_choice(system)
         outputs = scene.outputs if scene is not None else None
-        span = _pick(t_end, scene and scene.t_end, 10.0)
+        span = _pick(t_end, scene and scene.t_end, T_END)
         step = _pick(dt, scene and scene.dt, 0.01)
         try:
             row_count(span, step)
