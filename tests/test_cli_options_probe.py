@@ -198,7 +198,7 @@ BAD = [
     (["new", "/proc/x"], 1, ["/proc/x.yaml", "cannot create"]),
     (["new", "x", "--links", "0", "--from", "chain"], 2, ["--links"]),
     # the rest
-    (["components", "zz"], 1, ["no component or effect type 'zz'"]),
+    (["components", "zz"], 1, ["no component type, effect type or joint 'zz'"]),
     (["components", "rod", "--format", "xml"], 2, ["--format"]),
     (["check", "nowhere.yaml"], 1, ["nowhere.yaml", "file not found"]),
     (["check", "fifo.md"], 1, ["fifo.md", "named pipe"]),

@@ -34,7 +34,11 @@ from .effects import named_body, zero_vector
 from .reader import ModelReader
 from .source import Node
 
-JOINTS = ("pin", "point_on_line", "slider")
+JOINT_KEYS = {"pin": (), "point_on_line": ("point", "through", "direction"),
+              "slider": ("point", "body", "through", "direction")}
+"""The joints (``name: {joint: ...}`` under ``constraints:``) and the keys of their mappings (a pin
+takes a list of two points instead)."""
+JOINTS = tuple(JOINT_KEYS)
 AXES = "xyz"
 
 
@@ -188,7 +192,7 @@ def _point_on_line(loader: ModelReader, cname, node, primitive, names):
     node = _line(loader, cname, node, names, "point_on_line")
     if node is None:
         return None
-    node = loader.check_keys(node, ("point", "through", "direction"), f"point_on_line '{cname}'")
+    node = loader.check_keys(node, JOINT_KEYS["point_on_line"], f"point_on_line '{cname}'")
     p = _point(loader, node.get("point"), primitive, cname, names)
     through = node.get("through")
     q = _point(loader, through, primitive, cname, names) if through is not None else None
@@ -214,7 +218,7 @@ def _slider(loader: ModelReader, cname, node, primitive, names):
     node = _line(loader, cname, node, names, "slider")
     if node is None:
         return None
-    node = loader.check_keys(node, ("point", "body", "through", "direction"), f"slider '{cname}'")
+    node = loader.check_keys(node, JOINT_KEYS["slider"], f"slider '{cname}'")
     p = _point(loader, node.get("point"), primitive, cname, names)
     bnode = node.get("body")
     part = index = None
