@@ -186,8 +186,8 @@ def _constraint_hints(system, run, step: float) -> str:
         hints.append(f"{run.method} takes fixed steps of --dt {step:g}: a smaller --dt keeps each step "
                      "within the mechanism's reach")
     if "toggle position" in run.message and system.implicit.choice != "auto":
-        hints.append("`coordinates: auto` changes the independent coordinates where this choice's dg/dy_d "
-                     "goes singular, and the run goes on")
+        hints.append("only the independent coordinates chosen are singular there: with `coordinates: auto` "
+                     "kronsub changes them where dg/dy_d of its choice goes singular, and the run goes on")
     return "".join(f"\n  hint: {h}" for h in hints)
 
 

@@ -373,6 +373,11 @@ class Intermediates:
                                        modules="math") if len(closed) == k and k else None)
         self.guess = np.array([dict(imp.branch).get(d, 0.0) for d in imp.dependent], dtype=float)
 
+    @property
+    def closed(self) -> bool:
+        """Whether the dependent coordinates come from their closed form (else Newton's method)."""
+        return self._closed is not None
+
     def dependent(self, q) -> np.ndarray:
         """``y_d`` on the branch (raises :class:`ConstraintFailure`)."""
         q = np.asarray(q, dtype=float)
@@ -385,8 +390,7 @@ class Intermediates:
                 self.guess = yd
                 return yd
             raise ConstraintFailure("diverged", "the closed form of the dependent coordinates has no real "
-                                    "value here (the mechanism cannot reach this configuration)"
-                                    + self._closed_cause(q), q)
+                                    "value here" + self._closed_cause(q), q)
         y = np.concatenate([q, self.guess])
         y = self.numeric.solve(y, range(self.n, self.n + self.k), tol=self.tol)
         self.guess = y[self.n:]

@@ -114,7 +114,9 @@ class ModelLoader(ModelReader):
         carried = [c for part in self.parts for c in part.constraints]  # of constrained known systems
         constrained = (cnode is not None and cnode.value is not None) or bool(carried)
         coords_node = root.get("coordinates")
-        auto = coords_node is not None and coords_node.is_scalar and coords_node.value == "auto"
+        # a closed loop that names no coordinates lets kronsub pick them, as `coordinates: auto`
+        auto = (coords_node is None and constrained) or (
+            coords_node is not None and coords_node.is_scalar and coords_node.value == "auto")
         if auto and not constrained:
             self.error(coords_node, "`coordinates: auto` needs `constraints:`",
                        "list the generalized coordinates, e.g. `coordinates: [theta, phi]`")
@@ -122,7 +124,7 @@ class ModelLoader(ModelReader):
         coords = () if auto else self._coordinates(coords_node)
         self.generalized_names = {q.name for q in coords}
         if auto:
-            self.locations["coordinates"] = coords_node.location
+            self.locations["coordinates"] = (coords_node or cnode or root).location
         primitive = Primitive(tuple(self.parts))
         allow_for(len(primitive.coordinates))  # a default budget grows with the model
         self._primitive_names(primitive)
