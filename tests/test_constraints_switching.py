@@ -50,6 +50,7 @@ def test_auto_switches_through_the_toggle_and_keeps_the_loop_closed(auto_model, 
     assert "independent coordinates phi -> theta (dg/d(theta) nearly singular)" in switches[0]["what"]
     assert 0 < switches[0]["t"] < switches[1]["t"] <= 0.8
     assert "note: coordinates: auto switched at t = " in result.stderr
+    assert not any(line.startswith("#") for line in out.read_text().splitlines())  # the switches: in the JSON
     header, data = _table(out.read_text())
     col = {c: i for i, c in enumerate(header)}
     assert header[:3] == ["t", "phi", "phi_dot"] and "theta" in col  # the first choice's columns throughout

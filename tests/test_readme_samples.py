@@ -81,3 +81,11 @@ def test_the_readme_numpy_call_keeps_the_point_columns(monkeypatch):
     table = np.genfromtxt(io.StringIO(result.stdout), **kwargs)
     assert list(table.dtype.names) == header
     assert table["t"][-1] == 0.05
+
+
+def test_the_readme_says_where_a_switch_of_coordinates_is_recorded():
+    """The CSV has no comment lines (tests/test_constraints_switching.py runs a switch); the
+    README sends the reader to the metadata's ``coordinate_switches``."""
+    readme = " ".join((ROOT / "README.md").read_text(encoding="utf-8").split())
+    assert "comment line" not in readme
+    assert "`coordinate_switches`" in readme
