@@ -343,7 +343,7 @@ def analyse(loader: ModelReader, constraints, y, independent, auto: bool, initia
                 y1 = y2
         except ConstraintFailure:
             pass
-        dependent = tuple(y[i] for i in dep_idx)
+        dependent = tuple(y[i] for i in sorted(dep_idx))  # in the order of y, as when they are given
         independent = tuple(q for i, q in enumerate(y) if i not in dep_idx)
     else:
         dep_idx = [i for i, q in enumerate(y) if q in dependent]
