@@ -658,7 +658,8 @@ def test_four_bar_derive_reactions_in_closed_form_against_the_multipliers():
 
 
 @pytest.mark.parametrize("path", ["models/examples/four_bar.yaml", "models/examples/slider_crank.yaml",
-                                  "tests/models/sweep6/slider_crank_line.yaml", "tests/models/sweep4/stephenson_six_bar.yaml"])
+                                  "tests/models/sweep6/slider_crank_line.yaml",
+                                  "tests/models/sweep4/stephenson_six_bar.yaml"])
 def test_dependent_coordinates_come_in_the_order_the_model_declares_them(path):
     """Given or picked (`coordinates: auto`), the dependent coordinates of a closed loop are in
     the order their names first appear under `components:` (theta2 before theta3), also when a

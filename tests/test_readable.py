@@ -101,7 +101,8 @@ def test_every_printed_expression_parses_back_to_the_same_value(name):
         parse_expression(text, names)
 
 
-@pytest.mark.parametrize("name", ["../tests/models/sweep3/two_tops.yaml", "../tests/models/sweep5/line_plane_space.yaml"])
+@pytest.mark.parametrize("name", ["sweep3/two_tops.yaml",
+                                  "sweep5/line_plane_space.yaml"])
 def test_by_effect_uses_the_where_names(name):
     """Each effect's row of ``fbar`` uses the names of the where block, as ``fbar`` itself does:
     cells as short as ``fbar``'s, and each the effect's force when the names are put back."""

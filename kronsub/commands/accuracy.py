@@ -31,8 +31,9 @@ from .common import (T_END, budget_option, check_times, coincident_at_start, def
 @meta_option("Write the metadata (JSON: model, reference routes and estimated error, t_end, skipped methods, "
                    "failures, target) to FILE (default: beside --output).")
 @plot_option("Write the work-precision PNG (error against time, log-log) to FILE.")
-@click.option("--quick", is_flag=True, help="A coarse grid (every third tolerance of the default --tolerances; tolerances given "
-                   "are kept), few repeats, a cheaper reference.")
+@click.option("--quick", is_flag=True,
+              help="A coarse grid (every third tolerance of the default --tolerances; tolerances given are kept), "
+                   "few repeats, a cheaper reference.")
 @click.option("--digits", type=click.IntRange(12, 200), default=None,
               help="Digits of the reference's cross-check run (default 20; --quick 16); the reference runs at 8 more.")
 @click.option("--precision", type=click.Choice(["double", "long", "quad"]), default="double", show_default=True,

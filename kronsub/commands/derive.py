@@ -7,8 +7,8 @@ from pathlib import Path
 import click
 from click.core import ParameterSource
 
-from .common import (USAGE_ERROR, budget_option, emit_text, fail, note_choice, output_option, run_command, say, scene_option,
-                     scene_system, separate_outputs)
+from .common import (USAGE_ERROR, budget_option, emit_text, fail, note_choice, output_option, run_command, say,
+                     scene_option, scene_system, separate_outputs)
 
 
 @click.command()
