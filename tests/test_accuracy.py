@@ -127,7 +127,7 @@ def test_cli_writes_table_csv_png_and_names_the_target(tmp_path):
         assert all(math.isnan(float(v)) for v in columns["constraint_residual"]), reader  # no constraints here
     rows = list(csv.DictReader(io.StringIO(text)))
     methods = {r["method"] for r in rows}
-    assert len(rows) == 2 * len(methods) and methods >= {"dop853", "rk4", "RK45"}  # --quick: first and last
+    assert len(rows) == 3 * len(methods) and methods >= {"dop853", "rk4", "RK45"}  # --quick keeps those given
     line = next(l for l in result.output.splitlines() if l.startswith("Target 1e-06: cheapest is"))
     method, setting = line.split("cheapest is ")[1].split(":")[0].split(" at ")
     chosen = next(r for r in rows if r["method"] == method and r["setting"] == setting)
@@ -237,6 +237,48 @@ def test_cli_fails_when_every_point_failed(tmp_path, monkeypatch):
     assert "every point failed (4 of 4)" in result.output
     assert "dop853 at tol 1e-06: step size too small at t = 0.5" in result.output
     assert csv.read_text().count("failed") == 4 and not png.exists()
+
+
+def test_a_failed_point_shows_no_measurement(tmp_path, monkeypatch):
+    """A point whose run stopped is shown as failed: no error, energy drift or time in the
+    table, ``nan`` error and drift in the CSV; the other points keep their numbers."""
+    measure = A.measure
+
+    def one_failing(*args, **kwargs):
+        wp = measure(*args, **kwargs)
+        wp.points[0] = dataclasses.replace(wp.points[0], status="stopped at t = 0.25: step size too small")
+        return wp
+
+    monkeypatch.setattr(A, "measure", one_failing)
+    csv_path = tmp_path / "wp.csv"
+    result = run_cli(TEST_MODELS / "pendulum.yaml", "--t", 1, "--methods", "rk4", "--tolerances", "1e-6,1e-8",
+                     "--output", csv_path)
+    assert result.exit_code == 0, result.output
+    rows = [line for line in result.output.splitlines() if line.startswith("| rk4 |")]
+    cells = [[c.strip() for c in row.strip("|").split("|")] for row in rows]
+    assert cells[0][2:] == ["failed", "", "", "", "", "stopped at t = 0.25: step size too small"], rows[0]
+    assert all(c for c in cells[1][2:7]), rows[1]  # error, drift, time, evaluations, steps measured
+    first, second = list(csv.DictReader(io.StringIO(csv_path.read_text())))
+    assert first["status"] == "failed" and first["error"] == first["energy_drift"] == "nan"
+    assert second["status"] == "ok" and float(second["error"]) < 1e-3
+
+
+def test_quick_keeps_the_tolerances_given(monkeypatch):
+    """``--quick`` thins the default range only: tolerances written out are all run."""
+    grids = []
+    measure = A.measure
+
+    def spy(system, values, t_end, methods, tolerances, **kwargs):
+        grids.append(tuple(tolerances))
+        return measure(system, values, t_end, methods, tolerances, **kwargs)
+
+    monkeypatch.setattr(A, "measure", spy)
+    given = ["--tolerances", "1e-5,1e-6,1e-7,1e-8"]
+    for extra in (given, []):
+        result = run_cli(TEST_MODELS / "pendulum.yaml", "--t", 0.5, "--methods", "rk4", "--quick", *extra)
+        assert result.exit_code == 0, result.output
+    assert grids[0] == (1e-5, 1e-6, 1e-7, 1e-8)
+    assert grids[1] == A.quick_tolerances(A.parse_tolerances("1e-4:1e-14")) != A.parse_tolerances("1e-4:1e-14")
 
 
 @pytest.mark.parametrize("args, message", [

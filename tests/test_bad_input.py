@@ -257,6 +257,30 @@ def test_unknown_top_level_key(tmp_path):
     assert "'effects'" in hint
 
 
+
+@pytest.mark.parametrize("section, typo", [
+    ("coordinates", "coordinate"), ("connection", "conection"), ("effects", "efects")])
+def test_misspelt_section_is_one_error(tmp_path, section, typo):
+    """A misspelt section is reported once and read as the section meant: no cascade."""
+    text = (Path(__file__).parent.parent / "models" / "examples" / "double_pendulum.yaml").read_text()
+    text = text.replace(f"\n{section}:", f"\n{typo}:", 1)
+    path = write(tmp_path, text)
+    result = derive(path)
+    line, column = place(text, f"\n{typo}:")
+    _, hint = assert_error(result, path, line + 1, 1, f"unknown key '{typo}'")
+    assert hint == f"  hint: did you mean '{section}'?"
+    assert len(error_lines(result)) == 1, stderr_of(result)
+
+
+def test_misspelt_key_of_a_component_is_one_error(tmp_path):
+    text = HEAD.replace("parameters: {mass: 1}", "parameter: {mass: 1}") + \
+        "coordinates: [x]\nconnection: {p_x: x}\n"
+    path = write(tmp_path, text)
+    result = derive(path)
+    assert_error(result, path, *place(text, "parameter:"), "unknown key 'parameter'")
+    assert len(error_lines(result)) == 1, stderr_of(result)
+
+
 # ----------------------------------------------------------------- effects
 def test_unknown_effect_type(tmp_path):
     text = HEAD + "coordinates: [p_x]\neffects:\n  grav: {type: gravty}\n"

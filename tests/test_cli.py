@@ -61,6 +61,32 @@ def test_output_file_and_check(tmp_path):
     assert "---" in changed.output and "+++" in changed.output
 
 
+@pytest.mark.parametrize("fmt, name", [("json", "expected.json"), ("latex", "expected.tex"),
+                                       ("markdown", "expected.md"), ("json", "expected.txt"),
+                                       ("latex", "expected")])
+def test_check_reads_the_format_of_its_file(tmp_path, fmt, name):
+    """``derive --check FILE`` without --format compares in FILE's format (its extension, else
+    its text), so an up-to-date file is up to date and a changed one is a diff in that format."""
+    out = tmp_path / name
+    assert derive(SYSTEM1, "--format", fmt, "--output", out).exit_code == 0
+    same = derive(SYSTEM1, "--check", out)
+    assert same.exit_code == 0 and "up to date" in same.output, same.output
+    out.write_text(out.read_text() + "a line of my own\n")
+    changed = derive(SYSTEM1, "--check", out)
+    assert changed.exit_code == 1
+    diff = [line for line in changed.output.splitlines() if line[:1] in "+-" and line[:3] not in ("---", "+++")]
+    assert diff == ["-a line of my own"], changed.output
+
+
+def test_check_refuses_a_format_other_than_its_file(tmp_path):
+    out = tmp_path / "expected.json"
+    assert derive(SYSTEM1, "--format", "json", "--output", out).exit_code == 0
+    result = derive(SYSTEM1, "--format", "markdown", "--check", out)
+    assert result.exit_code == 2
+    assert f"Error: --check {out} holds JSON, but --format is markdown" in result.output
+    assert "give --format json" in result.output
+
+
 def test_python_dash_m_runs_the_cli():
     result = subprocess.run([sys.executable, "-m", "kronsub", "--help"], capture_output=True, text=True)
     assert result.returncode == 0 and "derive" in result.stdout

@@ -50,6 +50,7 @@ def test_auto_switches_through_the_toggle_and_keeps_the_loop_closed(auto_model, 
     assert "independent coordinates phi -> theta (dg/d(theta) nearly singular)" in switches[0]["what"]
     assert 0 < switches[0]["t"] < switches[1]["t"] <= 0.8
     assert "note: coordinates: auto switched at t = " in result.stderr
+    assert not any(line.startswith("#") for line in out.read_text().splitlines())  # the switches: in the JSON
     header, data = _table(out.read_text())
     col = {c: i for i, c in enumerate(header)}
     assert header[:3] == ["t", "phi", "phi_dot"] and "theta" in col  # the first choice's columns throughout
@@ -69,6 +70,31 @@ def test_given_coordinates_stop_at_the_same_toggle_with_a_clear_error(auto_model
                                        "--set", "F=0"])
     assert result.exit_code == 3, result.output
     assert "toggle position" in result.output and "'line'" in result.output and "t = " in result.output
+
+
+@pytest.mark.parametrize("independent, push", [("phi", "phi_dot=-15"), ("theta", "theta_dot=15")])
+def test_a_stop_at_a_toggle_blames_the_choice_not_the_mechanism(auto_model, independent, push):
+    """Listed coordinates that go singular stop the run with a message that names them as what is
+    singular there (Newton's method for phi independent, the closed form's asin for theta), never
+    that the mechanism cannot reach the configuration, and points at `coordinates: auto`."""
+    text = auto_model.read_text(encoding="utf-8").replace("coordinates: auto", f"coordinates: [{independent}]")
+    auto_model.write_text(text, encoding="utf-8")
+    result = CliRunner().invoke(main, ["simulate", str(auto_model), "--t", "1.5", "--set", push, "--set", "F=0"])
+    assert result.exit_code == 3, result.output
+    assert f"the independent coordinates chosen ({independent})" in result.output, result.output
+    assert "cannot reach" not in result.output and "cannot take" not in result.output
+    assert "hint: only the independent coordinates chosen are singular there: with `coordinates: auto`" \
+        in result.output
+
+
+def test_a_closed_loop_naming_no_coordinates_picks_them_as_auto(auto_model):
+    """Without `coordinates:`, a model with constraints derives as with `coordinates: auto`."""
+    auto = CliRunner().invoke(main, ["derive", str(auto_model), "--format", "json"])
+    bare = auto_model.with_name("bare.yaml")
+    bare.write_text(auto_model.read_text(encoding="utf-8").replace("coordinates: auto\n", ""), encoding="utf-8")
+    none = CliRunner().invoke(main, ["derive", str(bare), "--format", "json"])
+    assert auto.exit_code == 0 and none.exit_code == 0, none.output
+    assert json.loads(none.stdout) == json.loads(auto.stdout)
 
 
 @pytest.mark.parametrize("method", ["RK45", "Radau", "LSODA"])
@@ -132,7 +158,8 @@ def test_reactions_across_switches_match_the_multipliers_of_the_run(auto_model, 
 
 
 @pytest.mark.parametrize("method, dt, hints", [("gauss4", "0.1", ["gauss4 takes fixed steps of --dt 0.1"]),
-                                               ("dop853", "0.05", ["`coordinates: auto` changes"])])
+                                               ("dop853", "0.05", ["only the independent coordinates chosen are "
+                                                                   "singular there: with `coordinates: auto`"])])
 def test_a_stopped_closed_loop_run_says_what_would_go_on(auto_model, method, dt, hints, tmp_path):
     """A fixed step that jumps past what the mechanism can reach points to --dt; a toggle position
     of given coordinates points to `coordinates: auto`; a configuration that still solves is not

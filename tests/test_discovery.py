@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import stat
 
 import pytest
@@ -67,7 +68,66 @@ def test_components_detail_of_an_effect():
 def test_components_unknown_type_suggests():
     result = invoke("components", "pined_rod")
     assert result.exit_code == 1
-    assert "no component or effect type 'pined_rod'" in result.output and "'pinned_rod'" in result.output
+    assert "no component type, effect type or joint 'pined_rod'" in result.output and "'pinned_rod'" in result.output
+
+
+def test_components_lists_the_joints_with_their_keys():
+    """Every joint ``constraints:`` accepts is listed, its keys those the reader checks and the
+    schema describes; ``kronsub components pin`` shows one."""
+    from kronsub.commands.catalogue import joint
+    from kronsub.model.constraints import JOINT_KEYS, JOINTS
+
+    out = invoke("components").output
+    assert "Joints (under `constraints:`" in out
+    for name in JOINTS:
+        assert f"  {name} " in out, name
+    schema = json.loads((ROOT / "kronsub" / "model" / "schema.json").read_text())
+    branches = {b["required"][0]: b["properties"] for b in schema["$defs"]["constraint"]["oneOf"] if "required" in b}
+    assert set(branches) == set(JOINTS)
+    for name, keys in JOINT_KEYS.items():
+        spec = branches[name][name]
+        assert tuple(spec.get("properties", {})) == keys, name
+        assert [k["name"] for k in joint(name)["keys"]] == list(keys)
+        assert {k["name"] for k in joint(name)["keys"] if k["required"]} == set(spec.get("required", ()))
+        detail = invoke("components", name)
+        assert detail.exit_code == 0, detail.output
+        assert detail.output.startswith(f"{name} (joint, under `constraints:`): ")
+        assert all(f"  {k}" in detail.output for k in keys)
+    data = json.loads(invoke("components", "--format", "json").output)
+    assert [j["type"] for j in data["joints"]] == sorted(JOINTS)
+    pin = json.loads(invoke("components", "pin", "--format", "json").output)
+    assert pin["kind"] == "joint" and pin["form"] == "pin: [P, Q]"
+    assert "did you mean 'pin'?" in invoke("components", "pn").output
+
+
+def test_a_joint_as_shown_derives(tmp_path):
+    """The form ``kronsub components slider`` shows, filled in, is a model that derives."""
+    form = json.loads(invoke("components", "slider", "--format", "json").output)["form"]
+    assert form == "slider: {point: ..., body: ...}"
+    model = tmp_path / "m.yaml"
+    model.write_text("name: bead\ncomponents:\n"
+                     "  bar: {type: pinned_rod, parameters: {mass: 1, length: 2}, coordinates: {angle: a}}\n"
+                     "  bead: {type: particle2d, parameters: {mass: 1}, coordinates: [x, y]}\n"
+                     "coordinates: auto\nconstraints:\n"
+                     "  on_bar: {" + form.replace("...", "bead.centre", 1).replace("...", "bar") + "}\n"
+                     "initial: {a: 0.1, x: 0.05, y: -0.5}\n")
+    result = invoke("derive", model)
+    assert result.exit_code == 0, result.output
+
+
+def test_no_sphinx_markup_reaches_the_terminal():
+    """Help texts and the catalogue show docstrings as plain text: no ``:func:`x``` or ````x````."""
+    from kronsub.cli import main as group
+    from kronsub.commands.catalogue import names
+
+    markup = re.compile(r":(?:py:)?[a-z]+:`|``")
+    commands = [[]] + [[name] for name in group.commands]
+    commands += [[name, sub] for name, cmd in group.commands.items() for sub in getattr(cmd, "commands", {})]
+    outputs = [invoke(*args, "--help").output for args in commands]
+    outputs += [invoke("components").output] + [invoke("components", n).output for n in names()]
+    outputs += [invoke("components", "--format", "json").output]
+    for text in outputs:
+        assert not markup.search(text), markup.search(text).string[max(0, markup.search(text).start() - 80):][:200]
 
 
 # -- the inertia convention of rigid_body3d ----------------------------------------------------

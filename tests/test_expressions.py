@@ -206,6 +206,18 @@ def test_syntax_errors(text, offset, fragment):
     assert problem.location == Location("m.yaml", 5, 7 + offset)
 
 
+@pytest.mark.parametrize("text, offset, literal, hint", [
+    ("170deg", 0, "170deg", "170*pi/180"),
+    ("1 + 2.5e3kg", 4, "2.5e3kg", "2*x"),
+    ("x + 12y", 4, "12y", "2*x"),
+])
+def test_invalid_number_quotes_what_was_written(text, offset, literal, hint):
+    problem = problem_of(text)
+    assert f"invalid number '{literal}'" in problem.message
+    assert hint in problem.hint
+    assert problem.location == Location("m.yaml", 5, 7 + offset)
+
+
 def test_syntax_error_message_format():
     problem = problem_of("F*cos(theta")
     assert problem.message == "in expression 'F*cos(theta': expected ')'"

@@ -655,3 +655,24 @@ def test_four_bar_derive_reactions_in_closed_form_against_the_multipliers():
     pv = [0.5, 1.0, 0.8, 0.4, 1.0, 0.8, 0.9, 2, 5, 0.1, 0.5, 9.81]  # the model's values, in ref.params order
     pairs = sweep6.printed_multipliers("four_bar_reactions.yaml", sweep6.four_bar_reference(), sweep6.FOUR_BAR_GUESS, pv, 620, step=0.3)
     assert worst(pairs) < 1e-9
+
+
+@pytest.mark.parametrize("path", ["models/examples/four_bar.yaml", "models/examples/slider_crank.yaml",
+                                  "tests/models/sweep6/slider_crank_line.yaml",
+                                  "tests/models/sweep4/stephenson_six_bar.yaml"])
+def test_dependent_coordinates_come_in_the_order_the_model_declares_them(path):
+    """Given or picked (`coordinates: auto`), the dependent coordinates of a closed loop are in
+    the order their names first appear under `components:` (theta2 before theta3), also when a
+    part hangs from a pivot (its angle takes the place of the coordinates the pivot gives)."""
+    import yaml
+
+    from conftest import ROOT
+
+    text = (ROOT / path).read_text(encoding="utf-8")
+    declared = []
+    for spec in yaml.safe_load(text)["components"].values():
+        names = spec.get("coordinates") or []
+        declared += list(names.values()) if isinstance(names, dict) else list(names)
+    dependent = [q.name for q in kronsub.load(ROOT / path).derive().implicit.dependent]
+    assert len(dependent) >= 2 and set(dependent) <= set(declared), (dependent, declared)
+    assert dependent == sorted(dependent, key=declared.index), (dependent, declared)

@@ -60,6 +60,25 @@ def test_every_printed_expression_parses_back_to_the_same_value(name):
         parse_expression(text, names)
 
 
+@pytest.mark.parametrize("name", ["sweep3/two_tops.yaml",
+                                  "sweep5/line_plane_space.yaml"])
+def test_by_effect_uses_the_where_names(name):
+    """Each effect's row of ``fbar`` uses the names of the where block, as ``fbar`` itself does:
+    cells as short as ``fbar``'s, and each the effect's force when the names are put back."""
+    system, report, names = printed(name)
+    assert report["where"] and len(report["effects"]) > 1
+    used = 0
+    for effect, (key, forces) in zip(report["effects"], system.effect_forces.items()):
+        assert effect["name"] == key
+        for text, want in zip(effect["forces"], forces):
+            got = parse_expression(text, names)
+            used += any(s.name in {w["plain"] for w in report["where"]} for s in got.free_symbols)
+            assert same_value(inline(got, report, names), want), f"{name} {key}: {text}"
+    assert used
+    longest = max(len(f) for f in report["forces"])
+    assert max(len(f) for e in report["effects"] for f in e["forces"]) <= longest
+
+
 def test_abs_and_euler_number_print_in_the_model_language():
     x = S("x")
     show = plain_printer({"E", "pi"})

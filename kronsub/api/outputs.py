@@ -117,20 +117,27 @@ class Accuracy:
         accuracy_report.plot(self.measurement, path, target)
 
 
-def accuracy_plan(methods="all", tolerances="1e-4:1e-14", *, quick: bool = False,
+TOLERANCES = "1e-4:1e-14"
+"""The default grid of tolerances of an accuracy experiment (``--tolerances``)."""
+
+
+def accuracy_plan(methods="all", tolerances=None, *, quick: bool = False,
                   precision: str = "double") -> tuple[tuple[str, ...], tuple[float, ...]]:
     """The methods and tolerances of an accuracy experiment, read as ``--methods``,
-    ``--tolerances``, ``--quick`` and ``--precision`` are (text, or sequences)."""
+    ``--tolerances``, ``--quick`` and ``--precision`` are (text, or sequences); ``quick`` thins
+    the default grid (``tolerances`` None: :data:`TOLERANCES`) and keeps tolerances given."""
     from ..simulation import accuracy as acc
 
     chosen = acc.parse_methods(methods if isinstance(methods, str) else ",".join(methods))
     if precision != "double" and f"gbs-{precision}" not in chosen:
         chosen = chosen + (f"gbs-{precision}",)
+    thin = quick and tolerances is None
+    tolerances = TOLERANCES if tolerances is None else tolerances
     grid = acc.parse_tolerances(tolerances) if isinstance(tolerances, str) else tuple(float(x) for x in tolerances)
-    return chosen, acc.quick_tolerances(grid) if quick else grid
+    return chosen, acc.quick_tolerances(grid) if thin else grid
 
 
-def accuracy(system: KnownSystem, t: float = 10.0, methods="all", tolerances="1e-4:1e-14", *, quick: bool = False,
+def accuracy(system: KnownSystem, t: float = 10.0, methods="all", tolerances=None, *, quick: bool = False,
              digits: int | None = None, precision: str = "double", set: Mapping[str, object] | None = None) -> Accuracy:
     """The experiment of ``kronsub accuracy``: each method at each tolerance run to ``t`` from
     the model's initial values (``set`` overrides them), its error against a high-precision

@@ -18,6 +18,7 @@ import numpy as np
 from ..core.known_system import KnownSystem
 from ..errors import ModelError, Problem
 from ..model.scenes import scene_system
+from ..simulation.span import ANIMATION_DEFAULTS, run_span
 
 __all__ = ["ANIMATION_DEFAULTS", "NumericSystem", "Run", "animate", "model_file", "numeric", "run_span", "scene_of",
            "settings_text", "simulate"]
@@ -104,20 +105,6 @@ def settings_text(settings: Mapping[str, object] | None) -> dict[str, str]:
 def scene_of(system: KnownSystem):
     """The scene a :class:`~.system.System` was derived for (None: the whole model, or not known)."""
     return getattr(system, "scene", None)
-
-
-def run_span(system: KnownSystem, t: float | None = None, dt: float | None = None, method: str | None = None,
-             defaults: tuple[float, float, str] = (10.0, 0.01, "dop853")) -> tuple[float, float, str]:
-    """``(t_end, dt, method)`` of a run: each one given, else the scene's, else ``defaults``."""
-    scene = scene_of(system)
-
-    def pick(given, own, default):
-        if given is not None:
-            return given
-        return own if own is not None else default
-
-    return (pick(t, scene and scene.t_end, defaults[0]), pick(dt, scene and scene.dt, defaults[1]),
-            pick(method, scene and scene.method, defaults[2]))
 
 
 def _trajectory(system: KnownSystem, t, dt, method, set, rtol, atol, outputs=None):
@@ -275,7 +262,6 @@ def numeric(system: KnownSystem, set: Mapping[str, object] | None = None) -> Num
                          "C" if native is not None else "numpy")
 
 
-ANIMATION_DEFAULTS = (5.0, 0.02, "dop853")  # t_end, dt, method of `animate` without a scene's
 
 
 def model_file(system: KnownSystem) -> str | None:

@@ -5,11 +5,12 @@ import math
 from pathlib import Path
 
 import click
+from click.core import ParameterSource
 
 from ..atomic import write_atomically
 from ..simulation.methods import MEASURED
 from ..simulation.methods import help_text as method_help
-from .common import (budget_option, check_times, coincident_at_start, default_sidecar, fail, meta_option,
+from .common import (T_END, budget_option, check_times, coincident_at_start, default_sidecar, fail, meta_option,
                      output_option, plot_option, run_command, say, scene_option, scene_system, separate_outputs,
                      set_option, writable, writable_outputs)
 
@@ -18,7 +19,7 @@ __all__ = ["accuracy"]
 
 @click.command()
 @click.argument("model", type=click.Path(dir_okay=False, path_type=Path))
-@click.option("--t", "t_end", type=float, default=10.0, show_default=True, help="End time.")
+@click.option("--t", "t_end", type=float, default=T_END, show_default=True, help="End time.")
 @click.option("--methods", default="all", show_default=True,
               help="Comma-separated (all: every one but the extended-precision ones, see --precision): "
                    + method_help(MEASURED))
@@ -32,7 +33,9 @@ __all__ = ["accuracy"]
 @meta_option("Write the metadata (JSON: model, reference routes and estimated error, t_end, skipped methods, "
                    "failures, target) to FILE (default: beside --output).")
 @plot_option("Write the work-precision plot (error against time, log-log; PNG, PDF or SVG by the name).")
-@click.option("--quick", is_flag=True, help="A coarse grid (every third tolerance), few repeats, a cheaper reference.")
+@click.option("--quick", is_flag=True,
+              help="A coarse grid (every third tolerance of the default --tolerances; tolerances given are kept), "
+                   "few repeats, a cheaper reference.")
 @click.option("--digits", type=click.IntRange(12, 200), default=None,
               help="Digits of the reference's cross-check run (default 20; --quick 16); the reference runs at 8 more.")
 @click.option("--precision", type=click.Choice(["double", "long", "quad"]), default="double", show_default=True,
@@ -51,9 +54,12 @@ def accuracy(model: Path, t_end: float, methods: str, tolerances: str, target: f
     from ..simulation.table import metadata_json
     from ..simulation.values import parse_assignments
 
+    thin = click.get_current_context().get_parameter_source("tolerances") is ParameterSource.DEFAULT
+
     def job():
         check_times(t_end, None)
-        accuracy_plan(methods, tolerances, quick=quick, precision=precision)  # before deriving
+        given = None if thin else tolerances  # --quick thins the default grid only; tolerances given are kept
+        accuracy_plan(methods, given, quick=quick, precision=precision)  # before deriving
         if target is not None and not (target > 0 and math.isfinite(target)):
             fail("Error: --target must be a positive finite error, e.g. --target 1e-8")
         meta_path = meta if meta is not None else default_sidecar(output)
@@ -65,7 +71,7 @@ def accuracy(model: Path, t_end: float, methods: str, tolerances: str, target: f
         assignments = parse_assignments(settings)
         say(f"computing the reference to t = {t_end:g} ...")
         try:
-            result = experiment(System.of(system, loaded, scene), t_end, methods, tolerances, quick=quick,
+            result = experiment(System.of(system, loaded, scene), t_end, methods, given, quick=quick,
                                 digits=digits, precision=precision, set=assignments)
         except acc.AccuracyError:
             coincident_at_start(loaded, system, assignments)

@@ -5,7 +5,7 @@ from pathlib import Path
 
 import click
 
-from .common import (USAGE_ERROR, budget_option, check_times, fail, output_option, run_command, say, scene_option,
+from .common import (T_END, USAGE_ERROR, budget_option, check_times, fail, output_option, run_command, say, scene_option,
                      scene_system, separate_outputs, set_option, writable)
 
 __all__ = ["animate"]
@@ -16,7 +16,7 @@ _MODEL_ONLY = {"t_end": "--t", "dt": "--dt", "method": "--method", "settings": "
 @click.command()
 @click.argument("source", type=click.Path(dir_okay=False, path_type=Path))
 @output_option("The animation: a .gif (pillow) or .mp4 (ffmpeg).", required=True)
-@click.option("--t", "t_end", type=float, default=None, help="End time (MODEL only; default: the scene's, else 5).")
+@click.option("--t", "t_end", type=float, default=None, help=f"End time (MODEL only; default: the scene's, else {T_END:g}, as simulate).")
 @click.option("--dt", type=float, default=None,
               help="Output interval (MODEL only; default: the scene's, else 0.02).")
 @click.option("--method", default=None, help="Integration method (MODEL only; default: the scene's, else dop853).")

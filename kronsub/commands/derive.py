@@ -5,11 +5,12 @@ import difflib
 from pathlib import Path
 
 import click
+from click.core import ParameterSource
 
 from ..emitters.reactions import with_reactions as add_reactions
 from ..model.file_reading import read_user_text
-from .common import (budget_option, emit_text, fail, note_choice, output_option, run_command, say, scene_option,
-                     scene_system, separate_outputs)
+from .common import (USAGE_ERROR, budget_option, emit_text, fail, note_choice, output_option, run_command, say,
+                     scene_option, scene_system, separate_outputs)
 
 
 @click.command()
@@ -18,7 +19,8 @@ from .common import (budget_option, emit_text, fail, note_choice, output_option,
               show_default=True, help="Output format.")
 @output_option()
 @click.option("--check", type=click.Path(dir_okay=False, path_type=Path),
-              help="Compare with FILE; exit 1 with a unified diff when they differ.")
+              help="Compare with FILE (in the format of its extension .md, .tex or .json, or of its "
+                   "text, unless --format is given); exit 1 with a unified diff when they differ.")
 @click.option("--no-cache", is_flag=True, help="Derive from scratch, ignoring the known-system cache.")
 @scene_option
 @budget_option
@@ -31,18 +33,23 @@ def derive(model: Path, fmt: str, output: Path | None, check: Path | None, no_ca
 
     def job():
         separate_outputs(model, ("--output", output, "output"))
+        expected = None
+        chosen = fmt
+        if check is not None:
+            if not check.exists():
+                fail(f"Error: {check}: No such file or directory\n  hint: write it first with --output {check}")
+            expected = read_user_text(check, "file of derived equations (--check)")
+            chosen = _check_format(check, expected, fmt, click.get_current_context().get_parameter_source("fmt")
+                                   is not ParameterSource.DEFAULT)
         if output is not None and not output.resolve().parent.is_dir():
             fail(f"Error: {output}: the directory {output.resolve().parent} does not exist\n"
                   "  hint: create it first, or choose another --output path")
         _, _, system = scene_system(model, scene_name, cache=not no_cache)
         note_choice(system)
-        text = EMITTERS[fmt](system)
+        text = EMITTERS[chosen](system)
         if with_reactions:
-            text = add_reactions(text, system, fmt)
-        if check is not None:
-            if not check.exists():
-                fail(f"Error: {check}: No such file or directory\n  hint: write it first with --output {check}")
-            expected = read_user_text(check, "file of derived equations (--check)")
+            text = add_reactions(text, system, chosen)
+        if expected is not None:
             if expected != text:
                 diff = difflib.unified_diff(expected.splitlines(True), text.splitlines(True),
                                             fromfile=str(check), tofile=f"derived from {model}")
@@ -55,4 +62,31 @@ def derive(model: Path, fmt: str, output: Path | None, check: Path | None, no_ca
     run_command(job)
 
 
-__all__ = ["derive"]
+SUFFIXES = {".md": "markdown", ".markdown": "markdown", ".tex": "latex", ".json": "json"}
+"""The format of a ``--check`` file by its extension."""
+SHOWN = {"markdown": "Markdown", "latex": "LaTeX", "json": "JSON"}
+
+
+def format_of(path: Path, text: str) -> str | None:
+    """The format ``derive`` wrote ``text`` in: by the extension of ``path``, else by its first
+    character (JSON an object, LaTeX a command, Markdown a heading); None when it says none."""
+    if path.suffix.lower() in SUFFIXES:
+        return SUFFIXES[path.suffix.lower()]
+    start = text.lstrip()[:1]
+    return {"{": "json", "\\": "latex", "#": "markdown"}.get(start)
+
+
+def _check_format(check: Path, text: str, fmt: str, given: bool) -> str:
+    """The format to compare ``check`` in: ``--format`` when given (refused when the file is in
+    another), else the file's own."""
+    found = format_of(check, text)
+    if not given:
+        return found or fmt
+    if found is not None and found != fmt:
+        fail(f"Error: --check {check} holds {SHOWN[found]}, "
+             f"but --format is {fmt}\n  hint: drop --format (the file's format is used) or give --format {found}",
+             USAGE_ERROR)
+    return fmt
+
+
+__all__ = ["SHOWN", "SUFFIXES", "derive", "format_of"]

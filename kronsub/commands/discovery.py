@@ -19,9 +19,9 @@ from .starters import STARTERS
 @click.option("--format", "fmt", type=click.Choice(["text", "json"]), default="text", show_default=True,
               help="Output format.")
 def components(type_name: str | None, fmt: str):
-    """The component library and the effect types; with TYPE, the details of one
-    (coordinates, parameters with defaults and units, named points, conventions; or
-    an effect's keys)."""
+    """The component library, the effect types and the joints of constraints; with TYPE, the
+    details of one (coordinates, parameters with defaults and units, named points,
+    conventions; or an effect's or a joint's keys)."""
     from ..errors import KronsubError, close_matches
     from . import catalogue
 
@@ -29,12 +29,10 @@ def components(type_name: str | None, fmt: str):
         if type_name is None:
             text = (json_document(catalogue.catalogue(), indent=2) + "\n") if fmt == "json" else catalogue.overview_text()
         elif type_name not in catalogue.names():
-            raise KronsubError(f"no component or effect type '{type_name}'\n  hint: "
+            raise KronsubError(f"no component type, effect type or joint '{type_name}'\n  hint: "
                                + close_matches(type_name, catalogue.names()))
         elif fmt == "json":
-            data = catalogue.component(type_name) if type_name in catalogue.REGISTRY else \
-                catalogue.effect(type_name)
-            text = json_document(data, indent=2) + "\n"
+            text = json_document(catalogue.details(type_name), indent=2) + "\n"
         else:
             text = catalogue.detail_text(type_name)
         click.echo(text, nl=False)

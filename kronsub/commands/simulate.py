@@ -12,7 +12,7 @@ import click
 from ..atomic import atomic_file, write_atomically
 from ..simulation.methods import SIMULATE
 from ..simulation.methods import help_text as method_help
-from .common import (INTERRUPTED, NUMERICAL_FAILURE, USAGE_ERROR, budget_option, check_times, coincident_ends,
+from .common import (INTERRUPTED, NUMERICAL_FAILURE, T_END, USAGE_ERROR, budget_option, check_times, coincident_ends,
                      default_sidecar, fail, interrupted_by, meta_option, note_choice, note_safely, output_option,
                      plot_option, run_command, say, scene_option, scene_system, separate_outputs, set_option,
                      writable, writable_outputs)
@@ -22,7 +22,7 @@ __all__ = ["simulate"]
 
 @click.command()
 @click.argument("model", type=click.Path(dir_okay=False, path_type=Path))
-@click.option("--t", "t_end", type=float, default=None, help="End time (default: the scene's, else 10).")
+@click.option("--t", "t_end", type=float, default=None, help=f"End time (default: the scene's, else {T_END:g}).")
 @click.option("--dt", type=float, default=None,
               help="Output interval (and step of fixed-step methods; default: the scene's, else 0.01).")
 @click.option("--method", default=None,
@@ -179,6 +179,6 @@ def _constraint_hints(system, run, step: float) -> str:
         hints.append(f"{run.method} takes fixed steps of --dt {step:g}: a smaller --dt keeps each step "
                      "within the mechanism's reach")
     if "toggle position" in run.message and system.implicit.choice != "auto":
-        hints.append("`coordinates: auto` changes the independent coordinates where this choice's dg/dy_d "
-                     "goes singular, and the run goes on")
+        hints.append("only the independent coordinates chosen are singular there: with `coordinates: auto` "
+                     "kronsub changes them where dg/dy_d of its choice goes singular, and the run goes on")
     return "".join(f"\n  hint: {h}" for h in hints)

@@ -49,7 +49,7 @@ class RigidBody3D(Component):
 
     The rotation is ``R_a(psi) R_b(theta) R_c(phi)`` for the sequence ``abc`` chosen by
     ``euler:`` (default ``ZYX``: yaw, pitch, roll). Body angular velocity
-    ``omega = E (psidot, thetadot, phidot)`` (:func:`euler_rates`); for Z-Y-X
+    ``omega = E (psidot, thetadot, phidot)``; for Z-Y-X
     ``E = [[-sin th, 0, 1], [cos th sin ph, cos ph, 0], [cos th cos ph, -sin ph, 0]]``.
     The metric is ``diag(m, m, m) (+) E^T I E``; it is singular where ``E`` is (gimbal
     lock): ``theta = +-pi/2`` for the six sequences of three different axes, ``theta = 0, pi``

@@ -306,14 +306,44 @@ def _pivoted(A: np.ndarray):
 
 
 def closed_forms(constraints, independent, dependent, branch: dict, parameters: dict):
-    """``y_d = y_d(xbar)`` where one constraint fixes one dependent coordinate ``d`` in closed
-    form, ``A + B d``, ``A + B sin d`` or ``A + B cos d`` (``A``, ``B`` free of ``d``), and
-    exactly one of the solutions (``asin``, ``pi - asin``; ``+-acos``) passes through the
-    initial configuration: then it holds on the whole branch (26)."""
-    if len(dependent) != 1 or len(constraints) != 1:
-        return ()
-    d = dependent[0]
-    g = sympy.expand(constraints[0].expression)
+    """``y_d = y_d(xbar)`` for every dependent coordinate, when the constraints can be solved one
+    at a time (26): a constraint in which one dependent coordinate ``d`` is left fixes it in closed
+    form, ``A + B d``, ``A + B sin d`` or ``A + B cos d`` (``A``, ``B`` free of ``d``), when exactly
+    one of the solutions (``asin``, ``pi - asin``; ``+-acos``) passes through the initial
+    configuration: then it holds on the whole branch. Each solution is put into the constraints
+    left (a pin in space: one coordinate per axis). Empty unless every dependent coordinate has one
+    (Newton's method then finds them all)."""
+    point = {**parameters, **branch}
+    numbers = {}
+    for k, v in point.items():
+        try:
+            numbers[k] = float(v)
+        except (TypeError, ValueError):
+            pass  # not a number: a candidate using it is left out, as before
+    left = [sympy.sympify(c.expression) for c in constraints]
+    unsolved = list(dependent)
+    solved: dict = {}
+    while unsolved:
+        for i, g in enumerate(left):
+            here = [d for d in unsolved if g.has(d)]
+            if len(here) != 1:
+                continue
+            form = _closed_form(g, here[0], branch, numbers)
+            if form is not None:
+                break
+        else:
+            return ()
+        d = here[0]
+        solved[d] = form
+        unsolved.remove(d)
+        del left[i]
+        left = [e.xreplace({d: form}) for e in left]
+    return tuple((d, solved[d]) for d in dependent)
+
+
+def _closed_form(g, d, branch: dict, numbers: dict):
+    """The one solution of ``g = 0`` for ``d`` through the initial configuration, or None."""
+    g = sympy.expand(g)
     candidates = []
     for kernel in (d, sympy.sin(d), sympy.cos(d)):
         u = sympy.Dummy("u")
@@ -332,14 +362,7 @@ def closed_forms(constraints, independent, dependent, branch: dict, parameters: 
         else:
             candidates = [sympy.acos(root), -sympy.acos(root)]
         break
-    point = {**parameters, **branch}
     hits = []
-    numbers = {}
-    for k, v in point.items():
-        try:
-            numbers[k] = float(v)
-        except (TypeError, ValueError):
-            pass  # not a number: a candidate using it is left out, as before
     for s in candidates:
         try:  # in doubles (`complex_value`): sympy's multiprecision can abort on exp(exp(...))
             value = complex_value(sympy.sympify(s), numbers)
@@ -347,7 +370,7 @@ def closed_forms(constraints, independent, dependent, branch: dict, parameters: 
             continue
         if abs(value.imag) < 1e-12 and abs(value.real - float(branch[d])) < 1e-8:
             hits.append(s)
-    return ((d, hits[0]),) if len(hits) == 1 else ()
+    return hits[0] if len(hits) == 1 else None
 
 
 class Intermediates:
@@ -373,6 +396,11 @@ class Intermediates:
                                        modules="math") if len(closed) == k and k else None)
         self.guess = np.array([dict(imp.branch).get(d, 0.0) for d in imp.dependent], dtype=float)
 
+    @property
+    def closed(self) -> bool:
+        """Whether the dependent coordinates come from their closed form (else Newton's method)."""
+        return self._closed is not None
+
     def dependent(self, q) -> np.ndarray:
         """``y_d`` on the branch (raises :class:`ConstraintFailure`)."""
         q = np.asarray(q, dtype=float)
@@ -385,8 +413,7 @@ class Intermediates:
                 self.guess = yd
                 return yd
             raise ConstraintFailure("diverged", "the closed form of the dependent coordinates has no real "
-                                    "value here (the mechanism cannot reach this configuration)"
-                                    + self._closed_cause(q), q)
+                                    "value here" + self._closed_cause(q), q)
         y = np.concatenate([q, self.guess])
         y = self.numeric.solve(y, range(self.n, self.n + self.k), tol=self.tol)
         self.guess = y[self.n:]

@@ -161,7 +161,9 @@ def _context(model: NumericModel, show, declare: str, end: str) -> dict:
                        for name in ("closed_form", "residual", "sensitivity", "quadratic")})
     return {"m": model, "b": blocks, "version": __version__,
             "n_points": sum(d for _, d in model.points),
-            "defaults": [(name, Markup(value)) for name, value, _ in model.parameters if value]}
+            "defaults": [(name, Markup(value)) for name, value, _ in model.parameters if value],
+            "c_defaults": [(name, Markup(f"({value})" if value.startswith("-") else value))
+                           for name, value, _ in model.parameters if value]}
 
 
 @collector_paused()  # see kronsub.collector

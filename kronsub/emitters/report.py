@@ -209,6 +209,21 @@ def kinetic_energy(mass: sympy.Matrix, velocities) -> sympy.Expr:
                        for a in range(n) for b in range(a, n) if mass[a, b] != 0])
 
 
+def with_names(expr: sympy.Expr, where: list) -> sympy.Expr:
+    """``expr`` written with the names of the "where" block, as the entries of ``fbar`` are: each
+    name's whole expression (earlier names put back) replaced by the name, the largest first;
+    SymPy's ``subs`` also finds one inside a longer product or sum (``2*h*a*b`` is ``a*w3``
+    where ``w3 = 2*h*b``). An exact rewriting: putting the expressions back gives ``expr``."""
+    if not where or expr == 0:
+        return expr
+    full: dict = {}
+    for name, named in where:
+        full[name] = named.xreplace(full)
+    symbols = expr.free_symbols
+    pairs = [(e, name) for name, e in full.items() if e.free_symbols <= symbols]
+    return expr.subs(sorted(pairs, key=lambda pair: -count_ops(pair[0]))) if pairs else expr
+
+
 def build_report(system: KnownSystem, show: Printer, named: bool = True) -> dict:
     """The derivation as nested lists of printed strings, in a fixed order.
 
@@ -231,8 +246,8 @@ def build_report(system: KnownSystem, show: Printer, named: bool = True) -> dict
         mass[i, j] = mass[j, i] = e
     hbar, fbar = exprs[len(upper):len(upper) + n], exprs[len(upper) + n:]
     named_as = {e: s for s, e in where}
-    others = [kinetic_energy(mass, system.velocities),
-              *[e.xreplace(named_as) for e in (system.potential_energy, *[e for _, f in effects for e in f])]]
+    others = [kinetic_energy(mass, system.velocities), system.potential_energy.xreplace(named_as),
+              *[with_names(e, where) for _, f in effects for e in f]]
     it = iter(others[2:])
     take = lambda k: [next(it) for _ in range(k)]  # noqa: E731
     accelerations = sympy.Matrix(system.accelerations)

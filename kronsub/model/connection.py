@@ -159,13 +159,20 @@ def pivot_connection(reader: ModelReader, primitive: Primitive) -> None:
 
 
 def read_intermediate(reader: ModelReader, node: Node | None, primitive: Primitive, coords) -> tuple[sympy.Symbol, ...]:
-    """The coordinates ``y`` the constraints act on: the primitive coordinates not given by
-    the connection (nor by a pivot), the pivoted parts' angles, then any other listed ones."""
+    """The coordinates ``y`` the constraints act on, in the order the model declares its parts:
+    the primitive coordinates not given by the connection, a pivoted part's angle in the place of
+    the coordinates its pivot gives, then any other listed ones."""
     connected = set(reader.auto_connection)
     for key in reader.mapping(node, "connection", "write one `primitive_coordinate: expression` per line"):
         if key in reader.primitive_names:
             connected.add(reader.primitive_names[key])
-    y = [x for x in primitive.coordinates if x not in connected]
+    angle_of = {x: angle for _, _, angle, _, hidden in reader.pivots for x in hidden.values()}
+    y = []
+    for x in primitive.coordinates:
+        if x in angle_of and angle_of[x] not in y:
+            y.append(angle_of[x])
+        elif x not in connected and x not in angle_of:
+            y.append(x)
     for _, _, angle, _, _ in reader.pivots:
         if angle not in y:
             y.append(angle)

@@ -36,7 +36,11 @@ from .effects import named_body, zero_vector
 from .reader import ModelReader
 from .source import Node
 
-JOINTS = ("pin", "point_on_line", "slider")
+JOINT_KEYS = {"pin": (), "point_on_line": ("point", "through", "direction"),
+              "slider": ("point", "body", "through", "direction")}
+"""The joints (``name: {joint: ...}`` under ``constraints:``) and the keys of their mappings (a pin
+takes a list of two points instead)."""
+JOINTS = tuple(JOINT_KEYS)
 AXES = "xyz"
 
 
@@ -205,7 +209,7 @@ def _point_on_line(reader: ModelReader, cname, node, primitive, names):
     node = _line(reader, cname, node, names, "point_on_line")
     if node is None:
         return None
-    reader.check_keys(node, ("point", "through", "direction"), f"point_on_line '{cname}'")
+    node = reader.check_keys(node, JOINT_KEYS["point_on_line"], f"point_on_line '{cname}'")
     p = _point(reader, node.get("point"), primitive, cname, names)
     through = node.get("through")
     q = _point(reader, through, primitive, cname, names) if through is not None else None
@@ -232,7 +236,7 @@ def _slider(reader: ModelReader, cname, node, primitive, names):
     node = _line(reader, cname, node, names, "slider")
     if node is None:
         return None
-    reader.check_keys(node, ("point", "body", "through", "direction"), f"slider '{cname}'")
+    node = reader.check_keys(node, JOINT_KEYS["slider"], f"slider '{cname}'")
     p = _point(reader, node.get("point"), primitive, cname, names)
     bnode = node.get("body")
     part = index = None
@@ -358,7 +362,7 @@ def analyse(reader: ModelReader, constraints, y, independent, auto: bool, initia
                 y1 = y2
         except ConstraintFailure:
             pass
-        dependent = tuple(y[i] for i in dep_idx)
+        dependent = tuple(y[i] for i in sorted(dep_idx))  # in the order of y, as when they are given
         independent = tuple(q for i, q in enumerate(y) if i not in dep_idx)
     else:
         dep_idx = [i for i, q in enumerate(y) if q in dependent]

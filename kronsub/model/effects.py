@@ -441,7 +441,7 @@ def build_effect(reader: ModelReader, ename: str, spec: Node, primitive) -> Effe
         reader.error(tnode, f"unknown effect type '{tnode.value}'", close_matches(str(tnode.value), BUILDERS))
         return None
     builder, keys = entry
-    reader.check_keys(spec, ("type", "description") + keys, f"effect '{ename}'")
+    spec = reader.check_keys(spec, ("type", "description") + keys, f"effect '{ename}'")
     return builder(reader, ename, spec, primitive)
 
 

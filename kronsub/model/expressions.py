@@ -65,6 +65,17 @@ _DECIMAL = re.compile(r"([+-]?)(\d*)(?:\.(\d*))?(?:[eE]([+-]?\d+))?")
 _WORD = re.compile(r"[^\W\d]\w*")
 _DOTTED = re.compile(r"[^\W\d]\w*(?:\s*\.\s*[^\W\d]\w*)*")  # a name, or a dotted one: upper.tip.x
 _TOKEN = re.compile(r"\w+|\S")
+
+
+def _literal_at(text: str, index: int) -> tuple[int, str]:
+    """The whole literal (digits, letters, dots) around ``text[index]``, and where it starts."""
+    start = index
+    while start > 0 and (text[start - 1].isalnum() or text[start - 1] in "._"):
+        start -= 1
+    end = index
+    while end < len(text) and (text[end].isalnum() or text[end] in "._"):
+        end += 1
+    return start, text[start:end] or text[index:index + 1]
 _UNDEFINED = (sympy.zoo, sympy.nan, sympy.oo, -sympy.oo, sympy.I)
 
 _BINARY_OPERATORS: dict[type, str] = {
@@ -417,8 +428,11 @@ class _Builder:
         token = _TOKEN.match(text, offset - 1) or _TOKEN.search(text, offset - 1)
         shown = token.group() if token else text[offset - 1:offset]
         if "decimal literal" in msg:
-            self.fail_at(line, offset, f"invalid number '{shown}'",
-                         "write products with '*', e.g. 2*x rather than 2x")
+            start, literal = _literal_at(text, offset - 1)
+            hint = "write products with '*', e.g. 2*x rather than 2x"
+            if re.fullmatch(r"[\d.]+(e[+-]?\d+)?deg(rees?)?", literal, re.IGNORECASE):
+                hint = f"angles are in radians: write {literal[:literal.lower().index('deg')]}*pi/180"
+            self.fail_at(line, start + 1, f"invalid number '{literal}'", hint)
         if msg.startswith("unmatched"):
             self.fail_at(line, offset, msg, "remove it or add the matching opening bracket")
         if "string" in msg:

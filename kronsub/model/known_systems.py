@@ -31,7 +31,8 @@ def read_known_system(reader: ModelReader, cname: str, spec: Node, derived: Call
     """The component ``cname`` whose ``model:`` is a model file: that model derived by
     ``derived`` (which keys it into this model's key), its parameters overridden or inherited, its
     coordinates renamed, placed at its ``origin:``; None when a problem was recorded."""
-    reader.check_keys(spec, ("model", "parameters", "coordinates", "origin", "description"), f"component '{cname}'")
+    spec = reader.check_keys(spec, ("model", "parameters", "coordinates", "origin", "description"),
+                             f"component '{cname}'")
     mnode = spec.get("model")
     if not isinstance(mnode.value, str) or not mnode.value:
         reader.error(mnode, f"`model:` of component '{cname}' must be a file name, found {node_kind(mnode)}",

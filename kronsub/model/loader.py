@@ -77,7 +77,7 @@ class ModelLoader(ModelReader):
             self.error(root.key_locations[first], "this is not a kronsub model: no key is a model section",
                        "a model has `name:`, `components:`, `coordinates:` and `connection:`; check the path")
             self.problems.raise_if_any()
-        self.check_keys(root, TOP_LEVEL, "the model")
+        root = self.check_keys(root, TOP_LEVEL, "the model")
         dnode = root.get("definitions")
         self.definition_keys = set(dnode.value) if dnode is not None and dnode.is_mapping else set()
         name = self.string(root.get("name"), self.path.stem)
@@ -88,7 +88,9 @@ class ModelLoader(ModelReader):
         carried = [c for part in self.parts for c in part.constraints]  # of constrained known systems
         constrained = (cnode is not None and cnode.value is not None) or bool(carried)
         coords_node = root.get("coordinates")
-        auto = coords_node is not None and coords_node.is_scalar and coords_node.value == "auto"
+        # a closed loop that names no coordinates lets kronsub pick them, as `coordinates: auto`
+        auto = (coords_node is None and constrained) or (
+            coords_node is not None and coords_node.is_scalar and coords_node.value == "auto")
         if auto and not constrained:
             self.error(coords_node, "`coordinates: auto` needs `constraints:`",
                        "list the generalized coordinates, e.g. `coordinates: [theta, phi]`")
@@ -96,7 +98,7 @@ class ModelLoader(ModelReader):
         coords = () if auto else read_coordinates(self, coords_node)
         self.generalized_names = {q.name for q in coords}
         if auto:
-            self.locations["coordinates"] = coords_node.location
+            self.locations["coordinates"] = (coords_node or cnode or root).location
         primitive = Primitive(tuple(self.parts))
         allow_for(len(primitive.coordinates))  # a default budget grows with the model
         name_primitive_coordinates(self, primitive)

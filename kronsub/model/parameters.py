@@ -20,7 +20,7 @@ def read_parameters(reader: ModelReader, node: Node | None) -> None:
             continue
         value_node, unit, description = spec, "", ""
         if spec.is_mapping:
-            reader.check_keys(spec, ("value", "unit", "description"), f"parameter '{pname}'")
+            spec = reader.check_keys(spec, ("value", "unit", "description"), f"parameter '{pname}'")
             value_node = spec.get("value")
             unit = reader.string(spec.get("unit"), "")
             description = reader.string(spec.get("description"), "")

@@ -38,8 +38,8 @@ def library_component(reader: ModelReader, cname: str, spec: Node) -> Part | Non
     tnode = spec.get("type")
     cls = REGISTRY.get(tnode.value) if tnode is not None and isinstance(tnode.value, str) else None
     options = tuple(o.name for o in cls.options) if cls is not None else ()
-    reader.check_keys(spec, ("type", "parameters", "coordinates", "points", "pivot", "description", *options),
-                      f"component '{cname}'")
+    spec = reader.check_keys(spec, ("type", "parameters", "coordinates", "points", "pivot", "description", *options),
+                             f"component '{cname}'")
     if tnode is None:
         reader.error(spec, f"component '{cname}' has no `type:`",
                      "valid types: " + ", ".join(sorted(REGISTRY)) + " (or `model: file.yaml`, or `metric:` for "

@@ -9,6 +9,7 @@ column and raised together as one :class:`ModelError`.
 from __future__ import annotations
 
 import dataclasses
+import difflib
 import re
 from pathlib import Path
 
@@ -19,7 +20,7 @@ from ..components.base import Requirement
 from ..core.known_system import ParameterInfo
 from ..core.primitive import Part
 from ..core.symbols import TIME, free_symbols_of
-from ..errors import Location, ModelError, ProblemCollector, close_matches
+from ..errors import Location, ModelError, ProblemCollector, close_matches, near_names
 from .expressions import parse_expression
 from .files import resolved_path
 from .file_reading import SourceFile
@@ -30,6 +31,8 @@ RESERVED = {"t", "pi"}
 OUTPUT_COLUMNS = ("kinetic_energy", "potential_energy", "total_energy")
 """Columns of a trajectory beside the state (``kronsub/simulation/table.py``): a coordinate of
 one of these names would be written twice and lost from the DataFrame."""
+MEANT_RATIO = 0.8
+"""How like a valid key a misspelt one must be (difflib's ratio) to be read as that key."""
 _UNKNOWN_NAME = re.compile(r"unknown name '([^']+)'")
 
 
@@ -147,15 +150,31 @@ class ModelReader:
             return {}
         return node.value
 
-    def check_keys(self, node: Node, allowed, what: str) -> None:
+    def check_keys(self, node: Node, allowed, what: str) -> Node:
+        """Report every key of ``node`` not in ``allowed``; return ``node`` read as meant.
+
+        A misspelt key whose one near name is absent (``coordinate:`` for ``coordinates:``) is
+        reported once and its value read under that name, so that what depends on it is checked
+        as written instead of failing again for the key's absence."""
+        meant = {}
         for key in node.value:
             if key not in allowed:
+                near = near_names(key, allowed) if isinstance(key, str) else []
+                if (near and near[0] not in node.value and near[0] not in meant.values()
+                        and difflib.SequenceMatcher(None, key, near[0]).ratio() >= MEANT_RATIO):
+                    meant[key] = near[0]
                 split = isinstance(key, str) and not IDENTIFIER.fullmatch(key.strip()) and any(
                     c in key for c in ")]*/+-")
                 self.error(node.key_locations.get(key, node.location), f"unknown key '{key}' in {what}",
                            "this looks like the rest of an expression: in a `{...}` mapping a comma ends the "
                            "value, so quote an expression with commas, e.g. `value: \"atan2(y, x)\"`"
-                           if split else close_matches(key, allowed))
+                           if split else f"did you mean '{meant[key]}'?" if key in meant
+                           else close_matches(key, allowed))
+        if not meant:
+            return node
+        return dataclasses.replace(
+            node, value={meant.get(k, k): v for k, v in node.value.items()},
+            key_locations={meant.get(k, k): loc for k, loc in node.key_locations.items()})
 
     def identifier(self, name: str, loc: Location, what: str) -> bool:
         if not IDENTIFIER.fullmatch(name):

@@ -71,7 +71,7 @@ def build_scenes(reader: ModelReader, node: Node | None, declared_effects, primi
         if not spec.is_mapping:
             reader.error(spec, f"scene '{sname}' must be a mapping", "e.g. `free: {effects: [gravity]}`")
             continue
-        reader.check_keys(spec, KEYS, f"scene '{sname}'")
+        spec = reader.check_keys(spec, KEYS, f"scene '{sname}'")
         scene = _scene(reader, sname, spec, labels, points, coords)
         if scene is not None:
             scenes.append(scene)

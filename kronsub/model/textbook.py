@@ -24,7 +24,7 @@ KEYS = ("coordinates", "metric", "potential", "dissipation", "description")
 def textbook_part(reader: ModelReader, cname: str, spec: Node) -> Part | None:
     """The part of a component given by ``metric:`` (and ``potential:``, ``dissipation:``);
     None after reporting what is wrong with it."""
-    reader.check_keys(spec, KEYS, f"component '{cname}'")
+    spec = reader.check_keys(spec, KEYS, f"component '{cname}'")
     coordinates = _coordinates(reader, cname, spec.get("coordinates"))
     if coordinates is None:
         return None

@@ -416,6 +416,8 @@ def measure(system: KnownSystem, values: RunValues, t_end: float, methods: tuple
                     (implicit is None or dependent_end is not None):
                 E = bench.energy(y_end, dependent_end)
                 drift = None if E is None else abs(E - E0) / scale
+            if status:  # a run that stopped measured no error at t_end
+                error, drift, residual, velocity_residual = math.nan, None, None, None
             points.append(Point(method, tol, setting(method, tol, t_end), error, drift, seconds, evals, steps, repeats,
                                 timed.compile_seconds, status, residual, velocity_residual))
             if seconds > SLOW_SECONDS:

@@ -2,6 +2,7 @@
 cheapest point meeting a target, a plain CSV of the points, its JSON metadata, and a plot."""
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import mpmath
@@ -32,6 +33,11 @@ def markdown(wp: WorkPrecision, target: float | None = None) -> str:
     lines += ["| method | setting | error at t_end | energy drift |" + extra_head + " time [ms] | f evals | steps | note |",
               "|---|---|---:|---:|" + ("---:|---:|" if loop else "") + "---:|---:|---:|---|"]
     for p in wp.points:
+        if not p.ok:  # nothing of a failed run is a measurement: the status says what happened
+            blank = " |" * (2 if loop else 0)
+            lines.append(f"| {p.method} | {p.setting} | failed | |{blank} | | | "
+                         f"{markdown_text(p.status or 'a non-finite state')} |")
+            continue
         note = markdown_text(p.status) or (f"compile {p.compile_seconds:.2f} s" if p.compile_seconds is not None else "")
         extra = f" {_number(p.constraint_residual, '.1e')} | {_number(p.velocity_residual, '.1e')} |" if loop else ""
         lines.append(f"| {p.method} | {p.setting} | {_number(p.error, '.2e')} | {_number(p.energy_drift, '.1e')} |"
@@ -79,12 +85,16 @@ def work_precision_csv(wp: WorkPrecision) -> str:
     Numbers in their shortest round-trip form, ``nan`` where a value does not apply (no energy
     drift for a model that does not conserve energy, no residuals without constraints, no
     evaluation count from a method that does not report it); ``status`` is ``ok`` or ``failed``
-    (the message is in the metadata, :func:`metadata`)."""
+    (the message is in the metadata, :func:`metadata`); a failed point has no error, energy
+    drift or residual (``nan``)."""
     def number(value) -> str:
         return "nan" if value is None else repr(float(value)) if not isinstance(value, int) else str(value)
 
     lines = [",".join(CSV_COLUMNS)]
     for p in wp.points:
+        if not p.ok:  # the cost until it failed is kept; no error or drift was measured
+            p = dataclasses.replace(p, error=None, energy_drift=None, constraint_residual=None,
+                                    velocity_residual=None)
         lines.append(",".join([p.method, repr(p.tolerance), p.setting, number(p.error), number(p.energy_drift),
                                number(p.constraint_residual), number(p.velocity_residual), number(p.seconds),
                                number(p.compile_seconds), number(p.evaluations), number(p.steps), str(p.repeats),

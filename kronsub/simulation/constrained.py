@@ -165,6 +165,11 @@ def diagnose(system, evaluator: Intermediates, t: float, y, guess) -> str:
     except ConstraintFailure as exc:
         if exc.kind == "singular":
             kind = "a singular configuration (toggle position): "
+        elif evaluator.closed:  # reached from a configuration where it had a value: the end of this choice's range
+            kind = _toggle(evaluator, imp, y, guess) or (
+                f"the independent coordinates chosen ({_independent(imp)}) are singular here: the dependent "
+                "ones reach the end of their closed form's range (a toggle position of this choice, which "
+                "other independent coordinates may pass): ")
         else:
             kind = _toggle(evaluator, imp, y, guess) or "no solution of the constraints near the last one: "
         return f"{kind}{exc.message}; constraints {_names(imp)} at t = {t:.6g}, {where}"
@@ -175,7 +180,12 @@ def diagnose(system, evaluator: Intermediates, t: float, y, guess) -> str:
         return cause + f" at t = {t:.6g}, {solved}"
     return (f"{_toggle(evaluator, imp, y, guess)}the constraints {_names(imp)} could not be solved in the "
             f"generated code at t = {t:.6g}, in a step from {where}, where they still have a solution: the "
-            "step reached configurations the mechanism cannot take")
+            f"step went where the independent coordinates chosen ({_independent(imp)}) do not determine the "
+            "dependent ones")
+
+
+def _independent(imp) -> str:
+    return ", ".join(q.name for q in imp.independent)
 
 
 def _not_finite(system, evaluator: Intermediates, t: float, y, intermediates: dict) -> str | None:
@@ -202,8 +212,8 @@ def _toggle(evaluator: Intermediates, imp, y, guess) -> str:
     ratio = np.linalg.svd(G[:, n:], compute_uv=False)[-1] / max(np.linalg.norm(G, 2), 1e-300)
     if ratio >= 0.1:
         return ""
-    return ("a singular configuration (toggle position) is reached: dg/d("
-            + ", ".join(d.name for d in imp.dependent) + f") is nearly singular (relative size "
+    return (f"a singular configuration (toggle position) of the independent coordinates chosen ({_independent(imp)}) "
+            "is reached: dg/d(" + ", ".join(d.name for d in imp.dependent) + f") is nearly singular (relative size "
             f"{ratio:.2g}) at the last configuration, and ")
 
 

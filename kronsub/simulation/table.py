@@ -5,8 +5,9 @@ time: ``t``, each coordinate, each velocity, the kinetic, potential and total
 energy, the dependent coordinates of implicit constraints and (on request) the
 named points. Every number is written in its shortest round-trip form
 (``repr(float)``: ``0.03``, not ``0.029999999999999999``), so ``float(text)``
-gives back the very double computed. No comment lines: ``numpy.genfromtxt``,
-``csv.DictReader`` and ``pandas.read_csv`` read it without options.
+gives back the very double computed. No comment lines: ``csv.DictReader`` and
+``pandas.read_csv`` read it without options, ``numpy.genfromtxt`` with ``names=True,
+delimiter=",", deletechars=""`` (its default drops the dots of the point columns).
 
 Everything else (the model and its hash, with those of the model files it uses as known
 systems, method, tolerances, parameter values,
