@@ -25,9 +25,9 @@ COMMANDS = {
     "cache": ("cache", "Show or clear kronsub's caches (derived known systems, compiled models)."),
     "check": ("discovery", "Validate MODEL without deriving it: every problem at once, exit 1 when there are any."),
     "codegen": ("codegen", "Generate C (header + source) or a numpy module for MODEL."),
-    "components": ("discovery", "The component library and the effect types; with TYPE, the details of one "
-                                "(coordinates, parameters with defaults and units, named points, conventions; "
-                                "or an effect's keys)."),
+    "components": ("discovery", "The component library, the effect types and the joints of constraints; with "
+                                "TYPE, the details of one (coordinates, parameters with defaults and units, named "
+                                "points, conventions; or an effect's or a joint's keys)."),
     "derive": ("derive", "Derive the equations of motion of MODEL (a YAML file)."),
     "linearize": ("linearize", "Linearise MODEL: ydot ~ A (y - y*) + B (u - u*), y = [q; qdot], "
                                "with the eigenvalues of A."),

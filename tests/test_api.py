@@ -120,7 +120,8 @@ def test_the_core_does_not_import_the_simulation():
     out = subprocess.run([sys.executable, "-c", code, str(DOUBLE_PENDULUM)], capture_output=True, text=True,
                          cwd=ROOT, check=True).stdout
     assert out.strip() == "['kronsub.api', 'kronsub.api.naming', 'kronsub.api.outputs', 'kronsub.api.runs', " \
-                          "'kronsub.api.sweeps', 'kronsub.api.system']"  # the notebook face, its rooms; no kronsub.simulation
+                          "'kronsub.api.sweeps', 'kronsub.api.system', 'kronsub.simulation', " \
+                          "'kronsub.simulation.span']"  # the run's defaults (no engine); no other simulation module  # the notebook face, its rooms; no kronsub.simulation
 
 
 def test_the_notebook_system_is_the_known_system_with_conveniences(double_pendulum):

@@ -11,6 +11,8 @@ import pytest
 import sympy as sp
 from click.testing import CliRunner
 
+from conftest import MODELS
+
 import kronsub
 from helpers.compare import accelerations_agree, compare_energies, compare_explicit, TOL
 from kronsub.cli import main
@@ -35,13 +37,18 @@ def test_component_parameters_in_t_are_refused(name, key):
 
 def test_animate_a_model_without_points_says_so(tmp_path):
     """gear_train.yaml (flywheels only) stopped `animate` with an internal error (exit 4,
-    numpy's 'need at least one array to concatenate'); it is a plain error now."""
+    numpy's 'need at least one array to concatenate'); its flywheels are drawn as dials now,
+    and a model with nothing to draw (a circuit) is a plain error."""
     pytest.importorskip("matplotlib")
     result = CliRunner().invoke(main, ["animate", str(sweep3.HERE / "gear_train.yaml"), "--t", "0.1", "-o",
                                        str(tmp_path / "g.gif")])
+    assert result.exit_code == 0, result.output
+    assert (tmp_path / "g.gif").exists()
+    result = CliRunner().invoke(main, ["animate", str(MODELS / "electrical" / "series_rlc.yaml"), "--t",
+                                       "0.1", "-o", str(tmp_path / "c.gif")])
     assert result.exit_code == 1, result.output
-    assert "no named points" in result.output and "internal error" not in result.output
-    assert not (tmp_path / "g.gif").exists()
+    assert "nothing to draw" in result.output and "internal error" not in result.output
+    assert not (tmp_path / "c.gif").exists()
 
 
 def test_known_systems_bringing_one_parameter_with_two_values():

@@ -48,14 +48,15 @@ def random_states(system, rng, count):
             if not unmet(system.requirements, {p.symbol: v for p, v in zip(system.parameters, param)}):
                 break
         names = [p.name for p in system.parameters]
-        if system.name == "System II":  # keep the subspace (26) real
+        model = system.name.split(" (scene ")[0]  # a model's only scene is derived by default
+        if model == "System II":  # keep the subspace (26) real
             param[names.index("c")] = 0.1
             param[names.index("a1")] = 0.4
             param[names.index("a2")] = 1.0
             y[0] = rng.uniform(-0.3, 0.3)
-        if system.name == "Magnetic suspension of a ball":  # the ball below the magnet: L(y) > 0
+        if model == "Magnetic suspension of a ball":  # the ball below the magnet: L(y) > 0
             y[0] = abs(y[0])
-        if system.name in MACHINES:  # the inductances of a machine (L0 = Laa0 - 2 Lab0 > 0, ...)
+        if model in MACHINES:  # the inductances of a machine (L0 = Laa0 - 2 Lab0 > 0, ...)
             param = np.array([float(p.value) for p in system.parameters]) * rng.uniform(0.9, 1.1, len(param))
         yield rng.uniform(0, 2), y, param
 
