@@ -14,7 +14,7 @@ from .derive import content_key
 from .source import Node, SourceFile, load_yaml, read_model_file
 
 TOP_LEVEL = ("name", "description", "parameters", "components", "coordinates", "definitions", "connection",
-             "constraints", "effects", "initial", "scenes")
+             "constraints", "prescribed", "effects", "initial", "scenes")
 _SECTION_LINE = re.compile(r"^[ \t]*(?:---[ \t]*)?(?:\{[ \t]*)?[\"']?(?:" + "|".join(TOP_LEVEL) + r")[\"']?[ \t]*:",
                            re.M)
 

@@ -26,6 +26,7 @@ from ..errors import Location, ModelError
 from .connection import (implicit_spec, pivot_connection, read_connection, read_intermediate,
                          read_pivot_angles)
 from .constraints import read_constraints
+from .prescribed import driven_connection, names_time, read_prescribed
 from .definitions import read_definitions
 from .derive import derive_model, load_cached
 from .effects import build_effect
@@ -138,6 +139,11 @@ class ModelLoader(ModelReader):
         self._generated_names(y, primitive)
         read_pivot_angles(self, root.get("connection"), y)
         connection = read_connection(self, root.get("connection"), primitive, y)
+        motions = read_prescribed(self, root.get("prescribed"), y if not constrained else coords)
+        if constrained and (motions or names_time(connection)):
+            self.error(root.key_locations.get("prescribed") or root.key_locations["connection"],
+                       "a prescribed motion (`t` in the connection) together with `constraints:` is not supported yet",
+                       "write the closed loop's coordinates in the connection, or drive it by a load")
         effects = self._effects(root.get("effects"), primitive, y)
         initial = read_initial(self, root.get("initial"), y)
         declared = root.get("effects")
@@ -149,6 +155,10 @@ class ModelLoader(ModelReader):
             if implicit is not None:
                 coords = implicit.independent
         self.problems.raise_if_any()
+        if motions:
+            connection, coords = driven_connection(connection, coords, motions)
+            initial = {k: v for k, v in initial.items() if k not in motions and k not in
+                       {velocity_symbol(q) for q in motions}}
         return Model(
             name=name,
             description=description,
