@@ -116,3 +116,24 @@ constraints:
     result = CliRunner().invoke(main, ["derive", str(path)])
     assert result.exit_code == 1
     assert "together with `constraints:` is not supported yet" in result.output and "hint:" in result.output
+
+
+def test_reactions_of_a_prescribed_motion_give_the_force_that_drives_it():
+    """Kapitza's pivot: the vertical reaction on the bob is the force the shaker pushes with,
+    ``m (yddot + g)`` with ``y = a cos(w t) - l cos(theta)``."""
+    from kronsub.core.reactions import reactions
+    from kronsub.core.symbols import acceleration_symbol
+
+    system = kronsub.load(MODELS / "kapitza_pendulum.yaml").derive()
+    found = dict(reactions(system))
+    th, m, l, a, w, g = (symbol(n) for n in ("theta", "m", "l", "a", "w", "g"))
+    thd, thdd = velocity_symbol(th), acceleration_symbol(th)
+    y = a * sympy.cos(w * TIME) - l * sympy.cos(th)
+    ydd = sympy.diff(y, TIME, 2) + sympy.diff(y, th) * thdd + sympy.diff(y, th, 2) * thd**2
+    assert sympy.simplify(found["R_py"] - m * (ydd + g)) == 0
+    x = l * sympy.sin(th)
+    xdd = sympy.diff(x, th) * thdd + sympy.diff(x, th, 2) * thd**2
+    assert sympy.simplify(found["R_px"] - m * xdd) == 0
+    # C^T R = 0 on the motion: the reactions do no work in the free coordinate
+    on_motion = {thdd: _accelerations(system)[0]}
+    assert sympy.simplify((l * sympy.cos(th) * found["R_px"] + l * sympy.sin(th) * found["R_py"]).subs(on_motion)) == 0
