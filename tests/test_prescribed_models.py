@@ -91,6 +91,8 @@ connection:
     ("prescribed:\n  z: sin(w*t)\n", "prescribed 'z' is not a listed coordinate"),
     ("prescribed:\n  s: sin(w*t)\n  theta: t\n", "every coordinate is prescribed"),
     ("prescribed:\n  s: sin(q*t)\n", "'q'"),
+    ("prescribed:\n  s: sin(w*t)\neffects:\n  spring: {type: potential, value: s**2 + theta**2}\n",
+     "effect 'spring' names the prescribed coordinate 's'"),
 ])
 def test_bad_prescribed_motions_are_located_errors(tmp_path, extra, message):
     path = tmp_path / "model.yaml"
