@@ -26,7 +26,7 @@ from ..errors import Location, ModelError
 from .connection import (implicit_spec, pivot_connection, read_connection, read_intermediate,
                          read_pivot_angles)
 from .constraints import read_constraints
-from .prescribed import driven_connection, names_time, read_prescribed
+from .prescribed import check_effects, driven_connection, names_time, read_prescribed
 from .definitions import read_definitions
 from .derive import derive_model, load_cached
 from .effects import build_effect
@@ -146,7 +146,7 @@ class ModelLoader(ModelReader):
                        "write the closed loop's coordinates in the connection, or drive it by a load")
         effects = self._effects(root.get("effects"), primitive, y)
         if motions:
-            self._effects_of_free_coordinates(root.get("effects"), effects, motions)
+            check_effects(self, root.get("effects"), effects, motions)
         initial = read_initial(self, root.get("initial"), y)
         declared = root.get("effects")
         scenes = build_scenes(self, root.get("scenes"), list(declared.value) if declared is not None and
@@ -381,18 +381,6 @@ class ModelLoader(ModelReader):
         return cls.coordinates if cls is not None else tuple(q.name for q in part.coordinates)
 
     # ------------------------------------------------------------- effects
-    def _effects_of_free_coordinates(self, node: Node, effects, motions) -> None:
-        """An effect may not name a prescribed coordinate: its motion is given, no equation of
-        it is derived, so a load on it would act nowhere."""
-        named = {s for q in motions for s in (q, velocity_symbol(q))}
-        for effect in effects:
-            used = sorted(s.name for s in effect.symbols() & named)
-            if used:
-                self.error(node.key_locations.get(effect.name, node.location),
-                           f"effect '{effect.name}' names the prescribed coordinate {', '.join(map(repr, used))}",
-                           "write it in the primitive coordinates (the connection carries the motion), or "
-                           "leave the coordinate free")
-
     def _effects(self, node: Node | None, primitive: Primitive, coords):
         """The effects, written in the primitive coordinates or in the subspace's ``coords``
         (those are applied directly in the subspace: core/subspace.py)."""

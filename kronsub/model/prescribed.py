@@ -5,7 +5,7 @@ from __future__ import annotations
 import sympy
 
 from ..core.rheonomic import prescribe
-from ..core.symbols import TIME, free_symbols_of
+from ..core.symbols import TIME, free_symbols_of, velocity_symbol
 from .reader import ModelReader
 from .source import Node
 
@@ -31,6 +31,19 @@ def read_prescribed(reader: ModelReader, node: Node | None, coords) -> dict[symp
     return motions
 
 
+def check_effects(reader: ModelReader, node: Node, effects, motions) -> None:
+    """An effect may not name a prescribed coordinate: its motion is given, no equation of it
+    is derived, so a load on it would act nowhere."""
+    named = {s for q in motions for s in (q, velocity_symbol(q))}
+    for effect in effects:
+        used = sorted(s.name for s in effect.symbols() & named)
+        if used:
+            reader.error(node.key_locations.get(effect.name, node.location),
+                         f"effect '{effect.name}' names the prescribed coordinate {', '.join(map(repr, used))}",
+                         "write it in the primitive coordinates (the connection carries the motion), or "
+                         "leave the coordinate free")
+
+
 def driven_connection(connection: dict, coords, motions: dict) -> tuple[dict, tuple]:
     """The connection with the prescribed coordinates' motions put in, and the free coordinates."""
     return prescribe(connection, coords, motions)
@@ -40,4 +53,4 @@ def names_time(connection: dict) -> bool:
     return TIME in free_symbols_of(list(connection.values()))
 
 
-__all__ = ["driven_connection", "names_time", "read_prescribed"]
+__all__ = ["check_effects", "driven_connection", "names_time", "read_prescribed"]
