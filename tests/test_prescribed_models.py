@@ -153,6 +153,8 @@ def test_simulated_driven_model_agrees_across_methods_and_places_its_points(tmp_
         assert "Warning" not in result.output, result.output
         lines = out.read_text().splitlines()
         rows[method] = dict(zip(lines[0].split(","), map(float, lines[-1].split(","))))
+        meta = json.loads(out.with_suffix(".json").read_text())
+        assert meta["prescribed_motion"]["energy_conserved"] is False
     assert rows["dop853"]["theta"] == pytest.approx(rows["DOP853"]["theta"], abs=1e-7)
     assert rows["gauss4"]["theta"] == pytest.approx(rows["dop853"]["theta"], abs=1e-5)
     last = rows["dop853"]

@@ -29,6 +29,7 @@ from pathlib import Path
 import numpy as np
 
 from ..core.known_system import KnownSystem
+from ..core.rheonomic import depends_on_time
 from ..emitters.escape import json_document
 from ..interrupts import handled, signal_name, signal_of
 from ..model.source import SourceFile
@@ -228,6 +229,13 @@ class CsvWriter:
                 "names": [d.name for d in system.implicit.dependent],
                 "constraints": [c.name for c in system.implicit.constraints],
                 "how": "Newton's method on the constraints, on the branch of the initial configuration",
+            }
+        transition = system.transition
+        if transition is not None and depends_on_time(dict(transition.connection)):
+            meta["prescribed_motion"] = {
+                "energy_conserved": False,
+                "why": "the connection names t: the drive puts power in; kinetic_energy is 1/2 qdot^T Mbar qdot, "
+                       "without the drive's velocity",
             }
         meta["columns"] = list(self.columns)
         meta["units"] = ("t in s; coordinates and velocities in the model's units (per s); energies in the "
