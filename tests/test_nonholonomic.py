@@ -187,6 +187,9 @@ def test_linear_form_and_refusals():
     with pytest.raises(VelocityConstraintError, match="do not span") as e:
         velocity_transformation([knife], (x, y, phi), {symbol("u1"): 2 * knife, symbol("u2"): phid})
     assert e.value.kind == "speeds"
+    scaled = velocity_transformation([knife], (x, y, phi), {symbol("u1"): a * (sympy.cos(phi) * xd + sympy.sin(phi) * yd),
+                                                              symbol("u2"): phid})
+    assert sympy.simplify(scaled.constraint_matrix * scaled.transformation) == sympy.zeros(1, 2)
     with pytest.raises(VelocityConstraintError, match="1 speed"):
         velocity_transformation([knife], (x, y, phi), {symbol("u1"): phid})
     with pytest.raises(VelocityConstraintError, match="not independent"):

@@ -140,7 +140,7 @@ def velocity_transformation(constraints: Sequence[sympy.Expr], coordinates: Sequ
         raise VelocityConstraintError("a speed has a term without a velocity", "define each speed as Y(x) xdot",
                                       kind="speeds")
     stacked = A.col_join(Y)
-    if _rank(stacked, point) < n:
+    if _rank(stacked, _generic_points(stacked, coordinates, values)) < n:
         raise VelocityConstraintError(
             "the speeds do not span the null space of the velocity constraints",
             "choose speeds that stay independent once the constraints hold (the velocity of a coordinate the "
