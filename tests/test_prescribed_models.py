@@ -59,6 +59,9 @@ def test_outputs_say_the_drive_puts_energy_in():
     th, m, R, w = (symbol(n) for n in ("theta", "m", "R", "w"))
     extra = sympy.sympify(drive["velocity_terms"][0], locals={n: symbol(n) for n in ("theta", "m", "R", "w")})
     assert sympy.simplify(extra + m * R**2 * w**2 * sympy.sin(th) * sympy.cos(th)) == 0
+    markdown = CliRunner().invoke(main, ["derive", str(MODELS / "bead_on_turning_hoop.yaml")]).output
+    assert "x = x(xbar, t)" in markdown and "Terms the drive adds to `hbar`" in markdown
+    assert "T + V` is not conserved" in markdown
     # a model without a drive has no drive block
     plain = CliRunner().invoke(main, ["derive", str(Path(__file__).resolve().parent.parent / "models" / "examples"
                                                       / "double_pendulum.yaml"), "--format", "json"])
