@@ -178,7 +178,8 @@ class NumericSystem:
     :mod:`kronsub.simulation.native`; the generated numpy module without a C compiler).
 
     ``rhs(t, y)`` is ``[qdot; Mbar^-1 (fbar - hbar)]``; ``mass_matrix(q)``, ``forces(t, y)``,
-    ``velocity_terms(y)``, ``kinetic_energy(y)``, ``potential_energy(t, y)``.
+    ``velocity_terms(y)`` (``velocity_terms(y, t)`` for a prescribed motion, whose ``hbar`` names
+    ``t``), ``kinetic_energy(y)``, ``potential_energy(t, y)``.
     """
 
     rhs: Callable
@@ -233,9 +234,15 @@ def numeric(system: KnownSystem, set: Mapping[str, object] | None = None) -> Num
         y = state(y)
         return np.asarray(module["forces"](t, y[:n], y[n:], param), dtype=float).ravel()
 
-    def velocity_terms(y):
+    timed = "TIMED" in module  # hbar of a prescribed motion names t: velocity_terms(y, t)
+
+    def velocity_terms(y, t=None):
         y = state(y)
-        return np.asarray(module["velocity_terms"](y[:n], y[n:], param), dtype=float).ravel()
+        if not timed:
+            return np.asarray(module["velocity_terms"](y[:n], y[n:], param), dtype=float).ravel()
+        if t is None:
+            raise ValueError("hbar of this system depends on t (a prescribed motion): call velocity_terms(y, t)")
+        return np.asarray(module["velocity_terms"](t, y[:n], y[n:], param), dtype=float).ravel()
 
     if native is not None:
         def rhs(t, y):

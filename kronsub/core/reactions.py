@@ -5,7 +5,8 @@ With the motion of the projected system known (``qddot = Mbar^-1 (fbar - hbar)``
 the subspace:
 
 - an explicit connection ``x = x(q)``: ``r = M xddot + h - f`` on every primitive coordinate,
-  with ``xddot = C qddot + Cdot qdot``; ``C^T r = 0`` (the reactions do no work, (C)). For a
+  with ``xddot = C qddot + Cdot qdot`` (and the drive's ``d(xdot)/dt`` for ``x = x(q, t)``, where
+  ``C^T r = 0`` still holds and ``s^T r`` is the power the drive puts in, :mod:`.rheonomic`); ``C^T r = 0`` (the reactions do no work, (C)). For a
   free body's centre coordinates this is the joint force on the body, for an angle the moment.
 - implicit constraints ``g(y) = 0``: the multipliers ``mu`` with ``M_y yddot + h_y = f_y + G^T mu``,
   from the dependent rows ``G_d^T mu = (M_y yddot + h_y - f_y)_d``, ``yddot = [qddot; lambda qddot
@@ -23,7 +24,8 @@ from ..errors import KronsubError
 from .constraints import multiplier_name
 from .derivative import derivative
 from .known_system import KnownSystem
-from .symbols import acceleration_symbol, velocity_symbol
+from .rheonomic import depends_on_time
+from .symbols import TIME, acceleration_symbol, velocity_symbol
 from .simplify import compact
 from .trigpoly import TrigAlgebra
 
@@ -64,10 +66,15 @@ def _connection_reactions(system: KnownSystem):
     connection = dict(tr.connection)
     x = tr.primitive_coordinates
     xdot = [sum((C[a, j] * qd[j] for j in range(len(q))), sympy.Integer(0)) for a in range(len(x))]
+    driven = depends_on_time(connection)  # x = x(q, t): xdot + dx/dt, xddot + d(xdot)/dt (rheonomic)
+    if driven:
+        xdot = [v + sympy.diff(connection[xa], TIME) for v, xa in zip(xdot, x)]
     xddot = []
     for a in range(len(x)):
         total = sum((C[a, j] * qdd[j] for j in range(len(q))), sympy.Integer(0))
         total += sum((derivative(xdot[a], c) * v for c, v in zip(q, qd)), sympy.Integer(0))
+        if driven:
+            total += sympy.diff(xdot[a], TIME)
         xddot.append(total)
     sub = {xa: connection[xa] for xa in x}
     sub.update({velocity_symbol(xa): xdot[a] for a, xa in enumerate(x)})

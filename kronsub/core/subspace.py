@@ -7,6 +7,9 @@ Given the interconnection ``x^a = x^a(xbar)`` (19), (20), (26) and
     hbar = C^T (M Cdot xbardot + h(x(xbar), C xbardot))    (E)
     fbar = C^T f(x(xbar), C xbardot, t)             (8'), (F)
 
+A connection that names time, ``x = x(xbar, t)`` (a prescribed motion, :mod:`.rheonomic`),
+adds the drive's velocity ``dx/dt`` to ``xdot`` and its ``d(xdot)/dt`` to ``Cdot xbardot``.
+
 Every product is formed in the trigonometric-polynomial algebra
 (:mod:`.trigpoly`), so the results are compact as they are built.
 """
@@ -25,7 +28,8 @@ from .known_system import KnownSystem, ParameterInfo, ProjectedEffect, Transitio
 from .placed import PlacedBodies, PlacedPoints, Placer
 from .primitive import Primitive, body_label, point_symbols
 from .simplify import compact
-from .symbols import free_symbols_of, velocity_symbol
+from .rheonomic import depends_on_time
+from .symbols import TIME, free_symbols_of, velocity_symbol
 from .trigpoly import TrigAlgebra, TrigPoly
 
 
@@ -66,9 +70,20 @@ class Subspace:
         return [{j: row[j].key() for j in nz} for row, nz in zip(self.C, self.nonzero)]
 
     @functools.cached_property
+    def driven(self) -> bool:
+        """The connection names time: ``x = x(xbar, t)``, a prescribed motion."""
+        return depends_on_time(self.connection)
+
+    @functools.cached_property
     def velocity(self) -> list[TrigPoly]:
-        """``xdot^a = C^a_alpha xbardot^alpha``."""
-        return [_sum(self.C[a][j] * self.qdots[j] for j in self.nonzero[a]) for a in range(len(self.x))]
+        """``xdot^a = C^a_alpha xbardot^alpha`` (``+ dx^a/dt`` when driven)."""
+        out = [_sum(self.C[a][j] * self.qdots[j] for j in self.nonzero[a]) for a in range(len(self.x))]
+        if self.driven:
+            for a, x in enumerate(self.x):
+                drive = sympy.diff(self.radicands.rewrite(self.connection[x]), TIME)
+                if drive != 0:
+                    out[a].add(self.algebra.from_expr(drive))
+        return out
 
     def transformation(self, primitive: Primitive) -> sympy.Matrix:
         """``C`` as a matrix of expressions; a renaming's ones and zeros written directly."""
@@ -119,7 +134,12 @@ class Subspace:
         out = []
         for vel in self.velocity:
             gradient = algebra.gradient(vel)
-            out.append(_sum(gradient[k] * self.qdots[k] for k in sorted(algebra.depends_on(vel))))
+            total = _sum(gradient[k] * self.qdots[k] for k in sorted(algebra.depends_on(vel)))
+            if self.driven:  # + d(xdot)/dt: the drive's 2 dC/dt xbardot + d2x/dt2
+                drive = sympy.diff(algebra.to_expr(vel), TIME)
+                if drive != 0:
+                    total.add(algebra.from_expr(drive))
+            out.append(total)
         return out
 
     def image(self, expr: sympy.Expr) -> TrigPoly:
@@ -442,7 +462,7 @@ def _through_primitive(sub: Subspace, generalized: set) -> dict:
         used = image.free_symbols & set(sub.coords)
         if len(used) == 1 and (q := used.pop()) in generalized:
             offset = sympy.expand(image - q)
-            if not offset.free_symbols & set(sub.coords):
+            if not offset.free_symbols & {*sub.coords, TIME}:  # a drive's offset moves x^a apart from q
                 found.setdefault(q, []).append((x, offset))
     out: dict = {}
     for q, images in found.items():

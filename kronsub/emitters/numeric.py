@@ -19,8 +19,9 @@ from sympy.simplify.cse_main import basic_optimizations as _BASIC
 
 from ..core.derivative import derivative
 from ..core.known_system import KnownSystem
+from ..core.rheonomic import depends_on_time
 from ..core.sympy_internals import eval_evalf
-from ..core.symbols import TIME
+from ..core.symbols import TIME, free_symbols_of
 from ..errors import KronsubError
 from .block import Block
 from .numeric_implicit import ImplicitCode, implicit_code, intermediate_slots
@@ -48,6 +49,7 @@ class NumericModel:
     with_points: bool = True  # emit the named points' positions
 
     implicit: ImplicitCode | None = None  # the dependent-coordinate solve
+    timed: bool = False  # the connection names t (x = x(xbar, t)): velocity_terms and points take t first
 
     @property
     def n(self) -> int:
@@ -291,6 +293,13 @@ def prepare(system: KnownSystem, source: str = "", outputs=None, guarded_angles:
 
     block = functools.partial(_block, rewritings=_Rewritings())  # the blocks share their entries' rewritings
     M = system.mass_matrix
+    if TIME in free_symbols_of([M]):
+        from ..errors import KronsubError
+
+        raise KronsubError("cannot generate code: Mbar depends on t (a prescribed motion that changes the "
+                           "inertia); only hbar and fbar may name t in the generated code")
+    # x = x(xbar, t): hbar has the drive's terms and the points move with t (velocity_terms and points take t)
+    timed = system.transition is not None and depends_on_time(dict(system.transition.connection))
     r = system.forces - system.velocity_terms
     targets = [f"M[{i * n + j}]" for i in range(n) for j in range(n)]
     exprs = [slot(M[i, j]) for i in range(n) for j in range(n)]
@@ -319,6 +328,11 @@ def prepare(system: KnownSystem, source: str = "", outputs=None, guarded_angles:
                 if d != 0:
                     terms.append(d * qd[i] * qd[j] / 2)
         dTdq.append(sympy.Add(*terms, system.forces[k]))
+    if timed:  # hbar is not Lagrange's operator on Mbar: dp/dt = fbar - hbar + (dMbar/dq^i qdot^i) qdot
+        dTdq = [system.forces[k] - system.velocity_terms[k]
+                + sum((derivative(M[k, j], qi) * qd[i] * qd[j] for j in range(n)
+                       for i, qi in enumerate(system.coordinates) if qi in depends[k][j]), sympy.Integer(0))
+                for k in range(n)]
     canonical = block(r_targets, [constants(slot(e)) for e in dTdq], "x", qs, guarded_angles)
     prepare = block(*constants.definitions(), "c")
 
@@ -356,6 +370,7 @@ def prepare(system: KnownSystem, source: str = "", outputs=None, guarded_angles:
         energies=energies,
         with_points=with_points,
         implicit=implicit,
+        timed=timed,
     )
 
 

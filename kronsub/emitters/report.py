@@ -15,11 +15,12 @@ from sympy.printing.str import StrPrinter
 
 from ..core.known_system import KnownSystem
 from ..core.printed import Remembering
+from ..core.rheonomic import depends_on_time, project_frozen
 from ..core.operations import count_ops
 from ..core.simplify import recompact, tidy
 from .escape import latex_name
 from .latex_layout import LatexPrinter, unbroken
-from ..core.symbols import acceleration_symbol, velocity_symbol
+from ..core.symbols import TIME, acceleration_symbol, velocity_symbol
 
 Printer = Callable[[sympy.Expr], str]
 
@@ -287,9 +288,28 @@ def build_report(system: KnownSystem, show: Printer, named: bool = True) -> dict
             "transformation": matrix_rows(tr.transformation, show),
             "columns": [show(q) for q in _columns(system)],
         }
+        drive = drive_report(system, show)
+        if drive is not None:
+            report["primitive"]["drive"] = drive
     if system.implicit is not None:
         report["implicit"] = implicit_report(system.implicit, show)
     return report
+
+
+def drive_report(system: KnownSystem, show: Printer) -> dict | None:
+    """A connection that names time (a prescribed motion, :mod:`..core.rheonomic`): the drive's
+    velocity ``s = dx/dt`` and the terms it adds to ``hbar``; ``None`` for ``x = x(xbar)``."""
+    tr = system.transition
+    connection = dict(tr.connection)
+    if system.implicit is not None or not depends_on_time(connection):
+        return None
+    frozen = project_frozen(tr.primitive_coordinates, tr.primitive_metric, tr.primitive_velocity_terms,
+                            connection, system.coordinates)
+    extra = [tidy(sympy.trigsimp(sympy.expand(h - f))) for h, f in zip(system.velocity_terms, frozen)]
+    return {
+        "velocity": [show(sympy.diff(e, TIME)) for _, e in tr.connection],
+        "velocity_terms": [show(e) for e in extra],
+    }
 
 
 def _columns(system: KnownSystem):

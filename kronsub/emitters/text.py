@@ -93,6 +93,12 @@ def emit_json(system: KnownSystem) -> str:
             "connection": {c["coordinate"]: c["expression"] for c in p["connection"]},
             "transformation": p["transformation"],
         }
+        if "drive" in p:  # x = x(xbar, t): the velocity terms hold the drive's; T + V is not conserved
+            data["primitive"]["drive"] = {
+                "velocity": dict(zip(data["primitive"]["coordinates"], p["drive"]["velocity"])),
+                "velocity_terms": p["drive"]["velocity_terms"],
+                "energy_conserved": False,
+            }
     if "implicit" in r:
         data["implicit"] = _implicit_json(r["implicit"])
     return json_document(data, indent=2) + "\n"

@@ -12,7 +12,7 @@ from ..components.base import in_world
 from ..components.planar import PinnedRod, Rod
 from ..core.constraints import Constraint
 from ..core.primitive import Part, Primitive, part_from_component
-from ..core.symbols import free_symbols_of, symbol
+from ..core.symbols import TIME, free_symbols_of, symbol
 from ..errors import Location, close_matches, near_names
 from .constraints import analyse
 from .model import ImplicitSpec
@@ -47,7 +47,7 @@ def read_connection(reader: ModelReader, node: Node | None, primitive: Primitive
                          "connect each primitive coordinate once")
             continue
         attempted.add(x)
-        value = reader.expr(vnode, {**reader.parameter_names(), **generalized},
+        value = reader.expr(vnode, {**reader.parameter_names(), **generalized, "t": TIME},
                             what=f"connection of '{key}'")
         if value is None:
             continue

@@ -15,6 +15,7 @@ from pathlib import Path
 
 from ..budget import allow_for, scope as budget_scope
 from ..collector import collector_paused
+from ..core.symbols import velocity_symbol
 from ..core.known_system import KnownSystem
 from ..core.primitive import Primitive
 from .components import read_components
@@ -23,6 +24,7 @@ from .connection import (implicit_spec, pivot_connection, read_connection, read_
 from .circuits import check_circuit
 from .constraints import check_multiplier_names, read_constraints
 from .coordinates import check_generated_names, name_primitive_coordinates, read_coordinates
+from .prescribed import check_effects, driven_connection, names_time, read_prescribed
 from .definitions import read_definitions
 from .derive import derive_model, load_cached
 from .effects import read_effects
@@ -114,9 +116,16 @@ class ModelLoader(ModelReader):
         check_generated_names(self, y, primitive)
         read_pivot_angles(self, root.get("connection"), y)
         connection = read_connection(self, root.get("connection"), primitive, y)
+        motions = read_prescribed(self, root.get("prescribed"), y if not constrained else coords)
+        if constrained and (motions or names_time(connection)):
+            self.error(root.key_locations.get("prescribed") or root.key_locations["connection"],
+                       "a prescribed motion (`t` in the connection) together with `constraints:` is not supported yet",
+                       "write the closed loop's coordinates in the connection, or drive it by a load")
         effects = read_effects(self, root.get("effects"), primitive, y)
         if not constrained and not self.problems:
             check_circuit(self, primitive, connection, y, effects)
+        if motions:
+            check_effects(self, root.get("effects"), effects, motions)
         initial = read_initial(self, root.get("initial"), y)
         declared = root.get("effects")
         scenes = build_scenes(self, root.get("scenes"), list(declared.value) if declared is not None and
@@ -127,6 +136,10 @@ class ModelLoader(ModelReader):
             if implicit is not None:
                 coords = implicit.independent
         self.problems.raise_if_any()
+        if motions:
+            connection, coords = driven_connection(connection, coords, motions)
+            initial = {k: v for k, v in initial.items() if k not in motions and k not in
+                       {velocity_symbol(q) for q in motions}}
         return Model(
             name=name,
             description=description,

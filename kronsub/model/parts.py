@@ -136,8 +136,8 @@ def component_parameters(reader: ModelReader, cname: str, node: Node | None, all
                          "parameters are constants of its inertia (its metric and points): the motion "
                          "a value in t prescribes would be missing from its equations",
                          "give it a constant value; a support moving with the system is a component of "
-                         "its own (hang a pinned_rod from it with `pivot:`); a motion prescribed in t is "
-                         "not supported (connections have no t either); a force in t goes under `effects:`")
+                         "its own (hang a pinned_rod from it with `pivot:`); a motion prescribed in t goes in the "
+                         "connection or under `prescribed:`; a force in t goes under `effects:`")
             values[key] = None
     return values
 

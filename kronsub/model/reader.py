@@ -118,8 +118,8 @@ class ModelReader:
                 elif unknown and unknown.group(1) == "t":
                     problem = dataclasses.replace(problem, hint=(
                         "`t` (time) cannot appear here: the effects (and a known system's parameters that "
-                        "drive its effects alone) may depend on time; connections, constraints, component "
-                        "parameters and values may not"))
+                        "drive its effects alone), the connection and `prescribed:` motions may depend on time; "
+                        "constraints, component parameters and values may not"))
                 elif unknown and unknown.group(1) in self.parameters:
                     problem = dataclasses.replace(problem, hint=(
                         f"'{unknown.group(1)}' is a parameter, and a parameter's value is a constant: write a "

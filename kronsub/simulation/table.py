@@ -30,6 +30,7 @@ from pathlib import Path
 import numpy as np
 
 from ..core.known_system import KnownSystem
+from ..core.rheonomic import depends_on_time
 from ..emitters.escape import json_document
 from ..interrupts import handled, signal_name, signal_of
 from ..model.file_reading import SourceFile
@@ -108,6 +109,19 @@ class _Module:
         return self.namespace[name]
 
 
+def _points_at(module, t: float, y, param):
+    """The named points at ``(t, y)``: a module of a prescribed motion (``TIMED``) takes ``t``."""
+    points = module["points"]
+    return points(t, y, param) if _module_is_timed(module) else points(y, param)
+
+
+def _module_is_timed(module) -> bool:
+    try:
+        return bool(module["TIMED"])
+    except KeyError:
+        return False
+
+
 def _energies(module, block: Block, param) -> tuple[np.ndarray, np.ndarray]:
     """Kinetic and potential energy per row (from the run when it computed them in C)."""
     if block.energies is not None:
@@ -151,7 +165,7 @@ def _point_names(module) -> list[str]:
 def point_columns(system: KnownSystem, traj: Trajectory, param, outputs=None) -> tuple[list[str], np.ndarray]:
     module = _Module(system, outputs)
     names = _point_names(module)
-    values = np.array([module["points"](y, param) for y in traj.y]).reshape(len(traj.y), len(names))
+    values = np.array([_points_at(module, t, y, param) for t, y in zip(traj.t, traj.y)]).reshape(len(traj.y), len(names))
     return names, values
 
 
@@ -217,6 +231,13 @@ class CsvWriter:
                 "constraints": [c.name for c in system.implicit.constraints],
                 "how": "Newton's method on the constraints, on the branch of the initial configuration",
             }
+        transition = system.transition
+        if transition is not None and depends_on_time(dict(transition.connection)):
+            meta["prescribed_motion"] = {
+                "energy_conserved": False,
+                "why": "the connection names t: the drive puts power in; kinetic_energy is 1/2 qdot^T Mbar qdot, "
+                       "without the drive's velocity",
+            }
         meta["columns"] = list(self.columns)
         meta["units"] = ("t in s; coordinates and velocities in the model's units (per s); energies in the "
                          "model's energy unit" + ("; points in the model's length unit" if self.with_points else ""))
@@ -259,7 +280,7 @@ class CsvWriter:
                 np.full((n, len(self.system.implicit.dependent)), np.nan)
             data.append(dependent.reshape(n, -1))
         if self.with_points:
-            data.append(np.array([self.module["points"](y, self.param) for y in block.y]).reshape(n, -1))
+            data.append(np.array([_points_at(self.module, t, y, self.param) for t, y in zip(block.t, block.y)]).reshape(n, -1))
         if extra is not None:
             data.append(np.asarray(extra, dtype=float).reshape(n, -1))
         return np.hstack(data)

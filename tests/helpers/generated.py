@@ -13,6 +13,7 @@ import sympy
 import kronsub
 from kronsub.model.requirements import unmet
 from conftest import ROOT, explicit_model_paths
+from kronsub.core.rheonomic import depends_on_time
 from kronsub.emitters.code import emit_c, emit_python
 
 # every bundled model without `constraints:` and every test model, relative to the repository
@@ -81,6 +82,7 @@ def c_agrees_with_symbolic(path, tmp_path):
     for fn in ("ks_kinetic_energy", "ks_potential_energy"):
         getattr(lib, fn).restype = ctypes.c_double
     n = len(system.coordinates)
+    driven = system.transition is not None and depends_on_time(dict(system.transition.connection))
     symbolic = symbolic_values(system)
     buf = lambda k: (ctypes.c_double * k)()  # noqa: E731
     arr = lambda a: (ctypes.c_double * len(a))(*a)  # noqa: E731
@@ -89,7 +91,8 @@ def c_agrees_with_symbolic(path, tmp_path):
         yc, pc = arr(y), arr(param)
         Mc, hc, fc, yd = buf(n * n), buf(n), buf(n), buf(2 * n)
         lib.ks_mass_matrix(yc, pc, Mc)
-        lib.ks_velocity_terms(yc, ctypes.cast(ctypes.byref(yc, 8 * n), DOUBLE_P), pc, hc)
+        timed = (ctypes.c_double(t),) if driven else ()  # a prescribed motion: hbar and the points take t
+        lib.ks_velocity_terms(*timed, yc, ctypes.cast(ctypes.byref(yc, 8 * n), DOUBLE_P), pc, hc)
         lib.ks_forces(ctypes.c_double(t), yc, ctypes.cast(ctypes.byref(yc, 8 * n), DOUBLE_P), pc, fc)
         assert close_enough(np.array(Mc[:]).reshape(n, n), M)
         assert close_enough(hc[:], h)
@@ -120,7 +123,8 @@ def python_agrees_with_symbolic(path, tmp_path):
     for t, y, param in random_states(system, np.random.default_rng(8), 100):
         M, h, f, T, V = symbolic(t, y, param)
         assert close_enough(module.mass_matrix(y[:n], param), M)
-        assert close_enough(module.velocity_terms(y[:n], y[n:], param), h)
+        timed = (t,) if getattr(module, "TIMED", False) else ()  # a prescribed motion: hbar names t
+        assert close_enough(module.velocity_terms(*timed, y[:n], y[n:], param), h)
         assert close_enough(module.forces(t, y[:n], y[n:], param), f)
         assert close_enough(module.rhs(t, y, param)[n:], np.linalg.solve(M, f - h))
         assert close_enough([module.kinetic_energy(y, param)], [T])

@@ -1,0 +1,204 @@
+"""Non-holonomic constraints: a velocity-level transformation ``xdot = C(x) u + d(x, t)``.
+
+Constraints linear in the velocities, ``A(x) xdot + b(x, t) = 0`` (rolling, a knife edge), and
+speeds ``u = Y(x) xdot`` (by default some of the velocities themselves) together fix
+
+    [A; Y] xdot = [-b; u],   xdot = C u + d,   A C = 0
+
+where ``C`` spans the null space of ``A`` but is the Jacobian of no ``x(xbar)``: Kron's
+non-holonomic reference frame. The projection keeps (9'), (D)-(F), with ``Cdot`` taken along
+the motion (Boltzmann-Hamel):
+
+    Mbar = C^T M C                                            (9'), (D)
+    hbar = C^T (M (dC/dx^k xdot^k u + dd/dx^k xdot^k + dd/dt) + h(x, xdot))   (E)
+    fbar = C^T f(x, xdot, t)                                  (8'), (F)
+
+with ``xdot = C u + d`` throughout; the state is ``[x; u]``, its kinematic equations
+``xdot = C u + d``. A constraint that is integrable (Frobenius: ``omega ^ d omega = 0`` for
+``omega = A_i dx``) is a configuration constraint in disguise and is reported as such.
+"""
+from __future__ import annotations
+
+import itertools
+import random
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+import sympy
+
+from .symbols import TIME, acceleration_symbol, velocity_symbol
+
+GENERIC_POINTS = 3  # a rank is taken at this many random points (a generic one is almost sure)
+
+
+class VelocityConstraintError(ValueError):
+    """A velocity constraint or a choice of speeds that cannot be used; ``index`` is the
+    constraint (or speed) it concerns, ``hint`` how to fix it."""
+
+    def __init__(self, message: str, hint: str, index: int | None = None, kind: str = "constraint"):
+        super().__init__(message)
+        self.hint, self.index, self.kind = hint, index, kind
+
+
+@dataclass(frozen=True)
+class VelocityTransformation:
+    """``xdot = C u + d`` with ``A C = 0``: the speeds ``u`` and what they mean."""
+
+    coordinates: tuple[sympy.Symbol, ...]
+    speeds: tuple[sympy.Symbol, ...]
+    constraint_matrix: sympy.Matrix  # A
+    constraint_offset: sympy.Matrix  # b
+    transformation: sympy.Matrix  # C
+    offset: sympy.Matrix  # d
+    kinematics: sympy.Matrix  # xdot = C u + d
+
+
+@dataclass(frozen=True)
+class NonholonomicProjection:
+    """``Mbar udot + hbar = fbar`` in the speeds, with the kinematic equations ``xdot = C u + d``."""
+
+    velocity: VelocityTransformation
+    mass_matrix: sympy.Matrix
+    velocity_terms: sympy.Matrix
+    forcing: sympy.Matrix
+    convective: sympy.Matrix  # Cdot u + ddot along the motion
+
+
+def linear_form(constraints: Sequence[sympy.Expr], coordinates: Sequence[sympy.Symbol]
+                ) -> tuple[sympy.Matrix, sympy.Matrix]:
+    """``A`` and ``b`` of ``A(x) xdot + b(x, t) = 0``; a constraint not linear in the
+    velocities raises :class:`VelocityConstraintError`."""
+    velocities = [velocity_symbol(q) for q in coordinates]
+    rows, offsets = [], []
+    for i, c in enumerate(constraints):
+        c = sympy.expand(sympy.sympify(c))
+        if not set(velocities) & c.free_symbols:
+            raise VelocityConstraintError(
+                f"velocity constraint {i + 1} has no velocity in it", "a relation between coordinates alone is a "
+                "configuration constraint: write it under `constraints:`", i)
+        row = [sympy.diff(c, v) for v in velocities]
+        if any(set(velocities) & set(e.free_symbols) for e in row):
+            raise VelocityConstraintError(
+                f"velocity constraint {i + 1} is not linear in the velocities",
+                "write it as A(x) xdot + b(x, t) = 0: each velocity to the first power, times a function of the "
+                "coordinates", i)
+        rows.append(row)
+        offsets.append(sympy.expand(c - sum(r * v for r, v in zip(row, velocities))))
+    return sympy.Matrix(rows), sympy.Matrix(offsets)
+
+
+def integrable(A: sympy.Matrix, b: sympy.Matrix, coordinates: Sequence[sympy.Symbol]) -> list[int]:
+    """The constraints (rows of ``A``, each with ``b_i = 0``) that are integrable on their own:
+    ``omega = A_i dx`` with ``omega ^ d omega = 0`` (Frobenius), i.e. for every ``j < k < l``
+    ``A_j (d_k A_l - d_l A_k) + A_k (d_l A_j - d_j A_l) + A_l (d_j A_k - d_k A_j) = 0``. With
+    fewer than three coordinates, ``omega ^ d omega`` vanishes identically."""
+    n = len(coordinates)
+    found = []
+    for i in range(A.rows):
+        if b[i] != 0:
+            continue  # an affine constraint: not a one-form of the coordinates alone
+        a = list(A.row(i))
+        d = [[sympy.diff(a[k], coordinates[j]) for j in range(n)] for k in range(n)]  # d[k][j] = d_j A_k
+        if all(sympy.simplify(a[j] * (d[l][k] - d[k][l]) + a[k] * (d[j][l] - d[l][j]) + a[l] * (d[k][j] - d[j][k])) == 0
+               for j, k, l in itertools.combinations(range(n), 3)):
+            found.append(i)
+    return found
+
+
+def velocity_transformation(constraints: Sequence[sympy.Expr], coordinates: Sequence[sympy.Symbol],
+                            speeds: Mapping[sympy.Symbol, sympy.Expr] | None = None,
+                            values: Mapping | None = None) -> VelocityTransformation:
+    """``xdot = C u + d`` for velocity ``constraints`` (expressions ``= 0``). ``speeds`` maps each
+    speed to its definition ``Y(x) xdot``; without it the speeds are the velocities of the
+    coordinates left independent, the last coordinates taken as dependent first. ``values``
+    (parameter -> number) fixes the parameters where ranks are taken."""
+    coordinates = tuple(coordinates)
+    velocities = [velocity_symbol(q) for q in coordinates]
+    A, b = linear_form(constraints, coordinates)
+    for i in integrable(A, b, coordinates):
+        raise VelocityConstraintError(
+            f"velocity constraint {i + 1} is integrable: it is the time derivative of a relation between the "
+            "coordinates", "write that relation under `constraints:` (a configuration constraint) instead", i)
+    m, n = A.shape
+    point = _generic_points(A, coordinates, values)
+    if _rank(A, point) < m:
+        raise VelocityConstraintError("the velocity constraints are not independent",
+                                      "remove the constraint that follows from the others")
+    if speeds is None:
+        for dependent in itertools.combinations(reversed(range(n)), m):
+            if _rank(A[:, sorted(dependent)], point) == m:
+                break
+        independent = [j for j in range(n) if j not in dependent]
+        speeds = {velocities[j]: velocities[j] for j in independent}
+    if len(speeds) != n - m:
+        raise VelocityConstraintError(
+            f"{len(speeds)} speed(s) for {n - m} degree(s) of freedom",
+            f"name {n - m} speeds: the {n} velocities less the {m} velocity constraints", kind="speeds")
+    Y, c = linear_form(list(speeds.values()), coordinates)
+    if any(e != 0 for e in c):
+        raise VelocityConstraintError("a speed has a term without a velocity", "define each speed as Y(x) xdot",
+                                      kind="speeds")
+    stacked = A.col_join(Y)
+    if _rank(stacked, _generic_points(stacked, coordinates, values)) < n:
+        raise VelocityConstraintError(
+            "the speeds do not span the null space of the velocity constraints",
+            "choose speeds that stay independent once the constraints hold (the velocity of a coordinate the "
+            "constraints do not fix, say)", kind="speeds")
+    u = tuple(speeds)
+    solved = stacked.LUsolve(sympy.Matrix([-e for e in b] + list(u)))
+    solved = solved.applyfunc(lambda e: sympy.trigsimp(sympy.cancel(sympy.expand(e))))
+    C = solved.jacobian(u)
+    d = (solved - C * sympy.Matrix(u)).applyfunc(sympy.expand)
+    return VelocityTransformation(coordinates=coordinates, speeds=u, constraint_matrix=A, constraint_offset=b,
+                                  transformation=C, offset=d, kinematics=solved)
+
+
+def project_nonholonomic(metric: sympy.Matrix, velocity_terms: sympy.Matrix, force: sympy.Matrix,
+                         velocity: VelocityTransformation) -> NonholonomicProjection:
+    """(9'), (D)-(F) in the speeds: ``M(x)``, ``h(x, xdot)``, ``f(x, xdot, t)`` of the system in
+    the coordinates ``x`` (velocities named by :func:`velocity_symbol`) projected by ``C``."""
+    x = velocity.coordinates
+    u = sympy.Matrix(velocity.speeds)
+    xdot = velocity.kinematics
+    moved = {velocity_symbol(q): xdot[i] for i, q in enumerate(x)}
+    # Cdot u + ddot along the motion: d(C u + d)/dx^k xdot^k + d(C u + d)/dt (u held)
+    convective = xdot.jacobian(x) * xdot + xdot.diff(TIME)
+    C = velocity.transformation
+    M = sympy.Matrix(metric)
+    h = sympy.Matrix(velocity_terms).xreplace(moved)
+    f = sympy.Matrix(force).xreplace(moved)
+    tidy = _tidy
+    return NonholonomicProjection(velocity=velocity, mass_matrix=(C.T * M * C).applyfunc(tidy),
+                                  velocity_terms=(C.T * (M * convective + h)).applyfunc(tidy),
+                                  forcing=(C.T * f).applyfunc(tidy), convective=convective)
+
+
+def speed_accelerations(projection: NonholonomicProjection) -> list[sympy.Symbol]:
+    """The symbols of ``udot`` (named like accelerations of the speeds)."""
+    return [acceleration_symbol(s) for s in projection.velocity.speeds]
+
+
+def _tidy(e: sympy.Expr) -> sympy.Expr:
+    return sympy.trigsimp(sympy.cancel(sympy.expand(e)))
+
+
+def _generic_points(A: sympy.Matrix, coordinates, values) -> list[dict]:
+    """Random points of the coordinates, parameters and time: a rank taken there is the
+    generic rank (with probability one)."""
+    rng = random.Random(20070509)
+    free = sorted(set().union(*(sympy.sympify(e).free_symbols for e in A)) | set(coordinates), key=str)
+    points = []
+    for _ in range(GENERIC_POINTS):
+        point = {s: sympy.Float(rng.uniform(0.2, 1.3)) for s in free}
+        point.update(values or {})
+        points.append(point)
+    return points
+
+
+def _rank(A: sympy.Matrix, points: list[dict]) -> int:
+    return max(int(np.linalg.matrix_rank(np.array(A.subs(p).evalf(), dtype=float), tol=1e-9)) for p in points)
+
+
+__all__ = ["GENERIC_POINTS", "NonholonomicProjection", "VelocityConstraintError", "VelocityTransformation",
+           "integrable", "linear_form", "project_nonholonomic", "speed_accelerations", "velocity_transformation"]
