@@ -698,18 +698,19 @@ def test_zero_direction_is_refused(tmp_path, effect, key):
 
 
 def test_time_and_parameters_where_they_cannot_appear_are_named_as_such(tmp_path):
-    """`t` in a connection and a parameter in another parameter's value are known names used
-    where they are not allowed: the hint says so (not "declare it under parameters:")."""
-    text = ("name: pv\nparameters: {m: 1, k: 2*m}\ncomponents:\n"
+    """`t` and a parameter in another parameter's value are known
+    names used where they are not allowed: the hint says so (not "declare it under parameters:").
+    (`t` in the connection is a prescribed motion: docs/model-format.md.)"""
+    text = ("name: pv\nparameters: {m: 1, k: 2*m, c: 3*t}\ncomponents:\n"
             "  s: {type: particle1d, parameters: {mass: m}, coordinates: [x]}\n"
-            "coordinates: [q]\nconnection:\n  x: q + t\n")
+            "coordinates: [q]\nconnection:\n  x: q\n")
     path = write(tmp_path, text)
     result = derive(path)
     line, col = place(text, "2*m")
     _, hint = assert_error(result, path, line, col + 2, "unknown name 'm'")  # at the name
     assert "'m' is a parameter, and a parameter's value is a constant" in hint
-    line, col = place(text, "q + t")
-    _, hint = assert_error(result, path, line, col + 4, "unknown name 't'", first=False)
+    line, col = place(text, "3*t")
+    _, hint = assert_error(result, path, line, col + 2, "unknown name 't'", first=False)
     assert "`t` (time) cannot appear here" in hint
 
 

@@ -294,8 +294,6 @@ def prepare(system: KnownSystem, source: str = "", outputs=None, guarded_angles:
     block = functools.partial(_block, rewritings=_Rewritings())  # the blocks share their entries' rewritings
     M = system.mass_matrix
     if TIME in free_symbols_of([M]):
-        from ..errors import KronsubError
-
         raise KronsubError("cannot generate code: Mbar depends on t (a prescribed motion that changes the "
                            "inertia); only hbar and fbar may name t in the generated code")
     # x = x(xbar, t): hbar has the drive's terms and the points move with t (velocity_terms and points take t)
