@@ -177,7 +177,7 @@ def _functions(job: Job):
                                            *(p.symbol for p in system.parameters)])
 
 
-def _ensemble(job: Job, param: np.ndarray, y0: np.ndarray, first: int = 0,
+def _ensemble(job: Job, param: np.ndarray, y0: np.ndarray, run0: int = 0,
               sink: TrajectoryPart | None = None) -> tuple[np.ndarray, list[str], np.ndarray]:
     from ..simulation.grid import Grid
 
@@ -214,7 +214,7 @@ def _ensemble(job: Job, param: np.ndarray, y0: np.ndarray, first: int = 0,
                 kept = rows[r, :written[r]]
                 times = grid.snap(kept[:, 0])
                 if sink is not None:
-                    sink.add(first + a + r, times, kept[:, 1:])
+                    sink.add(run0 + a + r, times, kept[:, 1:])
                 if functions is not None:
                     users[a + r] = evaluate(list(job.summaries), functions, times, kept[:, 1:],
                                             param[a + r, :len(job.system.parameters)])
@@ -233,7 +233,7 @@ def _ensemble(job: Job, param: np.ndarray, y0: np.ndarray, first: int = 0,
     return summary, reasons, users
 
 
-def _one_by_one(job: Job, param: np.ndarray, y0: np.ndarray, first: int = 0,
+def _one_by_one(job: Job, param: np.ndarray, y0: np.ndarray, run0: int = 0,
                 sink: TrajectoryPart | None = None) -> tuple[np.ndarray, list[str], np.ndarray]:
     """Each run as ``simulate`` runs it (closed loops projected onto their constraints first)."""
     from ..simulation.run import start
@@ -280,7 +280,7 @@ def _one_by_one(job: Job, param: np.ndarray, y0: np.ndarray, first: int = 0,
                 if kept is not None:
                     kept.append((np.asarray(block.t, dtype=float), Y))
                 if sink is not None:
-                    sink.add(first + r, np.asarray(block.t, dtype=float), Y, block.dependent)
+                    sink.add(run0 + r, np.asarray(block.t, dtype=float), Y, block.dependent)
                 row[5 + ny:5 + ny + nq] = np.minimum(row[5 + ny:5 + ny + nq], Y[:, :nq].min(axis=0))
                 row[5 + ny + nq:5 + ny + 2 * nq] = np.maximum(row[5 + ny + nq:5 + ny + 2 * nq], Y[:, :nq].max(axis=0))
                 row[5:5 + ny] = Y[-1]
