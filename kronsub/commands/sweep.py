@@ -62,8 +62,8 @@ INSTALL_HINT = "pip install 'kronsub[sweep]'"
                    "cluster on this machine's cores).")
 @click.option("--workers", type=click.IntRange(min=1), default=None,
               help="Workers of the local cluster (default: one per core).")
-@click.option("--resume", is_flag=True, help="Finish the sweep in --output: only the chunks not written yet.")
-@click.option("--force", is_flag=True, help="Replace an existing --output.")
+@click.option("--resume", is_flag=True, help="Finish the sweep in --output (and --trajectories): only the chunks not written yet.")
+@click.option("--force", is_flag=True, help="Replace an existing --output (and --trajectories).")
 @scene_option
 @budget_option
 def sweep(model: Path, grids, samples, tables, runs, seed, latin, t_end, dt, method, rtol, atol, summaries, plot, plot_column,
