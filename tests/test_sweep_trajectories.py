@@ -46,9 +46,10 @@ def simulated(folder: Path, model, scene, settings: dict, method: str, t_end: fl
 
 @pytest.mark.parametrize("model, scene, grids, method, route", [
     (SYSTEM1, None, ("theta=-2:2:3",), "dop853", ENSEMBLE),  # explicit, the whole model
+    (SYSTEM1, "pushed", ("m2=[0.5, 2]",), "gauss4", ENSEMBLE),  # a scene, a swept parameter, velocities from p
     (SYSTEM1, "free", ("phi=[0.3, 2.5]",), "taylor", TAYLOR),
     (FOUR_BAR, None, ("theta1=1.5:2.5:2",), "dop853", ONE_BY_ONE),  # a closed loop
-], ids=["explicit", "taylor", "closed-loop"])
+], ids=["explicit", "scene-gauss4", "taylor", "closed-loop"])
 def test_each_runs_trajectory_equals_simulate(tmp_path, model, scene, grids, method, route):
     loaded, chosen, system = scene_system(model, scene)
     plan = make_plan(*read_axes(grids, ()), None, 0)
@@ -97,12 +98,12 @@ def test_the_command_writes_refuses_and_resumes_only_missing_parts(tmp_path):
     assert meta["state"] == "complete" and meta["chunks_written"] == 3 and meta["columns"][:2] == ["run", "t"]
     assert json.loads((tmp_path / "runs.parquet.json").read_text())["trajectories"] == str(traj)
 
-    (out / "part-000002.parquet").rename(tmp_path / "moved")  # an existing DIR is refused
-    refused = sweep([*args[:-4], "-o", tmp_path / "other.parquet", "--trajectories", traj])
+    refused = sweep([*args[:-4], "-o", tmp_path / "other.parquet", "--trajectories", traj])  # DIR exists
     assert refused.exit_code == 1 and "rows.parquet exists" in refused.output and "--resume" in refused.output
     assert not (tmp_path / "other.parquet").exists()
 
     (traj / "part-000000.parquet").unlink()  # chunk 0 lost its trajectories, chunk 2 its summaries
+    (out / "part-000002.parquet").unlink()
     before = {p: p.stat().st_mtime_ns for p in [*out.iterdir(), *traj.iterdir()]}
     resumed = sweep([*args, "--resume"])
     assert resumed.exit_code == 0, resumed.output
@@ -113,7 +114,11 @@ def test_the_command_writes_refuses_and_resumes_only_missing_parts(tmp_path):
     pd.testing.assert_frame_equal(pd.read_parquet(traj).sort_values(["run", "t"], ignore_index=True), rows)
     pd.testing.assert_frame_equal(pd.read_parquet(out).sort_values("run", ignore_index=True), summaries)
 
-    forced = sweep([*args, "--force"])
+    study = tmp_path / "STUDY.yaml"  # the same sweep from a sweep file, replacing both folders
+    study.write_text(f"sweep:\n  model: {SYSTEM1}\n  scene: free\n  t: 1\n  dt: 0.1\n  chunk: 2\n"
+                     '  grid: {theta: "-1:1:3", phi: [0.5, 1]}\n  output: runs.parquet\n  trajectories: rows.parquet\n')
+    (traj / "part-000001.parquet").unlink()
+    forced = sweep([study, "--workers", "1", "--force"])
     assert forced.exit_code == 0, forced.output
     pd.testing.assert_frame_equal(pd.read_parquet(traj).sort_values(["run", "t"], ignore_index=True), rows)
 
@@ -122,13 +127,3 @@ def test_trajectories_inside_the_output_are_refused(tmp_path):
     result = sweep([SYSTEM1, "--grid", "theta=0:1:2", "-o", tmp_path / "runs.parquet", "--trajectories",
                     tmp_path / "runs.parquet" / "rows"])
     assert result.exit_code == 2 and "one inside the other" in result.output and "Traceback" not in result.output
-
-
-def test_a_sweep_file_names_the_trajectories(tmp_path):
-    study = tmp_path / "STUDY.yaml"
-    study.write_text(f"sweep:\n  model: {SYSTEM1}\n  scene: free\n  t: 0.5\n  dt: 0.1\n"
-                     '  grid: {theta: "0:1:2"}\n  output: runs.parquet\n  trajectories: rows.parquet\n')
-    result = sweep([study, "--workers", "1"])
-    assert result.exit_code == 0, result.output
-    rows = pd.read_parquet(tmp_path / "rows.parquet")
-    assert sorted(set(rows["run"])) == [0, 1] and len(rows) == 2 * 6
