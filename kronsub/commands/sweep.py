@@ -2,6 +2,7 @@
 a row of summaries each, as a Parquet dataset with a JSON sidecar (:mod:`kronsub.sweep`)."""
 from __future__ import annotations
 
+import dataclasses
 import os
 import platform
 from pathlib import Path
@@ -51,25 +52,29 @@ INSTALL_HINT = "pip install 'kronsub[sweep]'"
 @click.option("--output", "-o", type=click.Path(path_type=Path), default=None,
               help="The output folder: one Parquet part per chunk (a dataset), the metadata beside it as JSON "
                    "(runs.parquet -> runs.parquet.json).")
+@click.option("--trajectories", type=click.Path(path_type=Path), default=None, metavar="DIR",
+              help="Also keep every run's rows at --dt (t, coordinates and velocities, as `kronsub simulate` "
+                   "writes them, after a run column): a Parquet dataset of one part per chunk in DIR, written by "
+                   "the workers (on a cluster, a folder they share with this machine at the same path).")
 @click.option("--chunk", type=click.IntRange(min=1), default=None, help="Runs per task (default 1000).")
 @click.option("--scheduler", default=None, metavar="ADDRESS",
               help="A running Dask scheduler, e.g. tcp://host:8786 (default: $DASK_SCHEDULER_ADDRESS, else a local "
                    "cluster on this machine's cores).")
 @click.option("--workers", type=click.IntRange(min=1), default=None,
               help="Workers of the local cluster (default: one per core).")
-@click.option("--resume", is_flag=True, help="Finish the sweep in --output: only the chunks not written yet.")
-@click.option("--force", is_flag=True, help="Replace an existing --output.")
+@click.option("--resume", is_flag=True, help="Finish the sweep in --output (and --trajectories): only the chunks not written yet.")
+@click.option("--force", is_flag=True, help="Replace an existing --output (and --trajectories).")
 @scene_option
 @budget_option
 def sweep(model: Path, grids, samples, tables, runs, seed, latin, t_end, dt, method, rtol, atol, summaries, plot, plot_column,
-          settings, output, chunk, scheduler, workers, resume, force, scene_name):
+          settings, output, trajectories, chunk, scheduler, workers, resume, force, scene_name):
     """Run MODEL over a grid or a sample of its parameters and initial values: a row per run
     (inputs, status, final state, min and max of each coordinate, energy drift, cost). MODEL
     may be a sweep file (STUDY.yaml, with `sweep:` at its top), whose values the options
     override or add to."""
     def job():
         nonlocal model, grids, samples, runs, seed, latin, t_end, dt, method, rtol, atol, summaries, settings, output
-        nonlocal chunk, scene_name, tables
+        nonlocal chunk, scene_name, tables, trajectories
         try:
             import distributed  # noqa: F401
             import pyarrow  # noqa: F401
@@ -79,7 +84,7 @@ def sweep(model: Path, grids, samples, tables, runs, seed, latin, t_end, dt, met
         from ..simulation.values import parse_assignments
         from ..sweep.axes import read_axes
         from ..sweep.chunk import columns
-        from ..sweep.dataset import Dataset, DatasetError
+        from ..sweep.dataset import Dataset, DatasetError, part_name
         from ..sweep.driver import ENV_SCHEDULER, SweepProgress, execute
         from ..sweep.study import DEFAULT_CHUNK, SweepError, make_job, make_plan
 
@@ -111,6 +116,7 @@ def sweep(model: Path, grids, samples, tables, runs, seed, latin, t_end, dt, met
             atol = atol if atol is not None else v.get("atol")
             chunk = chunk if chunk is not None else v.get("chunk")
             output = output if output is not None else v.get("output")
+            trajectories = trajectories if trajectories is not None else v.get("trajectories")
             scene_name = scene_name if scene_name is not None else v.get("scene")
         rtol = 1e-10 if rtol is None else rtol
         atol = 1e-10 if atol is None else atol
@@ -126,7 +132,11 @@ def sweep(model: Path, grids, samples, tables, runs, seed, latin, t_end, dt, met
             plan = make_plan(grid_axes, sample_axes, runs, seed, latin)
         except SweepError as exc:
             fail(f"Error: {exc}", USAGE_ERROR)
-        separate_outputs(model, ("--output", output, "output"), ("--plot", plot, "plot"))
+        separate_outputs(model, ("--output", output, "output"), ("--plot", plot, "plot"),
+                         ("--trajectories", trajectories, "trajectories"))
+        if trajectories is not None and nested(trajectories, output):
+            fail(f"Error: --trajectories {trajectories} and the output {output} are one inside the other\n"
+                 "  hint: give them separate folders, e.g. -o runs.parquet --trajectories rows.parquet", USAGE_ERROR)
         if plot is not None:
             if len(grid_axes) != 2 or sample_axes or any(not hasattr(a, "at") for a in grid_axes):
                 fail("Error: --plot maps a sweep over exactly two --grid axes (and no --sample)\n"
@@ -135,6 +145,10 @@ def sweep(model: Path, grids, samples, tables, runs, seed, latin, t_end, dt, met
         if (output.exists() or Path(str(output) + ".json").exists()) and not (resume or force):
             fail(f"Error: {output} exists\n  hint: --resume finishes the sweep written there, --force replaces it, "
                  "or choose another -o")
+        if trajectories is not None and (trajectories.exists() or Path(str(trajectories) + ".json").exists()) \
+                and not (resume or force):
+            fail(f"Error: {trajectories} exists\n  hint: --resume finishes the sweep written there, --force "
+                 "replaces it, or choose another --trajectories")
         address = scheduler or os.environ.get(ENV_SCHEDULER) or None
         loaded, scene, system = scene_system(model, scene_name)
         pick = lambda given, scene_value, default: given if given is not None else (  # noqa: E731
@@ -166,8 +180,15 @@ def sweep(model: Path, grids, samples, tables, runs, seed, latin, t_end, dt, met
             if mapped not in {name for name, kind in dataset.columns if kind == "float64"} or mapped in plan.names:
                 fail(f"Error: --plot-column {mapped}: no numeric output column of that name\n  hint: choose one of "
                      + ", ".join(n for n, k in dataset.columns if k == "float64" and n not in plan.names), USAGE_ERROR)
+        kept = None
         try:
             written = dataset.prepare(identity, resume=resume, force=force)
+            if trajectories is not None:
+                from ..sweep.trajectories import trajectory_columns
+
+                kept = Dataset(trajectories, trajectory_columns(system, job_.outputs), option="--trajectories")
+                written &= kept.prepare(identity, resume=resume, force=force)  # a chunk is done with both parts
+                job_ = dataclasses.replace(job_, trajectories=str(kept.folder.resolve()))
         except DatasetError as exc:
             fail(f"Error: {exc}")
         todo = [i for i in range(job_.chunks) if i not in written]
@@ -178,7 +199,14 @@ def sweep(model: Path, grids, samples, tables, runs, seed, latin, t_end, dt, met
             import dask
             import pyarrow as arrow
 
+            if kept is not None:
+                kept.write_sidecar({
+                    "identity": identity, "state": state, "summaries": str(output), "runs": plan.count,
+                    "chunks": job_.chunks, "chunks_written": chunks_written,
+                    "columns": [name for name, _ in kept.columns],
+                    "units": "t in s; coordinates and velocities in the model's units (per s)"})
             dataset.write_sidecar({
+                "trajectories": str(trajectories) if trajectories is not None else None,
                 "identity": identity, "state": state, "route": job_.route,
                 "model": model_record(system.name, model.as_posix(), loaded.source, loaded.uses),
                 "runs": plan.count, "chunks": job_.chunks, "chunks_written": chunks_written,
@@ -192,6 +220,10 @@ def sweep(model: Path, grids, samples, tables, runs, seed, latin, t_end, dt, met
         finished = [len(written)]
 
         def done(index, rows):
+            if kept is not None and not (kept.folder / part_name(index)).exists():
+                raise DatasetError(f"the workers wrote chunk {index}'s trajectories where this machine does not see "
+                                   f"them ({kept.folder})\n  hint: on a cluster, --trajectories must be a folder the "
+                                   "workers share with this machine, at the same path")
             dataset.write(index, rows)
             finished[0] += 1
 
@@ -218,6 +250,12 @@ def sweep(model: Path, grids, samples, tables, runs, seed, latin, t_end, dt, met
                     + ", ".join(f"{n:,} {status}" for status, n in counts.items()) + f"; metadata {dataset.sidecar})")
 
     run_command(job)
+
+
+def nested(a: Path, b: Path) -> bool:
+    """Whether the folders ``a`` and ``b`` are one, or one holds the other."""
+    a, b = a.resolve(), b.resolve()
+    return a == b or a in b.parents or b in a.parents
 
 
 def relocated(exc, located: dict):

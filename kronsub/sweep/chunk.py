@@ -11,6 +11,7 @@ heyoka, closed loops, a worker without a C compiler) run one by one as ``simulat
 (:func:`kronsub.simulation.run.start`, with the generated numpy module where nothing compiles)."""
 from __future__ import annotations
 
+import contextlib
 import math
 import warnings
 from dataclasses import dataclass, field
@@ -22,6 +23,7 @@ from ..errors import KronsubError
 from ..simulation.native import NativeError
 from .ensemble import Sources, load, load_taylor, pieces, summary_width
 from .plan import Plan
+from .trajectories import TrajectoryPart
 
 __all__ = ["ENSEMBLE", "ONE_BY_ONE", "TAYLOR", "Job", "columns", "inputs_of", "run_chunk", "state_names"]
 
@@ -50,6 +52,7 @@ class Job:
     derived_initial: tuple = ()  # (state index, expression of swept parameters) per such initial value
     summaries: tuple = ()  # user outputs (:class:`.outputs.UserOutput`), a column each
     taylor_sources: Sources | None = None  # the Taylor integrator's (route TAYLOR)
+    trajectories: str | None = None  # the folder each worker writes its chunks' rows in (:mod:`.trajectories`)
 
     @property
     def chunks(self) -> int:
@@ -123,20 +126,23 @@ def _conserves(job: Job, native) -> bool:
 
 
 def run_chunk(job: Job, index: int) -> dict[str, object]:
-    """The rows of chunk ``index``, as columns (:func:`columns`)."""
+    """The rows of chunk ``index``, as columns (:func:`columns`); with ``job.trajectories``, the
+    runs' rows written as the chunk's trajectory part first."""
     start, stop = job.span(index)
     inputs, param, y0 = inputs_of(job, start, stop)
     n, nq = stop - start, len(job.system.coordinates)
-    with warnings.catch_warnings():
+    part = contextlib.nullcontext() if job.trajectories is None else \
+        TrajectoryPart(job.trajectories, index, job.system, job.outputs)
+    with warnings.catch_warnings(), part as sink:
         warnings.simplefilter("ignore")
-        try:
-            compiled = _ensemble(job, param, y0) if job.route in (ENSEMBLE, TAYLOR) else None
+        try:  # (the libraries are loaded before any row goes to the part)
+            compiled = _ensemble(job, param, y0, start, sink) if job.route in (ENSEMBLE, TAYLOR) else None
         except NativeError:  # no C compiler on this worker: the generated numpy module, run by run
             compiled = None
         if compiled is not None:
             summary, reasons, users = compiled
         else:
-            summary, reasons, users = _one_by_one(job, param, y0)
+            summary, reasons, users = _one_by_one(job, param, y0, start, sink)
     ny = 2 * nq
     status = summary[:, 0]
     out: dict[str, object] = {"run": np.arange(start, stop, dtype=np.int64), **inputs}
@@ -171,7 +177,8 @@ def _functions(job: Job):
                                            *(p.symbol for p in system.parameters)])
 
 
-def _ensemble(job: Job, param: np.ndarray, y0: np.ndarray) -> tuple[np.ndarray, list[str], np.ndarray]:
+def _ensemble(job: Job, param: np.ndarray, y0: np.ndarray, run0: int = 0,
+              sink: TrajectoryPart | None = None) -> tuple[np.ndarray, list[str], np.ndarray]:
     from ..simulation.grid import Grid
 
     ensemble = load(job.sources)
@@ -190,12 +197,12 @@ def _ensemble(job: Job, param: np.ndarray, y0: np.ndarray) -> tuple[np.ndarray, 
             return ensemble.run(job.method, cuts, job.dt, job.rtol, job.atol, param[a:b], y0[a:b], energies,
                                 with_rows=with_rows)
     users = np.full((len(y0), len(job.summaries)), np.nan)
-    if not job.summaries:
+    if not job.summaries and sink is None:
         summary = block_of(0, len(y0))
     else:
         from .outputs import evaluate
 
-        functions = _functions(job)
+        functions = _functions(job) if job.summaries else None
         per_run = (len(grid) + 3 * len(cuts)) * (y0.shape[1] + 1) * 8
         block = max(1, ROWS_BYTES // per_run)
         parts = []
@@ -205,8 +212,12 @@ def _ensemble(job: Job, param: np.ndarray, y0: np.ndarray) -> tuple[np.ndarray, 
             parts.append(part)
             for r in range(b - a):
                 kept = rows[r, :written[r]]
-                users[a + r] = evaluate(list(job.summaries), functions, grid.snap(kept[:, 0]), kept[:, 1:],
-                                        param[a + r, :len(job.system.parameters)])
+                times = grid.snap(kept[:, 0])
+                if sink is not None:
+                    sink.add(run0 + a + r, times, kept[:, 1:])
+                if functions is not None:
+                    users[a + r] = evaluate(list(job.summaries), functions, times, kept[:, 1:],
+                                            param[a + r, :len(job.system.parameters)])
         summary = np.concatenate(parts)
     messages: dict[int, str] = {}
     reasons = []
@@ -222,7 +233,8 @@ def _ensemble(job: Job, param: np.ndarray, y0: np.ndarray) -> tuple[np.ndarray, 
     return summary, reasons, users
 
 
-def _one_by_one(job: Job, param: np.ndarray, y0: np.ndarray) -> tuple[np.ndarray, list[str], np.ndarray]:
+def _one_by_one(job: Job, param: np.ndarray, y0: np.ndarray, run0: int = 0,
+                sink: TrajectoryPart | None = None) -> tuple[np.ndarray, list[str], np.ndarray]:
     """Each run as ``simulate`` runs it (closed loops projected onto their constraints first)."""
     from ..simulation.run import start
     from ..simulation.values import RunValues
@@ -267,6 +279,8 @@ def _one_by_one(job: Job, param: np.ndarray, y0: np.ndarray) -> tuple[np.ndarray
                     continue
                 if kept is not None:
                     kept.append((np.asarray(block.t, dtype=float), Y))
+                if sink is not None:
+                    sink.add(run0 + r, np.asarray(block.t, dtype=float), Y, block.dependent)
                 row[5 + ny:5 + ny + nq] = np.minimum(row[5 + ny:5 + ny + nq], Y[:, :nq].min(axis=0))
                 row[5 + ny + nq:5 + ny + 2 * nq] = np.maximum(row[5 + ny + nq:5 + ny + 2 * nq], Y[:, :nq].max(axis=0))
                 row[5:5 + ny] = Y[-1]

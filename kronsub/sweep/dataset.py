@@ -13,7 +13,7 @@ from pathlib import Path
 from ..atomic import atomic_file, write_atomically
 from ..errors import KronsubError
 
-__all__ = ["Dataset", "DatasetError", "PART"]
+__all__ = ["Dataset", "DatasetError", "PART", "part_name"]
 
 PART = re.compile(r"part-(\d{6,})\.parquet")
 
@@ -29,10 +29,11 @@ def part_name(index: int) -> str:
 class Dataset:
     """The output folder of a sweep and its sidecar."""
 
-    def __init__(self, folder: Path, columns: list[tuple[str, str]]):
+    def __init__(self, folder: Path, columns: list[tuple[str, str]], option: str = "-o"):
+        """``option``: the option that named the folder, for the hints."""
         from ..simulation.table import sidecar_path
 
-        self.folder = Path(folder)
+        self.folder, self.option = Path(folder), option
         self.sidecar = sidecar_path(self.folder)
         self.columns = columns
 
@@ -42,10 +43,10 @@ class Dataset:
         exists = self.folder.exists() or self.sidecar.exists()
         if exists and self.folder.exists() and not self.folder.is_dir():
             raise DatasetError(f"{self.folder} exists and is not a folder\n  hint: a sweep writes a folder of "
-                               "Parquet parts; choose another -o")
+                               f"Parquet parts; choose another {self.option}")
         if exists and not (resume or force):
             raise DatasetError(f"{self.folder} exists\n  hint: --resume finishes the sweep written there, "
-                               "--force replaces it, or choose another -o")
+                               f"--force replaces it, or choose another {self.option}")
         if exists and force and not resume:
             self._clear()
             exists = False
@@ -59,7 +60,7 @@ class Dataset:
             if told.get("identity") != identity:
                 raise DatasetError(f"{self.folder} holds another sweep (its model, spec, method, tolerances or "
                                    f"chunk size differ; see {self.sidecar})\n  hint: --force replaces it, or "
-                                   "choose another -o")
+                                   f"choose another {self.option}")
             done = {int(m.group(1)) for p in self.folder.iterdir() if (m := PART.fullmatch(p.name))}
         self.folder.mkdir(parents=True, exist_ok=True)
         return done
@@ -69,7 +70,7 @@ class Dataset:
             foreign = [p.name for p in self.folder.iterdir() if not PART.fullmatch(p.name) and not p.name.startswith(".")]
             if foreign:
                 raise DatasetError(f"{self.folder} holds files that are not a sweep's parts ({', '.join(sorted(foreign)[:3])})"
-                                   "\n  hint: --force replaces only a sweep's output; choose another -o")
+                                   f"\n  hint: --force replaces only a sweep's output; choose another {self.option}")
             shutil.rmtree(self.folder)
         self.sidecar.unlink(missing_ok=True)
 

@@ -10,6 +10,7 @@ problem is reported at its line and column.
       grid: {theta: "-3:3:60", phi: "-3:3:60"}
       summaries: {flip: "first_time(abs(phi) > pi)"}
       output: flip.parquet
+      trajectories: flip-rows.parquet   # optional: every run's rows
 """
 from __future__ import annotations
 
@@ -30,6 +31,7 @@ KEYS = {  # key: (kind, what it is)
     "seed": ("integer", "the seed"), "latin": ("flag", "a Latin hypercube"),
     "set": ("mapping", "fixed values: NAME: value"), "summaries": ("mapping", "outputs: NAME: max(...) ..."),
     "chunk": ("integer", "runs per task"), "output": ("path", "the output folder"),
+    "trajectories": ("path", "the folder of every run's rows"),
     "table": ("path", "a table of runs, CSV or Parquet"),
 }
 
