@@ -6,6 +6,7 @@ the trapezoid rule over the run."""
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -16,6 +17,7 @@ from conftest import MODELS
 from kronsub.cli import main
 
 CIRCUITS = MODELS / "electrical"
+TEST_MODELS = Path(__file__).parent / "models" / "electrical"
 SPLIT = ["magnetic_energy", "electric_energy", "mechanical_energy", "dissipated_power"]
 
 
@@ -99,6 +101,21 @@ def test_ladder_shared_capacitor_takes_the_difference_of_the_loop_charges(tmp_pa
                                rtol=1e-12, atol=1e-15)
     np.testing.assert_allclose(c["dissipated_power"], R1 * i1**2 + R2 * i2**2, rtol=1e-12, atol=1e-15)
     assert_balance(c, E * i1, 0 * i1)
+
+
+@pytest.mark.parametrize("path", [CIRCUITS / "loudspeaker.yaml", TEST_MODELS / "loudspeaker_textbook.yaml"])
+def test_loudspeaker_dampers_and_springs_are_mechanical(tmp_path, path):
+    """The cone's suspension (a spring and a damper, or the cone's own textbook potential and
+    dissipation) is mechanical; the voice coil's resistance and the cone's losses both dissipate."""
+    c, _ = simulated(tmp_path, path, "--t", "0.02", "--dt", "0.00002")
+    Le, Re, Mms, Cms, Rms, E, w = 0.5e-3, 6.0, 0.015, 0.8e-3, 1.5, 2.0, 400.0
+    x, i, v = c["x"], c["q_dot"], c["x_dot"]
+    np.testing.assert_allclose(c["magnetic_energy"], Le * i**2 / 2, rtol=1e-12, atol=1e-15)
+    np.testing.assert_array_equal(c["electric_energy"], 0.0)
+    np.testing.assert_allclose(c["mechanical_energy"], Mms * v**2 / 2 + x**2 / (2 * Cms), rtol=1e-10, atol=1e-15)
+    np.testing.assert_allclose(c["dissipated_power"], Re * i**2 + Rms * v**2, rtol=1e-12, atol=1e-15)
+    assert np.max(c["mechanical_energy"]) > 0.1 * np.max(c["magnetic_energy"]) > 0
+    assert_balance(c, E * np.sin(w * c["t"]) * i, 0 * i)
 
 
 def test_api_run_has_the_columns_of_the_csv(tmp_path):

@@ -23,7 +23,9 @@ from ..model.circuits import CIRCUIT_TYPES
 COLUMNS = ("magnetic_energy", "electric_energy", "mechanical_energy", "dissipated_power")
 DISSIPATIVE = (Resistor, Damper, TorsionalDamper)
 OWN_DISSIPATION = "dissipation"
-"""The label (after the part's name) of a textbook component's own Rayleigh dissipation."""
+OWN_EFFECTS = ("potential", OWN_DISSIPATION)
+"""The labels (after the part's name) of a textbook component's own effects: its potential
+(counted mechanical) and its Rayleigh dissipation."""
 
 
 @dataclass(frozen=True)
@@ -43,8 +45,8 @@ class EnergySplit:
 
 def energy_split(model, system: KnownSystem) -> EnergySplit | None:
     """The split of ``system`` (derived from ``model``), or None when the model has no circuit
-    part (or is a closed loop of implicit constraints, whose dependent currents this does not
-    follow)."""
+    part, is a closed loop of implicit constraints (whose dependent currents this does not
+    follow) or uses a known system with effects of its own (whose kinds are not kept)."""
     transition = system.transition
     if model is None or transition is None or system.implicit is not None:
         return None
@@ -60,6 +62,8 @@ def energy_split(model, system: KnownSystem) -> EnergySplit | None:
     inductance = transition.primitive_metric.extract([index[x] for x in charges], [index[x] for x in charges])
     magnetic = sympy.expand((currents.T * inductance.xreplace(connection) * currents)[0, 0] / 2)
     kinds = {effect.name: effect for effect in model.effects}
+    if any(label not in kinds and label.rpartition(".")[2] not in OWN_EFFECTS for label in system.effect_forces):
+        return None  # a known system's own effects: their kinds are not kept
     electric = sympy.Add(*[v for label, v in system.effect_potentials.items()
                            if isinstance(kinds.get(label), Capacitor)])
     dissipated = sympy.Add(*[-(f.T * qdot)[0, 0] for label, f in system.effect_forces.items()
