@@ -3,8 +3,8 @@
 The CSV is one header row of column names, then one row of numbers per output
 time: ``t``, each coordinate, each velocity, the kinetic, potential and total
 energy (for a model with circuit parts then the magnetic, electric and mechanical energy and
-the dissipated power, :mod:`kronsub.simulation.power`), the dependent coordinates of implicit constraints and (on request) the
-named points. Every number is written in its shortest round-trip form
+the dissipated power, :mod:`kronsub.simulation.power`), the dependent coordinates of
+implicit constraints and (on request) the named points. Every number is written in its shortest round-trip form
 (``repr(float)``: ``0.03``, not ``0.029999999999999999``), so ``float(text)``
 gives back the very double computed. No comment lines: ``csv.DictReader`` and
 ``pandas.read_csv`` read it without options, ``numpy.genfromtxt`` with ``names=True,
@@ -37,8 +37,7 @@ from ..interrupts import handled, signal_name, signal_of
 from ..model.file_reading import SourceFile
 from ..version import __version__
 from .fallback import numpy_module
-from .power import COLUMNS as SPLIT_COLUMNS
-from .power import EnergySplit
+from .power import COLUMNS as SPLIT_COLUMNS, EnergySplit
 from .rows import Block, RunInProgress, Trajectory
 from .values import RunValues
 
