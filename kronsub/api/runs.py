@@ -143,6 +143,7 @@ def simulate(system: KnownSystem, t: float | None = None, dt: float | None = Non
     ('free', 'complete')
     """
     from ..simulation.fallback import numpy_module
+    from ..simulation.power import energy_split
     from ..simulation.reactions import reaction_columns
     from ..simulation.table import energies, trajectory_table
 
@@ -157,7 +158,8 @@ def simulate(system: KnownSystem, t: float | None = None, dt: float | None = Non
     table_columns, table, metadata = trajectory_table(
         system, model_file(system), traj, values, rtol, atol, points, outputs, extra,
         t_end=t, dt=dt, scene=scene.name if scene is not None else None,
-        source=model.source if model is not None else None, uses=model.uses if model is not None else ())
+        source=model.source if model is not None else None, uses=model.uses if model is not None else (),
+        split=energy_split(model, system))
     T, V = energies(system, traj, param)
     columns = tuple(s.name for s in system.coordinates) + tuple(s.name for s in system.velocities)
     result = Run(traj.t, traj.y.reshape(len(traj.t), len(columns)), columns, T, V, traj.complete, traj.message,

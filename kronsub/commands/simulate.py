@@ -48,6 +48,7 @@ def simulate(model: Path, t_end: float | None, dt: float | None, method: str | N
     its metadata JSON (--meta, or beside --output)."""
     from ..api import System, run_span
     from ..simulation.constrained import newton_tolerance
+    from ..simulation.power import energy_split
     from ..simulation.run import SimulationError, check_tolerances, collect, explicit_only, row_count, start
     from ..simulation.start import starting_values
     from ..simulation.table import CsvWriter, metadata_json, trajectory_csv
@@ -86,7 +87,7 @@ def simulate(model: Path, t_end: float | None, dt: float | None, method: str | N
                     outputs=outputs, constrained=constrained)
         kept = [] if plot is not None or with_reactions else None
         run_info = dict(t_end=span, dt=step, scene=scene.name if scene is not None else None,
-                        source=loaded.source, uses=loaded.uses)
+                        source=loaded.source, uses=loaded.uses, split=energy_split(loaded, system))
 
         def stream(out):
             """Write the CSV; what is returned tells ``rows``, ``last_t``, ``stopped`` and the metadata."""

@@ -2,10 +2,11 @@
 
 The CSV is one header row of column names, then one row of numbers per output
 time: ``t``, each coordinate, each velocity, the kinetic, potential and total
-energy, the dependent coordinates of implicit constraints and (on request) the
-named points. Every number is written in its shortest round-trip form
-(``repr(float)``: ``0.03``, not ``0.029999999999999999``), so ``float(text)``
-gives back the very double computed. No comment lines: ``csv.DictReader`` and
+energy (for a model with circuit parts then the magnetic, electric and mechanical energy and
+the dissipated power, :mod:`kronsub.simulation.power`), the dependent coordinates of
+implicit constraints and (on request) the named points. Every number is written in its
+shortest round-trip form (``repr(float)``: ``0.03``, not ``0.029999999999999999``), so
+``float(text)`` gives back the very double computed. No comment lines: ``csv.DictReader`` and
 ``pandas.read_csv`` read it without options, ``numpy.genfromtxt`` with ``names=True,
 delimiter=",", deletechars=""`` (its default drops the dots of the point columns).
 
@@ -36,6 +37,7 @@ from ..interrupts import handled, signal_name, signal_of
 from ..model.file_reading import SourceFile
 from ..version import __version__
 from .fallback import numpy_module
+from .power import COLUMNS as SPLIT_COLUMNS, EnergySplit
 from .rows import Block, RunInProgress, Trajectory
 from .values import RunValues
 
@@ -178,10 +180,12 @@ class CsvWriter:
                  backend: str, rtol: float, atol: float, with_points: bool = False, outputs=None, *,
                  t_end: float | None = None, dt: float | None = None, scene: str | None = None,
                  source: SourceFile | None = None, uses: tuple[SourceFile, ...] = (),
-                 extra_columns: tuple[str, ...] = ()):
+                 extra_columns: tuple[str, ...] = (), split: EnergySplit | None = None):
         """``outputs`` (a scene's; None: everything) choose the columns (and the points);
         ``extra_columns`` are appended (their values passed to :meth:`block`); ``source`` and
-        ``uses`` are the model's files as it read them (:func:`model_record`)."""
+        ``uses`` are the model's files as it read them (:func:`model_record`); ``split`` (a
+        model with circuit parts, :func:`~kronsub.simulation.power.energy_split`) adds the
+        energies by kind and the dissipated power after the energies."""
         self.out, self.system, self.outputs = out, system, outputs
         self.with_points = with_points if outputs is None else bool(outputs.points)
         self.param = np.array(values.parameters)
@@ -189,6 +193,7 @@ class CsvWriter:
         self.rows, self.last_t, self.stopped, self.reader_gone = 0, None, False, False
         self.signum: int | None = None  # the signal that interrupted the run (SIGINT for Ctrl-C)
         self.want = {k: outputs is None or getattr(outputs, k) for k in ("coordinates", "velocities", "energies")}
+        self.split = split if self.want["energies"] else None
         columns = ["t"]
         if self.want["coordinates"]:
             columns += [q.name for q in system.coordinates]
@@ -196,6 +201,8 @@ class CsvWriter:
             columns += [v.name for v in system.velocities]
         if self.want["energies"]:
             columns += ["kinetic_energy", "potential_energy", "total_energy"]
+        if self.split is not None:
+            columns += list(SPLIT_COLUMNS)
         if system.implicit is not None:  # implicit constraints: the dependent coordinates
             columns += [d.name for d in system.implicit.dependent]
         if self.with_points:
@@ -240,7 +247,8 @@ class CsvWriter:
             }
         meta["columns"] = list(self.columns)
         meta["units"] = ("t in s; coordinates and velocities in the model's units (per s); energies in the "
-                         "model's energy unit" + ("; points in the model's length unit" if self.with_points else ""))
+                         "model's energy unit" + ("; dissipated_power in that unit per s" if self.split else "")
+                         + ("; points in the model's length unit" if self.with_points else ""))
         meta.update(status="running", complete=False, rows=0, last_t=None, cost={})
         return meta
 
@@ -275,6 +283,8 @@ class CsvWriter:
         if self.want["energies"]:
             T, V = _energies(self.module, block, self.param)
             data += [T.reshape(-1, 1), V.reshape(-1, 1), (T + V).reshape(-1, 1)]
+            if self.split is not None:
+                data.append(self.split.columns(block.t, Y, self.param))
         if self.system.implicit is not None:
             dependent = block.dependent if block.dependent is not None else \
                 np.full((n, len(self.system.implicit.dependent)), np.nan)

@@ -1,0 +1,77 @@
+"""The energy of a run with circuit parts split by kind, and the power its dissipation takes.
+
+The kinetic energy ``T = 1/2 Mbar_ab qdot^a qdot^b`` (24) holds the inductors' magnetic
+energy ``1/2 iᵀ L i`` over the branch currents ``i = d x_c(xbar)/dt`` (the charges ``x_c`` of
+the circuit parts carried by the connection (7)); the potential ``V`` holds the capacitors'
+electric energy ``q^2/(2 C)``. What is left of ``T + V`` is mechanical. The dissipated power
+is ``-fbarᵀ qdot`` of the resistors and dampers (twice Rayleigh's function for a linear one),
+so that ``d/dt (T + V) = P_sources - P_dissipated - P_loads`` along a run.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import sympy
+
+from ..core.known_system import KnownSystem
+from ..core.symbols import TIME, velocity_symbol
+from ..effects.electrical import Capacitor, Resistor
+from ..effects.elements import Damper, TorsionalDamper
+from ..model.circuits import CIRCUIT_TYPES
+
+COLUMNS = ("magnetic_energy", "electric_energy", "mechanical_energy", "dissipated_power")
+DISSIPATIVE = (Resistor, Damper, TorsionalDamper)
+OWN_DISSIPATION = "dissipation"
+OWN_EFFECTS = ("potential", OWN_DISSIPATION)
+"""The labels (after the part's name) of a textbook component's own effects: its potential
+(counted mechanical) and its Rayleigh dissipation."""
+
+
+@dataclass(frozen=True)
+class EnergySplit:
+    """The columns as one function of ``(q, qdot, p, t)``."""
+
+    function: object  # (q..., qdot..., p..., t) -> (magnetic, electric, mechanical, dissipated)
+
+    def columns(self, t, Y, param) -> np.ndarray:
+        """The rows of :data:`COLUMNS` at the times ``t`` and states ``Y`` (one per row)."""
+        Y = np.asarray(Y, dtype=float).reshape(len(t), -1)
+        p = np.asarray(param, dtype=float).tolist()
+        return np.array([self.function(*y, *p, time) for time, y in zip(np.asarray(t, dtype=float).tolist(),
+                                                                          Y.tolist())],
+                        dtype=float).reshape(len(t), len(COLUMNS))
+
+
+def energy_split(model, system: KnownSystem) -> EnergySplit | None:
+    """The split of ``system`` (derived from ``model``), or None when the model has no circuit
+    part, is a closed loop of implicit constraints (whose dependent currents this does not
+    follow) or uses a known system with effects of its own (whose kinds are not kept)."""
+    transition = system.transition
+    if model is None or transition is None or system.implicit is not None:
+        return None
+    charges = [q for part in model.primitive.parts if part.type_name in CIRCUIT_TYPES for q in part.coordinates]
+    if not charges:
+        return None
+    connection = dict(transition.connection)
+    index = {x: a for a, x in enumerate(transition.primitive_coordinates)}
+    qdot = sympy.Matrix(system.velocities)
+    # i = dx_c/dxbar qdot, without a drive's dx_c/dt (as T is 1/2 qdotᵀ Mbar qdot)
+    currents = sympy.Matrix([sympy.Add(*[sympy.diff(connection[x], q) * v for q, v in zip(system.coordinates, qdot)])
+                             for x in charges])
+    inductance = transition.primitive_metric.extract([index[x] for x in charges], [index[x] for x in charges])
+    magnetic = sympy.expand((currents.T * inductance.xreplace(connection) * currents)[0, 0] / 2)
+    kinds = {effect.name: effect for effect in model.effects}
+    if any(label not in kinds and label.rpartition(".")[2] not in OWN_EFFECTS for label in system.effect_forces):
+        return None  # a known system's own effects: their kinds are not kept
+    electric = sympy.Add(*[v for label, v in system.effect_potentials.items()
+                           if isinstance(kinds.get(label), Capacitor)])
+    dissipated = sympy.Add(*[-(f.T * qdot)[0, 0] for label, f in system.effect_forces.items()
+                             if isinstance(kinds.get(label), DISSIPATIVE)
+                             or (label not in kinds and label.rpartition(".")[2] == OWN_DISSIPATION)])
+    mechanical = sympy.expand(system.kinetic_energy - magnetic) + (system.potential_energy - electric)
+    args = [*system.coordinates, *system.velocities, *(p.symbol for p in system.parameters), TIME]
+    return EnergySplit(sympy.lambdify(args, [magnetic, electric, mechanical, dissipated], "math"))
+
+
+__all__ = ["COLUMNS", "EnergySplit", "energy_split"]
