@@ -1,15 +1,23 @@
 """What the outputs say of a prescribed motion (core/rheonomic.py) beyond the derivation:
 ``linearize`` refuses a drive that leaves ``t`` in the equations and says what it does when the
 drive drops out of them; the LaTeX shows the drive block the Markdown shows."""
+import re
 from pathlib import Path
 
+import jinja2
 import numpy as np
 import pytest
 from click.testing import CliRunner
 
 import kronsub
 from kronsub.cli import main
+from kronsub.core.symbols import TIME
+from kronsub.emitters import text
+from kronsub.emitters.escape import environment
+from kronsub.emitters.latex_layout import WIDTH, measure
+from kronsub.emitters.report import latex_printer
 from kronsub.errors import ModelError
+from kronsub.model.expressions import parse_expression
 
 MODELS = Path(__file__).resolve().parent.parent / "models" / "motion"
 
@@ -50,3 +58,58 @@ def test_turning_hoop_is_linearised_about_its_relative_rest_and_says_so():
                                        "--at", f"theta={th!r}"])
     assert result.exit_code == 0, result.output
     assert "Warning: the connection names t (a prescribed motion) but the equations do not" in result.output
+
+
+@pytest.fixture
+def worktree_templates(monkeypatch):
+    """The templates beside this package (an editable install may map ``kronsub.templates`` to
+    another checkout)."""
+    root = Path(kronsub.__file__).resolve().parent.parent / "templates"
+    if root.is_dir():
+        monkeypatch.setattr(text, "template_environment",
+                            lambda: environment(jinja2.FunctionLoader(lambda n: (root / n).read_text("utf-8"))))
+
+
+def _markdown_drive(doc: str) -> list[str]:
+    """The cells of the two drive tables of the Markdown (velocity of the drive, its terms in hbar)."""
+    start = doc.index("Velocity of the drive")
+    block = doc[start:doc.index("\n## ", start)]
+    return re.findall(r"^\| \*\*[^*]+\*\* \| `([^`]*)` \|$", block, re.M)
+
+
+def _latex_drive(doc: str) -> list[str]:
+    """The right-hand sides of the two drive displays of the LaTeX, their line breaks removed."""
+    start = doc.index("Velocity of the drive")
+    block = doc[start:doc.index("\\section*", start)]
+    cells = []
+    for align in re.findall(r"\\begin\{align\*\}\n(.*?)\\end\{align\*\}", block, re.S):
+        for row in re.split(r" \\\\\n(?!&\\quad)", align.strip()):
+            cells.append(row.split("&= ", 1)[1].replace(" \\\\\n&\\quad ", " "))
+    return cells
+
+
+@pytest.mark.parametrize("name", ["bead_on_turning_hoop.yaml", "kapitza_pendulum.yaml"])
+def test_latex_shows_the_drive_terms_the_markdown_shows(name, worktree_templates):
+    system = kronsub.load(MODELS / name).derive()
+    plain = _markdown_drive(text.emit_markdown(system))
+    shown = _latex_drive(text.emit_latex(system))
+    tr = system.transition
+    # as many entries: dx/dt per primitive coordinate, then hbar's drive terms per coordinate
+    assert len(plain) == len(shown) == len(tr.primitive_coordinates) + len(system.coordinates)
+    names = {s.name: s for s in (*system.coordinates, *system.velocities, *tr.primitive_coordinates, TIME)}
+    names.update({p.name: p.symbol for p in system.parameters})
+    show = latex_printer(tuple(system.coordinates) + tuple(tr.primitive_coordinates))
+    for cell, latex in zip(plain, shown):
+        expr = parse_expression(cell, names)
+        assert " ".join(show(expr).split()) == " ".join(latex.split()), (cell, latex)
+    assert any(TIME in parse_expression(c, names).free_symbols for c in plain)  # the drive's own terms
+
+
+@pytest.mark.parametrize("name", ["bead_on_turning_hoop.yaml", "kapitza_pendulum.yaml"])
+def test_latex_drive_block_fits_the_page(name, worktree_templates):
+    doc = text.emit_latex(kronsub.load(MODELS / name).derive())
+    start = doc.index("Velocity of the drive")
+    for line in doc[start:doc.index("\\section*", start)].splitlines():
+        if line.startswith(("\\begin", "\\end")) or "$" in line:
+            continue
+        assert measure(line) <= WIDTH + 8, line
