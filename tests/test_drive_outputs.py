@@ -113,3 +113,59 @@ def test_latex_drive_block_fits_the_page(name, worktree_templates):
         if line.startswith(("\\begin", "\\end")) or "$" in line:
             continue
         assert measure(line) <= WIDTH + 8, line
+
+
+def _run(name, t, dt):
+    return kronsub.load(MODELS / name).derive().simulate(t=t, dt=dt, rtol=1e-12, atol=1e-12, dataframe=False)
+
+
+def _trapezoid(y, t):
+    return float(np.sum((y[1:] + y[:-1]) * np.diff(t)) / 2)
+
+
+def test_turning_hoop_drive_power_is_the_torque_times_the_rate():
+    """The hoop's motor torque is d/dt of the bead's angular momentum about the axis,
+    ``d/dt(m R^2 sin^2 th w) = 2 m R^2 w sin th cos th thd``; its power is that times ``w``. The
+    primitive's energy is the total_energy column plus the drive's share of T,
+    ``1/2 m (R w sin th)^2``, and the power's integral is its change."""
+    m, R, w = 0.1, 0.5, 7.0
+    run = _run("bead_on_turning_hoop.yaml", 2.0, 1e-3)
+    t, th, thd, P = run["t"], run["theta"], run["theta_dot"], run["drive_power"]
+    assert np.allclose(P, 2 * m * R**2 * w**2 * np.sin(th) * np.cos(th) * thd, rtol=1e-9, atol=1e-12)
+    energy = run["total_energy"] + 0.5 * m * (R * w * np.sin(th))**2
+    assert abs(_trapezoid(P, t) - (energy[-1] - energy[0])) < 1e-5 * np.max(np.abs(P)) * t[-1]
+    assert np.ptp(energy) > 0.1 and np.ptp(run["total_energy"]) > 0.1  # the drive does put energy in and out
+
+
+def test_kapitza_drive_power_is_the_pivot_force_times_its_speed():
+    """The pivot's force on the bob (vertical, ``m (pyddot + g)`` with ``py = s - l cos th``,
+    ``thdd = -(g + sdd) sin th / l``) times the pivot's speed ``sd``:
+    ``P = m sd ((g + sdd) cos^2 th + l cos th thd^2)``. The primitive's energy is the total_energy
+    column plus the drive's share of T, ``m (sd^2 / 2 + l sin th thd sd)``."""
+    m, l, a, w, g = 1.0, 1.0, 0.05, 200.0, 9.81
+    run = _run("kapitza_pendulum.yaml", 0.2, 2e-5)
+    t, th, thd, P = run["t"], run["theta"], run["theta_dot"], run["drive_power"]
+    sd, sdd = -a * w * np.sin(w * t), -a * w**2 * np.cos(w * t)
+    hand = m * sd * ((g + sdd) * np.cos(th)**2 + l * np.cos(th) * thd**2)
+    assert np.allclose(P, hand, rtol=1e-9, atol=1e-9 * np.max(np.abs(hand)))
+    energy = run["total_energy"] + m * (sd**2 / 2 + l * np.sin(th) * thd * sd)
+    assert abs(_trapezoid(P, t) - (energy[-1] - energy[0])) < 1e-5 * np.max(np.abs(P)) * t[-1]
+
+
+@pytest.mark.parametrize("name", ["hoffmann/system1.yaml", "examples/four_bar.yaml"])
+def test_undriven_models_have_no_drive_power_column(name):
+    path = MODELS.parent / name
+    result = CliRunner().invoke(main, ["simulate", str(path), "--t", "0.02", "--dt", "0.01"])
+    assert result.exit_code == 0, result.output
+    header = result.output.splitlines()[0].split(",")
+    assert "drive_power" not in header and header[-1] in ("total_energy", *header[-3:])
+
+
+def test_driven_csv_and_run_table_share_the_column():
+    path = MODELS / "bead_on_turning_hoop.yaml"
+    result = CliRunner().invoke(main, ["simulate", str(path), "--t", "0.02", "--dt", "0.01"])
+    assert result.exit_code == 0, result.output
+    header = result.output.splitlines()[0].split(",")
+    assert header[-4:] == ["kinetic_energy", "potential_energy", "total_energy", "drive_power"]
+    run = _run("bead_on_turning_hoop.yaml", 0.02, 0.01)
+    assert "drive_power" in run.table_columns
