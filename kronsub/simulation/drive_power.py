@@ -40,19 +40,35 @@ class DrivePower:
         args = (TIME, *system.coordinates, *system.velocities, *(p.symbol for p in system.parameters))
         self.n = len(system.coordinates)
         self.power = sympy.lambdify((*args, *system.accelerations), projection.power, "numpy")
-        self.mass = sympy.lambdify(args, system.mass_matrix, "numpy")
-        self.rest = sympy.lambdify(args, system.forces - system.velocity_terms, "numpy")
+        self.mass = [sympy.lambdify(args, e, "numpy") for e in system.mass_matrix]
+        self.rest = [sympy.lambdify(args, e, "numpy") for e in system.forces - system.velocity_terms]
 
     def __call__(self, t: np.ndarray, y: np.ndarray, param) -> np.ndarray:
-        """``P`` at each row ``(t_i, y_i)``, ``y = [q; qdot]``."""
-        y = np.asarray(y, dtype=float).reshape(len(t), -1)
-        out = np.empty(len(t))
-        for i, (ti, yi) in enumerate(zip(np.asarray(t, dtype=float), y)):
-            args = (ti, *yi, *param)
-            qdd = np.linalg.solve(np.asarray(self.mass(*args), dtype=float),
-                                  np.asarray(self.rest(*args), dtype=float).reshape(-1))
-            out[i] = float(self.power(*args, *qdd))
-        return out
+        """``P`` at each row ``(t_i, y_i)``, ``y = [q; qdot]``, all rows at once."""
+        t = np.asarray(t, dtype=float)
+        rows = len(t)
+        if not rows:
+            return np.zeros(0)
+        y = np.asarray(y, dtype=float).reshape(rows, -1)
+        args = (t, *y.T, *param)
+
+        def each(f):  # a constant entry gives a scalar: one value per row
+            return np.broadcast_to(np.asarray(f(*args), dtype=float), (rows,))
+
+        mass = np.stack([each(f) for f in self.mass], axis=-1).reshape(rows, self.n, self.n)
+        rest = np.stack([each(f) for f in self.rest], axis=-1).reshape(rows, self.n, 1)
+        try:
+            qdd = np.linalg.solve(mass, rest)[:, :, 0]
+        except np.linalg.LinAlgError:  # a singular Mbar at some row: no power known there
+            qdd = np.array([_solved(m, r) for m, r in zip(mass, rest)]).reshape(rows, self.n)
+        return np.broadcast_to(np.asarray(self.power(*args, *qdd.T), dtype=float), (rows,)).copy()
+
+
+def _solved(mass: np.ndarray, rest: np.ndarray) -> np.ndarray:
+    try:
+        return np.linalg.solve(mass, rest)[:, 0]
+    except np.linalg.LinAlgError:
+        return np.full(len(rest), np.nan)
 
 
 __all__ = ["COLUMN", "DrivePower", "driven"]
