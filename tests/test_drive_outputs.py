@@ -169,3 +169,13 @@ def test_driven_csv_and_run_table_share_the_column():
     assert header[-4:] == ["kinetic_energy", "potential_energy", "total_energy", "drive_power"]
     run = _run("bead_on_turning_hoop.yaml", 0.02, 0.01)
     assert "drive_power" in run.table_columns
+
+
+def test_kapitza_drive_power_is_the_pivot_speed_times_the_printed_reaction():
+    """The same power from another route: ``--reactions``' ``R_py`` (core/reactions.py) times the
+    pivot's speed ``sd = -a w sin(w t)`` (``s`` has only a ``py`` component)."""
+    a, w = 0.05, 200.0
+    run = kronsub.load(MODELS / "kapitza_pendulum.yaml").derive().simulate(
+        t=0.05, dt=0.001, reactions=True, dataframe=False)
+    sd = -a * w * np.sin(w * run["t"])
+    assert np.allclose(run["drive_power"], sd * run["R_py"], rtol=1e-9, atol=1e-9 * np.max(np.abs(run["drive_power"])))
