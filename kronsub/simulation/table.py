@@ -2,8 +2,8 @@
 
 The CSV is one header row of column names, then one row of numbers per output
 time: ``t``, each coordinate, each velocity, the kinetic, potential and total
-energy (and the power of a prescribed motion, :mod:`.drive_power`), the dependent coordinates of implicit constraints and (on request) the
-named points. Every number is written in its shortest round-trip form
+energy (and the power of a prescribed motion, :mod:`.drive_power`), the dependent
+coordinates of implicit constraints and (on request) the named points. Every number is written in its shortest round-trip form
 (``repr(float)``: ``0.03``, not ``0.029999999999999999``), so ``float(text)``
 gives back the very double computed. No comment lines: ``csv.DictReader`` and
 ``pandas.read_csv`` read it without options, ``numpy.genfromtxt`` with ``names=True,
@@ -250,7 +250,8 @@ class CsvWriter:
                     "on the primitive: the rate of change of the primitive's T + V with the drive's velocity in T")
         meta["columns"] = list(self.columns)
         meta["units"] = ("t in s; coordinates and velocities in the model's units (per s); energies in the "
-                         "model's energy unit" + ("; drive_power in energy per s" if self.with_drive else "") + ("; points in the model's length unit" if self.with_points else ""))
+                         "model's energy unit" + ("; drive_power in energy per s" if self.with_drive else "")
+                         + ("; points in the model's length unit" if self.with_points else ""))
         meta.update(status="running", complete=False, rows=0, last_t=None, cost={})
         return meta
 
