@@ -3,8 +3,9 @@
 The CSV is one header row of column names, then one row of numbers per output
 time: ``t``, each coordinate, each velocity, the kinetic, potential and total
 energy (and the power of a prescribed motion, :mod:`.drive_power`), the dependent
-coordinates of implicit constraints and (on request) the named points. Every number is written in its shortest round-trip form
-(``repr(float)``: ``0.03``, not ``0.029999999999999999``), so ``float(text)``
+coordinates of implicit constraints and (on request) the named points. Every number is
+written in its shortest round-trip form (``repr(float)``: ``0.03``, not
+``0.029999999999999999``), so ``float(text)``
 gives back the very double computed. No comment lines: ``csv.DictReader`` and
 ``pandas.read_csv`` read it without options, ``numpy.genfromtxt`` with ``names=True,
 delimiter=",", deletechars=""`` (its default drops the dots of the point columns).
