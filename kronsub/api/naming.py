@@ -7,6 +7,7 @@ intermediates (26)-(29).
 """
 from __future__ import annotations
 
+import dataclasses
 from typing import Mapping, Sequence
 
 import numpy as np
@@ -15,12 +16,13 @@ import sympy
 from ..core.known_system import KnownSystem
 from ..core.linearize import Linearization
 from ..core.linearize import linearize as core_linearize
+from ..core.rheonomic import depends_on_time
 from ..core.symbols import TIME
 from ..errors import KronsubError, Location, ModelError, Problem, near_names
 from ..model.expressions import parse_expression
 from ..model.requirements import parameters_in, unmet
 
-__all__ = ["UnknownName", "linearize", "names", "split_assignments", "symbol"]
+__all__ = ["UnknownName", "linearize", "names", "refuse_driven", "split_assignments", "symbol"]
 
 
 class UnknownName(KronsubError):
@@ -108,12 +110,14 @@ def split_assignments(system: KnownSystem, at: Mapping[str, object] | None, opti
 
 
 def linearize(system: KnownSystem, at: Mapping[str, object] | None = None, inputs: Sequence[str] = (),
-              *, symbolic: bool = False, initial: Mapping | None = None, option: str | None = None) -> Linearization:
+              *, symbolic: bool = False, initial: Mapping | None = None, option: str | None = None,
+              drive: Location | None = None) -> Linearization:
     """:func:`kronsub.core.linearize.linearize` with names: ``at={"theta": "pi", "b": 0}``
     fixes coordinates, velocities, ``t`` and parameter values; ``inputs=["u"]`` names the
     parameters that are inputs. ``initial`` (default: the model's initial values carried
     by the system: the model's, a scene's over them) starts the search for an equilibrium.
-    ``option`` (``"--at"``) places problems with the values at ``--at NAME``.
+    ``option`` (``"--at"``) places problems with the values at ``--at NAME``; ``drive`` is where
+    the model writes its prescribed motion (:func:`refuse_driven` places its error there).
 
     >>> import kronsub
     >>> system = kronsub.load("models/hoffmann/system1.yaml").derive(scene="free")
@@ -144,6 +148,29 @@ def linearize(system: KnownSystem, at: Mapping[str, object] | None = None, input
             (Location(f"{option} {s.name}") for s in parameters_in(req) if option and s.name in given), None)))
     if problems:
         raise ModelError(problems)
+    notes = refuse_driven(system, drive)
     start = dict(system.initial) if initial is None else {symbol(system, k) if isinstance(k, str) else k: v
                                                            for k, v in initial.items()}
-    return core_linearize(system, inputs=chosen, point=point, values=values, initial=start, symbolic=symbolic)
+    lin = core_linearize(system, inputs=chosen, point=point, values=values, initial=start, symbolic=symbolic)
+    return dataclasses.replace(lin, notes=lin.notes + notes) if notes else lin
+
+
+def refuse_driven(system: KnownSystem, drive: Location | None = None) -> tuple[str, ...]:
+    """A prescribed motion ``x = x(xbar, t)`` (:mod:`..core.rheonomic`) and linearisation: when
+    ``t`` is left in ``Mbar``, ``hbar`` or ``fbar`` the rest states move with time, so there is
+    no equilibrium to linearise about (a :class:`ModelError` placed at ``drive``); when the
+    drive drops out of the equations (a hoop turned at a constant rate) the linearisation is
+    exact, about a rest state relative to the driven coordinates, and the note returned says so."""
+    tr = system.transition
+    if tr is None or not depends_on_time(dict(tr.connection)):
+        return ()
+    equations = [*system.mass_matrix, *system.velocity_terms, *(e for f in system.effect_forces.values() for e in f)]
+    if any(TIME in sympy.sympify(e).free_symbols for e in equations):
+        raise ModelError([Problem(drive, f"{system.name} has a prescribed motion and its equations name t: "
+                                         "its rest states move with time, so there is no equilibrium to "
+                                         "linearise about",
+                                  "simulate it instead (an averaged stability, such as Kapitza's pendulum "
+                                  "upside down, shows in a run); or write the drive so that it leaves the "
+                                  "equations (a constant rate in the coordinates it turns)")])
+    return ("the connection names t (a prescribed motion) but the equations do not: the operating point is a "
+            "rest state relative to the driven coordinates, which move with the drive",)

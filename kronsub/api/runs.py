@@ -29,8 +29,8 @@ class Run:
     """A simulated trajectory: what ``kronsub simulate`` writes, as arrays.
 
     ``table`` holds the CSV's rows (its first column ``t``) under the CSV's header
-    ``table_columns`` (coordinates, velocities, energies, the dependent coordinates of a closed
-    loop, points and reactions when asked for); ``metadata`` is what ``--meta`` writes.
+    ``table_columns`` (coordinates, velocities, energies, ``drive_power`` for a prescribed motion,
+    the dependent coordinates of a closed loop, points and reactions when asked for); ``metadata`` is what ``--meta`` writes.
     ``y = [q; qdot]`` per row with ``columns`` its names; ``notes`` the corrections the
     projection onto the constraints made to the initial values."""
 

@@ -85,7 +85,9 @@ class System(KnownSystem):
 
     def linearize(self, at=None, inputs=(), *, symbolic: bool = False) -> Linearization:
         """``A``, ``B`` about an operating point; see :func:`linearize`."""
-        return linearize(self, at, inputs, symbolic=symbolic)
+        model = self.model
+        return linearize(self, at, inputs, symbolic=symbolic,
+                         drive=model.locations.get("drive") if model is not None else None)
 
     def _repr_markdown_(self) -> str:
         return repr_markdown(self)

@@ -45,7 +45,8 @@ def linearize(model: Path, at: tuple[str, ...], inputs: str, symbolic: bool, fmt
             fail(f"Error: --inputs names {', '.join(twice)} more than once\n  hint: name each input once", USAGE_ERROR)
         loaded, _, system = scene_system(model, scene_name)
         try:
-            lin = linearize_system(system, assignments, names, symbolic=symbolic, option="--at")
+            lin = linearize_system(system, assignments, names, symbolic=symbolic, option="--at",
+                                   drive=loaded.locations.get("drive"))
         except LinearizationError:
             coincident_at_start(loaded, system, assignments)
             raise

@@ -126,6 +126,8 @@ class ModelLoader(ModelReader):
             check_circuit(self, primitive, connection, y, effects)
         if motions:
             check_effects(self, root.get("effects"), effects, motions)
+        if motions or names_time(connection):  # where the drive is written (linearize refuses there)
+            self.locations["drive"] = root.key_locations.get("prescribed") or root.key_locations["connection"]
         initial = read_initial(self, root.get("initial"), y)
         declared = root.get("effects")
         scenes = build_scenes(self, root.get("scenes"), list(declared.value) if declared is not None and

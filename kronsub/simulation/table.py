@@ -3,10 +3,11 @@
 The CSV is one header row of column names, then one row of numbers per output
 time: ``t``, each coordinate, each velocity, the kinetic, potential and total
 energy (for a model with circuit parts then the magnetic, electric and mechanical energy and
-the dissipated power, :mod:`kronsub.simulation.power`), the dependent coordinates of
-implicit constraints and (on request) the named points. Every number is written in its
-shortest round-trip form (``repr(float)``: ``0.03``, not ``0.029999999999999999``), so
-``float(text)`` gives back the very double computed. No comment lines: ``csv.DictReader`` and
+the dissipated power, :mod:`kronsub.simulation.power`; for a prescribed motion the drive's
+power, :mod:`.drive_power`), the dependent coordinates of implicit constraints and (on
+request) the named points. Every number is written in its shortest round-trip form
+(``repr(float)``: ``0.03``, not ``0.029999999999999999``), so ``float(text)`` gives back the
+very double computed. No comment lines: ``csv.DictReader`` and
 ``pandas.read_csv`` read it without options, ``numpy.genfromtxt`` with ``names=True,
 delimiter=",", deletechars=""`` (its default drops the dots of the point columns).
 
@@ -36,6 +37,8 @@ from ..emitters.escape import json_document
 from ..interrupts import handled, signal_name, signal_of
 from ..model.file_reading import SourceFile
 from ..version import __version__
+from .drive_power import COLUMN as DRIVE_POWER
+from .drive_power import DrivePower, driven
 from .fallback import numpy_module
 from .power import COLUMNS as SPLIT_COLUMNS, EnergySplit
 from .rows import Block, RunInProgress, Trajectory
@@ -203,6 +206,10 @@ class CsvWriter:
             columns += ["kinetic_energy", "potential_energy", "total_energy"]
         if self.split is not None:
             columns += list(SPLIT_COLUMNS)
+        self.drive = None  # the drive's power P = s^T R (x = x(xbar, t)), made on first use
+        self.with_drive = self.want["energies"] and driven(system)
+        if self.with_drive:
+            columns.append(DRIVE_POWER)
         if system.implicit is not None:  # implicit constraints: the dependent coordinates
             columns += [d.name for d in system.implicit.dependent]
         if self.with_points:
@@ -245,9 +252,14 @@ class CsvWriter:
                 "why": "the connection names t: the drive puts power in; kinetic_energy is 1/2 qdot^T Mbar qdot, "
                        "without the drive's velocity",
             }
+            if self.with_drive:
+                meta["prescribed_motion"]["power"] = (
+                    f"{DRIVE_POWER} is s^T R, s = dx/dt the drive's velocity and R = M xddot + h - f the reaction "
+                    "on the primitive: the rate of change of the primitive's T + V with the drive's velocity in T")
         meta["columns"] = list(self.columns)
         meta["units"] = ("t in s; coordinates and velocities in the model's units (per s); energies in the "
                          "model's energy unit" + ("; dissipated_power in that unit per s" if self.split else "")
+                         + ("; drive_power in energy per s" if self.with_drive else "")
                          + ("; points in the model's length unit" if self.with_points else ""))
         meta.update(status="running", complete=False, rows=0, last_t=None, cost={})
         return meta
@@ -285,6 +297,10 @@ class CsvWriter:
             data += [T.reshape(-1, 1), V.reshape(-1, 1), (T + V).reshape(-1, 1)]
             if self.split is not None:
                 data.append(self.split.columns(block.t, Y, self.param))
+        if self.with_drive:
+            if self.drive is None:
+                self.drive = DrivePower(self.system)
+            data.append(self.drive(block.t, Y, self.param).reshape(-1, 1))
         if self.system.implicit is not None:
             dependent = block.dependent if block.dependent is not None else \
                 np.full((n, len(self.system.implicit.dependent)), np.nan)
