@@ -7,7 +7,8 @@ running cluster instead, and one that cannot be reached is an error within
 :func:`window` chunks are in flight, so the client's memory does not grow with the number of
 runs; each finished chunk is handed to ``done`` (which writes it) as it arrives, so an
 interrupt keeps every chunk finished before it. A worker lost mid-sweep has its chunks rerun
-elsewhere by the scheduler."""
+elsewhere (by the scheduler, or by the driver when a task was cancelled with the job's copy
+on that worker), each at most :data:`RETRIES` times."""
 from __future__ import annotations
 
 import logging
@@ -21,7 +22,8 @@ from ..errors import KronsubError
 from ..interrupts import handled
 from .chunk import Job, run_chunk
 
-__all__ = ["CONNECT_SECONDS", "ENV_SCHEDULER", "SchedulerError", "SweepProgress", "execute", "window"]
+__all__ = ["CONNECT_SECONDS", "ENV_SCHEDULER", "RETRIES", "SchedulerError", "SweepLost", "SweepProgress", "execute",
+           "window"]
 
 CONNECT_SECONDS = 5  # a scheduler that does not answer by then is reported, not waited for
 ENV_SCHEDULER = "DASK_SCHEDULER_ADDRESS"
@@ -30,6 +32,13 @@ INSTALL_HINT = "pip install 'kronsub[sweep]'"
 
 class SchedulerError(KronsubError):
     """The Dask scheduler could not be reached, or Dask is not installed."""
+
+
+class SweepLost(KronsubError):
+    """A chunk failed on the cluster more than :data:`RETRIES` times."""
+
+
+RETRIES = 3  # reruns of a chunk lost with its worker before the sweep stops
 
 
 def window(workers: int) -> int:
@@ -94,22 +103,37 @@ def execute(job: Job, todo: Iterable[int], done: Callable[[int, dict], None], *,
 
     client, cluster = _connect(scheduler, workers)
     pending = list(todo)[::-1]
+    tries: dict[int, int] = {}
     try:
         count = len(client.scheduler_info().get("workers", {})) or (workers or 1)
-        shared = client.scatter(job, broadcast=True, hash=False)
+        shared = [client.scatter(job, broadcast=True, hash=False)]
         chunk_of = {}
 
         def submit():
             index = pending.pop()
-            future = client.submit(run_chunk, shared, index, pure=False,
+            future = client.submit(run_chunk, shared[0], index, pure=False,
                                    key=f"kronsub-sweep-{index}-{os.urandom(4).hex()}")
             chunk_of[future.key] = index
             return future
 
         with client.as_current():  # as_completed asks for the current client
-            futures = as_completed([submit() for _ in range(min(window(count), len(pending)))], with_results=True)
+            futures = as_completed([submit() for _ in range(min(window(count), len(pending)))], with_results=True,
+                                   raise_errors=False)
             for future, rows in futures:
                 index = chunk_of.pop(future.key)
+                if future.status != "finished" or isinstance(rows, BaseException):
+                    # lost with a worker (the job's copy there, or the task itself): run it again
+                    tries[index] = tries.get(index, 0) + 1
+                    future.release()
+                    if tries[index] > RETRIES:
+                        raise SweepLost(f"chunk {index} failed {tries[index]} times on the cluster "
+                                        f"({type(rows).__name__}: {rows})\n  hint: check the workers' logs; "
+                                        "--resume finishes the sweep without the chunks already written")
+                    if future.status == "cancelled":
+                        shared[0] = client.scatter(job, broadcast=True, hash=False)
+                    pending.append(index)
+                    futures.add(submit())
+                    continue
                 done(index, rows)
                 if progress is not None:
                     progress.update(len(rows["run"]))
