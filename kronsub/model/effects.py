@@ -346,64 +346,64 @@ def _potential(reader: ModelReader, ename, spec, primitive):
     return None if value is None else Potential(ename, value=value)
 
 
-def _charge(loader: ModelReader, spec: Node, primitive, ename: str, key: str = "charge"):
+def _charge(reader: ModelReader, spec: Node, primitive, ename: str, key: str = "charge"):
     """The charge a circuit element acts along: an expression in the coordinates (a branch's
     ``q``, a loop charge, a difference of two), never in their rates."""
-    node = _required(loader, spec, key, ename, "e.g. `charge: coil.q` (a branch's charge, or a loop charge)")
+    node = _required(reader, spec, key, ename, "e.g. `charge: coil.q` (a branch's charge, or a loop charge)")
     if node is None:
         return None
-    return _positional(loader, node, loader.expr(node, what=f"charge of '{ename}'"), primitive, ename, "the charge")
+    return _positional(reader, node, reader.expr(node, what=f"charge of '{ename}'"), primitive, ename, "the charge")
 
 
-def _element_value(loader: ModelReader, spec: Node, primitive, ename: str, key: str, unit: str, sign: str = ""):
+def _element_value(reader: ModelReader, spec: Node, primitive, ename: str, key: str, unit: str, sign: str = ""):
     """A circuit element's value (``capacitance:``, ``resistance:``, ``voltage:``): a function of
     the configuration and ``t``; with ``sign``, what its value must be once the parameters are
     numbers (a negative resistance would create energy)."""
-    node = _required(loader, spec, key, ename, f"e.g. `{key}: {unit}`")
+    node = _required(reader, spec, key, ename, f"e.g. `{key}: {unit}`")
     if node is None:
         return None
-    value = _positional(loader, node, loader.expr(node, what=key), primitive, ename, f"the {key}")
+    value = _positional(reader, node, reader.expr(node, what=key), primitive, ename, f"the {key}")
     if value is not None and sign:
-        loader.requirements.append(Requirement(f"{key} of '{ename}'", value, sign, node.location))
+        reader.requirements.append(Requirement(f"{key} of '{ename}'", value, sign, node.location))
     return value
 
 
-def _capacitor(loader: ModelReader, ename, spec, primitive):
-    charge = _charge(loader, spec, primitive, ename)
-    capacitance = _element_value(loader, spec, primitive, ename, "capacitance", "C", POSITIVE)
+def _capacitor(reader: ModelReader, ename, spec, primitive):
+    charge = _charge(reader, spec, primitive, ename)
+    capacitance = _element_value(reader, spec, primitive, ename, "capacitance", "C", POSITIVE)
     if charge is None or capacitance is None:
         return None
     return Capacitor(ename, charge=charge, capacitance=capacitance)
 
 
-def _resistor(loader: ModelReader, ename, spec, primitive):
-    charge = _charge(loader, spec, primitive, ename)
-    resistance = _element_value(loader, spec, primitive, ename, "resistance", "R", POSITIVE)
+def _resistor(reader: ModelReader, ename, spec, primitive):
+    charge = _charge(reader, spec, primitive, ename)
+    resistance = _element_value(reader, spec, primitive, ename, "resistance", "R", POSITIVE)
     if charge is None or resistance is None:
         return None
     return Resistor(ename, charge=charge, resistance=resistance)
 
 
-def _voltage_source(loader: ModelReader, ename, spec, primitive):
-    charge = _charge(loader, spec, primitive, ename)
-    vnode = _required(loader, spec, "voltage", ename, "e.g. `voltage: E*sin(w*t)`")
-    voltage = loader.expr(vnode, what="voltage") if vnode is not None else None
+def _voltage_source(reader: ModelReader, ename, spec, primitive):
+    charge = _charge(reader, spec, primitive, ename)
+    vnode = _required(reader, spec, "voltage", ename, "e.g. `voltage: E*sin(w*t)`")
+    voltage = reader.expr(vnode, what="voltage") if vnode is not None else None
     if charge is None or voltage is None:
         return None
     return VoltageSource(ename, charge=charge, voltage=voltage)
 
 
-def _gyrator(loader: ModelReader, ename, spec, primitive):
-    bnode = _required(loader, spec, "between", ename, "e.g. `between: [armature.q, shaft.angle]`")
+def _gyrator(reader: ModelReader, ename, spec, primitive):
+    bnode = _required(reader, spec, "between", ename, "e.g. `between: [armature.q, shaft.angle]`")
     if bnode is None:
         return None
     if not bnode.is_sequence or len(bnode.value) != 2:
-        loader.error(bnode, f"`between:` of '{ename}' must list two coordinates (expressions)",
+        reader.error(bnode, f"`between:` of '{ename}' must list two coordinates (expressions)",
                      "e.g. `between: [armature.q, shaft.angle]`: the current and the speed it couples")
         return None
-    ends = [_positional(loader, n, loader.expr(n, what=f"end of '{ename}'"), primitive, ename, "an end")
+    ends = [_positional(reader, n, reader.expr(n, what=f"end of '{ename}'"), primitive, ename, "an end")
             for n in bnode.value]
-    constant = _element_value(loader, spec, primitive, ename, "constant", "k")
+    constant = _element_value(reader, spec, primitive, ename, "constant", "k")
     if any(e is None for e in ends) or constant is None:
         return None
     return Gyrator(ename, first=ends[0], second=ends[1], constant=constant)
