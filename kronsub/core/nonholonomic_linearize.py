@@ -1,0 +1,308 @@
+"""Linearisation of a constrained system about a steady motion, dependent coordinates and
+speeds taken along (Peterson, Gede & Hubbard 2014).
+
+The system in its coordinates ``x`` (n), with configuration constraints ``g(x, t) = 0`` (l),
+velocity constraints ``A(x) xdot + b(x, t) = 0`` (m) and speeds ``u = Y(x) xdot`` (p = n - l - m):
+
+    S(x) xdot = r(x, u, t),   S = [G; A; Y],   r = [-dg/dt; -b; u],   G = dg/dx
+    xdot = w(x, u, t) = C u + d,   C = S^-1 [0; I]                      (non-holonomic frame)
+    Mbar udot = fbar - hbar                                              (9'), (D)-(F)
+    Mbar = C^T M C,   hbar = C^T (M (Cdot u + ddot) + h(x, xdot)),   fbar = C^T f(x, xdot, t)
+    Cdot u + ddot = sum_k (dw/dx_k) w_k + dw/dt,   dw/dx_k = S^-1 (dr/dx_k - dS/dx_k w)
+
+``M(x) = J^T W J`` (a primitive ``W`` and its projection ``J``; ``J = I`` for a metric given
+as it is) and ``h`` its Christoffel terms (A), ``h_a = (d_c M_ab - 1/2 d_a M_bc) xdot^b xdot^c``,
+unless the system brings its own.
+
+A naive Jacobian of the equations in the speeds goes wrong in two ways: it holds the
+dependent speeds (``w``) fixed while ``x`` moves, so misses ``dC/dx`` and the constraint
+forces ``C^T`` turns away (they are not zero at a steady motion: the ground holds the wheels
+up); and it moves the dependent coordinates independently of the others, off ``g = 0``. Here
+the rates ``F(x, u) = [w; Mbar^-1 (fbar - hbar)]`` are differentiated whole, every dependence
+taken, and the result restricted to the tangent of ``g = 0``, ``dx_D = -G_D^-1 G_K dx_K``:
+``G dx`` is constant along the linearised motion (``d(G dx)/dt = 0`` because ``dG_ij/dx_k``
+is symmetric in ``j, k``), so that subspace is invariant and the restriction exact. The
+coordinates that are neither kept nor dependent are ignorable (cyclic): the kept rates
+must not depend on them, which is checked.
+
+The derivatives of ``F`` are taken by the complex step (Squire & Trapp 1998):
+``dF/dz_j = Im F(z + i h e_j) / h`` with no difference taken, so exact to rounding for a tiny
+``h``; ``F`` needs only ``W, J, dJ/dx, S, dS/dx, r, dr/dx`` and ``f`` symbolically.
+"""
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+import sympy
+
+from .derivative import derivative
+from .linearize_numerics import Linearization, LinearizationError
+from .nonholonomic import linear_form
+from .symbols import TIME, velocity_symbol
+
+COMPLEX_STEP = 1e-30
+"""The step ``h`` of the complex step: ``Im F(z + i h)`` is ``h F'(z)`` to ``O(h^3)``, no cancellation."""
+STEADY_TOLERANCE = 1e-8
+"""Largest rate of a kept coordinate or of a speed (relative to the speeds' size) at a point called steady."""
+IGNORABLE_TOLERANCE = 1e-9
+"""Largest dependence of a kept rate on an ignorable coordinate (relative to the Jacobian's size)."""
+NEWTON_STEPS = 50  # iterations allowed to put the dependent coordinates on g = 0
+
+
+@dataclass(frozen=True)
+class ProjectedMetric:
+    """``M(x) = J(x)^T W(x) J(x)``: a primitive metric ``W`` and its projection ``J``."""
+
+    weights: sympy.Matrix
+    projection: sympy.Matrix
+
+
+@dataclass(frozen=True)
+class ConstrainedMotion:
+    """A system in coordinates ``x`` with configuration and velocity constraints, and its speeds.
+
+    ``metric`` is ``M(x)`` or a :class:`ProjectedMetric` (blocks stacked: one per body);
+    ``force`` is ``f(x, xdot, t)``; ``speeds`` maps each speed to ``Y(x) xdot``;
+    ``velocity_constraints`` are expressions ``A(x) xdot + b(x, t)`` (``= 0``),
+    ``configuration_constraints`` expressions ``g(x, t)`` (``= 0``); ``velocity_terms`` is
+    ``h(x, xdot)`` when it is not the metric's own (Christoffel) terms.
+    """
+
+    coordinates: tuple[sympy.Symbol, ...]
+    metric: sympy.Matrix | ProjectedMetric
+    force: sympy.Matrix
+    speeds: Mapping[sympy.Symbol, sympy.Expr]
+    velocity_constraints: tuple[sympy.Expr, ...] = ()
+    configuration_constraints: tuple[sympy.Expr, ...] = ()
+    velocity_terms: sympy.Matrix | None = None
+
+
+class _Compiled:
+    """One numpy function of the coordinates, velocities, time and inputs for a list of matrices."""
+
+    def __init__(self, matrices: Sequence[sympy.Matrix], arguments: Sequence[sympy.Symbol]):
+        self.shapes = [m.shape for m in matrices]
+        flat = [e for m in matrices for e in m]
+        self.fn = sympy.lambdify([list(arguments)], flat, modules=["numpy"], cse=True)
+
+    def __call__(self, arguments) -> list[np.ndarray]:
+        flat = np.array(self.fn(arguments), dtype=complex).ravel() if self.shapes else np.zeros(0)
+        out, start = [], 0
+        for rows, cols in self.shapes:
+            out.append(flat[start:start + rows * cols].reshape(rows, cols))
+            start += rows * cols
+        return out
+
+
+class SteadyMotionRates:
+    """The rates ``F(x, u) = [w; udot]`` of a :class:`ConstrainedMotion` at numeric parameter
+    values, in complex arithmetic (for the complex step), and its linearisation."""
+
+    def __init__(self, motion: ConstrainedMotion, values: Mapping[sympy.Symbol, float] | None = None,
+                 inputs: Sequence[sympy.Symbol] = ()):
+        self.motion = motion
+        x = self.x = tuple(motion.coordinates)
+        n = self.n = len(x)
+        xd = [velocity_symbol(q) for q in x]
+        self.speeds = tuple(motion.speeds)
+        self.inputs = tuple(inputs)
+        numbers = {s: sympy.Float(float(v), 17) for s, v in (values or {}).items()}
+
+        def fixed(m):
+            return sympy.Matrix(m).xreplace(numbers) if numbers else sympy.Matrix(m)
+
+        g = fixed(sympy.Matrix(list(motion.configuration_constraints))) if motion.configuration_constraints \
+            else sympy.zeros(0, 1)
+        self.l = g.rows
+        G = g.jacobian(list(x)) if g.rows else sympy.zeros(0, n)
+        if motion.velocity_constraints:
+            A, b = linear_form([fixed(sympy.Matrix([c]))[0] for c in motion.velocity_constraints], x)
+        else:
+            A, b = sympy.zeros(0, n), sympy.zeros(0, 1)
+        Y, c = linear_form([fixed(sympy.Matrix([e]))[0] for e in motion.speeds.values()], x)
+        if any(e != 0 for e in c):
+            raise LinearizationError("a speed has a term without a velocity\n  hint: define each speed as Y(x) xdot")
+        p = self.p = len(self.speeds)
+        if G.rows + A.rows + p != n:
+            raise LinearizationError(
+                f"{p} speed(s) for {n - G.rows - A.rows} degree(s) of freedom\n  hint: name as many speeds as the "
+                f"{n} coordinates less the {G.rows} configuration and {A.rows} velocity constraints")
+        S = G.col_join(A).col_join(Y)
+        if any(e.has(TIME) for e in S):
+            raise LinearizationError("a constraint's velocity coefficients depend on time\n  hint: only the offset "
+                                     "b(x, t) of A(x) xdot + b(x, t) = 0 may depend on t")
+        # r = [-dg/dt; -b; u] less its u part, which is added numerically
+        r0 = (-g.diff(TIME) if g.rows else sympy.zeros(0, 1)).col_join(-b).col_join(sympy.zeros(p, 1))
+        if isinstance(motion.metric, ProjectedMetric):
+            W, J = fixed(motion.metric.weights), fixed(motion.metric.projection)
+        else:
+            W, J = fixed(motion.metric), sympy.eye(n)
+        f = fixed(motion.force)
+        h = fixed(motion.velocity_terms) if motion.velocity_terms is not None else None
+        self.g = g
+        args = [*x, TIME, *self.inputs]
+        rates_args = [*x, *xd, TIME, *self.inputs]
+        self._check_free([S, r0, W, J, f] + ([h] if h is not None else []) + [g], set(rates_args))
+
+        def d(m, s):
+            return m.applyfunc(lambda e: derivative(e, s))
+
+        self._position = _Compiled([S, r0, W, J, G]
+                                   + [d(S, q) for q in x] + [d(r0, q) for q in x] + [d(r0, TIME)]
+                                   + [d(W, q) for q in x] + [d(J, q) for q in x], args)
+        self._forces = _Compiled([f] + ([h] if h is not None else []), rates_args)
+        self._g = _Compiled([g], args)
+        self.has_h = h is not None
+
+    @staticmethod
+    def _check_free(matrices, allowed):
+        left = set()
+        for m in matrices:
+            for e in m:
+                left |= sympy.sympify(e).free_symbols - allowed
+        if left:
+            names = ", ".join(sorted(s.name for s in left))
+            raise LinearizationError(f"no value for parameter{'s' if len(left) > 1 else ''} {names}\n  hint: give "
+                                     "every parameter a value")
+
+    def rates(self, x, u, t=0.0, inputs=()) -> np.ndarray:
+        """``[xdot; udot]`` at ``(x, u, t)`` (complex numbers allowed)."""
+        n, p = self.n, self.p
+        x = np.asarray(x, dtype=complex)
+        u = np.asarray(u, dtype=complex)
+        args = [*x, t, *inputs]
+        out = self._position(args)
+        S, r0, W, J, _G = out[:5]
+        dS, dr, dr_t = out[5:5 + n], out[5 + n:5 + 2 * n], out[5 + 2 * n]
+        dW, dJ = out[6 + 2 * n:6 + 3 * n], out[6 + 3 * n:6 + 4 * n]
+        r = r0.ravel().copy()
+        r[n - p:] += u
+        try:
+            w = np.linalg.solve(S, r)
+            C = np.linalg.solve(S, np.vstack([np.zeros((n - p, p)), np.eye(p)]))
+            convective = np.linalg.solve(S, dr_t.ravel() + sum(
+                (dr[k].ravel() - dS[k] @ w) * w[k] for k in range(n)))
+        except np.linalg.LinAlgError:
+            raise LinearizationError("the constraints and speeds do not fix the velocities here\n  hint: choose "
+                                     "speeds that stay independent at the operating point") from None
+        M = J.T @ W @ J
+        dM = [dJ[k].T @ W @ J + J.T @ dW[k] @ J + J.T @ W @ dJ[k] for k in range(n)]
+        forces = self._forces([*x, *w, t, *inputs])
+        f = forces[0].ravel()
+        if self.has_h:
+            h = forces[1].ravel()
+        else:  # (A): (d_c M_ab) w_b w_c - 1/2 w_b (d_a M_bc) w_c
+            h = sum(dM[k] * w[k] for k in range(n)) @ w - 0.5 * np.array([w @ dM[a] @ w for a in range(n)])
+        Mbar = C.T @ M @ C
+        rhs = C.T @ (f - h - M @ convective)
+        return np.concatenate([w, np.linalg.solve(Mbar, rhs)])
+
+    def constraint(self, x, t=0.0, inputs=()) -> np.ndarray:
+        """``g(x, t)`` and ``G = dg/dx``."""
+        out = self._position([*np.asarray(x, dtype=complex), t, *inputs])
+        return self._g([*np.asarray(x, dtype=complex), t, *inputs])[0].ravel().real, out[4].real
+
+    def on_constraints(self, x, dependent: Sequence[int], t=0.0, inputs=()) -> np.ndarray:
+        """``x`` with its ``dependent`` coordinates moved onto ``g = 0`` (Newton's method)."""
+        x = np.array(x, dtype=float)
+        if not self.l:
+            return x
+        if len(dependent) != self.l:
+            raise LinearizationError(f"{len(dependent)} dependent coordinate(s) for {self.l} configuration "
+                                     "constraint(s)\n  hint: name one dependent coordinate per configuration "
+                                     "constraint")
+        for _ in range(NEWTON_STEPS):
+            g, G = self.constraint(x, t, inputs)
+            if np.max(np.abs(g)) <= 1e-14 * max(1.0, np.max(np.abs(x))):
+                return x
+            x[list(dependent)] -= np.linalg.solve(G[:, list(dependent)], g)
+        raise LinearizationError("the configuration constraints cannot be met near the operating point\n  hint: "
+                                 "give the dependent coordinates a value near a solution")
+
+    def jacobian(self, x, u, t=0.0, inputs=()) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``F`` and its Jacobians in ``[x; u]`` and in the inputs, by the complex step."""
+        z = np.concatenate([np.asarray(x, dtype=float), np.asarray(u, dtype=float)])
+        v = np.asarray(inputs, dtype=float)
+        n = self.n
+        F = self.rates(z[:n], z[n:], t, v).real
+        cols = []
+        for j in range(len(z)):
+            zj = z.astype(complex)
+            zj[j] += 1j * COMPLEX_STEP
+            cols.append(self.rates(zj[:n], zj[n:], t, v).imag / COMPLEX_STEP)
+        icols = []
+        for j in range(len(v)):
+            vj = v.astype(complex)
+            vj[j] += 1j * COMPLEX_STEP
+            icols.append(self.rates(z[:n], z[n:], t, vj).imag / COMPLEX_STEP)
+        width = len(F)
+        return (F, np.array(cols).T if cols else np.zeros((width, 0)),
+                np.array(icols).T if icols else np.zeros((width, 0)))
+
+    def linearize(self, point: Mapping[sympy.Symbol, float], keep: Sequence[sympy.Symbol],
+                  dependent: Sequence[sympy.Symbol] = (), time: float = 0.0,
+                  inputs: Mapping[sympy.Symbol, float] | None = None) -> Linearization:
+        """``A``, ``B`` in the state ``[kept coordinates; speeds]`` about the motion through
+        ``point`` (coordinates and speeds; those not given are 0; the ``dependent``
+        coordinates are moved onto ``g = 0`` from there)."""
+        index = {q: i for i, q in enumerate(self.x)}
+        unknown = [s for s in list(keep) + list(dependent) if s not in index]
+        if unknown:
+            raise LinearizationError(f"'{unknown[0]}' is not a coordinate")
+        K, D = [index[q] for q in keep], [index[q] for q in dependent]
+        if set(K) & set(D):
+            raise LinearizationError("a coordinate is both kept and dependent")
+        ignorable = [i for i in range(self.n) if i not in K and i not in D]
+        x0 = np.array([float(point.get(q, 0.0)) for q in self.x])
+        u0 = np.array([float(point.get(s, 0.0)) for s in self.speeds])
+        v0 = [float((inputs or {}).get(s, 0.0)) for s in self.inputs]
+        x0 = self.on_constraints(x0, D, time, v0)
+        F, Jz, Jv = self.jacobian(x0, u0, time, v0)
+        n, p = self.n, self.p
+        U = list(range(n, n + p))
+        rows = K + D + U
+        scale = max(1.0, float(np.max(np.abs(Jz))))
+        if ignorable:
+            worst = float(np.max(np.abs(Jz[np.ix_(rows, ignorable)])))
+            if worst > IGNORABLE_TOLERANCE * scale:
+                culprit = ignorable[int(np.argmax(np.max(np.abs(Jz[np.ix_(rows, ignorable)]), axis=0)))]
+                raise LinearizationError(
+                    f"the motion depends on '{self.x[culprit]}', which is neither kept nor dependent\n  hint: keep it "
+                    "in the state (only ignorable coordinates may be left out)")
+        _, G = self.constraint(x0, time, v0)
+        if self.l:
+            if np.max(np.abs(G[:, ignorable]), initial=0.0) > IGNORABLE_TOLERANCE * max(1.0, np.max(np.abs(G))):
+                raise LinearizationError("a configuration constraint involves a coordinate that is neither kept nor "
+                                         "dependent\n  hint: keep it in the state")
+            tangent = -np.linalg.solve(G[:, D], G[:, K])  # dx_D = tangent dx_K
+        else:
+            tangent = np.zeros((0, len(K)))
+        state_rows = K + U
+        A = np.hstack([Jz[np.ix_(state_rows, K)] + Jz[np.ix_(state_rows, D)] @ tangent, Jz[np.ix_(state_rows, U)]])
+        B = Jv[state_rows, :]
+        speed_scale = max(1.0, float(np.max(np.abs(u0), initial=0.0)))
+        steady = bool(np.max(np.abs(F[K + D + U]), initial=0.0) <= STEADY_TOLERANCE * speed_scale ** 2)
+        eigenvalues = tuple(complex(e) for e in np.linalg.eigvals(A)) if A.size else ()
+        return Linearization(
+            state=tuple(self.x[i] for i in K) + self.speeds, inputs=self.inputs,
+            point=tuple((q, float(v)) for q, v in zip(self.x, x0)) + tuple(zip(self.speeds, map(float, u0)))
+            + tuple(zip(self.inputs, v0)),
+            time=sympy.Float(time), parameters=(), A=A, B=B, eigenvalues=eigenvalues,
+            acceleration=tuple(float(a) for a in F[U]), equilibrium=steady, found=tuple(dependent),
+            notes=() if steady else ("not a steady motion: the kept state moves at this point",),
+            dependent=tuple((self.x[i], float(x0[i])) for i in D))
+
+
+def linearize_steady_motion(motion: ConstrainedMotion, point: Mapping[sympy.Symbol, float],
+                            keep: Sequence[sympy.Symbol], dependent: Sequence[sympy.Symbol] = (),
+                            values: Mapping[sympy.Symbol, float] | None = None,
+                            inputs: Mapping[sympy.Symbol, float] | None = None, time: float = 0.0) -> Linearization:
+    """:meth:`SteadyMotionRates.linearize` of ``motion`` at the parameter ``values``."""
+    rates = SteadyMotionRates(motion, values, tuple(inputs or ()))
+    return rates.linearize(point, keep, dependent, time, inputs)
+
+
+__all__ = ["COMPLEX_STEP", "IGNORABLE_TOLERANCE", "NEWTON_STEPS", "STEADY_TOLERANCE", "ConstrainedMotion",
+           "ProjectedMetric", "SteadyMotionRates", "linearize_steady_motion"]
