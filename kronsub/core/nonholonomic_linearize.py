@@ -39,7 +39,6 @@ import sympy
 
 from .derivative import derivative
 from .linearize_numerics import Linearization, LinearizationError
-from .nonholonomic import linear_form
 from .symbols import TIME, velocity_symbol
 
 COMPLEX_STEP = 1e-30
@@ -77,6 +76,25 @@ class ConstrainedMotion:
     velocity_constraints: tuple[sympy.Expr, ...] = ()
     configuration_constraints: tuple[sympy.Expr, ...] = ()
     velocity_terms: sympy.Matrix | None = None
+
+
+def linear_rows(exprs: Sequence[sympy.Expr], coordinates: Sequence[sympy.Symbol], what: str
+                ) -> tuple[sympy.Matrix, sympy.Matrix]:
+    """``A`` and ``b`` of ``A(x) xdot + b`` for expressions linear in the velocities, taken by
+    differentiation without expanding (a rolling wheel's rows are long products); an
+    expression the velocities are left in after it is not linear (:func:`.nonholonomic.linear_form`
+    expands, then checks the same)."""
+    velocities = [velocity_symbol(q) for q in coordinates]
+    rows, offsets = [], []
+    for i, e in enumerate(exprs):
+        row = [derivative(e, v) for v in velocities]
+        if any(set(velocities) & r.free_symbols for r in row):
+            raise LinearizationError(f"{what} {i + 1} is not linear in the velocities\n  hint: write it as "
+                                     "A(x) xdot + b(x, t)")
+        rows.append(row)
+        offsets.append(e.xreplace({v: 0 for v in velocities}))
+    return (sympy.Matrix(rows) if rows else sympy.zeros(0, len(coordinates))), \
+        (sympy.Matrix(offsets) if offsets else sympy.zeros(0, 1))
 
 
 class _Compiled:
@@ -117,11 +135,8 @@ class SteadyMotionRates:
             else sympy.zeros(0, 1)
         self.l = g.rows
         G = g.jacobian(list(x)) if g.rows else sympy.zeros(0, n)
-        if motion.velocity_constraints:
-            A, b = linear_form([fixed(sympy.Matrix([c]))[0] for c in motion.velocity_constraints], x)
-        else:
-            A, b = sympy.zeros(0, n), sympy.zeros(0, 1)
-        Y, c = linear_form([fixed(sympy.Matrix([e]))[0] for e in motion.speeds.values()], x)
+        A, b = linear_rows([fixed(sympy.Matrix([c]))[0] for c in motion.velocity_constraints], x, "velocity constraint")
+        Y, c = linear_rows([fixed(sympy.Matrix([e]))[0] for e in motion.speeds.values()], x, "speed")
         if any(e != 0 for e in c):
             raise LinearizationError("a speed has a term without a velocity\n  hint: define each speed as Y(x) xdot")
         p = self.p = len(self.speeds)
@@ -305,4 +320,4 @@ def linearize_steady_motion(motion: ConstrainedMotion, point: Mapping[sympy.Symb
 
 
 __all__ = ["COMPLEX_STEP", "IGNORABLE_TOLERANCE", "NEWTON_STEPS", "STEADY_TOLERANCE", "ConstrainedMotion",
-           "ProjectedMetric", "SteadyMotionRates", "linearize_steady_motion"]
+           "ProjectedMetric", "SteadyMotionRates", "linear_rows", "linearize_steady_motion"]
