@@ -12,7 +12,6 @@ import numpy as np
 import pytest
 from scipy.optimize import brentq
 
-from kronsub.core.nonholonomic_linearize import SteadyMotionRates
 from kronsub.core.symbols import symbol
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -26,7 +25,7 @@ STEER_SIGN = np.diag([1.0, -1.0, 1.0, -1.0])  # our steer turns left, the paper'
 @pytest.fixture(scope="module")
 def rates():
     """The real route: the bodies and constraints built, their rates compiled (a few seconds)."""
-    return SteadyMotionRates(bicycle.whipple_bicycle(), bicycle.benchmark_values())
+    return bicycle.rates_of()
 
 
 def _same_roots(ours, theirs, tol):
@@ -69,9 +68,14 @@ def test_eigenvalues_of_table_2(rates):
 
 
 def test_linearised_matrix_is_the_canonical_form(rates):
+    """``A`` and, for the roll and steer torques, ``B = [0; M^-1]`` of the paper's equations."""
+    torque_input = np.vstack([np.zeros((2, 2)), np.linalg.inv(np.array(PUBLISHED["M"]))])
     for v in (0.0, 1.0, 4.6, 10.0):
-        ours = _lateral(bicycle.linearized(rates, v))
-        assert np.allclose(ours, STEER_SIGN @ _canonical(v) @ STEER_SIGN, rtol=0, atol=1e-10)
+        lin = bicycle.linearized(rates, v)
+        assert np.allclose(_lateral(lin), STEER_SIGN @ _canonical(v) @ STEER_SIGN, rtol=0, atol=1e-10)
+        assert lin.inputs == bicycle.TORQUES
+        assert np.allclose(lin.B[:4], STEER_SIGN @ torque_input @ STEER_SIGN[:2, :2], rtol=0, atol=1e-10)
+        assert np.max(np.abs(lin.B[4])) <= 1e-12
 
 
 def test_weave_and_capsize_speeds(rates):

@@ -127,6 +127,7 @@ class SteadyMotionRates:
         self.speeds = tuple(motion.speeds)
         self.inputs = tuple(inputs)
         numbers = {s: sympy.Float(float(v), 17) for s, v in (values or {}).items()}
+        self.values = tuple((s, float(v)) for s, v in (values or {}).items())
 
         def fixed(m):
             return sympy.Matrix(m).xreplace(numbers) if numbers else sympy.Matrix(m)
@@ -156,7 +157,6 @@ class SteadyMotionRates:
             W, J = fixed(motion.metric), sympy.eye(n)
         f = fixed(motion.force)
         h = fixed(motion.velocity_terms) if motion.velocity_terms is not None else None
-        self.g = g
         args = [*x, TIME, *self.inputs]
         rates_args = [*x, *xd, TIME, *self.inputs]
         self._check_free([S, r0, W, J, f] + ([h] if h is not None else []) + [g], set(rates_args))
@@ -164,11 +164,11 @@ class SteadyMotionRates:
         def d(m, s):
             return m.applyfunc(lambda e: derivative(e, s))
 
-        self._position = _Compiled([S, r0, W, J, G]
+        self._position = _Compiled([S, r0, W, J]
                                    + [d(S, q) for q in x] + [d(r0, q) for q in x] + [d(r0, TIME)]
                                    + [d(W, q) for q in x] + [d(J, q) for q in x], args)
         self._forces = _Compiled([f] + ([h] if h is not None else []), rates_args)
-        self._g = _Compiled([g], args)
+        self._g = _Compiled([g, G], args)
         self.has_h = h is not None
 
     @staticmethod
@@ -189,9 +189,9 @@ class SteadyMotionRates:
         u = np.asarray(u, dtype=complex)
         args = [*x, t, *inputs]
         out = self._position(args)
-        S, r0, W, J, _G = out[:5]
-        dS, dr, dr_t = out[5:5 + n], out[5 + n:5 + 2 * n], out[5 + 2 * n]
-        dW, dJ = out[6 + 2 * n:6 + 3 * n], out[6 + 3 * n:6 + 4 * n]
+        S, r0, W, J = out[:4]
+        dS, dr, dr_t = out[4:4 + n], out[4 + n:4 + 2 * n], out[4 + 2 * n]
+        dW, dJ = out[5 + 2 * n:5 + 3 * n], out[5 + 3 * n:5 + 4 * n]
         r = r0.ravel().copy()
         r[n - p:] += u
         try:
@@ -216,8 +216,8 @@ class SteadyMotionRates:
 
     def constraint(self, x, t=0.0, inputs=()) -> np.ndarray:
         """``g(x, t)`` and ``G = dg/dx``."""
-        out = self._position([*np.asarray(x, dtype=complex), t, *inputs])
-        return self._g([*np.asarray(x, dtype=complex), t, *inputs])[0].ravel().real, out[4].real
+        g, G = self._g([*np.asarray(x, dtype=complex), t, *inputs])
+        return g.ravel().real, G.real
 
     def on_constraints(self, x, dependent: Sequence[int], t=0.0, inputs=()) -> np.ndarray:
         """``x`` with its ``dependent`` coordinates moved onto ``g = 0`` (Newton's method)."""
@@ -304,7 +304,7 @@ class SteadyMotionRates:
             state=tuple(self.x[i] for i in K) + self.speeds, inputs=self.inputs,
             point=tuple((q, float(v)) for q, v in zip(self.x, x0)) + tuple(zip(self.speeds, map(float, u0)))
             + tuple(zip(self.inputs, v0)),
-            time=sympy.Float(time), parameters=(), A=A, B=B, eigenvalues=eigenvalues,
+            time=sympy.Float(time), parameters=self.values, A=A, B=B, eigenvalues=eigenvalues,
             acceleration=tuple(float(a) for a in F[U]), equilibrium=steady, found=tuple(dependent),
             notes=() if steady else ("not a steady motion: the kept state moves at this point",),
             dependent=tuple((self.x[i], float(x0[i])) for i in D))

@@ -2,7 +2,8 @@
 463 (2007) 1955-1982), built from kronsub's core: four placed rigid bodies, the front contact's
 height as a configuration constraint, the two wheels' rolling as velocity constraints.
 
-Coordinates: the rear contact ``x, y`` on the ground, ``yaw``, ``roll`` and ``pitch`` of the rear
+The rear frame takes a roll torque and the front frame a steer torque, the inputs ``T_roll``,
+``T_steer``. Coordinates: the rear contact ``x, y`` on the ground, ``yaw``, ``roll`` and ``pitch`` of the rear
 frame, the rear wheel's turn ``rear`` relative to it, the ``steer`` angle about the steer axis
 and the front wheel's turn ``front``. Speeds: the roll, steer and rear wheel rates. Axes: X forward
 at zero yaw, Y to the left, Z up (the paper's x, -y, -z); roll is positive leaning right as in
@@ -16,7 +17,7 @@ How the model-file route is to reach the same objects: each body a ``PlacedBody`
 and turns in the coordinates, inertia in its axes), the metric ``ProjectedMetric`` of the bodies'
 ``weights()`` and ``projection()`` stacked, gravity ``f = -dV/dx`` with ``V = g sum m c_z``, the
 contact-height constraint under ``constraints:``, the rolling constraints the X and Y rows of
-``point_velocity(wheel, contact) xdot``, and ``SteadyMotionRates(motion, values).linearize(point,
+``point_velocity(wheel, contact) xdot``, and ``SteadyMotionRates(motion, values, inputs=(T_roll, T_steer)).linearize(point,
 keep=(roll, steer), dependent=(pitch,))``.
 """
 from __future__ import annotations
@@ -40,6 +41,7 @@ BENCHMARK = {
 }
 COORDINATES = ("x", "y", "yaw", "roll", "pitch", "rear", "steer", "front")
 SPEEDS = ("roll", "steer", "rear")  # the speeds are these coordinates' rates
+TORQUES = (symbol("T_roll"), symbol("T_steer"))  # inputs: on the rear frame about the roll axis, and steering
 
 
 def parameters() -> dict[str, sympy.Symbol]:
@@ -106,7 +108,8 @@ def whipple_bicycle() -> ConstrainedMotion:
         slip = point_velocity(wheel, tuple(where), q) * xdot
         rolling += [slip[0], slip[1]]
     V = p["g"] * centre_height(bodies)
-    force = sympy.Matrix([-sympy.diff(V, s) for s in q])
+    torques = {roll: TORQUES[0], steer: TORQUES[1]}  # the paper's roll and steer torques (steer's sign ours)
+    force = sympy.Matrix([-sympy.diff(V, s) + torques.get(s, 0) for s in q])
     metric = ProjectedMetric(sympy.diag(*[b.weights() for b in bodies]),
                              sympy.Matrix.vstack(*[b.projection(q) for b in bodies]))
     speeds = {velocity_symbol(symbol(n)): velocity_symbol(symbol(n)) for n in SPEEDS}
@@ -124,8 +127,13 @@ def linearized(rates: SteadyMotionRates, v: float):
     return rates.linearize(upright(v), keep=(symbol("roll"), symbol("steer")), dependent=(symbol("pitch"),))
 
 
+def rates_of(values=None) -> SteadyMotionRates:
+    """The bicycle's rates at Table 1's values (or ``values``), the torques its inputs."""
+    return SteadyMotionRates(whipple_bicycle(), values or benchmark_values(), TORQUES)
+
+
 def main() -> int:
-    rates = SteadyMotionRates(whipple_bicycle(), benchmark_values())
+    rates = rates_of()
     for v in range(11):
         lin = linearized(rates, float(v))
         shown = sorted(lin.eigenvalues, key=lambda e: (e.real, e.imag))
