@@ -14,10 +14,11 @@ velocity constraints ``A(x) xdot + b(x, t) = 0`` (m) and speeds ``u = Y(x) xdot`
 as it is) and ``h`` its Christoffel terms (A), ``h_a = (d_c M_ab - 1/2 d_a M_bc) xdot^b xdot^c``,
 unless the system brings its own.
 
-A naive Jacobian of the equations in the speeds goes wrong in two ways: it holds the
-dependent speeds (``w``) fixed while ``x`` moves, so misses ``dC/dx`` and the constraint
-forces ``C^T`` turns away (they are not zero at a steady motion: the ground holds the wheels
-up); and it moves the dependent coordinates independently of the others, off ``g = 0``. Here
+A naive Jacobian goes wrong in two ways. Holding the dependent speeds (``w``) or ``C``
+fixed while ``x`` moves misses ``dC/dx`` acting on the constraint forces ``C^T`` turns away,
+which are not zero at a steady motion: with ``G C = 0``, ``(dC/dx)^T G^T mu = -C^T (d^2 g/dx^2) mu``,
+the curvature of the contact times the load ``mu`` on it (a bicycle's front wheel). And
+moving the dependent coordinates independently of the others leaves ``g = 0``. Here
 the rates ``F(x, u) = [w; Mbar^-1 (fbar - hbar)]`` are differentiated whole, every dependence
 taken, and the result restricted to the tangent of ``g = 0``, ``dx_D = -G_D^-1 G_K dx_K``:
 ``G dx`` is constant along the linearised motion (``d(G dx)/dt = 0`` because ``dG_ij/dx_k``
