@@ -94,7 +94,8 @@ def point_velocity(body: PlacedBody, point: Sequence[sympy.Expr], coordinates: S
     has none)."""
     arm = sympy.Matrix(point) - sympy.Matrix(body.centre)
     skew = sympy.Matrix([[0, -arm[2], arm[1]], [arm[2], 0, -arm[0]], [-arm[1], arm[0], 0]])
-    return linear_velocity(body.centre, coordinates) - skew * body.rotation() * angular_velocity(body.turns, coordinates)
+    omega = body.rotation() * angular_velocity(body.turns, coordinates)  # in world axes
+    return linear_velocity(body.centre, coordinates) - skew * omega
 
 
 def centre_height(bodies: Sequence[PlacedBody], up: int = 2) -> sympy.Expr:
@@ -102,4 +103,5 @@ def centre_height(bodies: Sequence[PlacedBody], up: int = 2) -> sympy.Expr:
     return sympy.Add(*[b.mass * b.centre[up] for b in bodies])
 
 
-__all__ = ["AXES", "PlacedBody", "angular_velocity", "body_metric", "centre_height", "linear_velocity", "point_velocity"]
+__all__ = ["AXES", "PlacedBody", "angular_velocity", "body_metric", "centre_height", "linear_velocity",
+           "point_velocity"]

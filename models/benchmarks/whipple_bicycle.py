@@ -17,8 +17,9 @@ How the model-file route is to reach the same objects: each body a ``PlacedBody`
 and turns in the coordinates, inertia in its axes), the metric ``ProjectedMetric`` of the bodies'
 ``weights()`` and ``projection()`` stacked, gravity ``f = -dV/dx`` with ``V = g sum m c_z``, the
 contact-height constraint under ``constraints:``, the rolling constraints the X and Y rows of
-``point_velocity(wheel, contact) xdot``, and ``SteadyMotionRates(motion, values, inputs=(T_roll, T_steer)).linearize(point,
-keep=(roll, steer), dependent=(pitch,))``.
+``point_velocity(wheel, contact) xdot``, and
+``SteadyMotionRates(motion, values, inputs=(T_roll, T_steer)).linearize(point, keep=(roll, steer),
+dependent=(pitch,))``.
 """
 from __future__ import annotations
 
