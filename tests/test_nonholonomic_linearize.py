@@ -99,3 +99,40 @@ def test_refusals():
         linearize_steady_motion(ConstrainedMotion(motion.coordinates, motion.metric, motion.force,
                                                   dict(list(motion.speeds.items())[:2]), motion.velocity_constraints),
                                 {}, keep=(lean,), values=VALUES)
+
+
+def test_a_dependent_coordinate_follows_its_constraint():
+    """The disc again with its centre's height ``z`` a coordinate of its own, held by the
+    configuration constraint ``z = r cos(lean)``, and its potential written
+    ``m g (z + (z - r cos(lean)) sin(lean))`` (``m g z`` on the constraint, another function off
+    it): linearised with ``z`` dependent, ``A``
+    is the plain disc's at every state; the Jacobian that moves the lean with ``z`` held is not."""
+    plain = _disc()
+    q = plain.coordinates
+    yaw, lean, spin, x, y = q
+    z = symbol("z")
+    coordinates = (*q, z)
+    tilt = PlacedBody("frame", m, (0, 0, 0), (("Z", yaw), ("X", lean)), sympy.eye(3)).rotation()
+    centre = sympy.Matrix([x, y, 0]) + tilt * sympy.Matrix([0, 0, r])
+    centre[2] = z
+    disc = PlacedBody("disc", m, tuple(centre), (("Z", yaw), ("X", lean), ("Y", spin)),
+                      sympy.diag(m * r**2 / 4, m * r**2 / 2, m * r**2 / 4))
+    contact = centre - tilt * sympy.Matrix([0, 0, r])
+    slip = point_velocity(disc, tuple(contact), coordinates) * sympy.Matrix([velocity_symbol(s) for s in coordinates])
+    potential = g * m * (z + (z - r * sympy.cos(lean)) * sympy.sin(lean))
+    force = sympy.Matrix([-sympy.diff(potential, s) for s in coordinates])
+    lifted = ConstrainedMotion(coordinates, ProjectedMetric(disc.weights(), disc.projection(coordinates)), force,
+                               plain.speeds, (slip[0], slip[1]), (z - r * sympy.cos(lean),))
+    ours, theirs = SteadyMotionRates(lifted, VALUES), SteadyMotionRates(plain, VALUES)
+    rng = np.random.default_rng(7)
+    for _ in range(2):
+        qs, us = rng.uniform(-1.2, 1.2, 5), rng.uniform(-3, 3, 3)
+        point = {**dict(zip(q, qs)), **dict(zip(plain.speeds, us))}
+        lin = ours.linearize({**point, z: 0.1}, keep=q, dependent=(z,))  # z starts off the constraint
+        assert lin.dependent[0][1] == pytest.approx(float(VALUES[r]) * np.cos(qs[1]), abs=1e-14)
+        expected = theirs.linearize(point, keep=q).A
+        assert np.allclose(lin.A, expected, rtol=1e-10, atol=1e-10 * np.max(np.abs(expected)))
+        x0 = [v for _, v in lin.point[:6]]
+        _, Jz, _ = ours.jacobian(x0, us)
+        naive = Jz[np.ix_([0, 1, 2, 3, 4, 6, 7, 8], [0, 1, 2, 3, 4, 6, 7, 8])]
+        assert np.max(np.abs(naive - expected)) > 0.1
