@@ -3,6 +3,8 @@ the rolling disc built from a placed rigid body (core/rigid_bodies.py): its upri
 against the closed form of the linearised disc (stable exactly above the critical spin
 ``sqrt(g/(3 r))``), its Jacobian at random states against sympy's ``KanesMethod.linearize``, and
 the refusals."""
+import dataclasses
+
 import numpy as np
 import pytest
 import sympy
@@ -10,6 +12,7 @@ import sympy
 from kronsub.core.linearize_numerics import LinearizationError
 from kronsub.core.nonholonomic_linearize import (ConstrainedMotion, ProjectedMetric, SteadyMotionRates,
                                                  linearize_steady_motion)
+from kronsub.core.primitive import christoffel_terms
 from kronsub.core.rigid_bodies import PlacedBody, body_metric, centre_height, point_velocity
 from kronsub.core.symbols import symbol, velocity_symbol
 from reference.rolling import NAMES, KaneDisc
@@ -62,9 +65,14 @@ def test_upright_rolling_against_the_closed_form_and_the_critical_spin():
         assert _same_roots(lin.eigenvalues, [0, 0, root, -root], 1e-10)
         unstable = max(e.real for e in lin.eigenvalues) > 1e-8
         assert unstable == (spin < critical)
-    # the same with the metric formed symbolically (M = J^T W J expanded) instead of numerically
-    plain = SteadyMotionRates(_disc(projected=False), VALUES).linearize({spin_rate: 3.0}, keep=(lean,))
-    assert np.allclose(plain.A, rates.linearize({spin_rate: 3.0}, keep=(lean,)).A, atol=1e-12)
+    # the same with the metric formed symbolically (M = J^T W J expanded) instead of numerically,
+    # and with its velocity terms (A) given (core/primitive.py) rather than formed numerically
+    plain = _disc(projected=False)
+    given = dataclasses.replace(plain, velocity_terms=christoffel_terms(
+        plain.metric, plain.coordinates, [velocity_symbol(s) for s in plain.coordinates]))
+    for motion in (plain, given):
+        lin = SteadyMotionRates(motion, VALUES).linearize({spin_rate: 3.0}, keep=(lean,))
+        assert np.allclose(lin.A, rates.linearize({spin_rate: 3.0}, keep=(lean,)).A, atol=1e-12)
 
 
 def test_jacobian_at_random_states_against_kanes_method():

@@ -165,9 +165,9 @@ class SteadyMotionRates:
         def d(m, s):
             return m.applyfunc(lambda e: derivative(e, s))
 
+        metric_rates = [] if h is not None else [d(W, q) for q in x] + [d(J, q) for q in x]  # for (A) only
         self._position = _Compiled([S, r0, W, J]
-                                   + [d(S, q) for q in x] + [d(r0, q) for q in x] + [d(r0, TIME)]
-                                   + [d(W, q) for q in x] + [d(J, q) for q in x], args)
+                                   + [d(S, q) for q in x] + [d(r0, q) for q in x] + [d(r0, TIME)] + metric_rates, args)
         self._forces = _Compiled([f] + ([h] if h is not None else []), rates_args)
         self._g = _Compiled([g, G], args)
         self.has_h = h is not None
@@ -192,7 +192,6 @@ class SteadyMotionRates:
         out = self._position(args)
         S, r0, W, J = out[:4]
         dS, dr, dr_t = out[4:4 + n], out[4 + n:4 + 2 * n], out[4 + 2 * n]
-        dW, dJ = out[5 + 2 * n:5 + 3 * n], out[5 + 3 * n:5 + 4 * n]
         r = r0.ravel().copy()
         r[n - p:] += u
         try:
@@ -204,12 +203,13 @@ class SteadyMotionRates:
             raise LinearizationError("the constraints and speeds do not fix the velocities here\n  hint: choose "
                                      "speeds that stay independent at the operating point") from None
         M = J.T @ W @ J
-        dM = [dJ[k].T @ W @ J + J.T @ dW[k] @ J + J.T @ W @ dJ[k] for k in range(n)]
         forces = self._forces([*x, *w, t, *inputs])
         f = forces[0].ravel()
         if self.has_h:
             h = forces[1].ravel()
         else:  # (A): (d_c M_ab) w_b w_c - 1/2 w_b (d_a M_bc) w_c
+            dW, dJ = out[5 + 2 * n:5 + 3 * n], out[5 + 3 * n:5 + 4 * n]
+            dM = [dJ[k].T @ W @ J + J.T @ dW[k] @ J + J.T @ W @ dJ[k] for k in range(n)]
             h = sum(dM[k] * w[k] for k in range(n)) @ w - 0.5 * np.array([w @ dM[a] @ w for a in range(n)])
         Mbar = C.T @ M @ C
         rhs = C.T @ (f - h - M @ convective)
