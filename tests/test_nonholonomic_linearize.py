@@ -65,6 +65,7 @@ def test_upright_rolling_against_the_closed_form_and_the_critical_spin():
         assert _same_roots(lin.eigenvalues, [0, 0, root, -root], 1e-10)
         unstable = max(e.real for e in lin.eigenvalues) > 1e-8
         assert unstable == (spin < critical)
+        assert rates.linearize({spin_rate: spin}).state == lin.state  # yaw, spin, x, y found ignorable
     # the same with the metric formed symbolically (M = J^T W J expanded) instead of numerically,
     # and with its velocity terms (A) given (core/primitive.py) rather than formed numerically
     plain = _disc(projected=False)

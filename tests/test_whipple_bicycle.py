@@ -76,6 +76,10 @@ def test_linearised_matrix_is_the_canonical_form(rates):
         assert lin.inputs == bicycle.TORQUES
         assert np.allclose(lin.B[:4], STEER_SIGN @ torque_input @ STEER_SIGN[:2, :2], rtol=0, atol=1e-10)
         assert np.max(np.abs(lin.B[4])) <= 1e-12
+    # the ignorable coordinates found alone: the position, heading and the wheels' turns
+    found = rates.linearize(bicycle.upright(4.6), dependent=(symbol("pitch"),))
+    assert found.state == bicycle.linearized(rates, 4.6).state
+    assert np.array_equal(found.A, bicycle.linearized(rates, 4.6).A)
 
 
 def test_weave_and_capsize_speeds(rates):

@@ -257,39 +257,45 @@ class SteadyMotionRates:
         return (F, np.array(cols).T if cols else np.zeros((width, 0)),
                 np.array(icols).T if icols else np.zeros((width, 0)))
 
-    def linearize(self, point: Mapping[sympy.Symbol, float], keep: Sequence[sympy.Symbol],
+    def linearize(self, point: Mapping[sympy.Symbol, float], keep: Sequence[sympy.Symbol] | None = None,
                   dependent: Sequence[sympy.Symbol] = (), time: float = 0.0,
                   inputs: Mapping[sympy.Symbol, float] | None = None) -> Linearization:
         """``A``, ``B`` in the state ``[kept coordinates; speeds]`` about the motion through
         ``point`` (coordinates and speeds; those not given are 0; the ``dependent``
-        coordinates are moved onto ``g = 0`` from there)."""
+        coordinates are moved onto ``g = 0`` from there). Without ``keep``, every coordinate
+        that is not dependent and not ignorable there (:func:`ignorable`) is kept."""
         index = {q: i for i, q in enumerate(self.x)}
-        unknown = [s for s in list(keep) + list(dependent) if s not in index]
+        unknown = [s for s in list(keep or ()) + list(dependent) if s not in index]
         if unknown:
             raise LinearizationError(f"'{unknown[0]}' is not a coordinate")
-        K, D = [index[q] for q in keep], [index[q] for q in dependent]
-        if set(K) & set(D):
-            raise LinearizationError("a coordinate is both kept and dependent")
-        ignorable = [i for i in range(self.n) if i not in K and i not in D]
+        D = [index[q] for q in dependent]
         x0 = np.array([float(point.get(q, 0.0)) for q in self.x])
         u0 = np.array([float(point.get(s, 0.0)) for s in self.speeds])
         v0 = [float((inputs or {}).get(s, 0.0)) for s in self.inputs]
         x0 = self.on_constraints(x0, D, time, v0)
         F, Jz, Jv = self.jacobian(x0, u0, time, v0)
         n, p = self.n, self.p
+        scale = max(1.0, float(np.max(np.abs(Jz))))
+        if keep is None:
+            _, G = self.constraint(x0, time, v0)
+            left_out = ignorable(Jz, G, D, n, IGNORABLE_TOLERANCE * scale)
+            keep = [q for i, q in enumerate(self.x) if i not in left_out and i not in D]
+        K = [index[q] for q in keep]
+        if set(K) & set(D):
+            raise LinearizationError("a coordinate is both kept and dependent")
+        ignored = [i for i in range(self.n) if i not in K and i not in D]
         U = list(range(n, n + p))
         rows = K + D + U
-        scale = max(1.0, float(np.max(np.abs(Jz))))
-        if ignorable:
-            worst = float(np.max(np.abs(Jz[np.ix_(rows, ignorable)])))
+        if ignored:
+            worst = float(np.max(np.abs(Jz[np.ix_(rows, ignored)])))
             if worst > IGNORABLE_TOLERANCE * scale:
-                culprit = ignorable[int(np.argmax(np.max(np.abs(Jz[np.ix_(rows, ignorable)]), axis=0)))]
+                culprit = ignored[int(np.argmax(np.max(np.abs(Jz[np.ix_(rows, ignored)]), axis=0)))]
                 raise LinearizationError(
                     f"the motion depends on '{self.x[culprit]}', which is neither kept nor dependent\n  hint: keep it "
                     "in the state (only ignorable coordinates may be left out)")
         _, G = self.constraint(x0, time, v0)
         if self.l:
-            if np.max(np.abs(G[:, ignorable]), initial=0.0) > IGNORABLE_TOLERANCE * max(1.0, np.max(np.abs(G))):
+            if np.max(np.abs(G[:, ignored]), initial=0.0) > IGNORABLE_TOLERANCE * max(1.0, np.max(np.abs(G))):
                 raise LinearizationError("a configuration constraint involves a coordinate that is neither kept nor "
                                          "dependent\n  hint: keep it in the state")
             tangent = -np.linalg.solve(G[:, D], G[:, K])  # dx_D = tangent dx_K
@@ -311,8 +317,23 @@ class SteadyMotionRates:
             dependent=tuple((self.x[i], float(x0[i])) for i in D))
 
 
+def ignorable(jacobian: np.ndarray, G: np.ndarray, dependent: Sequence[int], n: int, tolerance: float) -> set[int]:
+    """The largest set ``I`` of coordinates (not dependent) that neither the rates of the others
+    nor those of the speeds, nor the configuration constraints, depend on at the point: the
+    cyclic coordinates of a steady motion (a wheel's turn, the position and heading on the
+    plane), found by dropping from all of them those some row outside the set depends on."""
+    found = {i for i in range(n) if i not in dependent}
+    while True:
+        outside = [i for i in range(jacobian.shape[0]) if i not in found]
+        drop = {i for i in found if np.max(np.abs(jacobian[outside, i]), initial=0.0) > tolerance
+                or np.max(np.abs(G[:, i]), initial=0.0) > tolerance}
+        if not drop:
+            return found
+        found -= drop
+
+
 def linearize_steady_motion(motion: ConstrainedMotion, point: Mapping[sympy.Symbol, float],
-                            keep: Sequence[sympy.Symbol], dependent: Sequence[sympy.Symbol] = (),
+                            keep: Sequence[sympy.Symbol] | None = None, dependent: Sequence[sympy.Symbol] = (),
                             values: Mapping[sympy.Symbol, float] | None = None,
                             inputs: Mapping[sympy.Symbol, float] | None = None, time: float = 0.0) -> Linearization:
     """:meth:`SteadyMotionRates.linearize` of ``motion`` at the parameter ``values``."""
@@ -321,4 +342,4 @@ def linearize_steady_motion(motion: ConstrainedMotion, point: Mapping[sympy.Symb
 
 
 __all__ = ["COMPLEX_STEP", "IGNORABLE_TOLERANCE", "NEWTON_STEPS", "STEADY_TOLERANCE", "ConstrainedMotion",
-           "ProjectedMetric", "SteadyMotionRates", "linear_rows", "linearize_steady_motion"]
+           "ProjectedMetric", "SteadyMotionRates", "ignorable", "linear_rows", "linearize_steady_motion"]
