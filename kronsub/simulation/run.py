@@ -14,7 +14,6 @@ from __future__ import annotations
 
 import math
 import sys
-import time
 import warnings
 
 import numpy as np
@@ -30,6 +29,7 @@ from .grid import Grid, Tail
 from .methods import METHODS as REGISTRY
 from .methods import SIMULATE, unknown_method
 from .native import CompileError, CompilerNotFound
+from .progress import Progress
 from .rows import Block, RunInProgress, SimulationError, Trajectory
 from .values import RunValues
 
@@ -42,29 +42,6 @@ METHODS = {name: REGISTRY[name] for name in SIMULATE}  # the methods of ``simula
 
 
 FIXED_STEP = tuple(name for name, m in METHODS.items() if m.fixed_step)  # the methods that step --dt at a time
-
-
-class Progress:
-    """A progress bar on stderr for runs longer than a second, only on a terminal."""
-
-    def __init__(self, total: float, enabled: bool | None = None):
-        self.total = total
-        self.start = time.perf_counter()
-        self.enabled = sys.stderr.isatty() if enabled is None else enabled
-        self.shown = False
-
-    def update(self, t: float) -> None:
-        if not self.enabled or time.perf_counter() - self.start < 1.0:
-            return
-        frac = min(1.0, t / self.total) if self.total > 0 else 1.0
-        bar = "#" * int(30 * frac)
-        sys.stderr.write(f"\r[{bar:<30}] t = {t:.4g} / {self.total:.4g}")
-        sys.stderr.flush()
-        self.shown = True
-
-    def close(self) -> None:
-        if self.shown:
-            sys.stderr.write("\n")
 
 
 MAX_ROWS = 10**8  # a run asking for more rows is a mistake (--dt far too small), not a plan
@@ -200,7 +177,7 @@ def start(system: KnownSystem, values: RunValues, t_end: float, dt: float, metho
         warnings.warn(f"method '{method}' runs in compiled C; using scipy's {spec.fallback} instead")
         spec = METHODS[spec.fallback]
     rows_of = runner(_problem(system, param, native, outputs, constrained, rtol, atol), spec)
-    run = RunInProgress(spec.name, rows_of.backend)
+    run = RunInProgress(spec.name, rows_of.backend, library=native.path if native is not None else None)
     bar = Progress(t_end, progress)
     if not bar.enabled:
         chunks = 1  # one call: no restarts of the step-size control
