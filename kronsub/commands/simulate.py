@@ -230,10 +230,10 @@ def _record(key: str, loaded, system, run, values, writer, span: float, step: fl
     from ..simulation.grid import Grid
     from ..simulation.methods import METHODS
     from ..simulation.prepared import Prepared, record
-    from ..simulation.run import BLOCK_ROWS
+    from ..simulation import rows
 
     if run.library is None or system.implicit is not None or run.switches or METHODS[run.method].engine != "c" \
-            or len(Grid(span, step)) > BLOCK_ROWS:
+            or len(Grid(span, step)) > rows.BLOCK_ROWS:
         return
     digest = native.recorded_digest(run.library)
     if digest is None or loaded.source is None:

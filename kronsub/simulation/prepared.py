@@ -6,7 +6,7 @@ drive power, circuit energies, points or reactions) and that completed records w
 (:func:`record`): the compiled library (its folder, name and sha256), the parameters and the
 initial state as numbers, the columns and the metadata. The record is kept under the key of
 what decided all of that (:func:`run_key`): kronsub's source, the model file's path and bytes,
-the command's options, the working folder, the compiler and the build; it names every model
+the command's options, the compiler and the build; it names every model
 file the model takes as a known system with its sha256. The same command then finds the record
 (:func:`load`), checks those files and the library's bytes, integrates in C on the pieces of the
 output grid the C engine walks (:mod:`.engines.c`), computes ``T`` and ``V`` (24) per row in C,
@@ -37,6 +37,7 @@ from .advice import energy_advice, is_stiff
 from .grid import Grid, aligned_pieces, chunk_ranges, fixed_pieces
 from .methods import METHODS
 from .progress import Progress
+from . import rows
 from .rows import Block, RunInProgress
 
 __all__ = ["FORMAT", "RECORD_BYTES", "Prepared", "load", "record", "run_key", "runs"]
@@ -47,15 +48,17 @@ RECORD_BYTES = 1 << 20  # a record holds names and numbers: a model of thousands
 
 def run_key(model: Path, options: dict) -> str | None:
     """The key of a ``simulate`` of ``model`` with ``options`` (JSON values): None when the
-    cache is off or unsafe, the model file cannot be read, or no compiler is there."""
-    if _quiet_cache_dir() is None:
+    cache is off, the model file cannot be read, or no compiler is there. The model's path as
+    given and as resolved name the files it uses (relative to its folder) and the metadata's
+    paths."""
+    if cache_dir() is None:
         return None
     try:
         _, source = read_model_file(model)
         command = native.compiler_command()
     except (KronsubError, OSError):
         return None
-    parts = {"format": FORMAT, "kronsub": code_fingerprint(), "cwd": os.getcwd(), "model": str(model),
+    parts = {"format": FORMAT, "kronsub": code_fingerprint(), "model": str(model),
              "path": os.path.abspath(model), "sha256": source.sha256, "options": options,
              "compiler": [shutil.which(command[0]) or command[0], *command[1:]],
              "build": native.build_identity()}
@@ -162,7 +165,8 @@ def load(key: str) -> Prepared | None:
 
 def runs(prepared: Prepared, progress: bool | None = None) -> RunInProgress | None:
     """The run of ``prepared``, computed now (its blocks kept to be written): None when it did
-    not complete as recorded (the usual run then says why). An interrupt keeps the blocks so far,
+    not complete as recorded (the usual run then says why) or has more rows than a streamed run
+    keeps in one block (:data:`.rows.BLOCK_ROWS`). An interrupt keeps the blocks so far,
     the run's blocks raise it again after them (the writer records it as a streamed run's)."""
     try:
         model = native.NativeModel(prepared.library, prepared.nq, prepared.nparam)
@@ -171,6 +175,8 @@ def runs(prepared: Prepared, progress: bool | None = None) -> RunInProgress | No
     method = METHODS[prepared.method]
     param, y0 = np.array(prepared.param, dtype=float), np.array(prepared.y0, dtype=float)
     grid = Grid(prepared.t_end, prepared.dt)
+    if len(grid) > rows.BLOCK_ROWS:  # computed at once: a run of one block only (a streamed run's memory)
+        return None
     bar = Progress(prepared.t_end, progress)
     chunks = 20 if bar.enabled else 1  # as run.start: one call unless a bar moves
     run = RunInProgress(method.name, "C")

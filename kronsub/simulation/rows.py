@@ -14,7 +14,10 @@ from ..errors import KronsubError
 if TYPE_CHECKING:
     from .switching import Split
 
-__all__ = ["SimulationError", "Trajectory", "Block", "RunInProgress"]
+__all__ = ["BLOCK_ROWS", "SimulationError", "Trajectory", "Block", "RunInProgress"]
+
+
+BLOCK_ROWS = 100_000  # rows per block of a streamed run (bounds the memory of long runs)
 
 
 class SimulationError(KronsubError):
