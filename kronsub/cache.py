@@ -1,16 +1,16 @@
 """Where kronsub keeps its caches, whether that place is safe, and what is in it.
 
-Two caches share one folder (``$KRONSUB_CACHE_DIR``, else ``$XDG_CACHE_HOME/kronsub``, else
-``~/.cache/kronsub``; ``KRONSUB_CACHE_DIR=off`` turns both off): derived known systems as
+The caches share one folder (``$KRONSUB_CACHE_DIR``, else ``$XDG_CACHE_HOME/kronsub``, else
+``~/.cache/kronsub``; ``KRONSUB_CACHE_DIR=off`` turns them off): derived known systems as
 ``<sha256>.system.json`` / ``<sha256>.transition.json`` (and, per scene's share,
 ``.inertia``, ``.inertia-transition``, ``.effect.<name>``) beside it, and compiled models under
-``native/<stem>-<key>/`` (indexed in ``native/index/``); prepared runs of ``simulate``
-(:mod:`kronsub.simulation.prepared`) as ``runs/<sha256>.json``. A folder that another user owns or
-that group or others may write is refused with a warning (someone else could plant entries there), and so is one kronsub cannot
-create or write files in (probed as the cache writes: a temporary file created and removed; a
-path under ``/proc``, a read-only folder): the known-system cache is then off and compiled
-models go to a private temporary folder. A folder kronsub creates is private (mode 0700), so a
-permissive umask does not make it refused.
+``native/<stem>-<key>/`` (indexed in ``native/index/``), and prepared runs of ``simulate``
+(:mod:`kronsub.simulation.prepared`) as ``runs/<sha256>.json``. A folder that another user owns
+or that group or others may write is refused with a warning (someone else could plant entries
+there), and so is one kronsub cannot create or write files in (probed as the cache writes: a
+temporary file created and removed; a path under ``/proc``, a read-only folder): the
+known-system cache is then off and compiled models go to a private temporary folder. A folder
+kronsub creates is private (mode 0700), so a permissive umask does not make it refused.
 
 Entries are private whatever the umask (files 0600, folders 0700: :func:`write_private`,
 :func:`private_folder`) and sealed with the sha256 of their payload (:func:`store_entry`);

@@ -52,7 +52,8 @@ def cache_clear():
             return
         say(f"removed from {removed.folder}: derived known systems: {removed.systems} "
             f"({_size(removed.systems_bytes)}), compiled models: {removed.libraries} "
-            f"({_size(removed.libraries_bytes)}), prepared runs: {removed.runs} ({_size(removed.runs_bytes)})", err=False)
+            f"({_size(removed.libraries_bytes)}), prepared runs: {removed.runs} ({_size(removed.runs_bytes)})",
+            err=False)
 
     run_command(job)
 

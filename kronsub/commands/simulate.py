@@ -13,9 +13,9 @@ from ..atomic import atomic_file, write_atomically
 from ..simulation.methods import SIMULATE
 from ..simulation.methods import help_text as method_help
 from .common import (INTERRUPTED, NUMERICAL_FAILURE, T_END, USAGE_ERROR, budget_option, budget_units, check_times,
-                     coincident_ends, default_sidecar, fail, interrupted_by, meta_option, note_choice, note_safely, output_option,
-                     plot_option, run_command, say, scene_option, scene_system, separate_outputs, set_option,
-                     writable, writable_outputs)
+                     coincident_ends, default_sidecar, fail, interrupted_by, meta_option, note_choice, note_safely,
+                     output_option, plot_option, run_command, say, scene_option, scene_system, separate_outputs,
+                     set_option, writable, writable_outputs)
 
 __all__ = ["simulate"]
 
@@ -133,8 +133,8 @@ def _written(output: Path | None, meta_path: Path | None, stream, run):
               f"{_rows(writer.rows)}{marked}", INTERRUPTED)
     if writer.stopped:
         signum = writer.signum or signal.SIGINT
-        fail(f"Interrupted{interrupted_by(signum)} after t = {writer.last_t!r}: {_kept(writer.rows)} in {where}{marked}",
-              128 + signum)
+        fail(f"Interrupted{interrupted_by(signum)} after t = {writer.last_t!r}: {_kept(writer.rows)} in "
+             f"{where}{marked}", 128 + signum)
     return writer, where, marked
 
 

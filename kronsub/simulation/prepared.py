@@ -6,7 +6,7 @@ drive power, circuit energies, points or reactions) and that completed records w
 (:func:`record`): the compiled library (its folder, name and sha256), the parameters and the
 initial state as numbers, the columns and the metadata. The record is kept under the key of
 what decided all of that (:func:`run_key`): kronsub's source, the model file's path and bytes,
-the command's options, the compiler and the build; it names every model
+the command's options, the compiler, the build and the integrators' C; it names every model
 file the model takes as a known system with its sha256. The same command then finds the record
 (:func:`load`), checks those files and the library's bytes, integrates in C on the pieces of the
 output grid the C engine walks (:mod:`.engines.c`), computes ``T`` and ``V`` (24) per row in C,
@@ -50,18 +50,22 @@ def run_key(model: Path, options: dict) -> str | None:
     """The key of a ``simulate`` of ``model`` with ``options`` (JSON values): None when the
     cache is off, the model file cannot be read, or no compiler is there. The model's path as
     given and as resolved name the files it uses (relative to its folder) and the metadata's
-    paths."""
+    paths; the files the run was derived from, the model file among them, are recorded with
+    their sha256 as it read them (:func:`record`), so a file changed between this key and its
+    reading is caught by :func:`load`."""
     if cache_dir() is None:
         return None
     try:
         _, source = read_model_file(model)
         command = native.compiler_command()
+        integrators = [hashlib.sha256((native.CSRC / name).read_bytes()).hexdigest()
+                       for name in native.INTEGRATOR_FILES]
     except (KronsubError, OSError):
         return None
     parts = {"format": FORMAT, "kronsub": code_fingerprint(), "model": str(model),
              "path": os.path.abspath(model), "sha256": source.sha256, "options": options,
              "compiler": [shutil.which(command[0]) or command[0], *command[1:]],
-             "build": native.build_identity()}
+             "build": native.build_identity(), "integrators": integrators}
     return hashlib.sha256(json.dumps(parts, sort_keys=True).encode()).hexdigest()
 
 
