@@ -290,7 +290,7 @@ def warm_runs(model: Path, repeats: int, timeout: float) -> tuple[list, list]:
     try:
         run_child(_command(model), timeout, _env(cache))
         for _ in range(repeats):
-            shutil.rmtree(Path(cache) / "runs", ignore_errors=True)
+            shutil.rmtree(Path(cache) / "kept", ignore_errors=True)
             derived.append(run_child(_command(model), timeout, _env(cache)))
             prepared.append(run_child(_command(model), timeout, _env(cache)))
     finally:

@@ -4,8 +4,8 @@ The caches share one folder (``$KRONSUB_CACHE_DIR``, else ``$XDG_CACHE_HOME/kron
 ``~/.cache/kronsub``; ``KRONSUB_CACHE_DIR=off`` turns them off): derived known systems as
 ``<sha256>.system.json`` / ``<sha256>.transition.json`` (and, per scene's share,
 ``.inertia``, ``.inertia-transition``, ``.effect.<name>``) beside it, and compiled models under
-``native/<stem>-<key>/`` (indexed in ``native/index/``), and prepared runs of ``simulate``
-(:mod:`kronsub.simulation.prepared`) as ``runs/<sha256>.json``. A folder that another user owns
+``native/<stem>-<key>/`` (indexed in ``native/index/``), and what commands made from a model
+file (:mod:`kronsub.model.kept`) as ``kept/<sha256>.json``. A folder that another user owns
 or that group or others may write is refused with a warning (someone else could plant entries
 there), and so is one kronsub cannot create or write files in (probed as the cache writes: a
 temporary file created and removed; a path under ``/proc``, a read-only folder): the
@@ -46,7 +46,7 @@ INDEX_FILE = re.compile(r"[0-9a-f]{64}\.json")
 TEMPORARY = re.compile(r"\.[0-9a-f]{64}\." + _PART + r"\.json\.[a-z0-9_]{8}\.tmp")
 TEMPORARY_INDEX = re.compile(r"\.[0-9a-f]{64}\.json\.[a-z0-9_]{8}\.tmp")
 LIBRARY_FILE = re.compile(r"lib[A-Za-z0-9_]+\.so")  # a compiled model in its native/ folder
-RUNS = "runs"  # the folder of prepared runs, named like the index: <sha256>.json
+KEPT = "kept"  # the folder of kept outputs (kronsub.model.kept), named like the index: <sha256>.json
 
 
 class CacheWarning(UserWarning):
@@ -268,8 +268,8 @@ class CacheInfo:
     systems_bytes: int = 0
     libraries: int = 0
     libraries_bytes: int = 0
-    runs: int = 0
-    runs_bytes: int = 0
+    kept: int = 0
+    kept_bytes: int = 0
 
 
 @dataclass(frozen=True)
@@ -280,7 +280,7 @@ class Entries:
     index: list  # native/index/*.json
     temporaries: list  # temporary files of interrupted writes
     links: list  # links (FIFOs, sockets) named like entries: removed as themselves, never followed
-    runs: list = field(default_factory=list)  # prepared runs, runs/*.json (and their temporary files)
+    kept: list = field(default_factory=list)  # kept outputs, kept/*.json (and their temporary files)
 
 
 def _lstat(path: Path):
@@ -324,11 +324,11 @@ def entries(folder: Path) -> Entries:
                     found.systems.setdefault(name.split(".")[0], []).append(path)
                 else:
                     found.temporaries.append(path)
-    runs = folder / RUNS
-    if _real_folder(runs):
-        for name, st in _listing(runs):
+    kept = folder / KEPT
+    if _real_folder(kept):
+        for name, st in _listing(kept):
             if INDEX_FILE.fullmatch(name) or TEMPORARY_INDEX.fullmatch(name):
-                (found.links if _odd(st) else found.runs if stat.S_ISREG(st.st_mode) else []).append(runs / name)
+                (found.links if _odd(st) else found.kept if stat.S_ISREG(st.st_mode) else []).append(kept / name)
     native = folder / "native"
     if not _real_folder(native):
         return found
@@ -360,9 +360,9 @@ def info() -> CacheInfo:
         return CacheInfo(folder)
     found = entries(folder)
     files = [p for group in found.systems.values() for p in group]
-    runs = [p for p in found.runs if INDEX_FILE.fullmatch(p.name)]
+    kept = [p for p in found.kept if INDEX_FILE.fullmatch(p.name)]
     return CacheInfo(folder, len(found.systems), sum(map(_size, files)), len(found.libraries),
-                     sum(map(_size, found.libraries)), len(runs), sum(map(_size, runs)))
+                     sum(map(_size, found.libraries)), len(kept), sum(map(_size, kept)))
 
 
 def _inside(path: Path, root: Path) -> bool:
@@ -384,7 +384,7 @@ def clear() -> CacheInfo:
     found = entries(folder)
     before = info()
     for path in [p for group in found.systems.values() for p in group] + found.temporaries + found.index \
-            + found.runs + found.links:
+            + found.kept + found.links:
         try:
             os.unlink(path)  # a link itself, never what it points to
         except OSError:
@@ -392,7 +392,7 @@ def clear() -> CacheInfo:
     for lib in found.libraries:
         if _real_folder(lib) and _inside(lib, root):
             shutil.rmtree(lib, ignore_errors=True)  # (rmtree does not follow links inside)
-    for sub in (folder / "native" / "index", folder / "native", folder / RUNS):
+    for sub in (folder / "native" / "index", folder / "native", folder / KEPT):
         if _real_folder(sub):
             try:
                 sub.rmdir()
@@ -402,6 +402,6 @@ def clear() -> CacheInfo:
 
 
 __all__ = ["CACHE_ENV", "CacheInfo", "CacheWarning", "ENTRY_BYTES", "Entries", "INDEX_FILE", "LIBRARY_FILE",
-           "NATIVE_DIR", "PROBE", "RUNS", "SEAL", "SYSTEM_FILE", "TEMPORARY", "TEMPORARY_INDEX", "cache_dir", "clear",
+           "NATIVE_DIR", "PROBE", "KEPT", "SEAL", "SYSTEM_FILE", "TEMPORARY", "TEMPORARY_INDEX", "cache_dir", "clear",
            "code_fingerprint", "entries", "info", "load_entry", "missing_reason", "private_folder", "read_private",
            "safe_folder", "store_entry", "unsafe_reason", "unwritable_reason", "usable_cache_dir", "write_private"]

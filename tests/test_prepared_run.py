@@ -124,7 +124,7 @@ def own(shared, tmp_path):
 
 def test_a_changed_record_is_not_used_and_is_written_again(own, tmp_path, served):
     cache, reference = own
-    [record] = (cache / "runs").iterdir()
+    [record] = (cache / "kept").iterdir()
     assert stat.S_IMODE(record.stat().st_mode) == 0o600 and stat.S_IMODE(record.parent.stat().st_mode) == 0o700
     text = record.read_bytes()
     record.write_bytes(text.replace(b'"rtol": 1e-10', b'"rtol": 1e-09'))  # its seal no longer matches
@@ -135,7 +135,7 @@ def test_a_changed_record_is_not_used_and_is_written_again(own, tmp_path, served
 
 def test_a_record_others_may_read_is_not_used(own, tmp_path, served):
     cache, reference = own
-    [record] = (cache / "runs").iterdir()
+    [record] = (cache / "kept").iterdir()
     record.chmod(0o644)
     assert derived(ARGS, cache, tmp_path / "open") == reference and served == []
 
@@ -204,6 +204,6 @@ def test_a_run_that_would_warn_is_left_to_the_derived_run(own, tmp_path, monkeyp
 
 def test_cache_info_and_clear_count_the_prepared_runs(own):
     cache, _ = own
-    assert "prepared runs: 1 " in cli("cache", "info", cache=cache).output
-    assert "prepared runs: 1 " in cli("cache", "clear", cache=cache).output
-    assert not (cache / "runs").exists()
+    assert "kept outputs: 1 " in cli("cache", "info", cache=cache).output
+    assert "kept outputs: 1 " in cli("cache", "clear", cache=cache).output
+    assert not (cache / "kept").exists()

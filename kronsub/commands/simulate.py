@@ -242,7 +242,7 @@ def _record(key: str, loaded, system, run, values, writer, span: float, step: fl
                         nparam=len(system.parameters), method=run.method, rtol=rtol, atol=atol, t_end=span, dt=step,
                         param=tuple(map(float, values.parameters)), y0=tuple(map(float, values.y0)),
                         columns=tuple(writer.columns), want=dict(writer.want), meta=writer.metadata())
-    record(key, prepared, [(f.file, f.sha256) for f in (loaded.source, *loaded.uses)])
+    record(key, prepared, (loaded.source, *loaded.uses))
 
 
 def _rows(count: int) -> str:

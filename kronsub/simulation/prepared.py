@@ -4,13 +4,13 @@ from its compiled model, without reading or deriving the model (no SymPy).
 A run whose rows come from the compiled model alone (a method wholly in C, no closed loop, no
 drive power, circuit energies, points or reactions) and that completed records what it ran
 (:func:`record`): the compiled library (its folder, name and sha256), the parameters and the
-initial state as numbers, the columns and the metadata. The record is kept under the key of
-what decided all of that (:func:`run_key`): kronsub's source, the model file's path and bytes,
-the command's options, the compiler, the build and the integrators' C; it names every model
-file the model takes as a known system with its sha256. The same command then finds the record
-(:func:`load`), checks those files and the library's bytes, integrates in C on the pieces of the
-output grid the C engine walks (:mod:`.engines.c`), computes ``T`` and ``V`` (24) per row in C,
-and writes through the same :class:`~.trajectory_file.RowWriter` as a derived run.
+initial state as numbers, the columns and the metadata, kept (:mod:`kronsub.model.kept`) under
+the key of what decided all of that (:func:`run_key`: kronsub's source, the model file, the
+command's options, the compiler, the build and the integrators' C) with the model files it was
+derived from. The same command then finds the record (:func:`load`: the files unchanged, the
+library's bytes those recorded), integrates in C on the pieces of the output grid the C engine
+walks (:mod:`.engines.c`), computes ``T`` and ``V`` (24) per row in C, and writes through the
+same :class:`~.trajectory_file.RowWriter` as a derived run.
 
 Anything else is not served and the command runs as usual: no record, a record damaged, not
 private or not this user's (:func:`kronsub.cache.load_entry`), a file changed, a library whose
@@ -21,63 +21,38 @@ from __future__ import annotations
 
 import hashlib
 import json
-import os
 import shutil
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from ..cache import (LIBRARY_FILE, NATIVE_DIR, RUNS, cache_dir, code_fingerprint, load_entry, private_folder,
-                     store_entry, unsafe_reason, usable_cache_dir)
+from ..cache import LIBRARY_FILE, NATIVE_DIR
 from ..errors import KronsubError
-from ..model.file_reading import read_model_file
+from ..model import kept
 from . import native
+from . import rows
 from .advice import energy_advice, is_stiff
 from .grid import Grid, aligned_pieces, chunk_ranges, fixed_pieces
 from .methods import METHODS
 from .progress import Progress
-from . import rows
 from .rows import Block, RunInProgress
 
-__all__ = ["FORMAT", "RECORD_BYTES", "Prepared", "load", "record", "run_key", "runs"]
-
-FORMAT = "kronsub-prepared-run/1"
-RECORD_BYTES = 1 << 20  # a record holds names and numbers: a model of thousands of coordinates fits
+__all__ = ["Prepared", "load", "record", "run_key", "runs"]
 
 
 def run_key(model: Path, options: dict) -> str | None:
-    """The key of a ``simulate`` of ``model`` with ``options`` (JSON values): None when the
-    cache is off, the model file cannot be read, or no compiler is there. The model's path as
-    given and as resolved name the files it uses (relative to its folder) and the metadata's
-    paths; the files the run was derived from, the model file among them, are recorded with
-    their sha256 as it read them (:func:`record`), so a file changed between this key and its
-    reading is caught by :func:`load`."""
-    if cache_dir() is None:
-        return None
+    """The key of a ``simulate`` of ``model`` with ``options`` (:func:`kronsub.model.kept.key`,
+    with the compiler, the build and the integrators' C): None when the cache is off, the model
+    file cannot be read, or no compiler is there."""
     try:
-        _, source = read_model_file(model)
         command = native.compiler_command()
         integrators = [hashlib.sha256((native.CSRC / name).read_bytes()).hexdigest()
                        for name in native.INTEGRATOR_FILES]
     except (KronsubError, OSError):
         return None
-    parts = {"format": FORMAT, "kronsub": code_fingerprint(), "model": str(model),
-             "path": os.path.abspath(model), "sha256": source.sha256, "options": options,
-             "compiler": [shutil.which(command[0]) or command[0], *command[1:]],
-             "build": native.build_identity(), "integrators": integrators}
-    return hashlib.sha256(json.dumps(parts, sort_keys=True).encode()).hexdigest()
-
-
-def _quiet_cache_dir() -> Path | None:
-    """The cache folder when it is configured, there and safe, with no warning (the derived run
-    that follows a miss gives it)."""
-    folder = cache_dir()
-    return folder if folder is not None and folder.is_dir() and unsafe_reason(folder) is None else None
-
-
-def _record_file(key: str, folder: Path | None) -> Path | None:
-    return folder / RUNS / f"{key}.json" if folder is not None else None
+    return kept.key("simulate", model, options, compiler=[shutil.which(command[0]) or command[0], *command[1:]],
+                    build=native.build_identity(), integrators=integrators)
 
 
 @dataclass(frozen=True)
@@ -109,41 +84,24 @@ class Prepared:
         return meta
 
 
-def record(key: str, prepared: Prepared, files: list[tuple[str, str]]) -> None:
-    """Keep ``prepared`` under ``key`` with the model files it depends on, ``(path, sha256)``
-    (private and sealed; an optimisation only: failures are ignored)."""
-    path = _record_file(key, usable_cache_dir())
-    if path is None:
-        return
+def record(key: str, prepared: Prepared, files) -> None:
+    """Keep ``prepared`` under ``key`` with the model files it was derived from
+    (:func:`kronsub.model.kept.record`)."""
     library = prepared.library
-    entry = {"format": FORMAT, "key": key, "files": [[os.path.abspath(f), digest] for f, digest in files],
-             "library": {"folder": library.parent.name, "name": library.name, "sha256": prepared.sha256},
-             "nq": prepared.nq, "nparam": prepared.nparam, "method": prepared.method,
-             "rtol": prepared.rtol, "atol": prepared.atol, "t_end": prepared.t_end, "dt": prepared.dt,
-             "param": list(prepared.param), "y0": list(prepared.y0), "columns": list(prepared.columns),
-             "want": prepared.want, "meta": prepared.meta}
-    try:
-        text = json.dumps(entry, allow_nan=False).encode()
-        if len(text) <= RECORD_BYTES:
-            store_entry(private_folder(path.parent) / path.name, text)
-    except (OSError, ValueError):
-        pass
+    kept.record(key, {"library": {"folder": library.parent.name, "name": library.name, "sha256": prepared.sha256},
+                      "nq": prepared.nq, "nparam": prepared.nparam, "method": prepared.method,
+                      "rtol": prepared.rtol, "atol": prepared.atol, "t_end": prepared.t_end, "dt": prepared.dt,
+                      "param": list(prepared.param), "y0": list(prepared.y0), "columns": list(prepared.columns),
+                      "want": prepared.want, "meta": prepared.meta}, files)
 
 
 def load(key: str) -> Prepared | None:
-    """The run recorded under ``key`` when its record is sound, every model file it names still
-    has its recorded sha256 and its library is the one recorded (:func:`.native.verified`); else None."""
-    path = _record_file(key, _quiet_cache_dir())
-    if path is None:
+    """The run kept under ``key`` (:func:`kronsub.model.kept.load`: its model files unchanged)
+    when its library is the one recorded (:func:`.native.verified`); else None."""
+    entry = kept.load(key)
+    if entry is None:
         return None
-    text = load_entry(path, RECORD_BYTES)  # private, this user's, sealed; read bounded
     try:
-        entry = json.loads(text.decode())
-        if entry["format"] != FORMAT or entry["key"] != key:
-            return None
-        for name, digest in entry["files"]:
-            if read_model_file(Path(name))[1].sha256 != digest:
-                return None
         lib = entry["library"]
         folder, name = lib["folder"], lib["name"]
         if not (NATIVE_DIR.fullmatch(folder) and LIBRARY_FILE.fullmatch(name)):
