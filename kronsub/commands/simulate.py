@@ -236,8 +236,8 @@ def _record(key: str, loaded, system, run, values, writer, span: float, step: fl
             or len(Grid(span, step)) > rows.BLOCK_ROWS:
         return
     digest = native.recorded_digest(run.library)
-    if digest is None or loaded.source is None:
-        return
+    if digest is None or loaded.source is None or run.library.parent.parent != native.build_root():
+        return  # (a library in the process's temporary folder is gone at its exit)
     prepared = Prepared(library=run.library, sha256=digest, nq=len(system.coordinates),
                         nparam=len(system.parameters), method=run.method, rtol=rtol, atol=atol, t_end=span, dt=step,
                         param=tuple(map(float, values.parameters)), y0=tuple(map(float, values.y0)),
