@@ -10,12 +10,13 @@ angles 0.1 at rest) and the spatial chain of n rods on ball joints
 (``models/chain/generate_spatial.py``: mass 1, length 1, radius 0.05), its joints as the
 connection (``spatial``) or as ``pin`` constraints (``spatial-pins``, ``--pins``).
 
-* ``kronsub cold``: ``kronsub simulate MODEL --t 10`` with an empty cache folder; ``warm``: the
-  same command again on that folder. The run is the command's own (``kronsub.cli.main``), in a
-  child process that times its phases by wrapping the functions that do them: ``import`` (the
-  modules ``simulate`` needs), ``load`` (``load_model``), ``derive`` (``derive_scene``), ``emit``
-  (``emit_c``), ``compile`` (``native.compile_library``), ``integrate`` (the rest: the run and
-  the CSV written to /dev/null). ``wall`` is measured by the parent, interpreter start included.
+* ``kronsub cold``: ``kronsub simulate MODEL --t 10`` with an empty cache folder. The run is the
+  command's own (``kronsub.cli.main``), in a child process that times its phases by wrapping the
+  functions that do them: ``import`` (the modules a derived run needs), ``load``
+  (``load_model``), ``derive`` (``derive_scene``), ``emit`` (``emit_c``), ``compile``
+  (``native.compile_library``), ``integrate`` (the rest: the run and the CSV written to
+  /dev/null). ``wall`` is measured by the parent, interpreter start included. ``warm``: the
+  same command again on that folder, run as it is (a prepared run: no phases to time).
 * ``pydy-cython``, ``pydy-lambdify`` (planar chain): ``sympy.physics.mechanics.KanesMethod``
   derives the same chain (``derive``), PyDy's ``generate_ode_function`` builds its right-hand
   side (``compile``), SciPy's ``solve_ivp`` (DOP853, rtol = atol = 1e-10, kronsub's defaults,
@@ -24,7 +25,9 @@ connection (``spatial``) or as ``pin`` constraints (``spatial-pins``, ``--pins``
   inertias, no contacts), loaded (``compile``) and stepped with RK4 at h = 1e-3 to t = 10.
 * ``start-up``: ``python -c pass`` (the interpreter alone, the floor of every row),
   ``python -c "import kronsub"``, ``python -m kronsub --help`` and ``kronsub simulate
-  models/hoffmann/system1.yaml --t 10`` warm.
+  models/hoffmann/system1.yaml --t 10`` warm, interleaved with the same command derived from
+  the cached known system and library (its prepared run removed first: the warm run before
+  prepared runs), and their ratio.
 
 Peak memory: the child's largest resident set (``wait4``). Each cell: min/median of
 ``--repeats`` fresh processes; ``goal``: issue 34's target, ``x goal`` the ratio min/median to it
@@ -261,17 +264,38 @@ def ratios(ours: list[float], peers: dict[str, list[float]]) -> None:
         print(f"  {'kronsub cold / peer':<24} " + ", ".join(parts))
 
 
+def _command(model: Path) -> list[str]:
+    return ["-m", "kronsub", "simulate", str(model), "--t", "10"]
+
+
 def kronsub_runs(model: Path, repeats: int, timeout: float) -> tuple[list, list]:
+    """Cold runs (phases timed in a child) and warm ones (the command itself, a prepared run)."""
     cold, warm = [], []
     for _ in range(repeats):
         cache = tempfile.mkdtemp(prefix="ks-first-")
         try:
             cold.append(run_child([__file__, "--child", "kronsub", str(model)], timeout, _env(cache)))
             if cold[-1][2] is not None:
-                warm.append(run_child([__file__, "--child", "kronsub", str(model)], timeout, _env(cache)))
+                warm.append(run_child(_command(model), timeout, _env(cache)))
         finally:
             shutil.rmtree(cache, ignore_errors=True)
     return cold, warm
+
+
+def warm_runs(model: Path, repeats: int, timeout: float) -> tuple[list, list]:
+    """The command again on a filled cache, interleaved: as a prepared run, and derived from the
+    cached known system and compiled library (its prepared runs removed first)."""
+    prepared, derived = [], []
+    cache = tempfile.mkdtemp(prefix="ks-first-")
+    try:
+        run_child(_command(model), timeout, _env(cache))
+        for _ in range(repeats):
+            shutil.rmtree(Path(cache) / "kept", ignore_errors=True)
+            derived.append(run_child(_command(model), timeout, _env(cache)))
+            prepared.append(run_child(_command(model), timeout, _env(cache)))
+    finally:
+        shutil.rmtree(cache, ignore_errors=True)
+    return prepared, derived
 
 
 def available(tool: str) -> str | None:
@@ -328,8 +352,11 @@ def main() -> None:
         runs = [run_child(["-m", "kronsub", "--help"], args.timeout, _env()) for _ in range(args.repeats)]
         case("kronsub --help", runs, STARTUP_GOALS["kronsub --help"])
         if "kronsub" in tools:
-            _, warm = kronsub_runs(ROOT / "models" / "hoffmann" / "system1.yaml", args.repeats, args.timeout)
-            case("system1 warm", warm, STARTUP_GOALS["system1 warm"])
+            warm, derived = warm_runs(ROOT / "models" / "hoffmann" / "system1.yaml", args.repeats, args.timeout)
+            walls = case("system1 warm", warm, STARTUP_GOALS["system1 warm"])
+            before = case("system1 warm, derived", derived)
+            print(f"  {'warm / derived':<24} x{min(walls) / min(before):.2f}/"
+                  f"x{statistics.median(walls) / statistics.median(before):.2f}")
         plan = [("chain", n, chain_yaml) for n in sizes] + [("spatial", n, spatial_chain_yaml) for n in spatial]
         plan += [("spatial-pins", n, lambda n: spatial_chain_yaml(n, pins=True)) for n in pins]
         for kind, n, writer in plan:

@@ -1,15 +1,16 @@
 """Where kronsub keeps its caches, whether that place is safe, and what is in it.
 
-Two caches share one folder (``$KRONSUB_CACHE_DIR``, else ``$XDG_CACHE_HOME/kronsub``, else
-``~/.cache/kronsub``; ``KRONSUB_CACHE_DIR=off`` turns both off): derived known systems as
+The caches share one folder (``$KRONSUB_CACHE_DIR``, else ``$XDG_CACHE_HOME/kronsub``, else
+``~/.cache/kronsub``; ``KRONSUB_CACHE_DIR=off`` turns them off): derived known systems as
 ``<sha256>.system.json`` / ``<sha256>.transition.json`` (and, per scene's share,
 ``.inertia``, ``.inertia-transition``, ``.effect.<name>``) beside it, and compiled models under
-``native/<stem>-<key>/``. A folder that another user owns or that group or others may write is
-refused with a warning (someone else could plant entries there), and so is one kronsub cannot
-create or write files in (probed as the cache writes: a temporary file created and removed; a
-path under ``/proc``, a read-only folder): the known-system cache is then off and compiled
-models go to a private temporary folder. A folder kronsub creates is private (mode 0700), so a
-permissive umask does not make it refused.
+``native/<stem>-<key>/`` (indexed in ``native/index/``), and what commands made from a model
+file (:mod:`kronsub.model.kept`) as ``kept/<sha256>.json``. A folder that another user owns
+or that group or others may write is refused with a warning (someone else could plant entries
+there), and so is one kronsub cannot create or write files in (probed as the cache writes: a
+temporary file created and removed; a path under ``/proc``, a read-only folder): the
+known-system cache is then off and compiled models go to a private temporary folder. A folder
+kronsub creates is private (mode 0700), so a permissive umask does not make it refused.
 
 Entries are private whatever the umask (files 0600, folders 0700: :func:`write_private`,
 :func:`private_folder`) and sealed with the sha256 of their payload (:func:`store_entry`);
@@ -29,10 +30,11 @@ import shutil
 import stat
 import tempfile
 import warnings
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 from .atomic import clean_stale
+from .version import __version__
 
 CACHE_ENV = "KRONSUB_CACHE_DIR"
 
@@ -43,6 +45,8 @@ NATIVE_DIR = re.compile(r"[A-Za-z0-9_]+-[0-9a-f]{24}")
 INDEX_FILE = re.compile(r"[0-9a-f]{64}\.json")
 TEMPORARY = re.compile(r"\.[0-9a-f]{64}\." + _PART + r"\.json\.[a-z0-9_]{8}\.tmp")
 TEMPORARY_INDEX = re.compile(r"\.[0-9a-f]{64}\.json\.[a-z0-9_]{8}\.tmp")
+LIBRARY_FILE = re.compile(r"lib[A-Za-z0-9_]+\.so")  # a compiled model in its native/ folder
+KEPT = "kept"  # the folder of kept outputs (kronsub.model.kept), named like the index: <sha256>.json
 
 
 class CacheWarning(UserWarning):
@@ -149,6 +153,23 @@ def usable_cache_dir() -> Path | None:
     return safe_folder(cache_dir())
 
 
+def code_fingerprint() -> str:
+    """A hash of kronsub's own source and version, part of every key derived from a model, so a
+    changed kronsub never reads a stale entry."""
+    global _FINGERPRINT
+    if _FINGERPRINT is None:
+        digest = hashlib.sha256(__version__.encode())
+        package = Path(__file__).resolve().parent
+        for path in sorted(package.rglob("*.py")):
+            digest.update(str(path.relative_to(package)).encode())
+            digest.update(path.read_bytes())
+        _FINGERPRINT = digest.hexdigest()
+    return _FINGERPRINT
+
+
+_FINGERPRINT: str | None = None
+
+
 # ---------------------------------------------------------------------------------------------
 # Entries: private, sealed with a digest, read bounded
 # ---------------------------------------------------------------------------------------------
@@ -247,6 +268,8 @@ class CacheInfo:
     systems_bytes: int = 0
     libraries: int = 0
     libraries_bytes: int = 0
+    kept: int = 0
+    kept_bytes: int = 0
 
 
 @dataclass(frozen=True)
@@ -257,6 +280,7 @@ class Entries:
     index: list  # native/index/*.json
     temporaries: list  # temporary files of interrupted writes
     links: list  # links (FIFOs, sockets) named like entries: removed as themselves, never followed
+    kept: list = field(default_factory=list)  # kept outputs, kept/*.json (and their temporary files)
 
 
 def _lstat(path: Path):
@@ -300,6 +324,11 @@ def entries(folder: Path) -> Entries:
                     found.systems.setdefault(name.split(".")[0], []).append(path)
                 else:
                     found.temporaries.append(path)
+    kept = folder / KEPT
+    if _real_folder(kept):
+        for name, st in _listing(kept):
+            if INDEX_FILE.fullmatch(name) or TEMPORARY_INDEX.fullmatch(name):
+                (found.links if _odd(st) else found.kept if stat.S_ISREG(st.st_mode) else []).append(kept / name)
     native = folder / "native"
     if not _real_folder(native):
         return found
@@ -331,8 +360,9 @@ def info() -> CacheInfo:
         return CacheInfo(folder)
     found = entries(folder)
     files = [p for group in found.systems.values() for p in group]
+    kept = [p for p in found.kept if INDEX_FILE.fullmatch(p.name)]
     return CacheInfo(folder, len(found.systems), sum(map(_size, files)), len(found.libraries),
-                     sum(map(_size, found.libraries)))
+                     sum(map(_size, found.libraries)), len(kept), sum(map(_size, kept)))
 
 
 def _inside(path: Path, root: Path) -> bool:
@@ -354,7 +384,7 @@ def clear() -> CacheInfo:
     found = entries(folder)
     before = info()
     for path in [p for group in found.systems.values() for p in group] + found.temporaries + found.index \
-            + found.links:
+            + found.kept + found.links:
         try:
             os.unlink(path)  # a link itself, never what it points to
         except OSError:
@@ -362,7 +392,7 @@ def clear() -> CacheInfo:
     for lib in found.libraries:
         if _real_folder(lib) and _inside(lib, root):
             shutil.rmtree(lib, ignore_errors=True)  # (rmtree does not follow links inside)
-    for sub in (folder / "native" / "index", folder / "native"):
+    for sub in (folder / "native" / "index", folder / "native", folder / KEPT):
         if _real_folder(sub):
             try:
                 sub.rmdir()
@@ -371,7 +401,7 @@ def clear() -> CacheInfo:
     return before
 
 
-__all__ = ["CACHE_ENV", "CacheInfo", "CacheWarning", "ENTRY_BYTES", "Entries", "INDEX_FILE", "NATIVE_DIR", "PROBE",
-           "SEAL", "SYSTEM_FILE", "TEMPORARY", "TEMPORARY_INDEX", "cache_dir", "clear", "entries", "info", "load_entry",
-           "missing_reason", "private_folder", "read_private", "safe_folder", "store_entry", "unsafe_reason",
-           "unwritable_reason", "usable_cache_dir", "write_private"]
+__all__ = ["CACHE_ENV", "CacheInfo", "CacheWarning", "ENTRY_BYTES", "Entries", "INDEX_FILE", "LIBRARY_FILE",
+           "NATIVE_DIR", "PROBE", "KEPT", "SEAL", "SYSTEM_FILE", "TEMPORARY", "TEMPORARY_INDEX", "cache_dir", "clear",
+           "code_fingerprint", "entries", "info", "load_entry", "missing_reason", "private_folder", "read_private",
+           "safe_folder", "store_entry", "unsafe_reason", "unwritable_reason", "usable_cache_dir", "write_private"]

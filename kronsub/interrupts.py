@@ -13,7 +13,7 @@ import signal
 import threading
 
 HELD = tuple(getattr(signal, name) for name in ("SIGINT", "SIGTERM", "SIGHUP") if hasattr(signal, name))
-"""The signals that interrupt a run (and that :mod:`kronsub.simulation.table` holds off while a
+"""The signals that interrupt a run (and that :mod:`kronsub.simulation.trajectory_file` holds off while a
 block of rows is written)."""
 
 

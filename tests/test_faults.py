@@ -19,8 +19,10 @@ from click.testing import CliRunner
 from conftest import MODELS
 from kronsub import atomic
 from kronsub.cli import EXIT_CODES, main
+from kronsub.model import kept
 from kronsub.model.loader import load_model
 from kronsub.simulation import grid as grid_module
+from kronsub.simulation import rows as rows_module
 from kronsub.simulation import run as run_module
 from kronsub.simulation.values import resolve
 
@@ -73,6 +75,7 @@ def test_an_internal_error_exits_4_with_a_short_message(monkeypatch):
         raise RuntimeError("deliberate fault\nsecond line")
 
     monkeypatch.setitem(emitters.EMITTERS, "json", broken)
+    monkeypatch.setattr(kept, "load", lambda key: None)  # the emitter runs (no text kept from an earlier test)
     result = cli("derive", SYSTEM1, "--format", "json")
     assert result.exit_code == 4
     assert "internal error (RuntimeError: deliberate fault)" in result.output
@@ -132,7 +135,7 @@ def _interrupt_after(monkeypatch, calls: int):
 def test_ctrl_c_keeps_the_rows_so_far_marked_incomplete(tmp_path, monkeypatch):
     full = cli("simulate", SYSTEM1, "--t", "2", "--dt", "0.01", "--method", "gauss4")
     assert full.exit_code == 0, full.output
-    monkeypatch.setattr(run_module, "BLOCK_ROWS", 50)
+    monkeypatch.setattr(rows_module, "BLOCK_ROWS", 50)
     _interrupt_after(monkeypatch, 2)
     out = tmp_path / "traj.csv"
     result = cli("simulate", SYSTEM1, "--t", "2", "--dt", "0.01", "--method", "gauss4", "--output", out)
@@ -178,7 +181,7 @@ def test_rows_are_written_while_the_run_goes_on(monkeypatch):
     """Each block reaches the output before the next is computed; the rows equal an in-memory run."""
     from kronsub.simulation.table import CsvWriter
 
-    monkeypatch.setattr(run_module, "BLOCK_ROWS", 40)
+    monkeypatch.setattr(rows_module, "BLOCK_ROWS", 40)
     system = load_model(SYSTEM1).derive()
     values = resolve(system, dict(load_model(SYSTEM1).initial), {})
     run = run_module.start(system, values, 3.0, 0.01, "gauss4", progress=False)
@@ -295,7 +298,7 @@ def test_heyoka_runs_are_streamed_in_blocks_too(monkeypatch):
     system = load_model(SYSTEM1).derive()
     values = resolve(system, dict(load_model(SYSTEM1).initial), {})
     whole = run_module.simulate(system, values, 1.0, 0.05, "heyoka", rtol=1e-14)
-    monkeypatch.setattr(run_module, "BLOCK_ROWS", 6)
+    monkeypatch.setattr(rows_module, "BLOCK_ROWS", 6)
     run = run_module.start(system, values, 1.0, 0.05, "heyoka", rtol=1e-14)
     blocks = list(run)
     assert len(blocks) >= 3 and run.complete

@@ -35,6 +35,7 @@ def cache_info():
             + ("" if exists or reason else " (empty)"), err=False)
         say(f"derived known systems: {found.systems} ({_size(found.systems_bytes)})", err=False)
         say(f"compiled models: {found.libraries} ({_size(found.libraries_bytes)})", err=False)
+        say(f"kept outputs: {found.kept} ({_size(found.kept_bytes)})", err=False)
 
     run_command(job)
 
@@ -51,7 +52,8 @@ def cache_clear():
             return
         say(f"removed from {removed.folder}: derived known systems: {removed.systems} "
             f"({_size(removed.systems_bytes)}), compiled models: {removed.libraries} "
-            f"({_size(removed.libraries_bytes)})", err=False)
+            f"({_size(removed.libraries_bytes)}), kept outputs: {removed.kept} ({_size(removed.kept_bytes)})",
+            err=False)
 
     run_command(job)
 

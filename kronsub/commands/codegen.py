@@ -6,7 +6,9 @@ from pathlib import Path
 import click
 
 from ..atomic import write_atomically
-from .common import USAGE_ERROR, budget_option, fail, run_command, say, scene_option, scene_system, separate_outputs
+from ..model import kept
+from .common import (USAGE_ERROR, budget_option, budget_units, fail, run_command, say, scene_option, scene_system,
+                     separate_outputs)
 
 
 @click.command()
@@ -25,13 +27,20 @@ from .common import USAGE_ERROR, budget_option, fail, run_command, say, scene_op
 def codegen(model: Path, lang: str, outdir: Path, name: str | None, prefix: str, scene_name: str | None,
             precision: str):
     """Generate C (header + source) or a numpy module for MODEL."""
-    from ..api import C_IDENTIFIER, System, code_files
-    from ..emitters.numeric import identifier
 
     def job():
-        if not C_IDENTIFIER.fullmatch(prefix):
-            fail(f"Error: --prefix {prefix!r} is not a C identifier (letters, digits and _, not starting "
-                  f"with a digit)\n  hint: e.g. --prefix {identifier(prefix)}", USAGE_ERROR)
+        # the same command before: its files kept (no SymPy); else derived and emitted
+        key = kept.key("codegen", model, dict(lang=lang, name=name, prefix=prefix, precision=precision,
+                                              scene=scene_name, budget=budget_units()),
+                       templates=kept.templates_digest())
+        files = _kept_files(key) if key is not None else None
+        if files is None:
+            from ..api import C_IDENTIFIER
+            from ..emitters.numeric import identifier
+
+            if not C_IDENTIFIER.fullmatch(prefix):
+                fail(f"Error: --prefix {prefix!r} is not a C identifier (letters, digits and _, not starting "
+                      f"with a digit)\n  hint: e.g. --prefix {identifier(prefix)}", USAGE_ERROR)
         if outdir.exists() and not outdir.is_dir():
             fail(f"Error: {outdir}: not a directory\n  hint: choose a directory for --output")
         try:
@@ -39,18 +48,33 @@ def codegen(model: Path, lang: str, outdir: Path, name: str | None, prefix: str,
         except OSError as exc:
             fail(f"Error: {outdir}: cannot create the directory ({exc.strerror})\n"
                   "  hint: choose another --output")
-        if precision != "double" and lang != "c":
-            fail("Error: --precision long|quad is for --lang c\n  hint: drop --precision, or use --lang c")
-        loaded, scene, system = scene_system(model, scene_name)
         stem = name or model.stem
-        files = code_files(System.of(system, loaded, scene), stem, lang, prefix=prefix, precision=precision,
-                           source=model.as_posix())
+        if files is None:
+            from ..api import System, code_files
+
+            if precision != "double" and lang != "c":
+                fail("Error: --precision long|quad is for --lang c\n  hint: drop --precision, or use --lang c")
+            loaded, scene, system = scene_system(model, scene_name)
+            files = code_files(System.of(system, loaded, scene), stem, lang, prefix=prefix, precision=precision,
+                               source=model.as_posix())
+            if key is not None and loaded.source is not None:
+                kept.record(key, {"files": [list(f) for f in files]}, (loaded.source, *loaded.uses))
         separate_outputs(model, *((f"--output {outdir} --name {stem}", outdir / n, "generated") for n, _ in files))
         for file_name, text in files:
             write_atomically(outdir / file_name, text)
             say(f"wrote {outdir / file_name}")
 
     run_command(job)
+
+
+def _kept_files(key: str) -> list[tuple[str, str]] | None:
+    """The files kept under ``key`` (:mod:`kronsub.model.kept`), each a plain name and its text."""
+    payload = kept.load(key)
+    try:
+        files = [(str(n), str(t)) for n, t in payload["files"]]
+    except (KeyError, TypeError, ValueError):
+        return None
+    return files if files and all(n and Path(n).name == n for n, _ in files) else None
 
 
 __all__ = ["codegen"]

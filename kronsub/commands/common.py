@@ -27,7 +27,7 @@ from ..version import __version__
 
 __all__ = ["DEBUG_ENV", "EXIT_CODES", "FILE", "HANGUP", "INPUT_ERROR", "INTERNAL_ERROR", "INTERRUPTED",
            "NUMERICAL_FAILURE", "OK", "OUTPUT_HELP", "SCENE_HELP", "SET_HELP", "T_END", "TERMINATED", "USAGE_ERROR",
-           "budget_option", "check_times", "coincident_at_start", "coincident_ends", "default_sidecar",
+           "budget_option", "budget_units", "check_times", "coincident_at_start", "coincident_ends", "default_sidecar",
            "emit_text", "fail", "interrupted_by", "meta_option", "note_choice", "note_safely", "output_option",
            "plot_option", "run_command", "say", "scene_option", "scene_system", "separate_outputs", "set_option",
            "writable", "writable_outputs"]
@@ -197,6 +197,12 @@ def _budget_units(ctx, param, value):
     return value
 
 
+def budget_units() -> int | None:
+    """The running command's ``--budget`` (None: the default)."""
+    context = click.get_current_context(silent=True)
+    return context.meta.get(_BUDGET_KEY) if context is not None else None
+
+
 def budget_option(command):
     """``--budget UNITS`` for every command that reads or derives a model (`kronsub.budget`)."""
     return click.option("--budget", type=click.IntRange(min=1), metavar="UNITS", default=None,
@@ -264,7 +270,7 @@ def note_choice(system) -> None:
 def default_sidecar(output: Path | None) -> Path | None:
     """The metadata file beside ``--output``: none for standard output, a FIFO or a device
     (nothing is beside ``/dev/null``)."""
-    from ..simulation.table import sidecar_path
+    from ..simulation.trajectory_file import sidecar_path
 
     if output is None:
         return None

@@ -7,10 +7,10 @@ from pathlib import Path
 import click
 from click.core import ParameterSource
 
-from ..emitters.reactions import with_reactions as add_reactions
+from ..model import kept
 from ..model.file_reading import read_user_text
-from .common import (USAGE_ERROR, budget_option, emit_text, fail, note_choice, output_option, run_command, say,
-                     scene_option, scene_system, separate_outputs)
+from .common import (USAGE_ERROR, budget_option, budget_units, emit_text, fail, note_choice, output_option,
+                     run_command, say, scene_option, scene_system, separate_outputs)
 
 
 @click.command()
@@ -29,7 +29,6 @@ from .common import (USAGE_ERROR, budget_option, emit_text, fail, note_choice, o
 def derive(model: Path, fmt: str, output: Path | None, check: Path | None, no_cache: bool, scene_name: str | None,
            with_reactions: bool):
     """Derive the equations of motion of MODEL (a YAML file)."""
-    from ..emitters import EMITTERS
 
     def job():
         separate_outputs(model, ("--output", output, "output"))
@@ -44,11 +43,7 @@ def derive(model: Path, fmt: str, output: Path | None, check: Path | None, no_ca
         if output is not None and not output.resolve().parent.is_dir():
             fail(f"Error: {output}: the directory {output.resolve().parent} does not exist\n"
                   "  hint: create it first, or choose another --output path")
-        _, _, system = scene_system(model, scene_name, cache=not no_cache)
-        note_choice(system)
-        text = EMITTERS[chosen](system)
-        if with_reactions:
-            text = add_reactions(text, system, chosen)
+        text = _derived_text(model, chosen, scene_name, no_cache, with_reactions)
         if expected is not None:
             if expected != text:
                 diff = difflib.unified_diff(expected.splitlines(True), text.splitlines(True),
@@ -60,6 +55,29 @@ def derive(model: Path, fmt: str, output: Path | None, check: Path | None, no_ca
         emit_text(text, output)
 
     run_command(job)
+
+
+def _derived_text(model: Path, fmt: str, scene_name: str | None, no_cache: bool, with_reactions: bool) -> str:
+    """The equations of ``model`` as text: kept from the same command before (no SymPy,
+    :mod:`kronsub.model.kept`) unless ``--no-cache``, else derived (and kept when nothing was
+    said about them on the way)."""
+    options = dict(format=fmt, scene=scene_name, reactions=with_reactions, budget=budget_units())
+    key = None if no_cache else kept.key("derive", model, options, templates=kept.templates_digest())
+    payload = kept.load(key) if key is not None else None
+    if payload is not None and isinstance(payload.get("text"), str):
+        return payload["text"]
+    from ..emitters import EMITTERS
+    from ..emitters.reactions import with_reactions as add_reactions
+
+    loaded, _, system = scene_system(model, scene_name, cache=not no_cache)
+    note_choice(system)
+    text = EMITTERS[fmt](system)
+    if with_reactions:
+        text = add_reactions(text, system, fmt)
+    quiet = system.implicit is None or system.implicit.choice != "auto"  # (note_choice said nothing)
+    if key is not None and quiet and loaded.source is not None:
+        kept.record(key, {"text": text}, (loaded.source, *loaded.uses))
+    return text
 
 
 SUFFIXES = {".md": "markdown", ".markdown": "markdown", ".tex": "latex", ".json": "json"}

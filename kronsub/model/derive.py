@@ -11,7 +11,7 @@ import numpy.random  # noqa: F401  numpy loads it on first use; imported with th
 import sympy
 
 from ..budget import PER_OPERATION, WorkBudgetExceeded, charge
-from ..cache import load_entry, store_entry, usable_cache_dir
+from ..cache import code_fingerprint, load_entry, store_entry, usable_cache_dir
 from ..collector import collector_paused
 from ..core.constraints import project_implicit
 from ..core.doubles import graph_nodes
@@ -22,7 +22,6 @@ from ..core.symbols import free_symbols_of
 from ..core.subspace import (Subspace, assemble, assembled_potentials, effect_labels, project_effects,
                              project_inertia)
 from ..errors import Location
-from ..version import __version__
 from . import cache_format
 
 
@@ -31,26 +30,10 @@ def cache_dir() -> Path | None:
     return usable_cache_dir()
 
 
-def _code_fingerprint() -> str:
-    """A hash of kronsub's own source, so a changed derivation never reads a stale cache."""
-    global _FINGERPRINT
-    if _FINGERPRINT is None:
-        digest = hashlib.sha256(__version__.encode())
-        package = Path(__file__).resolve().parent.parent
-        for path in sorted(package.rglob("*.py")):
-            digest.update(str(path.relative_to(package)).encode())
-            digest.update(path.read_bytes())
-        _FINGERPRINT = digest.hexdigest()
-    return _FINGERPRINT
-
-
-_FINGERPRINT: str | None = None
-
-
 def content_key(*parts: str) -> str:
     """The cache key of a model: kronsub's code, the file's text and its sub-models' keys."""
     digest = hashlib.sha256()
-    digest.update(_code_fingerprint().encode())
+    digest.update(code_fingerprint().encode())
     for part in parts:
         digest.update(part.encode())
         digest.update(b"\0")

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from collections.abc import Iterator
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -13,7 +14,10 @@ from ..errors import KronsubError
 if TYPE_CHECKING:
     from .switching import Split
 
-__all__ = ["SimulationError", "Trajectory", "Block", "RunInProgress"]
+__all__ = ["BLOCK_ROWS", "SimulationError", "Trajectory", "Block", "RunInProgress"]
+
+
+BLOCK_ROWS = 100_000  # rows per block of a streamed run (bounds the memory of long runs)
 
 
 class SimulationError(KronsubError):
@@ -69,6 +73,7 @@ class RunInProgress:
     y_fail: np.ndarray | None = None  # the state at which the right-hand side failed, when known
     switches: list[tuple[float, str]] = field(default_factory=list)  # coordinates: auto: (t, what) per switch
     pending: tuple[float, np.ndarray] | None = None  # (t, y) where scipy's toggle event stopped a segment
+    library: Path | None = None  # the compiled model whose C computed the rows, when one did
 
     def __iter__(self):
         yield from self.blocks

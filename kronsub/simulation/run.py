@@ -6,7 +6,7 @@ the compilation fails, the generated numpy module (:mod:`.fallback`) stands in
 (with a one-line warning). The method table is :mod:`.methods`; each method's engine
 (:mod:`.engines`, one interface) computes its rows. A run is split into chunks so
 long runs can show progress and stream their rows (:func:`start` yields blocks
-of at most :data:`BLOCK_ROWS` rows, so memory does not grow with the run); a
+of at most :data:`.rows.BLOCK_ROWS` rows, so memory does not grow with the run); a
 non-finite state or a mass matrix that is not positive definite stops it,
 keeping the rows so far.
 """
@@ -14,7 +14,6 @@ from __future__ import annotations
 
 import math
 import sys
-import time
 import warnings
 
 import numpy as np
@@ -30,10 +29,12 @@ from .grid import Grid, Tail
 from .methods import METHODS as REGISTRY
 from .methods import SIMULATE, unknown_method
 from .native import CompileError, CompilerNotFound
+from .progress import Progress
+from . import rows as streamed
 from .rows import Block, RunInProgress, SimulationError, Trajectory
 from .values import RunValues
 
-__all__ = ["BLOCK_ROWS", "Block", "EnergyWarning", "FIXED_STEP", "MAX_ROWS", "METHODS", "MIN_ATOL", "MIN_TIME",
+__all__ = ["Block", "EnergyWarning", "FIXED_STEP", "MAX_ROWS", "METHODS", "MIN_ATOL", "MIN_TIME",
            "Progress", "RTOL_RANGE", "RunInProgress", "SimulationError", "StiffnessWarning", "Trajectory", "check_tolerances",
            "collect", "explicit_only", "row_count", "simulate", "start", "time_problem"]
 
@@ -44,33 +45,7 @@ METHODS = {name: REGISTRY[name] for name in SIMULATE}  # the methods of ``simula
 FIXED_STEP = tuple(name for name, m in METHODS.items() if m.fixed_step)  # the methods that step --dt at a time
 
 
-class Progress:
-    """A progress bar on stderr for runs longer than a second, only on a terminal."""
-
-    def __init__(self, total: float, enabled: bool | None = None):
-        self.total = total
-        self.start = time.perf_counter()
-        self.enabled = sys.stderr.isatty() if enabled is None else enabled
-        self.shown = False
-
-    def update(self, t: float) -> None:
-        if not self.enabled or time.perf_counter() - self.start < 1.0:
-            return
-        frac = min(1.0, t / self.total) if self.total > 0 else 1.0
-        bar = "#" * int(30 * frac)
-        sys.stderr.write(f"\r[{bar:<30}] t = {t:.4g} / {self.total:.4g}")
-        sys.stderr.flush()
-        self.shown = True
-
-    def close(self) -> None:
-        if self.shown:
-            sys.stderr.write("\n")
-
-
 MAX_ROWS = 10**8  # a run asking for more rows is a mistake (--dt far too small), not a plan
-
-
-BLOCK_ROWS = 100_000  # rows per block of a streamed run (bounds the memory of long runs)
 
 
 MIN_TIME = sys.float_info.min  # the smallest normal double: a subnormal one has too few bits to step by
@@ -163,7 +138,7 @@ def start(system: KnownSystem, values: RunValues, t_end: float, dt: float, metho
           rtol: float = 1e-10, atol: float = 1e-10, chunks: int = 20, progress: bool | None = None,
           outputs=None, constrained=None) -> RunInProgress:
     """A run from t = 0 to ``t_end`` with rows every ``dt``, streamed: the model is compiled
-    now, the rows are computed in blocks (at most :data:`BLOCK_ROWS` each) while the
+    now, the rows are computed in blocks (at most :data:`.rows.BLOCK_ROWS` each) while the
     :class:`RunInProgress` is iterated.
 
     ``outputs`` (a scene's; None: everything) decides whether the energies are computed. With
@@ -188,7 +163,7 @@ def start(system: KnownSystem, values: RunValues, t_end: float, dt: float, metho
         rows_of = runner(_problem(system, param, native, outputs, constrained, rtol, atol), spec)
         run = RunInProgress(spec.name, rows_of.backend)
         bar = Progress(t_end, False)
-        rows = rows_of.blocks(run, grid, y0, Steps(rtol, atol, dt, math.ceil(len(grid) / BLOCK_ROWS)), bar)
+        rows = rows_of.blocks(run, grid, y0, Steps(rtol, atol, dt, math.ceil(len(grid) / streamed.BLOCK_ROWS)), bar)
         run.blocks = _finish(run, rows, bar, native, param, system, None, with_energies)
         return run
     native = _compiled(system, outputs)
@@ -200,11 +175,11 @@ def start(system: KnownSystem, values: RunValues, t_end: float, dt: float, metho
         warnings.warn(f"method '{method}' runs in compiled C; using scipy's {spec.fallback} instead")
         spec = METHODS[spec.fallback]
     rows_of = runner(_problem(system, param, native, outputs, constrained, rtol, atol), spec)
-    run = RunInProgress(spec.name, rows_of.backend)
+    run = RunInProgress(spec.name, rows_of.backend, library=native.path if native is not None else None)
     bar = Progress(t_end, progress)
     if not bar.enabled:
         chunks = 1  # one call: no restarts of the step-size control
-    chunks = max(chunks, math.ceil(len(grid) / BLOCK_ROWS))
+    chunks = max(chunks, math.ceil(len(grid) / streamed.BLOCK_ROWS))
     if system.implicit is not None and system.implicit.choice == "auto":  # may switch coordinates
         run.blocks = _auto_blocks(run, system, spec, native, constrained, grid, y0, param,
                                   Steps(rtol, atol, dt, chunks), bar, outputs, with_energies)

@@ -21,62 +21,22 @@ its metadata says so.
 """
 from __future__ import annotations
 
-import contextlib
 import io
-import json
-import math
-import signal
-import threading
-from pathlib import Path
 
 import numpy as np
 
 from ..core.known_system import KnownSystem
 from ..core.rheonomic import depends_on_time
-from ..emitters.escape import json_document
-from ..interrupts import handled, signal_name, signal_of
 from ..model.file_reading import SourceFile
 from ..version import __version__
 from .drive_power import COLUMN as DRIVE_POWER
 from .drive_power import DrivePower, driven
 from .fallback import numpy_module
 from .power import COLUMNS as SPLIT_COLUMNS, EnergySplit
-from .rows import Block, RunInProgress, Trajectory
+from .rows import Block, Trajectory
+from .trajectory_file import (METADATA_FORMAT, RowWriter, format_rows, json_number, metadata_json,
+                              sidecar_path)
 from .values import RunValues
-
-METADATA_FORMAT = "kronsub-trajectory-metadata/1"
-
-
-def format_rows(data: np.ndarray) -> str:
-    """Rows of numbers as CSV lines, each number in its shortest round-trip form."""
-    return "".join(",".join(map(repr, row)) + "\n" for row in np.asarray(data, dtype=float).tolist())
-
-
-@contextlib.contextmanager
-def _whole_rows():
-    """Hold off Ctrl-C (SIGINT), SIGTERM and SIGHUP (:data:`kronsub.interrupts.HELD`) while rows
-    are written, then deliver the first: a file interrupted mid-write still ends with a whole
-    row, counted in the metadata. A signal whose handler is not Python's (the default action,
-    ignored) is left alone."""
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-    caught, previous = [], {}
-    try:
-        with handled(lambda signum: callable(signal.getsignal(signum)),
-                     lambda number, frame: caught.append((number, frame))) as previous:
-            yield
-    finally:
-        if caught:
-            previous[caught[0][0]](*caught[0])
-
-
-def sidecar_path(csv_path: Path) -> Path:
-    """The metadata file of a CSV: ``out.csv`` -> ``out.json``; other names get ``.json`` added."""
-    csv_path = Path(csv_path)
-    if csv_path.suffix.lower() == ".csv":
-        return csv_path.with_suffix(".json")
-    return csv_path.with_name(csv_path.name + ".json")
 
 
 def model_record(name: str, file: str | None, source: SourceFile | None = None,
@@ -91,17 +51,6 @@ def model_record(name: str, file: str | None, source: SourceFile | None = None,
     return record
 
 
-def json_number(value):
-    """A float for JSON: non-finite values (which JSON lacks) as null."""
-    if value is None:
-        return None
-    value = float(value)
-    return value if math.isfinite(value) else None
-
-
-def metadata_json(meta: dict) -> str:
-    """The metadata as JSON text (key order as built; deterministic)."""
-    return json_document(meta, indent=2, allow_nan=False) + "\n"
 class _Module:
     """The generated numpy module, made on first use."""
 
@@ -174,10 +123,9 @@ def point_columns(system: KnownSystem, traj: Trajectory, param, outputs=None) ->
     return names, values
 
 
-class CsvWriter:
-    """Writes a run's CSV to ``out`` block by block; ``rows`` and ``last_t`` say how far it got,
-    :meth:`metadata` everything about the run (how it ended once :meth:`end` or
-    :meth:`interrupted` was called)."""
+class CsvWriter(RowWriter):
+    """Writes a run's CSV to ``out`` block by block (:class:`~.trajectory_file.RowWriter`), with
+    the columns and the metadata of ``system``."""
 
     def __init__(self, out, system: KnownSystem, model_path: str, values: RunValues, method: str,
                  backend: str, rtol: float, atol: float, with_points: bool = False, outputs=None, *,
@@ -189,25 +137,23 @@ class CsvWriter:
         ``uses`` are the model's files as it read them (:func:`model_record`); ``split`` (a
         model with circuit parts, :func:`~kronsub.simulation.power.energy_split`) adds the
         energies by kind and the dissipated power after the energies."""
-        self.out, self.system, self.outputs = out, system, outputs
+        self.system, self.outputs = system, outputs
         self.with_points = with_points if outputs is None else bool(outputs.points)
         self.param = np.array(values.parameters)
         self.module = _Module(system, outputs)
-        self.rows, self.last_t, self.stopped, self.reader_gone = 0, None, False, False
-        self.signum: int | None = None  # the signal that interrupted the run (SIGINT for Ctrl-C)
-        self.want = {k: outputs is None or getattr(outputs, k) for k in ("coordinates", "velocities", "energies")}
-        self.split = split if self.want["energies"] else None
+        want = {k: outputs is None or getattr(outputs, k) for k in ("coordinates", "velocities", "energies")}
+        self.split = split if want["energies"] else None
         columns = ["t"]
-        if self.want["coordinates"]:
+        if want["coordinates"]:
             columns += [q.name for q in system.coordinates]
-        if self.want["velocities"]:
+        if want["velocities"]:
             columns += [v.name for v in system.velocities]
-        if self.want["energies"]:
+        if want["energies"]:
             columns += ["kinetic_energy", "potential_energy", "total_energy"]
         if self.split is not None:
             columns += list(SPLIT_COLUMNS)
         self.drive = None  # the drive's power P = s^T R (x = x(xbar, t)), made on first use
-        self.with_drive = self.want["energies"] and driven(system)
+        self.with_drive = want["energies"] and driven(system)
         if self.with_drive:
             columns.append(DRIVE_POWER)
         if system.implicit is not None:  # implicit constraints: the dependent coordinates
@@ -216,9 +162,15 @@ class CsvWriter:
             columns += _point_names(self.module)
         columns += _distinct(columns, extra_columns)
         self.columns = columns
-        self._meta = self._start_metadata(model_path, values, method, backend, rtol, atol, t_end, dt, scene,
-                                          source, uses)
-        out.write(",".join(columns) + "\n")
+        meta = self._start_metadata(model_path, values, method, backend, rtol, atol, t_end, dt, scene,
+                                    source, uses)
+        super().__init__(out, columns, meta, want)
+
+    @property
+    def plain(self) -> bool:
+        """Whether the columns are only ``t``, the coordinates, the velocities and the energies:
+        no circuit energies, drive power, dependent coordinates or points."""
+        return self.split is None and not self.with_drive and self.system.implicit is None and not self.with_points
 
     def _start_metadata(self, model_path, values, method, backend, rtol, atol, t_end, dt, scene, source,
                         uses) -> dict:
@@ -264,39 +216,14 @@ class CsvWriter:
         meta.update(status="running", complete=False, rows=0, last_t=None, cost={})
         return meta
 
-    def metadata(self) -> dict:
-        """The run's metadata: what it ran and, so far, how it went (a copy)."""
-        return json.loads(json.dumps(self._meta))
+    def energies(self, block: Block) -> tuple[np.ndarray, np.ndarray]:
+        return _energies(self.module, block, self.param)
 
-    def block(self, block: Block, extra: np.ndarray | None = None) -> None:
-        """Write the rows of ``block`` (``extra``: the values of the appended columns)."""
-        text = format_rows(self.data(block, extra))
-        with _whole_rows():
-            self.out.write(text)
-            self.counted(block)
-
-    def counted(self, block: Block) -> None:
-        """Count the rows of ``block`` as written (in the metadata: ``rows``, ``last_t``)."""
-        n = len(block.t)
-        self.rows += n
-        self.last_t = float(block.t[-1]) if n else self.last_t
-        self._meta.update(rows=self.rows, last_t=json_number(self.last_t))
-
-    def data(self, block: Block, extra: np.ndarray | None = None) -> np.ndarray:
-        """The numbers of the rows of ``block``, one column per name of :attr:`columns`."""
-        n = len(block.t)
-        Y = block.y.reshape(n, -1)
-        nq = Y.shape[1] // 2
-        data = [block.t.reshape(-1, 1)]
-        if self.want["coordinates"]:
-            data.append(Y[:, :nq])
-        if self.want["velocities"]:
-            data.append(Y[:, nq:])
-        if self.want["energies"]:
-            T, V = _energies(self.module, block, self.param)
-            data += [T.reshape(-1, 1), V.reshape(-1, 1), (T + V).reshape(-1, 1)]
-            if self.split is not None:
-                data.append(self.split.columns(block.t, Y, self.param))
+    def more(self, block: Block, Y: np.ndarray) -> list[np.ndarray]:
+        """Circuit energies by kind, the drive's power, dependent coordinates, points."""
+        n, data = len(block.t), []
+        if self.split is not None:
+            data.append(self.split.columns(block.t, Y, self.param))
         if self.with_drive:
             if self.drive is None:
                 self.drive = DrivePower(self.system)
@@ -307,57 +234,7 @@ class CsvWriter:
             data.append(dependent.reshape(n, -1))
         if self.with_points:
             data.append(np.array([_points_at(self.module, t, y, self.param) for t, y in zip(block.t, block.y)]).reshape(n, -1))
-        if extra is not None:
-            data.append(np.asarray(extra, dtype=float).reshape(n, -1))
-        return np.hstack(data)
-
-    def end(self, stats: dict, complete: bool, t_fail: float | None = None, message: str = "",
-            switches=()) -> None:
-        """Record how the run ended: its cost, where and why it stopped when it did, and the
-        times ``coordinates: auto`` chose other independent coordinates."""
-        self._cost(stats)
-        self._meta["complete"] = bool(complete)
-        if switches:
-            self._meta["coordinate_switches"] = [{"t": json_number(t), "what": str(what)} for t, what in switches]
-        if complete:
-            self._meta["status"] = "complete"
-        else:
-            self._meta.update(status="stopped", stopped_at=json_number(t_fail), stop_reason=message)
-
-    def _cost(self, stats: dict) -> None:
-        self._meta["cost"] = {k: (json_number(v) if k == "stiff_from" else int(v)) for k, v in stats.items()}
-
-    def interrupted(self, stats: dict | None = None, signum: int = signal.SIGINT) -> None:
-        """Record an interrupt (Ctrl-C, SIGTERM, SIGHUP: ``signum``): the rows so far, to
-        ``last_t``, are all there is."""
-        self.stopped = True
-        self.signum = int(signum)
-        if stats is not None:
-            self._cost(stats)
-        name = signal_name(signum)
-        self._meta.update(status="interrupted", complete=False, stopped_at=json_number(self.last_t),
-                          stop_reason=f"interrupted ({'Ctrl-C' if signum == signal.SIGINT else name})",
-                          signal=name)
-
-    def stream(self, run: RunInProgress, keep=None) -> None:
-        """Write the blocks of ``run`` as they are computed, then record how it ended; ``keep(block)``,
-        when given, sees every block too (for a plot). An interrupt (KeyboardInterrupt) is
-        recorded (:meth:`interrupted`) and raised again, so the caller keeps the file and reports it."""
-        try:
-            for block in run:
-                self.block(block)
-                if keep is not None:
-                    keep(block)
-        except KeyboardInterrupt as exc:
-            self.interrupted(run.stats, signal_of(exc))
-            raise
-        except BrokenPipeError:  # the reader went away (`| head`): the rows it took are all there is
-            self.stopped = self.reader_gone = True
-            self._cost(run.stats)
-            self._meta.update(status="stopped", complete=False, stopped_at=json_number(self.last_t),
-                              stop_reason="the reader of the output closed it")
-            return
-        self.end(run.stats, run.complete, run.t_fail, run.message, run.switches)
+        return data
 
 
 def trajectory_csv(system: KnownSystem, model_path: str, traj: Trajectory, values: RunValues, rtol: float,

@@ -21,7 +21,7 @@ from ..simulation.compiled import fingerprint, identity_source
 from ..simulation.grid import Grid, aligned_pieces, chunk_ranges, fixed_pieces
 from ..simulation.methods import METHODS
 from ..simulation.native import NativeModel, compile_library, data_address
-from ..simulation.run import BLOCK_ROWS
+from ..simulation.rows import BLOCK_ROWS
 
 __all__ = ["BATCH_METHODS", "Ensemble", "EnsembleError", "Sources", "TaylorEnsemble", "ensemble_sources", "load",
            "load_taylor", "pieces", "summary_width", "taylor_sources"]

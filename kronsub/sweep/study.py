@@ -8,7 +8,7 @@ from ..simulation.methods import METHODS, SIMULATE, unknown_method
 from ..simulation.run import SimulationError, check_tolerances, explicit_only, row_count
 from .axes import GridAxis, SampleAxis
 from ..core.symbols import TIME
-from ..simulation.run import BLOCK_ROWS
+from ..simulation.rows import BLOCK_ROWS
 from .chunk import ENSEMBLE, ONE_BY_ONE, TAYLOR, Job, columns, state_names
 from .ensemble import BATCH_METHODS, ensemble_sources, taylor_sources
 from .outputs import read_outputs

@@ -1,0 +1,116 @@
+"""Kept outputs (kronsub/model/kept.py): ``derive`` and ``codegen`` run again with the same
+command import no SymPy and write the very bytes the derived run wrote; ``--no-cache``, other
+options, other templates or a changed model file derive again."""
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+from click.testing import CliRunner
+
+from conftest import MODELS, ROOT
+from kronsub.cli import main
+from kronsub.model import kept
+
+SYSTEM1 = MODELS / "hoffmann" / "system1.yaml"
+
+PROBE = """
+import json, sys
+from kronsub.cli import main
+code = None
+try:
+    main({args!r})
+except SystemExit as exc:
+    code = exc.code
+with open({modules!r}, "w") as fh:
+    json.dump([code, sorted({{n.split(".")[0] for n in sys.modules}} & {{"sympy", "mpmath", "scipy"}})], fh)
+"""
+
+
+def kronsub(args: list[str], cache: Path, cwd: Path) -> tuple[int, bytes, list[str]]:
+    """Run the command line in a fresh process: exit code, standard output, heavy modules imported."""
+    modules = cwd / "modules.json"
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")]),
+           "KRONSUB_CACHE_DIR": str(cache)}
+    done = subprocess.run([sys.executable, "-c", PROBE.format(args=args, modules=str(modules))],
+                          cwd=cwd, env=env, capture_output=True, timeout=300)
+    assert modules.exists(), done.stderr.decode()
+    code, heavy = json.loads(modules.read_text())
+    modules.unlink()
+    return code, done.stdout, heavy
+
+
+def cli(*args, cache: Path):
+    return CliRunner().invoke(main, [str(a) for a in args], env={"KRONSUB_CACHE_DIR": str(cache)})
+
+
+@pytest.fixture
+def loaded(monkeypatch):
+    """The model files read by the model loader in this test (a derived output reads them)."""
+    from kronsub.model import loader
+
+    calls = []
+    real = loader.load_model
+
+    def load_model(*args, **kwargs):
+        calls.append(args[0])
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(loader, "load_model", load_model)
+    return calls
+
+
+def test_derive_again_imports_no_sympy_and_prints_the_same(tmp_path):
+    cache = tmp_path / "cache"
+    first = cli("derive", SYSTEM1, "--format", "json", "--scene", "free", cache=cache)
+    assert first.exit_code == 0
+    code, again, heavy = kronsub(["derive", str(SYSTEM1), "--format", "json", "--scene", "free"], cache, tmp_path)
+    assert code in (0, None) and heavy == [] and again.decode() == first.stdout
+
+
+def test_codegen_again_imports_no_sympy_and_writes_the_same_files(tmp_path):
+    cache = tmp_path / "cache"
+    first = cli("codegen", SYSTEM1, "--output", tmp_path / "first", "--prefix", "s1", cache=cache)
+    assert first.exit_code == 0, first.output
+    code, _, heavy = kronsub(["codegen", str(SYSTEM1), "--output", "again", "--prefix", "s1"], cache, tmp_path)
+    assert code in (0, None) and heavy == []
+    names = sorted(p.name for p in (tmp_path / "first").iterdir())
+    assert names == ["system1.c", "system1.h"] == sorted(p.name for p in (tmp_path / "again").iterdir())
+    for name in names:
+        assert (tmp_path / "again" / name).read_bytes() == (tmp_path / "first" / name).read_bytes()
+
+
+def test_what_the_output_depends_on_derives_again(tmp_path, monkeypatch, loaded):
+    cache = tmp_path / "cache"
+    model = tmp_path / "system1.yaml"
+    model.write_text(SYSTEM1.read_text())
+    args = ("derive", model, "--format", "json")
+    first = cli(*args, cache=cache)
+    assert first.exit_code == 0 and len(loaded) == 1
+    assert cli(*args, cache=cache).stdout == first.stdout and len(loaded) == 1  # kept
+    assert cli(*args, "--no-cache", cache=cache).stdout == first.stdout and len(loaded) == 2
+    assert cli("derive", model, "--format", "markdown", cache=cache).exit_code == 0 and len(loaded) == 3
+    model.write_text(SYSTEM1.read_text().replace("value: 9.81", "value: 9.80"))
+    changed = cli(*args, cache=cache)
+    assert changed.exit_code == 0 and len(loaded) == 4 and changed.stdout != first.stdout
+    real = kept.templates_digest
+    monkeypatch.setattr(kept, "templates_digest", lambda: "other" + real())
+    assert cli(*args, cache=cache).stdout == changed.stdout and len(loaded) == 5
+
+
+def test_a_check_against_a_kept_output(tmp_path, loaded):
+    """``derive --check`` compares with the kept text as with a derived one."""
+    cache = tmp_path / "cache"
+    out = tmp_path / "s1.json"
+    assert cli("derive", SYSTEM1, "--output", out, cache=cache).exit_code == 0  # markdown text in a .json file
+    assert cli("derive", SYSTEM1, "--format", "json", "--output", out, cache=cache).exit_code == 0
+    assert len(loaded) == 2
+    checked = cli("derive", SYSTEM1, "--check", out, cache=cache)
+    assert checked.exit_code == 0 and "up to date" in checked.output and len(loaded) == 2
+    out.write_text(out.read_text() + "\n")
+    checked = cli("derive", SYSTEM1, "--check", out, cache=cache)
+    assert checked.exit_code == 1 and "differs" in checked.output and len(loaded) == 2
