@@ -178,7 +178,7 @@ def emit_c(system: KnownSystem, stem: str, source: str = "", prefix: str = "ks",
     printer = _CPrinter(p)
     ctx = _context(model, printer.doprint, "const double ", ";")
     circle, circle_block = ((), None)
-    if model.implicit is None:  # the circle state (circle.py): angles as (cos q, sin q)
+    if model.implicit is None and not model.first_order:  # the circle state (circle.py): angles as (cos q, sin q)
         circle, circle_block = circle_equations(model.equations, [sympy.Symbol(f"q[{i}]") for i in range(model.n)])
     if circle_block is not None:
         ctx["b"]["circle"] = _lines(circle_block, printer.doprint, "const double ", ";")

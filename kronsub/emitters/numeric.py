@@ -18,6 +18,7 @@ import sympy
 from sympy.simplify.cse_main import basic_optimizations as _BASIC
 
 from ..core.derivative import derivative
+from ..core.first_order import first_order
 from ..core.known_system import KnownSystem
 from ..core.rheonomic import depends_on_time
 from ..core.sympy_internals import eval_evalf
@@ -50,6 +51,7 @@ class NumericModel:
 
     implicit: ImplicitCode | None = None  # the dependent-coordinate solve
     timed: bool = False  # the connection names t (x = x(xbar, t)): velocity_terms and points take t first
+    first_order: tuple[int, ...] = ()  # first-order coordinates J: qdot_J into r[n:], rows J of M identity, r_J = 0
 
     @property
     def n(self) -> int:
@@ -304,8 +306,19 @@ def prepare(system: KnownSystem, source: str = "", outputs=None, guarded_angles:
     r_targets = [f"r[{i}]" for i in range(n)]
     qs = tuple(q_slots.values())
     constants = _Constants(list(p_slots.values()))
-    equations = block(targets + r_targets, [constants(e) for e in exprs + [slot(e) for e in r]], "x", qs,
-                       guarded_angles, plain=len(targets))
+    first = first_order(system)
+    if first is None:
+        equations = block(targets + r_targets, [constants(e) for e in exprs + [slot(e) for e in r]], "x", qs,
+                          guarded_angles, plain=len(targets))
+    else:  # the mixed system (core/first_order.py): M_JJ = 1, r_J = 0, qdot_J into r[n:]
+        r = r.xreplace(first.substitution(system))
+        solved = [slot(M[i, j]) if i not in first.indices else sympy.Integer(int(i == j))
+                  for i in range(n) for j in range(n)]
+        rates = [slot(r[i]) if i not in first.indices else sympy.Integer(0) for i in range(n)]
+        currents = [slot(v) for v in first.velocities]
+        equations = block(targets + r_targets + [f"r[{n + k}]" for k in range(len(currents))],
+                          [constants(e) for e in solved + rates + currents], "x", qs, guarded_angles,
+                          plain=len(targets))
     mass = block(targets, exprs, "x", qs)
     velocity_terms = block([f"h[{i}]" for i in range(n)], [slot(e) for e in system.velocity_terms], "x", qs)
     forces = block([f"f[{i}]" for i in range(n)], [slot(e) for e in system.forces], "x", qs)
@@ -349,6 +362,7 @@ def prepare(system: KnownSystem, source: str = "", outputs=None, guarded_angles:
     implicit = None
     if system.implicit is not None:
         implicit = implicit_code(system, slot, lambda t, e, c: block(t, e, "x", qs))
+    if system.implicit is not None or first is not None:
         canonical = block(r_targets, [sympy.Integer(0)] * n, "x", qs)  # unused: no canonical form here
     return NumericModel(
         name=system.name,
@@ -369,6 +383,7 @@ def prepare(system: KnownSystem, source: str = "", outputs=None, guarded_angles:
         with_points=with_points,
         implicit=implicit,
         timed=timed,
+        first_order=first.indices if first is not None else (),
     )
 
 

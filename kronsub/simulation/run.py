@@ -19,12 +19,14 @@ import warnings
 
 import numpy as np
 
+from ..core.first_order import zero_rows
 from ..core.known_system import KnownSystem
 from .advice import EnergyWarning, StiffnessWarning, energy_advice, is_stiff, stiffness_advice
 from .compiled import native_model
 from .engines import Problem, Steps, engine_of, runner
 from .engines.scipy import native_rhs
 from .failure import failed_state
+from .first_order import first_order_rows
 from .fallback import module_energies, numpy_module, numpy_rhs, numpy_rhs_of
 from .grid import Grid, Tail
 from .methods import METHODS as REGISTRY
@@ -153,10 +155,20 @@ def collect(run: RunInProgress, blocks: list[Block], nq: int) -> Trajectory:
 
 def explicit_only(system: KnownSystem, method: str) -> None:
     """Raise :class:`SimulationError` when ``method`` needs explicit equations (a Taylor series) and
-    ``system`` has implicit constraints."""
-    if system.implicit is not None and method in METHODS and not METHODS[method].closed_loops:
+    ``system`` has implicit constraints, or first-order coordinates (those methods integrate
+    ``qddot = Mbar^-1 (fbar - hbar)`` of their own; the others take the generated right-hand side)."""
+    if method not in METHODS or METHODS[method].closed_loops:
+        return
+    if system.implicit is not None:
         raise SimulationError(f"method '{method}' needs explicit equations (its Taylor series), which a system "
                               "with implicit constraints does not have; use dop853 (default), gauss4, Radau or LSODA")
+    rows = zero_rows(system)
+    if rows:
+        names = ", ".join(system.coordinates[j].name for j in rows)
+        raise SimulationError(f"method '{method}' needs second-order equations in every coordinate (its Taylor "
+                              f"series), and {names} {'is a first-order coordinate' if len(rows) == 1 else 'are first-order coordinates'} "
+                              "(no inertia: its velocity is solved, not integrated); use dop853 (default), gauss4, "
+                              "Radau or LSODA")
 
 
 def start(system: KnownSystem, values: RunValues, t_end: float, dt: float, method: str = "dop853",
@@ -210,6 +222,10 @@ def start(system: KnownSystem, values: RunValues, t_end: float, dt: float, metho
                                   Steps(rtol, atol, dt, chunks), bar, outputs, with_energies)
         return run
     rows = rows_of.blocks(run, grid, y0, Steps(rtol, atol, dt, chunks), bar)
+    first = zero_rows(system)
+    if first:  # the first-order coordinates' velocities in the rows, from the right-hand side
+        rows = first_order_rows(rows, _problem(system, param, native, outputs, constrained, rtol, atol).restart(None),
+                                first, len(system.coordinates))
     run.blocks = _finish(run, rows, bar, native, param, system, constrained, with_energies, grid)
     return run
 
