@@ -237,3 +237,33 @@ def test_zero_rows_without_dissipation_are_refused_naming_the_coordinates():
                         effect_forces={k: v for k, v in system.effect_forces.items() if k.startswith("c")})
     with pytest.raises(FirstOrderError, match="q1, q2, q3 have no inertia and no dissipation"):
         first_order(bare)
+
+
+def test_linearize_gives_the_loop_equations_in_the_mixed_state():
+    """``y = [q1, q2, q1_dot]``: the RLC with an RC branch is linear, so ``A`` is the matrix of
+    the hand-written equations (the source's ``E sin(w t)`` is zero at t = 0)."""
+    from kronsub.core.linearize import linearize
+
+    system = kronsub.load(FOLDER / "rlc_rc.yaml").derive()
+    lin = linearize(system)
+    p = RLC_RC
+    expected = np.array([[0, 0, 1],
+                         [1 / (p["R2"] * p["C1"]), -(1 / p["C1"] + 1 / p["C2"]) / p["R2"], 0],
+                         [-1 / (p["L"] * p["C1"]), 1 / (p["L"] * p["C1"]), -p["R1"] / p["L"]]])
+    assert [s.name for s in lin.state] == ["q1", "q2", "q1_dot"]
+    assert lin.equilibrium and np.allclose(np.asarray(lin.A, dtype=float), expected, rtol=1e-12, atol=1e-12)
+
+
+def test_the_accuracy_reference_follows_the_exact_solution():
+    """The mpmath reference of ``accuracy`` (its Taylor route through the solved velocities)
+    against the matrix exponential."""
+    from kronsub.simulation.reference import reference
+
+    system = kronsub.load(FOLDER / "rlc_rc.yaml").derive()
+    param = [RLC_RC[p.name] for p in system.parameters]
+    times = [0.25, 0.5]
+    ref = reference(system, param, [0.1, 0.0, 0.5, 0.0], times, digits=16)
+    x, _ = rlc_rc_exact(np.array(times))
+    for i in range(len(times)):
+        state = ref.at(i)
+        assert np.allclose([state[0], state[1], state[2]], x[i, :3], rtol=0, atol=1e-13)

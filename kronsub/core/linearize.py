@@ -29,6 +29,8 @@ import sympy
 from .derivative import matrix_derivative
 from .finite import describe_rank_loss
 from .known_system import KnownSystem
+from .first_order import first_order
+from .linearize_first_order import linearize_first_order
 from .linearize_implicit import linearize_implicit
 from .linearize_numerics import (EQUILIBRIUM_TOLERANCE, Evaluator, Linearization, LinearizationError, at_equilibrium,
                                  checked_inputs, least_squares_equilibrium, numeric_value,
@@ -57,6 +59,10 @@ def linearize(system: KnownSystem, *, inputs: Sequence[sympy.Symbol] = (),
     if getattr(system, "implicit", None) is not None:  # the reduced equations (linearize_implicit.py)
         return linearize_implicit(system, inputs=inputs, point=point, values=values, initial=initial,
                                   symbolic=symbolic)
+    first = first_order(system)
+    if first is not None:  # the mixed first/second-order state (linearize_first_order.py)
+        return linearize_first_order(system, first, inputs=inputs, point=point, values=values, initial=initial,
+                                     symbolic=symbolic)
     point = dict(point or {})
     values = dict(values or {})
     initial = dict(initial or {})
