@@ -4,7 +4,10 @@
 ``ydot = [qdot; Mbar^-1 (fbar - hbar)]`` with state ``y = [q; qdot]``, and the
 canonical form ``z = [q; p]``, ``p = Mbar qdot``,
 ``zdot = [Mbar^-1 p; dT/dq + fbar]`` (Lagrange's equations (A) with
-``dT/dq = 1/2 qdot^T (dMbar/dq) qdot``), used by the symplectic integrator.
+``dT/dq = 1/2 qdot^T (dMbar/dq) qdot``), used by the symplectic integrator. With first-order coordinates ``J``
+(:mod:`kronsub.core.first_order`, a zero row of ``Mbar``) the rates of ``q_J`` are their solved
+velocities, written after ``r`` (``r[n:]``), and their rows of ``Mbar`` the identity with
+``r_J = 0``: the ``qdot_J`` slots of the state are not integrated.
 Common subexpressions are eliminated per function, deterministically.
 """
 from __future__ import annotations
