@@ -22,8 +22,10 @@ from .common import USAGE_ERROR, budget_option, fail, run_command, say, scene_op
 @budget_option
 @click.option("--precision", type=click.Choice(["double", "long", "quad"]), default="double", show_default=True,
               help="The C's real type: double, long double, or _Float128 (glibc's libm; typedef ks_real).")
+@click.option("--jacobian", "with_jacobian", is_flag=True,
+              help="C: add <prefix>_jacobian, the exact Jacobian d ydot/dy of the right-hand side.")
 def codegen(model: Path, lang: str, outdir: Path, name: str | None, prefix: str, scene_name: str | None,
-            precision: str):
+            precision: str, with_jacobian: bool = False):
     """Generate C (header + source) or a numpy module for MODEL."""
     from ..api import C_IDENTIFIER, System, code_files
     from ..emitters.numeric import identifier
@@ -41,10 +43,12 @@ def codegen(model: Path, lang: str, outdir: Path, name: str | None, prefix: str,
                   "  hint: choose another --output")
         if precision != "double" and lang != "c":
             fail("Error: --precision long|quad is for --lang c\n  hint: drop --precision, or use --lang c")
+        if with_jacobian and lang != "c":
+            fail("Error: --jacobian is for --lang c\n  hint: drop --jacobian, or use --lang c", USAGE_ERROR)
         loaded, scene, system = scene_system(model, scene_name)
         stem = name or model.stem
         files = code_files(System.of(system, loaded, scene), stem, lang, prefix=prefix, precision=precision,
-                           source=model.as_posix())
+                           source=model.as_posix(), jacobian=with_jacobian)
         separate_outputs(model, *((f"--output {outdir} --name {stem}", outdir / n, "generated") for n, _ in files))
         for file_name, text in files:
             write_atomically(outdir / file_name, text)

@@ -29,6 +29,8 @@ __all__ = ["simulate"]
               help="Default: the scene's, else dop853. " + method_help())
 @click.option("--rtol", type=float, default=1e-10, show_default=True, help="Relative tolerance (adaptive methods).")
 @click.option("--atol", type=float, default=1e-10, show_default=True, help="Absolute tolerance (adaptive methods).")
+@click.option("--jacobian", type=click.Choice(["differences", "exact"]), default="differences", show_default=True,
+              help="The Jacobian of Radau and LSODA: by finite differences, or the generated exact d ydot/dy.")
 @set_option()
 @output_option("Write the CSV to FILE (atomically) instead of standard output; the run's metadata "
                    "goes beside it as JSON (out.csv -> out.json).")
@@ -43,7 +45,7 @@ __all__ = ["simulate"]
               help="Add the workless reactions (viewpoint (alpha)) to the CSV.")
 def simulate(model: Path, t_end: float | None, dt: float | None, method: str | None, rtol: float, atol: float,
              settings: tuple[str, ...], output: Path | None, meta: Path | None, with_points: bool,
-             plot: Path | None, scene_name: str | None, with_reactions: bool = False):
+             plot: Path | None, scene_name: str | None, with_reactions: bool = False, jacobian: str = "differences"):
     """Simulate MODEL from t = 0 to --t; the trajectory is plain CSV (a header row, then numbers),
     its metadata JSON (--meta, or beside --output)."""
     from ..api import System, run_span
@@ -84,7 +86,7 @@ def simulate(model: Path, t_end: float | None, dt: float | None, method: str | N
             say(f"note: initial conditions projected onto the constraints: {note}")
         values, constrained = begin.values, begin.constrained
         run = start(system, values, span, step, chosen, rtol, atol,
-                    outputs=outputs, constrained=constrained)
+                    outputs=outputs, constrained=constrained, jacobian=jacobian == "exact")
         kept = [] if plot is not None or with_reactions else None
         run_info = dict(t_end=span, dt=step, scene=scene.name if scene is not None else None,
                         source=loaded.source, uses=loaded.uses, split=energy_split(loaded, system))

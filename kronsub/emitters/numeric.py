@@ -55,6 +55,7 @@ class NumericModel:
     implicit: ImplicitCode | None = None  # the dependent-coordinate solve
     timed: bool = False  # the connection names t (x = x(xbar, t)): velocity_terms and points take t first
     first_order: tuple[int, ...] = ()  # first-order coordinates J: qdot_J into r[n:], rows J of M identity, r_J = 0
+    jacobian: Block | None = None  # d ydot/dy: V (rates of q, n x 2n), K = dr/dy (n x 2n), G = dMbar/dq_k (n x n x n)
 
     @property
     def n(self) -> int:
@@ -254,14 +255,48 @@ def _block(targets: list[str], exprs: list[sympy.Expr], prefix: str, coordinates
     return Block(tuple(replacements), tuple(zip(targets, reduced)))
 
 
-def prepare(system: KnownSystem, source: str = "", outputs=None, guarded_angles: bool = False) -> NumericModel:
+def jacobian_block(system: KnownSystem, first, slot) -> tuple[list[str], list[sympy.Expr]]:
+    """Targets and expressions of the parts of ``d ydot/dy``, ``y = [q; qdot]``, ``ydot = [v; a]``,
+    ``Mbar a = r``: ``V = dv/dy`` (``v = qdot``, or with first-order coordinates their solved
+    velocities), ``K = dr/dy`` and ``G_k = dMbar/dq_k``, so that
+
+        d a/dq_k = Mbar^-1 (K[:, k] - G_k a),    d a/dqdot = Mbar^-1 K[:, n:]
+
+    (first-order coordinates: ``r`` with their velocities put in, their rows of ``Mbar`` the
+    identity and of ``r`` zero, as in the right-hand side)."""
+    n = len(system.coordinates)
+    y = list(system.coordinates) + list(system.velocities)
+    M, r = system.mass_matrix, system.forces - system.velocity_terms
+    v = sympy.Matrix(system.velocities)
+    if first is not None:
+        r = r.xreplace(first.substitution(system))
+        r = sympy.Matrix([0 if i in first.indices else r[i] for i in range(n)])
+        M = sympy.Matrix(n, n, lambda i, j: int(i == j) if i in first.indices else M[i, j])
+        for j, velocity in zip(first.indices, first.velocities):
+            v[j] = velocity
+    targets, exprs = [], []
+    for i in range(n):
+        for c in range(2 * n):
+            targets += [f"V[{i * 2 * n + c}]", f"K[{i * 2 * n + c}]"]
+            exprs += [slot(derivative(v[i], y[c])), slot(derivative(r[i], y[c]))]
+    for k in range(n):
+        for i in range(n):
+            for j in range(n):
+                targets.append(f"G[{k * n * n + i * n + j}]")
+                exprs.append(slot(derivative(M[i, j], y[k])) if y[k] in M[i, j].free_symbols else sympy.Integer(0))
+    return targets, exprs
+
+
+def prepare(system: KnownSystem, source: str = "", outputs=None, guarded_angles: bool = False,
+            jacobian: bool = False) -> NumericModel:
     """Map the system's symbols to array slots and eliminate common subexpressions.
 
     ``outputs`` (a scene's :class:`~kronsub.model.scenes.Outputs`; None: everything) leaves
     out the energies and the named points when they are not asked for. ``guarded_angles``
     (the C): the right-hand sides take sines and cosines of several coordinates from
     single-angle ones where that keeps their accuracy (:func:`_guarded`), and always in
-    ``Mbar`` (:func:`_single_angles`)."""
+    ``Mbar`` (:func:`_single_angles`). ``jacobian``: also the blocks of ``d ydot/dy``
+    (:func:`jacobian_block`; not with implicit constraints)."""
     energies = outputs is None or outputs.energies
     with_points = outputs is None or bool(outputs.points)
     n = len(system.coordinates)
@@ -348,6 +383,9 @@ def prepare(system: KnownSystem, source: str = "", outputs=None, guarded_angles:
                        for i, qi in enumerate(system.coordinates) if qi in depends[k][j]), sympy.Integer(0))
                 for k in range(n)]
     canonical = block(r_targets, [constants(slot(e)) for e in dTdq], "x", qs, guarded_angles)
+    exact = None
+    if jacobian and system.implicit is None:
+        exact = block(*jacobian_block(system, first, lambda e: constants(slot(e))), "x", qs, guarded_angles)
     prepare = block(*constants.definitions(), "c")
 
     potential = block(["V"], [slot(system.potential_energy)], "x", qs) if energies else Block((), ())
@@ -387,7 +425,8 @@ def prepare(system: KnownSystem, source: str = "", outputs=None, guarded_angles:
         implicit=implicit,
         timed=timed,
         first_order=first.indices if first is not None else (),
+        jacobian=exact,
     )
 
 
-__all__ = ["BASIC_NODES", "GUARD", "NearAxis", "NumericModel", "identifier", "prepare"]
+__all__ = ["BASIC_NODES", "GUARD", "NearAxis", "NumericModel", "identifier", "jacobian_block", "prepare"]

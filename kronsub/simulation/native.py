@@ -430,6 +430,7 @@ _SIGNATURES = {
     "ks_nstate": (_I, []),
     "ks_ncircle": (_I, []),
     "ks_nfirst": (_I, []),
+    "ks_jacobian": (_I, [_D, _P, _P, _P]),
     "ks_rhs_circle": (_I, [_D, _P, _P, _P]),
     "ks_rhs_circle_pre": (_I, [_D, _P, _P, _P]),
     "ks_circle_state": (None, [_P, _P]),
@@ -669,7 +670,23 @@ class NativeModel:
             return ydot.copy()
 
         f.param = p  # keeps the parameter buffer alive with the callable
+        if "ks_jacobian" in self._fn and not self.nstate:
+            f.jacobian = self.scipy_jacobian(param)  # the exact d ydot/dy, for the implicit methods
         return f
+
+    def scipy_jacobian(self, param) -> Callable[[float, np.ndarray], np.ndarray]:
+        """``J(t, y) = d ydot/dy`` from ``ks_jacobian`` (the model built with ``jacobian``)."""
+        p, fn, ny = self._param(param).copy(), self._function("ks_jacobian"), self.ny
+
+        def jacobian(t, y):
+            y = np.ascontiguousarray(y, dtype=float)
+            out = np.empty(ny * ny)
+            if fn(t, data_address(y), data_address(p), data_address(out)):
+                raise self._singular(t, y)
+            return out.reshape(ny, ny)
+
+        jacobian.param = p
+        return jacobian
 
     # -- integration -------------------------------------------------------------------------
 

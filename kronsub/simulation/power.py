@@ -14,6 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 import sympy
 
+from ..components import REGISTRY
 from ..core.known_system import KnownSystem
 from ..core.symbols import TIME, velocity_symbol
 from ..effects.electrical import Capacitor, Resistor
@@ -74,4 +75,24 @@ def energy_split(model, system: KnownSystem) -> EnergySplit | None:
     return EnergySplit(sympy.lambdify(args, [magnetic, electric, mechanical, dissipated], "math"))
 
 
-__all__ = ["COLUMNS", "EnergySplit", "energy_split"]
+def charge_coordinates(system: KnownSystem) -> frozenset[str]:
+    """The names of the coordinates whose motion moves a branch charge of a circuit part
+    (``d x_c/d xbar`` not zero through the connection): the loop charges."""
+    transition = system.transition
+    if transition is None or not any(kind in CIRCUIT_TYPES for _, kind in transition.parts):
+        return frozenset()
+    connection, start, charges = dict(transition.connection), 0, []
+    for _, kind in transition.parts:
+        size = len(REGISTRY[kind].coordinates) if kind in REGISTRY else 0
+        if kind in CIRCUIT_TYPES:
+            charges += transition.primitive_coordinates[start:start + size]
+        if kind not in REGISTRY:  # a known system or textbook part: its size is not known here
+            return frozenset()
+        start += size
+    if start != len(transition.primitive_coordinates):
+        return frozenset()
+    images = [sympy.sympify(connection.get(x, x)) for x in charges]
+    return frozenset(q.name for q in system.coordinates if any(image.has(q) for image in images))
+
+
+__all__ = ["COLUMNS", "EnergySplit", "charge_coordinates", "energy_split"]

@@ -24,7 +24,7 @@ from ..core.known_system import KnownSystem
 from .advice import EnergyWarning, StiffnessWarning, energy_advice, is_stiff, stiffness_advice
 from .compiled import native_model
 from .engines import Problem, Steps, engine_of, runner
-from .engines.scipy import native_rhs
+from .engines.scipy import IMPLICIT, native_rhs
 from .failure import failed_state
 from .first_order import first_order_rows
 from .fallback import module_energies, numpy_module, numpy_rhs, numpy_rhs_of
@@ -32,6 +32,7 @@ from .grid import Grid, Tail
 from .methods import METHODS as REGISTRY
 from .methods import SIMULATE, unknown_method
 from .native import CompileError, CompilerNotFound
+from .power import charge_coordinates
 from .rows import Block, RunInProgress, SimulationError, Trajectory
 from .values import RunValues
 
@@ -173,14 +174,16 @@ def explicit_only(system: KnownSystem, method: str) -> None:
 
 def start(system: KnownSystem, values: RunValues, t_end: float, dt: float, method: str = "dop853",
           rtol: float = 1e-10, atol: float = 1e-10, chunks: int = 20, progress: bool | None = None,
-          outputs=None, constrained=None) -> RunInProgress:
+          outputs=None, constrained=None, jacobian: bool = False) -> RunInProgress:
     """A run from t = 0 to ``t_end`` with rows every ``dt``, streamed: the model is compiled
     now, the rows are computed in blocks (at most :data:`BLOCK_ROWS` each) while the
     :class:`RunInProgress` is iterated.
 
     ``outputs`` (a scene's; None: everything) decides whether the energies are computed. With
     implicit constraints, ``constrained`` is the :class:`~kronsub.core.constraints.Intermediates`
-    of the projected initial conditions (:func:`.constrained.project_initial`)."""
+    of the projected initial conditions (:func:`.constrained.project_initial`). ``jacobian``: the
+    implicit methods (Radau, LSODA) take the generated exact ``d ydot/dy`` instead of finite
+    differences (not with implicit constraints)."""
     if method not in METHODS:
         raise SimulationError(unknown_method(method))
     explicit_only(system, method)
@@ -203,7 +206,7 @@ def start(system: KnownSystem, values: RunValues, t_end: float, dt: float, metho
         rows = rows_of.blocks(run, grid, y0, Steps(rtol, atol, dt, math.ceil(len(grid) / BLOCK_ROWS)), bar)
         run.blocks = _finish(run, rows, bar, native, param, system, None, with_energies)
         return run
-    native = _compiled(system, outputs)
+    native = _compiled(system, outputs, jacobian and spec.name in IMPLICIT and system.implicit is None)
     if constrained is not None and native is not None:
         from .constrained import configure_native
 
@@ -241,10 +244,11 @@ def _problem(system, param, native, outputs, constrained, rtol, atol) -> Problem
     return Problem(system, param, native, restart)
 
 
-def _compiled(system, outputs):
-    """The model compiled from its generated C, or None (with a warning) to use the numpy module."""
+def _compiled(system, outputs, jacobian: bool = False):
+    """The model compiled from its generated C (``jacobian``: with ``ks_jacobian``), or None (with a
+    warning) to use the numpy module."""
     try:
-        return native_model(system, outputs)
+        return native_model(system, outputs, jacobian)
     except CompilerNotFound:
         warnings.warn("no C compiler found: using the generated numpy module (slower)")
     except CompileError as exc:
@@ -431,7 +435,8 @@ def _finish(run, rows, bar, native, param, system, constrained, with_energies=Tr
         run.message = diagnose(system, constrained, run.t_fail, failed_state(run, last_y), guess)
     if native is not None and last_y is not None and is_stiff(run.stats):
         warnings.warn(StiffnessWarning(stiffness_advice(native, param, run.stats, last_t - first_t, last_t, last_y,
-                                                         run.method)))
+                                                         run.method, [q.name for q in system.coordinates],
+                                                         charge_coordinates(system))))
     if energy is not None and run.complete and constrained is None and not run.switches:
         advice = energy_advice(native, param, len(system.coordinates), run.method, *energy)
         if advice:
