@@ -157,6 +157,23 @@ def _compiled(system, tmp_path):
     return rhs, velocities
 
 
+def test_gauss4_and_the_api_follow_the_ladder():
+    """gauss4 (in ``[q; qdot]``: the singular metric has no momentum) at ``dt = 1e-3``, fourth
+    order, and the notebook's ``simulate`` with Radau and the exact Jacobian."""
+    header, rows = simulated(FOLDER / "rc_ladder.yaml", "--t", "1", "--dt", "0.001", "--method", "gauss4")
+    A, b = ladder_matrices()
+    t = column(header, rows, "t")
+    exact = affine_solution(A, b, np.array([0.2, -0.1, 0.3]), t[::100])
+    got = np.column_stack([column(header, rows, q)[::100] for q in ("q1", "q2", "q3")])
+    assert np.allclose(got, exact, rtol=0, atol=1e-9)
+    run = kronsub.load(FOLDER / "rc_ladder.yaml").derive().simulate(t=1, dt=0.25, method="Radau", dataframe=False,
+                                                                   jacobian=True, rtol=1e-11, atol=1e-12)
+    times = np.asarray(run["t"])
+    exact = affine_solution(A, b, np.array([0.2, -0.1, 0.3]), times)
+    assert np.allclose(np.asarray(run["q2"]), exact[:, 1], rtol=0, atol=1e-8)
+    assert np.allclose(np.asarray(run["q2_dot"]), (exact @ A.T + b)[:, 1], rtol=0, atol=1e-7)
+
+
 def test_generated_c_and_numpy_give_the_ladder_equations(tmp_path):
     """``ydot = [D^-1 (e - K q); 0]``: the charges' rates solved, the velocity slots not
     integrated, at random states and parameters; C built with warnings as errors."""

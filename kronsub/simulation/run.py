@@ -127,10 +127,10 @@ def check_tolerances(rtol: float, atol: float) -> None:
 
 def simulate(system: KnownSystem, values: RunValues, t_end: float, dt: float, method: str = "dop853",
              rtol: float = 1e-10, atol: float = 1e-10, chunks: int = 20, progress: bool | None = None,
-             outputs=None, constrained=None) -> Trajectory:
+             outputs=None, constrained=None, jacobian: bool = False) -> Trajectory:
     """Integrate from t = 0 to ``t_end`` with rows every ``dt`` (all rows in memory); the
     arguments as for :func:`start`."""
-    run = start(system, values, t_end, dt, method, rtol, atol, chunks, progress, outputs, constrained)
+    run = start(system, values, t_end, dt, method, rtol, atol, chunks, progress, outputs, constrained, jacobian)
     return collect(run, list(run), len(system.coordinates))
 
 
