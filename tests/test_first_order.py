@@ -252,7 +252,7 @@ def test_zero_rows_without_dissipation_are_refused_naming_the_coordinates():
     bare = type(system)(name="bare", coordinates=system.coordinates, mass_matrix=system.mass_matrix,
                         velocity_terms=system.velocity_terms,
                         effect_forces={k: v for k, v in system.effect_forces.items() if k.startswith("c")})
-    with pytest.raises(FirstOrderError, match="q1, q2, q3 have no inertia and no dissipation"):
+    with pytest.raises(FirstOrderError, match="coordinates q1, q2, q3 have no inertia and no dissipation"):
         first_order(bare)
 
 
@@ -284,3 +284,33 @@ def test_the_accuracy_reference_follows_the_exact_solution():
     for i in range(len(times)):
         state = ref.at(i)
         assert np.allclose([state[0], state[1], state[2]], x[i, :3], rtol=0, atol=1e-13)
+
+
+NODE = """name: massless node
+parameters: {m: 1, k: 2, c: 0.5}
+components:
+  node:
+    coordinates: [x, y]
+    metric: [[m, 0], [0, 0]]
+    potential: k*(x - y)**2/2 + k*y**2/2
+    dissipation: c*y_dot**2/2
+coordinates: [x, y]
+initial: {x: 1}
+"""
+
+
+def test_a_massless_node_between_springs_and_a_damper(tmp_path):
+    """The same mechanism in mechanics: a mass on a spring to a massless node, held by a second
+    spring and a damper, ``m x'' = -k (x - y)``, ``c y' = k (x - y) - k y``; a matrix exponential."""
+    path = tmp_path / "node.yaml"
+    path.write_text(NODE, encoding="utf-8")
+    header, rows = simulated(path, "--t", "2", "--dt", "0.25")
+    m, k, c = 1.0, 2.0, 0.5
+    A = np.array([[0, 0, 1], [k / c, -2 * k / c, 0], [-k / m, k / m, 0]])
+    t = column(header, rows, "t")
+    exact = affine_solution(A, np.zeros(3), np.array([1.0, 0.0, 0.0]), t)
+    assert np.allclose(column(header, rows, "x"), exact[:, 0], rtol=0, atol=1e-9)
+    assert np.allclose(column(header, rows, "y"), exact[:, 1], rtol=0, atol=1e-9)
+    assert np.allclose(column(header, rows, "y_dot"), exact @ A[1], rtol=0, atol=1e-8)
+    result = CliRunner().invoke(main, ["simulate", str(path), "--t", "1", "--set", "c=0"])
+    assert result.exit_code != 0 and "Traceback" not in result.output

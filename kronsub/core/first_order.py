@@ -77,24 +77,24 @@ def first_order(system: KnownSystem) -> FirstOrder | None:
     if not rows:
         return None
     names = ", ".join(system.coordinates[j].name for j in rows)
+    names = f"the coordinates {names} have" if len(rows) > 1 else f"the coordinate {names} has"
     if system.implicit is not None:
-        raise FirstOrderError(f"the coordinates {names} have no inertia (their rows of Mbar are zero) in a system "
+        raise FirstOrderError(f"{names} no inertia (zero rows of Mbar) in a system "
                               "with implicit constraints, which kronsub does not integrate as a first-order system; "
                               "write the connection explicitly (loop charges) instead of node constraints")
     velocities = [system.velocities[j] for j in rows]
     r = sympy.Matrix([system.forces[j] - system.velocity_terms[j] for j in rows])
     D = -r.jacobian(velocities)
     if D.free_symbols & set(velocities) or any(entry.has(sympy.Derivative) for entry in D):
-        raise FirstOrderError(f"the coordinates {names} have no inertia and their equations are not linear in their "
+        raise FirstOrderError(f"{names} no inertia, and the equations there are not linear in the "
                               "velocities: kronsub solves them for the velocities only from a dissipation "
                               "quadratic in those velocities (a resistor's R i^2/2, a damper's c v^2/2)")
     zero = {v: sympy.Integer(0) for v in velocities}
     rest = r.xreplace(zero)
     if D.det() == 0:
-        raise FirstOrderError(f"the coordinates {names} have no inertia and no dissipation of their own (their rows "
-                              "of Mbar are zero and so is the determinant of -d(fbar - hbar)/dqdot there): their "
-                              "velocities are not determined; give them an inductance (mass) or a resistance "
-                              "(damping)")
+        raise FirstOrderError(f"{names} no inertia and no dissipation (zero rows of Mbar, and a zero "
+                              "determinant of -d(fbar - hbar)/dqdot there): the velocities are not determined; give "
+                              "an inductance (mass) or a resistance (damping) there")
     solved = D.LUsolve(rest) if len(rows) > 1 else rest / D[0, 0]
     return FirstOrder(rows, tuple(sympy.cancel(e) if len(rows) > 1 else e for e in solved))
 
