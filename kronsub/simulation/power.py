@@ -46,15 +46,19 @@ class EnergySplit:
 
 def energy_split(model, system: KnownSystem) -> EnergySplit | None:
     """The split of ``system`` (derived from ``model``), or None when the model has no circuit
-    part, is a closed loop of implicit constraints (whose dependent currents this does not
-    follow) or uses a known system with effects of its own (whose kinds are not kept)."""
+    part, is a closed loop whose dependent coordinates have no closed form (node equations
+    have one: their charges are then written in the loop charges) or uses a known system with
+    effects of its own (whose kinds are not kept)."""
     transition = system.transition
-    if model is None or transition is None or system.implicit is not None:
+    if model is None or transition is None:
         return None
     charges = [q for part in model.primitive.parts if part.type_name in CIRCUIT_TYPES for q in part.coordinates]
     if not charges:
         return None
-    connection = dict(transition.connection)
+    resolved = closed_forms(system)
+    if resolved is None:
+        return None
+    connection = {x: sympy.sympify(image).xreplace(resolved) for x, image in transition.connection}
     index = {x: a for a, x in enumerate(transition.primitive_coordinates)}
     qdot = sympy.Matrix(system.velocities)
     # i = dx_c/dxbar qdot, without a drive's dx_c/dt (as T is 1/2 qdotᵀ Mbar qdot)
@@ -72,7 +76,26 @@ def energy_split(model, system: KnownSystem) -> EnergySplit | None:
                              or (label not in kinds and label.rpartition(".")[2] == OWN_DISSIPATION)])
     mechanical = sympy.expand(system.kinetic_energy - magnetic) + (system.potential_energy - electric)
     args = [*system.coordinates, *system.velocities, *(p.symbol for p in system.parameters), TIME]
-    return EnergySplit(sympy.lambdify(args, [magnetic, electric, mechanical, dissipated], "math"))
+    columns = [sympy.sympify(e).xreplace(resolved) for e in (magnetic, electric, mechanical, dissipated)]
+    return EnergySplit(sympy.lambdify(args, columns, "math"))
+
+
+def closed_forms(system: KnownSystem) -> dict | None:
+    """What the named intermediates of a closed loop are in the coordinates, where its dependent
+    coordinates have closed forms ``y_d = y_d(xbar)`` (Kirchhoff's node equations, linear):
+    ``y_d`` and ``Lambda = dy_d/dxbar`` (26)-(29); ``{}`` without constraints, None when some
+    dependent coordinate has none (the split is not made)."""
+    imp = system.implicit
+    if imp is None:
+        return {}
+    closed = dict(imp.closed_form)
+    if set(imp.dependent) - set(closed):
+        return None
+    resolved = dict(closed)
+    for a, d in enumerate(imp.dependent):
+        for j, q in enumerate(imp.independent):
+            resolved[imp.sensitivities[a, j]] = sympy.diff(closed[d], q)
+    return resolved
 
 
 def charge_coordinates(system: KnownSystem) -> frozenset[str]:
@@ -95,4 +118,4 @@ def charge_coordinates(system: KnownSystem) -> frozenset[str]:
     return frozenset(q.name for q in system.coordinates if any(image.has(q) for image in images))
 
 
-__all__ = ["COLUMNS", "EnergySplit", "charge_coordinates", "energy_split"]
+__all__ = ["COLUMNS", "EnergySplit", "charge_coordinates", "closed_forms", "energy_split"]
