@@ -119,6 +119,33 @@ def test_node_equations_split_as_the_meshes_do(tmp_path):
     assert_balance(c, E * i1, 0 * i1)
 
 
+def test_textbook_charges_split_the_magnet_energy(tmp_path):
+    """``charges: [q]`` of the magnet's textbook equations: ``L(y) i^2/2`` magnetic, ``m ydot^2/2
+    - m g y`` mechanical, ``k ydot^2 + R i^2`` dissipated; the balance with the source's ``v i``."""
+    c, _ = simulated(tmp_path, CIRCUITS / "magnetic_suspension.yaml", "--scene", "falling", "--t", "0.1",
+                     "--dt", "0.0002")
+    system = kronsub.load(CIRCUITS / "magnetic_suspension.yaml").derive(scene="falling")
+    p = {s.name: float(s.value) for s in system.parameters}
+    y, ydot, i = c["y"], c["y_dot"], c["q_dot"]
+    L = p["L1"] + p["L0"] * p["a"] / (p["a"] + y)
+    np.testing.assert_allclose(c["magnetic_energy"], L * i**2 / 2, rtol=1e-12, atol=1e-15)
+    np.testing.assert_allclose(c["mechanical_energy"], p["m"] * ydot**2 / 2 - p["m"] * p["g"] * y,
+                               rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(c["dissipated_power"], p["k"] * ydot**2 + p["R"] * i**2, rtol=1e-12, atol=1e-15)
+    assert_balance(c, p["v"] * i, 0 * i)
+
+
+def test_textbook_charges_split_the_machine_energy(tmp_path):
+    """The synchronous machine's phases and field are its charges: the mechanical energy is the
+    rotor's ``J omega^2/2``, the rest of ``T`` magnetic; the field's source feeds the balance."""
+    c, _ = simulated(tmp_path, CIRCUITS / "machine.yaml", "--scene", "short_circuit", "--t", "0.02",
+                     "--dt", "0.0001")
+    J, vf = 0.5, 5.0
+    np.testing.assert_allclose(c["mechanical_energy"], J * c["theta_dot"] ** 2 / 2, rtol=1e-9)
+    np.testing.assert_allclose(c["magnetic_energy"] + c["mechanical_energy"], c["kinetic_energy"], rtol=1e-12)
+    assert_balance(c, vf * c["q_f_dot"], 0 * c["t"])
+
+
 @pytest.mark.parametrize("path", [CIRCUITS / "loudspeaker.yaml", TEST_MODELS / "loudspeaker_textbook.yaml"])
 def test_loudspeaker_dampers_and_springs_are_mechanical(tmp_path, path):
     """The cone's suspension (a spring and a damper, or the cone's own textbook potential and

@@ -157,3 +157,11 @@ def test_any_textbook_component_is_read_or_refused_never_a_crash(coordinates, me
         result = CliRunner().invoke(main, ["check", str(path)])
     assert result.exit_code in (0, 1), result.output
     assert "internal error" not in result.output
+
+
+def test_textbook_charges_must_be_its_coordinates(tmp_path):
+    text = (MODELS / "electrical" / "magnetic_suspension.yaml").read_text(encoding="utf-8")
+    result = check(tmp_path, text.replace("charges: [q]", "charges: [x]"))
+    assert result.exit_code == 1, result.output
+    assert "`charges:` of 'magnet' names 'x', which is not one of its coordinates (y, q)" in result.output
+    assert "Traceback" not in result.output

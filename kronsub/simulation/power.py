@@ -52,7 +52,8 @@ def energy_split(model, system: KnownSystem) -> EnergySplit | None:
     transition = system.transition
     if model is None or transition is None:
         return None
-    charges = [q for part in model.primitive.parts if part.type_name in CIRCUIT_TYPES for q in part.coordinates]
+    charges = [q for part in model.primitive.parts
+               for q in (part.coordinates if part.type_name in CIRCUIT_TYPES else part.charges)]
     if not charges:
         return None
     resolved = closed_forms(system)
