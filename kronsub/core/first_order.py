@@ -12,11 +12,13 @@ coordinates with ``D = -dr_J/dqdot_J`` regular (Rayleigh's dissipation positive 
 
     qdot_J = D^-1 r_J(t, q, qdot_I, 0),
 
-and the other coordinates move by the regular block, ``Mbar_II qddot_I = r_I``: a mixed
-first- and second-order system in the state ``(q, qdot_I)``. A singular ``Mbar`` whose null
-space is not made of whole coordinates (a loop without inductance that shares its charge
-with one that has some) is refused here with the coordinates named; so is one whose
-relation is not affine in ``qdot_J`` or whose ``D`` is singular.
+and the other coordinates move by the regular block, ``Mbar_II qddot_I = r_I`` (regular where
+the null space of ``Mbar`` is spanned by those coordinates): a mixed first- and second-order
+system in the state ``(q, qdot_I)``. A relation not affine in ``qdot_J``, or a singular ``D``,
+is refused here with the coordinates named. A singular ``Mbar`` whose null space is not made
+of whole coordinates (a loop without inductance that shares its charge with one that has
+some) has no zero row: the model's check reports it for circuits
+(:mod:`kronsub.model.circuits`), a run where ``Mbar`` is not positive definite otherwise.
 """
 from __future__ import annotations
 
