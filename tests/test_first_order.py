@@ -314,3 +314,19 @@ def test_a_massless_node_between_springs_and_a_damper(tmp_path):
     assert np.allclose(column(header, rows, "y_dot"), exact @ A[1], rtol=0, atol=1e-8)
     result = CliRunner().invoke(main, ["simulate", str(path), "--t", "1", "--set", "c=0"])
     assert result.exit_code != 0 and "Traceback" not in result.output
+
+
+def test_a_sweep_reports_the_final_currents(tmp_path):
+    """The sweep's final velocities of first-order coordinates are solved from each run's final
+    state (the state does not integrate them): the ladder's currents at t = 1 for two R1."""
+    pd = pytest.importorskip("pandas")
+    out = tmp_path / "sweep.parquet"
+    result = CliRunner().invoke(main, ["sweep", str(FOLDER / "rc_ladder.yaml"), "--grid", "R1=1:2:2", "--t", "1",
+                                       "--rtol", "1e-11", "--atol", "1e-12", "--workers", "1", "-o", str(out)])
+    assert result.exit_code == 0, result.output
+    table = pd.read_parquet(out).sort_values("R1")
+    for _, run in table.iterrows():
+        A, b = ladder_matrices(LADDER | {"R1": float(run["R1"])})
+        exact = affine_solution(A, b, np.array([0.2, -0.1, 0.3]), np.array([1.0]))[0]
+        got = [run[f"final_{q}_dot"] for q in ("q1", "q2", "q3")]
+        assert np.allclose(got, A @ exact + b, rtol=0, atol=1e-7)
