@@ -116,7 +116,8 @@ def test_rlc_with_an_rc_branch_is_exact_and_balances_its_energy():
     heat = p["R1"] * x[:, 2] ** 2 + p["R2"] * i2 ** 2
     assert np.allclose(column(header, rows, "dissipated_power"), heat, rtol=1e-7, atol=1e-9)
     stored = column(header, rows, "magnetic_energy") + column(header, rows, "electric_energy")
-    work = np.concatenate([[0.0], np.cumsum(np.diff(t) * (supplied - heat)[1:] / 2 + np.diff(t) * (supplied - heat)[:-1] / 2)])
+    net = supplied - heat
+    work = np.concatenate([[0.0], np.cumsum(np.diff(t) * (net[1:] + net[:-1]) / 2)])
     assert np.allclose(stored - stored[0], work, rtol=0, atol=1e-5)
     assert np.allclose(column(header, rows, "total_energy"), stored, rtol=1e-12, atol=1e-12)
 

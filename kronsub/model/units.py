@@ -43,7 +43,8 @@ UNITS = {
 _FACTOR = re.compile(r"^([^\^]+?)(?:\^(-?\d+))?$")
 
 NAMES = {
-    _dim(kg=1, m=2, s=-3, A=-1): "a voltage", _dim(kg=1, m=1, s=-2): "a force", _dim(kg=1, m=2, s=-2): "an energy or torque",
+    _dim(kg=1, m=2, s=-3, A=-1): "a voltage", _dim(kg=1, m=1, s=-2): "a force",
+    _dim(kg=1, m=2, s=-2): "an energy or torque",
     _dim(A=1): "a current", _dim(A=1, s=1): "a charge", _dim(m=1): "a length", _dim(s=1): "a time",
     _dim(kg=1): "a mass", _dim(): "a number", _dim(kg=1, m=2, s=-3): "a power",
 }

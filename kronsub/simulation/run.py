@@ -166,10 +166,10 @@ def explicit_only(system: KnownSystem, method: str) -> None:
     rows = zero_rows(system)
     if rows:
         names = ", ".join(system.coordinates[j].name for j in rows)
+        which = "is a first-order coordinate" if len(rows) == 1 else "are first-order coordinates"
         raise SimulationError(f"method '{method}' needs second-order equations in every coordinate (its Taylor "
-                              f"series), and {names} {'is a first-order coordinate' if len(rows) == 1 else 'are first-order coordinates'} "
-                              "(no inertia: its velocity is solved, not integrated); use dop853 (default), gauss4, "
-                              "Radau or LSODA")
+                              f"series), and {names} {which} (no inertia: its velocity is solved, not integrated); "
+                              "use dop853 (default), gauss4, Radau or LSODA")
 
 
 def start(system: KnownSystem, values: RunValues, t_end: float, dt: float, method: str = "dop853",

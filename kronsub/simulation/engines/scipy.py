@@ -14,8 +14,8 @@ from .interface import Problem, ProgressBar, Rhs, Rows, Steps, Timed
 from ..failure import at_configuration, not_finite, rank_loss_note, Singular
 from ..grid import Cursor, Grid, Tail
 
-__all__ = ["COMPILED_RHS", "EVENTS", "IMPLICIT", "RUN_STEPS", "STALLED_STEPS", "STALL_STEPS", "STALL_SPAN", "ScipyRunner",
-           "blocks", "exact_jacobian", "final_state", "native_rhs", "runner"]
+__all__ = ["COMPILED_RHS", "EVENTS", "IMPLICIT", "RUN_STEPS", "STALLED_STEPS", "STALL_STEPS", "STALL_SPAN",
+           "ScipyRunner", "blocks", "exact_jacobian", "final_state", "native_rhs", "runner"]
 
 COMPILED_RHS = True
 EVENTS = True
