@@ -103,6 +103,49 @@ def test_ladder_shared_capacitor_takes_the_difference_of_the_loop_charges(tmp_pa
     assert_balance(c, E * i1, 0 * i1)
 
 
+def test_node_equations_split_as_the_meshes_do(tmp_path):
+    """The ladder by node equations (a closed loop whose dependent charges have closed forms):
+    the same formulas in the coil charges, and the columns of the mesh form at every row."""
+    c, _ = simulated(tmp_path, CIRCUITS / "rlc_ladder_nodes.yaml", "--t", "0.5", "--dt", "0.0005")
+    mesh, _ = simulated(tmp_path, CIRCUITS / "rlc_ladder.yaml", "--t", "0.5", "--dt", "0.0005")
+    L1, L2, R1, R2, C1, C2, E = 0.1, 0.2, 2.0, 5.0, 0.01, 0.005, 12.0
+    q1, q2, i1, i2 = c["q_L1"], c["q_L2"], c["q_L1_dot"], c["q_L2_dot"]
+    np.testing.assert_allclose(c["magnetic_energy"], L1 * i1**2 / 2 + L2 * i2**2 / 2, rtol=1e-12, atol=1e-15)
+    np.testing.assert_allclose(c["electric_energy"], (q1 - q2) ** 2 / (2 * C1) + q2**2 / (2 * C2),
+                               rtol=1e-12, atol=1e-15)
+    np.testing.assert_allclose(c["dissipated_power"], R1 * i1**2 + R2 * i2**2, rtol=1e-12, atol=1e-15)
+    for name in SPLIT:
+        np.testing.assert_allclose(c[name], mesh[name], rtol=1e-7, atol=1e-9)
+    assert_balance(c, E * i1, 0 * i1)
+
+
+def test_textbook_charges_split_the_magnet_energy(tmp_path):
+    """``charges: [q]`` of the magnet's textbook equations: ``L(y) i^2/2`` magnetic, ``m ydot^2/2
+    - m g y`` mechanical, ``k ydot^2 + R i^2`` dissipated; the balance with the source's ``v i``."""
+    c, _ = simulated(tmp_path, CIRCUITS / "magnetic_suspension.yaml", "--scene", "falling", "--t", "0.1",
+                     "--dt", "0.0002")
+    system = kronsub.load(CIRCUITS / "magnetic_suspension.yaml").derive(scene="falling")
+    p = {s.name: float(s.value) for s in system.parameters}
+    y, ydot, i = c["y"], c["y_dot"], c["q_dot"]
+    L = p["L1"] + p["L0"] * p["a"] / (p["a"] + y)
+    np.testing.assert_allclose(c["magnetic_energy"], L * i**2 / 2, rtol=1e-12, atol=1e-15)
+    np.testing.assert_allclose(c["mechanical_energy"], p["m"] * ydot**2 / 2 - p["m"] * p["g"] * y,
+                               rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(c["dissipated_power"], p["k"] * ydot**2 + p["R"] * i**2, rtol=1e-12, atol=1e-15)
+    assert_balance(c, p["v"] * i, 0 * i)
+
+
+def test_textbook_charges_split_the_machine_energy(tmp_path):
+    """The synchronous machine's phases and field are its charges: the mechanical energy is the
+    rotor's ``J omega^2/2``, the rest of ``T`` magnetic; the field's source feeds the balance."""
+    c, _ = simulated(tmp_path, CIRCUITS / "machine.yaml", "--scene", "short_circuit", "--t", "0.02",
+                     "--dt", "0.0001")
+    J, vf = 0.5, 5.0
+    np.testing.assert_allclose(c["mechanical_energy"], J * c["theta_dot"] ** 2 / 2, rtol=1e-9)
+    np.testing.assert_allclose(c["magnetic_energy"] + c["mechanical_energy"], c["kinetic_energy"], rtol=1e-12)
+    assert_balance(c, vf * c["q_f_dot"], 0 * c["t"])
+
+
 @pytest.mark.parametrize("path", [CIRCUITS / "loudspeaker.yaml", TEST_MODELS / "loudspeaker_textbook.yaml"])
 def test_loudspeaker_dampers_and_springs_are_mechanical(tmp_path, path):
     """The cone's suspension (a spring and a damper, or the cone's own textbook potential and

@@ -24,10 +24,11 @@ C_IDENTIFIER = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
 
 
 def code_files(system: KnownSystem, stem: str, lang: str = "c", *, prefix: str = "ks", precision: str = "double",
-               source: str | None = None) -> list[tuple[str, str]]:
+               source: str | None = None, jacobian: bool = False) -> list[tuple[str, str]]:
     """``(file name, text)`` of the generated code (what ``kronsub codegen`` writes): C (header +
     source, in ``precision``: double, long or quad) or a numpy module (``lang="python"``), with
-    the scene's outputs; ``source`` names the model file in the files' heads."""
+    the scene's outputs; ``source`` names the model file in the files' heads; ``jacobian`` (C):
+    with ``<prefix>_jacobian``, the exact ``d ydot/dy``."""
     from ..emitters.code import LANGUAGES
 
     if lang not in LANGUAGES:
@@ -40,7 +41,10 @@ def code_files(system: KnownSystem, stem: str, lang: str = "c", *, prefix: str =
     outputs = scene.outputs if scene is not None else None
     source = model_file(system) or "" if source is None else source
     files = []
-    for generated in LANGUAGES[lang](system, stem, source=source, prefix=prefix, outputs=outputs):
+    if jacobian and lang != "c":
+        raise KronsubError("the exact Jacobian is generated in C only (lang='c')")
+    options = {"jacobian": True} if jacobian else {}
+    for generated in LANGUAGES[lang](system, stem, source=source, prefix=prefix, outputs=outputs, **options):
         text = generated.text
         if precision != "double":
             from ..simulation.extended import prelude, retype
@@ -51,9 +55,10 @@ def code_files(system: KnownSystem, stem: str, lang: str = "c", *, prefix: str =
 
 
 def codegen(system: KnownSystem, folder=".", lang: str = "c", *, name: str | None = None, prefix: str = "ks",
-            precision: str = "double") -> list[Path]:
+            precision: str = "double", jacobian: bool = False) -> list[Path]:
     """Write the generated code of ``system`` into ``folder`` (created when missing), as
-    ``kronsub codegen`` does; ``name`` is the stem of the files (default: the model file's).
+    ``kronsub codegen`` does; ``name`` is the stem of the files (default: the model file's);
+    ``jacobian`` as for :func:`code_files`.
     The paths written, in order.
 
     >>> import tempfile
@@ -68,7 +73,7 @@ def codegen(system: KnownSystem, folder=".", lang: str = "c", *, name: str | Non
     model = getattr(system, "model", None)
     stem = name or (Path(model.path).stem if model is not None else "model")
     folder = Path(folder)
-    files = code_files(system, stem, lang, prefix=prefix, precision=precision)
+    files = code_files(system, stem, lang, prefix=prefix, precision=precision, jacobian=jacobian)
     folder.mkdir(parents=True, exist_ok=True)
     for file_name, text in files:
         write_atomically(folder / file_name, text)

@@ -107,7 +107,7 @@ def scene_of(system: KnownSystem):
     return getattr(system, "scene", None)
 
 
-def _trajectory(system: KnownSystem, t, dt, method, set, rtol, atol, outputs=None):
+def _trajectory(system: KnownSystem, t, dt, method, set, rtol, atol, outputs=None, jacobian: bool = False):
     """The run of ``simulate`` and ``animate``: from :func:`~.simulation.start.starting_values`."""
     from ..simulation.constrained import newton_tolerance
     from ..simulation.run import check_tolerances, explicit_only
@@ -118,7 +118,7 @@ def _trajectory(system: KnownSystem, t, dt, method, set, rtol, atol, outputs=Non
     explicit_only(system, method)
     begin = starting_values(system, settings_text(set), tolerance=newton_tolerance(rtol, atol))
     traj = run(system, begin.values, t, dt, method, rtol, atol, progress=False, outputs=outputs,
-               constrained=begin.constrained)
+               constrained=begin.constrained, jacobian=jacobian)
     if not traj.complete:
         warnings.warn(f"the run stopped at t = {traj.t_fail:.6g}: {traj.message}; the rows so far are kept")
     return begin, traj
@@ -126,13 +126,14 @@ def _trajectory(system: KnownSystem, t, dt, method, set, rtol, atol, outputs=Non
 
 def simulate(system: KnownSystem, t: float | None = None, dt: float | None = None, method: str | None = None,
              set: Mapping[str, object] | None = None, rtol: float = 1e-10, atol: float = 1e-10,
-             dataframe: bool | None = None, *, points: bool = False, reactions: bool = False):
+             dataframe: bool | None = None, *, points: bool = False, reactions: bool = False, jacobian: bool = False):
     """Integrate from the model's initial values (a scene's over them; ``set`` overrides
     parameters and the initial state by name; a closed loop's projected onto its
     constraints) to ``t``, rows every ``dt`` (default: the scene's, else 10 and 0.01), as
     ``kronsub simulate`` does: a :class:`Run`, or its pandas DataFrame when ``dataframe`` is
     true (default: when pandas is installed). ``points`` adds the named points' positions,
-    ``reactions`` the workless reactions (viewpoint (alpha)).
+    ``reactions`` the workless reactions (viewpoint (alpha)); ``jacobian``: Radau and LSODA take
+    the generated exact Jacobian (``--jacobian exact``).
 
     >>> import kronsub
     >>> system = kronsub.load("models/hoffmann/system1.yaml").derive(scene="free")
@@ -150,7 +151,7 @@ def simulate(system: KnownSystem, t: float | None = None, dt: float | None = Non
     scene = scene_of(system)
     t, dt, method = run_span(system, t, dt, method)
     outputs = scene.outputs if scene is not None else None
-    begin, traj = _trajectory(system, t, dt, method, set, rtol, atol, outputs)
+    begin, traj = _trajectory(system, t, dt, method, set, rtol, atol, outputs, jacobian)
     values = begin.values
     param = np.array(values.parameters)
     extra = reaction_columns(system, traj, param, numpy_module(system), begin.constrained) if reactions else None

@@ -24,14 +24,16 @@ from .common import (USAGE_ERROR, budget_option, budget_units, fail, run_command
 @budget_option
 @click.option("--precision", type=click.Choice(["double", "long", "quad"]), default="double", show_default=True,
               help="The C's real type: double, long double, or _Float128 (glibc's libm; typedef ks_real).")
+@click.option("--jacobian", "with_jacobian", is_flag=True,
+              help="C: add <prefix>_jacobian, the exact Jacobian d ydot/dy of the right-hand side.")
 def codegen(model: Path, lang: str, outdir: Path, name: str | None, prefix: str, scene_name: str | None,
-            precision: str):
+            precision: str, with_jacobian: bool = False):
     """Generate C (header + source) or a numpy module for MODEL."""
 
     def job():
         # the same command before: its files kept (no SymPy); else derived and emitted
         key = kept.key("codegen", model, dict(lang=lang, name=name, prefix=prefix, precision=precision,
-                                              scene=scene_name, budget=budget_units()),
+                                              scene=scene_name, budget=budget_units(), jacobian=with_jacobian),
                        templates=kept.templates_digest())
         files = _kept_files(key) if key is not None else None
         if files is None:
@@ -49,6 +51,8 @@ def codegen(model: Path, lang: str, outdir: Path, name: str | None, prefix: str,
             fail(f"Error: {outdir}: cannot create the directory ({exc.strerror})\n"
                   "  hint: choose another --output")
         stem = name or model.stem
+        if with_jacobian and lang != "c":
+            fail("Error: --jacobian is for --lang c\n  hint: drop --jacobian, or use --lang c", USAGE_ERROR)
         if files is None:
             from ..api import System, code_files
 
@@ -56,7 +60,7 @@ def codegen(model: Path, lang: str, outdir: Path, name: str | None, prefix: str,
                 fail("Error: --precision long|quad is for --lang c\n  hint: drop --precision, or use --lang c")
             loaded, scene, system = scene_system(model, scene_name)
             files = code_files(System.of(system, loaded, scene), stem, lang, prefix=prefix, precision=precision,
-                               source=model.as_posix())
+                               source=model.as_posix(), jacobian=with_jacobian)
             if key is not None and loaded.source is not None:
                 kept.record(key, {"files": [list(f) for f in files]}, (loaded.source, *loaded.uses))
         separate_outputs(model, *((f"--output {outdir} --name {stem}", outdir / n, "generated") for n, _ in files))

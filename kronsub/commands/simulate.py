@@ -29,6 +29,8 @@ __all__ = ["simulate"]
               help="Default: the scene's, else dop853. " + method_help())
 @click.option("--rtol", type=float, default=1e-10, show_default=True, help="Relative tolerance (adaptive methods).")
 @click.option("--atol", type=float, default=1e-10, show_default=True, help="Absolute tolerance (adaptive methods).")
+@click.option("--jacobian", type=click.Choice(["differences", "exact"]), default="differences", show_default=True,
+              help="The Jacobian of Radau and LSODA: by finite differences, or the generated exact d ydot/dy.")
 @set_option()
 @output_option("Write the CSV to FILE (atomically) instead of standard output; the run's metadata "
                    "goes beside it as JSON (out.csv -> out.json).")
@@ -43,11 +45,11 @@ __all__ = ["simulate"]
               help="Add the workless reactions (viewpoint (alpha)) to the CSV.")
 def simulate(model: Path, t_end: float | None, dt: float | None, method: str | None, rtol: float, atol: float,
              settings: tuple[str, ...], output: Path | None, meta: Path | None, with_points: bool,
-             plot: Path | None, scene_name: str | None, with_reactions: bool = False):
+             plot: Path | None, scene_name: str | None, with_reactions: bool = False, jacobian: str = "differences"):
     """Simulate MODEL from t = 0 to --t; the trajectory is plain CSV (a header row, then numbers),
     its metadata JSON (--meta, or beside --output)."""
     options = dict(t=t_end, dt=dt, method=method, rtol=rtol, atol=atol, set=list(settings), scene=scene_name,
-                   budget=budget_units())
+                   budget=budget_units(), jacobian=jacobian)
 
     def job():
         # the same command run before, from its compiled model (no SymPy); else derived
@@ -60,7 +62,7 @@ def simulate(model: Path, t_end: float | None, dt: float | None, method: str | N
             if found is not None and _served(found, model, output, meta):
                 return
         _simulate(model, t_end, dt, method, rtol, atol, settings, output, meta, with_points, plot, scene_name,
-                  with_reactions, key)
+                  with_reactions, key, jacobian)
 
     run_command(job)
 
@@ -140,7 +142,8 @@ def _written(output: Path | None, meta_path: Path | None, stream, run):
 
 def _simulate(model: Path, t_end: float | None, dt: float | None, method: str | None, rtol: float, atol: float,
               settings: tuple[str, ...], output: Path | None, meta: Path | None, with_points: bool,
-              plot: Path | None, scene_name: str | None, with_reactions: bool, key: str | None):
+              plot: Path | None, scene_name: str | None, with_reactions: bool, key: str | None,
+              jacobian: str = "differences"):
     """The run of a derived model (recorded as a prepared run under ``key`` when it can be one)."""
     from ..api import System, run_span
     from ..simulation.constrained import newton_tolerance
@@ -175,7 +178,7 @@ def _simulate(model: Path, t_end: float | None, dt: float | None, method: str | 
         say(f"note: initial conditions projected onto the constraints: {note}")
     values, constrained = begin.values, begin.constrained
     run = start(system, values, span, step, chosen, rtol, atol,
-                outputs=outputs, constrained=constrained)
+                outputs=outputs, constrained=constrained, jacobian=jacobian == "exact")
     kept = [] if plot is not None or with_reactions else None
     run_info = dict(t_end=span, dt=step, scene=scene.name if scene is not None else None,
                     source=loaded.source, uses=loaded.uses, split=energy_split(loaded, system))
@@ -226,6 +229,7 @@ def _record(key: str, loaded, system, run, values, writer, span: float, step: fl
             atol: float) -> None:
     """Keep a completed run as a prepared run (:mod:`kronsub.simulation.prepared`) when its rows
     came from the compiled model alone: a method wholly in C, no closed loop, a run in one block."""
+    from ..core.first_order import zero_rows
     from ..simulation import native
     from ..simulation.grid import Grid
     from ..simulation.methods import METHODS
@@ -233,8 +237,8 @@ def _record(key: str, loaded, system, run, values, writer, span: float, step: fl
     from ..simulation import rows
 
     if run.library is None or system.implicit is not None or run.switches or METHODS[run.method].engine != "c" \
-            or len(Grid(span, step)) > rows.BLOCK_ROWS:
-        return
+            or len(Grid(span, step)) > rows.BLOCK_ROWS or zero_rows(system):
+        return  # (first-order coordinates' velocities are filled into the rows by the derived run)
     digest = native.recorded_digest(run.library)
     if digest is None or loaded.source is None or run.library.parent.parent != native.build_root():
         return  # (a library in the process's temporary folder is gone at its exit)

@@ -29,13 +29,15 @@ import sympy
 from .derivative import matrix_derivative
 from .finite import describe_rank_loss
 from .known_system import KnownSystem
+from .first_order import first_order
+from .linearize_first_order import linearize_first_order
 from .linearize_implicit import linearize_implicit
 from .linearize_numerics import (EQUILIBRIUM_TOLERANCE, Evaluator, Linearization, LinearizationError, at_equilibrium,
                                  checked_inputs, least_squares_equilibrium, numeric_value,
                                  parameter_defaults, parameter_numbers, residual, solve_mass, sorted_eigenvalues,
                                  unevaluable)
 from .seeded import seeded, sympy_seeded
-from .symbols import TIME
+from .symbols import TIME, free_symbols_of, velocity_symbol
 
 
 def linearize(system: KnownSystem, *, inputs: Sequence[sympy.Symbol] = (),
@@ -57,6 +59,10 @@ def linearize(system: KnownSystem, *, inputs: Sequence[sympy.Symbol] = (),
     if getattr(system, "implicit", None) is not None:  # the reduced equations (linearize_implicit.py)
         return linearize_implicit(system, inputs=inputs, point=point, values=values, initial=initial,
                                   symbolic=symbolic)
+    first = first_order(system)
+    if first is not None:  # the mixed first/second-order state (linearize_first_order.py)
+        return linearize_first_order(system, first, inputs=inputs, point=point, values=values, initial=initial,
+                                     symbolic=symbolic)
     point = dict(point or {})
     values = dict(values or {})
     initial = dict(initial or {})
@@ -113,6 +119,11 @@ def linearize(system: KnownSystem, *, inputs: Sequence[sympy.Symbol] = (),
         equilibrium = velocities_zero and _exact_equilibrium(r, q, qd, fixed, t0, values)
     else:
         equilibrium = velocities_zero and max((abs(a) for a in acceleration), default=0.0) <= EQUILIBRIUM_TOLERANCE
+    steady = ()
+    if free and not fixed and not equilibrium and not missing:
+        steady, numeric_values, acceleration = _steady_motion(system, numeric_values, q, qd, free, r, D0, symbols,
+                                                              acceleration)
+        equilibrium = bool(steady)
     if free and not fixed and not equilibrium:
         worst = max(abs(a) for a in acceleration)
         where = ", ".join(f"{s}={numeric_values[s]:.6g}" for s in q)
@@ -131,6 +142,11 @@ def linearize(system: KnownSystem, *, inputs: Sequence[sympy.Symbol] = (),
     op_inputs = {u: sympy.sympify(values.get(u, defaults.get(u, u))) for u in inputs}
 
     notes = []
+    if steady:
+        notes.append("a steady motion: the cyclic coordinates " + ", ".join(s.name for s in steady)
+                     + " (in none of Mbar, hbar, fbar) move at the constant velocities "
+                     + ", ".join(f"{velocity_symbol(s).name} = {numeric_values[velocity_symbol(s)]:.6g}"
+                                 for s in steady) + ", found with the other coordinates")
     if symbolic:
         subs = {**op_state, TIME: t0, **{p: sympy.sympify(v) for p, v in values.items()}, **op_inputs}
         A, B = _symbolic_matrices(M, r, K0, D0, G0, dM, subs, n, len(inputs))
@@ -203,6 +219,46 @@ def _solve_equilibrium(evaluate: Evaluator, values: dict, q, free, r) -> dict:
         return at_equilibrium(Mn, rn.ravel())
 
     return at(least_squares_equilibrium(fun, jac, x0, settled))
+
+
+def _steady_motion(system, values, q, qd, free, r, D0, symbols, acceleration):
+    """Where no equilibrium has ``qdot = 0``: a steady motion, ``r(q, qdot) = 0`` with the
+    velocities of the cyclic coordinates (those in none of ``Mbar``, ``r``: a DC motor's shaft
+    angle and armature charge, a magnet's coil charge) unknown beside the free coordinates,
+    which then move at constant speed (a spinning shaft, a steady current) while nothing else
+    moves. ``((), values, acceleration)`` unchanged when there is none."""
+    appear = free_symbols_of([system.mass_matrix, r])
+    cyclic = [s for s in q if s not in appear]
+    if not cyclic:
+        return (), values, acceleration
+    unknowns = [s for s in free if s not in cyclic] + [velocity_symbol(s) for s in cyclic]
+    steady_evaluate = Evaluator([system.mass_matrix, r, matrix_derivative(r, sympy.Matrix(q)), D0], symbols)
+    columns = [(2, q.index(s)) if s in q else (3, qd.index(s)) for s in unknowns]
+
+    def at(x):
+        return {**values, **dict(zip(unknowns, (float(v) for v in x)))}
+
+    def fun(x):
+        return steady_evaluate(at(x))[1].ravel()
+
+    def jac(x):
+        blocks = steady_evaluate(at(x))
+        return np.column_stack([blocks[b][:, c] for b, c in columns])
+
+    def settled(x):
+        Mn, rn, _, _ = steady_evaluate(at(x))
+        return at_equilibrium(Mn, rn.ravel())
+
+    x0 = np.array([values[s] for s in unknowns], dtype=float)
+    try:
+        found = at(least_squares_equilibrium(fun, jac, x0, settled))
+    except (ValueError, np.linalg.LinAlgError):
+        return (), values, acceleration
+    Mn, rn, _, _ = steady_evaluate(found)
+    if not at_equilibrium(Mn, rn.ravel()):
+        return (), values, acceleration
+    return (tuple(cyclic), found,
+            tuple(float(a) for a in solve_mass(Mn, rn.ravel(), found, q)))
 
 
 def _exact(value: float) -> sympy.Expr:

@@ -61,6 +61,7 @@ class Part:
     # ``(coordinates, sum of potentials, V)``: what :func:`.subspace.assemble` made of that sum
     # when the known system was derived, so that a model reusing it as it is need not redo it
     assembled_potential: tuple = ()
+    charges: tuple[sympy.Symbol, ...] = ()  # coordinates that are branch charges (a textbook component's `charges:`)
 
     @property
     def velocities(self) -> tuple[sympy.Symbol, ...]:

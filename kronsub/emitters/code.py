@@ -156,6 +156,8 @@ def _context(model: NumericModel, show, declare: str, end: str) -> dict:
     blocks = {name: _lines(getattr(model, name), show, declare, end)
               for name in ("mass", "velocity_terms", "forces", "equations", "canonical", "prepare", "potential",
                            "positions")}
+    if model.jacobian is not None:
+        blocks["jacobian"] = _lines(model.jacobian, show, declare, end)
     if model.implicit is not None:  # the dependent-coordinate solve (numeric_implicit)
         blocks.update({f"implicit_{name}": _lines(getattr(model.implicit, name), show, declare, end)
                        for name in ("closed_form", "residual", "sensitivity", "quadratic")})
@@ -168,17 +170,17 @@ def _context(model: NumericModel, show, declare: str, end: str) -> dict:
 
 @collector_paused()  # see kronsub.collector
 def emit_c(system: KnownSystem, stem: str, source: str = "", prefix: str = "ks",
-           outputs=None) -> list[GeneratedFile]:
+           outputs=None, jacobian: bool = False) -> list[GeneratedFile]:
     """``<stem>.h`` and ``<stem>.c`` (``stem`` made safe by :func:`file_stem`): C99, libc and
     libm only; names start with ``<prefix>_`` (macros with ``<PREFIX>_``), so several models
     can live in one program. A scene's ``outputs`` leave out the energy and point functions
-    it does not ask for."""
-    model = prepare(system, source, outputs, guarded_angles=True)
+    it does not ask for; ``jacobian`` adds ``<prefix>_jacobian``, the exact ``d ydot/dy``."""
+    model = prepare(system, source, outputs, guarded_angles=True, jacobian=jacobian)
     p = identifier(prefix)
     printer = _CPrinter(p)
     ctx = _context(model, printer.doprint, "const double ", ";")
     circle, circle_block = ((), None)
-    if model.implicit is None:  # the circle state (circle.py): angles as (cos q, sin q)
+    if model.implicit is None and not model.first_order:  # the circle state (circle.py): angles as (cos q, sin q)
         circle, circle_block = circle_equations(model.equations, [sympy.Symbol(f"q[{i}]") for i in range(model.n)])
     if circle_block is not None:
         ctx["b"]["circle"] = _lines(circle_block, printer.doprint, "const double ", ";")

@@ -4,7 +4,10 @@
 ``ydot = [qdot; Mbar^-1 (fbar - hbar)]`` with state ``y = [q; qdot]``, and the
 canonical form ``z = [q; p]``, ``p = Mbar qdot``,
 ``zdot = [Mbar^-1 p; dT/dq + fbar]`` (Lagrange's equations (A) with
-``dT/dq = 1/2 qdot^T (dMbar/dq) qdot``), used by the symplectic integrator.
+``dT/dq = 1/2 qdot^T (dMbar/dq) qdot``), used by the symplectic integrator. With first-order coordinates ``J``
+(:mod:`kronsub.core.first_order`, a zero row of ``Mbar``) the rates of ``q_J`` are their solved
+velocities, written after ``r`` (``r[n:]``), and their rows of ``Mbar`` the identity with
+``r_J = 0``: the ``qdot_J`` slots of the state are not integrated.
 Common subexpressions are eliminated per function, deterministically.
 """
 from __future__ import annotations
@@ -18,6 +21,7 @@ import sympy
 from sympy.simplify.cse_main import basic_optimizations as _BASIC
 
 from ..core.derivative import derivative
+from ..core.first_order import first_order
 from ..core.known_system import KnownSystem
 from ..core.rheonomic import depends_on_time
 from ..core.sympy_internals import eval_evalf
@@ -50,6 +54,8 @@ class NumericModel:
 
     implicit: ImplicitCode | None = None  # the dependent-coordinate solve
     timed: bool = False  # the connection names t (x = x(xbar, t)): velocity_terms and points take t first
+    first_order: tuple[int, ...] = ()  # first-order coordinates J: qdot_J into r[n:], rows J of M identity, r_J = 0
+    jacobian: Block | None = None  # d ydot/dy: V (rates of q, n x 2n), K = dr/dy (n x 2n), G = dMbar/dq_k (n x n x n)
 
     @property
     def n(self) -> int:
@@ -249,14 +255,48 @@ def _block(targets: list[str], exprs: list[sympy.Expr], prefix: str, coordinates
     return Block(tuple(replacements), tuple(zip(targets, reduced)))
 
 
-def prepare(system: KnownSystem, source: str = "", outputs=None, guarded_angles: bool = False) -> NumericModel:
+def jacobian_block(system: KnownSystem, first, slot) -> tuple[list[str], list[sympy.Expr]]:
+    """Targets and expressions of the parts of ``d ydot/dy``, ``y = [q; qdot]``, ``ydot = [v; a]``,
+    ``Mbar a = r``: ``V = dv/dy`` (``v = qdot``, or with first-order coordinates their solved
+    velocities), ``K = dr/dy`` and ``G_k = dMbar/dq_k``, so that
+
+        d a/dq_k = Mbar^-1 (K[:, k] - G_k a),    d a/dqdot = Mbar^-1 K[:, n:]
+
+    (first-order coordinates: ``r`` with their velocities put in, their rows of ``Mbar`` the
+    identity and of ``r`` zero, as in the right-hand side)."""
+    n = len(system.coordinates)
+    y = list(system.coordinates) + list(system.velocities)
+    M, r = system.mass_matrix, system.forces - system.velocity_terms
+    v = sympy.Matrix(system.velocities)
+    if first is not None:
+        r = r.xreplace(first.substitution(system))
+        r = sympy.Matrix([0 if i in first.indices else r[i] for i in range(n)])
+        M = sympy.Matrix(n, n, lambda i, j: int(i == j) if i in first.indices else M[i, j])
+        for j, velocity in zip(first.indices, first.velocities):
+            v[j] = velocity
+    targets, exprs = [], []
+    for i in range(n):
+        for c in range(2 * n):
+            targets += [f"V[{i * 2 * n + c}]", f"K[{i * 2 * n + c}]"]
+            exprs += [slot(derivative(v[i], y[c])), slot(derivative(r[i], y[c]))]
+    for k in range(n):
+        for i in range(n):
+            for j in range(n):
+                targets.append(f"G[{k * n * n + i * n + j}]")
+                exprs.append(slot(derivative(M[i, j], y[k])) if y[k] in M[i, j].free_symbols else sympy.Integer(0))
+    return targets, exprs
+
+
+def prepare(system: KnownSystem, source: str = "", outputs=None, guarded_angles: bool = False,
+            jacobian: bool = False) -> NumericModel:
     """Map the system's symbols to array slots and eliminate common subexpressions.
 
     ``outputs`` (a scene's :class:`~kronsub.model.scenes.Outputs`; None: everything) leaves
     out the energies and the named points when they are not asked for. ``guarded_angles``
     (the C): the right-hand sides take sines and cosines of several coordinates from
     single-angle ones where that keeps their accuracy (:func:`_guarded`), and always in
-    ``Mbar`` (:func:`_single_angles`)."""
+    ``Mbar`` (:func:`_single_angles`). ``jacobian``: also the blocks of ``d ydot/dy``
+    (:func:`jacobian_block`; not with implicit constraints)."""
     energies = outputs is None or outputs.energies
     with_points = outputs is None or bool(outputs.points)
     n = len(system.coordinates)
@@ -304,8 +344,19 @@ def prepare(system: KnownSystem, source: str = "", outputs=None, guarded_angles:
     r_targets = [f"r[{i}]" for i in range(n)]
     qs = tuple(q_slots.values())
     constants = _Constants(list(p_slots.values()))
-    equations = block(targets + r_targets, [constants(e) for e in exprs + [slot(e) for e in r]], "x", qs,
-                       guarded_angles, plain=len(targets))
+    first = first_order(system)
+    if first is None:
+        equations = block(targets + r_targets, [constants(e) for e in exprs + [slot(e) for e in r]], "x", qs,
+                          guarded_angles, plain=len(targets))
+    else:  # the mixed system (core/first_order.py): M_JJ = 1, r_J = 0, qdot_J into r[n:]
+        r = r.xreplace(first.substitution(system))
+        solved = [slot(M[i, j]) if i not in first.indices else sympy.Integer(int(i == j))
+                  for i in range(n) for j in range(n)]
+        rates = [slot(r[i]) if i not in first.indices else sympy.Integer(0) for i in range(n)]
+        currents = [slot(v) for v in first.velocities]
+        equations = block(targets + r_targets + [f"r[{n + k}]" for k in range(len(currents))],
+                          [constants(e) for e in solved + rates + currents], "x", qs, guarded_angles,
+                          plain=len(targets))
     mass = block(targets, exprs, "x", qs)
     velocity_terms = block([f"h[{i}]" for i in range(n)], [slot(e) for e in system.velocity_terms], "x", qs)
     forces = block([f"f[{i}]" for i in range(n)], [slot(e) for e in system.forces], "x", qs)
@@ -332,6 +383,9 @@ def prepare(system: KnownSystem, source: str = "", outputs=None, guarded_angles:
                        for i, qi in enumerate(system.coordinates) if qi in depends[k][j]), sympy.Integer(0))
                 for k in range(n)]
     canonical = block(r_targets, [constants(slot(e)) for e in dTdq], "x", qs, guarded_angles)
+    exact = None
+    if jacobian and system.implicit is None:
+        exact = block(*jacobian_block(system, first, lambda e: constants(slot(e))), "x", qs, guarded_angles)
     prepare = block(*constants.definitions(), "c")
 
     potential = block(["V"], [slot(system.potential_energy)], "x", qs) if energies else Block((), ())
@@ -349,6 +403,7 @@ def prepare(system: KnownSystem, source: str = "", outputs=None, guarded_angles:
     implicit = None
     if system.implicit is not None:
         implicit = implicit_code(system, slot, lambda t, e, c: block(t, e, "x", qs))
+    if system.implicit is not None or first is not None:
         canonical = block(r_targets, [sympy.Integer(0)] * n, "x", qs)  # unused: no canonical form here
     return NumericModel(
         name=system.name,
@@ -369,7 +424,9 @@ def prepare(system: KnownSystem, source: str = "", outputs=None, guarded_angles:
         with_points=with_points,
         implicit=implicit,
         timed=timed,
+        first_order=first.indices if first is not None else (),
+        jacobian=exact,
     )
 
 
-__all__ = ["BASIC_NODES", "GUARD", "NearAxis", "NumericModel", "identifier", "prepare"]
+__all__ = ["BASIC_NODES", "GUARD", "NearAxis", "NumericModel", "identifier", "jacobian_block", "prepare"]

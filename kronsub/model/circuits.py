@@ -1,11 +1,14 @@
 """Kirchhoff's laws as the connection, checked: every circuit element acts in some loop, and
-every loop has inductance (the metric ``Mbar = Cᵀ L C`` (9') of the loop charges is regular).
+every loop has inductance (the metric ``Mbar = Cᵀ L C`` (9') of the loop charges is regular)
+or resistance of its own.
 
 A loop of capacitors and sources alone has no inductance and no resistance: Kirchhoff's
-voltage law fixes its charge outright, there is no motion to integrate. One with resistance
-but no inductance is a first-order coordinate, which the integrators do not take either.
-Both are reported at the model's coordinates, naming the loop; the check is numeric, at
-random values of the coordinates and of the parameters that have none.
+voltage law fixes its charge outright, there is no motion to integrate; it is reported at the
+model's coordinates, naming the loop. One with resistance but no inductance is a first-order
+coordinate (:mod:`kronsub.core.first_order`) when its charge is a coordinate of its own whose
+row of ``Mbar`` is zero and the resistance is positive definite on those coordinates; a loop
+without inductance that shares its charge with loops that have some is reported. The check is
+numeric, at random values of the coordinates, of ``t`` and of the parameters that have none.
 """
 from __future__ import annotations
 
@@ -27,7 +30,7 @@ circuit is a sum of inductances, exact up to rounding)."""
 
 def check_circuit(reader: ModelReader, primitive, connection: dict, coords, effects) -> None:
     """Report elements (and gyrators) the connection removes, and loops without inductance
-    (see the module)."""
+    that are no first-order coordinates (see the module)."""
     if not any(part.type_name in CIRCUIT_TYPES for part in primitive.parts) or not coords:
         return
     if set(primitive.coordinates) - set(connection):
@@ -73,30 +76,48 @@ def _loops_without_inductance(reader: ModelReader, primitive, connection, coords
     _, sigma, vt = np.linalg.svd(Mbar)
     scale = max(float(sigma[0]) if len(sigma) else 0.0, 1e-300)
     mechanical = [a for a, x in enumerate(primitive.coordinates) if x not in _charges(primitive)]
-    for k, s in enumerate(sigma):
-        if s > RANK_TOLERANCE * scale and s > 0:
-            continue
-        direction = vt[k] / np.max(np.abs(vt[k]))
+    null = [k for k, s in enumerate(sigma) if not (s > RANK_TOLERANCE * scale and s > 0)]
+    zero = [j for j in range(len(coords)) if np.all(np.abs(Mbar[j]) <= RANK_TOLERANCE * scale)]
+    aligned = len(zero) == len(null)  # the null space is spanned by the coordinates whose rows are zero
+    timed = {**values, TIME: sympy.Float(rng.uniform(0.5, 1.5))}  # a resistance in t, at some t
+    directions = [vt[k] for k in null]
+    if aligned and zero:
+        try:
+            D = _dissipation_matrix(effects, coords, connection, timed)[np.ix_(zero, zero)]
+        except (TypeError, ValueError):
+            return  # a resistance that is no number here: left to the derivation (core/first_order.py)
+        level, vectors = np.linalg.eigh(D)
+        unresisted = level <= RANK_TOLERANCE * max(float(np.max(np.abs(D))), 1e-300)
+        if not np.any(unresisted):
+            return  # first-order coordinates, each loop resisted: the mixed system (core/first_order.py)
+        directions = []  # the loops among the first-order coordinates that no resistance reaches
+        for vector in vectors.T[unresisted]:
+            direction = np.zeros(len(coords))
+            direction[zero] = vector
+            directions.append(direction)
+    for direction in directions:
+        direction = direction / direction[np.argmax(np.abs(direction))]
         if np.any(np.abs((Cn @ direction)[mechanical]) > 1e-9):
             continue  # a motion without inertia that moves a mechanical part: left to the run's message
         loop = _combination(direction, coords)
         try:
-            resisted = _dissipation_along(primitive, effects, coords, connection, direction, values) > 0
+            resisted = _dissipation_along(effects, coords, connection, direction, timed) > 0
         except (TypeError, ValueError):
-            resisted = None  # a resistance that is no number here (one in t)
+            resisted = None  # a resistance that is no number here
         first = next(q for c, q in zip(direction, coords) if abs(c) > 1e-9)
         where = reader.locations.get(f"coordinate:{first.name}") or reader.locations.get("connection")
         if resisted is None:
-            reader.error(where, f"the loop ({loop}) has no inductance: its charge is no second-order coordinate, "
-                                "which is all kronsub integrates",
+            reader.error(where, f"the loop ({loop}) has no inductance, and kronsub cannot tell whether it has "
+                                "resistance (its resistance is no number at the parameters' values)",
                          "give the loop an inductance (an `inductor` branch in it, however small) "
                          "(docs/electrical.md)")
-        elif resisted:
-            reader.error(where, f"the loop ({loop}) has resistance but no inductance: its charge is a first-order "
-                                "coordinate, which kronsub does not integrate yet",
-                         "give the loop an inductance (an `inductor` branch in it, however small), or eliminate "
-                         "the loop by hand (docs/electrical.md)")
-        else:
+        elif resisted and not aligned:
+            reader.error(where, f"the loop ({loop}) has resistance but no inductance, and no loop charge runs "
+                                "through it alone: kronsub integrates a loop without inductance as a first-order "
+                                "coordinate only when it is a coordinate whose row of Mbar is zero",
+                         "choose the loop charges so that this loop has a charge of its own that runs through no "
+                         "inductance (or give the loop an inductance) (docs/electrical.md)")
+        elif not resisted:
             reader.error(where, f"the loop ({loop}) has no inductance and no resistance: only capacitors and "
                                 "sources, so Kirchhoff's voltage law fixes its charge and there is no motion",
                          "give the loop an inductance or a resistance, or leave it out of `coordinates:` "
@@ -119,16 +140,21 @@ def _charges(primitive) -> set:
     return {q for part in primitive.parts if part.type_name in CIRCUIT_TYPES for q in part.coordinates}
 
 
-def _dissipation_along(primitive, effects, coords, connection, direction, values) -> float:
-    """``sum R (dq/dv)^2``: the resistors' dissipation of a unit loop current along ``direction``."""
-    total = 0.0
+def _dissipation_matrix(effects, coords, connection, values) -> np.ndarray:
+    """``D = sum R (dq/dxbar)ᵀ (dq/dxbar)``: the resistors' Rayleigh matrix in the coordinates."""
+    D = np.zeros((len(coords), len(coords)))
     for effect in effects:
         if not isinstance(effect, Resistor):
             continue
         image = sympy.sympify(effect.charge).xreplace(connection)
-        rate = sum(float(sympy.diff(image, q).xreplace(values)) * c for q, c in zip(coords, direction))
-        total += float(sympy.sympify(effect.resistance).xreplace(values)) * rate**2
-    return total
+        rate = np.array([float(sympy.diff(image, q).xreplace(values)) for q in coords])
+        D += float(sympy.sympify(effect.resistance).xreplace(values)) * np.outer(rate, rate)
+    return D
+
+
+def _dissipation_along(effects, coords, connection, direction, values) -> float:
+    """``vᵀ D v``: the resistors' dissipation of a unit loop current along ``direction``."""
+    return float(direction @ _dissipation_matrix(effects, coords, connection, values) @ direction)
 
 
 __all__ = ["CIRCUIT_TYPES", "check_circuit"]

@@ -24,6 +24,7 @@ from ..errors import Location, ModelError, ProblemCollector, close_matches, near
 from .expressions import parse_expression
 from .files import resolved_path
 from .file_reading import SourceFile
+from .units import check_units, dimension
 from .source import Node, excerpt
 
 IDENTIFIER = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")  # whole names only: fullmatch
@@ -84,6 +85,7 @@ class ModelReader:
         # `definitions:` (definitions.py): name -> (placeholder, expansion; None when it failed)
         self.definitions: dict[str, tuple[sympy.Symbol, sympy.Expr | None]] = {}
         self.definition_keys: set[str] = set()  # their names, known before they are read
+        self._units_of: tuple[int, dict] = (-1, {})  # (parameters seen, their dimensions) for check_units
 
     def error(self, node_or_loc, message: str, hint: str | None = None) -> None:
         loc = node_or_loc.location if isinstance(node_or_loc, Node) else node_or_loc
@@ -126,7 +128,15 @@ class ModelReader:
                         "number (or an expression of numbers), and the formula where the value is used"))
                 self.problems.problems.append(problem)
             return None
-        return self.substitute_definitions(value, table, node, what)
+        value = self.substitute_definitions(value, table, node, what)
+        if value is not None and isinstance(value, sympy.Basic) and value.has(sympy.Add):
+            if len(self.parameters) != self._units_of[0]:  # the parameters' dimensions, read once
+                self._units_of = (len(self.parameters), {info.symbol: dimension(info.unit)
+                                                         for info in self.parameters.values() if info.unit})
+            units = self._units_of[1]
+            if units:
+                check_units(value, units, str(node.text_location or node.location))
+        return value
 
     def generalized_name(self, name: str) -> str | None:
         """"coordinate" or "velocity" when ``name`` is a generalized coordinate (or its velocity)

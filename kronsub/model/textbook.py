@@ -3,10 +3,11 @@ written as expressions in the model file (the paper's premise: "the equations of
 performance of the individual parts are usually well known").
 
 The component ``magnet: {coordinates: [y, q], metric: [[m, 0], [0, L]], potential: V,
-dissipation: F}`` becomes a part of the primitive with the metric ``m_ab(x)`` (its velocity
+dissipation: F, charges: [q]}`` becomes a part of the primitive with the metric ``m_ab(x)`` (its velocity
 terms from Lagrange's operator (A), so a metric in the coordinates brings its forces, the
 magnetic force ``i^2/2 dL/dy`` of an electromagnet among them), its own effects
-``potential`` (``f_a = -dV/dx^a``) and ``dissipation`` (Rayleigh's ``f_a = -dF/dxdot^a``).
+``potential`` (``f_a = -dV/dx^a``) and ``dissipation`` (Rayleigh's ``f_a = -dF/dxdot^a``);
+``charges:`` names the coordinates that are branch charges (for a run's energy split).
 """
 from __future__ import annotations
 
@@ -18,7 +19,7 @@ from ..core.symbols import symbol, velocity_symbol
 from .reader import ModelReader, node_kind
 from .source import Node
 
-KEYS = ("coordinates", "metric", "potential", "dissipation", "description")
+KEYS = ("coordinates", "metric", "potential", "dissipation", "charges", "description")
 
 
 def textbook_part(reader: ModelReader, cname: str, spec: Node) -> Part | None:
@@ -37,7 +38,8 @@ def textbook_part(reader: ModelReader, cname: str, spec: Node) -> Part | None:
     if spec.get("dissipation") is not None:
         rates = {**configuration, **{v.name: v for v in velocities}}
         dissipation = _expression(reader, cname, spec.get("dissipation"), rates, "dissipation")
-    if metric is None or potential is None or dissipation is None:
+    charges = _charges(reader, cname, spec.get("charges"), coordinates)
+    if metric is None or potential is None or dissipation is None or charges is None:
         return None
     forces, potentials = {}, {}
     if potential != 0:
@@ -47,7 +49,7 @@ def textbook_part(reader: ModelReader, cname: str, spec: Node) -> Part | None:
         forces["dissipation"] = sympy.Matrix([sympy.expand(-derivative(dissipation, v)) for v in velocities])
     return Part(name=cname, coordinates=coordinates, metric=metric,
                 velocity_terms=christoffel_terms(metric, coordinates, velocities),
-                forces=forces, potential=potential, potentials=potentials)
+                forces=forces, potential=potential, potentials=potentials, charges=charges)
 
 
 def _coordinates(reader: ModelReader, cname: str, node: Node | None):
@@ -69,6 +71,26 @@ def _coordinates(reader: ModelReader, cname: str, node: Node | None):
             return None
         names.append(item.value)
     return tuple(symbol(n) for n in names)
+
+
+def _charges(reader: ModelReader, cname: str, node: Node | None, coordinates) -> tuple | None:
+    """The coordinates named by ``charges:`` (branch charges: the metric's block on them is the
+    inductance); None after reporting a name that is not one of the component's coordinates."""
+    if node is None:
+        return ()
+    own = {q.name: q for q in coordinates}
+    if not node.is_sequence:
+        reader.error(node, f"`charges:` of '{cname}' must be a list of its coordinates, found {node_kind(node)}",
+                     f"e.g. `charges: [{next(iter(own))}]`")
+        return None
+    charges = []
+    for item in node.value:
+        if not isinstance(item.value, str) or item.value not in own:
+            reader.error(item, f"`charges:` of '{cname}' names {item.value!r}, which is not one of its coordinates "
+                               f"({', '.join(own)})", "name the coordinates that are branch charges")
+            return None
+        charges.append(own[item.value])
+    return tuple(charges)
 
 
 def _expression(reader: ModelReader, cname: str, node: Node, names: dict, what: str):

@@ -40,6 +40,7 @@ from typing import Callable
 import mpmath
 import numpy as np
 
+from ..core.first_order import zero_rows
 from ..core.known_system import KnownSystem
 from . import native as native_module
 from .accuracy_options import (ALL_METHODS, CLOSED_LOOP, KNOWN_METHODS, AccuracyError, fixed_step, parse_methods,
@@ -220,6 +221,9 @@ class Bench:
         if self.dependent is not None and not METHODS[method].closed_loops:
             return ("it runs explicit equations only, and a closed loop's dependent coordinates come from "
                     "Newton's method on the constraints (methods here: " + ", ".join(CLOSED_LOOP) + ")")
+        if not METHODS[method].closed_loops and zero_rows(self.system):
+            return ("it integrates second-order equations of its own in every coordinate, and this system has "
+                    "first-order coordinates (methods here: " + ", ".join(CLOSED_LOOP) + ")")
         return method_runner.unavailable()
 
     def _step(self, method: str, tol: float) -> float | None:

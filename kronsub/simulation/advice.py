@@ -6,9 +6,9 @@ import numpy as np
 
 
 
-__all__ = ["ENERGY_DRIFT_SHARE", "ENERGY_FLOOR_SHARE", "EnergyWarning", "STIFF_DAMPED_SHARE", "STIFF_MIN_STEPS",
-           "STIFF_REJECTED_SHARE", "StiffnessWarning", "conserves_energy", "energy_advice", "is_stiff",
-           "stiffness_advice"]
+__all__ = ["ENERGY_DRIFT_SHARE", "ENERGY_FLOOR_SHARE", "EnergyWarning", "MODE_SHARE", "STIFF_DAMPED_SHARE",
+           "STIFF_MIN_STEPS", "STIFF_REJECTED_SHARE", "StiffnessWarning", "conserves_energy", "energy_advice",
+           "is_stiff", "mode_coordinates", "stiffness_advice"]
 
 
 class StiffnessWarning(UserWarning):
@@ -82,33 +82,67 @@ def is_stiff(stats: dict) -> bool:
                                      and rejected >= STIFF_REJECTED_SHARE * (steps + rejected))
 
 
-def _fastest_mode(native, param, t: float, y: np.ndarray) -> complex:
+def _fastest_mode(native, param, t: float, y: np.ndarray) -> tuple[complex, np.ndarray]:
     """The eigenvalue of largest modulus of the Jacobian of the right-hand side at ``y``
-    (central differences)."""
+    (central differences), and its eigenvector."""
     n = len(y)
     J = np.empty((n, n))
     for j in range(n):
         e = np.zeros(n)
         e[j] = 1e-6 * max(1.0, abs(y[j]))
         J[:, j] = (native.rhs(t, y + e, param) - native.rhs(t, y - e, param)) / (2 * e[j])
-    lam = np.linalg.eigvals(J)
-    return complex(lam[np.argmax(np.abs(lam))])
+    lam, vectors = np.linalg.eig(J)
+    k = int(np.argmax(np.abs(lam)))
+    return complex(lam[k]), vectors[:, k]
 
 
-def stiffness_advice(native, param, stats: dict, span: float, t: float, y, method: str) -> str:
+MODE_SHARE = 0.3
+"""A coordinate whose share of the fastest mode is at least this of the largest share is named."""
+
+
+def mode_coordinates(lam: complex, vector: np.ndarray, names) -> list[str]:
+    """The coordinates that carry a mode ``(lam, vector)`` of ``y = [q; qdot]``: the share of
+    coordinate ``i`` is ``max(|lam v_i|, |v_(n+i)|)`` (its rate in the mode, so that positions
+    and velocities compare; a first-order coordinate's velocity slot is not integrated)."""
+    n = len(names)
+    if n == 0 or len(vector) != 2 * n:
+        return []
+    share = np.maximum(abs(lam) * np.abs(vector[:n]), np.abs(vector[n:]))
+    top = float(np.max(share))
+    return [name for name, s in zip(names, share) if top > 0 and s >= MODE_SHARE * top]
+
+
+def _describe_mode(lam: complex, vector, names, charges) -> str:
+    carried = mode_coordinates(lam, vector, names) if vector is not None else []
+    if not carried:
+        return ""
+    kind = ""
+    if charges and all(name in charges for name in carried):
+        kind = "an electrical mode, the currents of "
+    elif charges and any(name in charges for name in carried):
+        kind = "an electromechanical mode of "
+    time = f", time constant {1 / abs(lam.real):.3g}" if np.isfinite(lam.real) and lam.real < 0 else ""
+    return f"; it is {kind}{', '.join(carried)}{time}"
+
+
+def stiffness_advice(native, param, stats: dict, span: float, t: float, y, method: str, names=(),
+                     charges=frozenset()) -> str:
     """What to do about a stiff run: an implicit method when its fastest mode (at the last state
     ``y`` at time ``t``) is damped; when it is an undamped oscillation, every method has to
-    follow it, so say that instead."""
+    follow it, so say that instead. ``names`` (the coordinates) and ``charges`` (those that move
+    a circuit's branch charge) name what the mode moves: an electrical mode is the currents of
+    the loops, its time constant ``1/|Re lambda|`` (``L/R`` of a loop)."""
     steps, rejected = stats["steps"], stats["rejected"]
     cost = f"{steps} steps, {rejected} rejected, mean step {span / max(steps, 1):.3g}"
     try:
-        lam = _fastest_mode(native, param, t, np.asarray(y, dtype=float))
+        lam, vector = _fastest_mode(native, param, t, np.asarray(y, dtype=float))
     except Exception:  # noqa: BLE001 - the advice is a courtesy; a failed evaluation must not stop the run
-        lam = complex("nan")
-    mode = f"fastest mode lambda = {lam.real:.3g}{lam.imag:+.3g}i"
+        lam, vector = complex("nan"), None
+    mode = f"fastest mode lambda = {lam.real:.3g}{lam.imag:+.3g}i" + _describe_mode(lam, vector, list(names), charges)
     if np.isfinite(lam.real) and -lam.real >= STIFF_DAMPED_SHARE * abs(lam):
         return (f"the problem is stiff: {method}'s step size is held by stability, not accuracy ({cost}; {mode}); "
-                "an implicit method is far cheaper here: use --method Radau")
+                "an implicit method is far cheaper here: use --method Radau"
+                + (" (with --jacobian exact)" if method != "Radau" else ""))
     return (f"a fast oscillation holds {method}'s step size ({cost}; {mode}, period "
             f"{2 * np.pi / max(abs(lam.imag), 1e-300):.3g}): it is undamped, so every method must follow it; "
             "an implicit method (--method Radau) pays off only where the fast mode is damped")

@@ -30,7 +30,7 @@ _FOLDER = re.compile(r"[A-Za-z0-9_]+-[0-9a-f]{24}")
 _LIBRARY = re.compile(r"lib[A-Za-z0-9_]+\.so")
 
 
-def fingerprint(system: KnownSystem, outputs=None) -> str | None:
+def fingerprint(system: KnownSystem, outputs=None, jacobian: bool = False) -> str | None:
     """sha256 of what the generated C computes: the equations (without the names, texts,
     parameter values and initial values that only its comments and defaults show), the
     outputs, the integrators and the compiler; None when the system cannot be fingerprinted."""
@@ -44,6 +44,8 @@ def fingerprint(system: KnownSystem, outputs=None) -> str | None:
     command = native.compiler_command()
     parts = [text, repr(outputs), *native.build_identity(), shutil.which(command[0]) or command[0], *command[1:]]
     parts += [(native.CSRC / name).read_text() for name in native.INTEGRATOR_FILES]
+    if jacobian:  # the library with ks_jacobian is another library
+        parts.append("jacobian")
     return content_key("compiled-model", *parts)
 
 
@@ -110,20 +112,21 @@ def belongs(library: Path, key: str, nq: int, nparam: int) -> bool:
         return False
 
 
-def compiled_library(system: KnownSystem, outputs=None) -> Path:
+def compiled_library(system: KnownSystem, outputs=None, jacobian: bool = False) -> Path:
     """The shared library of ``system``'s generated C with the integrators: from the index
     when its fingerprint is there and the library says it computes these equations
     (:func:`belongs`), else emitted, built (:func:`.native.compile_library`) and indexed.
-    Raises what ``compile_library`` raises."""
+    ``jacobian``: with the exact ``d ydot/dy`` (``ks_jacobian``). Raises what ``compile_library``
+    raises."""
     from ..emitters.code import emit_c  # heavy (jinja2, the C printer): only when the index misses
 
-    key = fingerprint(system, outputs)
+    key = fingerprint(system, outputs, jacobian)
     nq, nparam = len(system.coordinates), len(system.parameters)
     if key is not None:
         library = lookup(key)
         if library is not None and belongs(library, key, nq, nparam):
             return library
-    generated = [(g.name, g.text) for g in emit_c(system, "model", outputs=outputs)]
+    generated = [(g.name, g.text) for g in emit_c(system, "model", outputs=outputs, jacobian=jacobian)]
     if key is not None:
         generated.append(identity_source(key, nq, nparam))
     library = native.compile_library(generated, "model")
@@ -134,12 +137,12 @@ def compiled_library(system: KnownSystem, outputs=None) -> Path:
     return library
 
 
-def native_model(system: KnownSystem, outputs=None) -> native.NativeModel:
+def native_model(system: KnownSystem, outputs=None, jacobian: bool = False) -> native.NativeModel:
     """:func:`compiled_library` loaded; a library removed between its build and its loading
     (``kronsub cache clear`` meanwhile) is built again, once."""
     nq, nparam = len(system.coordinates), len(system.parameters)
     for attempt in (1, 2):
-        library = compiled_library(system, outputs)
+        library = compiled_library(system, outputs, jacobian)
         try:
             return native.NativeModel(library, nq, nparam)
         except OSError:

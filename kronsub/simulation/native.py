@@ -429,6 +429,8 @@ _SIGNATURES = {
     "ks_energy_rows": (None, [_P, _P, _I, _P, _P, _L, _P, _P]),
     "ks_nstate": (_I, []),
     "ks_ncircle": (_I, []),
+    "ks_nfirst": (_I, []),
+    "ks_jacobian": (_I, [_D, _P, _P, _P]),
     "ks_rhs_circle": (_I, [_D, _P, _P, _P]),
     "ks_rhs_circle_pre": (_I, [_D, _P, _P, _P]),
     "ks_circle_state": (None, [_P, _P]),
@@ -493,6 +495,8 @@ class NativeModel:
         self._buffer = np.zeros(max(self.nparam + self.nstate, 1))
         # the circle state z = [y; cos q_c; sin q_c] (emitters/circle.py): 0 without one
         self.nc = int(self._fn["ks_ncircle"]()) if "ks_ncircle" in self._fn and "ks_rhs_circle" in self._fn else 0
+        # first-order coordinates (core/first_order.py): their velocities solved, not integrated
+        self.nfirst = int(self._fn["ks_nfirst"]()) if "ks_nfirst" in self._fn else 0
         if self.nstate:
             self._fn["ks_newton_init"](data_address(self._buffer[self.nparam:]))
 
@@ -666,7 +670,23 @@ class NativeModel:
             return ydot.copy()
 
         f.param = p  # keeps the parameter buffer alive with the callable
+        if "ks_jacobian" in self._fn and not self.nstate:
+            f.jacobian = self.scipy_jacobian(param)  # the exact d ydot/dy, for the implicit methods
         return f
+
+    def scipy_jacobian(self, param) -> Callable[[float, np.ndarray], np.ndarray]:
+        """``J(t, y) = d ydot/dy`` from ``ks_jacobian`` (the model built with ``jacobian``)."""
+        p, fn, ny = self._param(param).copy(), self._function("ks_jacobian"), self.ny
+
+        def jacobian(t, y):
+            y = np.ascontiguousarray(y, dtype=float)
+            out = np.empty(ny * ny)
+            if fn(t, data_address(y), data_address(p), data_address(out)):
+                raise self._singular(t, y)
+            return out.reshape(ny, ny)
+
+        jacobian.param = p
+        return jacobian
 
     # -- integration -------------------------------------------------------------------------
 
@@ -694,8 +714,9 @@ class NativeModel:
         y0 = self._state(y0, "y0")
         span = t_end - t0
         # gauss4 in (q, p = Mbar qdot); with implicit constraints, which have no canonical form,
-        # in (q, qdot): fourth order still, the dependent coordinates by Newton in every stage
-        canonical = method == "gauss4" and not self.nstate
+        # in (q, qdot): fourth order still, the dependent coordinates by Newton in every stage; so
+        # with first-order coordinates, whose singular metric has no momentum to solve for
+        canonical = method == "gauss4" and not self.nstate and not self.nfirst
         on_circle = method != "gauss4" and self.nc > 0 and circle is not False
         dim = self.ny + 2 * self.nc if on_circle else self.ny
         start = self.momentum(y0, param) if canonical else self.circle_state(y0) if on_circle else y0

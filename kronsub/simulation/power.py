@@ -14,6 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 import sympy
 
+from ..components import REGISTRY
 from ..core.known_system import KnownSystem
 from ..core.symbols import TIME, velocity_symbol
 from ..effects.electrical import Capacitor, Resistor
@@ -45,15 +46,20 @@ class EnergySplit:
 
 def energy_split(model, system: KnownSystem) -> EnergySplit | None:
     """The split of ``system`` (derived from ``model``), or None when the model has no circuit
-    part, is a closed loop of implicit constraints (whose dependent currents this does not
-    follow) or uses a known system with effects of its own (whose kinds are not kept)."""
+    part, is a closed loop whose dependent coordinates have no closed form (node equations
+    have one: their charges are then written in the loop charges) or uses a known system with
+    effects of its own (whose kinds are not kept)."""
     transition = system.transition
-    if model is None or transition is None or system.implicit is not None:
+    if model is None or transition is None:
         return None
-    charges = [q for part in model.primitive.parts if part.type_name in CIRCUIT_TYPES for q in part.coordinates]
+    charges = [q for part in model.primitive.parts
+               for q in (part.coordinates if part.type_name in CIRCUIT_TYPES else part.charges)]
     if not charges:
         return None
-    connection = dict(transition.connection)
+    resolved = closed_forms(system)
+    if resolved is None:
+        return None
+    connection = {x: sympy.sympify(image).xreplace(resolved) for x, image in transition.connection}
     index = {x: a for a, x in enumerate(transition.primitive_coordinates)}
     qdot = sympy.Matrix(system.velocities)
     # i = dx_c/dxbar qdot, without a drive's dx_c/dt (as T is 1/2 qdotᵀ Mbar qdot)
@@ -71,7 +77,46 @@ def energy_split(model, system: KnownSystem) -> EnergySplit | None:
                              or (label not in kinds and label.rpartition(".")[2] == OWN_DISSIPATION)])
     mechanical = sympy.expand(system.kinetic_energy - magnetic) + (system.potential_energy - electric)
     args = [*system.coordinates, *system.velocities, *(p.symbol for p in system.parameters), TIME]
-    return EnergySplit(sympy.lambdify(args, [magnetic, electric, mechanical, dissipated], "math"))
+    columns = [sympy.sympify(e).xreplace(resolved) for e in (magnetic, electric, mechanical, dissipated)]
+    return EnergySplit(sympy.lambdify(args, columns, "math"))
 
 
-__all__ = ["COLUMNS", "EnergySplit", "energy_split"]
+def closed_forms(system: KnownSystem) -> dict | None:
+    """What the named intermediates of a closed loop are in the coordinates, where its dependent
+    coordinates have closed forms ``y_d = y_d(xbar)`` (Kirchhoff's node equations, linear):
+    ``y_d`` and ``Lambda = dy_d/dxbar`` (26)-(29); ``{}`` without constraints, None when some
+    dependent coordinate has none (the split is not made)."""
+    imp = system.implicit
+    if imp is None:
+        return {}
+    closed = dict(imp.closed_form)
+    if set(imp.dependent) - set(closed):
+        return None
+    resolved = dict(closed)
+    for a, d in enumerate(imp.dependent):
+        for j, q in enumerate(imp.independent):
+            resolved[imp.sensitivities[a, j]] = sympy.diff(closed[d], q)
+    return resolved
+
+
+def charge_coordinates(system: KnownSystem) -> frozenset[str]:
+    """The names of the coordinates whose motion moves a branch charge of a circuit part
+    (``d x_c/d xbar`` not zero through the connection): the loop charges."""
+    transition = system.transition
+    if transition is None or not any(kind in CIRCUIT_TYPES for _, kind in transition.parts):
+        return frozenset()
+    connection, start, charges = dict(transition.connection), 0, []
+    for _, kind in transition.parts:
+        size = len(REGISTRY[kind].coordinates) if kind in REGISTRY else 0
+        if kind in CIRCUIT_TYPES:
+            charges += transition.primitive_coordinates[start:start + size]
+        if kind not in REGISTRY:  # a known system or textbook part: its size is not known here
+            return frozenset()
+        start += size
+    if start != len(transition.primitive_coordinates):
+        return frozenset()
+    images = [sympy.sympify(connection.get(x, x)) for x in charges]
+    return frozenset(q.name for q in system.coordinates if any(image.has(q) for image in images))
+
+
+__all__ = ["COLUMNS", "EnergySplit", "charge_coordinates", "closed_forms", "energy_split"]

@@ -13,6 +13,8 @@ derived sympy expressions, at ``digits`` significant digits:
 - :func:`extrapolation`: Gragg-Bulirsch-Stoer extrapolation of the explicit midpoint rule, with
   its own step control; the right-hand side is the tape's first coefficient.
 
+First-order coordinates (:mod:`kronsub.core.first_order`) move with their solved velocities;
+their slots of ``qdot`` are carried unchanged, as the generated right-hand side does.
 With implicit constraints (a closed loop, (25)-(29)) ``Mbar``, ``hbar`` and ``fbar`` are written in the
 dependent coordinates ``y_d``, ``Lambda`` and ``gamma`` as well. The Taylor route carries ``y_d``
 as a series with ``y_d' = Lambda qdot`` and solves ``G_d Lambda = -G_i``, ``G_d gamma = -(ydot^T
@@ -35,6 +37,7 @@ from dataclasses import dataclass, field
 import mpmath
 import sympy
 
+from ..core.first_order import first_order
 from ..core.known_system import KnownSystem
 from ..emitters.tape import Tape
 from ..errors import KronsubError
@@ -274,8 +277,16 @@ def _series_of(system: KnownSystem, param, bits: int) -> _Series:
         for a in range(k):
             tape.memo[imp.convective[a]] = gamma[a][0]
     M, r = system.mass_matrix, system.forces - system.velocity_terms
+    velocities = list(system.velocities)
+    first = first_order(system)
+    if first is not None:  # the mixed system: qdot_J solved, M_JJ = 1 and r_J = 0 (core/first_order.py)
+        r = r.xreplace(first.substitution(system))
+        M = sympy.Matrix(n, n, lambda i, j: int(i == j) if i in first.indices else M[i, j])
+        r = sympy.Matrix([0 if i in first.indices else r[i] for i in range(n)])
+        for j, v in zip(first.indices, first.velocities):
+            velocities[j] = v
     accelerations = tape.solve(nodes(M), nodes(sympy.Matrix(r)), "the mass matrix Mbar")
-    derivatives = [tape.node(v) for v in system.velocities] + [row[0] for row in accelerations]
+    derivatives = [tape.node(v) for v in velocities] + [row[0] for row in accelerations]
     if imp is not None:
         derivatives += [tape.node(sympy.Add(*[imp.sensitivities[a, j] * system.velocities[j] for j in range(n)]))
                         for a in range(len(dependent))]

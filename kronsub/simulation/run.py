@@ -18,17 +18,20 @@ import warnings
 
 import numpy as np
 
+from ..core.first_order import zero_rows
 from ..core.known_system import KnownSystem
 from .advice import EnergyWarning, StiffnessWarning, energy_advice, is_stiff, stiffness_advice
 from .compiled import native_model
 from .engines import Problem, Steps, engine_of, runner
-from .engines.scipy import native_rhs
+from .engines.scipy import IMPLICIT, native_rhs
 from .failure import failed_state
+from .first_order import first_order_rows
 from .fallback import module_energies, numpy_module, numpy_rhs, numpy_rhs_of
 from .grid import Grid, Tail
 from .methods import METHODS as REGISTRY
 from .methods import SIMULATE, unknown_method
 from .native import CompileError, CompilerNotFound
+from .power import charge_coordinates
 from .progress import Progress
 from . import rows as streamed
 from .rows import Block, RunInProgress, SimulationError, Trajectory
@@ -99,10 +102,10 @@ def check_tolerances(rtol: float, atol: float) -> None:
 
 def simulate(system: KnownSystem, values: RunValues, t_end: float, dt: float, method: str = "dop853",
              rtol: float = 1e-10, atol: float = 1e-10, chunks: int = 20, progress: bool | None = None,
-             outputs=None, constrained=None) -> Trajectory:
+             outputs=None, constrained=None, jacobian: bool = False) -> Trajectory:
     """Integrate from t = 0 to ``t_end`` with rows every ``dt`` (all rows in memory); the
     arguments as for :func:`start`."""
-    run = start(system, values, t_end, dt, method, rtol, atol, chunks, progress, outputs, constrained)
+    run = start(system, values, t_end, dt, method, rtol, atol, chunks, progress, outputs, constrained, jacobian)
     return collect(run, list(run), len(system.coordinates))
 
 
@@ -128,22 +131,34 @@ def collect(run: RunInProgress, blocks: list[Block], nq: int) -> Trajectory:
 
 def explicit_only(system: KnownSystem, method: str) -> None:
     """Raise :class:`SimulationError` when ``method`` needs explicit equations (a Taylor series) and
-    ``system`` has implicit constraints."""
-    if system.implicit is not None and method in METHODS and not METHODS[method].closed_loops:
+    ``system`` has implicit constraints, or first-order coordinates (those methods integrate
+    ``qddot = Mbar^-1 (fbar - hbar)`` of their own; the others take the generated right-hand side)."""
+    if method not in METHODS or METHODS[method].closed_loops:
+        return
+    if system.implicit is not None:
         raise SimulationError(f"method '{method}' needs explicit equations (its Taylor series), which a system "
                               "with implicit constraints does not have; use dop853 (default), gauss4, Radau or LSODA")
+    rows = zero_rows(system)
+    if rows:
+        names = ", ".join(system.coordinates[j].name for j in rows)
+        which = "is a first-order coordinate" if len(rows) == 1 else "are first-order coordinates"
+        raise SimulationError(f"method '{method}' needs second-order equations in every coordinate (its Taylor "
+                              f"series), and {names} {which} (no inertia: its velocity is solved, not integrated); "
+                              "use dop853 (default), gauss4, Radau or LSODA")
 
 
 def start(system: KnownSystem, values: RunValues, t_end: float, dt: float, method: str = "dop853",
           rtol: float = 1e-10, atol: float = 1e-10, chunks: int = 20, progress: bool | None = None,
-          outputs=None, constrained=None) -> RunInProgress:
+          outputs=None, constrained=None, jacobian: bool = False) -> RunInProgress:
     """A run from t = 0 to ``t_end`` with rows every ``dt``, streamed: the model is compiled
     now, the rows are computed in blocks (at most :data:`.rows.BLOCK_ROWS` each) while the
     :class:`RunInProgress` is iterated.
 
     ``outputs`` (a scene's; None: everything) decides whether the energies are computed. With
     implicit constraints, ``constrained`` is the :class:`~kronsub.core.constraints.Intermediates`
-    of the projected initial conditions (:func:`.constrained.project_initial`)."""
+    of the projected initial conditions (:func:`.constrained.project_initial`). ``jacobian``: the
+    implicit methods (Radau, LSODA) take the generated exact ``d ydot/dy`` instead of finite
+    differences (not with implicit constraints)."""
     if method not in METHODS:
         raise SimulationError(unknown_method(method))
     explicit_only(system, method)
@@ -166,7 +181,7 @@ def start(system: KnownSystem, values: RunValues, t_end: float, dt: float, metho
         rows = rows_of.blocks(run, grid, y0, Steps(rtol, atol, dt, math.ceil(len(grid) / streamed.BLOCK_ROWS)), bar)
         run.blocks = _finish(run, rows, bar, native, param, system, None, with_energies)
         return run
-    native = _compiled(system, outputs)
+    native = _compiled(system, outputs, jacobian and spec.name in IMPLICIT and system.implicit is None)
     if constrained is not None and native is not None:
         from .constrained import configure_native
 
@@ -185,6 +200,10 @@ def start(system: KnownSystem, values: RunValues, t_end: float, dt: float, metho
                                   Steps(rtol, atol, dt, chunks), bar, outputs, with_energies)
         return run
     rows = rows_of.blocks(run, grid, y0, Steps(rtol, atol, dt, chunks), bar)
+    first = zero_rows(system)
+    if first:  # the first-order coordinates' velocities in the rows, from the right-hand side
+        rows = first_order_rows(rows, _problem(system, param, native, outputs, constrained, rtol, atol).restart(None),
+                                first, len(system.coordinates))
     run.blocks = _finish(run, rows, bar, native, param, system, constrained, with_energies, grid)
     return run
 
@@ -200,10 +219,11 @@ def _problem(system, param, native, outputs, constrained, rtol, atol) -> Problem
     return Problem(system, param, native, restart)
 
 
-def _compiled(system, outputs):
-    """The model compiled from its generated C, or None (with a warning) to use the numpy module."""
+def _compiled(system, outputs, jacobian: bool = False):
+    """The model compiled from its generated C (``jacobian``: with ``ks_jacobian``), or None (with a
+    warning) to use the numpy module."""
     try:
-        return native_model(system, outputs)
+        return native_model(system, outputs, jacobian)
     except CompilerNotFound:
         warnings.warn("no C compiler found: using the generated numpy module (slower)")
     except CompileError as exc:
@@ -390,7 +410,8 @@ def _finish(run, rows, bar, native, param, system, constrained, with_energies=Tr
         run.message = diagnose(system, constrained, run.t_fail, failed_state(run, last_y), guess)
     if native is not None and last_y is not None and is_stiff(run.stats):
         warnings.warn(StiffnessWarning(stiffness_advice(native, param, run.stats, last_t - first_t, last_t, last_y,
-                                                         run.method)))
+                                                         run.method, [q.name for q in system.coordinates],
+                                                         charge_coordinates(system))))
     if energy is not None and run.complete and constrained is None and not run.switches:
         advice = energy_advice(native, param, len(system.coordinates), run.method, *energy)
         if advice:

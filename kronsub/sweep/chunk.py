@@ -18,8 +18,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..core.first_order import zero_rows
 from ..core.known_system import KnownSystem
 from ..errors import KronsubError
+from ..simulation.fallback import numpy_module
 from ..simulation.native import NativeError
 from .ensemble import Sources, load, load_taylor, pieces, summary_width
 from .plan import Plan
@@ -144,6 +146,9 @@ def run_chunk(job: Job, index: int) -> dict[str, object]:
         else:
             summary, reasons, users = _one_by_one(job, param, y0, start, sink)
     ny = 2 * nq
+    first = zero_rows(job.system)
+    if first:
+        _first_order_finals(job, summary, param, first)
     status = summary[:, 0]
     out: dict[str, object] = {"run": np.arange(start, stop, dtype=np.int64), **inputs}
     out["status"] = ["complete" if s == 0 else "stopped" for s in status]
@@ -162,6 +167,23 @@ def run_chunk(job: Job, index: int) -> dict[str, object]:
         out[user.name] = users[:, k]
     assert all(len(v) == n for v in out.values())
     return out
+
+
+def _first_order_finals(job: Job, summary: np.ndarray, param: np.ndarray, indices) -> None:
+    """The final velocities of the first-order coordinates (:mod:`kronsub.core.first_order`),
+    which the state carries but does not integrate: solved from each run's final state by the
+    generated right-hand side, in place in ``summary``."""
+    rhs = numpy_module(job.system, job.outputs)["rhs"]
+    nq = len(job.system.coordinates)
+    columns = [5 + nq + j for j in indices]
+    for r in range(len(summary)):
+        y = summary[r, 5:5 + 2 * nq].copy()
+        try:
+            with np.errstate(all="ignore"):
+                rates = rhs(float(summary[r, 1]), y, param[r])
+        except (ArithmeticError, ValueError, np.linalg.LinAlgError):
+            rates = np.full(2 * nq, np.nan)
+        summary[r, columns] = np.asarray(rates)[list(indices)]
 
 
 ROWS_BYTES = 1 << 26  # the rows of the runs of one call to the ensemble, when user outputs need them

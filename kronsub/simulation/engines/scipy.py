@@ -14,8 +14,8 @@ from .interface import Problem, ProgressBar, Rhs, Rows, Steps, Timed
 from ..failure import at_configuration, not_finite, rank_loss_note, Singular
 from ..grid import Cursor, Grid, Tail
 
-__all__ = ["COMPILED_RHS", "EVENTS", "RUN_STEPS", "STALLED_STEPS", "STALL_STEPS", "STALL_SPAN", "ScipyRunner",
-           "blocks", "final_state", "native_rhs", "runner"]
+__all__ = ["COMPILED_RHS", "EVENTS", "IMPLICIT", "RUN_STEPS", "STALLED_STEPS", "STALL_STEPS", "STALL_SPAN",
+           "ScipyRunner", "blocks", "exact_jacobian", "final_state", "native_rhs", "runner"]
 
 COMPILED_RHS = True
 EVENTS = True
@@ -75,6 +75,17 @@ def runner(problem: Problem, method: Method) -> ScipyRunner:
     return ScipyRunner(problem, method)
 
 
+IMPLICIT = ("Radau", "BDF", "LSODA")
+"""scipy's methods that take a Jacobian ``jac=`` (else they form it by finite differences)."""
+
+
+def exact_jacobian(rhs: Rhs, method: str) -> dict:
+    """``{"jac": J}`` when ``method`` takes one and ``rhs`` carries the generated exact Jacobian
+    (:meth:`.native.NativeModel.scipy_jacobian`, a model built with ``jacobian``), else nothing."""
+    jacobian = getattr(rhs, "jacobian", None)
+    return {"jac": jacobian} if jacobian is not None and method in IMPLICIT else {}
+
+
 def native_rhs(native: NativeModel, param: np.ndarray) -> Rhs:
     rhs = native.scipy_rhs(param)
 
@@ -84,6 +95,15 @@ def native_rhs(native: NativeModel, param: np.ndarray) -> Rhs:
         except SingularMassMatrix as exc:
             raise Singular(t, y) from exc
 
+    jacobian = getattr(rhs, "jacobian", None)
+    if jacobian is not None:
+        def exact(t, y):
+            try:
+                return jacobian(t, y)
+            except SingularMassMatrix as exc:
+                raise Singular(t, y) from exc
+
+        f.jacobian = exact
     return f
 
 
@@ -115,7 +135,7 @@ def blocks(run: RunInProgress, rhs: Rhs, method: str, grid: Grid | Tail, y0: np.
                          y_fail=y0)
                 return
             solver = getattr(integrate, method)(rhs, grid[0], np.array(y0, dtype=float), grid[len(grid) - 1],
-                                                rtol=rtol, atol=atol)
+                                                rtol=rtol, atol=atol, **exact_jacobian(rhs, method))
             before = events(solver.t, solver.y) if events is not None else None
             t_old, y_old = solver.t, np.array(solver.y)
             while not cursor.done():
@@ -194,7 +214,7 @@ def final_state(rhs: Rhs, method: str, y0: np.ndarray, t_end: float, tol: float,
     solver_class = getattr(integrate, method)
     with warnings.catch_warnings(), np.errstate(all="ignore"):
         warnings.simplefilter("ignore")
-        solver = solver_class(rhs, 0.0, y0.copy(), t_end, rtol=tol, atol=tol)
+        solver = solver_class(rhs, 0.0, y0.copy(), t_end, rtol=tol, atol=tol, **exact_jacobian(rhs, method))
         steps, still = 0, 0
         try:
             while solver.status == "running":
