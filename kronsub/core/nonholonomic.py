@@ -27,6 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 import sympy
 
+from .known_system import KnownSystem, SpeedEquations
 from .symbols import TIME, acceleration_symbol, velocity_symbol
 
 GENERIC_POINTS = 3  # a rank is taken at this many random points (a generic one is almost sure)
@@ -174,6 +175,26 @@ def project_nonholonomic(metric: sympy.Matrix, velocity_terms: sympy.Matrix, for
                                   forcing=(C.T * f).applyfunc(tidy), convective=convective)
 
 
+def speed_equations(system: KnownSystem, velocity: VelocityTransformation, constraint_names: Sequence[str],
+                    definitions: Mapping[sympy.Symbol, sympy.Expr]) -> SpeedEquations:
+    """A known system in the coordinates ``x`` (``M``, ``h``, each effect's ``f``) carried to its
+    speeds by ``xdot = C u + d``: (9'), (D)-(F) as in :func:`project_nonholonomic`, ``fbar = C^T f``
+    of each effect apart (8'), (F), and ``T = 1/2 xdot^T M xdot`` (24) with ``xdot = C u + d``."""
+    inertia = project_nonholonomic(system.mass_matrix, system.velocity_terms,
+                                   sympy.zeros(len(system.coordinates), 1), velocity)
+    moved = {velocity_symbol(q): velocity.kinematics[i] for i, q in enumerate(velocity.coordinates)}
+    C = velocity.transformation
+    forces = {name: (C.T * sympy.Matrix(f).xreplace(moved)).applyfunc(_tidy)
+              for name, f in system.effect_forces.items()}
+    xdot = velocity.kinematics
+    kinetic = _tidy((xdot.T * sympy.Matrix(system.mass_matrix) * xdot)[0, 0] / 2)
+    return SpeedEquations(speeds=velocity.speeds, definitions=tuple(definitions.items()),
+                          constraint_names=tuple(constraint_names), constraint_matrix=velocity.constraint_matrix,
+                          constraint_offset=velocity.constraint_offset, transformation=C, offset=velocity.offset,
+                          kinematics=xdot, mass_matrix=inertia.mass_matrix, velocity_terms=inertia.velocity_terms,
+                          effect_forces=forces, kinetic_energy=kinetic)
+
+
 def speed_accelerations(projection: NonholonomicProjection) -> list[sympy.Symbol]:
     """The symbols of ``udot`` (named like accelerations of the speeds)."""
     return [acceleration_symbol(s) for s in projection.velocity.speeds]
@@ -201,4 +222,5 @@ def _rank(A: sympy.Matrix, points: list[dict]) -> int:
 
 
 __all__ = ["GENERIC_POINTS", "NonholonomicProjection", "VelocityConstraintError", "VelocityTransformation",
-           "integrable", "linear_form", "project_nonholonomic", "speed_accelerations", "velocity_transformation"]
+           "integrable", "linear_form", "project_nonholonomic", "speed_accelerations", "speed_equations",
+           "velocity_transformation"]
