@@ -195,6 +195,13 @@ def speed_equations(system: KnownSystem, velocity: VelocityTransformation, const
                           effect_forces=forces, kinetic_energy=kinetic)
 
 
+def speed_rates(speeds: Sequence[sympy.Symbol], coordinates: Sequence[sympy.Symbol]) -> list[sympy.Symbol]:
+    """The symbols of ``udot`` as printed: ``q_ddot`` for a speed that is the velocity ``q_dot``
+    of a coordinate, ``v_dot`` for a named speed ``v``."""
+    own = {velocity_symbol(q): acceleration_symbol(q) for q in coordinates}
+    return [own.get(u, velocity_symbol(u)) for u in speeds]
+
+
 def speed_accelerations(projection: NonholonomicProjection) -> list[sympy.Symbol]:
     """The symbols of ``udot`` (named like accelerations of the speeds)."""
     return [acceleration_symbol(s) for s in projection.velocity.speeds]
@@ -223,4 +230,4 @@ def _rank(A: sympy.Matrix, points: list[dict]) -> int:
 
 __all__ = ["GENERIC_POINTS", "NonholonomicProjection", "VelocityConstraintError", "VelocityTransformation",
            "integrable", "linear_form", "project_nonholonomic", "speed_accelerations", "speed_equations",
-           "velocity_transformation"]
+           "speed_rates", "velocity_transformation"]
