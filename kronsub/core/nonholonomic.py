@@ -202,6 +202,31 @@ def speed_rates(speeds: Sequence[sympy.Symbol], coordinates: Sequence[sympy.Symb
     return [own.get(u, velocity_symbol(u)) for u in speeds]
 
 
+def velocity_multipliers(system: KnownSystem) -> list[tuple[str, sympy.Expr]]:
+    """``(mu_<constraint>, expression)`` per velocity constraint: the multipliers of
+    ``M xddot + h = f + A^T mu`` (viewpoint (alpha), the workless reactions of the constraints),
+    with ``xdot = C u + d`` and ``xddot = C udot + Cdot u + ddot``; ``C^T (M xddot + h - f) = 0``
+    is the equations of motion, so ``mu`` comes from ``m`` rows of ``A^T mu = M xddot + h - f``
+    where ``A`` has full rank (the last coordinates first). In the coordinates, the speeds and
+    their rates (:func:`speed_rates`)."""
+    s = system.speeds
+    x = system.coordinates
+    A = s.constraint_matrix
+    m, n = A.shape
+    moved = {velocity_symbol(q): s.kinematics[i] for i, q in enumerate(x)}
+    rates = sympy.Matrix(speed_rates(s.speeds, x))
+    convective = s.kinematics.jacobian(x) * s.kinematics + s.kinematics.diff(TIME)
+    xddot = s.transformation * rates + convective
+    residual = (sympy.Matrix(system.mass_matrix) * xddot
+                + sympy.Matrix(system.velocity_terms).xreplace(moved)
+                - sympy.Matrix(system.forces).xreplace(moved))
+    point = _generic_points(A, x, {p.symbol: p.value for p in system.parameters
+                                   if p.value is not None and sympy.sympify(p.value).is_number})
+    rows = next(sorted(c) for c in itertools.combinations(reversed(range(n)), m) if _rank(A[:, sorted(c)], point) == m)
+    mu = A[:, rows].T.LUsolve(residual.extract(rows, [0]))
+    return [(f"mu_{name}", _tidy(e)) for name, e in zip(s.constraint_names, mu)]
+
+
 def speed_accelerations(projection: NonholonomicProjection) -> list[sympy.Symbol]:
     """The symbols of ``udot`` (named like accelerations of the speeds)."""
     return [acceleration_symbol(s) for s in projection.velocity.speeds]
@@ -230,4 +255,4 @@ def _rank(A: sympy.Matrix, points: list[dict]) -> int:
 
 __all__ = ["GENERIC_POINTS", "NonholonomicProjection", "VelocityConstraintError", "VelocityTransformation",
            "integrable", "linear_form", "project_nonholonomic", "speed_accelerations", "speed_equations",
-           "speed_rates", "velocity_transformation"]
+           "speed_rates", "velocity_multipliers", "velocity_transformation"]
