@@ -222,9 +222,26 @@ def velocity_multipliers(system: KnownSystem) -> list[tuple[str, sympy.Expr]]:
                 - sympy.Matrix(system.forces).xreplace(moved))
     point = _generic_points(A, x, {p.symbol: p.value for p in system.parameters
                                    if p.value is not None and sympy.sympify(p.value).is_number})
-    rows = next(sorted(c) for c in itertools.combinations(reversed(range(n)), m) if _rank(A[:, sorted(c)], point) == m)
+    rows = _simplest_minor(A, x, point)
     mu = A[:, rows].T.LUsolve(residual.extract(rows, [0]))
     return [(f"mu_{name}", _tidy(e)) for name, e in zip(s.constraint_names, mu)]
+
+
+def _simplest_minor(A: sympy.Matrix, coordinates, point) -> list[int]:
+    """The columns of an ``m x m`` minor of ``A`` of full generic rank whose determinant is
+    simplest: free of the coordinates if one is (a solve then divides by no function of the
+    configuration), else of fewest operations; the last columns first among equals."""
+    m, n = A.shape
+    best, key = None, None
+    for chosen in itertools.combinations(reversed(range(n)), m):
+        columns = sorted(chosen)
+        if _rank(A[:, columns], point) < m:
+            continue
+        det = _tidy(A[:, columns].det())
+        score = (bool(det.free_symbols & set(coordinates)), sympy.count_ops(det))
+        if key is None or score < key:
+            best, key = columns, score
+    return best
 
 
 def speed_accelerations(projection: NonholonomicProjection) -> list[sympy.Symbol]:

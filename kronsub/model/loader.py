@@ -142,7 +142,8 @@ class ModelLoader(ModelReader):
             velocity = read_velocity_constraints(self, vnode, root.get("speeds"), y)
             if velocity is not None:
                 self.locations["velocity_constraints"] = root.key_locations["velocity_constraints"]
-        initial = read_initial(self, root.get("initial"), y)
+        initial = read_initial(self, root.get("initial"), y,
+                               velocity.transformation.speeds if velocity is not None else ())
         declared = root.get("effects")
         scenes = build_scenes(self, root.get("scenes"), list(declared.value) if declared is not None and
                               declared.is_mapping else [], primitive, y)
