@@ -16,6 +16,7 @@ import sympy
 from ..core.known_system import KnownSystem
 from ..core.linearize import Linearization
 from ..core.linearize import linearize as core_linearize
+from ..core.nonholonomic import refuse_speeds
 from ..core.rheonomic import depends_on_time
 from ..core.symbols import TIME
 from ..errors import KronsubError, Location, ModelError, Problem, near_names
@@ -125,6 +126,7 @@ def linearize(system: KnownSystem, at: Mapping[str, object] | None = None, input
     >>> lin.equilibrium, lin.A.shape
     (True, (4, 4))
     """
+    refuse_speeds(system, "linearize")
     problems = []
     try:
         point, values = split_assignments(system, at, option)

@@ -240,15 +240,21 @@ def plot_option(help: str):
     return click.option("--plot", type=FILE, help=help)
 
 
-def scene_system(model: Path, scene_name: str | None, *, cache: bool = True, all_points: bool = False):
+def scene_system(model: Path, scene_name: str | None, *, cache: bool = True, all_points: bool = False,
+                 speeds: bool = False):
     """``(model, scene, system)``: the model loaded, its scene chosen (None: the whole model)
-    and the scene's equations derived. ``all_points`` asks the scene for every named point."""
+    and the scene's equations derived. ``all_points`` asks the scene for every named point.
+    Velocity constraints are refused, at the section, unless the command takes ``speeds``."""
+    from ..core.nonholonomic import refuse_speeds
     from ..model.loader import load_model
     from ..model.scenes import scene_system as chosen_scene
 
     with budget.cpu_backstop():
         loaded = load_model(model, cache=cache)
         scene, system = chosen_scene(loaded, scene_name, cache=cache, all_points=all_points)
+        if not speeds:
+            refuse_speeds(system, f"`kronsub {click.get_current_context().info_name}`",
+                          loaded.locations.get("velocity_constraints"))
         return loaded, scene, system
 
 

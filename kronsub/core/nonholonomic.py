@@ -27,6 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 import sympy
 
+from ..errors import Location, ModelError, Problem
 from .known_system import KnownSystem, SpeedEquations
 from .symbols import TIME, acceleration_symbol, velocity_symbol
 
@@ -244,6 +245,15 @@ def _simplest_minor(A: sympy.Matrix, coordinates, point) -> list[int]:
     return best
 
 
+def refuse_speeds(system: KnownSystem, what: str, location: Location | None = None) -> None:
+    """A :class:`ModelError` at ``location`` (where the model writes its velocity constraints)
+    when ``system`` has them and ``what`` (a command) does not handle them yet."""
+    if system.speeds is not None:
+        raise ModelError([Problem(location, f"{what} of a model with velocity constraints is not supported yet",
+                                  "derive it (`kronsub derive`, with --reactions for the contact forces): the "
+                                  "equations in the speeds and the kinematic equations are printed")])
+
+
 def speed_accelerations(projection: NonholonomicProjection) -> list[sympy.Symbol]:
     """The symbols of ``udot`` (named like accelerations of the speeds)."""
     return [acceleration_symbol(s) for s in projection.velocity.speeds]
@@ -272,4 +282,4 @@ def _rank(A: sympy.Matrix, points: list[dict]) -> int:
 
 __all__ = ["GENERIC_POINTS", "NonholonomicProjection", "VelocityConstraintError", "VelocityTransformation",
            "integrable", "linear_form", "project_nonholonomic", "speed_accelerations", "speed_equations",
-           "speed_rates", "velocity_multipliers", "velocity_transformation"]
+           "refuse_speeds", "speed_rates", "velocity_multipliers", "velocity_transformation"]

@@ -19,6 +19,7 @@ from sympy.simplify.cse_main import basic_optimizations as _BASIC
 
 from ..core.derivative import derivative
 from ..core.known_system import KnownSystem
+from ..core.nonholonomic import refuse_speeds
 from ..core.rheonomic import depends_on_time
 from ..core.sympy_internals import eval_evalf
 from ..core.symbols import TIME, free_symbols_of
@@ -257,6 +258,7 @@ def prepare(system: KnownSystem, source: str = "", outputs=None, guarded_angles:
     (the C): the right-hand sides take sines and cosines of several coordinates from
     single-angle ones where that keeps their accuracy (:func:`_guarded`), and always in
     ``Mbar`` (:func:`_single_angles`)."""
+    refuse_speeds(system, "generated code")
     energies = outputs is None or outputs.energies
     with_points = outputs is None or bool(outputs.points)
     n = len(system.coordinates)

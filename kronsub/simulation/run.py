@@ -19,6 +19,7 @@ import warnings
 
 import numpy as np
 
+from ..core.nonholonomic import refuse_speeds
 from ..core.known_system import KnownSystem
 from .advice import EnergyWarning, StiffnessWarning, energy_advice, is_stiff, stiffness_advice
 from .compiled import native_model
@@ -169,6 +170,7 @@ def start(system: KnownSystem, values: RunValues, t_end: float, dt: float, metho
     ``outputs`` (a scene's; None: everything) decides whether the energies are computed. With
     implicit constraints, ``constrained`` is the :class:`~kronsub.core.constraints.Intermediates`
     of the projected initial conditions (:func:`.constrained.project_initial`)."""
+    refuse_speeds(system, "simulate")
     if method not in METHODS:
         raise SimulationError(unknown_method(method))
     explicit_only(system, method)
