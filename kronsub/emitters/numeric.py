@@ -19,7 +19,6 @@ from sympy.simplify.cse_main import basic_optimizations as _BASIC
 
 from ..core.derivative import derivative
 from ..core.known_system import KnownSystem
-from ..core.nonholonomic import refuse_speeds
 from ..core.rheonomic import depends_on_time
 from ..core.sympy_internals import eval_evalf
 from ..core.symbols import TIME, free_symbols_of
@@ -51,13 +50,22 @@ class NumericModel:
 
     implicit: ImplicitCode | None = None  # the dependent-coordinate solve
     timed: bool = False  # the connection names t (x = x(xbar, t)): velocity_terms and points take t first
+    speeds: tuple[str, ...] = ()  # under velocity constraints: the speeds u, the state [q; u]
+    kinematics: Block | None = None  # qdot = C(q) u into xd[] (in pre[])
 
     @property
     def n(self) -> int:
         return len(self.coordinates)
 
     @property
+    def nv(self) -> int:
+        """The velocity part of the state: the speeds under velocity constraints, else ``qdot``."""
+        return len(self.speeds) if self.speeds else self.n
+
+    @property
     def state(self) -> tuple[str, ...]:
+        if self.speeds:
+            return self.coordinates + self.speeds
         return self.coordinates + tuple(f"{q}_dot" for q in self.coordinates)
 
 
@@ -258,13 +266,17 @@ def prepare(system: KnownSystem, source: str = "", outputs=None, guarded_angles:
     (the C): the right-hand sides take sines and cosines of several coordinates from
     single-angle ones where that keeps their accuracy (:func:`_guarded`), and always in
     ``Mbar`` (:func:`_single_angles`)."""
-    refuse_speeds(system, "generated code")
     energies = outputs is None or outputs.energies
     with_points = outputs is None or bool(outputs.points)
-    n = len(system.coordinates)
+    speeds = system.speeds  # under velocity constraints: the equations in the speeds, the state [q; u]
+    if speeds is not None and any(e != 0 for e in speeds.offset):
+        raise KronsubError("cannot generate code: velocity constraints with a term free of the velocities "
+                           "(xdot = C u + d with d not 0) are not supported yet")
+    velocities = speeds.speeds if speeds is not None else system.velocities
+    n = len(velocities)  # Mbar is n x n
     params = [p for p in system.parameters]
     q_slots = {q: sympy.Symbol(f"q[{i}]") for i, q in enumerate(system.coordinates)}
-    qd_slots = {v: sympy.Symbol(f"qd[{i}]") for i, v in enumerate(system.velocities)}
+    qd_slots = {v: sympy.Symbol(f"qd[{i}]") for i, v in enumerate(velocities)}
     p_slots = {p.symbol: sympy.Symbol(f"param[{i}]") for i, p in enumerate(params)}
     slots = {**q_slots, **qd_slots, **p_slots, TIME: sympy.Symbol("t")}
     if len(slots) != len(q_slots) + len(qd_slots) + len(p_slots) + 1:
@@ -294,13 +306,15 @@ def prepare(system: KnownSystem, source: str = "", outputs=None, guarded_angles:
         return expr.xreplace(slots)
 
     block = functools.partial(_block, rewritings=_Rewritings())  # the blocks share their entries' rewritings
-    M = system.mass_matrix
+    M = speeds.mass_matrix if speeds is not None else system.mass_matrix
+    velocity_terms_of = speeds.velocity_terms if speeds is not None else system.velocity_terms
+    forces_of = speeds.forces if speeds is not None else system.forces
     if TIME in free_symbols_of([M]):
         raise KronsubError("cannot generate code: Mbar depends on t (a prescribed motion that changes the "
                            "inertia); only hbar and fbar may name t in the generated code")
     # x = x(xbar, t): hbar has the drive's terms and the points move with t (velocity_terms and points take t)
     timed = system.transition is not None and depends_on_time(dict(system.transition.connection))
-    r = system.forces - system.velocity_terms
+    r = forces_of - velocity_terms_of
     targets = [f"M[{i * n + j}]" for i in range(n) for j in range(n)]
     exprs = [slot(M[i, j]) for i in range(n) for j in range(n)]
     r_targets = [f"r[{i}]" for i in range(n)]
@@ -309,14 +323,17 @@ def prepare(system: KnownSystem, source: str = "", outputs=None, guarded_angles:
     equations = block(targets + r_targets, [constants(e) for e in exprs + [slot(e) for e in r]], "x", qs,
                        guarded_angles, plain=len(targets))
     mass = block(targets, exprs, "x", qs)
-    velocity_terms = block([f"h[{i}]" for i in range(n)], [slot(e) for e in system.velocity_terms], "x", qs)
-    forces = block([f"f[{i}]" for i in range(n)], [slot(e) for e in system.forces], "x", qs)
+    velocity_terms = block([f"h[{i}]" for i in range(n)], [slot(e) for e in velocity_terms_of], "x", qs)
+    forces = block([f"f[{i}]" for i in range(n)], [slot(e) for e in forces_of], "x", qs)
+    kinematics = None
+    if speeds is not None:  # qdot = C(q) u
+        kinematics = block([f"xd[{i}]" for i in range(len(qs))], [constants(slot(e)) for e in speeds.kinematics], "x", qs)
 
     qd = list(system.velocities)
     dTdq = []
     depends = [[M[i, j].free_symbols for j in range(n)] for i in range(n)]
     derivatives: dict = {}  # (entry, q): the symmetric entries are differentiated once
-    for k, qk in enumerate(system.coordinates):
+    for k, qk in enumerate(system.coordinates if speeds is None else ()):
         terms = []  # summed at once: a sum grown term by term is rebuilt n^2 times
         for i in range(n):
             for j in range(n):
@@ -333,6 +350,8 @@ def prepare(system: KnownSystem, source: str = "", outputs=None, guarded_angles:
                 + sum((derivative(M[k, j], qi) * qd[i] * qd[j] for j in range(n)
                        for i, qi in enumerate(system.coordinates) if qi in depends[k][j]), sympy.Integer(0))
                 for k in range(n)]
+    if speeds is not None:  # no canonical form in the speeds: Mbar udot is not dp/dt
+        dTdq = [sympy.Integer(0)] * n
     canonical = block(r_targets, [constants(slot(e)) for e in dTdq], "x", qs, guarded_angles)
     prepare = block(*constants.definitions(), "c")
 
@@ -371,6 +390,8 @@ def prepare(system: KnownSystem, source: str = "", outputs=None, guarded_angles:
         with_points=with_points,
         implicit=implicit,
         timed=timed,
+        speeds=tuple(u.name for u in velocities) if speeds is not None else (),
+        kinematics=kinematics,
     )
 
 
