@@ -79,7 +79,8 @@ def test_generated_code_integrates_the_state_in_the_speeds(tmp_path, name):
         assert module.kinetic_energy(y, param) == pytest.approx(T, rel=1e-10, abs=1e-14)
         out = np.empty(n + p)
         yc, pc = np.ascontiguousarray(y), np.ascontiguousarray(param)
-        assert lib.ks_rhs(0.0, yc.ctypes.data_as(DOUBLE_P), pc.ctypes.data_as(DOUBLE_P), out.ctypes.data_as(DOUBLE_P)) == 0
+        state, values, result = (a.ctypes.data_as(DOUBLE_P) for a in (yc, pc, out))
+        assert lib.ks_rhs(0.0, state, values, result) == 0
         assert np.allclose(out, ydot, rtol=1e-10, atol=1e-12)
         assert lib.ks_kinetic_energy(yc.ctypes.data_as(DOUBLE_P), pc.ctypes.data_as(DOUBLE_P)) == pytest.approx(
             T, rel=1e-10, abs=1e-14)

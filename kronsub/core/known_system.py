@@ -184,6 +184,12 @@ class KnownSystem:
         return tuple(acceleration_symbol(q) for q in self.coordinates)
 
     @property
+    def state_velocities(self) -> tuple[sympy.Symbol, ...]:
+        """The velocity part of the first-order state: ``qdot``, or the speeds ``u`` under
+        velocity constraints (the state ``[q; u]``)."""
+        return self.speeds.speeds if self.speeds is not None else self.velocities
+
+    @property
     def forces(self) -> sympy.Matrix:
         """``fbar``: the sum of every effect's generalized force (F)."""
         total = sympy.zeros(len(self.coordinates), 1)

@@ -31,7 +31,8 @@ def speeds_report(system: KnownSystem, show: Printer) -> dict:
         "rates": [show(r) for r in rates],
         "rate_names": [r.name for r in rates],
         "definitions": [{"speed": show(u), "name": u.name, "expression": show(e)} for u, e in s.definitions],
-        "constraints": [{"name": name, "expression": show(tidy(e))} for name, e in zip(s.constraint_names, constraints)],
+        "constraints": [{"name": name, "expression": show(tidy(e))}
+                        for name, e in zip(s.constraint_names, constraints)],
         "constraint_matrix": matrix_rows(s.constraint_matrix, show),
         "constraint_offset": [show(e) for e in s.constraint_offset],
         "transformation": matrix_rows(s.transformation, show),

@@ -327,7 +327,8 @@ def prepare(system: KnownSystem, source: str = "", outputs=None, guarded_angles:
     forces = block([f"f[{i}]" for i in range(n)], [slot(e) for e in forces_of], "x", qs)
     kinematics = None
     if speeds is not None:  # qdot = C(q) u
-        kinematics = block([f"xd[{i}]" for i in range(len(qs))], [constants(slot(e)) for e in speeds.kinematics], "x", qs)
+        kinematics = block([f"xd[{i}]" for i in range(len(qs))], [constants(slot(e)) for e in speeds.kinematics],
+                           "x", qs)
 
     qd = list(system.velocities)
     dTdq = []

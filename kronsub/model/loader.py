@@ -146,7 +146,8 @@ class ModelLoader(ModelReader):
                                velocity.transformation.speeds if velocity is not None else ())
         declared = root.get("effects")
         scenes = build_scenes(self, root.get("scenes"), list(declared.value) if declared is not None and
-                              declared.is_mapping else [], primitive, y)
+                              declared.is_mapping else [], primitive, y,
+                              velocity.transformation.speeds if velocity is not None else ())
         check_values(self)
         if constrained and not self.problems:
             implicit = implicit_spec(self, cnode, constraints, connection, y, coords, auto, initial)

@@ -68,7 +68,8 @@ def read_velocity_constraints(reader: ModelReader, node: Node, speeds_node: Node
             at = node
         message = str(exc)
         if exc.index is not None and exc.kind == "constraint":
-            message = message.replace(f"velocity constraint {exc.index + 1}", f"velocity constraint '{labels[exc.index]}'")
+            message = message.replace(f"velocity constraint {exc.index + 1}",
+                                      f"velocity constraint '{labels[exc.index]}'")
         reader.error(at, message, exc.hint)
         return None
     if definitions is None:
@@ -97,7 +98,8 @@ def _read_speeds(reader: ModelReader, node: Node | None, coords, names: dict) ->
             speeds[velocities[name]] = velocities[name]
         return speeds
     if not node.is_mapping:
-        reader.error(node, f"`speeds:` must be a list of velocities or a mapping of definitions, found {node_kind(node)}",
+        reader.error(node, "`speeds:` must be a list of velocities or a mapping of definitions, found "
+                     f"{node_kind(node)}",
                      "e.g. `speeds: [yaw_dot, spin_dot]` or `speeds: {v: cos(theta)*x_dot + sin(theta)*y_dot}`")
         return speeds
     for key, vnode in node.value.items():

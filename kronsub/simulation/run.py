@@ -19,7 +19,6 @@ import warnings
 
 import numpy as np
 
-from ..core.nonholonomic import refuse_speeds
 from ..core.known_system import KnownSystem
 from .advice import EnergyWarning, StiffnessWarning, energy_advice, is_stiff, stiffness_advice
 from .compiled import native_model
@@ -129,12 +128,13 @@ def simulate(system: KnownSystem, values: RunValues, t_end: float, dt: float, me
     """Integrate from t = 0 to ``t_end`` with rows every ``dt`` (all rows in memory); the
     arguments as for :func:`start`."""
     run = start(system, values, t_end, dt, method, rtol, atol, chunks, progress, outputs, constrained)
-    return collect(run, list(run), len(system.coordinates))
+    return collect(run, list(run), len(system.coordinates) + len(system.state_velocities))
 
 
-def collect(run: RunInProgress, blocks: list[Block], nq: int) -> Trajectory:
-    """The trajectory of ``blocks`` of ``run`` (all of them, or those before an interrupt)."""
-    n = 2 * nq
+def collect(run: RunInProgress, blocks: list[Block], ny: int) -> Trajectory:
+    """The trajectory of ``blocks`` of ``run`` (all of them, or those before an interrupt) in a
+    state of ``ny`` entries (``[q; qdot]``, or ``[q; u]`` under velocity constraints)."""
+    n = ny
     t = np.concatenate([b.t for b in blocks]) if blocks else np.zeros(0)
     y = np.concatenate([b.y.reshape(-1, n) for b in blocks]) if blocks else np.zeros((0, n))
     energies = dependent = None
@@ -158,6 +158,10 @@ def explicit_only(system: KnownSystem, method: str) -> None:
     if system.implicit is not None and method in METHODS and not METHODS[method].closed_loops:
         raise SimulationError(f"method '{method}' needs explicit equations (its Taylor series), which a system "
                               "with implicit constraints does not have; use dop853 (default), gauss4, Radau or LSODA")
+    if system.speeds is not None and method in METHODS and not METHODS[method].closed_loops:
+        raise SimulationError(f"method '{method}' is not supported yet with velocity constraints (the state [q; u] "
+                              "has no Taylor series or canonical form here); use dop853 (default), gauss4, Radau "
+                              "or LSODA")
 
 
 def start(system: KnownSystem, values: RunValues, t_end: float, dt: float, method: str = "dop853",
@@ -170,7 +174,6 @@ def start(system: KnownSystem, values: RunValues, t_end: float, dt: float, metho
     ``outputs`` (a scene's; None: everything) decides whether the energies are computed. With
     implicit constraints, ``constrained`` is the :class:`~kronsub.core.constraints.Intermediates`
     of the projected initial conditions (:func:`.constrained.project_initial`)."""
-    refuse_speeds(system, "simulate")
     if method not in METHODS:
         raise SimulationError(unknown_method(method))
     explicit_only(system, method)

@@ -1,0 +1,88 @@
+"""`simulate` of systems under velocity constraints (models/nonholonomic): the state [q; u] run by
+the compiled right-hand side, against sympy's KanesMethod integrated from the same start, the
+energy kept, the sleigh's straight end, the contact-force columns of --reactions, and the methods
+refused for now."""
+from pathlib import Path
+
+import jinja2
+import numpy as np
+import pytest
+import sympy
+from click.testing import CliRunner
+from scipy.integrate import solve_ivp
+
+import kronsub
+import kronsub.emitters.code as code
+from kronsub.cli import main
+from kronsub.emitters.escape import environment
+from tests.reference.nonholonomic import rolling_disc_kane
+
+ROOT = Path(__file__).resolve().parent.parent
+MODELS = ROOT / "models" / "nonholonomic"
+
+
+@pytest.fixture(autouse=True)
+def _worktree_templates(monkeypatch):
+    """The templates of this checkout (an editable install may map kronsub.templates elsewhere)."""
+    monkeypatch.setattr(code, "template_environment",
+                        lambda: environment(jinja2.FileSystemLoader(str(ROOT / "templates"))))
+
+
+def _simulate(tmp_path, name, *args):
+    """``kronsub simulate`` of a bundled model into a CSV: its header and rows."""
+    out = tmp_path / f"{name}.csv"
+    result = CliRunner().invoke(main, ["simulate", str(MODELS / f"{name}.yaml"), "--rtol", "1e-11", "--atol", "1e-12",
+                                       "-o", str(out), *args])
+    assert result.exit_code == 0, result.output
+    header = out.read_text().splitlines()[0].split(",")
+    return header, np.loadtxt(out, delimiter=",", skiprows=1, ndmin=2)
+
+
+def test_rolling_disc_run_against_kanes_method(tmp_path):
+    header, data = _simulate(tmp_path, "rolling_disc", "--t", "1.5", "--dt", "0.25")
+    assert header[:9] == ["t", "yaw", "lean", "spin", "x", "y", "yaw_dot", "lean_dot", "spin_dot"]
+    energy = data[:, header.index("total_energy")]
+    assert np.max(np.abs(energy - energy[0])) < 1e-9 * abs(energy[0])
+    m, g, r = (sympy.Symbol(n, real=True) for n in ("m", "g", "r"))
+    q, u, kane, _ = rolling_disc_kane(m, g, r)
+    values = {m: 1.0, g: 9.81, r: 0.3}
+    parts = sympy.lambdify([*q, *u], [kane.mass_matrix.xreplace(values), kane.forcing.xreplace(values)], "numpy")
+
+    def field(t, z):  # z = [q (5); yaw_dot, lean_dot, spin_dot]: Kane's dependent speeds from the rolling
+        yaw, spin_dot = z[0], z[7]
+        full = [*z[5:8], values[r] * np.cos(yaw) * spin_dot, values[r] * np.sin(yaw) * spin_dot]
+        M, F = parts(*z[:5], *full)
+        return [*full, *np.linalg.solve(np.array(M, float), np.array(F, float).ravel())[:3]]
+
+    start = data[0, 1:9]
+    run = solve_ivp(field, (0.0, 1.5), start, t_eval=data[:, 0], method="DOP853", rtol=1e-12, atol=1e-12)
+    assert np.allclose(run.y.T, data[:, 1:9], rtol=1e-7, atol=1e-8)
+
+
+def test_sleigh_run_ends_straight_and_keeps_its_energy(tmp_path):
+    header, data = _simulate(tmp_path, "chaplygin_sleigh", "--t", "60", "--dt", "5", "--reactions")
+    v, w = data[:, header.index("v")], data[:, header.index("w")]
+    energy = data[:, header.index("total_energy")]
+    assert np.max(np.abs(energy - energy[0])) < 1e-9 * energy[0]
+    assert abs(w[-1]) < 1e-6 and v[-1] == pytest.approx(np.sqrt(2 * energy[0] / 1.0), rel=1e-8)
+    # the knife edge's force column: -I w'/a with w' = -m a v w / (I + m a^2) at each row
+    I, a, m = 0.05, 0.2, 1.0
+    assert np.allclose(data[:, header.index("mu_knife_edge")], I * m * v * w / (I + m * a**2), rtol=1e-8, atol=1e-12)
+
+
+def test_differential_drive_through_the_api():
+    system = kronsub.load(str(MODELS / "differential_drive.yaml")).derive()
+    run = system.simulate(t=1.0, dt=0.5, dataframe=False)
+    assert run.columns == ("x", "y", "theta", "phi_l", "phi_r", "phi_l_dot", "phi_r_dot")
+    # from rest, the wheels' rates grow as Mbar^-1 tau: the right motor pulls harder, so it turns left
+    R, b = 0.05, 0.15
+    phi_l, phi_r, theta = run.y[-1, 3], run.y[-1, 4], run.y[-1, 2]
+    assert theta == pytest.approx(R * (phi_r - phi_l) / (2 * b), rel=1e-9) and theta > 0
+    assert np.all(np.isfinite(run.y))
+
+
+def test_methods_without_the_state_in_the_speeds_are_refused():
+    result = CliRunner().invoke(main, ["simulate", str(MODELS / "chaplygin_sleigh.yaml"), "--method", "taylor",
+                                       "--t", "1"])
+    assert result.exit_code == 1 and "not supported yet with velocity constraints" in result.output
+    assert "Traceback" not in result.output
