@@ -250,8 +250,8 @@ def refuse_speeds(system: KnownSystem, what: str, location: Location | None = No
     when ``system`` has them and ``what`` (a command) does not handle them yet."""
     if system.speeds is not None:
         raise ModelError([Problem(location, f"{what} of a model with velocity constraints is not supported yet",
-                                  "derive it (`kronsub derive`, with --reactions for the contact forces): the "
-                                  "equations in the speeds and the kinematic equations are printed")])
+                                  "derive or simulate it instead (`kronsub derive`, `kronsub simulate`; "
+                                  "--reactions gives the contact forces)")])
 
 
 def speed_accelerations(projection: NonholonomicProjection) -> list[sympy.Symbol]:
