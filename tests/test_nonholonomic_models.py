@@ -225,3 +225,64 @@ def test_velocity_constraints_with_other_commands_are_refused_where_written(tmp_
     result = CliRunner().invoke(main, ["linearize", str(path)])
     assert result.exit_code == 1 and f"Error: {path}:{line}:1: " in result.output
     assert "not supported yet" in result.output and "Traceback" not in result.output
+
+
+@pytest.mark.parametrize("joint, written", [("rolling_disc_joint", "rolling_disc"),
+                                            ("chaplygin_sleigh_joint", "chaplygin_sleigh")])
+def test_contact_joints_give_the_constraints_written_by_hand(joint, written):
+    """`rolls_on` (the rim's lowest point at rest) and `knife_edge` (no velocity across the edge)
+    against the same constraints written as expressions: the same A, C and equations."""
+    ours = load_model(ROOT / "tests" / "models" / "nonholonomic" / f"{joint}.yaml").derive(cache=False).speeds
+    theirs = _derived(written).speeds
+    zero = lambda m: m.applyfunc(sympy.simplify) == sympy.zeros(*m.shape)  # noqa: E731
+    assert zero(ours.constraint_matrix - theirs.constraint_matrix)
+    assert ours.speeds == theirs.speeds and zero(ours.kinematics - theirs.kinematics)
+    assert zero(ours.mass_matrix - theirs.mass_matrix) and zero(ours.velocity_terms - theirs.velocity_terms)
+    assert zero(ours.forces - theirs.forces)
+
+
+DISC = """name: bad
+parameters: {m: 1, r: 0.3}
+components:
+  disc: {type: rigid_body3d, euler: ZXY, parameters: {mass: m, Ixx: 1, Iyy: 2, Izz: 1}}
+  bead: {type: particle3d, parameters: {mass: m}, coordinates: [bx, by, bz]}
+coordinates: [yaw, lean, spin, x, y, bx, by, bz]
+connection:
+  disc.x: x + r*sin(yaw)*sin(lean)
+  disc.y: y - r*cos(yaw)*sin(lean)
+  disc.z: HEIGHT
+  disc.psi: yaw
+  disc.theta: lean
+  disc.phi: spin
+velocity_constraints:
+"""
+
+BAD_JOINTS = [
+    ("r*cos(lean)", "  c: {rolls_on: plane, body: bead, radius: r}\n", "bead",
+     "rolling joint 'c': component 'bead' has no contact point: it is not a rigid body", "rigid_body3d"),
+    ("r*cos(lean)", "  c: {rolls_on: plane, body: disc}\n", "disc}",
+     "rolling joint 'c': component 'disc' has no contact point without a rim", "radius:"),
+    ("r", "  c: {rolls_on: plane, body: disc, radius: r}\n", "disc,",
+     "rolling joint 'c': the rim of 'disc' is at height", "keep it on the ground"),
+    ("r*cos(lean)", "  c: {rolls_on: ice, body: disc, radius: r}\n", "ice",
+     "velocity constraint 'c' rolls on 'ice'", "plane"),
+    ("r*cos(lean)", "  c: {knife_edge: disc}\n", "disc}",
+     "knife edge 'c' on a body in space is not supported yet", "planar body"),
+]
+
+
+@pytest.mark.parametrize("height, extra, at, message, hint", BAD_JOINTS)
+def test_bad_contact_joints_are_located(tmp_path, height, extra, at, message, hint):
+    head = DISC.replace("HEIGHT", height)
+    text = head + extra
+    path = tmp_path / "model.yaml"
+    path.write_text(text, encoding="utf-8")
+    result = CliRunner().invoke(main, ["derive", str(path), "--no-cache"])
+    out = result.output
+    assert result.exit_code == 1, out
+    assert "Traceback" not in out
+    index = len(head) + extra.index(at)
+    line = text.count("\n", 0, index) + 1
+    column = index - (text.rfind("\n", 0, index) + 1) + 1
+    assert f"Error: {path}:{line}:{column}: {message}" in out
+    assert hint in out.split(message, 1)[1].split("\n")[1]

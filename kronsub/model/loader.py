@@ -139,7 +139,7 @@ class ModelLoader(ModelReader):
                        "`velocity_constraints:` together with `constraints:` or a prescribed motion is not supported yet",
                        "write the configuration constraints in the connection, or drive the system by a load")
         elif vnode is not None and not self.problems:
-            velocity = read_velocity_constraints(self, vnode, root.get("speeds"), y)
+            velocity = read_velocity_constraints(self, vnode, root.get("speeds"), y, primitive, connection)
             if velocity is not None:
                 self.locations["velocity_constraints"] = root.key_locations["velocity_constraints"]
         initial = read_initial(self, root.get("initial"), y,

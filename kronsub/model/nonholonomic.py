@@ -4,7 +4,8 @@ made into ``xdot = C(x) u + d`` by :mod:`..core.nonholonomic` (Kron's non-holono
 frame: ``C`` is the Jacobian of no connection).
 
 Each constraint is named and written as an expression ``= 0`` in the coordinates, their
-velocities (``x_dot``), the parameters and ``t``. ``speeds:`` is optional: a list of
+velocities (``x_dot``), the parameters and ``t``, or as a contact joint (:mod:`.contacts`:
+``rolls_on``, ``knife_edge``). ``speeds:`` is optional: a list of
 velocities (``[yaw_dot, lean_dot]``) keeps those as the speeds; a mapping names
 quasi-velocities by their definitions ``Y(x) xdot`` (``v: cos(theta)*x_dot + sin(theta)*y_dot``);
 without it kronsub keeps the velocities of the first coordinates the constraints leave free.
@@ -17,6 +18,7 @@ import sympy
 
 from ..core.nonholonomic import VelocityConstraintError, VelocityTransformation, velocity_transformation
 from ..core.symbols import TIME, symbol, velocity_symbol
+from .contacts import read_contact
 from .reader import ModelReader, node_kind
 from .source import Node
 
@@ -30,10 +32,11 @@ class VelocitySpec:
     definitions: tuple[tuple[sympy.Symbol, sympy.Expr], ...]  # each speed as Y(x) xdot
 
 
-def read_velocity_constraints(reader: ModelReader, node: Node, speeds_node: Node | None,
-                              coords) -> VelocitySpec | None:
-    """The section read and analysed: each constraint linear in the velocities, none
-    integrable, the speeds spanning the null space of ``A``; every failure a located error."""
+def read_velocity_constraints(reader: ModelReader, node: Node, speeds_node: Node | None, coords,
+                              primitive, connection) -> VelocitySpec | None:
+    """The section read and analysed: each constraint (an expression, or a contact joint of
+    :mod:`.contacts` on the ``primitive`` through the ``connection``) linear in the velocities,
+    none integrable, the speeds spanning the null space of ``A``; every failure a located error."""
     velocities = {velocity_symbol(q).name: velocity_symbol(q) for q in coords}
     names = {**reader.parameter_names(), **{q.name: q for q in coords}, **velocities, "t": TIME}
     entries = reader.mapping(node, "velocity_constraints",
@@ -45,6 +48,13 @@ def read_velocity_constraints(reader: ModelReader, node: Node, speeds_node: Node
     for key, vnode in entries.items():
         loc = node.key_locations[key]
         if not reader.identifier(key, loc, "velocity constraint"):
+            continue
+        if vnode.is_mapping:  # a contact joint: rolling, a knife edge
+            made = read_contact(reader, key, vnode, primitive, connection, coords)
+            for label, value, at in made or ():
+                exprs.append(value)
+                labels.append(label)
+                where.append(at)
             continue
         value = reader.expr(vnode, names, what=f"velocity constraint '{key}'")
         if value is None:
