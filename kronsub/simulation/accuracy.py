@@ -220,6 +220,9 @@ class Bench:
         if self.dependent is not None and not METHODS[method].closed_loops:
             return ("it runs explicit equations only, and a closed loop's dependent coordinates come from "
                     "Newton's method on the constraints (methods here: " + ", ".join(CLOSED_LOOP) + ")")
+        if self.problem.system.speeds is not None and not METHODS[method].closed_loops:
+            return ("it is not supported yet with velocity constraints, whose state [q; u] it does not run "
+                    "(methods here: " + ", ".join(CLOSED_LOOP) + ")")
         return method_runner.unavailable()
 
     def _step(self, method: str, tol: float) -> float | None:
