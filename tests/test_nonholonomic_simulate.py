@@ -115,3 +115,21 @@ def test_accuracy_command_runs_the_state_in_the_speeds(tmp_path):
     assert result.exit_code == 0, result.output
     assert "| dop853 | tol 1e-10 |" in result.output
     assert "taylor: skipped, it is not supported yet with velocity constraints" in result.output
+
+
+def test_scenes_choose_effects_and_start_named_speeds(tmp_path):
+    """A scene of a model with velocity constraints: its effects in the speeds' forces, its
+    initial values of named speeds (the sleigh's v, w) where the run starts."""
+    text = (MODELS / "chaplygin_sleigh.yaml").read_text()
+    text += ("effects:\n  push: {type: generalized_force, coordinate: x, value: F}\n"
+             "scenes:\n  pushed: {effects: [push], initial: {v: 0.2, w: -1.0}}\n  free: {effects: []}\n")
+    text = text.replace("parameters:\n", "parameters:\n  F: {value: 0.3}\n", 1)
+    path = tmp_path / "sleigh.yaml"
+    path.write_text(text)
+    model = kronsub.load(str(path))
+    pushed, free = model.derive(scene="pushed"), model.derive(scene="free")
+    theta = sympy.Symbol("theta", real=True)
+    assert sympy.simplify(pushed.speeds.forces[0] - sympy.Symbol("F", real=True) * sympy.cos(theta)) == 0
+    assert free.speeds.forces == sympy.zeros(2, 1)
+    run = pushed.simulate(t=0.5, dt=0.5, dataframe=False)
+    assert list(run.y[0, 3:]) == [0.2, -1.0]
