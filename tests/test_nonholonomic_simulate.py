@@ -133,3 +133,10 @@ def test_scenes_choose_effects_and_start_named_speeds(tmp_path):
     assert free.speeds.forces == sympy.zeros(2, 1)
     run = pushed.simulate(t=0.5, dt=0.5, dataframe=False)
     assert list(run.y[0, 3:]) == [0.2, -1.0]
+
+
+def test_the_api_knows_the_speeds_by_name():
+    system = kronsub.load(str(MODELS / "chaplygin_sleigh.yaml")).derive()
+    v, w_dot = system.symbol("v"), system.symbol("w_dot")
+    assert v in system.speeds.mass_matrix.free_symbols | system.speeds.velocity_terms.free_symbols
+    assert w_dot.name == "w_dot" and w_dot.is_real
