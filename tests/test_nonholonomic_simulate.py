@@ -140,3 +140,12 @@ def test_the_api_knows_the_speeds_by_name():
     v, w_dot = system.symbol("v"), system.symbol("w_dot")
     assert v in system.speeds.mass_matrix.free_symbols | system.speeds.velocity_terms.free_symbols
     assert w_dot.name == "w_dot" and w_dot.is_real
+
+
+def test_plot_of_a_run_in_the_speeds(tmp_path):
+    pytest.importorskip("matplotlib")
+    plot = tmp_path / "sleigh.png"
+    result = CliRunner().invoke(main, ["simulate", str(MODELS / "chaplygin_sleigh.yaml"), "--t", "1",
+                                       "-o", str(tmp_path / "sleigh.csv"), "--plot", str(plot)])
+    assert result.exit_code == 0, result.output
+    assert plot.stat().st_size > 0
