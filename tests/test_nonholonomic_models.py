@@ -198,6 +198,8 @@ BAD = [
     ("velocity_constraints:\n  c: -sin(theta)*x_dot + cos(theta)*y_dot\nspeeds: [z_dot, theta_dot]\n", None,
      "speed 'z_dot' is not the velocity of a listed coordinate", "x_dot", "z_dot"),
     ("speeds: [theta_dot]\n", None, "`speeds:` without `velocity_constraints:`", "", "speeds:"),
+    ("velocity_constraints:\n  c: -sin(theta)*x_dot + cos(theta)*y_dot\ninitial: {x: 1, y_dot: 2}\n", None,
+     "'y_dot' is not a speed: the velocity constraints fix it", "x_dot, theta_dot", "y_dot: 2"),
 ]
 
 

@@ -24,7 +24,7 @@ from .connection import (implicit_spec, pivot_connection, read_connection, read_
 from .circuits import check_circuit
 from .constraints import check_multiplier_names, read_constraints
 from .coordinates import check_generated_names, name_primitive_coordinates, read_coordinates
-from .nonholonomic import read_velocity_constraints
+from .nonholonomic import check_initial, read_velocity_constraints
 from .prescribed import check_effects, driven_connection, names_time, read_prescribed
 from .definitions import read_definitions
 from .derive import derive_model, load_cached
@@ -144,6 +144,8 @@ class ModelLoader(ModelReader):
                 self.locations["velocity_constraints"] = root.key_locations["velocity_constraints"]
         initial = read_initial(self, root.get("initial"), y,
                                velocity.transformation.speeds if velocity is not None else ())
+        if velocity is not None:
+            check_initial(self, root.get("initial"), y, velocity)
         declared = root.get("effects")
         scenes = build_scenes(self, root.get("scenes"), list(declared.value) if declared is not None and
                               declared.is_mapping else [], primitive, y,

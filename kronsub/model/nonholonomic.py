@@ -87,6 +87,18 @@ def read_velocity_constraints(reader: ModelReader, node: Node, speeds_node: Node
     return VelocitySpec(transformation=velocity, constraint_names=tuple(labels), definitions=tuple(definitions.items()))
 
 
+def check_initial(reader: ModelReader, node: Node | None, coords, spec: VelocitySpec) -> None:
+    """An initial value of a velocity that is not a speed: the constraints fix it from the speeds
+    (``xdot = C u + d``), so a value given for it would be ignored."""
+    speeds = set(spec.transformation.speeds)
+    fixed = {velocity_symbol(q).name for q in coords} - {u.name for u in speeds}
+    for key in (node.value if node is not None and node.is_mapping else {}):
+        if key in fixed:
+            reader.error(node.key_locations[key], f"'{key}' is not a speed: the velocity constraints fix it",
+                         "give the speeds' initial values (" + ", ".join(u.name for u in spec.transformation.speeds)
+                         + f"); {key} follows from the kinematic equations xdot = C u")
+
+
 def _read_speeds(reader: ModelReader, node: Node | None, coords, names: dict) -> dict | None:
     """``speeds:``: a list of velocities of listed coordinates, or a mapping ``name: Y(x) xdot``."""
     if node is None or node.value is None:
@@ -128,4 +140,4 @@ def _read_speeds(reader: ModelReader, node: Node | None, coords, names: dict) ->
     return speeds
 
 
-__all__ = ["VelocitySpec", "read_velocity_constraints"]
+__all__ = ["VelocitySpec", "check_initial", "read_velocity_constraints"]
