@@ -149,3 +149,15 @@ def test_plot_of_a_run_in_the_speeds(tmp_path):
                                        "-o", str(tmp_path / "sleigh.csv"), "--plot", str(plot)])
     assert result.exit_code == 0, result.output
     assert plot.stat().st_size > 0
+
+
+@pytest.mark.parametrize("ratio, upright", [(1.3, True), (0.7, False)])
+def test_rolling_disc_stays_upright_above_its_critical_spin(ratio, upright):
+    """Upright rolling of a thin disc is stable when its spin exceeds sqrt(g / (3 r)) (its rolling
+    speed v^2 > g r / 3): a lean of 0.001 stays small above it and grows to order one below."""
+    system = kronsub.load(str(MODELS / "rolling_disc.yaml")).derive()
+    critical = np.sqrt(9.81 / (3 * 0.3))
+    run = system.simulate(t=10.0, dt=0.05, set={"lean": 0.001, "yaw_dot": 0, "spin_dot": ratio * critical},
+                          dataframe=False)
+    lean = np.max(np.abs(run.y[:, 1]))
+    assert (lean < 0.01) if upright else (lean > 0.3)
