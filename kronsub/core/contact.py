@@ -14,7 +14,16 @@ from collections.abc import Sequence
 
 import sympy
 
+from .simplify import compact
 from .symbols import velocity_symbol
+from .trigpoly import TrigAlgebra
+
+
+def reduced(expr: sympy.Expr, coordinates: Sequence[sympy.Symbol]) -> sympy.Expr:
+    """``expr`` as a polynomial in the sines and cosines of the ``coordinates``, reduced
+    (``sin^2 + cos^2 = 1``) and in its shortest form (:func:`.simplify.compact`)."""
+    algebra = TrigAlgebra(tuple(coordinates))
+    return compact(algebra, algebra.from_expr(sympy.expand(expr)))
 
 
 def rate(expr: sympy.Expr, coordinates: Sequence[sympy.Symbol]) -> sympy.Expr:
@@ -28,7 +37,7 @@ def material_velocity(centre: Sequence[sympy.Expr], rotation: sympy.Matrix, offs
     the body's point there at this instant), in the plane or in space."""
     c, R, r = sympy.Matrix(centre), sympy.Matrix(rotation), sympy.Matrix(offset)
     v = c.applyfunc(lambda e: rate(e, coordinates))
-    spin = (R.applyfunc(lambda e: rate(e, coordinates)) * R.T).applyfunc(lambda e: sympy.trigsimp(sympy.expand(e)))
+    spin = (R.applyfunc(lambda e: rate(e, coordinates)) * R.T).applyfunc(lambda e: reduced(e, coordinates))
     if len(c) == 2:
         w = spin[1, 0]
         return v + sympy.Matrix([-w * r[1], w * r[0]])
@@ -36,7 +45,8 @@ def material_velocity(centre: Sequence[sympy.Expr], rotation: sympy.Matrix, offs
     return v + omega.cross(r)
 
 
-def rim_contact(rotation: sympy.Matrix, axle: Sequence[sympy.Expr], radius: sympy.Expr) -> sympy.Matrix:
+def rim_contact(rotation: sympy.Matrix, axle: Sequence[sympy.Expr], radius: sympy.Expr,
+                coordinates: Sequence[sympy.Symbol]) -> sympy.Matrix:
     """The offset from a wheel's centre to the lowest point of its rim on the ground ``z = 0``:
     ``-radius (e_z - (a.e_z) a) / sqrt(1 - (a.e_z)^2)`` with ``a`` the world axle (``R`` times
     the body-frame ``axle``, a unit vector). The root is taken as ``|cos|`` of the tilt written
@@ -44,10 +54,10 @@ def rim_contact(rotation: sympy.Matrix, axle: Sequence[sympy.Expr], radius: symp
     a = sympy.Matrix(rotation) * sympy.Matrix(axle)
     a = a / sympy.sqrt(sum(sympy.sympify(e) ** 2 for e in axle))
     up = sympy.Matrix([0, 0, 1])
-    along = (up - a[2] * a).applyfunc(lambda e: sympy.trigsimp(sympy.expand(e)))
-    norm = sympy.trigsimp(sympy.sqrt(sympy.trigsimp(sympy.expand(1 - a[2] ** 2))))
+    along = (up - a[2] * a).applyfunc(lambda e: reduced(e, coordinates))
+    norm = sympy.sqrt(reduced(1 - a[2] ** 2, coordinates))
     norm = norm.replace(sympy.Abs, lambda e: e)  # the tilt's cosine is positive: the wheel is not flat
-    return (-radius * along / norm).applyfunc(lambda e: sympy.trigsimp(sympy.cancel(e)))
+    return (-radius * along / norm).applyfunc(lambda e: sympy.cancel(e))
 
 
-__all__ = ["material_velocity", "rate", "rim_contact"]
+__all__ = ["material_velocity", "rate", "reduced", "rim_contact"]

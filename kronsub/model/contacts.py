@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import sympy
 
-from ..core.contact import material_velocity, rim_contact
+from ..core.contact import material_velocity, reduced, rim_contact
 from ..errors import close_matches
 from .effects import named_body, zero_vector
 from .reader import ModelReader, node_kind
@@ -103,8 +103,8 @@ def _rolls_on(reader: ModelReader, name, node, primitive, connection, coords):
         return None
     R = body.rotation.xreplace(connection)
     centre = [_in_subspace(e, connection) for e in body.centre]
-    offset = rim_contact(R, axle, sympy.sympify(radius))
-    height = sympy.trigsimp(sympy.expand(centre[2] + offset[2]))
+    offset = rim_contact(R, axle, sympy.sympify(radius), coords)
+    height = reduced(centre[2] + offset[2], coords)
     if height != 0:
         reader.error(bnode, f"rolling joint '{name}': the rim of '{bnode.value}' is at height {height} above the "
                      "ground, not on it", "keep it on the ground in the connection: the centre's z is "
@@ -112,7 +112,7 @@ def _rolls_on(reader: ModelReader, name, node, primitive, connection, coords):
         return None
     v = material_velocity(centre, R, offset, coords)
     where = node.location
-    return [(f"{name}.{axis}", sympy.trigsimp(sympy.expand(v[i])), where) for i, axis in enumerate("xy")]
+    return [(f"{name}.{axis}", reduced(v[i], coords), where) for i, axis in enumerate("xy")]
 
 
 def _knife_edge(reader: ModelReader, name, node, primitive, connection, coords):
@@ -136,7 +136,7 @@ def _knife_edge(reader: ModelReader, name, node, primitive, connection, coords):
     v = material_velocity(centre, R, R * sympy.Matrix(at), coords)
     d = R * sympy.Matrix(direction)
     d = d / sympy.sqrt(sum(sympy.sympify(e) ** 2 for e in direction))
-    return [(name, sympy.trigsimp(sympy.expand(d[0] * v[1] - d[1] * v[0])), node.location)]
+    return [(name, reduced(d[0] * v[1] - d[1] * v[0], coords), node.location)]
 
 
 __all__ = ["KEYS", "read_contact"]
