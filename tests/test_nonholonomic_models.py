@@ -293,3 +293,14 @@ def test_bad_contact_joints_are_located(tmp_path, height, extra, at, message, hi
     column = index - (text.rfind("\n", 0, index) + 1) + 1
     assert f"Error: {path}:{line}:{column}: {message}" in out
     assert hint in out.split(message, 1)[1].split("\n")[1]
+
+
+def test_a_model_with_velocity_constraints_as_a_known_system_is_refused(tmp_path):
+    (tmp_path / "sleigh.yaml").write_text((MODELS / "chaplygin_sleigh.yaml").read_text())
+    text = "name: outer\ncomponents:\n  s: {model: sleigh.yaml}\ncoordinates: [x, y, theta]\n"
+    path = tmp_path / "outer.yaml"
+    path.write_text(text)
+    result = CliRunner().invoke(main, ["derive", str(path), "--no-cache"])
+    assert result.exit_code == 1 and "Traceback" not in result.output
+    assert (f"Error: {path}:3:14: model file 'sleigh.yaml' has velocity constraints: as a known system it is not "
+            "supported yet") in result.output
