@@ -99,6 +99,7 @@ class WorkPrecision:
     parameters: dict[str, float] = field(default_factory=dict)  # name -> value, as run
     initial_state: dict[str, float] = field(default_factory=dict)  # [q; qdot] at t = 0, by name
     dependent: dict[str, float] = field(default_factory=dict)  # a closed loop's y_d at t = 0
+    speeds: tuple[str, ...] = ()  # under velocity constraints: the speeds u of the state [q; u]
 
     def best_error(self) -> float | None:
         errors = [p.error for p in self.points if p.ok]
@@ -433,4 +434,4 @@ def measure(system: KnownSystem, values: RunValues, t_end: float, methods: tuple
                          {p.name: float(v) for p, v in zip(system.parameters, param)},
                          dict(zip(state, map(float, y0))),
                          {d.name: float(v) for d, v in zip(implicit.dependent, dependent)} if implicit is not None
-                         else {})
+                         else {}, tuple(u.name for u in system.speeds.speeds) if system.speeds is not None else ())
