@@ -79,6 +79,11 @@ def test_differential_drive_through_the_api():
     phi_l, phi_r, theta = run.y[-1, 3], run.y[-1, 4], run.y[-1, 2]
     assert theta == pytest.approx(R * (phi_r - phi_l) / (2 * b), rel=1e-9) and theta > 0
     assert np.all(np.isfinite(run.y))
+    # energy balance: the constant motor torques' work tau_l phi_l + tau_r phi_r is the kinetic energy
+    # gained (rolling without slipping does no work; V = 0)
+    tau_l, tau_r = 0.02, 0.03
+    work = tau_l * (run.y[:, 3] - run.y[0, 3]) + tau_r * (run.y[:, 4] - run.y[0, 4])
+    assert np.allclose(run.kinetic_energy - run.kinetic_energy[0], work, rtol=1e-8, atol=1e-12)
 
 
 def test_methods_without_the_state_in_the_speeds_are_refused():
