@@ -12,11 +12,13 @@ import pytest
 import sympy
 
 import kronsub.emitters.code as code
+from kronsub.core.symbols import TIME
 from kronsub.emitters.escape import environment
 from kronsub.model.loader import load_model
 
 ROOT = Path(__file__).resolve().parent.parent
 MODELS = ("rolling_disc", "chaplygin_sleigh", "differential_drive")
+IN_TIME = ROOT / "tests" / "models" / "nonholonomic" / "sleigh_on_a_belt.yaml"  # A xdot + b(x, t) = 0
 CFLAGS = ["-std=c99", "-Wall", "-Wextra", "-Werror", "-O2"]
 DOUBLE_P = ctypes.POINTER(ctypes.c_double)
 
@@ -33,10 +35,10 @@ def _symbolic(system):
     x, u = system.coordinates, s.speeds
     params = [p.symbol for p in system.parameters]
     rates = s.mass_matrix.LUsolve(s.forces - s.velocity_terms)
-    f = sympy.lambdify([*x, *u, *params], [s.kinematics.col_join(rates), s.kinetic_energy], modules="numpy")
+    f = sympy.lambdify([*x, *u, *params, TIME], [s.kinematics.col_join(rates), s.kinetic_energy], modules="numpy")
 
-    def at(y, param):
-        ydot, T = f(*y, *param)
+    def at(t, y, param):
+        ydot, T = f(*y, *param, t)
         return np.array(ydot, float).ravel(), float(T)
 
     return at
@@ -48,9 +50,11 @@ def _states(system, rng, count=4):
         yield rng.uniform(-1.0, 1.0, n + p), rng.uniform(0.5, 1.5, len(system.parameters))
 
 
-@pytest.mark.parametrize("name", MODELS)
-def test_generated_code_integrates_the_state_in_the_speeds(tmp_path, name):
-    system = load_model(ROOT / "models" / "nonholonomic" / f"{name}.yaml").derive(cache=False)
+@pytest.mark.parametrize("path", [ROOT / "models" / "nonholonomic" / f"{name}.yaml" for name in MODELS] + [IN_TIME],
+                         ids=lambda p: p.stem)
+def test_generated_code_integrates_the_state_in_the_speeds(tmp_path, path):
+    name = path.stem
+    system = load_model(path).derive(cache=False)
     n, p = len(system.coordinates), len(system.speeds.speeds)
     reference = _symbolic(system)
     (py,) = code.emit_python(system, "model")
@@ -74,13 +78,14 @@ def test_generated_code_integrates_the_state_in_the_speeds(tmp_path, name):
     lib.ks_rhs_canonical.argtypes = [ctypes.c_double, DOUBLE_P, DOUBLE_P, DOUBLE_P]
     rng = np.random.default_rng(11)
     for y, param in _states(system, rng):
-        ydot, T = reference(y, param)
-        assert np.allclose(module.rhs(0.0, y, param), ydot, rtol=1e-10, atol=1e-12)
+        t = float(rng.uniform(0, 3))
+        ydot, T = reference(t, y, param)
+        assert np.allclose(module.rhs(t, y, param), ydot, rtol=1e-10, atol=1e-12)
         assert module.kinetic_energy(y, param) == pytest.approx(T, rel=1e-10, abs=1e-14)
         out = np.empty(n + p)
         yc, pc = np.ascontiguousarray(y), np.ascontiguousarray(param)
         state, values, result = (a.ctypes.data_as(DOUBLE_P) for a in (yc, pc, out))
-        assert lib.ks_rhs(0.0, state, values, result) == 0
+        assert lib.ks_rhs(t, state, values, result) == 0
         assert np.allclose(out, ydot, rtol=1e-10, atol=1e-12)
         assert lib.ks_kinetic_energy(yc.ctypes.data_as(DOUBLE_P), pc.ctypes.data_as(DOUBLE_P)) == pytest.approx(
             T, rel=1e-10, abs=1e-14)

@@ -180,7 +180,8 @@ def speed_equations(system: KnownSystem, velocity: VelocityTransformation, const
                     definitions: Mapping[sympy.Symbol, sympy.Expr]) -> SpeedEquations:
     """A known system in the coordinates ``x`` (``M``, ``h``, each effect's ``f``) carried to its
     speeds by ``xdot = C u + d``: (9'), (D)-(F) as in :func:`project_nonholonomic`, ``fbar = C^T f``
-    of each effect apart (8'), (F), and ``T = 1/2 xdot^T M xdot`` (24) with ``xdot = C u + d``."""
+    of each effect apart (8'), (F), and ``T = 1/2 u^T Mbar u`` (24): the kinetic energy, ``xdot = C u``,
+    less the motion ``d`` that constraints in time impose (as a prescribed motion's ``T``)."""
     inertia = project_nonholonomic(system.mass_matrix, system.velocity_terms,
                                    sympy.zeros(len(system.coordinates), 1), velocity)
     moved = {velocity_symbol(q): velocity.kinematics[i] for i, q in enumerate(velocity.coordinates)}
@@ -188,7 +189,8 @@ def speed_equations(system: KnownSystem, velocity: VelocityTransformation, const
     forces = {name: (C.T * sympy.Matrix(f).xreplace(moved)).applyfunc(_tidy)
               for name, f in system.effect_forces.items()}
     xdot = velocity.kinematics
-    kinetic = _tidy((xdot.T * sympy.Matrix(system.mass_matrix) * xdot)[0, 0] / 2)
+    u = sympy.Matrix(velocity.speeds)
+    kinetic = _tidy((u.T * inertia.mass_matrix * u)[0, 0] / 2)
     return SpeedEquations(speeds=velocity.speeds, definitions=tuple(definitions.items()),
                           constraint_names=tuple(constraint_names), constraint_matrix=velocity.constraint_matrix,
                           constraint_offset=velocity.constraint_offset, transformation=C, offset=velocity.offset,

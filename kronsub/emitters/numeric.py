@@ -269,9 +269,6 @@ def prepare(system: KnownSystem, source: str = "", outputs=None, guarded_angles:
     energies = outputs is None or outputs.energies
     with_points = outputs is None or bool(outputs.points)
     speeds = system.speeds  # under velocity constraints: the equations in the speeds, the state [q; u]
-    if speeds is not None and any(e != 0 for e in speeds.offset):
-        raise KronsubError("cannot generate code: velocity constraints with a term free of the velocities "
-                           "(xdot = C u + d with d not 0) are not supported yet")
     velocities = speeds.speeds if speeds is not None else system.velocities
     n = len(velocities)  # Mbar is n x n
     params = [p for p in system.parameters]
@@ -314,6 +311,8 @@ def prepare(system: KnownSystem, source: str = "", outputs=None, guarded_angles:
                            "inertia); only hbar and fbar may name t in the generated code")
     # x = x(xbar, t): hbar has the drive's terms and the points move with t (velocity_terms and points take t)
     timed = system.transition is not None and depends_on_time(dict(system.transition.connection))
+    if speeds is not None:  # A xdot + b(x, t) = 0: hbar holds d(t)'s terms
+        timed = timed or TIME in free_symbols_of([speeds.velocity_terms])
     r = forces_of - velocity_terms_of
     targets = [f"M[{i * n + j}]" for i in range(n) for j in range(n)]
     exprs = [slot(M[i, j]) for i in range(n) for j in range(n)]
