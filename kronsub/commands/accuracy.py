@@ -67,7 +67,7 @@ def accuracy(model: Path, t_end: float, methods: str, tolerances: str, target: f
                           ("--plot", plot, "plot"))
         writable_outputs(output, plot)
         writable(meta_path, "--meta")
-        loaded, scene, system = scene_system(model, scene_name, speeds=True)
+        loaded, scene, system = scene_system(model, scene_name)
         assignments = parse_assignments(settings)
         say(f"computing the reference to t = {t_end:g} ...")
         try:

@@ -88,7 +88,7 @@ def _animate_model(model: Path, output: Path, t_end, dt, method, settings, fps: 
     from ..simulation.run import SimulationError, row_count
     from ..simulation.values import parse_assignments
 
-    loaded, scene, system = scene_system(model, scene_name, all_points=True, speeds=True)
+    loaded, scene, system = scene_system(model, scene_name, all_points=True)
     system = System.of(system, loaded, scene)
     span, step, chosen = run_span(system, t_end, dt, method, ANIMATION_DEFAULTS)
     try:

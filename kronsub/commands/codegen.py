@@ -41,7 +41,7 @@ def codegen(model: Path, lang: str, outdir: Path, name: str | None, prefix: str,
                   "  hint: choose another --output")
         if precision != "double" and lang != "c":
             fail("Error: --precision long|quad is for --lang c\n  hint: drop --precision, or use --lang c")
-        loaded, scene, system = scene_system(model, scene_name, speeds=True)
+        loaded, scene, system = scene_system(model, scene_name)
         stem = name or model.stem
         files = code_files(System.of(system, loaded, scene), stem, lang, prefix=prefix, precision=precision,
                            source=model.as_posix())

@@ -27,6 +27,7 @@ from ..version import __version__
 
 __all__ = ["DEBUG_ENV", "EXIT_CODES", "FILE", "HANGUP", "INPUT_ERROR", "INTERNAL_ERROR", "INTERRUPTED",
            "NUMERICAL_FAILURE", "OK", "OUTPUT_HELP", "SCENE_HELP", "SET_HELP", "T_END", "TERMINATED", "USAGE_ERROR",
+           "WITHOUT_SPEEDS",
            "budget_option", "check_times", "coincident_at_start", "coincident_ends", "default_sidecar",
            "emit_text", "fail", "interrupted_by", "meta_option", "note_choice", "note_safely", "output_option",
            "plot_option", "run_command", "say", "scene_option", "scene_system", "separate_outputs", "set_option",
@@ -240,11 +241,15 @@ def plot_option(help: str):
     return click.option("--plot", type=FILE, help=help)
 
 
-def scene_system(model: Path, scene_name: str | None, *, cache: bool = True, all_points: bool = False,
-                 speeds: bool = False):
+WITHOUT_SPEEDS = ("linearize", "sweep")
+"""The commands that do not handle velocity constraints yet: a model with them is refused there,
+at its `velocity_constraints:` section (:func:`scene_system`)."""
+
+
+def scene_system(model: Path, scene_name: str | None, *, cache: bool = True, all_points: bool = False):
     """``(model, scene, system)``: the model loaded, its scene chosen (None: the whole model)
     and the scene's equations derived. ``all_points`` asks the scene for every named point.
-    Velocity constraints are refused, at the section, unless the command takes ``speeds``."""
+    Velocity constraints are refused, at the section, by the commands of :data:`WITHOUT_SPEEDS`."""
     from ..core.nonholonomic import refuse_speeds
     from ..model.loader import load_model
     from ..model.scenes import scene_system as chosen_scene
@@ -252,9 +257,9 @@ def scene_system(model: Path, scene_name: str | None, *, cache: bool = True, all
     with budget.cpu_backstop():
         loaded = load_model(model, cache=cache)
         scene, system = chosen_scene(loaded, scene_name, cache=cache, all_points=all_points)
-        if not speeds:
-            refuse_speeds(system, f"`kronsub {click.get_current_context().info_name}`",
-                          loaded.locations.get("velocity_constraints"))
+        context = click.get_current_context(silent=True)
+        if context is not None and context.info_name in WITHOUT_SPEEDS:
+            refuse_speeds(system, f"`kronsub {context.info_name}`", loaded.locations.get("velocity_constraints"))
         return loaded, scene, system
 
 

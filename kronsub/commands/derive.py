@@ -44,7 +44,7 @@ def derive(model: Path, fmt: str, output: Path | None, check: Path | None, no_ca
         if output is not None and not output.resolve().parent.is_dir():
             fail(f"Error: {output}: the directory {output.resolve().parent} does not exist\n"
                   "  hint: create it first, or choose another --output path")
-        _, _, system = scene_system(model, scene_name, cache=not no_cache, speeds=True)
+        _, _, system = scene_system(model, scene_name, cache=not no_cache)
         note_choice(system)
         text = EMITTERS[chosen](system)
         if with_reactions:

@@ -67,7 +67,7 @@ def simulate(model: Path, t_end: float | None, dt: float | None, method: str | N
                           ("--plot", plot, "plot"))
         writable_outputs(output, plot)
         writable(meta_path, "--meta")
-        loaded, scene, system = scene_system(model, scene_name, all_points=with_points, speeds=True)
+        loaded, scene, system = scene_system(model, scene_name, all_points=with_points)
         note_choice(system)
         outputs = scene.outputs if scene is not None else None
         span, step, chosen = run_span(System.of(system, loaded, scene), t_end, dt, method)
@@ -97,7 +97,7 @@ def simulate(model: Path, t_end: float | None, dt: float | None, method: str | N
                 from ..simulation.reactions import reaction_columns
                 from ..simulation.fallback import numpy_module
 
-                traj = collect(run, list(run), len(system.coordinates) + len(system.state_velocities))
+                traj = collect(run, list(run), len(system.coordinates))
                 kept.append(traj)
                 extra = reaction_columns(system, traj, np.array(values.parameters), numpy_module(system), constrained)
                 text, info = trajectory_csv(system, model.as_posix(), traj, values, rtol, atol, with_points,
@@ -146,7 +146,7 @@ def simulate(model: Path, t_end: float | None, dt: float | None, method: str | N
         if plot is not None:
             from ..simulation.plot import plot_trajectory
 
-            traj = kept[0] if with_reactions else collect(run, kept, len(system.coordinates) + len(system.state_velocities))
+            traj = kept[0] if with_reactions else collect(run, kept, len(system.coordinates))
             plot_trajectory(system, traj, values, plot, with_points)
             say(f"wrote {plot}")
         if not run.complete:

@@ -128,13 +128,14 @@ def simulate(system: KnownSystem, values: RunValues, t_end: float, dt: float, me
     """Integrate from t = 0 to ``t_end`` with rows every ``dt`` (all rows in memory); the
     arguments as for :func:`start`."""
     run = start(system, values, t_end, dt, method, rtol, atol, chunks, progress, outputs, constrained)
-    return collect(run, list(run), len(system.coordinates) + len(system.state_velocities))
+    return collect(run, list(run), len(system.coordinates), len(system.coordinates) + len(system.state_velocities))
 
 
-def collect(run: RunInProgress, blocks: list[Block], ny: int) -> Trajectory:
+def collect(run: RunInProgress, blocks: list[Block], nq: int, ny: int | None = None) -> Trajectory:
     """The trajectory of ``blocks`` of ``run`` (all of them, or those before an interrupt) in a
-    state of ``ny`` entries (``[q; qdot]``, or ``[q; u]`` under velocity constraints)."""
-    n = ny
+    state of ``ny`` entries (``[q; qdot]``, ``2 nq``; ``[q; u]`` under velocity constraints, as the
+    blocks hold it when not given)."""
+    n = ny if ny is not None else next((b.y.size // len(b.t) for b in blocks if len(b.t)), 2 * nq)
     t = np.concatenate([b.t for b in blocks]) if blocks else np.zeros(0)
     y = np.concatenate([b.y.reshape(-1, n) for b in blocks]) if blocks else np.zeros((0, n))
     energies = dependent = None
