@@ -27,7 +27,6 @@ from ..version import __version__
 
 __all__ = ["DEBUG_ENV", "EXIT_CODES", "FILE", "HANGUP", "INPUT_ERROR", "INTERNAL_ERROR", "INTERRUPTED",
            "NUMERICAL_FAILURE", "OK", "OUTPUT_HELP", "SCENE_HELP", "SET_HELP", "T_END", "TERMINATED", "USAGE_ERROR",
-           "WITHOUT_SPEEDS",
            "budget_option", "check_times", "coincident_at_start", "coincident_ends", "default_sidecar",
            "emit_text", "fail", "interrupted_by", "meta_option", "note_choice", "note_safely", "output_option",
            "plot_option", "run_command", "say", "scene_option", "scene_system", "separate_outputs", "set_option",
