@@ -34,8 +34,9 @@ def every_model_file() -> list[Path]:
 
 
 def explicit_model_paths() -> list[str]:
-    """Bundled models without `constraints:`: the generic checks over every model need explicit
-    equations; the closed loops have their own (tests/test_constraints*.py)."""
+    """Bundled models without `constraints:` or `velocity_constraints:`: the generic checks over every
+    model need explicit equations in qdot; the closed loops have their own (tests/test_constraints*.py),
+    the non-holonomic models theirs (tests/test_nonholonomic*.py)."""
     import yaml
 
     def constrained(path: Path, seen=()) -> bool:
@@ -43,7 +44,7 @@ def explicit_model_paths() -> list[str]:
         data = yaml.safe_load(path.read_text(encoding="utf-8"))
         if not isinstance(data, dict):
             return False
-        if data.get("constraints"):
+        if data.get("constraints") or data.get("velocity_constraints"):
             return True
         for spec in (data.get("components") or {}).values():
             sub = isinstance(spec, dict) and spec.get("model")

@@ -16,6 +16,7 @@ import sympy
 from ..core.known_system import KnownSystem
 from ..core.linearize import Linearization
 from ..core.linearize import linearize as core_linearize
+from ..core.nonholonomic import refuse_speeds, speed_rates
 from ..core.rheonomic import depends_on_time
 from ..core.symbols import TIME
 from ..errors import KronsubError, Location, ModelError, Problem, near_names
@@ -31,13 +32,16 @@ class UnknownName(KronsubError):
 
 def names(system: KnownSystem) -> dict[str, sympy.Symbol]:
     """Every name a printed equation of the system uses: coordinates, velocities,
-    accelerations, parameters, ``t`` and, for a closed loop, the dependent coordinates and the
-    named intermediates ``lambda_...``, ``gamma_...`` (26)-(29) with their printed closed forms."""
+    accelerations, parameters, ``t``, under velocity constraints the speeds and their rates and,
+    for a closed loop, the dependent coordinates and the named intermediates ``lambda_...``,
+    ``gamma_...`` (26)-(29) with their printed closed forms."""
     out = {"t": TIME}
     groups = [system.coordinates, system.velocities, system.accelerations]
     imp = system.implicit
     if imp is not None:
         groups += [imp.intermediate, imp.intermediates, [name for name, _ in imp.definitions]]
+    if system.speeds is not None:  # under velocity constraints: the speeds and their rates
+        groups += [system.speeds.speeds, speed_rates(system.speeds.speeds, system.coordinates)]
     for group in groups:
         out.update({s.name: s for s in group})
     out.update({p.name: p.symbol for p in system.parameters})
@@ -125,6 +129,7 @@ def linearize(system: KnownSystem, at: Mapping[str, object] | None = None, input
     >>> lin.equilibrium, lin.A.shape
     (True, (4, 4))
     """
+    refuse_speeds(system, "linearize")
     problems = []
     try:
         point, values = split_assignments(system, at, option)

@@ -4,6 +4,7 @@ from __future__ import annotations
 from typing import Mapping
 
 from ..core.known_system import KnownSystem
+from ..core.nonholonomic import refuse_speeds
 from .runs import settings_text
 
 __all__ = ["sweep"]
@@ -19,6 +20,7 @@ def sweep(system: KnownSystem, grid: Mapping[str, object] | None = None, sample:
     (``scheduler``, else a local cluster of ``workers``): a pandas DataFrame of a row per run,
     as the rows ``kronsub sweep`` writes (:mod:`kronsub.sweep`). It holds every row in memory:
     for sweeps larger than memory, the command writes a Parquet dataset a chunk at a time."""
+    refuse_speeds(system, "sweep")
     import os
 
     import pandas

@@ -237,8 +237,8 @@ def _record(key: str, loaded, system, run, values, writer, span: float, step: fl
     from ..simulation import rows
 
     if run.library is None or system.implicit is not None or run.switches or METHODS[run.method].engine != "c" \
-            or len(Grid(span, step)) > rows.BLOCK_ROWS or zero_rows(system):
-        return  # (first-order coordinates' velocities are filled into the rows by the derived run)
+            or len(Grid(span, step)) > rows.BLOCK_ROWS or zero_rows(system) or system.speeds is not None:
+        return  # (first-order velocities filled in by the derived run; a state [q; u] of other size)
     digest = native.recorded_digest(run.library)
     if digest is None or loaded.source is None or run.library.parent.parent != native.build_root():
         return  # (a library in the process's temporary folder is gone at its exit)

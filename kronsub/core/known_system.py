@@ -109,6 +109,41 @@ class ImplicitSubspace:
 
 
 @dataclass(frozen=True)
+class SpeedEquations:
+    """A system under velocity constraints ``A(x) xdot + b = 0``, written in its speeds ``u``
+    (:mod:`.nonholonomic`): the kinematic equations ``xdot = C u + d`` and
+
+        Mbar udot + hbar = fbar,  Mbar = C^T M C (9'), (D),  fbar = C^T f (8'), (F)
+
+    with ``hbar`` taking ``Cdot`` along the motion (Boltzmann-Hamel). The known system that
+    carries it keeps ``M``, ``h``, ``f`` in the coordinates ``x`` (before the constraints), as
+    an implicit subspace keeps the system on ``y``. ``definitions`` gives each speed as
+    ``Y(x) xdot``; ``constraint_names`` the velocity constraints' names in row order.
+    """
+
+    speeds: tuple[sympy.Symbol, ...]
+    definitions: tuple[tuple[sympy.Symbol, sympy.Expr], ...]
+    constraint_names: tuple[str, ...]
+    constraint_matrix: sympy.Matrix  # A
+    constraint_offset: sympy.Matrix  # b
+    transformation: sympy.Matrix  # C
+    offset: sympy.Matrix  # d
+    kinematics: sympy.Matrix  # xdot = C u + d
+    mass_matrix: sympy.Matrix  # Mbar in the speeds
+    velocity_terms: sympy.Matrix  # hbar in the speeds
+    effect_forces: Mapping[str, sympy.Matrix]  # fbar of each effect in the speeds
+    kinetic_energy: sympy.Expr = sympy.Integer(0)  # T(x, C u + d)
+
+    @property
+    def forces(self) -> sympy.Matrix:
+        """``fbar`` in the speeds: the sum over the effects."""
+        total = sympy.zeros(len(self.speeds), 1)
+        for f in self.effect_forces.values():
+            total += f
+        return total
+
+
+@dataclass(frozen=True)
 class KnownSystem:
     """The equations of motion of a derived system, ready to be a component of the next.
 
@@ -138,6 +173,7 @@ class KnownSystem:
     implicit: ImplicitSubspace | None = None  # the named intermediates (26)-(29)
     initial: Mapping[sympy.Symbol, sympy.Expr] = field(default_factory=dict)
     requirements: tuple[Requirement, ...] = ()
+    speeds: SpeedEquations | None = None  # under velocity constraints: the equations in the speeds
 
     @property
     def velocities(self) -> tuple[sympy.Symbol, ...]:
@@ -146,6 +182,12 @@ class KnownSystem:
     @property
     def accelerations(self) -> tuple[sympy.Symbol, ...]:
         return tuple(acceleration_symbol(q) for q in self.coordinates)
+
+    @property
+    def state_velocities(self) -> tuple[sympy.Symbol, ...]:
+        """The velocity part of the first-order state: ``qdot``, or the speeds ``u`` under
+        velocity constraints (the state ``[q; u]``)."""
+        return self.speeds.speeds if self.speeds is not None else self.velocities
 
     @property
     def forces(self) -> sympy.Matrix:
@@ -177,4 +219,5 @@ class KnownSystem:
         return [sympy.Eq(lhs[i], self.forces[i]) for i in range(len(self.coordinates))]
 
 
-__all__ = ["Constraint", "ImplicitSubspace", "KnownSystem", "ParameterInfo", "ProjectedEffect", "Transition"]
+__all__ = ["Constraint", "ImplicitSubspace", "KnownSystem", "ParameterInfo", "ProjectedEffect", "SpeedEquations",
+           "Transition"]

@@ -27,6 +27,8 @@ from dataclasses import dataclass
 import numpy as np
 import sympy
 
+from ..errors import Location, ModelError, Problem
+from .known_system import KnownSystem, SpeedEquations
 from .symbols import TIME, acceleration_symbol, velocity_symbol
 
 GENERIC_POINTS = 3  # a rank is taken at this many random points (a generic one is almost sure)
@@ -174,6 +176,86 @@ def project_nonholonomic(metric: sympy.Matrix, velocity_terms: sympy.Matrix, for
                                   forcing=(C.T * f).applyfunc(tidy), convective=convective)
 
 
+def speed_equations(system: KnownSystem, velocity: VelocityTransformation, constraint_names: Sequence[str],
+                    definitions: Mapping[sympy.Symbol, sympy.Expr]) -> SpeedEquations:
+    """A known system in the coordinates ``x`` (``M``, ``h``, each effect's ``f``) carried to its
+    speeds by ``xdot = C u + d``: (9'), (D)-(F) as in :func:`project_nonholonomic`, ``fbar = C^T f``
+    of each effect apart (8'), (F), and ``T = 1/2 u^T Mbar u`` (24): the kinetic energy, ``xdot = C u``,
+    less the motion ``d`` that constraints in time impose (as a prescribed motion's ``T``)."""
+    inertia = project_nonholonomic(system.mass_matrix, system.velocity_terms,
+                                   sympy.zeros(len(system.coordinates), 1), velocity)
+    moved = {velocity_symbol(q): velocity.kinematics[i] for i, q in enumerate(velocity.coordinates)}
+    C = velocity.transformation
+    forces = {name: (C.T * sympy.Matrix(f).xreplace(moved)).applyfunc(_tidy)
+              for name, f in system.effect_forces.items()}
+    xdot = velocity.kinematics
+    u = sympy.Matrix(velocity.speeds)
+    kinetic = _tidy((u.T * inertia.mass_matrix * u)[0, 0] / 2)
+    return SpeedEquations(speeds=velocity.speeds, definitions=tuple(definitions.items()),
+                          constraint_names=tuple(constraint_names), constraint_matrix=velocity.constraint_matrix,
+                          constraint_offset=velocity.constraint_offset, transformation=C, offset=velocity.offset,
+                          kinematics=xdot, mass_matrix=inertia.mass_matrix, velocity_terms=inertia.velocity_terms,
+                          effect_forces=forces, kinetic_energy=kinetic)
+
+
+def speed_rates(speeds: Sequence[sympy.Symbol], coordinates: Sequence[sympy.Symbol]) -> list[sympy.Symbol]:
+    """The symbols of ``udot`` as printed: ``q_ddot`` for a speed that is the velocity ``q_dot``
+    of a coordinate, ``v_dot`` for a named speed ``v``."""
+    own = {velocity_symbol(q): acceleration_symbol(q) for q in coordinates}
+    return [own.get(u, velocity_symbol(u)) for u in speeds]
+
+
+def velocity_multipliers(system: KnownSystem) -> list[tuple[str, sympy.Expr]]:
+    """``(mu_<constraint>, expression)`` per velocity constraint: the multipliers of
+    ``M xddot + h = f + A^T mu`` (viewpoint (alpha), the workless reactions of the constraints),
+    with ``xdot = C u + d`` and ``xddot = C udot + Cdot u + ddot``; ``C^T (M xddot + h - f) = 0``
+    is the equations of motion, so ``mu`` comes from ``m`` rows of ``A^T mu = M xddot + h - f``
+    where ``A`` has full rank (the last coordinates first). In the coordinates, the speeds and
+    their rates (:func:`speed_rates`)."""
+    s = system.speeds
+    x = system.coordinates
+    A = s.constraint_matrix
+    m, n = A.shape
+    moved = {velocity_symbol(q): s.kinematics[i] for i, q in enumerate(x)}
+    rates = sympy.Matrix(speed_rates(s.speeds, x))
+    convective = s.kinematics.jacobian(x) * s.kinematics + s.kinematics.diff(TIME)
+    xddot = s.transformation * rates + convective
+    residual = (sympy.Matrix(system.mass_matrix) * xddot
+                + sympy.Matrix(system.velocity_terms).xreplace(moved)
+                - sympy.Matrix(system.forces).xreplace(moved))
+    point = _generic_points(A, x, {p.symbol: p.value for p in system.parameters
+                                   if p.value is not None and sympy.sympify(p.value).is_number})
+    rows = _simplest_minor(A, x, point)
+    mu = A[:, rows].T.LUsolve(residual.extract(rows, [0]))
+    return [(f"mu_{name}", _tidy(e)) for name, e in zip(s.constraint_names, mu)]
+
+
+def _simplest_minor(A: sympy.Matrix, coordinates, point) -> list[int]:
+    """The columns of an ``m x m`` minor of ``A`` of full generic rank whose determinant is
+    simplest: free of the coordinates if one is (a solve then divides by no function of the
+    configuration), else of fewest operations; the last columns first among equals."""
+    m, n = A.shape
+    best, key = None, None
+    for chosen in itertools.combinations(reversed(range(n)), m):
+        columns = sorted(chosen)
+        if _rank(A[:, columns], point) < m:
+            continue
+        det = _tidy(A[:, columns].det())
+        score = (bool(det.free_symbols & set(coordinates)), sympy.count_ops(det))
+        if key is None or score < key:
+            best, key = columns, score
+    return best
+
+
+def refuse_speeds(system: KnownSystem, what: str, location: Location | None = None) -> None:
+    """A :class:`ModelError` at ``location`` (where the model writes its velocity constraints)
+    when ``system`` has them and ``what`` (a command) does not handle them yet."""
+    if system.speeds is not None:
+        raise ModelError([Problem(location, f"{what} of a model with velocity constraints is not supported yet",
+                                  "derive or simulate it instead (`kronsub derive`, `kronsub simulate`; "
+                                  "--reactions gives the contact forces)")])
+
+
 def speed_accelerations(projection: NonholonomicProjection) -> list[sympy.Symbol]:
     """The symbols of ``udot`` (named like accelerations of the speeds)."""
     return [acceleration_symbol(s) for s in projection.velocity.speeds]
@@ -201,4 +283,5 @@ def _rank(A: sympy.Matrix, points: list[dict]) -> int:
 
 
 __all__ = ["GENERIC_POINTS", "NonholonomicProjection", "VelocityConstraintError", "VelocityTransformation",
-           "integrable", "linear_form", "project_nonholonomic", "speed_accelerations", "velocity_transformation"]
+           "integrable", "linear_form", "project_nonholonomic", "speed_accelerations", "speed_equations",
+           "refuse_speeds", "speed_rates", "velocity_multipliers", "velocity_transformation"]

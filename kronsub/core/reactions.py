@@ -8,6 +8,9 @@ the subspace:
   with ``xddot = C qddot + Cdot qdot`` (and the drive's ``d(xdot)/dt`` for ``x = x(q, t)``, where
   ``C^T r = 0`` still holds and ``s^T r`` is the power the drive puts in, :mod:`.rheonomic`); ``C^T r = 0`` (the reactions do no work, (C)). For a
   free body's centre coordinates this is the joint force on the body, for an angle the moment.
+- velocity constraints ``A xdot + b = 0`` (:mod:`.nonholonomic`): the multipliers ``mu`` with
+  ``M xddot + h = f + A^T mu``, in the speeds and their rates; for a contact point's velocity, the
+  contact force along each direction constrained.
 - implicit constraints ``g(y) = 0``: the multipliers ``mu`` with ``M_y yddot + h_y = f_y + G^T mu``,
   from the dependent rows ``G_d^T mu = (M_y yddot + h_y - f_y)_d``, ``yddot = [qddot; lambda qddot
   + gamma]``. For a ``pin: [P, Q]`` the pair ``(mu_x, mu_y)`` is the force of the joint on the body
@@ -24,6 +27,7 @@ from ..errors import KronsubError
 from .constraints import multiplier_name
 from .derivative import derivative
 from .known_system import KnownSystem
+from .nonholonomic import velocity_multipliers
 from .rheonomic import depends_on_time
 from .symbols import TIME, acceleration_symbol, velocity_symbol
 from .simplify import compact
@@ -41,6 +45,8 @@ def reactions(system: KnownSystem) -> list[tuple[str, sympy.Expr]] | "Multiplier
     a :class:`MultiplierSystem` for a closed loop of more than `SYMBOLIC_INVERSE` dependent coordinates."""
     if system.implicit is not None:
         return _multipliers(system)
+    if system.speeds is not None:
+        return velocity_multipliers(system)
     return _connection_reactions(system)
 
 

@@ -161,6 +161,8 @@ def _context(model: NumericModel, show, declare: str, end: str) -> dict:
     if model.implicit is not None:  # the dependent-coordinate solve (numeric_implicit)
         blocks.update({f"implicit_{name}": _lines(getattr(model.implicit, name), show, declare, end)
                        for name in ("closed_form", "residual", "sensitivity", "quadratic")})
+    if model.kinematics is not None:  # qdot = C(q) u under velocity constraints
+        blocks["kinematics"] = _lines(model.kinematics, show, declare, end)
     return {"m": model, "b": blocks, "version": __version__,
             "n_points": sum(d for _, d in model.points),
             "defaults": [(name, Markup(value)) for name, value, _ in model.parameters if value],
@@ -180,14 +182,15 @@ def emit_c(system: KnownSystem, stem: str, source: str = "", prefix: str = "ks",
     printer = _CPrinter(p)
     ctx = _context(model, printer.doprint, "const double ", ";")
     circle, circle_block = ((), None)
-    if model.implicit is None and not model.first_order:  # the circle state (circle.py): angles as (cos q, sin q)
+    if model.implicit is None and not model.first_order and not model.speeds:  # the circle state (circle.py): angles as (cos q, sin q)
         circle, circle_block = circle_equations(model.equations, [sympy.Symbol(f"q[{i}]") for i in range(model.n)])
     if circle_block is not None:
         ctx["b"]["circle"] = _lines(circle_block, printer.doprint, "const double ", ";")
     ctx["circle"] = [(k, i, model.coordinates[i]) for k, i in enumerate(circle)]
     stem = file_stem(stem)
-    ctx.update(near_axis=printer.near_axis, ldlt=ldlt_lines(model.n) if 0 < model.n <= WRITTEN_OUT else None,
+    ctx.update(near_axis=printer.near_axis, ldlt=ldlt_lines(model.nv) if 0 < model.nv <= WRITTEN_OUT else None,
                p=Markup(p), P=Markup(p.upper()), header=Markup(f"{stem}.h"),
+               NV=Markup(f"{p.upper()}_NU" if model.speeds else f"{p.upper()}_NQ"),
                guard=Markup(f"{p.upper()}_{identifier(stem).upper()}_H"))
     env = template_environment()
     return [GeneratedFile(f"{stem}.h", env.get_template("model.h.j2").render(**ctx)),
@@ -202,6 +205,7 @@ def emit_python(system: KnownSystem, stem: str, source: str = "", prefix: str = 
     model = prepare(system, source, outputs)
     printer = _PyPrinter({"fully_qualified_modules": False})
     ctx = _context(model, printer.doprint, "", "")
+    ctx["NV"] = Markup("NU" if model.speeds else "NQ")
     text = template_environment().get_template("model.py.j2").render(**ctx)
     return [GeneratedFile(f"{file_stem(stem)}.py", text)]
 

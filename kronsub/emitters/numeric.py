@@ -56,13 +56,22 @@ class NumericModel:
     timed: bool = False  # the connection names t (x = x(xbar, t)): velocity_terms and points take t first
     first_order: tuple[int, ...] = ()  # first-order coordinates J: qdot_J into r[n:], rows J of M identity, r_J = 0
     jacobian: Block | None = None  # d ydot/dy: V (rates of q, n x 2n), K = dr/dy (n x 2n), G = dMbar/dq_k (n x n x n)
+    speeds: tuple[str, ...] = ()  # under velocity constraints: the speeds u, the state [q; u]
+    kinematics: Block | None = None  # qdot = C(q) u into xd[] (in pre[])
 
     @property
     def n(self) -> int:
         return len(self.coordinates)
 
     @property
+    def nv(self) -> int:
+        """The velocity part of the state: the speeds under velocity constraints, else ``qdot``."""
+        return len(self.speeds) if self.speeds else self.n
+
+    @property
     def state(self) -> tuple[str, ...]:
+        if self.speeds:
+            return self.coordinates + self.speeds
         return self.coordinates + tuple(f"{q}_dot" for q in self.coordinates)
 
 
@@ -299,10 +308,12 @@ def prepare(system: KnownSystem, source: str = "", outputs=None, guarded_angles:
     (:func:`jacobian_block`; not with implicit constraints)."""
     energies = outputs is None or outputs.energies
     with_points = outputs is None or bool(outputs.points)
-    n = len(system.coordinates)
+    speeds = system.speeds  # under velocity constraints: the equations in the speeds, the state [q; u]
+    velocities = speeds.speeds if speeds is not None else system.velocities
+    n = len(velocities)  # Mbar is n x n
     params = [p for p in system.parameters]
     q_slots = {q: sympy.Symbol(f"q[{i}]") for i, q in enumerate(system.coordinates)}
-    qd_slots = {v: sympy.Symbol(f"qd[{i}]") for i, v in enumerate(system.velocities)}
+    qd_slots = {v: sympy.Symbol(f"qd[{i}]") for i, v in enumerate(velocities)}
     p_slots = {p.symbol: sympy.Symbol(f"param[{i}]") for i, p in enumerate(params)}
     slots = {**q_slots, **qd_slots, **p_slots, TIME: sympy.Symbol("t")}
     if len(slots) != len(q_slots) + len(qd_slots) + len(p_slots) + 1:
@@ -332,19 +343,23 @@ def prepare(system: KnownSystem, source: str = "", outputs=None, guarded_angles:
         return expr.xreplace(slots)
 
     block = functools.partial(_block, rewritings=_Rewritings())  # the blocks share their entries' rewritings
-    M = system.mass_matrix
+    M = speeds.mass_matrix if speeds is not None else system.mass_matrix
+    velocity_terms_of = speeds.velocity_terms if speeds is not None else system.velocity_terms
+    forces_of = speeds.forces if speeds is not None else system.forces
     if TIME in free_symbols_of([M]):
         raise KronsubError("cannot generate code: Mbar depends on t (a prescribed motion that changes the "
                            "inertia); only hbar and fbar may name t in the generated code")
     # x = x(xbar, t): hbar has the drive's terms and the points move with t (velocity_terms and points take t)
     timed = system.transition is not None and depends_on_time(dict(system.transition.connection))
-    r = system.forces - system.velocity_terms
+    if speeds is not None:  # A xdot + b(x, t) = 0: hbar holds d(t)'s terms
+        timed = timed or TIME in free_symbols_of([speeds.velocity_terms])
+    r = forces_of - velocity_terms_of
     targets = [f"M[{i * n + j}]" for i in range(n) for j in range(n)]
     exprs = [slot(M[i, j]) for i in range(n) for j in range(n)]
     r_targets = [f"r[{i}]" for i in range(n)]
     qs = tuple(q_slots.values())
     constants = _Constants(list(p_slots.values()))
-    first = first_order(system)
+    first = first_order(system) if speeds is None else None
     if first is None:
         equations = block(targets + r_targets, [constants(e) for e in exprs + [slot(e) for e in r]], "x", qs,
                           guarded_angles, plain=len(targets))
@@ -358,14 +373,18 @@ def prepare(system: KnownSystem, source: str = "", outputs=None, guarded_angles:
                           [constants(e) for e in solved + rates + currents], "x", qs, guarded_angles,
                           plain=len(targets))
     mass = block(targets, exprs, "x", qs)
-    velocity_terms = block([f"h[{i}]" for i in range(n)], [slot(e) for e in system.velocity_terms], "x", qs)
-    forces = block([f"f[{i}]" for i in range(n)], [slot(e) for e in system.forces], "x", qs)
+    velocity_terms = block([f"h[{i}]" for i in range(n)], [slot(e) for e in velocity_terms_of], "x", qs)
+    forces = block([f"f[{i}]" for i in range(n)], [slot(e) for e in forces_of], "x", qs)
+    kinematics = None
+    if speeds is not None:  # qdot = C(q) u
+        kinematics = block([f"xd[{i}]" for i in range(len(qs))], [constants(slot(e)) for e in speeds.kinematics],
+                           "x", qs)
 
     qd = list(system.velocities)
     dTdq = []
     depends = [[M[i, j].free_symbols for j in range(n)] for i in range(n)]
     derivatives: dict = {}  # (entry, q): the symmetric entries are differentiated once
-    for k, qk in enumerate(system.coordinates):
+    for k, qk in enumerate(system.coordinates if speeds is None else ()):
         terms = []  # summed at once: a sum grown term by term is rebuilt n^2 times
         for i in range(n):
             for j in range(n):
@@ -382,9 +401,11 @@ def prepare(system: KnownSystem, source: str = "", outputs=None, guarded_angles:
                 + sum((derivative(M[k, j], qi) * qd[i] * qd[j] for j in range(n)
                        for i, qi in enumerate(system.coordinates) if qi in depends[k][j]), sympy.Integer(0))
                 for k in range(n)]
+    if speeds is not None:  # no canonical form in the speeds: Mbar udot is not dp/dt
+        dTdq = [sympy.Integer(0)] * n
     canonical = block(r_targets, [constants(slot(e)) for e in dTdq], "x", qs, guarded_angles)
     exact = None
-    if jacobian and system.implicit is None:
+    if jacobian and system.implicit is None and speeds is None:
         exact = block(*jacobian_block(system, first, lambda e: constants(slot(e))), "x", qs, guarded_angles)
     prepare = block(*constants.definitions(), "c")
 
@@ -426,6 +447,8 @@ def prepare(system: KnownSystem, source: str = "", outputs=None, guarded_angles:
         timed=timed,
         first_order=first.indices if first is not None else (),
         jacobian=exact,
+        speeds=tuple(u.name for u in velocities) if speeds is not None else (),
+        kinematics=kinematics,
     )
 
 

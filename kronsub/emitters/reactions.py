@@ -18,6 +18,11 @@ NOTE = ("Viewpoint (alpha): the workless reactions kept as unknowns and found fr
 
 
 def _what(system: KnownSystem) -> str:
+    if system.speeds is not None:
+        return ("`mu_<constraint>` are the multipliers of the velocity constraints, `M xddot + h = f + A^T mu` in "
+                "the coordinates x with `xdot = C u + d`; the speeds' rates are those the equations in the speeds "
+                "give. For a constraint that a contact point's velocity vanish along a direction, its multiplier "
+                "is the contact force along it.")
     if system.implicit is not None:
         return ("`mu_<constraint>` are the multipliers of `M_y yddot + h_y = f_y + G^T mu`; for a pin [P, Q] the pair "
                 "is the force of the joint on the body of P (minus it on that of Q).")
@@ -39,7 +44,8 @@ def with_reactions(text: str, system: KnownSystem, fmt: str) -> str:
         return json_document(data, indent=2) + "\n"
     if fmt == "latex":
         coords = tuple(system.coordinates) + (tuple(system.transition.primitive_coordinates)
-                                              if system.transition else ())
+                                              if system.transition else ()) + (
+            tuple(system.speeds.speeds) if system.speeds is not None else ())
         show = latex_printer(coords, system.implicit, breaks=True)
         return _latex_section(text, note, [(rf"\texttt{{{latex_text(name)}}}", show(e)) for name, e in items])
     lines = ["", "## Reactions (viewpoint (alpha))", "", note, ""]

@@ -9,6 +9,7 @@ from ..collector import collector_paused
 from ..core.known_system import KnownSystem
 from .escape import Markup, environment, json_document
 from .latex_layout import WIDTH, lines, measure, unbroken
+from .nonholonomic import speeds_report
 from .report import build_report, latex_printer, model_names, plain_printer
 
 
@@ -50,19 +51,28 @@ def _trusted(show):
 def emit_markdown(system: KnownSystem) -> str:
     """Markdown: the derivation step by step, expressions in sympy's ``str`` form."""
     show = plain_printer(model_names(system))
-    return template_environment().get_template("derive.md.j2").render(r=build_report(system, _trusted(show)))
+    return template_environment().get_template("derive.md.j2").render(r=_report(system, _trusted(show)))
 
 
 @collector_paused()  # see kronsub.collector
 def emit_latex(system: KnownSystem) -> str:
     """A standalone LaTeX document of the derivation."""
     show = latex_printer(tuple(system.coordinates) + tuple(
-        system.transition.primitive_coordinates if system.transition else ()), system.implicit, breaks=True)
+        system.transition.primitive_coordinates if system.transition else ()) + tuple(
+        system.speeds.speeds if system.speeds is not None else ()), system.implicit, breaks=True)
     env = template_environment()
     env.filters["fits"] = _fits
     env.filters["broken"] = _broken
     env.filters["symbol"] = _symbol
-    return unbroken(env.get_template("derive.tex.j2").render(r=build_report(system, _trusted(show))))
+    return unbroken(env.get_template("derive.tex.j2").render(r=_report(system, _trusted(show))))
+
+
+def _report(system: KnownSystem, show) -> dict:
+    """The report, with the equations in the speeds under velocity constraints."""
+    r = build_report(system, show)
+    if system.speeds is not None:
+        r["speeds"] = speeds_report(system, show)
+    return r
 
 
 @collector_paused()  # see kronsub.collector
@@ -101,7 +111,39 @@ def emit_json(system: KnownSystem) -> str:
             }
     if "implicit" in r:
         data["implicit"] = _implicit_json(r["implicit"])
+    if system.speeds is not None:
+        data = _speeds_json(data, speeds_report(system, plain_printer(model_names(system))))
     return json_document(data, indent=2) + "\n"
+
+
+def _speeds_json(data: dict, s: dict) -> dict:
+    """Under velocity constraints the contract is the equations in the speeds ``u`` with the
+    kinematic equations ``xdot = C u + d``; the system in ``x`` before the constraints is kept
+    under ``unconstrained``."""
+    unconstrained = {k: data[k] for k in ("mass_matrix", "velocity_terms", "forces", "effects", "kinetic_energy")}
+    out = {k: v for k, v in data.items() if k not in unconstrained and k != "equation_form"}
+    out.update({
+        "speeds": s["speed_names"],
+        "speed_rates": s["rate_names"],
+        "speed_definitions": {d["name"]: d["expression"] for d in s["definitions"]},
+        "velocity_constraints": {c["name"]: c["expression"] for c in s["constraints"]},
+        "constraint_matrix": s["constraint_matrix"],
+        "constraint_offset": s["constraint_offset"],
+        "transformation": s["transformation"],
+        "offset": s["offset"],
+        "kinematics": {k["name"]: k["expression"] for k in s["kinematics"]},
+        "mass_matrix": s["mass_matrix"],
+        "velocity_terms": s["velocity_terms"],
+        "forces": s["forces"],
+        "effects": {e["name"]: e["forces"] for e in s["effects"]},
+        "kinetic_energy": s["kinetic_energy"],
+        "potential_energy": data["potential_energy"],
+        "equation_form": "mass_matrix * [speed_rates] + velocity_terms = forces; [velocities] = kinematics "
+                         "(= transformation * [speeds] + offset), constraint_matrix * [velocities] + "
+                         "constraint_offset = 0",
+        "unconstrained": unconstrained,
+    })
+    return out
 
 
 def _implicit_json(imp: dict) -> dict:

@@ -16,6 +16,7 @@ from ..collector import collector_paused
 from ..core.constraints import project_implicit
 from ..core.doubles import graph_nodes
 from ..core.known_system import KnownSystem, ProjectedEffect, Transition
+from ..core.nonholonomic import speed_equations
 from ..core.numeric_jacobian import jacobian
 from ..core.operations import count_ops
 from ..core.symbols import free_symbols_of
@@ -159,6 +160,10 @@ def _derive(model, cache: bool, effects) -> KnownSystem:
                                           assembled_potentials(model.primitive)), **own)
     if implicit is not None:
         system = dataclasses.replace(derive_implicit(model, system), **own)
+    velocity = model.velocity
+    if velocity is not None:  # xdot = C u + d: the equations in the speeds beside those in x
+        system = dataclasses.replace(system, speeds=speed_equations(
+            system, velocity.transformation, velocity.constraint_names, dict(velocity.definitions)))
     if key and effects is None:
         store_cached(key, system)
     return system

@@ -15,7 +15,7 @@ from .file_reading import SourceFile, read_model_file
 from .source import Node, load_yaml
 
 TOP_LEVEL = ("name", "description", "parameters", "components", "coordinates", "definitions", "connection",
-             "constraints", "prescribed", "effects", "initial", "scenes")
+             "constraints", "prescribed", "velocity_constraints", "speeds", "effects", "initial", "scenes")
 _SECTION_LINE = re.compile(r"^[ \t]*(?:---[ \t]*)?(?:\{[ \t]*)?[\"']?(?:" + "|".join(TOP_LEVEL) + r")[\"']?[ \t]*:",
                            re.M)
 

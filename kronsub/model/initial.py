@@ -9,12 +9,13 @@ from .reader import ModelReader
 from .source import Node
 
 
-def read_initial(reader: ModelReader, node: Node | None, coords) -> dict[sympy.Symbol, sympy.Expr]:
-    """The ``initial:`` values (of a model or a scene) by coordinate or velocity symbol; each a
-    number or an expression of the parameters."""
+def read_initial(reader: ModelReader, node: Node | None, coords, speeds=()) -> dict[sympy.Symbol, sympy.Expr]:
+    """The ``initial:`` values (of a model or a scene) by coordinate, velocity or named speed
+    (``speeds:``) symbol; each a number or an expression of the parameters."""
     initial: dict[sympy.Symbol, sympy.Expr] = {}
     allowed = {q.name: q for q in coords}
     allowed.update({velocity_symbol(q).name: velocity_symbol(q) for q in coords})
+    allowed.update({u.name: u for u in speeds})
     for key, vnode in reader.mapping(node, "initial", "write `initial: {theta: 0.1, theta_dot: 0}`").items():
         if key not in allowed and reader.is_broken(key):
             continue

@@ -71,6 +71,10 @@ def read_known_system(reader: ModelReader, cname: str, spec: Node, derived: Call
     except ModelError as exc:
         reader.problems.extend(exc)
         return None
+    if system.speeds is not None:  # its equations hold in its speeds, which a known system does not carry
+        reader.error(mnode, f"model file '{mnode.value}' has velocity constraints: as a known system it is not "
+                     "supported yet", "write its components and velocity constraints in this model")
+        return None
     # parameters: overrides, the rest inherited
     allowed = [p.name for p in system.parameters]
     inertial = functools.cache(lambda: inertial_parameters(system))  # asked only of an override in t

@@ -24,6 +24,7 @@ from .connection import (implicit_spec, pivot_connection, read_connection, read_
 from .circuits import check_circuit
 from .constraints import check_multiplier_names, read_constraints
 from .coordinates import check_generated_names, name_primitive_coordinates, read_coordinates
+from .nonholonomic import check_initial, read_velocity_constraints
 from .prescribed import check_effects, driven_connection, names_time, read_prescribed
 from .definitions import read_definitions
 from .derive import derive_model, load_cached
@@ -128,10 +129,27 @@ class ModelLoader(ModelReader):
             check_effects(self, root.get("effects"), effects, motions)
         if motions or names_time(connection):  # where the drive is written (linearize refuses there)
             self.locations["drive"] = root.key_locations.get("prescribed") or root.key_locations["connection"]
-        initial = read_initial(self, root.get("initial"), y)
+        velocity = None
+        vnode = root.get("velocity_constraints")
+        if root.get("speeds") is not None and vnode is None:
+            self.error(root.key_locations["speeds"], "`speeds:` without `velocity_constraints:`",
+                       "speeds are chosen for velocity constraints; without them the speeds are the velocities")
+        if vnode is not None and (constrained or motions or names_time(connection)):
+            self.error(root.key_locations["velocity_constraints"],
+                       "`velocity_constraints:` together with `constraints:` or a prescribed motion is not supported yet",
+                       "write the configuration constraints in the connection, or drive the system by a load")
+        elif vnode is not None and not self.problems:
+            velocity = read_velocity_constraints(self, vnode, root.get("speeds"), y, primitive, connection)
+            if velocity is not None:
+                self.locations["velocity_constraints"] = root.key_locations["velocity_constraints"]
+        initial = read_initial(self, root.get("initial"), y,
+                               velocity.transformation.speeds if velocity is not None else ())
+        if velocity is not None:
+            check_initial(self, root.get("initial"), y, velocity)
         declared = root.get("effects")
         scenes = build_scenes(self, root.get("scenes"), list(declared.value) if declared is not None and
-                              declared.is_mapping else [], primitive, y)
+                              declared.is_mapping else [], primitive, y,
+                              velocity.transformation.speeds if velocity is not None else ())
         check_values(self)
         if constrained and not self.problems:
             implicit = implicit_spec(self, cnode, constraints, connection, y, coords, auto, initial)
@@ -160,6 +178,7 @@ class ModelLoader(ModelReader):
             source=self.source,
             uses=each_once(self.used),
             joints=tuple(self.joints),
+            velocity=velocity,
         )
 
 

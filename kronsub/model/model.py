@@ -23,6 +23,7 @@ from ..effects.base import Effect
 from ..effects.elements import Damper, squared_distance
 from ..errors import Location, Problem
 from .derive import content_key, derive_model
+from .nonholonomic import VelocitySpec
 from .scenes import Scene
 from .file_reading import SourceFile
 
@@ -67,6 +68,7 @@ class Model:
     source: SourceFile | None = None  # the file as read (None when its text was given)
     uses: tuple[SourceFile, ...] = ()  # the model files it uses as known systems, recursively, each once
     joints: tuple = ()  # where the joints of `constraints:` act (model.constraints.Joint), for drawing
+    velocity: VelocitySpec | None = None  # velocity_constraints: xdot = C u + d
 
     @functools.cached_property
     def content_hash(self) -> str:

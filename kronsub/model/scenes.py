@@ -57,7 +57,8 @@ class Scene:
 
 
 # ------------------------------------------------------------------------------------ reading
-def build_scenes(reader: ModelReader, node: Node | None, declared_effects, primitive, coords) -> tuple[Scene, ...]:
+def build_scenes(reader: ModelReader, node: Node | None, declared_effects, primitive, coords,
+                 speeds=()) -> tuple[Scene, ...]:
     """Read ``scenes:``; problems go to the reader. ``declared_effects`` are the names under
     ``effects:``; a known system's own effects are named ``part.effect``."""
     labels = [label for label in effect_labels(primitive, ()) if "." in label] + list(declared_effects)
@@ -72,7 +73,7 @@ def build_scenes(reader: ModelReader, node: Node | None, declared_effects, primi
             reader.error(spec, f"scene '{sname}' must be a mapping", "e.g. `free: {effects: [gravity]}`")
             continue
         spec = reader.check_keys(spec, KEYS, f"scene '{sname}'")
-        scene = _scene(reader, sname, spec, labels, points, coords)
+        scene = _scene(reader, sname, spec, labels, points, coords, speeds)
         if scene is not None:
             scenes.append(scene)
     if node is not None and node.is_mapping:
@@ -80,7 +81,7 @@ def build_scenes(reader: ModelReader, node: Node | None, declared_effects, primi
     return tuple(scenes)
 
 
-def _scene(reader: ModelReader, sname: str, spec: Node, labels, points, coords) -> Scene | None:
+def _scene(reader: ModelReader, sname: str, spec: Node, labels, points, coords, speeds=()) -> Scene | None:
     on, off = spec.get("effects"), spec.get("without")
     if on is not None and off is not None:
         reader.error(spec.key_locations["without"], f"scene '{sname}' has both `effects:` and `without:`",
@@ -106,7 +107,7 @@ def _scene(reader: ModelReader, sname: str, spec: Node, labels, points, coords) 
         if value is not None:
             parameters[pname] = value
     _check_values(reader, pnode, parameters)
-    initial = read_initial(reader, spec.get("initial"), coords)
+    initial = read_initial(reader, spec.get("initial"), coords, speeds)
     t_end = _positive(reader, spec.get("t_end"), f"`t_end:` of scene '{sname}'")
     dt = _positive(reader, spec.get("dt"), f"`dt:` of scene '{sname}'")
     method = _method(reader, spec.get("method"), sname)

@@ -100,6 +100,7 @@ class WorkPrecision:
     parameters: dict[str, float] = field(default_factory=dict)  # name -> value, as run
     initial_state: dict[str, float] = field(default_factory=dict)  # [q; qdot] at t = 0, by name
     dependent: dict[str, float] = field(default_factory=dict)  # a closed loop's y_d at t = 0
+    speeds: tuple[str, ...] = ()  # under velocity constraints: the speeds u of the state [q; u]
 
     def best_error(self) -> float | None:
         errors = [p.error for p in self.points if p.ok]
@@ -224,6 +225,9 @@ class Bench:
         if not METHODS[method].closed_loops and zero_rows(self.system):
             return ("it integrates second-order equations of its own in every coordinate, and this system has "
                     "first-order coordinates (methods here: " + ", ".join(CLOSED_LOOP) + ")")
+        if self.problem.system.speeds is not None and not METHODS[method].closed_loops:
+            return ("it is not supported yet with velocity constraints, whose state [q; u] it does not run "
+                    "(methods here: " + ", ".join(CLOSED_LOOP) + ")")
         return method_runner.unavailable()
 
     def _step(self, method: str, tol: float) -> float | None:
@@ -428,10 +432,10 @@ def measure(system: KnownSystem, values: RunValues, t_end: float, methods: tuple
                 slow[method] = seconds
     finally:
         bar.close()
-    state = [q.name for q in system.coordinates] + [v.name for v in system.velocities]
+    state = [q.name for q in system.coordinates] + [v.name for v in system.state_velocities]
     return WorkPrecision(system.name, t_end, points, ref, bench.compile_seconds, conservative, skipped,
                          tuple(c.name for c in implicit.constraints) if implicit is not None else (),
                          {p.name: float(v) for p, v in zip(system.parameters, param)},
                          dict(zip(state, map(float, y0))),
                          {d.name: float(v) for d, v in zip(implicit.dependent, dependent)} if implicit is not None
-                         else {})
+                         else {}, tuple(u.name for u in system.speeds.speeds) if system.speeds is not None else ())

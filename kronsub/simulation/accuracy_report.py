@@ -43,7 +43,8 @@ def markdown(wp: WorkPrecision, target: float | None = None) -> str:
         lines.append(f"| {p.method} | {p.setting} | {_number(p.error, '.2e')} | {_number(p.energy_drift, '.1e')} |"
                      f"{extra} {1e3 * p.seconds:.3f} | {_number(p.evaluations, 'd')} | {_number(p.steps, 'd')} | {note} |")
     lines.append("")
-    state = "[q; qdot] of the independent coordinates" if loop else "[q; qdot]"
+    state = ("[q; qdot] of the independent coordinates" if loop else
+             "[q; u] (the speeds u: " + ", ".join(markdown_text(u) for u in wp.speeds) + ")" if wp.speeds else "[q; qdot]")
     lines.append(f"Error: max over the state {state} at t_end; time: median of repeated integrations; "
                  + ("energy drift: |E(t_end) - E(0)| / |E| (the model conserves energy)."
                     if wp.conservative else "energy drift: not reported (the model does not conserve energy)."))

@@ -144,7 +144,7 @@ def native_model(system: KnownSystem, outputs=None, jacobian: bool = False) -> n
     for attempt in (1, 2):
         library = compiled_library(system, outputs, jacobian)
         try:
-            return native.NativeModel(library, nq, nparam)
+            return native.NativeModel(library, nq, nparam, nq + len(system.state_velocities))
         except OSError:
             if attempt == 2 or library.exists():
                 raise

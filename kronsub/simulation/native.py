@@ -465,12 +465,12 @@ def _address(fn) -> int:
 class NativeModel:
     """A compiled model with ``nq`` coordinates and ``nparam`` parameters, loaded with ctypes."""
 
-    def __init__(self, library: str | Path, nq: int, nparam: int):
+    def __init__(self, library: str | Path, nq: int, nparam: int, ny: int | None = None):
         if nq < 1 or nparam < 0:
             raise ValueError(f"nq must be >= 1 and nparam >= 0 (got nq={nq}, nparam={nparam})")
         self.path = Path(library)
         self.nq = nq
-        self.ny = 2 * nq
+        self.ny = 2 * nq if ny is None else ny  # [q; u] under velocity constraints: nq + the speeds
         self.nparam = nparam
         self._lib = ctypes.CDLL(str(self.path))
         self._fn = {}
@@ -779,7 +779,7 @@ class NativeModel:
                 try:
                     y_fail = self.velocity(y_fail, param)
                 except SingularMassMatrix:
-                    y_fail = np.concatenate([y_fail[: self.nq], np.full(self.nq, np.nan)])
+                    y_fail = np.concatenate([y_fail[: self.nq], np.full(self.ny - self.nq, np.nan)])
         t, Y = out[:, 0].copy(), np.ascontiguousarray(out[:, 1:])
         message = self._fn["ks_status_message"](cres.status).decode()
         result = IntegrationResult(

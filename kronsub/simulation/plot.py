@@ -55,14 +55,18 @@ def _panels(system, traj, T, V) -> list[tuple[str, list[tuple[str, np.ndarray]]]
     angles = angle_coordinates(system)
     angle_rows = [(q.name, traj.y[:, i]) for i, q in enumerate(system.coordinates) if q in angles]
     length_rows = [(q.name, traj.y[:, i]) for i, q in enumerate(system.coordinates) if q not in angles]
-    turning = [(v.name, traj.y[:, n + i]) for i, (q, v) in enumerate(zip(system.coordinates, system.velocities))
-               if q in angles]
-    moving = [(v.name, traj.y[:, n + i]) for i, (q, v) in enumerate(zip(system.coordinates, system.velocities))
-              if q not in angles]
+    if system.speeds is not None:  # the state [q; u]: the speeds in a panel of their own
+        turning, moving = [], [(u.name, traj.y[:, n + i]) for i, u in enumerate(system.speeds.speeds)]
+    else:
+        turning = [(v.name, traj.y[:, n + i]) for i, (q, v) in enumerate(zip(system.coordinates, system.velocities))
+                   if q in angles]
+        moving = [(v.name, traj.y[:, n + i]) for i, (q, v) in enumerate(zip(system.coordinates, system.velocities))
+                  if q not in angles]
     E = T + V
     energy_rows = [("E - E(0)", E - E[0] if len(E) else E)]
     panels = [("angles [rad]", angle_rows), ("lengths [m]", length_rows), ("angular velocities [rad/s]", turning),
-              ("velocities [m/s]", moving), ("energy change [J]", energy_rows)]
+              ("speeds" if system.speeds is not None else "velocities [m/s]", moving),
+              ("energy change [J]", energy_rows)]
     return [(label, rows) for label, rows in panels if rows]
 
 

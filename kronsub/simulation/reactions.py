@@ -4,6 +4,7 @@ from __future__ import annotations
 import numpy as np
 import sympy
 
+from ..core.nonholonomic import speed_rates
 from ..core.reactions import MultiplierSystem, reactions
 from ..core.symbols import acceleration_symbol
 from .fallback import numpy_module
@@ -29,8 +30,9 @@ def _reaction_function(system, param):
     items = reactions(system)
     values = {p.symbol: float(v) for p, v in zip(system.parameters, param)}
     inter = list(system.implicit.intermediates) if system.implicit is not None else []
-    args = (list(system.coordinates) + list(system.velocities) + [acceleration_symbol(q) for q in system.coordinates]
-            + inter + [sympy.Symbol("t", real=True)])
+    rates = (speed_rates(system.speeds.speeds, system.coordinates) if system.speeds is not None else
+             [acceleration_symbol(q) for q in system.coordinates])  # what ydot's second part holds
+    args = (list(system.coordinates) + list(system.state_velocities) + rates + inter + [sympy.Symbol("t", real=True)])
     if isinstance(items, MultiplierSystem):  # G_d^T mu = r, solved at each row
         k = len(items.names)
         parts = sympy.lambdify(args, [sympy.sympify(e).xreplace(values) for e in [*items.matrix, *items.rows]],
@@ -46,7 +48,8 @@ def _reaction_function(system, param):
 
 
 def _rows(system, fn, k, times, states, param, module, constrained) -> np.ndarray:
-    """The reactions at each ``(t, [q; qdot])``; a row that fails stays NaN."""
+    """The reactions at each ``(t, [q; qdot])`` (``[q; u]`` under velocity constraints); a row that
+    fails stays NaN."""
     n = len(system.coordinates)
     inter = list(system.implicit.intermediates) if system.implicit is not None else []
     rows = []

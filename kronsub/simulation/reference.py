@@ -260,7 +260,7 @@ def _series_of(system: KnownSystem, param, bits: int) -> _Series:
     constants = {p.symbol: _mpf(v) for p, v in zip(system.parameters, param)}
     imp = system.implicit
     dependent = tuple(imp.dependent) if imp is not None else ()
-    tape = Tape([*system.coordinates, *system.velocities, *dependent], constants)
+    tape = Tape([*system.coordinates, *system.state_velocities, *dependent], constants)
 
     def nodes(matrix) -> list[list[int]]:
         return [[tape.node(sympy.sympify(matrix[a, b])) for b in range(matrix.cols)] for a in range(matrix.rows)]
@@ -276,15 +276,20 @@ def _series_of(system: KnownSystem, param, bits: int) -> _Series:
         gamma = tape.solve(G_d, nodes(quadratic), "dg/d(" + ", ".join(d.name for d in dependent) + ")")
         for a in range(k):
             tape.memo[imp.convective[a]] = gamma[a][0]
-    M, r = system.mass_matrix, system.forces - system.velocity_terms
-    velocities = list(system.velocities)
-    first = first_order(system)
-    if first is not None:  # the mixed system: qdot_J solved, M_JJ = 1 and r_J = 0 (core/first_order.py)
-        r = r.xreplace(first.substitution(system))
-        M = sympy.Matrix(n, n, lambda i, j: int(i == j) if i in first.indices else M[i, j])
-        r = sympy.Matrix([0 if i in first.indices else r[i] for i in range(n)])
-        for j, v in zip(first.indices, first.velocities):
-            velocities[j] = v
+    s = system.speeds  # under velocity constraints: y = [q; u], q' = C(q) u, Mbar u' = fbar - hbar
+    if s is not None:
+        M, r = s.mass_matrix, s.forces - s.velocity_terms
+        velocities = [sympy.sympify(e) for e in s.kinematics]
+    else:
+        M, r = system.mass_matrix, system.forces - system.velocity_terms
+        velocities = list(system.velocities)
+        first = first_order(system)
+        if first is not None:  # the mixed system: qdot_J solved, M_JJ = 1 and r_J = 0 (core/first_order.py)
+            r = r.xreplace(first.substitution(system))
+            M = sympy.Matrix(n, n, lambda i, j: int(i == j) if i in first.indices else M[i, j])
+            r = sympy.Matrix([0 if i in first.indices else r[i] for i in range(n)])
+            for j, v in zip(first.indices, first.velocities):
+                velocities[j] = v
     accelerations = tape.solve(nodes(M), nodes(sympy.Matrix(r)), "the mass matrix Mbar")
     derivatives = [tape.node(v) for v in velocities] + [row[0] for row in accelerations]
     if imp is not None:
@@ -355,6 +360,7 @@ def taylor(system: KnownSystem, param, y0, times, digits: int = 30, dependent=No
         series = _series_of(system, param, P)
         closure = _Closure(system, param, P, dependent)
         n = len(system.coordinates)
+        ny = n + len(system.state_velocities)
         t, y, steps, out, deps = 0, [_fixed(_mpf(v), P) for v in y0], 0, [], []
         end = _fixed(_targets(times)[-1], P)
         for target in _targets(times):
@@ -377,9 +383,9 @@ def taylor(system: KnownSystem, param, y0, times, digits: int = 30, dependent=No
                     for a in s[order - 1::-1]:
                         v = ((v * h) >> P) + a
                     new.append(v)
-                y = new[:2 * n]
+                y = new[:ny]
                 if closure.k:  # the series' y_d at the step's end: the next warm start
-                    closure.guess = [_real(v, P) for v in new[2 * n:]]
+                    closure.guess = [_real(v, P) for v in new[ny:]]
                 t += h
                 steps += 1
             out.append([_real(v, P) for v in y])
@@ -398,6 +404,7 @@ def extrapolation(system: KnownSystem, param, y0, times, digits: int = 30, depen
         series = _series_of(system, param, P)
         closure = _Closure(system, param, P, dependent)
         n = len(system.coordinates)
+        ny = n + len(system.state_velocities)
         K = max(6, (digits + 3) // 2)
         tol = mpmath.mpf(10) ** -(digits + 2)
         t, y, steps, out, h = 0, [_fixed(_mpf(v), P) for v in y0], 0, [], 1 << (P - 5)
@@ -405,7 +412,7 @@ def extrapolation(system: KnownSystem, param, y0, times, digits: int = 30, depen
         deps = []
 
         def f(tt, z):
-            return [s[1] for s in series.coefficients(tt, z + closure.dependent(z[:n]), 1)[:2 * n]]
+            return [s[1] for s in series.coefficients(tt, z + closure.dependent(z[:n]), 1)[:ny]]
 
         for target in _targets(times):
             target = _fixed(target, P)

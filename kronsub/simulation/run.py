@@ -106,12 +106,14 @@ def simulate(system: KnownSystem, values: RunValues, t_end: float, dt: float, me
     """Integrate from t = 0 to ``t_end`` with rows every ``dt`` (all rows in memory); the
     arguments as for :func:`start`."""
     run = start(system, values, t_end, dt, method, rtol, atol, chunks, progress, outputs, constrained, jacobian)
-    return collect(run, list(run), len(system.coordinates))
+    return collect(run, list(run), len(system.coordinates), len(system.coordinates) + len(system.state_velocities))
 
 
-def collect(run: RunInProgress, blocks: list[Block], nq: int) -> Trajectory:
-    """The trajectory of ``blocks`` of ``run`` (all of them, or those before an interrupt)."""
-    n = 2 * nq
+def collect(run: RunInProgress, blocks: list[Block], nq: int, ny: int | None = None) -> Trajectory:
+    """The trajectory of ``blocks`` of ``run`` (all of them, or those before an interrupt) in a
+    state of ``ny`` entries (``[q; qdot]``, ``2 nq``; ``[q; u]`` under velocity constraints, as the
+    blocks hold it when not given)."""
+    n = ny if ny is not None else next((b.y.size // len(b.t) for b in blocks if len(b.t)), 2 * nq)
     t = np.concatenate([b.t for b in blocks]) if blocks else np.zeros(0)
     y = np.concatenate([b.y.reshape(-1, n) for b in blocks]) if blocks else np.zeros((0, n))
     energies = dependent = None
@@ -138,6 +140,10 @@ def explicit_only(system: KnownSystem, method: str) -> None:
     if system.implicit is not None:
         raise SimulationError(f"method '{method}' needs explicit equations (its Taylor series), which a system "
                               "with implicit constraints does not have; use dop853 (default), gauss4, Radau or LSODA")
+    if system.speeds is not None:
+        raise SimulationError(f"method '{method}' is not supported yet with velocity constraints (the state [q; u] "
+                              "has no Taylor series or canonical form here); use dop853 (default), gauss4, Radau "
+                              "or LSODA")
     rows = zero_rows(system)
     if rows:
         names = ", ".join(system.coordinates[j].name for j in rows)
@@ -181,7 +187,8 @@ def start(system: KnownSystem, values: RunValues, t_end: float, dt: float, metho
         rows = rows_of.blocks(run, grid, y0, Steps(rtol, atol, dt, math.ceil(len(grid) / streamed.BLOCK_ROWS)), bar)
         run.blocks = _finish(run, rows, bar, native, param, system, None, with_energies)
         return run
-    native = _compiled(system, outputs, jacobian and spec.name in IMPLICIT and system.implicit is None)
+    native = _compiled(system, outputs, jacobian and spec.name in IMPLICIT and system.implicit is None
+                       and system.speeds is None)
     if constrained is not None and native is not None:
         from .constrained import configure_native
 

@@ -58,7 +58,7 @@ def resolve(system: KnownSystem, initial: dict, settings: dict[str, str]) -> Run
     """Parameter values and initial state, with every problem reported at once."""
     problems: list[Problem] = []
     known = {p.name for p in system.parameters}
-    state = [q.name for q in system.coordinates] + [v.name for v in system.velocities]
+    state = [q.name for q in system.coordinates] + [v.name for v in system.state_velocities]
     for name in settings:
         if name not in known and name not in state:
             near = near_names(name, known | set(state))

@@ -1,0 +1,57 @@
+"""Independent derivations of non-holonomic systems: sympy.physics.mechanics' KanesMethod with
+the same velocity constraints, and the hand-derived equations of a differential-drive robot."""
+import numpy as np
+import sympy
+from sympy.physics import mechanics as me
+
+
+def rolling_disc_kane(m, g, r):
+    """The thin uniform disc rolling on the plane z = 0: q = (yaw, lean, spin, x, y) with (x, y)
+    the contact point, u = qdot, the contact's speeds dependent. Returns ``(q, u, kane, centre)``
+    with ``centre`` the mass centre's position in N (x, y, z) as expressions of q."""
+    q = me.dynamicsymbols("yaw lean spin x y")
+    u = me.dynamicsymbols("u_yaw u_lean u_spin u_x u_y")
+    N = me.ReferenceFrame("N")
+    Y = N.orientnew("Y", "Axis", [q[0], N.z])
+    L = Y.orientnew("L", "Axis", [q[1], Y.x])
+    R = L.orientnew("R", "Axis", [q[2], L.y])
+    R.set_ang_vel(N, u[0] * N.z + u[1] * L.x + u[2] * L.y)
+    O = me.Point("O")
+    O.set_vel(N, 0)
+    contact = O.locatenew("C", q[3] * N.x + q[4] * N.y)
+    centre = contact.locatenew("G", r * L.z)
+    position = centre.pos_from(O)
+    centre.set_vel(N, position.dt(N).subs({qi.diff(): ui for qi, ui in zip(q, u)}))
+    point = centre.locatenew("P", -r * L.z)
+    slip = centre.vel(N) + R.ang_vel_in(N).cross(point.pos_from(centre))
+    disc = me.RigidBody("disc", centre, R, m, (me.inertia(L, m * r**2 / 4, m * r**2 / 2, m * r**2 / 4), centre))
+    kane = me.KanesMethod(N, q_ind=q, u_ind=u[:3], u_dependent=u[3:],
+                          kd_eqs=[qi.diff() - ui for qi, ui in zip(q, u)],
+                          velocity_constraints=[slip.dot(N.x), slip.dot(N.y)])
+    kane.kanes_equations([disc], [(centre, -m * g * N.z)])
+    return q, u, kane, [position.dot(N.x), position.dot(N.y), position.dot(N.z)]
+
+
+def kane_rates(kane, q, u, q_values, u_values, values) -> np.ndarray:
+    """``udot`` of the independent speeds then the dependent ones, at a state."""
+    at = {**dict(zip(q, q_values)), **dict(zip(u, u_values)), **values}
+    M = np.array(kane.mass_matrix.subs(at).evalf(), dtype=float)
+    F = np.array(kane.forcing.subs(at).evalf(), dtype=float)
+    return np.linalg.solve(M, F).ravel()
+
+
+def differential_drive_residual(m, Ic, J, R, b, d, tau_l, tau_r, phi_l_dot, phi_r_dot, phi_l_ddot, phi_r_ddot):
+    """The robot's equations in the wheel speeds, from the textbook equations in the forward speed
+    v of the axle's midpoint and the turning rate w (Newton-Euler on the chassis, the wheels'
+    spin inertia J reflected through R):
+
+        (m + 2 J / R^2) vdot - m d w^2 = (tau_r + tau_l) / R
+        (Ic + m d^2 + 2 J b^2 / R^2) wdot + m d v w = b (tau_r - tau_l) / R
+
+    carried to (phi_l_dot, phi_r_dot) by the transpose of d(v, w)/d(phi_l_dot, phi_r_dot)."""
+    v, w = R * (phi_l_dot + phi_r_dot) / 2, R * (phi_r_dot - phi_l_dot) / (2 * b)
+    vdot, wdot = R * (phi_l_ddot + phi_r_ddot) / 2, R * (phi_r_ddot - phi_l_ddot) / (2 * b)
+    E = sympy.Matrix([(m + 2 * J / R**2) * vdot - m * d * w**2 - (tau_r + tau_l) / R,
+                      (Ic + m * d**2 + 2 * J * b**2 / R**2) * wdot + m * d * v * w - b * (tau_r - tau_l) / R])
+    jac = sympy.Matrix([[R / 2, R / 2], [-R / (2 * b), R / (2 * b)]])
+    return jac.T * E
