@@ -25,6 +25,7 @@ from ..core.symbols import TIME, free_symbols_of
 from ..errors import KronsubError
 from .block import Block
 from .numeric_implicit import ImplicitCode, implicit_code, intermediate_slots
+from .projected import ProjectedCode, projected_by_size, projected_code
 
 
 @dataclass(frozen=True)
@@ -50,6 +51,7 @@ class NumericModel:
 
     implicit: ImplicitCode | None = None  # the dependent-coordinate solve
     timed: bool = False  # the connection names t (x = x(xbar, t)): velocity_terms and points take t first
+    projected: ProjectedCode | None = None  # Mbar, hbar, fbar formed at run time (the blocks above empty)
 
     @property
     def n(self) -> int:
@@ -249,14 +251,57 @@ def _block(targets: list[str], exprs: list[sympy.Expr], prefix: str, coordinates
     return Block(tuple(replacements), tuple(zip(targets, reduced)))
 
 
-def prepare(system: KnownSystem, source: str = "", outputs=None, guarded_angles: bool = False) -> NumericModel:
+def _expanded(system: KnownSystem, slot, constants: _Constants, block, qs, guarded_angles: bool, timed: bool):
+    """The blocks of the expanded route: ``Mbar``, ``hbar``, ``fbar``, the right-hand side and
+    the canonical forces from the derived expressions."""
+    n = len(system.coordinates)
+    M = system.mass_matrix
+    r = system.forces - system.velocity_terms
+    targets = [f"M[{i * n + j}]" for i in range(n) for j in range(n)]
+    exprs = [slot(M[i, j]) for i in range(n) for j in range(n)]
+    r_targets = [f"r[{i}]" for i in range(n)]
+    equations = block(targets + r_targets, [constants(e) for e in exprs + [slot(e) for e in r]], "x", qs,
+                       guarded_angles, plain=len(targets))
+    mass = block(targets, exprs, "x", qs)
+    velocity_terms = block([f"h[{i}]" for i in range(n)], [slot(e) for e in system.velocity_terms], "x", qs)
+    forces = block([f"f[{i}]" for i in range(n)], [slot(e) for e in system.forces], "x", qs)
+
+    qd = list(system.velocities)
+    dTdq = []
+    depends = [[M[i, j].free_symbols for j in range(n)] for i in range(n)]
+    derivatives: dict = {}  # (entry, q): the symmetric entries are differentiated once
+    for k, qk in enumerate(system.coordinates):
+        terms = []  # summed at once: a sum grown term by term is rebuilt n^2 times
+        for i in range(n):
+            for j in range(n):
+                if qk not in depends[i][j]:
+                    continue
+                d = derivatives.get((M[i, j], qk))
+                if d is None:
+                    d = derivatives[M[i, j], qk] = derivative(M[i, j], qk)
+                if d != 0:
+                    terms.append(d * qd[i] * qd[j] / 2)
+        dTdq.append(sympy.Add(*terms, system.forces[k]))
+    if timed:  # hbar is not Lagrange's operator on Mbar: dp/dt = fbar - hbar + (dMbar/dq^i qdot^i) qdot
+        dTdq = [system.forces[k] - system.velocity_terms[k]
+                + sum((derivative(M[k, j], qi) * qd[i] * qd[j] for j in range(n)
+                       for i, qi in enumerate(system.coordinates) if qi in depends[k][j]), sympy.Integer(0))
+                for k in range(n)]
+    canonical = block(r_targets, [constants(slot(e)) for e in dTdq], "x", qs, guarded_angles)
+    return mass, velocity_terms, forces, equations, canonical
+
+
+def prepare(system: KnownSystem, source: str = "", outputs=None, guarded_angles: bool = False,
+            route: str = "expanded") -> NumericModel:
     """Map the system's symbols to array slots and eliminate common subexpressions.
 
     ``outputs`` (a scene's :class:`~kronsub.model.scenes.Outputs`; None: everything) leaves
     out the energies and the named points when they are not asked for. ``guarded_angles``
     (the C): the right-hand sides take sines and cosines of several coordinates from
     single-angle ones where that keeps their accuracy (:func:`_guarded`), and always in
-    ``Mbar`` (:func:`_single_angles`)."""
+    ``Mbar`` (:func:`_single_angles`). ``route`` (:data:`.projected.ROUTES`): ``projected``
+    keeps the projection for run time (:mod:`.projected`; the caller checks that it applies),
+    ``auto`` does so for a large system."""
     energies = outputs is None or outputs.energies
     with_points = outputs is None or bool(outputs.points)
     n = len(system.coordinates)
@@ -298,40 +343,15 @@ def prepare(system: KnownSystem, source: str = "", outputs=None, guarded_angles:
                            "inertia); only hbar and fbar may name t in the generated code")
     # x = x(xbar, t): hbar has the drive's terms and the points move with t (velocity_terms and points take t)
     timed = system.transition is not None and depends_on_time(dict(system.transition.connection))
-    r = system.forces - system.velocity_terms
-    targets = [f"M[{i * n + j}]" for i in range(n) for j in range(n)]
-    exprs = [slot(M[i, j]) for i in range(n) for j in range(n)]
-    r_targets = [f"r[{i}]" for i in range(n)]
     qs = tuple(q_slots.values())
     constants = _Constants(list(p_slots.values()))
-    equations = block(targets + r_targets, [constants(e) for e in exprs + [slot(e) for e in r]], "x", qs,
-                       guarded_angles, plain=len(targets))
-    mass = block(targets, exprs, "x", qs)
-    velocity_terms = block([f"h[{i}]" for i in range(n)], [slot(e) for e in system.velocity_terms], "x", qs)
-    forces = block([f"f[{i}]" for i in range(n)], [slot(e) for e in system.forces], "x", qs)
-
-    qd = list(system.velocities)
-    dTdq = []
-    depends = [[M[i, j].free_symbols for j in range(n)] for i in range(n)]
-    derivatives: dict = {}  # (entry, q): the symmetric entries are differentiated once
-    for k, qk in enumerate(system.coordinates):
-        terms = []  # summed at once: a sum grown term by term is rebuilt n^2 times
-        for i in range(n):
-            for j in range(n):
-                if qk not in depends[i][j]:
-                    continue
-                d = derivatives.get((M[i, j], qk))
-                if d is None:
-                    d = derivatives[M[i, j], qk] = derivative(M[i, j], qk)
-                if d != 0:
-                    terms.append(d * qd[i] * qd[j] / 2)
-        dTdq.append(sympy.Add(*terms, system.forces[k]))
-    if timed:  # hbar is not Lagrange's operator on Mbar: dp/dt = fbar - hbar + (dMbar/dq^i qdot^i) qdot
-        dTdq = [system.forces[k] - system.velocity_terms[k]
-                + sum((derivative(M[k, j], qi) * qd[i] * qd[j] for j in range(n)
-                       for i, qi in enumerate(system.coordinates) if qi in depends[k][j]), sympy.Integer(0))
-                for k in range(n)]
-    canonical = block(r_targets, [constants(slot(e)) for e in dTdq], "x", qs, guarded_angles)
+    projected = None
+    if route == "projected" or (route == "auto" and system.implicit is None and projected_by_size(system)):
+        projected = projected_code(system, slot, constants, lambda t, e: block(t, e, "x", qs, guarded_angles))
+        mass = velocity_terms = forces = equations = canonical = Block((), ())
+    else:
+        mass, velocity_terms, forces, equations, canonical = _expanded(system, slot, constants, block, qs,
+                                                                       guarded_angles, timed)
     prepare = block(*constants.definitions(), "c")
 
     potential = block(["V"], [slot(system.potential_energy)], "x", qs) if energies else Block((), ())
@@ -349,7 +369,7 @@ def prepare(system: KnownSystem, source: str = "", outputs=None, guarded_angles:
     implicit = None
     if system.implicit is not None:
         implicit = implicit_code(system, slot, lambda t, e, c: block(t, e, "x", qs))
-        canonical = block(r_targets, [sympy.Integer(0)] * n, "x", qs)  # unused: no canonical form here
+        canonical = block([f"r[{i}]" for i in range(n)], [sympy.Integer(0)] * n, "x", qs)  # unused: no canonical form
     return NumericModel(
         name=system.name,
         source=source,
@@ -369,6 +389,7 @@ def prepare(system: KnownSystem, source: str = "", outputs=None, guarded_angles:
         with_points=with_points,
         implicit=implicit,
         timed=timed,
+        projected=projected,
     )
 
 

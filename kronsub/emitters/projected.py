@@ -1,0 +1,179 @@
+"""The projection kept in the generated code: ``Mbar``, ``hbar`` and ``fbar`` formed at run time.
+
+The transition to the subspace is carried out numerically at every evaluation,
+
+    Mbar = C^T M C                          (9'), (D)
+    hbar = C^T (M Cdot xbardot + h)         (E)
+    fbar = C^T f                            (8'), (F)
+
+from the primitive's metric ``M``, velocity terms ``h`` and forces ``f`` (blocks of a few
+entries, one per component) and the transformation ``C = dx/dxbar`` (7'), (21), all written as
+short expressions: the distinct entries of ``C`` (``cv``) and their rates ``d C/dt`` (``dv``,
+so ``Cdot xbardot`` and ``Cdot`` are sums over the same pattern), the nonzero entries of ``M``
+(``Mp``), ``h`` and ``f`` (``hp``, ``fp``), the primitive velocities written as ``C xbardot``.
+The canonical form's ``dT/dxbar = Cdot^T M xdot + C^T dT/dx`` (Lagrange's (A) through the
+connection; ``Cdot^a_alpha = d xdot^a / d xbar^alpha``) takes ``dT/dx`` of the primitive
+(``tp``). The sparse patterns of ``C`` and ``M`` become tables the generated loops walk.
+
+The expanded equations grow with the cube of a chain's length and so do ``cse`` and the
+compiler's times; these expressions grow with the number of nonzero entries of ``C``.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Callable
+
+import sympy
+
+from ..core.derivative import derivative
+from ..core.known_system import KnownSystem
+from ..core.rheonomic import depends_on_time
+from ..core.symbols import velocity_symbol
+from .block import Block
+
+ROUTES = ("auto", "expanded", "projected")
+"""How the C's ``Mbar``, ``hbar`` and ``fbar`` are computed: ``expanded`` (the derived
+expressions), ``projected`` (this module), ``auto`` (by :func:`projected_by_size`)."""
+
+PROJECTED_FROM = 14
+"""Coordinates from which ``auto`` takes the projected route (benchmarks/README.md,
+``first_trajectory.py``): below it the expanded right-hand side is quicker per call."""
+
+
+@dataclass(frozen=True)
+class ProjectedCode:
+    """The run-time projection's expressions and the sparse patterns of ``C`` and ``M``.
+
+    ``c_rows[a]``: the nonzero entries of row ``a`` of ``C`` as (column, index into ``cv``);
+    ``m_rows[a]``: the nonzero entries of row ``a`` of ``M`` as (column, index into ``Mp``);
+    ``mc_rows[a]``: the columns where row ``a`` of ``M C`` may be nonzero."""
+
+    n_primitive: int
+    n_values: int
+    n_metric: int
+    c_rows: tuple[tuple[tuple[int, int], ...], ...]
+    m_rows: tuple[tuple[tuple[int, int], ...], ...]
+    mc_rows: tuple[tuple[int, ...], ...]
+    block: Block  # cv, dv, Mp, hp, fp
+    canonical: Block  # cv, dv, Mp, tp, fp
+
+    @property
+    def tables(self) -> dict[str, list[int]]:
+        """The patterns as the flat arrays of the generated C (rows by their starts)."""
+        out: dict[str, list[int]] = {}
+        for name, rows, parts in (("c", self.c_rows, ("column", "value")), ("m", self.m_rows, ("column", "entry"))):
+            out[f"{name}_start"] = _starts(rows)
+            out[f"{name}_{parts[0]}"] = [e[0] for row in rows for e in row]
+            out[f"{name}_{parts[1]}"] = [e[1] for row in rows for e in row]
+        out["mc_start"] = _starts(self.mc_rows)
+        out["mc_column"] = [k for row in self.mc_rows for k in row]
+        return out
+
+
+def _starts(rows) -> list[int]:
+    starts = [0]
+    for row in rows:
+        starts.append(starts[-1] + len(row))
+    return starts
+
+
+def applies(system: KnownSystem) -> bool:
+    """Whether the projection can be kept at run time: a transition from a primitive, no
+    closed loop, no prescribed motion, every effect acting on the primitive."""
+    tr = system.transition
+    return (tr is not None and system.implicit is None and not tr.direct_effects
+            and set(tr.primitive_forces) == set(system.effect_forces) and len(tr.primitive_coordinates) > 0
+            and not depends_on_time(dict(tr.connection)))
+
+
+def projected_by_size(system: KnownSystem) -> bool:
+    """``auto``'s choice: the projected route from :data:`PROJECTED_FROM` coordinates on."""
+    return len(system.coordinates) >= PROJECTED_FROM and applies(system)
+
+
+def projected_code(system: KnownSystem, slot: Callable, constants: Callable,
+                   block: Callable[[list[str], list[sympy.Expr]], Block]) -> ProjectedCode:
+    """The run-time projection of ``system`` (:func:`applies`): ``slot`` maps an expression in
+    the subspace to the array slots, ``constants`` moves parameter products to ``pre``,
+    ``block`` eliminates common subexpressions."""
+    tr = system.transition
+    xs = tr.primitive_coordinates
+    nx, n = len(xs), len(system.coordinates)
+    C, M = tr.transformation, tr.primitive_metric
+    images = dict(tr.connection)
+    qd = list(system.velocities)
+
+    values: dict[sympy.Expr, int] = {}
+    c_rows = []
+    for a in range(nx):
+        row = []
+        for j in range(n):
+            e = C[a, j]
+            if e != 0:
+                row.append((j, values.setdefault(e, len(values))))
+        c_rows.append(tuple(row))
+    distinct = list(values)
+    rates = [sympy.Add(*[derivative(e, q) * v for q, v in zip(system.coordinates, qd) if q in e.free_symbols])
+             for e in distinct]
+
+    # x -> x(xbar), xdot -> C xbardot: the primitive's expressions in the subspace
+    moved = {x: images[x] for x in xs if images[x] != x}
+    for a, x in enumerate(xs):
+        v = sympy.Add(*[distinct[u] * qd[j] for j, u in c_rows[a]])
+        if v != velocity_symbol(x):
+            moved[velocity_symbol(x)] = v
+
+    def image(e: sympy.Expr) -> sympy.Expr:
+        return constants(slot(e.xreplace(moved) if moved else e))
+
+    entries: dict[tuple[int, int], int] = {}
+    m_exprs = []
+    m_rows = []
+    for a in range(nx):
+        row = []
+        for b in range(nx):
+            if M[a, b] == 0:
+                continue
+            key = (min(a, b), max(a, b))
+            if key not in entries:
+                entries[key] = len(m_exprs)
+                m_exprs.append(M[a, b])
+            row.append((b, entries[key]))
+        m_rows.append(tuple(row))
+    mc_rows = tuple(tuple(sorted({j for b, _ in m_rows[a] for j, _ in c_rows[b]})) for a in range(nx))
+
+    xd = [velocity_symbol(x) for x in xs]
+    h = tr.primitive_velocity_terms
+    f = sympy.zeros(nx, 1)
+    for label in sorted(tr.primitive_forces):
+        f += tr.primitive_forces[label]
+    dT = []
+    for a, x in enumerate(xs):
+        terms = [derivative(m_exprs[k], x) * xd[b] * xd[c] * (1 if b == c else 2) / 2
+                 for (b, c), k in entries.items() if x in m_exprs[k].free_symbols]
+        dT.append(sympy.Add(*terms))
+
+    shared_targets = [f"cv[{u}]" for u in range(len(distinct))] + [f"dv[{u}]" for u in range(len(distinct))] \
+        + [f"Mp[{k}]" for k in range(len(m_exprs))]
+    shared = [constants(slot(e)) for e in distinct] + [constants(slot(e)) for e in rates] + [image(e) for e in m_exprs]
+
+    def vector(name: str, column) -> tuple[list[str], list[sympy.Expr]]:
+        pairs = [(f"{name}[{a}]", e) for a, e in enumerate(column) if e != 0]
+        return [t for t, _ in pairs], [image(e) for _, e in pairs]
+
+    h_targets, h_exprs = vector("hp", h)
+    f_targets, f_exprs = vector("fp", f)
+    t_targets, t_exprs = vector("tp", dT)
+    return ProjectedCode(
+        n_primitive=nx,
+        n_values=len(distinct),
+        n_metric=len(m_exprs),
+        c_rows=tuple(c_rows),
+        m_rows=tuple(m_rows),
+        mc_rows=mc_rows,
+        block=block(shared_targets + h_targets + f_targets, shared + h_exprs + f_exprs),
+        canonical=block(shared_targets + t_targets + f_targets, shared + t_exprs + f_exprs),
+    )
+
+
+__all__ = ["PROJECTED_FROM", "ROUTES", "ProjectedCode", "applies", "projected_by_size", "projected_code"]
