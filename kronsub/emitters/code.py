@@ -188,7 +188,7 @@ def emit_c(system: KnownSystem, stem: str, source: str = "", prefix: str = "ks",
     circle, circle_block = ((), None)
     if model.projected is not None:
         ctx["b"]["projected"] = _lines(model.projected.block, printer.doprint, "const double ", ";")
-        ctx["b"]["projected_canonical"] = _lines(model.projected.canonical, printer.doprint, "const double ", ";")
+        ctx["b"]["projected_kinetic"] = _lines(model.projected.kinetic, printer.doprint, "const double ", ";")
     if model.implicit is None:  # the circle state (circle.py): angles as (cos q, sin q)
         rhs = model.equations if model.projected is None else model.projected.block
         circle, circle_block = circle_equations(rhs, [sympy.Symbol(f"q[{i}]") for i in range(model.n)])

@@ -11,6 +11,10 @@ entries, one per component) and the transformation ``C = dx/dxbar`` (7'), (21), 
 short expressions: the distinct entries of ``C`` (``cv``) and their rates ``d C/dt`` (``dv``,
 so ``Cdot xbardot`` and ``Cdot`` are sums over the same pattern), the nonzero entries of ``M``
 (``Mp``), ``h`` and ``f`` (``hp``, ``fp``), the primitive velocities written as ``C xbardot``.
+``Mbar_jk = sum_ab C_aj M_ab C_bk`` is summed over the distinct pairs of values
+``(C_aj, C_bk) = (cv_u, cv_v)``, each with the sum of the ``M_ab`` it meets (``Mw``: for
+constant inertias a constant, which ``prepare`` computes once), so rows of ``C`` equal within
+a column (the links below a joint) are multiplied once.
 The canonical form's ``dT/dxbar = Cdot^T M xdot + C^T dT/dx`` (Lagrange's (A) through the
 connection; ``Cdot^a_alpha = d xdot^a / d xbar^alpha``) takes ``dT/dx`` of the primitive
 (``tp``). The sparse patterns of ``C`` and ``M`` become tables the generated loops walk.
@@ -46,16 +50,18 @@ class ProjectedCode:
 
     ``c_rows[a]``: the nonzero entries of row ``a`` of ``C`` as (column, index into ``cv``);
     ``m_rows[a]``: the nonzero entries of row ``a`` of ``M`` as (column, index into ``Mp``);
-    ``mc_rows[a]``: the columns where row ``a`` of ``M C`` may be nonzero."""
+    ``terms``: ``Mbar``'s upper triangle as (index ``j n + k``, ``u``, ``v``, index into ``Mw``),
+    ``Mbar_jk`` the sum of ``cv_u cv_v Mw_w`` over its terms."""
 
     n_primitive: int
     n_values: int
     n_metric: int
+    n_weights: int
     c_rows: tuple[tuple[tuple[int, int], ...], ...]
     m_rows: tuple[tuple[tuple[int, int], ...], ...]
-    mc_rows: tuple[tuple[int, ...], ...]
-    block: Block  # cv, dv, Mp, hp, fp
-    canonical: Block  # cv, dv, Mp, tp, fp
+    terms: tuple[tuple[int, int, int, int], ...]
+    block: Block  # cv, dv, Mp, Mw, hp, fp
+    kinetic: Block  # tp = dT/dx of the primitive (its entries not zero)
 
     @property
     def tables(self) -> dict[str, list[int]]:
@@ -65,8 +71,8 @@ class ProjectedCode:
             out[f"{name}_start"] = _starts(rows)
             out[f"{name}_{parts[0]}"] = [e[0] for row in rows for e in row]
             out[f"{name}_{parts[1]}"] = [e[1] for row in rows for e in row]
-        out["mc_start"] = _starts(self.mc_rows)
-        out["mc_column"] = [k for row in self.mc_rows for k in row]
+        for index, name in enumerate(("target", "u", "v", "weight")):
+            out[f"t_{name}"] = [t[index] for t in self.terms]
         return out
 
 
@@ -140,7 +146,22 @@ def projected_code(system: KnownSystem, slot: Callable, constants: Callable,
                 m_exprs.append(M[a, b])
             row.append((b, entries[key]))
         m_rows.append(tuple(row))
-    mc_rows = tuple(tuple(sorted({j for b, _ in m_rows[a] for j, _ in c_rows[b]})) for a in range(nx))
+    # Mbar_jk = sum over the pairs (cv_u, cv_v) met of cv_u cv_v (sum of the M_ab met with them)
+    pairs: dict[tuple[int, int], dict[tuple[int, int], list[int]]] = {}
+    for a in range(nx):
+        for j, u in c_rows[a]:
+            for b, e in m_rows[a]:
+                for k, v in c_rows[b]:
+                    if k >= j:
+                        key = (u, v) if k > j or u <= v else (v, u)
+                        pairs.setdefault((j, k), {}).setdefault(key, []).append(e)
+    weights: dict[sympy.Expr, int] = {}
+    terms = []
+    for (j, k) in sorted(pairs):
+        for (u, v), es in pairs[j, k].items():
+            w = sympy.Add(*[m_exprs[e] for e in es])
+            if w != 0:
+                terms.append((j * n + k, u, v, weights.setdefault(w, len(weights))))
 
     xd = [velocity_symbol(x) for x in xs]
     h = tr.primitive_velocity_terms
@@ -149,13 +170,13 @@ def projected_code(system: KnownSystem, slot: Callable, constants: Callable,
         f += tr.primitive_forces[label]
     dT = []
     for a, x in enumerate(xs):
-        terms = [derivative(m_exprs[k], x) * xd[b] * xd[c] * (1 if b == c else 2) / 2
-                 for (b, c), k in entries.items() if x in m_exprs[k].free_symbols]
-        dT.append(sympy.Add(*terms))
+        dT.append(sympy.Add(*[derivative(m_exprs[k], x) * xd[b] * xd[c] * (1 if b == c else 2) / 2
+                              for (b, c), k in entries.items() if x in m_exprs[k].free_symbols]))
 
     shared_targets = [f"cv[{u}]" for u in range(len(distinct))] + [f"dv[{u}]" for u in range(len(distinct))] \
-        + [f"Mp[{k}]" for k in range(len(m_exprs))]
-    shared = [constants(slot(e)) for e in distinct] + [constants(slot(e)) for e in rates] + [image(e) for e in m_exprs]
+        + [f"Mp[{k}]" for k in range(len(m_exprs))] + [f"Mw[{w}]" for w in range(len(weights))]
+    shared = [constants(slot(e)) for e in distinct] + [constants(slot(e)) for e in rates] \
+        + [image(e) for e in m_exprs] + [image(e) for e in weights]
 
     def vector(name: str, column) -> tuple[list[str], list[sympy.Expr]]:
         pairs = [(f"{name}[{a}]", e) for a, e in enumerate(column) if e != 0]
@@ -168,11 +189,12 @@ def projected_code(system: KnownSystem, slot: Callable, constants: Callable,
         n_primitive=nx,
         n_values=len(distinct),
         n_metric=len(m_exprs),
+        n_weights=len(weights),
         c_rows=tuple(c_rows),
         m_rows=tuple(m_rows),
-        mc_rows=mc_rows,
+        terms=tuple(terms),
         block=block(shared_targets + h_targets + f_targets, shared + h_exprs + f_exprs),
-        canonical=block(shared_targets + t_targets + f_targets, shared + t_exprs + f_exprs),
+        kinetic=block(t_targets, t_exprs),
     )
 
 
