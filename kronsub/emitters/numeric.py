@@ -241,11 +241,11 @@ class _Rewritings:
 
 
 def _block(targets: list[str], exprs: list[sympy.Expr], prefix: str, coordinates=(), guarded: bool = False,
-           rewritings: _Rewritings | None = None, plain: int = 0) -> Block:
+           rewritings: _Rewritings | None = None, plain: int = 0, rewrite: bool = True) -> Block:
     exprs = _single_angles(exprs, coordinates, guarded, plain)
     symbols = sympy.numbered_symbols(prefix)
     basic = None
-    if not _more_nodes_than(exprs, BASIC_NODES):
+    if rewrite and not _more_nodes_than(exprs, BASIC_NODES):
         basic = (rewritings or _Rewritings()).optimizations()
     replacements, reduced = sympy.cse(exprs, symbols=symbols, optimizations=basic, order="canonical")
     return Block(tuple(replacements), tuple(zip(targets, reduced)))
@@ -347,6 +347,9 @@ def prepare(system: KnownSystem, source: str = "", outputs=None, guarded_angles:
     constants = _Constants(list(p_slots.values()))
     projected = None
     if route == "projected" or (route == "auto" and system.implicit is None and projected_by_size(system)):
+        # no rewritings: in a large system's potential and points they took a third of the
+        # emission (a 100-link chain), and the projection's entries are short already
+        block = functools.partial(_block, rewrite=False)
         projected = projected_code(system, slot, constants, lambda t, e: block(t, e, "x", qs, guarded_angles))
         mass = velocity_terms = forces = equations = canonical = Block((), ())
     else:

@@ -109,18 +109,18 @@ def projected_code(system: KnownSystem, slot: Callable, constants: Callable,
     images = dict(tr.connection)
     qd = list(system.velocities)
 
+    speeds = dict(zip(system.coordinates, qd))
     values: dict[sympy.Expr, int] = {}
     c_rows = []
-    for a in range(nx):
+    for entries_a in C.tolist():
         row = []
-        for j in range(n):
-            e = C[a, j]
+        for j, e in enumerate(entries_a):
             if e != 0:
                 row.append((j, values.setdefault(e, len(values))))
         c_rows.append(tuple(row))
     distinct = list(values)
-    rates = [sympy.Add(*[derivative(e, q) * v for q, v in zip(system.coordinates, qd) if q in e.free_symbols])
-             for e in distinct]
+    rates = [sympy.Add(*[derivative(e, q) * speeds[q] for q in system.coordinates if q in free])
+             for e in distinct for free in [e.free_symbols]]
 
     # x -> x(xbar), xdot -> C xbardot: the primitive's expressions in the subspace
     moved = {x: images[x] for x in xs if images[x] != x}
@@ -135,15 +135,15 @@ def projected_code(system: KnownSystem, slot: Callable, constants: Callable,
     entries: dict[tuple[int, int], int] = {}
     m_exprs = []
     m_rows = []
-    for a in range(nx):
+    for a, metric_a in enumerate(M.tolist()):
         row = []
-        for b in range(nx):
-            if M[a, b] == 0:
+        for b, e in enumerate(metric_a):
+            if e == 0:
                 continue
             key = (min(a, b), max(a, b))
             if key not in entries:
                 entries[key] = len(m_exprs)
-                m_exprs.append(M[a, b])
+                m_exprs.append(e)
             row.append((b, entries[key]))
         m_rows.append(tuple(row))
     # Mbar_jk = sum over the pairs (cv_u, cv_v) met of cv_u cv_v (sum of the M_ab met with them)
@@ -156,10 +156,14 @@ def projected_code(system: KnownSystem, slot: Callable, constants: Callable,
                         key = (u, v) if k > j or u <= v else (v, u)
                         pairs.setdefault((j, k), {}).setdefault(key, []).append(e)
     weights: dict[sympy.Expr, int] = {}
+    summed: dict[tuple[int, ...], sympy.Expr] = {}  # the same entries met by many pairs: summed once
     terms = []
     for (j, k) in sorted(pairs):
         for (u, v), es in pairs[j, k].items():
-            w = sympy.Add(*[m_exprs[e] for e in es])
+            met = tuple(sorted(es))
+            w = summed.get(met)
+            if w is None:
+                w = summed[met] = sympy.Add(*[m_exprs[e] for e in met])
             if w != 0:
                 terms.append((j * n + k, u, v, weights.setdefault(w, len(weights))))
 
@@ -168,10 +172,12 @@ def projected_code(system: KnownSystem, slot: Callable, constants: Callable,
     f = sympy.zeros(nx, 1)
     for label in sorted(tr.primitive_forces):
         f += tr.primitive_forces[label]
-    dT = []
-    for a, x in enumerate(xs):
-        dT.append(sympy.Add(*[derivative(m_exprs[k], x) * xd[b] * xd[c] * (1 if b == c else 2) / 2
-                              for (b, c), k in entries.items() if x in m_exprs[k].free_symbols]))
+    dT = [sympy.Integer(0)] * nx  # dT/dx = 1/2 xdot^T (dM/dx) xdot
+    index = {x: a for a, x in enumerate(xs)}
+    for (b, c), k in entries.items():
+        for x in m_exprs[k].free_symbols:
+            if x in index:
+                dT[index[x]] += derivative(m_exprs[k], x) * xd[b] * xd[c] * (1 if b == c else 2) / 2
 
     shared_targets = [f"cv[{u}]" for u in range(len(distinct))] + [f"dv[{u}]" for u in range(len(distinct))] \
         + [f"Mp[{k}]" for k in range(len(m_exprs))] + [f"Mw[{w}]" for w in range(len(weights))]

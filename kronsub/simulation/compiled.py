@@ -24,6 +24,7 @@ from ..cache import load_entry, private_folder, store_entry
 from ..core.known_system import KnownSystem
 from ..model import cache_format
 from ..model.derive import content_key
+from ..model.scenes import Outputs
 from . import native
 
 _FOLDER = re.compile(r"[A-Za-z0-9_]+-[0-9a-f]{24}")
@@ -110,6 +111,12 @@ def belongs(library: Path, key: str, nq: int, nparam: int) -> bool:
         return False
 
 
+def _computed(outputs: Outputs | None) -> Outputs:
+    """What a library computes of ``outputs``: no named points (a run's table takes them from
+    the numpy module), so neither their emission nor their compilation is paid for."""
+    return dataclasses.replace(outputs or Outputs(), points=())
+
+
 def compiled_library(system: KnownSystem, outputs=None) -> Path:
     """The shared library of ``system``'s generated C with the integrators: from the index
     when its fingerprint is there and the library says it computes these equations
@@ -123,7 +130,7 @@ def compiled_library(system: KnownSystem, outputs=None) -> Path:
         library = lookup(key)
         if library is not None and belongs(library, key, nq, nparam):
             return library
-    generated = [(g.name, g.text) for g in emit_c(system, "model", outputs=outputs)]
+    generated = [(g.name, g.text) for g in emit_c(system, "model", outputs=_computed(outputs))]
     if key is not None:
         generated.append(identity_source(key, nq, nparam))
     library = native.compile_library(generated, "model")
