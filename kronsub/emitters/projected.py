@@ -39,7 +39,7 @@ ROUTES = ("auto", "expanded", "projected")
 """How the C's ``Mbar``, ``hbar`` and ``fbar`` are computed: ``expanded`` (the derived
 expressions), ``projected`` (this module), ``auto`` (by :func:`projected_by_size`)."""
 
-PROJECTED_FROM = 14
+PROJECTED_FROM = 12
 """Coordinates from which ``auto`` takes the projected route (benchmarks/README.md,
 ``first_trajectory.py``): below it the expanded right-hand side is quicker per call."""
 
