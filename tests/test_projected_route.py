@@ -83,7 +83,7 @@ def _states(system, count, seed=3):
 
 
 MODELS_PROJECTED = {
-    "chain8": lambda: chain_yaml(8),
+    "chain4": lambda: chain_yaml(4),
     "chain5_hinges": lambda: chain_yaml(5, hinges=True),  # springs and dampers: f names x and xdot
     "spatial2": lambda: spatial_chain_yaml(2),  # rigid bodies: M(x) and h(x, xdot) of the primitive
 }

@@ -111,10 +111,14 @@ def belongs(library: Path, key: str, nq: int, nparam: int) -> bool:
         return False
 
 
-def _computed(outputs: Outputs | None) -> Outputs:
-    """What a library computes of ``outputs``: no named points (a run's table takes them from
-    the numpy module), so neither their emission nor their compilation is paid for."""
-    return dataclasses.replace(outputs or Outputs(), points=())
+def generated_sources(system: KnownSystem, outputs=None) -> list[tuple[str, str]]:
+    """The model's C files a library is built from: the named points left out of ``outputs``
+    (a run's table takes them from the numpy module), so neither their emission nor their
+    compilation is paid for."""
+    from ..emitters.code import emit_c  # heavy (jinja2, the C printer): only when the index misses
+
+    computed = dataclasses.replace(outputs or Outputs(), points=())
+    return [(g.name, g.text) for g in emit_c(system, "model", outputs=computed)]
 
 
 def compiled_library(system: KnownSystem, outputs=None) -> Path:
@@ -122,15 +126,13 @@ def compiled_library(system: KnownSystem, outputs=None) -> Path:
     when its fingerprint is there and the library says it computes these equations
     (:func:`belongs`), else emitted, built (:func:`.native.compile_library`) and indexed.
     Raises what ``compile_library`` raises."""
-    from ..emitters.code import emit_c  # heavy (jinja2, the C printer): only when the index misses
-
     key = fingerprint(system, outputs)
     nq, nparam = len(system.coordinates), len(system.parameters)
     if key is not None:
         library = lookup(key)
         if library is not None and belongs(library, key, nq, nparam):
             return library
-    generated = [(g.name, g.text) for g in emit_c(system, "model", outputs=_computed(outputs))]
+    generated = generated_sources(system, outputs)
     if key is not None:
         generated.append(identity_source(key, nq, nparam))
     library = native.compile_library(generated, "model")
@@ -155,5 +157,5 @@ def native_model(system: KnownSystem, outputs=None) -> native.NativeModel:
     raise AssertionError("unreachable")
 
 
-__all__ = ["IDENTITY_FILE", "INDEX_BYTES", "belongs", "compiled_library", "fingerprint", "identity_source", "lookup",
-           "native_model", "record"]
+__all__ = ["IDENTITY_FILE", "INDEX_BYTES", "belongs", "compiled_library", "fingerprint", "generated_sources",
+           "identity_source", "lookup", "native_model", "record"]
