@@ -347,8 +347,8 @@ def prepare(system: KnownSystem, source: str = "", outputs=None, guarded_angles:
     constants = _Constants(list(p_slots.values()))
     projected = None
     if route == "projected" or (route == "auto" and system.implicit is None and projected_by_size(system)):
-        # no rewritings: in a large system's potential and points they took a third of the
-        # emission (a 100-link chain), and the projection's entries are short already
+        # no rewritings: in a large system's potential and points they cost more than the
+        # elimination itself, and the projection's entries are short already
         block = functools.partial(_block, rewrite=False)
         projected = projected_code(system, slot, constants, lambda t, e: block(t, e, "x", qs, guarded_angles))
         mass = velocity_terms = forces = equations = canonical = Block((), ())
