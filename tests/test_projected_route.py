@@ -166,3 +166,15 @@ def test_the_projected_code_is_the_same_under_any_hash_seed(tmp_path):
         assert proc.returncode == 0, proc.stderr
         texts.append(proc.stdout)
     assert texts[0] == texts[1] and "project_metric" in texts[0]
+
+
+@needs_cc
+def test_a_simulation_of_a_model_at_the_threshold_keeps_its_energy():
+    """The whole run (the library built with the projected route, the circle state, the
+    energies from the projected Mbar) against the invariant T + V."""
+    system = kronsub.load("at.yaml", text=chain_yaml(PROJECTED_FROM)).derive()
+    assert projected_by_size(system)
+    table = system.simulate(t=2.0, set={"q1": 0.9, "q3": -0.4})
+    energy, potential = np.asarray(table["total_energy"]), np.asarray(table["potential_energy"])
+    assert len(energy) > 100 and np.ptp(potential) > 1.0  # it moved
+    assert np.max(np.abs(energy - energy[0])) < 1e-9 * np.max(np.abs(potential))
