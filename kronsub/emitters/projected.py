@@ -11,11 +11,10 @@ entries, one per component) and the transformation ``C = dx/dxbar`` (7'), (21), 
 short expressions: the distinct entries of ``C`` (``cv``) and their rates ``d C/dt`` (``dv``,
 so ``Cdot xbardot`` and ``Cdot`` are sums over the same pattern), the nonzero entries of ``M``
 (``Mp``), ``h`` and ``f`` (``hp``, ``fp``), the primitive velocities written as ``C xbardot``.
-``Mbar_jk = sum_ab C_aj M_ab C_bk`` is summed over the distinct pairs of bases
-``(cv_u, cv_v)``, each entry of ``C`` a constant times a base (``l1*cos(q1)/2``: ``cos(q1)``),
-each pair with the sum of the ``M_ab`` it meets times the entries' constants (``Mw``: for
+``Mbar_jk = sum_ab C_aj M_ab C_bk`` is summed over the distinct pairs of values
+``(C_aj, C_bk) = (cv_u, cv_v)``, each with the sum of the ``M_ab`` it meets (``Mw``: for
 constant inertias a constant, which ``prepare`` computes once), so rows of ``C`` equal within
-a column up to a constant (the links below a joint) are multiplied once.
+a column (the links below a joint) are multiplied once.
 The canonical form's ``dT/dxbar = Cdot^T M xdot + C^T dT/dx`` (Lagrange's (A) through the
 connection; ``Cdot^a_alpha = d xdot^a / d xbar^alpha``) takes ``dT/dx`` of the primitive
 (``tp``). The sparse patterns of ``C`` and ``M`` become tables the generated loops walk.
@@ -52,8 +51,7 @@ class ProjectedCode:
     ``c_rows[a]``: the nonzero entries of row ``a`` of ``C`` as (column, index into ``cv``);
     ``m_rows[a]``: the nonzero entries of row ``a`` of ``M`` as (column, index into ``Mp``);
     ``terms``: ``Mbar``'s upper triangle as (index ``j n + k``, ``u``, ``v``, index into ``Mw``),
-    ``Mbar_jk`` the sum of ``cv_u cv_v Mw_w`` over its terms (``u``, ``v`` bases, which may
-    follow the entries of ``C`` in ``cv``)."""
+    ``Mbar_jk`` the sum of ``cv_u cv_v Mw_w`` over its terms."""
 
     n_primitive: int
     n_values: int
@@ -83,15 +81,6 @@ def _starts(rows) -> list[int]:
     for row in rows:
         starts.append(starts[-1] + len(row))
     return starts
-
-
-def _split(e: sympy.Expr, coordinates: set) -> tuple[sympy.Expr, sympy.Expr]:
-    """``e`` as (the factors free of the coordinates, the rest)."""
-    if not e.free_symbols & coordinates:
-        return e, sympy.Integer(1)
-    factors = sympy.Mul.make_args(e)
-    return (sympy.Mul(*[f for f in factors if not f.free_symbols & coordinates]),
-            sympy.Mul(*[f for f in factors if f.free_symbols & coordinates]))
 
 
 def applies(system: KnownSystem) -> bool:
@@ -157,35 +146,24 @@ def projected_code(system: KnownSystem, slot: Callable, constants: Callable,
                 m_exprs.append(e)
             row.append((b, entries[key]))
         m_rows.append(tuple(row))
-    # an entry of C as a constant times a base (l1*cos(q1)/2 = l1/2 * cos(q1)); the bases not
-    # among the entries follow them in cv
-    scale, base_of = [], []
-    numbered = dict(values)
-    for e in distinct:
-        k, base = _split(e, set(system.coordinates))
-        scale.append(k)
-        base_of.append(numbered.setdefault(base, len(numbered)))
-    bases = list(numbered)[len(distinct):]
-    # Mbar_jk = sum over the pairs of bases (cv_u, cv_v) met of cv_u cv_v (the sum of the
-    # M_ab met with them, times the entries' constants)
-    pairs: dict[tuple[int, int], dict[tuple[int, int], list[tuple[int, int, int]]]] = {}
+    # Mbar_jk = sum over the pairs (cv_u, cv_v) met of cv_u cv_v (sum of the M_ab met with them)
+    pairs: dict[tuple[int, int], dict[tuple[int, int], list[int]]] = {}
     for a in range(nx):
         for j, u in c_rows[a]:
             for b, e in m_rows[a]:
                 for k, v in c_rows[b]:
                     if k >= j:
-                        bu, bv = base_of[u], base_of[v]
-                        key = (bu, bv) if k > j or bu <= bv else (bv, bu)
-                        pairs.setdefault((j, k), {}).setdefault(key, []).append((u, e, v))
+                        key = (u, v) if k > j or u <= v else (v, u)
+                        pairs.setdefault((j, k), {}).setdefault(key, []).append(e)
     weights: dict[sympy.Expr, int] = {}
-    summed: dict[tuple, sympy.Expr] = {}  # the same entries met by many pairs: summed once
+    summed: dict[tuple[int, ...], sympy.Expr] = {}  # the same entries met by many pairs: summed once
     terms = []
     for (j, k) in sorted(pairs):
-        for (u, v), met in pairs[j, k].items():
-            met = tuple(sorted(met))
+        for (u, v), es in pairs[j, k].items():
+            met = tuple(sorted(es))
             w = summed.get(met)
             if w is None:
-                w = summed[met] = sympy.Add(*[scale[a] * m_exprs[e] * scale[b] for a, e, b in met])
+                w = summed[met] = sympy.Add(*[m_exprs[e] for e in met])
             if w != 0:
                 terms.append((j * n + k, u, v, weights.setdefault(w, len(weights))))
 
@@ -201,9 +179,9 @@ def projected_code(system: KnownSystem, slot: Callable, constants: Callable,
             if x in index:
                 dT[index[x]] += derivative(m_exprs[k], x) * xd[b] * xd[c] * (1 if b == c else 2) / 2
 
-    shared_targets = [f"cv[{u}]" for u in range(len(numbered))] + [f"dv[{u}]" for u in range(len(distinct))] \
+    shared_targets = [f"cv[{u}]" for u in range(len(distinct))] + [f"dv[{u}]" for u in range(len(distinct))] \
         + [f"Mp[{k}]" for k in range(len(m_exprs))] + [f"Mw[{w}]" for w in range(len(weights))]
-    shared = [constants(slot(e)) for e in distinct + bases] + [constants(slot(e)) for e in rates] \
+    shared = [constants(slot(e)) for e in distinct] + [constants(slot(e)) for e in rates] \
         + [image(e) for e in m_exprs] + [image(e) for e in weights]
 
     def vector(name: str, column) -> tuple[list[str], list[sympy.Expr]]:
@@ -215,7 +193,7 @@ def projected_code(system: KnownSystem, slot: Callable, constants: Callable,
     t_targets, t_exprs = vector("tp", dT)
     return ProjectedCode(
         n_primitive=nx,
-        n_values=len(numbered),
+        n_values=len(distinct),
         n_metric=len(m_exprs),
         n_weights=len(weights),
         c_rows=tuple(c_rows),
