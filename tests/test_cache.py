@@ -357,13 +357,12 @@ def _library(system) -> Path:
     """The library ``simulate`` builds for ``system`` (the generated C, its identity, the
     integrators), built but not loaded here (a test that changes it in place would change this
     process's mapped copy)."""
-    from kronsub.emitters.code import emit_c
     from kronsub.simulation import compiled
     from kronsub.simulation.native import compile_library
 
     identity = compiled.identity_source(compiled.fingerprint(system), len(system.coordinates),
                                         len(system.parameters))
-    return compile_library([(g.name, g.text) for g in emit_c(system, "model")] + [identity], "model")
+    return compile_library([*compiled.generated_sources(system), identity], "model")
 
 
 def _simulate(cache_folder: Path, *args) -> subprocess.CompletedProcess:

@@ -16,11 +16,13 @@ from sympy.printing.numpy import NumPyPrinter
 
 from ..collector import collector_paused
 from ..core.known_system import KnownSystem
+from ..errors import KronsubError
 from ..version import __version__
 from .escape import Markup
 from .circle import circle_equations
 from .block import Block
 from .numeric import GUARD, NumericModel, identifier, prepare
+from .projected import ROUTES, applies
 from .text import template_environment
 
 
@@ -172,18 +174,30 @@ def _context(model: NumericModel, show, declare: str, end: str) -> dict:
 
 @collector_paused()  # see kronsub.collector
 def emit_c(system: KnownSystem, stem: str, source: str = "", prefix: str = "ks",
-           outputs=None, jacobian: bool = False) -> list[GeneratedFile]:
+           outputs=None, jacobian: bool = False, route: str = "auto") -> list[GeneratedFile]:
     """``<stem>.h`` and ``<stem>.c`` (``stem`` made safe by :func:`file_stem`): C99, libc and
     libm only; names start with ``<prefix>_`` (macros with ``<PREFIX>_``), so several models
     can live in one program. A scene's ``outputs`` leave out the energy and point functions
-    it does not ask for; ``jacobian`` adds ``<prefix>_jacobian``, the exact ``d ydot/dy``."""
-    model = prepare(system, source, outputs, guarded_angles=True, jacobian=jacobian)
+    it does not ask for; ``jacobian`` adds ``<prefix>_jacobian``, the exact ``d ydot/dy``.
+    ``route`` (:data:`.projected.ROUTES`): ``Mbar``, ``hbar`` and ``fbar`` from the derived
+    expressions or projected at run time (:mod:`.projected`)."""
+    if route not in ROUTES:
+        raise ValueError(f"route must be one of {', '.join(ROUTES)}, not {route!r}")
+    if route == "projected" and (not applies(system) or jacobian):
+        raise KronsubError("cannot keep the projection for run time: the system has a closed loop, a "
+                           "prescribed motion, velocity constraints, first-order coordinates, an effect "
+                           "applied in the subspace or no primitive, or the exact Jacobian is asked for")
+    model = prepare(system, source, outputs, guarded_angles=True, jacobian=jacobian, route=route)
     p = identifier(prefix)
     printer = _CPrinter(p)
     ctx = _context(model, printer.doprint, "const double ", ";")
     circle, circle_block = ((), None)
-    if model.implicit is None and not model.first_order and not model.speeds:  # the circle state (circle.py): angles as (cos q, sin q)
-        circle, circle_block = circle_equations(model.equations, [sympy.Symbol(f"q[{i}]") for i in range(model.n)])
+    if model.projected is not None:
+        ctx["b"]["projected"] = _lines(model.projected.block, printer.doprint, "const double ", ";")
+        ctx["b"]["projected_kinetic"] = _lines(model.projected.kinetic, printer.doprint, "const double ", ";")
+    if model.implicit is None and not model.first_order and not model.speeds:  # the circle state (circle.py)
+        rhs = model.equations if model.projected is None else model.projected.block
+        circle, circle_block = circle_equations(rhs, [sympy.Symbol(f"q[{i}]") for i in range(model.n)])
     if circle_block is not None:
         ctx["b"]["circle"] = _lines(circle_block, printer.doprint, "const double ", ";")
     ctx["circle"] = [(k, i, model.coordinates[i]) for k, i in enumerate(circle)]

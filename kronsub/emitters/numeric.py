@@ -29,6 +29,7 @@ from ..core.symbols import TIME, free_symbols_of
 from ..errors import KronsubError
 from .block import Block
 from .numeric_implicit import ImplicitCode, implicit_code, intermediate_slots
+from .projected import ProjectedCode, projected_by_size, projected_code
 
 
 @dataclass(frozen=True)
@@ -58,6 +59,7 @@ class NumericModel:
     jacobian: Block | None = None  # d ydot/dy: V (rates of q, n x 2n), K = dr/dy (n x 2n), G = dMbar/dq_k (n x n x n)
     speeds: tuple[str, ...] = ()  # under velocity constraints: the speeds u, the state [q; u]
     kinematics: Block | None = None  # qdot = C(q) u into xd[] (in pre[])
+    projected: ProjectedCode | None = None  # Mbar, hbar, fbar formed at run time (the blocks above empty)
 
     @property
     def n(self) -> int:
@@ -254,11 +256,11 @@ class _Rewritings:
 
 
 def _block(targets: list[str], exprs: list[sympy.Expr], prefix: str, coordinates=(), guarded: bool = False,
-           rewritings: _Rewritings | None = None, plain: int = 0) -> Block:
+           rewritings: _Rewritings | None = None, plain: int = 0, rewrite: bool = True) -> Block:
     exprs = _single_angles(exprs, coordinates, guarded, plain)
     symbols = sympy.numbered_symbols(prefix)
     basic = None
-    if not _more_nodes_than(exprs, BASIC_NODES):
+    if rewrite and not _more_nodes_than(exprs, BASIC_NODES):
         basic = (rewritings or _Rewritings()).optimizations()
     replacements, reduced = sympy.cse(exprs, symbols=symbols, optimizations=basic, order="canonical")
     return Block(tuple(replacements), tuple(zip(targets, reduced)))
@@ -297,7 +299,7 @@ def jacobian_block(system: KnownSystem, first, slot) -> tuple[list[str], list[sy
 
 
 def prepare(system: KnownSystem, source: str = "", outputs=None, guarded_angles: bool = False,
-            jacobian: bool = False) -> NumericModel:
+            jacobian: bool = False, route: str = "expanded") -> NumericModel:
     """Map the system's symbols to array slots and eliminate common subexpressions.
 
     ``outputs`` (a scene's :class:`~kronsub.model.scenes.Outputs`; None: everything) leaves
@@ -305,7 +307,10 @@ def prepare(system: KnownSystem, source: str = "", outputs=None, guarded_angles:
     (the C): the right-hand sides take sines and cosines of several coordinates from
     single-angle ones where that keeps their accuracy (:func:`_guarded`), and always in
     ``Mbar`` (:func:`_single_angles`). ``jacobian``: also the blocks of ``d ydot/dy``
-    (:func:`jacobian_block`; not with implicit constraints)."""
+    (:func:`jacobian_block`; not with implicit constraints). ``route`` (:data:`.projected.ROUTES`):
+    ``projected`` keeps the projection for run time (:mod:`.projected`; the caller checks that it
+    applies), ``auto`` does so for a large system (never with first-order coordinates, velocity
+    constraints or the exact Jacobian)."""
     energies = outputs is None or outputs.energies
     with_points = outputs is None or bool(outputs.points)
     speeds = system.speeds  # under velocity constraints: the equations in the speeds, the state [q; u]
@@ -353,60 +358,67 @@ def prepare(system: KnownSystem, source: str = "", outputs=None, guarded_angles:
     timed = system.transition is not None and depends_on_time(dict(system.transition.connection))
     if speeds is not None:  # A xdot + b(x, t) = 0: hbar holds d(t)'s terms
         timed = timed or TIME in free_symbols_of([speeds.velocity_terms])
-    r = forces_of - velocity_terms_of
-    targets = [f"M[{i * n + j}]" for i in range(n) for j in range(n)]
-    exprs = [slot(M[i, j]) for i in range(n) for j in range(n)]
-    r_targets = [f"r[{i}]" for i in range(n)]
     qs = tuple(q_slots.values())
     constants = _Constants(list(p_slots.values()))
     first = first_order(system) if speeds is None else None
-    if first is None:
-        equations = block(targets + r_targets, [constants(e) for e in exprs + [slot(e) for e in r]], "x", qs,
-                          guarded_angles, plain=len(targets))
-    else:  # the mixed system (core/first_order.py): M_JJ = 1, r_J = 0, qdot_J into r[n:]
-        r = r.xreplace(first.substitution(system))
-        solved = [slot(M[i, j]) if i not in first.indices else sympy.Integer(int(i == j))
-                  for i in range(n) for j in range(n)]
-        rates = [slot(r[i]) if i not in first.indices else sympy.Integer(0) for i in range(n)]
-        currents = [slot(v) for v in first.velocities]
-        equations = block(targets + r_targets + [f"r[{n + k}]" for k in range(len(currents))],
-                          [constants(e) for e in solved + rates + currents], "x", qs, guarded_angles,
-                          plain=len(targets))
-    mass = block(targets, exprs, "x", qs)
-    velocity_terms = block([f"h[{i}]" for i in range(n)], [slot(e) for e in velocity_terms_of], "x", qs)
-    forces = block([f"f[{i}]" for i in range(n)], [slot(e) for e in forces_of], "x", qs)
-    kinematics = None
-    if speeds is not None:  # qdot = C(q) u
-        kinematics = block([f"xd[{i}]" for i in range(len(qs))], [constants(slot(e)) for e in speeds.kinematics],
-                           "x", qs)
+    kinematics = exact = projected = None
+    r_targets = [f"r[{i}]" for i in range(n)]
+    if speeds is None and first is None and not jacobian and (
+            route == "projected" or (route == "auto" and system.implicit is None and projected_by_size(system))):
+        # no rewritings: in a large system's potential and points they cost more than the
+        # elimination itself, and the projection's entries are short already
+        block = functools.partial(_block, rewrite=False)
+        projected = projected_code(system, slot, constants, lambda t, e: block(t, e, "x", qs, guarded_angles))
+        mass = velocity_terms = forces = equations = canonical = Block((), ())
+    else:
+        r = forces_of - velocity_terms_of
+        targets = [f"M[{i * n + j}]" for i in range(n) for j in range(n)]
+        exprs = [slot(M[i, j]) for i in range(n) for j in range(n)]
+        if first is None:
+            equations = block(targets + r_targets, [constants(e) for e in exprs + [slot(e) for e in r]], "x", qs,
+                              guarded_angles, plain=len(targets))
+        else:  # the mixed system (core/first_order.py): M_JJ = 1, r_J = 0, qdot_J into r[n:]
+            r = r.xreplace(first.substitution(system))
+            solved = [slot(M[i, j]) if i not in first.indices else sympy.Integer(int(i == j))
+                      for i in range(n) for j in range(n)]
+            rates = [slot(r[i]) if i not in first.indices else sympy.Integer(0) for i in range(n)]
+            currents = [slot(v) for v in first.velocities]
+            equations = block(targets + r_targets + [f"r[{n + k}]" for k in range(len(currents))],
+                              [constants(e) for e in solved + rates + currents], "x", qs, guarded_angles,
+                              plain=len(targets))
+        mass = block(targets, exprs, "x", qs)
+        velocity_terms = block([f"h[{i}]" for i in range(n)], [slot(e) for e in velocity_terms_of], "x", qs)
+        forces = block([f"f[{i}]" for i in range(n)], [slot(e) for e in forces_of], "x", qs)
+        if speeds is not None:  # qdot = C(q) u
+            kinematics = block([f"xd[{i}]" for i in range(len(qs))], [constants(slot(e)) for e in speeds.kinematics],
+                               "x", qs)
 
-    qd = list(system.velocities)
-    dTdq = []
-    depends = [[M[i, j].free_symbols for j in range(n)] for i in range(n)]
-    derivatives: dict = {}  # (entry, q): the symmetric entries are differentiated once
-    for k, qk in enumerate(system.coordinates if speeds is None else ()):
-        terms = []  # summed at once: a sum grown term by term is rebuilt n^2 times
-        for i in range(n):
-            for j in range(n):
-                if qk not in depends[i][j]:
-                    continue
-                d = derivatives.get((M[i, j], qk))
-                if d is None:
-                    d = derivatives[M[i, j], qk] = derivative(M[i, j], qk)
-                if d != 0:
-                    terms.append(d * qd[i] * qd[j] / 2)
-        dTdq.append(sympy.Add(*terms, system.forces[k]))
-    if timed:  # hbar is not Lagrange's operator on Mbar: dp/dt = fbar - hbar + (dMbar/dq^i qdot^i) qdot
-        dTdq = [system.forces[k] - system.velocity_terms[k]
-                + sum((derivative(M[k, j], qi) * qd[i] * qd[j] for j in range(n)
-                       for i, qi in enumerate(system.coordinates) if qi in depends[k][j]), sympy.Integer(0))
-                for k in range(n)]
-    if speeds is not None:  # no canonical form in the speeds: Mbar udot is not dp/dt
-        dTdq = [sympy.Integer(0)] * n
-    canonical = block(r_targets, [constants(slot(e)) for e in dTdq], "x", qs, guarded_angles)
-    exact = None
-    if jacobian and system.implicit is None and speeds is None:
-        exact = block(*jacobian_block(system, first, lambda e: constants(slot(e))), "x", qs, guarded_angles)
+        qd = list(system.velocities)
+        dTdq = []
+        depends = [[M[i, j].free_symbols for j in range(n)] for i in range(n)]
+        derivatives: dict = {}  # (entry, q): the symmetric entries are differentiated once
+        for k, qk in enumerate(system.coordinates if speeds is None else ()):
+            terms = []  # summed at once: a sum grown term by term is rebuilt n^2 times
+            for i in range(n):
+                for j in range(n):
+                    if qk not in depends[i][j]:
+                        continue
+                    d = derivatives.get((M[i, j], qk))
+                    if d is None:
+                        d = derivatives[M[i, j], qk] = derivative(M[i, j], qk)
+                    if d != 0:
+                        terms.append(d * qd[i] * qd[j] / 2)
+            dTdq.append(sympy.Add(*terms, system.forces[k]))
+        if timed:  # hbar is not Lagrange's operator on Mbar: dp/dt = fbar - hbar + (dMbar/dq^i qdot^i) qdot
+            dTdq = [system.forces[k] - system.velocity_terms[k]
+                    + sum((derivative(M[k, j], qi) * qd[i] * qd[j] for j in range(n)
+                           for i, qi in enumerate(system.coordinates) if qi in depends[k][j]), sympy.Integer(0))
+                    for k in range(n)]
+        if speeds is not None:  # no canonical form in the speeds: Mbar udot is not dp/dt
+            dTdq = [sympy.Integer(0)] * n
+        canonical = block(r_targets, [constants(slot(e)) for e in dTdq], "x", qs, guarded_angles)
+        if jacobian and system.implicit is None and speeds is None:
+            exact = block(*jacobian_block(system, first, lambda e: constants(slot(e))), "x", qs, guarded_angles)
     prepare = block(*constants.definitions(), "c")
 
     potential = block(["V"], [slot(system.potential_energy)], "x", qs) if energies else Block((), ())
@@ -449,6 +461,7 @@ def prepare(system: KnownSystem, source: str = "", outputs=None, guarded_angles:
         jacobian=exact,
         speeds=tuple(u.name for u in velocities) if speeds is not None else (),
         kinematics=kinematics,
+        projected=projected,
     )
 
 

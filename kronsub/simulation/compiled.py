@@ -24,6 +24,7 @@ from ..cache import load_entry, private_folder, store_entry
 from ..core.known_system import KnownSystem
 from ..model import cache_format
 from ..model.derive import content_key
+from ..model.scenes import Outputs
 from . import native
 
 _FOLDER = re.compile(r"[A-Za-z0-9_]+-[0-9a-f]{24}")
@@ -112,21 +113,29 @@ def belongs(library: Path, key: str, nq: int, nparam: int) -> bool:
         return False
 
 
+def generated_sources(system: KnownSystem, outputs=None, jacobian: bool = False) -> list[tuple[str, str]]:
+    """The model's C files a library is built from: the named points left out of ``outputs``
+    (a run's table takes them from the numpy module), so neither their emission nor their
+    compilation is paid for; ``jacobian``: with the exact ``d ydot/dy`` (``ks_jacobian``)."""
+    from ..emitters.code import emit_c  # heavy (jinja2, the C printer): only when the index misses
+
+    computed = dataclasses.replace(outputs or Outputs(), points=())
+    return [(g.name, g.text) for g in emit_c(system, "model", outputs=computed, jacobian=jacobian)]
+
+
 def compiled_library(system: KnownSystem, outputs=None, jacobian: bool = False) -> Path:
     """The shared library of ``system``'s generated C with the integrators: from the index
     when its fingerprint is there and the library says it computes these equations
     (:func:`belongs`), else emitted, built (:func:`.native.compile_library`) and indexed.
     ``jacobian``: with the exact ``d ydot/dy`` (``ks_jacobian``). Raises what ``compile_library``
     raises."""
-    from ..emitters.code import emit_c  # heavy (jinja2, the C printer): only when the index misses
-
     key = fingerprint(system, outputs, jacobian)
     nq, nparam = len(system.coordinates), len(system.parameters)
     if key is not None:
         library = lookup(key)
         if library is not None and belongs(library, key, nq, nparam):
             return library
-    generated = [(g.name, g.text) for g in emit_c(system, "model", outputs=outputs, jacobian=jacobian)]
+    generated = generated_sources(system, outputs, jacobian)
     if key is not None:
         generated.append(identity_source(key, nq, nparam))
     library = native.compile_library(generated, "model")
@@ -151,5 +160,5 @@ def native_model(system: KnownSystem, outputs=None, jacobian: bool = False) -> n
     raise AssertionError("unreachable")
 
 
-__all__ = ["IDENTITY_FILE", "INDEX_BYTES", "belongs", "compiled_library", "fingerprint", "identity_source", "lookup",
-           "native_model", "record"]
+__all__ = ["IDENTITY_FILE", "INDEX_BYTES", "belongs", "compiled_library", "fingerprint", "generated_sources",
+           "identity_source", "lookup", "native_model", "record"]

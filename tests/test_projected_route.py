@@ -1,0 +1,180 @@
+"""The projection kept at run time in the generated C (emitters/projected.py).
+
+Independent routes: the projected C's ``Mbar``, ``hbar``, ``fbar`` against the derived symbolic
+expressions, and every right-hand side (``[q; qdot]``, the circle state, the canonical form)
+against the expanded C of the same model, at random states; energy over a run of the projected
+right-hand side; the choice by size leaving smaller models' code as it was.
+"""
+from __future__ import annotations
+
+import ctypes
+import os
+import shutil
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+import sympy
+from scipy.integrate import solve_ivp
+
+import kronsub
+from conftest import MODELS
+from kronsub.emitters.code import emit_c
+from kronsub.emitters.projected import PROJECTED_FROM, applies, projected_by_size
+from kronsub.errors import KronsubError
+
+sys.path.insert(0, str(MODELS / "chain"))
+from generate import chain_yaml  # noqa: E402
+from generate_spatial import spatial_chain_yaml  # noqa: E402
+
+needs_cc = pytest.mark.skipif(shutil.which("gcc") is None, reason="no C compiler")
+CFLAGS = ["-std=c99", "-Wall", "-Wextra", "-Werror", "-O2"]
+DOUBLE = ctypes.c_double
+
+
+def _library(system, route, folder):
+    folder.mkdir()
+    for generated in emit_c(system, "model", route=route):
+        (folder / generated.name).write_text(generated.text)
+    subprocess.run(["gcc", *CFLAGS, "-fPIC", "-shared", "model.c", "-o", "lib.so", "-lm"], cwd=folder, check=True,
+                   capture_output=True, text=True)
+    lib = ctypes.CDLL(str(folder / "lib.so"))
+    for name in ("ks_kinetic_energy", "ks_potential_energy"):
+        getattr(lib, name).restype = DOUBLE
+    return lib
+
+
+def _array(values):
+    return (DOUBLE * len(values))(*values)
+
+
+def _evaluate(lib, n, t, y, param) -> dict:
+    """Every function of the generated C that the projection computes, at one state."""
+    yc, pc, qd = _array(y), _array(param), _array(y[n:])
+    out = {name: (DOUBLE * size)() for name, size in (("M", n * n), ("h", n), ("f", n), ("rhs", 2 * n),
+                                                      ("canonical", 2 * n), ("momentum", 2 * n))}
+    lib.ks_mass_matrix(yc, pc, out["M"])
+    lib.ks_velocity_terms(yc, qd, pc, out["h"])
+    lib.ks_forces(DOUBLE(t), yc, qd, pc, out["f"])
+    assert lib.ks_rhs(DOUBLE(t), yc, pc, out["rhs"]) == 0
+    lib.ks_momentum(yc, pc, out["momentum"])
+    assert lib.ks_rhs_canonical(DOUBLE(t), out["momentum"], pc, out["canonical"]) == 0
+    values = {name: np.array(v[:]) for name, v in out.items()}
+    nc = lib.ks_ncircle()
+    if nc:
+        z, zdot = (DOUBLE * (2 * n + 2 * nc))(), (DOUBLE * (2 * n + 2 * nc))()
+        lib.ks_circle_state(yc, z)
+        assert lib.ks_rhs_circle(DOUBLE(t), z, pc, zdot) == 0
+        values["circle"] = np.array(zdot[:2 * n])
+    return values
+
+
+def _close(a, b, rtol=1e-12):
+    """Equal to ``rtol`` relative to the largest entry of ``b``."""
+    return np.allclose(a, b, rtol=rtol, atol=rtol * max(1.0, float(np.max(np.abs(b)))))
+
+
+def _states(system, count, seed=3):
+    rng = np.random.default_rng(seed)
+    n = len(system.coordinates)
+    for _ in range(count):
+        yield rng.uniform(0, 2), rng.uniform(-1.0, 1.0, 2 * n), rng.uniform(0.5, 1.5, len(system.parameters))
+
+
+MODELS_PROJECTED = {
+    "chain4": lambda: chain_yaml(4),
+    "chain5_hinges": lambda: chain_yaml(5, hinges=True),  # springs and dampers: f names x and xdot
+    "spatial2": lambda: spatial_chain_yaml(2),  # rigid bodies: M(x) and h(x, xdot) of the primitive
+}
+
+
+@needs_cc
+@pytest.mark.parametrize("name", sorted(MODELS_PROJECTED))
+def test_the_projected_c_computes_the_expanded_equations(name, tmp_path):
+    """Mbar = C^T M C, hbar, fbar (9'), (D)-(F) at run time: the derived expressions' values,
+    and every right-hand side the expanded C's, at random states."""
+    system = kronsub.load(f"{name}.yaml", text=MODELS_PROJECTED[name]()).derive()
+    assert applies(system)
+    n = len(system.coordinates)
+    projected = _library(system, "projected", tmp_path / "projected")
+    expanded = _library(system, "expanded", tmp_path / "expanded")
+    syms = [*system.coordinates, *system.velocities, *(p.symbol for p in system.parameters), sympy.Symbol("t", real=True)]
+    symbolic = sympy.lambdify(syms, [system.mass_matrix, system.velocity_terms, system.forces], modules="numpy",
+                              dummify=True)
+    for t, y, param in _states(system, 20):
+        M, h, f = (np.array(v, float) for v in symbolic(*y, *param, t))
+        got, want = _evaluate(projected, n, t, y, param), _evaluate(expanded, n, t, y, param)
+        assert _close(got["M"].reshape(n, n), M) and _close(got["h"], h.ravel()) and _close(got["f"], f.ravel())
+        assert _close(got["rhs"][n:], np.linalg.solve(M, f.ravel() - h.ravel()), 1e-11)
+        assert set(got) == set(want)
+        for key in want:
+            assert _close(got[key], want[key], 1e-11), key
+
+
+@needs_cc
+def test_a_run_of_the_projected_right_hand_side_keeps_its_energy(tmp_path):
+    system = kronsub.load("chain4.yaml", text=chain_yaml(4)).derive()
+    lib = _library(system, "projected", tmp_path / "projected")
+    param = _array([float(p.value) for p in system.parameters])
+    n = len(system.coordinates)
+
+    def rhs(t, y):
+        out = (DOUBLE * (2 * n))()
+        assert lib.ks_rhs(DOUBLE(t), _array(y), param, out) == 0
+        return out[:]
+
+    def energy(y):
+        return lib.ks_kinetic_energy(_array(y), param) + lib.ks_potential_energy(DOUBLE(0.0), _array(y), param)
+
+    y0 = [0.8, -0.4, 0.3, 1.0, 0.0, 0.5, -0.2, 0.0]
+    run = solve_ivp(rhs, (0.0, 3.0), y0, method="DOP853", rtol=1e-11, atol=1e-11)
+    assert run.success
+    e0 = energy(y0)
+    assert max(abs(energy(y) - e0) for y in run.y.T) < 1e-8 * max(1.0, abs(e0))
+
+
+def test_the_route_is_chosen_by_size_and_smaller_models_keep_their_code():
+    for path in ("hoffmann/system1.yaml", "examples/double_pendulum.yaml"):
+        system = kronsub.load(MODELS / path).derive()
+        assert [g.text for g in emit_c(system, "m")] == [g.text for g in emit_c(system, "m", route="expanded")]
+    below = kronsub.load("below.yaml", text=chain_yaml(PROJECTED_FROM - 1)).derive()
+    assert applies(below) and not projected_by_size(below)
+    at = kronsub.load("at.yaml", text=chain_yaml(PROJECTED_FROM)).derive()
+    assert projected_by_size(at) and "project_metric" in emit_c(at, "m")[1].text
+
+
+def test_a_closed_loop_is_not_projected_at_run_time():
+    system = kronsub.load(MODELS / "examples" / "four_bar.yaml").derive()
+    assert not applies(system)
+    with pytest.raises(KronsubError, match="closed loop"):
+        emit_c(system, "m", route="projected")
+    with pytest.raises(ValueError, match="route"):
+        emit_c(system, "m", route="sideways")
+
+
+def test_the_projected_code_is_the_same_under_any_hash_seed(tmp_path):
+    script = ("import sys; sys.path.insert(0, sys.argv[1]); from generate import chain_yaml; import kronsub; "
+              "from kronsub.emitters.code import emit_c; "
+              "s = kronsub.load('c.yaml', text=chain_yaml(3, hinges=True)).derive(); "
+              "sys.stdout.write(''.join(g.text for g in emit_c(s, 'm', route='projected')))")
+    texts = []
+    for seed in ("1", "777"):
+        env = dict(os.environ, PYTHONHASHSEED=seed, KRONSUB_CACHE_DIR=str(tmp_path / seed))
+        proc = subprocess.run([sys.executable, "-c", script, str(MODELS / "chain")], capture_output=True, env=env,
+                              text=True)
+        assert proc.returncode == 0, proc.stderr
+        texts.append(proc.stdout)
+    assert texts[0] == texts[1] and "project_metric" in texts[0]
+
+
+@needs_cc
+def test_a_simulation_of_a_model_at_the_threshold_keeps_its_energy():
+    """The whole run (the library built with the projected route, the circle state, the
+    energies from the projected Mbar) against the invariant T + V."""
+    system = kronsub.load("at.yaml", text=chain_yaml(PROJECTED_FROM)).derive()
+    assert projected_by_size(system)
+    table = system.simulate(t=2.0, set={"q1": 0.9, "q3": -0.4})
+    energy, potential = np.asarray(table["total_energy"]), np.asarray(table["potential_energy"])
+    assert len(energy) > 100 and np.ptp(potential) > 1.0  # it moved
+    assert np.max(np.abs(energy - energy[0])) < 1e-9 * np.max(np.abs(potential))
