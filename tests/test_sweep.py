@@ -357,3 +357,21 @@ def test_progress_shows_runs_rate_and_time_left(capsys):
     quiet.update(5)
     quiet.close()
     assert capsys.readouterr().err == ""
+
+
+NAMED_LIKE_ROWS = ROOT / "tests" / "models" / "sweep_names" / "pendulum_named_like_rows.yaml"
+
+
+@pytest.mark.parametrize("axis, told", [
+    (["--grid", "steps=1:2:2"], "--grid steps=1:2:2: steps: a sweep's row has a column steps of its own"),
+    (["--sample", "run=uniform(0, 1)", "--runs", "2"], "--sample run=uniform(0, 1): run: a sweep's row has a column run"),
+])
+def test_a_swept_name_like_a_row_column_is_a_located_error(tmp_path, axis, told):
+    """A parameter named steps, a coordinate named run: swept, their columns would replace the row's own."""
+    result = run([NAMED_LIKE_ROWS, *axis, "--t", "0.1", "-o", tmp_path / "out.parquet"])
+    assert result.exit_code == 1, result.output
+    assert told in result.output and "hint: rename it in the model file" in result.output
+    assert "Traceback" not in result.output and not (tmp_path / "out.parquet").exists()
+    rows = rows_of(job_of(NAMED_LIKE_ROWS, None, ("m=[1, 2]",), t_end=0.1))  # swept under another name: no clash
+    assert list(rows["run"]) == [0, 1] and list(rows["steps"]) == [rows["steps"][0]] * 2
+    assert list(rows.columns).count("run") == 1 and "final_run" in rows.columns

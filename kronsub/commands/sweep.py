@@ -174,19 +174,19 @@ def sweep(model: Path, grids, samples, tables, runs, seed, latin, t_end, dt, met
                     "rtol": rtol, "atol": atol, "t_end": span, "dt": step, "chunk": job_.chunk,
                     "summaries": {out.name: out.text for out in job_.summaries}}
         dataset = Dataset(output, columns(job_))
-        mapped = None
+        mapped = kept = None
+        if trajectories is not None:
+            from ..sweep.trajectories import trajectory_columns
+
+            kept = Dataset(trajectories, trajectory_columns(system, job_.outputs), option="--trajectories")
         if plot is not None:
             mapped = plot_column or (job_.summaries[-1].name if job_.summaries else f"final_{system.coordinates[0].name}")
             if mapped not in {name for name, kind in dataset.columns if kind == "float64"} or mapped in plan.names:
                 fail(f"Error: --plot-column {mapped}: no numeric output column of that name\n  hint: choose one of "
                      + ", ".join(n for n, k in dataset.columns if k == "float64" and n not in plan.names), USAGE_ERROR)
-        kept = None
         try:
             written = dataset.prepare(identity, resume=resume, force=force)
-            if trajectories is not None:
-                from ..sweep.trajectories import trajectory_columns
-
-                kept = Dataset(trajectories, trajectory_columns(system, job_.outputs), option="--trajectories")
+            if kept is not None:
                 written &= kept.prepare(identity, resume=resume, force=force)  # a chunk is done with both parts
                 job_ = dataclasses.replace(job_, trajectories=str(kept.folder.resolve()))
         except DatasetError as exc:
