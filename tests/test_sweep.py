@@ -114,6 +114,31 @@ def test_draws_follow_their_distributions():
     assert sorted(np.floor((lhs - 2) * 100).astype(int)) == list(range(100))  # one draw per stratum
 
 
+@pytest.mark.parametrize("count", [1, 2, 3, 5, 16, 17, 1000, 4099])
+def test_latin_strata_are_a_permutation_evaluated_in_pieces(count):
+    from kronsub.sweep.plan import strata
+
+    whole = strata(7, 0, count, np.arange(count))
+    assert sorted(whole) == list(range(count))
+    pieces = np.concatenate([strata(7, 0, count, np.arange(a, min(a + 3, count))) for a in range(0, count, 3)])
+    assert np.array_equal(pieces, whole)
+    if count >= 16:  # another seed, another axis: another permutation
+        assert not np.array_equal(strata(8, 0, count, np.arange(count)), whole)
+        assert not np.array_equal(strata(7, 1, count, np.arange(count)), whole)
+
+
+def test_latin_memory_follows_the_chunk_not_the_sweep():
+    import tracemalloc
+
+    (_, samples) = read_axes((), ("a=uniform(0, 1)", "b=normal(0, 1)"))
+    plan = Plan((), tuple(samples), 10**9, 3, latin=True)  # a permutation of all draws would be 8 GB an axis
+    tracemalloc.start()
+    values = plan.inputs(10**9 - 50, 10**9)
+    peak = tracemalloc.get_traced_memory()[1]
+    tracemalloc.stop()
+    assert peak < 1 << 20 and len(values["a"]) == 50 and np.all((0 < values["a"]) & (values["a"] < 1))
+
+
 def test_grid_order_and_values():
     grids, _ = read_axes(("x=0:1:3", "y=log:1:100:3", "z=[1, 2*pi]"), ())
     values = Plan(tuple(grids), (), 1, 0).inputs(0, 18)
