@@ -2,15 +2,26 @@
 uniform in [-2, 2], at rest, t = 10) through `kronsub sweep`'s driver on 1 and 2 local workers,
 the compiled ensemble called directly in this process, heyoka's `ensemble_propagate_until`
 (threads, 1 and 2) and a Python loop over `system.simulate()`; each at the loosest tolerance whose
-error at t = 10 is <= 1e-8 on a sample of runs against the Taylor integrator at 1e-15. Prints runs per second, the
+error at t = 10 is <= 1e-8 on a sample of runs against the Taylor integrator at 1e-15. The sweep
+rows time the driver with every chunk written as its Parquet part (as the command writes it) on a
+local cluster started before the clock; the whole command, cluster start included, is timed
+apart. Then the engine's share of the wall time at --overhead-runs (a sweep on one worker against
+the same runs in the ensemble called directly, interleaved) and the client's peak memory
+(the peak resident set, ``VmHWM``, of the process that runs `kronsub sweep`, its workers apart) at 10^4, 10^5 and 10^6
+runs of a cheap sweep (rk4, t = 0.1, dt = 0.05, 10^4 runs a chunk). Prints runs per second, the
 ratios the issue sets as goals, min and median of --repeats.
 
-    python benchmarks/sweep.py [--runs 10000] [--repeats 3] [--quick]
+    python benchmarks/sweep.py [--runs 10000] [--repeats 3] [--overhead-runs 100000] [--memory 4,5,6] [--quick]
 """
 from __future__ import annotations
 
 import argparse
+import json
+import os
 import statistics
+import subprocess
+import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -21,6 +32,8 @@ MODEL = ROOT / "models" / "hoffmann" / "system1.yaml"
 T_END, DT = 10.0, 0.01
 ERROR = 1e-8  # at t = 10, on the sample, against the tight run
 SAMPLE = 20
+ANGLES = ("theta=uniform(-2, 2)", "phi=uniform(-2, 2)")
+CHEAP = ("--method", "rk4", "--t", "0.1", "--dt", "0.05", "--chunk", "10000")  # the memory runs: the engine, not the model
 
 
 def timed(fn, repeats):
@@ -36,9 +49,16 @@ def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--runs", type=int, default=10_000)
     parser.add_argument("--repeats", type=int, default=3)
-    parser.add_argument("--quick", action="store_true", help="2,000 runs, one repeat")
+    parser.add_argument("--overhead-runs", type=int, default=100_000)
+    parser.add_argument("--memory", default="4,5,6", help="powers of ten of the memory runs ('' for none)")
+    parser.add_argument("--quick", action="store_true", help="2,000 runs, one repeat, overhead at 10^4, memory at 10^4, 10^5")
+    parser.add_argument("--memory-child", type=int, default=None, help=argparse.SUPPRESS)
     args = parser.parse_args()
+    if args.memory_child is not None:
+        return memory_child(args.memory_child)
     runs, repeats = (2000, 1) if args.quick else (args.runs, args.repeats)
+    overhead_runs = 10_000 if args.quick else args.overhead_runs
+    powers = [4, 5] if args.quick else [int(p) for p in args.memory.split(",") if p.strip()]
 
     import kronsub
     from kronsub.commands.common import scene_system
@@ -50,7 +70,7 @@ def main():
     from kronsub.sweep.study import make_job, make_plan
 
     loaded, _, system = scene_system(MODEL, None)
-    plan = make_plan(*read_axes((), ("theta=uniform(-2, 2)", "phi=uniform(-2, 2)")), runs, 1)
+    plan = make_plan(*read_axes((), ANGLES), runs, 1)
 
     def job_at(tol, chunk=1000):  # noqa: D401
         return make_job(system, plan, initial_values(loaded, None), {}, method="dop853", t_end=T_END, dt=DT,
@@ -98,15 +118,28 @@ def main():
 
     from distributed import LocalCluster
 
+    from kronsub.sweep.chunk import columns
+    from kronsub.sweep.dataset import Dataset
+
+    scratch = tempfile.TemporaryDirectory(prefix="kronsub-sweep-bench-")
+
+    def written(job_, name):
+        """``done`` as the command's: each chunk's rows written as its Parquet part."""
+        dataset = Dataset(Path(scratch.name) / name, columns(job_))
+        dataset.prepare({}, resume=False, force=True)
+        return lambda index, rows: dataset.write(index, rows)
+
     for workers in (1, 2):  # the cluster started (and the workers' library loaded) before the clock
         t0 = time.perf_counter()
         with LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=None,
                           silence_logs=logging.ERROR) as cluster:
-            execute(job, range(workers), lambda i, rows: None, scheduler=cluster.scheduler_address)
+            execute(job, range(workers), written(job, "warm"), scheduler=cluster.scheduler_address)
             print(f"  (a local cluster of {workers} started and warmed in {time.perf_counter() - t0:.1f} s)")
             report(f"kronsub sweep (taylor), {workers} local worker(s)", timed(
-                lambda: execute(job, range(job.chunks), lambda i, rows: None, scheduler=cluster.scheduler_address),
-                repeats))
+                lambda: execute(job, range(job.chunks), written(job, f"w{workers}"),
+                                scheduler=cluster.scheduler_address), repeats))
+    whole = [command_seconds(runs, tol, Path(scratch.name) / f"whole{k}") for k in range(repeats)]
+    report("the whole `kronsub sweep` command, 1 worker", (min(whole), statistics.median(whole)))
     try:
         import heyoka
 
@@ -149,6 +182,10 @@ def main():
                          atol=tol, dataframe=False)
 
     report("Python loop over system.simulate(method='taylor')", timed(python_loop, 1), loop)
+    share = overhead(system, loaded, tol, overhead_runs, repeats, written)
+    memory = {10 ** p: memory_mb(10 ** p, Path(scratch.name) / f"memory{p}") for p in powers}
+    for count, mb in memory.items():
+        print(f"  client peak memory, {count:>9,} runs (rk4, t = 0.1): {mb:6.0f} MB")
     print("ratios:")
     direct = rates["Taylor ensemble directly, this process"]
     one, two = rates["kronsub sweep (taylor), 1 local worker(s)"], rates["kronsub sweep (taylor), 2 local worker(s)"]
@@ -160,6 +197,83 @@ def main():
     looped = rates["Python loop over system.simulate(method='taylor')"]
     print(f"  sweep on 1 worker / Python loop: {one / looped:.0f}")
     print(f"  per core: {one:,.0f} runs/s through kronsub sweep (goal >= 5,000)")
+    print(f"  engine's share of the wall time at {overhead_runs:,} runs: {share[0]:.1%} (best), {share[1]:.1%} "
+          "(median) (goal <= 5 %)")
+    if memory:
+        low = min(memory.values())
+        print("  client memory / the smallest run's: " + ", ".join(f"{c:,}: {m / low:.2f}" for c, m in memory.items())
+              + " (goal: flat)")
+    scratch.cleanup()
+
+
+def overhead(system, loaded, tol, count, repeats, written):
+    """The engine's share of a sweep's wall time on one worker: ``1 - direct / sweep``, ``direct``
+    the same runs through the Taylor ensemble in this process, the two interleaved; (best, median)."""
+    import logging
+
+    from distributed import LocalCluster
+
+    from kronsub.model.scenes import initial_values
+    from kronsub.simulation.grid import Grid
+    from kronsub.sweep.axes import read_axes
+    from kronsub.sweep.chunk import inputs_of
+    from kronsub.sweep.driver import execute
+    from kronsub.sweep.ensemble import load_taylor
+    from kronsub.sweep.study import make_job, make_plan
+
+    plan = make_plan(*read_axes((), ANGLES), count, 2)
+    job = make_job(system, plan, initial_values(loaded, None), {}, method="taylor", t_end=T_END, dt=DT, rtol=tol,
+                   atol=tol, chunk=1000)
+    _, param, y0 = inputs_of(job, 0, count)
+    taylor, times = load_taylor(job.taylor_sources), Grid(T_END, DT)[0:len(Grid(T_END, DT))]
+    shares = []
+    with LocalCluster(n_workers=1, threads_per_worker=1, processes=True, dashboard_address=None,
+                      silence_logs=logging.ERROR) as cluster:
+        execute(job, range(1), lambda i, rows: None, scheduler=cluster.scheduler_address)
+        for k in range(max(2, repeats)):
+            t0 = time.perf_counter()
+            for a in range(0, count, job.chunk):  # the chunks' blocks, as the workers call them
+                taylor.run(times, tol, param[a:a + job.chunk], y0[a:a + job.chunk], None)
+            direct = time.perf_counter() - t0
+            t0 = time.perf_counter()
+            execute(job, range(job.chunks), written(job, f"overhead{k}"), scheduler=cluster.scheduler_address)
+            swept = time.perf_counter() - t0
+            shares.append(1 - direct / swept)
+            print(f"  {count:,} runs: directly {direct:.2f} s, through the sweep on 1 worker {swept:.2f} s")
+    return min(shares), statistics.median(shares)
+
+
+def command_seconds(runs, tol, out) -> float:
+    """Wall time of the whole command (a fresh process: import, model, local cluster, Parquet)."""
+    t0 = time.perf_counter()
+    subprocess.run([sys.executable, "-m", "kronsub", "sweep", str(MODEL), *(a for s in ANGLES for a in ("--sample", s)),
+                    "--runs", str(runs), "--seed", "1", "--method", "taylor", "--rtol", repr(tol), "--atol", repr(tol),
+                    "--t", repr(T_END), "--dt", repr(DT), "--workers", "1", "-o", str(out)], check=True,
+                   stdout=subprocess.DEVNULL, env={**os.environ, "PYTHONPATH": str(ROOT)})
+    return time.perf_counter() - t0
+
+
+def memory_mb(count, out) -> float:
+    """Peak resident memory of the client of a cheap sweep of ``count`` runs (a fresh process)."""
+    done = subprocess.run([sys.executable, __file__, "--memory-child", str(count), "--runs", "1", "--memory", str(out)],
+                          check=True, capture_output=True, text=True, env={**os.environ, "PYTHONPATH": str(ROOT)})
+    return json.loads(done.stdout.strip().splitlines()[-1])["maxrss_mb"]
+
+
+def memory_child(count) -> None:
+    """In the child: `kronsub sweep` of ``count`` cheap runs in this process, then its peak memory
+    (``VmHWM``: ``ru_maxrss`` keeps the parent's peak across ``exec`` on Linux)."""
+    from kronsub.cli import main
+
+    out = sys.argv[sys.argv.index("--memory") + 1]
+    try:
+        main(["sweep", str(MODEL), *(a for s in ANGLES for a in ("--sample", s)), "--runs", str(count), *CHEAP,
+              "--workers", "1", "-o", out], standalone_mode=False)
+    except SystemExit as exc:
+        if exc.code:
+            raise
+    peak = next(line for line in Path("/proc/self/status").read_text().splitlines() if line.startswith("VmHWM:"))
+    print(json.dumps({"maxrss_mb": int(peak.split()[1]) / 1024}))
 
 
 if __name__ == "__main__":

@@ -146,6 +146,30 @@ def test_grid_order_and_values():
     assert values["z"][1] == 2 * np.pi and values["y"][2] == pytest.approx(10) and values["y"][4] == 100
 
 
+@pytest.mark.parametrize("max_steps", [10**7, 7, 1])
+def test_taylor_summaries_without_rows_equal_those_of_whole_rows(max_steps):
+    """Without rows asked for, the Taylor ensemble computes the coordinates inside a step only; a run
+    stopped by the step limit, whose last row lies inside a step, is run again for its whole last row."""
+    from kronsub.simulation.grid import Grid
+    from kronsub.sweep.chunk import inputs_of
+    from kronsub.sweep.ensemble import load_taylor
+
+    job = job_of(SYSTEM1, "free", ("theta=[0.5, 2.5]",), ("phi=uniform(-2, 2)",), runs=2, method="taylor", t_end=2.0,
+                 dt=0.01)
+    _, param, y0 = inputs_of(job, 0, job.plan.count)
+    taylor, grid = load_taylor(job.taylor_sources), Grid(job.t_end, job.dt)
+    times = grid[0:len(grid)]
+    bare = taylor.run(times, job.rtol, param, y0, None, max_steps=max_steps)
+    whole, rows, written = taylor.run(times, job.rtol, param, y0, None, with_rows=True, max_steps=max_steps)
+    np.testing.assert_array_equal(bare, whole)
+    for r in range(len(y0)):
+        kept = rows[r, :written[r], 1:]
+        assert np.array_equal(bare[r, 5:9], kept[-1])  # the final state: the last row, whole
+        assert np.array_equal(bare[r, 9:11], kept[:, :2].min(axis=0))
+        assert np.array_equal(bare[r, 11:13], kept[:, :2].max(axis=0))
+    assert np.all(bare[:, 0] == (0 if max_steps > 1000 else 4)) and np.all(written[:] > 1 if max_steps > 1 else True)
+
+
 def test_a_failed_run_is_a_row():
     job = job_of(SYSTEM1, "free", ("m1=[1, -5]", ), t_end=1.0)  # a negative mass: Mbar not positive definite
     rows = rows_of(job)
