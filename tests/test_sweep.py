@@ -202,6 +202,7 @@ def test_command_writes_a_dataset_refuses_and_resumes(tmp_path):
     resumed = run([*args, "--resume"])
     assert resumed.exit_code == 0, resumed.output
     assert "4 of 5 chunks already written" in resumed.output
+    assert json.loads((tmp_path / "runs.parquet.json").read_text())["counts"] == {"complete": 9}  # old parts + new
     assert {p.name: p.stat().st_mtime_ns for p in out.glob("part-*.parquet") if p.name in kept} == kept
     pd.testing.assert_frame_equal(pd.read_parquet(out).sort_values("run", ignore_index=True), table)
     other = run([*args[:-2], "--seed", "10", "-o", out, "--resume"])  # another sweep is not resumed into it

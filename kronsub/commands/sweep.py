@@ -218,6 +218,7 @@ def sweep(model: Path, grids, samples, tables, runs, seed, latin, t_end, dt, met
 
         sidecar("running", len(written), {})
         finished = [len(written)]
+        tally: dict[str, int] = {}
 
         def done(index, rows):
             if kept is not None and not (kept.folder / part_name(index)).exists():
@@ -225,6 +226,8 @@ def sweep(model: Path, grids, samples, tables, runs, seed, latin, t_end, dt, met
                                    f"them ({kept.folder})\n  hint: on a cluster, --trajectories must be a folder the "
                                    "workers share with this machine, at the same path")
             dataset.write(index, rows)
+            for status in rows["status"]:  # the new parts' counts, without reading them back
+                tally[status] = tally.get(status, 0) + 1
             finished[0] += 1
 
         if written:
@@ -239,7 +242,7 @@ def sweep(model: Path, grids, samples, tables, runs, seed, latin, t_end, dt, met
             sidecar("interrupted", finished[0])
             fail(f"Interrupted{interrupted_by(signal_of(exc))}: {finished[0]} of {job_.chunks} chunks kept in "
                  f"{output}\n  hint: --resume finishes it", exit_code(exc))
-        counts = dataset.counts()
+        counts = dataset.counts(written, tally)
         sidecar("complete", finished[0], counts)
         if plot is not None:
             from ..sweep.plot import heat_map
