@@ -105,15 +105,12 @@ def main():
     def report(name, seconds, count=runs):
         low, med = seconds
         rates[name] = count / low
-        print(f"  {name:<44} {count / low:>10,.0f} runs/s (best)   {count / med:>10,.0f} (median)")
+        print(f"  {name:<52} {count / low:>10,.0f} runs/s (best)   {count / med:>10,.0f} (median)")
 
     taylor = load_taylor(taylor_sources(system, tol))
-    report("Taylor ensemble directly, this process", timed(
-        lambda: taylor.run(times, tol, param, y0, None), repeats))
-    report("dop853 ensemble directly, this process", timed(
-        lambda: ensemble.run("dop853", cuts, DT, dop_tol, dop_tol, param, y0, False), repeats))
     job = make_job(system, plan, initial_values(loaded, None), {}, method="taylor", t_end=T_END, dt=DT,
                    rtol=tol, atol=tol, chunk=1000)
+    import contextlib
     import logging
 
     from distributed import LocalCluster
@@ -129,50 +126,65 @@ def main():
         dataset.prepare({}, resume=False, force=True)
         return lambda index, rows: dataset.write(index, rows)
 
-    for workers in (1, 2):  # the cluster started (and the workers' library loaded) before the clock
-        t0 = time.perf_counter()
-        with LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=None,
-                          silence_logs=logging.ERROR) as cluster:
+    tenth = max(1, runs // 10)
+    routes = {"Taylor ensemble directly, this process": (lambda: taylor.run(times, tol, param, y0, None), runs),
+              f"dop853 ensemble directly, this process ({tenth:,} runs)": (
+                  lambda: ensemble.run("dop853", cuts, DT, dop_tol, dop_tol, param[:tenth], y0[:tenth], False), tenth)}
+
+    def sweep_on(cluster, workers):
+        return lambda: execute(job, range(job.chunks), written(job, f"w{workers}"), scheduler=cluster.scheduler_address)
+
+    with contextlib.ExitStack() as stack:
+        for workers in (1, 2):  # the clusters started (and the workers' library loaded) before the clock
+            t0 = time.perf_counter()
+            cluster = stack.enter_context(LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
+                                                       dashboard_address=None, silence_logs=logging.ERROR))
             execute(job, range(workers), written(job, "warm"), scheduler=cluster.scheduler_address)
             print(f"  (a local cluster of {workers} started and warmed in {time.perf_counter() - t0:.1f} s)")
-            report(f"kronsub sweep (taylor), {workers} local worker(s)", timed(
-                lambda: execute(job, range(job.chunks), written(job, f"w{workers}"),
-                                scheduler=cluster.scheduler_address), repeats))
+            routes[f"kronsub sweep (taylor), {workers} local worker(s)"] = (sweep_on(cluster, workers), runs)
+        try:
+            import heyoka
+
+            from kronsub.simulation.heyoka_backend import HeyokaIntegrator
+        except ImportError as exc:
+            print(f"  heyoka not available ({exc})")
+        else:
+            errors = {}
+            for t in (1e-9, 1e-10, 1e-11, 1e-12, 1e-13, 1e-14, 1e-15):
+                integ = HeyokaIntegrator(system, t)
+                worst = 0.0
+                for r in range(SAMPLE):
+                    integ.start(0.0, y0[r], param[r])
+                    integ.ta.propagate_until(T_END)
+                    worst = max(worst, float(np.max(np.abs(integ.ta.state - reference[r]))))
+                errors[t] = worst
+                if worst <= ERROR:
+                    break
+            hy_tol = loosest(errors)
+            print("  heyoka: " + ", ".join(f"{t:.0e}: {e:.1e}" for t, e in errors.items()))
+            integ = HeyokaIntegrator(system, hy_tol)
+            used = integ.used
+
+            def gen(ta, i):
+                ta.time = 0.0
+                ta.state[:] = y0[i]
+                ta.pars[:] = param[i, :used]
+                return ta
+
+            for threads in (1, 2):
+                routes[f"heyoka ensemble, {threads} thread(s), tol {hy_tol:.0e}"] = (
+                    lambda threads=threads: heyoka.ensemble_propagate_until(
+                        integ.ta, T_END, runs, gen, algorithm="thread", max_workers=threads), runs)
+        seconds = {name: [] for name in routes}
+        for _ in range(repeats):  # interleaved: each route once a round, so that a change of load hits them all
+            for name, (fn, _count) in routes.items():
+                t0 = time.perf_counter()
+                fn()
+                seconds[name].append(time.perf_counter() - t0)
+    for name, (_, count) in routes.items():
+        report(name, (min(seconds[name]), statistics.median(seconds[name])), count)
     whole = [command_seconds(runs, tol, Path(scratch.name) / f"whole{k}") for k in range(repeats)]
     report("the whole `kronsub sweep` command, 1 worker", (min(whole), statistics.median(whole)))
-    try:
-        import heyoka
-
-        from kronsub.simulation.heyoka_backend import HeyokaIntegrator
-    except ImportError as exc:
-        print(f"  heyoka not available ({exc})")
-    else:
-        errors = {}
-        for t in (1e-9, 1e-10, 1e-11, 1e-12, 1e-13, 1e-14, 1e-15):
-            integ = HeyokaIntegrator(system, t)
-            worst = 0.0
-            for r in range(SAMPLE):
-                integ.start(0.0, y0[r], param[r])
-                integ.ta.propagate_until(T_END)
-                worst = max(worst, float(np.max(np.abs(integ.ta.state - reference[r]))))
-            errors[t] = worst
-            if worst <= ERROR:
-                break
-        hy_tol = loosest(errors)
-        print("  heyoka: " + ", ".join(f"{t:.0e}: {e:.1e}" for t, e in errors.items()))
-        integ = HeyokaIntegrator(system, hy_tol)
-        used = integ.used
-
-        def gen(ta, i):
-            ta.time = 0.0
-            ta.state[:] = y0[i]
-            ta.pars[:] = param[i, :used]
-            return ta
-
-        for threads in (1, 2):
-            report(f"heyoka ensemble, {threads} thread(s), tol {hy_tol:.0e}", timed(
-                lambda: heyoka.ensemble_propagate_until(integ.ta, T_END, runs, gen, algorithm="thread",
-                                                        max_workers=threads), repeats))
     api = kronsub.load(MODEL).derive()
     loop = min(runs, 200)
 
