@@ -65,7 +65,7 @@ def main():
     from kronsub.model.scenes import initial_values
     from kronsub.sweep.axes import read_axes
     from kronsub.sweep.chunk import inputs_of
-    from kronsub.sweep.driver import execute
+    from kronsub.sweep.driver import execute, local_cluster
     from kronsub.sweep.ensemble import load, pieces
     from kronsub.sweep.study import make_job, make_plan
 
@@ -111,9 +111,6 @@ def main():
     job = make_job(system, plan, initial_values(loaded, None), {}, method="taylor", t_end=T_END, dt=DT,
                    rtol=tol, atol=tol, chunk=1000)
     import contextlib
-    import logging
-
-    from distributed import LocalCluster
 
     from kronsub.sweep.chunk import columns
     from kronsub.sweep.dataset import Dataset
@@ -137,8 +134,7 @@ def main():
     with contextlib.ExitStack() as stack:
         for workers in (1, 2):  # the clusters started (and the workers' library loaded) before the clock
             t0 = time.perf_counter()
-            cluster = stack.enter_context(LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
-                                                       dashboard_address=None, silence_logs=logging.ERROR))
+            cluster = stack.enter_context(local_cluster(workers, threads=True))  # the command's, for compiled runs
             execute(job, range(workers), written(job, "warm"), scheduler=cluster.scheduler_address)
             print(f"  (a local cluster of {workers} started and warmed in {time.perf_counter() - t0:.1f} s)")
             routes[f"kronsub sweep (taylor), {workers} local worker(s)"] = (sweep_on(cluster, workers), runs)
@@ -221,15 +217,11 @@ def main():
 def overhead(system, loaded, tol, count, repeats, written):
     """The engine's share of a sweep's wall time on one worker: ``1 - direct / sweep``, ``direct``
     the same runs through the Taylor ensemble in this process, the two interleaved; (best, median)."""
-    import logging
-
-    from distributed import LocalCluster
-
     from kronsub.model.scenes import initial_values
     from kronsub.simulation.grid import Grid
     from kronsub.sweep.axes import read_axes
     from kronsub.sweep.chunk import inputs_of
-    from kronsub.sweep.driver import execute
+    from kronsub.sweep.driver import execute, local_cluster
     from kronsub.sweep.ensemble import load_taylor
     from kronsub.sweep.study import make_job, make_plan
 
@@ -239,8 +231,7 @@ def overhead(system, loaded, tol, count, repeats, written):
     _, param, y0 = inputs_of(job, 0, count)
     taylor, times = load_taylor(job.taylor_sources), Grid(T_END, DT)[0:len(Grid(T_END, DT))]
     shares = []
-    with LocalCluster(n_workers=1, threads_per_worker=1, processes=True, dashboard_address=None,
-                      silence_logs=logging.ERROR) as cluster:
+    with local_cluster(1, threads=True) as cluster:
         execute(job, range(1), lambda i, rows: None, scheduler=cluster.scheduler_address)
         for k in range(max(2, repeats)):
             t0 = time.perf_counter()

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import contextlib
 import math
+import threading
 import warnings
 from dataclasses import dataclass, field
 
@@ -102,6 +103,7 @@ def inputs_of(job: Job, start: int, stop: int) -> tuple[dict, np.ndarray, np.nda
 
 
 _CONSERVES: dict[str, bool] = {}
+_ASKING = threading.Lock()  # the model's library (its parameter buffer) asked by one thread at a time
 
 
 def _conserves(job: Job, native) -> bool:
@@ -116,13 +118,14 @@ def _conserves(job: Job, native) -> bool:
 
         key = fingerprint(job.system, job.outputs) or repr(job.system)
     key = f"{key} {job.base_param} {job.base_y0}"
-    if key not in _CONSERVES:
-        try:
-            _CONSERVES[key] = bool(conserves_energy(native, np.asarray(job.base_param), len(job.system.coordinates),
-                                                    0.0, np.asarray(job.base_y0)))
-        except Exception:  # noqa: BLE001 - a model whose energy cannot be evaluated reports no drift
-            _CONSERVES[key] = False
-    return _CONSERVES[key]
+    with _ASKING:
+        if key not in _CONSERVES:
+            try:
+                _CONSERVES[key] = bool(conserves_energy(native, np.asarray(job.base_param),
+                                                        len(job.system.coordinates), 0.0, np.asarray(job.base_y0)))
+            except Exception:  # noqa: BLE001 - a model whose energy cannot be evaluated reports no drift
+                _CONSERVES[key] = False
+        return _CONSERVES[key]
 
 
 def run_chunk(job: Job, index: int) -> dict[str, object]:
@@ -133,16 +136,20 @@ def run_chunk(job: Job, index: int) -> dict[str, object]:
     n, nq = stop - start, len(job.system.coordinates)
     part = contextlib.nullcontext() if job.trajectories is None else \
         TrajectoryPart(job.trajectories, index, job.system, job.outputs)
-    with warnings.catch_warnings(), part as sink:
-        warnings.simplefilter("ignore")
+    with part as sink:
+        compiled = None
         try:  # (the libraries are loaded before any row goes to the part)
-            compiled = _ensemble(job, param, y0, start, sink) if job.route in (ENSEMBLE, TAYLOR) else None
+            if job.route in (ENSEMBLE, TAYLOR):
+                with np.errstate(all="ignore"):  # (per thread: chunks may run side by side in one process)
+                    compiled = _ensemble(job, param, y0, start, sink)
         except NativeError:  # no C compiler on this worker: the generated numpy module, run by run
             compiled = None
         if compiled is not None:
             summary, reasons, users = compiled
         else:
-            summary, reasons, users = _one_by_one(job, param, y0, start, sink)
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                summary, reasons, users = _one_by_one(job, param, y0, start, sink)
     ny = 2 * nq
     status = summary[:, 0]
     out: dict[str, object] = {"run": np.arange(start, stop, dtype=np.int64), **inputs}
