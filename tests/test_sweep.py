@@ -425,3 +425,23 @@ def test_a_swept_name_like_a_row_column_is_a_located_error(tmp_path, axis, told)
     rows = rows_of(job_of(NAMED_LIKE_ROWS, None, ("m=[1, 2]",), t_end=0.1))  # swept under another name: no clash
     assert list(rows["run"]) == [0, 1] and list(rows["steps"]) == [rows["steps"][0]] * 2
     assert list(rows.columns).count("run") == 1 and "final_run" in rows.columns
+
+
+@pytest.mark.parametrize("method, route", [("taylor", TAYLOR), ("dop853", ENSEMBLE)])
+def test_local_threads_give_the_rows_of_one_process(method, route):
+    """The local cluster for runs in C is a worker of two threads in this process: the chunks run
+    side by side there (the C call releases the GIL) and give the rows a single process gives."""
+    from distributed import Client
+
+    from kronsub.sweep.driver import execute, local_cluster
+
+    job = job_of(SYSTEM1, "free", ("theta=-2:2:5",), ("phi=uniform(-2, 2)",), runs=4, seed=3, method=method,
+                 t_end=1.0, dt=0.05, chunk=2)
+    assert job.route == route
+    parts = {}
+    with local_cluster(2, threads=True) as cluster, Client(cluster, set_as_default=False) as client:
+        info = client.scheduler_info()["workers"]
+        assert [w["nthreads"] for w in info.values()] == [2]  # one worker, a thread per core asked for
+        execute(job, range(job.chunks), parts.__setitem__, scheduler=cluster.scheduler_address)
+    rows = pd.concat([pd.DataFrame(parts[i]) for i in sorted(parts)], ignore_index=True)
+    pd.testing.assert_frame_equal(rows, rows_of(job))
