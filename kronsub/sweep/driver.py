@@ -98,13 +98,14 @@ def local_cluster(count: int, threads: bool):
     (``threads``), else a process per core with one thread."""
     from distributed import LocalCluster
 
+    # the scheduler's HTTP server on a free port: two sweeps at once do not warn of a taken one
     if threads:
-        return LocalCluster(n_workers=1, threads_per_worker=count, processes=False, dashboard_address=None,
+        return LocalCluster(n_workers=1, threads_per_worker=count, processes=False, dashboard_address=":0",
                             silence_logs=logging.ERROR)
     # the workers ignore Ctrl-C, which the terminal sends the whole process group: the client
     # keeps the finished chunks and closes the cluster
     with handled(lambda signum: signum == signal.SIGINT, signal.SIG_IGN):
-        return LocalCluster(n_workers=count, threads_per_worker=1, processes=True, dashboard_address=None,
+        return LocalCluster(n_workers=count, threads_per_worker=1, processes=True, dashboard_address=":0",
                             silence_logs=logging.ERROR)
 
 
