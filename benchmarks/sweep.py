@@ -34,6 +34,7 @@ T_END, DT = 10.0, 0.01
 ERROR = 1e-8  # at t = 10, on the sample, against the tight run
 SAMPLE = 20
 ANGLES = ("theta=uniform(-2, 2)", "phi=uniform(-2, 2)")
+LOOP = "Python loop over system.simulate(method='taylor')"
 CHEAP = ("--method", "rk4", "--t", "0.1", "--dt", "0.05", "--chunk", "10000")  # the memory runs: the engine, not the model
 
 
@@ -101,11 +102,11 @@ def main():
     print("  taylor: " + ", ".join(f"{t:.0e}: {e:.1e}" for t, e in tay.items()))
     dop_tol, tol = loosest(dop), loosest(tay)
     print(f"  the loosest at <= {ERROR:g}: dop853 {dop_tol:.0e}, taylor {tol:.0e}")
-    rates = {}
+    rates, medians, per_cpu = {}, {}, {}
 
     def report(name, seconds, count=runs):
         low, med = seconds
-        rates[name] = count / low
+        rates[name], medians[name] = count / low, count / med
         print(f"  {name:<52} {count / low:>10,.0f} runs/s (best)   {count / med:>10,.0f} (median)")
 
     taylor = load_taylor(taylor_sources(system, tol))
@@ -173,13 +174,20 @@ def main():
                     lambda threads=threads: heyoka.ensemble_propagate_until(
                         integ.ta, T_END, runs, gen, algorithm="thread", max_workers=threads), runs)
         seconds = {name: [] for name in routes}
+        cpu = {name: [] for name in routes}
         for _ in range(repeats):  # interleaved: each route once a round, so that a change of load hits them all
             for name, (fn, _count) in routes.items():
-                t0 = time.perf_counter()
+                t0, c0 = time.perf_counter(), time.process_time()
                 fn()
                 seconds[name].append(time.perf_counter() - t0)
+                cpu[name].append(time.process_time() - c0)
     for name, (_, count) in routes.items():
         report(name, (min(seconds[name]), statistics.median(seconds[name])), count)
+    print("  per second of this process's CPU time (all its threads: the sweep's client, scheduler and worker; "
+          "heyoka's threads), best and median:")
+    for name, (_, count) in routes.items():
+        per_cpu[name] = count / min(cpu[name])
+        print(f"    {name:<50} {count / min(cpu[name]):>10,.0f} {count / statistics.median(cpu[name]):>10,.0f}")
     whole = [command_seconds(runs, tol, Path(scratch.name) / f"whole{k}") for k in range(repeats)]
     report("the whole `kronsub sweep` command, 1 worker", (min(whole), statistics.median(whole)))
     api = kronsub.load(MODEL).derive()
@@ -190,22 +198,28 @@ def main():
             api.simulate(t=T_END, dt=DT, method="taylor", set={"theta": y0[r, 0], "phi": y0[r, 1]}, rtol=tol,
                          atol=tol, dataframe=False)
 
-    report("Python loop over system.simulate(method='taylor')", timed(python_loop, 1), loop)
+    report(LOOP, timed(python_loop, 1), loop)
     share = overhead(system, loaded, tol, overhead_runs, repeats, written)
     memory = {10 ** p: memory_mb(10 ** p, Path(scratch.name) / f"memory{p}") for p in powers}
     for count, mb in memory.items():
         print(f"  client peak memory, {count:>9,} runs (rk4, t = 0.1): {mb:6.0f} MB")
-    print("ratios:")
-    direct = rates["Taylor ensemble directly, this process"]
-    one, two = rates["kronsub sweep (taylor), 1 local worker(s)"], rates["kronsub sweep (taylor), 2 local worker(s)"]
-    print(f"  sweep on 1 worker / compiled ensemble directly: {one / direct:.2f} (goal >= 0.8)")
-    print(f"  sweep on 2 workers / 1 worker: {two / one:.2f} (goal >= 1.8)")
-    heyoka_one = next((v for k, v in rates.items() if k.startswith("heyoka ensemble, 1")), None)
-    if heyoka_one:
-        print(f"  sweep on 1 worker / heyoka ensemble on 1 thread: {one / heyoka_one:.2f} (goal >= 5)")
-    looped = rates["Python loop over system.simulate(method='taylor')"]
-    print(f"  sweep on 1 worker / Python loop: {one / looped:.0f}")
-    print(f"  per core: {one:,.0f} runs/s through kronsub sweep (goal >= 5,000)")
+    print("ratios (of the best; of the medians):")
+    sweep1, sweep2 = "kronsub sweep (taylor), 1 local worker(s)", "kronsub sweep (taylor), 2 local worker(s)"
+    hey = next((k for k in rates if k.startswith("heyoka ensemble, 1")), None)
+
+    def ratio(a, b):
+        return f"{rates[a] / rates[b]:.2f}; {medians[a] / medians[b]:.2f}"
+
+    print(f"  sweep on 1 worker / compiled ensemble directly: {ratio(sweep1, 'Taylor ensemble directly, this process')} "
+          "(goal >= 0.8)")
+    print(f"  sweep on 2 workers / 1 worker: {ratio(sweep2, sweep1)} (goal >= 1.8)")
+    if hey:
+        print(f"  sweep on 1 worker / heyoka ensemble on 1 thread: {ratio(sweep1, hey)} (goal >= 5)")
+    print(f"  sweep on 1 worker / Python loop: {ratio(sweep1, LOOP)}")
+    print(f"  per core: {rates[sweep1]:,.0f}; {medians[sweep1]:,.0f} runs/s through kronsub sweep (goal >= 5,000); "
+          f"{per_cpu[sweep1]:,.0f} per CPU second")
+    if hey:
+        print(f"  per CPU second, sweep on 1 worker / heyoka on 1 thread: {per_cpu[sweep1] / per_cpu[hey]:.2f} (goal >= 5)")
     print(f"  engine's share of the wall time at {overhead_runs:,} runs: {share[0]:.1%} (best), {share[1]:.1%} "
           "(median) (goal <= 5 %)")
     if memory:
