@@ -160,6 +160,12 @@ def sweep(model: Path, grids, samples, tables, runs, seed, latin, t_end, dt, met
         where = {name: (f"--table {a.text}: column {name}" if hasattr(a, "sha256") else f"--grid {a.name}={a.text}")
                  for a in grid_axes for name in a.names}
         where.update({a.name: f"--sample {a.name}={a.text}" for a in sample_axes})
+        kept = None
+        if trajectories is not None:  # (before the C is emitted: a name the rows cannot hold is refused first)
+            from ..sweep.trajectories import trajectory_columns
+
+            kept = Dataset(trajectories, trajectory_columns(system, scene.outputs if scene is not None else None),
+                           option="--trajectories")
         try:
             job_ = make_job(system, plan, initial_values(loaded, scene), assignments, method=chosen, t_end=span,
                             dt=step, rtol=rtol, atol=atol, outputs=scene.outputs if scene is not None else None,
@@ -174,11 +180,7 @@ def sweep(model: Path, grids, samples, tables, runs, seed, latin, t_end, dt, met
                     "rtol": rtol, "atol": atol, "t_end": span, "dt": step, "chunk": job_.chunk,
                     "summaries": {out.name: out.text for out in job_.summaries}}
         dataset = Dataset(output, columns(job_))
-        mapped = kept = None
-        if trajectories is not None:
-            from ..sweep.trajectories import trajectory_columns
-
-            kept = Dataset(trajectories, trajectory_columns(system, job_.outputs), option="--trajectories")
+        mapped = None
         if plot is not None:
             mapped = plot_column or (job_.summaries[-1].name if job_.summaries else f"final_{system.coordinates[0].name}")
             if mapped not in {name for name, kind in dataset.columns if kind == "float64"} or mapped in plan.names:
