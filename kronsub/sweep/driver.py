@@ -2,8 +2,8 @@
 
 By default a local cluster on this machine, one thread or process per core: for runs in
 compiled code a worker in this process with a thread per core (the ensemble's C call releases
-the GIL, and no process has to start), for runs one by one (Python, holding the GIL) a process
-per core of one thread each; ``scheduler`` (or ``DASK_SCHEDULER_ADDRESS``) sends the chunks to a
+the GIL, and no process has to start), for runs with Python in them (one by one, or a closed
+loop's projected initial values) a process per core of one thread each; ``scheduler`` (or ``DASK_SCHEDULER_ADDRESS``) sends the chunks to a
 running cluster instead, and one that cannot be reached is an error within
 :data:`CONNECT_SECONDS`. The job (model, plan, C sources) goes to the workers once; at most
 :func:`window` chunks are in flight, so the client's memory does not grow with the number of
@@ -115,7 +115,8 @@ def execute(job: Job, todo: Iterable[int], done: Callable[[int, dict], None], *,
     finishes (in the order they finish)."""
     from distributed import as_completed
 
-    client, cluster = _connect(scheduler, workers, threads=job.route != ONE_BY_ONE)
+    # threads where the runs are C calls; a closed loop's initial values are projected in Python
+    client, cluster = _connect(scheduler, workers, threads=job.route != ONE_BY_ONE and job.system.implicit is None)
     pending = list(todo)[::-1]
     tries: dict[int, int] = {}
     try:

@@ -119,7 +119,10 @@ def make_job(system, plan: Plan, initial: dict, settings: dict[str, str], *, met
             if expr.free_symbols & swept:
                 derived.append((index, expr))
     route = ONE_BY_ONE
-    if compiled and system.implicit is None and method in BATCH_METHODS and METHODS[method].engine == "c":
+    # a closed loop in the ensemble too, when its coordinates stay those chosen (not `auto`, which
+    # may switch them between rows)
+    steady = system.implicit is None or system.implicit.choice != "auto"
+    if compiled and steady and method in BATCH_METHODS and METHODS[method].engine == "c":
         route = ENSEMBLE
     elif compiled and system.implicit is None and method == "taylor" and row_count(t_end, dt) <= BLOCK_ROWS:
         route = TAYLOR  # one call of the Taylor integrator per run, as simulate makes it
