@@ -2,15 +2,27 @@
 uniform in [-2, 2], at rest, t = 10) through `kronsub sweep`'s driver on 1 and 2 local workers,
 the compiled ensemble called directly in this process, heyoka's `ensemble_propagate_until`
 (threads, 1 and 2) and a Python loop over `system.simulate()`; each at the loosest tolerance whose
-error at t = 10 is <= 1e-8 on a sample of runs against the Taylor integrator at 1e-15. Prints runs per second, the
-ratios the issue sets as goals, min and median of --repeats.
+error at t = 10 is <= 1e-8 on a sample of runs against the Taylor integrator at 1e-15. The routes
+are timed round by round (interleaved). The sweep rows time the driver writing every chunk as its
+Parquet part (as the command does) on the command's local cluster, started before the clock;
+the whole command, cluster start included, is timed apart. Then the engine's share of the wall
+time at --overhead-runs (one worker: the wall time less the time the worker spent in the
+ensemble's calls, timed over the same interval) and the client's peak memory (the peak resident
+set, ``VmHWM``, of the process running `kronsub sweep`, its worker threads included) at 10^4,
+10^5 and 10^6 runs of a cheap sweep (rk4, t = 0.1, dt = 0.05, 10^4 runs a chunk). Prints runs
+per second, the ratios the issue sets as goals, min and median of --repeats.
 
-    python benchmarks/sweep.py [--runs 10000] [--repeats 3] [--quick]
+    python benchmarks/sweep.py [--runs 10000] [--repeats 3] [--overhead-runs 100000] [--memory 4,5,6] [--quick]
 """
 from __future__ import annotations
 
 import argparse
+import json
+import os
 import statistics
+import subprocess
+import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -21,6 +33,9 @@ MODEL = ROOT / "models" / "hoffmann" / "system1.yaml"
 T_END, DT = 10.0, 0.01
 ERROR = 1e-8  # at t = 10, on the sample, against the tight run
 SAMPLE = 20
+ANGLES = ("theta=uniform(-2, 2)", "phi=uniform(-2, 2)")
+LOOP = "Python loop over system.simulate(method='taylor')"
+CHEAP = ("--method", "rk4", "--t", "0.1", "--dt", "0.05", "--chunk", "10000")  # the memory runs: the engine, not the model
 
 
 def timed(fn, repeats):
@@ -36,21 +51,28 @@ def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--runs", type=int, default=10_000)
     parser.add_argument("--repeats", type=int, default=3)
-    parser.add_argument("--quick", action="store_true", help="2,000 runs, one repeat")
+    parser.add_argument("--overhead-runs", type=int, default=100_000)
+    parser.add_argument("--memory", default="4,5,6", help="powers of ten of the memory runs ('' for none)")
+    parser.add_argument("--quick", action="store_true", help="2,000 runs, one repeat, overhead at 10^4, memory at 10^4, 10^5")
+    parser.add_argument("--memory-child", type=int, default=None, help=argparse.SUPPRESS)
     args = parser.parse_args()
+    if args.memory_child is not None:
+        return memory_child(args.memory_child)
     runs, repeats = (2000, 1) if args.quick else (args.runs, args.repeats)
+    overhead_runs = 10_000 if args.quick else args.overhead_runs
+    powers = [4, 5] if args.quick else [int(p) for p in args.memory.split(",") if p.strip()]
 
     import kronsub
     from kronsub.commands.common import scene_system
     from kronsub.model.scenes import initial_values
     from kronsub.sweep.axes import read_axes
     from kronsub.sweep.chunk import inputs_of
-    from kronsub.sweep.driver import execute
+    from kronsub.sweep.driver import execute, local_cluster
     from kronsub.sweep.ensemble import load, pieces
     from kronsub.sweep.study import make_job, make_plan
 
     loaded, _, system = scene_system(MODEL, None)
-    plan = make_plan(*read_axes((), ("theta=uniform(-2, 2)", "phi=uniform(-2, 2)")), runs, 1)
+    plan = make_plan(*read_axes((), ANGLES), runs, 1)
 
     def job_at(tol, chunk=1000):  # noqa: D401
         return make_job(system, plan, initial_values(loaded, None), {}, method="dop853", t_end=T_END, dt=DT,
@@ -80,66 +102,94 @@ def main():
     print("  taylor: " + ", ".join(f"{t:.0e}: {e:.1e}" for t, e in tay.items()))
     dop_tol, tol = loosest(dop), loosest(tay)
     print(f"  the loosest at <= {ERROR:g}: dop853 {dop_tol:.0e}, taylor {tol:.0e}")
-    rates = {}
+    rates, medians, per_cpu = {}, {}, {}
 
     def report(name, seconds, count=runs):
         low, med = seconds
-        rates[name] = count / low
-        print(f"  {name:<44} {count / low:>10,.0f} runs/s (best)   {count / med:>10,.0f} (median)")
+        rates[name], medians[name] = count / low, count / med
+        print(f"  {name:<52} {count / low:>10,.0f} runs/s (best)   {count / med:>10,.0f} (median)")
 
     taylor = load_taylor(taylor_sources(system, tol))
-    report("Taylor ensemble directly, this process", timed(
-        lambda: taylor.run(times, tol, param, y0, None), repeats))
-    report("dop853 ensemble directly, this process", timed(
-        lambda: ensemble.run("dop853", cuts, DT, dop_tol, dop_tol, param, y0, False), repeats))
     job = make_job(system, plan, initial_values(loaded, None), {}, method="taylor", t_end=T_END, dt=DT,
                    rtol=tol, atol=tol, chunk=1000)
-    import logging
+    import contextlib
 
-    from distributed import LocalCluster
+    from kronsub.sweep.chunk import columns
+    from kronsub.sweep.dataset import Dataset
 
-    for workers in (1, 2):  # the cluster started (and the workers' library loaded) before the clock
-        t0 = time.perf_counter()
-        with LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=None,
-                          silence_logs=logging.ERROR) as cluster:
-            execute(job, range(workers), lambda i, rows: None, scheduler=cluster.scheduler_address)
+    scratch = tempfile.TemporaryDirectory(prefix="kronsub-sweep-bench-")
+
+    def written(job_, name):
+        """``done`` as the command's: each chunk's rows written as its Parquet part."""
+        dataset = Dataset(Path(scratch.name) / name, columns(job_))
+        dataset.prepare({}, resume=False, force=True)
+        return lambda index, rows: dataset.write(index, rows)
+
+    tenth = max(1, runs // 10)
+    routes = {"Taylor ensemble directly, this process": (lambda: taylor.run(times, tol, param, y0, None), runs),
+              f"dop853 ensemble directly, this process ({tenth:,} runs)": (
+                  lambda: ensemble.run("dop853", cuts, DT, dop_tol, dop_tol, param[:tenth], y0[:tenth], False), tenth)}
+
+    def sweep_on(cluster, workers):
+        return lambda: execute(job, range(job.chunks), written(job, f"w{workers}"), scheduler=cluster.scheduler_address)
+
+    with contextlib.ExitStack() as stack:
+        for workers in (1, 2):  # the clusters started (and the workers' library loaded) before the clock
+            t0 = time.perf_counter()
+            cluster = stack.enter_context(local_cluster(workers, threads=True))  # the command's, for compiled runs
+            execute(job, range(workers), written(job, "warm"), scheduler=cluster.scheduler_address)
             print(f"  (a local cluster of {workers} started and warmed in {time.perf_counter() - t0:.1f} s)")
-            report(f"kronsub sweep (taylor), {workers} local worker(s)", timed(
-                lambda: execute(job, range(job.chunks), lambda i, rows: None, scheduler=cluster.scheduler_address),
-                repeats))
-    try:
-        import heyoka
+            routes[f"kronsub sweep (taylor), {workers} local worker(s)"] = (sweep_on(cluster, workers), runs)
+        try:
+            import heyoka
 
-        from kronsub.simulation.heyoka_backend import HeyokaIntegrator
-    except ImportError as exc:
-        print(f"  heyoka not available ({exc})")
-    else:
-        errors = {}
-        for t in (1e-9, 1e-10, 1e-11, 1e-12, 1e-13, 1e-14, 1e-15):
-            integ = HeyokaIntegrator(system, t)
-            worst = 0.0
-            for r in range(SAMPLE):
-                integ.start(0.0, y0[r], param[r])
-                integ.ta.propagate_until(T_END)
-                worst = max(worst, float(np.max(np.abs(integ.ta.state - reference[r]))))
-            errors[t] = worst
-            if worst <= ERROR:
-                break
-        hy_tol = loosest(errors)
-        print("  heyoka: " + ", ".join(f"{t:.0e}: {e:.1e}" for t, e in errors.items()))
-        integ = HeyokaIntegrator(system, hy_tol)
-        used = integ.used
+            from kronsub.simulation.heyoka_backend import HeyokaIntegrator
+        except ImportError as exc:
+            print(f"  heyoka not available ({exc})")
+        else:
+            errors = {}
+            for t in (1e-9, 1e-10, 1e-11, 1e-12, 1e-13, 1e-14, 1e-15):
+                integ = HeyokaIntegrator(system, t)
+                worst = 0.0
+                for r in range(SAMPLE):
+                    integ.start(0.0, y0[r], param[r])
+                    integ.ta.propagate_until(T_END)
+                    worst = max(worst, float(np.max(np.abs(integ.ta.state - reference[r]))))
+                errors[t] = worst
+                if worst <= ERROR:
+                    break
+            hy_tol = loosest(errors)
+            print("  heyoka: " + ", ".join(f"{t:.0e}: {e:.1e}" for t, e in errors.items()))
+            integ = HeyokaIntegrator(system, hy_tol)
+            used = integ.used
 
-        def gen(ta, i):
-            ta.time = 0.0
-            ta.state[:] = y0[i]
-            ta.pars[:] = param[i, :used]
-            return ta
+            def gen(ta, i):
+                ta.time = 0.0
+                ta.state[:] = y0[i]
+                ta.pars[:] = param[i, :used]
+                return ta
 
-        for threads in (1, 2):
-            report(f"heyoka ensemble, {threads} thread(s), tol {hy_tol:.0e}", timed(
-                lambda: heyoka.ensemble_propagate_until(integ.ta, T_END, runs, gen, algorithm="thread",
-                                                        max_workers=threads), repeats))
+            for threads in (1, 2):
+                routes[f"heyoka ensemble, {threads} thread(s), tol {hy_tol:.0e}"] = (
+                    lambda threads=threads: heyoka.ensemble_propagate_until(
+                        integ.ta, T_END, runs, gen, algorithm="thread", max_workers=threads), runs)
+        seconds = {name: [] for name in routes}
+        cpu = {name: [] for name in routes}
+        for _ in range(repeats):  # interleaved: each route once a round, so that a change of load hits them all
+            for name, (fn, _count) in routes.items():
+                t0, c0 = time.perf_counter(), time.process_time()
+                fn()
+                seconds[name].append(time.perf_counter() - t0)
+                cpu[name].append(time.process_time() - c0)
+    for name, (_, count) in routes.items():
+        report(name, (min(seconds[name]), statistics.median(seconds[name])), count)
+    print("  per second of this process's CPU time (all its threads: the sweep's client, scheduler and worker; "
+          "heyoka's threads), best and median:")
+    for name, (_, count) in routes.items():
+        per_cpu[name] = count / min(cpu[name])
+        print(f"    {name:<50} {count / min(cpu[name]):>10,.0f} {count / statistics.median(cpu[name]):>10,.0f}")
+    whole = [command_seconds(runs, tol, Path(scratch.name) / f"whole{k}") for k in range(repeats)]
+    report("the whole `kronsub sweep` command, 1 worker", (min(whole), statistics.median(whole)))
     api = kronsub.load(MODEL).derive()
     loop = min(runs, 200)
 
@@ -148,18 +198,108 @@ def main():
             api.simulate(t=T_END, dt=DT, method="taylor", set={"theta": y0[r, 0], "phi": y0[r, 1]}, rtol=tol,
                          atol=tol, dataframe=False)
 
-    report("Python loop over system.simulate(method='taylor')", timed(python_loop, 1), loop)
-    print("ratios:")
-    direct = rates["Taylor ensemble directly, this process"]
-    one, two = rates["kronsub sweep (taylor), 1 local worker(s)"], rates["kronsub sweep (taylor), 2 local worker(s)"]
-    print(f"  sweep on 1 worker / compiled ensemble directly: {one / direct:.2f} (goal >= 0.8)")
-    print(f"  sweep on 2 workers / 1 worker: {two / one:.2f} (goal >= 1.8)")
-    heyoka_one = next((v for k, v in rates.items() if k.startswith("heyoka ensemble, 1")), None)
-    if heyoka_one:
-        print(f"  sweep on 1 worker / heyoka ensemble on 1 thread: {one / heyoka_one:.2f} (goal >= 5)")
-    looped = rates["Python loop over system.simulate(method='taylor')"]
-    print(f"  sweep on 1 worker / Python loop: {one / looped:.0f}")
-    print(f"  per core: {one:,.0f} runs/s through kronsub sweep (goal >= 5,000)")
+    report(LOOP, timed(python_loop, 1), loop)
+    share = overhead(system, loaded, tol, overhead_runs, repeats, written)
+    memory = {10 ** p: memory_mb(10 ** p, Path(scratch.name) / f"memory{p}") for p in powers}
+    for count, mb in memory.items():
+        print(f"  client peak memory, {count:>9,} runs (rk4, t = 0.1): {mb:6.0f} MB")
+    print("ratios (of the best; of the medians):")
+    sweep1, sweep2 = "kronsub sweep (taylor), 1 local worker(s)", "kronsub sweep (taylor), 2 local worker(s)"
+    hey = next((k for k in rates if k.startswith("heyoka ensemble, 1")), None)
+
+    def ratio(a, b):
+        return f"{rates[a] / rates[b]:.2f}; {medians[a] / medians[b]:.2f}"
+
+    print(f"  sweep on 1 worker / compiled ensemble directly: {ratio(sweep1, 'Taylor ensemble directly, this process')} "
+          "(goal >= 0.8)")
+    print(f"  sweep on 2 workers / 1 worker: {ratio(sweep2, sweep1)} (goal >= 1.8)")
+    if hey:
+        print(f"  sweep on 1 worker / heyoka ensemble on 1 thread: {ratio(sweep1, hey)} (goal >= 5)")
+    print(f"  sweep on 1 worker / Python loop: {ratio(sweep1, LOOP)}")
+    print(f"  per core: {rates[sweep1]:,.0f}; {medians[sweep1]:,.0f} runs/s through kronsub sweep (goal >= 5,000); "
+          f"{per_cpu[sweep1]:,.0f} per CPU second")
+    if hey:
+        print(f"  per CPU second, sweep on 1 worker / heyoka on 1 thread: {per_cpu[sweep1] / per_cpu[hey]:.2f} (goal >= 5)")
+    print(f"  engine's share of the wall time at {overhead_runs:,} runs: {share[0]:.1%} (best), {share[1]:.1%} "
+          "(median) (goal <= 5 %)")
+    if memory:
+        low = min(memory.values())
+        print("  client memory / the smallest run's: " + ", ".join(f"{c:,}: {m / low:.2f}" for c, m in memory.items())
+              + " (goal: flat)")
+    scratch.cleanup()
+
+
+def overhead(system, loaded, tol, count, repeats, written):
+    """The engine's share of a sweep's wall time on one worker, ``1 - compute / wall``: ``compute``
+    the time its worker spent in the compiled ensemble's calls, timed in the worker (a thread of
+    this process, as the command's local cluster) over the same interval as the wall, so that a
+    change of load moves both; (best, median) of ``max(2, repeats)``."""
+    from kronsub.model.scenes import initial_values
+    from kronsub.sweep.axes import read_axes
+    from kronsub.sweep.driver import execute, local_cluster
+    from kronsub.sweep.ensemble import TaylorEnsemble
+    from kronsub.sweep.study import make_job, make_plan
+
+    plan = make_plan(*read_axes((), ANGLES), count, 2)
+    job = make_job(system, plan, initial_values(loaded, None), {}, method="taylor", t_end=T_END, dt=DT, rtol=tol,
+                   atol=tol, chunk=1000)
+    spent, original = [], TaylorEnsemble.run
+
+    def timed_run(self, *args, **kwargs):
+        t0 = time.perf_counter()
+        try:
+            return original(self, *args, **kwargs)
+        finally:
+            spent.append(time.perf_counter() - t0)
+
+    shares = []
+    TaylorEnsemble.run = timed_run
+    try:
+        with local_cluster(1, threads=True) as cluster:
+            execute(job, range(1), lambda i, rows: None, scheduler=cluster.scheduler_address)
+            for k in range(max(2, repeats)):
+                spent.clear()
+                t0 = time.perf_counter()
+                execute(job, range(job.chunks), written(job, f"overhead{k}"), scheduler=cluster.scheduler_address)
+                wall = time.perf_counter() - t0
+                shares.append(1 - sum(spent) / wall)
+                print(f"  {count:,} runs on 1 worker: {wall:.2f} s, of which {sum(spent):.2f} s in the ensemble's calls")
+    finally:
+        TaylorEnsemble.run = original
+    return min(shares), statistics.median(shares)
+
+
+def command_seconds(runs, tol, out) -> float:
+    """Wall time of the whole command (a fresh process: import, model, local cluster, Parquet)."""
+    t0 = time.perf_counter()
+    subprocess.run([sys.executable, "-m", "kronsub", "sweep", str(MODEL), *(a for s in ANGLES for a in ("--sample", s)),
+                    "--runs", str(runs), "--seed", "1", "--method", "taylor", "--rtol", repr(tol), "--atol", repr(tol),
+                    "--t", repr(T_END), "--dt", repr(DT), "--workers", "1", "-o", str(out)], check=True,
+                   stdout=subprocess.DEVNULL, env={**os.environ, "PYTHONPATH": str(ROOT)})
+    return time.perf_counter() - t0
+
+
+def memory_mb(count, out) -> float:
+    """Peak resident memory of the client of a cheap sweep of ``count`` runs (a fresh process)."""
+    done = subprocess.run([sys.executable, __file__, "--memory-child", str(count), "--runs", "1", "--memory", str(out)],
+                          check=True, capture_output=True, text=True, env={**os.environ, "PYTHONPATH": str(ROOT)})
+    return json.loads(done.stdout.strip().splitlines()[-1])["maxrss_mb"]
+
+
+def memory_child(count) -> None:
+    """In the child: `kronsub sweep` of ``count`` cheap runs in this process, then its peak memory
+    (``VmHWM``: ``ru_maxrss`` keeps the parent's peak across ``exec`` on Linux)."""
+    from kronsub.cli import main
+
+    out = sys.argv[sys.argv.index("--memory") + 1]
+    try:
+        main(["sweep", str(MODEL), *(a for s in ANGLES for a in ("--sample", s)), "--runs", str(count), *CHEAP,
+              "--workers", "1", "-o", out], standalone_mode=False)
+    except SystemExit as exc:
+        if exc.code:
+            raise
+    peak = next(line for line in Path("/proc/self/status").read_text().splitlines() if line.startswith("VmHWM:"))
+    print(json.dumps({"maxrss_mb": int(peak.split()[1]) / 1024}))
 
 
 if __name__ == "__main__":

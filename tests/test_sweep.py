@@ -28,6 +28,7 @@ from kronsub.sweep.study import make_job, make_plan  # noqa: E402
 ROOT = Path(__file__).resolve().parent.parent
 SYSTEM1 = ROOT / "models" / "hoffmann" / "system1.yaml"
 FOUR_BAR = ROOT / "models" / "examples" / "four_bar.yaml"
+SLIDER_CRANK = ROOT / "models" / "examples" / "slider_crank.yaml"
 
 
 def job_of(model, scene, grids=(), samples=(), runs=None, seed=0, method="dop853", t_end=2.0, dt=0.05, chunk=4):
@@ -62,8 +63,10 @@ def simulated(tmp_path, model, scene, settings: dict, method, t_end, dt):
     (SYSTEM1, "pushed", ("m2=[0.5, 2]",), ("phi=uniform(-2, 2)",), "gauss4", ENSEMBLE),  # a scene, swept parameter
     (SYSTEM1, "free", (), ("theta=uniform(-2, 2)",), "rk4", ENSEMBLE),
     (SYSTEM1, "free", ("phi=-1:1:2",), ("theta_dot=uniform(-1, 1)",), "taylor", TAYLOR),
-    (FOUR_BAR, None, ("theta1=1.5:2.5:2",), (), "dop853", ONE_BY_ONE),  # a closed loop
-], ids=["explicit", "scene-gauss4", "scene-rk4", "taylor", "closed-loop"])
+    (FOUR_BAR, None, ("theta1=1.5:2.5:2",), (), "dop853", ENSEMBLE),  # a closed loop, in the ensemble
+    (FOUR_BAR, None, ("theta1=1.5:2.5:2",), (), "rk4", ENSEMBLE),
+    (SLIDER_CRANK, None, ("theta=0.5:1.5:2",), (), "dop853", ONE_BY_ONE),  # coordinates: auto, one by one
+], ids=["explicit", "scene-gauss4", "scene-rk4", "taylor", "closed-loop", "closed-loop-rk4", "closed-loop-auto"])
 def test_sweep_rows_equal_simulate(tmp_path, model, scene, grids, samples, method, route):
     job = job_of(model, scene, grids, samples, runs=1 if samples else None, seed=11, method=method, chunk=3)
     assert job.route == route
@@ -114,11 +117,60 @@ def test_draws_follow_their_distributions():
     assert sorted(np.floor((lhs - 2) * 100).astype(int)) == list(range(100))  # one draw per stratum
 
 
+@pytest.mark.parametrize("count", [1, 2, 3, 5, 16, 17, 1000, 4099])
+def test_latin_strata_are_a_permutation_evaluated_in_pieces(count):
+    from kronsub.sweep.plan import strata
+
+    whole = strata(7, 0, count, np.arange(count))
+    assert sorted(whole) == list(range(count))
+    pieces = np.concatenate([strata(7, 0, count, np.arange(a, min(a + 3, count))) for a in range(0, count, 3)])
+    assert np.array_equal(pieces, whole)
+    if count >= 16:  # another seed, another axis: another permutation
+        assert not np.array_equal(strata(8, 0, count, np.arange(count)), whole)
+        assert not np.array_equal(strata(7, 1, count, np.arange(count)), whole)
+
+
+def test_latin_memory_follows_the_chunk_not_the_sweep():
+    import tracemalloc
+
+    (_, samples) = read_axes((), ("a=uniform(0, 1)", "b=normal(0, 1)"))
+    plan = Plan((), tuple(samples), 10**9, 3, latin=True)  # a permutation of all draws would be 8 GB an axis
+    tracemalloc.start()
+    values = plan.inputs(10**9 - 50, 10**9)
+    peak = tracemalloc.get_traced_memory()[1]
+    tracemalloc.stop()
+    assert peak < 1 << 20 and len(values["a"]) == 50 and np.all((0 < values["a"]) & (values["a"] < 1))
+
+
 def test_grid_order_and_values():
     grids, _ = read_axes(("x=0:1:3", "y=log:1:100:3", "z=[1, 2*pi]"), ())
     values = Plan(tuple(grids), (), 1, 0).inputs(0, 18)
     assert list(values["x"][:6]) == [0.0] * 6 and list(values["y"][:2]) == [1.0, 1.0]
     assert values["z"][1] == 2 * np.pi and values["y"][2] == pytest.approx(10) and values["y"][4] == 100
+
+
+@pytest.mark.parametrize("max_steps", [10**7, 7, 1])
+def test_taylor_summaries_without_rows_equal_those_of_whole_rows(max_steps):
+    """Without rows asked for, the Taylor ensemble computes the coordinates inside a step only; a run
+    stopped by the step limit, whose last row lies inside a step, is run again for its whole last row."""
+    from kronsub.simulation.grid import Grid
+    from kronsub.sweep.chunk import inputs_of
+    from kronsub.sweep.ensemble import load_taylor
+
+    job = job_of(SYSTEM1, "free", ("theta=[0.5, 2.5]",), ("phi=uniform(-2, 2)",), runs=2, method="taylor", t_end=2.0,
+                 dt=0.01)
+    _, param, y0 = inputs_of(job, 0, job.plan.count)
+    taylor, grid = load_taylor(job.taylor_sources), Grid(job.t_end, job.dt)
+    times = grid[0:len(grid)]
+    bare = taylor.run(times, job.rtol, param, y0, None, max_steps=max_steps)
+    whole, rows, written = taylor.run(times, job.rtol, param, y0, None, with_rows=True, max_steps=max_steps)
+    np.testing.assert_array_equal(bare, whole)
+    for r in range(len(y0)):
+        kept = rows[r, :written[r], 1:]
+        assert np.array_equal(bare[r, 5:9], kept[-1])  # the final state: the last row, whole
+        assert np.array_equal(bare[r, 9:11], kept[:, :2].min(axis=0))
+        assert np.array_equal(bare[r, 11:13], kept[:, :2].max(axis=0))
+    assert np.all(bare[:, 0] == (0 if max_steps > 1000 else 4)) and np.all(written[:] > 1 if max_steps > 1 else True)
 
 
 def test_a_failed_run_is_a_row():
@@ -153,6 +205,7 @@ def test_command_writes_a_dataset_refuses_and_resumes(tmp_path):
     resumed = run([*args, "--resume"])
     assert resumed.exit_code == 0, resumed.output
     assert "4 of 5 chunks already written" in resumed.output
+    assert json.loads((tmp_path / "runs.parquet.json").read_text())["counts"] == {"complete": 9}  # old parts + new
     assert {p.name: p.stat().st_mtime_ns for p in out.glob("part-*.parquet") if p.name in kept} == kept
     pd.testing.assert_frame_equal(pd.read_parquet(out).sort_values("run", ignore_index=True), table)
     other = run([*args[:-2], "--seed", "10", "-o", out, "--resume"])  # another sweep is not resumed into it
@@ -357,3 +410,58 @@ def test_progress_shows_runs_rate_and_time_left(capsys):
     quiet.update(5)
     quiet.close()
     assert capsys.readouterr().err == ""
+
+
+NAMED_LIKE_ROWS = ROOT / "tests" / "models" / "sweep_names" / "pendulum_named_like_rows.yaml"
+
+
+@pytest.mark.parametrize("axis, told", [
+    (["--grid", "steps=1:2:2"], "--grid steps=1:2:2: steps: a sweep's row has a column steps of its own"),
+    (["--sample", "run=uniform(0, 1)", "--runs", "2"], "--sample run=uniform(0, 1): run: a sweep's row has a column run"),
+])
+def test_a_swept_name_like_a_row_column_is_a_located_error(tmp_path, axis, told):
+    """A parameter named steps, a coordinate named run: swept, their columns would replace the row's own."""
+    result = run([NAMED_LIKE_ROWS, *axis, "--t", "0.1", "-o", tmp_path / "out.parquet"])
+    assert result.exit_code == 1, result.output
+    assert told in result.output and "hint: rename it in the model file" in result.output
+    assert "Traceback" not in result.output and not (tmp_path / "out.parquet").exists()
+    rows = rows_of(job_of(NAMED_LIKE_ROWS, None, ("m=[1, 2]",), t_end=0.1))  # swept under another name: no clash
+    assert list(rows["run"]) == [0, 1] and list(rows["steps"]) == [rows["steps"][0]] * 2
+    assert list(rows.columns).count("run") == 1 and "final_run" in rows.columns
+
+
+@pytest.mark.parametrize("method, route", [("taylor", TAYLOR), ("dop853", ENSEMBLE)])
+def test_local_threads_give_the_rows_of_one_process(method, route):
+    """The local cluster for runs in C is a worker of two threads in this process: the chunks run
+    side by side there (the C call releases the GIL) and give the rows a single process gives."""
+    from distributed import Client
+
+    from kronsub.sweep.driver import execute, local_cluster
+
+    job = job_of(SYSTEM1, "free", ("theta=-2:2:5",), ("phi=uniform(-2, 2)",), runs=4, seed=3, method=method,
+                 t_end=1.0, dt=0.05, chunk=2)
+    assert job.route == route
+    parts = {}
+    with local_cluster(2, threads=True) as cluster, Client(cluster, set_as_default=False) as client:
+        info = client.scheduler_info()["workers"]
+        assert [w["nthreads"] for w in info.values()] == [2]  # one worker, a thread per core asked for
+        execute(job, range(job.chunks), parts.__setitem__, scheduler=cluster.scheduler_address)
+    rows = pd.concat([pd.DataFrame(parts[i]) for i in sorted(parts)], ignore_index=True)
+    pd.testing.assert_frame_equal(rows, rows_of(job))
+
+
+def test_a_closed_loop_in_the_ensemble_gives_the_rows_of_one_by_one():
+    """The four-bar's runs in the ensemble (each projected onto the constraints, its own Newton
+    state) equal those run one by one as simulate runs them, also the runs that stop: a coupler too
+    short to close the loop (the projection fails), a toggle reached mid-run (run again one by one)."""
+    import dataclasses
+
+    loaded, _, system = scene_system(FOUR_BAR, None)
+    plan = make_plan(*read_axes(("l2=[0.1, 1.0]", "l3=[0.8, 0.6]", "theta1_dot=[1, 8]"), ()), None, 0)
+    job = make_job(system, plan, initial_values(loaded, None), {}, method="dop853", t_end=2.0, dt=0.05, rtol=1e-10,
+                   atol=1e-10, chunk=8)
+    assert job.route == ENSEMBLE
+    rows = pd.DataFrame(run_chunk(job, 0))
+    pd.testing.assert_frame_equal(rows, pd.DataFrame(run_chunk(dataclasses.replace(job, route=ONE_BY_ONE), 0)))
+    assert list(rows["status"]) == ["stopped"] * 4 + ["complete"] * 4
+    assert "violates the constraints" in rows["reason"][0] and 0 < rows["t_final"][3] < 2.0  # projection; mid-run

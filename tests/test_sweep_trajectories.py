@@ -22,7 +22,7 @@ from kronsub.cli import main  # noqa: E402
 from kronsub.commands.common import scene_system  # noqa: E402
 from kronsub.model.scenes import initial_values  # noqa: E402
 from kronsub.sweep.axes import read_axes  # noqa: E402
-from kronsub.sweep.chunk import ENSEMBLE, ONE_BY_ONE, TAYLOR, run_chunk  # noqa: E402
+from kronsub.sweep.chunk import ENSEMBLE, TAYLOR, run_chunk  # noqa: E402
 from kronsub.sweep.study import make_job, make_plan  # noqa: E402
 from kronsub.sweep.trajectories import trajectory_columns  # noqa: E402
 
@@ -48,7 +48,7 @@ def simulated(folder: Path, model, scene, settings: dict, method: str, t_end: fl
     (SYSTEM1, None, ("theta=-2:2:3",), "dop853", ENSEMBLE),  # explicit, the whole model
     (SYSTEM1, "pushed", ("m2=[0.5, 2]",), "gauss4", ENSEMBLE),  # a scene, a swept parameter, velocities from p
     (SYSTEM1, "free", ("phi=[0.3, 2.5]",), "taylor", TAYLOR),
-    (FOUR_BAR, None, ("theta1=1.5:2.5:2",), "dop853", ONE_BY_ONE),  # a closed loop
+    (FOUR_BAR, None, ("theta1=1.5:2.5:2",), "dop853", ENSEMBLE),  # a closed loop: with rows, one by one
 ], ids=["explicit", "scene-gauss4", "taylor", "closed-loop"])
 def test_each_runs_trajectory_equals_simulate(tmp_path, model, scene, grids, method, route):
     loaded, chosen, system = scene_system(model, scene)
@@ -74,7 +74,7 @@ def test_each_runs_trajectory_equals_simulate(tmp_path, model, scene, grids, met
             assert np.array_equal(mine[name].to_numpy(), data[:, header.index(name)], equal_nan=True), name
         last = mine.iloc[-1]
         assert all(summary[f"final_{v.name}"] == last[v.name] for v in system.velocities)
-    if route == ONE_BY_ONE:
+    if system.implicit is not None:
         assert [d.name for d in system.implicit.dependent] == names[-len(system.implicit.dependent):]
 
 
@@ -127,3 +127,33 @@ def test_trajectories_inside_the_output_are_refused(tmp_path):
     result = sweep([SYSTEM1, "--grid", "theta=0:1:2", "-o", tmp_path / "runs.parquet", "--trajectories",
                     tmp_path / "runs.parquet" / "rows"])
     assert result.exit_code == 2 and "one inside the other" in result.output and "Traceback" not in result.output
+
+
+def test_a_coordinate_named_like_a_trajectory_column_is_refused(tmp_path):
+    """The coordinate run beside the rows' own run column: refused before any folder is made."""
+    model = ROOT / "tests" / "models" / "sweep_names" / "pendulum_named_like_rows.yaml"
+    result = sweep([model, "--grid", "m=1:2:2", "--t", "0.1", "-o", tmp_path / "runs.parquet", "--trajectories",
+                    tmp_path / "rows.parquet"])
+    assert result.exit_code == 1, result.output
+    assert "the trajectories would have two columns named run" in result.output and "Traceback" not in result.output
+    assert not (tmp_path / "runs.parquet").exists() and not (tmp_path / "rows.parquet").exists()
+
+
+def test_system_sweep_keeps_the_trajectories_and_user_outputs(tmp_path):
+    import kronsub
+    from kronsub.sweep.dataset import DatasetError
+
+    system = kronsub.load(SYSTEM1).derive(scene="free")
+    folder = tmp_path / "rows.parquet"
+    rows = system.sweep(grid={"theta": [0.5, 1.0, 1.5]}, t=0.5, dt=0.1, method="taylor", workers=1, chunk=2,
+                        trajectories=folder, summaries=["top=max(abs(phi))"])
+    kept = pd.read_parquet(folder).sort_values(["run", "t"], ignore_index=True)
+    assert sorted(p.name for p in folder.iterdir()) == ["part-000000.parquet", "part-000001.parquet"]
+    assert list(kept.groupby("run").size()) == [6, 6, 6] and list(kept["theta"][::6]) == [0.5, 1.0, 1.5]
+    last = kept.groupby("run").last()
+    for name in ("theta", "phi", "theta_dot", "phi_dot"):  # each run's last row is its final state
+        assert np.array_equal(last[name].to_numpy(), rows[f"final_{name}"].to_numpy()), name
+    assert np.array_equal(kept.groupby("run")["phi"].agg(lambda v: np.abs(v).max()).to_numpy(), rows["top"].to_numpy())
+    assert json.loads((tmp_path / "rows.parquet.json").read_text())["state"] == "complete"
+    with pytest.raises(DatasetError, match="exists"):
+        system.sweep(grid={"theta": [0.5]}, t=0.5, dt=0.1, workers=1, trajectories=folder)

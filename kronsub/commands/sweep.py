@@ -160,6 +160,12 @@ def sweep(model: Path, grids, samples, tables, runs, seed, latin, t_end, dt, met
         where = {name: (f"--table {a.text}: column {name}" if hasattr(a, "sha256") else f"--grid {a.name}={a.text}")
                  for a in grid_axes for name in a.names}
         where.update({a.name: f"--sample {a.name}={a.text}" for a in sample_axes})
+        kept = None
+        if trajectories is not None:  # (before the C is emitted: a name the rows cannot hold is refused first)
+            from ..sweep.trajectories import trajectory_columns
+
+            kept = Dataset(trajectories, trajectory_columns(system, scene.outputs if scene is not None else None),
+                           option="--trajectories")
         try:
             job_ = make_job(system, plan, initial_values(loaded, scene), assignments, method=chosen, t_end=span,
                             dt=step, rtol=rtol, atol=atol, outputs=scene.outputs if scene is not None else None,
@@ -180,13 +186,9 @@ def sweep(model: Path, grids, samples, tables, runs, seed, latin, t_end, dt, met
             if mapped not in {name for name, kind in dataset.columns if kind == "float64"} or mapped in plan.names:
                 fail(f"Error: --plot-column {mapped}: no numeric output column of that name\n  hint: choose one of "
                      + ", ".join(n for n, k in dataset.columns if k == "float64" and n not in plan.names), USAGE_ERROR)
-        kept = None
         try:
             written = dataset.prepare(identity, resume=resume, force=force)
-            if trajectories is not None:
-                from ..sweep.trajectories import trajectory_columns
-
-                kept = Dataset(trajectories, trajectory_columns(system, job_.outputs), option="--trajectories")
+            if kept is not None:
                 written &= kept.prepare(identity, resume=resume, force=force)  # a chunk is done with both parts
                 job_ = dataclasses.replace(job_, trajectories=str(kept.folder.resolve()))
         except DatasetError as exc:
@@ -218,6 +220,7 @@ def sweep(model: Path, grids, samples, tables, runs, seed, latin, t_end, dt, met
 
         sidecar("running", len(written), {})
         finished = [len(written)]
+        tally: dict[str, int] = {}
 
         def done(index, rows):
             if kept is not None and not (kept.folder / part_name(index)).exists():
@@ -225,6 +228,8 @@ def sweep(model: Path, grids, samples, tables, runs, seed, latin, t_end, dt, met
                                    f"them ({kept.folder})\n  hint: on a cluster, --trajectories must be a folder the "
                                    "workers share with this machine, at the same path")
             dataset.write(index, rows)
+            for status in rows["status"]:  # the new parts' counts, without reading them back
+                tally[status] = tally.get(status, 0) + 1
             finished[0] += 1
 
         if written:
@@ -239,7 +244,7 @@ def sweep(model: Path, grids, samples, tables, runs, seed, latin, t_end, dt, met
             sidecar("interrupted", finished[0])
             fail(f"Interrupted{interrupted_by(signal_of(exc))}: {finished[0]} of {job_.chunks} chunks kept in "
                  f"{output}\n  hint: --resume finishes it", exit_code(exc))
-        counts = dataset.counts()
+        counts = dataset.counts(written, tally)
         sidecar("complete", finished[0], counts)
         if plot is not None:
             from ..sweep.plot import heat_map

@@ -667,7 +667,8 @@ class TaylorEmitter:
             sizes += "".join(f"\n        guard[{e}] = ks_umax(guard[{e}], ks_abits(Y{j}_{N - 1 - GUARD + e}));"
                              for j in range(ny) for e in range(GUARD))
 
-            def increment(tau: str, estrin: bool = True) -> str:  # sum_{k>=1} Y_k tau^k, by Estrin or Horner
+            def increment(tau: str, estrin: bool = True, count: int = ny) -> str:  # sum_{k>=1} Y_k tau^k, by Estrin or Horner
+                # (of the first ``count`` components)
                 # Estrin's scheme: Y_1 tau + (Y_2 + Y_3 tau + (Y_4 + Y_5 tau) tau^2 + ...) tau^2 in tau,
                 # tau^2, tau^4, ...: a chain of log2(N) products, not N; the leading term added last
                 powers = [tau, f"{tau}2"]  # as many as the N - 1 terms after the first need, at least tau^2
@@ -683,9 +684,10 @@ class TaylorEmitter:
                     return f"Y{j}_1 * {tau} + {_estrin([f'Y{j}_{k}' for k in range(2, N + 1)], powers)} * {tau}2"
                 square = [f"{b} = {a} * {a};" for a, b in zip(powers, powers[1:])] if estrin else []
                 lines = [f"double {', '.join(powers[1:])};", *square] if estrin else []
-                return " ".join(["{", *lines, *(f"dy[{j}] = {poly(j)};" for j in range(ny)), "}"])
+                return " ".join(["{", *lines, *(f"dy[{j}] = {poly(j)};" for j in range(count)), "}"])
 
             dense = increment("tau", estrin=False)  # Horner: the rows are off the chain from step to step
+            dense_coordinates = increment("tau", estrin=False, count=n)
             advance = increment("h")
             helpers = skeleton.lanes if self.pairs else ""
         else:
@@ -705,15 +707,17 @@ class TaylorEmitter:
                                for e in range(GUARD))
                      + "        }")
             dense = "ks_horner(Y, tau, dy);"
+            dense_coordinates = "ks_horner_coordinates(Y, tau, dy);"
             advance = "ks_horner(Y, h, dy);"
             inverses = ", ".join(["0.0"] + [_literal(mpmath.mpf(1) / k) for k in range(1, N + 2)])
             helpers = (f"\n#define TN_LANES {lanes}\n" + skeleton.loop
                        + "\nstatic const double ks_inv[TN_ORDER + 2] = {" + inverses + "};  /* 1 / k */\n")
-        def first_order(v: str) -> str:  # the low parts carried through the step to first order
-            return " ".join(f"dy[{a}] += {v} * (ylo[{n + a}] + 0.5 * {v} * EX{a}); dy[{n + a}] += {v} * EX{a};"
-                            for a in range(n))
+        def first_order(v: str, velocities: bool = True) -> str:  # the low parts carried through the step to first order
+            return " ".join(f"dy[{a}] += {v} * (ylo[{n + a}] + 0.5 * {v} * EX{a});"
+                            + (f" dy[{n + a}] += {v} * EX{a};" if velocities else "") for a in range(n))
 
         dense += " if (fine) { " + first_order("tau") + " }"
+        dense_coordinates += " if (fine) { " + first_order("tau", velocities=False) + " }"
         advance += " if (fine) { " + first_order("h") + " }"
         text = skeleton.template.format(
             name=c_comment(name), n=n, ny=ny, order=N, nparam=max(1, self.nparam),
@@ -736,7 +740,7 @@ class TaylorEmitter:
                 f"if (guard[{e}] > 0 && (h < 0 || ls - ks_log2_bits(guard[{e}]) < lh * {N - 1 - GUARD + e})) {{ "
                 f"double hk = factor * pow(scale / ks_double(guard[{e}]), 1.0 / {N - 1 - GUARD + e}); if (h < 0 || hk < h) h = hk; }}"
                 for e in range(GUARD)),
-            dense=dense, advance=advance, step="\n            ".join(step), free="free(W);" if not self.unrolled else "")
+            dense=dense, dense_coordinates=dense_coordinates, advance=advance, step="\n            ".join(step), free="free(W);" if not self.unrolled else "")
         return text
 
 

@@ -6,13 +6,16 @@ it got to, its final state, the least and greatest value of each coordinate on t
 the energy drift ``E(t_end) - E(0)`` (24) of a model that conserves energy, and its cost
 (steps, rejected steps, evaluations of the right-hand side). A run that fails is a row, never
 the end of the chunk. Runs wholly in C go through the compiled ensemble (:mod:`.ensemble`), a
-block at a time (``taylor`` through its own generated integrator); the others (scipy's methods,
-heyoka, closed loops, a worker without a C compiler) run one by one as ``simulate`` runs them
+block at a time (``taylor`` through its own generated integrator; a closed loop whose coordinates
+stay those chosen, each run projected onto its constraints first); the others (scipy's methods,
+heyoka, closed loops with ``coordinates: auto``, a closed loop's runs that stop or keep rows, a
+worker without a C compiler) run one by one as ``simulate`` runs them
 (:func:`kronsub.simulation.run.start`, with the generated numpy module where nothing compiles)."""
 from __future__ import annotations
 
 import contextlib
 import math
+import threading
 import warnings
 from dataclasses import dataclass, field
 
@@ -104,6 +107,7 @@ def inputs_of(job: Job, start: int, stop: int) -> tuple[dict, np.ndarray, np.nda
 
 
 _CONSERVES: dict[str, bool] = {}
+_ASKING = threading.Lock()  # the model's library (its parameter buffer) asked by one thread at a time
 
 
 def _conserves(job: Job, native) -> bool:
@@ -118,13 +122,14 @@ def _conserves(job: Job, native) -> bool:
 
         key = fingerprint(job.system, job.outputs) or repr(job.system)
     key = f"{key} {job.base_param} {job.base_y0}"
-    if key not in _CONSERVES:
-        try:
-            _CONSERVES[key] = bool(conserves_energy(native, np.asarray(job.base_param), len(job.system.coordinates),
-                                                    0.0, np.asarray(job.base_y0)))
-        except Exception:  # noqa: BLE001 - a model whose energy cannot be evaluated reports no drift
-            _CONSERVES[key] = False
-    return _CONSERVES[key]
+    with _ASKING:
+        if key not in _CONSERVES:
+            try:
+                _CONSERVES[key] = bool(conserves_energy(native, np.asarray(job.base_param),
+                                                        len(job.system.coordinates), 0.0, np.asarray(job.base_y0)))
+            except Exception:  # noqa: BLE001 - a model whose energy cannot be evaluated reports no drift
+                _CONSERVES[key] = False
+        return _CONSERVES[key]
 
 
 def run_chunk(job: Job, index: int) -> dict[str, object]:
@@ -135,16 +140,20 @@ def run_chunk(job: Job, index: int) -> dict[str, object]:
     n, nq = stop - start, len(job.system.coordinates)
     part = contextlib.nullcontext() if job.trajectories is None else \
         TrajectoryPart(job.trajectories, index, job.system, job.outputs)
-    with warnings.catch_warnings(), part as sink:
-        warnings.simplefilter("ignore")
+    with part as sink:
+        compiled = None
         try:  # (the libraries are loaded before any row goes to the part)
-            compiled = _ensemble(job, param, y0, start, sink) if job.route in (ENSEMBLE, TAYLOR) else None
+            if job.route in (ENSEMBLE, TAYLOR):
+                with np.errstate(all="ignore"):  # (per thread: chunks may run side by side in one process)
+                    compiled = _ensemble(job, param, y0, start, sink)
         except NativeError:  # no C compiler on this worker: the generated numpy module, run by run
             compiled = None
         if compiled is not None:
             summary, reasons, users = compiled
         else:
-            summary, reasons, users = _one_by_one(job, param, y0, start, sink)
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                summary, reasons, users = _one_by_one(job, param, y0, start, sink)
     ny = 2 * nq
     first = zero_rows(job.system)
     if first:
@@ -204,6 +213,8 @@ def _ensemble(job: Job, param: np.ndarray, y0: np.ndarray, run0: int = 0,
     from ..simulation.grid import Grid
 
     ensemble = load(job.sources)
+    if job.system.implicit is not None:
+        return _closed_loops(job, ensemble, param, y0, run0, sink)
     energies = _conserves(job, ensemble.native)
     cuts = pieces(job.t_end, job.dt, "dop853" if job.route == TAYLOR else job.method)
     grid = Grid(job.t_end, job.dt)
@@ -253,6 +264,49 @@ def _ensemble(job: Job, param: np.ndarray, y0: np.ndarray, run0: int = 0,
                 ensemble.message(status)
         reasons.append(f"{messages[status]} at t = {t:.6g}")
     return summary, reasons, users
+
+
+def _closed_loops(job: Job, ensemble, param: np.ndarray, y0: np.ndarray, run0: int = 0,
+                  sink: TrajectoryPart | None = None) -> tuple[np.ndarray, list[str], np.ndarray] | None:
+    """The runs of a closed loop through the ensemble, each from its initial values projected onto
+    the constraints and its own Newton state ``[y_d; tolerance]`` after its parameters, as
+    ``simulate`` starts it; a run that stops (a toggle position, Newton's method not converging)
+    and every run that keeps rows (the dependent coordinates are computed by ``simulate``'s
+    route) go one by one. None: the whole chunk one by one."""
+    from ..simulation.constrained import newton_tolerance, project_initial
+    from ..simulation.values import RunValues
+
+    if sink is not None or job.summaries:
+        return None
+    native, system = ensemble.native, job.system
+    tol = newton_tolerance(job.rtol, job.atol)
+    nparam, ny = len(system.parameters), y0.shape[1]
+    full = np.zeros((len(y0), nparam + native.nstate))
+    start = np.array(y0, dtype=float)
+    failed = []
+    for r in range(len(y0)):
+        values = RunValues(tuple(float(v) for v in param[r]), tuple(float(v) for v in y0[r]))
+        try:
+            values, _, constrained = project_initial(system, job.initial, job.dependent_settings, values, tol)
+        except KronsubError:
+            failed.append(r)
+            continue
+        start[r] = values.y0
+        full[r, :nparam] = param[r]
+        full[r, nparam:nparam + native.nstate - 1] = np.asarray(constrained.guess, dtype=float).ravel()
+        full[r, -1] = tol
+    cuts = pieces(job.t_end, job.dt, job.method)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        summary = ensemble.run(job.method, cuts, job.dt, job.rtol, job.atol, full, start, False)
+    redo = sorted(set(failed) | {r for r in range(len(y0)) if summary[r, 0] != 0})
+    reasons = [""] * len(y0)
+    if redo:
+        again, told, _ = _one_by_one(job, param[redo], y0[redo], run0, None)
+        for k, r in enumerate(redo):
+            summary[r], reasons[r] = again[k], told[k]
+    summary[:, 5 + ny + ny] = summary[:, 6 + ny + ny] = np.nan  # as one by one: no energy drift of a closed loop
+    return summary, reasons, np.full((len(y0), 0), np.nan)
 
 
 def _one_by_one(job: Job, param: np.ndarray, y0: np.ndarray, run0: int = 0,

@@ -90,12 +90,15 @@ class Dataset:
     def write_sidecar(self, info: dict) -> None:
         write_atomically(self.sidecar, json.dumps(info, indent=2, sort_keys=True, allow_nan=False) + "\n")
 
-    def counts(self) -> dict[str, int]:
-        """Runs by status over every part written."""
+    def counts(self, parts=None, known: dict[str, int] | None = None) -> dict[str, int]:
+        """Runs by status over every part written (``parts``: those of these chunks only), added to
+        ``known`` (the counts of other parts, tallied as they were written)."""
         import pyarrow.parquet as pq
 
-        counts: dict[str, int] = {}
-        for path in sorted(self.folder.glob("part-*.parquet")):
+        counts: dict[str, int] = dict(known or {})
+        paths = sorted(self.folder.glob("part-*.parquet")) if parts is None else \
+            [self.folder / part_name(i) for i in sorted(parts)]
+        for path in paths:
             for status in pq.read_table(path, columns=["status"]).column("status").to_pylist():
                 counts[status] = counts.get(status, 0) + 1
         return dict(sorted(counts.items()))

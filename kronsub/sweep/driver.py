@@ -1,7 +1,9 @@
 """The Dask driver: a sweep's chunks as tasks on a ``dask.distributed`` cluster.
 
-By default a local cluster on this machine (processes, one per core, one thread each: the
-ensemble holds the GIL); ``scheduler`` (or ``DASK_SCHEDULER_ADDRESS``) sends the chunks to a
+By default a local cluster on this machine, one thread or process per core: for runs in
+compiled code a worker in this process with a thread per core (the ensemble's C call releases
+the GIL, and no process has to start), for runs with Python in them (one by one, or a closed
+loop's projected initial values) a process per core of one thread each; ``scheduler`` (or ``DASK_SCHEDULER_ADDRESS``) sends the chunks to a
 running cluster instead, and one that cannot be reached is an error within
 :data:`CONNECT_SECONDS`. The job (model, plan, C sources) goes to the workers once; at most
 :func:`window` chunks are in flight, so the client's memory does not grow with the number of
@@ -20,10 +22,10 @@ from collections.abc import Callable, Iterable
 
 from ..errors import KronsubError
 from ..interrupts import handled
-from .chunk import Job, run_chunk
+from .chunk import ONE_BY_ONE, Job, run_chunk
 
 __all__ = ["CONNECT_SECONDS", "ENV_SCHEDULER", "RETRIES", "SchedulerError", "SweepLost", "SweepProgress", "execute",
-           "window"]
+           "local_cluster", "window"]
 
 CONNECT_SECONDS = 5  # a scheduler that does not answer by then is reported, not waited for
 ENV_SCHEDULER = "DASK_SCHEDULER_ADDRESS"
@@ -42,7 +44,7 @@ RETRIES = 3  # reruns of a chunk lost with its worker before the sweep stops
 
 
 def window(workers: int) -> int:
-    """Chunks in flight: two per worker keeps each busy while its next one is sent."""
+    """Chunks in flight: two per worker thread keeps each busy while its next one is sent."""
     return 2 * max(workers, 1) + 2
 
 
@@ -71,10 +73,11 @@ class SweepProgress:
             sys.stderr.write("\n")
 
 
-def _connect(scheduler: str | None, workers: int | None):
-    """A client of ``scheduler``, or of a new local cluster: ``(client, cluster or None)``."""
+def _connect(scheduler: str | None, workers: int | None, threads: bool = False):
+    """A client of ``scheduler``, or of a new local cluster (``threads``: one worker in this
+    process with ``workers`` threads): ``(client, cluster or None)``."""
     try:
-        from distributed import Client, LocalCluster
+        from distributed import Client
     except ImportError:
         raise SchedulerError(f"kronsub sweep needs dask.distributed and pyarrow\n  hint: {INSTALL_HINT}") from None
     if scheduler:
@@ -86,13 +89,24 @@ def _connect(scheduler: str | None, workers: int | None):
                                  f"({first})\n  hint: start one with `dask scheduler` and workers with "
                                  f"`dask worker ADDRESS`, or leave out --scheduler (and {ENV_SCHEDULER}) for a "
                                  "local cluster") from None
-    count = workers or os.cpu_count() or 1
+    cluster = local_cluster(workers or os.cpu_count() or 1, threads)
+    return Client(cluster, set_as_default=False), cluster
+
+
+def local_cluster(count: int, threads: bool):
+    """The local cluster of ``count`` cores: one worker in this process with a thread per core
+    (``threads``), else a process per core with one thread."""
+    from distributed import LocalCluster
+
+    # the scheduler's HTTP server on a free port: two sweeps at once do not warn of a taken one
+    if threads:
+        return LocalCluster(n_workers=1, threads_per_worker=count, processes=False, dashboard_address=":0",
+                            silence_logs=logging.ERROR)
     # the workers ignore Ctrl-C, which the terminal sends the whole process group: the client
     # keeps the finished chunks and closes the cluster
     with handled(lambda signum: signum == signal.SIGINT, signal.SIG_IGN):
-        cluster = LocalCluster(n_workers=count, threads_per_worker=1, processes=True, dashboard_address=None,
-                               silence_logs=logging.ERROR)
-    return Client(cluster, set_as_default=False), cluster
+        return LocalCluster(n_workers=count, threads_per_worker=1, processes=True, dashboard_address=":0",
+                            silence_logs=logging.ERROR)
 
 
 def execute(job: Job, todo: Iterable[int], done: Callable[[int, dict], None], *, scheduler: str | None = None,
@@ -101,11 +115,12 @@ def execute(job: Job, todo: Iterable[int], done: Callable[[int, dict], None], *,
     finishes (in the order they finish)."""
     from distributed import as_completed
 
-    client, cluster = _connect(scheduler, workers)
+    # threads where the runs are C calls; a closed loop's initial values are projected in Python
+    client, cluster = _connect(scheduler, workers, threads=job.route != ONE_BY_ONE and job.system.implicit is None)
     pending = list(todo)[::-1]
     tries: dict[int, int] = {}
     try:
-        count = len(client.scheduler_info().get("workers", {})) or (workers or 1)
+        count = sum(w.get("nthreads", 1) for w in client.scheduler_info().get("workers", {}).values()) or (workers or 1)
         shared = [client.scatter(job, broadcast=True, hash=False)]
         chunk_of = {}
 

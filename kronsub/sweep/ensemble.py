@@ -11,6 +11,7 @@ from __future__ import annotations
 import ctypes
 import hashlib
 import math
+import threading
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -163,13 +164,15 @@ class Ensemble:
 
 
 _LOADED: dict[str, Ensemble] = {}
+_LOADING = threading.Lock()  # a worker's threads build and load a library once between them
 
 
 def load(sources: Sources) -> Ensemble:
     """The :class:`Ensemble` of ``sources``, built and loaded once per process."""
-    if sources.sha256 not in _LOADED:
-        _LOADED[sources.sha256] = Ensemble(sources)
-    return _LOADED[sources.sha256]
+    with _LOADING:
+        if sources.sha256 not in _LOADED:
+            _LOADED[sources.sha256] = Ensemble(sources)
+        return _LOADED[sources.sha256]
 
 
 TAYLOR_C = Path(__file__).resolve().parent / "csrc" / "taylor_ensemble.c"
@@ -237,6 +240,7 @@ _LOADED_TAYLOR: dict[str, TaylorEnsemble] = {}
 
 def load_taylor(sources: Sources) -> TaylorEnsemble:
     """The :class:`TaylorEnsemble` of ``sources``, built and loaded once per process."""
-    if sources.sha256 not in _LOADED_TAYLOR:
-        _LOADED_TAYLOR[sources.sha256] = TaylorEnsemble(sources)
-    return _LOADED_TAYLOR[sources.sha256]
+    with _LOADING:
+        if sources.sha256 not in _LOADED_TAYLOR:
+            _LOADED_TAYLOR[sources.sha256] = TaylorEnsemble(sources)
+        return _LOADED_TAYLOR[sources.sha256]

@@ -5,22 +5,23 @@ fastest); with sample axes each grid point gets
 ``samples`` runs, run ``i`` at grid point ``i // samples``. Run ``i``'s uniform number on sample
 axis ``j`` is a counter-based hash of ``(seed, j, i)`` (:func:`uniforms`, splitmix64), so the same
 spec and seed give the same inputs whichever chunks the runs are cut into; a distribution turns
-it into its value by its inverse CDF. A Latin hypercube (``latin``) puts run ``i`` in stratum
-``perm_j[i]`` of axis ``j``, the permutation drawn from ``(seed, j)``."""
+it into its value by its inverse CDF. A Latin hypercube (``latin``) puts the draw ``w`` of a grid point in stratum
+``perm_j(w)`` of axis ``j``, a permutation drawn from ``(seed, j)`` and evaluated draw by draw
+(:func:`strata`), so that no worker holds all of it."""
 from __future__ import annotations
 
 import hashlib
 import json
 import math
 from dataclasses import dataclass
-from functools import lru_cache
 
 import numpy as np
 
 from .axes import GridAxis, SampleAxis, TableAxis
 
-__all__ = ["MAX_RUNS", "Plan", "uniforms"]
+__all__ = ["FEISTEL_ROUNDS", "MAX_RUNS", "Plan", "strata", "uniforms"]
 
+FEISTEL_ROUNDS = 4  # Luby and Rackoff: four rounds of a pseudo-random function make a pseudo-random permutation
 MAX_RUNS = 10**9  # runs of one sweep: more is a mistake in the spec (and years of computing), not a study
 
 _GOLDEN = np.uint64(0x9E3779B97F4A7C15)
@@ -42,10 +43,33 @@ def uniforms(seed: int, axis: int, runs: np.ndarray) -> np.ndarray:
     return ((x >> np.uint64(11)).astype(np.float64) + 0.5) * 2.0**-53
 
 
-@lru_cache(maxsize=8)
-def _strata(seed: int, axis: int, count: int) -> np.ndarray:
-    """The Latin hypercube's permutation of ``count`` strata on ``axis`` (argsort of uniforms)."""
-    return np.argsort(uniforms(seed ^ 0x5A17, axis, np.arange(count)), kind="stable")
+def strata(seed: int, axis: int, count: int, within: np.ndarray) -> np.ndarray:
+    """The Latin hypercube's stratum of each draw ``within`` (``0 .. count-1``) on ``axis``: a
+    permutation of ``0 .. count-1`` drawn from ``(seed, axis)``, evaluated only at ``within`` (memory
+    as ``within``, not as ``count``). A balanced Feistel network of :data:`FEISTEL_ROUNDS` rounds on
+    ``2 k`` bits, ``4^k >= count``, each round's function :func:`_mix` keyed by ``(seed, axis,
+    round)``, is a permutation of ``0 .. 4^k - 1``; a value ``>= count`` is sent through it again
+    until it falls below (cycle walking), which leaves a permutation of ``0 .. count-1``."""
+    k = max(1, math.ceil(math.log2(max(count, 2)) / 2))
+    while 4 ** k < count:
+        k += 1
+    half, mask = np.uint64(k), np.uint64((1 << k) - 1)
+    with np.errstate(over="ignore"):
+        keys = [_mix(np.array([(seed ^ 0x5A17) & 0xFFFFFFFFFFFFFFFF], dtype=np.uint64)
+                     ^ _mix(np.array([(axis + 1) * FEISTEL_ROUNDS + r], dtype=np.uint64))) for r in range(FEISTEL_ROUNDS)]
+
+        def encrypt(x: np.ndarray) -> np.ndarray:
+            left, right = x >> half, x & mask
+            for key in keys:
+                left, right = right, left ^ (_mix(key + right * _GOLDEN) & mask)
+            return (left << half) | right
+
+        y = encrypt(np.asarray(within, dtype=np.uint64))
+        outside = np.flatnonzero(y >= np.uint64(count))
+        while outside.size:
+            y[outside] = encrypt(y[outside])
+            outside = outside[y[outside] >= np.uint64(count)]
+    return y.astype(np.int64)
 
 
 @dataclass(frozen=True)
@@ -79,7 +103,7 @@ class Plan:
             u = uniforms(self.seed, j, runs)
             if self.latin:
                 within = runs % self.samples
-                u = (_strata(self.seed, j, self.samples)[within] + u) / self.samples
+                u = (strata(self.seed, j, self.samples, within) + u) / self.samples
             out[axis.name] = axis.transform(u)
         return {name: out[name] for name in self.names}
 

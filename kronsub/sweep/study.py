@@ -71,6 +71,13 @@ def make_job(system, plan: Plan, initial: dict, settings: dict[str, str], *, met
                                     "parameters: " + ", ".join(params) + "; state: " + ", ".join(states)))
         elif name in settings:
             problems.append(Problem(at, f"{name} is swept and also given by --set", "give it one or the other"))
+    own = [name for name, _ in columns(Job(system=system, plan=Plan((), (), 1, 0), chunk=1, method=method, t_end=t_end,
+                                           dt=dt, rtol=rtol, atol=atol, base_param=(), base_y0=(), route=""))]
+    for name in plan.names:  # a row's own columns (those of a sweep of nothing) cannot also be an input's
+        if name in own:
+            problems.append(Problem(Location(where.get(name, name)), f"{name}: a sweep's row has a column {name} of "
+                                    "its own, which a swept input of that name would clash with",
+                                    "rename it in the model file; a row's own columns: " + ", ".join(own)))
     dependent = set()
     if system.implicit is not None:
         from ..simulation.constrained import dependent_names
@@ -112,7 +119,10 @@ def make_job(system, plan: Plan, initial: dict, settings: dict[str, str], *, met
             if expr.free_symbols & swept:
                 derived.append((index, expr))
     route = ONE_BY_ONE
-    if compiled and system.implicit is None and method in BATCH_METHODS and METHODS[method].engine == "c":
+    # a closed loop in the ensemble too, when its coordinates stay those chosen (not `auto`, which
+    # may switch them between rows)
+    steady = system.implicit is None or system.implicit.choice != "auto"
+    if compiled and steady and method in BATCH_METHODS and METHODS[method].engine == "c":
         route = ENSEMBLE
     elif compiled and system.implicit is None and method == "taylor" and row_count(t_end, dt) <= BLOCK_ROWS:
         route = TAYLOR  # one call of the Taylor integrator per run, as simulate makes it

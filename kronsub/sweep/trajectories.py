@@ -15,9 +15,10 @@ from pathlib import Path
 import numpy as np
 
 from ..atomic import atomic_file
+from ..errors import KronsubError
 from .dataset import part_name
 
-__all__ = ["GROUP_BYTES", "TrajectoryPart", "trajectory_columns"]
+__all__ = ["GROUP_BYTES", "ColumnClash", "TrajectoryPart", "trajectory_columns"]
 
 GROUP_BYTES = 1 << 25  # rows held by a worker before they go to the part as a row group
 
@@ -26,8 +27,13 @@ def _wanted(outputs, what: str) -> bool:
     return outputs is None or bool(getattr(outputs, what))
 
 
+class ColumnClash(KronsubError):
+    """A name of the model that is also the name of another column of the trajectories."""
+
+
 def trajectory_columns(system, outputs=None) -> list[tuple[str, str]]:
-    """``(name, type)`` of a trajectory row: ``run``, then ``simulate``'s columns of the state."""
+    """``(name, type)`` of a trajectory row: ``run``, then ``simulate``'s columns of the state.
+    Raises :class:`ColumnClash` when a coordinate or velocity is named like another column."""
     columns = [("run", "int64"), ("t", "float64")]
     if _wanted(outputs, "coordinates"):
         columns += [(q.name, "float64") for q in system.coordinates]
@@ -35,6 +41,12 @@ def trajectory_columns(system, outputs=None) -> list[tuple[str, str]]:
         columns += [(v.name, "float64") for v in system.velocities]
     if system.implicit is not None:
         columns += [(d.name, "float64") for d in system.implicit.dependent]
+    names = [name for name, _ in columns]
+    twice = sorted({name for name in names if names.count(name) > 1})
+    if twice:
+        raise ColumnClash(f"the trajectories would have two columns named {', '.join(twice)}: a row's own "
+                          "run and t, and the model's coordinate or velocity of that name"
+                          "\n  hint: rename it in the model file, or leave out --trajectories")
     return columns
 
 

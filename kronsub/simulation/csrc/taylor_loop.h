@@ -15,6 +15,17 @@ static void ks_horner(double *const *Y, double tau, double *out)
     for (i = 0; i < TN_NY; ++i) out[i] = s[i] * tau;
 }
 
+/* ks_horner of the first TN_NY / 2 components (the coordinates), by the same sums */
+static void ks_horner_coordinates(double *const *Y, double tau, double *out)
+{
+    double s[TN_NY / 2];
+    int i, k;
+    for (i = 0; i < TN_NY / 2; ++i) s[i] = Y[i][TN_ORDER];
+    for (k = TN_ORDER - 1; k >= 1; --k)
+        for (i = 0; i < TN_NY / 2; ++i) s[i] = s[i] * tau + Y[i][k];
+    for (i = 0; i < TN_NY / 2; ++i) out[i] = s[i] * tau;
+}
+
 /* KS[p] = sum_{j=1}^{k-1} KA[j][p] KB[k-j][p] for every lane p: the older part of each convolution
    of order k, all at once (the compiler vectorizes over the lanes) */
 static void ks_lanes(double *restrict KS, const double *restrict KA, const double *restrict KB, int k)

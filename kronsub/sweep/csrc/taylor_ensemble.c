@@ -5,7 +5,9 @@
  * summary of ensemble.c: [status, t_last, steps, rejected (0), evaluations (0), y_last (ny),
  * min q (nq), max q (nq), E0, E1], E = T + V (24) from the model's own library (kinetic and
  * potential NULL: NaN). io holds 8 + npar + 2 ny + m + m ny doubles, npar = max(1, nparam);
- * rows (NULL, or m (ny + 1) doubles per run) receives each run's rows [t, q, qdot].
+ * rows (NULL, or m (ny + 1) doubles per run) receives each run's rows [t, q, qdot]. Without rows,
+ * the rows inside a step are asked for their coordinates only (all min and max read; the
+ * numbers those of whole rows): a run that stops is run again with whole rows for its last one.
  */
 #include <math.h>
 #include <stddef.h>
@@ -37,13 +39,18 @@ long ks_taylor_ensemble(long n_runs, int nq, int nparam, double tol, double max_
         io[1] = tol;
         io[2] = max_steps;
         io[3] = (double)m;
-        io[4] = 0;
+        io[4] = rows == NULL ? 2 : 0;  /* without rows asked for, the coordinates inside the steps only */
         io[5] = io[6] = 0;
         io[7] = times[0];
         for (i = 0; i < nparam; ++i) io[8 + i] = p[i];
         for (i = 0; i < ny; ++i) io[8 + npar + i] = y[i];
         for (k = 0; k < m; ++k) io[at + k] = times[k];
         status = ks_taylor_io(io);
+        if (status != 0 && io[4] != 0) {  /* stopped: its last row may lie inside a step; again, whole rows */
+            io[4] = io[5] = io[6] = 0;
+            io[7] = times[0];
+            status = ks_taylor_io(io);
+        }
         written = (long)io[6];
         for (i = 0; i < nq; ++i) lo[i] = hi[i] = y[i];
         for (k = 0; k < written; ++k)
