@@ -3,49 +3,14 @@ command import no SymPy and write the very bytes the derived run wrote; ``--no-c
 options, other templates or a changed model file derive again."""
 from __future__ import annotations
 
-import json
-import os
-import subprocess
-import sys
-from pathlib import Path
-
 import pytest
-from click.testing import CliRunner
 
-from conftest import MODELS, ROOT
-from kronsub.cli import main
+from conftest import MODELS
+from helpers.fresh import cli, kronsub
 from kronsub.model import kept
 
+HEAVY = ("sympy", "mpmath", "scipy")
 SYSTEM1 = MODELS / "hoffmann" / "system1.yaml"
-
-PROBE = """
-import json, sys
-from kronsub.cli import main
-code = None
-try:
-    main({args!r})
-except SystemExit as exc:
-    code = exc.code
-with open({modules!r}, "w") as fh:
-    json.dump([code, sorted({{n.split(".")[0] for n in sys.modules}} & {{"sympy", "mpmath", "scipy"}})], fh)
-"""
-
-
-def kronsub(args: list[str], cache: Path, cwd: Path) -> tuple[int, bytes, list[str]]:
-    """Run the command line in a fresh process: exit code, standard output, heavy modules imported."""
-    modules = cwd / "modules.json"
-    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")]),
-           "KRONSUB_CACHE_DIR": str(cache)}
-    done = subprocess.run([sys.executable, "-c", PROBE.format(args=args, modules=str(modules))],
-                          cwd=cwd, env=env, capture_output=True, timeout=300)
-    assert modules.exists(), done.stderr.decode()
-    code, heavy = json.loads(modules.read_text())
-    modules.unlink()
-    return code, done.stdout, heavy
-
-
-def cli(*args, cache: Path):
-    return CliRunner().invoke(main, [str(a) for a in args], env={"KRONSUB_CACHE_DIR": str(cache)})
 
 
 @pytest.fixture
@@ -68,7 +33,8 @@ def test_derive_again_imports_no_sympy_and_prints_the_same(tmp_path):
     cache = tmp_path / "cache"
     first = cli("derive", SYSTEM1, "--format", "json", "--scene", "free", cache=cache)
     assert first.exit_code == 0
-    code, again, heavy = kronsub(["derive", str(SYSTEM1), "--format", "json", "--scene", "free"], cache, tmp_path)
+    code, again, heavy = kronsub(["derive", str(SYSTEM1), "--format", "json", "--scene", "free"], cache, tmp_path,
+                                 HEAVY)
     assert code in (0, None) and heavy == [] and again.decode() == first.stdout
 
 
@@ -76,7 +42,7 @@ def test_codegen_again_imports_no_sympy_and_writes_the_same_files(tmp_path):
     cache = tmp_path / "cache"
     first = cli("codegen", SYSTEM1, "--output", tmp_path / "first", "--prefix", "s1", cache=cache)
     assert first.exit_code == 0, first.output
-    code, _, heavy = kronsub(["codegen", str(SYSTEM1), "--output", "again", "--prefix", "s1"], cache, tmp_path)
+    code, _, heavy = kronsub(["codegen", str(SYSTEM1), "--output", "again", "--prefix", "s1"], cache, tmp_path, HEAVY)
     assert code in (0, None) and heavy == []
     names = sorted(p.name for p in (tmp_path / "first").iterdir())
     assert names == ["system1.c", "system1.h"] == sorted(p.name for p in (tmp_path / "again").iterdir())

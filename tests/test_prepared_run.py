@@ -6,52 +6,18 @@ a derived run's does."""
 from __future__ import annotations
 
 import json
-import os
 import shutil
 import stat
-import subprocess
-import sys
 from pathlib import Path
 
 import pytest
-from click.testing import CliRunner
 
 from conftest import MODELS, ROOT
-from kronsub.cli import main
+from helpers.fresh import cli, kronsub
 from kronsub.simulation import prepared as prepared_module
 from kronsub.simulation.native import NativeModel
 
 SYSTEM1 = MODELS / "hoffmann" / "system1.yaml"
-HEAVY = ("sympy", "mpmath", "scipy", "yaml")
-
-PROBE = """
-import json, sys
-from kronsub.cli import main
-code = None
-try:
-    main({args!r})
-except SystemExit as exc:
-    code = exc.code
-with open({modules!r}, "w") as fh:
-    json.dump([code, sorted({{n.split(".")[0] for n in sys.modules}} & set({heavy!r}))], fh)
-"""
-
-
-def kronsub(args: list[str], cache: Path, cwd: Path) -> tuple[int, bytes, list[str]]:
-    """Run the command line in a fresh process: exit code, standard output, heavy modules imported."""
-    modules = cwd / "modules.json"
-    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")]),
-           "KRONSUB_CACHE_DIR": str(cache)}
-    done = subprocess.run([sys.executable, "-c", PROBE.format(args=args, modules=str(modules), heavy=HEAVY)],
-                          cwd=cwd, env=env, capture_output=True, timeout=300)
-    assert modules.exists(), done.stderr.decode()
-    code, heavy = json.loads(modules.read_text())
-    modules.unlink()
-    return code, done.stdout, heavy
-
-
-def cli(*args, cache: Path):
-    return CliRunner().invoke(main, [str(a) for a in args], env={"KRONSUB_CACHE_DIR": str(cache)})
 
 
 def outputs(folder: Path) -> tuple[bytes, bytes]:

@@ -8,7 +8,7 @@ import numpy as np
 
 
 
-__all__ = ["MERGE", "Grid", "Cursor", "chunk_ranges", "fixed_pieces", "aligned_pieces", "Tail"]
+__all__ = ["MERGE", "Grid", "Cursor", "chunk_ranges", "fixed_pieces", "aligned_pieces", "integrated_pieces", "Tail"]
 
 
 MERGE = 1e-7
@@ -136,6 +136,28 @@ def aligned_pieces(t0: float, t1: float, dt: float) -> list[tuple[float, float]]
     tiny = MERGE * dt
     first = math.ceil(t0 / dt - MERGE) * dt
     return [(t0, first), (first, t1)] if t0 + tiny < first < t1 - tiny else [(t0, t1)]
+
+
+def integrated_pieces(integrate, grid, y0: np.ndarray, dt: float, chunks: int, fixed: bool, stats: dict):
+    """A run wholly in C, piece by piece: the grid's chunks cut as :func:`fixed_pieces` or
+    :func:`aligned_pieces` cut them, ``integrate(t0, y, t1)`` -> ``(t, Y, result)`` on each from the
+    last state ``y``; yields ``(t0, y, t1, t, Y, result)`` with only the rows not given before (a piece's first
+    row repeats the last one), the steps, rejections, evaluations and first stiff time summed into
+    ``stats``. Stop iterating at a failed piece: the next starts from its last state."""
+    last, y = grid[0], y0
+    for a, b in chunk_ranges(grid, chunks):
+        for t0, t1 in (fixed_pieces(grid[a], grid[b], dt) if fixed else aligned_pieces(grid[a], grid[b], dt)):
+            t, Y, result = integrate(t0, y, t1)
+            stats["steps"] += result.n_steps
+            stats["rejected"] += result.n_rejected
+            stats["evaluations"] += result.n_evals
+            if result.t_stiff is not None and "stiff_from" not in stats:
+                stats["stiff_from"] = result.t_stiff
+            keep = t > last + 1e-6 * grid.spacing
+            if np.any(keep):
+                last = t[keep][-1]
+            yield t0, y, t1, t[keep], Y[keep], result
+            y = Y[-1]
 
 
 class Tail:

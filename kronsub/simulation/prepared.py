@@ -33,7 +33,7 @@ from ..model import kept
 from . import native
 from . import rows
 from .advice import energy_advice, is_stiff
-from .grid import Grid, aligned_pieces, chunk_ranges, fixed_pieces
+from .grid import Grid, integrated_pieces
 from .methods import METHODS
 from .progress import Progress
 from .rows import Block, RunInProgress
@@ -158,28 +158,18 @@ def runs(prepared: Prepared, progress: bool | None = None) -> RunInProgress | No
         done.append(Block(grid.snap(t), np.asarray(Y), energies))
 
     try:
-        last = grid[0]
-        add(np.array([last]), np.array([y0]))
+        add(np.array([grid[0]]), np.array([y0]))
         stats = run.stats = {"steps": 0, "rejected": 0, "evaluations": 0}
-        y = y0
-        pieces = [p for a, b in chunk_ranges(grid, chunks)
-                  for p in (fixed_pieces(grid[a], grid[b], dt) if method.fixed_step else
-                            aligned_pieces(grid[a], grid[b], dt))]
-        for t0, t1 in pieces:
-            t, Y, result = model.integrate(method.name, t0, y, t1, dt, param, rtol=prepared.rtol, atol=prepared.atol,
-                                           h=dt if method.fixed_step else None)
-            stats["steps"] += result.n_steps
-            stats["rejected"] += result.n_rejected
-            stats["evaluations"] += result.n_evals
-            if result.t_stiff is not None and "stiff_from" not in stats:
-                stats["stiff_from"] = result.t_stiff
-            keep = t > last + 1e-6 * grid.spacing  # a piece's first row repeats the last one
+
+        def integrate(t0, y, t1):
+            return model.integrate(method.name, t0, y, t1, dt, param, rtol=prepared.rtol, atol=prepared.atol,
+                                   h=dt if method.fixed_step else None)
+
+        for _, _, t1, t, Y, result in integrated_pieces(integrate, grid, y0, dt, chunks, method.fixed_step, stats):
             if result.status != 0:
                 return None
-            if np.any(keep):
-                last = t[keep][-1]
-                add(t[keep], Y[keep])
-            y = Y[-1]
+            if len(t):
+                add(t, Y)
             bar.update(t1)
     except KeyboardInterrupt as exc:
         stopped = exc

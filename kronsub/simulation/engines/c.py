@@ -12,7 +12,7 @@ from ..methods import Method
 from ..native import NativeModel
 from ..rows import RunInProgress
 from .interface import Problem, ProgressBar, Rows, Steps, Timed
-from ..grid import Grid, Tail, aligned_pieces, chunk_ranges, fixed_pieces
+from ..grid import Grid, Tail, integrated_pieces
 
 __all__ = ["COMPILED_RHS", "EVENTS", "CRunner", "blocks", "final_state", "runner"]
 
@@ -64,25 +64,16 @@ def runner(problem: Problem, method: Method) -> CRunner:
 def blocks(run: RunInProgress, native: NativeModel, method: Method, grid: Grid | Tail, y0: np.ndarray, param: np.ndarray,
            rtol: float, atol: float, dt: float, chunks: int, bar: ProgressBar, system: KnownSystem) -> Rows:
     """Blocks ``(t, Y)`` of a run wholly in C, one per chunk of the grid."""
-    last = grid[0]
-    yield np.array([last]), np.array([y0])
+    yield np.array([grid[0]]), np.array([y0])
     stats = run.stats = {"steps": 0, "rejected": 0, "evaluations": 0}
-    y = y0
     fixed, name = method.fixed_step, method.name
-    pieces = [p for a, b in chunk_ranges(grid, chunks)
-              for p in (fixed_pieces(grid[a], grid[b], dt) if fixed else aligned_pieces(grid[a], grid[b], dt))]
-    for t0, t1 in pieces:
-        t, Y, result = native.integrate(name, t0, y, t1, dt, param, rtol=rtol, atol=atol,
-                                        h=dt if fixed else None)
-        stats["steps"] += result.n_steps
-        stats["rejected"] += result.n_rejected
-        stats["evaluations"] += result.n_evals
-        if result.t_stiff is not None and "stiff_from" not in stats:
-            stats["stiff_from"] = result.t_stiff
-        keep = t > last + 1e-6 * grid.spacing  # a piece's first row repeats the last one
-        if np.any(keep):
-            last = t[keep][-1]
-            yield t[keep], Y[keep]
+
+    def integrate(t0, y, t1):
+        return native.integrate(name, t0, y, t1, dt, param, rtol=rtol, atol=atol, h=dt if fixed else None)
+
+    for t0, y, t1, t, Y, result in integrated_pieces(integrate, grid, y0, dt, chunks, fixed, stats):
+        if len(t):
+            yield t, Y
         if result.status != 0:
             message = result.message
             at_finite = result.status in (1, 2) and result.y_fail is not None and np.all(np.isfinite(result.y_fail))
@@ -102,7 +93,6 @@ def blocks(run: RunInProgress, native: NativeModel, method: Method, grid: Grid |
                 message += rank_loss_note(system, result.t_fail, result.y_fail, param)
             run.stop(message, result.t_fail, y_fail=result.y_fail)
             return
-        y = Y[-1]
         bar.update(t1)
 
 
