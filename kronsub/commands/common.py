@@ -246,7 +246,7 @@ def plot_option(help: str):
     return click.option("--plot", type=FILE, help=help)
 
 
-WITHOUT_SPEEDS = ("linearize", "sweep")
+WITHOUT_SPEEDS = ("sweep",)
 """The commands that do not handle velocity constraints yet: a model with them is refused there,
 at its `velocity_constraints:` section (:func:`scene_system`)."""
 
