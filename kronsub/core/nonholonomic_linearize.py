@@ -350,7 +350,7 @@ def constrained_motion(system: KnownSystem) -> ConstrainedMotion:
     constraints ``g(x, t)`` (:attr:`~.KnownSystem.holonomic`)."""
     s = system.speeds
     xdot = sympy.Matrix(list(system.velocities))
-    rows = tuple(s.constraint_matrix * xdot + s.constraint_offset)
+    rows = tuple(s.constraint_matrix * xdot + s.constraint_offset)[:s.constraint_matrix.rows - len(s.holonomic)]
     return ConstrainedMotion(tuple(system.coordinates), sympy.Matrix(system.mass_matrix), system.forces,
                              dict(s.definitions), rows, tuple(c.expression for c in s.holonomic),
                              sympy.Matrix(system.velocity_terms))
