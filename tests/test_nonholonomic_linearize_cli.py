@@ -102,3 +102,45 @@ def test_symbolic_is_refused():
     result = CliRunner().invoke(main, ["linearize", str(DISC), "--symbolic"])
     assert result.exit_code == 1 and "Traceback" not in result.output
     assert "--symbolic is not supported for a model with velocity constraints" in result.output
+
+
+def _symbolic_jacobian(system, kept, point, inputs=()):
+    """The Jacobian of ``[xdot_kept; Mbar^-1 (fbar - hbar)]`` from the equations `derive` prints
+    in the speeds (symbolic, ``C`` a function of ``x``): another route to ``A`` and ``B``."""
+    import sympy
+
+    s = system.speeds
+    values = {p.symbol: p.value for p in system.parameters}
+    rows = [s.kinematics[list(system.coordinates).index(q)] for q in kept]
+    udot = s.mass_matrix.LUsolve(s.forces - s.velocity_terms)
+    F = sympy.Matrix(rows).col_join(udot)
+    state = list(kept) + list(s.speeds)
+    at = {**values, **point}
+    A = np.array(F.jacobian(state).xreplace(at).evalf(), dtype=float)
+    B = np.array(F.jacobian(list(inputs)).xreplace(at).evalf(), dtype=float) if inputs else None
+    return A, B
+
+
+def test_a_at_a_moving_point_is_the_jacobian_of_the_printed_equations():
+    """Away from any steady motion (leaning, turning, falling) the kept rows and the speeds'
+    rates still linearise to the Jacobian of the printed equations in the speeds."""
+    system = kronsub.load(DISC).derive()
+    at = {"lean": 0.3, "yaw": 0.7, "yaw_dot": 0.5, "lean_dot": 0.2, "spin_dot": 4.0}
+    lin = system.linearize(at=at)
+    assert not lin.equilibrium and lin.state[0] == system.symbol("lean")
+    point = {system.symbol(k): v for k, v in at.items()}
+    A, _ = _symbolic_jacobian(system, [system.symbol("lean")], point)
+    assert np.allclose(lin.A, A, rtol=1e-10, atol=1e-10)
+
+
+def test_inputs_of_the_differential_drive():
+    """B of the wheels' torques about straight running, against the printed equations; the
+    heading, position and wheel angles are ignorable there."""
+    system = kronsub.load(ROOT / "models" / "nonholonomic" / "differential_drive.yaml").derive()
+    at = {"phi_l_dot": 10.0, "phi_r_dot": 10.0, "tau_l": 0, "tau_r": 0}
+    lin = system.linearize(at=at, inputs=["tau_l", "tau_r"])
+    assert lin.equilibrium and [s.name for s in lin.state] == ["phi_l_dot", "phi_r_dot"]
+    point = {system.symbol(k): v for k, v in at.items()}
+    A, B = _symbolic_jacobian(system, [], point, [system.symbol("tau_l"), system.symbol("tau_r")])
+    assert np.allclose(lin.A, A, atol=1e-12) and np.allclose(lin.B, B, rtol=1e-12, atol=1e-12)
+    assert np.max(np.abs(lin.B)) > 1  # the torques do act

@@ -125,7 +125,7 @@ def velocity_transformation(constraints: Sequence[sympy.Expr], coordinates: Sequ
     velocities = [velocity_symbol(q) for q in coordinates]
     A, b = linear_form(constraints, coordinates)
     holonomic = tuple(sympy.sympify(g) for g in holonomic)
-    dependent: tuple = ()
+    held: tuple = ()  # the coordinates the configuration constraints set
     if holonomic:
         g = sympy.Matrix(list(holonomic))
         G = g.jacobian(list(coordinates))
@@ -135,7 +135,7 @@ def velocity_transformation(constraints: Sequence[sympy.Expr], coordinates: Sequ
                                           "remove the constraint that follows from the others", kind="holonomic")
         for chosen in itertools.combinations(reversed(range(len(coordinates))), len(holonomic)):
             if _rank(G[:, sorted(chosen)], at) == len(holonomic):
-                dependent = tuple(coordinates[j] for j in sorted(chosen))
+                held = tuple(coordinates[j] for j in sorted(chosen))
                 break
         A = A.col_join(G)
         b = b.col_join(g.diff(TIME))
@@ -175,7 +175,7 @@ def velocity_transformation(constraints: Sequence[sympy.Expr], coordinates: Sequ
     d = (solved - C * sympy.Matrix(u)).applyfunc(sympy.expand)
     return VelocityTransformation(coordinates=coordinates, speeds=u, constraint_matrix=A, constraint_offset=b,
                                   transformation=C, offset=d, kinematics=solved, holonomic=holonomic,
-                                  dependent=dependent)
+                                  dependent=held)
 
 
 def project_nonholonomic(metric: sympy.Matrix, velocity_terms: sympy.Matrix, force: sympy.Matrix,
