@@ -100,3 +100,19 @@ def test_auto_coordinates_are_refused_beside_velocity_constraints(tmp_path):
     assert result.exit_code == 1 and "Traceback" not in result.output
     assert f"Error: {path}:{line}:" in result.output and "`coordinates: auto` together with `velocity_constraints:`" \
         in result.output
+
+
+def test_the_multiplier_of_the_configuration_constraint_is_the_normal_force(systems):
+    """mu_touches holds the centre at z = r cos(lean): m (g + zddot), zddot the second
+    derivative of r cos(lean) (Newton's law along the vertical; the rim's contact is the only
+    vertical force besides gravity)."""
+    from kronsub.core.nonholonomic import velocity_multipliers
+
+    ours, _ = systems
+    mu = dict(velocity_multipliers(ours))["mu_touches"]
+    m, r, g, lean = (ours.symbol(n) for n in ("m", "r", "g", "lean"))
+    t = sympy.Symbol("t")
+    path = sympy.Function("lean")(t)
+    zddot = sympy.diff(r * sympy.cos(path), t, 2).subs({sympy.Derivative(path, (t, 2)): ours.symbol("lean_ddot")}) \
+        .subs({sympy.Derivative(path, t): ours.symbol("lean_dot")}).subs(path, lean)
+    assert sympy.simplify(mu - m * (g + zddot)) == 0

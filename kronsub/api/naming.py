@@ -130,6 +130,8 @@ def linearize(system: KnownSystem, at: Mapping[str, object] | None = None, input
     by the system: the model's, a scene's over them) starts the search for an equilibrium.
     ``option`` (``"--at"``) places problems with the values at ``--at NAME``; ``drive`` is where
     the model writes its prescribed motion (:func:`refuse_driven` places its error there).
+    Under velocity constraints ``at`` gives coordinates and speeds of a steady motion
+    (:func:`~kronsub.core.nonholonomic_linearize.linearize_speeds`).
 
     >>> import kronsub
     >>> system = kronsub.load("models/hoffmann/system1.yaml").derive(scene="free")

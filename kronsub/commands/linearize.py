@@ -28,7 +28,8 @@ def linearize(model: Path, at: tuple[str, ...], inputs: str, symbolic: bool, fmt
 
     The operating point is an equilibrium (qdot = 0, qddot = 0), found numerically from the
     model's initial values, or checked when given with --at; a point that is not an
-    equilibrium is linearised about anyway and reported as such.
+    equilibrium is linearised about anyway and reported as such. Under velocity constraints
+    it is a steady motion given by coordinates and speeds, y = [kept coordinates; speeds].
     """
     from ..api import linearize as linearize_system
     from ..core.linearize import LinearizationError
