@@ -224,7 +224,8 @@ def test_velocity_constraints_with_other_commands_are_refused_where_written(tmp_
     path = MODELS / "chaplygin_sleigh.yaml"
     text = path.read_text()
     line = text[:text.index("velocity_constraints:")].count("\n") + 1
-    result = CliRunner().invoke(main, ["linearize", str(path)])
+    result = CliRunner().invoke(main, ["sweep", str(path), "--grid", "a=0.1:0.3:3", "-o",
+                                       str(tmp_path / "runs.parquet")])
     assert result.exit_code == 1 and f"Error: {path}:{line}:1: " in result.output
     assert "not supported yet" in result.output and "Traceback" not in result.output
 

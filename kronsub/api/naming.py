@@ -16,7 +16,8 @@ import sympy
 from ..core.known_system import KnownSystem
 from ..core.linearize import Linearization
 from ..core.linearize import linearize as core_linearize
-from ..core.nonholonomic import refuse_speeds, speed_rates
+from ..core.nonholonomic import speed_rates
+from ..core.nonholonomic_linearize import linearize_speeds
 from ..core.rheonomic import depends_on_time
 from ..core.symbols import TIME
 from ..errors import KronsubError, Location, ModelError, Problem, near_names
@@ -86,10 +87,17 @@ def split_assignments(system: KnownSystem, at: Mapping[str, object] | None, opti
     (placed at ``option NAME`` when the values came from that command-line option)."""
     point, values, problems = {}, {}, []
     params = {p.name: p.symbol for p in system.parameters}
-    state = {s.name: s for s in tuple(system.coordinates) + tuple(system.velocities)}
+    state = {s.name: s for s in tuple(system.coordinates) + tuple(system.state_velocities)}
+    fixed = {v.name for v in system.velocities} - set(state)  # under velocity constraints: not a speed
     for name, raw in (at or {}).items():
         try:
-            if name in state:
+            if name in fixed:
+                problems.append(Problem(Location(f"{option} {name}") if option else None,
+                                        f"'{name}' is not a speed of {system.name}: the velocity constraints "
+                                        "fix it", "give the speeds (" + ", ".join(
+                                            u.name for u in system.state_velocities) + "); the other velocities "
+                                        "follow from xdot = C u"))
+            elif name in state:
                 point[state[name]] = _value(system, name, raw, constant=False, option=option)
             elif name in params:
                 values[params[name]] = _value(system, name, raw, constant=True, option=option)
@@ -122,6 +130,8 @@ def linearize(system: KnownSystem, at: Mapping[str, object] | None = None, input
     by the system: the model's, a scene's over them) starts the search for an equilibrium.
     ``option`` (``"--at"``) places problems with the values at ``--at NAME``; ``drive`` is where
     the model writes its prescribed motion (:func:`refuse_driven` places its error there).
+    Under velocity constraints ``at`` gives coordinates and speeds of a steady motion
+    (:func:`~kronsub.core.nonholonomic_linearize.linearize_speeds`).
 
     >>> import kronsub
     >>> system = kronsub.load("models/hoffmann/system1.yaml").derive(scene="free")
@@ -129,7 +139,6 @@ def linearize(system: KnownSystem, at: Mapping[str, object] | None = None, input
     >>> lin.equilibrium, lin.A.shape
     (True, (4, 4))
     """
-    refuse_speeds(system, "linearize")
     problems = []
     try:
         point, values = split_assignments(system, at, option)
@@ -156,7 +165,8 @@ def linearize(system: KnownSystem, at: Mapping[str, object] | None = None, input
     notes = refuse_driven(system, drive)
     start = dict(system.initial) if initial is None else {symbol(system, k) if isinstance(k, str) else k: v
                                                            for k, v in initial.items()}
-    lin = core_linearize(system, inputs=chosen, point=point, values=values, initial=start, symbolic=symbolic)
+    route = linearize_speeds if system.speeds is not None else core_linearize
+    lin = route(system, inputs=chosen, point=point, values=values, initial=start, symbolic=symbolic)
     return dataclasses.replace(lin, notes=lin.notes + notes) if notes else lin
 
 

@@ -28,7 +28,8 @@ def linearize(model: Path, at: tuple[str, ...], inputs: str, symbolic: bool, fmt
 
     The operating point is an equilibrium (qdot = 0, qddot = 0), found numerically from the
     model's initial values, or checked when given with --at; a point that is not an
-    equilibrium is linearised about anyway and reported as such.
+    equilibrium is linearised about anyway and reported as such. Under velocity constraints
+    it is a steady motion given by coordinates and speeds, y = [kept coordinates; speeds].
     """
     from ..api import linearize as linearize_system
     from ..core.linearize import LinearizationError
@@ -50,7 +51,7 @@ def linearize(model: Path, at: tuple[str, ...], inputs: str, symbolic: bool, fmt
         except LinearizationError:
             coincident_at_start(loaded, system, assignments)
             raise
-        if not lin.equilibrium:
+        if not lin.equilibrium and not lin.in_speeds:  # about a steady motion: the core's note says it
             moving = [f"{s}={v}" for s, v in lin.point if s in set(system.velocities) and v.is_zero is not True]
             why = ("qddot = " + ", ".join(f"{a:.6g}" for a in lin.acceleration)
                    + (f"; {', '.join(moving)}" if moving else "")) if not _at_rest(lin.acceleration) \

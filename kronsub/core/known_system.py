@@ -133,6 +133,8 @@ class SpeedEquations:
     velocity_terms: sympy.Matrix  # hbar in the speeds
     effect_forces: Mapping[str, sympy.Matrix]  # fbar of each effect in the speeds
     kinetic_energy: sympy.Expr = sympy.Integer(0)  # T(x, C u + d)
+    holonomic: tuple[Constraint, ...] = ()  # configuration constraints g(x, t) = 0 kept beside them
+    dependent: tuple[sympy.Symbol, ...] = ()  # one coordinate per configuration constraint, set by it
 
     @property
     def forces(self) -> sympy.Matrix:

@@ -45,6 +45,7 @@ class Linearization:
     symbolic: bool = False
     notes: tuple[str, ...] = ()  # caveats to show with the result
     dependent: tuple[tuple[sympy.Symbol, float], ...] = ()  # implicit constraints: y_d at the point
+    in_speeds: bool = False  # under velocity constraints: y = [kept coordinates; speeds], about a steady motion
 
     @property
     def stable(self) -> bool | None:

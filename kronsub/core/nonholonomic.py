@@ -28,7 +28,7 @@ import numpy as np
 import sympy
 
 from ..errors import Location, ModelError, Problem
-from .known_system import KnownSystem, SpeedEquations
+from .known_system import Constraint, KnownSystem, SpeedEquations
 from .symbols import TIME, acceleration_symbol, velocity_symbol
 
 GENERIC_POINTS = 3  # a rank is taken at this many random points (a generic one is almost sure)
@@ -54,6 +54,8 @@ class VelocityTransformation:
     transformation: sympy.Matrix  # C
     offset: sympy.Matrix  # d
     kinematics: sympy.Matrix  # xdot = C u + d
+    holonomic: tuple[sympy.Expr, ...] = ()  # configuration constraints g(x, t) = 0, their rates the last rows of A
+    dependent: tuple[sympy.Symbol, ...] = ()  # one coordinate per configuration constraint, set by it
 
 
 @dataclass(frozen=True)
@@ -110,15 +112,34 @@ def integrable(A: sympy.Matrix, b: sympy.Matrix, coordinates: Sequence[sympy.Sym
 
 def velocity_transformation(constraints: Sequence[sympy.Expr], coordinates: Sequence[sympy.Symbol],
                             speeds: Mapping[sympy.Symbol, sympy.Expr] | None = None,
-                            values: Mapping | None = None) -> VelocityTransformation:
+                            values: Mapping | None = None,
+                            holonomic: Sequence[sympy.Expr] = ()) -> VelocityTransformation:
     """``xdot = C u + d`` for velocity ``constraints`` (expressions ``= 0``). ``speeds`` maps each
     speed to its definition ``Y(x) xdot``; without it the speeds are the velocities of the
     coordinates left independent, the last coordinates taken as dependent first. ``values``
-    (parameter -> number) fixes the parameters where ranks are taken."""
+    (parameter -> number) fixes the parameters where ranks are taken. Configuration constraints
+    ``holonomic`` ``g(x, t) = 0`` join by their rates ``G xdot + dg/dt`` (the last rows of ``A``),
+    each setting a coordinate (``dependent``: the last ones first whose columns of ``G`` are
+    independent)."""
     coordinates = tuple(coordinates)
     velocities = [velocity_symbol(q) for q in coordinates]
     A, b = linear_form(constraints, coordinates)
-    for i in integrable(A, b, coordinates):
+    holonomic = tuple(sympy.sympify(g) for g in holonomic)
+    held: tuple = ()  # the coordinates the configuration constraints set
+    if holonomic:
+        g = sympy.Matrix(list(holonomic))
+        G = g.jacobian(list(coordinates))
+        at = _generic_points(G, coordinates, values)
+        if _rank(G, at) < len(holonomic):
+            raise VelocityConstraintError("the configuration constraints are not independent",
+                                          "remove the constraint that follows from the others", kind="holonomic")
+        for chosen in itertools.combinations(reversed(range(len(coordinates))), len(holonomic)):
+            if _rank(G[:, sorted(chosen)], at) == len(holonomic):
+                held = tuple(coordinates[j] for j in sorted(chosen))
+                break
+        A = A.col_join(G)
+        b = b.col_join(g.diff(TIME))
+    for i in integrable(A[:A.rows - len(holonomic), :], b, coordinates):
         raise VelocityConstraintError(
             f"velocity constraint {i + 1} is integrable: it is the time derivative of a relation between the "
             "coordinates", "write that relation under `constraints:` (a configuration constraint) instead", i)
@@ -153,7 +174,8 @@ def velocity_transformation(constraints: Sequence[sympy.Expr], coordinates: Sequ
     C = solved.jacobian(u)
     d = (solved - C * sympy.Matrix(u)).applyfunc(sympy.expand)
     return VelocityTransformation(coordinates=coordinates, speeds=u, constraint_matrix=A, constraint_offset=b,
-                                  transformation=C, offset=d, kinematics=solved)
+                                  transformation=C, offset=d, kinematics=solved, holonomic=holonomic,
+                                  dependent=held)
 
 
 def project_nonholonomic(metric: sympy.Matrix, velocity_terms: sympy.Matrix, force: sympy.Matrix,
@@ -191,7 +213,11 @@ def speed_equations(system: KnownSystem, velocity: VelocityTransformation, const
     xdot = velocity.kinematics
     u = sympy.Matrix(velocity.speeds)
     kinetic = _tidy((u.T * inertia.mass_matrix * u)[0, 0] / 2)
+    holonomic = tuple(Constraint(name, g) for name, g in zip(constraint_names[len(constraint_names)
+                                                                              - len(velocity.holonomic):],
+                                                                velocity.holonomic))
     return SpeedEquations(speeds=velocity.speeds, definitions=tuple(definitions.items()),
+                          holonomic=holonomic, dependent=velocity.dependent,
                           constraint_names=tuple(constraint_names), constraint_matrix=velocity.constraint_matrix,
                           constraint_offset=velocity.constraint_offset, transformation=C, offset=velocity.offset,
                           kinematics=xdot, mass_matrix=inertia.mass_matrix, velocity_terms=inertia.velocity_terms,
@@ -256,6 +282,17 @@ def refuse_speeds(system: KnownSystem, what: str, location: Location | None = No
                                   "--reactions gives the contact forces)")])
 
 
+def refuse_holonomic(system: KnownSystem, what: str, location: Location | None = None) -> None:
+    """A :class:`ModelError` at ``location`` (where the model writes its configuration
+    constraints) when ``system`` has configuration constraints beside velocity constraints and
+    ``what`` (a command) does not handle them yet: ``derive`` and ``linearize`` do."""
+    if system.speeds is not None and system.speeds.holonomic:
+        raise ModelError([Problem(location, f"{what} of a model with configuration constraints beside velocity "
+                                            "constraints is not supported yet",
+                                  "derive or linearize it (`kronsub derive`, `kronsub linearize`); or write the "
+                                  "configuration constraints in the connection")])
+
+
 def speed_accelerations(projection: NonholonomicProjection) -> list[sympy.Symbol]:
     """The symbols of ``udot`` (named like accelerations of the speeds)."""
     return [acceleration_symbol(s) for s in projection.velocity.speeds]
@@ -284,4 +321,4 @@ def _rank(A: sympy.Matrix, points: list[dict]) -> int:
 
 __all__ = ["GENERIC_POINTS", "NonholonomicProjection", "VelocityConstraintError", "VelocityTransformation",
            "integrable", "linear_form", "project_nonholonomic", "speed_accelerations", "speed_equations",
-           "refuse_speeds", "speed_rates", "velocity_multipliers", "velocity_transformation"]
+           "refuse_holonomic", "refuse_speeds", "speed_rates", "velocity_multipliers", "velocity_transformation"]

@@ -32,6 +32,7 @@ The derivatives of ``F`` are taken by the complex step (Squire & Trapp 1998):
 """
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
@@ -39,7 +40,8 @@ import numpy as np
 import sympy
 
 from .derivative import derivative
-from .linearize_numerics import Linearization, LinearizationError
+from .known_system import KnownSystem
+from .linearize_numerics import Linearization, LinearizationError, numeric_value, parameter_numbers
 from .symbols import TIME, velocity_symbol
 
 COMPLEX_STEP = 1e-30
@@ -341,5 +343,55 @@ def linearize_steady_motion(motion: ConstrainedMotion, point: Mapping[sympy.Symb
     return rates.linearize(point, keep, dependent, time, inputs)
 
 
+def constrained_motion(system: KnownSystem) -> ConstrainedMotion:
+    """A known system under velocity constraints (its :attr:`~.KnownSystem.speeds`) as a
+    :class:`ConstrainedMotion`: ``M``, ``h`` and ``f`` in the coordinates, the rows
+    ``A xdot + b`` of its velocity constraints, its speeds ``Y xdot`` and its configuration
+    constraints ``g(x, t)`` (:attr:`~.KnownSystem.holonomic`)."""
+    s = system.speeds
+    xdot = sympy.Matrix(list(system.velocities))
+    rows = tuple(s.constraint_matrix * xdot + s.constraint_offset)[:s.constraint_matrix.rows - len(s.holonomic)]
+    return ConstrainedMotion(tuple(system.coordinates), sympy.Matrix(system.mass_matrix), system.forces,
+                             dict(s.definitions), rows, tuple(c.expression for c in s.holonomic),
+                             sympy.Matrix(system.velocity_terms))
+
+
+def linearize_speeds(system: KnownSystem, *, inputs: Sequence[sympy.Symbol] = (),
+                     point: Mapping[sympy.Symbol, sympy.Expr] | None = None,
+                     values: Mapping[sympy.Symbol, sympy.Expr] | None = None,
+                     initial: Mapping[sympy.Symbol, sympy.Expr] | None = None,
+                     symbolic: bool = False) -> Linearization:
+    """``A``, ``B`` of a system under velocity constraints about the steady motion through
+    ``point`` (coordinates, speeds and ``t``): :meth:`SteadyMotionRates.linearize` in the
+    state ``[kept coordinates; speeds]``, the ignorable coordinates left out, the dependent
+    coordinates of the configuration constraints moved onto ``g = 0``. Coordinates not in
+    ``point`` take their ``initial`` values (else 0), speeds not in it are 0; ``values``
+    overrides the parameters' defaults (an input's value is its operating value)."""
+    if symbolic:
+        raise LinearizationError("--symbolic is not supported for a model with velocity constraints\n  hint: "
+                                 "linearise with numbers (give parameter values with --at NAME=VALUE)")
+    point = dict(point or {})
+    time = point.pop(TIME, 0)
+    numbers, missing = parameter_numbers(system, dict(values or {}))
+    if missing:
+        raise LinearizationError("no value for parameter" + ("s " if len(missing) > 1 else " ")
+                                 + ", ".join(missing) + "\n  hint: give it with --at NAME=VALUE")
+    inputs = tuple(inputs)
+    speeds = tuple(system.speeds.speeds)
+    operating = {}
+    for s in tuple(system.coordinates) + speeds:
+        given = point.get(s, (initial or {}).get(s, 0) if s in system.coordinates else 0)
+        operating[s] = numeric_value(given, numbers)
+        if not np.isfinite(operating[s]):
+            raise LinearizationError(f"the operating value of '{s}' is not a real number\n  hint: give it a "
+                                     "number with --at")
+    t0 = numeric_value(time, numbers)
+    fixed = {p: v for p, v in numbers.items() if p not in inputs}
+    rates = SteadyMotionRates(constrained_motion(system), fixed, inputs)
+    lin = rates.linearize(operating, None, tuple(system.speeds.dependent), t0, {u: numbers[u] for u in inputs})
+    return dataclasses.replace(lin, time=sympy.sympify(time), in_speeds=True)
+
+
 __all__ = ["COMPLEX_STEP", "IGNORABLE_TOLERANCE", "NEWTON_STEPS", "STEADY_TOLERANCE", "ConstrainedMotion",
-           "ProjectedMetric", "SteadyMotionRates", "ignorable", "linear_rows", "linearize_steady_motion"]
+           "ProjectedMetric", "SteadyMotionRates", "constrained_motion", "ignorable", "linear_rows", "linearize_speeds",
+           "linearize_steady_motion"]

@@ -47,6 +47,9 @@ def _eigenvalue(c: complex) -> str:
 
 
 def _summary(lin: Linearization) -> str:
+    if lin.in_speeds:
+        return "a steady motion" if lin.equilibrium else \
+            "NOT a steady motion (the first-order term is kept: the kept coordinates or the speeds change there)"
     if lin.equilibrium:
         how = "an equilibrium, found from the initial values" if lin.found else "an equilibrium"
     else:
@@ -66,7 +69,7 @@ def _stability(lin: Linearization) -> str:
 
 def emit_markdown(lin: Linearization, name: str) -> str:
     show = plain
-    lines = [f"# Linearisation of {markdown_text(name)}", "",
+    lines = [f"# Linearisation of {markdown_text(name)}", "", _SPEEDS_FORM if lin.in_speeds else
              "`ydot ~ A (y - y*) + B (u - u*)` with `y = [q; qdot]` and "
              "`ydot = [qdot; Mbar^-1 (fbar - hbar)]`.", ""]
     lines += ["## Operating point", "", f"The point is {_summary(lin)}."]
@@ -80,7 +83,11 @@ def emit_markdown(lin: Linearization, name: str) -> str:
     if lin.dependent:
         lines += ["", "Dependent coordinates there (from the constraints; the state is the reduced one): "
                   + ", ".join(f"`{s.name} = {_number(v)}`" for s, v in lin.dependent) + "."]
-    if not lin.equilibrium and all(np.isfinite(lin.acceleration)):
+    if lin.in_speeds and not lin.equilibrium and all(np.isfinite(lin.acceleration)):
+        speeds = lin.state[len(lin.state) - len(lin.acceleration):]
+        lines += ["", "Rates of the speeds there: " + ", ".join(
+            f"`d/dt {s.name} = {_number(a)}`" for s, a in zip(speeds, lin.acceleration)) + "."]
+    elif not lin.equilibrium and all(np.isfinite(lin.acceleration)):
         lines += ["", "Accelerations there: " + ", ".join(
             f"`{s.name}_ddot = {_number(a)}`" for s, a in zip(lin.state, lin.acceleration)) + "."]
     if lin.parameters:
@@ -103,6 +110,11 @@ def emit_markdown(lin: Linearization, name: str) -> str:
         lines += [f"- `{_eigenvalue(e)}`" for e in lin.eigenvalues]
         lines += ["", f"Stability: {_stability(lin)}."]
     return "\n".join(lines) + "\n"
+
+
+_SPEEDS_FORM = ("`ydot ~ A (y - y*) + B (u - u*)` with `y = [x; w]`, the kept coordinates `x` and the speeds `w`, "
+                "and `ydot = [xdot; Mbar^-1 (fbar - hbar)]`, `xdot = C w + d` (the velocity constraints), the "
+                "dependent coordinates on the configuration constraints and the ignorable ones left out.")
 
 
 def _md_matrix(rows, row_names, col_names) -> list[str]:
@@ -142,7 +154,8 @@ def emit_json(lin: Linearization, name: str) -> str:
         "B": matrix(lin.B),
         "eigenvalues": None if lin.eigenvalues is None else
         [{"re": float(f"{e.real:.12g}"), "im": float(f"{e.imag:.12g}")} for e in lin.eigenvalues],
-        "form": "d/dt [q; qdot] = A ([q; qdot] - point) + B (inputs - point)",
+        "form": "d/dt [x; w] = A ([x; w] - point) + B (inputs - point)" if lin.in_speeds else
+        "d/dt [q; qdot] = A ([q; qdot] - point) + B (inputs - point)",
     }
     return json_document(data, indent=2) + "\n"
 

@@ -45,6 +45,8 @@ def speeds_report(system: KnownSystem, show: Printer) -> dict:
         "effects": [{"name": k, "forces": [show(tidy(e)) for e in f]} for k, f in s.effect_forces.items()],
         "kinetic_energy": show(s.kinetic_energy),
         "equations": [{"lhs": show(lhs[i]), "rhs": show(fbar[i])} for i in range(p)],
+        "holonomic": [{"name": c.name, "expression": show(tidy(c.expression))} for c in s.holonomic],
+        "dependent": [show(q) for q in s.dependent],
     }
 
 

@@ -141,6 +141,8 @@ def _speeds_json(data: dict, s: dict) -> dict:
         "equation_form": "mass_matrix * [speed_rates] + velocity_terms = forces; [velocities] = kinematics "
                          "(= transformation * [speeds] + offset), constraint_matrix * [velocities] + "
                          "constraint_offset = 0",
+        **({"configuration_constraints": {c["name"]: c["expression"] for c in s["holonomic"]},
+            "dependent": s["dependent"]} if s["holonomic"] else {}),
         "unconstrained": unconstrained,
     })
     return out

@@ -13,6 +13,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import sympy
+
 from ..budget import allow_for, scope as budget_scope
 from ..collector import collector_paused
 from ..core.symbols import velocity_symbol
@@ -94,6 +96,14 @@ class ModelLoader(ModelReader):
         # a closed loop that names no coordinates lets kronsub pick them, as `coordinates: auto`
         auto = (coords_node is None and constrained) or (
             coords_node is not None and coords_node.is_scalar and coords_node.value == "auto")
+        # configuration constraints beside velocity constraints: on the listed coordinates, which
+        # the connection gives the primitive's; their rates join the velocity constraints
+        beside = constrained and root.get("velocity_constraints") is not None
+        if beside and auto:
+            self.error(coords_node or cnode, "`coordinates: auto` together with `velocity_constraints:` is not "
+                       "supported", "list every coordinate under `coordinates:`: the configuration constraints "
+                       "then set the last ones they can")
+            self.problems.raise_if_any()
         if auto and not constrained:
             self.error(coords_node, "`coordinates: auto` needs `constraints:`",
                        "list the generalized coordinates, e.g. `coordinates: [theta, phi]`")
@@ -111,7 +121,7 @@ class ModelLoader(ModelReader):
         if constrained:
             constraints = (read_constraints(self, cnode, primitive) if cnode is not None else []) + carried
             check_multiplier_names(self, constraints, carried)
-            y = read_intermediate(self, root.get("connection"), primitive, coords)
+            y = coords if beside else read_intermediate(self, root.get("connection"), primitive, coords)
         else:
             y = coords
         check_generated_names(self, y, primitive)
@@ -134,12 +144,15 @@ class ModelLoader(ModelReader):
         if root.get("speeds") is not None and vnode is None:
             self.error(root.key_locations["speeds"], "`speeds:` without `velocity_constraints:`",
                        "speeds are chosen for velocity constraints; without them the speeds are the velocities")
-        if vnode is not None and (constrained or motions or names_time(connection)):
+        if vnode is not None and (motions or names_time(connection)):
             self.error(root.key_locations["velocity_constraints"],
-                       "`velocity_constraints:` together with `constraints:` or a prescribed motion is not supported yet",
-                       "write the configuration constraints in the connection, or drive the system by a load")
+                       "`velocity_constraints:` together with a prescribed motion is not supported yet",
+                       "drive the system by a load")
         elif vnode is not None and not self.problems:
-            velocity = read_velocity_constraints(self, vnode, root.get("speeds"), y, primitive, connection)
+            holonomic = [(c.name, sympy.sympify(c.expression).xreplace(connection)) for c in constraints] \
+                if beside else []
+            velocity = read_velocity_constraints(self, vnode, root.get("speeds"), y, primitive, connection,
+                                                 holonomic, root.key_locations.get("constraints"))
             if velocity is not None:
                 self.locations["velocity_constraints"] = root.key_locations["velocity_constraints"]
         initial = read_initial(self, root.get("initial"), y,
@@ -151,7 +164,10 @@ class ModelLoader(ModelReader):
                               declared.is_mapping else [], primitive, y,
                               velocity.transformation.speeds if velocity is not None else ())
         check_values(self)
-        if constrained and not self.problems:
+        if beside and velocity is not None:
+            self.locations["constraints"] = root.key_locations["constraints"] if "constraints" in root.value \
+                else root.key_locations["velocity_constraints"]
+        if constrained and not beside and not self.problems:
             implicit = implicit_spec(self, cnode, constraints, connection, y, coords, auto, initial)
             if implicit is not None:
                 coords = implicit.independent

@@ -33,10 +33,12 @@ class VelocitySpec:
 
 
 def read_velocity_constraints(reader: ModelReader, node: Node, speeds_node: Node | None, coords,
-                              primitive, connection) -> VelocitySpec | None:
+                              primitive, connection, holonomic=(), constraints_at=None) -> VelocitySpec | None:
     """The section read and analysed: each constraint (an expression, or a contact joint of
     :mod:`.contacts` on the ``primitive`` through the ``connection``) linear in the velocities,
-    none integrable, the speeds spanning the null space of ``A``; every failure a located error."""
+    none integrable, the speeds spanning the null space of ``A``; every failure a located error.
+    ``holonomic`` are the configuration constraints ``(name, g(x, t))`` of ``constraints:``
+    (written at ``constraints_at``) in the coordinates: their rates join as the last rows."""
     velocities = {velocity_symbol(q).name: velocity_symbol(q) for q in coords}
     names = {**reader.parameter_names(), **{q.name: q for q in coords}, **velocities, "t": TIME}
     entries = reader.mapping(node, "velocity_constraints",
@@ -68,10 +70,12 @@ def read_velocity_constraints(reader: ModelReader, node: Node, speeds_node: Node
     values = {p.symbol: p.value for p in reader.parameters.values()
               if p.value is not None and sympy.sympify(p.value).is_number}
     try:
-        velocity = velocity_transformation(exprs, coords, definitions, values)
+        velocity = velocity_transformation(exprs, coords, definitions, values, [g for _, g in holonomic])
     except VelocityConstraintError as exc:
         if exc.kind == "speeds" and speeds_node is not None:
             at = speeds_node
+        elif exc.kind == "holonomic" and constraints_at is not None:
+            at = constraints_at
         elif exc.index is not None and exc.kind == "constraint":
             at = where[exc.index]
         else:
@@ -84,7 +88,8 @@ def read_velocity_constraints(reader: ModelReader, node: Node, speeds_node: Node
         return None
     if definitions is None:
         definitions = {u: u for u in velocity.speeds}
-    return VelocitySpec(transformation=velocity, constraint_names=tuple(labels), definitions=tuple(definitions.items()))
+    return VelocitySpec(transformation=velocity, constraint_names=tuple(labels) + tuple(n for n, _ in holonomic),
+                        definitions=tuple(definitions.items()))
 
 
 def check_initial(reader: ModelReader, node: Node | None, coords, spec: VelocitySpec) -> None:
