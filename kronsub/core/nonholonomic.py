@@ -183,7 +183,6 @@ def project_nonholonomic(metric: sympy.Matrix, velocity_terms: sympy.Matrix, for
     """(9'), (D)-(F) in the speeds: ``M(x)``, ``h(x, xdot)``, ``f(x, xdot, t)`` of the system in
     the coordinates ``x`` (velocities named by :func:`velocity_symbol`) projected by ``C``."""
     x = velocity.coordinates
-    u = sympy.Matrix(velocity.speeds)
     xdot = velocity.kinematics
     moved = {velocity_symbol(q): xdot[i] for i, q in enumerate(x)}
     # Cdot u + ddot along the motion: d(C u + d)/dx^k xdot^k + d(C u + d)/dt (u held)
