@@ -12,8 +12,9 @@ from .common import (USAGE_ERROR, budget_option, coincident_at_start, emit_text,
 @click.command()
 @click.argument("model", type=click.Path(dir_okay=False, path_type=Path))
 @click.option("--at", "at", multiple=True, metavar="NAME=VALUE",
-              help="Fix a coordinate, velocity, t or parameter value at the operating point (repeatable); "
-                   "coordinates not given are solved for an equilibrium from the model's initial values.")
+              help="Fix a coordinate, velocity, speed, t or parameter value at the operating point (repeatable); "
+                   "coordinates not given are solved for an equilibrium from the model's initial values "
+                   "(under velocity constraints: they keep their initial values, speeds not given are 0).")
 @click.option("--inputs", default="", metavar="NAME,...", help="Parameters that are inputs u (columns of B).")
 @click.option("--symbolic", is_flag=True,
               help="A and B in the parameters' symbols (those not fixed with --at) instead of numbers.")
