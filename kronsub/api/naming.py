@@ -34,7 +34,8 @@ def names(system: KnownSystem) -> dict[str, sympy.Symbol]:
     """Every name a printed equation of the system uses: coordinates, velocities,
     accelerations, parameters, ``t``, under velocity constraints the speeds and their rates and,
     for a closed loop, the dependent coordinates and the named intermediates ``lambda_...``,
-    ``gamma_...`` (26)-(29) with their printed closed forms."""
+    ``gamma_...`` (26)-(29) with their printed closed forms; a charge's velocity and acceleration
+    also by their printed names, the current ``i_q`` and its rate ``i_q_dot``."""
     out = {"t": TIME}
     groups = [system.coordinates, system.velocities, system.accelerations]
     imp = system.implicit
@@ -44,6 +45,7 @@ def names(system: KnownSystem) -> dict[str, sympy.Symbol]:
         groups += [system.speeds.speeds, speed_rates(system.speeds.speeds, system.coordinates)]
     for group in groups:
         out.update({s.name: s for s in group})
+    out.update({printed: s for s, printed in system.printed_names.items()})  # i_q, i_q_dot beside q_dot, q_ddot
     out.update({p.name: p.symbol for p in system.parameters})
     return out
 
@@ -87,6 +89,7 @@ def split_assignments(system: KnownSystem, at: Mapping[str, object] | None, opti
     point, values, problems = {}, {}, []
     params = {p.name: p.symbol for p in system.parameters}
     state = {s.name: s for s in tuple(system.coordinates) + tuple(system.velocities)}
+    state.update({system.name_of(v): v for v in system.velocities})  # a charge's current by its name
     for name, raw in (at or {}).items():
         try:
             if name in state:

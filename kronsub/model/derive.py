@@ -124,7 +124,7 @@ def _charge_printed(system: KnownSystem, model) -> None:
 def _derive(model, cache: bool, effects) -> KnownSystem:
     key = model.content_hash if cache else ""
     own = {"name": model.name, "description": model.description, "initial": dict(model.initial),
-           "requirements": model.requirements}
+           "requirements": model.requirements, "currents": dict(model.currents)}
     if key and effects is None:
         hit = load_cached(key)
         if hit is not None:

@@ -89,6 +89,7 @@ def make_job(system, plan: Plan, initial: dict, settings: dict[str, str], *, met
                                         "closed loop: it follows from the independent ones",
                                         "sweep the independent coordinates: " + ", ".join(states)))
     names = {"t": TIME, **{q.name: q for q in system.coordinates}, **{v.name: v for v in system.velocities},
+             **{system.name_of(v): v for v in system.velocities},
              **{p.name: p.symbol for p in system.parameters}}
     user = []
     try:
