@@ -160,7 +160,7 @@ def linearize(system: KnownSystem, at: Mapping[str, object] | None = None, input
     start = dict(system.initial) if initial is None else {symbol(system, k) if isinstance(k, str) else k: v
                                                            for k, v in initial.items()}
     lin = core_linearize(system, inputs=chosen, point=point, values=values, initial=start, symbolic=symbolic)
-    return dataclasses.replace(lin, notes=lin.notes + notes) if notes else lin
+    return dataclasses.replace(lin, notes=lin.notes + tuple(notes), printed=system.printed_names)
 
 
 def refuse_driven(system: KnownSystem, drive: Location | None = None) -> tuple[str, ...]:
