@@ -14,12 +14,11 @@ from dataclasses import dataclass
 import numpy as np
 import sympy
 
-from ..components import REGISTRY
 from ..core.known_system import KnownSystem
-from ..core.symbols import TIME, velocity_symbol
+from ..core.symbols import TIME
 from ..effects.electrical import Capacitor, Resistor
 from ..effects.elements import Damper, TorsionalDamper
-from ..model.circuits import CIRCUIT_TYPES
+from ..model.currents import primitive_charges
 
 COLUMNS = ("magnetic_energy", "electric_energy", "mechanical_energy", "dissipated_power")
 DISSIPATIVE = (Resistor, Damper, TorsionalDamper)
@@ -52,8 +51,7 @@ def energy_split(model, system: KnownSystem) -> EnergySplit | None:
     transition = system.transition
     if model is None or transition is None:
         return None
-    charges = [q for part in model.primitive.parts
-               for q in (part.coordinates if part.type_name in CIRCUIT_TYPES else part.charges)]
+    charges = primitive_charges(model.primitive)
     if not charges:
         return None
     resolved = closed_forms(system)
@@ -100,23 +98,9 @@ def closed_forms(system: KnownSystem) -> dict | None:
 
 
 def charge_coordinates(system: KnownSystem) -> frozenset[str]:
-    """The names of the coordinates whose motion moves a branch charge of a circuit part
-    (``d x_c/d xbar`` not zero through the connection): the loop charges."""
-    transition = system.transition
-    if transition is None or not any(kind in CIRCUIT_TYPES for _, kind in transition.parts):
-        return frozenset()
-    connection, start, charges = dict(transition.connection), 0, []
-    for _, kind in transition.parts:
-        size = len(REGISTRY[kind].coordinates) if kind in REGISTRY else 0
-        if kind in CIRCUIT_TYPES:
-            charges += transition.primitive_coordinates[start:start + size]
-        if kind not in REGISTRY:  # a known system or textbook part: its size is not known here
-            return frozenset()
-        start += size
-    if start != len(transition.primitive_coordinates):
-        return frozenset()
-    images = [sympy.sympify(connection.get(x, x)) for x in charges]
-    return frozenset(q.name for q in system.coordinates if any(image.has(q) for image in images))
+    """The names of the generalized coordinates that are branch charges: the loop charges
+    (the derived system's record, :mod:`kronsub.model.currents`)."""
+    return frozenset(q.name for q in system.coordinates if q.name in system.currents)
 
 
 __all__ = ["COLUMNS", "EnergySplit", "charge_coordinates", "closed_forms", "energy_split"]
