@@ -161,3 +161,30 @@ def test_codegen_and_linearize_name_the_currents(tmp_path):
     assert data["state"] == ["q", "i"]
     # L q'' + R q' + q/C = 0: A = [[0, 1], [-1/(L C), -R/L]] = [[0, 1], [-100, -2]]
     np.testing.assert_allclose(data["A"], [[0, 1], [-100, -2]], rtol=1e-12)
+
+
+TEXTBOOK = """\
+name: textbook coil
+parameters:
+  L: {value: 0.5}
+  R: {value: 2}
+components:
+  coil:
+    coordinates: [q]
+    charges: [q]
+    metric: [[L]]
+    dissipation: R*i**2/2
+coordinates: [q]
+initial: {i: 3}
+"""
+
+
+def test_a_textbook_dissipation_names_its_charges_current(tmp_path):
+    """Rayleigh's ``R i^2/2`` of the coil's own ``charges: [q]``: ``L di/dt = -R i``."""
+    path = tmp_path / "coil.yaml"
+    path.write_text(TEXTBOOK)
+    system = kronsub.load(path, cache=False).derive(cache=False)
+    i = system.symbol("i")
+    assert i is system.symbol("q_dot") and system.forces[0] == -system.symbol("R") * i
+    md = _derive(path, "markdown")
+    assert "`L*i_dot = -R*i`" in md
