@@ -40,7 +40,7 @@ class ModelStrPrinter(Remembering, StrPrinter):
 
     def _print_Symbol(self, expr):
         name = self.renamed.get(expr)
-        return name if name is not None else super()._print_Symbol(expr)
+        return name if name is not None else StrPrinter._print_Symbol(self, expr)
 
     def _call(self, name: str, *args) -> str:
         return f"{name}({', '.join(self._print(a) for a in args)})"
