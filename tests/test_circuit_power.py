@@ -176,3 +176,32 @@ def test_models_without_circuit_parts_keep_their_columns(tmp_path, path):
     c, meta = simulated(tmp_path, MODELS / path, "--t", "0.02", "--dt", "0.01")
     assert not set(SPLIT) & set(c) and not set(SPLIT) & set(meta["columns"])
     assert "dissipated_power" not in meta["units"]
+
+
+def test_a_machine_used_as_a_known_system_splits_as_the_machine(tmp_path):
+    """The machine of machine.yaml on an infinite bus: its own dissipation (a known system's
+    effect) is ``Rs (i_a^2 + i_b^2 + i_c^2) + Rf i_f^2 + D omega^2``, its rotor's ``J omega^2/2``
+    is the mechanical energy, and the bus and the exciter supply what is stored and lost."""
+    c, _ = simulated(tmp_path, CIRCUITS / "synchronous_machine.yaml", "--t", "0.02", "--dt", "0.0001")
+    J, D, Rs, Rf, vf, Vm, w = 0.5, 0.02, 0.05, 0.5, 5.0, 100.0, 314.159
+    ia, ib, ic, i_f, omega, t = c["i_a"], c["i_b"], c["i_c"], c["i_f"], c["theta_dot"], c["t"]
+    np.testing.assert_allclose(c["mechanical_energy"], J * omega**2 / 2, rtol=1e-9)
+    np.testing.assert_allclose(c["magnetic_energy"] + c["mechanical_energy"], c["kinetic_energy"], rtol=1e-12)
+    np.testing.assert_allclose(c["dissipated_power"], Rs * (ia**2 + ib**2 + ic**2) + Rf * i_f**2 + D * omega**2,
+                               rtol=1e-12)
+    np.testing.assert_array_equal(c["electric_energy"], 0.0)
+    bus = Vm * (np.cos(w * t) * ia + np.cos(w * t - 2 * np.pi / 3) * ib + np.cos(w * t + 2 * np.pi / 3) * ic)
+    assert_balance(c, bus + vf * i_f, 0 * t)
+
+
+def test_the_machine_pair_splits_each_machine(tmp_path):
+    """Two machines through one loop charge per phase: each phase current flows in both
+    stators (``Rs`` twice), each field and rotor its own; the shafts' torques do the work."""
+    c, _ = simulated(tmp_path, CIRCUITS / "machine_pair.yaml", "--t", "0.02", "--dt", "0.0001")
+    J, D, Rs, Rf, vf, Tm1, Tm2 = 0.5, 0.02, 0.05, 0.5, 5.0, 3.0, -3.0
+    w1, w2 = c["th1_dot"], c["th2_dot"]
+    phases = c["i_a"] ** 2 + c["i_b"] ** 2 + c["i_c"] ** 2
+    np.testing.assert_allclose(c["mechanical_energy"], J * (w1**2 + w2**2) / 2, rtol=1e-9)
+    np.testing.assert_allclose(c["dissipated_power"], 2 * Rs * phases + Rf * (c["i_f1"] ** 2 + c["i_f2"] ** 2)
+                               + D * (w1**2 + w2**2), rtol=1e-12)
+    assert_balance(c, vf * (c["i_f1"] + c["i_f2"]) + Tm1 * w1 + Tm2 * w2, 0 * c["t"])

@@ -178,6 +178,7 @@ class KnownSystem:
     requirements: tuple[Requirement, ...] = ()
     speeds: SpeedEquations | None = None  # under velocity constraints: the equations in the speeds
     currents: Mapping[str, str] = field(default_factory=dict)  # charge coordinate -> its current's name
+    effect_kinds: Mapping[str, str] = field(default_factory=dict)  # effect -> its energy's kind (electric, dissipative)
 
     @property
     def velocities(self) -> tuple[sympy.Symbol, ...]:

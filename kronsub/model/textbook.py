@@ -18,6 +18,7 @@ from ..core.currents import current_name
 from ..core.derivative import derivative
 from ..core.primitive import Part, christoffel_terms
 from ..core.symbols import symbol, velocity_symbol
+from .energy_kinds import DISSIPATIVE
 from .reader import ModelReader, node_kind
 from .source import Node
 
@@ -54,7 +55,8 @@ def textbook_part(reader: ModelReader, cname: str, spec: Node) -> Part | None:
         forces["dissipation"] = sympy.Matrix([sympy.expand(-derivative(dissipation, v)) for v in velocities])
     return Part(name=cname, coordinates=coordinates, metric=metric,
                 velocity_terms=christoffel_terms(metric, coordinates, velocities),
-                forces=forces, potential=potential, potentials=potentials, charges=charges)
+                forces=forces, potential=potential, potentials=potentials, charges=charges,
+                effect_kinds={"dissipation": DISSIPATIVE} if "dissipation" in forces else {})
 
 
 def _coordinates(reader: ModelReader, cname: str, node: Node | None):

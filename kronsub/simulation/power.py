@@ -5,7 +5,8 @@ energy ``1/2 iᵀ L i`` over the branch currents ``i = d x_c(xbar)/dt`` (the cha
 the circuit parts carried by the connection (7)); the potential ``V`` holds the capacitors'
 electric energy ``q^2/(2 C)``. What is left of ``T + V`` is mechanical. The dissipated power
 is ``-fbarᵀ qdot`` of the resistors and dampers (twice Rayleigh's function for a linear one),
-so that ``d/dt (T + V) = P_sources - P_dissipated - P_loads`` along a run.
+the effects' kinds recorded by the derived system (:mod:`kronsub.model.energy_kinds`, a known
+system's own effects among them), so that ``d/dt (T + V) = P_sources - P_dissipated - P_loads`` along a run.
 """
 from __future__ import annotations
 
@@ -16,16 +17,10 @@ import sympy
 
 from ..core.known_system import KnownSystem
 from ..core.symbols import TIME
-from ..effects.electrical import Capacitor, Resistor
-from ..effects.elements import Damper, TorsionalDamper
 from ..model.currents import primitive_charges
+from ..model.energy_kinds import DISSIPATIVE, ELECTRIC
 
 COLUMNS = ("magnetic_energy", "electric_energy", "mechanical_energy", "dissipated_power")
-DISSIPATIVE = (Resistor, Damper, TorsionalDamper)
-OWN_DISSIPATION = "dissipation"
-OWN_EFFECTS = ("potential", OWN_DISSIPATION)
-"""The labels (after the part's name) of a textbook component's own effects: its potential
-(counted mechanical) and its Rayleigh dissipation."""
 
 
 @dataclass(frozen=True)
@@ -45,9 +40,8 @@ class EnergySplit:
 
 def energy_split(model, system: KnownSystem) -> EnergySplit | None:
     """The split of ``system`` (derived from ``model``), or None when the model has no circuit
-    part, is a closed loop whose dependent coordinates have no closed form (node equations
-    have one: their charges are then written in the loop charges) or uses a known system with
-    effects of its own (whose kinds are not kept)."""
+    part, or is a closed loop whose dependent coordinates have no closed form (node equations
+    have one: their charges are then written in the loop charges)."""
     transition = system.transition
     if model is None or transition is None:
         return None
@@ -65,14 +59,10 @@ def energy_split(model, system: KnownSystem) -> EnergySplit | None:
                              for x in charges])
     inductance = transition.primitive_metric.extract([index[x] for x in charges], [index[x] for x in charges])
     magnetic = sympy.expand((currents.T * inductance.xreplace(connection) * currents)[0, 0] / 2)
-    kinds = {effect.name: effect for effect in model.effects}
-    if any(label not in kinds and label.rpartition(".")[2] not in OWN_EFFECTS for label in system.effect_forces):
-        return None  # a known system's own effects: their kinds are not kept
-    electric = sympy.Add(*[v for label, v in system.effect_potentials.items()
-                           if isinstance(kinds.get(label), Capacitor)])
+    kinds = system.effect_kinds
+    electric = sympy.Add(*[v for label, v in system.effect_potentials.items() if kinds.get(label) == ELECTRIC])
     dissipated = sympy.Add(*[-(f.T * qdot)[0, 0] for label, f in system.effect_forces.items()
-                             if isinstance(kinds.get(label), DISSIPATIVE)
-                             or (label not in kinds and label.rpartition(".")[2] == OWN_DISSIPATION)])
+                             if kinds.get(label) == DISSIPATIVE])
     mechanical = sympy.expand(system.kinetic_energy - magnetic) + (system.potential_energy - electric)
     args = [*system.coordinates, *system.velocities, *(p.symbol for p in system.parameters), TIME]
     columns = [sympy.sympify(e).xreplace(resolved) for e in (magnetic, electric, mechanical, dissipated)]
