@@ -188,3 +188,26 @@ def test_a_textbook_dissipation_names_its_charges_current(tmp_path):
     assert i is system.symbol("q_dot") and system.forces[0] == -system.symbol("R") * i
     md = _derive(path, "markdown")
     assert "`L*i_dot = -R*i`" in md
+
+
+def test_a_sweep_takes_the_current_by_its_name(tmp_path):
+    """The series RLC from ``q = 0`` and two starting currents: ``y' = A y + b`` with
+    ``A = [[0, 1], [-1/(L C), -R/L]]``, ``b = [0, E/L]``, at ``t = 0.1``; the velocity's
+    other name is refused with the current's."""
+    pd = pytest.importorskip("pandas")
+    from scipy.linalg import expm
+
+    out = tmp_path / "sweep.parquet"
+    args = ["sweep", str(CIRCUITS / "series_rlc.yaml"), "--t", "0.1", "--rtol", "1e-11", "--atol", "1e-12",
+            "--workers", "1", "-o", str(out)]
+    result = CliRunner().invoke(main, [*args, "--grid", "i=0:1:2", "--summary", "final(R*i**2)"])
+    assert result.exit_code == 0, result.output
+    L, R, C, E = 0.5, 1.0, 0.02, 10.0
+    M = np.zeros((3, 3))
+    M[0, 1], M[1, 0], M[1, 1], M[1, 2] = 1, -1 / (L * C), -R / L, E / L  # [q, i, 1]
+    for _, run in pd.read_parquet(out).sort_values("i").iterrows():
+        q, i, _ = expm(M * 0.1) @ np.array([0.0, float(run["i"]), 1.0])
+        assert np.allclose([run["final_q"], run["final_i"]], [q, i], rtol=0, atol=1e-8)
+        assert np.isclose(run["final(R*i**2)"], R * i**2, rtol=1e-8)
+    refused = CliRunner().invoke(main, [*args[:-1], str(tmp_path / "refused.parquet"), "--grid", "q_dot=0:1:2"])
+    assert refused.exit_code != 0 and "it is the current i" in refused.output
