@@ -211,3 +211,10 @@ def test_a_sweep_takes_the_current_by_its_name(tmp_path):
         assert np.isclose(run["final(R*i**2)"], R * i**2, rtol=1e-8)
     refused = CliRunner().invoke(main, [*args[:-1], str(tmp_path / "refused.parquet"), "--grid", "q_dot=0:1:2"])
     assert refused.exit_code != 0 and "it is the current i" in refused.output
+
+
+def test_a_sweep_plot_labels_charges_in_coulombs_and_currents_in_amperes():
+    from kronsub.sweep.plot import label
+
+    system = kronsub.load(CIRCUITS / "dc_motor.yaml").derive()
+    assert [label(system, n) for n in ("q", "i", "R")] == ["q [C]", "i [A]", "R [ohm]"]
