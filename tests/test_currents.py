@@ -218,3 +218,22 @@ def test_a_sweep_plot_labels_charges_in_coulombs_and_currents_in_amperes():
 
     system = kronsub.load(CIRCUITS / "dc_motor.yaml").derive()
     assert [label(system, n) for n in ("q", "i", "R")] == ["q [C]", "i [A]", "R [ohm]"]
+
+
+def test_two_charges_with_one_current_name_keep_them_apart(tmp_path):
+    """``qa`` and ``q_a`` would both be ``i_a``: the first takes it, the second keeps ``q_a_dot``."""
+    path = tmp_path / "two.yaml"
+    path.write_text("""\
+name: two coils
+parameters:
+  L: {value: 0.5}
+components:
+  one: {type: inductor, parameters: {inductance: L}, coordinates: [qa]}
+  two: {type: inductor, parameters: {inductance: L}, coordinates: [q_a]}
+coordinates: [qa, q_a]
+""")
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        system = kronsub.load(path, cache=False).derive(cache=False)
+    assert [system.name_of(v) for v in system.velocities] == ["i_a", "q_a_dot"]
+    assert sum(issubclass(w.category, CurrentNameWarning) for w in caught) == 1

@@ -57,8 +57,9 @@ def name_currents(reader: ModelReader, charges, coords) -> None:
             continue
         name = current_name(q.name)
         if name in taken or rate_name(name) in taken:
-            where = (reader.locations.get(f"coordinate:{q.name}") or reader.locations.get("coordinates")
-                     or reader.root.location)
+            owner = next((part.name for part in reader.parts if q in part.coordinates), None)
+            where = (reader.locations.get(f"coordinate:{q.name}") or reader.locations.get(f"component:{owner}")
+                     or reader.locations.get("coordinates") or reader.root.location)
             warnings.warn(CurrentNameWarning(
                 f"{where}: the current of the charge '{q.name}' is printed '{q.name}_dot': its name "
                 f"'{name}' is already a name of the model (rename that name to print it as a current)"),
