@@ -34,7 +34,7 @@ def test_series_rlc_is_the_loop_equation():
 
 def test_series_rlc_step_response_is_the_closed_form():
     header, rows = simulated(CIRCUITS / "series_rlc.yaml", "--scene", "step")
-    assert header[:3] == ["t", "q", "q_dot"]
+    assert header[:3] == ["t", "q", "i"]
     L, R, C, E = 0.5, 1.0, 0.02, 10.0
     alpha, w0 = R / (2 * L), 1 / np.sqrt(L * C)
     wd = np.sqrt(w0**2 - alpha**2)
@@ -51,7 +51,7 @@ def test_series_rlc_step_response_is_the_closed_form():
 def test_series_rlc_discharge_loses_its_energy_in_the_resistor():
     """Without the source, ``T + V`` falls by ``integral R i^2 dt`` (trapezoids on a fine grid)."""
     header, rows = simulated(CIRCUITS / "series_rlc.yaml", "--scene", "discharge", "--dt", "0.0001")
-    t, i = rows[:, 0], rows[:, header.index("q_dot")]
+    t, i = rows[:, 0], rows[:, header.index("i")]
     total = rows[:, header.index("total_energy")]
     heat = np.concatenate([[0], np.cumsum(np.diff(t) * (i[1:] ** 2 + i[:-1] ** 2) / 2)])  # R = 1
     assert total[0] == pytest.approx(0.2**2 / (2 * 0.02))
@@ -70,8 +70,8 @@ def test_ladder_loop_inductance_and_loop_voltages():
 
 
 @pytest.mark.parametrize("path, columns", [
-    ("rlc_ladder.yaml", ("q1", "q2", "q1_dot", "q2_dot")),  # the mesh transformation under `connection:`
-    ("rlc_ladder_nodes.yaml", ("q_L1", "q_L2", "q_L1_dot", "q_L2_dot")),  # the current law under `constraints:`
+    ("rlc_ladder.yaml", ("q1", "q2", "i_1", "i_2")),  # the mesh transformation under `connection:`
+    ("rlc_ladder_nodes.yaml", ("q_L1", "q_L2", "i_L1", "i_L2")),  # the current law under `constraints:`
 ])
 def test_ladder_step_response_is_exact(path, columns):
     header, rows = simulated(CIRCUITS / path, "--scene", "step")
@@ -90,7 +90,7 @@ def test_ladder_step_response_is_exact(path, columns):
 def test_ladder_energy_balance():
     """The source's work ``E q1`` is the stored ``T + V`` plus the heat ``integral R i^2 dt``."""
     header, rows = simulated(CIRCUITS / "rlc_ladder.yaml", "--scene", "step", "--dt", "0.0001")
-    t, q1, i1, i2 = (rows[:, header.index(c)] for c in ("t", "q1", "q1_dot", "q2_dot"))
+    t, q1, i1, i2 = (rows[:, header.index(c)] for c in ("t", "q1", "i_1", "i_2"))
     power = 2.0 * i1**2 + 5.0 * i2**2
     heat = np.concatenate([[0], np.cumsum(np.diff(t) * (power[1:] + power[:-1]) / 2)])
     stored = rows[:, header.index("total_energy")]
@@ -112,7 +112,7 @@ def test_transformer_metric_holds_the_mutual_inductance_and_its_response_is_exac
     A[2:4, 4] = Minv @ np.array([E, 0])
     A[4, 5], A[5, 4] = w, -w  # s' = w c, c' = -w s
     exact = affine_solution(A, np.zeros(6), np.array([0, 0, 0, 0, 0, 1.0]), rows[:, 0])[:, :4]
-    got = rows[:, [header.index(c) for c in ("q1", "q2", "q1_dot", "q2_dot")]]
+    got = rows[:, [header.index(c) for c in ("q1", "q2", "i_1", "i_2")]]
     scale = np.max(np.abs(exact), axis=0)
     np.testing.assert_allclose(got / scale, exact / scale, rtol=0, atol=1e-8)
 
@@ -140,7 +140,7 @@ def test_energy_balance_on_every_bundled_circuit(path):
     t = sympy.Symbol("t", real=True)
     state = [*system.coordinates, *system.velocities]
     P = sympy.lambdify([t, *state], power.xreplace(values))
-    columns = [header.index(q.name) for q in state]
+    columns = [header.index(system.name_of(q)) for q in state]
     p = np.array([P(row[0], *row[columns]) for row in rows], dtype=float)
     work = np.concatenate([[0], np.cumsum(np.diff(rows[:, 0]) * (p[1:] + p[:-1]) / 2)])
     energy = rows[:, header.index("total_energy")]

@@ -52,7 +52,7 @@ def test_magnetic_suspension_is_khalils_model_at_random_states():
 def test_balanced_ball_stays_at_its_equilibrium_for_a_while():
     header, rows = simulated(CIRCUITS / "magnetic_suspension.yaml", "--scene", "balanced")
     assert np.max(np.abs(rows[:, header.index("y")] - 0.05)) < 1e-5
-    assert np.max(np.abs(rows[:, header.index("q_dot")] - 6.264184)) < 1e-4
+    assert np.max(np.abs(rows[:, header.index("i")] - 6.264184)) < 1e-4
 
 
 DC = dict(R=0.5, L=4.5e-3, k=0.5, J=0.02, f=0.01, V=1.0, tau_L=0.25, t_load=1.0)
@@ -80,7 +80,7 @@ def dc_motor_exact(times):
 def test_dc_motor_with_a_load_step_is_the_exact_solution():
     header, rows = simulated(CIRCUITS / "dc_motor.yaml", "--dt", "0.01")
     exact = dc_motor_exact(rows[:, 0])
-    got = rows[:, [header.index(c) for c in ("q", "theta", "q_dot", "theta_dot")]]
+    got = rows[:, [header.index(c) for c in ("q", "theta", "i", "theta_dot")]]
     scale = np.max(np.abs(exact), axis=0)
     np.testing.assert_allclose(got / scale, exact / scale, rtol=0, atol=1e-7)
     # the speed before and after the step: omega = k V/(R f + k^2), then less by the load's share
@@ -93,7 +93,7 @@ def test_dc_motor_energy_balance():
     """Supplied ``V q`` = stored ``T`` + heat ``integral (R i^2 + f omega^2) dt`` + the load's
     work ``integral tau omega dt``: the gyrator itself neither makes nor loses energy."""
     header, rows = simulated(CIRCUITS / "dc_motor.yaml", "--dt", "0.0005")
-    t, q, i, w = (rows[:, header.index(c)] for c in ("t", "q", "q_dot", "theta_dot"))
+    t, q, i, w = (rows[:, header.index(c)] for c in ("t", "q", "i", "theta_dot"))
     theta = rows[:, header.index("theta")]
     power = DC["R"] * i**2 + DC["f"] * w**2
     heat = np.concatenate([[0], np.cumsum(np.diff(t) * (power[1:] + power[:-1]) / 2)])
@@ -242,7 +242,7 @@ def test_loudspeaker_draws_the_current_of_its_textbook_impedance():
     Z = Re + 1j * w * Le + Bl**2 / (Rms + 1j * w * Mms + 1 / (1j * w * Cms))
     current = E / Z  # phasor of i against sin(w t): i = Im(current exp(j w t))
     late = rows[:, 0] > 0.1
-    t, i = rows[late, 0], rows[late, header.index("q_dot")]
+    t, i = rows[late, 0], rows[late, header.index("i")]
     basis = np.column_stack([np.sin(w * t), np.cos(w * t)])
     (a, b), *_ = np.linalg.lstsq(basis, i, rcond=None)  # i = a sin + b cos = Im((a + j b) exp(j w t))
     assert a + 1j * b == pytest.approx(current, rel=1e-6)

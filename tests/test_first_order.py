@@ -43,13 +43,13 @@ def test_rc_charging_after_a_step_is_the_exponential():
     ``C E + (q(t1) - C E) e^(-(t - t1)/RC)``; the current ``i = q'`` jumps at the step."""
     R, C, E, t1, q0 = 2.0, 0.25, 3.0, 0.3, 0.1
     header, rows = simulated(FOLDER / "rc_step.yaml", "--t", "2", "--dt", "0.05")
-    assert header[:3] == ["t", "q", "q_dot"]
+    assert header[:3] == ["t", "q", "i"]
     t = column(header, rows, "t")
     q1 = q0 * np.exp(-t1 / (R * C))
     exact = np.where(t < t1, q0 * np.exp(-t / (R * C)), C * E + (q1 - C * E) * np.exp(-(t - t1) / (R * C)))
     current = np.where(t < t1, -exact / (R * C), (E - exact / C) / R)
     assert np.allclose(column(header, rows, "q"), exact, rtol=0, atol=1e-8)
-    assert np.allclose(column(header, rows, "q_dot"), current, rtol=0, atol=1e-7)
+    assert np.allclose(column(header, rows, "i"), current, rtol=0, atol=1e-7)
 
 
 LADDER = dict(R1=1.0, R2=2.0, R3=0.5, C1=0.5, C2=0.2, C3=1.0, E=2.0)
@@ -80,7 +80,7 @@ def test_rc_ladder_is_its_matrix_exponential(compiler, monkeypatch, tmp_path):
     t = column(header, rows, "t")
     exact = affine_solution(A, b, np.array([0.2, -0.1, 0.3]), t)
     charges = np.column_stack([column(header, rows, q) for q in ("q1", "q2", "q3")])
-    currents = np.column_stack([column(header, rows, f"{q}_dot") for q in ("q1", "q2", "q3")])
+    currents = np.column_stack([column(header, rows, i) for i in ("i_1", "i_2", "i_3")])
     assert np.allclose(charges, exact, rtol=0, atol=1e-8)
     assert np.allclose(currents, exact @ A.T + b, rtol=0, atol=1e-7)
 
@@ -108,8 +108,8 @@ def test_rlc_with_an_rc_branch_is_exact_and_balances_its_energy():
     x, i2 = rlc_rc_exact(t)
     assert np.allclose(column(header, rows, "q1"), x[:, 0], rtol=0, atol=1e-8)
     assert np.allclose(column(header, rows, "q2"), x[:, 1], rtol=0, atol=1e-8)
-    assert np.allclose(column(header, rows, "q1_dot"), x[:, 2], rtol=0, atol=1e-8)
-    assert np.allclose(column(header, rows, "q2_dot"), i2, rtol=0, atol=1e-7)
+    assert np.allclose(column(header, rows, "i_1"), x[:, 2], rtol=0, atol=1e-8)
+    assert np.allclose(column(header, rows, "i_2"), i2, rtol=0, atol=1e-7)
     # the branch currents carry the energy: d(magnetic + electric)/dt = e i1 - R1 i1^2 - R2 i2^2
     p = RLC_RC
     supplied = p["E"] * np.sin(p["w"] * t) * x[:, 2]
@@ -172,7 +172,7 @@ def test_gauss4_and_the_api_follow_the_ladder():
     times = np.asarray(run["t"])
     exact = affine_solution(A, b, np.array([0.2, -0.1, 0.3]), times)
     assert np.allclose(np.asarray(run["q2"]), exact[:, 1], rtol=0, atol=1e-8)
-    assert np.allclose(np.asarray(run["q2_dot"]), (exact @ A.T + b)[:, 1], rtol=0, atol=1e-7)
+    assert np.allclose(np.asarray(run["i_2"]), (exact @ A.T + b)[:, 1], rtol=0, atol=1e-7)
 
 
 def test_generated_c_and_numpy_give_the_ladder_equations(tmp_path):
@@ -329,5 +329,5 @@ def test_a_sweep_reports_the_final_currents(tmp_path):
     for _, run in table.iterrows():
         A, b = ladder_matrices(LADDER | {"R1": float(run["R1"])})
         exact = affine_solution(A, b, np.array([0.2, -0.1, 0.3]), np.array([1.0]))[0]
-        got = [run[f"final_{q}_dot"] for q in ("q1", "q2", "q3")]
+        got = [run[f"final_{i}"] for i in ("i_1", "i_2", "i_3")]
         assert np.allclose(got, A @ exact + b, rtol=0, atol=1e-7)

@@ -94,7 +94,7 @@ def test_radau_with_the_exact_jacobian_follows_the_dc_motor(tmp_path):
                   [0, 0, 0, 0, 0]])
     for row in rows:
         exact = expm(A * row[0]) @ np.array([0, 0, 0, 0, 1.0])
-        got = [row[header.index(name)] for name in ("q", "theta", "q_dot", "theta_dot")]
+        got = [row[header.index(name)] for name in ("q", "theta", "i", "theta_dot")]
         assert np.allclose(got, exact[:4], rtol=1e-7, atol=1e-8)
 
 

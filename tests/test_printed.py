@@ -50,6 +50,7 @@ class _ForgetfulModelPrinter(StrPrinter):
     def __init__(self):
         super().__init__({"order": "lex"})
         self.reserved = frozenset()
+        self.renamed = {}
 
 
 for _k, _v in vars(ModelStrPrinter).items():

@@ -35,7 +35,8 @@ def names(system: KnownSystem) -> dict[str, sympy.Symbol]:
     """Every name a printed equation of the system uses: coordinates, velocities,
     accelerations, parameters, ``t``, under velocity constraints the speeds and their rates and,
     for a closed loop, the dependent coordinates and the named intermediates ``lambda_...``,
-    ``gamma_...`` (26)-(29) with their printed closed forms."""
+    ``gamma_...`` (26)-(29) with their printed closed forms; a charge's velocity and acceleration
+    also by their printed names, the current ``i_q`` and its rate ``i_q_dot``."""
     out = {"t": TIME}
     groups = [system.coordinates, system.velocities, system.accelerations]
     imp = system.implicit
@@ -45,6 +46,7 @@ def names(system: KnownSystem) -> dict[str, sympy.Symbol]:
         groups += [system.speeds.speeds, speed_rates(system.speeds.speeds, system.coordinates)]
     for group in groups:
         out.update({s.name: s for s in group})
+    out.update({printed: s for s, printed in system.printed_names.items()})  # i_q, i_q_dot beside q_dot, q_ddot
     out.update({p.name: p.symbol for p in system.parameters})
     return out
 
@@ -88,6 +90,7 @@ def split_assignments(system: KnownSystem, at: Mapping[str, object] | None, opti
     point, values, problems = {}, {}, []
     params = {p.name: p.symbol for p in system.parameters}
     state = {s.name: s for s in tuple(system.coordinates) + tuple(system.state_velocities)}
+    state.update({system.name_of(v): v for v in system.state_velocities})  # a charge's current by its name
     fixed = {v.name for v in system.velocities} - set(state)  # under velocity constraints: not a speed
     for name, raw in (at or {}).items():
         try:
@@ -167,7 +170,7 @@ def linearize(system: KnownSystem, at: Mapping[str, object] | None = None, input
                                                            for k, v in initial.items()}
     route = linearize_speeds if system.speeds is not None else core_linearize
     lin = route(system, inputs=chosen, point=point, values=values, initial=start, symbolic=symbolic)
-    return dataclasses.replace(lin, notes=lin.notes + notes) if notes else lin
+    return dataclasses.replace(lin, notes=lin.notes + tuple(notes), printed=system.printed_names)
 
 
 def refuse_driven(system: KnownSystem, drive: Location | None = None) -> tuple[str, ...]:

@@ -164,7 +164,7 @@ def simulate(system: KnownSystem, t: float | None = None, dt: float | None = Non
         source=model.source if model is not None else None, uses=model.uses if model is not None else (),
         split=energy_split(model, system))
     T, V = energies(system, traj, param)
-    columns = tuple(s.name for s in system.coordinates) + tuple(s.name for s in system.state_velocities)
+    columns = tuple(s.name for s in system.coordinates) + tuple(system.name_of(s) for s in system.state_velocities)
     result = Run(traj.t, traj.y.reshape(len(traj.t), len(columns)), columns, T, V, traj.complete, traj.message,
                  {p.name: v for p, v in zip(system.parameters, values.parameters)}, tuple(table_columns), table,
                  metadata, begin.notes)
@@ -270,7 +270,7 @@ def numeric(system: KnownSystem, set: Mapping[str, object] | None = None) -> Num
 
     return NumericSystem(rhs, mass_matrix, velocity_terms, forces, kinetic, potential,
                          {p.name: v for p, v in zip(system.parameters, values.parameters)},
-                         tuple(s.name for s in system.coordinates) + tuple(s.name for s in system.state_velocities),
+                         tuple(s.name for s in system.coordinates) + tuple(system.name_of(s) for s in system.state_velocities),
                          "C" if native is not None else "numpy")
 
 

@@ -42,7 +42,7 @@ def sweep(system: KnownSystem, grid: Mapping[str, object] | None = None, sample:
     plan = make_plan(*read_axes(grids, samples), runs, seed, latin)
     values = starting_values(system, settings_text(set)).values  # checks the fixed values
     settings = {p.name: repr(v) for p, v in zip(system.parameters, values.parameters) if p.name in (set or {})}
-    names = [q.name for q in system.coordinates] + [v.name for v in system.velocities]
+    names = [q.name for q in system.coordinates] + [system.name_of(v) for v in system.velocities]
     settings.update({name: repr(v) for name, v in zip(names, values.y0) if name in (set or {})})
     job = make_job(system, plan, dict(system.initial), settings, method=method, t_end=t, dt=dt, rtol=rtol,
                    atol=atol, chunk=chunk or DEFAULT_CHUNK, summaries=tuple(summaries), summary_option="summaries")

@@ -53,7 +53,8 @@ def linearize(model: Path, at: tuple[str, ...], inputs: str, symbolic: bool, fmt
             coincident_at_start(loaded, system, assignments)
             raise
         if not lin.equilibrium and not lin.in_speeds:  # about a steady motion: the core's note says it
-            moving = [f"{s}={v}" for s, v in lin.point if s in set(system.velocities) and v.is_zero is not True]
+            moving = [f"{system.name_of(s)}={v}" for s, v in lin.point
+                      if s in set(system.velocities) and v.is_zero is not True]
             why = ("qddot = " + ", ".join(f"{a:.6g}" for a in lin.acceleration)
                    + (f"; {', '.join(moving)}" if moving else "")) if not _at_rest(lin.acceleration) \
                 else "qdot is not 0: " + ", ".join(moving)

@@ -13,6 +13,7 @@ from typing import Mapping
 import sympy
 
 from ..components.base import Body, Requirement
+from .currents import printed_velocities
 from .symbols import acceleration_symbol, velocity_symbol
 
 
@@ -155,7 +156,9 @@ class KnownSystem:
     ``effect_translations`` holds, per effect of a world field, ``dV/do`` under a translation
     ``o`` of the whole system; ``requirements`` what its components need of the parameters'
     values (:class:`~kronsub.components.base.Requirement`, checked by the model above);
-    ``initial`` the model's initial values.
+    ``initial`` the model's initial values; ``currents`` the coordinates that are branch
+    charges (of the primitive, the subspace and a closed loop's dependent ones), each with the
+    printed name of its velocity, the current (:mod:`.currents`).
     """
 
     name: str
@@ -176,10 +179,31 @@ class KnownSystem:
     initial: Mapping[sympy.Symbol, sympy.Expr] = field(default_factory=dict)
     requirements: tuple[Requirement, ...] = ()
     speeds: SpeedEquations | None = None  # under velocity constraints: the equations in the speeds
+    currents: Mapping[str, str] = field(default_factory=dict)  # charge coordinate -> its current's name
+    effect_kinds: Mapping[str, str] = field(default_factory=dict)  # effect -> its energy's kind (electric, dissipative)
 
     @property
     def velocities(self) -> tuple[sympy.Symbol, ...]:
         return tuple(velocity_symbol(q) for q in self.coordinates)
+
+    @property
+    def printed_names(self) -> dict[sympy.Symbol, str]:
+        """The velocity symbols printed under a name of their own (the currents), by symbol."""
+        return printed_velocities(self.currents)
+
+    def name_of(self, velocity: sympy.Symbol) -> str:
+        """The printed name of a velocity (or any symbol): a charge's current, else its own."""
+        return self.printed_names.get(velocity, velocity.name)
+
+    def printed_name(self, name: str) -> str:
+        """The printed name of the quantity a user's ``name`` stands for: a charge's ``q_dot``
+        (still read) is its current ``i_q``, ``q_ddot`` the current's rate; others as given."""
+        return {s.name: printed for s, printed in self.printed_names.items()}.get(name, name)
+
+    def symbol_name(self, name: str) -> str:
+        """The name of the symbol a user's ``name`` stands for: a current ``i_q`` is the charge's
+        velocity ``q_dot``, its rate ``i_q_dot`` ``q_ddot``; others as given."""
+        return {printed: s.name for s, printed in self.printed_names.items()}.get(name, name)
 
     @property
     def accelerations(self) -> tuple[sympy.Symbol, ...]:

@@ -5,7 +5,7 @@ search for an equilibrium ``r(q, 0) = 0``, and the eigenvalues of ``A``.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Mapping, Sequence
 
 import numpy as np
@@ -46,6 +46,11 @@ class Linearization:
     notes: tuple[str, ...] = ()  # caveats to show with the result
     dependent: tuple[tuple[sympy.Symbol, float], ...] = ()  # implicit constraints: y_d at the point
     in_speeds: bool = False  # under velocity constraints: y = [kept coordinates; speeds], about a steady motion
+    printed: Mapping[sympy.Symbol, str] = field(default_factory=dict)  # a charge's velocity: its current's name
+
+    def name_of(self, s: sympy.Symbol) -> str:
+        """The printed name of ``s`` (a charge's velocity and acceleration: its current and the rate)."""
+        return self.printed.get(s, s.name)
 
     @property
     def stable(self) -> bool | None:

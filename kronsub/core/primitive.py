@@ -62,6 +62,7 @@ class Part:
     # when the known system was derived, so that a model reusing it as it is need not redo it
     assembled_potential: tuple = ()
     charges: tuple[sympy.Symbol, ...] = ()  # coordinates that are branch charges (a textbook component's `charges:`)
+    effect_kinds: Mapping[str, str] = field(default_factory=dict)  # own effect -> its energy's kind (model/energy_kinds.py)
 
     @property
     def velocities(self) -> tuple[sympy.Symbol, ...]:

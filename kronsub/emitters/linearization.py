@@ -12,6 +12,7 @@ import numpy as np
 import sympy
 
 from ..core.linearize import Linearization
+from ..core.symbols import acceleration_symbol
 from .escape import json_document, markdown_text
 from .report import latex_printer, plain
 
@@ -77,7 +78,7 @@ def emit_markdown(lin: Linearization, name: str) -> str:
     lines += ["",
               "| name | value |", "|---|---|"]
     for s, v in lin.point:
-        lines.append(f"| `{s.name}` | `{_entry(v, show)}` |")
+        lines.append(f"| `{lin.name_of(s)}` | `{_entry(v, show)}` |")
     if lin.time != 0:
         lines.append(f"| `t` | `{_entry(lin.time, show)}` |")
     if lin.dependent:
@@ -89,18 +90,19 @@ def emit_markdown(lin: Linearization, name: str) -> str:
             f"`d/dt {s.name} = {_number(a)}`" for s, a in zip(speeds, lin.acceleration)) + "."]
     elif not lin.equilibrium and all(np.isfinite(lin.acceleration)):
         lines += ["", "Accelerations there: " + ", ".join(
-            f"`{s.name}_ddot = {_number(a)}`" for s, a in zip(lin.state, lin.acceleration)) + "."]
+            f"`{lin.name_of(acceleration_symbol(s))} = {_number(a)}`" for s, a in zip(lin.state, lin.acceleration))
+            + "."]
     if lin.parameters:
         lines += ["", "Parameter values: " + ", ".join(f"`{p.name} = {_entry(v, show)}`" for p, v in lin.parameters)
                   + "."]
     lines += ["", "## State and inputs", "",
-              "State `y = [" + ", ".join(s.name for s in lin.state) + "]`; inputs `u = ["
+              "State `y = [" + ", ".join(lin.name_of(s) for s in lin.state) + "]`; inputs `u = ["
               + ", ".join(u.name for u in lin.inputs) + "]`.", ""]
-    lines += ["## A", ""] + _md_matrix(_rows(lin.A, show), [s.name for s in lin.state],
-                                       [s.name for s in lin.state])
+    state = [lin.name_of(s) for s in lin.state]
+    lines += ["## A", ""] + _md_matrix(_rows(lin.A, show), state, state)
     lines += ["", "## B", ""]
     if lin.inputs:
-        lines += _md_matrix(_rows(lin.B, show), [s.name for s in lin.state], [u.name for u in lin.inputs])
+        lines += _md_matrix(_rows(lin.B, show), state, [u.name for u in lin.inputs])
     else:
         lines.append("No inputs (give them with `--inputs NAME,...`).")
     lines += ["", "## Eigenvalues of A", ""]
@@ -139,9 +141,9 @@ def emit_json(lin: Linearization, name: str) -> str:
 
     data = {
         "name": name,
-        "state": [s.name for s in lin.state],
+        "state": [lin.name_of(s) for s in lin.state],
         "inputs": [u.name for u in lin.inputs],
-        "operating_point": {s.name: cell(v) for s, v in lin.point},
+        "operating_point": {lin.name_of(s): cell(v) for s, v in lin.point},
         "time": cell(lin.time),
         "equilibrium": lin.equilibrium,
         "found": [s.name for s in lin.found],
@@ -163,7 +165,8 @@ def emit_json(lin: Linearization, name: str) -> str:
 def emit_latex(lin: Linearization, name: str) -> str:
     """A standalone document; ``name`` is not printed (free text never reaches LaTeX)."""
     coords = [s for s in lin.state[: len(lin.state) // 2]]
-    show = latex_printer(coords)
+    show = latex_printer(coords, currents={q.name: lin.printed[v] for q, v in zip(coords, lin.state[len(coords):])
+                                           if v in lin.printed})
 
     def bmatrix(rows) -> str:
         if not rows or not rows[0]:

@@ -60,6 +60,7 @@ class NumericModel:
     speeds: tuple[str, ...] = ()  # under velocity constraints: the speeds u, the state [q; u]
     kinematics: Block | None = None  # qdot = C(q) u into xd[] (in pre[])
     projected: ProjectedCode | None = None  # Mbar, hbar, fbar formed at run time (the blocks above empty)
+    velocities: tuple[str, ...] = ()  # the velocities' printed names (a charge's: its current); default q_dot
 
     @property
     def n(self) -> int:
@@ -74,7 +75,7 @@ class NumericModel:
     def state(self) -> tuple[str, ...]:
         if self.speeds:
             return self.coordinates + self.speeds
-        return self.coordinates + tuple(f"{q}_dot" for q in self.coordinates)
+        return self.coordinates + (self.velocities or tuple(f"{q}_dot" for q in self.coordinates))
 
 
 def identifier(text: str) -> str:
@@ -462,6 +463,7 @@ def prepare(system: KnownSystem, source: str = "", outputs=None, guarded_angles:
         speeds=tuple(u.name for u in velocities) if speeds is not None else (),
         kinematics=kinematics,
         projected=projected,
+        velocities=tuple(system.name_of(v) for v in system.velocities),
     )
 
 

@@ -7,7 +7,7 @@ Like the paper: the primitive metric and forces (16), (17), the connection
 from __future__ import annotations
 
 from itertools import count
-from typing import Callable, Iterable
+from typing import Callable, Iterable, Mapping
 
 import sympy
 from markupsafe import Markup
@@ -29,12 +29,18 @@ class ModelStrPrinter(Remembering, StrPrinter):
     """sympy's ``str`` form in the words of the model's expression parser
     (:mod:`kronsub.model.expressions`), so that every printed expression reads back to
     the same value: ``Abs`` is ``abs``, Euler's number ``exp(1)``; ``pi`` is ``acos(-1)``
-    when the model has a name ``pi`` of its own. It remembers what it printed: one
-    printer per report."""
+    when the model has a name ``pi`` of its own; a symbol of ``renamed`` (a charge's velocity)
+    is printed under its name there (the current, :mod:`kronsub.core.currents`). It remembers
+    what it printed: one printer per report."""
 
-    def __init__(self, reserved: Iterable[str] = ()):
+    def __init__(self, reserved: Iterable[str] = (), renamed: Mapping[sympy.Symbol, str] | None = None):
         super().__init__({"order": "lex"})
         self.reserved = frozenset(reserved)
+        self.renamed = dict(renamed or {})
+
+    def _print_Symbol(self, expr):
+        name = self.renamed.get(expr)
+        return name if name is not None else StrPrinter._print_Symbol(self, expr)
 
     def _call(self, name: str, *args) -> str:
         return f"{name}({', '.join(self._print(a) for a in args)})"
@@ -61,9 +67,10 @@ class ModelStrPrinter(Remembering, StrPrinter):
         return f"(1/sin({self._print(expr.args[0])}))"
 
 
-def plain_printer(reserved: Iterable[str] = ()) -> Printer:
-    """The ``str`` form for a model whose own names are ``reserved``."""
-    printer = ModelStrPrinter(reserved)
+def plain_printer(reserved: Iterable[str] = (), renamed: Mapping[sympy.Symbol, str] | None = None) -> Printer:
+    """The ``str`` form for a model whose own names are ``reserved``, the symbols of ``renamed``
+    under their names there."""
+    printer = ModelStrPrinter(reserved, renamed)
     return printer.doprint
 
 
@@ -75,6 +82,7 @@ def plain(expr) -> str:
 def model_names(system: KnownSystem) -> frozenset[str]:
     """Every name the system's expressions may use: parameters, coordinates, velocities..."""
     names = {p.name for p in system.parameters} | {q.name for q in (*system.coordinates, *system.velocities)}
+    names.update(system.currents.values())
     for e in (*system.mass_matrix, *system.velocity_terms, *system.forces, system.potential_energy):  # T: M's, qdot's
         names.update(s.name for s in e.free_symbols)
     return frozenset(names)
@@ -152,8 +160,9 @@ def named_subexpressions(exprs: list, taken: Iterable[str], coordinates) -> tupl
     return kept, reduced
 
 
-def latex_printer(coordinates, implicit=None, breaks: bool = False) -> Printer:
-    """LaTeX with velocities as dots: ``theta_dot`` -> ``\\dot{\\theta}``; with implicit constraints
+def latex_printer(coordinates, implicit=None, breaks: bool = False, currents: Mapping[str, str] | None = None) -> Printer:
+    """LaTeX with velocities as dots: ``theta_dot`` -> ``\\dot{\\theta}``, a charge's as its current
+    (``currents``: ``qa_dot`` -> ``i_{a}``); with implicit constraints
     ``lambda_phi_theta`` -> ``\\lambda_{\\phi\\theta}`` and ``gamma_phi`` -> ``\\gamma_{\\phi}``.
     With ``breaks``, the terms of a top-level sum are separated by `BREAK` (for `lines`)."""
     names = {}
@@ -167,8 +176,10 @@ def latex_printer(coordinates, implicit=None, breaks: bool = False) -> Printer:
             names[g] = r"\gamma" if g.name == "gamma" else rf"\gamma_{{{latex_name(d.name)}}}"
     for q in coordinates:
         base = latex_name(q.name)
-        names[velocity_symbol(q)] = rf"\dot{{{base}}}"
-        names[acceleration_symbol(q)] = rf"\ddot{{{base}}}"
+        current = (currents or {}).get(q.name)
+        names[velocity_symbol(q)] = rf"\dot{{{base}}}" if current is None else current_latex(current)
+        names[acceleration_symbol(q)] = (rf"\ddot{{{base}}}" if current is None or current.endswith("_dot")
+                                         else rf"\dot{{{current_latex(current)}}}")
 
     printer = LatexPrinter({"symbol_names": names, "order": "lex", "escaped_names": True})
 
@@ -177,6 +188,11 @@ def latex_printer(coordinates, implicit=None, breaks: bool = False) -> Printer:
         return text if breaks else unbroken(text)
 
     return show
+
+
+def current_latex(name: str) -> str:
+    """A current's name in LaTeX (``i_a`` -> ``i_{a}``); one kept as a velocity (``q_dot``) as a dot."""
+    return rf"\dot{{{latex_name(name[:-4])}}}" if name.endswith("_dot") else latex_name(name)
 
 
 def matrix_rows(matrix: sympy.Matrix, show: Printer) -> list[list[str]]:

@@ -50,7 +50,7 @@ def _trusted(show):
 @collector_paused()  # see kronsub.collector
 def emit_markdown(system: KnownSystem) -> str:
     """Markdown: the derivation step by step, expressions in sympy's ``str`` form."""
-    show = plain_printer(model_names(system))
+    show = plain_printer(model_names(system), system.printed_names)
     return template_environment().get_template("derive.md.j2").render(r=_report(system, _trusted(show)))
 
 
@@ -59,7 +59,8 @@ def emit_latex(system: KnownSystem) -> str:
     """A standalone LaTeX document of the derivation."""
     show = latex_printer(tuple(system.coordinates) + tuple(
         system.transition.primitive_coordinates if system.transition else ()) + tuple(
-        system.speeds.speeds if system.speeds is not None else ()), system.implicit, breaks=True)
+        system.speeds.speeds if system.speeds is not None else ()), system.implicit, breaks=True,
+        currents=system.currents)
     env = template_environment()
     env.filters["fits"] = _fits
     env.filters["broken"] = _broken
@@ -78,11 +79,11 @@ def _report(system: KnownSystem, show) -> dict:
 @collector_paused()  # see kronsub.collector
 def emit_json(system: KnownSystem) -> str:
     """The machine contract: ``Mbar qddot + hbar = fbar`` with sympy ``str`` expressions."""
-    r = build_report(system, plain_printer(model_names(system)), named=False)
+    r = build_report(system, plain_printer(model_names(system), system.printed_names), named=False)
     data = {
         "name": r["name"],
         "coordinates": r["coordinate_names"],
-        "velocities": [f"{q}_dot" for q in r["coordinate_names"]],
+        "velocities": [system.name_of(v) for v in system.velocities],
         "parameters": {p["name"]: {"value": p["value"] or None, "unit": p["unit"], "description": p["description"]}
                        for p in r["parameters"]},
         "mass_matrix": r["mass_matrix"],
@@ -93,6 +94,8 @@ def emit_json(system: KnownSystem) -> str:
         "potential_energy": r["potential_energy"],
         "equation_form": "mass_matrix * [coordinate_ddot] + velocity_terms = forces",
     }
+    if system.currents:  # a charge's velocity is printed as its current, its acceleration as the current's rate
+        data["currents"] = dict(system.currents)
     if "primitive" in r:
         p = r["primitive"]
         data["primitive"] = {
@@ -112,7 +115,7 @@ def emit_json(system: KnownSystem) -> str:
     if "implicit" in r:
         data["implicit"] = _implicit_json(r["implicit"])
     if system.speeds is not None:
-        data = _speeds_json(data, speeds_report(system, plain_printer(model_names(system))))
+        data = _speeds_json(data, speeds_report(system, plain_printer(model_names(system), system.printed_names)))
     return json_document(data, indent=2) + "\n"
 
 

@@ -24,6 +24,7 @@ from ..core.subspace import (Subspace, assemble, assembled_potentials, effect_la
                              project_inertia)
 from ..errors import Location
 from . import cache_format
+from .energy_kinds import effect_kinds
 
 
 def cache_dir() -> Path | None:
@@ -124,7 +125,8 @@ def _charge_printed(system: KnownSystem, model) -> None:
 def _derive(model, cache: bool, effects) -> KnownSystem:
     key = model.content_hash if cache else ""
     own = {"name": model.name, "description": model.description, "initial": dict(model.initial),
-           "requirements": model.requirements}
+           "requirements": model.requirements, "currents": dict(model.currents),
+           "effect_kinds": effect_kinds(model.primitive, model.effects)}
     if key and effects is None:
         hit = load_cached(key)
         if hit is not None:

@@ -7,6 +7,7 @@ overridden or inherited, its coordinates renamed and its origin placed.
 """
 from __future__ import annotations
 
+import dataclasses
 import functools
 import os
 from pathlib import Path
@@ -93,6 +94,9 @@ def read_known_system(reader: ModelReader, cname: str, spec: Node, derived: Call
         return None
     part = known_system_part(cname, system, {symbol(k): v for k, v in overrides.items()},
                              dict(zip(local, names)))
+    # its charges stay charges here (their currents named in this model, model/currents.py)
+    part = dataclasses.replace(part, charges=tuple(q for q, name in zip(part.coordinates, local)
+                                                   if name in system.currents))
     for body in part.bodies:
         reader.requirements += body_requirements(f"{cname}.{body.name}" if body.name else cname, body,
                                                  (spec.get("parameters") or spec).location)

@@ -21,6 +21,7 @@ from ..core.symbols import velocity_symbol
 from ..core.known_system import KnownSystem
 from ..core.primitive import Primitive
 from .components import read_components
+from .currents import name_currents, primitive_charges, subspace_charges
 from .connection import (implicit_spec, pivot_connection, read_connection, read_intermediate,
                          read_pivot_angles)
 from .circuits import check_circuit
@@ -127,6 +128,8 @@ class ModelLoader(ModelReader):
         check_generated_names(self, y, primitive)
         read_pivot_angles(self, root.get("connection"), y)
         connection = read_connection(self, root.get("connection"), primitive, y)
+        charges = primitive_charges(primitive)
+        name_currents(self, charges + subspace_charges(connection, charges, y), y)
         motions = read_prescribed(self, root.get("prescribed"), y if not constrained else coords)
         if constrained and (motions or names_time(connection)):
             self.error(root.key_locations.get("prescribed") or root.key_locations["connection"],
@@ -195,6 +198,7 @@ class ModelLoader(ModelReader):
             uses=each_once(self.used),
             joints=tuple(self.joints),
             velocity=velocity,
+            currents=dict(self.currents),
         )
 
 

@@ -69,6 +69,7 @@ class Model:
     uses: tuple[SourceFile, ...] = ()  # the model files it uses as known systems, recursively, each once
     joints: tuple = ()  # where the joints of `constraints:` act (model.constraints.Joint), for drawing
     velocity: VelocitySpec | None = None  # velocity_constraints: xdot = C u + d
+    currents: Mapping[str, str] = field(default_factory=dict)  # charge coordinate -> its current's name (model/currents.py)
 
     @functools.cached_property
     def content_hash(self) -> str:

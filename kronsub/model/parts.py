@@ -259,7 +259,7 @@ def known_system_part(name: str, system: KnownSystem, overrides: dict, renames: 
                     tuple(Constraint(f"{name}.{c.name}", c.expression, c.source) for c in constraints), branch,
                     dict(system.effect_translations),
                     assembled_potential=(coordinates, canonical.total(system.effect_potentials.values()),
-                                         system.potential_energy))
+                                         system.potential_energy), effect_kinds=dict(system.effect_kinds))
 
     def s(e):
         return sympy.sympify(e).xreplace(sub)
@@ -283,6 +283,7 @@ def known_system_part(name: str, system: KnownSystem, overrides: dict, renames: 
         constraints=tuple(Constraint(f"{name}.{c.name}", s(c.expression), c.source) for c in constraints),
         branch={sub.get(q, q): v for q, v in branch.items()},
         translations={label: tuple(s(c) for c in grad) for label, grad in system.effect_translations.items()},
+        effect_kinds=dict(system.effect_kinds),
     )
 
 

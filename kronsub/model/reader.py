@@ -85,6 +85,7 @@ class ModelReader:
         # `definitions:` (definitions.py): name -> (placeholder, expansion; None when it failed)
         self.definitions: dict[str, tuple[sympy.Symbol, sympy.Expr | None]] = {}
         self.definition_keys: set[str] = set()  # their names, known before they are read
+        self.currents: dict[str, str] = {}  # charge coordinate -> its current's name (currents.py)
         self._units_of: tuple[int, dict] = (-1, {})  # (parameters seen, their dimensions) for check_units
 
     def error(self, node_or_loc, message: str, hint: str | None = None) -> None:

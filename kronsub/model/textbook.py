@@ -7,15 +7,18 @@ dissipation: F, charges: [q]}`` becomes a part of the primitive with the metric 
 terms from Lagrange's operator (A), so a metric in the coordinates brings its forces, the
 magnetic force ``i^2/2 dL/dy`` of an electromagnet among them), its own effects
 ``potential`` (``f_a = -dV/dx^a``) and ``dissipation`` (Rayleigh's ``f_a = -dF/dxdot^a``);
-``charges:`` names the coordinates that are branch charges (for a run's energy split).
+``charges:`` names the coordinates that are branch charges (for a run's energy split and the
+names of their currents, which the dissipation may use: ``R*i**2/2``).
 """
 from __future__ import annotations
 
 import sympy
 
+from ..core.currents import current_name
 from ..core.derivative import derivative
 from ..core.primitive import Part, christoffel_terms
 from ..core.symbols import symbol, velocity_symbol
+from .energy_kinds import DISSIPATIVE
 from .reader import ModelReader, node_kind
 from .source import Node
 
@@ -35,10 +38,13 @@ def textbook_part(reader: ModelReader, cname: str, spec: Node) -> Part | None:
     potential = dissipation = sympy.Integer(0)
     if spec.get("potential") is not None:
         potential = _expression(reader, cname, spec.get("potential"), configuration, "potential")
+    charges = _charges(reader, cname, spec.get("charges"), coordinates)
     if spec.get("dissipation") is not None:
         rates = {**configuration, **{v.name: v for v in velocities}}
+        # a charge's current by its name too (model/currents.py), where no name of the model has it
+        rates.update({current_name(q.name): velocity_symbol(q) for q in charges or ()
+                      if current_name(q.name) not in rates})
         dissipation = _expression(reader, cname, spec.get("dissipation"), rates, "dissipation")
-    charges = _charges(reader, cname, spec.get("charges"), coordinates)
     if metric is None or potential is None or dissipation is None or charges is None:
         return None
     forces, potentials = {}, {}
@@ -49,7 +55,8 @@ def textbook_part(reader: ModelReader, cname: str, spec: Node) -> Part | None:
         forces["dissipation"] = sympy.Matrix([sympy.expand(-derivative(dissipation, v)) for v in velocities])
     return Part(name=cname, coordinates=coordinates, metric=metric,
                 velocity_terms=christoffel_terms(metric, coordinates, velocities),
-                forces=forces, potential=potential, potentials=potentials, charges=charges)
+                forces=forces, potential=potential, potentials=potentials, charges=charges,
+                effect_kinds={"dissipation": DISSIPATIVE} if "dissipation" in forces else {})
 
 
 def _coordinates(reader: ModelReader, cname: str, node: Node | None):

@@ -432,7 +432,7 @@ def measure(system: KnownSystem, values: RunValues, t_end: float, methods: tuple
                 slow[method] = seconds
     finally:
         bar.close()
-    state = [q.name for q in system.coordinates] + [v.name for v in system.state_velocities]
+    state = [q.name for q in system.coordinates] + [system.name_of(v) for v in system.state_velocities]
     return WorkPrecision(system.name, t_end, points, ref, bench.compile_seconds, conservative, skipped,
                          tuple(c.name for c in implicit.constraints) if implicit is not None else (),
                          {p.name: float(v) for p, v in zip(system.parameters, param)},

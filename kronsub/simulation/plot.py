@@ -53,20 +53,26 @@ def plane(position: np.ndarray) -> np.ndarray:
 def _panels(system, traj, T, V) -> list[tuple[str, list[tuple[str, np.ndarray]]]]:
     n = len(system.coordinates)
     angles = angle_coordinates(system)
+    charges = {q for q in system.coordinates if q.name in system.currents}  # their velocities: currents
     angle_rows = [(q.name, traj.y[:, i]) for i, q in enumerate(system.coordinates) if q in angles]
-    length_rows = [(q.name, traj.y[:, i]) for i, q in enumerate(system.coordinates) if q not in angles]
+    charge_rows = [(q.name, traj.y[:, i]) for i, q in enumerate(system.coordinates) if q in charges and q not in angles]
+    length_rows = [(q.name, traj.y[:, i]) for i, q in enumerate(system.coordinates)
+                   if q not in angles and q not in charges]
+    current_rows = []
     if system.speeds is not None:  # the state [q; u]: the speeds in a panel of their own
         turning, moving = [], [(u.name, traj.y[:, n + i]) for i, u in enumerate(system.speeds.speeds)]
     else:
-        turning = [(v.name, traj.y[:, n + i]) for i, (q, v) in enumerate(zip(system.coordinates, system.velocities))
-                   if q in angles]
-        moving = [(v.name, traj.y[:, n + i]) for i, (q, v) in enumerate(zip(system.coordinates, system.velocities))
-                  if q not in angles]
+        rows = [(q, system.name_of(v), traj.y[:, n + i])
+                for i, (q, v) in enumerate(zip(system.coordinates, system.velocities))]
+        turning = [(name, y) for q, name, y in rows if q in angles]
+        current_rows = [(name, y) for q, name, y in rows if q in charges and q not in angles]
+        moving = [(name, y) for q, name, y in rows if q not in angles and q not in charges]
     E = T + V
     energy_rows = [("E - E(0)", E - E[0] if len(E) else E)]
-    panels = [("angles [rad]", angle_rows), ("lengths [m]", length_rows), ("angular velocities [rad/s]", turning),
+    panels = [("angles [rad]", angle_rows), ("lengths [m]", length_rows), ("charges [C]", charge_rows),
+              ("angular velocities [rad/s]", turning),
               ("speeds" if system.speeds is not None else "velocities [m/s]", moving),
-              ("energy change [J]", energy_rows)]
+              ("currents [A]", current_rows), ("energy change [J]", energy_rows)]
     return [(label, rows) for label, rows in panels if rows]
 
 

@@ -5,7 +5,8 @@ energy ``1/2 iᵀ L i`` over the branch currents ``i = d x_c(xbar)/dt`` (the cha
 the circuit parts carried by the connection (7)); the potential ``V`` holds the capacitors'
 electric energy ``q^2/(2 C)``. What is left of ``T + V`` is mechanical. The dissipated power
 is ``-fbarᵀ qdot`` of the resistors and dampers (twice Rayleigh's function for a linear one),
-so that ``d/dt (T + V) = P_sources - P_dissipated - P_loads`` along a run.
+the effects' kinds recorded by the derived system (:mod:`kronsub.model.energy_kinds`, a known
+system's own effects among them), so that ``d/dt (T + V) = P_sources - P_dissipated - P_loads`` along a run.
 """
 from __future__ import annotations
 
@@ -14,19 +15,12 @@ from dataclasses import dataclass
 import numpy as np
 import sympy
 
-from ..components import REGISTRY
 from ..core.known_system import KnownSystem
-from ..core.symbols import TIME, velocity_symbol
-from ..effects.electrical import Capacitor, Resistor
-from ..effects.elements import Damper, TorsionalDamper
-from ..model.circuits import CIRCUIT_TYPES
+from ..core.symbols import TIME
+from ..model.currents import primitive_charges
+from ..model.energy_kinds import DISSIPATIVE, ELECTRIC
 
 COLUMNS = ("magnetic_energy", "electric_energy", "mechanical_energy", "dissipated_power")
-DISSIPATIVE = (Resistor, Damper, TorsionalDamper)
-OWN_DISSIPATION = "dissipation"
-OWN_EFFECTS = ("potential", OWN_DISSIPATION)
-"""The labels (after the part's name) of a textbook component's own effects: its potential
-(counted mechanical) and its Rayleigh dissipation."""
 
 
 @dataclass(frozen=True)
@@ -46,14 +40,12 @@ class EnergySplit:
 
 def energy_split(model, system: KnownSystem) -> EnergySplit | None:
     """The split of ``system`` (derived from ``model``), or None when the model has no circuit
-    part, is a closed loop whose dependent coordinates have no closed form (node equations
-    have one: their charges are then written in the loop charges) or uses a known system with
-    effects of its own (whose kinds are not kept)."""
+    part, or is a closed loop whose dependent coordinates have no closed form (node equations
+    have one: their charges are then written in the loop charges)."""
     transition = system.transition
     if model is None or transition is None:
         return None
-    charges = [q for part in model.primitive.parts
-               for q in (part.coordinates if part.type_name in CIRCUIT_TYPES else part.charges)]
+    charges = primitive_charges(model.primitive)
     if not charges:
         return None
     resolved = closed_forms(system)
@@ -67,14 +59,10 @@ def energy_split(model, system: KnownSystem) -> EnergySplit | None:
                              for x in charges])
     inductance = transition.primitive_metric.extract([index[x] for x in charges], [index[x] for x in charges])
     magnetic = sympy.expand((currents.T * inductance.xreplace(connection) * currents)[0, 0] / 2)
-    kinds = {effect.name: effect for effect in model.effects}
-    if any(label not in kinds and label.rpartition(".")[2] not in OWN_EFFECTS for label in system.effect_forces):
-        return None  # a known system's own effects: their kinds are not kept
-    electric = sympy.Add(*[v for label, v in system.effect_potentials.items()
-                           if isinstance(kinds.get(label), Capacitor)])
+    kinds = system.effect_kinds
+    electric = sympy.Add(*[v for label, v in system.effect_potentials.items() if kinds.get(label) == ELECTRIC])
     dissipated = sympy.Add(*[-(f.T * qdot)[0, 0] for label, f in system.effect_forces.items()
-                             if isinstance(kinds.get(label), DISSIPATIVE)
-                             or (label not in kinds and label.rpartition(".")[2] == OWN_DISSIPATION)])
+                             if kinds.get(label) == DISSIPATIVE])
     mechanical = sympy.expand(system.kinetic_energy - magnetic) + (system.potential_energy - electric)
     args = [*system.coordinates, *system.velocities, *(p.symbol for p in system.parameters), TIME]
     columns = [sympy.sympify(e).xreplace(resolved) for e in (magnetic, electric, mechanical, dissipated)]
@@ -100,23 +88,9 @@ def closed_forms(system: KnownSystem) -> dict | None:
 
 
 def charge_coordinates(system: KnownSystem) -> frozenset[str]:
-    """The names of the coordinates whose motion moves a branch charge of a circuit part
-    (``d x_c/d xbar`` not zero through the connection): the loop charges."""
-    transition = system.transition
-    if transition is None or not any(kind in CIRCUIT_TYPES for _, kind in transition.parts):
-        return frozenset()
-    connection, start, charges = dict(transition.connection), 0, []
-    for _, kind in transition.parts:
-        size = len(REGISTRY[kind].coordinates) if kind in REGISTRY else 0
-        if kind in CIRCUIT_TYPES:
-            charges += transition.primitive_coordinates[start:start + size]
-        if kind not in REGISTRY:  # a known system or textbook part: its size is not known here
-            return frozenset()
-        start += size
-    if start != len(transition.primitive_coordinates):
-        return frozenset()
-    images = [sympy.sympify(connection.get(x, x)) for x in charges]
-    return frozenset(q.name for q in system.coordinates if any(image.has(q) for image in images))
+    """The names of the generalized coordinates that are branch charges: the loop charges
+    (the derived system's record, :mod:`kronsub.model.currents`)."""
+    return frozenset(q.name for q in system.coordinates if q.name in system.currents)
 
 
 __all__ = ["COLUMNS", "EnergySplit", "charge_coordinates", "closed_forms", "energy_split"]

@@ -38,7 +38,7 @@ def starting_values(system: KnownSystem, settings: Mapping[str, str] | None = No
     by the whitelisted parser), projected onto the constraints of a closed loop to Newton's
     ``tolerance``. Every problem with the settings is reported at once (a ``ModelError``)."""
     start = dict(system.initial) if initial is None else dict(initial)
-    settings = dict(settings or {})
+    settings = {system.symbol_name(name): text for name, text in (settings or {}).items()}  # i_q as q_dot
     if system.implicit is None:
         return Start(resolve(system, start, settings))
     independent, dependent = split_settings(system, settings)

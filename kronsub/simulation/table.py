@@ -147,7 +147,7 @@ class CsvWriter(RowWriter):
         if want["coordinates"]:
             columns += [q.name for q in system.coordinates]
         if want["velocities"]:
-            columns += [v.name for v in system.state_velocities]
+            columns += [system.name_of(v) for v in system.state_velocities]
         if want["energies"]:
             columns += ["kinetic_energy", "potential_energy", "total_energy"]
         if self.split is not None:
@@ -175,7 +175,7 @@ class CsvWriter(RowWriter):
     def _start_metadata(self, model_path, values, method, backend, rtol, atol, t_end, dt, scene, source,
                         uses) -> dict:
         system = self.system
-        state = [q.name for q in system.coordinates] + [v.name for v in system.state_velocities]
+        state = [q.name for q in system.coordinates] + [system.name_of(v) for v in system.state_velocities]
         meta = {
             "format": METADATA_FORMAT,
             "kronsub": __version__,

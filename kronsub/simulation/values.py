@@ -55,18 +55,22 @@ def parse_assignments(items: tuple[str, ...], option: str = "--set") -> dict[str
 
 
 def resolve(system: KnownSystem, initial: dict, settings: dict[str, str]) -> RunValues:
-    """Parameter values and initial state, with every problem reported at once."""
+    """Parameter values and initial state, with every problem reported at once. A charge's
+    current is set by its name ``i_q`` or as ``q_dot`` (:mod:`kronsub.core.currents`)."""
     problems: list[Problem] = []
     known = {p.name for p in system.parameters}
     state = [q.name for q in system.coordinates] + [v.name for v in system.state_velocities]
+    printed = [q.name for q in system.coordinates] + [system.name_of(v) for v in system.state_velocities]
+    settings = {system.symbol_name(name): text for name, text in settings.items()}
     for name in settings:
         if name not in known and name not in state:
-            near = near_names(name, known | set(state))
+            near = near_names(name, known | set(printed))
             hint = ("did you mean " + ", ".join(near) + "?") if near else \
-                "parameters: " + ", ".join(sorted(known)) + "; state: " + ", ".join(state)
+                "parameters: " + ", ".join(sorted(known)) + "; state: " + ", ".join(printed)
             problems.append(Problem(None, f"--set {name}: no parameter, coordinate or velocity of that name", hint))
 
     def number(text: str, what: str, name: str) -> float | None:
+        name = system.printed_name(name)
         where = Location(f"--set {name}")
         try:
             return constant_value(parse_expression(text, {}, where, what=what), where, what=what)
@@ -103,9 +107,10 @@ def resolve(system: KnownSystem, initial: dict, settings: dict[str, str]) -> Run
     initial_by_name = {k.name: v for k, v in initial.items()}
     for name in state:
         if name in settings:
-            y0.append(number(settings[name], f"initial value of {name}", name))
+            y0.append(number(settings[name], f"initial value of {system.printed_name(name)}", name))
         elif name in initial_by_name:
-            y0.append(value_of(sympy.sympify(initial_by_name[name]).xreplace(values), f"initial value of {name}")
+            y0.append(value_of(sympy.sympify(initial_by_name[name]).xreplace(values),
+                               f"initial value of {system.printed_name(name)}")
                       if not missing and None not in params else 0.0)
         else:
             y0.append(0.0)

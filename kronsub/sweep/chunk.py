@@ -69,7 +69,7 @@ class Job:
 
 
 def state_names(system: KnownSystem) -> list[str]:
-    return [q.name for q in system.coordinates] + [v.name for v in system.velocities]
+    return [q.name for q in system.coordinates] + [system.name_of(v) for v in system.velocities]
 
 
 def columns(job: Job) -> list[tuple[str, str]]:

@@ -20,8 +20,10 @@ def label(system, name: str) -> str:
     """``name [unit]`` of a swept parameter, coordinate or velocity."""
     units = {p.name: p.unit for p in system.parameters}
     angles = {q.name for q in angle_coordinates(system)}
-    velocities = {v.name: q.name for q, v in zip(system.coordinates, system.velocities)}
-    unit = units.get(name) or ("rad" if name in angles else "rad/s" if velocities.get(name) in angles else "")
+    velocities = {system.name_of(v): q.name for q, v in zip(system.coordinates, system.velocities)}
+    charges = set(system.currents)  # a charge in C, its current in A
+    unit = units.get(name) or ("rad" if name in angles else "rad/s" if velocities.get(name) in angles else
+                               "C" if name in charges else "A" if velocities.get(name) in charges else "")
     return f"{name} [{unit}]" if unit else name
 
 

@@ -66,7 +66,9 @@ def make_job(system, plan: Plan, initial: dict, settings: dict[str, str], *, met
         at = Location(where.get(name, name))
         if name not in known:
             near = near_names(name, known)
+            current = system.printed_name(name)
             problems.append(Problem(at, f"{name}: no parameter, coordinate or velocity of that name",
+                                    f"it is the current {current}: sweep it by that name" if current in known else
                                     ("did you mean " + ", ".join(near) + "?") if near else
                                     "parameters: " + ", ".join(params) + "; state: " + ", ".join(states)))
         elif name in settings:
@@ -89,6 +91,7 @@ def make_job(system, plan: Plan, initial: dict, settings: dict[str, str], *, met
                                         "closed loop: it follows from the independent ones",
                                         "sweep the independent coordinates: " + ", ".join(states)))
     names = {"t": TIME, **{q.name: q for q in system.coordinates}, **{v.name: v for v in system.velocities},
+             **{system.name_of(v): v for v in system.velocities},
              **{p.name: p.symbol for p in system.parameters}}
     user = []
     try:

@@ -38,7 +38,7 @@ def trajectory_columns(system, outputs=None) -> list[tuple[str, str]]:
     if _wanted(outputs, "coordinates"):
         columns += [(q.name, "float64") for q in system.coordinates]
     if _wanted(outputs, "velocities"):
-        columns += [(v.name, "float64") for v in system.velocities]
+        columns += [(system.name_of(v), "float64") for v in system.velocities]
     if system.implicit is not None:
         columns += [(d.name, "float64") for d in system.implicit.dependent]
     names = [name for name, _ in columns]
