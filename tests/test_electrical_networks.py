@@ -117,6 +117,25 @@ def test_transformer_metric_holds_the_mutual_inductance_and_its_response_is_exac
     np.testing.assert_allclose(got / scale, exact / scale, rtol=0, atol=1e-8)
 
 
+
+def test_parallel_rlc_natural_response_is_the_closed_form():
+    """The node voltage ``v = q_C / C`` of ``v'' + v'/(R C) + v/(L C) = 0`` from ``v(0) = V0``,
+    ``i_L(0) = 0`` (so ``C v'(0) = -V0/R``), and the coil's current ``L i_L' = -v``:
+    ``v = V0 e^(-a t) (cos wd t - a/wd sin wd t)``, ``i_L = -V0/(L wd) e^(-a t) sin wd t``,
+    ``a = 1/(2 R C)``; the resistor's current is ``v / R``."""
+    header, rows = simulated(CIRCUITS / "parallel_rlc.yaml", "--t", "1", "--dt", "0.001")
+    assert header[:5] == ["t", "q1", "q2", "i_1", "i_2"]
+    L, C, R, V0 = 0.5, 0.02, 10.0, 5.0
+    a, w0 = 1 / (2 * R * C), 1 / np.sqrt(L * C)
+    wd = np.sqrt(w0**2 - a**2)
+    t = rows[:, 0]
+    v = V0 * np.exp(-a * t) * (np.cos(wd * t) - a / wd * np.sin(wd * t))
+    i_L = -V0 / (L * wd) * np.exp(-a * t) * np.sin(wd * t)
+    np.testing.assert_allclose((rows[:, 1] - rows[:, 2]) / C, v, rtol=0, atol=1e-8 * V0)
+    np.testing.assert_allclose(rows[:, 3], i_L, rtol=0, atol=1e-8 * V0 / (L * wd))
+    np.testing.assert_allclose(rows[:, 4], v / R, rtol=0, atol=1e-8 * V0 / R)
+
+
 BALANCE = {"dc_motor.yaml": ("--set", "t_load=5")}  # its load step has an exact balance of its own
 """Extra options per model: the trapezoid rule below wants smooth powers."""
 
