@@ -277,6 +277,28 @@ def test_system_sweep_returns_the_rows_as_a_dataframe():
     pd.testing.assert_frame_equal(rows, expected)
 
 
+
+def test_system_sweep_to_a_dataset_writes_the_rows_of_the_dataframe(tmp_path):
+    """``output=``: the same rows as the DataFrame, as a Parquet dataset written a chunk at a time
+    with its sidecar (counts by status); an existing one is refused unless ``force``."""
+    import json
+
+    import kronsub
+    from kronsub.sweep.dataset import DatasetError
+
+    system = kronsub.load(SYSTEM1).derive()
+    options = dict(grid={"theta": [0.5, 1.0, 1.5]}, sample={"phi": "uniform(-1, 1)"}, runs=3, seed=4, t=1.0,
+                   dt=0.05, workers=1, chunk=4)
+    rows = system.sweep(**options)
+    folder = system.sweep(**options, output=tmp_path / "runs.parquet")
+    assert folder == tmp_path / "runs.parquet" and len(list(folder.glob("part-*.parquet"))) == 3  # 9 runs, 4 a chunk
+    pd.testing.assert_frame_equal(pd.read_parquet(folder).reset_index(drop=True), rows, check_dtype=False)
+    sidecar = json.loads((tmp_path / "runs.parquet.json").read_text())
+    assert sidecar["state"] == "complete" and sidecar["counts"] == {"complete": 9} and sidecar["runs"] == 9
+    with pytest.raises(DatasetError):
+        system.sweep(**options, output=folder)
+    assert system.sweep(**options, output=folder, force=True) == folder
+
 def test_user_outputs_equal_the_rows_of_simulate(tmp_path):
     summaries = ("max(abs(theta))", "flip=first_time(abs(phi) > pi)", "final(theta)", "e=mean(m1*theta_dot)")
     for method, route in (("dop853", ENSEMBLE), ("dop853", ONE_BY_ONE), ("taylor", TAYLOR)):

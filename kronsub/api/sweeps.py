@@ -15,7 +15,8 @@ def sweep(system: KnownSystem, grid: Mapping[str, object] | None = None, sample:
           runs: int | None = None, seed: int = 0, t: float = 10.0, dt: float = 0.01, method: str = "dop853",
           set: Mapping[str, object] | None = None, rtol: float = 1e-10, atol: float = 1e-10, *,
           latin: bool = False, scheduler: str | None = None, workers: int | None = None, chunk: int | None = None,
-          summaries: Sequence[str] = (), trajectories: str | os.PathLike | None = None, force: bool = False):
+          summaries: Sequence[str] = (), trajectories: str | os.PathLike | None = None,
+          output: str | os.PathLike | None = None, force: bool = False):
     """Many runs over a grid (``grid``: name -> ``"a:b:n"``, ``"log:a:b:n"`` or a list of values)
     and a sample (``sample``: name -> ``"uniform(a, b)"``, ``"normal(mu, sd)"``,
     ``"loguniform(a, b)"``, ``runs`` draws) of parameters and initial values, on Dask
@@ -23,8 +24,9 @@ def sweep(system: KnownSystem, grid: Mapping[str, object] | None = None, sample:
     as the rows ``kronsub sweep`` writes (:mod:`kronsub.sweep`); ``summaries``: columns of your own
     (``"max(abs(theta))"``, ``"flip=first_time(phi > pi)"``, as ``--summary``); ``trajectories``: a
     folder the workers write every run's rows in (a Parquet dataset, as ``--trajectories``; an
-    existing one is refused unless ``force``). It holds every summary row in memory: for sweeps
-    larger than memory, the command writes a Parquet dataset a chunk at a time."""
+    existing one is refused unless ``force``). The DataFrame holds every summary row in memory;
+    with ``output`` (a folder, as ``-o``: for sweeps larger than memory) the rows go to a Parquet
+    dataset a chunk at a time, with its JSON sidecar, and its path is returned instead."""
     refuse_speeds(system, "sweep")
     import dataclasses
     from pathlib import Path
@@ -46,20 +48,43 @@ def sweep(system: KnownSystem, grid: Mapping[str, object] | None = None, sample:
     settings.update({name: repr(v) for name, v in zip(names, values.y0) if name in (set or {})})
     job = make_job(system, plan, dict(system.initial), settings, method=method, t_end=t, dt=dt, rtol=rtol,
                    atol=atol, chunk=chunk or DEFAULT_CHUNK, summaries=tuple(summaries), summary_option="summaries")
+    identity = {"system": system.name, "spec": plan.describe(), "set": dict(sorted(settings.items())),
+                "method": method, "rtol": rtol, "atol": atol, "t_end": t, "dt": dt, "chunk": job.chunk}
     kept = None
     if trajectories is not None:
         from ..sweep.dataset import Dataset
         from ..sweep.trajectories import trajectory_columns
 
         kept = Dataset(Path(trajectories), trajectory_columns(system, job.outputs), option="trajectories folder")
-        identity = {"system": system.name, "spec": plan.describe(), "set": dict(sorted(settings.items())),
-                    "method": method, "rtol": rtol, "atol": atol, "t_end": t, "dt": dt, "chunk": job.chunk}
         kept.prepare(identity, resume=False, force=force)
         job = dataclasses.replace(job, trajectories=str(kept.folder.resolve()))
+    dataset = None
+    if output is not None:
+        from ..sweep.chunk import columns
+        from ..sweep.dataset import Dataset
+
+        dataset = Dataset(Path(output), columns(job), option="output folder")
+        dataset.prepare(identity, resume=False, force=force)
     parts: dict[int, pandas.DataFrame] = {}
-    execute(job, range(job.chunks), lambda index, rows: parts.__setitem__(index, pandas.DataFrame(rows)),
-            scheduler=scheduler or os.environ.get(ENV_SCHEDULER) or None, workers=workers)
+    tally: dict[str, int] = {}
+
+    def done(index: int, rows: dict) -> None:
+        if dataset is None:
+            parts[index] = pandas.DataFrame(rows)
+            return
+        dataset.write(index, rows)  # a chunk at a time: nothing kept here
+        for status in rows["status"]:
+            tally[status] = tally.get(status, 0) + 1
+
+    execute(job, range(job.chunks), done, scheduler=scheduler or os.environ.get(ENV_SCHEDULER) or None,
+            workers=workers)
     if kept is not None:
         kept.write_sidecar({"identity": identity, "state": "complete", "runs": plan.count, "chunks": job.chunks,
                             "columns": [name for name, _ in kept.columns]})
+    if dataset is not None:
+        dataset.write_sidecar({"identity": identity, "state": "complete", "runs": plan.count, "chunks": job.chunks,
+                               "chunks_written": job.chunks, "counts": dataset.counts((), tally),
+                               "trajectories": str(kept.folder) if kept is not None else None,
+                               "columns": [name for name, _ in dataset.columns]})
+        return dataset.folder
     return pandas.concat([parts[i] for i in sorted(parts)], ignore_index=True)

@@ -76,7 +76,8 @@ class System(KnownSystem):
         return reactions(self, fmt)
 
     def sweep(self, grid=None, sample=None, runs=None, seed=0, t: float = 10.0, dt: float = 0.01, **options):
-        """A row of summaries per run over a grid or a sample (a pandas DataFrame); see :func:`~.sweeps.sweep`."""
+        """A row of summaries per run over a grid or a sample (a pandas DataFrame, or with ``output``
+        the Parquet dataset's folder); see :func:`~.sweeps.sweep`."""
         return sweep(self, grid, sample, runs, seed, t, dt, **options)
 
     def numeric(self, set=None) -> NumericSystem:
