@@ -155,7 +155,7 @@ class ModelLoader(ModelReader):
                        "write the closed loop's coordinates in the connection, or drive it by a load"
                        if constrained else "drive the system by a load")
         elif frame and not self.problems:
-            velocity = read_velocity_frame(self, snode, y)
+            velocity = read_velocity_frame(self, snode, y, root.key_locations["speeds"])
             if velocity is not None:  # where the velocity-level transformation is written
                 self.locations["velocity_constraints"] = root.key_locations["speeds"]
         if vnode is not None and (motions or names_time(connection)):

@@ -18,16 +18,20 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-import sympy
-
 import numpy as np
+import sympy
 
 from ..core.nonholonomic import VelocityConstraintError, VelocityTransformation, velocity_transformation
 from ..core.reference_frame import frame_matrix, frame_transformation
 from ..core.symbols import TIME, symbol, velocity_symbol
+from ..errors import Location
 from .contacts import read_contact
 from .reader import ModelReader, node_kind
 from .source import Node
+
+SINGULAR = 1e-12
+"""Smallest singular value of ``Y`` at the initial configuration, relative to its largest, below
+which a frame is singular there (a double's rounding of ``cos(pi/2)`` is 6e-17)."""
 
 
 @dataclass(frozen=True)
@@ -100,10 +104,10 @@ def read_velocity_constraints(reader: ModelReader, node: Node, speeds_node: Node
                         definitions=tuple(definitions.items()))
 
 
-def read_velocity_frame(reader: ModelReader, node: Node, coords) -> VelocitySpec | None:
-    """``speeds:`` without ``velocity_constraints:``: named quasi-velocities, one per velocity,
-    an invertible linear map of them (a change of velocity frame); every failure a located
-    error at the speed it concerns."""
+def read_velocity_frame(reader: ModelReader, node: Node, coords, written: Location) -> VelocitySpec | None:
+    """``speeds:`` (``node``, its key ``written``) without ``velocity_constraints:``: named
+    quasi-velocities, one per velocity, an invertible linear map of them (a change of velocity
+    frame); every failure a located error at the speed it concerns, or at ``written``."""
     velocities = {velocity_symbol(q).name: velocity_symbol(q) for q in coords}
     names = {**reader.parameter_names(), **{q.name: q for q in coords}, **velocities, "t": TIME}
     definitions = _read_speeds(reader, node, coords, names)
@@ -113,7 +117,7 @@ def read_velocity_frame(reader: ModelReader, node: Node, coords) -> VelocitySpec
     try:
         velocity = frame_transformation(coords, definitions, _values(reader))
     except VelocityConstraintError as exc:
-        at = node.key_locations[keys[exc.index]] if exc.index is not None else node
+        at = node.key_locations[keys[exc.index]] if exc.index is not None else written
         reader.error(at, str(exc), exc.hint)
         return None
     return VelocitySpec(transformation=velocity, constraint_names=(), definitions=tuple(definitions.items()),
@@ -128,14 +132,19 @@ def check_frame_start(reader: ModelReader, node: Node, spec: VelocitySpec, initi
     Y = frame_matrix(x, dict(spec.definitions)).xreplace(point)
     if Y.free_symbols:
         return  # a parameter without a value: nothing to evaluate
-    det = float(np.linalg.det(np.array(Y.evalf(), dtype=float)))
-    scale = float(np.prod(np.maximum(np.max(np.abs(np.array(Y.evalf(), dtype=float)), axis=1), 1e-300)))
-    if abs(det) <= 1e-12 * scale:
-        where = ", ".join(f"{q} = {sympy.sympify(initial.get(q, 0))}" for q in x
+    sigma = np.linalg.svd(np.array(Y.evalf(), dtype=float), compute_uv=False)
+    if not np.all(np.isfinite(sigma)) or sigma[-1] <= SINGULAR * sigma[0]:
+        where = ", ".join(f"{q} = {_shown(initial.get(q, 0))}" for q in x
                           if any(q in e.free_symbols for _, e in spec.definitions))
         reader.error(node, f"the speeds are singular at the initial configuration ({where or 'every coordinate 0'}): "
                      "det Y = 0 there, so xdot = Y^-1 u has no value",
                      "start the coordinates where the speeds are independent, or define speeds that stay independent")
+
+
+def _shown(value) -> str:
+    """A starting value as written: a number in its shortest decimal form."""
+    value = sympy.sympify(value)
+    return repr(float(value)) if value.is_Float or (value.is_Rational and not value.is_Integer) else str(value)
 
 
 def _values(reader: ModelReader) -> dict:
