@@ -280,8 +280,14 @@ def _simplest_minor(A: sympy.Matrix, coordinates, point) -> list[int]:
 
 
 def refuse_speeds(system: KnownSystem, what: str, location: Location | None = None) -> None:
-    """A :class:`ModelError` at ``location`` (where the model writes its velocity constraints)
-    when ``system`` has them and ``what`` (a command) does not handle them yet."""
+    """A :class:`ModelError` at ``location`` (where the model writes its velocity constraints, or
+    its speeds) when ``system`` is written in speeds and ``what`` (a command) does not handle
+    them yet."""
+    if system.speeds is not None and not system.speeds.constraint_names:  # a change of velocity frame
+        raise ModelError([Problem(location, f"{what} of a model in speeds (a change of velocity frame) is not "
+                                            "supported yet",
+                                  "derive or simulate it instead (`kronsub derive`, `kronsub simulate`); or write "
+                                  "it in its coordinates' velocities")])
     if system.speeds is not None:
         raise ModelError([Problem(location, f"{what} of a model with velocity constraints is not supported yet",
                                   "derive or simulate it instead (`kronsub derive`, `kronsub simulate`; "
