@@ -168,3 +168,16 @@ def test_bad_frames_are_located(tmp_path, extra, message, hint, at):
     assert f"Error: {path}:{line}:{column}: {message}" in out
     hint_line = out.split(message, 1)[1].split("\n")[1]
     assert hint_line.startswith("  hint: ") and hint in hint_line
+
+
+def test_a_speed_not_linear_under_velocity_constraints_is_placed_at_the_speed(tmp_path):
+    """Under velocity constraints too, a speed that is not linear in the velocities is said of
+    the speed, where it is written (not of a constraint)."""
+    text = BODY + ("velocity_constraints:\n  c: -sin(theta)*x_dot + cos(theta)*y_dot\n"
+                   "speeds:\n  v: x_dot**2\n  w: theta_dot\n")
+    path = tmp_path / "model.yaml"
+    path.write_text(text, encoding="utf-8")
+    result = CliRunner().invoke(main, ["derive", str(path), "--no-cache"])
+    line = text[:text.index("  v: x_dot**2")].count("\n") + 1
+    assert result.exit_code == 1 and "Traceback" not in result.output
+    assert f"Error: {path}:{line}:3: speed 'v' is not linear in the velocities" in result.output

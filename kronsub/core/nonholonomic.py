@@ -163,7 +163,13 @@ def velocity_transformation(constraints: Sequence[sympy.Expr], coordinates: Sequ
         raise VelocityConstraintError(
             f"{len(speeds)} speed(s) for {n - m} degree(s) of freedom",
             f"name {n - m} speeds: the {n} velocities less the {m} velocity constraints", kind="speeds")
-    Y, c = linear_form(list(speeds.values()), coordinates)
+    try:
+        Y, c = linear_form(list(speeds.values()), coordinates)
+    except VelocityConstraintError as exc:  # of a speed, not of a constraint
+        name = list(speeds)[exc.index].name
+        raise VelocityConstraintError(str(exc).replace(f"velocity constraint {exc.index + 1}", f"speed '{name}'"),
+                                      "define each speed as Y(x) xdot: each velocity to the first power, times a "
+                                      "function of the coordinates", exc.index, kind="speeds") from None
     if any(e != 0 for e in c):
         raise VelocityConstraintError("a speed has a term without a velocity", "define each speed as Y(x) xdot",
                                       kind="speeds")

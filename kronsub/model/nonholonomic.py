@@ -84,7 +84,9 @@ def read_velocity_constraints(reader: ModelReader, node: Node, speeds_node: Node
     try:
         velocity = velocity_transformation(exprs, coords, definitions, values, [g for _, g in holonomic])
     except VelocityConstraintError as exc:
-        if exc.kind == "speeds" and speeds_node is not None:
+        if exc.kind == "speeds" and speeds_node is not None and exc.index is not None and speeds_node.is_mapping:
+            at = speeds_node.key_locations[list(speeds_node.value)[exc.index]]
+        elif exc.kind == "speeds" and speeds_node is not None:
             at = speeds_node
         elif exc.kind == "holonomic" and constraints_at is not None:
             at = constraints_at
