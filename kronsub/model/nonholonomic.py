@@ -113,7 +113,7 @@ def read_velocity_frame(reader: ModelReader, node: Node, coords, written: Locati
     velocities = {velocity_symbol(q).name: velocity_symbol(q) for q in coords}
     names = {**reader.parameter_names(), **{q.name: q for q in coords}, **velocities, "t": TIME}
     definitions = _read_speeds(reader, node, coords, names)
-    if reader.problems or not definitions:
+    if reader.problems or definitions is None:
         return None
     keys = list(node.value)
     try:
