@@ -5,6 +5,8 @@ synchronous machine in phase variables, carried to Park's d-q currents by ``xdot
 its body-frame velocities against Euler's equations in the plane; bad frames as located errors."""
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pytest
 import sympy
@@ -13,6 +15,7 @@ from click.testing import CliRunner
 import kronsub
 from helpers.circuits import CIRCUITS, simulated
 from kronsub.cli import main
+from kronsub.emitters.text import emit_json
 
 
 def named(system):
@@ -70,6 +73,16 @@ def test_machine_in_parks_frame_is_the_textbook_park_model(machine_dq):
                 rng.uniform(-400, 400), *rng.uniform(0.01, 2.0, len(machine_dq.parameters))]
         a, b = np.array(got(*args), dtype=float), np.array(want(*args), dtype=float)
         np.testing.assert_allclose(a, b, rtol=0, atol=1e-12 * max(1.0, np.max(np.abs(b))))
+
+
+def test_derive_prints_parks_equations(machine_dq):
+    """The printed contract (JSON) shows Park's form: ``Mbar`` free of ``theta``, the bus voltages
+    in Park's axes as one sinusoid of ``w t - theta`` each (the three phases' ``fbar`` summed)."""
+    data = json.loads(emit_json(machine_dq))
+    assert data["velocity_constraints"] == {} and data["speeds"] == ["i_d", "i_q", "i_0", "i_f", "omega"]
+    assert not any("theta" in entry for row in data["mass_matrix"] for entry in row)
+    assert data["forces"][:3] == ["-Rs*i_d + sqrt(6)*Vm*cos(t*w - theta)/2",
+                                  "-Rs*i_q + sqrt(6)*Vm*sin(t*w - theta)/2", "-Rs*i_0"]
 
 
 def test_parks_frame_is_the_jacobian_of_no_connection(machine_dq):
