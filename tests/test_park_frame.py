@@ -155,6 +155,8 @@ BAD = [
     ("speeds:\n  v: x_dot + y_dot\n  w: 2*x_dot + 2*y_dot\n  r: theta_dot\n",
      "speed 'w' is a combination of the speeds before it at every configuration", "independent", "w:"),
     ("speeds: {}\n", "0 speed(s) for 3 velocities and no velocity constraint", "name 3 speeds", "speeds:"),
+    ("speeds:\n  v: 0*x_dot\n  w: y_dot\n  r: theta_dot\n",
+     "speed 'v' is zero at every configuration", "independent", "v:"),
     ("speeds:\n  v: x_dot\n  r: theta_dot\n",
      "2 speed(s) for 3 velocities and no velocity constraint", "name 3 speeds", "speeds:"),
     ("speeds:\n  v: cos(theta)*x_dot\n  w: y_dot\n  r: theta_dot\ninitial: {theta: 1.5707963267948966}\n",

@@ -58,9 +58,11 @@ def frame_transformation(coordinates: Sequence[sympy.Symbol], speeds: Mapping[sy
     n = len(coordinates)
     for k in range(n):
         if generic_rank(Y[:k + 1, :], coordinates, values) < k + 1:
+            said = ("is zero" if generic_rank(Y[k, :], coordinates, values) == 0
+                    else "is a combination of the speeds before it")
             raise VelocityConstraintError(
-                f"speed '{list(speeds)[k].name}' is a combination of the speeds before it at every "
-                "configuration: the speeds are not a frame of the velocities",
+                f"speed '{list(speeds)[k].name}' {said} at every configuration: the speeds are not a frame of "
+                "the velocities",
                 "define independent speeds (Y(x) invertible), e.g. the velocity of a coordinate no other speed "
                 "names", k, kind="speeds")
     u = tuple(speeds)

@@ -126,21 +126,26 @@ def read_velocity_frame(reader: ModelReader, node: Node, coords, written: Locati
                         frame=True)
 
 
-def check_frame_start(reader: ModelReader, node: Node, spec: VelocitySpec, initial: dict) -> None:
-    """A change of velocity frame singular at the initial configuration (``det Y = 0`` there, the
-    coordinates not given taken as 0): ``xdot = Y^-1 u`` has no value to start from."""
+def check_frame_start(reader: ModelReader, written: Location, spec: VelocitySpec, initial: dict) -> None:
+    """A change of velocity frame (``speeds:``, written at ``written``) singular at the initial
+    configuration (``det Y = 0`` there, the coordinates not given taken as 0): ``xdot = Y^-1 u``
+    has no value to start from."""
     x = spec.transformation.coordinates
     point = {**_values(reader), **{q: initial.get(q, sympy.Integer(0)) for q in x}}
     Y = frame_matrix(x, dict(spec.definitions)).xreplace(point)
     if Y.free_symbols:
         return  # a parameter without a value: nothing to evaluate
-    sigma = np.linalg.svd(np.array(Y.evalf(), dtype=float), compute_uv=False)
-    if not np.all(np.isfinite(sigma)) or sigma[-1] <= SINGULAR * sigma[0]:
-        where = ", ".join(f"{q} = {_shown(initial.get(q, 0))}" for q in x
-                          if any(q in e.free_symbols for _, e in spec.definitions))
-        reader.error(node, f"the speeds are singular at the initial configuration ({where or 'every coordinate 0'}): "
-                     "det Y = 0 there, so xdot = Y^-1 u has no value",
-                     "start the coordinates where the speeds are independent, or define speeds that stay independent")
+    try:
+        sigma = np.linalg.svd(np.array(Y.evalf(), dtype=float), compute_uv=False)
+    except (TypeError, ValueError, np.linalg.LinAlgError):
+        return  # no real value there: the run's start reports it
+    if np.all(np.isfinite(sigma)) and sigma[-1] > SINGULAR * sigma[0]:
+        return
+    where = ", ".join(f"{q} = {_shown(initial.get(q, 0))}" for q in x
+                      if any(q in e.free_symbols for _, e in spec.definitions))
+    at = f"at the initial configuration ({where})" if where else "at the parameters' values"
+    reader.error(written, f"the speeds are singular {at}: det Y = 0 there, so xdot = Y^-1 u has no value",
+                 "start the coordinates where the speeds are independent, or define speeds that stay independent")
 
 
 def _shown(value) -> str:
