@@ -339,5 +339,6 @@ def _rank(A: sympy.Matrix, points: list[dict]) -> int:
 
 
 __all__ = ["GENERIC_POINTS", "NonholonomicProjection", "VelocityConstraintError", "VelocityTransformation",
-           "generic_rank", "integrable", "linear_form", "project_nonholonomic", "speed_accelerations", "speed_equations",
-           "refuse_holonomic", "refuse_speeds", "speed_rates", "tidy_entry", "velocity_multipliers", "velocity_transformation"]
+           "generic_rank", "integrable", "linear_form", "project_nonholonomic", "refuse_holonomic", "refuse_speeds",
+           "speed_accelerations", "speed_equations", "speed_rates", "tidy_entry", "velocity_multipliers",
+           "velocity_transformation"]
