@@ -34,9 +34,10 @@ def every_model_file() -> list[Path]:
 
 
 def explicit_model_paths() -> list[str]:
-    """Bundled models without `constraints:` or `velocity_constraints:`: the generic checks over every
-    model need explicit equations in qdot; the closed loops have their own (tests/test_constraints*.py),
-    the non-holonomic models theirs (tests/test_nonholonomic*.py)."""
+    """Bundled models without `constraints:`, `velocity_constraints:` or `speeds:`: the generic checks
+    over every model need explicit equations in qdot; the closed loops have their own
+    (tests/test_constraints*.py), the non-holonomic models theirs (tests/test_nonholonomic*.py), a
+    change of velocity frame its own (tests/test_park_frame.py)."""
     import yaml
 
     def constrained(path: Path, seen=()) -> bool:
@@ -44,7 +45,7 @@ def explicit_model_paths() -> list[str]:
         data = yaml.safe_load(path.read_text(encoding="utf-8"))
         if not isinstance(data, dict):
             return False
-        if data.get("constraints") or data.get("velocity_constraints"):
+        if data.get("constraints") or data.get("velocity_constraints") or data.get("speeds"):
             return True
         for spec in (data.get("components") or {}).values():
             sub = isinstance(spec, dict) and spec.get("model")

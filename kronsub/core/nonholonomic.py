@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import itertools
 import random
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -41,6 +41,11 @@ class VelocityConstraintError(ValueError):
     def __init__(self, message: str, hint: str, index: int | None = None, kind: str = "constraint"):
         super().__init__(message)
         self.hint, self.index, self.kind = hint, index, kind
+
+
+def tidy_entry(e: sympy.Expr) -> sympy.Expr:
+    """An entry of ``C``, ``Mbar``, ``hbar``, ``fbar`` in the speeds, simplified."""
+    return sympy.trigsimp(sympy.cancel(sympy.expand(e)))
 
 
 @dataclass(frozen=True)
@@ -158,7 +163,13 @@ def velocity_transformation(constraints: Sequence[sympy.Expr], coordinates: Sequ
         raise VelocityConstraintError(
             f"{len(speeds)} speed(s) for {n - m} degree(s) of freedom",
             f"name {n - m} speeds: the {n} velocities less the {m} velocity constraints", kind="speeds")
-    Y, c = linear_form(list(speeds.values()), coordinates)
+    try:
+        Y, c = linear_form(list(speeds.values()), coordinates)
+    except VelocityConstraintError as exc:  # of a speed, not of a constraint
+        name = list(speeds)[exc.index].name
+        raise VelocityConstraintError(str(exc).replace(f"velocity constraint {exc.index + 1}", f"speed '{name}'"),
+                                      "define each speed as Y(x) xdot: each velocity to the first power, times a "
+                                      "function of the coordinates", exc.index, kind="speeds") from None
     if any(e != 0 for e in c):
         raise VelocityConstraintError("a speed has a term without a velocity", "define each speed as Y(x) xdot",
                                       kind="speeds")
@@ -179,9 +190,11 @@ def velocity_transformation(constraints: Sequence[sympy.Expr], coordinates: Sequ
 
 
 def project_nonholonomic(metric: sympy.Matrix, velocity_terms: sympy.Matrix, force: sympy.Matrix,
-                         velocity: VelocityTransformation) -> NonholonomicProjection:
+                         velocity: VelocityTransformation,
+                         tidy: Callable[[sympy.Expr], sympy.Expr] = tidy_entry) -> NonholonomicProjection:
     """(9'), (D)-(F) in the speeds: ``M(x)``, ``h(x, xdot)``, ``f(x, xdot, t)`` of the system in
-    the coordinates ``x`` (velocities named by :func:`velocity_symbol`) projected by ``C``."""
+    the coordinates ``x`` (velocities named by :func:`velocity_symbol`) projected by ``C``, each
+    entry simplified by ``tidy``."""
     x = velocity.coordinates
     xdot = velocity.kinematics
     moved = {velocity_symbol(q): xdot[i] for i, q in enumerate(x)}
@@ -191,27 +204,27 @@ def project_nonholonomic(metric: sympy.Matrix, velocity_terms: sympy.Matrix, for
     M = sympy.Matrix(metric)
     h = sympy.Matrix(velocity_terms).xreplace(moved)
     f = sympy.Matrix(force).xreplace(moved)
-    tidy = _tidy
     return NonholonomicProjection(velocity=velocity, mass_matrix=(C.T * M * C).applyfunc(tidy),
                                   velocity_terms=(C.T * (M * convective + h)).applyfunc(tidy),
                                   forcing=(C.T * f).applyfunc(tidy), convective=convective)
 
 
 def speed_equations(system: KnownSystem, velocity: VelocityTransformation, constraint_names: Sequence[str],
-                    definitions: Mapping[sympy.Symbol, sympy.Expr]) -> SpeedEquations:
+                    definitions: Mapping[sympy.Symbol, sympy.Expr],
+                    tidy: Callable[[sympy.Expr], sympy.Expr] = tidy_entry) -> SpeedEquations:
     """A known system in the coordinates ``x`` (``M``, ``h``, each effect's ``f``) carried to its
     speeds by ``xdot = C u + d``: (9'), (D)-(F) as in :func:`project_nonholonomic`, ``fbar = C^T f``
     of each effect apart (8'), (F), and ``T = 1/2 u^T Mbar u`` (24): the kinetic energy, ``xdot = C u``,
     less the motion ``d`` that constraints in time impose (as a prescribed motion's ``T``)."""
     inertia = project_nonholonomic(system.mass_matrix, system.velocity_terms,
-                                   sympy.zeros(len(system.coordinates), 1), velocity)
+                                   sympy.zeros(len(system.coordinates), 1), velocity, tidy)
     moved = {velocity_symbol(q): velocity.kinematics[i] for i, q in enumerate(velocity.coordinates)}
     C = velocity.transformation
-    forces = {name: (C.T * sympy.Matrix(f).xreplace(moved)).applyfunc(_tidy)
+    forces = {name: (C.T * sympy.Matrix(f).xreplace(moved)).applyfunc(tidy)
               for name, f in system.effect_forces.items()}
     xdot = velocity.kinematics
     u = sympy.Matrix(velocity.speeds)
-    kinetic = _tidy((u.T * inertia.mass_matrix * u)[0, 0] / 2)
+    kinetic = tidy((u.T * inertia.mass_matrix * u)[0, 0] / 2)
     holonomic = tuple(Constraint(name, g) for name, g in zip(constraint_names[len(constraint_names)
                                                                               - len(velocity.holonomic):],
                                                                 velocity.holonomic))
@@ -252,7 +265,7 @@ def velocity_multipliers(system: KnownSystem) -> list[tuple[str, sympy.Expr]]:
                                    if p.value is not None and sympy.sympify(p.value).is_number})
     rows = _simplest_minor(A, x, point)
     mu = A[:, rows].T.LUsolve(residual.extract(rows, [0]))
-    return [(f"mu_{name}", _tidy(e)) for name, e in zip(s.constraint_names, mu)]
+    return [(f"mu_{name}", tidy_entry(e)) for name, e in zip(s.constraint_names, mu)]
 
 
 def _simplest_minor(A: sympy.Matrix, coordinates, point) -> list[int]:
@@ -265,7 +278,7 @@ def _simplest_minor(A: sympy.Matrix, coordinates, point) -> list[int]:
         columns = sorted(chosen)
         if _rank(A[:, columns], point) < m:
             continue
-        det = _tidy(A[:, columns].det())
+        det = tidy_entry(A[:, columns].det())
         score = (bool(det.free_symbols & set(coordinates)), sympy.count_ops(det))
         if key is None or score < key:
             best, key = columns, score
@@ -273,8 +286,14 @@ def _simplest_minor(A: sympy.Matrix, coordinates, point) -> list[int]:
 
 
 def refuse_speeds(system: KnownSystem, what: str, location: Location | None = None) -> None:
-    """A :class:`ModelError` at ``location`` (where the model writes its velocity constraints)
-    when ``system`` has them and ``what`` (a command) does not handle them yet."""
+    """A :class:`ModelError` at ``location`` (where the model writes its velocity constraints, or
+    its speeds) when ``system`` is written in speeds and ``what`` (a command) does not handle
+    them yet."""
+    if system.speeds is not None and not system.speeds.constraint_names:  # a change of velocity frame
+        raise ModelError([Problem(location, f"{what} of a model in speeds (a change of velocity frame) is not "
+                                            "supported yet",
+                                  "derive or simulate it instead (`kronsub derive`, `kronsub simulate`); or write "
+                                  "it in its coordinates' velocities")])
     if system.speeds is not None:
         raise ModelError([Problem(location, f"{what} of a model with velocity constraints is not supported yet",
                                   "derive or simulate it instead (`kronsub derive`, `kronsub simulate`; "
@@ -297,10 +316,6 @@ def speed_accelerations(projection: NonholonomicProjection) -> list[sympy.Symbol
     return [acceleration_symbol(s) for s in projection.velocity.speeds]
 
 
-def _tidy(e: sympy.Expr) -> sympy.Expr:
-    return sympy.trigsimp(sympy.cancel(sympy.expand(e)))
-
-
 def _generic_points(A: sympy.Matrix, coordinates, values) -> list[dict]:
     """Random points of the coordinates, parameters and time: a rank taken there is the
     generic rank (with probability one)."""
@@ -314,10 +329,16 @@ def _generic_points(A: sympy.Matrix, coordinates, values) -> list[dict]:
     return points
 
 
+def generic_rank(A: sympy.Matrix, coordinates, values=None) -> int:
+    """The rank of ``A(x)`` at a generic configuration (:data:`GENERIC_POINTS` random ones)."""
+    return _rank(A, _generic_points(A, coordinates, values))
+
+
 def _rank(A: sympy.Matrix, points: list[dict]) -> int:
     return max(int(np.linalg.matrix_rank(np.array(A.subs(p).evalf(), dtype=float), tol=1e-9)) for p in points)
 
 
 __all__ = ["GENERIC_POINTS", "NonholonomicProjection", "VelocityConstraintError", "VelocityTransformation",
-           "integrable", "linear_form", "project_nonholonomic", "speed_accelerations", "speed_equations",
-           "refuse_holonomic", "refuse_speeds", "speed_rates", "velocity_multipliers", "velocity_transformation"]
+           "generic_rank", "integrable", "linear_form", "project_nonholonomic", "refuse_holonomic", "refuse_speeds",
+           "speed_accelerations", "speed_equations", "speed_rates", "tidy_entry", "velocity_multipliers",
+           "velocity_transformation"]

@@ -7,6 +7,7 @@ import sympy
 
 from ..core.known_system import KnownSystem, SpeedEquations
 from ..core.nonholonomic import speed_rates
+from ..core.reference_frame import frame_entry
 from ..core.simplify import tidy
 from ..core.symbols import velocity_symbol
 from .report import Printer, matrix_rows
@@ -20,7 +21,8 @@ def speeds_report(system: KnownSystem, show: Printer) -> dict:
     p = len(s.speeds)
     mass = s.mass_matrix.applyfunc(tidy)
     hbar = [tidy(e) for e in s.velocity_terms]
-    fbar = [tidy(e) for e in s.forces]
+    # in a change of velocity frame the effects' fbar simplify together (Park's three phases)
+    fbar = [tidy(frame_entry(e) if not s.constraint_names else e) for e in s.forces]
     lhs = [sympy.Add(*[mass[i, j] * rates[j] for j in range(p)], hbar[i]) for i in range(p)]
     velocities = [velocity_symbol(q) for q in x]
     constraints = [sympy.Add(*[s.constraint_matrix[i, j] * velocities[j] for j in range(len(x))],

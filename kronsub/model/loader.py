@@ -27,7 +27,7 @@ from .connection import (implicit_spec, pivot_connection, read_connection, read_
 from .circuits import check_circuit
 from .constraints import check_multiplier_names, read_constraints
 from .coordinates import check_generated_names, name_primitive_coordinates, read_coordinates
-from .nonholonomic import check_initial, read_velocity_constraints
+from .nonholonomic import check_frame_start, check_initial, read_velocity_constraints, read_velocity_frame
 from .prescribed import check_effects, driven_connection, names_time, read_prescribed
 from .definitions import read_definitions
 from .derive import derive_model, load_cached
@@ -144,9 +144,23 @@ class ModelLoader(ModelReader):
             self.locations["drive"] = root.key_locations.get("prescribed") or root.key_locations["connection"]
         velocity = None
         vnode = root.get("velocity_constraints")
-        if root.get("speeds") is not None and vnode is None:
+        snode = root.get("speeds")
+        frame = snode is not None and snode.value is not None and vnode is None  # a change of velocity frame
+        if frame and not snode.is_mapping:
             self.error(root.key_locations["speeds"], "`speeds:` without `velocity_constraints:`",
-                       "speeds are chosen for velocity constraints; without them the speeds are the velocities")
+                       "a list of velocities is a choice under velocity constraints; without them name one speed "
+                       "per velocity by its definition (a change of velocity frame): `speeds: {v: cos(theta)*x_dot "
+                       "+ sin(theta)*y_dot, w: -sin(theta)*x_dot + cos(theta)*y_dot, r: theta_dot}`")
+        elif frame and (constrained or motions or names_time(connection)):
+            self.error(root.key_locations["speeds"],
+                       "`speeds:` (a change of velocity frame) together with "
+                       + ("`constraints:`" if constrained else "a prescribed motion") + " is not supported yet",
+                       "write the closed loop's coordinates in the connection, or drive it by a load"
+                       if constrained else "drive the system by a load")
+        elif frame and not self.problems:
+            velocity = read_velocity_frame(self, snode, y, root.key_locations["speeds"])
+            if velocity is not None:  # where the velocity-level transformation is written
+                self.locations["velocity_constraints"] = root.key_locations["speeds"]
         if vnode is not None and (motions or names_time(connection)):
             self.error(root.key_locations["velocity_constraints"],
                        "`velocity_constraints:` together with a prescribed motion is not supported yet",
@@ -162,6 +176,8 @@ class ModelLoader(ModelReader):
                                velocity.transformation.speeds if velocity is not None else ())
         if velocity is not None:
             check_initial(self, root.get("initial"), y, velocity)
+        if frame and velocity is not None:
+            check_frame_start(self, root.key_locations["speeds"], velocity, initial)
         declared = root.get("effects")
         scenes = build_scenes(self, root.get("scenes"), list(declared.value) if declared is not None and
                               declared.is_mapping else [], primitive, y,
