@@ -113,10 +113,10 @@ def test_dq_run_is_the_phase_run_seen_through_park():
     theta = sympy.Symbol("theta")
     P = sympy.lambdify(theta, park_power_invariant(theta))
     for row_abc, row_dq in zip(abc, dq):
-        currents = np.array(P(row_abc[col["theta"]]), dtype=float) @ row_abc[[col["q_a_dot"], col["q_b_dot"],
-                                                                             col["q_c_dot"]]]
+        currents = np.array(P(row_abc[col["theta"]]), dtype=float) @ row_abc[[col["i_a"], col["i_b"],
+                                                                             col["i_c"]]]
         np.testing.assert_allclose(row_dq[[cdq["i_d"], cdq["i_q"], cdq["i_0"]]], currents, rtol=0, atol=1e-6)
-        np.testing.assert_allclose(row_dq[cdq["i_f"]], row_abc[col["q_f_dot"]], rtol=0, atol=1e-6)
+        np.testing.assert_allclose(row_dq[cdq["i_f"]], row_abc[col["i_f"]], rtol=0, atol=1e-6)
         np.testing.assert_allclose(row_dq[cdq["omega"]], row_abc[col["theta_dot"]], rtol=1e-9)
         np.testing.assert_allclose(row_dq[cdq["theta"]], row_abc[col["theta"]], rtol=1e-9, atol=1e-9)
     assert np.max(np.abs(dq[:, cdq["i_d"]])) > 1.0  # the bus drives real currents
