@@ -46,9 +46,11 @@ def subspace_charges(connection, charges, coords) -> list[sympy.Symbol]:
     return found
 
 
-def name_currents(reader: ModelReader, charges, coords) -> None:
+def name_currents(reader: ModelReader, charges, coords, speeds: frozenset[str] = frozenset()) -> None:
     """Give each charge of ``charges`` its current's name in ``reader.currents`` and make the
-    name read as the charge's velocity in the model's expressions (``reader.names``)."""
+    name read as the charge's velocity in the model's expressions (``reader.names``). A name
+    among ``speeds`` (those a change of velocity frame defines, Park's ``i_d``...) is the speed's:
+    the charge whose current it would name keeps ``q_dot`` (it is no state there)."""
     taken = set(reader.names) | set(reader.parameters) | set(reader.definition_keys) | set(reader.currents.values())
     for q in (*coords, *reader.primitive_names.values()):
         taken.update(q.name + suffix for suffix, _ in (("", ""), *SUFFIXES))
@@ -56,6 +58,9 @@ def name_currents(reader: ModelReader, charges, coords) -> None:
         if q.name in reader.currents:
             continue
         name = current_name(q.name)
+        if name in speeds or rate_name(name) in speeds:
+            reader.currents[q.name] = velocity_symbol(q).name
+            continue
         if name in taken or rate_name(name) in taken:
             owner = next((part.name for part in reader.parts if q in part.coordinates), None)
             where = (reader.locations.get(f"coordinate:{q.name}") or reader.locations.get(f"component:{owner}")

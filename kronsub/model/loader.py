@@ -129,7 +129,9 @@ class ModelLoader(ModelReader):
         read_pivot_angles(self, root.get("connection"), y)
         connection = read_connection(self, root.get("connection"), primitive, y)
         charges = primitive_charges(primitive)
-        name_currents(self, charges + subspace_charges(connection, charges, y), y)
+        named = root.get("speeds")  # a change of velocity frame's speeds own their names
+        speeds = frozenset(map(str, named.value)) if named is not None and isinstance(named.value, dict) else frozenset()
+        name_currents(self, charges + subspace_charges(connection, charges, y), y, speeds)
         motions = read_prescribed(self, root.get("prescribed"), y if not constrained else coords)
         if constrained and (motions or names_time(connection)):
             self.error(root.key_locations.get("prescribed") or root.key_locations["connection"],
