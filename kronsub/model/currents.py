@@ -37,10 +37,15 @@ def subspace_charges(connection, charges, coords) -> list[sympy.Symbol]:
     """The coordinates of ``coords`` that the connection ``x = x(xbar)`` writes into charges
     only (a primitive coordinate not in ``connection`` is its own image)."""
     charges = set(charges)
-    images = {x: sympy.sympify(e) for x, e in connection.items()}
+    if not charges:  # (a model without circuit parts: nothing to walk)
+        return []
+    writers: dict = {}  # coordinate -> the primitive coordinates whose image names it
+    for x, e in connection.items():
+        for s in sympy.sympify(e).free_symbols:
+            writers.setdefault(s, []).append(x)
     found = []
     for q in coords:
-        written = [x for x, e in images.items() if q in e.free_symbols] or ([q] if q not in images else [])
+        written = writers.get(q) or ([q] if q not in connection else [])
         if written and all(x in charges for x in written):
             found.append(q)
     return found
