@@ -260,3 +260,27 @@ def test_a_large_primitive_widens_the_default_budget_of_the_loader(tmp_path):
     with budget.limited() as spent:
         load_model(path, cache=False)
         assert spent.units == budget.default_units(150) > budget.DEFAULT_UNITS
+
+
+def test_a_derivation_in_a_budget_of_its_own_grows_it_as_the_loader_does(tmp_path, monkeypatch):
+    """``load(path).derive()`` derives in a fresh default budget (the command reads and derives
+    in one): that budget grows with the primitive as the loader's did, so the API and the CLI
+    agree on which models they derive. Made small here: a default of half the derivation's
+    work, growing from 1 coordinate."""
+    import kronsub
+
+    path = tmp_path / "double.yaml"
+    path.write_text((ROOT / "models" / "hoffmann" / "system1.yaml").read_text(encoding="utf-8"), encoding="utf-8")
+    model = kronsub.load(path, cache=False)
+    with budget.limited(10 ** 12) as spent:
+        model.derive(scene=False, cache=False)
+    work = spent.used
+    monkeypatch.setattr(budget, "DEFAULT_UNITS", work // 2)
+    with pytest.raises(budget.WorkBudgetExceeded):  # the default, not grown (GROWS_FROM beyond it)
+        model.derive(scene=False, cache=False)
+    monkeypatch.setattr(budget, "GROWS_FROM", 1)  # grown to (coordinates)^3 times the default
+    system = model.derive(scene=False, cache=False)
+    assert system.mass_matrix.shape == (2, 2)
+    with budget.limited() as grown:
+        model.derive(scene=False, cache=False)
+    assert grown.units == budget.default_units(len(model.primitive.coordinates)) > budget.DEFAULT_UNITS

@@ -54,3 +54,22 @@ def test_bundled_models(name):
     system = kronsub.load(REPO / name).derive()
     for e in [*system.mass_matrix, *system.velocity_terms, *system.forces, system.potential_energy]:
         assert count_ops(e) == sympy.count_ops(e), e
+
+
+def test_rational_multiples_of_products():
+    """A product with a rational coefficient is counted without building ``-a`` and the
+    numerator of ``fraction`` (a large system's entries, e.g. ``l1*l2*(m2 + 2*m3)*cos(q1 - q2)/2``):
+    every sign, numerator and denominator, over factors sympy joins (``x**2*x**2``) or
+    distributes (``2*(x + y)``) when it rebuilds them, checked against sympy."""
+    rng = random.Random(20261128)
+    z = sympy.Symbol("z")
+    pool = [x, y, x + y, x - 2 * y, y ** 2, sympy.sqrt(x), 1 / y, sympy.sin(x - y), sympy.cos(x), sympy.exp(x),
+            sympy.Mul(x, y, evaluate=False), -x - y, z ** sympy.Rational(3, 2)]
+    coefficients = [sympy.Integer(-1), sympy.Integer(2), sympy.Integer(-3), sympy.Rational(1, 2),
+                    sympy.Rational(-1, 3), sympy.Rational(3, 4), sympy.Rational(-5, 6)]
+    for _ in range(400):
+        c = rng.choice(coefficients)
+        factors = [rng.choice(pool) for _ in range(rng.randint(1, 4))]
+        for e in (sympy.Mul(c, *factors), sympy.Mul(c, *factors, evaluate=False)):
+            assert count_ops(e) == sympy.count_ops(e), e
+            assert count_ops(e + x) == sympy.count_ops(e + x), e + x

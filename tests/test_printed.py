@@ -76,3 +76,19 @@ def test_printers_match_sympy_on_bundled_models(name):
     for e in entries:
         assert lex.doprint(e) == sympy.sstr(e, order="lex")
         assert latex._print(e) == SympyLatex({"order": "lex"})._print(e)
+
+
+def test_ordered_terms_match_sympy_over_many_bases():
+    """Sums whose terms each hold a few of many bases, to positive and negative powers (a
+    large system's kinetic energy): the order sympy gives through its dense exponent vectors."""
+    rng = random.Random(34)
+    bases = [*sympy.symbols("a b c d e"), sympy.sin(sympy.Symbol("q")), sympy.sqrt(sympy.Symbol("r")),
+             sympy.Symbol("s") + 1]
+    for _ in range(200):
+        terms = []
+        for _ in range(rng.randint(2, 9)):
+            factors = [rng.choice(bases) ** rng.choice([-2, -1, 1, 1, 2, 3]) for _ in range(rng.randint(0, 4))]
+            terms.append(sympy.Mul(rng.choice([1, -1, 2, sympy.Rational(-3, 4)]), *factors))
+        e = sympy.Add(*terms)
+        if e.is_Add:
+            assert ordered_terms(e) == e.as_ordered_terms(order="lex"), e

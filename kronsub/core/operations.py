@@ -66,6 +66,37 @@ def _whole(a) -> bool:
     return True
 
 
+def _plain_product(args) -> bool:
+    """Whether a product ``c * rest`` (``c = args[0]`` rational) is counted by `_scaled`: at
+    least two factors besides ``c``, or one over a denominator (``x/2``), each whole (a
+    positive power, no number, no base twice: ``fraction`` keeps it above the line and sympy
+    multiplies the numerator ``|p| * rest`` back without changing it)."""
+    c = args[0]
+    if len(args) < 3 and not (len(args) == 2 and c.q != 1 and abs(c.p) == 1):
+        return False
+    bases = set()
+    for t in args[1:]:
+        if t.is_Pow:
+            if not (t.exp.is_Rational and t.exp.p > 0):
+                return False
+        elif isinstance(t, sympy.exp) or not t.is_commutative or t.is_Mul:
+            return False
+        if t.is_number:
+            return False
+        bases.add(t.base if t.is_Pow else t)
+    return len(bases) == len(args) - 1  # (an unevaluated x**2*x**2 would be joined)
+
+
+def _scaled(c, rest) -> int:
+    """``_own`` of the product ``c * rest`` told by `_plain_product`, without building the
+    products ``-a`` and ``fraction`` build on the way (a large system's entries are such
+    products, each a distinct one): ``NEG`` for ``c < 0``, ``DIV`` for a denominator, one
+    ``MUL`` between each two factors of the numerator ``|p| * rest``, and the factors."""
+    p, q = abs(int(c.p)), int(c.q)
+    factors = len(rest) + (p != 1)
+    return int(c.p < 0) + int(q != 1) + factors - 1 + sum(_count(t) for t in rest)
+
+
 def _own(a) -> int:
     """The operations ``count_ops`` records at node ``a`` plus those of the nodes it
     visits next (sympy's ``count_ops``, branch by branch)."""
@@ -73,6 +104,8 @@ def _own(a) -> int:
     if a.is_Rational:
         if a is not S.One:
             return (a.p < 0) + (a.q != 1)
+    elif a.is_Mul and a.args[0].is_Rational and _plain_product(a.args):
+        return _scaled(a.args[0], a.args[1:])
     elif a.is_Mul or a.is_MatMul:
         if _coeff_isneg(a):
             n += 1  # NEG

@@ -73,6 +73,10 @@ def ordered_terms(expr, order: str = "lex") -> list:
                     noncommutative.append(factor)
         terms.append((term, (value.real, value.imag), powers, tuple(noncommutative)))
     index = {g: i for i, g in enumerate(sorted(gens, key=_sort_key))}
+    if order == "lex":  # the same order from the exponents that are not zero
+        described = [(term, (_lex_key(powers, index), noncommutative, ((bool(coeff[1]), coeff[1]), coeff)))
+                     for term, coeff, powers, noncommutative in terms]
+        return [term for term, _ in sorted(described, key=_described_lex)]
     described = []
     for term, coeff, powers, noncommutative in terms:
         monom = [0] * len(index)
@@ -81,6 +85,29 @@ def ordered_terms(expr, order: str = "lex") -> list:
         described.append((term, (coeff, tuple(monom), noncommutative)))
     key, reverse = parse_order(order)
     return [term for term, _ in sorted(described, key=key, reverse=reverse)]
+
+
+_ENDED = (0.5,)
+"""`_lex_key`'s end: after every positive exponent, before every negative one."""
+
+
+def _lex_key(powers: dict, index: dict) -> tuple:
+    """A key of a term's exponent vector that sorts as sympy's ``lex`` key, the negated dense
+    vector over every base of the sum (a sum of ``k`` terms over ``g`` bases builds ``k g``
+    exponents: a large system's kinetic energy holds thousands of each), built from its
+    nonzero exponents alone. Two dense vectors first differ where one has an exponent ``a``
+    the other has not (or a different one): the one with ``a`` comes first when ``a > 0``,
+    last when ``a < 0``; so an exponent at base ``i`` is ``(0, i, -a)`` when positive,
+    ``(1, -i, -a)`` when negative, and the vector ends in `_ENDED`, between the two."""
+    pairs = sorted((index[base], exp) for base, exp in powers.items() if exp != 0)
+    return tuple((0, i, -a) if a > 0 else (1, -i, -a) for i, a in pairs) + (_ENDED,)
+
+
+def _described_lex(described):
+    """The key of a described term in ``lex`` order: exponents, non-commutative factors (by
+    their sort keys), coefficient, as in ``Expr._parse_order``."""
+    monom, noncommutative, coeff = described[1]
+    return monom, tuple([e.sort_key(order="lex") for e in noncommutative]), coeff
 
 
 class Remembering:

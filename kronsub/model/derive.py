@@ -10,7 +10,7 @@ import numpy as np
 import numpy.random  # noqa: F401  numpy loads it on first use; imported with the rest
 import sympy
 
-from ..budget import PER_OPERATION, WorkBudgetExceeded, charge
+from ..budget import PER_OPERATION, WorkBudgetExceeded, allow_for, charge
 from ..cache import code_fingerprint, load_entry, store_entry, usable_cache_dir
 from ..collector import collector_paused
 from ..core.constraints import project_implicit
@@ -104,8 +104,12 @@ def derive_model(model, *, cache: bool = True, effects=None) -> KnownSystem:
     each effect are cached apart, and every selection of effects shares them. The cache
     holds data only (:mod:`.cache_format`); name, description, initial values and requirements
     always come from ``model`` (the same text may live under several file names). The cyclic garbage
-    collector is paused meanwhile (:func:`.collector_paused`).
+    collector is paused meanwhile (:func:`.collector_paused`). A default work budget grows
+    with the primitive here as when the model was read (`kronsub.budget.allow_for`), so a
+    derivation in a budget of its own (the API's ``load(path).derive()``) is bounded as the
+    command's is.
     """
+    allow_for(len(model.primitive.coordinates))
     with collector_paused():
         system = _derive(model, cache, effects)
     _charge_printed(system, model)
