@@ -62,6 +62,7 @@ class Part:
     # when the known system was derived, so that a model reusing it as it is need not redo it
     assembled_potential: tuple = ()
     charges: tuple[sympy.Symbol, ...] = ()  # coordinates that are branch charges (a textbook component's `charges:`)
+    local_names: tuple[str, ...] = ()  # a library component's own names of its coordinates (``turn1``)
 
     @property
     def velocities(self) -> tuple[sympy.Symbol, ...]:
@@ -80,7 +81,7 @@ def part_from_component(name: str, component: Component) -> Part:
     metric = sympy.Matrix(component.metric())
     h = christoffel_terms(metric, coords, [velocity_symbol(q) for q in coords])
     return Part(name, coords, metric, h, ComponentPoints(component), tuple(component.bodies()),
-                component.dimension, type_name=component.type_name)
+                component.dimension, type_name=component.type_name, local_names=tuple(component.coordinates))
 
 
 def point_symbols(points: Mapping) -> set:
