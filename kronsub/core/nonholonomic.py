@@ -369,5 +369,6 @@ def _rank(A: sympy.Matrix, points: list[dict]) -> int:
 
 
 __all__ = ["GENERIC_POINTS", "NonholonomicProjection", "VelocityConstraintError", "VelocityTransformation",
-           "integrable", "linear_form", "project_nonholonomic", "speed_accelerations", "speed_equations",
+           "SpeedProjection", "integrable", "linear_form", "project_nonholonomic", "speed_accelerations",
+           "speed_equations",
            "refuse_holonomic", "refuse_speeds", "speed_rates", "velocity_multipliers", "velocity_transformation"]
