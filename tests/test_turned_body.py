@@ -14,8 +14,8 @@ from kronsub.components import REGISTRY
 from kronsub.components.spatial import SEQUENCES, euler_rates, turn_rates
 from kronsub.core.rigid_bodies import PlacedBody, body_metric
 from kronsub.core.symbols import symbol, velocity_symbol
-from kronsub.model.loader import load_model
 from kronsub.model.derive import derive_model
+from kronsub.model.loader import load_model
 
 AXES = "ZXYYZY"  # a bicycle's front wheel: yaw, roll, pitch, head angle, steer, the wheel's turn
 
@@ -104,5 +104,5 @@ def test_bad_turns_are_located(tmp_path, turns, said):
     path.write_text(FORK.replace("turns: ZXYZ", f"turns: {turns}"))
     result = CliRunner().invoke(main, ["derive", str(path)])
     assert result.exit_code == 1
-    assert f"bad.yaml:8:12: `turns:` of component 'fork' (turned_body) must be a word of" in result.output
+    assert "bad.yaml:8:12: `turns:` of component 'fork' (turned_body) must be a word of" in result.output
     assert said in result.output and "hint: the axes of the body's turns" in result.output
