@@ -62,11 +62,23 @@ class ParameterSpec:
 
 @dataclass(frozen=True)
 class OptionSpec:
-    """A choice a component offers among fixed names (``euler: ZXZ``); the first is the default."""
+    """A choice a component offers among fixed names (``euler: ZXZ``); the first is the default.
+    With ``letters``, the choice is a word of those letters, at most ``longest`` of them
+    (``turns: ZXYYZ``), ``values`` holding the default alone."""
 
     name: str
     description: str
     values: tuple[str, ...]
+    letters: str = ""
+    longest: int = 0
+
+    def allows(self, value: object) -> bool:
+        """Whether ``value`` is one of the choices."""
+        if not isinstance(value, str):
+            return False
+        if self.letters:
+            return 0 < len(value) <= self.longest and all(c in self.letters for c in value)
+        return value in self.values
 
 
 @dataclass(frozen=True)
@@ -140,6 +152,12 @@ class Component:
             for name, offset in self.extra_points.items():
                 points[name] = tuple(centre + body.rotation * sympy.Matrix(offset))
         return points
+
+    @classmethod
+    def chosen(cls, choices: Mapping[str, str]) -> type[Component]:
+        """The class of a component with these option ``choices``: itself, unless an option
+        sets its coordinates (a body's ``turns:``)."""
+        return cls
 
     @property
     def coordinate_symbols(self) -> tuple[sympy.Symbol, ...]:

@@ -1,5 +1,6 @@
 """A rigid body in space, parametrised by its centre and three Euler angles (Z-Y-X unless
-the model chooses another of the twelve sequences with ``euler:``)."""
+the model chooses another of the twelve sequences with ``euler:``), or by its centre and a
+chain of turns about its own axes (``turned_body``, ``turns:``)."""
 from __future__ import annotations
 
 from typing import ClassVar
@@ -42,6 +43,20 @@ def euler_rates(sequence: str, theta, phi) -> sympy.Matrix:
     unit = {k: sympy.Matrix([int(k == "X"), int(k == "Y"), int(k == "Z")]) for k in "XYZ"}
     rc, rb = axis_rotation(c, phi).T, axis_rotation(b, theta).T
     return sympy.Matrix.hstack(rc * rb * unit[a], rc * unit[b], unit[c])
+
+
+def turn_rates(axes: str, angles) -> sympy.Matrix:
+    """``E`` (3 x n) with body angular velocity ``omega = E (angle_1dot, ..., angle_ndot)`` for the
+    rotation ``R_a1(angle_1) ... R_an(angle_n)`` (turns about the body's own axes, first turn
+    first): column ``j`` is the axis of turn ``j`` seen in the body,
+    ``R_an(angle_n)^T ... R_a(j+1)(angle_(j+1))^T e_aj``. Three turns are :func:`euler_rates`."""
+    unit = {k: sympy.Matrix([int(k == "X"), int(k == "Y"), int(k == "Z")]) for k in "XYZ"}
+    columns = []
+    after = sympy.eye(3)  # (R_(j+1) ... R_n)^T, built from the last turn back
+    for axis, angle in reversed(tuple(zip(axes, angles))):
+        columns.append(after * unit[axis])
+        after = after * axis_rotation(axis, angle).T
+    return sympy.Matrix.hstack(*reversed(columns))
 
 
 class RigidBody3D(Component):
@@ -109,4 +124,58 @@ class RigidBody3D(Component):
         return (Body(self.p["mass"], self.points()["centre"], self.rotation(), self.inertia()),)
 
 
-__all__ = ["PRODUCT_OF_INERTIA", "SEQUENCES", "RigidBody3D", "axis_rotation", "euler_rates", "euler_rotation"]
+MOST_TURNS = 8
+"""The longest chain of turns a ``turned_body`` takes (a bicycle's front wheel needs six)."""
+
+
+class TurnedBody(RigidBody3D):
+    """Rigid body in space placed by its centre (x, y, z) and a chain of turns about its own
+    axes, ``turns: ZXYYZ`` (default ``ZYX``), one coordinate each: ``turn1``, ``turn2``, ...
+
+    The rotation is ``R = R_a1(turn1) R_a2(turn2) ...`` (world-from-body, first turn first), the
+    body angular velocity ``omega = E turndot`` (:func:`turn_rates`), the metric
+    ``diag(m, m, m) (+) E^T I E`` (9'), (D), as for :class:`RigidBody3D` (whose three Euler angles
+    are the chain of three turns). A turn the connection holds at a constant (a head angle, a
+    tilt) places the body's axes where its inertia is easiest given; more than three turns make
+    the metric singular in the turns themselves, which the connection takes away (it is the
+    metric's projection, ``C^T m C``, that must be regular). Inertia as :class:`RigidBody3D`'s.
+    """
+
+    type_name = "turned_body"
+    summary = ("rigid body in space (x, y, z, and turn1, turn2, ... about its own axes as `turns:` says; "
+               "ZYX unless it says)")
+    coordinates = ("x", "y", "z", "turn1", "turn2", "turn3")
+    options: ClassVar[tuple[OptionSpec, ...]] = (
+        OptionSpec("turns", "the axes of the body's turns about its own axes, first turn first, one "
+                   "coordinate turn1, turn2, ... each", ("ZYX",), letters="XYZ", longest=MOST_TURNS),
+    )
+
+    @classmethod
+    def chosen(cls, choices):
+        axes = choices.get("turns", cls.options[0].values[0])
+        if axes == cls.options[0].values[0]:
+            return cls
+        turns = tuple(f"turn{k + 1}" for k in range(len(axes)))
+        return type(cls.__name__, (cls,), {"coordinates": ("x", "y", "z") + turns, "__module__": cls.__module__})
+
+    @property
+    def axes(self) -> str:
+        return self.choices.get("turns", self.options[0].values[0])
+
+    def angles(self) -> tuple[sympy.Symbol, ...]:
+        return tuple(self.x[name] for name in self.coordinates[3:])
+
+    def metric(self):
+        E = turn_rates(self.axes, self.angles())
+        rot = (E.T * self.inertia() * E).applyfunc(sympy.expand)
+        return sympy.diag(self.p["mass"] * sympy.eye(3), rot)
+
+    def rotation(self) -> sympy.Matrix:
+        R = sympy.eye(3)
+        for axis, angle in zip(self.axes, self.angles()):
+            R = R * axis_rotation(axis, angle)
+        return R
+
+
+__all__ = ["MOST_TURNS", "PRODUCT_OF_INERTIA", "SEQUENCES", "RigidBody3D", "TurnedBody", "axis_rotation",
+           "euler_rates", "euler_rotation", "turn_rates"]

@@ -7,6 +7,7 @@ conveniences live above it (:mod:`kronsub.emitters`, :mod:`kronsub.simulation`,
 """
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass, field
 from typing import Mapping
 
@@ -127,15 +128,46 @@ class SpeedEquations:
     constraint_names: tuple[str, ...]
     constraint_matrix: sympy.Matrix  # A
     constraint_offset: sympy.Matrix  # b
-    transformation: sympy.Matrix  # C
-    offset: sympy.Matrix  # d
-    kinematics: sympy.Matrix  # xdot = C u + d
-    mass_matrix: sympy.Matrix  # Mbar in the speeds
-    velocity_terms: sympy.Matrix  # hbar in the speeds
-    effect_forces: Mapping[str, sympy.Matrix]  # fbar of each effect in the speeds
-    kinetic_energy: sympy.Expr = sympy.Integer(0)  # T(x, C u + d)
+    # what the equations in the speeds are projected from, when first read: ``source.equations()``
+    # gives ``transformation`` (C), ``offset`` (d), ``kinematics`` (xdot = C u + d), ``mass_matrix``
+    # (Mbar), ``velocity_terms`` (hbar), ``effect_forces`` (fbar of each effect) and
+    # ``kinetic_energy`` (T(x, C u + d)); a linearisation reads none of them
+    source: object
     holonomic: tuple[Constraint, ...] = ()  # configuration constraints g(x, t) = 0 kept beside them
     dependent: tuple[sympy.Symbol, ...] = ()  # one coordinate per configuration constraint, set by it
+
+    @functools.cached_property
+    def projected(self) -> dict:
+        """The equations in the speeds, projected once."""
+        return self.source.equations()
+
+    @property
+    def transformation(self) -> sympy.Matrix:
+        return self.projected["transformation"]
+
+    @property
+    def offset(self) -> sympy.Matrix:
+        return self.projected["offset"]
+
+    @property
+    def kinematics(self) -> sympy.Matrix:
+        return self.projected["kinematics"]
+
+    @property
+    def mass_matrix(self) -> sympy.Matrix:
+        return self.projected["mass_matrix"]
+
+    @property
+    def velocity_terms(self) -> sympy.Matrix:
+        return self.projected["velocity_terms"]
+
+    @property
+    def effect_forces(self) -> Mapping[str, sympy.Matrix]:
+        return self.projected["effect_forces"]
+
+    @property
+    def kinetic_energy(self) -> sympy.Expr:
+        return self.projected["kinetic_energy"]
 
     @property
     def forces(self) -> sympy.Matrix:

@@ -19,6 +19,7 @@ with ``xdot = C u + d`` throughout; the state is ``[x; u]``, its kinematic equat
 """
 from __future__ import annotations
 
+import functools
 import itertools
 import random
 from collections.abc import Callable, Mapping, Sequence
@@ -32,6 +33,7 @@ from .known_system import Constraint, KnownSystem, SpeedEquations
 from .symbols import TIME, acceleration_symbol, velocity_symbol
 
 GENERIC_POINTS = 3  # a rank is taken at this many random points (a generic one is almost sure)
+NOT_CLOSED = 1e-9  # omega ^ d omega larger than this (relative) at a random point: not integrable
 
 
 class VelocityConstraintError(ValueError):
@@ -48,19 +50,48 @@ def tidy_entry(e: sympy.Expr) -> sympy.Expr:
     return sympy.trigsimp(sympy.cancel(sympy.expand(e)))
 
 
+def frame_entry(e: sympy.Expr) -> sympy.Expr:
+    """An entry of ``Mbar``, ``hbar``, ``fbar`` in a frame's speeds, simplified: the sines and
+    cosines of shifted and multiple angles (Park's ``theta - 2 pi/3``, the saliency's
+    ``2 theta``) written in those of the angle, so that ``sin^2 + cos^2`` collapses and
+    Park's constant inductances show."""
+    return sympy.factor_terms(sympy.trigsimp(sympy.expand(sympy.expand_trig(sympy.expand(e)))))
+
+
+#: how the entries in the speeds are simplified, by name (a name is what a cached derivation keeps)
+TIDY: dict[str, Callable[[sympy.Expr], sympy.Expr]] = {"entry": tidy_entry, "frame": frame_entry}
+
+
 @dataclass(frozen=True)
 class VelocityTransformation:
-    """``xdot = C u + d`` with ``A C = 0``: the speeds ``u`` and what they mean."""
+    """``xdot = C u + d`` with ``A C = 0``: the speeds ``u`` and what they mean. The symbolic
+    solve of ``[A; Y] xdot = [-b; u]`` is done when ``C``, ``d`` or the kinematic equations are
+    first read (a linearisation needs only ``A``, ``b`` and ``Y``, solved numerically)."""
 
     coordinates: tuple[sympy.Symbol, ...]
     speeds: tuple[sympy.Symbol, ...]
     constraint_matrix: sympy.Matrix  # A
     constraint_offset: sympy.Matrix  # b
-    transformation: sympy.Matrix  # C
-    offset: sympy.Matrix  # d
-    kinematics: sympy.Matrix  # xdot = C u + d
+    speed_matrix: sympy.Matrix  # Y of u = Y xdot
     holonomic: tuple[sympy.Expr, ...] = ()  # configuration constraints g(x, t) = 0, their rates the last rows of A
     dependent: tuple[sympy.Symbol, ...] = ()  # one coordinate per configuration constraint, set by it
+
+    @functools.cached_property
+    def kinematics(self) -> sympy.Matrix:
+        """``xdot = C u + d``: ``[A; Y] xdot = [-b; u]`` solved."""
+        stacked = self.constraint_matrix.col_join(self.speed_matrix)
+        solved = stacked.LUsolve(sympy.Matrix([-e for e in self.constraint_offset] + list(self.speeds)))
+        return solved.applyfunc(lambda e: sympy.trigsimp(sympy.cancel(sympy.expand(e))))
+
+    @property
+    def transformation(self) -> sympy.Matrix:
+        """``C``."""
+        return self.kinematics.jacobian(self.speeds)
+
+    @property
+    def offset(self) -> sympy.Matrix:
+        """``d``."""
+        return (self.kinematics - self.transformation * sympy.Matrix(self.speeds)).applyfunc(sympy.expand)
 
 
 @dataclass(frozen=True)
@@ -97,11 +128,14 @@ def linear_form(constraints: Sequence[sympy.Expr], coordinates: Sequence[sympy.S
     return sympy.Matrix(rows), sympy.Matrix(offsets)
 
 
-def integrable(A: sympy.Matrix, b: sympy.Matrix, coordinates: Sequence[sympy.Symbol]) -> list[int]:
+def integrable(A: sympy.Matrix, b: sympy.Matrix, coordinates: Sequence[sympy.Symbol],
+               values: Mapping | None = None) -> list[int]:
     """The constraints (rows of ``A``, each with ``b_i = 0``) that are integrable on their own:
     ``omega = A_i dx`` with ``omega ^ d omega = 0`` (Frobenius), i.e. for every ``j < k < l``
     ``A_j (d_k A_l - d_l A_k) + A_k (d_l A_j - d_j A_l) + A_l (d_j A_k - d_k A_j) = 0``. With
-    fewer than three coordinates, ``omega ^ d omega`` vanishes identically."""
+    fewer than three coordinates, ``omega ^ d omega`` vanishes identically. A row whose
+    ``omega ^ d omega`` is plainly not zero at a random point (:func:`_generic_points`, the
+    parameters at ``values``) is not integrable; the others are simplified to be sure."""
     n = len(coordinates)
     found = []
     for i in range(A.rows):
@@ -109,10 +143,26 @@ def integrable(A: sympy.Matrix, b: sympy.Matrix, coordinates: Sequence[sympy.Sym
             continue  # an affine constraint: not a one-form of the coordinates alone
         a = list(A.row(i))
         d = [[sympy.diff(a[k], coordinates[j]) for j in range(n)] for k in range(n)]  # d[k][j] = d_j A_k
+        if n >= 3 and _plainly_not_closed(a, d, coordinates, values):
+            continue
         if all(sympy.simplify(a[j] * (d[l][k] - d[k][l]) + a[k] * (d[j][l] - d[l][j]) + a[l] * (d[k][j] - d[j][k])) == 0
                for j, k, l in itertools.combinations(range(n), 3)):
             found.append(i)
     return found
+
+
+def _plainly_not_closed(a, d, coordinates, values) -> bool:
+    """``omega ^ d omega`` of :func:`integrable` well away from zero at a random point."""
+    point = _generic_points(sympy.Matrix([a]), coordinates, values)[0]
+    n = len(coordinates)
+    try:
+        av = [complex(sympy.sympify(e).xreplace(point).evalf()) for e in a]
+        dv = [[complex(sympy.sympify(e).xreplace(point).evalf()) for e in row] for row in d]
+    except TypeError:  # a symbol left without a value: decide by simplifying
+        return False
+    scale = max(abs(x) for x in av) * max(abs(x) for row in dv for x in row)
+    return any(abs(av[j] * (dv[l][k] - dv[k][l]) + av[k] * (dv[j][l] - dv[l][j]) + av[l] * (dv[k][j] - dv[j][k]))
+               > NOT_CLOSED * scale for j, k, l in itertools.combinations(range(n), 3))
 
 
 def velocity_transformation(constraints: Sequence[sympy.Expr], coordinates: Sequence[sympy.Symbol],
@@ -144,7 +194,7 @@ def velocity_transformation(constraints: Sequence[sympy.Expr], coordinates: Sequ
                 break
         A = A.col_join(G)
         b = b.col_join(g.diff(TIME))
-    for i in integrable(A[:A.rows - len(holonomic), :], b, coordinates):
+    for i in integrable(A[:A.rows - len(holonomic), :], b, coordinates, values):
         raise VelocityConstraintError(
             f"velocity constraint {i + 1} is integrable: it is the time derivative of a relation between the "
             "coordinates", "write that relation under `constraints:` (a configuration constraint) instead", i)
@@ -179,14 +229,8 @@ def velocity_transformation(constraints: Sequence[sympy.Expr], coordinates: Sequ
             "the speeds do not span the null space of the velocity constraints",
             "choose speeds that stay independent once the constraints hold (the velocity of a coordinate the "
             "constraints do not fix, say)", kind="speeds")
-    u = tuple(speeds)
-    solved = stacked.LUsolve(sympy.Matrix([-e for e in b] + list(u)))
-    solved = solved.applyfunc(lambda e: sympy.trigsimp(sympy.cancel(sympy.expand(e))))
-    C = solved.jacobian(u)
-    d = (solved - C * sympy.Matrix(u)).applyfunc(sympy.expand)
-    return VelocityTransformation(coordinates=coordinates, speeds=u, constraint_matrix=A, constraint_offset=b,
-                                  transformation=C, offset=d, kinematics=solved, holonomic=holonomic,
-                                  dependent=held)
+    return VelocityTransformation(coordinates=coordinates, speeds=tuple(speeds), constraint_matrix=A,
+                                  constraint_offset=b, speed_matrix=Y, holonomic=holonomic, dependent=held)
 
 
 def project_nonholonomic(metric: sympy.Matrix, velocity_terms: sympy.Matrix, force: sympy.Matrix,
@@ -209,31 +253,51 @@ def project_nonholonomic(metric: sympy.Matrix, velocity_terms: sympy.Matrix, for
                                   forcing=(C.T * f).applyfunc(tidy), convective=convective)
 
 
+@dataclass(frozen=True)
+class SpeedProjection:
+    """What :func:`speed_equations` projects, kept until the equations are first read."""
+
+    mass_matrix: sympy.Matrix  # M in x
+    velocity_terms: sympy.Matrix  # h in x
+    effect_forces: tuple[tuple[str, sympy.Matrix], ...]  # f of each effect in x
+    velocity: VelocityTransformation
+    tidy: str = "entry"  # of TIDY
+
+    def equations(self) -> dict:
+        """(9'), (D)-(F) in the speeds, as :func:`project_nonholonomic`, ``fbar = C^T f`` of each
+        effect apart (8'), (F), and ``T = 1/2 u^T Mbar u`` (24)."""
+        velocity, tidy = self.velocity, TIDY[self.tidy]
+        inertia = project_nonholonomic(self.mass_matrix, self.velocity_terms,
+                                       sympy.zeros(len(velocity.coordinates), 1), velocity, tidy)
+        moved = {velocity_symbol(q): velocity.kinematics[i] for i, q in enumerate(velocity.coordinates)}
+        C = velocity.transformation
+        forces = {name: (C.T * sympy.Matrix(f).xreplace(moved)).applyfunc(tidy) for name, f in self.effect_forces}
+        u = sympy.Matrix(velocity.speeds)
+        kinetic = tidy((u.T * inertia.mass_matrix * u)[0, 0] / 2)
+        return {"transformation": C, "offset": velocity.offset, "kinematics": velocity.kinematics,
+                "mass_matrix": inertia.mass_matrix, "velocity_terms": inertia.velocity_terms,
+                "effect_forces": forces, "kinetic_energy": kinetic}
+
+
 def speed_equations(system: KnownSystem, velocity: VelocityTransformation, constraint_names: Sequence[str],
                     definitions: Mapping[sympy.Symbol, sympy.Expr],
-                    tidy: Callable[[sympy.Expr], sympy.Expr] = tidy_entry) -> SpeedEquations:
+                    tidy: str = "entry") -> SpeedEquations:
     """A known system in the coordinates ``x`` (``M``, ``h``, each effect's ``f``) carried to its
     speeds by ``xdot = C u + d``: (9'), (D)-(F) as in :func:`project_nonholonomic`, ``fbar = C^T f``
     of each effect apart (8'), (F), and ``T = 1/2 u^T Mbar u`` (24): the kinetic energy, ``xdot = C u``,
-    less the motion ``d`` that constraints in time impose (as a prescribed motion's ``T``)."""
-    inertia = project_nonholonomic(system.mass_matrix, system.velocity_terms,
-                                   sympy.zeros(len(system.coordinates), 1), velocity, tidy)
-    moved = {velocity_symbol(q): velocity.kinematics[i] for i, q in enumerate(velocity.coordinates)}
-    C = velocity.transformation
-    forces = {name: (C.T * sympy.Matrix(f).xreplace(moved)).applyfunc(tidy)
-              for name, f in system.effect_forces.items()}
-    xdot = velocity.kinematics
-    u = sympy.Matrix(velocity.speeds)
-    kinetic = tidy((u.T * inertia.mass_matrix * u)[0, 0] / 2)
+    less the motion ``d`` that constraints in time impose (as a prescribed motion's ``T``), each
+    entry simplified by ``TIDY[tidy]``. The projection is made when first read
+    (:class:`SpeedProjection`); a linearisation needs none of it."""
     holonomic = tuple(Constraint(name, g) for name, g in zip(constraint_names[len(constraint_names)
                                                                               - len(velocity.holonomic):],
                                                                 velocity.holonomic))
+    source = SpeedProjection(mass_matrix=sympy.Matrix(system.mass_matrix),
+                             velocity_terms=sympy.Matrix(system.velocity_terms),
+                             effect_forces=tuple(system.effect_forces.items()), velocity=velocity, tidy=tidy)
     return SpeedEquations(speeds=velocity.speeds, definitions=tuple(definitions.items()),
                           holonomic=holonomic, dependent=velocity.dependent,
                           constraint_names=tuple(constraint_names), constraint_matrix=velocity.constraint_matrix,
-                          constraint_offset=velocity.constraint_offset, transformation=C, offset=velocity.offset,
-                          kinematics=xdot, mass_matrix=inertia.mass_matrix, velocity_terms=inertia.velocity_terms,
-                          effect_forces=forces, kinetic_energy=kinetic)
+                          constraint_offset=velocity.constraint_offset, source=source)
 
 
 def speed_rates(speeds: Sequence[sympy.Symbol], coordinates: Sequence[sympy.Symbol]) -> list[sympy.Symbol]:
@@ -335,10 +399,10 @@ def generic_rank(A: sympy.Matrix, coordinates, values=None) -> int:
 
 
 def _rank(A: sympy.Matrix, points: list[dict]) -> int:
-    return max(int(np.linalg.matrix_rank(np.array(A.subs(p).evalf(), dtype=float), tol=1e-9)) for p in points)
+    return max(int(np.linalg.matrix_rank(np.array(A.xreplace(p).evalf(), dtype=float), tol=1e-9)) for p in points)
 
 
 __all__ = ["GENERIC_POINTS", "NonholonomicProjection", "VelocityConstraintError", "VelocityTransformation",
-           "generic_rank", "integrable", "linear_form", "project_nonholonomic", "refuse_holonomic", "refuse_speeds",
-           "speed_accelerations", "speed_equations", "speed_rates", "tidy_entry", "velocity_multipliers",
-           "velocity_transformation"]
+           "SpeedProjection", "TIDY", "frame_entry", "generic_rank", "integrable", "linear_form", "project_nonholonomic",
+           "refuse_holonomic", "refuse_speeds", "speed_accelerations", "speed_equations", "speed_rates", "tidy_entry",
+           "velocity_multipliers", "velocity_transformation"]

@@ -63,6 +63,7 @@ class Part:
     assembled_potential: tuple = ()
     charges: tuple[sympy.Symbol, ...] = ()  # coordinates that are branch charges (a textbook component's `charges:`)
     effect_kinds: Mapping[str, str] = field(default_factory=dict)  # own effect -> its energy's kind (model/energy_kinds.py)
+    local_names: tuple[str, ...] = ()  # a library component's own names of its coordinates (``turn1``)
 
     @property
     def velocities(self) -> tuple[sympy.Symbol, ...]:
@@ -81,7 +82,7 @@ def part_from_component(name: str, component: Component) -> Part:
     metric = sympy.Matrix(component.metric())
     h = christoffel_terms(metric, coords, [velocity_symbol(q) for q in coords])
     return Part(name, coords, metric, h, ComponentPoints(component), tuple(component.bodies()),
-                component.dimension, type_name=component.type_name)
+                component.dimension, type_name=component.type_name, local_names=tuple(component.coordinates))
 
 
 def point_symbols(points: Mapping) -> set:

@@ -73,12 +73,4 @@ def frame_transformation(coordinates: Sequence[sympy.Symbol], speeds: Mapping[sy
                                   offset=sympy.zeros(n, 1), kinematics=solved)
 
 
-def frame_entry(e: sympy.Expr) -> sympy.Expr:
-    """An entry of ``Mbar``, ``hbar``, ``fbar`` in a frame's speeds, simplified: the sines and
-    cosines of shifted and multiple angles (Park's ``theta - 2 pi/3``, the saliency's
-    ``2 theta``) written in those of the angle, so that ``sin^2 + cos^2`` collapses and
-    Park's constant inductances show."""
-    return sympy.factor_terms(sympy.trigsimp(sympy.expand(sympy.expand_trig(sympy.expand(e)))))
-
-
-__all__ = ["frame_entry", "frame_matrix", "frame_transformation"]
+__all__ = ["frame_matrix", "frame_transformation"]

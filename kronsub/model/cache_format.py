@@ -29,6 +29,7 @@ from ..components.base import Requirement
 from ..core import canonical
 from ..core.known_system import (Constraint, ImplicitSubspace, KnownSystem, ParameterInfo, ProjectedEffect,
                                  SpeedEquations, Transition)
+from ..core.nonholonomic import SpeedProjection, VelocityTransformation
 from ..core.placed import PlacedBodies, PlacedPoints
 from ..core.sympy_internals import (assume_defined, assumptions_given, basic_new, float_new, float_parts,
                                      valid_nargs)
@@ -39,7 +40,7 @@ FORMAT = "kronsub-known-system/1"
 #: the dataclasses a cache file may hold, by name
 CLASSES = {cls.__name__: cls for cls in (KnownSystem, Transition, ParameterInfo, Body, ProjectedEffect,
                                           ImplicitSubspace, Constraint, Requirement, Location,
-                                          SpeedEquations)}
+                                          SpeedEquations, SpeedProjection, VelocityTransformation)}
 
 #: the functions an expression may apply (those of the parser, kronsub/model/expressions.py)
 FUNCTIONS = {cls.__name__: cls for cls in (

@@ -6,12 +6,15 @@ each made into velocity constraints from the body's material point at the contac
   whose rim of radius ``r`` about the body-frame ``axle`` (default its y axis) rolls without
   slipping on the ground ``z = 0``: the rim's lowest point does not move, two constraints
   ``<name>.x``, ``<name>.y`` (its height is a configuration constraint, which the connection
-  keeps: the rim must touch the ground there).
+  keeps: the rim must touch the ground there, or a configuration constraint beside it that
+  says so, ``constraints:``, as a bicycle's front wheel).
 - ``{knife_edge: B, at: [u, v], direction: [du, dv]}``: the point of planar body ``B`` at the
   body-frame offset ``at`` (default its centre) moves along the body-frame ``direction``
   (default its x axis) only, not across it: one constraint ``<name>``.
 """
 from __future__ import annotations
+
+import random
 
 import sympy
 
@@ -25,9 +28,9 @@ KEYS = {"rolls_on": ("rolls_on", "body", "radius", "axle"), "knife_edge": ("knif
 SURFACES = ("plane",)
 
 
-def read_contact(reader: ModelReader, name: str, node: Node, primitive, connection, coords):
+def read_contact(reader: ModelReader, name: str, node: Node, primitive, connection, coords, holonomic=()):
     """``[(label, expression = 0, where)]`` of the contact joint ``node`` (named ``name``), or None
-    after reporting why."""
+    after reporting why; ``holonomic`` are the configuration constraints ``g(x) = 0`` beside it."""
     kinds = [k for k in KEYS if k in node.value]
     if len(kinds) != 1:
         reader.error(node, f"velocity constraint '{name}' must be an expression or one joint: "
@@ -35,7 +38,9 @@ def read_contact(reader: ModelReader, name: str, node: Node, primitive, connecti
                      "e.g. `{knife_edge: body, at: [-a, 0]}` or `{rolls_on: plane, body: wheel, radius: r}`")
         return None
     node = reader.check_keys(node, KEYS[kinds[0]], f"velocity constraint '{name}'")
-    return (_rolls_on if kinds[0] == "rolls_on" else _knife_edge)(reader, name, node, primitive, connection, coords)
+    if kinds[0] == "rolls_on":
+        return _rolls_on(reader, name, node, primitive, connection, coords, holonomic)
+    return _knife_edge(reader, name, node, primitive, connection, coords)
 
 
 def _body(reader: ModelReader, name: str, node: Node | None, where: Node, primitive, what: str):
@@ -73,7 +78,26 @@ def _in_subspace(expr, connection):
     return sympy.sympify(expr).xreplace(connection)
 
 
-def _rolls_on(reader: ModelReader, name, node, primitive, connection, coords):
+SAME_POINTS = 3  # random points at which a rim's height is compared with a configuration constraint
+
+
+def held_by(height: sympy.Expr, holonomic, coords, values) -> bool:
+    """Whether a configuration constraint ``g = 0`` of ``holonomic`` is the rim's ``height = 0``:
+    ``height / g`` the same number, not zero, at random points of the coordinates (the
+    parameters at their ``values``)."""
+    rng = random.Random(19440101)
+    points = [{**{q: sympy.Float(rng.uniform(-0.4, 0.4)) for q in coords}, **values} for _ in range(SAME_POINTS)]
+    for g in holonomic:
+        ratios = []
+        for point in points:
+            top, bottom = complex(height.xreplace(point).evalf()), complex(sympy.sympify(g).xreplace(point).evalf())
+            ratios.append(top / bottom if bottom != 0 else float("nan"))
+        if all(abs(r - ratios[0]) <= 1e-9 * abs(ratios[0]) for r in ratios) and abs(ratios[0]) > 0:
+            return True
+    return False
+
+
+def _rolls_on(reader: ModelReader, name, node, primitive, connection, coords, holonomic=()):
     surface = node.get("rolls_on")
     if surface is None or surface.value not in SURFACES:
         reader.error(surface if surface is not None else node,
@@ -105,10 +129,12 @@ def _rolls_on(reader: ModelReader, name, node, primitive, connection, coords):
     centre = [_in_subspace(e, connection) for e in body.centre]
     offset = rim_contact(R, axle, sympy.sympify(radius), coords)
     height = reduced(centre[2] + offset[2], coords)
-    if height != 0:
+    values = {p.symbol: sympy.Float(sympy.sympify(p.value).evalf(17), 17) for p in reader.parameters.values()
+              if p.value is not None and sympy.sympify(p.value).is_number}
+    if height != 0 and not held_by(height, holonomic, coords, values):
         reader.error(bnode, f"rolling joint '{name}': the rim of '{bnode.value}' is at height {height} above the "
                      "ground, not on it", "keep it on the ground in the connection: the centre's z is "
-                     "radius times the cosine of the wheel's tilt")
+                     "radius times the cosine of the wheel's tilt, or write its height = 0 under `constraints:`")
         return None
     v = material_velocity(centre, R, offset, coords)
     where = node.location
@@ -139,4 +165,4 @@ def _knife_edge(reader: ModelReader, name, node, primitive, connection, coords):
     return [(name, reduced(d[0] * v[1] - d[1] * v[0], coords), node.location)]
 
 
-__all__ = ["KEYS", "read_contact"]
+__all__ = ["KEYS", "SAME_POINTS", "held_by", "read_contact"]

@@ -91,6 +91,8 @@ def check_generated_names(reader: ModelReader, coords, primitive: Primitive) -> 
 
 def local_names(part: Part) -> tuple[str, ...]:
     """The coordinate names of ``part`` in its component type (``theta`` of a ``pinned_rod``)."""
+    if part.local_names:
+        return part.local_names
     cls = REGISTRY.get(part.type_name)
     return cls.coordinates if cls is not None else tuple(q.name for q in part.coordinates)
 

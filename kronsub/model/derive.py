@@ -16,9 +16,8 @@ from ..collector import collector_paused
 from ..core.constraints import project_implicit
 from ..core.doubles import graph_nodes
 from ..core.known_system import KnownSystem, ProjectedEffect, Transition
-from ..core.nonholonomic import speed_equations, tidy_entry
+from ..core.nonholonomic import speed_equations
 from ..core.numeric_jacobian import jacobian
-from ..core.reference_frame import frame_entry
 from ..core.operations import count_ops
 from ..core.symbols import free_symbols_of
 from ..core.subspace import (Subspace, assemble, assembled_potentials, effect_labels, project_effects,
@@ -171,7 +170,7 @@ def _derive(model, cache: bool, effects) -> KnownSystem:
     if velocity is not None:  # xdot = C u + d: the equations in the speeds beside those in x
         system = dataclasses.replace(system, speeds=speed_equations(
             system, velocity.transformation, velocity.constraint_names, dict(velocity.definitions),
-            tidy=frame_entry if velocity.frame else tidy_entry))
+            tidy="frame" if velocity.frame else "entry"))
     if key and effects is None:
         store_cached(key, system)
     return system

@@ -64,7 +64,7 @@ def read_velocity_constraints(reader: ModelReader, node: Node, speeds_node: Node
         if not reader.identifier(key, loc, "velocity constraint"):
             continue
         if vnode.is_mapping:  # a contact joint: rolling, a knife edge
-            made = read_contact(reader, key, vnode, primitive, connection, coords)
+            made = read_contact(reader, key, vnode, primitive, connection, coords, [g for _, g in holonomic])
             for label, value, at in made or ():
                 exprs.append(value)
                 labels.append(label)

@@ -64,11 +64,12 @@ def library_component(reader: ModelReader, cname: str, spec: Node) -> Part | Non
     for ps in cls.parameters:  # defaults are library text, in the other parameters
         params[ps.name] = values[ps.name] if ps.name in values else parse_expression(ps.default, params)
     reader.requirements += component_requirements(cname, cls(p=params), spec.get("parameters"))
+    choices = component_choices(reader, cname, cls, spec)
+    cls = cls.chosen(choices) if choices is not None else cls  # an option may set the coordinates
     names = coordinate_names(reader, cname, spec.get("coordinates"), cls.coordinates, f"{cname}_{{}}")
     if names is None:
         return None
     extra = body_points(reader, cname, cls, spec.get("points"), params)
-    choices = component_choices(reader, cname, cls, spec)
     if extra is None or choices is None:
         return None
     if spec.get("pivot") is not None:
@@ -85,7 +86,12 @@ def component_choices(reader: ModelReader, cname: str, cls, spec: Node) -> dict[
         node = spec.get(option.name)
         if node is None:
             continue
-        if not isinstance(node.value, str) or node.value not in option.values:
+        if option.letters and not option.allows(node.value):
+            reader.error(node, f"`{option.name}:` of component '{cname}' ({cls.type_name}) must be a word of "
+                         f"1 to {option.longest} of the letters {', '.join(option.letters)}, found "
+                         f"{node_kind(node)}", f"{option.description}, e.g. `{option.name}: {option.values[0]}`")
+            return None
+        if not option.allows(node.value):
             reader.error(node, f"`{option.name}:` of component '{cname}' ({cls.type_name}) must be one of "
                          f"{', '.join(option.values)}, found {node_kind(node)}",
                          f"{option.description}; " + close_matches(str(node.value), option.values))
