@@ -15,7 +15,7 @@ from collections.abc import Mapping, Sequence
 
 import sympy
 
-from .nonholonomic import VelocityConstraintError, VelocityTransformation, generic_rank, tidy_entry
+from .nonholonomic import VelocityConstraintError, VelocityTransformation, generic_rank
 from .symbols import velocity_symbol
 
 
@@ -65,12 +65,7 @@ def frame_transformation(coordinates: Sequence[sympy.Symbol], speeds: Mapping[sy
                 "the velocities",
                 "define independent speeds (Y(x) invertible), e.g. the velocity of a coordinate no other speed "
                 "names", k, kind="speeds")
-    u = tuple(speeds)
-    solved = Y.LUsolve(sympy.Matrix(u)).applyfunc(tidy_entry)
-    C = solved.jacobian(u)
-    return VelocityTransformation(coordinates=coordinates, speeds=u, constraint_matrix=sympy.zeros(0, n),
-                                  constraint_offset=sympy.zeros(0, 1), transformation=C,
-                                  offset=sympy.zeros(n, 1), kinematics=solved)
-
+    return VelocityTransformation(coordinates=coordinates, speeds=tuple(speeds), constraint_matrix=sympy.zeros(0, n),
+                                  constraint_offset=sympy.zeros(0, 1), speed_matrix=Y)
 
 __all__ = ["frame_matrix", "frame_transformation"]

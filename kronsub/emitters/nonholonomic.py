@@ -6,8 +6,7 @@ from __future__ import annotations
 import sympy
 
 from ..core.known_system import KnownSystem, SpeedEquations
-from ..core.nonholonomic import speed_rates
-from ..core.reference_frame import frame_entry
+from ..core.nonholonomic import frame_entry, speed_rates
 from ..core.simplify import tidy
 from ..core.symbols import velocity_symbol
 from .report import Printer, matrix_rows
