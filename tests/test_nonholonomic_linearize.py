@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 import sympy
 
+from helpers.compare import same_roots
 from kronsub.core.linearize_numerics import LinearizationError
 from kronsub.core.nonholonomic_linearize import (ConstrainedMotion, ProjectedMetric, SteadyMotionRates,
                                                  linearize_steady_motion)
@@ -19,16 +20,6 @@ from reference.rolling import NAMES, KaneDisc
 
 m, g, r = (symbol(n) for n in ("m", "g", "r"))
 VALUES = {m: 1.3, g: 9.81, r: 0.3}
-
-
-def _same_roots(ours, theirs, tol: float) -> bool:
-    """The two lists of eigenvalues equal to ``tol``, each matched to its nearest."""
-    left = list(theirs)
-    for e in ours:
-        k = int(np.argmin([abs(e - t) for t in left]))
-        if abs(e - left.pop(k)) > tol:
-            return False
-    return not left
 
 
 def _disc(projected: bool = True) -> ConstrainedMotion:
@@ -62,7 +53,7 @@ def test_upright_rolling_against_the_closed_form_and_the_critical_spin():
         lin = rates.linearize({spin_rate: spin}, keep=(lean,))
         assert lin.equilibrium and lin.state == (lean, *motion.speeds)
         root = np.sqrt(complex(0.8 * (gr - 3 * spin**2)))
-        assert _same_roots(lin.eigenvalues, [0, 0, root, -root], 1e-10)
+        assert same_roots(lin.eigenvalues, [0, 0, root, -root], 1e-10)
         unstable = max(e.real for e in lin.eigenvalues) > 1e-8
         assert unstable == (spin < critical)
         assert rates.linearize({spin_rate: spin}).state == lin.state  # yaw, spin, x, y found ignorable

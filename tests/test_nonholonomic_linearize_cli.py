@@ -16,6 +16,7 @@ import pytest
 from click.testing import CliRunner
 
 import kronsub
+from helpers.compare import same_roots
 from kronsub.cli import main
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -42,15 +43,6 @@ def _closed_form(spin, r, g):
     return [root, -root, 0, 0]
 
 
-def _same_roots(ours, theirs, tol):
-    left = list(theirs)
-    for e in ours:
-        k = int(np.argmin([abs(e - t) for t in left]))
-        if abs(e - left.pop(k)) > tol:
-            return False
-    return not left
-
-
 @pytest.mark.parametrize("spin, r, g", [(1.0, 0.3, 9.81), (3.0, 0.3, 9.81), (6.0, 0.3, 9.81), (4.0, 0.5, 1.62)])
 def test_upright_rolling_disc_eigenvalues_are_the_closed_form(spin, r, g):
     data = _upright(spin, r, g)
@@ -58,7 +50,7 @@ def test_upright_rolling_disc_eigenvalues_are_the_closed_form(spin, r, g):
     assert data["equilibrium"] is True and data["notes"] == []
     assert data["form"].startswith("d/dt [x; w]")
     ours = [complex(e["re"], e["im"]) for e in data["eigenvalues"]]
-    assert _same_roots(ours, _closed_form(spin, r, g), 1e-9 * (1 + spin ** 2))
+    assert same_roots(ours, _closed_form(spin, r, g), 1e-9 * (1 + spin ** 2))
     A = np.array(data["A"])
     assert A[0].tolist() == [0, 0, 1, 0]  # d/dt lean = lean_dot: the kinematic row
 

@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 from scipy.optimize import brentq
 
+from helpers.compare import same_roots
 from kronsub.core.symbols import symbol
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -26,15 +27,6 @@ STEER_SIGN = np.diag([1.0, -1.0, 1.0, -1.0])  # our steer turns left, the paper'
 def rates():
     """The real route: the bodies and constraints built, their rates compiled (a few seconds)."""
     return bicycle.rates_of()
-
-
-def _same_roots(ours, theirs, tol):
-    left = list(theirs)
-    for e in ours:
-        k = int(np.argmin([abs(e - t) for t in left]))
-        if abs(e - left.pop(k)) > tol:
-            return False
-    return not left
 
 
 def _lateral(lin):
@@ -61,10 +53,10 @@ def test_eigenvalues_of_table_2(rates):
             rates.speeds)
         assert lin.dependent == ((symbol("pitch"), 0.0),)  # the paper's reference configuration
         expected = [complex(re, im) for re, im in published]
-        assert _same_roots(np.linalg.eigvals(_lateral(lin)), expected, 1e-10), speed
-        assert _same_roots(lin.eigenvalues, expected + [0.0], 1e-10), speed
+        assert same_roots(np.linalg.eigvals(_lateral(lin)), expected, 1e-10), speed
+        assert same_roots(lin.eigenvalues, expected + [0.0], 1e-10), speed
         # the paper's own matrices give the table too (an independent reading of it)
-        assert _same_roots(np.linalg.eigvals(_canonical(float(speed))), expected, 1e-10), speed
+        assert same_roots(np.linalg.eigvals(_canonical(float(speed))), expected, 1e-10), speed
 
 
 def test_linearised_matrix_is_the_canonical_form(rates):

@@ -9,25 +9,16 @@ checked on the bicycle built in Python (tests/test_whipple_bicycle.py)."""
 import json
 from pathlib import Path
 
-import numpy as np
 import pytest
 
 import kronsub
+from helpers.compare import same_roots
 from kronsub.budget import limited
 
 ROOT = Path(__file__).resolve().parents[1]
 BICYCLE = ROOT / "models" / "benchmarks" / "whipple_bicycle.yaml"
 PUBLISHED = json.loads((ROOT / "tests" / "data" / "whipple_benchmark.json").read_text())
 RR = 0.3  # the rear wheel's radius of Table 1, as in the model file
-
-
-def _same_roots(ours, theirs, tol):
-    left = list(theirs)
-    for e in ours:
-        k = int(np.argmin([abs(e - t) for t in left]))
-        if abs(e - left.pop(k)) > tol:
-            return False
-    return not left
 
 
 BUDGET = 2_000_000_000  # work units: the bicycle's symbolic projection is beyond the default budget
@@ -46,4 +37,4 @@ def test_eigenvalues_of_table_2_from_the_model_file(bicycle, speed):
     assert lin.equilibrium and [q.name for q, _ in lin.dependent] == ["pitch"]
     assert abs(lin.dependent[0][1]) < 1e-12  # the paper's reference configuration
     expected = [complex(re, im) for re, im in PUBLISHED["eigenvalues"][speed]]
-    assert _same_roots(lin.eigenvalues, expected + [0.0], 1e-10), (speed, lin.eigenvalues)
+    assert same_roots(lin.eigenvalues, expected + [0.0], 1e-10), (speed, lin.eigenvalues)

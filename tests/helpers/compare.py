@@ -118,3 +118,13 @@ def compare_energies(system, T, V, seed, *, spread=3.0, jitter=0.3, states=6, fi
     """Largest relative difference of kronsub's ``T`` (from ``Mbar``) and ``V`` from the hand ones."""
     return largest_difference(system, [system.kinetic_energy, system.potential_energy], [sp.sympify(T), sp.sympify(V)],
                               seed, spread=spread, jitter=jitter, states=states, fixed=fixed)
+
+
+def same_roots(ours, theirs, tol: float) -> bool:
+    """The two lists of eigenvalues equal to ``tol``, each matched to its nearest."""
+    left = list(theirs)
+    for e in ours:
+        k = int(np.argmin([abs(e - t) for t in left]))
+        if abs(e - left.pop(k)) > tol:
+            return False
+    return not left
