@@ -80,3 +80,20 @@ def test_a_check_against_a_kept_output(tmp_path, loaded):
     out.write_text(out.read_text() + "\n")
     checked = cli("derive", SYSTEM1, "--check", out, cache=cache)
     assert checked.exit_code == 1 and "differs" in checked.output and len(loaded) == 2
+
+
+@pytest.mark.parametrize("command", [["derive"], ["codegen", "--output"], ["simulate", "--t", "0.01"]])
+def test_a_command_that_warned_warns_again(command, tmp_path):
+    """A derived run that said a warning (here a voltage added to a force) is not kept: the same
+    command again derives again and says it again."""
+    text = (MODELS / "electrical" / "series_rlc.yaml").read_text()
+    text = text.replace("E: {value: 10, unit: V, description: source voltage switched on at t = 0}",
+                        "E: {value: 10, unit: V}\n  F: {value: 1, unit: N}")
+    model = tmp_path / "warned.yaml"
+    model.write_text(text.replace("voltage: E}", "voltage: E - F}"))
+    cache = tmp_path / "cache"
+    for _ in range(2):
+        result = cli(command[0], model, *command[1:], *([tmp_path / "code"] if command[0] == "codegen" else []),
+                     cache=cache)
+        assert result.exit_code == 0, result.output
+        assert "Warning: " in result.output and "the units do not match" in result.output

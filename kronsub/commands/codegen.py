@@ -7,8 +7,8 @@ import click
 
 from ..atomic import write_atomically
 from ..model import kept
-from .common import (USAGE_ERROR, budget_option, budget_units, fail, run_command, say, scene_option, scene_system,
-                     separate_outputs)
+from .common import (USAGE_ERROR, budget_option, budget_units, fail, run_command, said_advice, say, scene_option,
+                     scene_system, separate_outputs)
 
 
 @click.command()
@@ -61,7 +61,7 @@ def codegen(model: Path, lang: str, outdir: Path, name: str | None, prefix: str,
             loaded, scene, system = scene_system(model, scene_name)
             files = code_files(System.of(system, loaded, scene), stem, lang, prefix=prefix, precision=precision,
                                source=model.as_posix(), jacobian=with_jacobian)
-            if key is not None and loaded.source is not None:
+            if key is not None and not said_advice() and loaded.source is not None:
                 kept.record(key, {"files": [list(f) for f in files]}, (loaded.source, *loaded.uses))
         separate_outputs(model, *((f"--output {outdir} --name {stem}", outdir / n, "generated") for n, _ in files))
         for file_name, text in files:

@@ -27,10 +27,10 @@ from ..version import __version__
 
 __all__ = ["DEBUG_ENV", "EXIT_CODES", "FILE", "HANGUP", "INPUT_ERROR", "INTERNAL_ERROR", "INTERRUPTED",
            "NUMERICAL_FAILURE", "OK", "OUTPUT_HELP", "SCENE_HELP", "SET_HELP", "T_END", "TERMINATED", "USAGE_ERROR",
-           "budget_option", "budget_units", "check_times", "coincident_at_start", "coincident_ends", "default_sidecar",
-           "emit_text", "fail", "interrupted_by", "meta_option", "note_choice", "note_safely", "output_option",
-           "plot_option", "run_command", "say", "scene_option", "scene_system", "separate_outputs", "set_option",
-           "writable", "writable_outputs"]
+           "budget_option", "budget_units", "check_times", "coincident_at_start", "coincident_ends",
+           "default_sidecar", "emit_text", "fail", "interrupted_by", "meta_option", "note_choice", "note_safely",
+           "output_option", "plot_option", "run_command", "said_advice", "say", "scene_option", "scene_system",
+           "separate_outputs", "set_option", "writable", "writable_outputs"]
 
 OK, INPUT_ERROR, USAGE_ERROR, NUMERICAL_FAILURE, INTERNAL_ERROR, INTERRUPTED = 0, 1, 2, 3, 4, 130
 HANGUP, TERMINATED = 129, 143  # 128 + SIGHUP, 128 + SIGTERM (kronsub/interrupts.py)
@@ -109,13 +109,24 @@ def separate_outputs(model: Path | None, *outputs: tuple[str, Path | None, str])
         seen.append((flag, path, what))
 
 
+_ADVICE = [0]  # warnings and notes said since the command began (see :func:`said_advice`)
+
+
 def say(message: str, err: bool = True) -> None:
     """A message for the terminal (standard error unless ``err`` is false), through
     :func:`~.emitters.escape.terminal_text`: whatever a model, a path or an exception put in it,
     no control or direction character reaches the terminal."""
     from ..emitters.escape import terminal_text  # not at import: the emitters bring sympy
 
+    if message.startswith(("Warning:", "note:")):
+        _ADVICE[0] += 1
     click.echo(terminal_text(message), err=err)
+
+
+def said_advice() -> bool:
+    """Whether this command has said a warning or a note: its outputs are then not kept
+    (:mod:`kronsub.model.kept`), since the same command again, served from them, would not say it."""
+    return _ADVICE[0] > 0
 
 
 def fail(message: str, code: int = INPUT_ERROR) -> None:
@@ -141,6 +152,7 @@ def run_command(job):
     """Run a command body, turning known errors into messages and exit codes; its work is
     bounded by the command's ``--budget`` (`kronsub.budget`)."""
     warnings.showwarning = _show_warning
+    _ADVICE[0] = 0
     context = click.get_current_context(silent=True)
     units = context.meta.get(_BUDGET_KEY) if context is not None else None
     try:

@@ -10,7 +10,7 @@ from click.core import ParameterSource
 from ..model import kept
 from ..model.file_reading import read_user_text
 from .common import (USAGE_ERROR, budget_option, budget_units, emit_text, fail, note_choice, output_option,
-                     run_command, say, scene_option, scene_system, separate_outputs)
+                     run_command, said_advice, say, scene_option, scene_system, separate_outputs)
 
 
 @click.command()
@@ -74,8 +74,7 @@ def _derived_text(model: Path, fmt: str, scene_name: str | None, no_cache: bool,
     text = EMITTERS[fmt](system)
     if with_reactions:
         text = add_reactions(text, system, fmt)
-    quiet = system.implicit is None or system.implicit.choice != "auto"  # (note_choice said nothing)
-    if key is not None and quiet and loaded.source is not None:
+    if key is not None and not said_advice() and loaded.source is not None:  # (note_choice's note too)
         kept.record(key, {"text": text}, (loaded.source, *loaded.uses))
     return text
 

@@ -14,8 +14,8 @@ from ..simulation.methods import SIMULATE
 from ..simulation.methods import help_text as method_help
 from .common import (INTERRUPTED, NUMERICAL_FAILURE, T_END, USAGE_ERROR, budget_option, budget_units, check_times,
                      coincident_ends, default_sidecar, fail, interrupted_by, meta_option, note_choice, note_safely,
-                     output_option, plot_option, run_command, say, scene_option, scene_system, separate_outputs,
-                     set_option, writable, writable_outputs)
+                     output_option, plot_option, run_command, said_advice, say, scene_option, scene_system,
+                     separate_outputs, set_option, writable, writable_outputs)
 
 __all__ = ["simulate"]
 
@@ -221,7 +221,7 @@ def _simulate(model: Path, t_end: float | None, dt: float | None, method: str | 
         fail(f"Error: {at}the run stopped at t = {run.t_fail:.6g}: {message}; "
               f"{_kept(writer.rows)} in {where}{marked}"
               + hint + _constraint_hints(system, run, step), NUMERICAL_FAILURE)
-    if key is not None and kept is None and isinstance(writer, CsvWriter) and writer.plain:
+    if key is not None and kept is None and isinstance(writer, CsvWriter) and writer.plain and not said_advice():
         _record(key, loaded, system, run, values, writer, span, step, rtol, atol)
 
 
