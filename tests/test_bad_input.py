@@ -638,7 +638,7 @@ def test_one_typo_gives_one_error(tmp_path):
     assert result.exit_code == 1
     errors = [line for line in result.output.splitlines() if line.startswith("Error:")]
     assert len(errors) == 1 and "unknown component type 'pined_rod'" in errors[0], result.output
-    assert "did you mean 'pinned_rod'?" in result.output
+    assert "did you mean 'pinned_rod'" in result.output  # (the nearest first)
 
 
 def test_an_effect_in_a_generalized_coordinate_is_applied_in_the_subspace(tmp_path):

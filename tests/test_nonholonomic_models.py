@@ -21,7 +21,7 @@ from kronsub.core.nonholonomic import speed_rates, velocity_multipliers
 from kronsub.core.symbols import symbol
 from kronsub.emitters.escape import environment
 from kronsub.model.loader import load_model
-from tests.reference.nonholonomic import differential_drive_residual, kane_rates, rolling_disc_kane
+from reference.nonholonomic import differential_drive_residual, kane_rates, rolling_disc_kane
 
 ROOT = Path(__file__).resolve().parent.parent
 MODELS = ROOT / "models" / "nonholonomic"

@@ -15,7 +15,7 @@ import kronsub
 import kronsub.emitters.code as code
 from kronsub.cli import main
 from kronsub.emitters.escape import environment
-from tests.reference.nonholonomic import rolling_disc_kane
+from reference.nonholonomic import rolling_disc_kane
 
 ROOT = Path(__file__).resolve().parent.parent
 MODELS = ROOT / "models" / "nonholonomic"
