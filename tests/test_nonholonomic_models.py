@@ -16,6 +16,7 @@ from click.testing import CliRunner
 from scipy.integrate import solve_ivp
 
 import kronsub.emitters.text as text_emitters
+from helpers.located import line_column, refused
 from kronsub.cli import main
 from kronsub.core.nonholonomic import speed_rates, velocity_multipliers
 from kronsub.core.symbols import symbol
@@ -206,15 +207,9 @@ BAD = [
 @pytest.mark.parametrize("extra, _, message, hint, at", BAD)
 def test_bad_velocity_constraints_are_located(tmp_path, extra, _, message, hint, at):
     text = HEAD + extra
-    path = tmp_path / "model.yaml"
-    path.write_text(text, encoding="utf-8")
-    result = CliRunner().invoke(main, ["derive", str(path), "--no-cache"])
-    out = result.output
-    assert result.exit_code == 1, out
-    assert "Traceback" not in out
+    path, out = refused(tmp_path, text)
     index = len(HEAD) + extra.index(at)  # the first place `at` is written in the section
-    line = text.count("\n", 0, index) + 1
-    column = index - (text.rfind("\n", 0, index) + 1) + 1
+    line, column = line_column(text, index)
     assert f"Error: {path}:{line}:{column}: {message}" in out
     hint_line = out.split(f"{message}", 1)[1].split("\n")[1]
     assert hint_line.startswith("  hint: ") and hint in hint_line
@@ -283,15 +278,9 @@ BAD_JOINTS = [
 def test_bad_contact_joints_are_located(tmp_path, height, extra, at, message, hint):
     head = DISC.replace("HEIGHT", height)
     text = head + extra
-    path = tmp_path / "model.yaml"
-    path.write_text(text, encoding="utf-8")
-    result = CliRunner().invoke(main, ["derive", str(path), "--no-cache"])
-    out = result.output
-    assert result.exit_code == 1, out
-    assert "Traceback" not in out
+    path, out = refused(tmp_path, text)
     index = len(head) + extra.index(at)
-    line = text.count("\n", 0, index) + 1
-    column = index - (text.rfind("\n", 0, index) + 1) + 1
+    line, column = line_column(text, index)
     assert f"Error: {path}:{line}:{column}: {message}" in out
     assert hint in out.split(message, 1)[1].split("\n")[1]
 

@@ -14,6 +14,7 @@ from click.testing import CliRunner
 
 import kronsub
 from helpers.circuits import CIRCUITS, simulated
+from helpers.located import line_column, refused
 from kronsub.cli import main
 from kronsub.emitters.text import emit_json
 
@@ -172,15 +173,9 @@ BAD = [
 @pytest.mark.parametrize("extra, message, hint, at", BAD)
 def test_bad_frames_are_located(tmp_path, extra, message, hint, at):
     text = BODY + extra
-    path = tmp_path / "model.yaml"
-    path.write_text(text, encoding="utf-8")
-    result = CliRunner().invoke(main, ["derive", str(path), "--no-cache"])
-    out = result.output
-    assert result.exit_code == 1, out
-    assert "Traceback" not in out
+    path, out = refused(tmp_path, text)
     index = len(BODY) + extra.index(at)
-    line = text.count("\n", 0, index) + 1
-    column = index - (text.rfind("\n", 0, index) + 1) + 1
+    line, column = line_column(text, index)
     assert f"Error: {path}:{line}:{column}: {message}" in out
     hint_line = out.split(message, 1)[1].split("\n")[1]
     assert hint_line.startswith("  hint: ") and hint in hint_line
