@@ -31,6 +31,7 @@ import stat
 import tempfile
 import warnings
 from dataclasses import dataclass, field
+from importlib import resources
 from pathlib import Path
 
 from .atomic import clean_stale
@@ -154,17 +155,27 @@ def usable_cache_dir() -> Path | None:
 
 
 def code_fingerprint() -> str:
-    """A hash of kronsub's own source and version, part of every key derived from a model, so a
+    """A hash of kronsub's own source (its Python, its C and its templates, which may be
+    installed apart from the package) and version, part of every key derived from a model, so a
     changed kronsub never reads a stale entry."""
     global _FINGERPRINT
     if _FINGERPRINT is None:
         digest = hashlib.sha256(__version__.encode())
         package = Path(__file__).resolve().parent
-        for path in sorted(package.rglob("*.py")):
+        sources = [path for path in package.rglob("*") if path.suffix in SOURCE_SUFFIXES and path.is_file()]
+        for path in sorted(sources):
             digest.update(str(path.relative_to(package)).encode())
             digest.update(path.read_bytes())
+        templates = resources.files("kronsub.templates")
+        for item in sorted((t for t in templates.iterdir() if t.name.endswith(".j2")), key=lambda t: t.name):
+            digest.update(f"templates/{item.name}".encode())
+            digest.update(item.read_bytes())
         _FINGERPRINT = digest.hexdigest()
     return _FINGERPRINT
+
+
+SOURCE_SUFFIXES = (".py", ".c", ".h", ".j2")
+"""What counts as kronsub's source in :func:`code_fingerprint`."""
 
 
 _FINGERPRINT: str | None = None

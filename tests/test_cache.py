@@ -11,6 +11,7 @@ import subprocess
 import sys
 import warnings
 from collections.abc import Mapping, Sequence
+from importlib import resources
 from pathlib import Path
 
 import numpy as np
@@ -19,6 +20,7 @@ import sympy
 from click.testing import CliRunner
 
 from conftest import MODELS, ROOT, SLOW_MODELS
+import kronsub.cache as cache_module
 from kronsub.cache import CacheWarning
 from kronsub.cli import main
 from kronsub.components.base import Body
@@ -775,3 +777,26 @@ def test_a_cache_cleared_again_and_again_still_gets_the_model_built(cache, monke
         model = compiled.native_model(load_model(SYSTEM1).derive())
     assert cache not in model.path.parents and model.path.is_file()
     assert not [w for w in caught if "compiler" in str(w.message)]
+
+
+def test_a_changed_template_changes_every_key(monkeypatch, tmp_path):
+    """The templates may be installed apart from the package (``kronsub.templates``): a changed
+    one must change the keys of the derivation cache, the kept outputs and the compiled models,
+    or a library emitted from the old template would be loaded for the new one."""
+    real = resources.files("kronsub.templates")
+    copy = tmp_path / "templates"
+    copy.mkdir()
+    for item in real.iterdir():
+        if item.name.endswith(".j2"):
+            (copy / item.name).write_bytes(item.read_bytes())
+    monkeypatch.setattr(cache_module, "_FINGERPRINT", None)
+    monkeypatch.setattr(cache_module.resources, "files", lambda name: copy)
+    same = cache_module.code_fingerprint()
+    monkeypatch.setattr(cache_module, "_FINGERPRINT", None)
+    (copy / "model.c.j2").write_text((copy / "model.c.j2").read_text() + "\n/* changed */\n")
+    changed = cache_module.code_fingerprint()
+    monkeypatch.setattr(cache_module, "_FINGERPRINT", None)
+    assert same != changed
+    monkeypatch.undo()
+    monkeypatch.setattr(cache_module, "_FINGERPRINT", None)
+    assert cache_module.code_fingerprint() == same
