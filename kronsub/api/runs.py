@@ -16,7 +16,6 @@ from typing import Callable, Mapping
 import numpy as np
 
 from ..core.known_system import KnownSystem
-from ..core.nonholonomic import refuse_holonomic
 from ..errors import ModelError, Problem
 from ..model.scenes import scene_system
 from ..simulation.span import ANIMATION_DEFAULTS, run_span
@@ -149,7 +148,6 @@ def simulate(system: KnownSystem, t: float | None = None, dt: float | None = Non
     from ..simulation.reactions import reaction_columns
     from ..simulation.table import energies, trajectory_table
 
-    refuse_holonomic(system, "simulate")
     scene = scene_of(system)
     t, dt, method = run_span(system, t, dt, method)
     outputs = scene.outputs if scene is not None else None
