@@ -32,6 +32,38 @@ def rolling_disc_kane(m, g, r):
     return q, u, kane, [position.dot(N.x), position.dot(N.y), position.dot(N.z)]
 
 
+def rolling_disc_height_kane(m, g, r):
+    """The disc of :func:`rolling_disc_kane` with its centre's height a coordinate ``z`` held by the
+    configuration constraint ``z - r cos(lean) = 0``: q = (yaw, lean, spin, x, y, z), u = qdot,
+    the rates of yaw, lean and spin independent; the three components of the contact point's
+    velocity are the velocity constraints (the vertical one is the configuration constraint's
+    rate). Returns ``(q, u, kane, dependent)``, ``dependent`` the speeds of x, y, z as
+    expressions of q and the independent speeds."""
+    q = me.dynamicsymbols("yaw lean spin x y z")
+    u = me.dynamicsymbols("u_yaw u_lean u_spin u_x u_y u_z")
+    N = me.ReferenceFrame("N")
+    Y = N.orientnew("Y", "Axis", [q[0], N.z])
+    L = Y.orientnew("L", "Axis", [q[1], Y.x])
+    R = L.orientnew("R", "Axis", [q[2], L.y])
+    R.set_ang_vel(N, u[0] * N.z + u[1] * L.x + u[2] * L.y)
+    O = me.Point("O")
+    O.set_vel(N, 0)
+    below = O.locatenew("B", q[3] * N.x + q[4] * N.y + (q[5] - r * sympy.cos(q[1])) * N.z)
+    centre = below.locatenew("G", r * L.z)  # on the constraint, `below` is the contact point
+    position = centre.pos_from(O)
+    centre.set_vel(N, position.dt(N).subs({qi.diff(): ui for qi, ui in zip(q, u)}))
+    point = centre.locatenew("P", -r * L.z)
+    slip = centre.vel(N) + R.ang_vel_in(N).cross(point.pos_from(centre))
+    constraints = [slip.dot(N.x), slip.dot(N.y), slip.dot(N.z)]
+    disc = me.RigidBody("disc", centre, R, m, (me.inertia(L, m * r**2 / 4, m * r**2 / 2, m * r**2 / 4), centre))
+    kane = me.KanesMethod(N, q_ind=q[:5], u_ind=u[:3], kd_eqs=[qi.diff() - ui for qi, ui in zip(q, u)],
+                          q_dependent=q[5:], configuration_constraints=[q[5] - r * sympy.cos(q[1])],
+                          u_dependent=u[3:], velocity_constraints=constraints)
+    kane.kanes_equations([disc], [(centre, -m * g * N.z)])
+    solved = sympy.solve(constraints, u[3:], dict=True)[0]
+    return q, u, kane, [solved[v] for v in u[3:]]
+
+
 def kane_rates(kane, q, u, q_values, u_values, values) -> np.ndarray:
     """``udot`` of the independent speeds then the dependent ones, at a state."""
     at = {**dict(zip(q, q_values)), **dict(zip(u, u_values)), **values}

@@ -1,0 +1,118 @@
+"""Runs of a system with configuration constraints beside velocity constraints (core/held.py,
+simulation/held.py, the generated `hold`): tests/models/nonholonomic/rolling_disc_height.yaml,
+the rolling disc with its centre's height a coordinate z held by ``z - r cos(lean) = 0``.
+
+- The generated right-hand side (C and numpy) against sympy's KanesMethod with the same
+  configuration constraint and the contact's three slip components as velocity constraints, at
+  random states; with z put off the constraint, the right-hand side solves it back (Newton's
+  method) and gives the rates of the state on it.
+- A run: the energy kept, ``z - r cos(lean)`` zero to Newton's tolerance at every row even with
+  a loose integrator tolerance, the velocity constraints (written here as rolling without slip)
+  met by the rates at every row, and the same motion as the disc held by its connection
+  (models/nonholonomic/rolling_disc.yaml).
+"""
+from pathlib import Path
+
+import jinja2
+import numpy as np
+import pytest
+import sympy
+
+import kronsub
+import kronsub.emitters.code as code
+from kronsub.emitters.escape import environment
+from kronsub.simulation.fallback import numpy_module
+from reference.nonholonomic import kane_rates, rolling_disc_height_kane
+
+ROOT = Path(__file__).resolve().parent.parent
+HEIGHT = ROOT / "tests" / "models" / "nonholonomic" / "rolling_disc_height.yaml"
+DISC = ROOT / "models" / "nonholonomic" / "rolling_disc.yaml"
+VALUES = {"m": 1.0, "r": 0.3, "g": 9.81}
+
+
+@pytest.fixture(autouse=True)
+def _worktree_templates(monkeypatch):
+    """The templates of this checkout (an editable install may map kronsub.templates elsewhere)."""
+    monkeypatch.setattr(code, "template_environment",
+                        lambda: environment(jinja2.FileSystemLoader(str(ROOT / "templates"))))
+
+
+@pytest.fixture(scope="module")
+def system():
+    return kronsub.load(HEIGHT).derive(cache=False)
+
+
+@pytest.fixture(scope="module")
+def kane():
+    m, g, r = (sympy.Symbol(n, real=True) for n in ("m", "g", "r"))
+    q, u, method, dependent = rolling_disc_height_kane(m, g, r)
+    values = {m: VALUES["m"], g: VALUES["g"], r: VALUES["r"]}
+    return q, u, method, [e.xreplace(values) for e in dependent], values
+
+
+def _kane_state(kane, yaw, lean, spin, x, y, rates):
+    """Kane's q and u (dependent speeds from its velocity constraints) on the constraint."""
+    q, u, _, dependent, values = kane
+    qv = [yaw, lean, spin, x, y, VALUES["r"] * np.cos(lean)]
+    at = {**dict(zip(q, qv)), **dict(zip(u[:3], rates))}
+    return qv, [*rates, *(float(e.xreplace(at)) for e in dependent)]
+
+
+def test_rates_against_kanes_method_at_random_states(system, kane):
+    """udot and xdot of the compiled C and of the numpy module equal Kane's; z off the
+    constraint is solved back first."""
+    q, u, method, _, values = kane
+    numeric = system.numeric()
+    assert numeric.backend == "C" and numeric.state == ("yaw", "spin", "x", "y", "lean", "z", "yaw_dot", "lean_dot",
+                                                        "spin_dot")
+    module = numpy_module(system)
+    param = [numeric.parameters[p.name] for p in system.parameters]
+    rng = np.random.default_rng(37)
+    for _ in range(4):
+        yaw, lean, spin, x, y = rng.uniform(-1.2, 1.2, 5)
+        rates = rng.uniform(-3, 3, 3)
+        qv, uv = _kane_state(kane, yaw, lean, spin, x, y, rates)
+        expected = kane_rates(method, q, u, qv, uv, values)[:3]
+        xdot = [uv[0], uv[2], uv[3], uv[4], uv[1], uv[5]]  # kronsub's order: yaw, spin, x, y, lean, z
+        for off in (0.0, 1e-3):
+            state = np.array([yaw, spin, x, y, lean, qv[5] + off, *rates])
+            for rhs in (numeric.rhs(0.0, state), np.asarray(module["rhs"](0.0, state, param))):
+                assert np.allclose(rhs[6:], expected, rtol=1e-11, atol=1e-11)
+                assert np.allclose(rhs[:6], xdot, rtol=1e-12, atol=1e-12)
+
+
+def test_a_run_keeps_energy_and_both_kinds_of_constraint(system):
+    r = VALUES["r"]
+    for tol in (1e-11, 1e-5):
+        run = system.simulate(t=4.0, dt=0.05, rtol=tol, atol=tol, dataframe=False)
+        assert run.complete
+        yaw, spin, lean, z = (run.y[:, run.columns.index(n)] for n in ("yaw", "spin", "lean", "z"))
+        # the configuration constraint at every row, whatever the integrator's tolerance
+        assert np.max(np.abs(z - r * np.cos(lean))) < 1e-13
+        energy = run.kinetic_energy + run.potential_energy
+        drift = np.max(np.abs(energy - energy[0])) / abs(energy[0])
+        assert drift < (1e-9 if tol < 1e-8 else 1e-2)
+    numeric = system.numeric()
+    for row in run.y:
+        xdot = numeric.rhs(0.0, row)[:6]
+        yaw, lean, spin_dot, lean_dot = row[0], row[4], row[8], row[7]
+        rolling = [xdot[2] - r * np.cos(yaw) * spin_dot, xdot[3] - r * np.sin(yaw) * spin_dot,
+                   xdot[5] + r * np.sin(lean) * lean_dot]
+        assert np.max(np.abs(rolling)) < 1e-12
+        assert xdot[1] == spin_dot and xdot[4] == lean_dot
+
+
+def test_the_same_motion_as_the_disc_held_by_its_connection(system):
+    ours = system.simulate(t=3.0, dt=0.5, rtol=1e-12, atol=1e-12, dataframe=False)
+    theirs = kronsub.load(DISC).derive().simulate(t=3.0, dt=0.5, rtol=1e-12, atol=1e-12, dataframe=False,
+                                                   set={"lean": 0.1, "yaw_dot": 0.5, "spin_dot": 8, "lean_dot": 0})
+    for name in ("yaw", "lean", "spin", "x", "y", "yaw_dot", "lean_dot", "spin_dot"):
+        a, b = ours.y[:, ours.columns.index(name)], theirs.y[:, theirs.columns.index(name)]
+        assert np.allclose(a, b, rtol=1e-8, atol=1e-8), name
+
+
+def test_the_start_is_put_on_the_constraint(system):
+    run = system.simulate(t=0.1, dt=0.1, set={"z": 0.25, "lean": 0.3}, dataframe=False)
+    z = run.y[0, run.columns.index("z")]
+    assert z == pytest.approx(VALUES["r"] * np.cos(0.3), abs=1e-15)
+    assert any(note.startswith("z 0.25 -> ") for note in run.notes)
