@@ -116,3 +116,23 @@ def test_the_start_is_put_on_the_constraint(system):
     z = run.y[0, run.columns.index("z")]
     assert z == pytest.approx(VALUES["r"] * np.cos(0.3), abs=1e-15)
     assert any(note.startswith("z 0.25 -> ") for note in run.notes)
+
+
+def test_reactions_along_a_run(system):
+    """--reactions: the rolling multipliers are those of the disc held by its connection, and
+    mu_touches is the normal force m (g + zddot), zddot = d^2 (r cos lean)/dt^2 with lean_ddot
+    from the right-hand side."""
+    m, g, r = VALUES["m"], VALUES["g"], VALUES["r"]
+    ours = system.simulate(t=1.0, dt=0.25, reactions=True, dataframe=False)
+    theirs = kronsub.load(DISC).derive().simulate(t=1.0, dt=0.25, reactions=True, dataframe=False,
+                                                  set={"lean": 0.1, "yaw_dot": 0.5, "spin_dot": 8, "lean_dot": 0})
+    columns, table = list(ours.table_columns), ours.table
+    for name in ("mu_roll_x", "mu_roll_y"):
+        assert np.allclose(table[:, columns.index(name)], theirs.table[:, list(theirs.table_columns).index(name)],
+                           rtol=1e-8, atol=1e-10)
+    numeric = system.numeric()
+    for row, normal in zip(ours.y, table[:, columns.index("mu_touches")]):
+        lean, lean_dot = row[4], row[7]
+        lean_ddot = numeric.rhs(0.0, row)[7]
+        zddot = -r * np.cos(lean) * lean_dot ** 2 - r * np.sin(lean) * lean_ddot
+        assert normal == pytest.approx(m * (g + zddot), rel=1e-10)
