@@ -6,6 +6,8 @@ the rolling disc with its centre's height a coordinate z held by ``z - r cos(lea
   configuration constraint and the contact's three slip components as velocity constraints, at
   random states; with z put off the constraint, the right-hand side solves it back (Newton's
   method) and gives the rates of the state on it.
+- tests/models/nonholonomic/rolling_disc_lean_held.yaml holds the lean instead (z - r cos(lean)
+  = 0 is not linear in it: Newton's method iterates): the same motion.
 - A run: the energy kept, ``z - r cos(lean)`` zero to Newton's tolerance at every row even with
   a loose integrator tolerance, the velocity constraints (written here as rolling without slip)
   met by the rates at every row, and the same motion as the disc held by its connection
@@ -27,6 +29,7 @@ from reference.nonholonomic import kane_rates, rolling_disc_height_kane
 ROOT = Path(__file__).resolve().parent.parent
 HEIGHT = ROOT / "tests" / "models" / "nonholonomic" / "rolling_disc_height.yaml"
 DISC = ROOT / "models" / "nonholonomic" / "rolling_disc.yaml"
+LEAN_HELD = ROOT / "tests" / "models" / "nonholonomic" / "rolling_disc_lean_held.yaml"
 VALUES = {"m": 1.0, "r": 0.3, "g": 9.81}
 
 
@@ -136,3 +139,26 @@ def test_reactions_along_a_run(system):
         lean_ddot = numeric.rhs(0.0, row)[7]
         zddot = -r * np.cos(lean) * lean_dot ** 2 - r * np.sin(lean) * lean_ddot
         assert normal == pytest.approx(m * (g + zddot), rel=1e-10)
+
+
+def test_a_held_coordinate_the_constraint_is_not_linear_in():
+    """The lean held: the generated right-hand side (C and numpy) solves it back from a value off
+    the constraint by Newton's method, and the run is the disc held by its connection."""
+    system = kronsub.load(LEAN_HELD).derive()
+    assert system.speeds.dependent == (system.symbol("lean"),)
+    numeric = system.numeric()
+    module = numpy_module(system)
+    param = [numeric.parameters[p.name] for p in system.parameters]
+    r, lean = VALUES["r"], 0.4
+    on = np.array([0.3, 1.0, 0.2, -0.1, r * np.cos(lean), lean, 0.7, -0.4, 5.0])
+    off = on.copy()
+    off[5] += 0.05
+    for rhs in (numeric.rhs, lambda t, y: np.asarray(module["rhs"](t, y, param))):
+        assert np.allclose(rhs(0.0, off), rhs(0.0, on), rtol=1e-13, atol=1e-13)
+    assert np.allclose(module["hold"](0.0, off, param), on[:6], rtol=0, atol=1e-15)
+    ours = system.simulate(t=3.0, dt=0.5, rtol=1e-12, atol=1e-12, dataframe=False)
+    theirs = kronsub.load(DISC).derive().simulate(t=3.0, dt=0.5, rtol=1e-12, atol=1e-12, dataframe=False,
+                                                   set={"lean": 0.1, "yaw_dot": 0.5, "spin_dot": 8, "lean_dot": 0})
+    for name in ("yaw", "lean", "spin", "x", "y", "yaw_dot", "lean_dot", "spin_dot"):
+        a, b = ours.y[:, ours.columns.index(name)], theirs.y[:, theirs.columns.index(name)]
+        assert np.allclose(a, b, rtol=1e-8, atol=1e-8), name
