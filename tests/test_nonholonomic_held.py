@@ -162,3 +162,18 @@ def test_a_held_coordinate_the_constraint_is_not_linear_in():
     for name in ("yaw", "lean", "spin", "x", "y", "yaw_dot", "lean_dot", "spin_dot"):
         a, b = ours.y[:, ours.columns.index(name)], theirs.y[:, theirs.columns.index(name)]
         assert np.allclose(a, b, rtol=1e-8, atol=1e-8), name
+
+
+def test_a_run_through_a_configuration_the_held_coordinate_is_not_fixed_at(tmp_path):
+    """The lean held: upright (lean = 0) the rim's height does not fix it (dg/dlean = r sin(lean));
+    a run that falls through there stops, and says so."""
+    from click.testing import CliRunner
+
+    from kronsub.cli import main
+
+    result = CliRunner().invoke(main, ["simulate", str(LEAN_HELD), "--t", "1", "--set", "lean_dot=-2",
+                                       "--set", "spin_dot=1", "-o", str(tmp_path / "run.csv")])
+    assert result.exit_code == 3 and "Traceback" not in result.output  # a numerical failure
+    assert "dg/d(lean) is nearly singular" in result.output
+    assert "the configuration constraints 'touches' do not fix lean there" in result.output
+    assert "order `coordinates:`" in result.output

@@ -16,9 +16,10 @@ from ..core.known_system import KnownSystem
 from .constrained import ConstraintError
 from .values import RunValues
 
-__all__ = ["held_of", "hold_start"]
+__all__ = ["diagnose", "held_of", "hold_start"]
 
 NOTED = 1e-12  # a correction of the initial configuration above this (times 1 + |value|) is reported
+NEARLY_SINGULAR = 1e-3  # dg/dx_D this small against dg/dx (relative, smallest singular value): x_D not fixed
 
 
 def held_of(system: KnownSystem, values: RunValues) -> HeldCoordinates | None:
@@ -42,3 +43,28 @@ def hold_start(system: KnownSystem, values: RunValues) -> tuple[RunValues, list[
     notes = [f"{system.coordinates[j].name} {q0[j]:.6g} -> {q[j]:.12g} (correction {abs(q[j] - q0[j]):.3g})"
              for j in held.held if abs(q[j] - q0[j]) > NOTED * (1 + abs(q0[j]))]
     return dataclasses.replace(values, y0=tuple(float(v) for v in np.concatenate([q, values.y0[n:]]))), notes
+
+
+def diagnose(system: KnownSystem, held: HeldCoordinates, t: float, y) -> str | None:
+    """Why a run stopped at ``(t, y)`` when the held coordinates are to blame: Newton's method
+    on ``g = 0`` fails there, or ``G_D = dg/dx_D`` is nearly singular against ``G`` (the
+    constraints no longer fix the held coordinates: a toggle of this choice); else None."""
+    n = len(system.coordinates)
+    q = np.asarray(y, dtype=float)[:n]
+    names = ", ".join(f"'{c.name}'" for c in system.speeds.holonomic)
+    dependent = ", ".join(d.name for d in system.speeds.dependent)
+    where = ", ".join(f"{c.name}={v:.6g}" for c, v in zip(system.coordinates, q))
+    hint = (f"the configuration constraints {names} do not fix {dependent} there (each holds the last coordinate "
+            "listed in `coordinates:` whose column of dg/dx is independent: order `coordinates:` so that those "
+            "are ones the constraints fix all along the motion)")
+    G = held.numeric.jacobian(np.append(q, float(t)))[:, :n]
+    if np.all(np.isfinite(G)) and G.size:
+        ratio = np.linalg.svd(G[:, held.held], compute_uv=False)[-1] / max(np.linalg.norm(G, 2), 1e-300)
+        if ratio < NEARLY_SINGULAR:
+            return (f"dg/d({dependent}) is nearly singular (relative size {ratio:.2g}) at t = {t:.6g}, {where}: "
+                    + hint)
+    try:
+        held.project(t, q)
+    except ConstraintFailure as exc:
+        return f"{exc.message} at t = {t:.6g}, {where}: " + hint
+    return None

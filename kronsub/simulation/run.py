@@ -419,6 +419,10 @@ def _finish(run, rows, bar, native, param, system, constrained, with_energies=Tr
         from .constrained import diagnose
 
         run.message = diagnose(system, constrained, run.t_fail, failed_state(run, last_y), guess)
+    if held is not None and not run.complete and last_y is not None and run.t_fail is not None:
+        from .held import diagnose as held_failure
+
+        run.message = held_failure(system, held, run.t_fail, failed_state(run, last_y)) or run.message
     if native is not None and last_y is not None and is_stiff(run.stats):
         warnings.warn(StiffnessWarning(stiffness_advice(native, param, run.stats, last_t - first_t, last_t, last_y,
                                                          run.method, [q.name for q in system.coordinates],
