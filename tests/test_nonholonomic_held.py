@@ -22,6 +22,7 @@ import sympy
 
 import kronsub
 import kronsub.emitters.code as code
+from kronsub.errors import KronsubError
 from kronsub.emitters.escape import environment
 from kronsub.simulation.fallback import numpy_module
 from reference.nonholonomic import kane_rates, rolling_disc_height_kane
@@ -115,10 +116,17 @@ def test_the_same_motion_as_the_disc_held_by_its_connection(system):
 
 
 def test_the_start_is_put_on_the_constraint(system):
-    run = system.simulate(t=0.1, dt=0.1, set={"z": 0.25, "lean": 0.3}, dataframe=False)
+    """The held z moved onto the constraint from the lean given (reported); a z given with
+    --set more than 1% off is refused, as a closed loop's dependent coordinate is."""
+    run = system.simulate(t=0.1, dt=0.1, set={"lean": 0.3}, dataframe=False)
     z = run.y[0, run.columns.index("z")]
     assert z == pytest.approx(VALUES["r"] * np.cos(0.3), abs=1e-15)
-    assert any(note.startswith("z 0.25 -> ") for note in run.notes)
+    assert any(note.startswith("z 0.298501 -> 0.28660") for note in run.notes)
+    close = system.simulate(t=0.1, dt=0.1, set={"lean": 0.3, "z": 0.287}, dataframe=False)
+    assert close.y[0, close.columns.index("z")] == pytest.approx(z, abs=1e-15)
+    with pytest.raises(KronsubError, match=r"--set z=0.25 is 0.0366 away from the configuration constraints "
+                                           r"'touches' \(the nearest consistent value is 0.28660"):
+        system.simulate(t=0.1, dt=0.1, set={"z": 0.25, "lean": 0.3}, dataframe=False)
 
 
 def test_reactions_along_a_run(system):

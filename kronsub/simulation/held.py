@@ -7,13 +7,14 @@ it evaluates.
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Collection
 
 import numpy as np
 
 from ..core.constraints import ConstraintFailure
 from ..core.held import HeldCoordinates, held_coordinates
 from ..core.known_system import KnownSystem
-from .constrained import ConstraintError
+from .constrained import TOLERANCE, ConstraintError
 from .values import RunValues
 
 __all__ = ["diagnose", "held_of", "hold_start"]
@@ -27,8 +28,10 @@ def held_of(system: KnownSystem, values: RunValues) -> HeldCoordinates | None:
     return held_coordinates(system, {p.symbol: float(v) for p, v in zip(system.parameters, values.parameters)})
 
 
-def hold_start(system: KnownSystem, values: RunValues) -> tuple[RunValues, list[str]]:
-    """``values`` with the held coordinates of ``y0`` on ``g(x, 0) = 0``, and notes on the corrections."""
+def hold_start(system: KnownSystem, values: RunValues, given: Collection[str] = ()) -> tuple[RunValues, list[str]]:
+    """``values`` with the held coordinates of ``y0`` on ``g(x, 0) = 0``, and notes on the
+    corrections; a held coordinate ``given`` (by name: ``--set``) that is more than
+    :data:`~.constrained.TOLERANCE` off is refused, as a closed loop's dependent one is."""
     held = held_of(system, values)
     if held is None:
         return values, []
@@ -40,8 +43,16 @@ def hold_start(system: KnownSystem, values: RunValues) -> tuple[RunValues, list[
         names = ", ".join(f"'{c.name}'" for c in system.speeds.holonomic)
         raise ConstraintError(f"the initial configuration violates the configuration constraints {names} and "
                               f"Newton's method finds none near it ({exc.message})") from None
-    notes = [f"{system.coordinates[j].name} {q0[j]:.6g} -> {q[j]:.12g} (correction {abs(q[j] - q0[j]):.3g})"
-             for j in held.held if abs(q[j] - q0[j]) > NOTED * (1 + abs(q0[j]))]
+    notes = []
+    for j in held.held:
+        name, correction = system.coordinates[j].name, abs(q[j] - q0[j])
+        if name in given and correction > TOLERANCE * (1 + abs(q0[j])):
+            names = ", ".join(f"'{c.name}'" for c in system.speeds.holonomic)
+            raise ConstraintError(f"--set {name}={q0[j]:g} is {correction:.3g} away from the configuration "
+                                  f"constraints {names} (the nearest consistent value is {q[j]:.6g}); corrections "
+                                  f"above {TOLERANCE:g} (1 + |value|) are refused")
+        if correction > NOTED * (1 + abs(q0[j])):
+            notes.append(f"{name} {q0[j]:.6g} -> {q[j]:.12g} (correction {correction:.3g})")
     return dataclasses.replace(values, y0=tuple(float(v) for v in np.concatenate([q, values.y0[n:]]))), notes
 
 

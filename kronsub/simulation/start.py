@@ -43,7 +43,7 @@ def starting_values(system: KnownSystem, settings: Mapping[str, str] | None = No
     start = dict(system.initial) if initial is None else dict(initial)
     settings = {system.symbol_name(name): text for name, text in (settings or {}).items()}  # i_q as q_dot
     if system.implicit is None:
-        values, notes = hold_start(system, resolve(system, start, settings))  # configuration constraints in speeds
+        values, notes = hold_start(system, resolve(system, start, settings), settings)  # held by constraints, in speeds
         return Start(values, notes=tuple(notes))
     independent, dependent = split_settings(system, settings)
     values = resolve(system, start, independent)
