@@ -422,6 +422,9 @@ def prepare(system: KnownSystem, source: str = "", outputs=None, guarded_angles:
         canonical = block(r_targets, [constants(slot(e)) for e in dTdq], "x", qs, guarded_angles)
         if jacobian and system.implicit is None and speeds is None:
             exact = block(*jacobian_block(system, first, lambda e: constants(slot(e))), "x", qs, guarded_angles)
+    held = None  # before `prepare`: its parameter products are constants of pre[] too
+    if speeds is not None and speeds.holonomic:
+        held = held_code(system, lambda e: constants(slot(e)), lambda t, e: block(t, e, "x", qs))
     prepare = block(*constants.definitions(), "c")
 
     potential = block(["V"], [slot(system.potential_energy)], "x", qs) if energies else Block((), ())
@@ -436,9 +439,6 @@ def prepare(system: KnownSystem, source: str = "", outputs=None, guarded_angles:
             pos_exprs.append(slot(c))
             offset += 1
     positions = block(pos_targets, pos_exprs, "x", qs)
-    held = None
-    if speeds is not None and speeds.holonomic:
-        held = held_code(system, lambda e: constants(slot(e)), lambda t, e: block(t, e, "x", qs))
     implicit = None
     if system.implicit is not None:
         implicit = implicit_code(system, slot, lambda t, e, c: block(t, e, "x", qs))
