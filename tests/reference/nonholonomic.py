@@ -64,6 +64,40 @@ def rolling_disc_height_kane(m, g, r):
     return q, u, kane, [solved[v] for v in u[3:]]
 
 
+def sleigh_and_beads_kane(m, I, a, mp, mq, L, c):
+    """tests/models/nonholonomic/sleigh_and_beads.yaml by Kane's method: the Chaplygin sleigh (mass
+    centre (x, y), heading theta, knife edge a behind the centre) and two beads on their wires
+    ``py + c py^3 = L sin(px/L)``, ``qy + c qy^3 = L cos(qx/L)`` written each on its own;
+    q = (x, y, theta, px, qx, py, qy), u = qdot, the rates of x, theta, px, qx independent.
+    Returns ``(q, u, kane, dependent)``, ``dependent`` the other speeds as expressions."""
+    q = me.dynamicsymbols("x y theta px qx py qy")
+    u = me.dynamicsymbols("u_x u_theta u_px u_qx u_y u_py u_qy")
+    rate = {q[0]: u[0], q[2]: u[1], q[3]: u[2], q[4]: u[3], q[1]: u[4], q[5]: u[5], q[6]: u[6]}
+    N = me.ReferenceFrame("N")
+    B = N.orientnew("B", "Axis", [q[2], N.z])
+    B.set_ang_vel(N, u[1] * N.z)
+    O = me.Point("O")
+    O.set_vel(N, 0)
+    centre = O.locatenew("G", q[0] * N.x + q[1] * N.y)
+    centre.set_vel(N, u[0] * N.x + u[4] * N.y)
+    edge = centre.locatenew("E", -a * B.x)
+    edge.v2pt_theory(centre, N, B)
+    P = O.locatenew("P", q[3] * N.x + q[5] * N.y)
+    P.set_vel(N, u[2] * N.x + u[5] * N.y)
+    Q = O.locatenew("Q", q[4] * N.x + q[6] * N.y)
+    Q.set_vel(N, u[3] * N.x + u[6] * N.y)
+    wires = [q[5] + c * q[5] ** 3 - L * sympy.sin(q[3] / L), q[6] + c * q[6] ** 3 - L * sympy.cos(q[4] / L)]
+    constraints = [edge.vel(N).dot(B.y)] + [w.diff(me.dynamicsymbols._t).subs({qi.diff(): v for qi, v in rate.items()}) for w in wires]
+    bodies = [me.RigidBody("sleigh", centre, B, m, (me.inertia(B, 0, 0, I), centre)),
+              me.Particle("p", P, mp), me.Particle("q", Q, mq)]
+    kane = me.KanesMethod(N, q_ind=q[:5], u_ind=u[:4], kd_eqs=[qi.diff() - rate[qi] for qi in q],
+                          q_dependent=q[5:], configuration_constraints=wires, u_dependent=u[4:],
+                          velocity_constraints=constraints)
+    kane.kanes_equations(bodies, [])
+    solved = sympy.solve(constraints, u[4:], dict=True)[0]
+    return q, u, kane, [solved[v] for v in u[4:]]
+
+
 def kane_rates(kane, q, u, q_values, u_values, values) -> np.ndarray:
     """``udot`` of the independent speeds then the dependent ones, at a state."""
     at = {**dict(zip(q, q_values)), **dict(zip(u, u_values)), **values}
