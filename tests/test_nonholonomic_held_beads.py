@@ -61,7 +61,8 @@ def test_rates_against_kanes_method_at_random_states(system):
         uv = [x_dot, theta_dot, px_dot, qx_dot, y_dot, py_dot, qy_dot]
         x_dd, theta_dd, px_dd, qx_dd, y_dd = kane_rates(kane, q, u, qv, uv, values)[:5]
         v = np.cos(theta) * x_dot + np.sin(theta) * y_dot
-        v_dot = np.cos(theta) * x_dd + np.sin(theta) * y_dd + theta_dot * (np.cos(theta) * y_dot - np.sin(theta) * x_dot)
+        turning = theta_dot * (np.cos(theta) * y_dot - np.sin(theta) * x_dot)
+        v_dot = np.cos(theta) * x_dd + np.sin(theta) * y_dd + turning
         expected = [x_dot, y_dot, theta_dot, px_dot, qx_dot, py_dot, qy_dot, v_dot, theta_dd, px_dd, qx_dd]
         for off in (0.0, 0.05):  # the heights put off the wires are solved back first
             state = np.array([x, y, theta, px, qx, py + off, qy - off, v, theta_dot, px_dot, qx_dot])

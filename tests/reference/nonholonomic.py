@@ -87,7 +87,8 @@ def sleigh_and_beads_kane(m, I, a, mp, mq, L, c):
     Q = O.locatenew("Q", q[4] * N.x + q[6] * N.y)
     Q.set_vel(N, u[3] * N.x + u[6] * N.y)
     wires = [q[5] + c * q[5] ** 3 - L * sympy.sin(q[3] / L), q[6] + c * q[6] ** 3 - L * sympy.cos(q[4] / L)]
-    constraints = [edge.vel(N).dot(B.y)] + [w.diff(me.dynamicsymbols._t).subs({qi.diff(): v for qi, v in rate.items()}) for w in wires]
+    rates = {qi.diff(): v for qi, v in rate.items()}
+    constraints = [edge.vel(N).dot(B.y)] + [w.diff(me.dynamicsymbols._t).subs(rates) for w in wires]
     bodies = [me.RigidBody("sleigh", centre, B, m, (me.inertia(B, 0, 0, I), centre)),
               me.Particle("p", P, mp), me.Particle("q", Q, mq)]
     kane = me.KanesMethod(N, q_ind=q[:5], u_ind=u[:4], kd_eqs=[qi.diff() - rate[qi] for qi in q],
