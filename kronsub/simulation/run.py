@@ -379,8 +379,8 @@ def _newton_tol(rtol: float, atol: float) -> float:
 
 def _finish(run, rows, bar, native, param, system, constrained, with_energies=True, grid=None):
     """The blocks (in speeds, the coordinates held by configuration constraints put on them), with
-    energies computed in C when there is a compiled model (and they are wanted) and, with implicit constraints, the dependent coordinates per row (and, after a
-    failure, what failed); at the end, a warning when an explicit run was held by stiffness, and
+    energies computed in C when there is a compiled model (and they are wanted) and, with implicit
+    constraints, the dependent coordinates per row (and, after a failure, what failed); at the end, a warning when an explicit run was held by stiffness, and
     one when a complete run of a model that conserves energy did not keep it."""
     guess = constrained.guess.copy() if constrained is not None else None
     held = held_coordinates(system, {p.symbol: float(v) for p, v in zip(system.parameters, param)})

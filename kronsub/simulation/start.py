@@ -39,7 +39,8 @@ def starting_values(system: KnownSystem, settings: Mapping[str, str] | None = No
     parameters' values, overridden by ``settings`` (``{name: text}``, constant expressions read
     by the whitelisted parser), projected onto the constraints of a closed loop to Newton's
     ``tolerance`` (in speeds, the coordinates that configuration constraints hold beside the
-    velocity constraints put on them: :func:`.held.hold_start`). Every problem with the settings is reported at once (a ``ModelError``)."""
+    velocity constraints put on them: :func:`.held.hold_start`). Every problem with the settings
+    is reported at once (a ``ModelError``)."""
     start = dict(system.initial) if initial is None else dict(initial)
     settings = {system.symbol_name(name): text for name, text in (settings or {}).items()}  # i_q as q_dot
     if system.implicit is None:
