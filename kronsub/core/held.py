@@ -54,10 +54,6 @@ class HeldCoordinates:
                 pass
         return Y
 
-    def residual(self, t: float, q) -> np.ndarray:
-        """``g(q, t)``."""
-        return self.numeric.residual(np.append(np.asarray(q, dtype=float), float(t)))
-
 
 def held_coordinates(system: KnownSystem, values: Mapping) -> HeldCoordinates | None:
     """The :class:`HeldCoordinates` of ``system``, or None when no configuration constraint
