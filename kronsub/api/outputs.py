@@ -12,7 +12,6 @@ from pathlib import Path
 from typing import Mapping
 
 from ..core.known_system import KnownSystem
-from ..core.nonholonomic import refuse_holonomic
 from ..errors import KronsubError
 from ..model.model import Model
 from .runs import model_file, scene_of, settings_text
@@ -71,7 +70,6 @@ def codegen(system: KnownSystem, folder=".", lang: str = "c", *, name: str | Non
     """
     from ..atomic import write_atomically
 
-    refuse_holonomic(system, "codegen")
     model = getattr(system, "model", None)
     stem = name or (Path(model.path).stem if model is not None else "model")
     folder = Path(folder)
@@ -161,7 +159,6 @@ def accuracy(system: KnownSystem, t: float = 10.0, methods="all", tolerances=Non
     from ..simulation import accuracy as acc
     from ..simulation.start import starting_values
 
-    refuse_holonomic(system, "accuracy")
     chosen, grid = accuracy_plan(methods, tolerances, quick=quick, precision=precision)
     begin = starting_values(system, settings_text(set))  # Newton's tolerance 1e-14: the reference's
     default_digits = 34 if "gbs-quad" in chosen else (16 if quick else 20)

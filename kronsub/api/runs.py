@@ -16,7 +16,6 @@ from typing import Callable, Mapping
 import numpy as np
 
 from ..core.known_system import KnownSystem
-from ..core.nonholonomic import refuse_holonomic
 from ..errors import ModelError, Problem
 from ..model.scenes import scene_system
 from ..simulation.span import ANIMATION_DEFAULTS, run_span
@@ -149,7 +148,6 @@ def simulate(system: KnownSystem, t: float | None = None, dt: float | None = Non
     from ..simulation.reactions import reaction_columns
     from ..simulation.table import energies, trajectory_table
 
-    refuse_holonomic(system, "simulate")
     scene = scene_of(system)
     t, dt, method = run_span(system, t, dt, method)
     outputs = scene.outputs if scene is not None else None
@@ -184,7 +182,9 @@ class NumericSystem:
 
     ``rhs(t, y)`` is ``[qdot; Mbar^-1 (fbar - hbar)]``; ``mass_matrix(q)``, ``forces(t, y)``,
     ``velocity_terms(y)`` (``velocity_terms(y, t)`` for a prescribed motion, whose ``hbar`` names
-    ``t``), ``kinetic_energy(y)``, ``potential_energy(t, y)``.
+    ``t``), ``kinetic_energy(y)``, ``potential_energy(t, y)``. In speeds the state is ``[q; u]``,
+    ``rhs`` is ``[C u + d; Mbar^-1 (fbar - hbar)]`` and the others are the equations in the speeds
+    (with configuration constraints beside, ``rhs`` puts the held coordinates on them first).
     """
 
     rhs: Callable
@@ -211,6 +211,8 @@ def numeric(system: KnownSystem, set: Mapping[str, object] | None = None) -> Num
     values = starting_values(system, settings_text(set)).values
     param = np.array(values.parameters, dtype=float)
     n = len(system.coordinates)
+    nv = len(system.state_velocities)
+    ny, layout = n + nv, "[q; u]" if system.speeds is not None else "[q; qdot]"  # in speeds: the state [q; u]
     module = numpy_module(system)  # mass matrix, forces, velocity terms (numpy)
     native = None
     try:
@@ -220,20 +222,20 @@ def numeric(system: KnownSystem, set: Mapping[str, object] | None = None) -> Num
 
     def state(y):
         y = np.asarray(y, dtype=float).ravel()
-        if y.shape != (2 * n,):
-            raise ValueError(f"y must have {2 * n} entries [q; qdot] (got {y.size})")
+        if y.shape != (ny,):
+            raise ValueError(f"y must have {ny} entries {layout} (got {y.size})")
         return y
 
     def coordinates(q):
         q = np.asarray(q, dtype=float).ravel()
-        if q.shape == (2 * n,):
+        if q.shape == (ny,):
             return q
         if q.shape != (n,):
             raise ValueError(f"q must have {n} entries (got {q.size})")
-        return np.concatenate([q, np.zeros(n)])
+        return np.concatenate([q, np.zeros(nv)])
 
     def mass_matrix(q):
-        return np.asarray(module["mass_matrix"](coordinates(q)[:n], param), dtype=float).reshape(n, n)
+        return np.asarray(module["mass_matrix"](coordinates(q)[:n], param), dtype=float).reshape(nv, nv)
 
     def forces(t, y):
         y = state(y)

@@ -261,17 +261,13 @@ def plot_option(help: str):
 WITHOUT_SPEEDS = ("sweep",)
 """The commands that do not handle velocity constraints yet: a model with them is refused there,
 at its `velocity_constraints:` section (:func:`scene_system`)."""
-WITH_HOLONOMIC_SPEEDS = ("derive", "linearize")
-"""The commands that handle configuration constraints beside velocity constraints; the others
-refuse such a model at its `constraints:` section (:func:`scene_system`)."""
 
 
 def scene_system(model: Path, scene_name: str | None, *, cache: bool = True, all_points: bool = False):
     """``(model, scene, system)``: the model loaded, its scene chosen (None: the whole model)
     and the scene's equations derived. ``all_points`` asks the scene for every named point.
-    Velocity constraints are refused, at the section, by the commands of :data:`WITHOUT_SPEEDS`, and
-    configuration constraints beside them by those not in :data:`WITH_HOLONOMIC_SPEEDS`."""
-    from ..core.nonholonomic import refuse_holonomic, refuse_speeds
+    Velocity constraints are refused, at the section, by the commands of :data:`WITHOUT_SPEEDS`."""
+    from ..core.nonholonomic import refuse_speeds
     from ..model.loader import load_model
     from ..model.scenes import scene_system as chosen_scene
 
@@ -281,8 +277,6 @@ def scene_system(model: Path, scene_name: str | None, *, cache: bool = True, all
         context = click.get_current_context(silent=True)
         if context is not None and context.info_name in WITHOUT_SPEEDS:
             refuse_speeds(system, f"`kronsub {context.info_name}`", loaded.locations.get("velocity_constraints"))
-        if context is not None and context.info_name not in WITH_HOLONOMIC_SPEEDS:
-            refuse_holonomic(system, f"`kronsub {context.info_name}`", loaded.locations.get("constraints"))
         return loaded, scene, system
 
 

@@ -364,17 +364,6 @@ def refuse_speeds(system: KnownSystem, what: str, location: Location | None = No
                                   "--reactions gives the contact forces)")])
 
 
-def refuse_holonomic(system: KnownSystem, what: str, location: Location | None = None) -> None:
-    """A :class:`ModelError` at ``location`` (where the model writes its configuration
-    constraints) when ``system`` has configuration constraints beside velocity constraints and
-    ``what`` (a command) does not handle them yet: ``derive`` and ``linearize`` do."""
-    if system.speeds is not None and system.speeds.holonomic:
-        raise ModelError([Problem(location, f"{what} of a model with configuration constraints beside velocity "
-                                            "constraints is not supported yet",
-                                  "derive or linearize it (`kronsub derive`, `kronsub linearize`); or write the "
-                                  "configuration constraints in the connection")])
-
-
 def speed_accelerations(projection: NonholonomicProjection) -> list[sympy.Symbol]:
     """The symbols of ``udot`` (named like accelerations of the speeds)."""
     return [acceleration_symbol(s) for s in projection.velocity.speeds]
@@ -404,5 +393,5 @@ def _rank(A: sympy.Matrix, points: list[dict]) -> int:
 
 __all__ = ["GENERIC_POINTS", "NonholonomicProjection", "VelocityConstraintError", "VelocityTransformation",
            "SpeedProjection", "TIDY", "frame_entry", "generic_rank", "integrable", "linear_form", "project_nonholonomic",
-           "refuse_holonomic", "refuse_speeds", "speed_accelerations", "speed_equations", "speed_rates", "tidy_entry",
+           "refuse_speeds", "speed_accelerations", "speed_equations", "speed_rates", "tidy_entry",
            "velocity_multipliers", "velocity_transformation"]

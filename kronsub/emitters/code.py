@@ -165,6 +165,8 @@ def _context(model: NumericModel, show, declare: str, end: str) -> dict:
                        for name in ("closed_form", "residual", "sensitivity", "quadratic")})
     if model.kinematics is not None:  # qdot = C(q) u under velocity constraints
         blocks["kinematics"] = _lines(model.kinematics, show, declare, end)
+    if model.held is not None:  # g and G_D of the configuration constraints beside them (numeric_held)
+        blocks["held_residual"] = _lines(model.held.residual, show, declare, end)
     return {"m": model, "b": blocks, "version": __version__,
             "n_points": sum(d for _, d in model.points),
             "defaults": [(name, Markup(value)) for name, value, _ in model.parameters if value],

@@ -28,6 +28,7 @@ from ..core.sympy_internals import eval_evalf
 from ..core.symbols import TIME, free_symbols_of
 from ..errors import KronsubError
 from .block import Block
+from .numeric_held import HeldCode, held_code
 from .numeric_implicit import ImplicitCode, implicit_code, intermediate_slots
 from .projected import ProjectedCode, projected_by_size, projected_code
 
@@ -59,6 +60,7 @@ class NumericModel:
     jacobian: Block | None = None  # d ydot/dy: V (rates of q, n x 2n), K = dr/dy (n x 2n), G = dMbar/dq_k (n x n x n)
     speeds: tuple[str, ...] = ()  # under velocity constraints: the speeds u, the state [q; u]
     kinematics: Block | None = None  # qdot = C(q) u into xd[] (in pre[])
+    held: HeldCode | None = None  # configuration constraints beside velocity constraints: q_D by Newton's method
     projected: ProjectedCode | None = None  # Mbar, hbar, fbar formed at run time (the blocks above empty)
     velocities: tuple[str, ...] = ()  # the velocities' printed names (a charge's: its current); default q_dot
 
@@ -420,6 +422,9 @@ def prepare(system: KnownSystem, source: str = "", outputs=None, guarded_angles:
         canonical = block(r_targets, [constants(slot(e)) for e in dTdq], "x", qs, guarded_angles)
         if jacobian and system.implicit is None and speeds is None:
             exact = block(*jacobian_block(system, first, lambda e: constants(slot(e))), "x", qs, guarded_angles)
+    held = None  # before `prepare`: its parameter products are constants of pre[] too
+    if speeds is not None and speeds.holonomic:
+        held = held_code(system, lambda e: constants(slot(e)), lambda t, e: block(t, e, "x", qs))
     prepare = block(*constants.definitions(), "c")
 
     potential = block(["V"], [slot(system.potential_energy)], "x", qs) if energies else Block((), ())
@@ -462,6 +467,7 @@ def prepare(system: KnownSystem, source: str = "", outputs=None, guarded_angles:
         jacobian=exact,
         speeds=tuple(u.name for u in velocities) if speeds is not None else (),
         kinematics=kinematics,
+        held=held,
         projected=projected,
         velocities=tuple(system.name_of(v) for v in system.velocities),
     )

@@ -19,6 +19,7 @@ import warnings
 import numpy as np
 
 from ..core.first_order import zero_rows
+from ..core.held import held_coordinates
 from ..core.known_system import KnownSystem
 from .advice import EnergyWarning, StiffnessWarning, energy_advice, is_stiff, stiffness_advice
 from .compiled import native_model
@@ -377,16 +378,19 @@ def _newton_tol(rtol: float, atol: float) -> float:
 
 
 def _finish(run, rows, bar, native, param, system, constrained, with_energies=True, grid=None):
-    """The blocks, with energies computed in C when there is a compiled model (and they are
-    wanted) and, with implicit constraints, the dependent coordinates per row (and, after a
-    failure, what failed); at the end, a warning when an explicit run was held by stiffness, and
+    """The blocks (in speeds, the coordinates held by configuration constraints put on them), with
+    energies computed in C when there is a compiled model (and they are wanted) and, with implicit
+    constraints, the dependent coordinates per row (and, after a failure, what failed); at the end, a warning when an explicit run was held by stiffness, and
     one when a complete run of a model that conserves energy did not keep it."""
     guess = constrained.guess.copy() if constrained is not None else None
+    held = held_coordinates(system, {p.symbol: float(v) for p, v in zip(system.parameters, param)})
     first_t = last_t = last_y = None
     energy = None  # (t0, y0, E0, largest T, last E) of the rows, when they have energies
     try:
         for t, y in rows:
             if len(t):
+                if held is not None:  # on the configuration constraints, as the right-hand side puts them
+                    y = held.rows(t, y)
                 dependent = None
                 if constrained is not None:
                     from .constrained import dependent_rows
@@ -415,6 +419,10 @@ def _finish(run, rows, bar, native, param, system, constrained, with_energies=Tr
         from .constrained import diagnose
 
         run.message = diagnose(system, constrained, run.t_fail, failed_state(run, last_y), guess)
+    if held is not None and not run.complete and last_y is not None and run.t_fail is not None:
+        from .held import diagnose as held_failure
+
+        run.message = held_failure(system, held, run.t_fail, failed_state(run, last_y)) or run.message
     if native is not None and last_y is not None and is_stiff(run.stats):
         warnings.warn(StiffnessWarning(stiffness_advice(native, param, run.stats, last_t - first_t, last_t, last_y,
                                                          run.method, [q.name for q in system.coordinates],

@@ -5,7 +5,8 @@ The values come from the derived system: its parameters' values and its ``initia
 settings (``--set NAME=VALUE``, ``--at``, or the ``set=`` of :mod:`kronsub.api`) override
 them by name. For a closed loop the result is projected onto the constraints (26)-(29):
 the dependent coordinates by Newton's method with the independent ones held, the
-velocities onto the tangent space ``G ydot = 0`` (:func:`.constrained.project_initial`).
+velocities onto the tangent space ``G ydot = 0`` (:func:`.constrained.project_initial`). In
+speeds, the coordinates held by configuration constraints are put on them (:mod:`.held`).
 """
 from __future__ import annotations
 
@@ -15,6 +16,7 @@ from typing import Mapping
 from ..core.constraints import Intermediates
 from ..core.known_system import KnownSystem
 from .constrained import project_initial, split_settings
+from .held import hold_start
 from .values import RunValues, resolve
 
 __all__ = ["Start", "starting_values"]
@@ -36,11 +38,14 @@ def starting_values(system: KnownSystem, settings: Mapping[str, str] | None = No
     """The starting values of a run of ``system``: ``system.initial`` (or ``initial``) and its
     parameters' values, overridden by ``settings`` (``{name: text}``, constant expressions read
     by the whitelisted parser), projected onto the constraints of a closed loop to Newton's
-    ``tolerance``. Every problem with the settings is reported at once (a ``ModelError``)."""
+    ``tolerance`` (in speeds, the coordinates that configuration constraints hold beside the
+    velocity constraints put on them: :func:`.held.hold_start`). Every problem with the settings
+    is reported at once (a ``ModelError``)."""
     start = dict(system.initial) if initial is None else dict(initial)
     settings = {system.symbol_name(name): text for name, text in (settings or {}).items()}  # i_q as q_dot
     if system.implicit is None:
-        return Start(resolve(system, start, settings))
+        values, notes = hold_start(system, resolve(system, start, settings), settings)  # held by constraints, in speeds
+        return Start(values, notes=tuple(notes))
     independent, dependent = split_settings(system, settings)
     values = resolve(system, start, independent)
     values, notes, constrained = project_initial(system, start, dependent, values, tolerance)

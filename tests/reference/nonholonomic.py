@@ -32,6 +32,73 @@ def rolling_disc_kane(m, g, r):
     return q, u, kane, [position.dot(N.x), position.dot(N.y), position.dot(N.z)]
 
 
+def rolling_disc_height_kane(m, g, r):
+    """The disc of :func:`rolling_disc_kane` with its centre's height a coordinate ``z`` held by the
+    configuration constraint ``z - r cos(lean) = 0``: q = (yaw, lean, spin, x, y, z), u = qdot,
+    the rates of yaw, lean and spin independent; the three components of the contact point's
+    velocity are the velocity constraints (the vertical one is the configuration constraint's
+    rate). Returns ``(q, u, kane, dependent)``, ``dependent`` the speeds of x, y, z as
+    expressions of q and the independent speeds."""
+    q = me.dynamicsymbols("yaw lean spin x y z")
+    u = me.dynamicsymbols("u_yaw u_lean u_spin u_x u_y u_z")
+    N = me.ReferenceFrame("N")
+    Y = N.orientnew("Y", "Axis", [q[0], N.z])
+    L = Y.orientnew("L", "Axis", [q[1], Y.x])
+    R = L.orientnew("R", "Axis", [q[2], L.y])
+    R.set_ang_vel(N, u[0] * N.z + u[1] * L.x + u[2] * L.y)
+    O = me.Point("O")
+    O.set_vel(N, 0)
+    below = O.locatenew("B", q[3] * N.x + q[4] * N.y + (q[5] - r * sympy.cos(q[1])) * N.z)
+    centre = below.locatenew("G", r * L.z)  # on the constraint, `below` is the contact point
+    position = centre.pos_from(O)
+    centre.set_vel(N, position.dt(N).subs({qi.diff(): ui for qi, ui in zip(q, u)}))
+    point = centre.locatenew("P", -r * L.z)
+    slip = centre.vel(N) + R.ang_vel_in(N).cross(point.pos_from(centre))
+    constraints = [slip.dot(N.x), slip.dot(N.y), slip.dot(N.z)]
+    disc = me.RigidBody("disc", centre, R, m, (me.inertia(L, m * r**2 / 4, m * r**2 / 2, m * r**2 / 4), centre))
+    kane = me.KanesMethod(N, q_ind=q[:5], u_ind=u[:3], kd_eqs=[qi.diff() - ui for qi, ui in zip(q, u)],
+                          q_dependent=q[5:], configuration_constraints=[q[5] - r * sympy.cos(q[1])],
+                          u_dependent=u[3:], velocity_constraints=constraints)
+    kane.kanes_equations([disc], [(centre, -m * g * N.z)])
+    solved = sympy.solve(constraints, u[3:], dict=True)[0]
+    return q, u, kane, [solved[v] for v in u[3:]]
+
+
+def sleigh_and_beads_kane(m, I, a, mp, mq, L, c):
+    """tests/models/nonholonomic/sleigh_and_beads.yaml by Kane's method: the Chaplygin sleigh (mass
+    centre (x, y), heading theta, knife edge a behind the centre) and two beads on their wires
+    ``py + c py^3 = L sin(px/L)``, ``qy + c qy^3 = L cos(qx/L)`` written each on its own;
+    q = (x, y, theta, px, qx, py, qy), u = qdot, the rates of x, theta, px, qx independent.
+    Returns ``(q, u, kane, dependent)``, ``dependent`` the other speeds as expressions."""
+    q = me.dynamicsymbols("x y theta px qx py qy")
+    u = me.dynamicsymbols("u_x u_theta u_px u_qx u_y u_py u_qy")
+    rate = {q[0]: u[0], q[2]: u[1], q[3]: u[2], q[4]: u[3], q[1]: u[4], q[5]: u[5], q[6]: u[6]}
+    N = me.ReferenceFrame("N")
+    B = N.orientnew("B", "Axis", [q[2], N.z])
+    B.set_ang_vel(N, u[1] * N.z)
+    O = me.Point("O")
+    O.set_vel(N, 0)
+    centre = O.locatenew("G", q[0] * N.x + q[1] * N.y)
+    centre.set_vel(N, u[0] * N.x + u[4] * N.y)
+    edge = centre.locatenew("E", -a * B.x)
+    edge.v2pt_theory(centre, N, B)
+    P = O.locatenew("P", q[3] * N.x + q[5] * N.y)
+    P.set_vel(N, u[2] * N.x + u[5] * N.y)
+    Q = O.locatenew("Q", q[4] * N.x + q[6] * N.y)
+    Q.set_vel(N, u[3] * N.x + u[6] * N.y)
+    wires = [q[5] + c * q[5] ** 3 - L * sympy.sin(q[3] / L), q[6] + c * q[6] ** 3 - L * sympy.cos(q[4] / L)]
+    rates = {qi.diff(): v for qi, v in rate.items()}
+    constraints = [edge.vel(N).dot(B.y)] + [w.diff(me.dynamicsymbols._t).subs(rates) for w in wires]
+    bodies = [me.RigidBody("sleigh", centre, B, m, (me.inertia(B, 0, 0, I), centre)),
+              me.Particle("p", P, mp), me.Particle("q", Q, mq)]
+    kane = me.KanesMethod(N, q_ind=q[:5], u_ind=u[:4], kd_eqs=[qi.diff() - rate[qi] for qi in q],
+                          q_dependent=q[5:], configuration_constraints=wires, u_dependent=u[4:],
+                          velocity_constraints=constraints)
+    kane.kanes_equations(bodies, [])
+    solved = sympy.solve(constraints, u[4:], dict=True)[0]
+    return q, u, kane, [solved[v] for v in u[4:]]
+
+
 def kane_rates(kane, q, u, q_values, u_values, values) -> np.ndarray:
     """``udot`` of the independent speeds then the dependent ones, at a state."""
     at = {**dict(zip(q, q_values)), **dict(zip(u, u_values)), **values}
