@@ -30,7 +30,7 @@ from .ensemble import Sources, load, load_taylor, pieces, summary_width
 from .plan import Plan
 from .trajectories import TrajectoryPart
 
-__all__ = ["ENSEMBLE", "ONE_BY_ONE", "TAYLOR", "Job", "columns", "inputs_of", "run_chunk", "state_names"]
+__all__ = ["ENSEMBLE", "ONE_BY_ONE", "TAYLOR", "Job", "columns", "inputs_of", "run_chunk", "state_names", "warm"]
 
 ENSEMBLE, TAYLOR, ONE_BY_ONE = "ensemble", "taylor ensemble", "one by one"  # the routes of a sweep's runs
 
@@ -130,6 +130,22 @@ def _conserves(job: Job, native) -> bool:
             except Exception:  # noqa: BLE001 - a model whose energy cannot be evaluated reports no drift
                 _CONSERVES[key] = False
         return _CONSERVES[key]
+
+
+def warm(job: Job) -> None:
+    """Build and load what this process's chunks of ``job`` call (its libraries, whether the model
+    conserves energy), as the first chunk would: for a process that starts its workers meanwhile.
+    What fails here fails again in the chunk, which says so."""
+    if job.route not in (ENSEMBLE, TAYLOR):
+        return
+    try:
+        ensemble = load(job.sources)
+        if job.route == TAYLOR:
+            load_taylor(job.taylor_sources)
+        if job.system.implicit is None:
+            _conserves(job, ensemble.native)
+    except Exception:  # noqa: BLE001 - the chunk meets it again and says so (or runs one by one)
+        pass
 
 
 def run_chunk(job: Job, index: int) -> dict[str, object]:
