@@ -24,7 +24,6 @@ import numpy as np
 from ..core.first_order import zero_rows
 from ..core.known_system import KnownSystem
 from ..errors import KronsubError
-from ..simulation.fallback import numpy_module
 from ..simulation.native import NativeError
 from .ensemble import Sources, load, load_taylor, pieces, summary_width
 from .plan import Plan
@@ -198,6 +197,8 @@ def _first_order_finals(job: Job, summary: np.ndarray, param: np.ndarray, indice
     """The final velocities of the first-order coordinates (:mod:`kronsub.core.first_order`),
     which the state carries but does not integrate: solved from each run's final state by the
     generated right-hand side, in place in ``summary``."""
+    from ..simulation.fallback import numpy_module  # heavy (the code emitters): only for first-order coordinates
+
     rhs = numpy_module(job.system, job.outputs)["rhs"]
     nq = len(job.system.coordinates)
     columns = [5 + nq + j for j in indices]
