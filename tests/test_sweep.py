@@ -212,6 +212,60 @@ def test_command_writes_a_dataset_refuses_and_resumes(tmp_path):
     assert other.exit_code == 1 and "holds another sweep" in other.output
 
 
+CRASHING = """
+import ctypes, resource, sys, time
+from pathlib import Path
+
+import kronsub.sweep.driver as driver
+from kronsub.cli import main
+
+resource.setrlimit(resource.RLIMIT_CORE, (0, 0))
+out, crash_at = Path(sys.argv[1]), int(sys.argv[2])
+run_chunk = driver.run_chunk
+
+
+def crashing(job, index):
+    if index == crash_at:  # a fault in compiled code, in a worker thread, once a part is written
+        deadline = time.monotonic() + 60
+        while not any(out.glob("part-*.parquet")) and time.monotonic() < deadline:
+            time.sleep(0.01)
+        ctypes.string_at(0)
+    return run_chunk(job, index)
+
+
+driver.run_chunk = crashing
+main(["sweep", *sys.argv[3:], "-o", str(out)])
+"""
+
+
+def test_a_crash_in_a_worker_thread_keeps_the_written_chunks_and_resume_finishes(tmp_path):
+    import signal
+    import subprocess
+    import sys
+
+    out = tmp_path / "runs.parquet"
+    args = [str(SYSTEM1), "--scene", "free", "--grid", "theta=-1:1:5", "--sample", "phi=uniform(-1, 1)", "--runs",
+            "2", "--t", "1", "--dt", "0.05", "--chunk", "2", "--workers", "1"]
+    crashed = subprocess.run([sys.executable, "-c", CRASHING, str(out), "3", *args], cwd=tmp_path,
+                             capture_output=True, timeout=300)
+    assert crashed.returncode == -signal.SIGSEGV, crashed.stderr.decode()
+    kept = {p.name: p.stat().st_mtime_ns for p in out.glob("part-*.parquet")}
+    assert 1 <= len(kept) <= 3 and "part-000003.parquet" not in kept
+    for name in kept:  # each part written whole
+        assert len(pd.read_parquet(out / name)) == 2
+    assert json.loads((tmp_path / "runs.parquet.json").read_text())["state"] == "running"
+    resumed = run([*args, "-o", out, "--resume"])
+    assert resumed.exit_code == 0, resumed.output
+    assert f"{len(kept)} of 5 chunks already written" in resumed.output
+    assert {p.name: p.stat().st_mtime_ns for p in out.glob("part-*.parquet") if p.name in kept} == kept
+    expected = rows_of(job_of(SYSTEM1, "free", ("theta=-1:1:5",), ("phi=uniform(-1, 1)",), runs=2, t_end=1.0,
+                              dt=0.05, chunk=10))
+    pd.testing.assert_frame_equal(pd.read_parquet(out).sort_values("run", ignore_index=True), expected,
+                                  check_dtype=False)
+    meta = json.loads((tmp_path / "runs.parquet.json").read_text())
+    assert meta["state"] == "complete" and meta["counts"] == {"complete": 10}
+
+
 @pytest.mark.parametrize("extra, code, told", [
     (["--grid", "thetx=0:1:3"], 1, "--grid thetx=0:1:3: thetx: no parameter, coordinate or velocity"),
     (["--grid", "theta=1:0:3"], 1, "--grid theta=1:0:3: the grid of theta is inverted"),
