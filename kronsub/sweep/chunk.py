@@ -175,7 +175,7 @@ def run_chunk(job: Job, index: int) -> dict[str, object]:
         _first_order_finals(job, summary, param, first)
     status = summary[:, 0]
     out: dict[str, object] = {"run": np.arange(start, stop, dtype=np.int64), **inputs}
-    out["status"] = ["complete" if s == 0 else "stopped" for s in status]
+    out["status"] = np.where(status == 0, "complete", "stopped").tolist()
     out["reason"] = reasons
     out["t_final"] = summary[:, 1]
     for k, name in enumerate(state_names(job.system)):
@@ -270,16 +270,13 @@ def _ensemble(job: Job, param: np.ndarray, y0: np.ndarray, run0: int = 0,
                                             param[a + r, :len(job.system.parameters)])
         summary = np.concatenate(parts)
     messages: dict[int, str] = {}
-    reasons = []
-    for s, t in zip(summary[:, 0], summary[:, 1]):
-        if s == 0:
-            reasons.append("")
-            continue
-        status = int(s)
+    reasons = [""] * len(summary)
+    for r in np.flatnonzero(summary[:, 0] != 0):  # (a complete run has no reason: most rows)
+        status = int(summary[r, 0])
         if status not in messages:
             messages[status] = STATUS.get(status, f"status {status}") if job.route == TAYLOR else \
                 ensemble.message(status)
-        reasons.append(f"{messages[status]} at t = {t:.6g}")
+        reasons[r] = f"{messages[status]} at t = {summary[r, 1]:.6g}"
     return summary, reasons, users
 
 
