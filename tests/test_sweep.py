@@ -541,3 +541,36 @@ def test_a_closed_loop_in_the_ensemble_gives_the_rows_of_one_by_one():
     pd.testing.assert_frame_equal(rows, pd.DataFrame(run_chunk(dataclasses.replace(job, route=ONE_BY_ONE), 0)))
     assert list(rows["status"]) == ["stopped"] * 4 + ["complete"] * 4
     assert "violates the constraints" in rows["reason"][0] and 0 < rows["t_final"][3] < 2.0  # projection; mid-run
+
+
+def test_parts_are_written_without_pandas(tmp_path):
+    """pyarrow.array imports pandas to ask whether its argument is a pandas object; the client
+    makes its columns from their buffers, with the same types and values."""
+    import subprocess
+    import sys
+
+    script = ("import sys\nfrom pathlib import Path\nimport numpy as np\nfrom kronsub.sweep.dataset import Dataset\n"
+              "d = Dataset(Path(sys.argv[1]), [('run', 'int64'), ('x', 'float64'), ('status', 'string')])\n"
+              "d.prepare({}, resume=False, force=False)\n"
+              "d.write(0, {'run': np.arange(3), 'x': np.array([1.5, np.nan, -0.0]), 'status': ['complete', '', 'ü']})\n"
+              "d.write(1, {'run': np.arange(0), 'x': np.zeros(0), 'status': []})\n"
+              "assert 'pandas' not in sys.modules\n")
+    done = subprocess.run([sys.executable, "-c", script, str(tmp_path / "out")], capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    assert pq.read_schema(tmp_path / "out" / "part-000000.parquet").types == [pa.int64(), pa.float64(), pa.string()]
+    table = pd.read_parquet(tmp_path / "out" / "part-000000.parquet")
+    assert list(table["run"]) == [0, 1, 2] and list(table["status"]) == ["complete", "", "ü"]
+    assert table["x"][0] == 1.5 and np.isnan(table["x"][1]) and np.signbit(table["x"][2])
+    assert len(pd.read_parquet(tmp_path / "out" / "part-000001.parquet")) == 0
+
+
+def test_the_local_cluster_leaves_out_what_only_its_dashboard_would_show():
+    from kronsub.sweep.driver import local_cluster
+
+    with local_cluster(2, threads=True) as cluster:
+        (worker,) = cluster.workers.values()
+        assert "profile" not in worker.periodic_callbacks and worker.state.nthreads == 2
+        assert worker.periodic_callbacks["tick"].callback_time >= 500
