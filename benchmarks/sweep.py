@@ -6,7 +6,9 @@ given half the runs: what the machine gives two workers at the time), heyoka's `
 error at t = 10 is <= 1e-8 on a sample of runs against the Taylor integrator at 1e-15. The routes
 are timed round by round (interleaved). The sweep rows time the driver writing every chunk as its
 Parquet part (as the command does) on the command's local cluster, started before the clock;
-the whole command, cluster start included, is timed apart (with the sweep's C kept from the
+the share of the wall time each worker spent in the ensemble's calls (what the engine leaves to
+the runs: a thread that waits for a core while in a call still counts, so the load of other jobs
+moves it little) is printed beside them; the whole command, cluster start included, is timed apart (with the sweep's C kept from the
 run before; the emission that saves is timed in this process). Then the engine's share of the wall
 time at --overhead-runs (one worker: the wall time less the time the worker spent in the
 ensemble's calls, timed over the same interval) and the client's peak memory (the peak resident
@@ -19,6 +21,7 @@ per second, the ratios the issue sets as goals, min and median of --repeats.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import os
 import statistics
@@ -116,8 +119,6 @@ def main():
     taylor = load_taylor(taylor_sources(system, tol))
     job = make_job(system, plan, initial_values(loaded, None), {}, method="taylor", t_end=T_END, dt=DT,
                    rtol=tol, atol=tol, chunk=1000)
-    import contextlib
-
     from kronsub.sweep.chunk import columns
     from kronsub.sweep.dataset import Dataset
 
@@ -189,14 +190,23 @@ def main():
                         integ.ta, T_END, runs, gen, algorithm="thread", max_workers=threads), runs)
         seconds = {name: [] for name in routes}
         cpu = {name: [] for name in routes}
-        for _ in range(repeats):  # interleaved: each route once a round, so that a change of load hits them all
-            for name, (fn, _count) in routes.items():
-                t0, c0 = time.perf_counter(), time.process_time()
-                fn()
-                seconds[name].append(time.perf_counter() - t0)
-                cpu[name].append(time.process_time() - c0)
+        busy = {name: [] for name in routes}  # the workers' time in the ensemble's calls / (workers x wall)
+        with in_calls() as spent:
+            for _ in range(repeats):  # interleaved: each route once a round, so that a change of load hits them all
+                for name, (fn, _count) in routes.items():
+                    spent.clear()
+                    t0, c0 = time.perf_counter(), time.process_time()
+                    fn()
+                    seconds[name].append(time.perf_counter() - t0)
+                    cpu[name].append(time.process_time() - c0)
+                    busy[name].append(sum(spent) / (seconds[name][-1] * (2 if "2 local" in name else 1)))
     for name, (_, count) in routes.items():
         report(name, (min(seconds[name]), statistics.median(seconds[name])), count)
+    print("  the share of the wall time each worker spent in the ensemble's calls (what the engine leaves to the "
+          "runs, whatever the load), best and median:")
+    for name in routes:
+        if name.startswith("kronsub sweep"):
+            print(f"    {name:<50} {max(busy[name]):>10.1%} {statistics.median(busy[name]):>10.1%}")
     print("  per second of this process's CPU time (all its threads: the sweep's client, scheduler and worker; "
           "heyoka's threads), best and median:")
     for name, (_, count) in routes.items():
@@ -259,6 +269,28 @@ def main():
               + " (goal: flat)")
     print(f"load average {', '.join(f'{x:.1f}' for x in os.getloadavg())} at the end")
     scratch.cleanup()
+
+
+@contextlib.contextmanager
+def in_calls():
+    """The seconds of each call of the Taylor ensemble made meanwhile, by any thread of this
+    process (the local cluster's workers are its threads)."""
+    from kronsub.sweep.ensemble import TaylorEnsemble
+
+    spent, original = [], TaylorEnsemble.run
+
+    def timed_run(self, *args, **kwargs):
+        t0 = time.perf_counter()
+        try:
+            return original(self, *args, **kwargs)
+        finally:
+            spent.append(time.perf_counter() - t0)
+
+    TaylorEnsemble.run = timed_run
+    try:
+        yield spent
+    finally:
+        TaylorEnsemble.run = original
 
 
 def overhead(system, loaded, tol, count, repeats, written):
