@@ -1,11 +1,15 @@
 """kronsub sweep against its peers: 10^4 double-pendulum runs (System I's defaults, initial angles
 uniform in [-2, 2], at rest, t = 10) through `kronsub sweep`'s driver on 1 and 2 local workers,
-the compiled ensemble called directly in this process, heyoka's `ensemble_propagate_until`
+the compiled ensemble called directly in this process (on one thread, and on two threads each
+given half the runs: what the machine gives two workers at the time), heyoka's `ensemble_propagate_until`
 (threads, 1 and 2) and a Python loop over `system.simulate()`; each at the loosest tolerance whose
 error at t = 10 is <= 1e-8 on a sample of runs against the Taylor integrator at 1e-15. The routes
 are timed round by round (interleaved). The sweep rows time the driver writing every chunk as its
 Parquet part (as the command does) on the command's local cluster, started before the clock;
-the whole command, cluster start included, is timed apart. Then the engine's share of the wall
+the share of the wall time each worker spent in the ensemble's calls (what the engine leaves to
+the runs: a thread that waits for a core while in a call still counts, so the load of other jobs
+moves it little) is printed beside them; the whole command, cluster start included, is timed apart (with the sweep's C kept from the
+run before; the emission that saves is timed in this process). Then the engine's share of the wall
 time at --overhead-runs (one worker: the wall time less the time the worker spent in the
 ensemble's calls, timed over the same interval) and the client's peak memory (the peak resident
 set, ``VmHWM``, of the process running `kronsub sweep`, its worker threads included) at 10^4,
@@ -17,6 +21,7 @@ per second, the ratios the issue sets as goals, min and median of --repeats.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import os
 import statistics
@@ -35,6 +40,7 @@ ERROR = 1e-8  # at t = 10, on the sample, against the tight run
 SAMPLE = 20
 ANGLES = ("theta=uniform(-2, 2)", "phi=uniform(-2, 2)")
 LOOP = "Python loop over system.simulate(method='taylor')"
+DIRECT2 = "Taylor ensemble directly, 2 threads, half the runs each"
 CHEAP = ("--method", "rk4", "--t", "0.1", "--dt", "0.05", "--chunk", "10000")  # the memory runs: the engine, not the model
 
 
@@ -96,6 +102,7 @@ def main():
     tay = {t: float(np.max(np.abs(load_taylor(taylor_sources(system, t)).run(times, t, param[:SAMPLE], y0[:SAMPLE],
                                                                              None)[:, 5:9] - reference)))
            for t in (1e-9, 1e-10, 1e-11, 1e-12, 1e-13, 1e-14)}
+    print(f"load average {', '.join(f'{x:.1f}' for x in os.getloadavg())} on {os.cpu_count()} cores at the start")
     print(f"{runs:,} runs of System I to t = {T_END:g}, rows every {DT:g}; error at t = {T_END:g} on {SAMPLE} runs "
           "against the Taylor integrator at 1e-15:")
     print("  dop853: " + ", ".join(f"{t:.0e}: {e:.1e}" for t, e in dop.items()))
@@ -112,8 +119,6 @@ def main():
     taylor = load_taylor(taylor_sources(system, tol))
     job = make_job(system, plan, initial_values(loaded, None), {}, method="taylor", t_end=T_END, dt=DT,
                    rtol=tol, atol=tol, chunk=1000)
-    import contextlib
-
     from kronsub.sweep.chunk import columns
     from kronsub.sweep.dataset import Dataset
 
@@ -126,7 +131,17 @@ def main():
         return lambda index, rows: dataset.write(index, rows)
 
     tenth = max(1, runs // 10)
+    from concurrent.futures import ThreadPoolExecutor
+
+    halves = ThreadPoolExecutor(2)
+
+    def direct_on_two():
+        cut = (0, runs // 2, runs)
+        list(halves.map(lambda k: taylor.run(times, tol, param[cut[k]:cut[k + 1]], y0[cut[k]:cut[k + 1]], None),
+                        (0, 1)))
+
     routes = {"Taylor ensemble directly, this process": (lambda: taylor.run(times, tol, param, y0, None), runs),
+              DIRECT2: (direct_on_two, runs),
               f"dop853 ensemble directly, this process ({tenth:,} runs)": (
                   lambda: ensemble.run("dop853", cuts, DT, dop_tol, dop_tol, param[:tenth], y0[:tenth], False), tenth)}
 
@@ -175,21 +190,42 @@ def main():
                         integ.ta, T_END, runs, gen, algorithm="thread", max_workers=threads), runs)
         seconds = {name: [] for name in routes}
         cpu = {name: [] for name in routes}
-        for _ in range(repeats):  # interleaved: each route once a round, so that a change of load hits them all
-            for name, (fn, _count) in routes.items():
-                t0, c0 = time.perf_counter(), time.process_time()
-                fn()
-                seconds[name].append(time.perf_counter() - t0)
-                cpu[name].append(time.process_time() - c0)
+        busy = {name: [] for name in routes}  # the workers' time in the ensemble's calls / (workers x wall)
+        with in_calls() as spent:
+            for _ in range(repeats):  # interleaved: each route once a round, so that a change of load hits them all
+                for name, (fn, _count) in routes.items():
+                    spent.clear()
+                    t0, c0 = time.perf_counter(), time.process_time()
+                    fn()
+                    seconds[name].append(time.perf_counter() - t0)
+                    cpu[name].append(time.process_time() - c0)
+                    busy[name].append(sum(spent) / (seconds[name][-1] * (2 if "2 local" in name else 1)))
     for name, (_, count) in routes.items():
         report(name, (min(seconds[name]), statistics.median(seconds[name])), count)
+    print("  the share of the wall time each worker spent in the ensemble's calls (what the engine leaves to the "
+          "runs, whatever the load), best and median:")
+    for name in routes:
+        if name.startswith("kronsub sweep"):
+            print(f"    {name:<50} {max(busy[name]):>10.1%} {statistics.median(busy[name]):>10.1%}")
     print("  per second of this process's CPU time (all its threads: the sweep's client, scheduler and worker; "
           "heyoka's threads), best and median:")
     for name, (_, count) in routes.items():
         per_cpu[name] = count / min(cpu[name])
         print(f"    {name:<50} {count / min(cpu[name]):>10,.0f} {count / statistics.median(cpu[name]):>10,.0f}")
+    command_seconds(runs, tol, Path(scratch.name) / "whole")  # (the sweep's C kept, if it was not)
     whole = [command_seconds(runs, tol, Path(scratch.name) / f"whole{k}") for k in range(repeats)]
     report("the whole `kronsub sweep` command, 1 worker", (min(whole), statistics.median(whole)))
+    emitting = []
+    for _ in range(repeats):
+        from kronsub.emitters.code import emit_c
+        from kronsub.simulation.taylor_c import generated_c, order_for
+
+        t0 = time.perf_counter()
+        emit_c(system, "model")
+        generated_c(system, order_for(tol))
+        emitting.append(time.perf_counter() - t0)
+    print(f"  emitting the sweep's C, which a sweep of a model whose C is kept leaves out: {min(emitting):.2f} s "
+          f"(best), {statistics.median(emitting):.2f} s (median)")
     api = kronsub.load(MODEL).derive()
     loop = min(runs, 200)
 
@@ -212,7 +248,12 @@ def main():
 
     print(f"  sweep on 1 worker / compiled ensemble directly: {ratio(sweep1, 'Taylor ensemble directly, this process')} "
           "(goal >= 0.8)")
-    print(f"  sweep on 2 workers / 1 worker: {ratio(sweep2, sweep1)} (goal >= 1.8)")
+    print(f"  sweep on 2 workers / 1 worker: {ratio(sweep2, sweep1)} (goal >= 1.8); per CPU second "
+          f"{per_cpu[sweep2] / per_cpu[sweep1]:.2f}")
+    direct1 = "Taylor ensemble directly, this process"
+    print(f"  the machine at the time, ensemble directly on 2 threads / 1: {ratio(DIRECT2, direct1)}; the sweep's "
+          f"share of it: {rates[sweep2] / rates[sweep1] / (rates[DIRECT2] / rates[direct1]):.2f}; "
+          f"{medians[sweep2] / medians[sweep1] / (medians[DIRECT2] / medians[direct1]):.2f}")
     if hey:
         print(f"  sweep on 1 worker / heyoka ensemble on 1 thread: {ratio(sweep1, hey)} (goal >= 5)")
     print(f"  sweep on 1 worker / Python loop: {ratio(sweep1, LOOP)}")
@@ -226,7 +267,30 @@ def main():
         low = min(memory.values())
         print("  client memory / the smallest run's: " + ", ".join(f"{c:,}: {m / low:.2f}" for c, m in memory.items())
               + " (goal: flat)")
+    print(f"load average {', '.join(f'{x:.1f}' for x in os.getloadavg())} at the end")
     scratch.cleanup()
+
+
+@contextlib.contextmanager
+def in_calls():
+    """The seconds of each call of the Taylor ensemble made meanwhile, by any thread of this
+    process (the local cluster's workers are its threads)."""
+    from kronsub.sweep.ensemble import TaylorEnsemble
+
+    spent, original = [], TaylorEnsemble.run
+
+    def timed_run(self, *args, **kwargs):
+        t0 = time.perf_counter()
+        try:
+            return original(self, *args, **kwargs)
+        finally:
+            spent.append(time.perf_counter() - t0)
+
+    TaylorEnsemble.run = timed_run
+    try:
+        yield spent
+    finally:
+        TaylorEnsemble.run = original
 
 
 def overhead(system, loaded, tol, count, repeats, written):
@@ -275,7 +339,7 @@ def command_seconds(runs, tol, out) -> float:
     subprocess.run([sys.executable, "-m", "kronsub", "sweep", str(MODEL), *(a for s in ANGLES for a in ("--sample", s)),
                     "--runs", str(runs), "--seed", "1", "--method", "taylor", "--rtol", repr(tol), "--atol", repr(tol),
                     "--t", repr(T_END), "--dt", repr(DT), "--workers", "1", "-o", str(out)], check=True,
-                   stdout=subprocess.DEVNULL, env={**os.environ, "PYTHONPATH": str(ROOT)})
+                   capture_output=True, env={**os.environ, "PYTHONPATH": str(ROOT)})
     return time.perf_counter() - t0
 
 

@@ -212,6 +212,60 @@ def test_command_writes_a_dataset_refuses_and_resumes(tmp_path):
     assert other.exit_code == 1 and "holds another sweep" in other.output
 
 
+CRASHING = """
+import ctypes, resource, sys, time
+from pathlib import Path
+
+import kronsub.sweep.driver as driver
+from kronsub.cli import main
+
+resource.setrlimit(resource.RLIMIT_CORE, (0, 0))
+out, crash_at = Path(sys.argv[1]), int(sys.argv[2])
+run_chunk = driver.run_chunk
+
+
+def crashing(job, index):
+    if index == crash_at:  # a fault in compiled code, in a worker thread, once a part is written
+        deadline = time.monotonic() + 60
+        while not any(out.glob("part-*.parquet")) and time.monotonic() < deadline:
+            time.sleep(0.01)
+        ctypes.string_at(0)
+    return run_chunk(job, index)
+
+
+driver.run_chunk = crashing
+main(["sweep", *sys.argv[3:], "-o", str(out)])
+"""
+
+
+def test_a_crash_in_a_worker_thread_keeps_the_written_chunks_and_resume_finishes(tmp_path):
+    import signal
+    import subprocess
+    import sys
+
+    out = tmp_path / "runs.parquet"
+    args = [str(SYSTEM1), "--scene", "free", "--grid", "theta=-1:1:5", "--sample", "phi=uniform(-1, 1)", "--runs",
+            "2", "--t", "1", "--dt", "0.05", "--chunk", "2", "--workers", "1"]
+    crashed = subprocess.run([sys.executable, "-c", CRASHING, str(out), "3", *args], cwd=tmp_path,
+                             capture_output=True, timeout=300)
+    assert crashed.returncode == -signal.SIGSEGV, crashed.stderr.decode()
+    kept = {p.name: p.stat().st_mtime_ns for p in out.glob("part-*.parquet")}
+    assert 1 <= len(kept) <= 4 and "part-000003.parquet" not in kept
+    for name in kept:  # each part written whole
+        assert len(pd.read_parquet(out / name)) == 2
+    assert json.loads((tmp_path / "runs.parquet.json").read_text())["state"] == "running"
+    resumed = run([*args, "-o", out, "--resume"])
+    assert resumed.exit_code == 0, resumed.output
+    assert f"{len(kept)} of 5 chunks already written" in resumed.output
+    assert {p.name: p.stat().st_mtime_ns for p in out.glob("part-*.parquet") if p.name in kept} == kept
+    expected = rows_of(job_of(SYSTEM1, "free", ("theta=-1:1:5",), ("phi=uniform(-1, 1)",), runs=2, t_end=1.0,
+                              dt=0.05, chunk=10))
+    pd.testing.assert_frame_equal(pd.read_parquet(out).sort_values("run", ignore_index=True), expected,
+                                  check_dtype=False)
+    meta = json.loads((tmp_path / "runs.parquet.json").read_text())
+    assert meta["state"] == "complete" and meta["counts"] == {"complete": 10}
+
+
 @pytest.mark.parametrize("extra, code, told", [
     (["--grid", "thetx=0:1:3"], 1, "--grid thetx=0:1:3: thetx: no parameter, coordinate or velocity"),
     (["--grid", "theta=1:0:3"], 1, "--grid theta=1:0:3: the grid of theta is inverted"),
@@ -487,3 +541,36 @@ def test_a_closed_loop_in_the_ensemble_gives_the_rows_of_one_by_one():
     pd.testing.assert_frame_equal(rows, pd.DataFrame(run_chunk(dataclasses.replace(job, route=ONE_BY_ONE), 0)))
     assert list(rows["status"]) == ["stopped"] * 4 + ["complete"] * 4
     assert "violates the constraints" in rows["reason"][0] and 0 < rows["t_final"][3] < 2.0  # projection; mid-run
+
+
+def test_parts_are_written_without_pandas(tmp_path):
+    """pyarrow.array imports pandas to ask whether its argument is a pandas object; the client
+    makes its columns from their buffers, with the same types and values."""
+    import subprocess
+    import sys
+
+    script = ("import sys\nfrom pathlib import Path\nimport numpy as np\nfrom kronsub.sweep.dataset import Dataset\n"
+              "d = Dataset(Path(sys.argv[1]), [('run', 'int64'), ('x', 'float64'), ('status', 'string')])\n"
+              "d.prepare({}, resume=False, force=False)\n"
+              "d.write(0, {'run': np.arange(3), 'x': np.array([1.5, np.nan, -0.0]), 'status': ['complete', '', 'ü']})\n"
+              "d.write(1, {'run': np.arange(0), 'x': np.zeros(0), 'status': []})\n"
+              "assert 'pandas' not in sys.modules\n")
+    done = subprocess.run([sys.executable, "-c", script, str(tmp_path / "out")], capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    assert pq.read_schema(tmp_path / "out" / "part-000000.parquet").types == [pa.int64(), pa.float64(), pa.string()]
+    table = pd.read_parquet(tmp_path / "out" / "part-000000.parquet")
+    assert list(table["run"]) == [0, 1, 2] and list(table["status"]) == ["complete", "", "ü"]
+    assert table["x"][0] == 1.5 and np.isnan(table["x"][1]) and np.signbit(table["x"][2])
+    assert len(pd.read_parquet(tmp_path / "out" / "part-000001.parquet")) == 0
+
+
+def test_the_local_cluster_leaves_out_what_only_its_dashboard_would_show():
+    from kronsub.sweep.driver import local_cluster
+
+    with local_cluster(2, threads=True) as cluster:
+        (worker,) = cluster.workers.values()
+        assert "profile" not in worker.periodic_callbacks and worker.state.nthreads == 2
+        assert worker.periodic_callbacks["tick"].callback_time >= 500

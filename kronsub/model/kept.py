@@ -23,7 +23,7 @@ from ..cache import (KEPT, cache_dir, code_fingerprint, load_entry, private_fold
 from ..errors import KronsubError
 from .file_reading import read_model_file
 
-__all__ = ["FORMAT", "RECORD_BYTES", "key", "load", "record", "templates_digest"]
+__all__ = ["FORMAT", "RECORD_BYTES", "key", "load", "quiet_cache_dir", "record", "templates_digest"]
 
 FORMAT = "kronsub-kept/1"
 RECORD_BYTES = 16 << 20  # generated C of a large model fits; larger outputs are not kept
@@ -56,7 +56,7 @@ def templates_digest() -> str:
     return digest.hexdigest()
 
 
-def _quiet_cache_dir() -> Path | None:
+def quiet_cache_dir() -> Path | None:
     """The cache folder when it is configured, there and safe, with no warning (the command that
     runs after a miss gives it)."""
     folder = cache_dir()
@@ -83,7 +83,7 @@ def record(key: str, payload: dict, files) -> None:
 def load(key: str) -> dict | None:
     """The payload kept under ``key`` when its record is sound and every model file it names
     still has its recorded sha256; else None."""
-    folder = _quiet_cache_dir()
+    folder = quiet_cache_dir()
     if folder is None:
         return None
     text = load_entry(folder / KEPT / f"{key}.json", RECORD_BYTES)  # private, this user's, sealed; bounded

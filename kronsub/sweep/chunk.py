@@ -24,13 +24,12 @@ import numpy as np
 from ..core.first_order import zero_rows
 from ..core.known_system import KnownSystem
 from ..errors import KronsubError
-from ..simulation.fallback import numpy_module
 from ..simulation.native import NativeError
 from .ensemble import Sources, load, load_taylor, pieces, summary_width
 from .plan import Plan
 from .trajectories import TrajectoryPart
 
-__all__ = ["ENSEMBLE", "ONE_BY_ONE", "TAYLOR", "Job", "columns", "inputs_of", "run_chunk", "state_names"]
+__all__ = ["ENSEMBLE", "ONE_BY_ONE", "TAYLOR", "Job", "columns", "inputs_of", "run_chunk", "state_names", "warm"]
 
 ENSEMBLE, TAYLOR, ONE_BY_ONE = "ensemble", "taylor ensemble", "one by one"  # the routes of a sweep's runs
 
@@ -132,6 +131,22 @@ def _conserves(job: Job, native) -> bool:
         return _CONSERVES[key]
 
 
+def warm(job: Job) -> None:
+    """Build and load what this process's chunks of ``job`` call (its libraries, whether the model
+    conserves energy), as the first chunk would: for a process that starts its workers meanwhile.
+    What fails here fails again in the chunk, which says so."""
+    if job.route not in (ENSEMBLE, TAYLOR):
+        return
+    try:
+        ensemble = load(job.sources)
+        if job.route == TAYLOR:
+            load_taylor(job.taylor_sources)
+        if job.system.implicit is None:
+            _conserves(job, ensemble.native)
+    except Exception:  # noqa: BLE001 - the chunk meets it again and says so (or runs one by one)
+        pass
+
+
 def run_chunk(job: Job, index: int) -> dict[str, object]:
     """The rows of chunk ``index``, as columns (:func:`columns`); with ``job.trajectories``, the
     runs' rows written as the chunk's trajectory part first."""
@@ -160,7 +175,7 @@ def run_chunk(job: Job, index: int) -> dict[str, object]:
         _first_order_finals(job, summary, param, first)
     status = summary[:, 0]
     out: dict[str, object] = {"run": np.arange(start, stop, dtype=np.int64), **inputs}
-    out["status"] = ["complete" if s == 0 else "stopped" for s in status]
+    out["status"] = np.where(status == 0, "complete", "stopped").tolist()
     out["reason"] = reasons
     out["t_final"] = summary[:, 1]
     for k, name in enumerate(state_names(job.system)):
@@ -182,6 +197,8 @@ def _first_order_finals(job: Job, summary: np.ndarray, param: np.ndarray, indice
     """The final velocities of the first-order coordinates (:mod:`kronsub.core.first_order`),
     which the state carries but does not integrate: solved from each run's final state by the
     generated right-hand side, in place in ``summary``."""
+    from ..simulation.fallback import numpy_module  # heavy (the code emitters): only for first-order coordinates
+
     rhs = numpy_module(job.system, job.outputs)["rhs"]
     nq = len(job.system.coordinates)
     columns = [5 + nq + j for j in indices]
@@ -253,16 +270,13 @@ def _ensemble(job: Job, param: np.ndarray, y0: np.ndarray, run0: int = 0,
                                             param[a + r, :len(job.system.parameters)])
         summary = np.concatenate(parts)
     messages: dict[int, str] = {}
-    reasons = []
-    for s, t in zip(summary[:, 0], summary[:, 1]):
-        if s == 0:
-            reasons.append("")
-            continue
-        status = int(s)
+    reasons = [""] * len(summary)
+    for r in np.flatnonzero(summary[:, 0] != 0):  # (a complete run has no reason: most rows)
+        status = int(summary[r, 0])
         if status not in messages:
             messages[status] = STATUS.get(status, f"status {status}") if job.route == TAYLOR else \
                 ensemble.message(status)
-        reasons.append(f"{messages[status]} at t = {t:.6g}")
+        reasons[r] = f"{messages[status]} at t = {summary[r, 1]:.6g}"
     return summary, reasons, users
 
 

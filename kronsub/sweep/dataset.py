@@ -10,10 +10,12 @@ import re
 import shutil
 from pathlib import Path
 
+import numpy as np
+
 from ..atomic import atomic_file, write_atomically
 from ..errors import KronsubError
 
-__all__ = ["Dataset", "DatasetError", "PART", "part_name"]
+__all__ = ["Dataset", "DatasetError", "PART", "arrow_column", "part_name"]
 
 PART = re.compile(r"part-(\d{6,})\.parquet")
 
@@ -24,6 +26,24 @@ class DatasetError(KronsubError):
 
 def part_name(index: int) -> str:
     return f"part-{index:06d}.parquet"
+
+
+def arrow_column(values, kind: str):
+    """``values`` as an Arrow array of ``kind`` (``int64``, ``float64`` or ``string``), made from
+    its buffers: ``pyarrow.array`` imports pandas to ask whether they are a pandas object, which
+    the client would wait for before its first part."""
+    import pyarrow as pa
+
+    if kind == "string":
+        encoded = [str(v).encode() for v in values]
+        offsets = np.zeros(len(encoded) + 1, dtype=np.int64)
+        np.cumsum(np.array([len(b) for b in encoded], dtype=np.int64), out=offsets[1:])
+        return pa.Array.from_buffers(pa.large_string(), len(encoded), [None, pa.py_buffer(offsets),
+                                                                      pa.py_buffer(b"".join(encoded))]).cast(pa.string())
+    data = np.ascontiguousarray(values, dtype=np.int64 if kind == "int64" else np.float64)
+    if data.ndim != 1:
+        raise ValueError(f"a column is one-dimensional, not of shape {data.shape}")
+    return pa.Array.from_buffers(pa.int64() if kind == "int64" else pa.float64(), len(data), [None, pa.py_buffer(data)])
 
 
 class Dataset:
@@ -77,8 +97,8 @@ class Dataset:
     def table(self, rows: dict[str, object]):
         import pyarrow as pa
 
-        types = {"int64": pa.int64(), "float64": pa.float64(), "string": pa.string()}
-        return pa.table({name: pa.array(rows[name], type=types[kind]) for name, kind in self.columns})
+        return pa.Table.from_arrays([arrow_column(rows[name], kind) for name, kind in self.columns],
+                                    names=[name for name, _ in self.columns])
 
     def write(self, index: int, rows: dict[str, object]) -> None:
         """Chunk ``index``'s rows as its part (atomically)."""

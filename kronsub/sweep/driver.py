@@ -2,8 +2,11 @@
 
 By default a local cluster on this machine, one thread or process per core: for runs in
 compiled code a worker in this process with a thread per core (the ensemble's C call releases
-the GIL, and no process has to start), for runs with Python in them (one by one, or a closed
-loop's projected initial values) a process per core of one thread each; ``scheduler`` (or ``DASK_SCHEDULER_ADDRESS``) sends the chunks to a
+the GIL, and no process has to start; the libraries are loaded while the cluster starts), for
+runs with Python in them (one by one, or a closed loop's projected initial values) a process
+per core of one thread each; the local cluster leaves out what only a watcher of its dashboard
+would use (:data:`QUIET`), which takes CPU time from the runs on a machine whose cores all
+compute; ``scheduler`` (or ``DASK_SCHEDULER_ADDRESS``) sends the chunks to a
 running cluster instead, and one that cannot be reached is an error within
 :data:`CONNECT_SECONDS`. The job (model, plan, C sources) goes to the workers once; at most
 :func:`window` chunks are in flight, so the client's memory does not grow with the number of
@@ -17,15 +20,22 @@ import logging
 import os
 import signal
 import sys
+import threading
 import time
 from collections.abc import Callable, Iterable
 
 from ..errors import KronsubError
 from ..interrupts import handled
-from .chunk import ONE_BY_ONE, Job, run_chunk
+from .chunk import ONE_BY_ONE, Job, run_chunk, warm
 
-__all__ = ["CONNECT_SECONDS", "ENV_SCHEDULER", "RETRIES", "SchedulerError", "SweepLost", "SweepProgress", "execute",
-           "local_cluster", "window"]
+__all__ = ["CONNECT_SECONDS", "ENV_SCHEDULER", "QUIET", "RETRIES", "SchedulerError", "SweepLost", "SweepProgress",
+           "execute", "local_cluster", "window"]
+
+QUIET = {  # the local cluster's settings: no one looks at its dashboard
+    "distributed.worker.profile.enabled": False,  # a sample of every thread's stack each 10 ms, under the GIL
+    "distributed.admin.tick.interval": "500ms",  # each event loop's check of its own delay, every 20 ms
+    "distributed.admin.system-monitor.interval": "2s",  # CPU, memory and network of the process, every 0.5 s
+}
 
 CONNECT_SECONDS = 5  # a scheduler that does not answer by then is reported, not waited for
 ENV_SCHEDULER = "DASK_SCHEDULER_ADDRESS"
@@ -96,17 +106,19 @@ def _connect(scheduler: str | None, workers: int | None, threads: bool = False):
 def local_cluster(count: int, threads: bool):
     """The local cluster of ``count`` cores: one worker in this process with a thread per core
     (``threads``), else a process per core with one thread."""
+    import dask
     from distributed import LocalCluster
 
     # the scheduler's HTTP server on a free port: two sweeps at once do not warn of a taken one
-    if threads:
-        return LocalCluster(n_workers=1, threads_per_worker=count, processes=False, dashboard_address=":0",
-                            silence_logs=logging.ERROR)
-    # the workers ignore Ctrl-C, which the terminal sends the whole process group: the client
-    # keeps the finished chunks and closes the cluster
-    with handled(lambda signum: signum == signal.SIGINT, signal.SIG_IGN):
-        return LocalCluster(n_workers=count, threads_per_worker=1, processes=True, dashboard_address=":0",
-                            silence_logs=logging.ERROR)
+    with dask.config.set(QUIET):  # read as the scheduler and workers start (and passed to worker processes)
+        if threads:
+            return LocalCluster(n_workers=1, threads_per_worker=count, processes=False, dashboard_address=":0",
+                                silence_logs=logging.ERROR)
+        # the workers ignore Ctrl-C, which the terminal sends the whole process group: the client
+        # keeps the finished chunks and closes the cluster
+        with handled(lambda signum: signum == signal.SIGINT, signal.SIG_IGN):
+            return LocalCluster(n_workers=count, threads_per_worker=1, processes=True, dashboard_address=":0",
+                                silence_logs=logging.ERROR)
 
 
 def execute(job: Job, todo: Iterable[int], done: Callable[[int, dict], None], *, scheduler: str | None = None,
@@ -116,7 +128,10 @@ def execute(job: Job, todo: Iterable[int], done: Callable[[int, dict], None], *,
     from distributed import as_completed
 
     # threads where the runs are C calls; a closed loop's initial values are projected in Python
-    client, cluster = _connect(scheduler, workers, threads=job.route != ONE_BY_ONE and job.system.implicit is None)
+    threads = job.route != ONE_BY_ONE and job.system.implicit is None
+    if threads and not scheduler:  # the workers will be threads of this process: their libraries loaded meanwhile
+        threading.Thread(target=warm, args=(job,), name="kronsub-sweep-warm", daemon=True).start()
+    client, cluster = _connect(scheduler, workers, threads=threads)
     pending = list(todo)[::-1]
     tries: dict[int, int] = {}
     try:

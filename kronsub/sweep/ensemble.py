@@ -4,7 +4,8 @@ The library is the model's generated C (parameters are arguments: never recompil
 values), kronsub's integrators and ``csrc/ensemble.c``, whose ``ks_ensemble_run`` integrates each
 run exactly as one run of ``kronsub simulate`` does (the same integrator on the same pieces of
 the output grid) and writes its summary. The client ships the sources with their sha256
-(:class:`Sources`); a worker checks the digest, builds them once (cached by content,
+(:class:`Sources`; the generated C kept for the next sweep of the same system,
+:mod:`.emitted`); a worker checks the digest, builds them once (cached by content,
 :func:`kronsub.simulation.native.compile_library`) and keeps the loaded library per process."""
 from __future__ import annotations
 
@@ -23,6 +24,7 @@ from ..simulation.grid import Grid, aligned_pieces, chunk_ranges, fixed_pieces
 from ..simulation.methods import METHODS
 from ..simulation.native import NativeModel, compile_library, data_address
 from ..simulation.rows import BLOCK_ROWS
+from .emitted import kept_files
 
 __all__ = ["BATCH_METHODS", "Ensemble", "EnsembleError", "Sources", "TaylorEnsemble", "ensemble_sources", "load",
            "load_taylor", "pieces", "summary_width", "taylor_sources"]
@@ -56,10 +58,13 @@ def _digest(files) -> str:
 def ensemble_sources(system, outputs=None) -> Sources:
     """The sources of ``system``'s sweep library: the generated C as ``simulate`` builds it
     (:func:`kronsub.simulation.compiled.compiled_library`) and the ensemble."""
-    from ..emitters.code import emit_c
+    def emit():
+        from ..emitters.code import emit_c  # heavy (jinja2, the C printer): only when the C is not kept
+
+        return [(g.name, g.text) for g in emit_c(system, "model", outputs=outputs)]
 
     nq, nparam = len(system.coordinates), len(system.parameters)
-    files = [(g.name, g.text) for g in emit_c(system, "model", outputs=outputs)]
+    files = kept_files("ensemble", system, repr(outputs), emit)
     key = fingerprint(system, outputs)
     if key is not None:
         files.append(identity_source(key, nq, nparam))
@@ -183,7 +188,9 @@ def taylor_sources(system, tol: float) -> Sources:
     --method taylor`` builds it (:class:`kronsub.simulation.taylor_c.TaylorC`), and its ensemble."""
     from ..simulation.taylor_c import generated_c, order_for
 
-    files = [("taylor.c", generated_c(system, order_for(tol))), ("ks_taylor_ensemble.c", TAYLOR_C.read_text())]
+    order = order_for(tol)
+    files = kept_files("taylor", system, str(order), lambda: [("taylor.c", generated_c(system, order))])
+    files.append(("ks_taylor_ensemble.c", TAYLOR_C.read_text()))
     return Sources(tuple(files), _digest(files), len(system.coordinates), len(system.parameters))
 
 

@@ -108,7 +108,9 @@ def evaluate(outputs: list[UserOutput], functions, t: np.ndarray, Y: np.ndarray,
             if not len(t):
                 values.append(np.nan)
                 continue
-            v = np.broadcast_to(np.asarray(f(t, *Y.T, *param), dtype=float), t.shape)
+            v = np.asarray(f(t, *Y.T, *param), dtype=float)
+            if v.shape != t.shape:  # (a constant, or an expression of the parameters alone)
+                v = np.broadcast_to(v, t.shape)
             if out.aggregate == "max":
                 values.append(float(np.max(v)))
             elif out.aggregate == "min":

@@ -16,7 +16,7 @@ import numpy as np
 
 from ..atomic import atomic_file
 from ..errors import KronsubError
-from .dataset import part_name
+from .dataset import arrow_column, part_name
 
 __all__ = ["GROUP_BYTES", "ColumnClash", "TrajectoryPart", "trajectory_columns"]
 
@@ -115,5 +115,6 @@ class TrajectoryPart:
             return
         rows = np.concatenate(self.held)
         self.held, self.bytes = [], 0
-        arrays = [pa.array(rows[:, 0].astype(np.int64))] + [pa.array(rows[:, k]) for k in range(1, rows.shape[1])]
+        arrays = [arrow_column(rows[:, 0], "int64")] + [arrow_column(rows[:, k], "float64")
+                                                        for k in range(1, rows.shape[1])]
         self.writer.write_table(pa.Table.from_arrays(arrays, schema=self.schema))
