@@ -74,6 +74,9 @@ def test_differential_drive_through_the_api():
     system = kronsub.load(str(MODELS / "differential_drive.yaml")).derive()
     run = system.simulate(t=1.0, dt=0.5, dataframe=False)
     assert run.columns == ("x", "y", "theta", "phi_l", "phi_r", "phi_l_dot", "phi_r_dot")
+    # the state [q; u]: five coordinates, two speeds (not halves of y)
+    assert run.q.shape == (len(run.t), 5) and run.qdot.shape == (len(run.t), 2)
+    assert np.array_equal(run.q[:, 2], run["theta"]) and np.array_equal(run.qdot[:, 1], run["phi_r_dot"])
     # from rest, the wheels' rates grow as Mbar^-1 tau: the right motor pulls harder, so it turns left
     R, b = 0.05, 0.15
     phi_l, phi_r, theta = run.y[-1, 3], run.y[-1, 4], run.y[-1, 2]

@@ -31,8 +31,9 @@ class Run:
     ``table`` holds the CSV's rows (its first column ``t``) under the CSV's header
     ``table_columns`` (coordinates, velocities, energies, ``drive_power`` for a prescribed motion,
     the dependent coordinates of a closed loop, points and reactions when asked for); ``metadata`` is what ``--meta`` writes.
-    ``y = [q; qdot]`` per row with ``columns`` its names; ``notes`` the corrections the
-    projection onto the constraints made to the initial values."""
+    ``y = [q; qdot]`` per row with ``columns`` its names (``[q; u]`` in speeds; a first-order
+    coordinate has no velocity in it), ``coordinate_count`` of them coordinates; ``notes`` the
+    corrections the projection onto the constraints made to the initial values."""
 
     t: np.ndarray
     y: np.ndarray
@@ -46,14 +47,20 @@ class Run:
     table: np.ndarray | None = None
     metadata: dict = dataclasses.field(default_factory=dict)
     notes: tuple[str, ...] = ()
+    coordinate_count: int | None = None  # None: half of y's columns
+
+    def _split(self) -> int:
+        return self.y.shape[1] // 2 if self.coordinate_count is None else self.coordinate_count
 
     @property
     def q(self) -> np.ndarray:
-        return self.y[:, : self.y.shape[1] // 2]
+        """The coordinates' columns of ``y``."""
+        return self.y[:, : self._split()]
 
     @property
     def qdot(self) -> np.ndarray:
-        return self.y[:, self.y.shape[1] // 2:]
+        """The velocities' columns of ``y`` (the speeds ``u`` of a model in speeds)."""
+        return self.y[:, self._split():]
 
     def _extra(self) -> dict[str, np.ndarray]:
         return {"kinetic_energy": self.kinetic_energy, "potential_energy": self.potential_energy,
@@ -165,7 +172,7 @@ def simulate(system: KnownSystem, t: float | None = None, dt: float | None = Non
     columns = tuple(s.name for s in system.coordinates) + tuple(system.name_of(s) for s in system.state_velocities)
     result = Run(traj.t, traj.y.reshape(len(traj.t), len(columns)), columns, T, V, traj.complete, traj.message,
                  {p.name: v for p, v in zip(system.parameters, values.parameters)}, tuple(table_columns), table,
-                 metadata, begin.notes)
+                 metadata, begin.notes, coordinate_count=len(system.coordinates))
     if dataframe is None:
         try:
             import pandas  # noqa: F401
