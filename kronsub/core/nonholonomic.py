@@ -291,8 +291,7 @@ def speed_equations(system: KnownSystem, velocity: VelocityTransformation, const
     holonomic = tuple(Constraint(name, g) for name, g in zip(constraint_names[len(constraint_names)
                                                                               - len(velocity.holonomic):],
                                                                 velocity.holonomic))
-    source = SpeedProjection(mass_matrix=sympy.Matrix(system.mass_matrix),
-                             velocity_terms=sympy.Matrix(system.velocity_terms),
+    source = SpeedProjection(mass_matrix=system.mass_matrix, velocity_terms=system.velocity_terms,
                              effect_forces=tuple(system.effect_forces.items()), velocity=velocity, tidy=tidy)
     return SpeedEquations(speeds=velocity.speeds, definitions=tuple(definitions.items()),
                           holonomic=holonomic, dependent=velocity.dependent,
