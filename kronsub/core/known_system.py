@@ -41,6 +41,7 @@ class Transition:
     transformation: sympy.Matrix  # C = dx/dxbar (7'), (21)
     parts: tuple[tuple[str, str], ...] = ()  # (part name, type) in primitive order
     direct_effects: tuple[str, ...] = ()  # effects applied in the subspace: no force on the primitive
+    christoffel: bool = False  # primitive_velocity_terms are the Christoffel terms (A) of primitive_metric
 
 
 @dataclass(frozen=True)

@@ -33,6 +33,7 @@ The derivatives of ``F`` are taken by the complex step (Squire & Trapp 1998):
 from __future__ import annotations
 
 import dataclasses
+import weakref
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
@@ -378,7 +379,8 @@ def constrained_motion(system: KnownSystem) -> ConstrainedMotion:
 
 def primitive_metric(system: KnownSystem) -> ProjectedMetric | None:
     """``Mbar = C^T M C`` (9'), (D) and ``hbar`` (E) of ``system`` unformed: the primitive's metric
-    ``M`` and velocity terms ``h`` at ``x(xbar)``, and ``C`` (7'), (21), from its transition;
+    ``M`` and velocity terms ``h`` at ``x(xbar)`` (``h`` left out when it is the Christoffel terms
+    (A) of ``M``), and ``C`` (7'), (21), from its transition;
     None when there is none to take them from (a connection in time or an implicit subspace,
     whose ``C`` is not the whole story)."""
     t = system.transition
@@ -389,9 +391,33 @@ def primitive_metric(system: KnownSystem) -> ProjectedMetric | None:
     if any(TIME in sympy.sympify(image).free_symbols for image in connection.values()):
         return None
     placement = {x: image for x, image in connection.items() if x != image}
-    return ProjectedMetric(sympy.Matrix(t.primitive_metric).xreplace(placement), sympy.Matrix(t.transformation),
-                           sympy.Matrix(t.primitive_velocity_terms).xreplace(placement),
+    weights, projection = sympy.Matrix(t.primitive_metric).xreplace(placement), sympy.Matrix(t.transformation)
+    if t.christoffel:  # h of the primitive is (A) of its metric: that of the projected metric follows
+        return ProjectedMetric(weights, projection)
+    return ProjectedMetric(weights, projection, sympy.Matrix(t.primitive_velocity_terms).xreplace(placement),
                            tuple(velocity_symbol(x) for x in t.primitive_coordinates))
+
+
+REMEMBERED_RATES = 4
+"""Most sets of parameter values whose compiled rates a system keeps (the linearisations of a
+sweep of operating points share one)."""
+_RATES: dict[int, dict] = {}  # id of a living system -> {(values, inputs): SteadyMotionRates}
+
+
+def steady_motion_rates(system: KnownSystem, values: Mapping[sympy.Symbol, float],
+                        inputs: Sequence[sympy.Symbol] = ()) -> SteadyMotionRates:
+    """:class:`SteadyMotionRates` of ``system`` at ``values``, compiled once per set of values
+    and inputs while the system lives (kept beside it, not in it: a system stays picklable)."""
+    key = (tuple(sorted((s.name, float(v)) for s, v in values.items())), tuple(inputs))
+    kept = _RATES.get(id(system))
+    if kept is None:
+        kept = _RATES[id(system)] = {}
+        weakref.finalize(system, _RATES.pop, id(system), None)
+    if key not in kept:
+        if len(kept) >= REMEMBERED_RATES:
+            kept.pop(next(iter(kept)))
+        kept[key] = SteadyMotionRates(constrained_motion(system), values, inputs)
+    return kept[key]
 
 
 def linearize_speeds(system: KnownSystem, *, inputs: Sequence[sympy.Symbol] = (),
@@ -425,11 +451,11 @@ def linearize_speeds(system: KnownSystem, *, inputs: Sequence[sympy.Symbol] = ()
                                      "number with --at")
     t0 = numeric_value(time, numbers)
     fixed = {p: v for p, v in numbers.items() if p not in inputs}
-    rates = SteadyMotionRates(constrained_motion(system), fixed, inputs)
+    rates = steady_motion_rates(system, fixed, inputs)
     lin = rates.linearize(operating, None, tuple(system.speeds.dependent), t0, {u: numbers[u] for u in inputs})
     return dataclasses.replace(lin, time=sympy.sympify(time), in_speeds=True)
 
 
 __all__ = ["COMPLEX_STEP", "IGNORABLE_TOLERANCE", "NEWTON_STEPS", "STEADY_TOLERANCE", "ConstrainedMotion",
            "ProjectedMetric", "SteadyMotionRates", "constrained_motion", "ignorable", "linear_rows", "linearize_speeds",
-           "linearize_steady_motion", "primitive_metric"]
+           "linearize_steady_motion", "primitive_metric", "steady_motion_rates", "REMEMBERED_RATES"]

@@ -216,7 +216,8 @@ def project_inertia(sub: Subspace, primitive: Primitive, *, name: str = "",
     ``Mbar`` and ``hbar`` are projected when first read (:class:`.DeferredMatrix`), in a
     subspace of their own, as they would be now; the transition (``C``) is built at once.
     """
-    metric, h = primitive.metric, primitive.velocity_terms
+    metric = primitive.metric
+    h = DeferredMatrix(len(sub.x), 1, lambda: primitive.velocity_terms) if deferred else primitive.velocity_terms
     if sub.is_identity:  # x = xbar: Mbar = M, hbar = h, nothing to project
         mass_matrix, velocity_terms = _mutable(metric), _mutable(h)
     elif deferred:
@@ -234,6 +235,7 @@ def project_inertia(sub: Subspace, primitive: Primitive, *, name: str = "",
         connection=tuple((x, sub.connection[x]) for x in sub.x),
         transformation=sub.transformation(primitive),
         parts=tuple((p.name, p.type_name) for p in primitive.parts),
+        christoffel=all(p.christoffel for p in primitive.parts),
     )
     dimension = world_dimension(primitive)
 
