@@ -30,6 +30,7 @@ import sympy
 
 from ..errors import Location, ModelError, Problem
 from .known_system import Constraint, KnownSystem, SpeedEquations
+from .numeric_jacobian import value_and_jacobian
 from .symbols import TIME, acceleration_symbol, velocity_symbol
 
 GENERIC_POINTS = 3  # a rank is taken at this many random points (a generic one is almost sure)
@@ -142,24 +143,24 @@ def integrable(A: sympy.Matrix, b: sympy.Matrix, coordinates: Sequence[sympy.Sym
         if b[i] != 0:
             continue  # an affine constraint: not a one-form of the coordinates alone
         a = list(A.row(i))
-        d = [[sympy.diff(a[k], coordinates[j]) for j in range(n)] for k in range(n)]  # d[k][j] = d_j A_k
-        if n >= 3 and _plainly_not_closed(a, d, coordinates, values):
+        if n >= 3 and _plainly_not_closed(a, coordinates, values):
             continue
+        d = [[sympy.diff(a[k], coordinates[j]) for j in range(n)] for k in range(n)]  # d[k][j] = d_j A_k
         if all(sympy.simplify(a[j] * (d[l][k] - d[k][l]) + a[k] * (d[j][l] - d[l][j]) + a[l] * (d[k][j] - d[j][k])) == 0
                for j, k, l in itertools.combinations(range(n), 3)):
             found.append(i)
     return found
 
 
-def _plainly_not_closed(a, d, coordinates, values) -> bool:
-    """``omega ^ d omega`` of :func:`integrable` well away from zero at a random point."""
+def _plainly_not_closed(a, coordinates, values) -> bool:
+    """``omega ^ d omega`` of :func:`integrable` well away from zero at a random point, ``A_i``
+    and its derivatives evaluated there in floating point (:func:`.numeric_jacobian.value_and_jacobian`)."""
     point = _generic_points(sympy.Matrix([a]), coordinates, values)[0]
     n = len(coordinates)
     try:
-        av = [complex(sympy.sympify(e).xreplace(point).evalf()) for e in a]
-        dv = [[complex(sympy.sympify(e).xreplace(point).evalf()) for e in row] for row in d]
-    except TypeError:  # a symbol left without a value: decide by simplifying
-        return False
+        av, dv = value_and_jacobian(a, coordinates, {s: float(v) for s, v in point.items()})
+    except (TypeError, ValueError, ZeroDivisionError, OverflowError, KeyError):
+        return False  # a symbol left without a value, or a point outside the domain: decide by simplifying
     scale = max(abs(x) for x in av) * max(abs(x) for row in dv for x in row)
     return any(abs(av[j] * (dv[l][k] - dv[k][l]) + av[k] * (dv[j][l] - dv[l][j]) + av[l] * (dv[k][j] - dv[j][k]))
                > NOT_CLOSED * scale for j, k, l in itertools.combinations(range(n), 3))
@@ -398,7 +399,17 @@ def generic_rank(A: sympy.Matrix, coordinates, values=None) -> int:
 
 
 def _rank(A: sympy.Matrix, points: list[dict]) -> int:
-    return max(int(np.linalg.matrix_rank(np.array(A.xreplace(p).evalf(), dtype=float), tol=1e-9)) for p in points)
+    return max(int(np.linalg.matrix_rank(_numeric(A, p), tol=1e-9)) for p in points)
+
+
+def _numeric(A: sympy.Matrix, point: dict) -> np.ndarray:
+    """``A`` at ``point`` in floating point, each shared subexpression once; by sympy's ``evalf``
+    where that cannot be done (a value without a number, a complex one)."""
+    try:
+        values, _ = value_and_jacobian(list(A), (), {s: float(v) for s, v in point.items()})
+    except (TypeError, ValueError, ZeroDivisionError, OverflowError, KeyError):
+        return np.array(A.xreplace(point).evalf(), dtype=float)
+    return np.array(values, dtype=float).reshape(A.shape)
 
 
 __all__ = ["GENERIC_POINTS", "NonholonomicProjection", "VelocityConstraintError", "VelocityTransformation",
