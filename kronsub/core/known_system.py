@@ -136,6 +136,9 @@ class SpeedEquations:
     source: object
     holonomic: tuple[Constraint, ...] = ()  # configuration constraints g(x, t) = 0 kept beside them
     dependent: tuple[sympy.Symbol, ...] = ()  # one coordinate per configuration constraint, set by it
+    # the velocity constraints A xdot + b as numbers are taken from (a contact's rows as made, not
+    # reduced: A and b are their printed forms, made when first read); empty: from A and b
+    rows: tuple[sympy.Expr, ...] = ()
 
     @functools.cached_property
     def projected(self) -> dict:

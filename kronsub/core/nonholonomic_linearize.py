@@ -365,12 +365,13 @@ def constrained_motion(system: KnownSystem) -> ConstrainedMotion:
     """A known system under velocity constraints (its :attr:`~.KnownSystem.speeds`) as a
     :class:`ConstrainedMotion`: its metric, ``h`` and ``f`` in the coordinates, the rows
     ``A xdot + b`` of its velocity constraints, its speeds ``Y xdot`` and its configuration
-    constraints ``g(x, t)`` (:attr:`~.KnownSystem.holonomic`). The metric is the primitive's
+    constraints ``g(x, t)`` (:attr:`~.KnownSystem.holonomic`), the rows as made where they are
+    kept (:attr:`~.SpeedEquations.rows`). The metric is the primitive's
     projected, ``C^T M C`` (:func:`primitive_metric`), where the transition allows; else ``Mbar``
     and ``hbar`` as derived."""
     s = system.speeds
     xdot = sympy.Matrix(list(system.velocities))
-    rows = tuple(s.constraint_matrix * xdot + s.constraint_offset)[:s.constraint_matrix.rows - len(s.holonomic)]
+    rows = s.rows or tuple(s.constraint_matrix * xdot + s.constraint_offset)[:s.constraint_matrix.rows - len(s.holonomic)]
     metric = primitive_metric(system)
     return ConstrainedMotion(tuple(system.coordinates), metric if metric is not None else sympy.Matrix(system.mass_matrix),
                              system.forces, dict(s.definitions), rows, tuple(c.expression for c in s.holonomic),

@@ -181,9 +181,10 @@ def _derive(model, cache: bool, effects) -> KnownSystem:
 
 
 def _pending(system: KnownSystem) -> bool:
-    """Whether ``Mbar`` or ``hbar`` of ``system`` are not built yet: then nothing is stored (the
-    cache holds what was derived, and storing would build them)."""
-    return pending(system.mass_matrix) or pending(system.velocity_terms)
+    """Whether ``Mbar`` or ``hbar`` of ``system`` (or its velocity constraints' ``A``) are not built
+    yet: then nothing is stored (the cache holds what was derived, and storing would build them)."""
+    return pending(system.mass_matrix) or pending(system.velocity_terms) or \
+        (system.speeds is not None and pending(system.speeds.constraint_matrix))
 
 
 def derive_implicit(model, intermediate: KnownSystem) -> KnownSystem:
