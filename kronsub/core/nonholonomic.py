@@ -141,7 +141,7 @@ def differentiated_form(constraints: Sequence[sympy.Expr], coordinates: Sequence
     are taken from. A constraint the velocities are left in after it is not linear."""
     velocities = [velocity_symbol(q) for q in coordinates]
     rows, offsets = [], []
-    for i, c in enumerate(constraints):
+    for c in constraints:
         c = sympy.sympify(c)
         row = [derivative(c, v) for v in velocities]
         if not any(e != 0 for e in row) or any(set(velocities) & e.free_symbols for e in row):
