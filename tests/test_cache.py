@@ -24,6 +24,7 @@ import kronsub.cache as cache_module
 from kronsub.cache import CacheWarning
 from kronsub.cli import main
 from kronsub.components.base import Body
+from kronsub.core.deferred import DeferredMatrix
 from kronsub.core.known_system import KnownSystem, ParameterInfo, Transition
 from kronsub.emitters import EMITTERS
 from kronsub.model import cache_format
@@ -37,8 +38,9 @@ SYSTEM1 = MODELS / "hoffmann" / "system1.yaml"
 
 def _walk(value, path="system"):
     """Every expression and matrix of a stored value, with where it sits (for exact comparison)."""
-    if isinstance(value, sympy.MatrixBase):
-        yield path, type(value).__name__ + sympy.srepr(list(value)) + str(value.shape)
+    if isinstance(value, sympy.MatrixBase):  # a matrix built when first read is stored as the one it built
+        kind = sympy.MutableDenseMatrix if isinstance(value, DeferredMatrix) else type(value)
+        yield path, kind.__name__ + sympy.srepr(list(value)) + str(value.shape)
     elif isinstance(value, sympy.Basic):
         yield path, sympy.srepr(value)
     elif dataclasses.is_dataclass(value):

@@ -34,10 +34,11 @@ def rate(expr: sympy.Expr, coordinates: Sequence[sympy.Symbol]) -> sympy.Expr:
 def material_velocity(centre: Sequence[sympy.Expr], rotation: sympy.Matrix, offset: Sequence[sympy.Expr],
                       coordinates: Sequence[sympy.Symbol]) -> sympy.Matrix:
     """``v_P = dc/dt + omega x r`` of the body's material point at ``c + r`` (``r`` in world axes,
-    the body's point there at this instant), in the plane or in space."""
+    the body's point there at this instant), in the plane or in space; as made, not reduced
+    (:func:`reduced` gives its printed form)."""
     c, R, r = sympy.Matrix(centre), sympy.Matrix(rotation), sympy.Matrix(offset)
     v = c.applyfunc(lambda e: rate(e, coordinates))
-    spin = (R.applyfunc(lambda e: rate(e, coordinates)) * R.T).applyfunc(lambda e: reduced(e, coordinates))
+    spin = R.applyfunc(lambda e: rate(e, coordinates)) * R.T
     if len(c) == 2:
         w = spin[1, 0]
         return v + sympy.Matrix([-w * r[1], w * r[0]])

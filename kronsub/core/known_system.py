@@ -41,6 +41,7 @@ class Transition:
     transformation: sympy.Matrix  # C = dx/dxbar (7'), (21)
     parts: tuple[tuple[str, str], ...] = ()  # (part name, type) in primitive order
     direct_effects: tuple[str, ...] = ()  # effects applied in the subspace: no force on the primitive
+    christoffel: bool = False  # primitive_velocity_terms are the Christoffel terms (A) of primitive_metric
 
 
 @dataclass(frozen=True)
@@ -135,6 +136,9 @@ class SpeedEquations:
     source: object
     holonomic: tuple[Constraint, ...] = ()  # configuration constraints g(x, t) = 0 kept beside them
     dependent: tuple[sympy.Symbol, ...] = ()  # one coordinate per configuration constraint, set by it
+    # the velocity constraints A xdot + b as numbers are taken from (a contact's rows as made, not
+    # reduced: A and b are their printed forms, made when first read); empty: from A and b
+    rows: tuple[sympy.Expr, ...] = ()
 
     @functools.cached_property
     def projected(self) -> dict:

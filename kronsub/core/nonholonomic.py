@@ -29,7 +29,10 @@ import numpy as np
 import sympy
 
 from ..errors import Location, ModelError, Problem
+from .deferred import DeferredMatrix
+from .derivative import derivative
 from .known_system import Constraint, KnownSystem, SpeedEquations
+from .numeric_jacobian import value_and_jacobian
 from .symbols import TIME, acceleration_symbol, velocity_symbol
 
 GENERIC_POINTS = 3  # a rank is taken at this many random points (a generic one is almost sure)
@@ -75,6 +78,9 @@ class VelocityTransformation:
     speed_matrix: sympy.Matrix  # Y of u = Y xdot
     holonomic: tuple[sympy.Expr, ...] = ()  # configuration constraints g(x, t) = 0, their rates the last rows of A
     dependent: tuple[sympy.Symbol, ...] = ()  # one coordinate per configuration constraint, set by it
+    # the velocity constraints A xdot + b as numbers are taken from (a contact's rows as made, not
+    # reduced); empty: those of A and b, which then hold the constraints as printed
+    rows: tuple[sympy.Expr, ...] = ()
 
     @functools.cached_property
     def kinematics(self) -> sympy.Matrix:
@@ -128,6 +134,23 @@ def linear_form(constraints: Sequence[sympy.Expr], coordinates: Sequence[sympy.S
     return sympy.Matrix(rows), sympy.Matrix(offsets)
 
 
+def differentiated_form(constraints: Sequence[sympy.Expr], coordinates: Sequence[sympy.Symbol]
+                        ) -> tuple[sympy.Matrix, sympy.Matrix]:
+    """``A`` and ``b`` as :func:`linear_form` gives them, by differentiation without expanding (a
+    rolling wheel's rows are long products, whose expansion is far longer): the form numbers
+    are taken from. A constraint the velocities are left in after it is not linear."""
+    velocities = [velocity_symbol(q) for q in coordinates]
+    rows, offsets = [], []
+    for c in constraints:
+        c = sympy.sympify(c)
+        row = [derivative(c, v) for v in velocities]
+        if not any(e != 0 for e in row) or any(set(velocities) & e.free_symbols for e in row):
+            return linear_form([c], coordinates)  # its error, as linear_form finds it
+        rows.append(row)
+        offsets.append(c.xreplace({v: 0 for v in velocities}))
+    return sympy.Matrix(rows), sympy.Matrix(offsets)
+
+
 def integrable(A: sympy.Matrix, b: sympy.Matrix, coordinates: Sequence[sympy.Symbol],
                values: Mapping | None = None) -> list[int]:
     """The constraints (rows of ``A``, each with ``b_i = 0``) that are integrable on their own:
@@ -142,24 +165,24 @@ def integrable(A: sympy.Matrix, b: sympy.Matrix, coordinates: Sequence[sympy.Sym
         if b[i] != 0:
             continue  # an affine constraint: not a one-form of the coordinates alone
         a = list(A.row(i))
-        d = [[sympy.diff(a[k], coordinates[j]) for j in range(n)] for k in range(n)]  # d[k][j] = d_j A_k
-        if n >= 3 and _plainly_not_closed(a, d, coordinates, values):
+        if n >= 3 and _plainly_not_closed(a, coordinates, values):
             continue
+        d = [[sympy.diff(a[k], coordinates[j]) for j in range(n)] for k in range(n)]  # d[k][j] = d_j A_k
         if all(sympy.simplify(a[j] * (d[l][k] - d[k][l]) + a[k] * (d[j][l] - d[l][j]) + a[l] * (d[k][j] - d[j][k])) == 0
                for j, k, l in itertools.combinations(range(n), 3)):
             found.append(i)
     return found
 
 
-def _plainly_not_closed(a, d, coordinates, values) -> bool:
-    """``omega ^ d omega`` of :func:`integrable` well away from zero at a random point."""
+def _plainly_not_closed(a, coordinates, values) -> bool:
+    """``omega ^ d omega`` of :func:`integrable` well away from zero at a random point, ``A_i``
+    and its derivatives evaluated there in floating point (:func:`.numeric_jacobian.value_and_jacobian`)."""
     point = _generic_points(sympy.Matrix([a]), coordinates, values)[0]
     n = len(coordinates)
     try:
-        av = [complex(sympy.sympify(e).xreplace(point).evalf()) for e in a]
-        dv = [[complex(sympy.sympify(e).xreplace(point).evalf()) for e in row] for row in d]
-    except TypeError:  # a symbol left without a value: decide by simplifying
-        return False
+        av, dv = value_and_jacobian(a, coordinates, {s: float(v) for s, v in point.items()})
+    except (TypeError, ValueError, ZeroDivisionError, OverflowError, KeyError):
+        return False  # a symbol left without a value, or a point outside the domain: decide by simplifying
     scale = max(abs(x) for x in av) * max(abs(x) for row in dv for x in row)
     return any(abs(av[j] * (dv[l][k] - dv[k][l]) + av[k] * (dv[j][l] - dv[l][j]) + av[l] * (dv[k][j] - dv[j][k]))
                > NOT_CLOSED * scale for j, k, l in itertools.combinations(range(n), 3))
@@ -168,17 +191,23 @@ def _plainly_not_closed(a, d, coordinates, values) -> bool:
 def velocity_transformation(constraints: Sequence[sympy.Expr], coordinates: Sequence[sympy.Symbol],
                             speeds: Mapping[sympy.Symbol, sympy.Expr] | None = None,
                             values: Mapping | None = None,
-                            holonomic: Sequence[sympy.Expr] = ()) -> VelocityTransformation:
+                            holonomic: Sequence[sympy.Expr] = (),
+                            printed: Sequence[Callable[[], sympy.Expr] | None] | None = None
+                            ) -> VelocityTransformation:
     """``xdot = C u + d`` for velocity ``constraints`` (expressions ``= 0``). ``speeds`` maps each
     speed to its definition ``Y(x) xdot``; without it the speeds are the velocities of the
     coordinates left independent, the last coordinates taken as dependent first. ``values``
     (parameter -> number) fixes the parameters where ranks are taken. Configuration constraints
     ``holonomic`` ``g(x, t) = 0`` join by their rates ``G xdot + dg/dt`` (the last rows of ``A``),
     each setting a coordinate (``dependent``: the last ones first whose columns of ``G`` are
-    independent)."""
+    independent). ``printed`` gives, for a constraint made rather than written (a contact's),
+    its printed form (reduced, :func:`.contact.reduced`), made when ``A`` and ``b`` are first
+    read; the analysis and the numbers take the constraint as made (:func:`differentiated_form`)."""
     coordinates = tuple(coordinates)
     velocities = [velocity_symbol(q) for q in coordinates]
-    A, b = linear_form(constraints, coordinates)
+    printed = list(printed) if printed is not None else [None] * len(constraints)
+    made = [i for i, form in enumerate(printed) if form is not None]
+    A, b = linear_form(constraints, coordinates) if not made else _analysed_form(constraints, printed, coordinates)
     holonomic = tuple(sympy.sympify(g) for g in holonomic)
     held: tuple = ()  # the coordinates the configuration constraints set
     if holonomic:
@@ -229,8 +258,31 @@ def velocity_transformation(constraints: Sequence[sympy.Expr], coordinates: Sequ
             "the speeds do not span the null space of the velocity constraints",
             "choose speeds that stay independent once the constraints hold (the velocity of a coordinate the "
             "constraints do not fix, say)", kind="speeds")
+    if made:  # A and b as printed: each constraint's printed form, made when first read
+        rates = A[A.rows - len(holonomic):, :], b[b.rows - len(holonomic):, :]
+        form = functools.cache(lambda: linear_form([c if p is None else p() for c, p in zip(constraints, printed)],
+                                                   coordinates))
+        A, b, rows = (DeferredMatrix(A.rows, n, lambda: form()[0].col_join(rates[0])),
+                      DeferredMatrix(b.rows, 1, lambda: form()[1].col_join(rates[1])), tuple(constraints))
+    else:
+        rows = ()
     return VelocityTransformation(coordinates=coordinates, speeds=tuple(speeds), constraint_matrix=A,
-                                  constraint_offset=b, speed_matrix=Y, holonomic=holonomic, dependent=held)
+                                  constraint_offset=b, speed_matrix=Y, holonomic=holonomic, dependent=held, rows=rows)
+
+
+def _analysed_form(constraints, printed, coordinates) -> tuple[sympy.Matrix, sympy.Matrix]:
+    """``A`` and ``b`` to analyse: a written constraint's by :func:`linear_form`, a made one's
+    (``printed`` not None) by :func:`differentiated_form`, row by row in order."""
+    rows, offsets = [], []
+    for index, (c, form) in enumerate(zip(constraints, printed)):
+        try:
+            A, b = (linear_form if form is None else differentiated_form)([c], coordinates)
+        except VelocityConstraintError as exc:
+            raise VelocityConstraintError(str(exc).replace("velocity constraint 1", f"velocity constraint {index + 1}"),
+                                          exc.hint, index, exc.kind) from None
+        rows.append(A)
+        offsets.append(b)
+    return sympy.Matrix.vstack(*rows), sympy.Matrix.vstack(*offsets)
 
 
 def project_nonholonomic(metric: sympy.Matrix, velocity_terms: sympy.Matrix, force: sympy.Matrix,
@@ -291,13 +343,12 @@ def speed_equations(system: KnownSystem, velocity: VelocityTransformation, const
     holonomic = tuple(Constraint(name, g) for name, g in zip(constraint_names[len(constraint_names)
                                                                               - len(velocity.holonomic):],
                                                                 velocity.holonomic))
-    source = SpeedProjection(mass_matrix=sympy.Matrix(system.mass_matrix),
-                             velocity_terms=sympy.Matrix(system.velocity_terms),
+    source = SpeedProjection(mass_matrix=system.mass_matrix, velocity_terms=system.velocity_terms,
                              effect_forces=tuple(system.effect_forces.items()), velocity=velocity, tidy=tidy)
     return SpeedEquations(speeds=velocity.speeds, definitions=tuple(definitions.items()),
                           holonomic=holonomic, dependent=velocity.dependent,
                           constraint_names=tuple(constraint_names), constraint_matrix=velocity.constraint_matrix,
-                          constraint_offset=velocity.constraint_offset, source=source)
+                          constraint_offset=velocity.constraint_offset, source=source, rows=velocity.rows)
 
 
 def speed_rates(speeds: Sequence[sympy.Symbol], coordinates: Sequence[sympy.Symbol]) -> list[sympy.Symbol]:
@@ -388,10 +439,20 @@ def generic_rank(A: sympy.Matrix, coordinates, values=None) -> int:
 
 
 def _rank(A: sympy.Matrix, points: list[dict]) -> int:
-    return max(int(np.linalg.matrix_rank(np.array(A.xreplace(p).evalf(), dtype=float), tol=1e-9)) for p in points)
+    return max(int(np.linalg.matrix_rank(_numeric(A, p), tol=1e-9)) for p in points)
+
+
+def _numeric(A: sympy.Matrix, point: dict) -> np.ndarray:
+    """``A`` at ``point`` in floating point, each shared subexpression once; by sympy's ``evalf``
+    where that cannot be done (a value without a number, a complex one)."""
+    try:
+        values, _ = value_and_jacobian(list(A), (), {s: float(v) for s, v in point.items()})
+    except (TypeError, ValueError, ZeroDivisionError, OverflowError, KeyError):
+        return np.array(A.xreplace(point).evalf(), dtype=float)
+    return np.array(values, dtype=float).reshape(A.shape)
 
 
 __all__ = ["GENERIC_POINTS", "NonholonomicProjection", "VelocityConstraintError", "VelocityTransformation",
-           "SpeedProjection", "TIDY", "frame_entry", "generic_rank", "integrable", "linear_form", "project_nonholonomic",
-           "refuse_speeds", "speed_accelerations", "speed_equations", "speed_rates", "tidy_entry",
+           "SpeedProjection", "TIDY", "differentiated_form", "frame_entry", "generic_rank", "integrable", "linear_form",
+           "project_nonholonomic", "refuse_speeds", "speed_accelerations", "speed_equations", "speed_rates", "tidy_entry",
            "velocity_multipliers", "velocity_transformation"]

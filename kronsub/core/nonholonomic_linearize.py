@@ -33,6 +33,7 @@ The derivatives of ``F`` are taken by the complex step (Squire & Trapp 1998):
 from __future__ import annotations
 
 import dataclasses
+import weakref
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
@@ -55,10 +56,14 @@ NEWTON_STEPS = 50  # iterations allowed to put the dependent coordinates on g = 
 
 @dataclass(frozen=True)
 class ProjectedMetric:
-    """``M(x) = J(x)^T W(x) J(x)``: a primitive metric ``W`` and its projection ``J``."""
+    """``M(x) = J(x)^T W(x) J(x)``: a primitive metric ``W`` and its projection ``J``; with the
+    primitive's own velocity terms ``h_p(x, v)`` (in its ``velocities`` ``v = J xdot``),
+    ``h = J^T (W (dJ/dx^k xdot^k) xdot + h_p)`` (E) instead of the Christoffel terms of ``M``."""
 
     weights: sympy.Matrix
     projection: sympy.Matrix
+    velocity_terms: sympy.Matrix | None = None
+    velocities: tuple[sympy.Symbol, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -154,25 +159,34 @@ class SteadyMotionRates:
                                      "b(x, t) of A(x) xdot + b(x, t) = 0 may depend on t")
         # r = [-dg/dt; -b; u] less its u part, which is added numerically
         r0 = (-g.diff(TIME) if g.rows else sympy.zeros(0, 1)).col_join(-b).col_join(sympy.zeros(p, 1))
+        primitive_h, primitive_v = None, ()
         if isinstance(motion.metric, ProjectedMetric):
             W, J = fixed(motion.metric.weights), fixed(motion.metric.projection)
+            if motion.metric.velocity_terms is not None:
+                primitive_h, primitive_v = fixed(motion.metric.velocity_terms), tuple(motion.metric.velocities)
         else:
             W, J = fixed(motion.metric), sympy.eye(n)
         f = fixed(motion.force)
         h = fixed(motion.velocity_terms) if motion.velocity_terms is not None else None
+        # hbar: the system's own (h), J^T (W Jdot xdot + h_p) of the primitive's (h_p), or (A) of M
+        self.h_from = "own" if h is not None else "primitive" if primitive_h is not None else "christoffel"
         args = [*x, TIME, *self.inputs]
         rates_args = [*x, *xd, TIME, *self.inputs]
         self._check_free([S, r0, W, J, f] + ([h] if h is not None else []) + [g], set(rates_args))
+        if primitive_h is not None:
+            self._check_free([primitive_h], set(rates_args) | set(primitive_v))
 
         def d(m, s):
             return m.applyfunc(lambda e: derivative(e, s))
 
-        metric_rates = [] if h is not None else [d(W, q) for q in x] + [d(J, q) for q in x]  # for (A) only
+        metric_rates = {"own": [], "primitive": [d(J, q) for q in x],
+                        "christoffel": [d(J, q) for q in x] + [d(W, q) for q in x]}[self.h_from]
         self._position = _Compiled([S, r0, W, J]
                                    + [d(S, q) for q in x] + [d(r0, q) for q in x] + [d(r0, TIME)] + metric_rates, args)
         self._forces = _Compiled([f] + ([h] if h is not None else []), rates_args)
+        if primitive_h is not None:
+            self._primitive_h = _Compiled([primitive_h], [*x, *primitive_v, TIME, *self.inputs])
         self._g = _Compiled([g, G], args)
-        self.has_h = h is not None
 
     @staticmethod
     def _check_free(matrices, allowed):
@@ -207,10 +221,14 @@ class SteadyMotionRates:
         M = J.T @ W @ J
         forces = self._forces([*x, *w, t, *inputs])
         f = forces[0].ravel()
-        if self.has_h:
+        dJ = out[5 + 2 * n:5 + 3 * n]
+        if self.h_from == "own":
             h = forces[1].ravel()
+        elif self.h_from == "primitive":  # (E): J^T (W (dJ/dx^k w^k) w + h_p(x, J w))
+            h_p = self._primitive_h([*x, *(J @ w), t, *inputs])[0].ravel()
+            h = J.T @ (W @ (sum(dJ[k] * w[k] for k in range(n)) @ w) + h_p)
         else:  # (A): (d_c M_ab) w_b w_c - 1/2 w_b (d_a M_bc) w_c
-            dW, dJ = out[5 + 2 * n:5 + 3 * n], out[5 + 3 * n:5 + 4 * n]
+            dW = out[5 + 3 * n:5 + 4 * n]
             dM = [dJ[k].T @ W @ J + J.T @ dW[k] @ J + J.T @ W @ dJ[k] for k in range(n)]
             h = sum(dM[k] * w[k] for k in range(n)) @ w - 0.5 * np.array([w @ dM[a] @ w for a in range(n)])
         Mbar = C.T @ M @ C
@@ -345,15 +363,62 @@ def linearize_steady_motion(motion: ConstrainedMotion, point: Mapping[sympy.Symb
 
 def constrained_motion(system: KnownSystem) -> ConstrainedMotion:
     """A known system under velocity constraints (its :attr:`~.KnownSystem.speeds`) as a
-    :class:`ConstrainedMotion`: ``M``, ``h`` and ``f`` in the coordinates, the rows
+    :class:`ConstrainedMotion`: its metric, ``h`` and ``f`` in the coordinates, the rows
     ``A xdot + b`` of its velocity constraints, its speeds ``Y xdot`` and its configuration
-    constraints ``g(x, t)`` (:attr:`~.KnownSystem.holonomic`)."""
+    constraints ``g(x, t)`` (:attr:`~.KnownSystem.holonomic`), the rows as made where they are
+    kept (:attr:`~.SpeedEquations.rows`). The metric is the primitive's
+    projected, ``C^T M C`` (:func:`primitive_metric`), where the transition allows; else ``Mbar``
+    and ``hbar`` as derived."""
     s = system.speeds
     xdot = sympy.Matrix(list(system.velocities))
-    rows = tuple(s.constraint_matrix * xdot + s.constraint_offset)[:s.constraint_matrix.rows - len(s.holonomic)]
-    return ConstrainedMotion(tuple(system.coordinates), sympy.Matrix(system.mass_matrix), system.forces,
-                             dict(s.definitions), rows, tuple(c.expression for c in s.holonomic),
-                             sympy.Matrix(system.velocity_terms))
+    rows = s.rows or tuple(s.constraint_matrix * xdot + s.constraint_offset)[:s.constraint_matrix.rows - len(s.holonomic)]
+    metric = primitive_metric(system)
+    return ConstrainedMotion(tuple(system.coordinates), metric if metric is not None else sympy.Matrix(system.mass_matrix),
+                             system.forces, dict(s.definitions), rows, tuple(c.expression for c in s.holonomic),
+                             None if metric is not None else sympy.Matrix(system.velocity_terms))
+
+
+def primitive_metric(system: KnownSystem) -> ProjectedMetric | None:
+    """``Mbar = C^T M C`` (9'), (D) and ``hbar`` (E) of ``system`` unformed: the primitive's metric
+    ``M`` and velocity terms ``h`` at ``x(xbar)`` (``h`` left out when it is the Christoffel terms
+    (A) of ``M``), and ``C`` (7'), (21), from its transition;
+    None when there is none to take them from (a connection in time or an implicit subspace,
+    whose ``C`` is not the whole story)."""
+    t = system.transition
+    if t is None or system.implicit is not None or t.transformation.shape != (len(t.primitive_coordinates),
+                                                                                len(system.coordinates)):
+        return None
+    connection = dict(t.connection)
+    if any(TIME in sympy.sympify(image).free_symbols for image in connection.values()):
+        return None
+    placement = {x: image for x, image in connection.items() if x != image}
+    weights, projection = sympy.Matrix(t.primitive_metric).xreplace(placement), sympy.Matrix(t.transformation)
+    if t.christoffel:  # h of the primitive is (A) of its metric: that of the projected metric follows
+        return ProjectedMetric(weights, projection)
+    return ProjectedMetric(weights, projection, sympy.Matrix(t.primitive_velocity_terms).xreplace(placement),
+                           tuple(velocity_symbol(x) for x in t.primitive_coordinates))
+
+
+REMEMBERED_RATES = 4
+"""Most sets of parameter values whose compiled rates a system keeps (the linearisations of a
+sweep of operating points share one)."""
+_RATES: dict[int, dict] = {}  # id of a living system -> {(values, inputs): SteadyMotionRates}
+
+
+def steady_motion_rates(system: KnownSystem, values: Mapping[sympy.Symbol, float],
+                        inputs: Sequence[sympy.Symbol] = ()) -> SteadyMotionRates:
+    """:class:`SteadyMotionRates` of ``system`` at ``values``, compiled once per set of values
+    and inputs while the system lives (kept beside it, not in it: a system stays picklable)."""
+    key = (tuple(sorted((s.name, float(v)) for s, v in values.items())), tuple(inputs))
+    kept = _RATES.get(id(system))
+    if kept is None:
+        kept = _RATES[id(system)] = {}
+        weakref.finalize(system, _RATES.pop, id(system), None)
+    if key not in kept:
+        if len(kept) >= REMEMBERED_RATES:
+            kept.pop(next(iter(kept)))
+        kept[key] = SteadyMotionRates(constrained_motion(system), values, inputs)
+    return kept[key]
 
 
 def linearize_speeds(system: KnownSystem, *, inputs: Sequence[sympy.Symbol] = (),
@@ -387,11 +452,11 @@ def linearize_speeds(system: KnownSystem, *, inputs: Sequence[sympy.Symbol] = ()
                                      "number with --at")
     t0 = numeric_value(time, numbers)
     fixed = {p: v for p, v in numbers.items() if p not in inputs}
-    rates = SteadyMotionRates(constrained_motion(system), fixed, inputs)
+    rates = steady_motion_rates(system, fixed, inputs)
     lin = rates.linearize(operating, None, tuple(system.speeds.dependent), t0, {u: numbers[u] for u in inputs})
     return dataclasses.replace(lin, time=sympy.sympify(time), in_speeds=True)
 
 
 __all__ = ["COMPLEX_STEP", "IGNORABLE_TOLERANCE", "NEWTON_STEPS", "STEADY_TOLERANCE", "ConstrainedMotion",
            "ProjectedMetric", "SteadyMotionRates", "constrained_motion", "ignorable", "linear_rows", "linearize_speeds",
-           "linearize_steady_motion"]
+           "linearize_steady_motion", "primitive_metric", "steady_motion_rates", "REMEMBERED_RATES"]

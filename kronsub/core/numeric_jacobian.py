@@ -37,16 +37,23 @@ _D = {  # f(u) -> f'(u)
 def jacobian(exprs: Sequence[sympy.Expr], coordinates: Sequence[sympy.Symbol],
              values: Mapping[sympy.Symbol, float]) -> list[list[float]]:
     """``d exprs_i / d coordinates_j`` where every free symbol has its value in ``values``."""
+    return value_and_jacobian(exprs, coordinates, values)[1]
+
+
+def value_and_jacobian(exprs: Sequence[sympy.Expr], coordinates: Sequence[sympy.Symbol],
+                       values: Mapping[sympy.Symbol, float]) -> tuple[list[float], list[list[float]]]:
+    """``exprs_i`` and ``d exprs_i / d coordinates_j`` where every free symbol has its value in ``values``."""
     index = {q: j for j, q in enumerate(coordinates)}
     memo: dict = {}
-    rows = []
+    at, rows = [], []
     for expr in exprs:
-        _, grad = _evaluate(sympy.sympify(expr), index, values, memo)
+        value, grad = _evaluate(sympy.sympify(expr), index, values, memo)
         row = [0.0] * len(coordinates)
         for j, d in grad.items():
             row[j] = d
+        at.append(value)
         rows.append(row)
-    return rows
+    return at, rows
 
 
 def _evaluate(root, index, values, memo):
@@ -141,4 +148,4 @@ def _add_into(grad: dict, other: dict, factor: float) -> None:
         grad[j] = grad.get(j, 0.0) + factor * d
 
 
-__all__ = ["jacobian"]
+__all__ = ["jacobian", "value_and_jacobian"]

@@ -13,6 +13,7 @@ import sympy
 
 from ..components.base import Body, Component, ComponentPoints, PointsOnRead
 from . import canonical
+from .deferred import DeferredMatrix
 from .derivative import derivative
 from .symbols import free_symbols_of, velocity_symbol
 
@@ -64,6 +65,7 @@ class Part:
     charges: tuple[sympy.Symbol, ...] = ()  # coordinates that are branch charges (a textbook component's `charges:`)
     effect_kinds: Mapping[str, str] = field(default_factory=dict)  # own effect -> its energy's kind (model/energy_kinds.py)
     local_names: tuple[str, ...] = ()  # a library component's own names of its coordinates (``turn1``)
+    christoffel: bool = False  # velocity_terms are the Christoffel terms (A) of metric
 
     @property
     def velocities(self) -> tuple[sympy.Symbol, ...]:
@@ -77,12 +79,14 @@ def body_label(part: Part, body: Body) -> str:
 
 
 def part_from_component(name: str, component: Component) -> Part:
-    """Place a library component in a primitive."""
+    """Place a library component in a primitive: its velocity terms, the Christoffel terms of its
+    metric (A), are formed when first read."""
     coords = component.coordinate_symbols
     metric = sympy.Matrix(component.metric())
-    h = christoffel_terms(metric, coords, [velocity_symbol(q) for q in coords])
+    h = DeferredMatrix(len(coords), 1, lambda: christoffel_terms(metric, coords, [velocity_symbol(q) for q in coords]))
     return Part(name, coords, metric, h, ComponentPoints(component), tuple(component.bodies()),
-                component.dimension, type_name=component.type_name, local_names=tuple(component.coordinates))
+                component.dimension, type_name=component.type_name, local_names=tuple(component.coordinates),
+                christoffel=True)
 
 
 def point_symbols(points: Mapping) -> set:

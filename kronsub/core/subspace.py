@@ -23,6 +23,7 @@ import sympy
 
 from ..components.base import Body
 from . import canonical
+from .deferred import DeferredMatrix
 from .inverse_trig import Radicands
 from .known_system import KnownSystem, ParameterInfo, ProjectedEffect, Transition
 from .placed import PlacedBodies, PlacedPoints, Placer
@@ -207,14 +208,23 @@ def effect_labels(primitive: Primitive, effects: Sequence) -> tuple[str, ...]:
 
 
 def project_inertia(sub: Subspace, primitive: Primitive, *, name: str = "",
-                    parameters: Sequence[ParameterInfo] = (), description: str = "") -> KnownSystem:
+                    parameters: Sequence[ParameterInfo] = (), description: str = "",
+                    deferred: bool = False) -> KnownSystem:
     """``Mbar`` (9'), (D) and ``hbar`` (E): the part of the projection no effect changes.
 
-    The result has no effects; :func:`assemble` adds the ones a scene switches on.
+    The result has no effects; :func:`assemble` adds the ones a scene switches on. ``deferred``:
+    ``Mbar`` and ``hbar`` are projected when first read (:class:`.DeferredMatrix`), in a
+    subspace of their own, as they would be now; the transition (``C``) is built at once.
     """
-    metric, h = primitive.metric, primitive.velocity_terms
+    metric = primitive.metric
+    h = DeferredMatrix(len(sub.x), 1, lambda: primitive.velocity_terms) if deferred else primitive.velocity_terms
     if sub.is_identity:  # x = xbar: Mbar = M, hbar = h, nothing to project
         mass_matrix, velocity_terms = _mutable(metric), _mutable(h)
+    elif deferred:
+        projected = functools.cache(lambda: _projected_inertia(Subspace(primitive, sub.coords, sub.connection),
+                                                               primitive))
+        mass_matrix = DeferredMatrix(sub.n, sub.n, lambda: projected()[0])
+        velocity_terms = DeferredMatrix(sub.n, 1, lambda: projected()[1])
     else:
         mass_matrix, velocity_terms = _projected_inertia(sub, primitive)
     transition = Transition(
@@ -225,6 +235,7 @@ def project_inertia(sub: Subspace, primitive: Primitive, *, name: str = "",
         connection=tuple((x, sub.connection[x]) for x in sub.x),
         transformation=sub.transformation(primitive),
         parts=tuple((p.name, p.type_name) for p in primitive.parts),
+        christoffel=all(p.christoffel for p in primitive.parts),
     )
     dimension = world_dimension(primitive)
 

@@ -27,6 +27,7 @@ from ..components.base import Body
 from ..collector import collector_paused
 from ..components.base import Requirement
 from ..core import canonical
+from ..core.deferred import DeferredMatrix
 from ..core.known_system import (Constraint, ImplicitSubspace, KnownSystem, ParameterInfo, ProjectedEffect,
                                  SpeedEquations, Transition)
 from ..core.nonholonomic import SpeedProjection, VelocityTransformation
@@ -114,7 +115,7 @@ class _Encoder:
         if isinstance(v, float):
             return {"r": repr(v)}
         if isinstance(v, sympy.MatrixBase):
-            name = _MATRIX_NAMES.get(type(v))
+            name = _MATRIX_NAMES.get(MutableDenseMatrix if isinstance(v, DeferredMatrix) else type(v))  # built
             if name is None:
                 raise CacheFormatError(f"cannot store a {type(v).__name__}")
             return {"m": [name, v.rows, v.cols, [self.expr(e) for e in v]]}

@@ -29,8 +29,10 @@ SURFACES = ("plane",)
 
 
 def read_contact(reader: ModelReader, name: str, node: Node, primitive, connection, coords, holonomic=()):
-    """``[(label, expression = 0, where)]`` of the contact joint ``node`` (named ``name``), or None
-    after reporting why; ``holonomic`` are the configuration constraints ``g(x) = 0`` beside it."""
+    """``[(label, expression = 0, where, printed)]`` of the contact joint ``node`` (named ``name``),
+    or None after reporting why; ``holonomic`` are the configuration constraints ``g(x) = 0``
+    beside it. ``expression`` is the material velocity as made, ``printed()`` its reduced form
+    (:func:`.contact.reduced`), made when the constraints are printed."""
     kinds = [k for k in KEYS if k in node.value]
     if len(kinds) != 1:
         reader.error(node, f"velocity constraint '{name}' must be an expression or one joint: "
@@ -138,7 +140,12 @@ def _rolls_on(reader: ModelReader, name, node, primitive, connection, coords, ho
         return None
     v = material_velocity(centre, R, offset, coords)
     where = node.location
-    return [(f"{name}.{axis}", reduced(v[i], coords), where) for i, axis in enumerate("xy")]
+    return [(f"{name}.{axis}", v[i], where, _reduced_later(v[i], coords)) for i, axis in enumerate("xy")]
+
+
+def _reduced_later(expr, coords):
+    """``reduced(expr)`` when called."""
+    return lambda: reduced(expr, coords)
 
 
 def _knife_edge(reader: ModelReader, name, node, primitive, connection, coords):
@@ -162,7 +169,8 @@ def _knife_edge(reader: ModelReader, name, node, primitive, connection, coords):
     v = material_velocity(centre, R, R * sympy.Matrix(at), coords)
     d = R * sympy.Matrix(direction)
     d = d / sympy.sqrt(sum(sympy.sympify(e) ** 2 for e in direction))
-    return [(name, reduced(d[0] * v[1] - d[1] * v[0], coords), node.location)]
+    across = d[0] * v[1] - d[1] * v[0]
+    return [(name, across, node.location, _reduced_later(across, coords))]
 
 
 __all__ = ["KEYS", "SAME_POINTS", "held_by", "read_contact"]

@@ -14,6 +14,7 @@ from ..budget import PER_OPERATION, WorkBudgetExceeded, allow_for, charge
 from ..cache import code_fingerprint, load_entry, store_entry, usable_cache_dir
 from ..collector import collector_paused
 from ..core.constraints import project_implicit
+from ..core.deferred import pending
 from ..core.doubles import graph_nodes
 from ..core.known_system import KnownSystem, ProjectedEffect, Transition
 from ..core.nonholonomic import speed_equations
@@ -118,8 +119,10 @@ def derive_model(model, *, cache: bool = True, effects=None) -> KnownSystem:
 def _charge_printed(system: KnownSystem, model) -> None:
     """Charge the work budget for printing the equations, before any command prints them:
     their operations counted as printed (a definition used twice, twice; ``count_ops`` counts
-    each distinct part once), so that equations too long to print stop here, placed at the file."""
-    parts = [*system.mass_matrix, *system.velocity_terms, *system.forces, system.potential_energy]
+    each distinct part once), so that equations too long to print stop here, placed at the file.
+    Equations not built yet (:func:`.deferred.pending`) are charged as they are built."""
+    parts = [*(e for m in (system.mass_matrix, system.velocity_terms) if not pending(m) for e in m),
+             *system.forces, system.potential_energy]
     try:
         charge(PER_OPERATION["print"] * sum(count_ops(e) for e in parts), "the printed size of the equations")
     except WorkBudgetExceeded as exc:
@@ -146,15 +149,16 @@ def _derive(model, cache: bool, effects) -> KnownSystem:
     if inertia is None or missing:
         sub = Subspace(model.primitive, coordinates, model.connection)
         if inertia is None:
-            try:
+            try:  # under velocity constraints, Mbar and hbar in x are built when first read
                 inertia = project_inertia(sub, model.primitive, name=model.name, parameters=model.parameters,
-                                          description=model.description)
+                                          description=model.description, deferred=model.velocity is not None)
             except WorkBudgetExceeded as exc:  # placed at the connection, whose algebra grew
                 raise exc.at(model.locations.get("connection") or Location(model.path)) from None
             if implicit is None and not sub.only_renames(model.primitive):
                 check_subspace_rank(model, sub)
-            _store_parts(key, {"inertia": dataclasses.replace(inertia, transition=None),
-                               "inertia-transition": inertia.transition})
+            if not _pending(inertia):
+                _store_parts(key, {"inertia": dataclasses.replace(inertia, transition=None),
+                                   "inertia-transition": inertia.transition})
         try:
             projected = project_effects(sub, model.primitive, model.effects, only=missing)
         except WorkBudgetExceeded as exc:
@@ -171,9 +175,16 @@ def _derive(model, cache: bool, effects) -> KnownSystem:
         system = dataclasses.replace(system, speeds=speed_equations(
             system, velocity.transformation, velocity.constraint_names, dict(velocity.definitions),
             tidy="frame" if velocity.frame else "entry"))
-    if key and effects is None:
+    if key and effects is None and not _pending(system):
         store_cached(key, system)
     return system
+
+
+def _pending(system: KnownSystem) -> bool:
+    """Whether ``Mbar`` or ``hbar`` of ``system`` (or its velocity constraints' ``A``) are not built
+    yet: then nothing is stored (the cache holds what was derived, and storing would build them)."""
+    return pending(system.mass_matrix) or pending(system.velocity_terms) or \
+        (system.speeds is not None and pending(system.speeds.constraint_matrix))
 
 
 def derive_implicit(model, intermediate: KnownSystem) -> KnownSystem:

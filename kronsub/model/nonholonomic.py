@@ -58,17 +58,18 @@ def read_velocity_constraints(reader: ModelReader, node: Node, speeds_node: Node
                              "`no_slip: x_dot - r*phi_dot*cos(theta)`")
     if node is not None and node.value is not None and not entries and node.is_mapping:
         reader.error(node, "`velocity_constraints:` is empty", "write at least one `name: expression`")
-    exprs, labels, where = [], [], []
+    exprs, labels, where, printed = [], [], [], []
     for key, vnode in entries.items():
         loc = node.key_locations[key]
         if not reader.identifier(key, loc, "velocity constraint"):
             continue
         if vnode.is_mapping:  # a contact joint: rolling, a knife edge
             made = read_contact(reader, key, vnode, primitive, connection, coords, [g for _, g in holonomic])
-            for label, value, at in made or ():
+            for label, value, at, form in made or ():
                 exprs.append(value)
                 labels.append(label)
                 where.append(at)
+                printed.append(form)
             continue
         value = reader.expr(vnode, names, what=f"velocity constraint '{key}'")
         if value is None:
@@ -76,13 +77,14 @@ def read_velocity_constraints(reader: ModelReader, node: Node, speeds_node: Node
         exprs.append(sympy.sympify(value))
         labels.append(key)
         where.append(loc)
+        printed.append(None)
     definitions = _read_speeds(reader, speeds_node, coords, names)
     if reader.problems or not exprs:
         return None
     values = {p.symbol: p.value for p in reader.parameters.values()
               if p.value is not None and sympy.sympify(p.value).is_number}
     try:
-        velocity = velocity_transformation(exprs, coords, definitions, values, [g for _, g in holonomic])
+        velocity = velocity_transformation(exprs, coords, definitions, values, [g for _, g in holonomic], printed)
     except VelocityConstraintError as exc:
         if exc.kind == "speeds" and speeds_node is not None and exc.index is not None and speeds_node.is_mapping:
             at = speeds_node.key_locations[list(speeds_node.value)[exc.index]]

@@ -56,7 +56,7 @@ def textbook_part(reader: ModelReader, cname: str, spec: Node) -> Part | None:
     return Part(name=cname, coordinates=coordinates, metric=metric,
                 velocity_terms=christoffel_terms(metric, coordinates, velocities),
                 forces=forces, potential=potential, potentials=potentials, charges=charges,
-                effect_kinds={"dissipation": DISSIPATIVE} if "dissipation" in forces else {})
+                effect_kinds={"dissipation": DISSIPATIVE} if "dissipation" in forces else {}, christoffel=True)
 
 
 def _coordinates(reader: ModelReader, cname: str, node: Node | None):

@@ -1,0 +1,52 @@
+"""A matrix whose entries are built when first read.
+
+A system under velocity constraints is used in its speeds: ``Mbar = C^T M C`` (9'), (D) in the
+coordinates ``x`` is a step on the way, which a linearisation about a steady motion does not
+take (it projects numerically from the primitive and ``C``). Its entries, and their printed
+forms, are built when something reads them: a printed derivation, generated code, a run.
+"""
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import sympy
+
+
+class DeferredMatrix(sympy.MutableDenseMatrix):
+    """A ``rows x cols`` matrix given by ``build()``, called on the first read of an entry (any
+    use of the matrix but its shape). Every result of an operation on it is a plain matrix."""
+
+    def __new__(cls, rows: int, cols: int, build: Callable[[], sympy.MatrixBase]):
+        obj = object.__new__(cls)
+        obj.rows, obj.cols = rows, cols
+        obj.__dict__["_build"] = build
+        return obj
+
+    def __getattr__(self, name):  # only for what the instance does not hold yet: its entries
+        if name != "_rep":
+            raise AttributeError(name)
+        built = self.__dict__["_build"]()
+        if built.shape != (self.rows, self.cols):
+            raise ValueError(f"a deferred {self.rows} x {self.cols} matrix was built {built.rows} x {built.cols}")
+        self._rep = sympy.Matrix(built)._rep
+        return self._rep
+
+    @classmethod
+    def _fromrep(cls, rep):
+        return sympy.MutableDenseMatrix._fromrep(rep)
+
+    def __reduce__(self):
+        return sympy.Matrix, (self.rows, self.cols, list(self))
+
+    @property
+    def built(self) -> bool:
+        """Whether the entries have been built."""
+        return "_rep" in self.__dict__
+
+
+def pending(m) -> bool:
+    """Whether ``m`` is a :class:`DeferredMatrix` whose entries are not built yet."""
+    return isinstance(m, DeferredMatrix) and not m.built
+
+
+__all__ = ["DeferredMatrix", "pending"]
