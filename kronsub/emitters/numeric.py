@@ -236,9 +236,61 @@ def _more_nodes_than(exprs, limit: int) -> bool:
     return False
 
 
+def settled(expr: sympy.Expr) -> bool:
+    """Whether ``cse``'s "basic" rewritings certainly leave ``expr`` as it is: no sum in it
+    (inside functions and powers too) could give up a minus sign (what ``sub_pre`` pulls
+    out), and none has a factor common to all its terms, a common sign or a common integer
+    content (what ``factor_terms`` pulls out); its numbers integers or rationals, its powers
+    positive integer ones of single bases. False is no verdict: the rewritings then run. One
+    walk of the tree, where ``factor_terms`` builds the factors of every term of every sum."""
+    seen = set()
+    stack = [expr]
+    while stack:
+        e = stack.pop()
+        if e in seen:
+            continue
+        seen.add(e)
+        if e.is_Atom:
+            if not (e.is_Symbol or e.is_Rational):
+                return False
+            continue
+        if not all(isinstance(a, sympy.Expr) for a in e.args):
+            return False
+        if e.is_Add:
+            if e.could_extract_minus_sign():
+                return False
+            common, coefficients = None, []
+            for term in e.args:
+                coefficient, rest = term.as_coeff_Mul()
+                if not coefficient.is_Integer:
+                    return False
+                coefficients.append(int(coefficient))
+                bases = set()
+                for factor in sympy.Mul.make_args(rest) if rest is not sympy.S.One else ():
+                    if factor.is_Number:
+                        return False
+                    if factor.is_Pow:
+                        base, exponent = factor.args
+                        if not (exponent.is_Integer and exponent > 0) or base.is_Mul:
+                            return False
+                        factor = base
+                    bases.add(factor)
+                common = bases if common is None else common & bases
+            if common or all(c < 0 for c in coefficients) or math.gcd(*coefficients) != 1:
+                return False
+        elif e.is_Pow:
+            if e.args[0].is_Mul:
+                return False
+        elif not (e.is_Mul or e.is_Function):
+            return False
+        stack.extend(e.args)
+    return True
+
+
 class _Rewritings:
     """``cse``'s "basic" rewritings (negations pulled out of sums, then ``factor_terms``), each
-    expression rewritten once per model: the blocks share most of their entries."""
+    expression rewritten once per model (the blocks share most of their entries), and not at
+    all where they would change nothing (:func:`settled`)."""
 
     def __init__(self):
         self.done: dict = {}
@@ -247,8 +299,9 @@ class _Rewritings:
         hit = self.done.get(expr)
         if hit is None:
             hit = expr
-            for rewrite, _ in _BASIC:
-                hit = rewrite(hit)
+            if not settled(expr):
+                for rewrite, _ in _BASIC:
+                    hit = rewrite(hit)
             self.done[expr] = hit
         return hit
 
@@ -478,4 +531,4 @@ def prepare(system: KnownSystem, source: str = "", outputs=None, guarded_angles:
     )
 
 
-__all__ = ["BASIC_NODES", "GUARD", "NearAxis", "NumericModel", "identifier", "jacobian_block", "prepare"]
+__all__ = ["BASIC_NODES", "GUARD", "NearAxis", "NumericModel", "identifier", "jacobian_block", "prepare", "settled"]
