@@ -16,6 +16,7 @@ from kronsub.emitters import code
 from kronsub.model.loader import load_model
 from kronsub.simulation import compiled, native
 from kronsub.api import simulate
+from kronsub.simulation.start import starting_values
 
 pytestmark = pytest.mark.skipif(shutil.which("gcc") is None, reason="no C compiler")
 SYSTEM1 = MODELS / "hoffmann" / "system1.yaml"
@@ -66,7 +67,7 @@ def test_other_parameter_values_share_the_library_other_equations_do_not(cache, 
 def test_a_tampered_index_never_loads_an_unverified_library(cache, emissions, tamper):
     system = load_model(SYSTEM1).derive()
     _run(system)
-    key = compiled.fingerprint(system)
+    key = compiled.fingerprint(system, canonical=False)  # dop853's library: no canonical form
     index = compiled._index_file(key)
     entry = json.loads(kcache.load_entry(index))  # sealed with its digest (kronsub.cache.store_entry)
     library = native.build_root() / entry["folder"] / entry["library"]
@@ -95,3 +96,27 @@ def test_cache_clear_removes_the_index(cache):
     assert list((cache / "native" / "index").iterdir())
     kcache.clear()
     assert not (cache / "native").exists()
+
+
+def test_a_run_compiles_only_the_functions_its_method_calls(cache, emissions):
+    """dop853 on ``[q; qdot]`` calls neither the canonical right-hand side nor ``hbar`` and
+    ``fbar`` apart: its library leaves them out; gauss4 integrates ``[q; p]`` and gets a
+    library with the canonical form, whose trajectory is that of the complete library."""
+    import ctypes
+
+    system = load_model(SYSTEM1).derive()
+    _run(system)
+    lean = compiled.lookup(compiled.fingerprint(system, canonical=False))
+    functions = ctypes.CDLL(str(lean))
+    assert hasattr(functions, "ks_rhs") and hasattr(functions, "ks_kinetic_energy")
+    for absent in ("ks_rhs_canonical", "ks_velocity_terms", "ks_forces"):
+        assert not hasattr(functions, absent)
+    assert compiled.lookup(compiled.fingerprint(system)) is None
+    run = simulate(system, t=0.5, dt=0.05, method="gauss4", dataframe=False)
+    assert len(emissions) == 2  # another library: with the canonical form
+    assert hasattr(ctypes.CDLL(str(compiled.lookup(compiled.fingerprint(system)))), "ks_rhs_canonical")
+    complete = native.NativeModel(compiled.compiled_library(system), len(system.coordinates), len(system.parameters))
+    values = starting_values(system, {}).values
+    _, rows, result = complete.integrate("gauss4", 0.0, np.array(values.y0), 0.5, 0.05, np.array(values.parameters))
+    assert result.ok
+    np.testing.assert_array_equal(rows, run.y)

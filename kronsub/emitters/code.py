@@ -176,20 +176,24 @@ def _context(model: NumericModel, show, declare: str, end: str) -> dict:
 
 @collector_paused()  # see kronsub.collector
 def emit_c(system: KnownSystem, stem: str, source: str = "", prefix: str = "ks",
-           outputs=None, jacobian: bool = False, route: str = "auto") -> list[GeneratedFile]:
+           outputs=None, jacobian: bool = False, route: str = "auto", terms_apart: bool = True,
+           canonical: bool = True) -> list[GeneratedFile]:
     """``<stem>.h`` and ``<stem>.c`` (``stem`` made safe by :func:`file_stem`): C99, libc and
     libm only; names start with ``<prefix>_`` (macros with ``<PREFIX>_``), so several models
     can live in one program. A scene's ``outputs`` leave out the energy and point functions
     it does not ask for; ``jacobian`` adds ``<prefix>_jacobian``, the exact ``d ydot/dy``.
     ``route`` (:data:`.projected.ROUTES`): ``Mbar``, ``hbar`` and ``fbar`` from the derived
-    expressions or projected at run time (:mod:`.projected`)."""
+    expressions or projected at run time (:mod:`.projected`). ``terms_apart`` (``<prefix>_velocity_terms``,
+    ``<prefix>_forces``) and ``canonical`` (``<prefix>_rhs_canonical``): left out when False (a
+    library that runs a method on ``y = [q; qdot]`` calls neither)."""
     if route not in ROUTES:
         raise ValueError(f"route must be one of {', '.join(ROUTES)}, not {route!r}")
     if route == "projected" and (not applies(system) or jacobian):
         raise KronsubError("cannot keep the projection for run time: the system has a closed loop, a "
                            "prescribed motion, velocity constraints, first-order coordinates, an effect "
                            "applied in the subspace or no primitive, or the exact Jacobian is asked for")
-    model = prepare(system, source, outputs, guarded_angles=True, jacobian=jacobian, route=route)
+    model = prepare(system, source, outputs, guarded_angles=True, jacobian=jacobian, route=route,
+                    terms_apart=terms_apart, canonical=canonical)
     p = identifier(prefix)
     printer = _CPrinter(p)
     ctx = _context(model, printer.doprint, "const double ", ";")

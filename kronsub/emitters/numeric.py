@@ -63,6 +63,8 @@ class NumericModel:
     held: HeldCode | None = None  # configuration constraints beside velocity constraints: q_D by Newton's method
     projected: ProjectedCode | None = None  # Mbar, hbar, fbar formed at run time (the blocks above empty)
     velocities: tuple[str, ...] = ()  # the velocities' printed names (a charge's: its current); default q_dot
+    terms_apart: bool = True  # emit hbar and fbar each on its own (a run's library needs neither)
+    with_canonical: bool = True  # emit the canonical right-hand side (only gauss4 integrates it)
 
     @property
     def n(self) -> int:
@@ -236,9 +238,61 @@ def _more_nodes_than(exprs, limit: int) -> bool:
     return False
 
 
+def settled(expr: sympy.Expr) -> bool:
+    """Whether ``cse``'s "basic" rewritings certainly leave ``expr`` as it is: no sum in it
+    (inside functions and powers too) could give up a minus sign (what ``sub_pre`` pulls
+    out), and none has a factor common to all its terms, a common sign or a common integer
+    content (what ``factor_terms`` pulls out); its numbers integers or rationals, its powers
+    positive integer ones of single bases. False is no verdict: the rewritings then run. One
+    walk of the tree, where ``factor_terms`` builds the factors of every term of every sum."""
+    seen = set()
+    stack = [expr]
+    while stack:
+        e = stack.pop()
+        if e in seen:
+            continue
+        seen.add(e)
+        if e.is_Atom:
+            if not (e.is_Symbol or e.is_Rational):
+                return False
+            continue
+        if not all(isinstance(a, sympy.Expr) for a in e.args):
+            return False
+        if e.is_Add:
+            if e.could_extract_minus_sign():
+                return False
+            common, coefficients = None, []
+            for term in e.args:
+                coefficient, rest = term.as_coeff_Mul()
+                if not coefficient.is_Integer:
+                    return False
+                coefficients.append(int(coefficient))
+                bases = set()
+                for factor in sympy.Mul.make_args(rest) if rest is not sympy.S.One else ():
+                    if factor.is_Number:
+                        return False
+                    if factor.is_Pow:
+                        base, exponent = factor.args
+                        if not (exponent.is_Integer and exponent > 0) or base.is_Mul:
+                            return False
+                        factor = base
+                    bases.add(factor)
+                common = bases if common is None else common & bases
+            if common or all(c < 0 for c in coefficients) or math.gcd(*coefficients) != 1:
+                return False
+        elif e.is_Pow:
+            if e.args[0].is_Mul:
+                return False
+        elif not (e.is_Mul or e.is_Function):
+            return False
+        stack.extend(e.args)
+    return True
+
+
 class _Rewritings:
     """``cse``'s "basic" rewritings (negations pulled out of sums, then ``factor_terms``), each
-    expression rewritten once per model: the blocks share most of their entries."""
+    expression rewritten once per model (the blocks share most of their entries), and not at
+    all where they would change nothing (:func:`settled`)."""
 
     def __init__(self):
         self.done: dict = {}
@@ -247,8 +301,9 @@ class _Rewritings:
         hit = self.done.get(expr)
         if hit is None:
             hit = expr
-            for rewrite, _ in _BASIC:
-                hit = rewrite(hit)
+            if not settled(expr):
+                for rewrite, _ in _BASIC:
+                    hit = rewrite(hit)
             self.done[expr] = hit
         return hit
 
@@ -302,7 +357,8 @@ def jacobian_block(system: KnownSystem, first, slot) -> tuple[list[str], list[sy
 
 
 def prepare(system: KnownSystem, source: str = "", outputs=None, guarded_angles: bool = False,
-            jacobian: bool = False, route: str = "expanded") -> NumericModel:
+            jacobian: bool = False, route: str = "expanded", terms_apart: bool = True,
+            canonical: bool = True) -> NumericModel:
     """Map the system's symbols to array slots and eliminate common subexpressions.
 
     ``outputs`` (a scene's :class:`~kronsub.model.scenes.Outputs`; None: everything) leaves
@@ -313,7 +369,9 @@ def prepare(system: KnownSystem, source: str = "", outputs=None, guarded_angles:
     (:func:`jacobian_block`; not with implicit constraints). ``route`` (:data:`.projected.ROUTES`):
     ``projected`` keeps the projection for run time (:mod:`.projected`; the caller checks that it
     applies), ``auto`` does so for a large system (never with first-order coordinates, velocity
-    constraints or the exact Jacobian)."""
+    constraints or the exact Jacobian). ``terms_apart``: also ``hbar`` and ``fbar`` each on its
+    own; ``canonical``: also the canonical form's ``dT/dq + fbar`` (a library that runs a
+    method on ``y = [q; qdot]`` needs neither)."""
     energies = outputs is None or outputs.energies
     with_points = outputs is None or bool(outputs.points)
     speeds = system.speeds  # under velocity constraints: the equations in the speeds, the state [q; u]
@@ -372,7 +430,7 @@ def prepare(system: KnownSystem, source: str = "", outputs=None, guarded_angles:
         # elimination itself, and the projection's entries are short already
         block = functools.partial(_block, rewrite=False)
         projected = projected_code(system, slot, constants, lambda t, e: block(t, e, "x", qs, guarded_angles))
-        mass = velocity_terms = forces = equations = canonical = Block((), ())
+        mass = velocity_terms = forces = equations = canonical_block = Block((), ())
     else:
         r = forces_of - velocity_terms_of
         targets = [f"M[{i * n + j}]" for i in range(n) for j in range(n)]
@@ -390,8 +448,10 @@ def prepare(system: KnownSystem, source: str = "", outputs=None, guarded_angles:
                               [constants(e) for e in solved + rates + currents], "x", qs, guarded_angles,
                               plain=len(targets))
         mass = block(targets, exprs, "x", qs)
-        velocity_terms = block([f"h[{i}]" for i in range(n)], [slot(e) for e in velocity_terms_of], "x", qs)
-        forces = block([f"f[{i}]" for i in range(n)], [slot(e) for e in forces_of], "x", qs)
+        velocity_terms = forces = Block((), ())
+        if terms_apart:
+            velocity_terms = block([f"h[{i}]" for i in range(n)], [slot(e) for e in velocity_terms_of], "x", qs)
+            forces = block([f"f[{i}]" for i in range(n)], [slot(e) for e in forces_of], "x", qs)
         if speeds is not None:  # qdot = C(q) u
             kinematics = block([f"xd[{i}]" for i in range(len(qs))], [constants(slot(e)) for e in speeds.kinematics],
                                "x", qs)
@@ -400,7 +460,7 @@ def prepare(system: KnownSystem, source: str = "", outputs=None, guarded_angles:
         dTdq = []
         depends = [[M[i, j].free_symbols for j in range(n)] for i in range(n)]
         derivatives: dict = {}  # (entry, q): the symmetric entries are differentiated once
-        for k, qk in enumerate(system.coordinates if speeds is None else ()):
+        for k, qk in enumerate(system.coordinates if speeds is None and canonical else ()):
             terms = []  # summed at once: a sum grown term by term is rebuilt n^2 times
             for i in range(n):
                 for j in range(n):
@@ -412,14 +472,16 @@ def prepare(system: KnownSystem, source: str = "", outputs=None, guarded_angles:
                     if d != 0:
                         terms.append(d * qd[i] * qd[j] / 2)
             dTdq.append(sympy.Add(*terms, system.forces[k]))
-        if timed:  # hbar is not Lagrange's operator on Mbar: dp/dt = fbar - hbar + (dMbar/dq^i qdot^i) qdot
+        if timed and canonical:  # hbar is not Lagrange's operator on Mbar: dp/dt = fbar - hbar + (dMbar/dq^i qdot^i) qdot
             dTdq = [system.forces[k] - system.velocity_terms[k]
                     + sum((derivative(M[k, j], qi) * qd[i] * qd[j] for j in range(n)
                            for i, qi in enumerate(system.coordinates) if qi in depends[k][j]), sympy.Integer(0))
                     for k in range(n)]
         if speeds is not None:  # no canonical form in the speeds: Mbar udot is not dp/dt
             dTdq = [sympy.Integer(0)] * n
-        canonical = block(r_targets, [constants(slot(e)) for e in dTdq], "x", qs, guarded_angles)
+        canonical_block = Block((), ())
+        if canonical:
+            canonical_block = block(r_targets, [constants(slot(e)) for e in dTdq], "x", qs, guarded_angles)
         if jacobian and system.implicit is None and speeds is None:
             exact = block(*jacobian_block(system, first, lambda e: constants(slot(e))), "x", qs, guarded_angles)
     held = None  # before `prepare`: its parameter products are constants of pre[] too
@@ -442,8 +504,8 @@ def prepare(system: KnownSystem, source: str = "", outputs=None, guarded_angles:
     implicit = None
     if system.implicit is not None:
         implicit = implicit_code(system, slot, lambda t, e, c: block(t, e, "x", qs))
-    if system.implicit is not None or first is not None:
-        canonical = block(r_targets, [sympy.Integer(0)] * n, "x", qs)  # unused: no canonical form here
+    if canonical and (system.implicit is not None or first is not None):
+        canonical_block = block(r_targets, [sympy.Integer(0)] * n, "x", qs)  # unused: no canonical form here
     return NumericModel(
         name=system.name,
         source=source,
@@ -454,7 +516,7 @@ def prepare(system: KnownSystem, source: str = "", outputs=None, guarded_angles:
         velocity_terms=velocity_terms,
         forces=forces,
         equations=equations,
-        canonical=canonical,
+        canonical=canonical_block,
         prepare=prepare,
         n_pre=constants.count + (len(system.implicit.dependent) + 1 if system.implicit is not None else 0),
         potential=potential,
@@ -470,7 +532,9 @@ def prepare(system: KnownSystem, source: str = "", outputs=None, guarded_angles:
         held=held,
         projected=projected,
         velocities=tuple(system.name_of(v) for v in system.velocities),
+        terms_apart=terms_apart,
+        with_canonical=canonical,
     )
 
 
-__all__ = ["BASIC_NODES", "GUARD", "NearAxis", "NumericModel", "identifier", "jacobian_block", "prepare"]
+__all__ = ["BASIC_NODES", "GUARD", "NearAxis", "NumericModel", "identifier", "jacobian_block", "prepare", "settled"]

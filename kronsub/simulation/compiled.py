@@ -31,10 +31,11 @@ _FOLDER = re.compile(r"[A-Za-z0-9_]+-[0-9a-f]{24}")
 _LIBRARY = re.compile(r"lib[A-Za-z0-9_]+\.so")
 
 
-def fingerprint(system: KnownSystem, outputs=None, jacobian: bool = False) -> str | None:
+def fingerprint(system: KnownSystem, outputs=None, jacobian: bool = False, canonical: bool = True) -> str | None:
     """sha256 of what the generated C computes: the equations (without the names, texts,
     parameter values and initial values that only its comments and defaults show), the
-    outputs, the integrators and the compiler; None when the system cannot be fingerprinted."""
+    outputs, the functions asked for, the integrators and the compiler; None when the system
+    cannot be fingerprinted."""
     bare = dataclasses.replace(
         system, name="", description="", initial={}, transition=None,
         parameters=tuple(dataclasses.replace(p, value=None, description="", unit="") for p in system.parameters))
@@ -47,6 +48,8 @@ def fingerprint(system: KnownSystem, outputs=None, jacobian: bool = False) -> st
     parts += [(native.CSRC / name).read_text() for name in native.INTEGRATOR_FILES]
     if jacobian:  # the library with ks_jacobian is another library
         parts.append("jacobian")
+    if not canonical:  # and so is the one without ks_rhs_canonical
+        parts.append("no canonical form")
     return content_key("compiled-model", *parts)
 
 
@@ -113,29 +116,33 @@ def belongs(library: Path, key: str, nq: int, nparam: int) -> bool:
         return False
 
 
-def generated_sources(system: KnownSystem, outputs=None, jacobian: bool = False) -> list[tuple[str, str]]:
+def generated_sources(system: KnownSystem, outputs=None, jacobian: bool = False,
+                      canonical: bool = True) -> list[tuple[str, str]]:
     """The model's C files a library is built from: the named points left out of ``outputs``
-    (a run's table takes them from the numpy module), so neither their emission nor their
-    compilation is paid for; ``jacobian``: with the exact ``d ydot/dy`` (``ks_jacobian``)."""
+    (a run's table takes them from the numpy module), and ``hbar`` and ``fbar`` apart (no run
+    calls them), so neither their emission nor their compilation is paid for; ``jacobian``:
+    with the exact ``d ydot/dy`` (``ks_jacobian``); ``canonical``: with the canonical
+    right-hand side (:data:`.native.CANONICAL_METHODS` integrate it)."""
     from ..emitters.code import emit_c  # heavy (jinja2, the C printer): only when the index misses
 
     computed = dataclasses.replace(outputs or Outputs(), points=())
-    return [(g.name, g.text) for g in emit_c(system, "model", outputs=computed, jacobian=jacobian)]
+    return [(g.name, g.text) for g in emit_c(system, "model", outputs=computed, jacobian=jacobian, terms_apart=False,
+                                             canonical=canonical)]
 
 
-def compiled_library(system: KnownSystem, outputs=None, jacobian: bool = False) -> Path:
+def compiled_library(system: KnownSystem, outputs=None, jacobian: bool = False, canonical: bool = True) -> Path:
     """The shared library of ``system``'s generated C with the integrators: from the index
     when its fingerprint is there and the library says it computes these equations
     (:func:`belongs`), else emitted, built (:func:`.native.compile_library`) and indexed.
-    ``jacobian``: with the exact ``d ydot/dy`` (``ks_jacobian``). Raises what ``compile_library``
-    raises."""
-    key = fingerprint(system, outputs, jacobian)
+    ``jacobian``: with the exact ``d ydot/dy`` (``ks_jacobian``); ``canonical``: with
+    ``ks_rhs_canonical``. Raises what ``compile_library`` raises."""
+    key = fingerprint(system, outputs, jacobian, canonical)
     nq, nparam = len(system.coordinates), len(system.parameters)
     if key is not None:
         library = lookup(key)
         if library is not None and belongs(library, key, nq, nparam):
             return library
-    generated = generated_sources(system, outputs, jacobian)
+    generated = generated_sources(system, outputs, jacobian, canonical)
     if key is not None:
         generated.append(identity_source(key, nq, nparam))
     library = native.compile_library(generated, "model")
@@ -146,12 +153,14 @@ def compiled_library(system: KnownSystem, outputs=None, jacobian: bool = False) 
     return library
 
 
-def native_model(system: KnownSystem, outputs=None, jacobian: bool = False) -> native.NativeModel:
-    """:func:`compiled_library` loaded; a library removed between its build and its loading
+def native_model(system: KnownSystem, outputs=None, jacobian: bool = False,
+                 canonical: bool = True) -> native.NativeModel:
+    """:func:`compiled_library` loaded (``canonical`` False: a library for a method on
+    ``y = [q; qdot]``, without ``ks_rhs_canonical``); a library removed between its build and its loading
     (``kronsub cache clear`` meanwhile) is built again, once."""
     nq, nparam = len(system.coordinates), len(system.parameters)
     for attempt in (1, 2):
-        library = compiled_library(system, outputs, jacobian)
+        library = compiled_library(system, outputs, jacobian, canonical)
         try:
             return native.NativeModel(library, nq, nparam, nq + len(system.state_velocities))
         except OSError:

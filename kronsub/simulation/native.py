@@ -57,6 +57,8 @@ LIBS = ("-lm",)
 COMPILE_TIMEOUT = 600.0
 
 METHODS = ("dop853", "gauss4", "rk4")
+CANONICAL_METHODS = ("gauss4",)
+"""The methods that integrate the canonical state ``z = [q; p]`` (``ks_rhs_canonical``)."""
 
 
 class NativeError(KronsubError):
@@ -716,7 +718,7 @@ class NativeModel:
         # gauss4 in (q, p = Mbar qdot); with implicit constraints, which have no canonical form,
         # in (q, qdot): fourth order still, the dependent coordinates by Newton in every stage; so
         # with first-order coordinates, whose singular metric has no momentum to solve for
-        canonical = method == "gauss4" and not self.nstate and not self.nfirst
+        canonical = method in CANONICAL_METHODS and not self.nstate and not self.nfirst
         on_circle = method != "gauss4" and self.nc > 0 and circle is not False
         dim = self.ny + 2 * self.nc if on_circle else self.ny
         start = self.momentum(y0, param) if canonical else self.circle_state(y0) if on_circle else y0
@@ -792,7 +794,7 @@ class NativeModel:
         return t, Y, result
 
 
-__all__ = ["COMPILE_TIMEOUT", "CSRC", "CompileError", "CompilerNotFound", "FLAGS", "HOST_FLAGS", "INTEGRATOR_FILES",
+__all__ = ["CANONICAL_METHODS", "COMPILE_TIMEOUT", "CSRC", "CompileError", "CompilerNotFound", "FLAGS", "HOST_FLAGS", "INTEGRATOR_FILES",
            "IntegrationResult", "LIBS", "METHODS", "NativeError", "NativeModel", "SingularMassMatrix", "build_flags",
            "build_identity", "build_root", "compile_library", "compiler_command", "data_address", "host_flags",
            "recorded_digest", "sidecar", "verified"]

@@ -31,7 +31,7 @@ from .fallback import module_energies, numpy_module, numpy_rhs, numpy_rhs_of
 from .grid import Grid, Tail
 from .methods import METHODS as REGISTRY
 from .methods import SIMULATE, unknown_method
-from .native import CompileError, CompilerNotFound
+from .native import CANONICAL_METHODS, CompileError, CompilerNotFound
 from .power import charge_coordinates
 from .progress import Progress
 from . import rows as streamed
@@ -189,7 +189,7 @@ def start(system: KnownSystem, values: RunValues, t_end: float, dt: float, metho
         run.blocks = _finish(run, rows, bar, native, param, system, None, with_energies)
         return run
     native = _compiled(system, outputs, jacobian and spec.name in IMPLICIT and system.implicit is None
-                       and system.speeds is None)
+                       and system.speeds is None, spec.name in CANONICAL_METHODS)
     if constrained is not None and native is not None:
         from .constrained import configure_native
 
@@ -227,11 +227,11 @@ def _problem(system, param, native, outputs, constrained, rtol, atol) -> Problem
     return Problem(system, param, native, restart)
 
 
-def _compiled(system, outputs, jacobian: bool = False):
-    """The model compiled from its generated C (``jacobian``: with ``ks_jacobian``), or None (with a
-    warning) to use the numpy module."""
+def _compiled(system, outputs, jacobian: bool = False, canonical: bool = True):
+    """The model compiled from its generated C (``jacobian``: with ``ks_jacobian``; ``canonical``:
+    with the canonical right-hand side), or None (with a warning) to use the numpy module."""
     try:
-        return native_model(system, outputs, jacobian)
+        return native_model(system, outputs, jacobian, canonical)
     except CompilerNotFound:
         warnings.warn("no C compiler found: using the generated numpy module (slower)")
     except CompileError as exc:
@@ -244,7 +244,7 @@ def _compiled_quietly(system, outputs):
     """The compiled model for the energies of rows computed without it (heyoka, taylor), or None:
     those rows do not need it, so a missing compiler says nothing here."""
     try:
-        return native_model(system, outputs)
+        return native_model(system, outputs, canonical=False)
     except (CompilerNotFound, CompileError):
         return None
 
@@ -266,7 +266,7 @@ def _auto_blocks(run, system, spec, native, constrained, grid, y0, param, steps,
     try:
         while True:
             if offset:
-                native = _compiled(split.system, outputs)
+                native = _compiled(split.system, outputs, canonical=spec.name in CANONICAL_METHODS)
                 if native is None and spec.fallback is not None:
                     spec = METHODS[spec.fallback]
             module = None
