@@ -12,6 +12,8 @@ import sympy
 import kronsub
 from conftest import MODELS
 from kronsub.core.simplify import compact
+from kronsub.core import subspace
+from kronsub.core.primitive import christoffel_terms
 from kronsub.core.subspace import Subspace, project_inertia
 from kronsub.core.trigpoly import TrigAlgebra, TrigPoly
 from kronsub.model.loader import load_model
@@ -114,15 +116,21 @@ def test_a_shared_sum_is_constant_in_the_coordinates():
     assert at(s * algebra.from_expr(sympy.cos(q1))) == pytest.approx(7.0 * 0.955336489125606)
 
 
-@pytest.mark.parametrize("n", [3, 9])
-def test_the_chain_forms_each_sum_of_the_masses_below_a_link_once(tmp_path, n):
-    """``Mbar_ij = l_i l_j (m_j/2 + sum_(k>j) m_k) cos(q_i - q_j)`` (i < j), ``Mbar_ii = l_i^2 (m_i/3 +
-    sum_(k>i) m_k)``: written out exactly so, from ``n - 2`` shared sums ``m_(k+1) + ... + m_n``."""
+def _projected(tmp_path, n: int, hinges: bool = False):
     path = tmp_path / f"chain{n}.yaml"
-    path.write_text(chain_yaml(n))
+    path.write_text(chain_yaml(n, hinges=hinges))
     model = load_model(path, cache=False)
     sub = Subspace(model.primitive, model.coordinates, model.connection)
-    system = project_inertia(sub, model.primitive)
+    return sub, project_inertia(sub, model.primitive)
+
+
+@pytest.mark.parametrize("n", [3, 9, subspace.SHARED_FROM])
+def test_the_chain_forms_each_sum_of_the_masses_below_a_link_once(tmp_path, monkeypatch, n):
+    """``Mbar_ij = l_i l_j (m_j/2 + sum_(k>j) m_k) cos(q_i - q_j)`` (i < j), ``Mbar_ii = l_i^2 (m_i/3 +
+    sum_(k>i) m_k)``: written out exactly so, from ``n - 2`` shared sums ``m_(k+1) + ... + m_n``
+    (below `SHARED_FROM` coordinates only when asked for)."""
+    monkeypatch.setattr(subspace, "SHARED_FROM", min(n, subspace.SHARED_FROM))
+    sub, system = _projected(tmp_path, n)
     named = {s.name: s for s in system.mass_matrix.free_symbols}
     m, l, q = ([named[f"{x}{i}"] for i in range(1, n + 1)] for x in "mlq")
     below = [sum(m[i + 1:], sympy.S.Zero) for i in range(n)]
@@ -137,9 +145,35 @@ def test_the_chain_forms_each_sum_of_the_masses_below_a_link_once(tmp_path, n):
         sorted((below[i] for i in range(n - 2)), key=sympy.default_sort_key)
 
 
+@pytest.mark.parametrize("n", [4, 7])
+def test_the_shared_sums_print_the_equations_of_the_rows(tmp_path, monkeypatch, n):
+    """The chain (with a spring and a damper at every hinge) projected over shared sums and row
+    by row: the same entries of ``Mbar`` and ``hbar``, as printed."""
+    monkeypatch.setattr(subspace, "SHARED_FROM", 10**9)
+    rows = _projected(tmp_path, n, hinges=True)[1]
+    monkeypatch.setattr(subspace, "SHARED_FROM", 0)
+    sub, shared = _projected(tmp_path, n, hinges=True)
+    assert sub.algebra.shared_sums
+    assert shared.mass_matrix == rows.mass_matrix
+    assert shared.velocity_terms == rows.velocity_terms
+
+
+def test_a_long_chain_is_derived_over_shared_sums(tmp_path):
+    """From `SHARED_FROM` coordinates: ``hbar`` is Lagrange's operator on ``Mbar`` (the Christoffel
+    form, an independent route), evaluated at a random state."""
+    n = subspace.SHARED_FROM + 1
+    sub, system = _projected(tmp_path, n)
+    assert len(sub.algebra.shared_sums) == n - 2
+    want = christoffel_terms(system.mass_matrix, system.coordinates, system.velocities)
+    symbols = sorted(system.velocity_terms.free_symbols | want.free_symbols, key=lambda s: s.name)
+    rng = random.Random(7)
+    values = {s: rng.uniform(0.3, 1.2) for s in symbols}
+    for got, expected in zip(system.velocity_terms, want):
+        assert float(got.xreplace(values)) == pytest.approx(float(expected.xreplace(values)), rel=1e-10, abs=1e-10)
+
+
 def test_the_chain_is_derived_as_before():
-    """The bundled chain's equations: those the expanded projection wrote (the test of every
-    model against sympy.physics.mechanics checks them)."""
+    """The bundled chain's equations, printed as the row-by-row projection printed them."""
     system = kronsub.load(MODELS / "chain" / "chain5.yaml", cache=False).derive(cache=False)
     assert str(system.mass_matrix[0, 1]) == "l1*l2*(m2 + 2*m3 + 2*m4 + 2*m5)*cos(q1 - q2)/2"
     assert str(system.velocity_terms[1]).startswith("-l1*l2*q1_dot**2*(m2 + 2*m3 + 2*m4 + 2*m5)*sin(q1 - q2)/2")

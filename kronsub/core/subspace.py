@@ -36,6 +36,14 @@ from .symbols import TIME, free_symbols_of, velocity_symbol
 from .trigpoly import TrigAlgebra, TrigPoly
 
 
+SHARED_FROM = 12
+"""Coordinates from which ``Mbar`` and ``hbar`` are summed over shared sums of inertias
+(:func:`_shared_sums`); below, row by row (:func:`_row_by_row`), as every small model's equations
+were printed: the two routes give equal entries, but the order in which the algebra meets a
+coefficient's terms decides the sign a printed factor takes (``-2*c*(-3*a1**2 + ...)`` or
+``2*c*(3*a1**2 - ...)``). The same bound as the generated code's projected route."""
+
+
 class Subspace:
     """The interconnection ``x = x(xbar)`` in the algebra: ``C``, ``xdot``, ``Cdot xbardot``;
     shared by the projection of the inertia and of each effect."""
@@ -430,9 +438,12 @@ def _shared_sums(sub: Subspace, weights: dict[int, dict[int, TrigPoly]], mass: l
     connection does not name time). Each distinct ``W`` is formed once, a sum of several terms
     constant in the coordinates as one shared atom (`TrigAlgebra.shared_sum`): the inertias below
     a link of a chain are one sum shared by a row and a column of ``Mbar``, not a sum in each.
-    None, with nothing done, when no such sum is shared (`_row_by_row` then)."""
+    None, with nothing done, below `SHARED_FROM` coordinates or when no such sum is shared
+    (`_row_by_row` then)."""
     C, nonzero, algebra = sub.C, sub.nonzero, sub.algebra
     n = sub.n
+    if n < SHARED_FROM:
+        return None
     values: dict = {}  # the key of a value of C -> its number
     numbered = [{k: values.setdefault(sub.shape_of[b][k], len(values)) for k in nonzero[b]} for b in range(len(C))]
     value_of = {}
@@ -612,5 +623,5 @@ def _sum(polys) -> TrigPoly:
     return total
 
 
-__all__ = ["Subspace", "assemble", "assembled_potentials", "effect_labels", "project_effects", "project_inertia",
+__all__ = ["SHARED_FROM", "Subspace", "assemble", "assembled_potentials", "effect_labels", "project_effects", "project_inertia",
            "world_dimension"]
