@@ -81,10 +81,24 @@ def _plain_product(args) -> bool:
                 return False
         elif isinstance(t, sympy.exp) or not t.is_commutative or t.is_Mul:
             return False
-        if t.is_number:
+        if _is_number(t):
             return False
         bases.add(t.base if t.is_Pow else t)
     return len(bases) == len(args) - 1  # (an unevaluated x**2*x**2 would be joined)
+
+
+_numbers: dict = {}
+
+
+def _is_number(t) -> bool:
+    """``t.is_number``, remembered: sympy walks the whole of a sum to answer, and a large
+    system's sums (the masses below a link) are factors of many entries."""
+    hit = _numbers.get(t)
+    if hit is None:
+        if len(_numbers) > LIMIT:
+            _numbers.clear()
+        hit = _numbers[t] = t.is_number
+    return hit
 
 
 def _scaled(c, rest) -> int:

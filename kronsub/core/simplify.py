@@ -72,9 +72,18 @@ def compact(algebra: TrigAlgebra, p: TrigPoly) -> sympy.Expr:
 
 
 def _compact(algebra: TrigAlgebra, p: TrigPoly) -> sympy.Expr:
+    view = _view(algebra)
+    if algebra.has_shared(p):  # the sums written out where the entry has no other form (a chain's)
+        used = trigpoly.used_atoms(p)
+        shared = used & algebra.shared_sums.keys()
+        used -= shared
+        if not algebra.has_multiple_angles(p) and not _mixed(p) and not view.touches(used) \
+                and not view.varying_in(used) and all(view.plain_sum(s) for s in shared) \
+                and (expr := algebra.written_out(p)) is not None:
+            return _atom_angles(algebra, used, expr)
+        p = algebra.flat(p)
     p = divide_out(algebra, p)
     expr = algebra.to_expr(p)
-    view = _view(algebra)
     multiple = algebra.has_multiple_angles(p)
     used = trigpoly.used_atoms(p)
     if not multiple and not _mixed(p) and not view.touches(used) and not view.varying_in(used):
@@ -398,6 +407,7 @@ class _View:
         self._pairs: dict[int, int] | None = None
         self._seen = 0
         self._coefficients: dict = {}
+        self._plain: dict[int, bool] = {}
 
     # atoms ---------------------------------------------------------------
     def atom(self, i: int) -> sympy.Expr:
@@ -430,6 +440,16 @@ class _View:
         hit = self._varies.get(i)
         if hit is None:
             hit = self._varies[i] = bool(self.algebra.atoms[i].free_symbols & set(self.algebra.coordinates))
+        return hit
+
+    def plain_sum(self, atom: int) -> bool:
+        """Whether a shared sum (`TrigAlgebra.shared_sum`) is written in atoms that offer no other
+        form: no sine or cosine, nothing shorter, nothing that varies (each sum asked once)."""
+        hit = self._plain.get(atom)
+        if hit is None:
+            atoms = self.algebra.sum_atoms(atom)
+            hit = self._plain[atom] = not self.touches(atoms) and not self.varying_in(atoms) and not any(
+                isinstance(self.algebra.atoms[a], (sympy.sin, sympy.cos)) for a in atoms)
         return hit
 
     def varying_in(self, used: set[int]) -> bool:

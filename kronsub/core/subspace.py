@@ -11,7 +11,9 @@ A connection that names time, ``x = x(xbar, t)`` (a prescribed motion, :mod:`.rh
 adds the drive's velocity ``dx/dt`` to ``xdot`` and its ``d(xdot)/dt`` to ``Cdot xbardot``.
 
 Every product is formed in the trigonometric-polynomial algebra
-(:mod:`.trigpoly`), so the results are compact as they are built.
+(:mod:`.trigpoly`), so the results are compact as they are built; ``Mbar`` and
+``M Cdot xbardot`` are summed over the distinct pairs of values of ``C``, each
+with its sum of inertias formed once (:func:`_shared_sums`).
 """
 from __future__ import annotations
 
@@ -21,6 +23,7 @@ from collections.abc import Sequence
 
 import sympy
 
+from ..budget import charge
 from ..components.base import Body
 from . import canonical
 from .deferred import DeferredMatrix
@@ -32,6 +35,14 @@ from .simplify import compact
 from .rheonomic import depends_on_time
 from .symbols import TIME, free_symbols_of, velocity_symbol
 from .trigpoly import TrigAlgebra, TrigPoly
+
+
+SHARED_FROM = 12
+"""Coordinates from which ``Mbar`` and ``hbar`` are summed over shared sums of inertias
+(:func:`_shared_sums`); below, row by row (:func:`_row_by_row`), as every small model's equations
+were printed: the two routes give equal entries, but the order in which the algebra meets a
+coefficient's terms decides the sign a printed factor takes (``-2*c*(-3*a1**2 + ...)`` or
+``2*c*(3*a1**2 - ...)``). The same bound as the generated code's projected route."""
 
 
 class Subspace:
@@ -360,9 +371,8 @@ def _inertia(sub: Subspace, primitive: Primitive, renamed: dict[str, list[int]])
     """``Mbar = C^T M C`` (9'), (D) and ``hbar = C^T (M Cdot xbardot + h)`` (E), block by block."""
     n = sub.n
     mass = [[TrigPoly() for _ in range(n)] for _ in range(n)]
-    # sum_a C_aj (M C)_ak, with the rows of equal C_aj summed first (see Subspace.shape_of)
-    sums: list[dict] = [{} for _ in range(n)]  # j -> {C_aj key: (C_aj, {k: sum of (M C)_ak})}
-    inertial = [TrigPoly() for _ in range(len(sub.x))]  # M Cdot xbardot + h
+    inertial = [TrigPoly() for _ in range(len(sub.x))]  # h (and M Cdot xbardot when driven)
+    weights: dict[int, dict[int, TrigPoly]] = {}  # a -> {b: M_ab} over the projected parts
     direct_mass: dict[tuple[int, int], list[sympy.Expr]] = {}
     direct_h: dict[int, list[sympy.Expr]] = {}
     for offset, part in primitive.blocks():
@@ -377,37 +387,159 @@ def _inertia(sub: Subspace, primitive: Primitive, renamed: dict[str, list[int]])
                     if j <= k and canonical.nonzero(metric[i][i2]):
                         direct_mass.setdefault((j, k), []).append(sub.moved(metric[i][i2]))
             continue
-        C, nonzero, shape_of = sub.C, sub.nonzero, sub.shape_of  # (built for the first part that needs them)
+        sub.C  # noqa: B018  (built for the first part that needs it)
         block = [[sub.image(part.metric[i, j]) for j in range(size)] for i in range(size)]
         for i in range(size):
             a = offset + i
-            mc: dict[int, TrigPoly] = {}  # (M C)_a,k within the block
-            acc = sub.image(part.velocity_terms[i]).copy()
-            for j in range(size):
-                if block[i][j].is_zero():
-                    continue
-                b = offset + j
-                for k in nonzero[b]:
-                    mc.setdefault(k, TrigPoly()).add_product(block[i][j], C[b][k])
+            inertial[a] = sub.image(part.velocity_terms[i])
+            row = {offset + j: m for j, m in enumerate(block[i]) if not m.is_zero()}
+            if row:
+                weights[a] = row
+    velocity_terms = _shared_sums(sub, weights, mass, with_convective=not sub.driven)
+    if velocity_terms is None or sub.driven:  # M Cdot xbardot row by row (the drive's terms are not C's)
+        for a, row in weights.items():
+            inertial[a] = inertial[a].copy()
+            for b, m in row.items():
                 if not sub.convective[b].is_zero():
-                    acc.add_product(block[i][j], sub.convective[b])
-            inertial[a] = acc
-            for j in nonzero[a]:
-                group = sums[j].get(shape_of[a][j])
-                if group is None:
-                    group = sums[j][shape_of[a][j]] = (C[a][j], {})
-                for k, mck in mc.items():
-                    if k >= j:
-                        total = group[1].get(k)
-                        if total is None:
-                            group[1][k] = mck.copy()
-                        else:
-                            total.add(mck)
-    for j in range(n):
+                    inertial[a].add_product(m, sub.convective[b])
+    if velocity_terms is None:
+        _row_by_row(sub, weights, mass)
+        return mass, sub.transpose_times(inertial), direct_mass, direct_h
+    for j, p in enumerate(sub.transpose_times(inertial)):
+        velocity_terms[j].add(p)
+    return mass, velocity_terms, direct_mass, direct_h
+
+
+def _row_by_row(sub: Subspace, weights: dict[int, dict[int, TrigPoly]], mass: list[list[TrigPoly]]) -> None:
+    """``Mbar = C^T M C`` into ``mass`` as ``sum_a C_aj (M C)_ak``, with the rows of equal ``C_aj``
+    summed first (see `Subspace.shape_of`): a system that shares no sum of inertias."""
+    C, nonzero, shape_of = sub.C, sub.nonzero, sub.shape_of
+    sums: list[dict] = [{} for _ in range(sub.n)]  # j -> {C_aj key: (C_aj, {k: sum of (M C)_ak})}
+    for a, row in weights.items():
+        mc: dict[int, TrigPoly] = {}  # (M C)_a,k
+        for b, m in row.items():
+            for k in nonzero[b]:
+                mc.setdefault(k, TrigPoly()).add_product(m, C[b][k])
+        for j in nonzero[a]:
+            group = sums[j].get(shape_of[a][j])
+            if group is None:
+                group = sums[j][shape_of[a][j]] = (C[a][j], {})
+            for k, mck in mc.items():
+                if k >= j:
+                    total = group[1].get(k)
+                    if total is None:
+                        group[1][k] = mck.copy()
+                    else:
+                        total.add(mck)
+    for j in range(sub.n):
         for u, row in sums[j].values():
             for k, total in row.items():
                 mass[j][k].add_product(u, total)
-    return mass, sub.transpose_times(inertial), direct_mass, direct_h
+
+
+def _shared_sums(sub: Subspace, weights: dict[int, dict[int, TrigPoly]], mass: list[list[TrigPoly]], *,
+                 with_convective: bool) -> list[TrigPoly] | None:
+    """``Mbar`` into ``mass``, and the part ``C^T M Cdot xbardot`` of ``hbar`` (returned), summed
+    over the pairs of values of ``C``:
+
+        Mbar_jk = sum_(u, v) u v W,    (C^T M Cdot xbardot)_j = sum_(u, k, v) u D_k(v) W,
+
+    ``W`` the sum of ``M_ab`` over the rows ``a`` with ``C_aj = u`` and ``b`` with ``C_bk = v``, and
+    ``D_k(v) = xbardot^k dv/dxbar^l xbardot^l`` (``Cdot xbardot = sum_k D_k(C_bk)`` when the
+    connection does not name time). Each distinct ``W`` is formed once, a sum of several terms
+    constant in the coordinates as one shared atom (`TrigAlgebra.shared_sum`): the inertias below
+    a link of a chain are one sum shared by a row and a column of ``Mbar``, not a sum in each.
+    None, with nothing done, below `SHARED_FROM` coordinates or when no such sum is shared
+    (`_row_by_row` then)."""
+    C, nonzero, algebra = sub.C, sub.nonzero, sub.algebra
+    n = sub.n
+    if n < SHARED_FROM:
+        return None
+    values: dict = {}  # the key of a value of C -> its number
+    numbered = [{k: values.setdefault(sub.shape_of[b][k], len(values)) for k in nonzero[b]} for b in range(len(C))]
+    value_of = {}
+    for b, row in enumerate(numbered):
+        for k, v in row.items():
+            value_of.setdefault(v, C[b][k])
+    rows_of: list[list[int]] = [[] for _ in range(n)]  # column j -> the rows with inertia and C_aj != 0
+    for a in weights:
+        for j in nonzero[a]:
+            rows_of[j].append(a)
+    stride, width = len(C), len(values)
+    sums: dict[tuple, tuple[int, TrigPoly]] = {}  # the pairs (a, b) -> (number, W)
+    numbers: dict[tuple, int] = {}  # W's key -> its number
+    plan: list[tuple[int, TrigPoly, int, int, int, TrigPoly]] = []  # (j, u, k, v, number, W)
+    for j in range(n):
+        groups: dict[int, list[int]] = {}  # the rows of column j by their value u
+        for a in rows_of[j]:
+            groups.setdefault(numbered[a][j], []).append(a)
+        for u_number, rows in groups.items():
+            u = value_of[u_number]
+            buckets: dict[int, list[int]] = {}  # k * width + v -> the pairs
+            for a in rows:
+                for b in weights[a]:
+                    pair = a * stride + b
+                    for k, v in numbered[b].items():
+                        if with_convective or k >= j:
+                            bucket = buckets.get(k * width + v)
+                            if bucket is None:
+                                buckets[k * width + v] = [pair]
+                            else:
+                                bucket.append(pair)
+            charge(sum(map(len, buckets.values())), "the sums of inertias of the projection")
+            for key, pairs in buckets.items():
+                k, v = divmod(key, width)
+                number, W = _weight(algebra, weights, tuple(pairs), stride, sums, numbers)
+                if not W.is_zero():
+                    plan.append((j, u, k, v, number, W))
+    if not algebra.shared_sums:
+        return None
+    hbar = [TrigPoly() for _ in range(n)]
+    products: dict[tuple, TrigPoly] = {}  # (v, W) -> v W; (k, v, W) -> D_k(v) W
+    rates: dict[tuple[int, int], TrigPoly] = {}
+    for j, u, k, v, number, W in plan:
+        if k >= j:
+            vw = products.get((v, number))
+            if vw is None:
+                vw = products[(v, number)] = value_of[v] * W
+            mass[j][k].add_product(u, vw)
+        if with_convective:
+            dw = products.get((k, v, number))
+            if dw is None:
+                rate = rates.get((k, v))
+                if rate is None:
+                    rate = rates[(k, v)] = _rate(sub, k, value_of[v])
+                dw = products[(k, v, number)] = rate * W
+            if not dw.is_zero():
+                hbar[j].add_product(u, dw)
+    return hbar
+
+
+def _weight(algebra: TrigAlgebra, weights, pairs: tuple, stride: int, sums: dict, numbers: dict):
+    """``(number, W)``: ``W = sum of M_ab`` over ``pairs`` (``a * stride + b``), numbered by its
+    value; a sum of several terms constant in the coordinates is one shared atom."""
+    hit = sums.get(pairs)
+    if hit is None:
+        if len(pairs) == 1:
+            a, b = divmod(pairs[0], stride)
+            W = weights[a][b]
+        else:
+            W = TrigPoly()
+            for pair in pairs:
+                a, b = divmod(pair, stride)
+                W.add(weights[a][b])
+            if sum(map(len, W.terms.values())) > 1 and not algebra.depends_on(W) and not algebra.has_shared(W):
+                W = algebra.shared_sum(W)
+        hit = sums[pairs] = (numbers.setdefault(W.key(), len(numbers)), W)
+    return hit
+
+
+def _rate(sub: Subspace, k: int, v: TrigPoly) -> TrigPoly:
+    """``D_k(v) = xbardot^k sum_l dv/dxbar^l xbardot^l``: the part of ``Cdot xbardot`` a value
+    ``v`` of column ``k`` of ``C`` brings."""
+    gradient = sub.algebra.gradient(v)
+    total = _sum(gradient[l] * sub.qdots[l] for l in sorted(sub.algebra.depends_on(v)))
+    return total * sub.qdots[k] if not total.is_zero() else total
 
 
 def project_effects(sub: Subspace, primitive: Primitive, effects, only=None) -> list[ProjectedEffect]:
@@ -502,5 +634,5 @@ def _sum(polys) -> TrigPoly:
     return total
 
 
-__all__ = ["Subspace", "assemble", "assembled_potentials", "effect_labels", "project_effects", "project_inertia",
+__all__ = ["SHARED_FROM", "Subspace", "assemble", "assembled_potentials", "effect_labels", "project_effects", "project_inertia",
            "world_dimension"]

@@ -11,7 +11,10 @@ other factor (parameters, velocities, coordinates appearing algebraically,
 sums by the product-to-sum identities, so ``cos a cos b + sin a sin b``
 collapses to ``cos(a - b)`` as the product is formed. This keeps
 ``Mbar = C^T M C`` (9'), (D) compact without any after-the-fact trigonometric
-simplification, which is what makes long chains cheap.
+simplification, which is what makes long chains cheap. A sum constant in the
+coordinates that many entries share (the masses below a link of a chain) may be
+held as one atom of its own (`TrigAlgebra.shared_sum`), written out again, each
+distinct coefficient once, when an entry is turned back into an expression.
 """
 from __future__ import annotations
 
@@ -22,6 +25,8 @@ try:  # exact rationals in C when gmpy2 is installed (the `fast` extra); Python'
     from gmpy2 import mpq as Q
 except ImportError:  # pragma: no cover - depends on the installation
     Q = Fraction
+from collections.abc import Mapping
+from types import MappingProxyType
 from typing import Iterable, Iterator
 
 import sympy
@@ -343,6 +348,10 @@ class TrigAlgebra:
         self._mono_cache: dict[Mono, sympy.Expr] = {}
         self._coefficient_cache: dict[frozenset, sympy.Expr] = {}
         self._power_cache: dict[tuple[int, int | Fraction], sympy.Expr] = {}
+        self._shared: dict[tuple, int] = {}
+        self._expansions: dict[int, TrigPoly] = {}
+        self._expansion_atoms: dict[int, frozenset[int]] = {}
+        self._written: dict[frozenset, tuple | None] = {}
         self.prepare = None
         """A rewrite applied to an atom's derivative before it is converted (see inverse_trig)."""
 
@@ -370,6 +379,53 @@ class TrigAlgebra:
     def atom_depends(self, atom: int) -> bool:
         """Whether an atom depends on the coordinates."""
         return bool(self._atom_deps[atom])
+
+    def shared_sum(self, p: TrigPoly) -> TrigPoly:
+        """``p``, a sum constant in the coordinates (the masses below a link of a chain), as one
+        atom of its own: a product with it stays one term, and the equal sums of many entries
+        are one. `to_expr` and `flat` write it out again; nothing printed names it."""
+        key = p.key()
+        atom = self._shared.get(key)
+        if atom is None:
+            if self.depends_on(p) or self.has_shared(p):
+                raise ValueError("a shared sum is constant in the coordinates and written in plain atoms")
+            atom = self._shared[key] = len(self.atoms)
+            self.atoms.append(sympy.Dummy(f"shared{len(self._expansions)}"))
+            self._atom_deps.append(frozenset())
+            self._expansions[atom] = p
+            self._expansion_atoms[atom] = frozenset(used_atoms(p))
+        return TrigPoly({(COS, ZERO_FREQ): {((atom, 1),): 1}})
+
+    @property
+    def shared_sums(self) -> Mapping[int, TrigPoly]:
+        """Every `shared_sum` made in this algebra: its atom -> the sum it stands for (read only)."""
+        return MappingProxyType(self._expansions)
+
+    def has_shared(self, p: TrigPoly) -> bool:
+        """Whether ``p`` holds a `shared_sum`."""
+        shared = self._expansions
+        return bool(shared) and any(i in shared for coef in p.terms.values() for mono in coef for i, _ in mono)
+
+    def flat(self, p: TrigPoly) -> TrigPoly:
+        """``p`` with every `shared_sum` written out (``p`` itself when it has none)."""
+        if not self.has_shared(p):
+            return p
+        shared = self._expansions
+        out = TrigPoly()
+        for key, coef in p.terms.items():
+            for mono, c in coef.items():
+                term = TrigPoly({key: {tuple((i, e) for i, e in mono if i not in shared): c}})
+                for i, e in mono:
+                    if i in shared:
+                        if not (isinstance(e, int) and e > 0):
+                            raise ValueError("a shared sum is raised to a positive integer power only")
+                        term = term * _power(shared[i], e, self.constant(1))
+                out.add(term)
+        return out
+
+    def sum_atoms(self, atom: int) -> frozenset[int]:
+        """The atoms a `shared_sum` is written in."""
+        return self._expansion_atoms[atom]
 
     def from_expr(self, expr: sympy.Expr) -> TrigPoly:
         """The trigonometric-polynomial form of a sympy expression."""
@@ -561,28 +617,82 @@ class TrigAlgebra:
 
         Built in canonical form directly (:mod:`.canonical`): the same expression as
         `evaluated_expr`, without sympy collecting terms the algebra has already collected.
+        A `shared_sum` is written out: the expression is that of `flat` of ``p``.
         """
+        expr = self.written_out(p)
+        return self.to_expr(self.flat(p)) if expr is None else expr
+
+    def written_out(self, p: TrigPoly) -> sympy.Expr | None:
+        """`to_expr` of ``p``, its shared sums written out coefficient by coefficient (each
+        distinct one once), or None where that would not be the expression of `flat` of ``p``
+        (a term that cancels once written out, a factor pulled out that a sum also holds)."""
         parts = []
         charge(sum(_size(p)), "the printed terms of an entry")
+        shared = self._expansions
         for (kind, freq), coef in _sorted_terms(p):
             sign, trig = self._trig_factor(kind, freq)
-            if len(coef) == 1:
+            if shared and any(i in shared for mono in coef for i, _ in mono):
+                written = self._written_coefficient(coef)
+                if written is None:
+                    return None
+                outer, (single, content, common, inner, flat) = written
+                if single is not None:
+                    parts.append(self._monomial_term(_mono_mul(outer, single), content, sign, trig))
+                    continue
+                common = _mono_mul(outer, common)
+                if not common:
+                    inner = self._coefficient(flat)
+            elif len(coef) == 1:
                 (mono, c), = coef.items()
-                powers = self._powers(mono)
-                if len(powers) == 1 and powers[0].is_Add:  # c*(a + b) distributes before trig joins
-                    parts.append(canonical.mul(sign, [canonical.mul(_rational(c), powers), *trig]))
+                parts.append(self._monomial_term(mono, c, sign, trig))
+                continue
+            else:
+                common = common_monomial(coef)
+                if common:
+                    content = rational_content(coef.values())
+                    inner = self._coefficient(_divided(coef, common, content))
                 else:
-                    parts.append(canonical.mul(self._times_sign(c, sign), [*powers, *trig]))
+                    inner = self._coefficient(coef)
+            if not common:  # the content stays inside
+                parts.append(canonical.mul(sign, [inner, *trig]))
                 continue
-            common = common_monomial(coef)
-            if not common:
-                parts.append(canonical.mul(sign, [self._coefficient(coef), *trig]))
-                continue
-            content = rational_content(coef.values())
-            inner = _divided(coef, common, content)
-            parts.append(canonical.mul(self._times_sign(content, sign),
-                                       [*self._powers(common), self._coefficient(inner), *trig]))
+            parts.append(canonical.mul(self._times_sign(content, sign), [*self._powers(common), inner, *trig]))
         return canonical.add(parts)
+
+    def _monomial_term(self, mono: Mono, c, sign: sympy.Integer, trig: tuple) -> sympy.Expr:
+        """``c * mono * sign * trig`` of a coefficient of one monomial."""
+        powers = self._powers(mono)
+        if len(powers) == 1 and powers[0].is_Add:  # c*(a + b) distributes before trig joins
+            return canonical.mul(sign, [canonical.mul(_rational(c), powers), *trig])
+        return canonical.mul(self._times_sign(c, sign), [*powers, *trig])
+
+    def _written_coefficient(self, coef: Coef) -> tuple | None:
+        """``(outer, (single, content, common, inner, flat))``: ``coef`` = ``outer * rest``, ``outer``
+        the plain atoms common to its monomials, ``flat`` the ``rest`` with its shared sums written
+        out: its one monomial ``single`` (``content`` its number), or its common factor ``common``,
+        rational content and the expression of what remains (each distinct ``rest`` once). The common
+        factor of the written-out ``coef`` is ``outer * common``. None when a shared sum holds
+        an atom of ``outer`` or ``rest`` written out is zero."""
+        shared = self._expansions
+        outer = tuple((i, e) for i, e in common_monomial(coef) if i not in shared)
+        if any(i in self._expansion_atoms[s] for mono in coef for s, _ in mono if s in shared for i, _ in outer):
+            return None
+        rest = _divided(coef, outer, 1) if outer else coef
+        key = frozenset(rest.items())
+        if key not in self._written:
+            flat = self.flat(TrigPoly({(COS, ZERO_FREQ): rest})).terms.get((COS, ZERO_FREQ))
+            if not flat:
+                hit = None
+            elif len(flat) == 1:
+                (mono, c), = flat.items()
+                hit = (mono, c, None, None, None)
+            else:
+                common = common_monomial(flat)
+                content = rational_content(flat.values())
+                hit = (None, content, common, self._coefficient(_divided(flat, common, content)), flat)
+            self._written[key] = hit
+        hit = self._written[key]
+        return None if hit is None else (outer, hit)
 
     def evaluated_expr(self, p: TrigPoly) -> sympy.Expr:
         """`to_expr` through sympy's own evaluating constructors (the reference it must equal)."""
@@ -793,6 +903,8 @@ class NumericPoint:
         """An atom's value in complex doubles (`complex_value`: never sympy's unbounded
         multiprecision, in which ``exp(exp(...))`` can abort the process)."""
         hit = self.atoms.get(i)
+        if hit is None and i in self.algebra._expansions:  # a shared sum: its value written out
+            hit = self.atoms[i] = self(self.algebra._expansions[i])
         if hit is None:
             atom = self.algebra.atoms[i]
             try:

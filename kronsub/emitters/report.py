@@ -83,9 +83,29 @@ def model_names(system: KnownSystem) -> frozenset[str]:
     """Every name the system's expressions may use: parameters, coordinates, velocities..."""
     names = {p.name for p in system.parameters} | {q.name for q in (*system.coordinates, *system.velocities)}
     names.update(system.currents.values())
-    for e in (*system.mass_matrix, *system.velocity_terms, *system.forces, system.potential_energy):  # T: M's, qdot's
-        names.update(s.name for s in e.free_symbols)
+    exprs = (*system.mass_matrix, *system.velocity_terms, *system.forces, system.potential_energy)  # T: M's, qdot's
+    names.update(s.name for s in _free_symbols(exprs))
     return frozenset(names)
+
+
+def _free_symbols(exprs) -> set:
+    """The free symbols of ``exprs``, each distinct subexpression walked once (the entries of a
+    large system share their sums: ``free_symbols`` would walk them in every entry)."""
+    seen: set = set()
+    found: set = set()
+    stack = [e for e in exprs if isinstance(e, sympy.Basic)]
+    while stack:
+        node = stack.pop()
+        if node in seen:
+            continue
+        seen.add(node)
+        if node.is_Atom or not node.args:
+            found |= node.free_symbols
+        elif type(node).free_symbols is not sympy.Basic.free_symbols:  # a node that binds (an integral)
+            found |= node.free_symbols
+        else:
+            stack.extend(node.args)
+    return found
 
 
 NAME_PREFIX = "w"
@@ -107,16 +127,35 @@ def _uses(exprs, names: set) -> dict:
 def _repeats(exprs, coordinates) -> bool:
     """Whether a root, a non-integer power or a function other than sine and cosine of
     the coordinates occurs twice: the subexpressions worth a name (a chain has none)."""
-    seen = set()
-    for e in exprs:
-        for sub in sympy.preorder_traversal(e):
-            if ((sub.is_Pow and not sub.exp.is_Integer)
-                    or (isinstance(sub, sympy.Function) and not isinstance(sub, (sympy.sin, sympy.cos)))):
-                if sub.free_symbols & coordinates and count_ops(sub) >= MIN_NAMED_OPS:
-                    if sub in seen:
-                        return True
-                    seen.add(sub)
+    # one that occurs twice is met again inside some subexpression met twice: each distinct
+    # subexpression is walked once, and one met again asked whether it holds one
+    holds: dict = {}
+
+    def held(node) -> bool:
+        hit = holds.get(node)
+        if hit is None:
+            hit = holds[node] = _worth_a_name(node, coordinates) or any(held(a) for a in node.args)
+        return hit
+
+    seen: set = set()
+    stack = [e for e in exprs if isinstance(e, sympy.Basic)]
+    while stack:
+        node = stack.pop()
+        if node in seen:
+            if held(node):
+                return True
+            continue
+        seen.add(node)
+        stack.extend(node.args)
     return False
+
+
+def _worth_a_name(sub, coordinates) -> bool:
+    """A root, a non-integer power or a function other than sine and cosine of the coordinates,
+    of at least `MIN_NAMED_OPS` operations."""
+    return ((sub.is_Pow and not sub.exp.is_Integer)
+            or (isinstance(sub, sympy.Function) and not isinstance(sub, (sympy.sin, sympy.cos)))) \
+        and bool(sub.free_symbols & coordinates) and count_ops(sub) >= MIN_NAMED_OPS
 
 
 def named_subexpressions(exprs: list, taken: Iterable[str], coordinates) -> tuple[list, list]:

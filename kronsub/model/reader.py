@@ -86,7 +86,8 @@ class ModelReader:
         self.definitions: dict[str, tuple[sympy.Symbol, sympy.Expr | None]] = {}
         self.definition_keys: set[str] = set()  # their names, known before they are read
         self.currents: dict[str, str] = {}  # charge coordinate -> its current's name (currents.py)
-        self._units_of: tuple[int, dict] = (-1, {})  # (parameters seen, their dimensions) for check_units
+        self._units_of: tuple[int, dict, dict] = (-1, {}, {})  # (parameters seen, their dimensions, the
+        # dimensions of the subexpressions met) for check_units
 
     def error(self, node_or_loc, message: str, hint: str | None = None) -> None:
         loc = node_or_loc.location if isinstance(node_or_loc, Node) else node_or_loc
@@ -133,10 +134,10 @@ class ModelReader:
         if value is not None and isinstance(value, sympy.Basic) and value.has(sympy.Add):
             if len(self.parameters) != self._units_of[0]:  # the parameters' dimensions, read once
                 self._units_of = (len(self.parameters), {info.symbol: dimension(info.unit)
-                                                         for info in self.parameters.values() if info.unit})
+                                                         for info in self.parameters.values() if info.unit}, {})
             units = self._units_of[1]
             if units:
-                check_units(value, units, str(node.text_location or node.location))
+                check_units(value, units, str(node.text_location or node.location), self._units_of[2])
         return value
 
     def generalized_name(self, name: str) -> str | None:

@@ -82,11 +82,24 @@ def _describe(dim) -> str:
 class _Dimensions:
     """The dimension of an expression from its parameters' units (None: not known)."""
 
-    def __init__(self, units: dict[sympy.Symbol, tuple | None]):
+    def __init__(self, units: dict[sympy.Symbol, tuple | None], memo: dict | None = None):
         self.units = units
         self.mismatch: tuple | None = None  # (term, its dimension, other term, its dimension)
+        self.memo = {} if memo is None else memo  # e -> (dimension, the first mismatch within e)
 
     def __call__(self, e):
+        if e.is_Atom:
+            return self._dimension(e)
+        hit = self.memo.get(e)
+        if hit is None:
+            outer, self.mismatch = self.mismatch, None
+            hit = self.memo[e] = (self._dimension(e), self.mismatch)
+            self.mismatch = outer
+        if self.mismatch is None:
+            self.mismatch = hit[1]
+        return hit[0]
+
+    def _dimension(self, e):
         if e.is_Number or e in (sympy.pi, sympy.E):
             return _dim()
         if e == TIME:
@@ -123,10 +136,12 @@ class _Dimensions:
         return _dim() if isinstance(e, sympy.Function) else None
 
 
-def check_units(expr: sympy.Expr, units: dict[sympy.Symbol, tuple | None], where: str) -> None:
+def check_units(expr: sympy.Expr, units: dict[sympy.Symbol, tuple | None], where: str,
+                memo: dict | None = None) -> None:
     """Warn (:class:`UnitsWarning`, ``where`` first) when a sum in ``expr`` adds terms of
-    different dimensions, each known from the parameters' units."""
-    finder = _Dimensions(units)
+    different dimensions, each known from the parameters' units. ``memo`` (kept by the caller
+    for one ``units``) remembers the subexpressions met, which the lines of a connection share."""
+    finder = _Dimensions(units, memo)
     finder(expr)
     if finder.mismatch is not None:
         a, da, b, db = finder.mismatch
