@@ -14,7 +14,11 @@ import click
 from .commands.common import DEBUG_ENV, EXIT_CODES
 from .version import __version__
 
-__all__ = ["COMMANDS", "EXIT_CODES", "main"]
+__all__ = ["BLAS_THREADS", "COMMANDS", "EXIT_CODES", "main"]
+
+BLAS_THREADS = ("OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
+"""One BLAS thread for a command: its matrices are small (a metric, a Jacobian, a rank of ``C``),
+where BLAS's threads only wait on busy cores, and a sweep's workers are its parallelism."""
 
 # command name: (its module in kronsub.commands, its summary in the listing of --help)
 COMMANDS = {
@@ -47,6 +51,8 @@ class CommandTable(click.Group):
 
     def get_command(self, ctx: click.Context, cmd_name: str) -> click.Command | None:
         if cmd_name not in self.commands and cmd_name in COMMANDS:
+            for name in BLAS_THREADS:  # before the command imports NumPy; a value the user set stands
+                os.environ.setdefault(name, "1")
             module = importlib.import_module(f"{__package__}.commands.{COMMANDS[cmd_name][0]}")
             self.add_command(getattr(module, cmd_name.replace("-", "_")), cmd_name)
         return self.commands.get(cmd_name)

@@ -78,3 +78,24 @@ def test_unknown_command_suggests_a_near_one():
     result = CliRunner().invoke(main, ["simulat"])
     assert result.exit_code == 2
     assert "Did you mean 'simulate'?" in result.output
+
+
+@pytest.mark.parametrize("given", [None, "3"])
+def test_a_command_runs_blas_on_one_thread_unless_told(given):
+    """The command's module (and NumPy) is imported with OPENBLAS_NUM_THREADS=1 unless the user set it."""
+    from kronsub.cli import BLAS_THREADS
+
+    env = {k: v for k, v in os.environ.items() if k not in BLAS_THREADS}
+    if given is not None:
+        env["OPENBLAS_NUM_THREADS"] = given
+    code = ("import os, sys\n"
+            "from kronsub.cli import main\n"
+            "try:\n"
+            "    main(['check', sys.argv[1]])\n"
+            "except SystemExit:\n"
+            "    pass\n"
+            "print(os.environ.get('OPENBLAS_NUM_THREADS'), 'numpy' in sys.modules)\n")
+    model = Path(__file__).resolve().parents[1] / "models" / "hoffmann" / "system1.yaml"
+    proc = subprocess.run([sys.executable, "-c", code, str(model)], capture_output=True, text=True, env=env, timeout=120)
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout.split()[-2:] == [given or "1", "True"]
