@@ -201,6 +201,29 @@ BAD = [
     ("speeds: [theta_dot]\n", None, "`speeds:` without `velocity_constraints:`", "", "speeds:"),
     ("velocity_constraints:\n  c: -sin(theta)*x_dot + cos(theta)*y_dot\ninitial: {x: 1, y_dot: 2}\n", None,
      "'y_dot' is not a speed: the velocity constraints fix it", "x_dot, theta_dot", "y_dot: 2"),
+    # as many constraints as velocities: no speed left (no internal ShapeError)
+    ("velocity_constraints:\n  c1: x_dot - sin(y)*theta_dot\n  c2: y_dot - cos(x)*theta_dot\n  c3: theta_dot - x*y_dot\n",
+     None, "the 3 constraints fix all 3 velocities: no speed is left", "remove a constraint", "c1:"),
+    # infinite at the parameters' values, complex at the start (no internal TypeError of a rank)
+    ("velocity_constraints:\n  c: x_dot/(a - 1/5) - y_dot + x*theta_dot\n", None,
+     "the coefficients of the velocities are infinite or undefined at every configuration tried", "divisions", "c:"),
+    ("velocity_constraints:\n  c: sqrt(a - 1)*x_dot - y_dot + x*theta_dot\n", None,
+     "the velocity constraints or the speeds have no real value at the initial configuration (x = 0)", "sqrt",
+     "velocity_constraints:"),
+    # speeds chosen by kronsub, or named, singular where the run starts (y_dot = -x_dot/tan(theta))
+    ("velocity_constraints:\n  c: cos(theta)*x_dot + sin(theta)*y_dot\n", None,
+     "the speeds are singular at the initial configuration (theta = 0)", "`speeds: [y_dot, theta_dot]`",
+     "velocity_constraints:"),
+    ("velocity_constraints:\n  c: cos(theta)*x_dot + sin(theta)*y_dot\nspeeds: [x_dot, theta_dot]\n", None,
+     "the speeds are singular at the initial configuration (theta = 0)", "start the coordinates elsewhere",
+     "speeds:"),
+    # a knife edge's direction or offset zero or complex at the parameters' values
+    ("velocity_constraints:\n  c: {knife_edge: body, direction: [1, sqrt(-a)]}\n", None,
+     "direction of 'c' [1, sqrt(-a)] is not a real vector at the parameters' values", "finite real", "[1, sqrt"),
+    ("velocity_constraints:\n  c: {knife_edge: body, direction: [a - 1/5, 0]}\n", None,
+     "direction of 'c' is the zero vector", "nonzero entry", "[a - 1/5"),
+    ("velocity_constraints:\n  c: {knife_edge: body, at: [sqrt(-a), 0]}\n", None,
+     "at of 'c' [sqrt(-a), 0] is not a real vector at the parameters' values", "finite real", "[sqrt"),
 ]
 
 
@@ -271,6 +294,8 @@ BAD_JOINTS = [
      "velocity constraint 'c' rolls on 'ice'", "plane"),
     ("r*cos(lean)", "  c: {knife_edge: disc}\n", "disc}",
      "knife edge 'c' on a body in space is not supported yet", "planar body"),
+    ("r*cos(lean)", "  c: {rolls_on: plane, body: disc, radius: r, axle: [0, r - 3/10, 0]}\n", "[0, r",
+     "axle of 'c' is the zero vector", "nonzero entry"),
 ]
 
 

@@ -203,6 +203,10 @@ def velocity_transformation(constraints: Sequence[sympy.Expr], coordinates: Sequ
     if _rank(A, point) < m:
         raise VelocityConstraintError("the velocity constraints are not independent",
                                       "remove the constraint that follows from the others")
+    if m >= n:
+        raise VelocityConstraintError(
+            f"the {m} constraints fix all {n} velocities: no speed is left, nothing can move",
+            "remove a constraint, or add the coordinates the motion needs")
     if speeds is None:
         for dependent in itertools.combinations(reversed(range(n)), m):
             if _rank(A[:, sorted(dependent)], point) == m:
@@ -399,7 +403,23 @@ def generic_rank(A: sympy.Matrix, coordinates, values=None) -> int:
 
 
 def _rank(A: sympy.Matrix, points: list[dict]) -> int:
-    return max(int(np.linalg.matrix_rank(np.array(A.xreplace(p).evalf(), dtype=float), tol=1e-9)) for p in points)
+    """The largest rank of ``A`` at ``points``, complex values taken as they come (a random point
+    may leave a function's real domain, ``asin`` of 1.3) and points where an entry is infinite or
+    undefined left out; at none finite, :class:`VelocityConstraintError`."""
+    ranks = []
+    for p in points:
+        try:
+            values = np.array(A.xreplace(p).evalf(), dtype=complex)
+        except (TypeError, ValueError, OverflowError):
+            continue
+        if np.all(np.isfinite(values)):
+            ranks.append(int(np.linalg.matrix_rank(values, tol=1e-9)) if values.size else 0)
+    if not ranks:
+        raise VelocityConstraintError(
+            "the coefficients of the velocities are infinite or undefined at every configuration tried, the "
+            "parameters at their values", "check divisions by a parameter expression that is zero, and the "
+            "arguments of sqrt, log, asin and acos")
+    return max(ranks)
 
 
 __all__ = ["GENERIC_POINTS", "NonholonomicProjection", "VelocityConstraintError", "VelocityTransformation",

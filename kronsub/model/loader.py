@@ -27,7 +27,7 @@ from .connection import (implicit_spec, pivot_connection, read_connection, read_
 from .circuits import check_circuit
 from .constraints import check_multiplier_names, read_constraints
 from .coordinates import check_generated_names, name_primitive_coordinates, read_coordinates
-from .nonholonomic import check_frame_start, check_initial, read_velocity_constraints, read_velocity_frame
+from .nonholonomic import check_initial, check_start, read_velocity_constraints, read_velocity_frame
 from .prescribed import check_effects, driven_connection, names_time, read_prescribed
 from .definitions import read_definitions
 from .derive import derive_model, load_cached
@@ -178,8 +178,10 @@ class ModelLoader(ModelReader):
                                velocity.transformation.speeds if velocity is not None else ())
         if velocity is not None:
             check_initial(self, root.get("initial"), y, velocity)
-        if frame and velocity is not None:
-            check_frame_start(self, root.key_locations["speeds"], velocity, initial)
+        if velocity is not None and not self.problems:
+            given = root.get("speeds") is not None and root.get("speeds").value is not None
+            check_start(self, root.key_locations["speeds" if given else "velocity_constraints"], velocity, initial,
+                        chosen=given)
         declared = root.get("effects")
         scenes = build_scenes(self, root.get("scenes"), list(declared.value) if declared is not None and
                               declared.is_mapping else [], primitive, y,

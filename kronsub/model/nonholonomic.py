@@ -16,6 +16,7 @@ are velocities, an invertible ``u = Y(x) xdot``: a change of velocity frame
 """
 from __future__ import annotations
 
+import itertools
 from dataclasses import dataclass
 
 import numpy as np
@@ -126,26 +127,66 @@ def read_velocity_frame(reader: ModelReader, node: Node, coords, written: Locati
                         frame=True)
 
 
-def check_frame_start(reader: ModelReader, written: Location, spec: VelocitySpec, initial: dict) -> None:
-    """A change of velocity frame (``speeds:``, written at ``written``) singular at the initial
-    configuration (``det Y = 0`` there, the coordinates not given taken as 0): ``xdot = Y^-1 u``
-    has no value to start from."""
-    x = spec.transformation.coordinates
-    point = {**_values(reader), **{q: initial.get(q, sympy.Integer(0)) for q in x}}
-    Y = frame_matrix(x, dict(spec.definitions)).xreplace(point)
-    if Y.free_symbols:
+def check_start(reader: ModelReader, written: Location, spec: VelocitySpec, initial: dict,
+                chosen: bool = True) -> None:
+    """Speeds singular at the initial configuration (the coordinates not given taken as 0, ``t =
+    0``), reported at ``written``: ``[A; Y] xdot = [-b; u]`` (``Y`` alone for a change of velocity
+    frame, ``det Y = 0``) has no solution there, or no real one, so ``xdot = C u + d`` has no value
+    to start from. ``chosen``: the model named its speeds (else kronsub chose them, at a generic
+    configuration, and the hint names velocities that serve at the start)."""
+    velocity = spec.transformation
+    x = velocity.coordinates
+    point = {**_values(reader), TIME: sympy.Integer(0), **{q: initial.get(q, sympy.Integer(0)) for q in x}}
+    A = velocity.constraint_matrix.xreplace(point)
+    stacked = A.col_join(velocity.speed_matrix.xreplace(point))
+    offset = velocity.constraint_offset.xreplace(point)
+    if stacked.free_symbols or offset.free_symbols:
         return  # a parameter without a value: nothing to evaluate
-    try:
-        sigma = np.linalg.svd(np.array(Y.evalf(), dtype=float), compute_uv=False)
-    except (TypeError, ValueError, np.linalg.LinAlgError):
-        return  # no real value there: the run's start reports it
-    if np.all(np.isfinite(sigma)) and sigma[-1] > SINGULAR * sigma[0]:
-        return
     where = ", ".join(f"{q} = {_shown(initial.get(q, 0))}" for q in x
-                      if any(q in e.free_symbols for _, e in spec.definitions))
+                      if any(q in e.free_symbols for e in list(velocity.constraint_matrix) + list(velocity.speed_matrix)
+                             + list(velocity.constraint_offset)))
     at = f"at the initial configuration ({where})" if where else "at the parameters' values"
-    reader.error(written, f"the speeds are singular {at}: det Y = 0 there, so xdot = Y^-1 u has no value",
-                 "start the coordinates where the speeds are independent, or define speeds that stay independent")
+    numbers = _complex_array(stacked)
+    offsets = _complex_array(offset) if offset.rows else np.zeros(0)
+    if numbers is None or offsets is None or np.any(np.abs(numbers.imag) > 1e-12 * np.maximum(1, np.abs(numbers))) \
+            or np.any(np.abs(offsets.imag) > 1e-12 * np.maximum(1, np.abs(offsets))):
+        reader.error(written, f"the {'speeds' if spec.frame else 'velocity constraints or the speeds'} have no real "
+                     f"value {at}", "check the arguments of sqrt, log, asin and acos, and divisions, there")
+        return
+    sigma = np.linalg.svd(numbers.real, compute_uv=False)
+    if sigma[-1] > SINGULAR * sigma[0]:
+        return
+    if spec.frame:
+        reader.error(written, f"the speeds are singular {at}: det Y = 0 there, so xdot = Y^-1 u has no value",
+                     "start the coordinates where the speeds are independent, or define speeds that stay independent")
+        return
+    hint = "start the coordinates elsewhere, or choose speeds that are independent there"
+    serving = None if chosen else _regular_speeds(numbers.real[:A.rows, :], x)
+    if serving:
+        hint += ", e.g. `speeds: [" + ", ".join(serving) + "]`"
+    reader.error(written, f"the speeds are singular {at}: [A; Y] xdot = [-b; u] has no solution there, so "
+                 "xdot = C u + d has no value", hint)
+
+
+def _complex_array(matrix: sympy.Matrix):
+    """``matrix`` as a complex array, None when an entry has no finite value."""
+    try:
+        values = np.array(matrix.evalf(), dtype=complex)
+    except (TypeError, ValueError, OverflowError):
+        return None
+    return values if np.all(np.isfinite(values)) else None
+
+
+def _regular_speeds(A: np.ndarray, x) -> list[str] | None:
+    """Velocities that, as the speeds, leave ``[A; Y]`` regular for the number matrix ``A``: the
+    first coordinates' whose complement's columns of ``A`` are independent."""
+    m, n = A.shape
+    for dependent in itertools.combinations(reversed(range(n)), m):
+        block = A[:, sorted(dependent)]
+        sigma = np.linalg.svd(block, compute_uv=False)
+        if m and sigma[-1] > SINGULAR * sigma[0]:
+            return [velocity_symbol(x[j]).name for j in range(n) if j not in dependent]
+    return None
 
 
 def _shown(value) -> str:
@@ -213,4 +254,4 @@ def _read_speeds(reader: ModelReader, node: Node | None, coords, names: dict) ->
     return speeds
 
 
-__all__ = ["VelocitySpec", "check_frame_start", "check_initial", "read_velocity_constraints", "read_velocity_frame"]
+__all__ = ["VelocitySpec", "check_initial", "check_start", "read_velocity_constraints", "read_velocity_frame"]
