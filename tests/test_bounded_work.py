@@ -284,3 +284,25 @@ def test_a_derivation_in_a_budget_of_its_own_grows_it_as_the_loader_does(tmp_pat
     with budget.limited() as grown:
         model.derive(scene=False, cache=False)
     assert grown.units == budget.default_units(len(model.primitive.coordinates)) > budget.DEFAULT_UNITS
+
+
+def test_a_scenes_derivation_in_the_api_is_bounded_as_the_whole_models(tmp_path, monkeypatch):
+    """``load(path).derive(scene=...)`` outside any command derives in a default work budget, as
+    ``derive(scene=False)`` does: a scene's derivation (``derive_scene``) is no way around it.
+    Made small here: a default of half the scene's derivation's work."""
+    import kronsub
+
+    path = tmp_path / "rlc.yaml"
+    path.write_text((ROOT / "models" / "electrical" / "series_rlc.yaml").read_text(encoding="utf-8"),
+                    encoding="utf-8")
+    model = kronsub.load(path, cache=False)
+    with budget.limited(10 ** 12) as spent:
+        model.derive(scene="discharge", cache=False)
+    assert budget.active() is None  # outside any command from here on
+    monkeypatch.setattr(budget, "DEFAULT_UNITS", spent.used // 2)
+    with pytest.raises(budget.WorkBudgetExceeded):
+        model.derive(scene="discharge", cache=False)
+    with pytest.raises(budget.WorkBudgetExceeded):
+        model.derive(scene=False, cache=False)
+    monkeypatch.setattr(budget, "DEFAULT_UNITS", spent.used * 4)
+    assert model.derive(scene="discharge", cache=False).mass_matrix.shape == (1, 1)
