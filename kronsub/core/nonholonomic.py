@@ -30,6 +30,7 @@ import sympy
 
 from ..errors import Location, ModelError, Problem
 from .known_system import Constraint, KnownSystem, SpeedEquations
+from .derivative import jacobian, where_defined
 from .symbols import TIME, acceleration_symbol, velocity_symbol
 
 GENERIC_POINTS = 3  # a rank is taken at this many random points (a generic one is almost sure)
@@ -183,7 +184,7 @@ def velocity_transformation(constraints: Sequence[sympy.Expr], coordinates: Sequ
     held: tuple = ()  # the coordinates the configuration constraints set
     if holonomic:
         g = sympy.Matrix(list(holonomic))
-        G = g.jacobian(list(coordinates))
+        G = jacobian(g, list(coordinates))
         at = _generic_points(G, coordinates, values)
         if _rank(G, at) < len(holonomic):
             raise VelocityConstraintError("the configuration constraints are not independent",
@@ -193,7 +194,7 @@ def velocity_transformation(constraints: Sequence[sympy.Expr], coordinates: Sequ
                 held = tuple(coordinates[j] for j in sorted(chosen))
                 break
         A = A.col_join(G)
-        b = b.col_join(g.diff(TIME))
+        b = b.col_join(where_defined(g.diff(TIME)))
     for i in integrable(A[:A.rows - len(holonomic), :], b, coordinates, values):
         raise VelocityConstraintError(
             f"velocity constraint {i + 1} is integrable: it is the time derivative of a relation between the "
@@ -247,7 +248,7 @@ def project_nonholonomic(metric: sympy.Matrix, velocity_terms: sympy.Matrix, for
     xdot = velocity.kinematics
     moved = {velocity_symbol(q): xdot[i] for i, q in enumerate(x)}
     # Cdot u + ddot along the motion: d(C u + d)/dx^k xdot^k + d(C u + d)/dt (u held)
-    convective = xdot.jacobian(x) * xdot + xdot.diff(TIME)
+    convective = jacobian(xdot, x) * xdot + where_defined(xdot.diff(TIME))
     C = velocity.transformation
     M = sympy.Matrix(metric)
     h = sympy.Matrix(velocity_terms).xreplace(moved)
@@ -324,7 +325,7 @@ def velocity_multipliers(system: KnownSystem) -> list[tuple[str, sympy.Expr]]:
     m, n = A.shape
     moved = {velocity_symbol(q): s.kinematics[i] for i, q in enumerate(x)}
     rates = sympy.Matrix(speed_rates(s.speeds, x))
-    convective = s.kinematics.jacobian(x) * s.kinematics + s.kinematics.diff(TIME)
+    convective = jacobian(s.kinematics, x) * s.kinematics + where_defined(s.kinematics.diff(TIME))
     xddot = s.transformation * rates + convective
     residual = (sympy.Matrix(system.mass_matrix) * xddot
                 + sympy.Matrix(system.velocity_terms).xreplace(moved)

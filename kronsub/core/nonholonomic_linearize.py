@@ -39,7 +39,7 @@ from dataclasses import dataclass
 import numpy as np
 import sympy
 
-from .derivative import derivative
+from .derivative import derivative, jacobian, where_defined
 from .known_system import KnownSystem
 from .linearize_numerics import Linearization, LinearizationError, numeric_value, parameter_numbers
 from .symbols import TIME, velocity_symbol
@@ -138,7 +138,7 @@ class SteadyMotionRates:
         g = fixed(sympy.Matrix(list(motion.configuration_constraints))) if motion.configuration_constraints \
             else sympy.zeros(0, 1)
         self.l = g.rows
-        G = g.jacobian(list(x)) if g.rows else sympy.zeros(0, n)
+        G = jacobian(g, list(x)) if g.rows else sympy.zeros(0, n)
         A, b = linear_rows([fixed(sympy.Matrix([c]))[0] for c in motion.velocity_constraints], x, "velocity constraint")
         Y, c = linear_rows([fixed(sympy.Matrix([e]))[0] for e in motion.speeds.values()], x, "speed")
         if any(e != 0 for e in c):
@@ -153,7 +153,7 @@ class SteadyMotionRates:
             raise LinearizationError("a constraint's velocity coefficients depend on time\n  hint: only the offset "
                                      "b(x, t) of A(x) xdot + b(x, t) = 0 may depend on t")
         # r = [-dg/dt; -b; u] less its u part, which is added numerically
-        r0 = (-g.diff(TIME) if g.rows else sympy.zeros(0, 1)).col_join(-b).col_join(sympy.zeros(p, 1))
+        r0 = (-where_defined(g.diff(TIME)) if g.rows else sympy.zeros(0, 1)).col_join(-b).col_join(sympy.zeros(p, 1))
         if isinstance(motion.metric, ProjectedMetric):
             W, J = fixed(motion.metric.weights), fixed(motion.metric.projection)
         else:
