@@ -306,3 +306,23 @@ def test_a_scenes_derivation_in_the_api_is_bounded_as_the_whole_models(tmp_path,
         model.derive(scene=False, cache=False)
     monkeypatch.setattr(budget, "DEFAULT_UNITS", spent.used * 4)
     assert model.derive(scene="discharge", cache=False).mass_matrix.shape == (1, 1)
+
+
+def test_printing_a_drive_is_under_the_commands_cpu_backstop(tmp_path, monkeypatch):
+    """``derive`` prints a prescribed motion's drive terms, which it projects again (``hbar``
+    with ``t`` held) and simplifies: work no count sees, so the CPU-time backstop covers the
+    printing with the reading and the derivation (a pivot moved as cosines nested 60 deep in ``t``
+    ran for many minutes in the printing). Made short here: a backstop of 2 s."""
+    from click.testing import CliRunner
+
+    from kronsub.cli import main
+
+    text = (ROOT / "models" / "motion" / "kapitza_pendulum.yaml").read_text(encoding="utf-8")
+    path = tmp_path / "deep.yaml"
+    path.write_text(text.replace("s: a*cos(w*t)", "s: " + nested("cos({})", 60).replace("q", "t")), encoding="utf-8")
+    monkeypatch.setattr(budget, "MIN_SECONDS", 2.0)
+    monkeypatch.setattr(budget, "SECONDS_PER_MILLION", 0.0)
+    result = CliRunner().invoke(main, ["derive", str(path), "--format", "json", "--no-cache"])
+    assert result.exit_code == 1, result.output
+    assert f"Error: {path}: stopped: " in result.output and "the 2 s of CPU time of the work budget" in result.output
+    assert "Traceback" not in result.output
