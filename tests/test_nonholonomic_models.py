@@ -224,6 +224,19 @@ BAD = [
      "direction of 'c' is the zero vector", "nonzero entry", "[a - 1/5"),
     ("velocity_constraints:\n  c: {knife_edge: body, at: [sqrt(-a), 0]}\n", None,
      "at of 'c' [sqrt(-a), 0] is not a real vector at the parameters' values", "finite real", "[sqrt"),
+    # a speed named as kronsub names something else (the run's lambdify saw `v_dot` twice), or as a
+    # coordinate's velocity that it is not
+    ("velocity_constraints:\n  c: -sin(theta)*x_dot + cos(theta)*y_dot\nspeeds: {v_dot: theta_dot, v: x_dot}\n", None,
+     "speed 'v_dot' is the name kronsub gives the rate of speed 'v'", "a name of its own", "v_dot:"),
+    ("velocity_constraints:\n  c: -sin(theta)*x_dot + cos(theta)*y_dot\nspeeds: {mu_c: theta_dot, v: x_dot}\n", None,
+     "speed 'mu_c' is the name kronsub gives the multiplier of velocity constraint 'c'", "a name of its own",
+     "mu_c:"),
+    ("velocity_constraints:\n  c: -sin(theta)*x_dot + cos(theta)*y_dot\nspeeds: {v: theta_dot, x_ddot: x_dot}\n",
+     None, "speed 'x_ddot' is the name kronsub gives the acceleration of coordinate 'x'", "a name of its own",
+     "x_ddot:"),
+    ("velocity_constraints:\n  c: -sin(theta)*x_dot + cos(theta)*y_dot\nspeeds: {x_dot: theta_dot, theta_dot: x_dot}\n",
+     None, "speed 'x_dot' is the velocity of coordinate 'x', defined as something else", "`x_dot: x_dot`",
+     "x_dot:"),
 ]
 
 

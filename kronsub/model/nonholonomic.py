@@ -77,7 +77,7 @@ def read_velocity_constraints(reader: ModelReader, node: Node, speeds_node: Node
         exprs.append(sympy.sympify(value))
         labels.append(key)
         where.append(loc)
-    definitions = _read_speeds(reader, speeds_node, coords, names)
+    definitions = _read_speeds(reader, speeds_node, coords, names, [key for key in entries if isinstance(key, str)])
     if reader.problems or not exprs:
         return None
     values = {p.symbol: p.value for p in reader.parameters.values()
@@ -213,8 +213,11 @@ def check_initial(reader: ModelReader, node: Node | None, coords, spec: Velocity
                          + f"); {key} follows from the kinematic equations xdot = C u")
 
 
-def _read_speeds(reader: ModelReader, node: Node | None, coords, names: dict) -> dict | None:
-    """``speeds:``: a list of velocities of listed coordinates, or a mapping ``name: Y(x) xdot``."""
+def _read_speeds(reader: ModelReader, node: Node | None, coords, names: dict, constraint_names=()) -> dict | None:
+    """``speeds:``: a list of velocities of listed coordinates, or a mapping ``name: Y(x) xdot``
+    (each named apart from the names kronsub gives: the speeds' rates ``v_dot``, the coordinates'
+    accelerations, the multipliers ``mu_<constraint>`` of ``constraint_names``; a coordinate's
+    velocity ``x_dot`` as a name only for that velocity)."""
     if node is None or node.value is None:
         return None
     velocities = {velocity_symbol(q).name: velocity_symbol(q) for q in coords}
@@ -238,6 +241,9 @@ def _read_speeds(reader: ModelReader, node: Node | None, coords, names: dict) ->
                      f"{node_kind(node)}",
                      "e.g. `speeds: [yaw_dot, spin_dot]` or `speeds: {v: cos(theta)*x_dot + sin(theta)*y_dot}`")
         return speeds
+    generated = {**{f"{q.name}_ddot": f"the acceleration of coordinate '{q.name}'" for q in coords},
+                 **{f"{k}_dot": f"the rate of speed '{k}'" for k in node.value if isinstance(k, str)},
+                 **{f"mu_{c}": f"the multiplier of velocity constraint '{c}'" for c in constraint_names}}
     for key, vnode in node.value.items():
         loc = node.key_locations[key]
         if not reader.identifier(key, loc, "speed"):
@@ -246,8 +252,16 @@ def _read_speeds(reader: ModelReader, node: Node | None, coords, names: dict) ->
             reader.error(loc, f"speed '{key}' is already a name of the model",
                          "give the speed a name no parameter or coordinate has")
             continue
+        if key in generated:
+            reader.error(loc, f"speed '{key}' is the name kronsub gives {generated[key]}",
+                         "give the speed a name of its own")
+            continue
         value = reader.expr(vnode, names, what=f"speed '{key}'")
         if value is None:
+            continue
+        if key in velocities and sympy.expand(sympy.sympify(value) - velocities[key]) != 0:
+            reader.error(loc, f"speed '{key}' is the velocity of coordinate '{key[:-len('_dot')]}', defined as "
+                         "something else", f"define it as `{key}: {key}`, or give the speed a name of its own")
             continue
         u = velocities[key] if key in velocities else symbol(key)
         speeds[u] = sympy.sympify(value)
