@@ -275,7 +275,8 @@ class SteadyMotionRates:
         u0 = np.array([float(point.get(s, 0.0)) for s in self.speeds])
         v0 = [float((inputs or {}).get(s, 0.0)) for s in self.inputs]
         x0 = self.on_constraints(x0, D, time, v0)
-        F, Jz, Jv = self.jacobian(x0, u0, time, v0)
+        with np.errstate(all="ignore"):  # a point beyond the doubles is reported below, not warned of
+            F, Jz, Jv = self.jacobian(x0, u0, time, v0)
         n, p = self.n, self.p
         scale = max(1.0, float(np.max(np.abs(Jz))))
         if keep is None:
@@ -307,7 +308,10 @@ class SteadyMotionRates:
         A = np.hstack([Jz[np.ix_(state_rows, K)] + Jz[np.ix_(state_rows, D)] @ tangent, Jz[np.ix_(state_rows, U)]])
         B = Jv[state_rows, :]
         speed_scale = max(1.0, float(np.max(np.abs(u0), initial=0.0)))
-        steady = bool(np.max(np.abs(F[K + D + U]), initial=0.0) <= STEADY_TOLERANCE * speed_scale ** 2)
+        steady = bool(np.max(np.abs(F[K + D + U]), initial=0.0) <= STEADY_TOLERANCE * speed_scale * speed_scale)
+        if not (np.all(np.isfinite(A)) and np.all(np.isfinite(B))):
+            raise LinearizationError("A is not finite at the operating point: the equations overflow a double "
+                                     "there\n  hint: check the values given with --at and the parameters' values")
         eigenvalues = tuple(complex(e) for e in np.linalg.eigvals(A)) if A.size else ()
         return Linearization(
             state=tuple(self.x[i] for i in K) + self.speeds, inputs=self.inputs,
