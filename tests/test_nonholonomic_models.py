@@ -201,6 +201,9 @@ BAD = [
     ("speeds: [theta_dot]\n", None, "`speeds:` without `velocity_constraints:`", "", "speeds:"),
     ("velocity_constraints:\n  c: -sin(theta)*x_dot + cos(theta)*y_dot\ninitial: {x: 1, y_dot: 2}\n", None,
      "'y_dot' is not a speed: the velocity constraints fix it", "x_dot, theta_dot", "y_dot: 2"),
+    # in a scene's initial values too (it was ignored there: the run started at rest)
+    ("velocity_constraints:\n  c: -sin(theta)*x_dot + cos(theta)*y_dot\nscenes:\n  s: {initial: {y_dot: 2}}\n", None,
+     "'y_dot' is not a speed: the velocity constraints fix it", "x_dot, theta_dot", "y_dot: 2"),
     # as many constraints as velocities: no speed left (no internal ShapeError)
     ("velocity_constraints:\n  c1: x_dot - sin(y)*theta_dot\n  c2: y_dot - cos(x)*theta_dot\n  c3: theta_dot - x*y_dot\n",
      None, "the 3 constraints fix all 3 velocities: no speed is left", "remove a constraint", "c1:"),

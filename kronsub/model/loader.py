@@ -186,6 +186,11 @@ class ModelLoader(ModelReader):
         scenes = build_scenes(self, root.get("scenes"), list(declared.value) if declared is not None and
                               declared.is_mapping else [], primitive, y,
                               velocity.transformation.speeds if velocity is not None else ())
+        snodes = root.get("scenes")
+        if velocity is not None and snodes is not None and snodes.is_mapping:  # a scene's values as the model's
+            for spec in snodes.value.values():
+                if spec.is_mapping:
+                    check_initial(self, spec.get("initial"), y, velocity)
         check_values(self)
         if beside and velocity is not None:
             self.locations["constraints"] = root.key_locations["constraints"] if "constraints" in root.value \
