@@ -335,3 +335,13 @@ def test_a_model_with_velocity_constraints_as_a_known_system_is_refused(tmp_path
     assert result.exit_code == 1 and "Traceback" not in result.output
     assert (f"Error: {path}:3:14: model file 'sleigh.yaml' has velocity constraints: as a known system it is not "
             "supported yet") in result.output
+
+
+def test_a_broken_constraint_is_reported_once_not_again_at_the_speeds_initial_values(tmp_path):
+    """The speeds named under `speeds:` are names of the model even when a constraint beside them
+    fails: `initial:` (and a scene's) giving them values is no second error ("'v' is not a
+    coordinate or velocity of this model")."""
+    text = HEAD + ("velocity_constraints:\n  c: x_dot**2 - y_dot\nspeeds: {v: x_dot, w: theta_dot}\n"
+                   "initial: {v: 1, w: 2}\nscenes:\n  s: {initial: {v: 3}}\n")
+    _, out = refused(tmp_path, text)
+    assert out.count("Error:") == 1 and "velocity constraint 'c' is not linear in the velocities" in out

@@ -17,7 +17,7 @@ import sympy
 
 from ..budget import allow_for, scope as budget_scope
 from ..collector import collector_paused
-from ..core.symbols import velocity_symbol
+from ..core.symbols import symbol, velocity_symbol
 from ..core.known_system import KnownSystem
 from ..core.primitive import Primitive
 from .components import read_components
@@ -174,8 +174,11 @@ class ModelLoader(ModelReader):
                                                  holonomic, root.key_locations.get("constraints"))
             if velocity is not None:
                 self.locations["velocity_constraints"] = root.key_locations["velocity_constraints"]
+        named = ()  # speeds written but not made (their section reported already): no second error at `initial:`
+        if velocity is None and snode is not None and snode.is_mapping:
+            named = tuple(symbol(k) for k in snode.value if isinstance(k, str) and k.isidentifier())
         initial = read_initial(self, root.get("initial"), y,
-                               velocity.transformation.speeds if velocity is not None else ())
+                               velocity.transformation.speeds if velocity is not None else named)
         if velocity is not None:
             check_initial(self, root.get("initial"), y, velocity)
         if velocity is not None and not self.problems:
@@ -185,7 +188,7 @@ class ModelLoader(ModelReader):
         declared = root.get("effects")
         scenes = build_scenes(self, root.get("scenes"), list(declared.value) if declared is not None and
                               declared.is_mapping else [], primitive, y,
-                              velocity.transformation.speeds if velocity is not None else ())
+                              velocity.transformation.speeds if velocity is not None else named)
         snodes = root.get("scenes")
         if velocity is not None and snodes is not None and snodes.is_mapping:  # a scene's values as the model's
             for spec in snodes.value.values():
