@@ -284,3 +284,45 @@ def test_a_derivation_in_a_budget_of_its_own_grows_it_as_the_loader_does(tmp_pat
     with budget.limited() as grown:
         model.derive(scene=False, cache=False)
     assert grown.units == budget.default_units(len(model.primitive.coordinates)) > budget.DEFAULT_UNITS
+
+
+def test_a_scenes_derivation_in_the_api_is_bounded_as_the_whole_models(tmp_path, monkeypatch):
+    """``load(path).derive(scene=...)`` outside any command derives in a default work budget, as
+    ``derive(scene=False)`` does: a scene's derivation (``derive_scene``) is no way around it.
+    Made small here: a default of half the scene's derivation's work."""
+    import kronsub
+
+    path = tmp_path / "rlc.yaml"
+    path.write_text((ROOT / "models" / "electrical" / "series_rlc.yaml").read_text(encoding="utf-8"),
+                    encoding="utf-8")
+    model = kronsub.load(path, cache=False)
+    with budget.limited(10 ** 12) as spent:
+        model.derive(scene="discharge", cache=False)
+    assert budget.active() is None  # outside any command from here on
+    monkeypatch.setattr(budget, "DEFAULT_UNITS", spent.used // 2)
+    with pytest.raises(budget.WorkBudgetExceeded):
+        model.derive(scene="discharge", cache=False)
+    with pytest.raises(budget.WorkBudgetExceeded):
+        model.derive(scene=False, cache=False)
+    monkeypatch.setattr(budget, "DEFAULT_UNITS", spent.used * 4)
+    assert model.derive(scene="discharge", cache=False).mass_matrix.shape == (1, 1)
+
+
+def test_printing_a_drive_is_under_the_commands_cpu_backstop(tmp_path, monkeypatch):
+    """``derive`` prints a prescribed motion's drive terms, which it projects again (``hbar``
+    with ``t`` held) and simplifies: work no count sees, so the CPU-time backstop covers the
+    printing with the reading and the derivation (a pivot moved as cosines nested 60 deep in ``t``
+    ran for many minutes in the printing). Made short here: a backstop of 2 s."""
+    from click.testing import CliRunner
+
+    from kronsub.cli import main
+
+    text = (ROOT / "models" / "motion" / "kapitza_pendulum.yaml").read_text(encoding="utf-8")
+    path = tmp_path / "deep.yaml"
+    path.write_text(text.replace("s: a*cos(w*t)", "s: " + nested("cos({})", 60).replace("q", "t")), encoding="utf-8")
+    monkeypatch.setattr(budget, "MIN_SECONDS", 2.0)
+    monkeypatch.setattr(budget, "SECONDS_PER_MILLION", 0.0)
+    result = CliRunner().invoke(main, ["derive", str(path), "--format", "json", "--no-cache"])
+    assert result.exit_code == 1, result.output
+    assert f"Error: {path}: stopped: " in result.output and "the 2 s of CPU time of the work budget" in result.output
+    assert "Traceback" not in result.output

@@ -165,3 +165,12 @@ def test_textbook_charges_must_be_its_coordinates(tmp_path):
     assert result.exit_code == 1, result.output
     assert "`charges:` of 'magnet' names 'x', which is not one of its coordinates (y, q)" in result.output
     assert "Traceback" not in result.output
+
+
+def test_textbook_charges_listed_twice_are_a_located_error(tmp_path):
+    """`charges: [q, q]` was taken silently; now placed at the second, alone (its current `i` still
+    a name of the dissipation)."""
+    text = (MODELS / "electrical" / "magnetic_suspension.yaml").read_text(encoding="utf-8")
+    result = check(tmp_path, text.replace("charges: [q]", "charges: [q, q]"))
+    assert result.exit_code == 1, result.output
+    assert "`charges:` of 'magnet' names 'q' twice" in result.output and result.output.count("Error:") == 1

@@ -272,6 +272,19 @@ def test_linearize_gives_the_loop_equations_in_the_mixed_state():
     assert lin.equilibrium and np.allclose(np.asarray(lin.A, dtype=float), expected, rtol=1e-12, atol=1e-12)
 
 
+def test_linearize_of_a_circuit_without_inductance_is_its_loop_equation():
+    """Every loop first-order (the RC circuit): no inductance, so ``y = [q]`` alone, ``A =
+    -1/(R C)`` from ``R q_dot = E - q/C`` (the source off at t = 0); it failed inside the
+    Jacobian of the empty second-order block."""
+    from kronsub.core.linearize import linearize
+
+    system = kronsub.load(FOLDER / "rc_step.yaml").derive()
+    lin = linearize(system)
+    values = {p.name: float(p.value) for p in system.parameters}
+    assert [s.name for s in lin.state] == ["q"]
+    assert np.allclose(np.asarray(lin.A, dtype=float), [[-1 / (values["R"] * values["C"])]], rtol=1e-12)
+
+
 def test_the_accuracy_reference_follows_the_exact_solution():
     """The mpmath reference of ``accuracy`` (its Taylor route through the solved velocities)
     against the matrix exponential."""

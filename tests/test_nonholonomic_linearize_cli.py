@@ -136,3 +136,27 @@ def test_inputs_of_the_differential_drive():
     A, B = _symbolic_jacobian(system, [], point, [system.symbol("tau_l"), system.symbol("tau_r")])
     assert np.allclose(lin.A, A, atol=1e-12) and np.allclose(lin.B, B, rtol=1e-12, atol=1e-12)
     assert np.max(np.abs(lin.B)) > 1  # the torques do act
+
+
+def test_a_steady_motion_at_a_huge_speed_is_linearised():
+    """The sleigh running straight at v = 1e200: w decays at the rate m a v/(I + m a^2) (its
+    steadiness test squared the speed and raised an internal OverflowError)."""
+    path = ROOT / "models" / "nonholonomic" / "chaplygin_sleigh.yaml"
+    result = CliRunner().invoke(main, ["linearize", str(path), "--at", "v=1e200", "--format", "json"])
+    assert result.exit_code == 0, result.output
+    data = json.loads(result.output)
+    rates = sorted(e["re"] for e in data["eigenvalues"])
+    assert rates[0] == pytest.approx(-1.0 * 0.2 * 1e200 / (0.05 + 1.0 * 0.2 ** 2), rel=1e-9)
+    assert all(e["im"] == 0 for e in data["eigenvalues"])
+
+
+@pytest.mark.parametrize("model, at", [("chaplygin_sleigh", "w=1e200"), ("rolling_disc", "spin_dot=1e308")])
+def test_a_steady_motion_beyond_the_doubles_is_refused_in_words(model, at):
+    """Speeds so large that the rates overflow a double: ``A`` is not finite there, said as the
+    linearisation without speeds says it (no internal OverflowError of the steadiness test, no
+    LinAlgError of the eigenvalues, no numpy warnings on the way)."""
+    path = ROOT / "models" / "nonholonomic" / f"{model}.yaml"
+    result = CliRunner().invoke(main, ["linearize", str(path), "--at", at])
+    assert result.exit_code == 1, result.output
+    assert "Error: A is not finite at the operating point: the equations overflow a double there" in result.output
+    assert "internal error" not in result.output and "Warning: overflow" not in result.output

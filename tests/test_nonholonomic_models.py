@@ -201,6 +201,45 @@ BAD = [
     ("speeds: [theta_dot]\n", None, "`speeds:` without `velocity_constraints:`", "", "speeds:"),
     ("velocity_constraints:\n  c: -sin(theta)*x_dot + cos(theta)*y_dot\ninitial: {x: 1, y_dot: 2}\n", None,
      "'y_dot' is not a speed: the velocity constraints fix it", "x_dot, theta_dot", "y_dot: 2"),
+    # in a scene's initial values too (it was ignored there: the run started at rest)
+    ("velocity_constraints:\n  c: -sin(theta)*x_dot + cos(theta)*y_dot\nscenes:\n  s: {initial: {y_dot: 2}}\n", None,
+     "'y_dot' is not a speed: the velocity constraints fix it", "x_dot, theta_dot", "y_dot: 2"),
+    # as many constraints as velocities: no speed left (no internal ShapeError)
+    ("velocity_constraints:\n  c1: x_dot - sin(y)*theta_dot\n  c2: y_dot - cos(x)*theta_dot\n  c3: theta_dot - x*y_dot\n",
+     None, "the 3 constraints fix all 3 velocities: no speed is left", "remove a constraint", "c1:"),
+    # infinite at the parameters' values, complex at the start (no internal TypeError of a rank)
+    ("velocity_constraints:\n  c: x_dot/(a - 1/5) - y_dot + x*theta_dot\n", None,
+     "the coefficients of the velocities are infinite or undefined at every configuration tried", "divisions", "c:"),
+    ("velocity_constraints:\n  c: sqrt(a - 1)*x_dot - y_dot + x*theta_dot\n", None,
+     "the velocity constraints or the speeds have no real value at the initial configuration (x = 0)", "sqrt",
+     "velocity_constraints:"),
+    # speeds chosen by kronsub, or named, singular where the run starts (y_dot = -x_dot/tan(theta))
+    ("velocity_constraints:\n  c: cos(theta)*x_dot + sin(theta)*y_dot\n", None,
+     "the speeds are singular at the initial configuration (theta = 0)", "`speeds: [y_dot, theta_dot]`",
+     "velocity_constraints:"),
+    ("velocity_constraints:\n  c: cos(theta)*x_dot + sin(theta)*y_dot\nspeeds: [x_dot, theta_dot]\n", None,
+     "the speeds are singular at the initial configuration (theta = 0)", "start the coordinates elsewhere",
+     "speeds:"),
+    # a knife edge's direction or offset zero or complex at the parameters' values
+    ("velocity_constraints:\n  c: {knife_edge: body, direction: [1, sqrt(-a)]}\n", None,
+     "direction of 'c' [1, sqrt(-a)] is not a real vector at the parameters' values", "finite real", "[1, sqrt"),
+    ("velocity_constraints:\n  c: {knife_edge: body, direction: [a - 1/5, 0]}\n", None,
+     "direction of 'c' is the zero vector", "nonzero entry", "[a - 1/5"),
+    ("velocity_constraints:\n  c: {knife_edge: body, at: [sqrt(-a), 0]}\n", None,
+     "at of 'c' [sqrt(-a), 0] is not a real vector at the parameters' values", "finite real", "[sqrt"),
+    # a speed named as kronsub names something else (the run's lambdify saw `v_dot` twice), or as a
+    # coordinate's velocity that it is not
+    ("velocity_constraints:\n  c: -sin(theta)*x_dot + cos(theta)*y_dot\nspeeds: {v_dot: theta_dot, v: x_dot}\n", None,
+     "speed 'v_dot' is the name kronsub gives the rate of speed 'v'", "a name of its own", "v_dot:"),
+    ("velocity_constraints:\n  c: -sin(theta)*x_dot + cos(theta)*y_dot\nspeeds: {mu_c: theta_dot, v: x_dot}\n", None,
+     "speed 'mu_c' is the name kronsub gives the multiplier of velocity constraint 'c'", "a name of its own",
+     "mu_c:"),
+    ("velocity_constraints:\n  c: -sin(theta)*x_dot + cos(theta)*y_dot\nspeeds: {v: theta_dot, x_ddot: x_dot}\n",
+     None, "speed 'x_ddot' is the name kronsub gives the acceleration of coordinate 'x'", "a name of its own",
+     "x_ddot:"),
+    ("velocity_constraints:\n  c: -sin(theta)*x_dot + cos(theta)*y_dot\nspeeds: {x_dot: theta_dot, theta_dot: x_dot}\n",
+     None, "speed 'x_dot' is the velocity of coordinate 'x', defined as something else", "`x_dot: x_dot`",
+     "x_dot:"),
 ]
 
 
@@ -271,6 +310,8 @@ BAD_JOINTS = [
      "velocity constraint 'c' rolls on 'ice'", "plane"),
     ("r*cos(lean)", "  c: {knife_edge: disc}\n", "disc}",
      "knife edge 'c' on a body in space is not supported yet", "planar body"),
+    ("r*cos(lean)", "  c: {rolls_on: plane, body: disc, radius: r, axle: [0, r - 3/10, 0]}\n", "[0, r",
+     "axle of 'c' is the zero vector", "nonzero entry"),
 ]
 
 
@@ -294,3 +335,13 @@ def test_a_model_with_velocity_constraints_as_a_known_system_is_refused(tmp_path
     assert result.exit_code == 1 and "Traceback" not in result.output
     assert (f"Error: {path}:3:14: model file 'sleigh.yaml' has velocity constraints: as a known system it is not "
             "supported yet") in result.output
+
+
+def test_a_broken_constraint_is_reported_once_not_again_at_the_speeds_initial_values(tmp_path):
+    """The speeds named under `speeds:` are names of the model even when a constraint beside them
+    fails: `initial:` (and a scene's) giving them values is no second error ("'v' is not a
+    coordinate or velocity of this model")."""
+    text = HEAD + ("velocity_constraints:\n  c: x_dot**2 - y_dot\nspeeds: {v: x_dot, w: theta_dot}\n"
+                   "initial: {v: 1, w: 2}\nscenes:\n  s: {initial: {v: 3}}\n")
+    _, out = refused(tmp_path, text)
+    assert out.count("Error:") == 1 and "velocity constraint 'c' is not linear in the velocities" in out

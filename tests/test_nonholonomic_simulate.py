@@ -189,3 +189,40 @@ def test_a_constraint_in_time_holds_along_the_run(tmp_path):
     residual = -np.sin(th) * xd + np.cos(th) * yd - a * thd + V * np.sin(th) * np.cos(w_b * tm)
     assert np.max(np.abs(residual)) < 1e-5
     assert np.max(np.abs(V * np.sin(th) * np.cos(w_b * tm))) > 0.05  # the belt's term matters here
+
+
+def test_a_start_where_the_kinematic_equations_divide_by_zero_is_named(tmp_path):
+    """A scene that starts where ``xdot = C u`` has no value (``y_dot = -x_dot/tan(theta)`` at
+    ``theta = 0``): the run stops at once (exit 3) and says which kinematic equation divides by
+    zero, not that the exact values are finite (the equations in the speeds are looked at, with
+    the state ``[x; u]``)."""
+    path = tmp_path / "edge.yaml"
+    path.write_text("""name: edge
+parameters: {m: 1}
+components:
+  body: {type: planar_body, parameters: {mass: m, inertia: 1}}
+coordinates: [x, y, theta]
+connection: {body.x: x, body.y: y, body.angle: theta}
+velocity_constraints:
+  edge: cos(theta)*x_dot + sin(theta)*y_dot
+initial: {theta: 1}
+scenes:
+  flat: {initial: {theta: 0}, t_end: 0.1}
+""")
+    result = CliRunner().invoke(main, ["simulate", str(path), "--scene", "flat", "-o", str(tmp_path / "run.csv")])
+    assert result.exit_code == 3, result.output
+    assert "1/tan(theta) in y_dot of the kinematic equations is a division by zero" in result.output
+    assert "finite when evaluated exactly" not in result.output
+
+
+@pytest.mark.parametrize("name", ["chaplygin_sleigh", "rolling_disc"])
+def test_gauss4_runs_the_state_in_the_speeds(tmp_path, name):
+    """gauss4 (fixed step, the documented methods for the speeds) integrates ``[q; u]``: the
+    model has no canonical form ``[q; p]``, which it took and stopped at t = 0 ("mass matrix
+    singular"). Against dop853 from the same start; the energy kept."""
+    header, fixed = _simulate(tmp_path, name, "--t", "0.5", "--dt", "0.001", "--method", "gauss4")
+    _, adaptive = _simulate(tmp_path, name, "--t", "0.5", "--dt", "0.001")
+    assert fixed.shape == adaptive.shape
+    assert np.allclose(fixed, adaptive, rtol=1e-8, atol=1e-8)
+    energy = fixed[:, header.index("total_energy")]
+    assert np.max(np.abs(energy - energy[0])) <= 1e-9 * max(1.0, abs(energy[0]))

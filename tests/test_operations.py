@@ -25,6 +25,10 @@ EDGES = [
     sympy.sin(x) ** 2 + sympy.cos(x) ** 2 - 1, (x - 1) * (x + 1) / (2 * y), sympy.pi * x / 2,
     -y / x ** 2, -sympy.sqrt(x) / y, -y * sympy.exp(-x), -x * y / 2, -x ** y * y, -x ** (-y) * y,
     -sympy.Rational(3, 2) * x ** sympy.Rational(3, 2) * sympy.sin(y) ** 2, -x ** -1, -(x + y) ** -3,
+    # products of numbers left unevaluated (sympy's fraction() multiplies them out)
+    sympy.Mul(1, 2, 3, evaluate=False), sympy.Mul(-1, 2, 3, evaluate=False), sympy.Mul(-3, -3, 2, 3, evaluate=False),
+    sympy.Mul(sympy.sqrt(2), sympy.sqrt(2), evaluate=False), sympy.Mul(-1, sympy.sqrt(3), sympy.sqrt(3), evaluate=False),
+    sympy.Mul(sympy.I, sympy.I, evaluate=False), x + sympy.Mul(sympy.I, sympy.I, evaluate=False),
 ]
 
 

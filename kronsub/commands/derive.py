@@ -7,6 +7,8 @@ from pathlib import Path
 import click
 from click.core import ParameterSource
 
+from .. import budget
+from ..errors import Location
 from ..model import kept
 from ..model.file_reading import read_user_text
 from .common import (USAGE_ERROR, budget_option, budget_units, emit_text, fail, note_choice, output_option,
@@ -69,11 +71,15 @@ def _derived_text(model: Path, fmt: str, scene_name: str | None, no_cache: bool,
     from ..emitters import EMITTERS
     from ..emitters.reactions import with_reactions as add_reactions
 
-    loaded, _, system = scene_system(model, scene_name, cache=not no_cache)
-    note_choice(system)
-    text = EMITTERS[fmt](system)
-    if with_reactions:
-        text = add_reactions(text, system, fmt)
+    with budget.cpu_backstop():  # one CPU-time backstop for reading, deriving and printing
+        try:
+            loaded, _, system = scene_system(model, scene_name, cache=not no_cache)
+            note_choice(system)
+            text = EMITTERS[fmt](system)
+            if with_reactions:
+                text = add_reactions(text, system, fmt)
+        except budget.WorkBudgetExceeded as exc:  # (what the printing derives: a drive's terms, reactions)
+            raise exc.at(Location(str(model))) from None
     if key is not None and not said_advice() and loaded.source is not None:  # (note_choice's note too)
         kept.record(key, {"text": text}, (loaded.source, *loaded.uses))
     return text

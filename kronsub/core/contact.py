@@ -15,6 +15,7 @@ from collections.abc import Sequence
 import sympy
 
 from .simplify import compact
+from .derivative import derivative
 from .symbols import velocity_symbol
 from .trigpoly import TrigAlgebra
 
@@ -28,7 +29,7 @@ def reduced(expr: sympy.Expr, coordinates: Sequence[sympy.Symbol]) -> sympy.Expr
 
 def rate(expr: sympy.Expr, coordinates: Sequence[sympy.Symbol]) -> sympy.Expr:
     """``d expr/dt = d expr/dy^k ydot^k`` (no time of its own)."""
-    return sympy.Add(*[sympy.diff(expr, q) * velocity_symbol(q) for q in coordinates])
+    return sympy.Add(*[derivative(expr, q) * velocity_symbol(q) for q in coordinates])
 
 
 def material_velocity(centre: Sequence[sympy.Expr], rotation: sympy.Matrix, offset: Sequence[sympy.Expr],

@@ -52,8 +52,13 @@ def where_defined(d):
 
 
 def jacobian(m: sympy.Matrix, wrt) -> sympy.Matrix:
-    """``m.jacobian(wrt)`` where it exists (:func:`where_defined`)."""
-    return where_defined(m.jacobian(sympy.Matrix(list(wrt))))
+    """``m.jacobian(wrt)`` where it exists (:func:`where_defined`); of no entries, or with
+    respect to nothing, the empty matrix of its shape (sympy refuses a 0 x 1 column)."""
+    wrt = list(wrt)
+    m = sympy.Matrix(m)
+    if not m.rows or not m.cols or not wrt:
+        return sympy.zeros(len(m), len(wrt))
+    return where_defined(m.jacobian(sympy.Matrix(wrt)))
 
 
 def matrix_derivative(m: sympy.Matrix, wrt) -> sympy.Matrix:

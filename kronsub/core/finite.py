@@ -79,7 +79,8 @@ def state_values(system, t: float, y, param) -> dict:
     """``t``, the state ``y = [q; qdot]`` (or ``q`` alone) and the parameter values ``param`` (in
     the order of ``system.parameters``), by their symbols, as floats."""
     values = {TIME: float(t)}
-    values.update(zip(system.coordinates + system.velocities, (float(v) for v in y)))
+    rates = tuple(system.speeds.speeds) if system.speeds is not None else tuple(system.velocities)
+    values.update(zip(tuple(system.coordinates) + rates, (float(v) for v in y)))
     values.update(zip((p.symbol for p in system.parameters), (float(v) for v in param)))
     return values
 
@@ -91,15 +92,22 @@ def at_state(system, t: float, y, param, intermediates=None) -> Cause | None:
     without a value names its effect; then as the sum (which may overflow where no term does).
     With implicit constraints, ``intermediates`` gives the named intermediates at the state
     (``y_d``, ``Lambda``, ``gamma``: symbol -> float), without which there is no verdict."""
-    q, n = system.coordinates, len(system.coordinates)
     values = {**{s: float(v) for s, v in (intermediates or {}).items()}, **state_values(system, t, y, param)}
-    quantities = [(f"Mbar[{q[i].name}, {q[j].name}]", system.mass_matrix[i, j]) for i in range(n) for j in range(i + 1)]
-    for name, force in system.effect_forces.items():
+    equations, quantities = system, []
+    if system.speeds is not None:  # the state is [x; u]: xdot = C u + d and the equations in the speeds
+        equations = system.speeds
+        quantities = [(f"{q.name}_dot of the kinematic equations", e)
+                      for q, e in zip(system.coordinates, equations.kinematics)]
+    q = tuple(equations.speeds) if system.speeds is not None else tuple(system.coordinates)
+    n = len(q)
+    quantities += [(f"Mbar[{q[i].name}, {q[j].name}]", equations.mass_matrix[i, j]) for i in range(n)
+                   for j in range(i + 1)]
+    for name, force in equations.effect_forces.items():
         quantities += [(f"fbar[{q[i].name}] of effect '{name}'", force[i], name) for i in range(n)]
-    forces = system.forces
+    forces = equations.forces
     quantities += [(f"fbar[{q[i].name}]", forces[i]) for i in range(n)]
-    quantities += [(f"hbar[{q[i].name}]", system.velocity_terms[i]) for i in range(n)]
-    quantities += [("the kinetic energy", system.kinetic_energy), ("the potential energy", system.potential_energy)]
+    quantities += [(f"hbar[{q[i].name}]", equations.velocity_terms[i]) for i in range(n)]
+    quantities += [("the kinetic energy", equations.kinetic_energy), ("the potential energy", system.potential_energy)]
     return nonfinite_cause(quantities, values)
 
 

@@ -30,7 +30,7 @@ import sympy
 
 from ..errors import Location, ModelError, Problem
 from .deferred import DeferredMatrix
-from .derivative import derivative
+from .derivative import derivative, jacobian, where_defined
 from .known_system import Constraint, KnownSystem, SpeedEquations
 from .numeric_jacobian import value_and_jacobian
 from .symbols import TIME, acceleration_symbol, velocity_symbol
@@ -88,6 +88,17 @@ class VelocityTransformation:
         stacked = self.constraint_matrix.col_join(self.speed_matrix)
         solved = stacked.LUsolve(sympy.Matrix([-e for e in self.constraint_offset] + list(self.speeds)))
         return solved.applyfunc(lambda e: sympy.trigsimp(sympy.cancel(sympy.expand(e))))
+
+    def analysed(self) -> tuple[sympy.Matrix, sympy.Matrix]:
+        """``A`` and ``b`` as numbers are taken from, without their printed form: the rows as made
+        (:func:`differentiated_form`), the configuration constraints' rates last."""
+        if not self.rows:
+            return self.constraint_matrix, self.constraint_offset
+        A, b = differentiated_form(self.rows, self.coordinates)
+        if self.holonomic:
+            g = sympy.Matrix(list(self.holonomic))
+            A, b = A.col_join(jacobian(g, list(self.coordinates))), b.col_join(where_defined(g.diff(TIME)))
+        return A, b
 
     @property
     def transformation(self) -> sympy.Matrix:
@@ -212,7 +223,7 @@ def velocity_transformation(constraints: Sequence[sympy.Expr], coordinates: Sequ
     held: tuple = ()  # the coordinates the configuration constraints set
     if holonomic:
         g = sympy.Matrix(list(holonomic))
-        G = g.jacobian(list(coordinates))
+        G = jacobian(g, list(coordinates))
         at = _generic_points(G, coordinates, values)
         if _rank(G, at) < len(holonomic):
             raise VelocityConstraintError("the configuration constraints are not independent",
@@ -222,7 +233,7 @@ def velocity_transformation(constraints: Sequence[sympy.Expr], coordinates: Sequ
                 held = tuple(coordinates[j] for j in sorted(chosen))
                 break
         A = A.col_join(G)
-        b = b.col_join(g.diff(TIME))
+        b = b.col_join(where_defined(g.diff(TIME)))
     for i in integrable(A[:A.rows - len(holonomic), :], b, coordinates, values):
         raise VelocityConstraintError(
             f"velocity constraint {i + 1} is integrable: it is the time derivative of a relation between the "
@@ -232,6 +243,10 @@ def velocity_transformation(constraints: Sequence[sympy.Expr], coordinates: Sequ
     if _rank(A, point) < m:
         raise VelocityConstraintError("the velocity constraints are not independent",
                                       "remove the constraint that follows from the others")
+    if m >= n:
+        raise VelocityConstraintError(
+            f"the {m} constraints fix all {n} velocities: no speed is left, nothing can move",
+            "remove a constraint, or add the coordinates the motion needs")
     if speeds is None:
         for dependent in itertools.combinations(reversed(range(n)), m):
             if _rank(A[:, sorted(dependent)], point) == m:
@@ -295,7 +310,7 @@ def project_nonholonomic(metric: sympy.Matrix, velocity_terms: sympy.Matrix, for
     xdot = velocity.kinematics
     moved = {velocity_symbol(q): xdot[i] for i, q in enumerate(x)}
     # Cdot u + ddot along the motion: d(C u + d)/dx^k xdot^k + d(C u + d)/dt (u held)
-    convective = xdot.jacobian(x) * xdot + xdot.diff(TIME)
+    convective = jacobian(xdot, x) * xdot + where_defined(xdot.diff(TIME))
     C = velocity.transformation
     M = sympy.Matrix(metric)
     h = sympy.Matrix(velocity_terms).xreplace(moved)
@@ -371,7 +386,7 @@ def velocity_multipliers(system: KnownSystem) -> list[tuple[str, sympy.Expr]]:
     m, n = A.shape
     moved = {velocity_symbol(q): s.kinematics[i] for i, q in enumerate(x)}
     rates = sympy.Matrix(speed_rates(s.speeds, x))
-    convective = s.kinematics.jacobian(x) * s.kinematics + s.kinematics.diff(TIME)
+    convective = jacobian(s.kinematics, x) * s.kinematics + where_defined(s.kinematics.diff(TIME))
     xddot = s.transformation * rates + convective
     residual = (sympy.Matrix(system.mass_matrix) * xddot
                 + sympy.Matrix(system.velocity_terms).xreplace(moved)
@@ -439,17 +454,35 @@ def generic_rank(A: sympy.Matrix, coordinates, values=None) -> int:
 
 
 def _rank(A: sympy.Matrix, points: list[dict]) -> int:
-    return max(int(np.linalg.matrix_rank(_numeric(A, p), tol=1e-9)) for p in points)
+    """The largest rank of ``A`` at ``points``, complex values taken as they come (a random point
+    may leave a function's real domain, ``asin`` of 1.3) and points where an entry is infinite or
+    undefined left out; at none finite, :class:`VelocityConstraintError`."""
+    ranks = []
+    for p in points:
+        values = _numeric(A, p)
+        if values is not None and np.all(np.isfinite(values)):
+            ranks.append(int(np.linalg.matrix_rank(values, tol=1e-9)) if values.size else 0)
+    if not ranks:
+        raise VelocityConstraintError(
+            "the coefficients of the velocities are infinite or undefined at every configuration tried, the "
+            "parameters at their values", "check divisions by a parameter expression that is zero, and the "
+            "arguments of sqrt, log, asin and acos")
+    return max(ranks)
 
 
-def _numeric(A: sympy.Matrix, point: dict) -> np.ndarray:
+def _numeric(A: sympy.Matrix, point: dict) -> np.ndarray | None:
     """``A`` at ``point`` in floating point, each shared subexpression once; by sympy's ``evalf``
-    where that cannot be done (a value without a number, a complex one)."""
+    in complex numbers where that cannot be done (a value without a number, a complex one); None
+    where an entry has no value."""
     try:
         values, _ = value_and_jacobian(list(A), (), {s: float(v) for s, v in point.items()})
+        return np.array(values, dtype=float).reshape(A.shape)
     except (TypeError, ValueError, ZeroDivisionError, OverflowError, KeyError):
-        return np.array(A.xreplace(point).evalf(), dtype=float)
-    return np.array(values, dtype=float).reshape(A.shape)
+        pass
+    try:
+        return np.array(A.xreplace(point).evalf(), dtype=complex).reshape(A.shape)
+    except (TypeError, ValueError, OverflowError):
+        return None
 
 
 __all__ = ["GENERIC_POINTS", "NonholonomicProjection", "VelocityConstraintError", "VelocityTransformation",

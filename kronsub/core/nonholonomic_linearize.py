@@ -40,7 +40,7 @@ from dataclasses import dataclass
 import numpy as np
 import sympy
 
-from .derivative import derivative
+from .derivative import derivative, jacobian, where_defined
 from .known_system import KnownSystem
 from .linearize_numerics import Linearization, LinearizationError, numeric_value, parameter_numbers
 from .symbols import TIME, velocity_symbol
@@ -143,7 +143,7 @@ class SteadyMotionRates:
         g = fixed(sympy.Matrix(list(motion.configuration_constraints))) if motion.configuration_constraints \
             else sympy.zeros(0, 1)
         self.l = g.rows
-        G = g.jacobian(list(x)) if g.rows else sympy.zeros(0, n)
+        G = jacobian(g, list(x)) if g.rows else sympy.zeros(0, n)
         A, b = linear_rows([fixed(sympy.Matrix([c]))[0] for c in motion.velocity_constraints], x, "velocity constraint")
         Y, c = linear_rows([fixed(sympy.Matrix([e]))[0] for e in motion.speeds.values()], x, "speed")
         if any(e != 0 for e in c):
@@ -158,7 +158,7 @@ class SteadyMotionRates:
             raise LinearizationError("a constraint's velocity coefficients depend on time\n  hint: only the offset "
                                      "b(x, t) of A(x) xdot + b(x, t) = 0 may depend on t")
         # r = [-dg/dt; -b; u] less its u part, which is added numerically
-        r0 = (-g.diff(TIME) if g.rows else sympy.zeros(0, 1)).col_join(-b).col_join(sympy.zeros(p, 1))
+        r0 = (-where_defined(g.diff(TIME)) if g.rows else sympy.zeros(0, 1)).col_join(-b).col_join(sympy.zeros(p, 1))
         primitive_h, primitive_v = None, ()
         if isinstance(motion.metric, ProjectedMetric):
             W, J = fixed(motion.metric.weights), fixed(motion.metric.projection)
@@ -293,7 +293,8 @@ class SteadyMotionRates:
         u0 = np.array([float(point.get(s, 0.0)) for s in self.speeds])
         v0 = [float((inputs or {}).get(s, 0.0)) for s in self.inputs]
         x0 = self.on_constraints(x0, D, time, v0)
-        F, Jz, Jv = self.jacobian(x0, u0, time, v0)
+        with np.errstate(all="ignore"):  # a point beyond the doubles is reported below, not warned of
+            F, Jz, Jv = self.jacobian(x0, u0, time, v0)
         n, p = self.n, self.p
         scale = max(1.0, float(np.max(np.abs(Jz))))
         if keep is None:
@@ -325,7 +326,10 @@ class SteadyMotionRates:
         A = np.hstack([Jz[np.ix_(state_rows, K)] + Jz[np.ix_(state_rows, D)] @ tangent, Jz[np.ix_(state_rows, U)]])
         B = Jv[state_rows, :]
         speed_scale = max(1.0, float(np.max(np.abs(u0), initial=0.0)))
-        steady = bool(np.max(np.abs(F[K + D + U]), initial=0.0) <= STEADY_TOLERANCE * speed_scale ** 2)
+        steady = bool(np.max(np.abs(F[K + D + U]), initial=0.0) <= STEADY_TOLERANCE * speed_scale * speed_scale)
+        if not (np.all(np.isfinite(A)) and np.all(np.isfinite(B))):
+            raise LinearizationError("A is not finite at the operating point: the equations overflow a double "
+                                     "there\n  hint: check the values given with --at and the parameters' values")
         eigenvalues = tuple(complex(e) for e in np.linalg.eigvals(A)) if A.size else ()
         return Linearization(
             state=tuple(self.x[i] for i in K) + self.speeds, inputs=self.inputs,

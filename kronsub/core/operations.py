@@ -118,6 +118,8 @@ def _own(a) -> int:
     if a.is_Rational:
         if a is not S.One:
             return (a.p < 0) + (a.q != 1)
+    elif a.is_Mul and all(t.is_number for t in a.args):
+        return sympy.count_ops(a)  # a product of numbers left unevaluated: sympy's fraction() multiplies it out
     elif a.is_Mul and a.args[0].is_Rational and _plain_product(a.args):
         return _scaled(a.args[0], a.args[1:])
     elif a.is_Mul or a.is_MatMul:

@@ -25,7 +25,7 @@ import sympy
 
 from ..errors import KronsubError
 from .constraints import multiplier_name
-from .derivative import derivative
+from .derivative import derivative, where_defined
 from .known_system import KnownSystem
 from .nonholonomic import velocity_multipliers
 from .rheonomic import depends_on_time
@@ -74,13 +74,13 @@ def _connection_reactions(system: KnownSystem):
     xdot = [sum((C[a, j] * qd[j] for j in range(len(q))), sympy.Integer(0)) for a in range(len(x))]
     driven = depends_on_time(connection)  # x = x(q, t): xdot + dx/dt, xddot + d(xdot)/dt (rheonomic)
     if driven:
-        xdot = [v + sympy.diff(connection[xa], TIME) for v, xa in zip(xdot, x)]
+        xdot = [v + derivative(connection[xa], TIME) for v, xa in zip(xdot, x)]
     xddot = []
     for a in range(len(x)):
         total = sum((C[a, j] * qdd[j] for j in range(len(q))), sympy.Integer(0))
         total += sum((derivative(xdot[a], c) * v for c, v in zip(q, qd)), sympy.Integer(0))
         if driven:
-            total += sympy.diff(xdot[a], TIME)
+            total += derivative(xdot[a], TIME)
         xddot.append(total)
     sub = {xa: connection[xa] for xa in x}
     sub.update({velocity_symbol(xa): xdot[a] for a, xa in enumerate(x)})

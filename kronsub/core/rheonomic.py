@@ -26,6 +26,7 @@ from dataclasses import dataclass
 
 import sympy
 
+from .derivative import derivative, jacobian, where_defined
 from .symbols import TIME, acceleration_symbol, velocity_symbol
 
 
@@ -79,10 +80,10 @@ def project_rheonomic(x: Sequence[sympy.Symbol], metric: sympy.Matrix, velocity_
     qdot = sympy.Matrix([velocity_symbol(q) for q in xbar])
     qddot = sympy.Matrix([acceleration_symbol(q) for q in xbar])
     images = sympy.Matrix([sympy.sympify(connection[s]) for s in x])
-    C = images.jacobian(xbar)
-    s = images.diff(TIME)
+    C = jacobian(images, xbar)
+    s = where_defined(images.diff(TIME))
     velocity = C * qdot + s
-    a = velocity.jacobian(xbar) * qdot + velocity.diff(TIME)
+    a = jacobian(velocity, xbar) * qdot + where_defined(velocity.diff(TIME))
     moved = {**{xa: images[i] for i, xa in enumerate(x)}, **{v: velocity[i] for i, v in enumerate(xdot)}}
 
     def at(m: sympy.Matrix) -> sympy.Matrix:
@@ -106,10 +107,10 @@ def project_frozen(x, metric, velocity_terms, connection, coordinates) -> sympy.
     frozen_time = sympy.Dummy("t_frozen")
     fixed = {s: sympy.sympify(connection[s]).xreplace({TIME: frozen_time}) for s in x}
     images = sympy.Matrix([fixed[s] for s in x])
-    C = images.jacobian(tuple(coordinates))
+    C = jacobian(images, tuple(coordinates))
     qdot = sympy.Matrix([velocity_symbol(q) for q in coordinates])
     velocity = C * qdot
-    a = velocity.jacobian(tuple(coordinates)) * qdot
+    a = jacobian(velocity, tuple(coordinates)) * qdot
     moved = {**{xa: images[i] for i, xa in enumerate(x)}, **{velocity_symbol(xa): velocity[i] for i, xa in enumerate(x)}}
     M, h = sympy.Matrix(metric).xreplace(moved), sympy.Matrix(velocity_terms).xreplace(moved)
     return (C.T * (M * a + h)).xreplace({frozen_time: TIME})
@@ -126,7 +127,7 @@ def driving_force(x: Sequence[sympy.Symbol], metric: sympy.Matrix, velocity_term
     replace = {q: sympy.sympify(m) for q, m in motions.items()}
     forces = {}
     for q in motions:
-        column = sympy.Matrix([sympy.sympify(connection[s]).diff(q).xreplace(replace) for s in x])
+        column = sympy.Matrix([derivative(connection[s], q).xreplace(replace) for s in x])
         forces[q] = sympy.expand((column.T * projection.reaction)[0, 0])
     return projection, forces
 

@@ -33,6 +33,7 @@ from .placed import PlacedBodies, PlacedPoints, Placer
 from .primitive import Primitive, body_label, point_symbols
 from .simplify import compact
 from .rheonomic import depends_on_time
+from .derivative import derivative
 from .symbols import TIME, free_symbols_of, velocity_symbol
 from .trigpoly import TrigAlgebra, TrigPoly
 
@@ -92,7 +93,7 @@ class Subspace:
         out = [_sum(self.C[a][j] * self.qdots[j] for j in self.nonzero[a]) for a in range(len(self.x))]
         if self.driven:
             for a, x in enumerate(self.x):
-                drive = sympy.diff(self.radicands.rewrite(self.connection[x]), TIME)
+                drive = derivative(self.radicands.rewrite(self.connection[x]), TIME)
                 if drive != 0:
                     out[a].add(self.algebra.from_expr(drive))
         return out
@@ -148,7 +149,7 @@ class Subspace:
             gradient = algebra.gradient(vel)
             total = _sum(gradient[k] * self.qdots[k] for k in sorted(algebra.depends_on(vel)))
             if self.driven:  # + d(xdot)/dt: the drive's 2 dC/dt xbardot + d2x/dt2
-                drive = sympy.diff(algebra.to_expr(vel), TIME)
+                drive = derivative(algebra.to_expr(vel), TIME)
                 if drive != 0:
                     total.add(algebra.from_expr(drive))
             out.append(total)

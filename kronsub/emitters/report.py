@@ -20,6 +20,7 @@ from ..core.operations import count_ops
 from ..core.simplify import recompact, tidy
 from .escape import latex_name
 from .latex_layout import LatexPrinter, unbroken
+from ..core.derivative import derivative
 from ..core.symbols import TIME, acceleration_symbol, velocity_symbol
 
 Printer = Callable[[sympy.Expr], str]
@@ -362,7 +363,7 @@ def drive_report(system: KnownSystem, show: Printer) -> dict | None:
                             connection, system.coordinates)
     extra = [tidy(sympy.trigsimp(sympy.expand(h - f))) for h, f in zip(system.velocity_terms, frozen)]
     return {
-        "velocity": [show(sympy.diff(e, TIME)) for _, e in tr.connection],
+        "velocity": [show(derivative(e, TIME)) for _, e in tr.connection],
         "velocity_terms": [show(e) for e in extra],
     }
 

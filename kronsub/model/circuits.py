@@ -16,6 +16,7 @@ import numpy as np
 import sympy
 
 from ..components.electrical import Branch, CoupledInductors, Inductor
+from ..core.derivative import derivative
 from ..core.symbols import TIME
 from ..effects.electrical import Capacitor, Gyrator, Resistor, VoltageSource
 from .reader import ModelReader
@@ -62,7 +63,7 @@ def check_circuit(reader: ModelReader, primitive, connection: dict, coords, effe
 def _loops_without_inductance(reader: ModelReader, primitive, connection, coords, effects) -> None:
     rng = np.random.default_rng(0)
     values = {s: sympy.Float(v) for s, v in reader.parameter_values().items()}
-    C = sympy.Matrix([[sympy.diff(connection[x], q) for q in coords] for x in primitive.coordinates])
+    C = sympy.Matrix([[derivative(connection[x], q) for q in coords] for x in primitive.coordinates])
     free = (C.free_symbols | primitive.metric.free_symbols) - set(values) - {TIME}
     values.update({s: sympy.Float(rng.uniform(0.5, 1.5)) for s in sorted(free, key=lambda s: s.name)})
     try:
@@ -147,7 +148,7 @@ def _dissipation_matrix(effects, coords, connection, values) -> np.ndarray:
         if not isinstance(effect, Resistor):
             continue
         image = sympy.sympify(effect.charge).xreplace(connection)
-        rate = np.array([float(sympy.diff(image, q).xreplace(values)) for q in coords])
+        rate = np.array([float(derivative(image, q).xreplace(values)) for q in coords])
         D += float(sympy.sympify(effect.resistance).xreplace(values)) * np.outer(rate, rate)
     return D
 

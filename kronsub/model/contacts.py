@@ -20,7 +20,7 @@ import sympy
 
 from ..core.contact import material_velocity, reduced, rim_contact
 from ..errors import close_matches
-from .effects import named_body, zero_vector
+from .effects import named_body, unreal_vector, zero_vector
 from .reader import ModelReader, node_kind
 from .source import Node
 
@@ -160,6 +160,8 @@ def _knife_edge(reader: ModelReader, name, node, primitive, connection, coords):
     at = _vector(reader, node.get("at"), name, "at", 2, (0, 0))
     direction = _vector(reader, node.get("direction"), name, "direction", 2, (1, 0))
     if at is None or direction is None:
+        return None
+    if node.get("at") is not None and unreal_vector(reader, node.get("at"), at, f"at of '{name}'"):
         return None
     if node.get("direction") is not None and zero_vector(reader, node.get("direction"), direction,
                                                          f"direction of '{name}'", "[1, 0]"):

@@ -10,7 +10,7 @@ import numpy as np
 import numpy.random  # noqa: F401  numpy loads it on first use; imported with the rest
 import sympy
 
-from ..budget import PER_OPERATION, WorkBudgetExceeded, allow_for, charge
+from ..budget import PER_OPERATION, WorkBudgetExceeded, allow_for, charge, scope
 from ..cache import code_fingerprint, load_entry, store_entry, usable_cache_dir
 from ..collector import collector_paused
 from ..core.constraints import project_implicit
@@ -21,6 +21,7 @@ from ..core.nonholonomic import speed_equations
 from ..core.numeric_jacobian import jacobian
 from ..core.operations import count_ops
 from ..core.symbols import free_symbols_of
+from ..core.trigpoly import ExpansionTooLarge
 from ..core.subspace import (Subspace, assemble, assembled_potentials, effect_labels, project_effects,
                              project_inertia)
 from ..errors import Location
@@ -106,13 +107,18 @@ def derive_model(model, *, cache: bool = True, effects=None) -> KnownSystem:
     always come from ``model`` (the same text may live under several file names). The cyclic garbage
     collector is paused meanwhile (:func:`.collector_paused`). A default work budget grows
     with the primitive here as when the model was read (`kronsub.budget.allow_for`), so a
-    derivation in a budget of its own (the API's ``load(path).derive()``) is bounded as the
-    command's is.
+    derivation in a budget of its own (the API's ``load(path).derive()``, a scene's) is bounded
+    as the command's is: the active work budget, or a default one (`kronsub.budget.scope`); an
+    expansion too large is placed at the model's file.
     """
-    allow_for(len(model.primitive.coordinates))
-    with collector_paused():
-        system = _derive(model, cache, effects)
-    _charge_printed(system, model)
+    try:
+        with scope():
+            allow_for(len(model.primitive.coordinates))
+            with collector_paused():
+                system = _derive(model, cache, effects)
+            _charge_printed(system, model)
+    except ExpansionTooLarge as exc:
+        raise exc.at(Location(model.path)) from None
     return system
 
 

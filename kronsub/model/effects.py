@@ -38,13 +38,44 @@ def _vector(reader: ModelReader, node: Node, what: str):
 
 
 def zero_vector(reader: ModelReader, node: Node, d, what: str, example: str = "[0, -1]") -> bool:
-    """Whether the direction ``d`` is the zero vector, which is reported at ``node`` (a direction
-    is divided by its length: the zero one gave NaN forces or constraints)."""
-    if not sympy.Add(*[c**2 for c in d]).is_zero:
+    """Whether the direction ``d`` is the zero vector, or no real vector (:func:`unreal_vector`),
+    at the parameters' values, which is reported at ``node`` (a direction is divided by its
+    length: the zero one gave NaN forces or constraints)."""
+    if unreal_vector(reader, node, d, what):
+        return True
+    numbers = [_complex(e) for e in _at_values(reader, d)]
+    if not (sympy.Add(*[c**2 for c in d]).is_zero or all(z is not None and z == 0 for z in numbers)):
         return False
     reader.error(node, f"{what} is the zero vector, which points nowhere",
                  f"give a direction with a nonzero entry, e.g. `{example}` (its length does not matter)")
     return True
+
+
+def unreal_vector(reader: ModelReader, node: Node, d, what: str) -> bool:
+    """Whether the vector ``d`` has an entry that is no finite real number at the parameters'
+    values (``sqrt(-a)``), which is reported at ``node``: a complex or infinite offset or
+    direction made complex or NaN forces and constraints."""
+    numbers = [_complex(e) for e in _at_values(reader, d)]
+    if not any(z is not None and (z != z or abs(z) == float("inf") or abs(z.imag) > 1e-12 * max(1.0, abs(z)))
+               for z in numbers):
+        return False
+    shown = ", ".join(sympy.sstr(e) for e in d)
+    reader.error(node, f"{what} [{shown}] is not a real vector at the parameters' values",
+                 "give each entry a finite real value: check sqrt, log, asin and acos of the parameters")
+    return True
+
+
+def _at_values(reader: ModelReader, d) -> list:
+    values = {s: v for s, v in reader.parameter_values().items() if sympy.sympify(v).is_number}
+    return [sympy.sympify(c).xreplace(values) for c in d]
+
+
+def _complex(e) -> complex | None:
+    """``e`` as a complex number, None while it still has symbols in it."""
+    try:
+        return complex(e.evalf()) if not e.free_symbols else None
+    except (TypeError, ValueError, OverflowError):
+        return complex(float("nan"))
 
 
 def _direction(reader: ModelReader, node: Node, what: str):
@@ -465,4 +496,4 @@ def read_effects(reader: ModelReader, node: Node | None, primitive, coords) -> l
 
 
 __all__ = ["BUILDERS", "DEFAULT_DOWN", "IN_WORLD", "WORLDS", "build_effect", "named_body", "read_effects",
-           "zero_vector"]
+           "unreal_vector", "zero_vector"]

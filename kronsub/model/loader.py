@@ -17,7 +17,7 @@ import sympy
 
 from ..budget import allow_for, scope as budget_scope
 from ..collector import collector_paused
-from ..core.symbols import velocity_symbol
+from ..core.symbols import symbol, velocity_symbol
 from ..core.known_system import KnownSystem
 from ..core.primitive import Primitive
 from .components import read_components
@@ -27,7 +27,7 @@ from .connection import (implicit_spec, pivot_connection, read_connection, read_
 from .circuits import check_circuit
 from .constraints import check_multiplier_names, read_constraints
 from .coordinates import check_generated_names, name_primitive_coordinates, read_coordinates
-from .nonholonomic import check_frame_start, check_initial, read_velocity_constraints, read_velocity_frame
+from .nonholonomic import check_initial, check_start, read_velocity_constraints, read_velocity_frame
 from .prescribed import check_effects, driven_connection, names_time, read_prescribed
 from .definitions import read_definitions
 from .derive import derive_model, load_cached
@@ -174,16 +174,26 @@ class ModelLoader(ModelReader):
                                                  holonomic, root.key_locations.get("constraints"))
             if velocity is not None:
                 self.locations["velocity_constraints"] = root.key_locations["velocity_constraints"]
+        named = ()  # speeds written but not made (their section reported already): no second error at `initial:`
+        if velocity is None and snode is not None and snode.is_mapping:
+            named = tuple(symbol(k) for k in snode.value if isinstance(k, str) and k.isidentifier())
         initial = read_initial(self, root.get("initial"), y,
-                               velocity.transformation.speeds if velocity is not None else ())
+                               velocity.transformation.speeds if velocity is not None else named)
         if velocity is not None:
             check_initial(self, root.get("initial"), y, velocity)
-        if frame and velocity is not None:
-            check_frame_start(self, root.key_locations["speeds"], velocity, initial)
+        if velocity is not None and not self.problems:
+            given = root.get("speeds") is not None and root.get("speeds").value is not None
+            check_start(self, root.key_locations["speeds" if given else "velocity_constraints"], velocity, initial,
+                        chosen=given)
         declared = root.get("effects")
         scenes = build_scenes(self, root.get("scenes"), list(declared.value) if declared is not None and
                               declared.is_mapping else [], primitive, y,
-                              velocity.transformation.speeds if velocity is not None else ())
+                              velocity.transformation.speeds if velocity is not None else named)
+        snodes = root.get("scenes")
+        if velocity is not None and snodes is not None and snodes.is_mapping:  # a scene's values as the model's
+            for spec in snodes.value.values():
+                if spec.is_mapping:
+                    check_initial(self, spec.get("initial"), y, velocity)
         check_values(self)
         if beside and velocity is not None:
             self.locations["constraints"] = root.key_locations["constraints"] if "constraints" in root.value \

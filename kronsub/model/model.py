@@ -13,12 +13,10 @@ from typing import Mapping
 
 import sympy
 
-from ..budget import scope
 from ..components.base import Requirement
 from ..core.finite import state_values
 from ..core.known_system import Constraint, KnownSystem, ParameterInfo
 from ..core.primitive import Primitive
-from ..core.trigpoly import ExpansionTooLarge
 from ..effects.base import Effect
 from ..effects.elements import Damper, squared_distance
 from ..errors import Location, Problem
@@ -79,11 +77,7 @@ class Model:
 
     def derive(self, *, cache: bool = True) -> KnownSystem:
         """The equations of motion by projection onto the subspace (9'), (E), (F)."""
-        try:
-            with scope():  # the active work budget, or a default one
-                system = derive_model(self, cache=cache)
-        except ExpansionTooLarge as exc:
-            raise exc.at(Location(self.path)) from None
+        system = derive_model(self, cache=cache)  # in the active work budget, or a default one
         return dataclasses.replace(system, initial=dict(self.initial)) if self.initial else system
 
     def parameter_values(self) -> dict[sympy.Symbol, sympy.Expr]:

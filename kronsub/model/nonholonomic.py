@@ -16,13 +16,14 @@ are velocities, an invertible ``u = Y(x) xdot``: a change of velocity frame
 """
 from __future__ import annotations
 
+import itertools
 from dataclasses import dataclass
 
 import numpy as np
 import sympy
 
 from ..core.nonholonomic import VelocityConstraintError, VelocityTransformation, velocity_transformation
-from ..core.reference_frame import frame_matrix, frame_transformation
+from ..core.reference_frame import frame_transformation
 from ..core.symbols import TIME, symbol, velocity_symbol
 from ..errors import Location
 from .contacts import read_contact
@@ -78,7 +79,7 @@ def read_velocity_constraints(reader: ModelReader, node: Node, speeds_node: Node
         labels.append(key)
         where.append(loc)
         printed.append(None)
-    definitions = _read_speeds(reader, speeds_node, coords, names)
+    definitions = _read_speeds(reader, speeds_node, coords, names, [key for key in entries if isinstance(key, str)])
     if reader.problems or not exprs:
         return None
     values = {p.symbol: p.value for p in reader.parameters.values()
@@ -128,26 +129,67 @@ def read_velocity_frame(reader: ModelReader, node: Node, coords, written: Locati
                         frame=True)
 
 
-def check_frame_start(reader: ModelReader, written: Location, spec: VelocitySpec, initial: dict) -> None:
-    """A change of velocity frame (``speeds:``, written at ``written``) singular at the initial
-    configuration (``det Y = 0`` there, the coordinates not given taken as 0): ``xdot = Y^-1 u``
-    has no value to start from."""
-    x = spec.transformation.coordinates
-    point = {**_values(reader), **{q: initial.get(q, sympy.Integer(0)) for q in x}}
-    Y = frame_matrix(x, dict(spec.definitions)).xreplace(point)
-    if Y.free_symbols:
+def check_start(reader: ModelReader, written: Location, spec: VelocitySpec, initial: dict,
+                chosen: bool = True) -> None:
+    """Speeds singular at the initial configuration (the coordinates not given taken as 0, ``t =
+    0``), reported at ``written``: ``[A; Y] xdot = [-b; u]`` (``Y`` alone for a change of velocity
+    frame, ``det Y = 0``) has no solution there, or no real one, so ``xdot = C u + d`` has no value
+    to start from. ``chosen``: the model named its speeds (else kronsub chose them, at a generic
+    configuration, and the hint names velocities that serve at the start)."""
+    velocity = spec.transformation
+    x = velocity.coordinates
+    point = {**_values(reader), TIME: sympy.Integer(0), **{q: initial.get(q, sympy.Integer(0)) for q in x}}
+    analysed_A, analysed_b = velocity.analysed()  # not the printed form: it may be long to make
+    A = analysed_A.xreplace(point)
+    stacked = A.col_join(velocity.speed_matrix.xreplace(point))
+    offset = analysed_b.xreplace(point)
+    if stacked.free_symbols or offset.free_symbols:
         return  # a parameter without a value: nothing to evaluate
-    try:
-        sigma = np.linalg.svd(np.array(Y.evalf(), dtype=float), compute_uv=False)
-    except (TypeError, ValueError, np.linalg.LinAlgError):
-        return  # no real value there: the run's start reports it
-    if np.all(np.isfinite(sigma)) and sigma[-1] > SINGULAR * sigma[0]:
-        return
     where = ", ".join(f"{q} = {_shown(initial.get(q, 0))}" for q in x
-                      if any(q in e.free_symbols for _, e in spec.definitions))
+                      if any(q in e.free_symbols for e in list(analysed_A) + list(velocity.speed_matrix)
+                             + list(analysed_b)))
     at = f"at the initial configuration ({where})" if where else "at the parameters' values"
-    reader.error(written, f"the speeds are singular {at}: det Y = 0 there, so xdot = Y^-1 u has no value",
-                 "start the coordinates where the speeds are independent, or define speeds that stay independent")
+    numbers = _complex_array(stacked)
+    offsets = _complex_array(offset) if offset.rows else np.zeros(0)
+    if numbers is None or offsets is None or np.any(np.abs(numbers.imag) > 1e-12 * np.maximum(1, np.abs(numbers))) \
+            or np.any(np.abs(offsets.imag) > 1e-12 * np.maximum(1, np.abs(offsets))):
+        reader.error(written, f"the {'speeds' if spec.frame else 'velocity constraints or the speeds'} have no real "
+                     f"value {at}", "check the arguments of sqrt, log, asin and acos, and divisions, there")
+        return
+    sigma = np.linalg.svd(numbers.real, compute_uv=False)
+    if sigma[-1] > SINGULAR * sigma[0]:
+        return
+    if spec.frame:
+        reader.error(written, f"the speeds are singular {at}: det Y = 0 there, so xdot = Y^-1 u has no value",
+                     "start the coordinates where the speeds are independent, or define speeds that stay independent")
+        return
+    hint = "start the coordinates elsewhere, or choose speeds that are independent there"
+    serving = None if chosen else _regular_speeds(numbers.real[:A.rows, :], x)
+    if serving:
+        hint += ", e.g. `speeds: [" + ", ".join(serving) + "]`"
+    reader.error(written, f"the speeds are singular {at}: [A; Y] xdot = [-b; u] has no solution there, so "
+                 "xdot = C u + d has no value", hint)
+
+
+def _complex_array(matrix: sympy.Matrix):
+    """``matrix`` as a complex array, None when an entry has no finite value."""
+    try:
+        values = np.array(matrix.evalf(), dtype=complex)
+    except (TypeError, ValueError, OverflowError):
+        return None
+    return values if np.all(np.isfinite(values)) else None
+
+
+def _regular_speeds(A: np.ndarray, x) -> list[str] | None:
+    """Velocities that, as the speeds, leave ``[A; Y]`` regular for the number matrix ``A``: the
+    first coordinates' whose complement's columns of ``A`` are independent."""
+    m, n = A.shape
+    for dependent in itertools.combinations(reversed(range(n)), m):
+        block = A[:, sorted(dependent)]
+        sigma = np.linalg.svd(block, compute_uv=False)
+        if m and sigma[-1] > SINGULAR * sigma[0]:
+            return [velocity_symbol(x[j]).name for j in range(n) if j not in dependent]
+    return None
 
 
 def _shown(value) -> str:
@@ -174,8 +216,11 @@ def check_initial(reader: ModelReader, node: Node | None, coords, spec: Velocity
                          + f"); {key} follows from the kinematic equations xdot = C u")
 
 
-def _read_speeds(reader: ModelReader, node: Node | None, coords, names: dict) -> dict | None:
-    """``speeds:``: a list of velocities of listed coordinates, or a mapping ``name: Y(x) xdot``."""
+def _read_speeds(reader: ModelReader, node: Node | None, coords, names: dict, constraint_names=()) -> dict | None:
+    """``speeds:``: a list of velocities of listed coordinates, or a mapping ``name: Y(x) xdot``
+    (each named apart from the names kronsub gives: the speeds' rates ``v_dot``, the coordinates'
+    accelerations, the multipliers ``mu_<constraint>`` of ``constraint_names``; a coordinate's
+    velocity ``x_dot`` as a name only for that velocity)."""
     if node is None or node.value is None:
         return None
     velocities = {velocity_symbol(q).name: velocity_symbol(q) for q in coords}
@@ -199,6 +244,9 @@ def _read_speeds(reader: ModelReader, node: Node | None, coords, names: dict) ->
                      f"{node_kind(node)}",
                      "e.g. `speeds: [yaw_dot, spin_dot]` or `speeds: {v: cos(theta)*x_dot + sin(theta)*y_dot}`")
         return speeds
+    generated = {**{f"{q.name}_ddot": f"the acceleration of coordinate '{q.name}'" for q in coords},
+                 **{f"{k}_dot": f"the rate of speed '{k}'" for k in node.value if isinstance(k, str)},
+                 **{f"mu_{c}": f"the multiplier of velocity constraint '{c}'" for c in constraint_names}}
     for key, vnode in node.value.items():
         loc = node.key_locations[key]
         if not reader.identifier(key, loc, "speed"):
@@ -207,12 +255,20 @@ def _read_speeds(reader: ModelReader, node: Node | None, coords, names: dict) ->
             reader.error(loc, f"speed '{key}' is already a name of the model",
                          "give the speed a name no parameter or coordinate has")
             continue
+        if key in generated:
+            reader.error(loc, f"speed '{key}' is the name kronsub gives {generated[key]}",
+                         "give the speed a name of its own")
+            continue
         value = reader.expr(vnode, names, what=f"speed '{key}'")
         if value is None:
+            continue
+        if key in velocities and sympy.expand(sympy.sympify(value) - velocities[key]) != 0:
+            reader.error(loc, f"speed '{key}' is the velocity of coordinate '{key[:-len('_dot')]}', defined as "
+                         "something else", f"define it as `{key}: {key}`, or give the speed a name of its own")
             continue
         u = velocities[key] if key in velocities else symbol(key)
         speeds[u] = sympy.sympify(value)
     return speeds
 
 
-__all__ = ["VelocitySpec", "check_frame_start", "check_initial", "read_velocity_constraints", "read_velocity_frame"]
+__all__ = ["VelocitySpec", "check_initial", "check_start", "read_velocity_constraints", "read_velocity_frame"]

@@ -96,6 +96,9 @@ def _charges(reader: ModelReader, cname: str, node: Node | None, coordinates) ->
             reader.error(item, f"`charges:` of '{cname}' names {item.value!r}, which is not one of its coordinates "
                                f"({', '.join(own)})", "name the coordinates that are branch charges")
             return None
+        if own[item.value] in charges:
+            reader.error(item, f"`charges:` of '{cname}' names {item.value!r} twice", "list each charge once")
+            continue
         charges.append(own[item.value])
     return tuple(charges)
 

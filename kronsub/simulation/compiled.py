@@ -162,7 +162,8 @@ def native_model(system: KnownSystem, outputs=None, jacobian: bool = False,
     for attempt in (1, 2):
         library = compiled_library(system, outputs, jacobian, canonical)
         try:
-            return native.NativeModel(library, nq, nparam, nq + len(system.state_velocities))
+            return native.NativeModel(library, nq, nparam, nq + len(system.state_velocities),
+                                      canonical=system.speeds is None)
         except OSError:
             if attempt == 2 or library.exists():
                 raise

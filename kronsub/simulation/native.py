@@ -467,12 +467,13 @@ def _address(fn) -> int:
 class NativeModel:
     """A compiled model with ``nq`` coordinates and ``nparam`` parameters, loaded with ctypes."""
 
-    def __init__(self, library: str | Path, nq: int, nparam: int, ny: int | None = None):
+    def __init__(self, library: str | Path, nq: int, nparam: int, ny: int | None = None, canonical: bool = True):
         if nq < 1 or nparam < 0:
             raise ValueError(f"nq must be >= 1 and nparam >= 0 (got nq={nq}, nparam={nparam})")
         self.path = Path(library)
         self.nq = nq
         self.ny = 2 * nq if ny is None else ny  # [q; u] under velocity constraints: nq + the speeds
+        self.canonical = canonical  # the model has a canonical form z = [q; p] (not in speeds: gauss4 in [q; u])
         self.nparam = nparam
         self._lib = ctypes.CDLL(str(self.path))
         self._fn = {}
@@ -717,8 +718,9 @@ class NativeModel:
         span = t_end - t0
         # gauss4 in (q, p = Mbar qdot); with implicit constraints, which have no canonical form,
         # in (q, qdot): fourth order still, the dependent coordinates by Newton in every stage; so
-        # with first-order coordinates, whose singular metric has no momentum to solve for
-        canonical = method in CANONICAL_METHODS and not self.nstate and not self.nfirst
+        # with first-order coordinates, whose singular metric has no momentum to solve for; and in
+        # the speeds (velocity constraints, a change of velocity frame), [q; u]
+        canonical = method in CANONICAL_METHODS and self.canonical and not self.nstate and not self.nfirst
         on_circle = method != "gauss4" and self.nc > 0 and circle is not False
         dim = self.ny + 2 * self.nc if on_circle else self.ny
         start = self.momentum(y0, param) if canonical else self.circle_state(y0) if on_circle else y0

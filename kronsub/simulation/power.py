@@ -16,6 +16,7 @@ import numpy as np
 import sympy
 
 from ..core.known_system import KnownSystem
+from ..core.derivative import derivative
 from ..core.symbols import TIME
 from ..model.currents import primitive_charges
 from ..model.energy_kinds import DISSIPATIVE, ELECTRIC
@@ -55,7 +56,7 @@ def energy_split(model, system: KnownSystem) -> EnergySplit | None:
     index = {x: a for a, x in enumerate(transition.primitive_coordinates)}
     qdot = sympy.Matrix(system.velocities)
     # i = dx_c/dxbar qdot, without a drive's dx_c/dt (as T is 1/2 qdotᵀ Mbar qdot)
-    currents = sympy.Matrix([sympy.Add(*[sympy.diff(connection[x], q) * v for q, v in zip(system.coordinates, qdot)])
+    currents = sympy.Matrix([sympy.Add(*[derivative(connection[x], q) * v for q, v in zip(system.coordinates, qdot)])
                              for x in charges])
     inductance = transition.primitive_metric.extract([index[x] for x in charges], [index[x] for x in charges])
     magnetic = sympy.expand((currents.T * inductance.xreplace(connection) * currents)[0, 0] / 2)
@@ -83,7 +84,7 @@ def closed_forms(system: KnownSystem) -> dict | None:
     resolved = dict(closed)
     for a, d in enumerate(imp.dependent):
         for j, q in enumerate(imp.independent):
-            resolved[imp.sensitivities[a, j]] = sympy.diff(closed[d], q)
+            resolved[imp.sensitivities[a, j]] = derivative(closed[d], q)
     return resolved
 
 
