@@ -11,12 +11,21 @@ from collections.abc import Callable
 
 import sympy
 
+from .sympy_internals import matrix_fromrep
+
 
 class DeferredMatrix(sympy.MutableDenseMatrix):
     """A ``rows x cols`` matrix given by ``build()``, called on the first read of an entry (any
-    use of the matrix but its shape). Every result of an operation on it is a plain matrix."""
+    use of the matrix but its shape). Every result of an operation on it is a plain matrix: its
+    class ranks below SymPy's own, so an operation with one converts it (building it), never the
+    other way round."""
 
-    def __new__(cls, rows: int, cols: int, build: Callable[[], sympy.MatrixBase]):
+    _class_priority = 3.5  # below MutableDenseMatrix's 4
+
+    def __new__(cls, *args):
+        if len(args) != 3 or not callable(args[2]):  # what SymPy converts to this class: a plain matrix
+            return sympy.Matrix(*args)
+        rows, cols, build = args
         obj = object.__new__(cls)
         obj.rows, obj.cols = rows, cols
         obj.__dict__["_build"] = build
@@ -33,7 +42,7 @@ class DeferredMatrix(sympy.MutableDenseMatrix):
 
     @classmethod
     def _fromrep(cls, rep):
-        return sympy.MutableDenseMatrix._fromrep(rep)
+        return matrix_fromrep(sympy.MutableDenseMatrix, rep)
 
     def __reduce__(self):
         return sympy.Matrix, (self.rows, self.cols, list(self))
