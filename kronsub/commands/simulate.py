@@ -173,6 +173,10 @@ def _simulate(model: Path, t_end: float | None, dt: float | None, method: str | 
         explicit_only(system, chosen)
     except SimulationError as exc:
         fail(f"Error: {exc}")
+    if with_reactions:
+        from ..simulation.numeric_speeds import refuse_reactions
+
+        refuse_reactions(system, loaded.locations.get("velocity_constraints"))
     begin = starting_values(system, parse_assignments(settings), tolerance=newton_tolerance(rtol, atol))
     for note in begin.notes:
         say(f"note: initial conditions projected onto the constraints: {note}")
