@@ -156,11 +156,12 @@ def simulate(system: KnownSystem, t: float | None = None, dt: float | None = Non
     from ..simulation.table import energies, trajectory_table
 
     scene = scene_of(system)
-    if reactions:
+    if reactions or points:
         from ..simulation.numeric_speeds import refuse_reactions
 
         model = getattr(system, "model", None)
-        refuse_reactions(system, model.locations.get("velocity_constraints") if model is not None else None)
+        refuse_reactions(system, model.locations.get("velocity_constraints") if model is not None else None,
+                         "--reactions" if reactions else "--points")
     t, dt, method = run_span(system, t, dt, method)
     outputs = scene.outputs if scene is not None else None
     begin, traj = _trajectory(system, t, dt, method, set, rtol, atol, outputs, jacobian)

@@ -59,15 +59,17 @@ def numeric_route(system: KnownSystem) -> bool:
     return projection_work(system) >= NUMERIC_FROM
 
 
-def refuse_reactions(system: KnownSystem, location: Location | None = None) -> None:
+def refuse_reactions(system: KnownSystem, location: Location | None = None, what: str = "--reactions") -> None:
     """A :class:`ModelError` at ``location`` (where the model writes its velocity constraints) when
-    a run of ``system`` takes the numeric route, which forms no multipliers of the constraints."""
+    a run of ``system`` takes the numeric route, which forms neither the multipliers of the
+    constraints (``--reactions``) nor the generated module the named points come from (``--points``)."""
     if numeric_route(system):
-        raise ModelError([Problem(location, "--reactions of this model is not supported: its equations in the speeds "
+        formed = "no contact forces" if what == "--reactions" else "no generated code for the named points"
+        raise ModelError([Problem(location, f"{what} of this model is not supported: its equations in the speeds "
                                             f"are too large to project symbolically (projection work "
                                             f"{projection_work(system)}, from {NUMERIC_FROM} a run projects in "
-                                            "numbers at each step and forms no contact forces)",
-                                  "simulate without --reactions (the motion, energies and the held coordinates are "
+                                            f"numbers at each step and forms {formed})",
+                                  f"simulate without {what} (the motion, energies and the held coordinates are "
                                   "written as usual)")])
 
 
