@@ -12,8 +12,8 @@ coordinates put on their configuration constraints by Newton's method first.
   within the default work budget: from upright running at 5 m/s rolled by 1e-3 rad the roll and
   steer follow ``exp(A t)`` of the model file's own linearisation (second order in the roll), the
   energy (gravity alone does work) is kept, the front contact stays on the ground; the CSV has
-  the columns and metadata of every run, and --reactions and --points are refused at the velocity
-  constraints.
+  the columns and metadata of every run, and --reactions, --points and animate (which need the
+  generated module's contact forces or named points) are refused at the velocity constraints.
 """
 from pathlib import Path
 
@@ -112,7 +112,7 @@ def test_the_cli_writes_the_same_columns_and_metadata(bicycle, run, tmp_path):
     assert np.allclose(rows[:, 1:], np.column_stack([run[c][[0, 2, 4]] for c in header[1:]]), rtol=1e-6, atol=1e-9)  # runs of other spans
 
 
-def test_reactions_and_points_are_refused_at_the_velocity_constraints(bicycle, tmp_path):
+def test_reactions_points_and_animation_are_refused_at_the_velocity_constraints(bicycle, tmp_path):
     result = CliRunner().invoke(main, ["simulate", str(BICYCLE), "--t", "0.1", "--reactions",
                                        "-o", str(tmp_path / "r.csv")])
     assert result.exit_code == 1
@@ -124,3 +124,5 @@ def test_reactions_and_points_are_refused_at_the_velocity_constraints(bicycle, t
                                        "-o", str(tmp_path / "p.csv")])
     assert result.exit_code == 1 and "whipple_bicycle.yaml:131:1: --points of this model is not supported" \
         in result.output
+    with pytest.raises(ModelError, match="animate of this model is not supported"):
+        bicycle.animate(tmp_path / "bike.gif")

@@ -318,11 +318,14 @@ def animate(system: KnownSystem, output, t: float | None = None, dt: float | Non
     from ..simulation.mechanism import describe, from_points, place
     from ..simulation.table import point_columns
 
+    from ..simulation.numeric_speeds import refuse_reactions
+
+    model = getattr(system, "model", None)
+    refuse_reactions(system, model.locations.get("velocity_constraints") if model is not None else None, "animate")
     t, dt, method = run_span(system, t, dt, method, ANIMATION_DEFAULTS)
     drawn = _every_point(system)
     begin, traj = _trajectory(drawn, t, dt, method, set, 1e-10, 1e-10)
     param = np.array(begin.values.parameters)
-    model = getattr(system, "model", None)
     if model is not None:
         shapes = place(describe(model, drawn), drawn, traj, param)
     else:

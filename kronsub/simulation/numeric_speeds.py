@@ -31,7 +31,7 @@ from ..core.symbols import TIME
 from ..errors import Location, ModelError, Problem
 from .failure import Singular
 
-__all__ = ["NUMERIC_FROM", "NumericSpeeds", "numeric_route", "projection_work", "refuse_reactions"]
+__all__ = ["FORMED", "NUMERIC_FROM", "NumericSpeeds", "numeric_route", "projection_work", "refuse_reactions"]
 
 NUMERIC_FROM = 10_000
 """Projection work (:func:`projection_work`) from which a run projects in numbers: the rolling
@@ -59,18 +59,24 @@ def numeric_route(system: KnownSystem) -> bool:
     return projection_work(system) >= NUMERIC_FROM
 
 
+FORMED = {"--reactions": "no contact forces", "--points": "no generated code for the named points",
+          "animate": "no generated code for the named points the drawing is placed by"}
+"""What the numeric route does not form, by what asks for it."""
+
+
 def refuse_reactions(system: KnownSystem, location: Location | None = None, what: str = "--reactions") -> None:
     """A :class:`ModelError` at ``location`` (where the model writes its velocity constraints) when
     a run of ``system`` takes the numeric route, which forms neither the multipliers of the
-    constraints (``--reactions``) nor the generated module the named points come from (``--points``)."""
+    constraints (``--reactions``) nor the generated module the named points come from
+    (``--points``, ``animate``)."""
     if numeric_route(system):
-        formed = "no contact forces" if what == "--reactions" else "no generated code for the named points"
+        hint = (f"simulate without {what} (the motion, energies and the held coordinates are written as usual)"
+                if what.startswith("--") else "simulate it instead (`kronsub simulate`): the motion, energies and "
+                "the held coordinates are written as usual")
         raise ModelError([Problem(location, f"{what} of this model is not supported: its equations in the speeds "
                                             f"are too large to project symbolically (projection work "
                                             f"{projection_work(system)}, from {NUMERIC_FROM} a run projects in "
-                                            f"numbers at each step and forms {formed})",
-                                  f"simulate without {what} (the motion, energies and the held coordinates are "
-                                  "written as usual)")])
+                                            f"numbers at each step and forms {FORMED[what]})", hint)])
 
 
 class NumericSpeeds:
