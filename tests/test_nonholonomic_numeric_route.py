@@ -6,7 +6,8 @@ coordinates put on their configuration constraints by Newton's method first.
 - On the small models, where the symbolic projection is made (the generated numpy module), the
   numeric route gives the same rates and energies at random states to ~1e-12: the rolling disc,
   the Chaplygin sleigh, the differential drive, the disc rolling by a joint (the contact's rows
-  as made) and the disc with its centre's height held by a configuration constraint.
+  as made), the disc with its centre's height held by a configuration constraint, the sleigh on a
+  moving belt (``xdot = C u + d(x, t)``) and the sleigh beside two beads held on wires.
 - The route is taken by the measured projection work: not for those, for the Whipple bicycle's
   model file (models/benchmarks/whipple_bicycle.yaml), which the API and the CLI then simulate
   within the default work budget: from upright running at 5 m/s rolled by 1e-3 rad the roll and
@@ -32,7 +33,7 @@ ROOT = Path(__file__).resolve().parent.parent
 SMALL = [ROOT / "models" / "nonholonomic" / f"{name}.yaml" for name in
          ("rolling_disc", "chaplygin_sleigh", "differential_drive")] + \
         [ROOT / "tests" / "models" / "nonholonomic" / f"{name}.yaml" for name in
-         ("rolling_disc_joint", "rolling_disc_height")]
+         ("rolling_disc_joint", "rolling_disc_height", "sleigh_on_a_belt", "sleigh_and_beads")]
 BICYCLE = ROOT / "models" / "benchmarks" / "whipple_bicycle.yaml"
 SPEED, ROLL, SPAN, RR = 5.0, 1e-3, 2.0, 0.3
 
