@@ -16,6 +16,7 @@ coordinates put on their configuration constraints by Newton's method first.
   the columns and metadata of every run, and --reactions, --points and animate (which need the
   generated module's contact forces or named points) are refused at the velocity constraints.
 """
+import json
 from pathlib import Path
 
 import numpy as np
@@ -105,12 +106,11 @@ def test_the_cli_writes_the_same_columns_and_metadata(bicycle, run, tmp_path):
     assert result.exit_code == 0, result.output
     header = out.read_text().splitlines()[0].split(",")
     assert header == list(run.table_columns)
-    import json
-
     meta = json.loads(out.with_suffix(".json").read_text())
     assert set(meta) == set(run.metadata) and meta["columns"] == header and meta["complete"]
     rows = np.loadtxt(out, delimiter=",", skiprows=1)
-    assert np.allclose(rows[:, 1:], np.column_stack([run[c][[0, 2, 4]] for c in header[1:]]), rtol=1e-6, atol=1e-9)  # runs of other spans
+    api_rows = np.column_stack([run[c][[0, 2, 4]] for c in header[1:]])
+    assert np.allclose(rows[:, 1:], api_rows, rtol=1e-6, atol=1e-9)  # runs of other spans: to the tolerance
 
 
 def test_reactions_points_and_animation_are_refused_at_the_velocity_constraints(bicycle, tmp_path):

@@ -31,7 +31,7 @@ from ..core.symbols import TIME
 from ..errors import Location, ModelError, Problem
 from .failure import Singular
 
-__all__ = ["FORMED", "NUMERIC_FROM", "NumericSpeeds", "numeric_route", "projection_work", "refuse_reactions"]
+__all__ = ["FORMED", "NUMERIC_FROM", "NumericSpeeds", "numeric_route", "projection_work", "refuse_unformed"]
 
 NUMERIC_FROM = 10_000
 """Projection work (:func:`projection_work`) from which a run projects in numbers: the rolling
@@ -64,7 +64,7 @@ FORMED = {"--reactions": "no contact forces", "--points": "no generated code for
 """What the numeric route does not form, by what asks for it."""
 
 
-def refuse_reactions(system: KnownSystem, location: Location | None = None, what: str = "--reactions") -> None:
+def refuse_unformed(system: KnownSystem, location: Location | None = None, what: str = "--reactions") -> None:
     """A :class:`ModelError` at ``location`` (where the model writes its velocity constraints) when
     a run of ``system`` takes the numeric route, which forms neither the multipliers of the
     constraints (``--reactions``) nor the generated module the named points come from
