@@ -13,7 +13,7 @@ coordinates put on their configuration constraints by Newton's method first.
   within the default work budget: from upright running at 5 m/s rolled by 1e-3 rad the roll and
   steer follow ``exp(A t)`` of the model file's own linearisation (second order in the roll), the
   energy (gravity alone does work) is kept, the front contact stays on the ground; the CSV has
-  the columns and metadata of every run, and --reactions, --points and animate (which need the
+  the columns and metadata of every run (and --plot its figure), and --reactions, --points and animate (which need the
   generated module's contact forces or named points) are refused at the velocity constraints.
 """
 import json
@@ -102,8 +102,10 @@ def test_the_bicycle_keeps_its_energy_and_its_front_contact(bicycle, run):
 def test_the_cli_writes_the_same_columns_and_metadata(bicycle, run, tmp_path):
     out = tmp_path / "bike.csv"
     result = CliRunner().invoke(main, ["simulate", str(BICYCLE), "--t", "0.2", "--dt", "0.1", "--set", f"roll={ROLL}",
-                                       "--set", f"rear_dot={SPEED / RR}", "-o", str(out)])
+                                       "--set", f"rear_dot={SPEED / RR}", "-o", str(out), "--plot",
+                                       str(tmp_path / "bike.png")])
     assert result.exit_code == 0, result.output
+    assert (tmp_path / "bike.png").stat().st_size > 0  # its panels sorted without forming Mbar in x
     header = out.read_text().splitlines()[0].split(",")
     assert header == list(run.table_columns)
     meta = json.loads(out.with_suffix(".json").read_text())
