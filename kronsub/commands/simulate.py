@@ -173,6 +173,11 @@ def _simulate(model: Path, t_end: float | None, dt: float | None, method: str | 
         explicit_only(system, chosen)
     except SimulationError as exc:
         fail(f"Error: {exc}")
+    if with_reactions or with_points:
+        from ..simulation.numeric_speeds import refuse_unformed
+
+        refuse_unformed(system, loaded.locations.get("velocity_constraints"),
+                        "--reactions" if with_reactions else "--points")
     begin = starting_values(system, parse_assignments(settings), tolerance=newton_tolerance(rtol, atol))
     for note in begin.notes:
         say(f"note: initial conditions projected onto the constraints: {note}")

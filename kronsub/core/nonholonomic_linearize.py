@@ -235,6 +235,15 @@ class SteadyMotionRates:
         rhs = C.T @ (f - h - M @ convective)
         return np.concatenate([w, np.linalg.solve(Mbar, rhs)])
 
+    def kinetic_energy(self, x, u, t=0.0, inputs=()) -> float:
+        """``T = 1/2 (C u)^T M (C u)`` (24) at ``(x, u, t)``: the kinetic energy in the speeds, less
+        the motion ``d`` that constraints in time impose (as :func:`.nonholonomic.speed_equations`)."""
+        n, p = self.n, self.p
+        S, _, W, J = self._position([*np.asarray(x, dtype=float), t, *inputs])[:4]
+        C = np.linalg.solve(S.real, np.vstack([np.zeros((n - p, p)), np.eye(p)]))
+        v = J.real @ (C @ np.asarray(u, dtype=float))
+        return 0.5 * float(v @ W.real @ v)
+
     def constraint(self, x, t=0.0, inputs=()) -> np.ndarray:
         """``g(x, t)`` and ``G = dg/dx``."""
         g, G = self._g([*np.asarray(x, dtype=complex), t, *inputs])

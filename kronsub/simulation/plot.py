@@ -16,6 +16,8 @@ import numpy as np
 import sympy
 
 from ..atomic import atomic_file
+from ..core.deferred import pending
+from ..core.nonholonomic_linearize import primitive_metric
 from ..emitters.escape import plot_text
 from .mechanism import coincident
 from .table import energies, point_columns
@@ -32,7 +34,11 @@ def plot_format(path: Path) -> str | None:
 def angle_coordinates(system) -> set:
     """The generalized coordinates that appear in arguments of trigonometric functions."""
     exprs = [c for point in system.points.values() for c in point]
-    exprs += list(system.mass_matrix) + [system.potential_energy]
+    mass = system.mass_matrix
+    if pending(mass):  # not formed (a large system in speeds): the primitive's metric and C say the same
+        metric = primitive_metric(system)
+        mass = [*metric.weights, *metric.projection] if metric is not None else []
+    exprs += list(mass) + [system.potential_energy]
     angles = set()
     for expr in exprs:
         for atom in sympy.sympify(expr).atoms(sympy.sin, sympy.cos, sympy.tan):

@@ -32,6 +32,7 @@ from .grid import Grid, Tail
 from .methods import METHODS as REGISTRY
 from .methods import SIMULATE, unknown_method
 from .native import CANONICAL_METHODS, CompileError, CompilerNotFound
+from .numeric_speeds import NumericSpeeds, numeric_route
 from .power import charge_coordinates
 from .progress import Progress
 from . import rows as streamed
@@ -180,6 +181,8 @@ def start(system: KnownSystem, values: RunValues, t_end: float, dt: float, metho
     grid = Grid(t_end, dt)
     spec = METHODS[method]
     with_energies = outputs is None or outputs.energies
+    if numeric_route(system):  # the equations in the speeds too large to project symbolically
+        return _numeric_run(system, param, spec, grid, y0, Steps(rtol, atol, dt, chunks), progress, with_energies)
     if not engine_of(spec).COMPILED_RHS:  # its own integrator; the compiled model for the energies and their check
         native = _compiled_quietly(system, outputs) if with_energies else None
         rows_of = runner(_problem(system, param, native, outputs, constrained, rtol, atol), spec)
@@ -213,6 +216,28 @@ def start(system: KnownSystem, values: RunValues, t_end: float, dt: float, metho
         rows = first_order_rows(rows, _problem(system, param, native, outputs, constrained, rtol, atol).restart(None),
                                 first, len(system.coordinates))
     run.blocks = _finish(run, rows, bar, native, param, system, constrained, with_energies, grid)
+    return run
+
+
+def _numeric_run(system, param, spec, grid, y0, steps, progress, with_energies) -> RunInProgress:
+    """A run of a system whose equations in the speeds are projected in numbers at every
+    evaluation (:mod:`.numeric_speeds`): a method wholly in C runs as its scipy fallback."""
+    if spec.engine != "scipy":
+        if spec.fallback is None:
+            raise SimulationError(f"method '{spec.name}' needs generated code, which a model this large in its "
+                                  "speeds does not have (its equations are projected in numbers); use DOP853, "
+                                  "RK45, Radau or LSODA")
+        warnings.warn(f"method '{spec.name}' runs in compiled C, which this model does not have (its equations in "
+                      f"the speeds are projected in numbers at every step); using scipy's {spec.fallback} instead")
+        spec = METHODS[spec.fallback]
+    numeric = NumericSpeeds(system, param)
+    rows_of = runner(Problem(system, param, None, numeric.restart), spec)
+    run = RunInProgress(spec.name, rows_of.backend)
+    bar = Progress(grid.t_end, progress)
+    chunks = steps.chunks if bar.enabled else 1
+    steps = Steps(steps.rtol, steps.atol, steps.dt, max(chunks, math.ceil(len(grid) / streamed.BLOCK_ROWS)))
+    rows = rows_of.blocks(run, grid, y0, steps, bar)
+    run.blocks = _finish(run, rows, bar, None, param, system, None, with_energies, grid, numeric)
     return run
 
 
@@ -377,7 +402,7 @@ def _newton_tol(rtol: float, atol: float) -> float:
     return newton_tolerance(rtol, atol)
 
 
-def _finish(run, rows, bar, native, param, system, constrained, with_energies=True, grid=None):
+def _finish(run, rows, bar, native, param, system, constrained, with_energies=True, grid=None, numeric=None):
     """The blocks (in speeds, the coordinates held by configuration constraints put on them), with
     energies computed in C when there is a compiled model (and they are wanted) and, with implicit
     constraints, the dependent coordinates per row (and, after a failure, what failed); at the end, a warning when an explicit run was held by stiffness, and
@@ -398,6 +423,8 @@ def _finish(run, rows, bar, native, param, system, constrained, with_energies=Tr
                     dependent = dependent_rows(constrained, np.asarray(y), len(system.coordinates), guess)
                     guess = dependent[-1] if len(dependent) else guess
                 energies = None
+                if numeric is not None and with_energies:
+                    energies = numeric.energies(t, y)
                 if native is not None and with_energies:
                     if dependent is None:
                         energies = native.energies(t, y, param)
