@@ -6,27 +6,17 @@ and the knife edge (the same motion), at random states and along a run: the kine
 each wire and the knife edge met at every row."""
 from pathlib import Path
 
-import jinja2
 import numpy as np
 import pytest
 import sympy
 
 import kronsub
-import kronsub.emitters.code as code
-from kronsub.emitters.escape import environment
 from kronsub.simulation.fallback import numpy_module
 from reference.nonholonomic import kane_rates, sleigh_and_beads_kane
 
 ROOT = Path(__file__).resolve().parent.parent
 BEADS = ROOT / "tests" / "models" / "nonholonomic" / "sleigh_and_beads.yaml"
 VALUES = {"m": 1.0, "I": 0.05, "a": 0.2, "mp": 0.5, "mq": 0.3, "L": 0.4, "c": 2.0}
-
-
-@pytest.fixture(autouse=True)
-def _worktree_templates(monkeypatch):
-    """The templates of this checkout (an editable install may map kronsub.templates elsewhere)."""
-    monkeypatch.setattr(code, "template_environment",
-                        lambda: environment(jinja2.FileSystemLoader(str(ROOT / "templates"))))
 
 
 @pytest.fixture(scope="module")

@@ -5,12 +5,12 @@ import sympy
 from sympy.physics import mechanics as me
 
 
-def rolling_disc_kane(m, g, r):
-    """The thin uniform disc rolling on the plane z = 0: q = (yaw, lean, spin, x, y) with (x, y)
-    the contact point, u = qdot, the contact's speeds dependent. Returns ``(q, u, kane, centre)``
-    with ``centre`` the mass centre's position in N (x, y, z) as expressions of q."""
-    q = me.dynamicsymbols("yaw lean spin x y")
-    u = me.dynamicsymbols("u_yaw u_lean u_spin u_x u_y")
+def _disc_frames(names: str):
+    """The disc's coordinates ``names`` (yaw, lean, spin first) and speeds ``u_<name>``, the ground
+    frame N, the lean frame L (yaw about N.z, lean about its x), the disc R (spin about L.y) with
+    its angular velocity in the speeds, and a fixed origin O."""
+    q = me.dynamicsymbols(names)
+    u = me.dynamicsymbols(" ".join(f"u_{name}" for name in names.split()))
     N = me.ReferenceFrame("N")
     Y = N.orientnew("Y", "Axis", [q[0], N.z])
     L = Y.orientnew("L", "Axis", [q[1], Y.x])
@@ -18,6 +18,14 @@ def rolling_disc_kane(m, g, r):
     R.set_ang_vel(N, u[0] * N.z + u[1] * L.x + u[2] * L.y)
     O = me.Point("O")
     O.set_vel(N, 0)
+    return q, u, N, L, R, O
+
+
+def rolling_disc_kane(m, g, r):
+    """The thin uniform disc rolling on the plane z = 0: q = (yaw, lean, spin, x, y) with (x, y)
+    the contact point, u = qdot, the contact's speeds dependent. Returns ``(q, u, kane, centre)``
+    with ``centre`` the mass centre's position in N (x, y, z) as expressions of q."""
+    q, u, N, L, R, O = _disc_frames("yaw lean spin x y")
     contact = O.locatenew("C", q[3] * N.x + q[4] * N.y)
     centre = contact.locatenew("G", r * L.z)
     position = centre.pos_from(O)
@@ -39,15 +47,7 @@ def rolling_disc_height_kane(m, g, r):
     velocity are the velocity constraints (the vertical one is the configuration constraint's
     rate). Returns ``(q, u, kane, dependent)``, ``dependent`` the speeds of x, y, z as
     expressions of q and the independent speeds."""
-    q = me.dynamicsymbols("yaw lean spin x y z")
-    u = me.dynamicsymbols("u_yaw u_lean u_spin u_x u_y u_z")
-    N = me.ReferenceFrame("N")
-    Y = N.orientnew("Y", "Axis", [q[0], N.z])
-    L = Y.orientnew("L", "Axis", [q[1], Y.x])
-    R = L.orientnew("R", "Axis", [q[2], L.y])
-    R.set_ang_vel(N, u[0] * N.z + u[1] * L.x + u[2] * L.y)
-    O = me.Point("O")
-    O.set_vel(N, 0)
+    q, u, N, L, R, O = _disc_frames("yaw lean spin x y z")
     below = O.locatenew("B", q[3] * N.x + q[4] * N.y + (q[5] - r * sympy.cos(q[1])) * N.z)
     centre = below.locatenew("G", r * L.z)  # on the constraint, `below` is the contact point
     position = centre.pos_from(O)
