@@ -301,35 +301,21 @@ def overhead(system, loaded, tol, count, repeats, written):
     from kronsub.model.scenes import initial_values
     from kronsub.sweep.axes import read_axes
     from kronsub.sweep.driver import execute, local_cluster
-    from kronsub.sweep.ensemble import TaylorEnsemble
     from kronsub.sweep.study import make_job, make_plan
 
     plan = make_plan(*read_axes((), ANGLES), count, 2)
     job = make_job(system, plan, initial_values(loaded, None), {}, method="taylor", t_end=T_END, dt=DT, rtol=tol,
                    atol=tol, chunk=1000)
-    spent, original = [], TaylorEnsemble.run
-
-    def timed_run(self, *args, **kwargs):
-        t0 = time.perf_counter()
-        try:
-            return original(self, *args, **kwargs)
-        finally:
-            spent.append(time.perf_counter() - t0)
-
     shares = []
-    TaylorEnsemble.run = timed_run
-    try:
-        with local_cluster(1, threads=True) as cluster:
-            execute(job, range(1), lambda i, rows: None, scheduler=cluster.scheduler_address)
-            for k in range(max(2, repeats)):
-                spent.clear()
-                t0 = time.perf_counter()
-                execute(job, range(job.chunks), written(job, f"overhead{k}"), scheduler=cluster.scheduler_address)
-                wall = time.perf_counter() - t0
-                shares.append(1 - sum(spent) / wall)
-                print(f"  {count:,} runs on 1 worker: {wall:.2f} s, of which {sum(spent):.2f} s in the ensemble's calls")
-    finally:
-        TaylorEnsemble.run = original
+    with in_calls() as spent, local_cluster(1, threads=True) as cluster:
+        execute(job, range(1), lambda i, rows: None, scheduler=cluster.scheduler_address)
+        for k in range(max(2, repeats)):
+            spent.clear()
+            t0 = time.perf_counter()
+            execute(job, range(job.chunks), written(job, f"overhead{k}"), scheduler=cluster.scheduler_address)
+            wall = time.perf_counter() - t0
+            shares.append(1 - sum(spent) / wall)
+            print(f"  {count:,} runs on 1 worker: {wall:.2f} s, of which {sum(spent):.2f} s in the ensemble's calls")
     return min(shares), statistics.median(shares)
 
 
