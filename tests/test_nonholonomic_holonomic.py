@@ -85,23 +85,23 @@ def _write(tmp_path, old, new):
     return path, path.read_text()
 
 
+def _derive_refuses_at(path, text, written: str, message: str) -> None:
+    """``kronsub derive`` of ``path`` exits 1 with ``message`` located at the line ``written``."""
+    result = CliRunner().invoke(main, ["derive", str(path), "--no-cache"])
+    line = text.splitlines().index(written) + 1
+    assert result.exit_code == 1 and "Traceback" not in result.output
+    assert f"Error: {path}:{line}:" in result.output and message in result.output
+
+
 def test_constraints_that_are_not_independent_are_located(tmp_path):
     path, text = _write(tmp_path, "  touches: disc.z - r*cos(disc.theta)\n",
                         "  touches: disc.z - r*cos(disc.theta)\n  again: 2*disc.z - 2*r*cos(disc.theta)\n")
-    result = CliRunner().invoke(main, ["derive", str(path), "--no-cache"])
-    line = text.splitlines().index("constraints:") + 1
-    assert result.exit_code == 1 and "Traceback" not in result.output
-    assert f"Error: {path}:{line}:" in result.output and "configuration constraints are not independent" \
-        in result.output
+    _derive_refuses_at(path, text, "constraints:", "configuration constraints are not independent")
 
 
 def test_auto_coordinates_are_refused_beside_velocity_constraints(tmp_path):
     path, text = _write(tmp_path, "coordinates: [yaw, spin, x, y, lean, z]", "coordinates: auto")
-    result = CliRunner().invoke(main, ["derive", str(path), "--no-cache"])
-    line = text.splitlines().index("coordinates: auto") + 1
-    assert result.exit_code == 1 and "Traceback" not in result.output
-    assert f"Error: {path}:{line}:" in result.output and "`coordinates: auto` together with `velocity_constraints:`" \
-        in result.output
+    _derive_refuses_at(path, text, "coordinates: auto", "`coordinates: auto` together with `velocity_constraints:`")
 
 
 def test_the_multiplier_of_the_configuration_constraint_is_the_normal_force(systems):

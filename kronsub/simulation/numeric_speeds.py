@@ -69,13 +69,14 @@ def refuse_unformed(system: KnownSystem, location: Location | None = None, what:
     a run of ``system`` takes the numeric route, which forms neither the multipliers of the
     constraints (``--reactions``) nor the generated module the named points come from
     (``--points``, ``animate``)."""
-    if numeric_route(system):
+    work = projection_work(system)
+    if work >= NUMERIC_FROM:  # the numeric route (:func:`numeric_route`)
         hint = (f"simulate without {what} (the motion, energies and the held coordinates are written as usual)"
                 if what.startswith("--") else "simulate it instead (`kronsub simulate`): the motion, energies and "
                 "the held coordinates are written as usual")
         raise ModelError([Problem(location, f"{what} of this model is not supported: its equations in the speeds "
                                             f"are too large to project symbolically (projection work "
-                                            f"{projection_work(system)}, from {NUMERIC_FROM} a run projects in "
+                                            f"{work}, from {NUMERIC_FROM} a run projects in "
                                             f"numbers at each step and forms {FORMED[what]})", hint)])
 
 
