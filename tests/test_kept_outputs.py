@@ -63,8 +63,8 @@ def test_what_the_output_depends_on_derives_again(tmp_path, monkeypatch, loaded)
     model.write_text(SYSTEM1.read_text().replace("value: 9.81", "value: 9.80"))
     changed = cli(*args, cache=cache)
     assert changed.exit_code == 0 and len(loaded) == 4 and changed.stdout != first.stdout
-    real = kept.templates_digest
-    monkeypatch.setattr(kept, "templates_digest", lambda: "other" + real())
+    real = kept.code_fingerprint  # kronsub's source, its templates with it
+    monkeypatch.setattr(kept, "code_fingerprint", lambda: "other" + real())
     assert cli(*args, cache=cache).stdout == changed.stdout and len(loaded) == 5
 
 

@@ -33,8 +33,7 @@ def codegen(model: Path, lang: str, outdir: Path, name: str | None, prefix: str,
     def job():
         # the same command before: its files kept (no SymPy); else derived and emitted
         key = kept.key("codegen", model, dict(lang=lang, name=name, prefix=prefix, precision=precision,
-                                              scene=scene_name, budget=budget_units(), jacobian=with_jacobian),
-                       templates=kept.templates_digest())
+                                              scene=scene_name, budget=budget_units(), jacobian=with_jacobian))
         files = _kept_files(key) if key is not None else None
         if files is None:
             from ..api import C_IDENTIFIER

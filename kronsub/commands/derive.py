@@ -64,7 +64,7 @@ def _derived_text(model: Path, fmt: str, scene_name: str | None, no_cache: bool,
     :mod:`kronsub.model.kept`) unless ``--no-cache``, else derived (and kept when nothing was
     said about them on the way)."""
     options = dict(format=fmt, scene=scene_name, reactions=with_reactions, budget=budget_units())
-    key = None if no_cache else kept.key("derive", model, options, templates=kept.templates_digest())
+    key = None if no_cache else kept.key("derive", model, options)
     payload = kept.load(key) if key is not None else None
     if payload is not None and isinstance(payload.get("text"), str):
         return payload["text"]

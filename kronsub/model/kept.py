@@ -3,8 +3,8 @@ derive the model (no SymPy): ``derive``'s text, ``codegen``'s files, ``simulate`
 (:mod:`kronsub.simulation.prepared`).
 
 A record is kept under the key of everything the command's output depends on (:func:`key`):
-kronsub's source, the model file's path (as given and as resolved) and bytes, the command and
-its options, and what else the caller names (the templates, the compiler). It lists every
+kronsub's source (its templates and C too, :func:`kronsub.cache.code_fingerprint`), the model file's path (as given and as resolved) and bytes, the command and
+its options, and what else the caller names (the compiler). It lists every
 model file the model read, itself and those it takes as known systems, with the sha256 of the
 bytes it read; :func:`load` returns a record only when each still has that sha256, so a model
 file changed since (or between the key and the reading) is never served. Records are private
@@ -23,7 +23,7 @@ from ..cache import (KEPT, cache_dir, code_fingerprint, load_entry, private_fold
 from ..errors import KronsubError
 from .file_reading import read_model_file
 
-__all__ = ["FORMAT", "RECORD_BYTES", "key", "load", "quiet_cache_dir", "record", "templates_digest"]
+__all__ = ["FORMAT", "RECORD_BYTES", "key", "load", "quiet_cache_dir", "record"]
 
 FORMAT = "kronsub-kept/1"
 RECORD_BYTES = 16 << 20  # generated C of a large model fits; larger outputs are not kept
@@ -41,19 +41,6 @@ def key(command: str, model: Path, options: dict, **more) -> str | None:
     parts = {"format": FORMAT, "kronsub": code_fingerprint(), "command": command, "model": str(model),
              "path": os.path.abspath(model), "sha256": source.sha256, "options": options, **more}
     return hashlib.sha256(json.dumps(parts, sort_keys=True).encode()).hexdigest()
-
-
-def templates_digest() -> str:
-    """The sha256 of kronsub's templates (names and texts): the text a template prints is part
-    of what ``derive`` and ``codegen`` write."""
-    from importlib import resources
-
-    digest = hashlib.sha256()
-    folder = resources.files("kronsub.templates")
-    for entry in sorted(folder.iterdir(), key=lambda e: e.name):
-        if entry.is_file():
-            digest.update(entry.name.encode() + b"\0" + entry.read_bytes() + b"\0")
-    return digest.hexdigest()
 
 
 def quiet_cache_dir() -> Path | None:

@@ -2,9 +2,9 @@
 before takes it from the cache, without SymPy's common subexpressions and printing.
 
 An entry is kept under the sha256 of everything the emitted text depends on (:func:`key`):
-kronsub's source, the derived system whole (its equations, names, values and initial values,
+kronsub's source (its templates too, :func:`kronsub.cache.code_fingerprint`), the derived system whole (its equations, names, values and initial values,
 as the known-system cache writes it, :mod:`kronsub.model.cache_format`), what the caller adds
-(the outputs, the Taylor integrator's order), the templates and SymPy's version. It lives in
+(the outputs, the Taylor integrator's order) and SymPy's version. It lives in
 the folder of kept outputs (:data:`kronsub.cache.KEPT`), private and sealed
 (:func:`kronsub.cache.store_entry`); one damaged, another user's or others' to read, or holding
 anything but C files for this key, is not used, and the C is emitted as usual. What the files
@@ -18,7 +18,7 @@ from collections.abc import Callable
 from ..cache import KEPT, load_entry, private_folder, store_entry, usable_cache_dir
 from ..model import cache_format
 from ..model.derive import content_key
-from ..model.kept import RECORD_BYTES, quiet_cache_dir, templates_digest
+from ..model.kept import RECORD_BYTES, quiet_cache_dir
 
 __all__ = ["FORMAT", "kept_files", "key"]
 
@@ -37,7 +37,7 @@ def key(kind: str, system, extra: str = "") -> str | None:
         text = cache_format.dumps(system)
     except cache_format.CacheFormatError:
         return None
-    return content_key("sweep-emitted-c", FORMAT, kind, text, extra, templates_digest(), sympy.__version__)
+    return content_key("sweep-emitted-c", FORMAT, kind, text, extra, sympy.__version__)
 
 
 def _load(folder, name: str) -> Files | None:
