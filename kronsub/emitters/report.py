@@ -331,24 +331,31 @@ def build_report(system: KnownSystem, show: Printer, named: bool = True) -> dict
         "where": [{"name": show(s), "plain": s.name, "expression": show(e)} for s, e in where],
     }
     if tr is not None:
-        prim_coords = list(tr.primitive_coordinates)
-        report["primitive"] = {
-            "parts": [{"name": n, "type": t or "known system"} for n, t in tr.parts],
-            "coordinates": [show(x) for x in prim_coords],
-            "metric": matrix_rows(tr.primitive_metric, show),
-            "velocity_terms": [show(e) for e in tr.primitive_velocity_terms],
-            "forces": [{"name": k, "forces": [show(e) for e in f]} for k, f in tr.primitive_forces.items()
-                       if k not in tr.direct_effects],
-            "applied_in_subspace": list(tr.direct_effects),
-            "connection": [{"coordinate": show(x), "expression": show(e)} for x, e in tr.connection],
-            "transformation": matrix_rows(tr.transformation, show),
-            "columns": [show(q) for q in _columns(system)],
-        }
-        drive = drive_report(system, show)
-        if drive is not None:
-            report["primitive"]["drive"] = drive
+        report["primitive"] = primitive_report(system, show)
     if system.implicit is not None:
         report["implicit"] = implicit_report(system.implicit, show)
+    return report
+
+
+def primitive_report(system: KnownSystem, show: Printer) -> dict:
+    """The primitive system of ``system``'s transition: its metric (16), velocity terms and forces
+    (17), the connection (19) and ``C`` (21), and a drive's terms."""
+    tr = system.transition
+    report = {
+        "parts": [{"name": n, "type": t or "known system"} for n, t in tr.parts],
+        "coordinates": [show(x) for x in tr.primitive_coordinates],
+        "metric": matrix_rows(tr.primitive_metric, show),
+        "velocity_terms": [show(e) for e in tr.primitive_velocity_terms],
+        "forces": [{"name": k, "forces": [show(e) for e in f]} for k, f in tr.primitive_forces.items()
+                   if k not in tr.direct_effects],
+        "applied_in_subspace": list(tr.direct_effects),
+        "connection": [{"coordinate": show(x), "expression": show(e)} for x, e in tr.connection],
+        "transformation": matrix_rows(tr.transformation, show),
+        "columns": [show(q) for q in _columns(system)],
+    }
+    drive = drive_report(system, show)
+    if drive is not None:
+        report["drive"] = drive
     return report
 
 
@@ -414,4 +421,4 @@ def implicit_report(imp, show: Printer) -> dict:
 
 __all__ = ["MIN_NAMED_OPS", "ModelStrPrinter", "NAME_PREFIX", "Printer", "build_report", "implicit_report",
            "kinetic_energy", "latex_printer", "matrix_rows", "model_names", "named_subexpressions", "plain",
-           "plain_printer"]
+           "plain_printer", "primitive_report"]
