@@ -18,6 +18,8 @@ derived. ``--reactions`` gives the multipliers' defining equation in the same fo
 """
 from __future__ import annotations
 
+import json
+
 import sympy
 
 from ..core.known_system import KnownSystem
@@ -26,6 +28,7 @@ from ..core.nonholonomic_linearize import primitive_metric
 from ..core.projection_work import NUMERIC_FROM, projected_in_numbers, projection_work
 from ..core.simplify import recompact, tidy
 from ..core.symbols import velocity_symbol
+from .escape import json_document, latex_text
 from .report import Printer, build_report, matrix_rows, primitive_report
 
 FORM = "implicit"
@@ -166,6 +169,9 @@ def implicit_json(r: dict, data: dict) -> dict:
     return out
 
 
+MULTIPLIER_EQUATION = "A A^T mu = A (M xddot + h - f), xddot = C udot + Cdot u + ddot"
+"""The multipliers' defining equation in the implicit form (plain text, the JSON's and Markdown's)."""
+
 MULTIPLIERS = ("`mu_<constraint>` are the multipliers of the velocity constraints (then of the configuration "
                "constraints' rates), `M xddot + h = f + A^T mu` in the coordinates x, written as their defining "
                "equation, not expanded: `A A^T mu = A (M xddot + h - f)` with `xddot = C udot + Cdot u + ddot`, "
@@ -179,5 +185,26 @@ def multiplier_names(system: KnownSystem) -> list[str]:
     return [f"mu_{name}" for name in system.speeds.constraint_names]
 
 
+def with_multipliers(text: str, system: KnownSystem, fmt: str) -> str:
+    """The derivation ``text`` in ``fmt`` with the multipliers of the constraints (viewpoint
+    (alpha)) given by their defining equation, ``M xddot + h = f + A^T mu``, in the implicit form:
+    ``A`` has full row rank, so ``A A^T mu = A (M xddot + h - f)`` holds them exactly."""
+    names = multiplier_names(system)
+    if fmt == "json":
+        data = json.loads(text)
+        data["reactions"] = {"implicit": {"unknowns": names, "equation": MULTIPLIER_EQUATION},
+                             "note": MULTIPLIERS.replace("`", "")}
+        return json_document(data, indent=2) + "\n"
+    if fmt == "latex":
+        unknowns = " \\\\ ".join(rf"\mu_{{\mathrm{{{latex_text(n[3:])}}}}}" for n in names)
+        section = ("\\section*{Reactions}\n" + latex_text(MULTIPLIERS.replace("`", "")) + "\n\\begin{align*}\n"
+                   + rf"A A^{{\mathsf{{T}}}} \begin{{bmatrix}} {unknowns} \end{{bmatrix}} &= A (M \ddot{{x}} + h - f),"
+                   + rf" \quad \ddot{{x}} = C \dot{{u}} + \dot{{C}} u + \dot{{d}}" + "\n\\end{align*}\n")
+        return text.replace("\\end{document}", section + "\\end{document}")
+    lines = ["", "## Reactions (viewpoint (alpha))", "", MULTIPLIERS, "",
+             f"- `A A^T [{', '.join(names)}] = A (M xddot + h - f)`, `xddot = C udot + Cdot u + ddot`"]
+    return text.rstrip("\n") + "\n" + "\n".join(lines) + "\n"
+
+
 __all__ = ["COORDINATES", "EVALUATION", "FORM", "MULTIPLIERS", "PRIMITIVE", "from_primitive", "implicit_form",
-           "implicit_json", "implicit_report", "multiplier_names", "printed_names"]
+           "implicit_json", "implicit_report", "MULTIPLIER_EQUATION", "multiplier_names", "printed_names", "with_multipliers"]
