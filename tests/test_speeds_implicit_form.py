@@ -22,6 +22,7 @@ from click.testing import CliRunner
 
 import kronsub
 from kronsub import budget
+from kronsub.api import code_files
 from kronsub.cli import main
 from kronsub.core import projection_work
 from kronsub.emitters import EMITTERS
@@ -171,3 +172,15 @@ def test_derive_prints_the_bicycle_within_the_default_budget():
     assert len(data["primitive"]["metric"]) == len(data["primitive"]["coordinates"]) == 31
     assert len(data["unconstrained"]["forces"]) == 8 and "mass_matrix" not in data
     assert data["reactions"]["implicit"]["unknowns"][-1] == "mu_front_touches"
+
+
+@pytest.mark.parametrize("forced", [True, False])
+def test_a_budget_spent_on_generated_code_points_to_the_numeric_route(forced, monkeypatch):
+    system = kronsub.load(SMALL[0]).derive(cache=False)
+    if forced:
+        monkeypatch.setattr(projection_work, "NUMERIC_FROM", 1)
+    with budget.limited(1), pytest.raises(budget.WorkBudgetExceeded) as info:
+        code_files(system, "disc", "python")
+    hint = info.value.problems[0].hint
+    assert ("`kronsub simulate`" in hint and "`kronsub linearize`" in hint) is forced
+    assert hint.endswith("--budget UNITS (default 20,000,000)" if forced else "or write a simpler form")

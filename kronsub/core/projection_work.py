@@ -10,8 +10,12 @@ a linearisation) and printed in that implicit form, never expanded.
 """
 from __future__ import annotations
 
+from collections.abc import Iterator
+from contextlib import contextmanager
+
 import sympy
 
+from ..budget import DEFAULT_UNITS, WorkBudgetExceeded
 from .known_system import KnownSystem
 
 NUMERIC_FROM = 10_000
@@ -40,4 +44,25 @@ def projected_in_numbers(system: KnownSystem) -> bool:
     return projection_work(system) >= NUMERIC_FROM
 
 
-__all__ = ["NUMERIC_FROM", "projected_in_numbers", "projection_work"]
+ADVICE = ("its equations in the speeds are too large to form symbolically (projection work {work}; from "
+          "{numeric_from} they are formed in numbers at each evaluation): run it with `kronsub simulate`, linearise "
+          "it with `kronsub linearize`, print its equations in their implicit form with `kronsub derive`; or raise "
+          "the budget with --budget UNITS (default {default:,})")
+"""The hint of a work budget spent on a system whose projection onto the speeds is made in numbers."""
+
+
+@contextmanager
+def numeric_route_advice(system: KnownSystem) -> Iterator[None]:
+    """A work budget spent inside the block on ``system`` (generated code, an accuracy experiment:
+    the symbolic projection onto the speeds) says, when that projection is made in numbers
+    (:func:`projected_in_numbers`), which commands take the numeric route (:data:`ADVICE`)."""
+    try:
+        yield
+    except WorkBudgetExceeded as exc:
+        work = projection_work(system)
+        if work < NUMERIC_FROM:
+            raise
+        raise exc.advised(ADVICE.format(work=work, numeric_from=NUMERIC_FROM, default=DEFAULT_UNITS)) from None
+
+
+__all__ = ["ADVICE", "NUMERIC_FROM", "numeric_route_advice", "projected_in_numbers", "projection_work"]
