@@ -2,7 +2,8 @@
 
 - The printed form is checkable: for small systems under velocity constraints (the rolling disc,
   the disc rolling by a joint with its rows as made, the disc with a configuration constraint,
-  the sleigh on a moving belt with ``d(x, t)``), the implicit form is forced and its pieces, read
+  the sleigh on a moving belt with ``d(x, t)``; the disc without its transition, ``M`` and ``h``
+  then printed in the coordinates), the implicit form is forced and its pieces, read
   back from the JSON and evaluated here independently (``A``, ``b`` by differentiating the rows,
   ``C``, ``d`` from ``[A; Y] C = [0; I]``, ``[A; Y] d = [-b; 0]``, ``M = J^T M_p J``,
   ``h = J^T (M_p Jdot xdot + h_p)``, ``Cdot u + ddot`` along the motion), give at random states the
@@ -12,6 +13,7 @@
   formats within the default work budget, with its pieces; ``--reactions`` gives the multipliers'
   equation. The criterion is the one a run takes (``projected_in_numbers``).
 """
+import dataclasses
 import json
 from pathlib import Path
 
@@ -108,15 +110,23 @@ def _expanded(data: dict, read, x, u, t, values):
             at([read(e) for e in data["velocity_terms"]]).ravel(), at([read(e) for e in data["forces"]]).ravel(), at)
 
 
-@pytest.mark.parametrize("path", SMALL, ids=lambda p: p.stem)
-def test_the_printed_implicit_form_gives_the_expanded_equations(path, monkeypatch):
+@pytest.mark.parametrize("path, primitive", [(p, True) for p in SMALL] + [(SMALL[0], False)],
+                         ids=lambda v: v.stem if isinstance(v, Path) else "primitive" if v else "coordinates")
+def test_the_printed_implicit_form_gives_the_expanded_equations(path, primitive, monkeypatch):
     system = kronsub.load(path).derive(cache=False)
+    if not primitive:  # no transition to take M from: M and h in the coordinates are printed as derived
+        system = dataclasses.replace(system, transition=None)
     expanded = json.loads(with_reactions(EMITTERS["json"](system), system, "json"))
     assert "speeds_form" not in expanded
     monkeypatch.setattr(projection_work, "NUMERIC_FROM", 1)  # force the implicit form: the one criterion
     assert numeric_route(system)
     implicit = json.loads(with_reactions(EMITTERS["json"](system), system, "json"))
     assert implicit["speeds_form"] == "implicit" and "mass_matrix" not in implicit
+    assert implicit["projection"]["metric_from"] == ("primitive" if primitive else "coordinates")
+    md, tex = EMITTERS["markdown"](system), EMITTERS["latex"](system)
+    assert "## Equations in the speeds (implicit form)" in md and ("`M = J^T M_p J` (9')" in md) is primitive
+    assert ("Metric `Mbar = C^T M C` (22):" in md) is not primitive and "Kinematic equations" not in md
+    assert "\\section*{Equations in the speeds (implicit form)}" in tex
     assert implicit["projection"]["work"] == projection_work.projection_work(system) >= 1
     assert implicit["reactions"]["implicit"]["unknowns"] == list(expanded["reactions"]["expressions"])
     read = _reader(implicit)

@@ -29,7 +29,7 @@ from ..core.projection_work import NUMERIC_FROM, projected_in_numbers, projectio
 from ..core.simplify import recompact, tidy
 from ..core.symbols import velocity_symbol
 from .escape import json_document, latex_text
-from .report import Printer, build_report, matrix_rows, primitive_report
+from .report import Printer, build_report, primitive_report, report_head
 
 FORM = "implicit"
 """The value of the JSON field ``speeds_form`` of a system printed in this form."""
@@ -97,15 +97,7 @@ def implicit_report(system: KnownSystem, show: Printer) -> dict:
         forces = [recompact(f, system.coordinates) if sum(e[i] != 0 for _, e in effects) > 1 else tidy(f)
                   for i, f in enumerate(system.forces)]
         r = {
-            "name": system.name,
-            "description": system.description.strip(),
-            "coordinates": [show(q) for q in system.coordinates],
-            "coordinate_names": [q.name for q in system.coordinates],
-            "parameters": [
-                {"name": p.name, "symbol": show(p.symbol), "value": "" if p.value is None else show(p.value),
-                 "unit": p.unit, "description": p.description}
-                for p in system.parameters
-            ],
+            **report_head(system, show),
             "forces": [show(e) for e in forces],
             "effects": [{"name": k, "forces": [show(e) for e in f]} for k, f in effects],
             "potential_energy": show(system.potential_energy),
@@ -199,7 +191,7 @@ def with_multipliers(text: str, system: KnownSystem, fmt: str) -> str:
         unknowns = " \\\\ ".join(rf"\mu_{{\mathrm{{{latex_text(n[3:])}}}}}" for n in names)
         section = ("\\section*{Reactions}\n" + latex_text(MULTIPLIERS.replace("`", "")) + "\n\\begin{align*}\n"
                    + rf"A A^{{\mathsf{{T}}}} \begin{{bmatrix}} {unknowns} \end{{bmatrix}} &= A (M \ddot{{x}} + h - f),"
-                   + rf" \quad \ddot{{x}} = C \dot{{u}} + \dot{{C}} u + \dot{{d}}" + "\n\\end{align*}\n")
+                   + r" \quad \ddot{x} = C \dot{u} + \dot{C} u + \dot{d}" + "\n\\end{align*}\n")
         return text.replace("\\end{document}", section + "\\end{document}")
     lines = ["", "## Reactions (viewpoint (alpha))", "", MULTIPLIERS, "",
              f"- `A A^T [{', '.join(names)}] = A (M xddot + h - f)`, `xddot = C udot + Cdot u + ddot`"]

@@ -311,15 +311,7 @@ def build_report(system: KnownSystem, show: Printer, named: bool = True) -> dict
     # Mbar qddot + hbar, each row one sum (the matrix product adds its terms one at a time)
     lhs = [sympy.Add(*[mass[i, j] * accelerations[j] for j in range(n)], hbar[i]) for i in range(n)]
     report = {
-        "name": system.name,
-        "description": system.description.strip(),
-        "coordinates": [show(q) for q in system.coordinates],
-        "coordinate_names": [q.name for q in system.coordinates],
-        "parameters": [
-            {"name": p.name, "symbol": show(p.symbol), "value": "" if p.value is None else show(p.value),
-             "unit": p.unit, "description": p.description}
-            for p in system.parameters
-        ],
+        **report_head(system, show),
         "mass_matrix": matrix_rows(mass, show),
         "velocity_terms": [show(e) for e in hbar],
         "forces": [show(e) for e in fbar],
@@ -335,6 +327,21 @@ def build_report(system: KnownSystem, show: Printer, named: bool = True) -> dict
     if system.implicit is not None:
         report["implicit"] = implicit_report(system.implicit, show)
     return report
+
+
+def report_head(system: KnownSystem, show: Printer) -> dict:
+    """The name, description, coordinates and parameters of ``system``, as printed."""
+    return {
+        "name": system.name,
+        "description": system.description.strip(),
+        "coordinates": [show(q) for q in system.coordinates],
+        "coordinate_names": [q.name for q in system.coordinates],
+        "parameters": [
+            {"name": p.name, "symbol": show(p.symbol), "value": "" if p.value is None else show(p.value),
+             "unit": p.unit, "description": p.description}
+            for p in system.parameters
+        ],
+    }
 
 
 def primitive_report(system: KnownSystem, show: Printer) -> dict:
@@ -421,4 +428,4 @@ def implicit_report(imp, show: Printer) -> dict:
 
 __all__ = ["MIN_NAMED_OPS", "ModelStrPrinter", "NAME_PREFIX", "Printer", "build_report", "implicit_report",
            "kinetic_energy", "latex_printer", "matrix_rows", "model_names", "named_subexpressions", "plain",
-           "plain_printer", "primitive_report"]
+           "plain_printer", "primitive_report", "report_head"]
