@@ -87,10 +87,11 @@ def _rows(system: KnownSystem) -> list[sympy.Expr]:
     return list(made)[:s.constraint_matrix.rows - len(s.holonomic)]
 
 
-def implicit_report(system: KnownSystem, show: Printer) -> dict:
+def implicit_report(system: KnownSystem, show: Printer, named: bool = True) -> dict:
     """The report of ``system`` in the implicit form, as printed strings in a fixed order: the
-    keys of :func:`~.report.build_report` less ``Mbar``, ``hbar``, ``T`` in the coordinates when
-    they come from the primitive (``unformed``), and ``speeds`` with the pieces of the projection."""
+    keys of :func:`~.report.build_report` (``named`` as there) less ``Mbar``, ``hbar``, ``T`` in
+    the coordinates when they come from the primitive (``unformed``), and ``speeds`` with the
+    pieces of the projection."""
     s = system.speeds
     if from_primitive(system):
         effects = list(system.effect_forces.items())
@@ -106,7 +107,7 @@ def implicit_report(system: KnownSystem, show: Printer) -> dict:
             "unformed": True,
         }
     else:
-        r = build_report(system, show)
+        r = build_report(system, show, named=named)
     rates = speed_rates(s.speeds, system.coordinates)
     rows = _rows(system)
     r["speeds"] = {

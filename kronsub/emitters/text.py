@@ -91,7 +91,7 @@ def emit_json(system: KnownSystem) -> str:
     speeds, in the implicit form when their projection is made in numbers: ``speeds_form``)."""
     implicit = implicit_form(system)
     show = plain_printer(_names(system), system.printed_names)
-    r = implicit_report(system, show) if implicit else build_report(system, show, named=False)
+    r = implicit_report(system, show, named=False) if implicit else build_report(system, show, named=False)
     data = {
         "name": r["name"],
         "coordinates": r["coordinate_names"],
