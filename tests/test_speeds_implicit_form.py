@@ -12,6 +12,8 @@
 - The Whipple bicycle's model file is printed in that form by ``kronsub derive`` in all three
   formats within the default work budget, with its pieces; ``--reactions`` gives the multipliers'
   equation. The criterion is the one a run takes (``projected_in_numbers``).
+- Generated code of such a system that stops at the work budget says which commands take the
+  numeric route (``simulate``, ``linearize``, ``derive``); of any other system, the general hint.
 """
 import dataclasses
 import json
@@ -29,7 +31,6 @@ from kronsub.cli import main
 from kronsub.core import projection_work
 from kronsub.emitters import EMITTERS
 from kronsub.emitters.reactions import with_reactions
-from kronsub.simulation.numeric_speeds import numeric_route
 
 ROOT = Path(__file__).resolve().parent.parent
 SMALL = [ROOT / "models" / "nonholonomic" / "rolling_disc.yaml"] + \
@@ -119,7 +120,7 @@ def test_the_printed_implicit_form_gives_the_expanded_equations(path, primitive,
     expanded = json.loads(with_reactions(EMITTERS["json"](system), system, "json"))
     assert "speeds_form" not in expanded
     monkeypatch.setattr(projection_work, "NUMERIC_FROM", 1)  # force the implicit form: the one criterion
-    assert numeric_route(system)
+    assert projection_work.projected_in_numbers(system)
     implicit = json.loads(with_reactions(EMITTERS["json"](system), system, "json"))
     assert implicit["speeds_form"] == "implicit" and "mass_matrix" not in implicit
     assert implicit["projection"]["metric_from"] == ("primitive" if primitive else "coordinates")
@@ -159,7 +160,7 @@ def bicycle():
 
 
 def test_the_bicycle_is_printed_in_the_implicit_form(bicycle):
-    assert projection_work.projected_in_numbers(bicycle) and numeric_route(bicycle)
+    assert projection_work.projected_in_numbers(bicycle)
     with budget.limited():  # the default work budget of a command
         texts = {fmt: EMITTERS[fmt](bicycle) for fmt in ("markdown", "latex")}
     md, tex = texts["markdown"], texts["latex"]
