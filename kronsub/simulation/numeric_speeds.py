@@ -27,36 +27,17 @@ from ..core.held import held_coordinates
 from ..core.known_system import KnownSystem
 from ..core.linearize_numerics import LinearizationError
 from ..core.nonholonomic_linearize import steady_motion_rates
+from ..core.projection_work import NUMERIC_FROM, projected_in_numbers, projection_work
 from ..core.symbols import TIME
 from ..errors import Location, ModelError, Problem
 from .failure import Singular
 
 __all__ = ["FORMED", "NUMERIC_FROM", "NumericSpeeds", "numeric_route", "projection_work", "refuse_unformed"]
 
-NUMERIC_FROM = 10_000
-"""Projection work (:func:`projection_work`) from which a run projects in numbers: the rolling
-disc's is 300, a rolling joint's disc 2 225, the Whipple bicycle's 33 792."""
-
-
-def projection_work(system: KnownSystem) -> int:
-    """The size of the symbolic projection in the speeds: the distinct subexpressions of the
-    velocity constraints' rows (as made, :attr:`~kronsub.core.known_system.SpeedEquations.rows`,
-    else ``A xdot + b``) times ``n^2``, ``n`` the coordinates (the solve of ``[A; Y]``); 0 for a
-    system without velocity constraints."""
-    s = system.speeds
-    if s is None or not s.constraint_names:
-        return 0
-    rows = s.rows or tuple(s.constraint_matrix * sympy.Matrix(list(system.velocities)) + s.constraint_offset)
-    seen: set = set()
-    for row in rows:
-        seen.update(sympy.preorder_traversal(sympy.sympify(row)))
-    return len(seen) * len(system.coordinates) ** 2
-
-
 def numeric_route(system: KnownSystem) -> bool:
     """Whether a run of ``system`` projects onto its speeds in numbers (:class:`NumericSpeeds`):
     velocity constraints whose :func:`projection_work` is at least :data:`NUMERIC_FROM`."""
-    return projection_work(system) >= NUMERIC_FROM
+    return projected_in_numbers(system)
 
 
 FORMED = {"--reactions": "no contact forces", "--points": "no generated code for the named points",
