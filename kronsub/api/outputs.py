@@ -6,22 +6,19 @@ Thin wrappers of the code the commands run (``kronsub codegen``, ``accuracy``,
 """
 from __future__ import annotations
 
-import re
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Mapping
 
 from ..core.known_system import KnownSystem
 from ..core.projection_work import numeric_route_advice
+from ..emitters.escape import C_IDENTIFIER
 from ..errors import KronsubError
 from ..model.model import Model
 from .runs import model_file, scene_of, settings_text
 
 __all__ = ["Accuracy", "C_IDENTIFIER", "accuracy", "accuracy_plan", "code_files", "codegen", "reactions",
            "repr_latex", "repr_markdown"]
-
-
-C_IDENTIFIER = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
 
 
 def code_files(system: KnownSystem, stem: str, lang: str = "c", *, prefix: str = "ks", precision: str = "double",
