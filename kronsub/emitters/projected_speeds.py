@@ -1,0 +1,150 @@
+"""The projection onto the speeds kept in the generated code: ``C``, ``Cdot u + ddot``, ``Mbar``
+and ``fbar - hbar`` formed at run time, for a system under velocity constraints.
+
+With configuration constraints ``g(x, t) = 0`` (25), velocity constraints
+``A(x) xdot + b(x, t) = 0`` and the speeds ``u = Y(x) xdot``, the coordinates' rates solve
+
+    S xdot = r0 + [0; u],   S = [G; A; Y],   r0 = [-dg/dt; -b; 0],   G = dg/dx
+    xdot = w = C u + d,     S C = [0; I]
+    S (Cdot u + ddot) = -rho'
+
+``rho = S xdot - r0`` being the rows ``G xdot + dg/dt``, ``A xdot + b`` (as made) and ``Y xdot``,
+and ``rho'`` their rate along the motion at ``xdot = w`` with ``xddot = 0``
+(``sum_k d rho/dx_k w_k + d rho/dt``). Then, Boltzmann-Hamel,
+
+    Mbar = C^T M C                                  (9'), (D)
+    fbar - hbar = C^T (f - M (Cdot u + ddot) - h)   (E), (F)
+
+with ``M``, ``h``, ``f`` in ``x`` formed at ``xdot = w`` from the primitive's short pieces
+(:mod:`.projected`: ``M = J^T W J`` over the transition ``J = dx_p/dx``). The generated code
+evaluates ``S``, ``r0`` and ``rho'`` from short expressions (blocks ``frame`` and
+``frame_rates``, in the coordinates ``q`` and the velocities ``qd = xdot``) and solves by an LU
+with partial pivoting: the symbolic projection, whose solve of ``[A; Y]`` multiplies long entries,
+is never made.
+
+Which systems take this route by themselves is decided by :func:`projection_work`, a measure of
+the symbolic projection's size: the distinct subexpressions of the velocity constraints' rows
+(as made) times ``n^2`` for the ``n x n`` solve; from :data:`NUMERIC_FROM` the projection is
+kept for run time.
+"""
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import sympy
+
+from ..core.derivative import derivative, jacobian, where_defined
+from ..core.known_system import KnownSystem
+from ..core.linearize_numerics import LinearizationError
+from ..core.nonholonomic_linearize import linear_rows, velocity_rows
+from ..core.rheonomic import depends_on_time
+from ..core.symbols import TIME, velocity_symbol
+from ..errors import KronsubError
+from .block import Block
+from .projected import ProjectedCode, projected_code
+
+NUMERIC_FROM = 10_000
+"""Projection work (:func:`projection_work`) from which the projection onto the speeds is made
+in numbers at run time: the rolling disc's is 300, a rolling joint's disc 2 225, the Whipple
+bicycle's 33 792."""
+
+
+def projection_work(system: KnownSystem) -> int:
+    """The size of the symbolic projection in the speeds: the distinct subexpressions of the
+    velocity constraints' rows (as made, :attr:`~kronsub.core.known_system.SpeedEquations.rows`,
+    else ``A xdot + b``) times ``n^2``, ``n`` the coordinates (the solve of ``[A; Y]``); 0 for a
+    system without velocity constraints."""
+    s = system.speeds
+    if s is None or not s.constraint_names:
+        return 0
+    rows = s.rows or tuple(s.constraint_matrix * sympy.Matrix(list(system.velocities)) + s.constraint_offset)
+    seen: set = set()
+    for row in rows:
+        seen.update(sympy.preorder_traversal(sympy.sympify(row)))
+    return len(seen) * len(system.coordinates) ** 2
+
+
+def numeric_route(system: KnownSystem) -> bool:
+    """Whether the projection onto the speeds of ``system`` is made in numbers at run time by
+    itself: velocity constraints whose :func:`projection_work` is at least :data:`NUMERIC_FROM`."""
+    return projection_work(system) >= NUMERIC_FROM
+
+
+def applies(system: KnownSystem) -> bool:
+    """Whether the projection onto the speeds can be kept for run time: a system in its speeds
+    whose ``M``, ``h``, ``f`` in ``x`` come from a transition (no implicit subspace, no connection
+    in time, every effect acting on the primitive)."""
+    tr = system.transition
+    return (system.speeds is not None and tr is not None and system.implicit is None and not tr.direct_effects
+            and set(tr.primitive_forces) == set(system.effect_forces) and len(tr.primitive_coordinates) > 0
+            and tr.transformation.shape == (len(tr.primitive_coordinates), len(system.coordinates))
+            and not depends_on_time(dict(tr.connection)))
+
+
+@dataclass(frozen=True)
+class FrameCode:
+    """The run-time projection onto the speeds: ``frame`` writes ``S`` (``S[n n]``, row-major) and
+    ``r0`` (``r0[n]``), their entries not zero, from ``t``, ``q``; ``rates`` writes ``rho'``
+    (``e[n]``) from ``t``, ``q``, ``qd = xdot``; ``metric`` is ``M``, ``h``, ``f`` in ``x`` from the
+    primitive (:class:`.projected.ProjectedCode`, at ``qd = xdot``); ``timed``: ``r0`` or
+    ``rho'`` name ``t`` (``d(x, t)``: ``hbar`` depends on ``t``)."""
+
+    n: int
+    p: int
+    frame: Block
+    rates: Block
+    metric: ProjectedCode
+    timed: bool
+
+
+def frame_code(system: KnownSystem, slot: Callable, constants: Callable,
+               block: Callable[[list[str], list[sympy.Expr]], Block]) -> FrameCode:
+    """The run-time projection onto the speeds of ``system`` (:func:`applies`): ``slot`` maps the
+    coordinates, their velocities and ``t`` to array slots, ``constants`` moves parameter products
+    to ``pre``, ``block`` eliminates common subexpressions."""
+    s = system.speeds
+    x = list(system.coordinates)
+    n, p = len(x), len(s.speeds)
+    xd = [velocity_symbol(q) for q in x]
+    g = sympy.Matrix([c.expression for c in s.holonomic]) if s.holonomic else sympy.zeros(0, 1)
+    G = jacobian(g, x) if g.rows else sympy.zeros(0, n)
+    rows = velocity_rows(system)
+    try:
+        A, b = linear_rows(list(rows), x, "velocity constraint")
+        Y, c = linear_rows([e for _, e in s.definitions], x, "speed")
+    except LinearizationError as exc:
+        raise KronsubError(f"cannot generate code: {exc}") from None
+    if any(e != 0 for e in c):
+        raise KronsubError("cannot generate code: a speed has a term without a velocity (define each speed as "
+                           "Y(x) xdot)")
+    if G.rows + A.rows + p != n:
+        raise KronsubError(f"cannot generate code: {p} speed(s) for {n - G.rows - A.rows} degree(s) of freedom")
+    S = G.col_join(A).col_join(Y)
+    if any(e.has(TIME) for e in S):
+        raise KronsubError("cannot generate code: a constraint's velocity coefficients depend on time (only the "
+                           "offset b(x, t) of A(x) xdot + b(x, t) = 0 may)")
+    dg = [where_defined(derivative(e, TIME)) for e in g]
+    r0 = [-e for e in dg] + [-e for e in b] + [sympy.Integer(0)] * p
+    rho = [sympy.Add(*[G[i, k] * xd[k] for k in range(n)], dg[i]) for i in range(G.rows)] \
+        + [sympy.sympify(e) for e in rows] + [e for _, e in s.definitions]
+    rates = [where_defined(sympy.Add(*[derivative(e, x[k]) * xd[k] for k in range(n) if x[k] in e.free_symbols],
+                                     derivative(e, TIME))) for e in rho]
+    targets, exprs = [], []
+    for i in range(n):
+        for j in range(n):
+            if S[i, j] != 0:
+                targets.append(f"S[{i * n + j}]")
+                exprs.append(constants(slot(S[i, j])))
+    for i, e in enumerate(r0):
+        if e != 0:
+            targets.append(f"r0[{i}]")
+            exprs.append(constants(slot(e)))
+    frame = block(targets, exprs)
+    rate_block = block([f"e[{i}]" for i in range(n)], [constants(slot(e)) for e in rates])
+    timed = any(TIME in sympy.sympify(e).free_symbols for e in r0 + rates)
+    return FrameCode(n=n, p=p, frame=frame, rates=rate_block, metric=projected_code(system, slot, constants, block),
+                     timed=timed)
+
+
+__all__ = ["FrameCode", "NUMERIC_FROM", "applies", "frame_code", "numeric_route", "projection_work"]
