@@ -32,7 +32,8 @@ from .grid import Grid, Tail
 from .methods import METHODS as REGISTRY
 from .methods import SIMULATE, unknown_method
 from .native import CANONICAL_METHODS, CompileError, CompilerNotFound
-from .numeric_speeds import NumericSpeeds, numeric_route
+from ..emitters.projected_speeds import numeric_route
+from .numeric_speeds import NumericSpeeds
 from .power import charge_coordinates
 from .progress import Progress
 from . import rows as streamed
@@ -181,8 +182,6 @@ def start(system: KnownSystem, values: RunValues, t_end: float, dt: float, metho
     grid = Grid(t_end, dt)
     spec = METHODS[method]
     with_energies = outputs is None or outputs.energies
-    if numeric_route(system):  # the equations in the speeds too large to project symbolically
-        return _numeric_run(system, param, spec, grid, y0, Steps(rtol, atol, dt, chunks), progress, with_energies)
     if not engine_of(spec).COMPILED_RHS:  # its own integrator; the compiled model for the energies and their check
         native = _compiled_quietly(system, outputs) if with_energies else None
         rows_of = runner(_problem(system, param, native, outputs, constrained, rtol, atol), spec)
@@ -197,6 +196,8 @@ def start(system: KnownSystem, values: RunValues, t_end: float, dt: float, metho
         from .constrained import configure_native
 
         configure_native(native, constrained.guess, _newton_tol(rtol, atol))
+    if native is None and numeric_route(system):  # no C, and the equations in the speeds too large for numpy's
+        return _numeric_run(system, param, spec, grid, y0, Steps(rtol, atol, dt, chunks), progress, with_energies)
     if native is None and spec.fallback is not None:
         warnings.warn(f"method '{method}' runs in compiled C; using scipy's {spec.fallback} instead")
         spec = METHODS[spec.fallback]
@@ -220,8 +221,10 @@ def start(system: KnownSystem, values: RunValues, t_end: float, dt: float, metho
 
 
 def _numeric_run(system, param, spec, grid, y0, steps, progress, with_energies) -> RunInProgress:
-    """A run of a system whose equations in the speeds are projected in numbers at every
-    evaluation (:mod:`.numeric_speeds`): a method wholly in C runs as its scipy fallback."""
+    """A run without compiled C of a system whose equations in the speeds are too large to project
+    symbolically (the generated C projects them at run time, :mod:`kronsub.emitters.projected_speeds`):
+    projected in numbers at every evaluation (:mod:`.numeric_speeds`), a method wholly in C as its
+    scipy fallback."""
     if spec.engine != "scipy":
         if spec.fallback is None:
             raise SimulationError(f"method '{spec.name}' needs generated code, which a model this large in its "
