@@ -189,9 +189,19 @@ class _Constants:
         self.names = {p: sympy.Symbol(f"pre[{i}]") for i, p in enumerate(params)}
         self.derived: dict[sympy.Expr, sympy.Symbol] = {}
         self.count = len(params)
+        self.constant: dict[sympy.Expr, bool] = {}  # e -> whether it names parameters alone
+        self.done: dict[sympy.Expr, sympy.Expr] = {}  # e -> its image (a long entry's parts recur)
 
     def _constant(self, e: sympy.Expr) -> bool:
-        return e.free_symbols <= self.params
+        """``e.free_symbols <= params``, from its arguments' (remembered) where they are its own."""
+        hit = self.constant.get(e)
+        if hit is None:
+            if e.is_Atom or not (e.is_Add or e.is_Mul or e.is_Pow or isinstance(e, sympy.Function)):
+                hit = e.free_symbols <= self.params
+            else:
+                hit = all(self._constant(a) for a in e.args)
+            self.constant[e] = hit
+        return hit
 
     def _name(self, e: sympy.Expr) -> sympy.Expr:
         if e in self.names:
@@ -202,6 +212,12 @@ class _Constants:
         return self.derived[e]
 
     def __call__(self, e: sympy.Expr) -> sympy.Expr:
+        hit = self.done.get(e)
+        if hit is None:
+            hit = self.done[e] = self._image(e)
+        return hit
+
+    def _image(self, e: sympy.Expr) -> sympy.Expr:
         if e.is_Number:
             return e
         if e.is_Atom:

@@ -83,26 +83,20 @@ def applies(system: KnownSystem) -> bool:
 
 
 @dataclass(frozen=True)
-class FrameCode:
-    """The run-time projection onto the speeds: ``frame`` writes ``S`` (``S[n n]``, row-major) and
-    ``r0`` (``r0[n]``), their entries not zero, from ``t``, ``q``; ``rates`` writes ``rho'``
-    (``e[n]``) from ``t``, ``q``, ``qd = xdot``; ``metric`` is ``M``, ``h``, ``f`` in ``x`` from the
-    primitive (:class:`.projected.ProjectedCode`, at ``qd = xdot``); ``timed``: ``r0`` or
-    ``rho'`` name ``t`` (``d(x, t)``: ``hbar`` depends on ``t``)."""
+class FrameEquations:
+    """The pieces of the run-time projection as expressions: ``S`` (n x n) and ``r0`` in ``x``, ``t``;
+    ``rates``, ``rho'`` in ``x``, ``xdot``, ``t``; ``metric``, ``M = J^T W J`` in ``x`` and ``forces``,
+    ``f - h`` in ``x``, ``xdot``, ``t`` (sums of products over the transition, not expanded)."""
 
-    n: int
-    p: int
-    frame: Block
-    rates: Block
-    metric: ProjectedCode
-    timed: bool
+    S: sympy.Matrix
+    r0: sympy.Matrix
+    rates: sympy.Matrix
+    metric: sympy.Matrix
+    forces: sympy.Matrix
 
 
-def frame_code(system: KnownSystem, slot: Callable, constants: Callable,
-               block: Callable[[list[str], list[sympy.Expr]], Block]) -> FrameCode:
-    """The run-time projection onto the speeds of ``system`` (:func:`applies`): ``slot`` maps the
-    coordinates, their velocities and ``t`` to array slots, ``constants`` moves parameter products
-    to ``pre``, ``block`` eliminates common subexpressions."""
+def _frame(system: KnownSystem) -> tuple[sympy.Matrix, sympy.Matrix, sympy.Matrix]:
+    """``S``, ``r0`` and ``rho'`` of ``system`` (:func:`applies`)."""
     s = system.speeds
     x = list(system.coordinates)
     n, p = len(x), len(s.speeds)
@@ -128,8 +122,66 @@ def frame_code(system: KnownSystem, slot: Callable, constants: Callable,
     r0 = [-e for e in dg] + [-e for e in b] + [sympy.Integer(0)] * p
     rho = [sympy.Add(*[G[i, k] * xd[k] for k in range(n)], dg[i]) for i in range(G.rows)] \
         + [sympy.sympify(e) for e in rows] + [e for _, e in s.definitions]
-    rates = [where_defined(sympy.Add(*[derivative(e, x[k]) * xd[k] for k in range(n) if x[k] in e.free_symbols],
-                                     derivative(e, TIME))) for e in rho]
+    rates = [where_defined(sympy.Add(*[derivative(e, x[k]) * xd[k] for k in range(n) if x[k] in free],
+                                     derivative(e, TIME) if TIME in free else 0))
+             for e in rho for free in [e.free_symbols]]
+    return S, sympy.Matrix(r0), sympy.Matrix(rates)
+
+
+def frame_equations(system: KnownSystem) -> FrameEquations:
+    """The run-time projection of ``system`` (:func:`applies`) as expressions, for a route that
+    evaluates them otherwise (the high-precision reference's tape): ``M = J^T W J`` (9'), (D) and
+    ``f - h = J^T (f_p - W Jdot xdot - h_p)`` (E), (F) over the transition ``J = dx_p/dx``, the
+    primitive's ``W``, ``h_p``, ``f_p`` at ``x_p(x)``, ``xdot_p = J xdot``."""
+    S, r0, rates = _frame(system)
+    tr = system.transition
+    x = list(system.coordinates)
+    xd = [velocity_symbol(q) for q in x]
+    J = tr.transformation
+    nx, n = J.shape
+    images = dict(tr.connection)
+    moved = {q: images[q] for q in tr.primitive_coordinates if images[q] != q}
+    for a, q in enumerate(tr.primitive_coordinates):
+        moved[velocity_symbol(q)] = sympy.Add(*[J[a, j] * xd[j] for j in range(n) if J[a, j] != 0])
+    W = sympy.Matrix(tr.primitive_metric).xreplace(moved)
+    metric = sympy.Matrix(n, n, lambda i, j: sympy.Add(*[J[a, i] * W[a, b] * J[b, j] for a in range(nx)
+                                                           for b in range(nx) if J[a, i] != 0 and J[b, j] != 0
+                                                           and W[a, b] != 0]))
+    f = sympy.zeros(nx, 1)
+    for label in sorted(tr.primitive_forces):
+        f += tr.primitive_forces[label]
+    h = sympy.Matrix(tr.primitive_velocity_terms)
+    convective = [sympy.Add(*[derivative(J[a, j], x[k]) * xd[k] * xd[j] for j in range(n) if J[a, j] != 0
+                              for k in range(n) if x[k] in J[a, j].free_symbols]) for a in range(nx)]
+    w = [sympy.Add(f[a].xreplace(moved), -h[a].xreplace(moved),
+                   -sympy.Add(*[W[a, b] * convective[b] for b in range(nx) if W[a, b] != 0])) for a in range(nx)]
+    forces = sympy.Matrix([sympy.Add(*[J[a, i] * w[a] for a in range(nx) if J[a, i] != 0]) for i in range(n)])
+    return FrameEquations(S=S, r0=r0, rates=rates, metric=metric, forces=forces)
+
+
+@dataclass(frozen=True)
+class FrameCode:
+    """The run-time projection onto the speeds: ``frame`` writes ``S`` (``S[n n]``, row-major) and
+    ``r0`` (``r0[n]``), their entries not zero, from ``t``, ``q``; ``rates`` writes ``rho'``
+    (``e[n]``) from ``t``, ``q``, ``qd = xdot``; ``metric`` is ``M``, ``h``, ``f`` in ``x`` from the
+    primitive (:class:`.projected.ProjectedCode`, at ``qd = xdot``); ``timed``: ``r0`` or
+    ``rho'`` name ``t`` (``d(x, t)``: ``hbar`` depends on ``t``)."""
+
+    n: int
+    p: int
+    frame: Block
+    rates: Block
+    metric: ProjectedCode
+    timed: bool
+
+
+def frame_code(system: KnownSystem, slot: Callable, constants: Callable,
+               block: Callable[[list[str], list[sympy.Expr]], Block]) -> FrameCode:
+    """The run-time projection onto the speeds of ``system`` (:func:`applies`): ``slot`` maps the
+    coordinates, their velocities and ``t`` to array slots, ``constants`` moves parameter products
+    to ``pre``, ``block`` eliminates common subexpressions."""
+    S, r0, rates = _frame(system)
+    n, p = len(system.coordinates), len(system.speeds.speeds)
     targets, exprs = [], []
     for i in range(n):
         for j in range(n):
@@ -142,9 +194,10 @@ def frame_code(system: KnownSystem, slot: Callable, constants: Callable,
             exprs.append(constants(slot(e)))
     frame = block(targets, exprs)
     rate_block = block([f"e[{i}]" for i in range(n)], [constants(slot(e)) for e in rates])
-    timed = any(TIME in sympy.sympify(e).free_symbols for e in r0 + rates)
+    timed = any(TIME in sympy.sympify(e).free_symbols for e in list(r0) + list(rates))
     return FrameCode(n=n, p=p, frame=frame, rates=rate_block, metric=projected_code(system, slot, constants, block),
                      timed=timed)
 
 
-__all__ = ["FrameCode", "NUMERIC_FROM", "applies", "frame_code", "numeric_route", "projection_work"]
+__all__ = ["FrameCode", "FrameEquations", "NUMERIC_FROM", "applies", "frame_code", "frame_equations", "numeric_route",
+           "projection_work"]
