@@ -147,3 +147,19 @@ def test_the_route_refuses_a_system_it_cannot_keep():
     assert not applies(system)
     with pytest.raises(KronsubError, match="cannot keep the projection"):
         emit_c(system, "m", route="projected", jacobian=True)
+
+
+@pytest.mark.parametrize("name", ["rolling_disc_height", "sleigh_on_a_belt"])
+def test_the_reference_projected_on_its_tape_follows_the_symbolic_one(name, monkeypatch):
+    """`kronsub accuracy`'s reference of a system projected at run time solves ``S``, ``C`` and
+    ``Mbar`` order by order on its tape: the same states as the series of the symbolic equations."""
+    from kronsub.simulation import reference
+
+    system = kronsub.load(ROOT / "tests" / "models" / "nonholonomic" / f"{name}.yaml").derive(cache=False)
+    param = [float(p.value) for p in system.parameters]
+    y0 = list(np.random.default_rng(5).uniform(-0.5, 0.5, len(system.coordinates) + len(system.speeds.speeds)))
+    symbolic = reference.taylor(system, param, y0, [0.3], digits=20)
+    monkeypatch.setattr(reference, "numeric_route", lambda s: True)
+    tape = reference.taylor(system, param, y0, [0.3], digits=20)
+    assert max(abs(a - b) for a, b in zip(symbolic.states[0], tape.states[0])) < 1e-18
+    assert max(abs(a - b) for a, b in zip(symbolic.states[0], y0)) > 1e-3  # it moved
