@@ -33,16 +33,17 @@ from .failure import Singular
 
 __all__ = ["FORMED", "NumericSpeeds", "refuse_unformed"]
 
-FORMED = {"--reactions": "no contact forces", "--points": "no generated code for the named points",
-          "animate": "no generated code for the named points the drawing is placed by"}
-"""What the numeric route does not form, by what asks for it."""
+FORMED = {"--reactions": "no contact forces",
+          "--points": "no generated numpy module, which a run's named points come from",
+          "animate": "no generated numpy module, which the named points the drawing is placed by come from"}
+"""What a run projected at run time does not form, by what asks for it."""
 
 
 def refuse_unformed(system: KnownSystem, location: Location | None = None, what: str = "--reactions") -> None:
     """A :class:`ModelError` at ``location`` (where the model writes its velocity constraints) when
-    a run of ``system`` takes the numeric route, which forms neither the multipliers of the
-    constraints (``--reactions``) nor the generated module the named points come from
-    (``--points``, ``animate``)."""
+    ``system``'s projection onto the speeds is made at run time (in the generated C, or here without
+    a compiler), which forms neither the multipliers of the constraints (``--reactions``) nor the
+    generated numpy module the named points come from (``--points``, ``animate``)."""
     work = projection_work(system)
     if work >= NUMERIC_FROM:  # the numeric route (:func:`numeric_route`)
         hint = (f"simulate without {what} (the motion, energies and the held coordinates are written as usual)"
@@ -51,7 +52,8 @@ def refuse_unformed(system: KnownSystem, location: Location | None = None, what:
         raise ModelError([Problem(location, f"{what} of this model is not supported: its equations in the speeds "
                                             f"are too large to project symbolically (projection work "
                                             f"{work}, from {NUMERIC_FROM} a run projects in "
-                                            f"numbers at each step and forms {FORMED[what]})", hint)])
+                                            f"numbers at each step, in the generated C, and forms {FORMED[what]})",
+                                    hint)])
 
 
 class NumericSpeeds:
