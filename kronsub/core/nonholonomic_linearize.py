@@ -396,7 +396,8 @@ def velocity_rows(system: KnownSystem) -> tuple[sympy.Expr, ...]:
     ``A`` and ``b`` without the configuration constraints' rates (their last rows)."""
     s = system.speeds
     xdot = sympy.Matrix(list(system.velocities))
-    return s.rows or tuple(s.constraint_matrix * xdot + s.constraint_offset)[:s.constraint_matrix.rows - len(s.holonomic)]
+    rates = len(s.holonomic)  # the configuration constraints' rates: the last rows of A
+    return s.rows or tuple(s.constraint_matrix * xdot + s.constraint_offset)[:s.constraint_matrix.rows - rates]
 
 
 def primitive_metric(system: KnownSystem) -> ProjectedMetric | None:

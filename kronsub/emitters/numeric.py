@@ -389,9 +389,9 @@ def prepare(system: KnownSystem, source: str = "", outputs=None, guarded_angles:
     ``projected`` keeps the projection for run time (:mod:`.projected`; the caller checks that it
     applies), ``auto`` does so for a large system (never with first-order coordinates or the exact
     Jacobian); under velocity constraints ``projected`` keeps the projection onto the speeds for run
-    time (:mod:`.projected_speeds`), and ``auto`` does so when its symbolic projection is too large. ``terms_apart``: also ``hbar`` and ``fbar`` each on its
-    own; ``canonical``: also the canonical form's ``dT/dq + fbar`` (a library that runs a
-    method on ``y = [q; qdot]`` needs neither)."""
+    time (:mod:`.projected_speeds`), and ``auto`` does so when its symbolic projection is too large.
+    ``terms_apart``: also ``hbar`` and ``fbar`` each on its own; ``canonical``: also the canonical
+    form's ``dT/dq + fbar`` (a library that runs a method on ``y = [q; qdot]`` needs neither)."""
     energies = outputs is None or outputs.energies
     with_points = outputs is None or bool(outputs.points)
     speeds = system.speeds  # under velocity constraints: the equations in the speeds, the state [q; u]

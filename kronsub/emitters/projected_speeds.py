@@ -195,8 +195,8 @@ def frame_code(system: KnownSystem, slot: Callable, constants: Callable,
     frame = block(targets, exprs)
     rate_block = block([f"e[{i}]" for i in range(n)], [constants(slot(e)) for e in rates])
     timed = any(TIME in sympy.sympify(e).free_symbols for e in list(r0) + list(rates))
-    return FrameCode(n=n, p=p, frame=frame, rates=rate_block, metric=projected_code(system, slot, constants, block, kinetic=False),
-                     timed=timed)
+    metric = projected_code(system, slot, constants, block, kinetic=False)  # no canonical form in the speeds
+    return FrameCode(n=n, p=p, frame=frame, rates=rate_block, metric=metric, timed=timed)
 
 
 __all__ = ["FrameCode", "FrameEquations", "NUMERIC_FROM", "applies", "frame_code", "frame_equations", "numeric_route",

@@ -5,8 +5,8 @@ The equations in the speeds, ``Mbar udot = fbar - hbar`` with ``Mbar = C^T M C``
 symbolically for the numpy module; for a large system (a bicycle's rolling contacts) that
 projection (the solve of ``[A; Y] xdot = [-b; u]`` and the products of its long entries) is
 far beyond the work budget, and the generated C makes it in numbers at run time
-(:mod:`kronsub.emitters.projected_speeds`). Without a C compiler, this route evaluates the small pieces at each state, the
-primitive's metric and velocity terms, the forces, the rows of the constraints and their
+(:mod:`kronsub.emitters.projected_speeds`). Without a C compiler, this route evaluates the small
+pieces at each state, the primitive's metric and velocity terms, the forces, the rows of the constraints and their
 derivatives (:class:`~kronsub.core.nonholonomic_linearize.SteadyMotionRates`, compiled by
 lambdify per piece), and forms ``C``, ``Cdot u + ddot``, ``Mbar`` and ``fbar - hbar`` in numbers,
 after the held coordinates are put on their configuration constraints by Newton's method
