@@ -227,11 +227,12 @@ def _numeric_run(system, param, spec, grid, y0, steps, progress, with_energies) 
     scipy fallback."""
     if spec.engine != "scipy":
         if spec.fallback is None:
-            raise SimulationError(f"method '{spec.name}' needs generated code, which a model this large in its "
-                                  "speeds does not have (its equations are projected in numbers); use DOP853, "
-                                  "RK45, Radau or LSODA")
-        warnings.warn(f"method '{spec.name}' runs in compiled C, which this model does not have (its equations in "
-                      f"the speeds are projected in numbers at every step); using scipy's {spec.fallback} instead")
+            raise SimulationError(f"method '{spec.name}' needs compiled C, which is not available here (this "
+                                  "model's equations in the speeds are projected in numpy at every step); use "
+                                  "DOP853, RK45, Radau or LSODA")
+        warnings.warn(f"method '{spec.name}' runs in compiled C, which is not available here (this model's "
+                      f"equations in the speeds are projected in numpy at every step); using scipy's "
+                      f"{spec.fallback} instead")
         spec = METHODS[spec.fallback]
     numeric = NumericSpeeds(system, param)
     rows_of = runner(Problem(system, param, None, numeric.restart), spec)
