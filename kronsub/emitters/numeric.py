@@ -399,7 +399,7 @@ def prepare(system: KnownSystem, source: str = "", outputs=None, guarded_angles:
     n = len(velocities)  # Mbar is n x n
     # the projection onto the speeds at run time: the expressions in q, qdot (in qd[]) and t
     in_frame = speeds is not None and (route == "projected" or (
-        route == "auto" and not jacobian and frame_applies(system) and numeric_route(system)))
+        route == "auto" and frame_applies(system) and numeric_route(system)))  # (no exact Jacobian in speeds)
     params = [p for p in system.parameters]
     q_slots = {q: sympy.Symbol(f"q[{i}]") for i, q in enumerate(system.coordinates)}
     qd_slots = {v: sympy.Symbol(f"qd[{i}]") for i, v in enumerate(system.velocities if in_frame else velocities)}
@@ -449,10 +449,10 @@ def prepare(system: KnownSystem, source: str = "", outputs=None, guarded_angles:
     kinematics = exact = projected = frame = None
     r_targets = [f"r[{i}]" for i in range(n)]
     if in_frame:
-        if jacobian or not frame_applies(system):
+        if not frame_applies(system):
             raise KronsubError("cannot keep the projection onto the speeds for run time: the system has no "
                                "primitive, an implicit subspace, a connection in time or an effect applied in the "
-                               "subspace, or the exact Jacobian is asked for")
+                               "subspace")
         block = functools.partial(_block, rewrite=False)
         frame = frame_code(system, slot, constants, lambda t, e: block(t, e, "x", qs, guarded_angles))
         timed = frame.timed
