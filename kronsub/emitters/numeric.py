@@ -23,6 +23,7 @@ from sympy.simplify.cse_main import basic_optimizations as _BASIC
 from ..core.derivative import derivative
 from ..core.first_order import first_order
 from ..core.known_system import KnownSystem
+from ..core.projection_work import projected_in_numbers
 from ..core.rheonomic import depends_on_time
 from ..core.sympy_internals import eval_evalf
 from ..core.symbols import TIME, free_symbols_of
@@ -31,6 +32,8 @@ from .block import Block
 from .numeric_held import HeldCode, held_code
 from .numeric_implicit import ImplicitCode, implicit_code, intermediate_slots
 from .projected import ProjectedCode, projected_by_size, projected_code
+from .projected_speeds import FrameCode, frame_code
+from .projected_speeds import applies as frame_applies
 
 
 @dataclass(frozen=True)
@@ -62,6 +65,7 @@ class NumericModel:
     kinematics: Block | None = None  # qdot = C(q) u into xd[] (in pre[])
     held: HeldCode | None = None  # configuration constraints beside velocity constraints: q_D by Newton's method
     projected: ProjectedCode | None = None  # Mbar, hbar, fbar formed at run time (the blocks above empty)
+    frame: FrameCode | None = None  # under velocity constraints: the projection onto the speeds at run time
     velocities: tuple[str, ...] = ()  # the velocities' printed names (a charge's: its current); default q_dot
     terms_apart: bool = True  # emit hbar and fbar each on its own (a run's library needs neither)
     with_canonical: bool = True  # emit the canonical right-hand side (only gauss4 integrates it)
@@ -224,9 +228,19 @@ class _Constants:
         self.names = {p: sympy.Symbol(f"pre[{i}]") for i, p in enumerate(params)}
         self.derived: dict[sympy.Expr, sympy.Symbol] = {}
         self.count = len(params)
+        self.constant: dict[sympy.Expr, bool] = {}  # e -> whether it names parameters alone
+        self.done: dict[sympy.Expr, sympy.Expr] = {}  # e -> its image (a long entry's parts recur)
 
     def _constant(self, e: sympy.Expr) -> bool:
-        return e.free_symbols <= self.params
+        """``e.free_symbols <= params``, from its arguments' (remembered) where they are its own."""
+        hit = self.constant.get(e)
+        if hit is None:
+            if e.is_Atom or not (e.is_Add or e.is_Mul or e.is_Pow or isinstance(e, sympy.Function)):
+                hit = e.free_symbols <= self.params
+            else:
+                hit = all(self._constant(a) for a in e.args)
+            self.constant[e] = hit
+        return hit
 
     def _name(self, e: sympy.Expr) -> sympy.Expr:
         if e in self.names:
@@ -237,6 +251,12 @@ class _Constants:
         return self.derived[e]
 
     def __call__(self, e: sympy.Expr) -> sympy.Expr:
+        hit = self.done.get(e)
+        if hit is None:
+            hit = self.done[e] = self._image(e)
+        return hit
+
+    def _image(self, e: sympy.Expr) -> sympy.Expr:
         if e.is_Number:
             return e
         if e.is_Atom:
@@ -406,18 +426,22 @@ def prepare(system: KnownSystem, source: str = "", outputs=None, guarded_angles:
     ``Mbar`` (:func:`_single_angles`). ``jacobian``: also the blocks of ``d ydot/dy``
     (:func:`jacobian_block`; not with implicit constraints). ``route`` (:data:`.projected.ROUTES`):
     ``projected`` keeps the projection for run time (:mod:`.projected`; the caller checks that it
-    applies), ``auto`` does so for a large system (never with first-order coordinates, velocity
-    constraints or the exact Jacobian). ``terms_apart``: also ``hbar`` and ``fbar`` each on its
-    own; ``canonical``: also the canonical form's ``dT/dq + fbar`` (a library that runs a
-    method on ``y = [q; qdot]`` needs neither)."""
+    applies), ``auto`` does so for a large system (never with first-order coordinates or the exact
+    Jacobian); under velocity constraints ``projected`` keeps the projection onto the speeds for run
+    time (:mod:`.projected_speeds`), and ``auto`` does so when its symbolic projection is too large.
+    ``terms_apart``: also ``hbar`` and ``fbar`` each on its own; ``canonical``: also the canonical
+    form's ``dT/dq + fbar`` (a library that runs a method on ``y = [q; qdot]`` needs neither)."""
     energies = outputs is None or outputs.energies
     with_points = outputs is None or bool(outputs.points)
     speeds = system.speeds  # under velocity constraints: the equations in the speeds, the state [q; u]
     velocities = speeds.speeds if speeds is not None else system.velocities
     n = len(velocities)  # Mbar is n x n
+    # the projection onto the speeds at run time: the expressions in q, qdot (in qd[]) and t
+    in_frame = speeds is not None and (route == "projected" or (
+        route == "auto" and frame_applies(system) and projected_in_numbers(system)))  # (no exact Jacobian in speeds)
     params = [p for p in system.parameters]
     q_slots = {q: sympy.Symbol(f"q[{i}]") for i, q in enumerate(system.coordinates)}
-    qd_slots = {v: sympy.Symbol(f"qd[{i}]") for i, v in enumerate(velocities)}
+    qd_slots = {v: sympy.Symbol(f"qd[{i}]") for i, v in enumerate(system.velocities if in_frame else velocities)}
     p_slots = {p.symbol: sympy.Symbol(f"param[{i}]") for i, p in enumerate(params)}
     slots = {**q_slots, **qd_slots, **p_slots, TIME: sympy.Symbol("t")}
     if len(slots) != len(q_slots) + len(qd_slots) + len(p_slots) + 1:
@@ -447,22 +471,33 @@ def prepare(system: KnownSystem, source: str = "", outputs=None, guarded_angles:
         return expr.xreplace(slots)
 
     block = functools.partial(_block, rewritings=_Rewritings())  # the blocks share their entries' rewritings
-    M = speeds.mass_matrix if speeds is not None else system.mass_matrix
-    velocity_terms_of = speeds.velocity_terms if speeds is not None else system.velocity_terms
-    forces_of = speeds.forces if speeds is not None else system.forces
-    if TIME in free_symbols_of([M]):
-        raise KronsubError("cannot generate code: Mbar depends on t (a prescribed motion that changes the "
-                           "inertia); only hbar and fbar may name t in the generated code")
+    if not in_frame:
+        M = speeds.mass_matrix if speeds is not None else system.mass_matrix
+        velocity_terms_of = speeds.velocity_terms if speeds is not None else system.velocity_terms
+        forces_of = speeds.forces if speeds is not None else system.forces
+        if TIME in free_symbols_of([M]):
+            raise KronsubError("cannot generate code: Mbar depends on t (a prescribed motion that changes the "
+                               "inertia); only hbar and fbar may name t in the generated code")
     # x = x(xbar, t): hbar has the drive's terms and the points move with t (velocity_terms and points take t)
     timed = system.transition is not None and depends_on_time(dict(system.transition.connection))
-    if speeds is not None:  # A xdot + b(x, t) = 0: hbar holds d(t)'s terms
+    if speeds is not None and not in_frame:  # A xdot + b(x, t) = 0: hbar holds d(t)'s terms
         timed = timed or TIME in free_symbols_of([speeds.velocity_terms])
     qs = tuple(q_slots.values())
     constants = _Constants(list(p_slots.values()))
     first = first_order(system) if speeds is None else None
-    kinematics = exact = projected = None
+    kinematics = exact = projected = frame = None
     r_targets = [f"r[{i}]" for i in range(n)]
-    if speeds is None and first is None and not jacobian and (
+    if in_frame:
+        if not frame_applies(system):
+            raise KronsubError("cannot keep the projection onto the speeds for run time: the system has no "
+                               "primitive, an implicit subspace, a connection in time or an effect applied in the "
+                               "subspace")
+        block = functools.partial(_block, rewrite=False)
+        frame = frame_code(system, slot, constants, lambda t, e: block(t, e, "x", qs, guarded_angles))
+        timed = frame.timed
+        mass = velocity_terms = forces = equations = Block((), ())
+        canonical_block = block(r_targets, [sympy.Integer(0)] * n, "x", qs) if canonical else Block((), ())
+    elif speeds is None and first is None and not jacobian and (
             route == "projected" or (route == "auto" and system.implicit is None and projected_by_size(system))):
         # no rewritings: in a large system's potential and points they cost more than the
         # elimination itself, and the projection's entries are short already
@@ -569,6 +604,7 @@ def prepare(system: KnownSystem, source: str = "", outputs=None, guarded_angles:
         kinematics=kinematics,
         held=held,
         projected=projected,
+        frame=frame,
         velocities=tuple(system.name_of(v) for v in system.velocities),
         terms_apart=terms_apart,
         with_canonical=canonical,
