@@ -24,7 +24,7 @@ import sympy
 
 from ..core.known_system import KnownSystem
 from ..core.nonholonomic import speed_rates
-from ..core.nonholonomic_linearize import primitive_metric
+from ..core.nonholonomic_linearize import primitive_metric, velocity_rows
 from ..core.projection_work import NUMERIC_FROM, projected_in_numbers, projection_work
 from ..core.simplify import recompact, tidy
 from ..core.symbols import velocity_symbol
@@ -78,13 +78,8 @@ def printed_names(system: KnownSystem) -> frozenset[str]:
 
 def _rows(system: KnownSystem) -> list[sympy.Expr]:
     """The velocity constraints ``A xdot + b`` as made (a contact's rows, not reduced), without
-    the configuration constraints' rates."""
-    s = system.speeds
-    if s.rows:
-        return [sympy.sympify(r) for r in s.rows]
-    xdot = sympy.Matrix(list(system.velocities))
-    made = s.constraint_matrix * xdot + s.constraint_offset
-    return list(made)[:s.constraint_matrix.rows - len(s.holonomic)]
+    the configuration constraints' rates (:func:`~kronsub.core.nonholonomic_linearize.velocity_rows`)."""
+    return [sympy.sympify(r) for r in velocity_rows(system)]
 
 
 def implicit_report(system: KnownSystem, show: Printer, named: bool = True) -> dict:
