@@ -29,6 +29,7 @@ from .derivative import derivative, jacobian
 from .doubles import complex_value
 from .finite import nonfinite_cause
 from .known_system import Constraint, ImplicitSubspace, KnownSystem
+from .scales import row_sizes, rows_scaled
 from .simplify import compact
 from .symbols import symbol, velocity_symbol
 from .trigpoly import TrigAlgebra, TrigPoly
@@ -264,17 +265,23 @@ class NumericConstraints:
 
     def redundant_rows(self, y, tol: float = 1e-9) -> list[int]:
         """Constraints whose gradient lies in the span of the gradients listed before them
-        (Gram-Schmidt on the rows of ``G`` in the order written)."""
+        (Gram-Schmidt on the rows of ``G`` in the order written), each row against its own size
+        near ``y`` (its largest entry there and at a few configurations about it: a constraint
+        times a constant is the same, a gradient that vanishes only at ``y`` is redundant there)."""
         G = self.jacobian(y)
         if G.size == 0 or not np.all(np.isfinite(G)):
             return []
+        rng = np.random.default_rng(20070509)
+        around = [self.jacobian(np.asarray(y, dtype=float) + rng.uniform(-1, 1, len(y))) for _ in range(3)]
+        sizes = row_sizes([G, *(J for J in around if np.all(np.isfinite(J)))])
+        G = rows_scaled(G, sizes)
         basis, bad = [], []
         for i, row in enumerate(G):
             r = row.astype(float).copy()
             for u in basis:
                 r -= u * (u @ r)
             norm = np.linalg.norm(r)
-            if norm <= tol * np.linalg.norm(row):  # relative to the row: a constraint times a constant is the same
+            if norm <= tol:
                 bad.append(i)
             else:
                 basis.append(r / norm)

@@ -33,6 +33,7 @@ from .deferred import DeferredMatrix
 from .derivative import derivative, jacobian, where_defined
 from .known_system import Constraint, KnownSystem, SpeedEquations
 from .numeric_jacobian import value_and_jacobian
+from .scales import row_sizes, rows_scaled
 from .symbols import TIME, acceleration_symbol, velocity_symbol
 
 GENERIC_POINTS = 3  # a rank is taken at this many random points (a generic one is almost sure)
@@ -457,11 +458,9 @@ def _rank(A: sympy.Matrix, points: list[dict]) -> int:
     """The largest rank of ``A`` at ``points``, complex values taken as they come (a random point
     may leave a function's real domain, ``asin`` of 1.3) and points where an entry is infinite or
     undefined left out; at none finite, :class:`VelocityConstraintError`."""
-    ranks = []
-    for p in points:
-        values = _numeric(A, p)
-        if values is not None and np.all(np.isfinite(values)):
-            ranks.append(int(np.linalg.matrix_rank(rows_scaled(values), tol=1e-9)) if values.size else 0)
+    found = [v for v in (_numeric(A, p) for p in points) if v is not None and np.all(np.isfinite(v))]
+    scale = row_sizes(found)
+    ranks = [int(np.linalg.matrix_rank(rows_scaled(v, scale), tol=1e-9)) if v.size else 0 for v in found]
     if not ranks:
         raise VelocityConstraintError(
             "the coefficients of the velocities are infinite or undefined at every configuration tried, the "
@@ -470,15 +469,11 @@ def _rank(A: sympy.Matrix, points: list[dict]) -> int:
     return max(ranks)
 
 
-def rows_scaled(values: np.ndarray) -> np.ndarray:
-    """``values`` with each row divided by its largest entry in size (a zero row kept): a
-    constraint written in other units, or times a constant, has the same rank and the same
-    regularity, so tolerances on the result are relative to each row's scale."""
-    values = np.asarray(values)
-    if not values.size:
-        return values
-    scale = np.max(np.abs(values), axis=1, keepdims=True)
-    return values / np.where(scale > 0, scale, 1)
+def generic_values(A: sympy.Matrix, coordinates, values=None) -> list[np.ndarray]:
+    """``A`` at :data:`GENERIC_POINTS` random configurations (the parameters at ``values``),
+    where it has finite values (complex ones taken as they come)."""
+    found = [_numeric(A, p) for p in _generic_points(A, coordinates, values)]
+    return [v for v in found if v is not None and np.all(np.isfinite(v))]
 
 
 def _numeric(A: sympy.Matrix, point: dict) -> np.ndarray | None:
@@ -497,6 +492,6 @@ def _numeric(A: sympy.Matrix, point: dict) -> np.ndarray | None:
 
 
 __all__ = ["GENERIC_POINTS", "NonholonomicProjection", "VelocityConstraintError", "VelocityTransformation",
-           "SpeedProjection", "TIDY", "rows_scaled", "differentiated_form", "frame_entry", "generic_rank", "integrable", "linear_form",
+           "SpeedProjection", "TIDY", "generic_values", "differentiated_form", "frame_entry", "generic_rank", "integrable", "linear_form",
            "project_nonholonomic", "refuse_speeds", "speed_accelerations", "speed_equations", "speed_rates", "tidy_entry",
            "velocity_multipliers", "velocity_transformation"]

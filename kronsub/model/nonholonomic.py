@@ -22,7 +22,8 @@ from dataclasses import dataclass
 import numpy as np
 import sympy
 
-from ..core.nonholonomic import VelocityConstraintError, VelocityTransformation, rows_scaled, velocity_transformation
+from ..core.nonholonomic import VelocityConstraintError, VelocityTransformation, generic_values, velocity_transformation
+from ..core.scales import row_sizes, rows_scaled
 from ..core.reference_frame import frame_transformation
 from ..core.symbols import TIME, symbol, velocity_symbol
 from ..errors import Location
@@ -156,7 +157,9 @@ def check_start(reader: ModelReader, written: Location, spec: VelocitySpec, init
         reader.error(written, f"the {'speeds' if spec.frame else 'velocity constraints or the speeds'} have no real "
                      f"value {at}", "check the arguments of sqrt, log, asin and acos, and divisions, there")
         return
-    sigma = np.linalg.svd(rows_scaled(numbers.real), compute_uv=False)
+    generic = analysed_A.col_join(velocity.speed_matrix)  # each row's size over generic configurations
+    sizes = row_sizes([v.real for v in generic_values(generic, x, _values(reader))])
+    sigma = np.linalg.svd(rows_scaled(numbers.real, sizes), compute_uv=False)
     if sigma[-1] > SINGULAR * sigma[0]:
         return
     if spec.frame:
@@ -164,7 +167,8 @@ def check_start(reader: ModelReader, written: Location, spec: VelocitySpec, init
                      "start the coordinates where the speeds are independent, or define speeds that stay independent")
         return
     hint = "start the coordinates elsewhere, or choose speeds that are independent there"
-    serving = None if chosen else _regular_speeds(numbers.real[:A.rows, :], x)
+    serving = None if chosen else _regular_speeds(numbers.real[:A.rows, :], x,
+                                                  None if sizes is None else sizes[:A.rows])
     if serving:
         hint += ", e.g. `speeds: [" + ", ".join(serving) + "]`"
     reader.error(written, f"the speeds are singular {at}: [A; Y] xdot = [-b; u] has no solution there, so "
@@ -180,12 +184,13 @@ def _complex_array(matrix: sympy.Matrix):
     return values if np.all(np.isfinite(values)) else None
 
 
-def _regular_speeds(A: np.ndarray, x) -> list[str] | None:
-    """Velocities that, as the speeds, leave ``[A; Y]`` regular for the number matrix ``A``: the
-    first coordinates' whose complement's columns of ``A`` are independent."""
+def _regular_speeds(A: np.ndarray, x, sizes: np.ndarray | None) -> list[str] | None:
+    """Velocities that, as the speeds, leave ``[A; Y]`` regular for the number matrix ``A`` (its
+    rows' sizes ``sizes``, :func:`~kronsub.core.nonholonomic.row_sizes`): the first coordinates'
+    whose complement's columns of ``A`` are independent."""
     m, n = A.shape
     for dependent in itertools.combinations(reversed(range(n)), m):
-        block = rows_scaled(A[:, sorted(dependent)])
+        block = rows_scaled(A, sizes)[:, sorted(dependent)]
         sigma = np.linalg.svd(block, compute_uv=False)
         if m and sigma[-1] > SINGULAR * sigma[0]:
             return [velocity_symbol(x[j]).name for j in range(n) if j not in dependent]
