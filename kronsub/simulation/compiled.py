@@ -135,13 +135,15 @@ def compiled_library(system: KnownSystem, outputs=None, jacobian: bool = False, 
     when its fingerprint is there and the library says it computes these equations
     (:func:`belongs`), else emitted, built (:func:`.native.compile_library`) and indexed.
     ``jacobian``: with the exact ``d ydot/dy`` (``ks_jacobian``); ``canonical``: with
-    ``ks_rhs_canonical``. Raises what ``compile_library`` raises."""
+    ``ks_rhs_canonical``; the integrators compile meanwhile (:func:`.native.compile_ahead`).
+    Raises what ``compile_library`` raises."""
     key = fingerprint(system, outputs, jacobian, canonical)
     nq, nparam = len(system.coordinates), len(system.parameters)
     if key is not None:
         library = lookup(key)
         if library is not None and belongs(library, key, nq, nparam):
             return library
+    native.compile_ahead()  # the integrators compile while the model's C is emitted
     generated = generated_sources(system, outputs, jacobian, canonical)
     if key is not None:
         generated.append(identity_source(key, nq, nparam))
