@@ -347,11 +347,10 @@ def _compiled_ahead(command: list[str], compile_flags: list[str], files: list[tu
 
 def _compile_and_link(command: list[str], flags, folder: Path, files: list[tuple[str, str]],
                       output: Path) -> tuple[subprocess.CompletedProcess, list[str]]:
-    """Compile each C file of ``files`` to an object, side by side (the model's C and the
-    integrators take the compiler about as long as each other on small models; the
+    """Compile each C file of ``files`` to an object, side by side, the largest first (the
     integrators' object is taken from :func:`compile_ahead` when it made one), then link them
-    into ``output``. Returns the first failed step, or the link, and its command; the objects
-    made here are removed."""
+    into ``output`` in the order of ``files``. Returns the first failed step, or the link, and
+    its command; the objects made here are removed."""
     compile_flags = _compile_flags(flags)
     c_files = [name for name, _ in files if name.endswith(".c")]
     objects, ready = [], []
@@ -363,7 +362,9 @@ def _compile_and_link(command: list[str], flags, folder: Path, files: list[tuple
         steps = [[*command, *compile_flags, "-c", "-I", str(folder), "-o", obj, name]
                  for name, obj in zip(c_files, objects)]
         ahead = [step for step in steps if step[-1] == "integrators.c"]
-        later = steps if not ahead else [step for step in steps if step[-1] != "integrators.c"]
+        later = [step for step in steps if not ahead or step[-1] != "integrators.c"]
+        size = {name: len(text) for name, text in files}
+        later.sort(key=lambda step: -size[step[-1]])  # the largest first: a small file waits on no large one
         with ThreadPoolExecutor(max_workers=max(1, min(len(later), os.cpu_count() or 1))) as pool:
             running = [pool.submit(_run_compiler, step, folder) for step in later]
             made = _compiled_ahead(command, compile_flags, files) if ahead else None
