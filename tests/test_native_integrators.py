@@ -608,6 +608,25 @@ def test_integrators_that_failed_ahead_are_compiled_with_the_model(cache, monkey
     assert math.isclose(model.rhs(0.0, [1.0, 0.0], [2.0, 8.0])[1], -4.0)
 
 
+def test_a_forked_child_does_not_wait_on_its_parent_s_integrators(cache, monkeypatch):
+    """A build started ahead by another process (a parent before it forked: its thread is not
+    in the child) is neither waited on nor counted as started."""
+    from concurrent.futures import Future
+
+    monkeypatch.setattr(native, "_AHEAD", {})
+    native.compile_ahead()
+    (key, (pid, _, obj)), = native._AHEAD.items()
+    assert pid == os.getpid()
+    native._AHEAD[key] = (pid + 1, Future(), obj)  # never finished here
+    files = [(name, (native.CSRC / name).read_text()) for name in native.INTEGRATOR_FILES]
+    flags = [f for f in native.build_flags() if f != "-shared"]
+    assert native._compiled_ahead(native.compiler_command(), flags, files) is None  # at once
+    native.compile_ahead()
+    assert native._AHEAD[key][0] == os.getpid()  # started again, here
+    model = NativeModel.build([OSCILLATOR + "/* after a fork */\n"], "oscillator", nq=1, nparam=2)
+    assert math.isclose(model.rhs(0.0, [1.0, 0.0], [2.0, 8.0])[1], -4.0)
+
+
 def test_data_address_is_numpys_for_every_kind_of_array():
     """`native.data_address` (what every call into a compiled model passes) is the address
     numpy gives, for writable, read-only, empty and non-contiguous arrays."""

@@ -299,7 +299,7 @@ def _ahead_key(command: list[str], compile_flags: list[str], files: list[tuple[s
     return digest.hexdigest()
 
 
-_AHEAD: dict[str, tuple[Future, Path]] = {}
+_AHEAD: dict[str, tuple[int, Future, Path]] = {}  # (the process that started it, its build, the object)
 
 
 def compile_ahead() -> None:
@@ -308,7 +308,8 @@ def compile_ahead() -> None:
     flags: a caller about to emit a model's C lets the compiler work meanwhile, and the model's
     own files then have the processors to themselves. The object goes to the process's private
     temporary folder; nothing is started without a compiler, or when this process compiled
-    them, or is compiling them, already. A failed start is no error: the build compiles them."""
+    them, or is compiling them, already (a forked child starts its own). A failed start is no
+    error: the build compiles them."""
     try:
         command = compiler_command()
     except CompilerNotFound:
@@ -316,7 +317,7 @@ def compile_ahead() -> None:
     flags = _compile_flags(build_flags())
     files = [(name, (CSRC / name).read_text()) for name in INTEGRATOR_FILES]
     key = _ahead_key(command, flags, files)
-    if key in _AHEAD:
+    if key in _AHEAD and _AHEAD[key][0] == os.getpid():  # a forked child does not wait on its parent's thread
         return
     try:
         folder = private_folder(_scratch_root() / f"integrators-{key[:24]}")
@@ -327,7 +328,7 @@ def compile_ahead() -> None:
     obj = folder / "integrators.o"
     step = [*command, *flags, "-c", "-I", str(folder), "-o", str(obj), "integrators.c"]
     pool = ThreadPoolExecutor(max_workers=1)
-    _AHEAD[key] = (pool.submit(_run_compiler, step, folder), obj)
+    _AHEAD[key] = (os.getpid(), pool.submit(_run_compiler, step, folder), obj)
     pool.shutdown(wait=False)
 
 
@@ -335,9 +336,9 @@ def _compiled_ahead(command: list[str], compile_flags: list[str], files: list[tu
     """The object :func:`compile_ahead` made of the integrators among ``files`` for this
     command and these flags (waiting for it), or None: not started, failed, or gone."""
     ahead = _AHEAD.get(_ahead_key(command, compile_flags, [f for f in files if f[0] in INTEGRATOR_FILES]))
-    if ahead is None:
+    if ahead is None or ahead[0] != os.getpid():
         return None
-    future, obj = ahead
+    _, future, obj = ahead
     try:
         proc = future.result(timeout=COMPILE_TIMEOUT)
     except Exception:  # noqa: BLE001 - a start that failed in any way: compiled with the model
