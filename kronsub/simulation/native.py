@@ -341,7 +341,7 @@ def _compiled_ahead(command: list[str], compile_flags: list[str], files: list[tu
     _, future, obj = ahead
     try:
         proc = future.result(timeout=COMPILE_TIMEOUT)
-    except Exception:  # noqa: BLE001 - a start that failed in any way: compiled with the model
+    except Exception:  # a start that failed in any way: compiled with the model
         return None
     return obj if proc.returncode == 0 and obj.is_file() else None
 
