@@ -17,14 +17,19 @@ first line of the build to the eigenvalues at v = 5 m/s:
 * ``simulate``: ``kronsub simulate models/benchmarks/whipple_bicycle.yaml --t 10`` as a command in a
   fresh process with an empty cache folder (the model's own initial state, at rest), and the same
   from upright running at 5 m/s rolled by 1e-3 rad (``--set roll=0.001 --set rear_dot=5/rR``):
-  the equations in the speeds projected in numbers at every evaluation
-  (``simulation/numeric_speeds.py``), timed from the command's start to its exit;
+  the equations in the speeds projected in numbers at every evaluation by the generated C
+  (``emitters/projected_speeds.py``; emitted and compiled within the command), timed from the
+  command's start to its exit;
+* ``per call``: one evaluation of the right-hand side ``[qdot; udot]`` at the rolled state, the
+  generated C's (through the library scipy calls, ``NativeModel.scipy_rhs``) beside the numpy
+  route's (``simulation/numeric_speeds.py``, what a run without a C compiler takes), min over
+  five batches, in the same process;
 * ``sympy``: sympy's own ``test_bicycle`` (``sympy/physics/mechanics/tests/test_kane3.py``):
   ``KanesMethod`` on the same benchmark bicycle, its ``linearize`` and the check of ``A`` at
   v = 0..5, the peer this project's derivation is set beside.
 
 Reported: min and median seconds (the two kronsub routes interleaved, repeat by repeat), the
-CPU seconds, the ratios, and the targets (each route's derive + linearise <= 10 s; the model
+CPU seconds, the ratios (numpy / C per call), and the targets (each route's derive + linearise <= 10 s; the model
 file's ``simulate --t 10`` cold <= 15 s).
 """
 from __future__ import annotations
@@ -71,6 +76,30 @@ for v in range(11):
 print(cpu, first, time.perf_counter() - start)
 """
 
+PER_CALL = f"""
+import sys, time
+sys.path.insert(0, {str(REPO)!r})
+import numpy as np
+import kronsub
+from kronsub.simulation.compiled import native_model
+from kronsub.simulation.numeric_speeds import NumericSpeeds
+system = kronsub.load({str(BICYCLE)!r}).derive()
+param = np.array([float(p.value) for p in system.parameters])
+names = [q.name for q in system.coordinates] + [u.name for u in system.speeds.speeds]
+y = np.zeros(len(names))
+y[names.index("roll")], y[names.index("rear_dot")] = 1e-3, 5.0 / 0.3
+routes = {{"C": native_model(system, canonical=False).scipy_rhs(param), "numpy": NumericSpeeds(system, param).rhs}}
+for name, f in routes.items():
+    count = 20000 if name == "C" else 200
+    best = float("inf")
+    for _ in range(5):
+        start = time.perf_counter()
+        for _ in range(count):
+            f(0.0, y)
+        best = min(best, (time.perf_counter() - start) / count)
+    print(name, best)
+"""
+
 SYMPY = """
 import time
 start = time.perf_counter()
@@ -111,6 +140,17 @@ def simulated(extra: list[str], timeout: float) -> tuple[float, float, float] | 
     return wall, wall, (after.ru_utime + after.ru_stime) - (before.ru_utime + before.ru_stime)
 
 
+def per_call(timeout: float) -> dict[str, float] | None:
+    """Seconds per call of each route's right-hand side (in a fresh process, the cache folder empty)."""
+    with tempfile.TemporaryDirectory() as cache:
+        try:
+            out = subprocess.run([sys.executable, "-c", PER_CALL], capture_output=True, text=True, timeout=timeout,
+                                 check=True, cwd=REPO, env={**os.environ, "KRONSUB_CACHE_DIR": cache}).stdout
+        except subprocess.TimeoutExpired:
+            return None
+    return {line.split()[0]: float(line.split()[1]) for line in out.splitlines() if line.strip()}
+
+
 def row(name: str, runs: list) -> str:
     """min and median to v = 5, the least CPU, the least to v = 0..10."""
     done = [t for t in runs if t]
@@ -139,6 +179,10 @@ def main(argv=None) -> int:
     print(row("yaml", files))
     for name, times in runs.items():
         print(row(name, times))
+    calls = per_call(600)
+    if calls:
+        print(f"per call: C {calls['C'] * 1e6:.1f} us, numpy {calls['numpy'] * 1e6:.0f} us, "
+              f"ratio numpy / C {calls['numpy'] / calls['C']:.0f}")
     firsts = [t[0] for t in ours if t]
     from_file = [t[0] for t in files if t]
     if firsts and from_file:

@@ -54,18 +54,23 @@ class WorkBudgetExceeded(ModelError):
     """The work budget is spent: ``what`` grew beyond it (a located `ModelError`); ``seconds``
     when it was the CPU-time backstop that stopped it."""
 
-    def __init__(self, what: str, units: int, location: Location | None = None, seconds: float | None = None):
-        self.what, self.units, self.location, self.seconds = what, units, location, seconds
+    def __init__(self, what: str, units: int, location: Location | None = None, seconds: float | None = None,
+                 hint: str | None = None):
+        self.what, self.units, self.location, self.seconds, self.hint = what, units, location, seconds, hint
         limit = f"the work budget of {units:,} units" if seconds is None else \
             f"the {seconds:g} s of CPU time of the work budget of {units:,} units"
         super().__init__([Problem(location, f"stopped: {what} exceeded {limit}",
-                                  HINT.format(default=DEFAULT_UNITS))])
+                                  hint or HINT.format(default=DEFAULT_UNITS))])
 
     def at(self, location: Location | None) -> "WorkBudgetExceeded":
         """The same error placed at ``location``, unless it is placed already."""
         if self.location is not None or location is None:
             return self
-        return WorkBudgetExceeded(self.what, self.units, location, self.seconds)
+        return WorkBudgetExceeded(self.what, self.units, location, self.seconds, self.hint)
+
+    def advised(self, hint: str) -> "WorkBudgetExceeded":
+        """The same error with ``hint`` instead of the general one (a layer that knows a better route)."""
+        return WorkBudgetExceeded(self.what, self.units, self.location, self.seconds, hint)
 
 
 class WorkBudget:

@@ -94,6 +94,29 @@ def test_numeric_functions_match_the_mechanics_reference(double_pendulum):
     assert f.parameters["m2"] == 1.3 and f.state == ("q1", "q2", "q1_dot", "q2_dot")
 
 
+def test_numeric_makes_the_numpy_module_only_when_asked_and_within_the_budget(double_pendulum, monkeypatch):
+    """rhs and the energies come from the C; the numpy module (mass matrix, forces, velocity
+    terms) is made at the first call that needs it, once, under the work budget: a system whose
+    symbolic projection is beyond it (the bicycle's model file) stops there with a hint instead
+    of running without end."""
+    import shutil
+
+    import kronsub.simulation.fallback as fallback
+    from kronsub import budget
+
+    if not (shutil.which("gcc") or shutil.which("cc")):
+        pytest.skip("no C compiler")
+    made = []
+    real = fallback.numpy_module
+    monkeypatch.setattr(fallback, "numpy_module", lambda *a, **k: made.append(budget.active()) or real(*a, **k))
+    f = double_pendulum.numeric()
+    y = np.array([0.3, -0.2, 0.1, 0.4])
+    f.rhs(0.0, y), f.kinetic_energy(y)
+    assert made == []
+    f.mass_matrix(y[:2]), f.forces(0.0, y), f.velocity_terms(y)
+    assert len(made) == 1 and made[0] is not None
+
+
 def test_symbol_by_name_is_the_systems_own(double_pendulum):
     g = double_pendulum.symbol("g")
     assert g in double_pendulum.forces.free_symbols

@@ -205,3 +205,19 @@ def test_the_machine_pair_splits_each_machine(tmp_path):
     np.testing.assert_allclose(c["dissipated_power"], 2 * Rs * phases + Rf * (c["i_f1"] ** 2 + c["i_f2"] ** 2)
                                + D * (w1**2 + w2**2), rtol=1e-12)
     assert_balance(c, vf * (c["i_f1"] + c["i_f2"]) + Tm1 * w1 + Tm2 * w2, 0 * c["t"])
+
+
+def test_a_split_with_no_value_at_a_row_is_nan_and_the_run_says_why(tmp_path):
+    """A capacitance C t through zero at the start: the electric energy q^2/(2 C t) has no value
+    there (a division by zero in Python's floats): that row's columns are NaN, the rows are kept
+    and the run stops with a located reason, never an internal error."""
+    text = (CIRCUITS / "series_rlc.yaml").read_text()
+    model = tmp_path / "rlc.yaml"
+    model.write_text(text.replace("charge: q_C, capacitance: C}", "charge: q_C, capacitance: C*t}"))
+    out = tmp_path / "run.csv"
+    result = CliRunner().invoke(main, ["simulate", str(model), "--t", "1", "-o", str(out)])
+    assert result.exit_code == 3, result.output
+    assert "internal error" not in result.output and "division by zero" in result.output
+    header = out.read_text().splitlines()[0].split(",")
+    row = np.loadtxt(out, delimiter=",", skiprows=1, ndmin=2)[0]
+    assert all(np.isnan(row[header.index(name)]) for name in SPLIT[1:3])

@@ -205,6 +205,16 @@ def test_pendulum_starter_linearises_to_the_compound_pendulum(tmp_path):
                           + 3 * g / (2 * L)) == 0
 
 
+def test_new_through_a_missing_folder_names_the_users_path(tmp_path, monkeypatch):
+    """``missing/../../p``: the path resolves to an existing folder, but the system cannot go
+    through ``missing``: the error names the user's path, not the temporary file."""
+    monkeypatch.chdir(tmp_path)
+    result = invoke("new", "missing/../../p")
+    assert result.exit_code == 1
+    assert result.output.startswith("Error: missing/../../p.yaml: cannot create a file in missing/../..")
+    assert ".tmp" not in result.output and not list(tmp_path.parent.glob(".p.yaml.*"))
+
+
 # -- kronsub check -----------------------------------------------------------------------------
 
 def test_check_reports_every_problem_and_exits_1(tmp_path):

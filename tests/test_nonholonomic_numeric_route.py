@@ -1,20 +1,24 @@
-"""Runs of systems under velocity constraints projected in numbers at every evaluation
-(kronsub/simulation/numeric_speeds.py): ``C``, ``Cdot u``, ``Mbar = C^T M C`` and ``fbar - hbar``
-formed from the primitive's metric, the forces and the constraints' rows at each state, the held
-coordinates put on their configuration constraints by Newton's method first.
+"""Systems under velocity constraints whose projection onto the speeds is too large to make
+symbolically: the generated C makes it at run time (kronsub/emitters/projected_speeds.py,
+tests/test_projected_speeds.py), and without a C compiler a run projects in numpy at every
+evaluation (kronsub/simulation/numeric_speeds.py): ``C``, ``Cdot u``, ``Mbar = C^T M C`` and
+``fbar - hbar`` formed from the primitive's metric, the forces and the constraints' rows at each
+state, the held coordinates put on their configuration constraints by Newton's method first.
 
 - On the small models, where the symbolic projection is made (the generated numpy module), the
-  numeric route gives the same rates and energies at random states to ~1e-12: the rolling disc,
+  numpy route gives the same rates and energies at random states to ~1e-12: the rolling disc,
   the Chaplygin sleigh, the differential drive, the disc rolling by a joint (the contact's rows
   as made), the disc with its centre's height held by a configuration constraint, the sleigh on a
   moving belt (``xdot = C u + d(x, t)``) and the sleigh beside two beads held on wires.
 - The route is taken by the measured projection work: not for those, for the Whipple bicycle's
   model file (models/benchmarks/whipple_bicycle.yaml), which the API and the CLI then simulate
-  within the default work budget: from upright running at 5 m/s rolled by 1e-3 rad the roll and
-  steer follow ``exp(A t)`` of the model file's own linearisation (second order in the roll), the
-  energy (gravity alone does work) is kept, the front contact stays on the ground; the CSV has
-  the columns and metadata of every run (and --plot its figure), and --reactions, --points and animate (which need the
-  generated module's contact forces or named points) are refused at the velocity constraints.
+  in its generated C within the default work budget: from upright running at 5 m/s rolled by
+  1e-3 rad the roll and steer follow ``exp(A t)`` of the model file's own linearisation (second
+  order in the roll), the energy (gravity alone does work) is kept, the front contact stays on
+  the ground; without a compiler the numpy route runs the same motion; the CSV has the columns and
+  metadata of every run (and --plot its figure), and --reactions, --points and animate (which
+  need the generated numpy module's contact forces or named points) are refused at the velocity
+  constraints.
 """
 import json
 from pathlib import Path
@@ -28,7 +32,9 @@ import kronsub
 from kronsub.cli import main
 from kronsub.errors import ModelError
 from kronsub.simulation.fallback import module_energies, numpy_module
-from kronsub.simulation.numeric_speeds import NUMERIC_FROM, NumericSpeeds, numeric_route, projection_work
+from kronsub.core.projection_work import NUMERIC_FROM, projection_work
+from kronsub.core.projection_work import projected_in_numbers as numeric_route
+from kronsub.simulation.numeric_speeds import NumericSpeeds
 
 ROOT = Path(__file__).resolve().parent.parent
 SMALL = [ROOT / "models" / "nonholonomic" / f"{name}.yaml" for name in
@@ -78,7 +84,7 @@ def test_the_bicycle_takes_the_numeric_route(bicycle):
 
 
 def test_the_bicycle_follows_its_linearisation(bicycle, run):
-    assert run.metadata["complete"] and run.metadata["right_hand_side"] == "numpy"
+    assert run.metadata["complete"] and run.metadata["right_hand_side"] == "C"  # projected at run time
     lin = bicycle.linearize(at={"rear_dot": SPEED / RR})
     assert [s.name for s in lin.state] == ["roll", "steer", "roll_dot", "steer_dot", "rear_dot"]
     linear = np.array([expm(lin.A * t) @ [ROLL, 0.0, 0.0, 0.0, 0.0] for t in run.t])
@@ -86,6 +92,23 @@ def test_the_bicycle_follows_its_linearisation(bicycle, run):
         assert np.max(np.abs(run[name] - linear[:, k])) < 1e-4 * ROLL, name  # second order in ROLL
     assert np.max(np.abs(run["steer"])) > 0.1 * ROLL  # the steer answers the roll
     assert np.max(np.abs(run["rear_dot"] - SPEED / RR)) < 1e-3 * SPEED / RR
+
+
+def test_without_a_compiler_the_numpy_route_runs_the_same_motion(bicycle, run, monkeypatch):
+    from kronsub.simulation import run as runs
+    from kronsub.simulation.native import CompilerNotFound
+
+    def missing(*args, **kwargs):
+        raise CompilerNotFound("none here")
+
+    monkeypatch.setattr(runs, "native_model", missing)
+    with pytest.warns(UserWarning) as caught:
+        short = bicycle.simulate(t=0.3, dt=0.05, set={"roll": ROLL, "rear_dot": SPEED / RR}, dataframe=False)
+    said = " ".join(str(w.message) for w in caught)
+    assert "no C compiler" in said and "using scipy's DOP853 instead" in said
+    assert short.metadata["right_hand_side"] == "numpy" and short.metadata["complete"]
+    for name in ("roll", "steer", "roll_dot", "steer_dot", "rear_dot", "pitch"):
+        assert np.allclose(short[name], run[name][:len(short.t)], rtol=1e-6, atol=1e-8 * ROLL), name
 
 
 def test_the_bicycle_keeps_its_energy_and_its_front_contact(bicycle, run):

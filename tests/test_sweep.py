@@ -174,7 +174,10 @@ def test_taylor_summaries_without_rows_equal_those_of_whole_rows(max_steps):
 
 
 def test_a_failed_run_is_a_row():
-    job = job_of(SYSTEM1, "free", ("m1=[1, -5]", ), t_end=1.0)  # a negative mass: Mbar not positive definite
+    loaded, chosen, system = scene_system(SYSTEM1, "free")  # the upper rod massless; the lower one too in run 1:
+    plan = make_plan(*read_axes(("m2=[1, 0]",), ()), None, 0)  # then Mbar is singular
+    job = make_job(system, plan, initial_values(loaded, chosen), {"m1": "0", "I1": "0"}, method="dop853",
+                   t_end=1.0, dt=0.05, rtol=1e-10, atol=1e-10, chunk=4)
     rows = rows_of(job)
     assert list(rows["status"]) == ["complete", "stopped"]
     assert "mass matrix" in rows["reason"][1] and rows["t_final"][1] < 1.0
@@ -281,6 +284,11 @@ def test_a_crash_in_a_worker_thread_keeps_the_written_chunks_and_resume_finishes
     (["--grid", "theta=0:1:10000000", "--grid", "phi=0:1:10000000"], 2, "more than 1,000,000,000"),
     (["--grid", "theta=0:1:3", "--sample", "theta=uniform(0, 1)", "--runs", "2"], 1, "theta is swept twice"),
     ([], 2, "nothing to sweep"),
+    (["--grid", "m1=-1:1:3"], 1, "--grid m1=-1:1:3: run 0 (m1 = -1): mass of component 'upper' must not be negative"),
+    (["--grid", "a2=1:0:2"], 1, "--grid a2=1:0:2: the grid of a2 is inverted"),
+    (["--grid", "a2=0:1:2", "--grid", "m1=1:2:2"], 1,
+     "--grid a2=0:1:2: run 0 (a2 = 0, m1 = 1): length of component 'lower' must be positive"),
+    (["--sample", "m2=normal(1, 10)", "--runs", "50"], 1, "--sample m2=normal(1, 10): run "),
 ])
 def test_bad_input_is_a_located_error(tmp_path, extra, code, told):
     result = run([SYSTEM1, "--scene", "free", *extra, "-o", tmp_path / "out.parquet"])
@@ -448,7 +456,10 @@ def test_a_table_of_runs(tmp_path):
 
 @pytest.mark.parametrize("text, told", [
     ("theta,m3\n1,2\n", "--table T.csv: column m3: m3: no parameter, coordinate or velocity"),
-    ("theta,m2\n1,x\n", "--table T.csv: column m2 is not numeric"),
+    ("theta,m2\n1,x\n", "--table T.csv: column m2 is not numeric: row 1 holds 'x'"),
+    ("m2,m2\n1,2\n", "--table T.csv: column m2 appears 2 times"),
+    ("m2,,\n1,2,3\n", "--table T.csv: column 2 has no name"),
+    ("m2\n1\n-0.5\n", "--table T.csv: column m2: run 1 (m2 = -0.5): mass of component 'lower' must not be negative"),
     ("theta,m2\n1,\n", "--table T.csv: column m2, row 1: not a finite number"),
     ("theta\n", "--table T.csv: the table has no rows"),
 ])
@@ -574,3 +585,30 @@ def test_the_local_cluster_leaves_out_what_only_its_dashboard_would_show():
         (worker,) = cluster.workers.values()
         assert "profile" not in worker.periodic_callbacks and worker.state.nthreads == 2
         assert worker.periodic_callbacks["tick"].callback_time >= 500
+
+
+def test_requirements_over_many_runs_fail_where_one_run_at_a_time_fails():
+    """first_unmet (numpy over the runs) against unmet (one run at a time, in SymPy) on random
+    values: a mass, a coupling and a body's inertia tensor."""
+    import sympy
+
+    from kronsub.components.base import COUPLING, INERTIA, NONNEGATIVE, Requirement
+    from kronsub.model.requirements import first_unmet, unmet
+
+    a, b, c = sympy.symbols("a b c")
+    reqs = [Requirement("mass", a - b / 2, NONNEGATIVE, None), Requirement("mutual", a * c - b**2, COUPLING, None),
+            Requirement("tensor", sympy.Matrix([[a, 0, 0], [0, c, b], [0, b, a + c]]), INERTIA, None)]
+    rng = np.random.default_rng(7)
+    for trial in range(40):
+        columns = [rng.uniform(-0.2, 2, 30), rng.uniform(-1, 1, 30), rng.uniform(0, 2, 30)]
+        one_by_one = [r for r in range(30)
+                      if unmet(reqs, {s: float(col[r]) for s, col in zip((a, b, c), columns)})]
+        found = first_unmet(reqs, [a, b, c], columns)
+        if not one_by_one:
+            assert found is None
+            continue
+        row, req, problem = found
+        assert row == one_by_one[0]
+        assert problem.message in [p.message for p in unmet(reqs, {s: float(col[row]) for s, col in
+                                                                    zip((a, b, c), columns)})]
+    assert first_unmet(reqs[:1], [c], [np.array([-1.0])]) is None  # not in the values: not judged here

@@ -6,21 +6,19 @@ Thin wrappers of the code the commands run (``kronsub codegen``, ``accuracy``,
 """
 from __future__ import annotations
 
-import re
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Mapping
 
 from ..core.known_system import KnownSystem
+from ..core.projection_work import numeric_route_advice
+from ..emitters.escape import C_IDENTIFIER
 from ..errors import KronsubError
 from ..model.model import Model
 from .runs import model_file, scene_of, settings_text
 
 __all__ = ["Accuracy", "C_IDENTIFIER", "accuracy", "accuracy_plan", "code_files", "codegen", "reactions",
            "repr_latex", "repr_markdown"]
-
-
-C_IDENTIFIER = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
 
 
 def code_files(system: KnownSystem, stem: str, lang: str = "c", *, prefix: str = "ks", precision: str = "double",
@@ -44,13 +42,14 @@ def code_files(system: KnownSystem, stem: str, lang: str = "c", *, prefix: str =
     if jacobian and lang != "c":
         raise KronsubError("the exact Jacobian is generated in C only (lang='c')")
     options = {"jacobian": True} if jacobian else {}
-    for generated in LANGUAGES[lang](system, stem, source=source, prefix=prefix, outputs=outputs, **options):
-        text = generated.text
-        if precision != "double":
-            from ..simulation.extended import prelude, retype
+    with numeric_route_advice(system):  # a budget spent on the projection onto the speeds says where to go
+        for generated in LANGUAGES[lang](system, stem, source=source, prefix=prefix, outputs=outputs, **options):
+            text = generated.text
+            if precision != "double":
+                from ..simulation.extended import prelude, retype
 
-            text = prelude(precision) + retype(text, precision)
-        files.append((generated.name, text))
+                text = prelude(precision) + retype(text, precision)
+            files.append((generated.name, text))
     return files
 
 
@@ -162,8 +161,9 @@ def accuracy(system: KnownSystem, t: float = 10.0, methods="all", tolerances=Non
     chosen, grid = accuracy_plan(methods, tolerances, quick=quick, precision=precision)
     begin = starting_values(system, settings_text(set))  # Newton's tolerance 1e-14: the reference's
     default_digits = 34 if "gbs-quad" in chosen else (16 if quick else 20)
-    wp = acc.measure(system, begin.values, t, chosen, grid, digits=digits or default_digits, quick=quick,
-                     dependent=begin.constrained.guess if begin.constrained is not None else None)
+    with numeric_route_advice(system):
+        wp = acc.measure(system, begin.values, t, chosen, grid, digits=digits or default_digits, quick=quick,
+                         dependent=begin.constrained.guess if begin.constrained is not None else None)
     scene = scene_of(system)
     return Accuracy(wp, chosen, grid, scene.name if scene is not None else None, getattr(system, "model", None),
                     begin.notes)

@@ -225,7 +225,19 @@ def numeric(system: KnownSystem, set: Mapping[str, object] | None = None) -> Num
     n = len(system.coordinates)
     nv = len(system.state_velocities)
     ny, layout = n + nv, "[q; u]" if system.speeds is not None else "[q; qdot]"  # in speeds: the state [q; u]
-    module = numpy_module(system)  # mass matrix, forces, velocity terms (numpy)
+    made: dict = {}
+
+    def module():
+        """The numpy module (mass matrix, forces, velocity terms), made when first asked for and
+        within the work budget: a system projected onto its speeds at run time has its C alone."""
+        if not made:
+            from ..budget import scope
+            from ..core.projection_work import numeric_route_advice
+
+            with scope(), numeric_route_advice(system):
+                made["module"] = numpy_module(system)
+        return made["module"]
+
     native = None
     try:
         native = native_model(system)
@@ -247,21 +259,19 @@ def numeric(system: KnownSystem, set: Mapping[str, object] | None = None) -> Num
         return np.concatenate([q, np.zeros(nv)])
 
     def mass_matrix(q):
-        return np.asarray(module["mass_matrix"](coordinates(q)[:n], param), dtype=float).reshape(nv, nv)
+        return np.asarray(module()["mass_matrix"](coordinates(q)[:n], param), dtype=float).reshape(nv, nv)
 
     def forces(t, y):
         y = state(y)
-        return np.asarray(module["forces"](t, y[:n], y[n:], param), dtype=float).ravel()
-
-    timed = "TIMED" in module  # hbar of a prescribed motion names t: velocity_terms(y, t)
+        return np.asarray(module()["forces"](t, y[:n], y[n:], param), dtype=float).ravel()
 
     def velocity_terms(y, t=None):
         y = state(y)
-        if not timed:
-            return np.asarray(module["velocity_terms"](y[:n], y[n:], param), dtype=float).ravel()
+        if "TIMED" not in module():  # hbar of a prescribed motion names t: velocity_terms(y, t)
+            return np.asarray(module()["velocity_terms"](y[:n], y[n:], param), dtype=float).ravel()
         if t is None:
             raise ValueError("hbar of this system depends on t (a prescribed motion): call velocity_terms(y, t)")
-        return np.asarray(module["velocity_terms"](t, y[:n], y[n:], param), dtype=float).ravel()
+        return np.asarray(module()["velocity_terms"](t, y[:n], y[n:], param), dtype=float).ravel()
 
     if native is not None:
         def rhs(t, y):
@@ -274,20 +284,18 @@ def numeric(system: KnownSystem, set: Mapping[str, object] | None = None) -> Num
             return native.potential_energy(t, state(y), param)
     else:
         def rhs(t, y):
-            return np.asarray(module["rhs"](t, state(y), param), dtype=float)
+            return np.asarray(module()["rhs"](t, state(y), param), dtype=float)
 
         def kinetic(y):
-            return float(module["kinetic_energy"](state(y), param))
+            return float(module()["kinetic_energy"](state(y), param))
 
         def potential(t, y):
-            return float(module["potential_energy"](t, state(y), param))
+            return float(module()["potential_energy"](t, state(y), param))
 
     return NumericSystem(rhs, mass_matrix, velocity_terms, forces, kinetic, potential,
                          {p.name: v for p, v in zip(system.parameters, values.parameters)},
                          tuple(s.name for s in system.coordinates) + tuple(system.name_of(s) for s in system.state_velocities),
                          "C" if native is not None else "numpy")
-
-
 
 
 def model_file(system: KnownSystem) -> str | None:

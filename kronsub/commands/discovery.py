@@ -51,6 +51,10 @@ def _create(path: Path, text: str) -> None:
             fh.write(text)
         os.chmod(tmp, 0o666 & ~umask())
         os.link(tmp, path)  # fails when path exists: no overwrite, no race
+    except FileExistsError:
+        raise
+    except OSError as exc:  # named after the user's path, not the temporary file
+        raise cannot_create(exc, path) from None
     finally:
         os.unlink(tmp)
 

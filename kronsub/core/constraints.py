@@ -253,7 +253,9 @@ class NumericConstraints:
             step = np.linalg.lstsq(J, -r, rcond=None)[0]
             y[free] += step
             if np.max(np.abs(step), initial=0.0) <= tol * (1 + np.max(np.abs(y), initial=0.0)):
-                if np.max(np.abs(self.residual(y)), initial=0.0) <= 1e3 * tol * (1 + np.max(np.abs(y))):
+                row = np.max(np.abs(J), axis=1, initial=0.0)  # g over its gradient's size: in the coordinates' units
+                if np.max(np.abs(self.residual(y)) / np.where(row > 0, row, 1.0), initial=0.0) \
+                        <= 1e3 * tol * (1 + np.max(np.abs(y))):
                     return y
         r = self.residual(y)
         worst = int(np.nanargmax(np.abs(r))) if np.any(np.isfinite(r)) else 0
@@ -266,14 +268,13 @@ class NumericConstraints:
         G = self.jacobian(y)
         if G.size == 0 or not np.all(np.isfinite(G)):
             return []
-        scale = max(np.max(np.abs(G)), 1.0)
         basis, bad = [], []
         for i, row in enumerate(G):
             r = row.astype(float).copy()
             for u in basis:
                 r -= u * (u @ r)
             norm = np.linalg.norm(r)
-            if norm <= tol * scale:
+            if norm <= tol * np.linalg.norm(row):  # relative to the row: a constraint times a constant is the same
                 bad.append(i)
             else:
                 basis.append(r / norm)

@@ -7,8 +7,6 @@ forms, are built when something reads them: a printed derivation, generated code
 """
 from __future__ import annotations
 
-from collections.abc import Callable
-
 import sympy
 
 from .sympy_internals import matrix_fromrep

@@ -50,7 +50,10 @@ class FirstOrderError(KronsubError):
 
 def zero_rows(system: KnownSystem) -> tuple[int, ...]:
     """The coordinates whose row of ``Mbar`` is zero (identically, after expansion). A diagonal
-    entry that is not zero at one set of values rules its row out without expanding it."""
+    entry that is not zero at one set of values rules its row out without expanding it. A system
+    in its speeds has none: its state is ``[q; u]``, its equations those in the speeds."""
+    if system.speeds is not None:
+        return ()
     M = system.mass_matrix
     n = len(system.coordinates)
     return tuple(j for j in range(n) if _vanishes(M[j, j]) and all(_vanishes(M[j, k]) for k in range(n)))

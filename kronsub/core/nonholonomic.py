@@ -461,13 +461,24 @@ def _rank(A: sympy.Matrix, points: list[dict]) -> int:
     for p in points:
         values = _numeric(A, p)
         if values is not None and np.all(np.isfinite(values)):
-            ranks.append(int(np.linalg.matrix_rank(values, tol=1e-9)) if values.size else 0)
+            ranks.append(int(np.linalg.matrix_rank(rows_scaled(values), tol=1e-9)) if values.size else 0)
     if not ranks:
         raise VelocityConstraintError(
             "the coefficients of the velocities are infinite or undefined at every configuration tried, the "
             "parameters at their values", "check divisions by a parameter expression that is zero, and the "
             "arguments of sqrt, log, asin and acos")
     return max(ranks)
+
+
+def rows_scaled(values: np.ndarray) -> np.ndarray:
+    """``values`` with each row divided by its largest entry in size (a zero row kept): a
+    constraint written in other units, or times a constant, has the same rank and the same
+    regularity, so tolerances on the result are relative to each row's scale."""
+    values = np.asarray(values)
+    if not values.size:
+        return values
+    scale = np.max(np.abs(values), axis=1, keepdims=True)
+    return values / np.where(scale > 0, scale, 1)
 
 
 def _numeric(A: sympy.Matrix, point: dict) -> np.ndarray | None:
@@ -486,6 +497,6 @@ def _numeric(A: sympy.Matrix, point: dict) -> np.ndarray | None:
 
 
 __all__ = ["GENERIC_POINTS", "NonholonomicProjection", "VelocityConstraintError", "VelocityTransformation",
-           "SpeedProjection", "TIDY", "differentiated_form", "frame_entry", "generic_rank", "integrable", "linear_form",
+           "SpeedProjection", "TIDY", "rows_scaled", "differentiated_form", "frame_entry", "generic_rank", "integrable", "linear_form",
            "project_nonholonomic", "refuse_speeds", "speed_accelerations", "speed_equations", "speed_rates", "tidy_entry",
            "velocity_multipliers", "velocity_transformation"]

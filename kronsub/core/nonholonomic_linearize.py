@@ -383,12 +383,21 @@ def constrained_motion(system: KnownSystem) -> ConstrainedMotion:
     projected, ``C^T M C`` (:func:`primitive_metric`), where the transition allows; else ``Mbar``
     and ``hbar`` as derived."""
     s = system.speeds
-    xdot = sympy.Matrix(list(system.velocities))
-    rows = s.rows or tuple(s.constraint_matrix * xdot + s.constraint_offset)[:s.constraint_matrix.rows - len(s.holonomic)]
     metric = primitive_metric(system)
     return ConstrainedMotion(tuple(system.coordinates), metric if metric is not None else sympy.Matrix(system.mass_matrix),
-                             system.forces, dict(s.definitions), rows, tuple(c.expression for c in s.holonomic),
+                             system.forces, dict(s.definitions), velocity_rows(system),
+                             tuple(c.expression for c in s.holonomic),
                              None if metric is not None else sympy.Matrix(system.velocity_terms))
+
+
+def velocity_rows(system: KnownSystem) -> tuple[sympy.Expr, ...]:
+    """The velocity constraints ``A xdot + b`` of a system in its speeds as numbers are taken
+    from: the rows as made (:attr:`~.SpeedEquations.rows`) where they are kept, else those of
+    ``A`` and ``b`` without the configuration constraints' rates (their last rows)."""
+    s = system.speeds
+    xdot = sympy.Matrix(list(system.velocities))
+    rates = len(s.holonomic)  # the configuration constraints' rates: the last rows of A
+    return s.rows or tuple(s.constraint_matrix * xdot + s.constraint_offset)[:s.constraint_matrix.rows - rates]
 
 
 def primitive_metric(system: KnownSystem) -> ProjectedMetric | None:
@@ -472,4 +481,4 @@ def linearize_speeds(system: KnownSystem, *, inputs: Sequence[sympy.Symbol] = ()
 
 __all__ = ["COMPLEX_STEP", "IGNORABLE_TOLERANCE", "NEWTON_STEPS", "STEADY_TOLERANCE", "ConstrainedMotion",
            "ProjectedMetric", "SteadyMotionRates", "constrained_motion", "ignorable", "linear_rows", "linearize_speeds",
-           "linearize_steady_motion", "primitive_metric", "steady_motion_rates", "REMEMBERED_RATES"]
+           "linearize_steady_motion", "primitive_metric", "steady_motion_rates", "velocity_rows", "REMEMBERED_RATES"]

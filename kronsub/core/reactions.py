@@ -25,7 +25,7 @@ import sympy
 
 from ..errors import KronsubError
 from .constraints import multiplier_name
-from .derivative import derivative, where_defined
+from .derivative import derivative
 from .known_system import KnownSystem
 from .nonholonomic import velocity_multipliers
 from .rheonomic import depends_on_time

@@ -23,6 +23,7 @@ from .circle import circle_equations
 from .block import Block
 from .numeric import GUARD, NumericModel, identifier, prepare
 from .projected import ROUTES, applies
+from .projected_speeds import applies as frame_applies
 from .text import template_environment
 
 
@@ -191,10 +192,12 @@ def emit_c(system: KnownSystem, stem: str, source: str = "", prefix: str = "ks",
     time, nor with guarded angles left in it)."""
     if route not in ROUTES:
         raise ValueError(f"route must be one of {', '.join(ROUTES)}, not {route!r}")
-    if route == "projected" and (not applies(system) or jacobian):
+    # under velocity constraints the projection onto the speeds is kept (.projected_speeds)
+    kept = frame_applies(system) if system.speeds is not None else applies(system)
+    if route == "projected" and (not kept or jacobian):
         raise KronsubError("cannot keep the projection for run time: the system has a closed loop, a "
-                           "prescribed motion, velocity constraints, first-order coordinates, an effect "
-                           "applied in the subspace or no primitive, or the exact Jacobian is asked for")
+                           "prescribed motion, first-order coordinates, an effect applied in the subspace "
+                           "or no primitive, or the exact Jacobian is asked for")
     model = prepare(system, source, outputs, guarded_angles=True, jacobian=jacobian, route=route,
                     terms_apart=terms_apart, canonical=canonical)
     p = identifier(prefix)
@@ -204,6 +207,10 @@ def emit_c(system: KnownSystem, stem: str, source: str = "", prefix: str = "ks",
     if model.projected is not None:
         ctx["b"]["projected"] = _lines(model.projected.block, printer.doprint, "const double ", ";")
         ctx["b"]["projected_kinetic"] = _lines(model.projected.kinetic, printer.doprint, "const double ", ";")
+    if model.frame is not None:  # the projection onto the speeds at run time (projected_speeds)
+        ctx["b"]["projected"] = _lines(model.frame.metric.block, printer.doprint, "const double ", ";")
+        ctx["b"]["frame"] = _lines(model.frame.frame, printer.doprint, "const double ", ";")
+        ctx["b"]["frame_rates"] = _lines(model.frame.rates, printer.doprint, "const double ", ";")
     if model.implicit is None and not model.first_order and not model.speeds:  # the circle state (circle.py)
         rhs = model.equations if model.projected is None else model.projected.block
         circle, circle_block = circle_equations(rhs, [sympy.Symbol(f"q[{i}]") for i in range(model.n)])

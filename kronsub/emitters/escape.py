@@ -33,7 +33,7 @@ from markupsafe import Markup
 
 from ..errors import printable
 
-__all__ = ["c_comment", "c_string", "python_string", "latex_text", "latex_name", "markdown_text", "json_document",
+__all__ = ["C_IDENTIFIER", "c_comment", "c_string", "python_string", "latex_text", "latex_name", "markdown_text", "json_document",
            "plot_text", "terminal_text", "environment", "UnescapedText", "Markup"]
 
 _NAMED = {"\n": "\\n", "\r": "\\r", "\t": "\\t", "\0": "\\0"}
@@ -327,13 +327,14 @@ def _filter(escape: Callable[[str], str]) -> Callable[[object], Markup]:
     return apply
 
 
-_C_IDENTIFIER = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
+C_IDENTIFIER = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
+"""A C identifier (and a prefix of generated names): the one pattern every check uses."""
 
 
 def c_identifier(text: str) -> str:
     """A model name as part of a C identifier (an index macro); names are validated identifiers
     already, so anything else is a bug and is refused rather than mangled."""
-    if not _C_IDENTIFIER.fullmatch(str(text)):
+    if not C_IDENTIFIER.fullmatch(str(text)):
         raise UnescapedText(f"{text!r} is not a C identifier")
     return str(text)
 

@@ -23,6 +23,7 @@ from sympy.simplify.cse_main import basic_optimizations as _BASIC
 from ..core.derivative import derivative
 from ..core.first_order import first_order
 from ..core.known_system import KnownSystem
+from ..core.projection_work import projected_in_numbers
 from ..core.rheonomic import depends_on_time
 from ..core.sympy_internals import eval_evalf
 from ..core.symbols import TIME, free_symbols_of
@@ -31,6 +32,8 @@ from .block import Block
 from .numeric_held import HeldCode, held_code
 from .numeric_implicit import ImplicitCode, implicit_code, intermediate_slots
 from .projected import ProjectedCode, projected_by_size, projected_code
+from .projected_speeds import FrameCode, frame_code
+from .projected_speeds import applies as frame_applies
 
 
 @dataclass(frozen=True)
@@ -62,6 +65,7 @@ class NumericModel:
     kinematics: Block | None = None  # qdot = C(q) u into xd[] (in pre[])
     held: HeldCode | None = None  # configuration constraints beside velocity constraints: q_D by Newton's method
     projected: ProjectedCode | None = None  # Mbar, hbar, fbar formed at run time (the blocks above empty)
+    frame: FrameCode | None = None  # under velocity constraints: the projection onto the speeds at run time
     velocities: tuple[str, ...] = ()  # the velocities' printed names (a charge's: its current); default q_dot
     terms_apart: bool = True  # emit hbar and fbar each on its own (a run's library needs neither)
     with_canonical: bool = True  # emit the canonical right-hand side (only gauss4 integrates it)
@@ -117,17 +121,52 @@ class NearAxis(sympy.Function):
         return eval_evalf((sympy.cos if kind else sympy.sin)(angle), prec)
 
 
+EXPANDED_MULTIPLE = 4
+"""Highest multiple ``k`` whose ``cos(k a)``, ``sin(k a)`` are written as polynomials in ``cos a``
+and ``sin a`` (``expand_trig``): their coefficients grow as ``(1 + sqrt 2)^k``, and so does the
+rounding error of the power form (at ``k = 12`` it lost half the digits; at ``k = 80`` every
+one). A higher multiple is formed by :func:`multiple_angle`, whose error grows as ``k``."""
+
+
+def multiple_angle(q: sympy.Symbol, k: int) -> tuple[sympy.Expr, sympy.Expr]:
+    """``(cos(k q), sin(k q))`` from ``cos q`` and ``sin q`` by doubling and adding angles
+    (``cos 2a = cos^2 a - sin^2 a``, ``sin 2a = 2 sin a cos a``, then one addition per binary
+    digit of ``k``), each step a rotation whose rounding adds to the error, never multiplies
+    it: ``log2 k`` named pairs that ``cse`` shares between entries."""
+    if k < 0:
+        c, s = multiple_angle(q, -k)
+        return c, -s
+    if k == 0:
+        return sympy.Integer(1), sympy.Integer(0)
+    if k == 1:
+        return sympy.cos(q), sympy.sin(q)
+    if k % 2 == 0:
+        c, s = multiple_angle(q, k // 2)
+        return sympy.Add(c * c, -(s * s)), 2 * s * c
+    c, s = multiple_angle(q, k - 1)
+    c1, s1 = sympy.cos(q), sympy.sin(q)
+    return sympy.Add(c * c1, -(s * s1)), sympy.Add(s * c1, c * s1)
+
+
 def _angle_sum(atom: sympy.Expr) -> sympy.Expr:
     """``sin(L)`` or ``cos(L)`` expanded into single-angle sines and cosines (``expand_trig``,
-    written out directly for the common ``L = +-a +- b``)."""
+    written out directly for the common ``L = +-a +- b``; by :func:`multiple_angle` and the
+    addition theorem, unexpanded, where a multiple exceeds :data:`EXPANDED_MULTIPLE`)."""
     terms = sympy.Add.make_args(atom.args[0])
+    parts = [t.as_coeff_Mul() for t in terms]
     if len(terms) == 2:
-        (c1, a), (c2, b) = (t.as_coeff_Mul() for t in terms)
+        (c1, a), (c2, b) = parts
         if abs(c1) == 1 and abs(c2) == 1 and a.is_Symbol and b.is_Symbol:
             sa, ca, sb, cb = sympy.sin(a), sympy.cos(a), sympy.sin(b), sympy.cos(b)
             if isinstance(atom, sympy.sin):
                 return sympy.Add(c1 * sa * cb, c2 * ca * sb)
             return sympy.Add(ca * cb, -c1 * c2 * sa * sb)
+    if any(c.is_Integer and abs(int(c)) > EXPANDED_MULTIPLE and q.is_Symbol for c, q in parts):
+        c, s = sympy.Integer(1), sympy.Integer(0)
+        for k, q in parts:  # cos(L + k q) and sin(L + k q) by the addition theorem
+            ck, sk = multiple_angle(q, int(k)) if k.is_Integer and q.is_Symbol else (sympy.cos(k * q), sympy.sin(k * q))
+            c, s = sympy.Add(c * ck, -(s * sk)), sympy.Add(s * ck, c * sk)
+        return s if isinstance(atom, sympy.sin) else c
     return sympy.expand(sympy.expand_trig(atom))
 
 
@@ -167,7 +206,10 @@ def _single_angles(exprs: list[sympy.Expr], coordinates, guarded: bool = False, 
             parts = [t.as_coeff_Mul() for t in terms]
             if not all(c.is_Integer and q in coords for c, q in parts):
                 continue
-            if len(parts) == 1 and abs(int(parts[0][0])) > 1:
+            if len(parts) == 1 and abs(int(parts[0][0])) > EXPANDED_MULTIPLE:
+                c, s = multiple_angle(parts[0][1], int(parts[0][0]))
+                mapping[atom] = s if isinstance(atom, sympy.sin) else c
+            elif len(parts) == 1 and abs(int(parts[0][0])) > 1:
                 mapping[atom] = sympy.expand_trig(atom)
             elif len(parts) > 1 and guarded:
                 mapping[atom] = _guarded(atom) if index >= plain else _angle_sum(atom)
@@ -186,9 +228,19 @@ class _Constants:
         self.names = {p: sympy.Symbol(f"pre[{i}]") for i, p in enumerate(params)}
         self.derived: dict[sympy.Expr, sympy.Symbol] = {}
         self.count = len(params)
+        self.constant: dict[sympy.Expr, bool] = {}  # e -> whether it names parameters alone
+        self.done: dict[sympy.Expr, sympy.Expr] = {}  # e -> its image (a long entry's parts recur)
 
     def _constant(self, e: sympy.Expr) -> bool:
-        return e.free_symbols <= self.params
+        """``e.free_symbols <= params``, from its arguments' (remembered) where they are its own."""
+        hit = self.constant.get(e)
+        if hit is None:
+            if e.is_Atom or not (e.is_Add or e.is_Mul or e.is_Pow or isinstance(e, sympy.Function)):
+                hit = e.free_symbols <= self.params
+            else:
+                hit = all(self._constant(a) for a in e.args)
+            self.constant[e] = hit
+        return hit
 
     def _name(self, e: sympy.Expr) -> sympy.Expr:
         if e in self.names:
@@ -199,6 +251,12 @@ class _Constants:
         return self.derived[e]
 
     def __call__(self, e: sympy.Expr) -> sympy.Expr:
+        hit = self.done.get(e)
+        if hit is None:
+            hit = self.done[e] = self._image(e)
+        return hit
+
+    def _image(self, e: sympy.Expr) -> sympy.Expr:
         if e.is_Number:
             return e
         if e.is_Atom:
@@ -368,18 +426,22 @@ def prepare(system: KnownSystem, source: str = "", outputs=None, guarded_angles:
     ``Mbar`` (:func:`_single_angles`). ``jacobian``: also the blocks of ``d ydot/dy``
     (:func:`jacobian_block`; not with implicit constraints). ``route`` (:data:`.projected.ROUTES`):
     ``projected`` keeps the projection for run time (:mod:`.projected`; the caller checks that it
-    applies), ``auto`` does so for a large system (never with first-order coordinates, velocity
-    constraints or the exact Jacobian). ``terms_apart``: also ``hbar`` and ``fbar`` each on its
-    own; ``canonical``: also the canonical form's ``dT/dq + fbar`` (a library that runs a
-    method on ``y = [q; qdot]`` needs neither)."""
+    applies), ``auto`` does so for a large system (never with first-order coordinates or the exact
+    Jacobian); under velocity constraints ``projected`` keeps the projection onto the speeds for run
+    time (:mod:`.projected_speeds`), and ``auto`` does so when its symbolic projection is too large.
+    ``terms_apart``: also ``hbar`` and ``fbar`` each on its own; ``canonical``: also the canonical
+    form's ``dT/dq + fbar`` (a library that runs a method on ``y = [q; qdot]`` needs neither)."""
     energies = outputs is None or outputs.energies
     with_points = outputs is None or bool(outputs.points)
     speeds = system.speeds  # under velocity constraints: the equations in the speeds, the state [q; u]
     velocities = speeds.speeds if speeds is not None else system.velocities
     n = len(velocities)  # Mbar is n x n
+    # the projection onto the speeds at run time: the expressions in q, qdot (in qd[]) and t
+    in_frame = speeds is not None and (route == "projected" or (
+        route == "auto" and frame_applies(system) and projected_in_numbers(system)))  # (no exact Jacobian in speeds)
     params = [p for p in system.parameters]
     q_slots = {q: sympy.Symbol(f"q[{i}]") for i, q in enumerate(system.coordinates)}
-    qd_slots = {v: sympy.Symbol(f"qd[{i}]") for i, v in enumerate(velocities)}
+    qd_slots = {v: sympy.Symbol(f"qd[{i}]") for i, v in enumerate(system.velocities if in_frame else velocities)}
     p_slots = {p.symbol: sympy.Symbol(f"param[{i}]") for i, p in enumerate(params)}
     slots = {**q_slots, **qd_slots, **p_slots, TIME: sympy.Symbol("t")}
     if len(slots) != len(q_slots) + len(qd_slots) + len(p_slots) + 1:
@@ -409,22 +471,33 @@ def prepare(system: KnownSystem, source: str = "", outputs=None, guarded_angles:
         return expr.xreplace(slots)
 
     block = functools.partial(_block, rewritings=_Rewritings())  # the blocks share their entries' rewritings
-    M = speeds.mass_matrix if speeds is not None else system.mass_matrix
-    velocity_terms_of = speeds.velocity_terms if speeds is not None else system.velocity_terms
-    forces_of = speeds.forces if speeds is not None else system.forces
-    if TIME in free_symbols_of([M]):
-        raise KronsubError("cannot generate code: Mbar depends on t (a prescribed motion that changes the "
-                           "inertia); only hbar and fbar may name t in the generated code")
+    if not in_frame:
+        M = speeds.mass_matrix if speeds is not None else system.mass_matrix
+        velocity_terms_of = speeds.velocity_terms if speeds is not None else system.velocity_terms
+        forces_of = speeds.forces if speeds is not None else system.forces
+        if TIME in free_symbols_of([M]):
+            raise KronsubError("cannot generate code: Mbar depends on t (a prescribed motion that changes the "
+                               "inertia); only hbar and fbar may name t in the generated code")
     # x = x(xbar, t): hbar has the drive's terms and the points move with t (velocity_terms and points take t)
     timed = system.transition is not None and depends_on_time(dict(system.transition.connection))
-    if speeds is not None:  # A xdot + b(x, t) = 0: hbar holds d(t)'s terms
+    if speeds is not None and not in_frame:  # A xdot + b(x, t) = 0: hbar holds d(t)'s terms
         timed = timed or TIME in free_symbols_of([speeds.velocity_terms])
     qs = tuple(q_slots.values())
     constants = _Constants(list(p_slots.values()))
     first = first_order(system) if speeds is None else None
-    kinematics = exact = projected = None
+    kinematics = exact = projected = frame = None
     r_targets = [f"r[{i}]" for i in range(n)]
-    if speeds is None and first is None and not jacobian and (
+    if in_frame:
+        if not frame_applies(system):
+            raise KronsubError("cannot keep the projection onto the speeds for run time: the system has no "
+                               "primitive, an implicit subspace, a connection in time or an effect applied in the "
+                               "subspace")
+        block = functools.partial(_block, rewrite=False)
+        frame = frame_code(system, slot, constants, lambda t, e: block(t, e, "x", qs, guarded_angles))
+        timed = frame.timed
+        mass = velocity_terms = forces = equations = Block((), ())
+        canonical_block = block(r_targets, [sympy.Integer(0)] * n, "x", qs) if canonical else Block((), ())
+    elif speeds is None and first is None and not jacobian and (
             route == "projected" or (route == "auto" and system.implicit is None and projected_by_size(system))):
         # no rewritings: in a large system's potential and points they cost more than the
         # elimination itself, and the projection's entries are short already
@@ -531,10 +604,11 @@ def prepare(system: KnownSystem, source: str = "", outputs=None, guarded_angles:
         kinematics=kinematics,
         held=held,
         projected=projected,
+        frame=frame,
         velocities=tuple(system.name_of(v) for v in system.velocities),
         terms_apart=terms_apart,
         with_canonical=canonical,
     )
 
 
-__all__ = ["BASIC_NODES", "GUARD", "NearAxis", "NumericModel", "identifier", "jacobian_block", "prepare", "settled"]
+__all__ = ["BASIC_NODES", "GUARD", "NearAxis", "NumericModel", "EXPANDED_MULTIPLE", "identifier", "jacobian_block", "multiple_angle", "prepare", "settled"]

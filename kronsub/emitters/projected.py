@@ -100,10 +100,10 @@ def projected_by_size(system: KnownSystem) -> bool:
 
 
 def projected_code(system: KnownSystem, slot: Callable, constants: Callable,
-                   block: Callable[[list[str], list[sympy.Expr]], Block]) -> ProjectedCode:
+                   block: Callable[[list[str], list[sympy.Expr]], Block], kinetic: bool = True) -> ProjectedCode:
     """The run-time projection of ``system`` (:func:`applies`): ``slot`` maps an expression in
     the subspace to the array slots, ``constants`` moves parameter products to ``pre``,
-    ``block`` eliminates common subexpressions."""
+    ``block`` eliminates common subexpressions; ``kinetic``: also ``dT/dx`` (the canonical form)."""
     tr = system.transition
     xs = tr.primitive_coordinates
     nx, n = len(xs), len(system.coordinates)
@@ -176,7 +176,7 @@ def projected_code(system: KnownSystem, slot: Callable, constants: Callable,
         f += tr.primitive_forces[label]
     dT = [sympy.Integer(0)] * nx  # dT/dx = 1/2 xdot^T (dM/dx) xdot
     index = {x: a for a, x in enumerate(xs)}
-    for (b, c), k in entries.items():
+    for (b, c), k in entries.items() if kinetic else ():
         for x in m_exprs[k].free_symbols:
             if x in index:
                 dT[index[x]] += derivative(m_exprs[k], x) * xd[b] * xd[c] * (1 if b == c else 2) / 2

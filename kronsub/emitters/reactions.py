@@ -9,6 +9,7 @@ from ..collector import collector_paused
 from ..core.known_system import KnownSystem
 from ..core.reactions import MultiplierSystem, reactions
 from .escape import json_document, latex_text
+from .implicit_speeds import implicit_form, with_multipliers
 from .latex_layout import lines as layout_lines, unbroken
 from .report import latex_printer, plain
 
@@ -32,7 +33,10 @@ def _what(system: KnownSystem) -> str:
 
 @collector_paused()  # see kronsub.collector
 def with_reactions(text: str, system: KnownSystem, fmt: str) -> str:
-    """The derivation ``text`` in ``fmt`` with the reactions added."""
+    """The derivation ``text`` in ``fmt`` with the reactions added (their defining equation when
+    the equations in the speeds are in the implicit form, :mod:`.implicit_speeds`)."""
+    if implicit_form(system):
+        return with_multipliers(text, system, fmt)
     items = reactions(system)
     where = " and the named intermediates above" if system.implicit is not None else ""
     note = NOTE.format(where=where, what=_what(system))

@@ -311,15 +311,7 @@ def build_report(system: KnownSystem, show: Printer, named: bool = True) -> dict
     # Mbar qddot + hbar, each row one sum (the matrix product adds its terms one at a time)
     lhs = [sympy.Add(*[mass[i, j] * accelerations[j] for j in range(n)], hbar[i]) for i in range(n)]
     report = {
-        "name": system.name,
-        "description": system.description.strip(),
-        "coordinates": [show(q) for q in system.coordinates],
-        "coordinate_names": [q.name for q in system.coordinates],
-        "parameters": [
-            {"name": p.name, "symbol": show(p.symbol), "value": "" if p.value is None else show(p.value),
-             "unit": p.unit, "description": p.description}
-            for p in system.parameters
-        ],
+        **report_head(system, show),
         "mass_matrix": matrix_rows(mass, show),
         "velocity_terms": [show(e) for e in hbar],
         "forces": [show(e) for e in fbar],
@@ -331,24 +323,46 @@ def build_report(system: KnownSystem, show: Printer, named: bool = True) -> dict
         "where": [{"name": show(s), "plain": s.name, "expression": show(e)} for s, e in where],
     }
     if tr is not None:
-        prim_coords = list(tr.primitive_coordinates)
-        report["primitive"] = {
-            "parts": [{"name": n, "type": t or "known system"} for n, t in tr.parts],
-            "coordinates": [show(x) for x in prim_coords],
-            "metric": matrix_rows(tr.primitive_metric, show),
-            "velocity_terms": [show(e) for e in tr.primitive_velocity_terms],
-            "forces": [{"name": k, "forces": [show(e) for e in f]} for k, f in tr.primitive_forces.items()
-                       if k not in tr.direct_effects],
-            "applied_in_subspace": list(tr.direct_effects),
-            "connection": [{"coordinate": show(x), "expression": show(e)} for x, e in tr.connection],
-            "transformation": matrix_rows(tr.transformation, show),
-            "columns": [show(q) for q in _columns(system)],
-        }
-        drive = drive_report(system, show)
-        if drive is not None:
-            report["primitive"]["drive"] = drive
+        report["primitive"] = primitive_report(system, show)
     if system.implicit is not None:
         report["implicit"] = implicit_report(system.implicit, show)
+    return report
+
+
+def report_head(system: KnownSystem, show: Printer) -> dict:
+    """The name, description, coordinates and parameters of ``system``, as printed."""
+    return {
+        "name": system.name,
+        "description": system.description.strip(),
+        "coordinates": [show(q) for q in system.coordinates],
+        "coordinate_names": [q.name for q in system.coordinates],
+        "parameters": [
+            {"name": p.name, "symbol": show(p.symbol), "value": "" if p.value is None else show(p.value),
+             "unit": p.unit, "description": p.description}
+            for p in system.parameters
+        ],
+    }
+
+
+def primitive_report(system: KnownSystem, show: Printer) -> dict:
+    """The primitive system of ``system``'s transition: its metric (16), velocity terms and forces
+    (17), the connection (19) and ``C`` (21), and a drive's terms."""
+    tr = system.transition
+    report = {
+        "parts": [{"name": n, "type": t or "known system"} for n, t in tr.parts],
+        "coordinates": [show(x) for x in tr.primitive_coordinates],
+        "metric": matrix_rows(tr.primitive_metric, show),
+        "velocity_terms": [show(e) for e in tr.primitive_velocity_terms],
+        "forces": [{"name": k, "forces": [show(e) for e in f]} for k, f in tr.primitive_forces.items()
+                   if k not in tr.direct_effects],
+        "applied_in_subspace": list(tr.direct_effects),
+        "connection": [{"coordinate": show(x), "expression": show(e)} for x, e in tr.connection],
+        "transformation": matrix_rows(tr.transformation, show),
+        "columns": [show(q) for q in _columns(system)],
+    }
+    drive = drive_report(system, show)
+    if drive is not None:
+        report["drive"] = drive
     return report
 
 
@@ -414,4 +428,4 @@ def implicit_report(imp, show: Printer) -> dict:
 
 __all__ = ["MIN_NAMED_OPS", "ModelStrPrinter", "NAME_PREFIX", "Printer", "build_report", "implicit_report",
            "kinetic_energy", "latex_printer", "matrix_rows", "model_names", "named_subexpressions", "plain",
-           "plain_printer"]
+           "plain_printer", "primitive_report", "report_head"]

@@ -8,6 +8,7 @@ import jinja2
 from ..collector import collector_paused
 from ..core.known_system import KnownSystem
 from .escape import Markup, environment, json_document
+from .implicit_speeds import implicit_form, implicit_json, implicit_report, printed_names
 from .latex_layout import WIDTH, lines, measure, unbroken
 from .nonholonomic import speeds_report
 from .report import build_report, latex_printer, model_names, plain_printer
@@ -50,7 +51,7 @@ def _trusted(show):
 @collector_paused()  # see kronsub.collector
 def emit_markdown(system: KnownSystem) -> str:
     """Markdown: the derivation step by step, expressions in sympy's ``str`` form."""
-    show = plain_printer(model_names(system), system.printed_names)
+    show = plain_printer(_names(system), system.printed_names)
     return template_environment().get_template("derive.md.j2").render(r=_report(system, _trusted(show)))
 
 
@@ -68,8 +69,16 @@ def emit_latex(system: KnownSystem) -> str:
     return unbroken(env.get_template("derive.tex.j2").render(r=_report(system, _trusted(show))))
 
 
+def _names(system: KnownSystem) -> frozenset[str]:
+    """The model's own names, for the printers (without forming what the implicit form leaves unformed)."""
+    return printed_names(system) if implicit_form(system) else model_names(system)
+
+
 def _report(system: KnownSystem, show) -> dict:
-    """The report, with the equations in the speeds under velocity constraints."""
+    """The report, with the equations in the speeds under velocity constraints (in the implicit
+    form when their projection is made in numbers, :mod:`.implicit_speeds`)."""
+    if implicit_form(system):
+        return implicit_report(system, show)
     r = build_report(system, show)
     if system.speeds is not None:
         r["speeds"] = speeds_report(system, show)
@@ -78,19 +87,22 @@ def _report(system: KnownSystem, show) -> dict:
 
 @collector_paused()  # see kronsub.collector
 def emit_json(system: KnownSystem) -> str:
-    """The machine contract: ``Mbar qddot + hbar = fbar`` with sympy ``str`` expressions."""
-    r = build_report(system, plain_printer(model_names(system), system.printed_names), named=False)
+    """The machine contract: ``Mbar qddot + hbar = fbar`` with sympy ``str`` expressions (in the
+    speeds, in the implicit form when their projection is made in numbers: ``speeds_form``)."""
+    implicit = implicit_form(system)
+    show = plain_printer(_names(system), system.printed_names)
+    r = implicit_report(system, show, named=False) if implicit else build_report(system, show, named=False)
     data = {
         "name": r["name"],
         "coordinates": r["coordinate_names"],
         "velocities": [system.name_of(v) for v in system.velocities],
         "parameters": {p["name"]: {"value": p["value"] or None, "unit": p["unit"], "description": p["description"]}
                        for p in r["parameters"]},
-        "mass_matrix": r["mass_matrix"],
-        "velocity_terms": r["velocity_terms"],
+        **({} if r.get("unformed") else {"mass_matrix": r["mass_matrix"]}),
+        **({} if r.get("unformed") else {"velocity_terms": r["velocity_terms"]}),
         "forces": r["forces"],
         "effects": {e["name"]: e["forces"] for e in r["effects"]},
-        "kinetic_energy": r["kinetic_energy"],
+        **({} if r.get("unformed") else {"kinetic_energy": r["kinetic_energy"]}),
         "potential_energy": r["potential_energy"],
         "equation_form": "mass_matrix * [coordinate_ddot] + velocity_terms = forces",
     }
@@ -114,7 +126,9 @@ def emit_json(system: KnownSystem) -> str:
             }
     if "implicit" in r:
         data["implicit"] = _implicit_json(r["implicit"])
-    if system.speeds is not None:
+    if implicit:
+        data = implicit_json(r, data)
+    elif system.speeds is not None:
         data = _speeds_json(data, speeds_report(system, plain_printer(model_names(system), system.printed_names)))
     return json_document(data, indent=2) + "\n"
 

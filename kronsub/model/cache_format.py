@@ -27,7 +27,7 @@ from ..components.base import Body
 from ..collector import collector_paused
 from ..components.base import Requirement
 from ..core import canonical
-from ..core.deferred import DeferredMatrix
+from ..core.deferred import DeferredMatrix, pending
 from ..core.known_system import (Constraint, ImplicitSubspace, KnownSystem, ParameterInfo, ProjectedEffect,
                                  SpeedEquations, Transition)
 from ..core.nonholonomic import SpeedProjection, VelocityTransformation
@@ -66,7 +66,8 @@ class CacheFormatError(ValueError):
 # ---------------------------------------------------------------------------------------------
 
 class _Encoder:
-    def __init__(self):
+    def __init__(self, unbuilt: bool = False):
+        self.unbuilt = unbuilt  # a matrix not built yet written as its shape (a fingerprint's text)
         self.nodes: list = []
         self.index: dict = {}  # id(expr) -> node number
         self.keep: list = []  # keeps the encoded expressions alive, so their ids stay theirs
@@ -115,6 +116,8 @@ class _Encoder:
         if isinstance(v, float):
             return {"r": repr(v)}
         if isinstance(v, sympy.MatrixBase):
+            if self.unbuilt and pending(v):
+                return {"u": [v.rows, v.cols]}
             name = _MATRIX_NAMES.get(MutableDenseMatrix if isinstance(v, DeferredMatrix) else type(v))  # built
             if name is None:
                 raise CacheFormatError(f"cannot store a {type(v).__name__}")
@@ -144,10 +147,12 @@ def stored_class(v) -> type | None:
     return None
 
 
-def dumps(value) -> str:
+def dumps(value, unbuilt: bool = False) -> str:
     """The JSON text of ``value`` (a known system, a transition, ...); raises
-    :class:`CacheFormatError` when it holds anything the format does not admit."""
-    enc = _Encoder()
+    :class:`CacheFormatError` when it holds anything the format does not admit. ``unbuilt``: a
+    matrix whose entries are not built yet (:func:`~kronsub.core.deferred.pending`) is written as
+    its shape, not built (a text to fingerprint, which :func:`loads` does not read back)."""
+    enc = _Encoder(unbuilt)
     try:
         body = enc.value(value)
         return json.dumps({"format": FORMAT, "nodes": enc.nodes, "value": body},

@@ -22,7 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 import sympy
 
-from ..core.nonholonomic import VelocityConstraintError, VelocityTransformation, velocity_transformation
+from ..core.nonholonomic import VelocityConstraintError, VelocityTransformation, rows_scaled, velocity_transformation
 from ..core.reference_frame import frame_transformation
 from ..core.symbols import TIME, symbol, velocity_symbol
 from ..errors import Location
@@ -156,7 +156,7 @@ def check_start(reader: ModelReader, written: Location, spec: VelocitySpec, init
         reader.error(written, f"the {'speeds' if spec.frame else 'velocity constraints or the speeds'} have no real "
                      f"value {at}", "check the arguments of sqrt, log, asin and acos, and divisions, there")
         return
-    sigma = np.linalg.svd(numbers.real, compute_uv=False)
+    sigma = np.linalg.svd(rows_scaled(numbers.real), compute_uv=False)
     if sigma[-1] > SINGULAR * sigma[0]:
         return
     if spec.frame:
@@ -185,7 +185,7 @@ def _regular_speeds(A: np.ndarray, x) -> list[str] | None:
     first coordinates' whose complement's columns of ``A`` are independent."""
     m, n = A.shape
     for dependent in itertools.combinations(reversed(range(n)), m):
-        block = A[:, sorted(dependent)]
+        block = rows_scaled(A[:, sorted(dependent)])
         sigma = np.linalg.svd(block, compute_uv=False)
         if m and sigma[-1] > SINGULAR * sigma[0]:
             return [velocity_symbol(x[j]).name for j in range(n) if j not in dependent]

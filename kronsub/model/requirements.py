@@ -77,6 +77,47 @@ def unmet(requirements, values: Mapping, where: Callable[[Requirement], Location
     return problems
 
 
+def first_unmet(requirements, symbols, columns) -> tuple[int, Requirement, Problem] | None:
+    """The first row at which a requirement fails, the requirement, and the problem as :func:`unmet` words it,
+    over many sets of values at once: ``columns[k]`` the values of ``symbols[k]`` (arrays of one
+    length, or numbers). A requirement none of whose symbols is among ``symbols`` is skipped (the
+    model's own values were checked when it was read)."""
+    chosen = set(symbols)
+    arrays = [np.asarray(c, dtype=float) for c in columns]
+    count = max((a.size for a in arrays if a.ndim), default=1)
+    first: tuple[int, Requirement, Problem] | None = None
+    for req in requirements:
+        if not set(parameters_in(req)) & chosen:
+            continue
+        bad = _failing(req, list(symbols), arrays, count)
+        if len(bad) and (first is None or bad[0] < first[0]):
+            row = int(bad[0])
+            values = {s: float(a if a.ndim == 0 else a[row]) for s, a in zip(symbols, arrays)}
+            found = unmet([req], values)
+            if found:
+                first = (row, req, found[0])
+    return first
+
+
+def _failing(req: Requirement, symbols: list, arrays: list, count: int) -> np.ndarray:
+    """The rows at which ``req`` fails (NaN fails), its value evaluated in numpy over them."""
+    def evaluated(expr) -> np.ndarray:
+        f = sympy.lambdify(symbols, expr, "numpy")
+        with np.errstate(all="ignore"):
+            return np.broadcast_to(np.asarray(f(*arrays), dtype=float), (count,))
+
+    if req.kind == INERTIA:
+        tensors = np.stack([np.stack([evaluated(e) for e in row], axis=-1) for row in req.value.tolist()], axis=-2)
+        finite = np.all(np.isfinite(tensors), axis=(1, 2))
+        moments = np.linalg.eigvalsh((tensors + np.swapaxes(tensors, 1, 2)) / 2 * finite[:, None, None])
+        slack = 1e-12 * np.max(np.abs(moments), axis=1)
+        ok = (moments[:, 0] >= -slack) & (moments[:, 2] <= moments[:, 0] + moments[:, 1] + slack)
+        return np.flatnonzero(~ok & finite)  # (a tensor of no finite value: unmet leaves it unjudged)
+    value = evaluated(req.value)
+    ok = (value > 0) | ((value == 0) if req.kind in (NONNEGATIVE, COUPLING) else False)
+    return np.flatnonzero(~ok)
+
+
 def _number(value):
     """``value`` as a float (a tensor: an array), None if it is not a finite real number."""
     try:
@@ -122,4 +163,4 @@ def _g(value) -> str:
         return sympy.sstr(value)
 
 
-__all__ = ["body_requirements", "component_requirements", "parameters_in", "unmet"]
+__all__ = ["body_requirements", "component_requirements", "first_unmet", "parameters_in", "unmet"]

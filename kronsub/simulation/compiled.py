@@ -21,6 +21,7 @@ import shutil
 from pathlib import Path
 
 from ..cache import load_entry, private_folder, store_entry
+from ..core.deferred import pending
 from ..core.known_system import KnownSystem
 from ..model import cache_format
 from ..model.derive import content_key
@@ -35,12 +36,15 @@ def fingerprint(system: KnownSystem, outputs=None, jacobian: bool = False, canon
     """sha256 of what the generated C computes: the equations (without the names, texts,
     parameter values and initial values that only its comments and defaults show), the
     outputs, the functions asked for, the integrators and the compiler; None when the system
-    cannot be fingerprinted."""
+    cannot be fingerprinted. Equations not built yet (under velocity constraints, ``Mbar`` and
+    ``hbar`` in ``x``, which the generated C may form at run time) are fingerprinted by what they are
+    built from, the transition, without building them."""
+    unbuilt = pending(system.mass_matrix) or pending(system.velocity_terms)
     bare = dataclasses.replace(
-        system, name="", description="", initial={}, transition=None,
+        system, name="", description="", initial={}, transition=system.transition if unbuilt else None,
         parameters=tuple(dataclasses.replace(p, value=None, description="", unit="") for p in system.parameters))
     try:
-        text = cache_format.dumps(bare)
+        text = cache_format.dumps(bare, unbuilt)
     except cache_format.CacheFormatError:
         return None
     command = native.compiler_command()

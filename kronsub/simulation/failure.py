@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..core.projection_work import projected_in_numbers
 
 
 __all__ = ["Singular", "at_configuration", "cause_of", "failed_state", "not_finite", "rank_loss_note", "real_at"]
@@ -29,8 +30,8 @@ def rank_loss_note(system, t, y, param) -> str:
     """``; <why Mbar is singular at y>`` (:func:`..core.finite.rank_loss`), or nothing."""
     from ..core.finite import rank_loss
 
-    if param is None or t is None or y is None or not np.all(np.isfinite(y)):
-        return ""
+    if param is None or t is None or y is None or not np.all(np.isfinite(y)) or projected_in_numbers(system):
+        return ""  # (with the projection onto the speeds made at run time, no symbolic Mbar to look at)
     why = rank_loss(system, t, y, param)
     return f"; {why}" if why else ""
 
@@ -55,9 +56,12 @@ def real_at(native, t: float, y, param) -> bool:
 
 
 def cause_of(system, t: float, y, param, mass_only: bool = False):
-    """The :class:`..core.finite.Cause` of :func:`not_finite`, or None."""
+    """The :class:`..core.finite.Cause` of :func:`not_finite`, or None (also when the projection
+    onto the speeds is made at run time: its symbolic equations are not made to look into)."""
     from ..core.finite import at_state
 
+    if projected_in_numbers(system):
+        return None
     cause = at_state(system, t, y, param)
     if cause is not None and mass_only and not (cause.overflow or cause.label.startswith("Mbar")):
         return None

@@ -1,19 +1,18 @@
-"""Runs of a system under velocity constraints projected numerically at every evaluation.
+"""Runs of a system under velocity constraints projected numerically at every evaluation, in numpy.
 
 The equations in the speeds, ``Mbar udot = fbar - hbar`` with ``Mbar = C^T M C`` (9'), (D),
 ``hbar = C^T (M (Cdot u + ddot) + h)`` (E), ``fbar = C^T f`` (8'), (F), are projected
-symbolically for generated code; for a large system (a bicycle's rolling contacts) that
+symbolically for the numpy module; for a large system (a bicycle's rolling contacts) that
 projection (the solve of ``[A; Y] xdot = [-b; u]`` and the products of its long entries) is
-far beyond the work budget. This route instead evaluates the small pieces at each state, the
-primitive's metric and velocity terms, the forces, the rows of the constraints and their
+far beyond the work budget, and the generated C makes it in numbers at run time
+(:mod:`kronsub.emitters.projected_speeds`). Without a C compiler, this route evaluates the small
+pieces at each state, the primitive's metric and velocity terms, the forces, the rows of the constraints and their
 derivatives (:class:`~kronsub.core.nonholonomic_linearize.SteadyMotionRates`, compiled by
 lambdify per piece), and forms ``C``, ``Cdot u + ddot``, ``Mbar`` and ``fbar - hbar`` in numbers,
 after the held coordinates are put on their configuration constraints by Newton's method
 (:mod:`kronsub.core.held`), as the generated right-hand side does.
 
-Which route a run takes is decided by :func:`projection_work`, a measure of the symbolic
-projection's size: the distinct subexpressions of the velocity constraints' rows (as made)
-times ``n^2`` for the ``n x n`` solve. From :data:`NUMERIC_FROM` the numeric route is taken.
+Which systems are too large is decided by :func:`~kronsub.core.projection_work.projected_in_numbers`.
 """
 from __future__ import annotations
 
@@ -27,57 +26,34 @@ from ..core.held import held_coordinates
 from ..core.known_system import KnownSystem
 from ..core.linearize_numerics import LinearizationError
 from ..core.nonholonomic_linearize import steady_motion_rates
+from ..core.projection_work import NUMERIC_FROM, projection_work
 from ..core.symbols import TIME
 from ..errors import Location, ModelError, Problem
 from .failure import Singular
 
-__all__ = ["FORMED", "NUMERIC_FROM", "NumericSpeeds", "numeric_route", "projection_work", "refuse_unformed"]
+__all__ = ["FORMED", "NumericSpeeds", "refuse_unformed"]
 
-NUMERIC_FROM = 10_000
-"""Projection work (:func:`projection_work`) from which a run projects in numbers: the rolling
-disc's is 300, a rolling joint's disc 2 225, the Whipple bicycle's 33 792."""
-
-
-def projection_work(system: KnownSystem) -> int:
-    """The size of the symbolic projection in the speeds: the distinct subexpressions of the
-    velocity constraints' rows (as made, :attr:`~kronsub.core.known_system.SpeedEquations.rows`,
-    else ``A xdot + b``) times ``n^2``, ``n`` the coordinates (the solve of ``[A; Y]``); 0 for a
-    system without velocity constraints."""
-    s = system.speeds
-    if s is None or not s.constraint_names:
-        return 0
-    rows = s.rows or tuple(s.constraint_matrix * sympy.Matrix(list(system.velocities)) + s.constraint_offset)
-    seen: set = set()
-    for row in rows:
-        seen.update(sympy.preorder_traversal(sympy.sympify(row)))
-    return len(seen) * len(system.coordinates) ** 2
-
-
-def numeric_route(system: KnownSystem) -> bool:
-    """Whether a run of ``system`` projects onto its speeds in numbers (:class:`NumericSpeeds`):
-    velocity constraints whose :func:`projection_work` is at least :data:`NUMERIC_FROM`."""
-    return projection_work(system) >= NUMERIC_FROM
-
-
-FORMED = {"--reactions": "no contact forces", "--points": "no generated code for the named points",
-          "animate": "no generated code for the named points the drawing is placed by"}
-"""What the numeric route does not form, by what asks for it."""
+FORMED = {"--reactions": "no contact forces",
+          "--points": "no generated numpy module, which a run's named points come from",
+          "animate": "no generated numpy module, which the named points the drawing is placed by come from"}
+"""What a run projected at run time does not form, by what asks for it."""
 
 
 def refuse_unformed(system: KnownSystem, location: Location | None = None, what: str = "--reactions") -> None:
     """A :class:`ModelError` at ``location`` (where the model writes its velocity constraints) when
-    a run of ``system`` takes the numeric route, which forms neither the multipliers of the
-    constraints (``--reactions``) nor the generated module the named points come from
-    (``--points``, ``animate``)."""
+    ``system``'s projection onto the speeds is made at run time (in the generated C, or here without
+    a compiler), which forms neither the multipliers of the constraints (``--reactions``) nor the
+    generated numpy module the named points come from (``--points``, ``animate``)."""
     work = projection_work(system)
-    if work >= NUMERIC_FROM:  # the numeric route (:func:`numeric_route`)
+    if work >= NUMERIC_FROM:  # projected at run time (core/projection_work.projected_in_numbers)
         hint = (f"simulate without {what} (the motion, energies and the held coordinates are written as usual)"
                 if what.startswith("--") else "simulate it instead (`kronsub simulate`): the motion, energies and "
                 "the held coordinates are written as usual")
         raise ModelError([Problem(location, f"{what} of this model is not supported: its equations in the speeds "
                                             f"are too large to project symbolically (projection work "
                                             f"{work}, from {NUMERIC_FROM} a run projects in "
-                                            f"numbers at each step and forms {FORMED[what]})", hint)])
+                                            f"numbers at each step, in the generated C, and forms {FORMED[what]})",
+                                    hint)])
 
 
 class NumericSpeeds:

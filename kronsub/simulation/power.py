@@ -34,9 +34,15 @@ class EnergySplit:
         """The rows of :data:`COLUMNS` at the times ``t`` and states ``Y`` (one per row)."""
         Y = np.asarray(Y, dtype=float).reshape(len(t), -1)
         p = np.asarray(param, dtype=float).tolist()
-        return np.array([self.function(*y, *p, time) for time, y in zip(np.asarray(t, dtype=float).tolist(),
-                                                                          Y.tolist())],
+        return np.array([self._row(time, y, p) for time, y in zip(np.asarray(t, dtype=float).tolist(), Y.tolist())],
                         dtype=float).reshape(len(t), len(COLUMNS))
+
+    def _row(self, time: float, y: list, p: list) -> list:
+        """One row; NaN where it has no finite value (a capacitance through zero: a division by zero)."""
+        try:
+            return self.function(*y, *p, time)
+        except (ArithmeticError, ValueError):
+            return [float("nan")] * len(COLUMNS)
 
 
 def energy_split(model, system: KnownSystem) -> EnergySplit | None:

@@ -39,6 +39,10 @@ import sympy
 
 from ..core.first_order import first_order
 from ..core.known_system import KnownSystem
+from ..core.symbols import velocity_symbol
+from ..emitters.projected_speeds import applies as frame_applies
+from ..core.projection_work import projected_in_numbers
+from ..emitters.projected_speeds import frame_equations
 from ..emitters.tape import Tape
 from ..errors import KronsubError
 
@@ -277,6 +281,8 @@ def _series_of(system: KnownSystem, param, bits: int) -> _Series:
         for a in range(k):
             tape.memo[imp.convective[a]] = gamma[a][0]
     s = system.speeds  # under velocity constraints: y = [q; u], q' = C(q) u, Mbar u' = fbar - hbar
+    if s is not None and projected_in_numbers(system) and frame_applies(system):  # projected on the tape
+        return _Series(tape, _frame_derivatives(system, tape, nodes), bits)
     if s is not None:
         M, r = s.mass_matrix, s.forces - s.velocity_terms
         velocities = [sympy.sympify(e) for e in s.kinematics]
@@ -347,6 +353,35 @@ class _Closure:
                 return [_fixed(v, P) for v in yd]
         raise ReferenceFailure(f"Newton's method on the constraints {self.names} does not converge on the "
                                "reference trajectory (a toggle position?)")
+
+
+def _frame_derivatives(system: KnownSystem, tape: Tape, nodes) -> list[int]:
+    """The nodes of ``[qdot; udot]`` of a system whose projection onto the speeds is too large to
+    make symbolically, projected on the tape as the generated C does at run time
+    (:mod:`kronsub.emitters.projected_speeds`): ``S w = r0 + [0; u]``, ``S C = [0; I]``,
+    ``S c = -rho'`` at ``qdot = w``, then ``Mbar = C^T M C`` (9'), (D) and
+    ``Mbar udot = C^T (f - h - M c)`` (E), (F), each solve order by order."""
+    eq = frame_equations(system)
+    n, p = eq.S.rows, len(system.speeds.speeds)
+    S = nodes(eq.S)
+    w = tape.solve(S, nodes(eq.r0 + sympy.Matrix([0] * (n - p) + list(system.speeds.speeds))), "S = [G; A; Y]")
+    for k, q in enumerate(system.coordinates):
+        tape.memo[velocity_symbol(q)] = w[k][0]
+    c = tape.solve(S, nodes(-eq.rates), "S = [G; A; Y]")
+    C = tape.solve(S, nodes(sympy.zeros(n - p, p).col_join(sympy.eye(p))), "S = [G; A; Y]")
+    Cs = [[sympy.Dummy(f"C{a}_{i}") for i in range(p)] for a in range(n)]
+    cs = [sympy.Dummy(f"c{a}") for a in range(n)]
+    for a in range(n):
+        tape.memo[cs[a]] = c[a][0]
+        for i in range(p):
+            tape.memo[Cs[a][i]] = C[a][i]
+    M, r = eq.metric, eq.forces
+    rx = [sympy.Add(r[a], -sympy.Add(*[M[a, b] * cs[b] for b in range(n) if M[a, b] != 0])) for a in range(n)]
+    Mbar = sympy.Matrix(p, p, lambda i, j: sympy.Add(*[Cs[a][i] * M[a, b] * Cs[b][j] for a in range(n)
+                                                       for b in range(n) if M[a, b] != 0]))
+    rbar = sympy.Matrix([sympy.Add(*[Cs[a][i] * rx[a] for a in range(n)]) for i in range(p)])
+    accelerations = tape.solve(nodes(Mbar), nodes(rbar), "the mass matrix Mbar")
+    return [row[0] for row in w] + [row[0] for row in accelerations]
 
 
 def taylor(system: KnownSystem, param, y0, times, digits: int = 30, dependent=None) -> RouteResult:

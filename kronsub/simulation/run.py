@@ -21,6 +21,7 @@ import numpy as np
 from ..core.first_order import zero_rows
 from ..core.held import held_coordinates
 from ..core.known_system import KnownSystem
+from ..core.projection_work import projected_in_numbers
 from .advice import EnergyWarning, StiffnessWarning, energy_advice, is_stiff, stiffness_advice
 from .compiled import native_model
 from .engines import Problem, Steps, engine_of, runner
@@ -32,7 +33,7 @@ from .grid import Grid, Tail
 from .methods import METHODS as REGISTRY
 from .methods import SIMULATE, unknown_method
 from .native import CANONICAL_METHODS, CompileError, CompilerNotFound
-from .numeric_speeds import NumericSpeeds, numeric_route
+from .numeric_speeds import NumericSpeeds
 from .power import charge_coordinates
 from .progress import Progress
 from . import rows as streamed
@@ -181,8 +182,6 @@ def start(system: KnownSystem, values: RunValues, t_end: float, dt: float, metho
     grid = Grid(t_end, dt)
     spec = METHODS[method]
     with_energies = outputs is None or outputs.energies
-    if numeric_route(system):  # the equations in the speeds too large to project symbolically
-        return _numeric_run(system, param, spec, grid, y0, Steps(rtol, atol, dt, chunks), progress, with_energies)
     if not engine_of(spec).COMPILED_RHS:  # its own integrator; the compiled model for the energies and their check
         native = _compiled_quietly(system, outputs) if with_energies else None
         rows_of = runner(_problem(system, param, native, outputs, constrained, rtol, atol), spec)
@@ -197,6 +196,8 @@ def start(system: KnownSystem, values: RunValues, t_end: float, dt: float, metho
         from .constrained import configure_native
 
         configure_native(native, constrained.guess, _newton_tol(rtol, atol))
+    if native is None and projected_in_numbers(system):  # no C, and the equations in the speeds too large for numpy's
+        return _numeric_run(system, param, spec, grid, y0, Steps(rtol, atol, dt, chunks), progress, with_energies)
     if native is None and spec.fallback is not None:
         warnings.warn(f"method '{method}' runs in compiled C; using scipy's {spec.fallback} instead")
         spec = METHODS[spec.fallback]
@@ -220,15 +221,18 @@ def start(system: KnownSystem, values: RunValues, t_end: float, dt: float, metho
 
 
 def _numeric_run(system, param, spec, grid, y0, steps, progress, with_energies) -> RunInProgress:
-    """A run of a system whose equations in the speeds are projected in numbers at every
-    evaluation (:mod:`.numeric_speeds`): a method wholly in C runs as its scipy fallback."""
+    """A run without compiled C of a system whose equations in the speeds are too large to project
+    symbolically (the generated C projects them at run time, :mod:`kronsub.emitters.projected_speeds`):
+    projected in numbers at every evaluation (:mod:`.numeric_speeds`), a method wholly in C as its
+    scipy fallback."""
     if spec.engine != "scipy":
         if spec.fallback is None:
-            raise SimulationError(f"method '{spec.name}' needs generated code, which a model this large in its "
-                                  "speeds does not have (its equations are projected in numbers); use DOP853, "
-                                  "RK45, Radau or LSODA")
-        warnings.warn(f"method '{spec.name}' runs in compiled C, which this model does not have (its equations in "
-                      f"the speeds are projected in numbers at every step); using scipy's {spec.fallback} instead")
+            raise SimulationError(f"method '{spec.name}' needs compiled C, which is not available here (this "
+                                  "model's equations in the speeds are projected in numpy at every step); use "
+                                  "DOP853, RK45, Radau or LSODA")
+        warnings.warn(f"method '{spec.name}' runs in compiled C, which is not available here (this model's "
+                      f"equations in the speeds are projected in numpy at every step); using scipy's "
+                      f"{spec.fallback} instead")
         spec = METHODS[spec.fallback]
     numeric = NumericSpeeds(system, param)
     rows_of = runner(Problem(system, param, None, numeric.restart), spec)

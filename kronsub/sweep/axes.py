@@ -138,12 +138,25 @@ def read_table(path: str, problems: list[Problem]) -> TableAxis | None:
         problems.append(Problem(where, "the table has no rows" if table.num_columns else "the table has no columns",
                                 "a header row of names, then a row of numbers per run"))
         return None
+    names = [str(name) for name in table.column_names]
+    unnamed = [k + 1 for k, name in enumerate(names) if not name.strip()]
+    twice = sorted({name for name in names if names.count(name) > 1 and name.strip()})
+    if unnamed or twice:
+        problems.extend([Problem(where, f"column {k} has no name", "name every column in the header row")
+                         for k in unnamed] +
+                        [Problem(where, f"column {name} appears {names.count(name)} times",
+                                 "give each name one column: a run has one value of it") for name in twice])
+        return None
     columns = []
-    for name in table.column_names:
+    for k, name in enumerate(names):
         try:
-            values = table.column(name).cast(pa.float64()).to_numpy(zero_copy_only=False)
+            values = table.column(k).cast(pa.float64()).to_numpy(zero_copy_only=False)
         except (pa.ArrowException, ValueError):
-            problems.append(Problem(where, f"column {name} is not numeric", "every column holds numbers"))
+            cells = table.column(k).to_pylist()
+            row = next((r for r, cell in enumerate(cells) if not _numeric(cell)), None)
+            problems.append(Problem(where, f"column {name} is not numeric" +
+                                    (f": row {row + 1} holds {cells[row]!r}" if row is not None else ""),
+                                    "every column holds numbers"))
             continue
         bad = np.flatnonzero(~np.isfinite(values))
         if len(bad):
@@ -154,6 +167,15 @@ def read_table(path: str, problems: list[Problem]) -> TableAxis | None:
     if len(columns) < table.num_columns:
         return None
     return TableAxis(str(path), digest, tuple(columns))
+
+
+def _numeric(cell) -> bool:
+    """Whether a table's cell reads as a number."""
+    try:
+        float(cell)
+    except (TypeError, ValueError):
+        return False
+    return True
 
 
 @dataclass(frozen=True)

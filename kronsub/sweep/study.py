@@ -110,6 +110,7 @@ def make_job(system, plan: Plan, initial: dict, settings: dict[str, str], *, met
     dependent_settings = {k: v for k, v in settings.items() if k in dependent}
     values = resolve(system, initial, fixed)
     swept = {p.symbol for p in system.parameters if p.name in plan.names}
+    _meets_requirements(system, plan, values.parameters, where)
     derived = []
     if swept:
         by_name = {k.name: v for k, v in initial.items()}
@@ -142,3 +143,34 @@ def make_job(system, plan: Plan, initial: dict, settings: dict[str, str], *, met
                base_param=values.parameters, base_y0=values.y0, route=route, sources=sources, outputs=outputs,
                initial=dict(initial), dependent_settings=dependent_settings, derived_initial=tuple(derived),
                summaries=tuple(user), taylor_sources=taylor)
+
+
+REQUIREMENT_BLOCK = 1 << 18  # runs whose swept values are checked at once
+
+
+def _meets_requirements(system, plan: Plan, base: tuple[float, ...], where: dict[str, str]) -> None:
+    """Every run's parameters meet what the components need of them (a mass not below zero, a
+    length above it: :mod:`kronsub.model.requirements`), as ``simulate --set`` checks them; the
+    first run that breaks one is a :class:`ModelError` at its axis, before anything runs."""
+    from ..model.requirements import first_unmet, parameters_in
+
+    names = set(plan.names)
+    concerned = [r for r in system.requirements if {s.name for s in parameters_in(r)} & names]
+    if not concerned:
+        return
+    symbols = [p.symbol for p in system.parameters]
+    for start in range(0, plan.count, REQUIREMENT_BLOCK):
+        stop = min(start + REQUIREMENT_BLOCK, plan.count)
+        inputs = plan.inputs(start, stop)
+        columns = [inputs.get(p.name, value) for p, value in zip(system.parameters, base)]
+        found = first_unmet(concerned, symbols, columns)
+        if found is not None:
+            row, req, problem = found
+            run = start + row
+            axes = [s.name for s in parameters_in(req) if s.name in names]
+            given = ", ".join(f"{name} = {float(inputs[name][row]):.6g}" for name in plan.names
+                              if name in inputs and any(p.name == name for p in system.parameters))
+            raise ModelError([Problem(Location(where.get(axes[0], axes[0])),
+                                      f"run {run} ({given}): {problem.message}",
+                                      f"{problem.hint}; keep the swept values within that range "
+                                      "(a sample: uniform(a, b) or loguniform(a, b) bounded there)")])
