@@ -29,6 +29,9 @@ connection (``spatial``) or as ``pin`` constraints (``spatial-pins``, ``--pins``
   the cached known system and library (its prepared run removed first: the warm run before
   prepared runs), and their ratio.
 
+kronsub's modules are compiled to bytecode first (``compileall``, as ``pip install`` does), so no
+child compiles them from source, whatever ``PYTHONDONTWRITEBYTECODE`` says.
+
 Peak memory: the child's largest resident set (``wait4``). Each cell: min/median of
 ``--repeats`` fresh processes; ``goal``: issue 34's target, ``x goal`` the ratio min/median to it
 (below 1: met). A run that passes ``--timeout`` seconds is killed and shown as ``>T``.
@@ -36,6 +39,7 @@ Peak memory: the child's largest resident set (``wait4``). Each cell: min/median
 from __future__ import annotations
 
 import argparse
+import compileall
 import json
 import os
 import shutil
@@ -340,8 +344,11 @@ def main() -> None:
     from generate import chain_yaml
     from generate_spatial import spatial_chain_yaml
 
+    # as installed: pip compiles a package's bytecode, which every child then reads (an environment
+    # with PYTHONDONTWRITEBYTECODE would otherwise compile kronsub's modules from source in each one)
+    compileall.compile_dir(str(ROOT / "kronsub"), quiet=1)
     print(f"first trajectory, t = 10; wall min/median of {args.repeats} fresh processes [s], peak memory, "
-          "phases (median) [s]")
+          "phases (median) [s]; kronsub's bytecode compiled first, as an installation has it")
     missing = {t: available(t) for t in tools}
     with tempfile.TemporaryDirectory() as folder:
         print("\nstart-up")

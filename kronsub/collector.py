@@ -1,6 +1,7 @@
 """Python's cyclic garbage collector paused while a bounded step builds many objects."""
 from __future__ import annotations
 
+import atexit
 import contextlib
 import gc
 
@@ -25,4 +26,19 @@ def collector_paused():
             gc.enable()
 
 
-__all__ = ["collector_paused"]
+def frozen_at_exit() -> None:
+    """Freeze every object left at interpreter exit (``gc.freeze``), once per process: the
+    collections the interpreter runs while it shuts down then skip them, and reference
+    counting alone frees them. After a command that derived and emitted a model those passes
+    would walk every sympy expression and cache entry still alive to find the few cycles the
+    process drops anyway. The other exit handlers run as before; an object in a cycle is not
+    finalised, so a command closes its outputs itself (as :mod:`kronsub.atomic` does)."""
+    if not _FROZEN:
+        _FROZEN.append(True)
+        atexit.register(gc.freeze)
+
+
+_FROZEN: list[bool] = []
+
+
+__all__ = ["collector_paused", "frozen_at_exit"]

@@ -161,3 +161,39 @@ def test_a_run_that_fails_on_the_circle_is_told_in_angles():
     (t1, Y1, r1), (t2, Y2, r2) = runs
     assert r1.status == r2.status != 0 and r1.t_fail == r2.t_fail
     assert np.array_equal(Y1, Y2) and np.array_equal(r1.y_fail, r2.y_fail)
+
+
+@needs_cc
+def test_the_circle_state_compiled_apart_computes_what_it_computes_in_one_file(tmp_path):
+    """A run's library has the circle state's right-hand side in a file of its own
+    (``emit_c(circle_apart=True)``), compiled beside the rest: the same C, moved, so the same
+    numbers to the last bit as the library built from one file; the model's other functions
+    are unchanged; a model whose circle equations need the projection's helpers stays whole."""
+    from kronsub.emitters.code import emit_c
+    from kronsub.simulation.native import compile_library
+
+    system = kronsub.load("chain4.yaml", text=chain_yaml(4)).derive()
+    whole = emit_c(system, "model", terms_apart=False, canonical=False)
+    apart = emit_c(system, "model", terms_apart=False, canonical=False, circle_apart=True)
+    assert [g.name for g in whole] == ["model.h", "model.c"]
+    assert [g.name for g in apart] == ["model.h", "model.c", "model_circle.c"]
+    assert apart[0].text == whole[0].text and "ks_rhs_circle_pre" not in apart[1].text
+    solve, circle = apart[2].text.index("/* Solve M x"), apart[2].text.index("/* The circle state")
+    assert apart[2].text[solve:circle].strip() in whole[1].text  # its own static copy of the solve
+    assert whole[1].text.replace("\n" + apart[2].text[circle:], "") == apart[1].text  # moved, nothing else
+    n, nparam = len(system.coordinates), len(system.parameters)
+    one, two = (NativeModel(compile_library([(g.name, g.text) for g in files], "model"), n, nparam)
+                for files in (whole, apart))
+    assert one.path != two.path and one.nc == two.nc == 4
+    rng = np.random.default_rng(3)
+    for _ in range(20):
+        y = np.concatenate([rng.uniform(-7, 7, n), rng.uniform(-3, 3, n)])
+        param = rng.uniform(0.5, 1.5, nparam)
+        z = one.circle_state(y)
+        assert np.array_equal(one.rhs_circle(0.0, z, param), two.rhs_circle(0.0, z, param))
+        assert np.array_equal(one.rhs(0.0, y, param), two.rhs(0.0, y, param))
+    param = np.ones(nparam)
+    runs = [m.integrate("dop853", 0.0, np.r_[np.full(n, 0.5), np.zeros(n)], 2.0, 0.5, param)[1] for m in (one, two)]
+    assert np.array_equal(runs[0], runs[1])
+    projected = emit_c(system, "model", terms_apart=False, canonical=False, circle_apart=True, route="projected")
+    assert [g.name for g in projected] == ["model.h", "model.c"] and "ks_rhs_circle_pre" in projected[1].text

@@ -3,6 +3,9 @@ emitting, and always given back as it was."""
 from __future__ import annotations
 
 import gc
+import os
+import subprocess
+import sys
 
 import pytest
 
@@ -52,3 +55,21 @@ def test_the_collector_comes_back_after_an_error_and_after_work(collector_on, tm
 
     assert emit_markdown(system) and emit_c(system, "s1")
     assert gc.isenabled()
+
+
+def test_a_command_freezes_what_is_left_at_exit_and_its_outputs_are_whole(tmp_path):
+    """The shutdown's collections skip what a command leaves (kronsub.collector.frozen_at_exit):
+    frozen once the command's process exits, after its outputs were written and closed."""
+    out = tmp_path / "run.csv"
+    probe = ("import atexit, gc\n"
+             "atexit.register(lambda: print('frozen' if gc.get_freeze_count() else 'not frozen'))\n"
+             "from kronsub.cli import main\n"
+             f"main(['simulate', {str(MODELS / 'hoffmann' / 'system1.yaml')!r}, '--t', '0.5', '--output', "
+             f"{str(out)!r}], standalone_mode=False)\n"
+             "print('ran', gc.get_freeze_count() == 0)\n")
+    done = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, timeout=120,
+                          env={**os.environ, "KRONSUB_CACHE_DIR": str(tmp_path / "cache")})
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.split() == ["ran", "True", "frozen"]  # not during the command: at its exit
+    rows = out.read_text().splitlines()
+    assert len(rows) == 52 and rows[-1].startswith("0.5,")  # a header and t = 0, 0.01, ..., 0.5

@@ -565,6 +565,68 @@ def test_a_compiler_that_cannot_build_for_the_host_builds_portably(cache, monkey
     assert math.isclose(model.rhs(0.0, [1.0, 0.0], [2.0, 8.0])[1], -4.0)
 
 
+def test_the_integrators_compiled_ahead_go_into_the_next_library(cache, monkeypatch):
+    """`compile_ahead` (called before a model's C is emitted) compiles the integrators once, in
+    the background; the library built next links that object instead of compiling them again,
+    and computes what a library built without it computes."""
+    calls = []
+    real = native._run_compiler
+
+    def counted(command, cwd):
+        calls.append((command[-1], cwd))
+        return real(command, cwd)
+
+    monkeypatch.setattr(native, "_run_compiler", counted)
+    monkeypatch.setattr(native, "_AHEAD", {})
+    native.compile_ahead()
+    native.compile_ahead()  # started already: not again
+    model = NativeModel.build([OSCILLATOR + "/* integrators made ahead */\n"], "oscillator", nq=1, nparam=2)
+    compiled = [(name, cwd) for name, cwd in calls if name.endswith(".c")]
+    assert sorted(name for name, _ in compiled) == ["integrators.c", "oscillator_0.c"]
+    (ahead,) = [cwd for name, cwd in compiled if name == "integrators.c"]
+    assert cache not in ahead.parents  # the process's private temporary folder
+    assert math.isclose(model.rhs(0.0, [1.0, 0.0], [2.0, 8.0])[1], -4.0)
+    _, Y, res = model.integrate("dop853", 0.0, [1.0, 0.0], 1.0, 0.5, [2.0, 8.0])
+    assert res.ok and math.isclose(Y[-1, 0], math.cos(2.0), rel_tol=1e-8)
+
+
+def test_integrators_that_failed_ahead_are_compiled_with_the_model(cache, monkeypatch):
+    real = native._run_compiler
+    calls = []
+
+    def failing_ahead(command, cwd):
+        calls.append(command[-1])
+        if command[-1] == "integrators.c" and cache not in cwd.parents:
+            return real([*command[:-1], "no-such-file.c"], cwd)
+        return real(command, cwd)
+
+    monkeypatch.setattr(native, "_run_compiler", failing_ahead)
+    monkeypatch.setattr(native, "_AHEAD", {})
+    native.compile_ahead()
+    model = NativeModel.build([OSCILLATOR + "/* integrators failed ahead */\n"], "oscillator", nq=1, nparam=2)
+    assert calls.count("integrators.c") == 2  # ahead (failed), then with the model
+    assert math.isclose(model.rhs(0.0, [1.0, 0.0], [2.0, 8.0])[1], -4.0)
+
+
+def test_a_forked_child_does_not_wait_on_its_parent_s_integrators(cache, monkeypatch):
+    """A build started ahead by another process (a parent before it forked: its thread is not
+    in the child) is neither waited on nor counted as started."""
+    from concurrent.futures import Future
+
+    monkeypatch.setattr(native, "_AHEAD", {})
+    native.compile_ahead()
+    (key, (pid, _, obj)), = native._AHEAD.items()
+    assert pid == os.getpid()
+    native._AHEAD[key] = (pid + 1, Future(), obj)  # never finished here
+    files = [(name, (native.CSRC / name).read_text()) for name in native.INTEGRATOR_FILES]
+    flags = [f for f in native.build_flags() if f != "-shared"]
+    assert native._compiled_ahead(native.compiler_command(), flags, files) is None  # at once
+    native.compile_ahead()
+    assert native._AHEAD[key][0] == os.getpid()  # started again, here
+    model = NativeModel.build([OSCILLATOR + "/* after a fork */\n"], "oscillator", nq=1, nparam=2)
+    assert math.isclose(model.rhs(0.0, [1.0, 0.0], [2.0, 8.0])[1], -4.0)
+
+
 def test_data_address_is_numpys_for_every_kind_of_array():
     """`native.data_address` (what every call into a compiled model passes) is the address
     numpy gives, for writable, read-only, empty and non-contiguous arrays."""

@@ -20,6 +20,7 @@ import click
 
 from .. import budget
 from ..atomic import STREAM, output_target, write_atomically
+from ..collector import frozen_at_exit
 from ..errors import KronsubError, Location, ModelError
 from ..interrupts import exit_code, signal_name, signal_of, signals_as_interrupts
 from ..simulation.span import T_END
@@ -150,7 +151,9 @@ def _show_warning(message, category, filename, lineno, file=None, line=None):
 
 def run_command(job):
     """Run a command body, turning known errors into messages and exit codes; its work is
-    bounded by the command's ``--budget`` (`kronsub.budget`)."""
+    bounded by the command's ``--budget`` (`kronsub.budget`); its objects are not collected
+    again while the process exits (:func:`kronsub.collector.frozen_at_exit`)."""
+    frozen_at_exit()
     warnings.showwarning = _show_warning
     _ADVICE[0] = 0
     context = click.get_current_context(silent=True)

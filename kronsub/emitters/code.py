@@ -178,7 +178,7 @@ def _context(model: NumericModel, show, declare: str, end: str) -> dict:
 @collector_paused()  # see kronsub.collector
 def emit_c(system: KnownSystem, stem: str, source: str = "", prefix: str = "ks",
            outputs=None, jacobian: bool = False, route: str = "auto", terms_apart: bool = True,
-           canonical: bool = True) -> list[GeneratedFile]:
+           canonical: bool = True, circle_apart: bool = False) -> list[GeneratedFile]:
     """``<stem>.h`` and ``<stem>.c`` (``stem`` made safe by :func:`file_stem`): C99, libc and
     libm only; names start with ``<prefix>_`` (macros with ``<PREFIX>_``), so several models
     can live in one program. A scene's ``outputs`` leave out the energy and point functions
@@ -186,7 +186,10 @@ def emit_c(system: KnownSystem, stem: str, source: str = "", prefix: str = "ks",
     ``route`` (:data:`.projected.ROUTES`): ``Mbar``, ``hbar`` and ``fbar`` from the derived
     expressions or projected at run time (:mod:`.projected`). ``terms_apart`` (``<prefix>_velocity_terms``,
     ``<prefix>_forces``) and ``canonical`` (``<prefix>_rhs_canonical``): left out when False (a
-    library that runs a method on ``y = [q; qdot]`` calls neither)."""
+    library that runs a method on ``y = [q; qdot]`` calls neither). ``circle_apart``: the circle
+    state's right-hand side in a file of its own, ``<stem>_circle.c``, so that a build compiles
+    the two files side by side (where it stands alone: not with the projection kept for run
+    time, nor with guarded angles left in it)."""
     if route not in ROUTES:
         raise ValueError(f"route must be one of {', '.join(ROUTES)}, not {route!r}")
     # under velocity constraints the projection onto the speeds is kept (.projected_speeds)
@@ -211,17 +214,26 @@ def emit_c(system: KnownSystem, stem: str, source: str = "", prefix: str = "ks",
     if model.implicit is None and not model.first_order and not model.speeds:  # the circle state (circle.py)
         rhs = model.equations if model.projected is None else model.projected.block
         circle, circle_block = circle_equations(rhs, [sympy.Symbol(f"q[{i}]") for i in range(model.n)])
+    alone = circle_block is not None and model.projected is None  # no helper of <stem>.c needed
     if circle_block is not None:
-        ctx["b"]["circle"] = _lines(circle_block, printer.doprint, "const double ", ";")
+        circle_printer = _CPrinter(p)
+        ctx["b"]["circle"] = _lines(circle_block, circle_printer.doprint, "const double ", ";")
+        printer.near_axis = printer.near_axis or circle_printer.near_axis
+        alone = alone and not circle_printer.near_axis
     ctx["circle"] = [(k, i, model.coordinates[i]) for k, i in enumerate(circle)]
+    ctx["circle_apart"] = circle_apart and alone
     stem = file_stem(stem)
     ctx.update(near_axis=printer.near_axis, ldlt=ldlt_lines(model.nv) if 0 < model.nv <= WRITTEN_OUT else None,
                p=Markup(p), P=Markup(p.upper()), header=Markup(f"{stem}.h"),
                NV=Markup(f"{p.upper()}_NU" if model.speeds else f"{p.upper()}_NQ"),
                guard=Markup(f"{p.upper()}_{identifier(stem).upper()}_H"))
+    ctx["stem"] = Markup(stem)
     env = template_environment()
-    return [GeneratedFile(f"{stem}.h", env.get_template("model.h.j2").render(**ctx)),
-            GeneratedFile(f"{stem}.c", env.get_template("model.c.j2").render(**ctx))]
+    files = [GeneratedFile(f"{stem}.h", env.get_template("model.h.j2").render(**ctx)),
+             GeneratedFile(f"{stem}.c", env.get_template("model.c.j2").render(**ctx))]
+    if ctx["circle_apart"]:
+        files.append(GeneratedFile(f"{stem}_circle.c", env.get_template("model_circle.c.j2").render(**ctx)))
+    return files
 
 
 @collector_paused()  # see kronsub.collector

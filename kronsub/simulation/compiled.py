@@ -124,14 +124,15 @@ def generated_sources(system: KnownSystem, outputs=None, jacobian: bool = False,
                       canonical: bool = True) -> list[tuple[str, str]]:
     """The model's C files a library is built from: the named points left out of ``outputs``
     (a run's table takes them from the numpy module), and ``hbar`` and ``fbar`` apart (no run
-    calls them), so neither their emission nor their compilation is paid for; ``jacobian``:
+    calls them), so neither their emission nor their compilation is paid for, and the circle
+    state's right-hand side in a file of its own, compiled beside the rest; ``jacobian``:
     with the exact ``d ydot/dy`` (``ks_jacobian``); ``canonical``: with the canonical
     right-hand side (:data:`.native.CANONICAL_METHODS` integrate it)."""
     from ..emitters.code import emit_c  # heavy (jinja2, the C printer): only when the index misses
 
     computed = dataclasses.replace(outputs or Outputs(), points=())
     return [(g.name, g.text) for g in emit_c(system, "model", outputs=computed, jacobian=jacobian, terms_apart=False,
-                                             canonical=canonical)]
+                                             canonical=canonical, circle_apart=True)]
 
 
 def compiled_library(system: KnownSystem, outputs=None, jacobian: bool = False, canonical: bool = True) -> Path:
@@ -139,13 +140,15 @@ def compiled_library(system: KnownSystem, outputs=None, jacobian: bool = False, 
     when its fingerprint is there and the library says it computes these equations
     (:func:`belongs`), else emitted, built (:func:`.native.compile_library`) and indexed.
     ``jacobian``: with the exact ``d ydot/dy`` (``ks_jacobian``); ``canonical``: with
-    ``ks_rhs_canonical``. Raises what ``compile_library`` raises."""
+    ``ks_rhs_canonical``; the integrators compile meanwhile (:func:`.native.compile_ahead`).
+    Raises what ``compile_library`` raises."""
     key = fingerprint(system, outputs, jacobian, canonical)
     nq, nparam = len(system.coordinates), len(system.parameters)
     if key is not None:
         library = lookup(key)
         if library is not None and belongs(library, key, nq, nparam):
             return library
+    native.compile_ahead()  # the integrators compile while the model's C is emitted
     generated = generated_sources(system, outputs, jacobian, canonical)
     if key is not None:
         generated.append(identity_source(key, nq, nparam))

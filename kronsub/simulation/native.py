@@ -28,7 +28,7 @@ import shutil
 import stat
 import subprocess
 import tempfile
-from concurrent.futures import ThreadPoolExecutor
+from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable, Sequence
@@ -287,14 +287,74 @@ class _Vanished(Exception):
     """The build folder was removed during a build."""
 
 
-def _compile_and_link(command: list[str], flags, folder: Path, c_files: list[str],
+def _compile_flags(flags) -> list[str]:
+    """The flags of compiling one file to an object: a library's, without ``-shared``."""
+    return [f for f in flags if f != "-shared"]
+
+
+def _ahead_key(command: list[str], compile_flags: list[str], files: list[tuple[str, str]]) -> str:
+    digest = hashlib.sha256("\0".join([*command, *compile_flags]).encode())
+    for name, text in files:
+        digest.update(b"\0" + name.encode() + b"\0" + text.encode())
+    return digest.hexdigest()
+
+
+_AHEAD: dict[str, tuple[int, Future, Path]] = {}  # (the process that started it, its build, the object)
+
+
+def compile_ahead() -> None:
+    """Start compiling the integrators (``csrc``, the same for every model) to an object in the
+    background, for the next library :func:`compile_library` builds with the same compiler and
+    flags: a caller about to emit a model's C lets the compiler work meanwhile, and the model's
+    own files then have the processors to themselves. The object goes to the process's private
+    temporary folder; nothing is started without a compiler, or when this process compiled
+    them, or is compiling them, already (a forked child starts its own). A failed start is no
+    error: the build compiles them."""
+    try:
+        command = compiler_command()
+    except CompilerNotFound:
+        return
+    flags = _compile_flags(build_flags())
+    files = [(name, (CSRC / name).read_text()) for name in INTEGRATOR_FILES]
+    key = _ahead_key(command, flags, files)
+    if key in _AHEAD and _AHEAD[key][0] == os.getpid():  # a forked child does not wait on its parent's thread
+        return
+    try:
+        folder = private_folder(_scratch_root() / f"integrators-{key[:24]}")
+        for name, text in files:
+            write_private(folder / name, text.encode())
+    except OSError:
+        return
+    obj = folder / "integrators.o"
+    step = [*command, *flags, "-c", "-I", str(folder), "-o", str(obj), "integrators.c"]
+    pool = ThreadPoolExecutor(max_workers=1)
+    _AHEAD[key] = (os.getpid(), pool.submit(_run_compiler, step, folder), obj)
+    pool.shutdown(wait=False)
+
+
+def _compiled_ahead(command: list[str], compile_flags: list[str], files: list[tuple[str, str]]) -> Path | None:
+    """The object :func:`compile_ahead` made of the integrators among ``files`` for this
+    command and these flags (waiting for it), or None: not started, failed, or gone."""
+    ahead = _AHEAD.get(_ahead_key(command, compile_flags, [f for f in files if f[0] in INTEGRATOR_FILES]))
+    if ahead is None or ahead[0] != os.getpid():
+        return None
+    _, future, obj = ahead
+    try:
+        proc = future.result(timeout=COMPILE_TIMEOUT)
+    except Exception:  # a start that failed in any way: compiled with the model
+        return None
+    return obj if proc.returncode == 0 and obj.is_file() else None
+
+
+def _compile_and_link(command: list[str], flags, folder: Path, files: list[tuple[str, str]],
                       output: Path) -> tuple[subprocess.CompletedProcess, list[str]]:
-    """Compile each of ``c_files`` to an object, side by side (the model's C and the
-    integrators take the compiler about as long as each other on small models), then link them
-    into ``output``. Returns the first failed step, or the link, and its command; the objects
-    are removed."""
-    compile_flags = [f for f in flags if f != "-shared"]
-    objects = []
+    """Compile each C file of ``files`` to an object, side by side, the largest first (the
+    integrators' object is taken from :func:`compile_ahead` when it made one), then link them
+    into ``output`` in the order of ``files``. Returns the first failed step, or the link, and
+    its command; the objects made here are removed."""
+    compile_flags = _compile_flags(flags)
+    c_files = [name for name, _ in files if name.endswith(".c")]
+    objects, ready = [], []
     try:
         for name in c_files:
             fd, object_name = tempfile.mkstemp(prefix=f".{name}.", suffix=".o.tmp", dir=folder)
@@ -302,12 +362,23 @@ def _compile_and_link(command: list[str], flags, folder: Path, c_files: list[str
             objects.append(object_name)
         steps = [[*command, *compile_flags, "-c", "-I", str(folder), "-o", obj, name]
                  for name, obj in zip(c_files, objects)]
-        with ThreadPoolExecutor(max_workers=max(1, min(len(steps), os.cpu_count() or 1))) as pool:
-            done = list(pool.map(lambda step: _run_compiler(step, folder), steps))
-        for proc, step in zip(done, steps):
+        ahead = [step for step in steps if step[-1] == "integrators.c"]
+        later = [step for step in steps if not ahead or step[-1] != "integrators.c"]
+        size = {name: len(text) for name, text in files}
+        later.sort(key=lambda step: -size[step[-1]])  # the largest first: a small file waits on no large one
+        with ThreadPoolExecutor(max_workers=max(1, min(len(later), os.cpu_count() or 1))) as pool:
+            running = [pool.submit(_run_compiler, step, folder) for step in later]
+            made = _compiled_ahead(command, compile_flags, files) if ahead else None
+            if ahead and made is None:  # none made ahead: compiled now
+                later, running = later + ahead, running + [pool.submit(_run_compiler, ahead[0], folder)]
+            done = [job.result() for job in running]
+        for proc, step in zip(done, later):
             if proc.returncode != 0:
                 return proc, step
-        link = [*command, *flags, "-o", str(output), *objects, *LIBS]
+        if made is not None:
+            ready = [str(made)]
+        linked = [obj for obj, step in zip(objects, steps) if step in later] + ready
+        link = [*command, *flags, "-o", str(output), *linked, *LIBS]
         return _run_compiler(link, folder), link
     except FileNotFoundError:
         if not folder.is_dir():
@@ -336,9 +407,9 @@ def _build(folder: Path, stem: str, files: list[tuple[str, str]], command: list[
     c_files = [name for name, _ in files if name.endswith(".c")]
     try:
         try:
-            proc, full = _compile_and_link(command, flags, folder, c_files, tmp)
+            proc, full = _compile_and_link(command, flags, folder, files, tmp)
             if proc.returncode != 0 and flags != FLAGS and folder.is_dir():  # a compiler that cannot target the host
-                proc, full = _compile_and_link(command, FLAGS, folder, c_files, tmp)
+                proc, full = _compile_and_link(command, FLAGS, folder, files, tmp)
         except OSError as exc:
             if not folder.is_dir():
                 raise _Vanished from None
@@ -798,5 +869,5 @@ class NativeModel:
 
 __all__ = ["CANONICAL_METHODS", "COMPILE_TIMEOUT", "CSRC", "CompileError", "CompilerNotFound", "FLAGS", "HOST_FLAGS", "INTEGRATOR_FILES",
            "IntegrationResult", "LIBS", "METHODS", "NativeError", "NativeModel", "SingularMassMatrix", "build_flags",
-           "build_identity", "build_root", "compile_library", "compiler_command", "data_address", "host_flags",
+           "build_identity", "build_root", "compile_ahead", "compile_library", "compiler_command", "data_address", "host_flags",
            "recorded_digest", "sidecar", "verified"]
