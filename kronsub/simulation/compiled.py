@@ -16,11 +16,10 @@ from __future__ import annotations
 import ctypes
 import dataclasses
 import json
-import re
 import shutil
 from pathlib import Path
 
-from ..cache import load_entry, private_folder, store_entry
+from ..cache import LIBRARY_FILE, NATIVE_DIR, load_entry, private_folder, store_entry
 from ..core.deferred import pending
 from ..core.known_system import KnownSystem
 from ..model import cache_format
@@ -28,8 +27,6 @@ from ..model.derive import content_key
 from ..model.scenes import Outputs
 from . import native
 
-_FOLDER = re.compile(r"[A-Za-z0-9_]+-[0-9a-f]{24}")
-_LIBRARY = re.compile(r"lib[A-Za-z0-9_]+\.so")
 
 
 def fingerprint(system: KnownSystem, outputs=None, jacobian: bool = False, canonical: bool = True) -> str | None:
@@ -72,8 +69,8 @@ def lookup(key: str) -> Path | None:
         folder, name, digest = entry["folder"], entry["library"], entry["sha256"]
     except (AttributeError, OSError, ValueError, KeyError, TypeError):
         return None
-    if not (isinstance(folder, str) and _FOLDER.fullmatch(folder) and isinstance(name, str)
-            and _LIBRARY.fullmatch(name) and isinstance(digest, str)):
+    if not (isinstance(folder, str) and NATIVE_DIR.fullmatch(folder) and isinstance(name, str)
+            and LIBRARY_FILE.fullmatch(name) and isinstance(digest, str)):
         return None
     library = native.build_root() / folder / name
     recorded = native.recorded_digest(library)
