@@ -13,6 +13,7 @@ import sympy
 from mpmath.libmp import dps_to_prec, from_rational, to_float
 from sympy.core.exprtools import decompose_power
 from sympy.core.numbers import mpf_norm
+from sympy.printing.precedence import precedence
 from sympy.printing.str import StrPrinter
 
 from .sympy_internals import parse_order
@@ -132,11 +133,64 @@ class Remembering:
         return ordered_terms(expr, order)
 
 
-class LexStrPrinter(Remembering, StrPrinter):
+def _plain_product(expr):
+    """``(sign, factors)`` of a commutative product as sympy's ``str`` printer writes it
+    (``StrPrinter._print_Mul``: the sign of a negative coefficient in front, the factors in
+    the order of ``as_ordered_factors``, a rational coefficient split into its numerator among
+    them and its denominator after them), each factor's sort key remembered (`_sort_key`);
+    None for any other product (unevaluated, a reciprocal factor, a float coefficient, a
+    coefficient times one sum or a number's power), which the printer's own method prints."""
+    args = expr.args
+    if not expr.is_commutative or args[0] is sympy.S.One or any(
+            a.is_Number or (a.is_Pow and a.base.is_Integer and a.exp.is_Integer) for a in args[1:]):
+        return None
+    coeff, rest = expr.as_coeff_Mul()
+    if not coeff.is_Rational or rest.is_Add or rest.is_Number or (rest.is_Pow and rest.base.is_Number):
+        return None
+    if coeff > 0:  # the product's own factors, as they stand (a product among them unflattened)
+        sign, factors = "", list(args)
+    elif rest.is_Mul and not rest.args[0].is_Number:  # the sign out of the coefficient: -coeff*rest's factors
+        sign, factors = "-", ([] if coeff == -1 else [-coeff]) + list(rest.args)
+    elif not rest.is_Mul and coeff == -1:
+        sign, factors = "-", [rest]
+    else:
+        return None
+    numerator, denominator, rational = [], 1, False
+    for factor in sorted(factors, key=_sort_key):
+        if factor.is_Pow and factor.exp.as_coeff_Mul()[0] < 0:
+            return None
+        if factor.is_Rational:
+            if rational:
+                return None
+            rational = True
+            if factor.p != 1:
+                numerator.append(sympy.Integer(factor.p))
+            denominator = factor.q
+        else:
+            numerator.append(factor)
+    return sign, numerator, denominator
+
+
+class RememberingStr(Remembering):
+    """`Remembering` for sympy's ``str`` printer: a product's factors also ordered by the
+    remembered sort keys (`_plain_product`), for a large system's products share their
+    factors (a row's sum of masses) whose keys sympy builds anew at every product."""
+
+    def _print_Mul(self, expr):
+        plain = _plain_product(expr)
+        if plain is None:
+            return super()._print_Mul(expr)
+        sign, numerator, denominator = plain
+        level = precedence(expr)
+        text = "*".join([self.parenthesize(f, level, strict=False) for f in numerator] or ["1"])
+        return sign + text + (f"/{denominator}" if denominator != 1 else "")
+
+
+class LexStrPrinter(RememberingStr, StrPrinter):
     """``sympy.sstr(expr, order="lex")``, remembering what it printed."""
 
     def __init__(self, settings=None):
         super().__init__({"order": "lex", **(settings or {})})
 
 
-__all__ = ["LexStrPrinter", "Remembering", "ordered_terms"]
+__all__ = ["LexStrPrinter", "Remembering", "RememberingStr", "ordered_terms"]

@@ -14,7 +14,7 @@ from markupsafe import Markup
 from sympy.printing.str import StrPrinter
 
 from ..core.known_system import KnownSystem
-from ..core.printed import Remembering
+from ..core.printed import RememberingStr
 from ..core.rheonomic import depends_on_time, project_frozen
 from ..core.operations import count_ops
 from ..core.simplify import recompact, tidy
@@ -26,7 +26,7 @@ from ..core.symbols import TIME, acceleration_symbol, velocity_symbol
 Printer = Callable[[sympy.Expr], str]
 
 
-class ModelStrPrinter(Remembering, StrPrinter):
+class ModelStrPrinter(RememberingStr, StrPrinter):
     """sympy's ``str`` form in the words of the model's expression parser
     (:mod:`kronsub.model.expressions`), so that every printed expression reads back to
     the same value: ``Abs`` is ``abs``, Euler's number ``exp(1)``; ``pi`` is ``acos(-1)``
