@@ -43,8 +43,22 @@ def _sort_key(expr):
     if key is None:
         if len(_SORT_KEYS) > _REMEMBERED:
             _SORT_KEYS.clear()
-        key = _SORT_KEYS[(type(expr), expr)] = sympy.default_sort_key(expr)
+        key = _SORT_KEYS[(type(expr), expr)] = _new_sort_key(expr)
     return key
+
+
+def _new_sort_key(expr):
+    """``Expr.sort_key`` of a sum (its terms' keys in ``lex`` order, `ordered_terms`) or of a
+    function's value (its arguments' keys), the keys of the parts remembered: a large system's
+    factors ``cos(q1 - q2)`` each hold a sum whose key sympy builds through ``evalf``."""
+    if isinstance(expr, sympy.Expr) and expr.is_commutative and (expr.is_Function or (
+            expr.is_Add and not any(isinstance(t, (sympy.Number, sympy.NumberSymbol)) for t in expr.args))):
+        parts = ordered_terms(expr) if expr.is_Add else expr.args  # (a number and a negative product: sympy's own)
+        return expr.class_key(), (len(parts), tuple(_sort_key(p) for p in parts)), _ONE_KEY, sympy.S.One
+    return sympy.default_sort_key(expr)
+
+
+_ONE_KEY = sympy.S.One.sort_key()
 
 
 def ordered_terms(expr, order: str = "lex") -> list:
