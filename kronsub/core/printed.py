@@ -190,12 +190,45 @@ class RememberingStr(Remembering):
     remembered sort keys (`_plain_product`), for a large system's products share their
     factors (a row's sum of masses) whose keys sympy builds anew at every product."""
 
+    def _precedence(self, expr) -> int:
+        """``precedence(expr)``, remembered (a product's asks whether its sign comes out)."""
+        if not isinstance(expr, sympy.Basic):
+            return precedence(expr)
+        memo = self.__dict__.setdefault("_precedences", {})
+        key = (type(expr), expr)
+        level = memo.get(key)
+        if level is None:
+            level = memo[key] = precedence(expr)
+        return level
+
+    def parenthesize(self, item, level, strict=False):
+        """``StrPrinter.parenthesize``, by the remembered precedence."""
+        own = self._precedence(item)
+        text = self._print(item)
+        return f"({text})" if own < level or (not strict and own <= level) else text
+
+    def _print_Add(self, expr, order=None):
+        """``StrPrinter._print_Add``: the terms in order, each with its sign in front, a term
+        below the sum's precedence (or a sum) in parentheses; precedences remembered."""
+        level = self._precedence(expr)
+        parts = []
+        for term in self._as_ordered_terms(expr, order=order):
+            text = self._print(term)
+            sign = "+"
+            if text.startswith("-") and not term.is_Add:
+                sign, text = "-", text[1:]
+            if term.is_Add or self._precedence(term) < level:
+                text = f"({text})"
+            parts.append(f"{sign} {text}")
+        joined = " ".join(parts)
+        return joined[2:] if joined.startswith("+ ") else joined[0] + joined[2:]
+
     def _print_Mul(self, expr):
         plain = _plain_product(expr)
         if plain is None:
             return super()._print_Mul(expr)
         sign, numerator, denominator = plain
-        level = precedence(expr)
+        level = self._precedence(expr)
         text = "*".join([self.parenthesize(f, level, strict=False) for f in numerator] or ["1"])
         return sign + text + (f"/{denominator}" if denominator != 1 else "")
 

@@ -103,6 +103,9 @@ def matrix_fromrep(cls: type, rep) -> sympy.MatrixBase:
 HOOKS: tuple[tuple[str, str], ...] = (
     ("sympy.printing.str.StrPrinter", "_print"),
     ("sympy.printing.str.StrPrinter", "_as_ordered_terms"),
+    ("sympy.printing.str.StrPrinter", "_print_Add"),
+    ("sympy.printing.str.StrPrinter", "_print_Mul"),
+    ("sympy.printing.str.StrPrinter", "parenthesize"),
     ("sympy.printing.latex.LatexPrinter", "_default_settings"),
     ("sympy.printing.latex.LatexPrinter", "_print_Symbol"),
     ("sympy.printing.latex.LatexPrinter", "_as_ordered_terms"),
