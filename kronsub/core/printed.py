@@ -5,7 +5,10 @@ A large system prints thousands of entries that share their sums (a chain's
 sum by a key that turns each coefficient into a complex number through ``evalf``.
 `Remembering` prints each distinct subexpression once per printer, and orders a
 sum's terms by sympy's own key with rational coefficients converted exactly and
-directly. ``tests/test_printed.py`` checks both against sympy's printers.
+directly. `RememberingStr` (the ``str`` form) also orders a product's factors by sort
+keys it remembers, builds the keys of sums and function values from their parts, and
+remembers each node's precedence. ``tests/test_printed.py`` checks them against sympy's
+printers and keys.
 """
 from __future__ import annotations
 

@@ -268,13 +268,32 @@ def _factor_terms_of(expr: sympy.Expr) -> sympy.Expr:
     a large system's entries share those factors (a row's sum of masses in a chain's ``Mbar``)."""
     if not (isinstance(expr, sympy.Mul) and expr.is_commutative):
         return sympy.factor_terms(expr)
-    content, primitive = expr.as_content_primitive(clear=False)
-    if not isinstance(primitive, sympy.Mul):
-        return sympy.factor_terms(expr)
     if len(_FACTORED_PARTS) > REMEMBERED:
         _FACTORED_PARTS.clear()
+        _CONTENTS.clear()
+    content, parts = sympy.S.One, []  # expr.as_content_primitive(clear=False), factor by factor
+    for factor in expr.args:
+        c, p = _content_primitive(factor)
+        content *= c
+        if p is not sympy.S.One:
+            parts.append(p)
+    primitive = sympy.Mul(*parts)
+    if not isinstance(primitive, sympy.Mul):
+        return sympy.factor_terms(expr)
     return keep_coeff(content, primitive.func(*[_factor_terms_part(f) for f in primitive.args]), clear=False,
                       sign=True)
+
+
+_CONTENTS: dict = {}
+
+
+def _content_primitive(factor: sympy.Expr) -> tuple:
+    """``factor.as_content_primitive(clear=False)``, remembered (a product's is its factors')."""
+    key = (type(factor), factor)
+    done = _CONTENTS.get(key)
+    if done is None:
+        done = _CONTENTS[key] = factor.as_content_primitive(clear=False)
+    return done
 
 
 def _factor_terms_part(expr: sympy.Expr) -> sympy.Expr:
