@@ -192,6 +192,30 @@ def test_json_document_escapes_what_acts_on_a_reader():
     assert "\\u009b" in text and "\\u202e" in text and "\\udb40\\udc01" in text and "é漢\U0001F600" in text
 
 
+def test_json_document_weighs_every_character_as_its_definition_says():
+    """Every character of the BMP's first planes (and a few beyond) kept when visible and not
+    markup, else ``\\uXXXX`` (surrogate pairs above U+FFFF), whatever stands around it."""
+    import unicodedata
+
+    from kronsub.emitters.escape import json_document
+
+    def escaped(ch):
+        if ch in " \n" or (ch.isprintable() and unicodedata.category(ch) not in ("Zl", "Zp", "Cf") and ch not in "<>&"):
+            return ch
+        return json.dumps(ch)[1:-1] if ord(ch) >= 0x10000 or ch in "\"\\" else f"\\u{ord(ch):04x}"
+
+    chars = [chr(c) for c in range(0x3400)] + ["\U0001F600", "\U000E0001", "\uFEFF", "\uFFFB"]
+    for ch in chars:
+        if ch in "\"\\":
+            continue  # JSON's own escapes
+        text = json_document({"k": f"a{ch}b"})
+        inner = json.dumps(f"a{ch}b", ensure_ascii=False)[1:-1]
+        expected = "".join(escaped(c) if c == ch else c for c in inner) if inner == f"a{ch}b" else None
+        if expected is not None:
+            assert text == '{"k": "' + expected + '"}', repr(ch)
+        assert json.loads(text) == {"k": f"a{ch}b"}
+
+
 def test_terminal_and_plot_text_show_escapes():
     from kronsub.emitters.escape import plot_text, terminal_text
 

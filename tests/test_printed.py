@@ -12,7 +12,8 @@ from sympy.printing.str import StrPrinter
 
 import kronsub
 from helpers.expressions import random_coefficient, random_sum
-from kronsub.core.printed import LexStrPrinter, _complex, ordered_terms
+from kronsub.core.printed import LexStrPrinter, _complex, _sort_key, ordered_terms
+from kronsub.core.simplify import _factor_terms_of
 from kronsub.emitters.latex_layout import LatexPrinter
 from kronsub.emitters.report import ModelStrPrinter
 
@@ -92,3 +93,55 @@ def test_ordered_terms_match_sympy_over_many_bases():
         e = sympy.Add(*terms)
         if e.is_Add:
             assert ordered_terms(e) == e.as_ordered_terms(order="lex"), e
+
+
+def _random_expr(rng, depth):
+    """Products, sums, powers and functions of symbols and numbers, some products unevaluated
+    (nested, several rationals, a rational after the first place) and some numeric sums."""
+    x, y, z = sympy.symbols("x y z")
+    atoms = [x, y, z, -x, x - y, sympy.sin(x), sympy.cos(x - y), sympy.Rational(1, 2), sympy.Integer(-3),
+             sympy.Rational(-2, 3), sympy.sqrt(2), sympy.pi, sympy.Float(1.5), sympy.E, sympy.I, sympy.Integer(2)]
+    if depth == 0 or rng.random() < 0.25:
+        return rng.choice(atoms)
+    u, kind = _random_expr(rng, depth - 1), rng.randrange(8)
+    if kind < 2:
+        return u + _random_expr(rng, depth - 1)
+    if kind < 4:
+        return u * _random_expr(rng, depth - 1)
+    if kind == 4:
+        return u ** rng.choice([2, -1, -2, sympy.Rational(1, 2), sympy.Rational(-1, 2), x])
+    if kind == 5:
+        return sympy.Mul(u, _random_expr(rng, depth - 1), evaluate=False)
+    if kind == 6:
+        return sympy.cos(u)
+    return -u
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_products_print_as_sympy_prints_them(seed):
+    """RememberingStr's products (remembered sort keys) against sympy's ``_print_Mul``."""
+    rng = random.Random(200 + seed)
+    lex = LexStrPrinter()  # one printer for all: what it remembers must not leak between expressions
+    for _ in range(400):
+        e = _random_expr(rng, 4)
+        assert lex.doprint(e) == StrPrinter({"order": "lex"}).doprint(e), sympy.srepr(e)
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_remembered_sort_keys_are_sympys(seed):
+    rng = random.Random(300 + seed)
+    for _ in range(400):
+        e = _random_expr(rng, 4)
+        assert _sort_key(e) == sympy.default_sort_key(e), sympy.srepr(e)
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_factor_terms_of_a_product_is_sympys(seed):
+    """simplify's factor_terms of a product, from its factors remembered (a difference of
+    symbols its own), against ``sympy.factor_terms`` of the whole."""
+    rng = random.Random(400 + seed)
+    for _ in range(300):
+        e = _random_expr(rng, 3) * _random_expr(rng, 3) * sympy.cos(_random_expr(rng, 1))
+        expected = sympy.factor_terms(e)
+        got = _factor_terms_of(e)
+        assert got == expected and sympy.srepr(got) == sympy.srepr(expected), sympy.srepr(e)

@@ -42,6 +42,12 @@ def _mul_from_args():
     assert type(built) is sympy.Mul and built == 3 * x * sympy.sin(y)
 
 
+def _keep_coeff():
+    assert si.keep_coeff(sympy.Integer(-1), x + y, sign=True).args in ((-1, x + y), (x + y, -1))
+    assert si.keep_coeff(sympy.Rational(1, 2), x * y, clear=False) == x * y / 2
+    assert sympy.factor_terms(-2 * x - 2 * y * z) == si.keep_coeff(sympy.Integer(-2), x + y * z, clear=False, sign=True)
+
+
 def _basic_new():
     value = si.basic_new(sympy.sin, x)
     value.nargs = sympy.sin(x, evaluate=False).nargs  # canonical.function sets it so
@@ -114,6 +120,7 @@ CHECKS = {
     "sympy.core.assumptions._assume_defined": _assume_defined,
     "sympy.Add._from_args": _add_from_args,
     "sympy.Mul._from_args": _mul_from_args,
+    "sympy.core.mul._keep_coeff": _keep_coeff,
     "sympy.Basic.__new__ (bare nodes; nargs and is_commutative set on them)": _basic_new,
     "sympy.Float._new, Float._mpf_, Float._prec": _float_round_trip,
     "sympy.Expr._parse_order": _parse_order,

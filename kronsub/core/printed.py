@@ -5,7 +5,10 @@ A large system prints thousands of entries that share their sums (a chain's
 sum by a key that turns each coefficient into a complex number through ``evalf``.
 `Remembering` prints each distinct subexpression once per printer, and orders a
 sum's terms by sympy's own key with rational coefficients converted exactly and
-directly. ``tests/test_printed.py`` checks both against sympy's printers.
+directly. `RememberingStr` (the ``str`` form) also orders a product's factors by sort
+keys it remembers, builds the keys of sums and function values from their parts, and
+remembers each node's precedence. ``tests/test_printed.py`` checks them against sympy's
+printers and keys.
 """
 from __future__ import annotations
 
@@ -13,6 +16,7 @@ import sympy
 from mpmath.libmp import dps_to_prec, from_rational, to_float
 from sympy.core.exprtools import decompose_power
 from sympy.core.numbers import mpf_norm
+from sympy.printing.precedence import precedence
 from sympy.printing.str import StrPrinter
 
 from .sympy_internals import parse_order
@@ -42,8 +46,22 @@ def _sort_key(expr):
     if key is None:
         if len(_SORT_KEYS) > _REMEMBERED:
             _SORT_KEYS.clear()
-        key = _SORT_KEYS[(type(expr), expr)] = sympy.default_sort_key(expr)
+        key = _SORT_KEYS[(type(expr), expr)] = _new_sort_key(expr)
     return key
+
+
+def _new_sort_key(expr):
+    """``Expr.sort_key`` of a sum (its terms' keys in ``lex`` order, `ordered_terms`) or of a
+    function's value (its arguments' keys), the keys of the parts remembered: a large system's
+    factors ``cos(q1 - q2)`` each hold a sum whose key sympy builds through ``evalf``."""
+    if isinstance(expr, sympy.Expr) and expr.is_commutative and (expr.is_Function or (
+            expr.is_Add and not any(isinstance(t, (sympy.Number, sympy.NumberSymbol)) for t in expr.args))):
+        parts = ordered_terms(expr) if expr.is_Add else expr.args  # (a number and a negative product: sympy's own)
+        return expr.class_key(), (len(parts), tuple(_sort_key(p) for p in parts)), _ONE_KEY, sympy.S.One
+    return sympy.default_sort_key(expr)
+
+
+_ONE_KEY = sympy.S.One.sort_key()
 
 
 def ordered_terms(expr, order: str = "lex") -> list:
@@ -132,11 +150,97 @@ class Remembering:
         return ordered_terms(expr, order)
 
 
-class LexStrPrinter(Remembering, StrPrinter):
+def _plain_product(expr):
+    """``(sign, factors)`` of a commutative product as sympy's ``str`` printer writes it
+    (``StrPrinter._print_Mul``: the sign of a negative coefficient in front, the factors in
+    the order of ``as_ordered_factors``, a rational coefficient split into its numerator among
+    them and its denominator after them), each factor's sort key remembered (`_sort_key`);
+    None for any other product (unevaluated, a reciprocal factor, a float coefficient, a
+    coefficient times one sum or a number's power), which the printer's own method prints."""
+    args = expr.args
+    if not expr.is_commutative or args[0] is sympy.S.One or any(
+            a.is_Number or (a.is_Pow and a.base.is_Integer and a.exp.is_Integer) for a in args[1:]):
+        return None
+    coeff, rest = expr.as_coeff_Mul()
+    if not coeff.is_Rational or rest.is_Add or rest.is_Number or (rest.is_Pow and rest.base.is_Number):
+        return None
+    if coeff > 0:  # the product's own factors, as they stand (a product among them unflattened)
+        sign, factors = "", list(args)
+    elif rest.is_Mul and not rest.args[0].is_Number:  # the sign out of the coefficient: -coeff*rest's factors
+        sign, factors = "-", ([] if coeff == -1 else [-coeff]) + list(rest.args)
+    elif not rest.is_Mul and coeff == -1:
+        sign, factors = "-", [rest]
+    else:
+        return None
+    numerator, denominator, rational = [], 1, False
+    for factor in sorted(factors, key=_sort_key):
+        if factor.is_Pow and factor.exp.as_coeff_Mul()[0] < 0:
+            return None
+        if factor.is_Rational:
+            if rational:
+                return None
+            rational = True
+            if factor.p != 1:
+                numerator.append(sympy.Integer(factor.p))
+            denominator = factor.q
+        else:
+            numerator.append(factor)
+    return sign, numerator, denominator
+
+
+class RememberingStr(Remembering):
+    """`Remembering` for sympy's ``str`` printer: a product's factors also ordered by the
+    remembered sort keys (`_plain_product`), for a large system's products share their
+    factors (a row's sum of masses) whose keys sympy builds anew at every product."""
+
+    def _precedence(self, expr) -> int:
+        """``precedence(expr)``, remembered (a product's asks whether its sign comes out)."""
+        if not isinstance(expr, sympy.Basic):
+            return precedence(expr)
+        memo = self.__dict__.setdefault("_precedences", {})
+        key = (type(expr), expr)
+        level = memo.get(key)
+        if level is None:
+            level = memo[key] = precedence(expr)
+        return level
+
+    def parenthesize(self, item, level, strict=False):
+        """``StrPrinter.parenthesize``, by the remembered precedence."""
+        own = self._precedence(item)
+        text = self._print(item)
+        return f"({text})" if own < level or (not strict and own <= level) else text
+
+    def _print_Add(self, expr, order=None):
+        """``StrPrinter._print_Add``: the terms in order, each with its sign in front, a term
+        below the sum's precedence (or a sum) in parentheses; precedences remembered."""
+        level = self._precedence(expr)
+        parts = []
+        for term in self._as_ordered_terms(expr, order=order):
+            text = self._print(term)
+            sign = "+"
+            if text.startswith("-") and not term.is_Add:
+                sign, text = "-", text[1:]
+            if term.is_Add or self._precedence(term) < level:
+                text = f"({text})"
+            parts.append(f"{sign} {text}")
+        joined = " ".join(parts)
+        return joined[2:] if joined.startswith("+ ") else joined[0] + joined[2:]
+
+    def _print_Mul(self, expr):
+        plain = _plain_product(expr)
+        if plain is None:
+            return super()._print_Mul(expr)
+        sign, numerator, denominator = plain
+        level = self._precedence(expr)
+        text = "*".join([self.parenthesize(f, level, strict=False) for f in numerator] or ["1"])
+        return sign + text + (f"/{denominator}" if denominator != 1 else "")
+
+
+class LexStrPrinter(RememberingStr, StrPrinter):
     """``sympy.sstr(expr, order="lex")``, remembering what it printed."""
 
     def __init__(self, settings=None):
         super().__init__({"order": "lex", **(settings or {})})
 
 
-__all__ = ["LexStrPrinter", "Remembering", "ordered_terms"]
+__all__ = ["LexStrPrinter", "Remembering", "RememberingStr", "ordered_terms"]

@@ -29,6 +29,7 @@ from .inverse_trig import divide_out
 from .operations import count_ops
 from .printed import LexStrPrinter
 from .seeded import seeded, sympy_seeded
+from .sympy_internals import keep_coeff
 from . import trigpoly
 from .trigpoly import TrigAlgebra, TrigPoly, coef_add_into, common_monomial
 
@@ -185,7 +186,10 @@ def _factored(expr: sympy.Expr) -> sympy.Expr:
     """``expr`` or, for a small one, its common factors pulled out if that is shorter."""
     if _joins_exceed(expr, SMALL) or count_ops(expr) > SMALL:
         return expr
-    return min((expr, _factor_terms(expr)), key=_key)
+    factored = _factor_terms(expr)
+    if factored == expr:  # nothing common: the keys are equal, and ``min`` keeps the first
+        return expr
+    return min((expr, factored), key=_key)
 
 
 def _joins_exceed(expr: sympy.Expr, limit: int) -> bool:
@@ -251,8 +255,68 @@ def _factor_terms(expr: sympy.Expr) -> sympy.Expr:
     hit = _FACTORED_TERMS.get((type(expr), expr))
     if hit is None:
         charge(PER_OPERATION["factor"] * count_ops(expr), "the printed forms of an entry")
-        hit = _FACTORED_TERMS[(type(expr), expr)] = sympy.factor_terms(expr)
+        hit = _FACTORED_TERMS[(type(expr), expr)] = _factor_terms_of(expr)
     return hit
+
+
+_FACTORED_PARTS: dict = {}
+
+
+def _factor_terms_of(expr: sympy.Expr) -> sympy.Expr:
+    """``sympy.factor_terms(expr)``, a product's factors each remembered: ``factor_terms`` of a
+    product is its content before the product of its primitive factors' ``factor_terms``, and
+    a large system's entries share those factors (a row's sum of masses in a chain's ``Mbar``)."""
+    if not (isinstance(expr, sympy.Mul) and expr.is_commutative):
+        return sympy.factor_terms(expr)
+    if len(_FACTORED_PARTS) > REMEMBERED:
+        _FACTORED_PARTS.clear()
+        _CONTENTS.clear()
+    content, parts = sympy.S.One, []  # expr.as_content_primitive(clear=False), factor by factor
+    for factor in expr.args:
+        c, p = _content_primitive(factor)
+        content *= c
+        if p is not sympy.S.One:
+            parts.append(p)
+    primitive = sympy.Mul(*parts)
+    if not isinstance(primitive, sympy.Mul):
+        return sympy.factor_terms(expr)
+    return keep_coeff(content, primitive.func(*[_factor_terms_part(f) for f in primitive.args]), clear=False,
+                      sign=True)
+
+
+_CONTENTS: dict = {}
+
+
+def _content_primitive(factor: sympy.Expr) -> tuple:
+    """``factor.as_content_primitive(clear=False)``, remembered (a product's is its factors')."""
+    key = (type(factor), factor)
+    done = _CONTENTS.get(key)
+    if done is None:
+        done = _CONTENTS[key] = factor.as_content_primitive(clear=False)
+    return done
+
+
+def _factor_terms_part(expr: sympy.Expr) -> sympy.Expr:
+    """``sympy.factor_terms`` of a factor, remembered; a function's (or power's) arguments
+    each in turn, as ``factor_terms`` treats them; a difference of coordinates such as
+    ``q1 - q2`` (distinct symbols, coefficients 1 and -1, one at least 1) has nothing to
+    pull out and is its own."""
+    if expr.is_Atom:
+        return expr
+    if expr.is_Add and all(t.is_Symbol or (t.is_Mul and len(t.args) == 2 and t.args[0] is sympy.S.NegativeOne
+                                            and t.args[1].is_Symbol) for t in expr.args) \
+            and any(t.is_Symbol for t in expr.args):
+        return expr
+    key = (type(expr), expr)
+    done = _FACTORED_PARTS.get(key)
+    if done is None:
+        if expr.is_Pow or expr.is_Function:
+            args = tuple(_factor_terms_part(a) for a in expr.args)
+            done = expr if args == expr.args else expr.func(*args)
+        else:
+            done = sympy.factor_terms(expr)
+        _FACTORED_PARTS[key] = done
+    return done
 
 
 def _printed_length(expr: sympy.Expr) -> int:

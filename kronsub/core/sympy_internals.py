@@ -17,10 +17,11 @@ import sympy
 from sympy.core import basic
 from sympy.core.assumptions import _assume_defined
 from sympy.core.basic import _args_sortkey
+from sympy.core.mul import _keep_coeff
 from sympy.core import random as sympy_random
 
 __all__ = ["HOOKS", "add_from_args", "args_sortkey", "assume_defined", "assumptions_given", "assumptions_rng",
-           "basic_new", "eval_evalf", "float_new", "float_parts", "hashable_content", "matrix_from_dod", "matrix_fromrep", "matrix_new",
+           "basic_new", "eval_evalf", "float_new", "float_parts", "hashable_content", "keep_coeff", "matrix_from_dod", "matrix_fromrep", "matrix_new",
            "mul_from_args", "ordering_of_classes", "parse_order", "valid_nargs"]
 
 args_sortkey = _args_sortkey
@@ -49,6 +50,10 @@ basic_new = sympy.Basic.__new__
 
 float_new = sympy.Float._new
 """``Float`` from an mpmath ``(sign, mantissa, exponent, bitcount)`` tuple and a precision."""
+
+keep_coeff = _keep_coeff
+"""``coeff * factors`` as ``factor_terms`` puts a content back in front of a primitive part
+(a sum's sign out: ``-(x + y)``, not ``-x - y``)."""
 
 parse_order = sympy.Expr._parse_order
 """``(key, reverse)`` that sorts the described terms of a sum in a monomial order."""
@@ -98,6 +103,9 @@ def matrix_fromrep(cls: type, rep) -> sympy.MatrixBase:
 HOOKS: tuple[tuple[str, str], ...] = (
     ("sympy.printing.str.StrPrinter", "_print"),
     ("sympy.printing.str.StrPrinter", "_as_ordered_terms"),
+    ("sympy.printing.str.StrPrinter", "_print_Add"),
+    ("sympy.printing.str.StrPrinter", "_print_Mul"),
+    ("sympy.printing.str.StrPrinter", "parenthesize"),
     ("sympy.printing.latex.LatexPrinter", "_default_settings"),
     ("sympy.printing.latex.LatexPrinter", "_print_Symbol"),
     ("sympy.printing.latex.LatexPrinter", "_as_ordered_terms"),

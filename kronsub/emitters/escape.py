@@ -277,8 +277,17 @@ def json_document(data, **options) -> str:
     non-ASCII stays as it is; the document reads back to the same data."""
     text = json.dumps(data, ensure_ascii=False, **options)
     # outside strings a JSON document has only ASCII structure, digits, spaces and line breaks
-    return "".join(ch if (_visible(ch) and not _JSON_INERT.match(ch)) or ch in " \n" else _json_escape(ch)
-                   for ch in text)
+    return _JSON_WEIGHED.sub(_json_character, text)
+
+
+_JSON_WEIGHED = re.compile("[^\n -%'-;=?-~]")
+"""The characters `json_document` weighs one by one: all but printable ASCII other than
+``<``, ``>``, ``&`` (kept as they are) and the line break."""
+
+
+def _json_character(match: re.Match) -> str:
+    ch = match[0]
+    return ch if _visible(ch) and not _JSON_INERT.match(ch) else _json_escape(ch)
 
 
 def terminal_text(text: str) -> str:

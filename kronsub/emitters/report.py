@@ -14,7 +14,8 @@ from markupsafe import Markup
 from sympy.printing.str import StrPrinter
 
 from ..core.known_system import KnownSystem
-from ..core.printed import Remembering
+from ..core.canonical import mul
+from ..core.printed import RememberingStr
 from ..core.rheonomic import depends_on_time, project_frozen
 from ..core.operations import count_ops
 from ..core.simplify import recompact, tidy
@@ -26,7 +27,7 @@ from ..core.symbols import TIME, acceleration_symbol, velocity_symbol
 Printer = Callable[[sympy.Expr], str]
 
 
-class ModelStrPrinter(Remembering, StrPrinter):
+class ModelStrPrinter(RememberingStr, StrPrinter):
     """sympy's ``str`` form in the words of the model's expression parser
     (:mod:`kronsub.model.expressions`), so that every printed expression reads back to
     the same value: ``Abs`` is ``abs``, Euler's number ``exp(1)``; ``pi`` is ``acos(-1)``
@@ -261,9 +262,20 @@ def kinetic_energy(mass: sympy.Matrix, velocities) -> sympy.Expr:
     velocities would be far longer to print, and to make)."""
     half = sympy.Rational(1, 2)
     n = len(velocities)
-    return sympy.Add(*[sympy.Mul(half, mass[a, a], velocities[a] ** 2) if a == b  # one product: 1/2 not distributed
-                       else sympy.Mul(mass[a, b], velocities[a], velocities[b])
+    return sympy.Add(*[_product(mass[a, a], velocities[a] ** 2, coefficient=half) if a == b  # 1/2 not distributed
+                       else _product(mass[a, b], velocities[a], velocities[b])
                        for a in range(n) for b in range(a, n) if mass[a, b] != 0])
+
+
+def _product(entry: sympy.Expr, *factors: sympy.Expr, coefficient: sympy.Rational = sympy.S.One) -> sympy.Expr:
+    """``sympy.Mul(coefficient, entry, *factors)``, the very expression, built from an entry's
+    factors in canonical order (:func:`..core.canonical.mul`) without sympy's flattening of
+    each product anew."""
+    if entry.is_Mul and entry.is_commutative:
+        c, rest = entry.as_coeff_Mul()
+        if c.is_Rational:
+            return mul(coefficient * c, [*sympy.Mul.make_args(rest), *factors])
+    return sympy.Mul(coefficient, entry, *factors)
 
 
 def with_names(expr: sympy.Expr, where: list) -> sympy.Expr:
@@ -281,11 +293,12 @@ def with_names(expr: sympy.Expr, where: list) -> sympy.Expr:
     return expr.subs(sorted(pairs, key=lambda pair: -count_ops(pair[0]))) if pairs else expr
 
 
-def build_report(system: KnownSystem, show: Printer, named: bool = True) -> dict:
+def build_report(system: KnownSystem, show: Printer, named: bool = True, names: frozenset[str] | None = None) -> dict:
     """The derivation as nested lists of printed strings, in a fixed order.
 
     With ``named``, subexpressions repeated across the projected system and the equations
-    are printed once, in ``where`` (:func:`named_subexpressions`).
+    are printed once, in ``where`` (:func:`named_subexpressions`), under names other than
+    the model's (``names``: :func:`model_names`, when the caller has them already).
     """
     show = _once(show)
     tr = system.transition
@@ -297,7 +310,8 @@ def build_report(system: KnownSystem, show: Printer, named: bool = True) -> dict
     exprs = [*[tidy(system.mass_matrix[i, j]) for i, j in upper], *[tidy(h) for h in system.velocity_terms], *forces]
     where: list = []
     if named:
-        where, exprs = named_subexpressions(exprs, model_names(system), system.coordinates)
+        where, exprs = named_subexpressions(exprs, model_names(system) if names is None else names,
+                                            system.coordinates)
     mass = sympy.zeros(n, n)
     for (i, j), e in zip(upper, exprs):
         mass[i, j] = mass[j, i] = e
@@ -309,7 +323,7 @@ def build_report(system: KnownSystem, show: Printer, named: bool = True) -> dict
     take = lambda k: [next(it) for _ in range(k)]  # noqa: E731
     accelerations = sympy.Matrix(system.accelerations)
     # Mbar qddot + hbar, each row one sum (the matrix product adds its terms one at a time)
-    lhs = [sympy.Add(*[mass[i, j] * accelerations[j] for j in range(n)], hbar[i]) for i in range(n)]
+    lhs = [sympy.Add(*[_product(mass[i, j], accelerations[j]) for j in range(n)], hbar[i]) for i in range(n)]
     report = {
         **report_head(system, show),
         "mass_matrix": matrix_rows(mass, show),

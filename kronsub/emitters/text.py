@@ -51,8 +51,9 @@ def _trusted(show):
 @collector_paused()  # see kronsub.collector
 def emit_markdown(system: KnownSystem) -> str:
     """Markdown: the derivation step by step, expressions in sympy's ``str`` form."""
-    show = plain_printer(_names(system), system.printed_names)
-    return template_environment().get_template("derive.md.j2").render(r=_report(system, _trusted(show)))
+    names = _names(system)
+    show = plain_printer(names, system.printed_names)
+    return template_environment().get_template("derive.md.j2").render(r=_report(system, _trusted(show), names))
 
 
 @collector_paused()  # see kronsub.collector
@@ -74,12 +75,13 @@ def _names(system: KnownSystem) -> frozenset[str]:
     return printed_names(system) if implicit_form(system) else model_names(system)
 
 
-def _report(system: KnownSystem, show) -> dict:
+def _report(system: KnownSystem, show, names: frozenset[str] | None = None) -> dict:
     """The report, with the equations in the speeds under velocity constraints (in the implicit
-    form when their projection is made in numbers, :mod:`.implicit_speeds`)."""
+    form when their projection is made in numbers, :mod:`.implicit_speeds`); ``names``: the
+    model's, as `_names` gives them, when the caller has them."""
     if implicit_form(system):
         return implicit_report(system, show)
-    r = build_report(system, show)
+    r = build_report(system, show, names=names)
     if system.speeds is not None:
         r["speeds"] = speeds_report(system, show)
     return r
