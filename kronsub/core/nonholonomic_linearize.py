@@ -122,6 +122,31 @@ class _Compiled:
         return out
 
 
+def frame_matrix(g: sympy.Matrix, rows, speeds, x) -> tuple[sympy.Matrix, sympy.Matrix, sympy.Matrix]:
+    """``S = [G; A; Y]`` and ``r0 = [-dg/dt; -b; 0]`` of ``S xdot = r0 + [0; u]``: the
+    configuration constraints ``g`` (``G = dg/dx``), the velocity constraints' ``rows``
+    ``A xdot + b`` and the ``speeds`` ``u = Y xdot`` in the coordinates ``x``; and ``G``. Raises
+    :class:`LinearizationError` where they do not make one: a speed with a term free of the
+    velocities, a count that is not the coordinates', coefficients that depend on ``t``."""
+    n = len(x)
+    G = jacobian(g, list(x)) if g.rows else sympy.zeros(0, n)
+    A, b = linear_rows(list(rows), x, "velocity constraint")
+    Y, c = linear_rows(list(speeds), x, "speed")
+    if any(e != 0 for e in c):
+        raise LinearizationError("a speed has a term without a velocity\n  hint: define each speed as Y(x) xdot")
+    p = len(speeds)
+    if G.rows + A.rows + p != n:
+        raise LinearizationError(
+            f"{p} speed(s) for {n - G.rows - A.rows} degree(s) of freedom\n  hint: name as many speeds as the "
+            f"{n} coordinates less the {G.rows} configuration and {A.rows} velocity constraints")
+    S = G.col_join(A).col_join(Y)
+    if any(e.has(TIME) for e in S):
+        raise LinearizationError("a constraint's velocity coefficients depend on time\n  hint: only the offset "
+                                 "b(x, t) of A(x) xdot + b(x, t) = 0 may depend on t")
+    r0 = (-where_defined(g.diff(TIME)) if g.rows else sympy.zeros(0, 1)).col_join(-b).col_join(sympy.zeros(p, 1))
+    return S, r0, G
+
+
 class SteadyMotionRates:
     """The rates ``F(x, u) = [w; udot]`` of a :class:`ConstrainedMotion` at numeric parameter
     values, in complex arithmetic (for the complex step), and its linearisation."""
@@ -143,22 +168,10 @@ class SteadyMotionRates:
         g = fixed(sympy.Matrix(list(motion.configuration_constraints))) if motion.configuration_constraints \
             else sympy.zeros(0, 1)
         self.l = g.rows
-        G = jacobian(g, list(x)) if g.rows else sympy.zeros(0, n)
-        A, b = linear_rows([fixed(sympy.Matrix([c]))[0] for c in motion.velocity_constraints], x, "velocity constraint")
-        Y, c = linear_rows([fixed(sympy.Matrix([e]))[0] for e in motion.speeds.values()], x, "speed")
-        if any(e != 0 for e in c):
-            raise LinearizationError("a speed has a term without a velocity\n  hint: define each speed as Y(x) xdot")
-        p = self.p = len(self.speeds)
-        if G.rows + A.rows + p != n:
-            raise LinearizationError(
-                f"{p} speed(s) for {n - G.rows - A.rows} degree(s) of freedom\n  hint: name as many speeds as the "
-                f"{n} coordinates less the {G.rows} configuration and {A.rows} velocity constraints")
-        S = G.col_join(A).col_join(Y)
-        if any(e.has(TIME) for e in S):
-            raise LinearizationError("a constraint's velocity coefficients depend on time\n  hint: only the offset "
-                                     "b(x, t) of A(x) xdot + b(x, t) = 0 may depend on t")
+        self.p = len(self.speeds)
         # r = [-dg/dt; -b; u] less its u part, which is added numerically
-        r0 = (-where_defined(g.diff(TIME)) if g.rows else sympy.zeros(0, 1)).col_join(-b).col_join(sympy.zeros(p, 1))
+        S, r0, G = frame_matrix(g, [fixed(sympy.Matrix([c]))[0] for c in motion.velocity_constraints],
+                                [fixed(sympy.Matrix([e]))[0] for e in motion.speeds.values()], x)
         primitive_h, primitive_v = None, ()
         if isinstance(motion.metric, ProjectedMetric):
             W, J = fixed(motion.metric.weights), fixed(motion.metric.projection)
@@ -480,5 +493,5 @@ def linearize_speeds(system: KnownSystem, *, inputs: Sequence[sympy.Symbol] = ()
 
 
 __all__ = ["COMPLEX_STEP", "IGNORABLE_TOLERANCE", "NEWTON_STEPS", "STEADY_TOLERANCE", "ConstrainedMotion",
-           "ProjectedMetric", "SteadyMotionRates", "constrained_motion", "ignorable", "linear_rows", "linearize_speeds",
+           "ProjectedMetric", "SteadyMotionRates", "constrained_motion", "frame_matrix", "ignorable", "linear_rows", "linearize_speeds",
            "linearize_steady_motion", "primitive_metric", "steady_motion_rates", "velocity_rows", "REMEMBERED_RATES"]

@@ -33,10 +33,10 @@ from dataclasses import dataclass
 
 import sympy
 
-from ..core.derivative import derivative, jacobian, where_defined
+from ..core.derivative import derivative, where_defined
 from ..core.known_system import KnownSystem
 from ..core.linearize_numerics import LinearizationError
-from ..core.nonholonomic_linearize import linear_rows, velocity_rows
+from ..core.nonholonomic_linearize import frame_matrix, velocity_rows
 from ..core.rheonomic import depends_on_time
 from ..core.symbols import TIME, velocity_symbol
 from ..errors import KronsubError
@@ -71,33 +71,21 @@ def _frame(system: KnownSystem) -> tuple[sympy.Matrix, sympy.Matrix, sympy.Matri
     """``S``, ``r0`` and ``rho'`` of ``system`` (:func:`applies`)."""
     s = system.speeds
     x = list(system.coordinates)
-    n, p = len(x), len(s.speeds)
+    n = len(x)
     xd = [velocity_symbol(q) for q in x]
     g = sympy.Matrix([c.expression for c in s.holonomic]) if s.holonomic else sympy.zeros(0, 1)
-    G = jacobian(g, x) if g.rows else sympy.zeros(0, n)
     rows = velocity_rows(system)
     try:
-        A, b = linear_rows(list(rows), x, "velocity constraint")
-        Y, c = linear_rows([e for _, e in s.definitions], x, "speed")
+        S, r0, G = frame_matrix(g, rows, [e for _, e in s.definitions], x)
     except LinearizationError as exc:
         raise KronsubError(f"cannot generate code: {exc}") from None
-    if any(e != 0 for e in c):
-        raise KronsubError("cannot generate code: a speed has a term without a velocity (define each speed as "
-                           "Y(x) xdot)")
-    if G.rows + A.rows + p != n:
-        raise KronsubError(f"cannot generate code: {p} speed(s) for {n - G.rows - A.rows} degree(s) of freedom")
-    S = G.col_join(A).col_join(Y)
-    if any(e.has(TIME) for e in S):
-        raise KronsubError("cannot generate code: a constraint's velocity coefficients depend on time (only the "
-                           "offset b(x, t) of A(x) xdot + b(x, t) = 0 may)")
     dg = [where_defined(derivative(e, TIME)) for e in g]
-    r0 = [-e for e in dg] + [-e for e in b] + [sympy.Integer(0)] * p
     rho = [sympy.Add(*[G[i, k] * xd[k] for k in range(n)], dg[i]) for i in range(G.rows)] \
         + [sympy.sympify(e) for e in rows] + [e for _, e in s.definitions]
     rates = [where_defined(sympy.Add(*[derivative(e, x[k]) * xd[k] for k in range(n) if x[k] in free],
                                      derivative(e, TIME) if TIME in free else 0))
              for e in rho for free in [e.free_symbols]]
-    return S, sympy.Matrix(r0), sympy.Matrix(rates)
+    return S, r0, sympy.Matrix(rates)
 
 
 def frame_equations(system: KnownSystem) -> FrameEquations:
