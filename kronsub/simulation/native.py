@@ -158,16 +158,17 @@ def _named_sources(sources: Sequence[str | tuple[str, str]], stem: str) -> list[
     return named
 
 
-_SCRATCH: list[Path] = []
+_SCRATCH: dict[int, Path] = {}  # by process: a forked child makes its own
 
 
 def _scratch_root() -> Path:
-    """One temporary folder per process, removed at exit."""
-    if not _SCRATCH:
+    """One temporary folder per process (a forked child's is not its parent's), removed at exit."""
+    pid = os.getpid()
+    if pid not in _SCRATCH:
         scratch = Path(tempfile.mkdtemp(prefix="kronsub-native-"))
-        atexit.register(shutil.rmtree, scratch, True)
-        _SCRATCH.append(scratch)
-    return _SCRATCH[0]
+        atexit.register(lambda: os.getpid() == pid and shutil.rmtree(scratch, True))
+        _SCRATCH[pid] = scratch
+    return _SCRATCH[pid]
 
 
 def build_root() -> Path:
@@ -323,9 +324,11 @@ def compile_ahead() -> None:
         folder = private_folder(_scratch_root() / f"integrators-{key[:24]}")
         for name, text in files:
             write_private(folder / name, text.encode())
+        fd, name = tempfile.mkstemp(prefix="integrators.", suffix=".o", dir=folder)  # its own: no start
+        os.close(fd)                                                               # overwrites another's
     except OSError:
         return
-    obj = folder / "integrators.o"
+    obj = Path(name)
     step = [*command, *flags, "-c", "-I", str(folder), "-o", str(obj), "integrators.c"]
     pool = ThreadPoolExecutor(max_workers=1)
     _AHEAD[key] = (os.getpid(), pool.submit(_run_compiler, step, folder), obj)
