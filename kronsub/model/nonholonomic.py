@@ -167,7 +167,7 @@ def check_start(reader: ModelReader, written: Location, spec: VelocitySpec, init
                      "start the coordinates where the speeds are independent, or define speeds that stay independent")
         return
     hint = "start the coordinates elsewhere, or choose speeds that are independent there"
-    serving = None if chosen else _regular_speeds(numbers.real[:A.rows, :], x,
+    serving = None if chosen else regular_speeds(numbers.real[:A.rows, :], x,
                                                   None if sizes is None else sizes[:A.rows])
     if serving:
         hint += ", e.g. `speeds: [" + ", ".join(serving) + "]`"
@@ -184,17 +184,22 @@ def _complex_array(matrix: sympy.Matrix):
     return values if np.all(np.isfinite(values)) else None
 
 
-def _regular_speeds(A: np.ndarray, x, sizes: np.ndarray | None) -> list[str] | None:
+def regular_speeds(A: np.ndarray, x, sizes: np.ndarray | None, best: bool = False) -> list[str] | None:
     """Velocities that, as the speeds, leave ``[A; Y]`` regular for the number matrix ``A`` (its
     rows' sizes ``sizes``, :func:`~kronsub.core.nonholonomic.row_sizes`): the first coordinates'
-    whose complement's columns of ``A`` are independent."""
+    whose complement's columns of ``A`` are independent; with ``best``, those whose complement's
+    columns are the furthest from dependent (the largest ratio of smallest to largest singular value)."""
     m, n = A.shape
+    found, furthest = None, SINGULAR
     for dependent in itertools.combinations(reversed(range(n)), m):
         block = rows_scaled(A, sizes)[:, sorted(dependent)]
         sigma = np.linalg.svd(block, compute_uv=False)
-        if m and sigma[-1] > SINGULAR * sigma[0]:
-            return [velocity_symbol(x[j]).name for j in range(n) if j not in dependent]
-    return None
+        if m and sigma[-1] > furthest * sigma[0]:
+            found = [velocity_symbol(x[j]).name for j in range(n) if j not in dependent]
+            if not best:
+                return found
+            furthest = sigma[-1] / sigma[0]
+    return found
 
 
 def _shown(value) -> str:
@@ -276,4 +281,4 @@ def _read_speeds(reader: ModelReader, node: Node | None, coords, names: dict, co
     return speeds
 
 
-__all__ = ["VelocitySpec", "check_initial", "check_start", "read_velocity_constraints", "read_velocity_frame"]
+__all__ = ["VelocitySpec", "check_initial", "check_start", "read_velocity_constraints", "read_velocity_frame", "regular_speeds"]

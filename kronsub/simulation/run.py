@@ -22,6 +22,7 @@ from ..core.first_order import zero_rows
 from ..core.held import held_coordinates
 from ..core.known_system import KnownSystem
 from ..core.projection_work import projected_in_numbers
+from .frame_crossing import SingularSpeedsWarning, frame_watch
 from .advice import EnergyWarning, StiffnessWarning, energy_advice, is_stiff, stiffness_advice
 from .compiled import native_model
 from .engines import Problem, Steps, engine_of, runner
@@ -412,6 +413,7 @@ def _finish(run, rows, bar, native, param, system, constrained, with_energies=Tr
     constraints, the dependent coordinates per row (and, after a failure, what failed); at the end, a warning when an explicit run was held by stiffness, and
     one when a complete run of a model that conserves energy did not keep it."""
     guess = constrained.guess.copy() if constrained is not None else None
+    watch = frame_watch(system, param)
     held = held_coordinates(system, {p.symbol: float(v) for p, v in zip(system.parameters, param)})
     first_t = last_t = last_y = None
     energy = None  # (t0, y0, E0, largest T, last E) of the rows, when they have energies
@@ -443,6 +445,8 @@ def _finish(run, rows, bar, native, param, system, constrained, with_energies=Tr
                     if energy is None:
                         energy = (float(np.asarray(t)[0]), np.asarray(y)[0].copy(), float(T[0] + V[0]), 0.0, 0.0)
                     energy = (*energy[:3], max(energy[3], float(np.max(np.abs(T)))), float(T[-1] + V[-1]))
+                if watch is not None:
+                    watch.see(t, y)
                 yield Block(grid.snap(t) if grid is not None else np.asarray(t), np.asarray(y), energies, dependent)
     finally:
         bar.close()
@@ -458,6 +462,8 @@ def _finish(run, rows, bar, native, param, system, constrained, with_energies=Tr
         warnings.warn(StiffnessWarning(stiffness_advice(native, param, run.stats, last_t - first_t, last_t, last_y,
                                                          run.method, [q.name for q in system.coordinates],
                                                          charge_coordinates(system))))
+    if watch is not None and watch.advice():
+        warnings.warn(SingularSpeedsWarning(watch.advice()))
     if energy is not None and run.complete and constrained is None and not run.switches:
         advice = energy_advice(native, param, len(system.coordinates), run.method, *energy)
         if advice:
