@@ -120,3 +120,38 @@ def test_a_run_compiles_only_the_functions_its_method_calls(cache, emissions):
     _, rows, result = complete.integrate("gauss4", 0.0, np.array(values.y0), 0.5, 0.05, np.array(values.parameters))
     assert result.ok
     np.testing.assert_array_equal(rows, run.y)
+
+
+RUN_SYSTEM1 = ("import sys; from kronsub.model.loader import load_model; from kronsub.api import simulate; "
+               "run = simulate(load_model(sys.argv[1]).derive(), t=0.5, dt=0.25, dataframe=False); print(run.y[-1, 0])")
+
+
+def test_a_cached_library_without_the_integrators_is_built_again(cache):
+    """A library the cache holds, verified by its digest, but built without the integrators (an
+    object made ahead that was written over, as an older build could leave it) is discarded and
+    built again, not loaded and failed on by every run after it. Each run in a fresh process: a
+    process keeps a library it loaded under its path."""
+    import subprocess
+    import sys
+
+    def run():
+        done = subprocess.run([sys.executable, "-c", RUN_SYSTEM1, str(SYSTEM1)], capture_output=True, text=True,
+                              env={**os.environ, "KRONSUB_CACHE_DIR": str(cache)}, timeout=300)
+        assert done.returncode == 0, done.stderr
+        return float(done.stdout.split()[-1])
+
+    first = run()
+    (library,) = (cache / "native").glob("model-*/libmodel.so")
+    folder = library.parent
+    own = sorted(p.name for p in folder.glob("*.c") if p.name != "integrators.c")
+    planted = folder / "planted.so"
+    native._run_compiler([*native.compiler_command(), *native.FLAGS, "-I", str(folder), "-o", str(planted), *own,
+                          *native.LIBS], folder).check_returncode()
+    assert native.lacking(planted) == list(native.INTEGRATOR_SYMBOLS)
+    os.chmod(planted, 0o600)
+    os.replace(planted, library)
+    digest, key = native.sidecar(library).read_text().split()
+    native.sidecar(library).write_text(f"{native._digest_file(library)}\n{key}\n")  # as if built so
+    assert native.verified(library, key) and native.lacking(library)
+    assert run() == first
+    assert native.lacking(library) == []

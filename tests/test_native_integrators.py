@@ -627,6 +627,49 @@ def test_a_forked_child_does_not_wait_on_its_parent_s_integrators(cache, monkeyp
     assert math.isclose(model.rhs(0.0, [1.0, 0.0], [2.0, 8.0])[1], -4.0)
 
 
+def test_an_object_made_ahead_without_the_integrators_is_not_linked_into_a_library(cache, monkeypatch):
+    """An object made ahead that lacks the integrators (written over by another build, the race
+    once seen in CI) links without error into a library that cannot integrate: the build reads the
+    library's dynamic symbols, finds them missing and compiles the integrators itself."""
+    real = native._run_compiler
+    calls = []
+
+    def emptied(command, cwd):
+        calls.append(command[-1])
+        if command[-1] == "integrators.c" and cache not in cwd.parents:  # the start ahead: an empty object
+            (cwd / "empty.c").write_text("typedef int ks_nothing;\n")
+            return real([*command[:-1], "empty.c"], cwd)
+        return real(command, cwd)
+
+    monkeypatch.setattr(native, "_run_compiler", emptied)
+    monkeypatch.setattr(native, "_AHEAD", {})
+    native.compile_ahead()
+    library = compile_library([OSCILLATOR + "/* integrators emptied ahead */\n"], "oscillator")
+    assert calls.count("integrators.c") == 2  # ahead (empty), then again with the model
+    assert native.lacking(library) == []
+    model = NativeModel(library, nq=1, nparam=2)
+    _, Y, res = model.integrate("dop853", 0.0, [1.0, 0.0], 1.0, 0.5, [2.0, 8.0])
+    assert res.ok and math.isclose(Y[-1, 0], math.cos(2.0), rel_tol=1e-8)
+
+
+def test_lacking_reads_the_dynamic_symbols(cache, tmp_path):
+    """`native.lacking` against the library's own exports (loaded with ctypes): all present in a
+    whole library; all missing in one built from the model alone (``-shared`` links it without
+    them) and in a damaged one; none for another format (left to the loader)."""
+    whole = compile_library([OSCILLATOR + "/* whole */\n"], "oscillator")
+    assert native.lacking(whole) == [] and all(hasattr(ctypes.CDLL(str(whole)), n) for n in native.INTEGRATOR_SYMBOLS)
+    (tmp_path / "alone.c").write_text(OSCILLATOR)
+    alone = tmp_path / "libalone.so"
+    native._run_compiler([*native.compiler_command(), *native.FLAGS, "-o", str(alone), "alone.c", *native.LIBS],
+                         tmp_path).check_returncode()
+    assert native.lacking(alone) == list(native.INTEGRATOR_SYMBOLS)
+    assert hasattr(ctypes.CDLL(str(alone)), "ks_rhs") and not hasattr(ctypes.CDLL(str(alone)), "ks_dop853")
+    (tmp_path / "cut.so").write_bytes(whole.read_bytes()[:len(whole.read_bytes()) // 3])
+    assert native.lacking(tmp_path / "cut.so") == list(native.INTEGRATOR_SYMBOLS)
+    (tmp_path / "text.so").write_text("no library")
+    assert native.lacking(tmp_path / "text.so") == []
+
+
 def test_data_address_is_numpys_for_every_kind_of_array():
     """`native.data_address` (what every call into a compiled model passes) is the address
     numpy gives, for writable, read-only, empty and non-contiguous arrays."""

@@ -62,7 +62,8 @@ INDEX_BYTES = 4096  # an index entry names a folder, a library and a digest
 
 
 def lookup(key: str) -> Path | None:
-    """The verified library indexed under ``key``, or None."""
+    """The verified library indexed under ``key``, or None (one without the integrators' functions,
+    :func:`.native.lacking`, read before anything loads it, is removed: it is built again)."""
     try:
         text = load_entry(_index_file(key), INDEX_BYTES)  # private, sealed, read bounded
         entry = json.loads(text.decode("ascii"))
@@ -74,7 +75,12 @@ def lookup(key: str) -> Path | None:
         return None
     library = native.build_root() / folder / name
     recorded = native.recorded_digest(library)
-    return library if recorded == digest and native.verified(library) else None
+    if recorded != digest or not native.verified(library):
+        return None
+    if native.lacking(library):
+        native.discard(library)
+        return None
+    return library
 
 
 def record(key: str, library: Path) -> None:

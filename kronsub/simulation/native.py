@@ -26,6 +26,7 @@ import re
 import shlex
 import shutil
 import stat
+import struct
 import subprocess
 import tempfile
 from concurrent.futures import Future, ThreadPoolExecutor
@@ -41,6 +42,8 @@ from kronsub.errors import KronsubError
 
 CSRC = Path(__file__).resolve().parent / "csrc"
 INTEGRATOR_FILES = ("integrators.h", "integrators.c")
+INTEGRATOR_SYMBOLS = ("ks_status_message", "ks_dop853", "ks_gauss4", "ks_rk4", "ks_map_rows", "ks_energy_rows")
+"""What ``integrators.c`` gives every library."""
 FLAGS = ("-std=c99", "-O2", "-fPIC", "-shared", "-Wall", "-Wextra", "-Werror")
 # for the processor the library runs on (the instruction set heyoka's JIT also targets); no
 # contraction into fused multiply-adds, so results stay those of the portable build. On x86:
@@ -350,11 +353,11 @@ def _compiled_ahead(command: list[str], compile_flags: list[str], files: list[tu
 
 
 def _compile_and_link(command: list[str], flags, folder: Path, files: list[tuple[str, str]],
-                      output: Path) -> tuple[subprocess.CompletedProcess, list[str]]:
+                      output: Path, use_ahead: bool = True) -> tuple[subprocess.CompletedProcess, list[str]]:
     """Compile each C file of ``files`` to an object, side by side, the largest first (the
     integrators' object is taken from :func:`compile_ahead` when it made one), then link them
-    into ``output`` in the order of ``files``. Returns the first failed step, or the link, and
-    its command; the objects made here are removed."""
+    into ``output`` in the order of ``files`` (``use_ahead`` false: every file compiled here).
+    Returns the first failed step, or the link, and its command; the objects made here are removed."""
     compile_flags = _compile_flags(flags)
     c_files = [name for name, _ in files if name.endswith(".c")]
     objects, ready = [], []
@@ -371,7 +374,7 @@ def _compile_and_link(command: list[str], flags, folder: Path, files: list[tuple
         later.sort(key=lambda step: -size[step[-1]])  # the largest first: a small file waits on no large one
         with ThreadPoolExecutor(max_workers=max(1, min(len(later), os.cpu_count() or 1))) as pool:
             running = [pool.submit(_run_compiler, step, folder) for step in later]
-            made = _compiled_ahead(command, compile_flags, files) if ahead else None
+            made = _compiled_ahead(command, compile_flags, files) if ahead and use_ahead else None
             if ahead and made is None:  # none made ahead: compiled now
                 later, running = later + ahead, running + [pool.submit(_run_compiler, ahead[0], folder)]
             done = [job.result() for job in running]
@@ -396,7 +399,7 @@ def _build(folder: Path, stem: str, files: list[tuple[str, str]], command: list[
     """Compile ``files`` in ``folder`` (private) into ``lib{stem}.so`` with its sidecar; raises
     :class:`_Vanished` when the folder disappears meanwhile."""
     library = folder / f"lib{stem}.so"
-    if verified(library, key):
+    if verified(library, key) and not lacking(library):  # one without the integrators is built again
         return library
     try:
         for name, text in files:
@@ -419,6 +422,10 @@ def _build(folder: Path, stem: str, files: list[tuple[str, str]], command: list[
             raise CompilerNotFound(f"C compiler {command[0]!r} could not be run: {exc}") from exc
         except subprocess.TimeoutExpired as exc:
             raise CompileError(f"compiling {stem} took longer than {COMPILE_TIMEOUT:.0f} s") from exc
+        if proc.returncode == 0 and lacking(tmp):  # an object made ahead but not whole: all compiled here
+            proc, full = _compile_and_link(command, flags, folder, files, tmp, use_ahead=False)
+            if proc.returncode == 0 and lacking(tmp):
+                raise CompileError(f"the library of {stem} lacks {', '.join(lacking(tmp))} after its build")
         if proc.returncode != 0:
             if not folder.is_dir() or not all((folder / name).is_file() for name in c_files):
                 raise _Vanished
@@ -436,6 +443,44 @@ def _build(folder: Path, stem: str, files: list[tuple[str, str]], command: list[
     finally:
         tmp.unlink(missing_ok=True)
     return library
+
+
+def lacking(library: Path) -> list[str]:
+    """The integrators' functions (:data:`INTEGRATOR_SYMBOLS`) that ``library`` does not define
+    (read off its ELF dynamic symbol table, without loading it: a process that loaded a library
+    keeps it under its path); all of them for a damaged object, none for a file in another format
+    than 64-bit little-endian ELF (left to the loader)."""
+    try:
+        defined = _defined_symbols(library.read_bytes())
+    except (OSError, ValueError, IndexError, struct.error):  # a damaged object
+        return list(INTEGRATOR_SYMBOLS)
+    return [] if defined is None else [name for name in INTEGRATOR_SYMBOLS if name not in defined]
+
+
+def _defined_symbols(data: bytes) -> set[str] | None:
+    """The names an ELF64 little-endian shared object defines in ``.dynsym``; None for another format."""
+    if data[:4] != b"\x7fELF" or data[4] != 2 or data[5] != 1:
+        return None
+    shoff, = struct.unpack_from("<Q", data, 0x28)
+    shentsize, shnum = struct.unpack_from("<HH", data, 0x3A)
+    sections = [struct.unpack_from("<IIQQQQIIQQ", data, shoff + i * shentsize) for i in range(shnum)]
+    names = set()
+    for _, kind, _, _, offset, size, link, _, _, entsize in sections:
+        if kind != 11 or not entsize:  # SHT_DYNSYM
+            continue
+        strings = sections[link][4]
+        for at in range(offset, offset + size, entsize):
+            name, _, _, shndx = struct.unpack_from("<IBBH", data, at)
+            if shndx:  # SHN_UNDEF: referenced, not defined
+                end = data.index(b"\0", strings + name)
+                names.add(data[strings + name:end].decode("ascii", "replace"))
+    return names
+
+
+def discard(library: Path) -> None:
+    """Remove ``library`` and its sidecar from the cache (one found not whole: built again)."""
+    for path in (library, sidecar(library)):
+        path.unlink(missing_ok=True)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -514,8 +559,7 @@ _SIGNATURES = {
     "ks_identity_nq": (_I, []),
     "ks_identity_nparam": (_I, []),
 }
-_REQUIRED = ("ks_rhs", "ks_status_message", "ks_dop853", "ks_gauss4", "ks_rk4", "ks_map_rows",
-             "ks_energy_rows")
+_REQUIRED = ("ks_rhs", *INTEGRATOR_SYMBOLS)
 
 # scratch sizes in doubles, KS_*_WORK(dim) of integrators.h
 _WORK = {"dop853": 27, "gauss4": 7, "rk4": 6}
@@ -872,5 +916,5 @@ class NativeModel:
 
 __all__ = ["CANONICAL_METHODS", "COMPILE_TIMEOUT", "CSRC", "CompileError", "CompilerNotFound", "FLAGS", "HOST_FLAGS", "INTEGRATOR_FILES",
            "IntegrationResult", "LIBS", "METHODS", "NativeError", "NativeModel", "SingularMassMatrix", "build_flags",
-           "build_identity", "build_root", "compile_ahead", "compile_library", "compiler_command", "data_address", "host_flags",
-           "recorded_digest", "sidecar", "verified"]
+           "build_identity", "build_root", "compile_ahead", "compile_library", "compiler_command", "data_address", "discard",
+           "host_flags", "INTEGRATOR_SYMBOLS", "lacking", "recorded_digest", "sidecar", "verified"]
