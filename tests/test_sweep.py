@@ -215,6 +215,22 @@ def test_command_writes_a_dataset_refuses_and_resumes(tmp_path):
     assert other.exit_code == 1 and "holds another sweep" in other.output
 
 
+@pytest.mark.parametrize("option", ["-o", "--trajectories"])
+def test_an_output_that_is_not_a_folder_is_refused_as_such_before_force_is_suggested(tmp_path, option):
+    """A file (or a FIFO) where a sweep would write its folder of parts: the error says it is not a
+    folder, and suggests nothing (`--force` would not replace it), whether or not --force is given;
+    the file is left as it was."""
+    blocker = tmp_path / "blocker"
+    blocker.write_text("not a sweep")
+    out = tmp_path / "runs.parquet"
+    outputs = ["-o", blocker] if option == "-o" else ["-o", out, "--trajectories", blocker]
+    for force in ([], ["--force"]):
+        result = run([SYSTEM1, "--grid", "theta=-1:1:2", "--t", "0.1", "--workers", "1", *outputs, *force])
+        assert result.exit_code == 1 and "blocker exists and is not a folder" in result.output, result.output
+        assert f"choose another {option}" in result.output and "--force" not in result.output
+    assert blocker.read_text() == "not a sweep" and not out.exists()
+
+
 CRASHING = """
 import ctypes, resource, sys, time
 from pathlib import Path

@@ -142,6 +142,10 @@ def sweep(model: Path, grids, samples, tables, runs, seed, latin, t_end, dt, met
                 fail("Error: --plot maps a sweep over exactly two --grid axes (and no --sample)\n"
                      "  hint: give two --grid NAME=a:b:n", USAGE_ERROR)
             writable_outputs(None, plot)
+        for given, option in ((output, "-o"), (trajectories, "--trajectories")):
+            if given is not None and given.exists() and not given.is_dir():
+                fail(f"Error: {given} exists and is not a folder\n  hint: a sweep writes a folder of Parquet parts; "
+                     f"choose another {option}")
         if (output.exists() or Path(str(output) + ".json").exists()) and not (resume or force):
             fail(f"Error: {output} exists\n  hint: --resume finishes the sweep written there, --force replaces it, "
                  "or choose another -o")
