@@ -40,7 +40,9 @@ from typing import Callable
 import mpmath
 import numpy as np
 
+from ..core.constraints import ConstraintFailure
 from ..core.first_order import zero_rows
+from ..core.held import held_coordinates
 from ..core.known_system import KnownSystem
 from ..core.projection_work import projected_in_numbers
 from . import native as native_module
@@ -354,6 +356,19 @@ def _implicit_cause(system, y0, param, dependent):
     return at_state(system, 0.0, y0, param, intermediates)
 
 
+def _on_constraints(held, t: float, y: np.ndarray) -> np.ndarray:
+    """The state ``y = [x; u]`` at ``t`` with its held coordinates put on their configuration
+    constraints, as a run's rows are (:mod:`kronsub.core.held`): the integrated values of the
+    held coordinates are only Newton's starting guess, whose drift is no error of the motion.
+    Unchanged without held coordinates, or where Newton's method fails."""
+    if held is None or not np.all(np.isfinite(y)):
+        return y
+    try:
+        return np.concatenate([held.project(t, y[:len(held.coordinates)]), y[len(held.coordinates):]])
+    except ConstraintFailure:
+        return y
+
+
 def measure(system: KnownSystem, values: RunValues, t_end: float, methods: tuple[str, ...],
             tolerances: tuple[float, ...], *, ref: Reference | None = None, digits: int = 20,
             quick: bool = False, progress: bool | None = None, budget: float | None = None,
@@ -387,7 +402,8 @@ def measure(system: KnownSystem, values: RunValues, t_end: float, methods: tuple
                                 dependent=None if implicit is None else [float(v) for v in dependent])
     if abs(ref.times[-1] - t_end) > 1e-12 * t_end:
         raise AccuracyError(f"the reference ends at t = {ref.times[-1]}, not at {t_end}")
-    want = np.array(ref.at(len(ref.times) - 1))
+    held = held_coordinates(system, {p.symbol: float(v) for p, v in zip(system.parameters, param)})
+    want = _on_constraints(held, t_end, np.array(ref.at(len(ref.times) - 1)))
     bench = Bench(system, param, y0, t_end, dependent)
     conservative, E0, scale = _conservative(bench, ref)
     budget = (0.05 if quick else 0.3) if budget is None else budget
@@ -419,7 +435,7 @@ def measure(system: KnownSystem, values: RunValues, t_end: float, methods: tuple
             if extended:  # the error in the type's precision, before rounding to float64
                 with mpmath.workdps(50):
                     error = float(max(abs(a - b) for a, b in zip(y_end, ref.states[-1])))
-            y_end = np.array([float(v) for v in y_end])
+            y_end = _on_constraints(held, t_end, np.array([float(v) for v in y_end]))
             if not extended:
                 error = float(np.max(np.abs(y_end - want))) if np.all(np.isfinite(y_end)) else math.nan
             residual = velocity_residual = dependent_end = None
