@@ -7,6 +7,8 @@ and exits with code 1; nothing here ever leaks a traceback.
 from __future__ import annotations
 
 import difflib
+from contextlib import contextmanager
+from contextvars import ContextVar
 from dataclasses import dataclass, field
 
 
@@ -52,6 +54,42 @@ def printable(text: str) -> str:
         return text
     return "".join(ch if ch.isprintable() or ch == " " else ch.encode("unicode_escape").decode("ascii")
                    for ch in text)
+
+
+_COMMAND_LINE: ContextVar[bool] = ContextVar("kronsub_command_line", default=False)
+
+
+@contextmanager
+def command_line():
+    """Within it, messages name options as the command line takes them (``--t``); outside, as
+    the Python API's keyword arguments of the same names (``t``)."""
+    token = _COMMAND_LINE.set(True)
+    try:
+        yield
+    finally:
+        _COMMAND_LINE.reset(token)
+
+
+def option(name: str, key: str | None = None) -> str:
+    """The option ``name`` (and an entry ``key`` of it) as the caller gave it: ``--t``, ``--set m1``
+    on the command line (:func:`command_line`), ``t``, ``set['m1']`` from Python."""
+    if _COMMAND_LINE.get():
+        return f"--{name}" + (f" {key}" if key is not None else "")
+    return name + (f"[{key!r}]" if key is not None else "")
+
+
+def given(name: str, value) -> str:
+    """The option ``name`` with its ``value`` as the caller gave it: ``--scene pushed`` on the
+    command line, ``scene='pushed'`` from Python."""
+    return f"--{name} {value}" if _COMMAND_LINE.get() else f"{name}={value!r}"
+
+
+def assignment(name: str, key: str = "NAME", value: str = "VALUE") -> str:
+    """How to give ``key`` the value ``value`` by the option ``name``: ``--at NAME=VALUE`` on the
+    command line, ``at={'NAME': VALUE}`` from Python."""
+    if _COMMAND_LINE.get():
+        return f"--{name} {key}={value}"
+    return f"{name}={{{key!r}: {value}}}"
 
 
 class KronsubError(Exception):
@@ -121,5 +159,5 @@ def close_matches(name: str, options) -> str:
     return "valid names: " + ", ".join(sorted(options)) if options else "none are defined"
 
 
-__all__ = ["KronsubError", "Location", "ModelError", "Problem", "ProblemCollector", "close_matches", "near_names",
-           "printable"]
+__all__ = ["KronsubError", "Location", "ModelError", "Problem", "ProblemCollector", "assignment", "close_matches",
+           "command_line", "given", "near_names", "option", "printable"]

@@ -193,6 +193,7 @@ def test_a_closed_loop_run_has_the_columns_and_numbers_of_the_command_line(tmp_p
     from click.testing import CliRunner
 
     from kronsub.cli import main
+    from kronsub.errors import KronsubError
 
     meta = tmp_path / "run.json"
     result = CliRunner().invoke(main, ["simulate", str(FOUR_BAR), "--t", "0.3", "--dt", "0.05", "--set", "tau=0.5",
@@ -219,6 +220,7 @@ def test_codegen_writes_the_files_of_the_command_line(tmp_path):
     from click.testing import CliRunner
 
     from kronsub.cli import main
+    from kronsub.errors import KronsubError
 
     model = MODELS / "hoffmann" / "system1.yaml"
     result = CliRunner().invoke(main, ["codegen", str(model), "-o", str(tmp_path / "cli"), "--scene", "pushed"])
@@ -233,6 +235,7 @@ def test_reactions_are_the_text_of_derive_reactions():
     from click.testing import CliRunner
 
     from kronsub.cli import main
+    from kronsub.errors import KronsubError
 
     model = MODELS / "hoffmann" / "system2_implicit.yaml"
     result = CliRunner().invoke(main, ["derive", str(model), "--reactions"])
@@ -250,3 +253,33 @@ def test_accuracy_and_animate_from_the_notebook(tmp_path):
     pytest.importorskip("matplotlib")
     frames = system.animate(tmp_path / "free.gif", t=0.2, fps=10)
     assert frames == 3 and (tmp_path / "free.gif").stat().st_size > 0
+
+
+def test_errors_name_the_keyword_arguments_the_command_line_its_options():
+    """A wrong value given to the API is named as it was given there (``t``, ``set['m1']``,
+    ``scene='nope'``), the same wrong value on the command line by its option (``--t``,
+    ``--set m1``, ``--scene nope``); a command run in the same process leaves the API's spelling
+    as it was."""
+    from click.testing import CliRunner
+
+    from kronsub.cli import main
+    from kronsub.errors import KronsubError
+
+    path = str(MODELS / "hoffmann" / "system1.yaml")
+    system = kronsub.load(path).derive()
+    wrong = [({"t": -1}, "t must be a positive finite time", ["--t", "-1"], "--t must be"),
+             ({"t": 1, "dt": 0}, "dt must be a positive finite interval", ["--t", "1", "--dt", "0"], "--dt must be"),
+             ({"t": 1, "set": {"m1": -1}}, "set['m1']: mass of component 'upper' must not be negative",
+              ["--set", "m1=-1"], "--set m1: mass of component"),
+             ({"t": 1, "rtol": -1}, "rtol must be a finite tolerance", ["--rtol", "-1"], "--rtol must be"),
+             ({"t": 1, "set": {"nope": 1}}, "set['nope']: no parameter", ["--set", "nope=1"], "--set nope: no param")]
+    for kwargs, said, args, told in wrong:
+        with pytest.raises(KronsubError) as caught:
+            system.simulate(**kwargs)
+        assert said in str(caught.value) and "--" not in str(caught.value), str(caught.value)
+        result = CliRunner().invoke(main, ["simulate", path, *args])
+        assert result.exit_code in (1, 2) and told in result.output, result.output
+    with pytest.raises(KronsubError) as caught:
+        kronsub.load(path).derive(scene="nope")
+    assert "scene='nope': " in str(caught.value) and "--scene" not in str(caught.value)
+    assert "--scene nope: " in CliRunner().invoke(main, ["derive", path, "--scene", "nope"]).output

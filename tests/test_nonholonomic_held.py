@@ -119,7 +119,7 @@ def test_the_start_is_put_on_the_constraint(system):
     assert any(note.startswith("z 0.298501 -> 0.28660") for note in run.notes)
     close = system.simulate(t=0.1, dt=0.1, set={"lean": 0.3, "z": 0.287}, dataframe=False)
     assert close.y[0, close.columns.index("z")] == pytest.approx(z, abs=1e-15)
-    with pytest.raises(KronsubError, match=r"--set z=0.25 is 0.0366 away from the configuration constraints "
+    with pytest.raises(KronsubError, match=r"set=\{'z': 0.25\} is 0.0366 away from the configuration constraints "
                                            r"'touches' \(the nearest consistent value is 0.28660"):
         system.simulate(t=0.1, dt=0.1, set={"z": 0.25, "lean": 0.3}, dataframe=False)
 

@@ -21,7 +21,7 @@ import click
 from .. import budget
 from ..atomic import STREAM, output_target, write_atomically
 from ..collector import frozen_at_exit
-from ..errors import KronsubError, Location, ModelError
+from ..errors import KronsubError, Location, ModelError, command_line
 from ..interrupts import exit_code, signal_name, signal_of, signals_as_interrupts
 from ..simulation.span import T_END
 from ..version import __version__
@@ -159,7 +159,7 @@ def run_command(job):
     context = click.get_current_context(silent=True)
     units = context.meta.get(_BUDGET_KEY) if context is not None else None
     try:
-        with signals_as_interrupts(), budget.limited(units):  # SIGTERM and SIGHUP stop a run as Ctrl-C does
+        with signals_as_interrupts(), budget.limited(units), command_line():  # SIGTERM and SIGHUP stop a run as Ctrl-C does
             return job()
     except budget.WorkBudgetExceeded as exc:  # placed at the model file when no layer placed it
         source = context.params.get("model") or context.params.get("source") if context is not None else None
@@ -329,8 +329,9 @@ def check_times(t_end: float | None, dt: float | None) -> None:
     """``--t`` and ``--dt``, when given, are positive finite normal numbers (a usage error else)."""
     from ..simulation.run import time_problem
 
-    for flag, given in (("--t", t_end), ("--dt", dt)):
-        why = time_problem(flag, given) if given is not None else None
+    for name, given in (("t", t_end), ("dt", dt)):
+        with command_line():
+            why = time_problem(name, given) if given is not None else None
         if why is not None:
             fail(f"Error: {why}", USAGE_ERROR)
 

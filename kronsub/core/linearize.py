@@ -38,6 +38,7 @@ from .linearize_numerics import (EQUILIBRIUM_TOLERANCE, Evaluator, Linearization
                                  unevaluable)
 from .seeded import seeded, sympy_seeded
 from .symbols import TIME, free_symbols_of, velocity_symbol
+from ..errors import assignment
 
 
 def linearize(system: KnownSystem, *, inputs: Sequence[sympy.Symbol] = (),
@@ -75,7 +76,7 @@ def linearize(system: KnownSystem, *, inputs: Sequence[sympy.Symbol] = (),
     defaults = parameter_defaults(system)
     if missing and not symbolic:
         raise LinearizationError("no value for parameter" + ("s " if len(missing) > 1 else " ")
-                                 + ", ".join(missing) + "; give it with --at NAME=VALUE "
+                                 + ", ".join(missing) + "; give it with " + assignment("at") + " "
                                  "(or linearise symbolically)")
 
     r = residual(system)
@@ -104,7 +105,7 @@ def linearize(system: KnownSystem, *, inputs: Sequence[sympy.Symbol] = (),
     if missing:  # symbolic without values: the point must be given, it cannot be solved for
         if free:
             raise LinearizationError("cannot find an equilibrium without values for " + ", ".join(missing)
-                                     + "; give them, or every coordinate, with --at NAME=VALUE")
+                                     + "; give them, or every coordinate, with " + assignment("at"))
         acceleration = (float("nan"),) * n
     else:
         evaluate = Evaluator([M, r, K0], symbols)
@@ -128,7 +129,7 @@ def linearize(system: KnownSystem, *, inputs: Sequence[sympy.Symbol] = (),
         worst = max(abs(a) for a in acceleration)
         where = ", ".join(f"{s}={numeric_values[s]:.6g}" for s in q)
         raise LinearizationError(f"no equilibrium found near the initial values (at {where} the largest "
-                                 f"acceleration is {worst:.3g}); give the operating point with --at "
+                                 f"acceleration is {worst:.3g}); give the operating point with " + assignment("at") + " "
                                  "NAME=VALUE for every coordinate")
 
     op_state = {}

@@ -26,6 +26,7 @@ from .linearize_numerics import (EQUILIBRIUM_TOLERANCE, Evaluator, Linearization
                                  checked_inputs, least_squares_equilibrium, numeric_value, parameter_defaults,
                                  parameter_numbers, residual, sorted_eigenvalues, unevaluable)
 from .symbols import TIME
+from ..errors import assignment
 
 
 def linearize_first_order(system: KnownSystem, first: FirstOrder, *, inputs: Sequence[sympy.Symbol] = (),
@@ -48,7 +49,7 @@ def linearize_first_order(system: KnownSystem, first: FirstOrder, *, inputs: Seq
     numbers, missing = parameter_numbers(system, values)
     if missing:
         raise LinearizationError("no value for parameter" + ("s " if len(missing) > 1 else " ")
-                                 + ", ".join(missing) + "; give it with --at NAME=VALUE")
+                                 + ", ".join(missing) + "; give it with " + assignment("at"))
     for s in point:
         if s in [qd[j] for j in J]:
             raise LinearizationError(f"'{s}' is no state: {q[qd.index(s)]} is a first-order coordinate, its "
@@ -89,7 +90,7 @@ def linearize_first_order(system: KnownSystem, first: FirstOrder, *, inputs: Seq
     if free and not point and not equilibrium:
         where = ", ".join(f"{s}={numeric_values[s]:.6g}" for s in q)
         raise LinearizationError(f"no equilibrium found near the initial values (at {where} the largest rate is "
-                                 f"{np.max(np.abs(rates)):.3g}); give the operating point with --at NAME=VALUE "
+                                 f"{np.max(np.abs(rates)):.3g}); give the operating point with " + assignment("at") + " "
                                  "for every coordinate")
     K = dr.copy()
     K[:, :n] -= np.column_stack([dMk @ a for dMk in dM]) if n else 0

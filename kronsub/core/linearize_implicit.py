@@ -29,6 +29,7 @@ from .linearize_numerics import (EQUILIBRIUM_TOLERANCE, Evaluator, Linearization
                                  parameter_defaults, parameter_numbers, residual, solve_mass, sorted_eigenvalues,
                                  unevaluable)
 from .symbols import TIME
+from ..errors import assignment
 
 
 class _Reduced:
@@ -122,7 +123,7 @@ def linearize_implicit(system: KnownSystem, *, inputs: Sequence[sympy.Symbol] = 
     defaults = parameter_defaults(system)
     if missing:
         raise LinearizationError("no value for parameter" + ("s " if len(missing) > 1 else " ")
-                                 + ", ".join(missing) + "; give it with --at NAME=VALUE")
+                                 + ", ".join(missing) + "; give it with " + assignment("at"))
     for s in point:
         if s not in q and s not in qd:
             raise LinearizationError(f"'{s}' is not an independent coordinate or velocity of {system.name}")
@@ -150,7 +151,7 @@ def linearize_implicit(system: KnownSystem, *, inputs: Sequence[sympy.Symbol] = 
         where = ", ".join(f"{s}={v:.6g}" for s, v in zip(q, qv))
         raise LinearizationError(f"no equilibrium found near the initial values (at {where} the largest "
                                  f"acceleration is {np.max(np.abs(acceleration)):.3g}); give the operating "
-                                 "point with --at NAME=VALUE for every independent coordinate")
+                                 "point with " + assignment("at") + " for every independent coordinate")
     Mn, rn, K, D, G = reduced.total(at, acceleration)
     lower = solve_mass(Mn, np.hstack([K, D, G]), at, q)
     A = np.zeros((2 * n, 2 * n))

@@ -11,7 +11,7 @@ from typing import Mapping, Sequence
 import numpy as np
 import sympy
 
-from ..errors import KronsubError
+from ..errors import KronsubError, assignment, option
 from .finite import describe_rank_loss, nonfinite_cause
 from .known_system import KnownSystem
 
@@ -138,7 +138,7 @@ def solve_mass(Mn: np.ndarray, rhs: np.ndarray, values, q) -> np.ndarray:
     except np.linalg.LinAlgError:
         raise LinearizationError(f"the mass matrix is singular at {where} (a coordinate singularity, such as "
                                  "Euler angles where two axes line up)\n  hint: give another operating point "
-                                 "with --at NAME=VALUE, or other coordinates") from None
+                                 "with " + assignment("at") + ", or other coordinates") from None
 
 
 def at_equilibrium(Mn: np.ndarray, rn: np.ndarray) -> bool:
@@ -191,8 +191,8 @@ def unevaluable(r, q, values, M, where: str = "at the initial values") -> str:
     quantities = [(f"Mbar[{q[i].name}, {q[j].name}]", M[i, j]) for i in range(n) for j in range(i + 1)]
     cause = nonfinite_cause(quantities + [(f"(fbar - hbar)[{s.name}]", e) for s, e in zip(q, r)], values)
     if cause is None:
-        return f"the equations cannot be evaluated {where}; give the operating point with --at NAME=VALUE"
-    hint = cause.hint if cause.overflow else f"{cause.hint}, or give the operating point with --at NAME=VALUE"
+        return f"the equations cannot be evaluated {where}; give the operating point with " + assignment("at")
+    hint = cause.hint if cause.overflow else f"{cause.hint}, or give the operating point with " + assignment("at")
     return f"the equations cannot be evaluated {where}: {cause.what}\n  hint: {hint}"
 
 
@@ -202,7 +202,7 @@ def sorted_eigenvalues(A: np.ndarray) -> tuple[complex, ...]:
         return ()
     if not np.all(np.isfinite(A)):
         raise LinearizationError("A is not finite at the operating point: the equations overflow a double "
-                                 "there\n  hint: check the values given with --at and the parameters' values")
+                                 "there\n  hint: check the values given with " + option("at") + " and the parameters' values")
     values = np.linalg.eigvals(A)
     scale = max(1.0, float(np.max(np.abs(values))))
     cleaned = [complex(v.real if abs(v.real) > 1e-12 * scale else 0.0,

@@ -44,6 +44,7 @@ from .derivative import derivative, jacobian, where_defined
 from .known_system import KnownSystem
 from .linearize_numerics import Linearization, LinearizationError, numeric_value, parameter_numbers
 from .symbols import TIME, velocity_symbol
+from ..errors import assignment, option
 
 COMPLEX_STEP = 1e-30
 """The step ``h`` of the complex step: ``Im F(z + i h)`` is ``h F'(z)`` to ``O(h^3)``, no cancellation."""
@@ -351,7 +352,7 @@ class SteadyMotionRates:
         steady = bool(np.max(np.abs(F[K + D + U]), initial=0.0) <= STEADY_TOLERANCE * speed_scale * speed_scale)
         if not (np.all(np.isfinite(A)) and np.all(np.isfinite(B))):
             raise LinearizationError("A is not finite at the operating point: the equations overflow a double "
-                                     "there\n  hint: check the values given with --at and the parameters' values")
+                                     "there\n  hint: check the values given with " + option("at") + " and the parameters' values")
         eigenvalues = tuple(complex(e) for e in np.linalg.eigvals(A)) if A.size else ()
         return Linearization(
             state=tuple(self.x[i] for i in K) + self.speeds, inputs=self.inputs,
@@ -469,13 +470,13 @@ def linearize_speeds(system: KnownSystem, *, inputs: Sequence[sympy.Symbol] = ()
     overrides the parameters' defaults (an input's value is its operating value)."""
     if symbolic:
         raise LinearizationError("--symbolic is not supported for a model with velocity constraints\n  hint: "
-                                 "linearise with numbers (give parameter values with --at NAME=VALUE)")
+                                 "linearise with numbers (give parameter values with " + assignment("at") + ")")
     point = dict(point or {})
     time = point.pop(TIME, 0)
     numbers, missing = parameter_numbers(system, dict(values or {}))
     if missing:
         raise LinearizationError("no value for parameter" + ("s " if len(missing) > 1 else " ")
-                                 + ", ".join(missing) + "\n  hint: give it with --at NAME=VALUE")
+                                 + ", ".join(missing) + "\n  hint: give it with " + assignment("at"))
     inputs = tuple(inputs)
     speeds = tuple(system.speeds.speeds)
     operating = {}
@@ -484,7 +485,7 @@ def linearize_speeds(system: KnownSystem, *, inputs: Sequence[sympy.Symbol] = ()
         operating[s] = numeric_value(given, numbers)
         if not np.isfinite(operating[s]):
             raise LinearizationError(f"the operating value of '{s}' is not a real number\n  hint: give it a "
-                                     "number with --at")
+                                     "number with " + option("at"))
     t0 = numeric_value(time, numbers)
     fixed = {p: v for p, v in numbers.items() if p not in inputs}
     rates = steady_motion_rates(system, fixed, inputs)

@@ -19,7 +19,7 @@ import sympy
 from ..core.known_system import KnownSystem
 from ..core.subspace import effect_labels
 from ..core.symbols import symbol
-from ..errors import ModelError, Problem, close_matches
+from ..errors import ModelError, Problem, close_matches, given, option
 from .derive import derive_model
 from .initial import read_initial
 from .requirements import parameters_in, unmet
@@ -210,12 +210,12 @@ def select_scene(model, name: str | None) -> Scene | None:
     if name in scenes:
         return scenes[name]
     if not scenes:
-        raise ModelError([Problem(None, f"--scene {name}: the model {model.path} has no scenes",
-                                  "add a `scenes:` section (docs/model-format.md), or leave out --scene")])
+        raise ModelError([Problem(None, f"{given('scene', name)}: the model {model.path} has no scenes",
+                                  f"add a `scenes:` section (docs/model-format.md), or leave out {option('scene')}")])
     hint = close_matches(name, scenes)
     if hint.startswith("did you mean"):
         hint += f" (valid scenes: {', '.join(scenes)})"
-    raise ModelError([Problem(None, f"--scene {name}: {model.path} has no scene of that name", hint)])
+    raise ModelError([Problem(None, f"{given('scene', name)}: {model.path} has no scene of that name", hint)])
 
 
 def derive_scene(model, scene: Scene | None, *, cache: bool = True) -> KnownSystem:

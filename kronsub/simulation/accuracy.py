@@ -45,6 +45,7 @@ from ..core.first_order import zero_rows
 from ..core.held import held_coordinates
 from ..core.known_system import KnownSystem
 from ..core.projection_work import projected_in_numbers
+from ..errors import option
 from . import native as native_module
 from .accuracy_options import (ALL_METHODS, CLOSED_LOOP, KNOWN_METHODS, AccuracyError, fixed_step, parse_methods,
                                parse_tolerances, quick_tolerances, setting)
@@ -378,7 +379,7 @@ def measure(system: KnownSystem, values: RunValues, t_end: float, methods: tuple
     on them and ``dependent`` is ``y_d`` there (:func:`.constrained.project_initial`; done
     here when not given)."""
     if not (t_end > 0 and math.isfinite(t_end)):
-        raise AccuracyError("--t must be a positive number")
+        raise AccuracyError(f"{option('t')} must be a positive number")
     implicit = system.implicit
     if implicit is not None and dependent is None:
         from .constrained import project_initial

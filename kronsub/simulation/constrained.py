@@ -17,7 +17,7 @@ import numpy as np
 import sympy
 
 from ..core.constraints import ConstraintFailure, Intermediates
-from ..errors import KronsubError
+from ..errors import KronsubError, assignment
 from ..model.expressions import parse_expression
 from .values import RunValues
 
@@ -87,7 +87,7 @@ def project_initial(system, initial: dict, dep_settings: dict, values: RunValues
             continue
         correction = abs(v - g)
         if s and correction > TOLERANCE * (1 + abs(g)):
-            raise ConstraintError(f"--set {d.name}={g:g} is {correction:.3g} away from the constraints "
+            raise ConstraintError(f"{assignment('set', d.name, f'{g:g}')} is {correction:.3g} away from the constraints "
                                   f"{_names(imp)} (the nearest consistent value is {v:.6g}); "
                                   f"corrections above {TOLERANCE:g} (1 + |value|) are refused")
         if correction > 1e-12:

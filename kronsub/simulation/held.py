@@ -14,6 +14,7 @@ import numpy as np
 from ..core.constraints import ConstraintFailure
 from ..core.held import HeldCoordinates, held_coordinates
 from ..core.known_system import KnownSystem
+from ..errors import assignment
 from .constrained import TOLERANCE, ConstraintError
 from .values import RunValues
 
@@ -48,7 +49,7 @@ def hold_start(system: KnownSystem, values: RunValues, given: Collection[str] = 
         name, correction = system.coordinates[j].name, abs(q[j] - q0[j])
         if name in given and correction > TOLERANCE * (1 + abs(q0[j])):
             names = ", ".join(f"'{c.name}'" for c in system.speeds.holonomic)
-            raise ConstraintError(f"--set {name}={q0[j]:g} is {correction:.3g} away from the configuration "
+            raise ConstraintError(f"{assignment('set', name, f'{q0[j]:g}')} is {correction:.3g} away from the configuration "
                                   f"constraints {names} (the nearest consistent value is {q[j]:.6g}); corrections "
                                   f"above {TOLERANCE:g} (1 + |value|) are refused")
         if correction > NOTED * (1 + abs(q0[j])):

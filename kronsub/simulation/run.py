@@ -22,7 +22,7 @@ from ..core.first_order import zero_rows
 from ..core.held import held_coordinates
 from ..core.known_system import KnownSystem
 from ..core.projection_work import projected_in_numbers
-from .frame_crossing import SingularSpeedsWarning, frame_watch
+from ..errors import option
 from .advice import EnergyWarning, StiffnessWarning, energy_advice, is_stiff, stiffness_advice
 from .compiled import native_model
 from .engines import Problem, Steps, engine_of, runner
@@ -30,6 +30,7 @@ from .engines.scipy import IMPLICIT, native_rhs
 from .failure import failed_state
 from .first_order import first_order_rows
 from .fallback import module_energies, numpy_module, numpy_rhs, numpy_rhs_of
+from .frame_crossing import SingularSpeedsWarning, frame_watch
 from .grid import Grid, Tail
 from .methods import METHODS as REGISTRY
 from .methods import SIMULATE, unknown_method
@@ -64,26 +65,28 @@ RTOL_RANGE = (1e-15, 1.0)  # tighter is below the round-off of doubles; looser a
 MIN_ATOL = 1e-30  # tighter than any state of a mechanical model in SI units needs, and not met at t = 0
 
 
-def time_problem(flag: str, value: float) -> str | None:
-    """Why ``--t`` or ``--dt`` cannot be ``value`` (None: it can): a positive finite normal double."""
+def time_problem(name: str, value: float) -> str | None:
+    """Why the option ``name`` (``t`` or ``dt``) cannot be ``value`` (None: it can): a positive
+    finite normal double."""
     if math.isfinite(value) and value >= MIN_TIME:
         return None
-    what = "time" if flag == "--t" else "interval"
-    return f"{flag} must be a positive finite {what} of at least {MIN_TIME:.3g} (got {value!r})"
+    what = "time" if name == "t" else "interval"
+    return f"{option(name)} must be a positive finite {what} of at least {MIN_TIME:.3g} (got {value!r})"
 
 
 def row_count(t_end: float, dt: float) -> int:
     """The number of output rows of a run from 0 to ``t_end`` every ``dt``; raises
     :class:`SimulationError` when ``t_end`` or ``dt`` is not a positive finite normal number
     (:func:`time_problem`) or the run would have more than :data:`MAX_ROWS` rows."""
-    for flag, value in (("--t", t_end), ("--dt", dt)):
-        why = time_problem(flag, value)
+    for name, value in (("t", t_end), ("dt", dt)):
+        why = time_problem(name, value)
         if why is not None:
             raise SimulationError(why)
     ratio = t_end / dt
     if not ratio < MAX_ROWS:
-        raise SimulationError(f"--t {t_end:g} with --dt {dt:g} asks for {ratio:.3g} rows, more than "
-                              f"{MAX_ROWS:.0e}; raise --dt or shorten --t")
+        t, step = option("t"), option("dt")
+        raise SimulationError(f"{t} {t_end:g} with {step} {dt:g} asks for {ratio:.3g} rows, more than "
+                              f"{MAX_ROWS:.0e}; raise {step} or shorten {t}")
     return len(Grid(t_end, dt))
 
 
@@ -93,15 +96,17 @@ def check_tolerances(rtol: float, atol: float) -> None:
     ``|err| <= atol + rtol |y|``: a tighter one is below round-off, and the run stops at t = 0;
     ``rtol`` 0 is refused, not raised quietly to SciPy's floor of 100 eps as SciPy does)."""
     low, high = RTOL_RANGE
+    r, a = option("rtol"), option("atol")
+    example = f"e.g. {r} 1e-10 {a} 1e-10" if r.startswith("-") else "e.g. rtol=1e-10, atol=1e-10"
     if not low <= rtol <= high:
-        raise SimulationError(f"--rtol must be a finite tolerance from {low:g} to {high:g} (got {rtol!r})\n"
+        given = f"{r} {low:g}" if r.startswith("-") else f"rtol={low:g}"
+        raise SimulationError(f"{r} must be a finite tolerance from {low:g} to {high:g} (got {rtol!r})\n"
                               f"  hint: a relative tolerance below {low:g} is under the round-off of doubles "
-                              f"(for an error test on --atol alone, give --rtol {low:g}); "
-                              "e.g. --rtol 1e-10 --atol 1e-10")
+                              f"(for an error test on {a} alone, give {given}); {example}")
     if not (atol == 0 or MIN_ATOL <= atol < math.inf):
-        raise SimulationError(f"--atol must be a finite tolerance of at least 0: 0, or at least {MIN_ATOL:g} "
+        raise SimulationError(f"{a} must be a finite tolerance of at least 0: 0, or at least {MIN_ATOL:g} "
                               f"(got {atol!r})\n"
-                              "  hint: it is in the units of the state; e.g. --rtol 1e-10 --atol 1e-10")
+                              f"  hint: it is in the units of the state; {example}")
 
 
 def simulate(system: KnownSystem, values: RunValues, t_end: float, dt: float, method: str = "dop853",

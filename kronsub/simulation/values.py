@@ -14,7 +14,8 @@ from dataclasses import dataclass
 import sympy
 
 from ..core.known_system import KnownSystem
-from ..errors import Location, ModelError, Problem, near_names
+from ..errors import Location, ModelError, Problem, assignment, near_names
+from ..errors import option as spelled
 from ..model.expressions import constant_value, parse_expression
 from ..model.requirements import parameters_in, unmet
 
@@ -22,7 +23,7 @@ __all__ = ["CONSTANT_HINT", "RunValues", "parse_assignments", "resolve"]
 
 
 _UNKNOWN_NAME = re.compile(r"unknown name '([^']*)'")
-CONSTANT_HINT = ("--set takes a constant: a number or a formula of numbers, e.g. 2.5 or 2*pi/3 (no parameter, "
+CONSTANT_HINT = ("{option} takes a constant: a number or a formula of numbers, e.g. 2.5 or 2*pi/3 (no parameter, "
                  "coordinate or other name)")
 
 
@@ -67,15 +68,16 @@ def resolve(system: KnownSystem, initial: dict, settings: dict[str, str]) -> Run
             near = near_names(name, known | set(printed))
             hint = ("did you mean " + ", ".join(near) + "?") if near else \
                 "parameters: " + ", ".join(sorted(known)) + "; state: " + ", ".join(printed)
-            problems.append(Problem(None, f"--set {name}: no parameter, coordinate or velocity of that name", hint))
+            problems.append(Problem(None, f"{spelled('set', name)}: no parameter, coordinate or velocity of that name",
+                                    hint))
 
     def number(text: str, what: str, name: str) -> float | None:
         name = system.printed_name(name)
-        where = Location(f"--set {name}")
+        where = Location(spelled("set", name))
         try:
             return constant_value(parse_expression(text, {}, where, what=what), where, what=what)
         except ModelError as exc:
-            problems.extend(dataclasses.replace(p, hint=CONSTANT_HINT) if _UNKNOWN_NAME.search(p.message) else p
+            problems.extend(dataclasses.replace(p, hint=CONSTANT_HINT.format(option=spelled("set"))) if _UNKNOWN_NAME.search(p.message) else p
                             for p in exc.problems)
             return None
 
@@ -97,12 +99,12 @@ def resolve(system: KnownSystem, initial: dict, settings: dict[str, str]) -> Run
             missing.append(p.name)
     if missing:
         problems.append(Problem(None, "no value for parameter" + ("s " if len(missing) > 1 else " ")
-                                + ", ".join(missing), "give them a `value:` in the model or --set "
-                                + " ".join(f"{m}=..." for m in missing)))
+                                + ", ".join(missing), "give them a `value:` in the model or "
+                                + ", ".join(assignment("set", m, "...") for m in missing)))
     values = dict(zip([p.symbol for p in system.parameters], params))
     if not missing and None not in params:  # what the components need of the values (model/requirements.py)
         problems.extend(unmet(system.requirements, values, lambda req: next(
-            (Location(f"--set {s.name}") for s in parameters_in(req) if s.name in settings), None)))
+            (Location(spelled("set", s.name)) for s in parameters_in(req) if s.name in settings), None)))
     y0: list[float] = []
     initial_by_name = {k.name: v for k, v in initial.items()}
     for name in state:
