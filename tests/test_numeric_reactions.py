@@ -18,16 +18,26 @@
   acceleration of the mass centre (from the four bodies' centres, ``--points``) is the sum of the
   rolling forces; ``animate`` draws it. These runs take the numpy route (no C compiler: the same
   pieces, tests/test_nonholonomic_numeric_route.py), which spares the tests the bicycle's C.
+- Constraints dependent at a state have no multipliers (a row of NaN in a run); a point in a symbol
+  without a value is reported.
 """
+import dataclasses
+
 import numpy as np
 import pytest
+import sympy
 from click.testing import CliRunner
 
 import kronsub
 from kronsub.cli import main
+from kronsub.core.linearize_numerics import LinearizationError
+from kronsub.core.nonholonomic_linearize import MotionParts
+from kronsub.core.numeric_reactions import multipliers
+from kronsub.errors import KronsubError
 from kronsub.core.projection_work import projected_in_numbers as numeric_route
 from kronsub.simulation import reactions as reaction_rows
 from kronsub.simulation import table
+from kronsub.simulation.named_points import point_namespace
 
 from conftest import ROOT
 
@@ -150,3 +160,21 @@ def test_the_bicycle_is_animated(bicycle, tmp_path, no_compiler):
     pytest.importorskip("PIL.Image")
     frames = bicycle.animate(tmp_path / "bike.gif", t=0.1, set={"rear_dot": 10.0, "roll": 0.05})
     assert frames > 1 and (tmp_path / "bike.gif").stat().st_size > 0
+
+
+def test_dependent_constraints_have_no_multipliers():
+    # S = [A; Y] with the two rows of A equal: S_c^T nu = r has no unique solve
+    frame = np.array([[1.0, 1.0, 0.0], [1.0, 1.0, 0.0], [0.0, 0.0, 1.0]])
+    parts = MotionParts(frame=frame, rates=np.zeros(3), transformation=np.array([[0.0], [0.0], [1.0]]),
+                        convective=np.zeros(3), metric=np.eye(3), velocity_terms=np.zeros(3), force=np.zeros(3))
+    with pytest.raises(LinearizationError, match="not independent"):
+        multipliers(parts, np.zeros(1), held=0)
+    frame[1] = [1.0, -1.0, 0.0]  # independent: the force along each row
+    parts = dataclasses.replace(parts, frame=frame, force=np.array([-3.0, 1.0, 0.0]))
+    assert np.allclose(multipliers(parts, np.zeros(1), held=0), [1.0, 2.0])
+
+
+def test_a_point_in_a_symbol_without_a_value_is_reported():
+    system = kronsub.load(SMALL[0]).derive()
+    with pytest.raises(KronsubError, match="named point 'p': zeta is neither a parameter"):
+        point_namespace(dataclasses.replace(system, points={"p": (sympy.Symbol("zeta"), sympy.Integer(0))}))

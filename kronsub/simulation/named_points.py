@@ -17,6 +17,7 @@ from ..budget import PER_OPERATION, charge, scope
 from ..core.known_system import KnownSystem
 from ..core.operations import count_ops
 from ..core.symbols import TIME
+from ..errors import KronsubError
 
 POINT_NAMES = ("POINTS", "points", "TIMED")
 """What the generated numpy module names its points by: their labels and dimensions, the function,
@@ -33,9 +34,15 @@ def point_namespace(system: KnownSystem) -> dict[str, object]:
     parameters = [p.symbol for p in system.parameters]
     labels = sorted(system.points)
     compiled: list[Callable] = []
+    known = {TIME, *coordinates, *parameters}
     with scope():
         for label in labels:
             exprs = [sympy.sympify(e) for e in system.points[label]]
+            unknown = set().union(*(e.free_symbols for e in exprs)) - known
+            if unknown:
+                names = ", ".join(sorted(s.name for s in unknown))
+                raise KronsubError(f"cannot evaluate the named point '{label}': {names} is neither a parameter, a "
+                                   "coordinate nor t")
             charge(PER_OPERATION["print"] * sum(count_ops(e) for e in exprs), f"the named point '{label}'")
             compiled.append(sympy.lambdify([TIME, coordinates, parameters], exprs, "numpy", cse=True))
     n = len(coordinates)
