@@ -22,6 +22,7 @@
   without a value is reported.
 """
 import dataclasses
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -178,3 +179,15 @@ def test_a_point_in_a_symbol_without_a_value_is_reported():
     system = kronsub.load(SMALL[0]).derive()
     with pytest.raises(KronsubError, match="named point 'p': zeta is neither a parameter"):
         point_namespace(dataclasses.replace(system, points={"p": (sympy.Symbol("zeta"), sympy.Integer(0))}))
+
+
+def test_a_row_where_the_multipliers_fail_stays_nan(monkeypatch):
+    _numeric_route(monkeypatch)
+    system = kronsub.load(SMALL[4]).derive()  # the disc with a held height
+    param = np.array([float(p.value) for p in system.parameters])
+    good = system.simulate(t=0.1, dt=0.1, dataframe=False).y[-1]
+    traj = SimpleNamespace(t=np.array([0.0, 0.1]), y=np.array([good, np.full_like(good, np.nan)]), segments=None,
+                           dependent=None)
+    names, values = reaction_rows.reaction_columns(system, traj, param)
+    assert names == ["mu_roll_x", "mu_roll_y", "mu_touches"]
+    assert np.all(np.isfinite(values[0])) and np.all(np.isnan(values[1]))

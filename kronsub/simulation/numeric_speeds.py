@@ -31,6 +31,7 @@ from .failure import Singular
 
 __all__ = ["NumericSpeeds"]
 
+
 class NumericSpeeds:
     """The right-hand side ``[xdot; udot]`` of ``system`` in its state ``[x; u]`` at the parameter
     values ``param`` (in the order of ``system.parameters``), and its energies, in numbers."""

@@ -9,6 +9,8 @@ from __future__ import annotations
 import numpy as np
 import sympy
 
+from ..core.constraints import ConstraintFailure
+from ..core.linearize_numerics import LinearizationError
 from ..core.nonholonomic import speed_rates
 from ..core.numeric_reactions import multipliers, multiplier_names
 from ..core.projection_work import projected_in_numbers
@@ -90,8 +92,8 @@ def _projected_rows(system, times, states, param) -> np.ndarray:
         try:
             parts = numeric.rates.parts(numeric.on_constraints(float(t), y[:n]), y[n:], float(t))
             out[i] = multipliers(parts, parts.speed_rates().real, numeric.rates.l)
-        except Exception:  # noqa: BLE001 - a failed row stays NaN, whatever failed in it
-            continue
+        except (ConstraintFailure, LinearizationError, np.linalg.LinAlgError, ArithmeticError, ValueError):
+            continue  # held coordinates off their constraints, S or Mbar singular: the row stays NaN
     return out
 
 
