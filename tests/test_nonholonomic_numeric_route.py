@@ -16,9 +16,8 @@ state, the held coordinates put on their configuration constraints by Newton's m
   1e-3 rad the roll and steer follow ``exp(A t)`` of the model file's own linearisation (second
   order in the roll), the energy (gravity alone does work) is kept, the front contact stays on
   the ground; without a compiler the numpy route runs the same motion; the CSV has the columns and
-  metadata of every run (and --plot its figure), and --reactions, --points and animate (which
-  need the generated numpy module's contact forces or named points) are refused at the velocity
-  constraints.
+  metadata of every run (and --plot its figure). Its contact forces (--reactions), named points
+  (--points) and animation: tests/test_numeric_reactions.py.
 """
 import json
 from pathlib import Path
@@ -30,7 +29,6 @@ from scipy.linalg import expm
 
 import kronsub
 from kronsub.cli import main
-from kronsub.errors import ModelError
 from kronsub.simulation.fallback import module_energies, numpy_module
 from kronsub.core.projection_work import NUMERIC_FROM, projection_work
 from kronsub.core.projection_work import projected_in_numbers as numeric_route
@@ -136,19 +134,3 @@ def test_the_cli_writes_the_same_columns_and_metadata(bicycle, run, tmp_path):
     rows = np.loadtxt(out, delimiter=",", skiprows=1)
     api_rows = np.column_stack([run[c][[0, 2, 4]] for c in header[1:]])
     assert np.allclose(rows[:, 1:], api_rows, rtol=1e-6, atol=1e-9)  # runs of other spans: to the tolerance
-
-
-def test_reactions_points_and_animation_are_refused_at_the_velocity_constraints(bicycle, tmp_path):
-    result = CliRunner().invoke(main, ["simulate", str(BICYCLE), "--t", "0.1", "--reactions",
-                                       "-o", str(tmp_path / "r.csv")])
-    assert result.exit_code == 1
-    assert "whipple_bicycle.yaml:131:1: --reactions of this model is not supported" in result.output
-    assert "hint: simulate without --reactions" in result.output
-    with pytest.raises(ModelError, match="--reactions of this model is not supported"):
-        bicycle.simulate(t=0.1, reactions=True)
-    result = CliRunner().invoke(main, ["simulate", str(BICYCLE), "--t", "0.1", "--points",
-                                       "-o", str(tmp_path / "p.csv")])
-    assert result.exit_code == 1 and "whipple_bicycle.yaml:131:1: --points of this model is not supported" \
-        in result.output
-    with pytest.raises(ModelError, match="animate of this model is not supported"):
-        bicycle.animate(tmp_path / "bike.gif")

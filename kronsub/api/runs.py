@@ -150,23 +150,17 @@ def simulate(system: KnownSystem, t: float | None = None, dt: float | None = Non
     >>> run.metadata["scene"], run.metadata["status"]
     ('free', 'complete')
     """
-    from ..simulation.fallback import numpy_module
-    from ..simulation.numeric_speeds import refuse_unformed
     from ..simulation.power import energy_split
     from ..simulation.reactions import reaction_columns
     from ..simulation.table import energies, trajectory_table
 
     scene = scene_of(system)
-    if reactions or points:
-        model = getattr(system, "model", None)
-        refuse_unformed(system, model.locations.get("velocity_constraints") if model is not None else None,
-                        "--reactions" if reactions else "--points")
     t, dt, method = run_span(system, t, dt, method)
     outputs = scene.outputs if scene is not None else None
     begin, traj = _trajectory(system, t, dt, method, set, rtol, atol, outputs, jacobian)
     values = begin.values
     param = np.array(values.parameters)
-    extra = reaction_columns(system, traj, param, numpy_module(system), begin.constrained) if reactions else None
+    extra = reaction_columns(system, traj, param, constrained=begin.constrained) if reactions else None
     model = getattr(system, "model", None)
     table_columns, table, metadata = trajectory_table(
         system, model_file(system), traj, values, rtol, atol, points, outputs, extra,
@@ -323,11 +317,9 @@ def animate(system: KnownSystem, output, t: float | None = None, dt: float | Non
     frames (needs matplotlib and Pillow)."""
     from ..simulation.animate import animate as draw
     from ..simulation.mechanism import describe, from_points, place
-    from ..simulation.numeric_speeds import refuse_unformed
     from ..simulation.table import point_columns
 
     model = getattr(system, "model", None)
-    refuse_unformed(system, model.locations.get("velocity_constraints") if model is not None else None, "animate")
     t, dt, method = run_span(system, t, dt, method, ANIMATION_DEFAULTS)
     drawn = _every_point(system)
     begin, traj = _trajectory(drawn, t, dt, method, set, 1e-10, 1e-10)

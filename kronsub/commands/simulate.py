@@ -173,11 +173,6 @@ def _simulate(model: Path, t_end: float | None, dt: float | None, method: str | 
         explicit_only(system, chosen)
     except SimulationError as exc:
         fail(f"Error: {exc}")
-    if with_reactions or with_points:
-        from ..simulation.numeric_speeds import refuse_unformed
-
-        refuse_unformed(system, loaded.locations.get("velocity_constraints"),
-                        "--reactions" if with_reactions else "--points")
     begin = starting_values(system, parse_assignments(settings), tolerance=newton_tolerance(rtol, atol))
     for note in begin.notes:
         say(f"note: initial conditions projected onto the constraints: {note}")
@@ -194,11 +189,10 @@ def _simulate(model: Path, t_end: float | None, dt: float | None, method: str | 
             import numpy as np
 
             from ..simulation.reactions import reaction_columns
-            from ..simulation.fallback import numpy_module
 
             traj = collect(run, list(run), len(system.coordinates))
             kept.append(traj)
-            extra = reaction_columns(system, traj, np.array(values.parameters), numpy_module(system), constrained)
+            extra = reaction_columns(system, traj, np.array(values.parameters), constrained=constrained)
             text, info = trajectory_csv(system, model.as_posix(), traj, values, rtol, atol, with_points,
                                         outputs, extra, **run_info)
             out.write(text)

@@ -87,6 +87,26 @@ class ConstrainedMotion:
     velocity_terms: sympy.Matrix | None = None
 
 
+@dataclass(frozen=True)
+class MotionParts:
+    """The pieces of the rates at one state ``(x, u, t)``: ``S = [G; A; Y]``, ``xdot = w = C u + d``,
+    ``C``, ``Cdot u + ddot`` along the motion, and ``M``, ``h``, ``f`` in ``x`` at ``xdot = w``."""
+
+    frame: np.ndarray  # S
+    rates: np.ndarray  # w
+    transformation: np.ndarray  # C
+    convective: np.ndarray  # Cdot u + ddot
+    metric: np.ndarray  # M
+    velocity_terms: np.ndarray  # h
+    force: np.ndarray  # f
+
+    def speed_rates(self) -> np.ndarray:
+        """``udot = Mbar^-1 (fbar - hbar)``, ``Mbar = C^T M C`` (9'), (D),
+        ``fbar - hbar = C^T (f - h - M (Cdot u + ddot))`` (E), (F)."""
+        C, M = self.transformation, self.metric
+        return np.linalg.solve(C.T @ M @ C, C.T @ (self.force - self.velocity_terms - M @ self.convective))
+
+
 def linear_rows(exprs: Sequence[sympy.Expr], coordinates: Sequence[sympy.Symbol], what: str
                 ) -> tuple[sympy.Matrix, sympy.Matrix]:
     """``A`` and ``b`` of ``A(x) xdot + b`` for expressions linear in the velocities, taken by
@@ -213,8 +233,9 @@ class SteadyMotionRates:
             raise LinearizationError(f"no value for parameter{'s' if len(left) > 1 else ''} {names}\n  hint: give "
                                      "every parameter a value")
 
-    def rates(self, x, u, t=0.0, inputs=()) -> np.ndarray:
-        """``[xdot; udot]`` at ``(x, u, t)`` (complex numbers allowed)."""
+    def parts(self, x, u, t=0.0, inputs=()) -> MotionParts:
+        """``S``, ``w = C u + d``, ``C``, ``Cdot u + ddot``, ``M``, ``h`` and ``f`` at ``(x, u, t)``
+        (complex numbers allowed)."""
         n, p = self.n, self.p
         x = np.asarray(x, dtype=complex)
         u = np.asarray(u, dtype=complex)
@@ -245,9 +266,14 @@ class SteadyMotionRates:
             dW = out[5 + 3 * n:5 + 4 * n]
             dM = [dJ[k].T @ W @ J + J.T @ dW[k] @ J + J.T @ W @ dJ[k] for k in range(n)]
             h = sum(dM[k] * w[k] for k in range(n)) @ w - 0.5 * np.array([w @ dM[a] @ w for a in range(n)])
-        Mbar = C.T @ M @ C
-        rhs = C.T @ (f - h - M @ convective)
-        return np.concatenate([w, np.linalg.solve(Mbar, rhs)])
+        return MotionParts(frame=S, rates=w, transformation=C, convective=convective, metric=M, velocity_terms=h,
+                           force=f)
+
+    def rates(self, x, u, t=0.0, inputs=()) -> np.ndarray:
+        """``[xdot; udot]`` at ``(x, u, t)`` (complex numbers allowed): ``udot = Mbar^-1 (fbar - hbar)``
+        of :meth:`MotionParts.speed_rates`."""
+        parts = self.parts(x, u, t, inputs)
+        return np.concatenate([parts.rates, parts.speed_rates()])
 
     def kinetic_energy(self, x, u, t=0.0, inputs=()) -> float:
         """``T = 1/2 (C u)^T M (C u)`` (24) at ``(x, u, t)``: the kinetic energy in the speeds, less
@@ -493,6 +519,6 @@ def linearize_speeds(system: KnownSystem, *, inputs: Sequence[sympy.Symbol] = ()
     return dataclasses.replace(lin, time=sympy.sympify(time), in_speeds=True)
 
 
-__all__ = ["COMPLEX_STEP", "IGNORABLE_TOLERANCE", "NEWTON_STEPS", "STEADY_TOLERANCE", "ConstrainedMotion",
+__all__ = ["COMPLEX_STEP", "IGNORABLE_TOLERANCE", "NEWTON_STEPS", "STEADY_TOLERANCE", "ConstrainedMotion", "MotionParts",
            "ProjectedMetric", "SteadyMotionRates", "constrained_motion", "frame_matrix", "ignorable", "linear_rows", "linearize_speeds",
            "linearize_steady_motion", "primitive_metric", "steady_motion_rates", "velocity_rows", "REMEMBERED_RATES"]

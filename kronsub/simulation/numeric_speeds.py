@@ -26,34 +26,10 @@ from ..core.held import held_coordinates
 from ..core.known_system import KnownSystem
 from ..core.linearize_numerics import LinearizationError
 from ..core.nonholonomic_linearize import steady_motion_rates
-from ..core.projection_work import NUMERIC_FROM, projection_work
 from ..core.symbols import TIME
-from ..errors import Location, ModelError, Problem
 from .failure import Singular
 
-__all__ = ["FORMED", "NumericSpeeds", "refuse_unformed"]
-
-FORMED = {"--reactions": "no contact forces",
-          "--points": "no generated numpy module, which a run's named points come from",
-          "animate": "no generated numpy module, which the named points the drawing is placed by come from"}
-"""What a run projected at run time does not form, by what asks for it."""
-
-
-def refuse_unformed(system: KnownSystem, location: Location | None = None, what: str = "--reactions") -> None:
-    """A :class:`ModelError` at ``location`` (where the model writes its velocity constraints) when
-    ``system``'s projection onto the speeds is made at run time (in the generated C, or here without
-    a compiler), which forms neither the multipliers of the constraints (``--reactions``) nor the
-    generated numpy module the named points come from (``--points``, ``animate``)."""
-    work = projection_work(system)
-    if work >= NUMERIC_FROM:  # projected at run time (core/projection_work.projected_in_numbers)
-        hint = (f"simulate without {what} (the motion, energies and the held coordinates are written as usual)"
-                if what.startswith("--") else "simulate it instead (`kronsub simulate`): the motion, energies and "
-                "the held coordinates are written as usual")
-        raise ModelError([Problem(location, f"{what} of this model is not supported: its equations in the speeds "
-                                            f"are too large to project symbolically (projection work "
-                                            f"{work}, from {NUMERIC_FROM} a run projects in "
-                                            f"numbers at each step, in the generated C, and forms {FORMED[what]})",
-                                    hint)])
+__all__ = ["NumericSpeeds"]
 
 
 class NumericSpeeds:

@@ -1,25 +1,41 @@
-"""``simulate --reactions``: the reactions of viewpoint (alpha) at every row of a run."""
+"""``simulate --reactions``: the reactions of viewpoint (alpha) at every row of a run.
+
+From the reaction expressions (:mod:`kronsub.core.reactions`) and the accelerations of the
+generated right-hand side; for a system whose projection onto the speeds is made in numbers
+(:func:`~kronsub.core.projection_work.projected_in_numbers`), from the pieces of the rates at each
+row (:mod:`kronsub.core.numeric_reactions`), the same multipliers under the same names."""
 from __future__ import annotations
 
 import numpy as np
 import sympy
 
+from ..core.constraints import ConstraintFailure
+from ..core.linearize_numerics import LinearizationError
 from ..core.nonholonomic import speed_rates
+from ..core.numeric_reactions import multipliers, multiplier_names
+from ..core.projection_work import projected_in_numbers
 from ..core.reactions import MultiplierSystem, reactions
 from ..core.symbols import acceleration_symbol
 from .fallback import numpy_module
+from .numeric_speeds import NumericSpeeds
 
 
-def reaction_columns(system, traj, param, module, constrained=None) -> tuple[list[str], np.ndarray]:
-    """Names and values: the accelerations from the generated right-hand side at each row, then
-    the reaction expressions (with the intermediates from Newton's method on implicit systems).
+def reaction_columns(system, traj, param, module=None, constrained=None) -> tuple[list[str], np.ndarray]:
+    """Names and values: the accelerations from the generated right-hand side at each row
+    (``module``, the generated numpy module: made here when None), then the reaction expressions
+    (with the intermediates from Newton's method on implicit systems); for a system projected
+    onto its speeds in numbers, the multipliers from the pieces of its rates (:func:`_projected_rows`).
 
     A run of ``coordinates: auto`` is evaluated stretch by stretch with the choice of
     independent coordinates that computed it (``traj.segments``): the multipliers do not depend
     on the choice, but the first choice's expressions are singular at its toggle position."""
     if traj.segments:
         return _switched_columns(traj, param)
+    if projected_in_numbers(system):
+        return multiplier_names(system), _projected_rows(system, traj.t, traj.y, param)
     names, fn = _reaction_function(system, param)
+    if module is None:
+        module = numpy_module(system)
     if constrained is not None and traj.dependent is not None and len(traj.dependent):
         constrained.guess = np.array(traj.dependent[0], dtype=float)
     return names, _rows(system, fn, len(names), traj.t, traj.y, param, module, constrained)
@@ -63,6 +79,22 @@ def _rows(system, fn, k, times, states, param, module, constrained) -> np.ndarra
         except Exception:  # noqa: BLE001 - a failed row stays NaN, whatever failed in it
             rows.append([float("nan")] * k)
     return np.array(rows, dtype=float).reshape(len(times), k)
+
+
+def _projected_rows(system, times, states, param) -> np.ndarray:
+    """The multipliers at each ``(t, [x; u])`` from ``S``, ``C``, ``Cdot u + ddot``, ``M``, ``h``, ``f``
+    in numbers, ``udot`` the numpy route's right-hand side there (:class:`.numeric_speeds.NumericSpeeds`,
+    the held coordinates on their constraints first); a row that fails stays NaN."""
+    numeric = NumericSpeeds(system, param)
+    n, k = len(system.coordinates), len(system.speeds.constraint_names)
+    out = np.full((len(times), k), np.nan)
+    for i, (t, y) in enumerate(zip(times, states)):
+        try:
+            parts = numeric.rates.parts(numeric.on_constraints(float(t), y[:n]), y[n:], float(t))
+            out[i] = multipliers(parts, parts.speed_rates().real, numeric.rates.l)
+        except (ConstraintFailure, LinearizationError, np.linalg.LinAlgError, ArithmeticError, ValueError):
+            continue  # held coordinates off their constraints, S or Mbar singular: the row stays NaN
+    return out
 
 
 def _switched_columns(traj, param) -> tuple[list[str], np.ndarray]:

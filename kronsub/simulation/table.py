@@ -26,12 +26,14 @@ import io
 import numpy as np
 
 from ..core.known_system import KnownSystem
+from ..core.projection_work import projected_in_numbers
 from ..core.rheonomic import depends_on_time
 from ..model.file_reading import SourceFile
 from ..version import __version__
 from .drive_power import COLUMN as DRIVE_POWER
 from .drive_power import DrivePower, driven
 from .fallback import numpy_module
+from .named_points import POINT_NAMES, point_namespace
 from .power import COLUMNS as SPLIT_COLUMNS, EnergySplit
 from .rows import Block, Trajectory
 from .trajectory_file import (METADATA_FORMAT, RowWriter, format_rows, json_number, metadata_json,
@@ -52,12 +54,18 @@ def model_record(name: str, file: str | None, source: SourceFile | None = None,
 
 
 class _Module:
-    """The generated numpy module, made on first use."""
+    """The generated numpy module, made on first use; the named points of a system projected onto
+    its speeds in numbers, which has none, compiled point by point (:mod:`.named_points`)."""
 
     def __init__(self, system: KnownSystem, outputs=None):
-        self.system, self.outputs, self.namespace = system, outputs, None
+        self.system, self.outputs, self.namespace, self.points = system, outputs, None, None
 
     def __getitem__(self, name):
+        if name in POINT_NAMES:
+            if self.points is None:  # decided once: a row asks for every point
+                self.points = point_namespace(self.system) if projected_in_numbers(self.system) else {}
+            if self.points:
+                return self.points[name]
         if self.namespace is None:
             self.namespace = numpy_module(self.system, self.outputs)
         return self.namespace[name]
