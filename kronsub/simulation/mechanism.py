@@ -88,7 +88,7 @@ def _body_axes(part, points):
 
 
 BY_TYPE = {"disc": _disc, "flywheel": _dial, "particle1d": _on_rail, "planar_body": _body_axes,
-           "rigid_body3d": _body_axes}
+           "rigid_body3d": _body_axes, "turned_body": _body_axes}
 """What a component type adds to the links of its named points (``components.REGISTRY``
 names); a type not listed (a particle, a rod, a known system) is its links, or a dot for a
 lone point."""
