@@ -28,7 +28,7 @@ from dataclasses import dataclass
 import numpy as np
 import sympy
 
-from .deferred import DeferredMatrix
+from .deferred import DeferredMatrix, Once
 from .derivative import derivative, jacobian, where_defined
 from .known_system import Constraint, KnownSystem, SpeedEquations
 from .numeric_jacobian import value_and_jacobian
@@ -275,8 +275,7 @@ def velocity_transformation(constraints: Sequence[sympy.Expr], coordinates: Sequ
             "constraints do not fix, say)", kind="speeds")
     if made:  # A and b as printed: each constraint's printed form, made when first read
         rates = A[A.rows - len(holonomic):, :], b[b.rows - len(holonomic):, :]
-        form = functools.cache(lambda: linear_form([c if p is None else p() for c, p in zip(constraints, printed)],
-                                                   coordinates))
+        form = Once(lambda: linear_form([c if p is None else p() for c, p in zip(constraints, printed)], coordinates))
         A, b, rows = (DeferredMatrix(A.rows, n, lambda: form()[0].col_join(rates[0])),
                       DeferredMatrix(b.rows, 1, lambda: form()[1].col_join(rates[1])), tuple(constraints))
     else:
