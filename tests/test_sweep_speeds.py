@@ -96,6 +96,24 @@ def test_disc_trajectories_are_simulate_rows(tmp_path):
         assert header[:len(DISC_STATE) + 1] == ["t", *DISC_STATE]
 
 
+def test_sleigh_ends_straight_at_the_speed_its_energy_gives(tmp_path):
+    """The Chaplygin sleigh's speeds v, w (named quasi-velocities): every run ends moving straight
+    (w -> 0) at the forward speed its kinetic energy gives, m v^2 = m v0^2 + (I + m a^2) w0^2, a
+    user output written in the speeds, and a run equal to simulate."""
+    sleigh = ROOT / "models" / "nonholonomic" / "chaplygin_sleigh.yaml"
+    args = ("--t", 60.0, "--dt", 1.0)
+    rows, _ = swept(tmp_path, sleigh, "--grid", "a=[0.1, 0.3]", "--grid", "w=[-2, 3]", "--summary", "top=max(abs(w))",
+                    *args)
+    m, inertia, v0 = 1.0, 0.05, 0.5
+    assert np.all(rows["status"] == "complete")
+    np.testing.assert_array_equal(rows["top"], np.abs(rows["w"]))  # w only decays
+    np.testing.assert_allclose(rows["final_w"], 0.0, atol=1e-3)
+    expected = np.sqrt(v0 ** 2 + (inertia + m * rows["a"] ** 2) * rows["w"] ** 2 / m)
+    np.testing.assert_allclose(rows["final_v"], expected, rtol=1e-6)
+    assert_rows_are_simulate(tmp_path, sleigh, rows.iloc[[3]], ("a", "w"), ["x", "y", "theta", "v", "w"],
+                             ["x", "y", "theta"], *args)
+
+
 def test_held_height_follows_each_run_and_gives_the_plain_disc(tmp_path):
     """z is held by `touches: z - r cos(lean)`: each run's start (r swept, lean swept) puts it
     there, as simulate does, and the motion is the plain disc's (a route independent of the
@@ -144,3 +162,14 @@ def test_bicycle_sweep_equals_simulate_and_shows_the_weave(tmp_path):
     late = [kept[(kept["run"] == run) & (kept["t"] >= 2.0)]["roll"].abs().max() for run in (0, 1)]
     assert late[0] > 0.1  # weave unstable: the lean of 0.01 grew tenfold
     assert late[1] < 0.01  # weave stable: it decays
+
+
+def test_notebook_sweep_of_the_disc_is_the_command_s(tmp_path):
+    """`System.sweep` of a model in speeds: the rows `kronsub sweep` writes, a speed set for all."""
+    import kronsub
+
+    system = kronsub.load(DISC).derive()
+    mine = system.sweep(grid={"r": [0.2, 0.3]}, set={"yaw_dot": 0.25}, t=0.5, dt=0.1, workers=1)
+    theirs, _ = swept(tmp_path, DISC, "--grid", "r=[0.2, 0.3]", "--set", "yaw_dot=0.25", "--t", 0.5, "--dt", 0.1)
+    pd.testing.assert_frame_equal(mine, theirs, check_dtype=False)
+    assert list(mine["final_spin_dot"]) != [8.0, 8.0] and "final_x_dot" not in mine
