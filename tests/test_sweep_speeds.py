@@ -173,3 +173,21 @@ def test_notebook_sweep_of_the_disc_is_the_command_s(tmp_path):
     theirs, _ = swept(tmp_path, DISC, "--grid", "r=[0.2, 0.3]", "--set", "yaw_dot=0.25", "--t", 0.5, "--dt", 0.1)
     pd.testing.assert_frame_equal(mine, theirs, check_dtype=False)
     assert list(mine["final_spin_dot"]) != [8.0, 8.0] and "final_x_dot" not in mine
+
+
+def test_a_held_value_set_for_all_runs_is_checked_in_each(tmp_path):
+    """--set z with r swept: the runs where z is off the constraint by more than simulate allows
+    are rows that say so (simulate refuses the same run), the others run."""
+    rows, _ = swept(tmp_path, HELD_DISC, "--grid", "r=[0.2, 0.3]", "--set", "z=0.2985", "--t", 0.1)
+    assert list(rows["status"]) == ["stopped", "complete"]
+    assert "away from the configuration constraints 'touches'" in rows["reason"][0]
+    result = CliRunner().invoke(main, ["simulate", str(HELD_DISC), "--set", "r=0.2", "--set", "z=0.2985", "--t", "0.1",
+                                       "-o", str(tmp_path / "one.csv")])
+    assert result.exit_code == 1 and "away from the configuration constraints 'touches'" in result.output
+
+
+def test_requirements_are_checked_per_run(tmp_path):
+    result = CliRunner().invoke(main, ["sweep", str(DISC), "--grid", "m=[1, -1]", "--t", "0.1",
+                                       "-o", str(tmp_path / "runs.parquet")])
+    assert result.exit_code == 1 and "run 1 (m = -1): mass of component 'disc' must not be negative" in result.output
+    assert not (tmp_path / "runs.parquet").exists()
