@@ -158,10 +158,12 @@ def test_bicycle_sweep_equals_simulate_and_shows_the_weave(tmp_path):
             assert row[f"max_{name}"] == data[:, header.index(name)].max(), name
         assert row["energy_drift"] == data[-1, header.index("total_energy")] - data[0, header.index("total_energy")]
         assert abs(row["energy_drift"]) < 1e-8 * data[0, header.index("total_energy")]
-    kept = pd.read_parquet(folder)
-    late = [kept[(kept["run"] == run) & (kept["t"] >= 2.0)]["roll"].abs().max() for run in (0, 1)]
-    assert late[0] > 0.1  # weave unstable: the lean of 0.01 grew tenfold
-    assert late[1] < 0.01  # weave stable: it decays
+    kept = pd.read_parquet(folder)  # the weave is the oscillation of the lean (the capsize mode is slow there)
+    rate = [[kept[(kept["run"] == run) & (kept["t"] >= a) & (kept["t"] <= b)]["roll_dot"].abs().max()
+             for a, b in ((0.0, 1.0), (2.0, 3.0))] for run in (0, 1)]
+    assert rate[0][1] > 5 * rate[0][0]  # below the weave speed it grows (27-fold here)
+    assert rate[1][1] < 0.5 * rate[1][0]  # above it, it decays (to 0.38 here)
+    assert np.max(np.abs(kept[kept["run"] == 0]["roll"])) > 0.1  # the lean of 0.01 grew tenfold
 
 
 def test_notebook_sweep_of_the_disc_is_the_command_s(tmp_path):
