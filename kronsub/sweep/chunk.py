@@ -356,12 +356,20 @@ def _held_runs(job: Job, ensemble, param: np.ndarray, y0: np.ndarray, run0: int 
 
     system, native = job.system, ensemble.native
     nq, ny, nparam = len(system.coordinates), state_width(system), len(system.parameters)
+    held: dict[tuple, object] = {}  # per parameter values
+
+    def held_at(r: int):
+        values = tuple(float(v) for v in param[r, :nparam])
+        if values not in held:
+            held[values] = held_coordinates(system, {p.symbol: v for p, v in zip(system.parameters, values)})
+        return held[values]
+
     start = np.array(y0, dtype=float)
     redo = set()
     for r in range(len(y0)):
         try:
             values, _ = hold_start(system, RunValues(tuple(map(float, param[r])), tuple(map(float, y0[r]))),
-                                   job.given)
+                                   job.given, held_at(r))
             start[r] = values.y0
         except KronsubError:
             redo.add(r)
@@ -371,7 +379,6 @@ def _held_runs(job: Job, ensemble, param: np.ndarray, y0: np.ndarray, run0: int 
     reasons = [""] * len(y0)
     users = np.full((len(y0), len(job.summaries)), np.nan)
     functions = _functions(job) if job.summaries else None
-    held: dict[tuple, object] = {}  # per parameter values
     block = max(1, ROWS_BYTES // ((len(grid) + 3 * len(cuts)) * (ny + 1) * 8))
     for a in range(0, len(y0), block):
         b = min(a + block, len(y0))
@@ -384,10 +391,7 @@ def _held_runs(job: Job, ensemble, param: np.ndarray, y0: np.ndarray, run0: int 
                 summary[r], reasons[r], users[r] = again[0], told[0], mine[0]
                 continue
             kept = rows[k, :written[k]]
-            values = tuple(float(v) for v in param[r, :nparam])
-            if values not in held:
-                held[values] = held_coordinates(system, {p.symbol: v for p, v in zip(system.parameters, values)})
-            Y = held[values].rows(kept[:, 0], kept[:, 1:])
+            Y = held_at(r).rows(kept[:, 0], kept[:, 1:])
             times = grid.snap(kept[:, 0])
             summary[r, :5] = part[k, :5]
             summary[r, 5:5 + ny] = Y[-1]
