@@ -11,6 +11,9 @@ it by itself, writes its module within the default work budget (its symbolic pro
 beyond it), and the module's right-hand side and energies equal its generated C's."""
 from __future__ import annotations
 
+import os
+import subprocess
+import sys
 import types
 
 import numpy as np
@@ -123,3 +126,17 @@ def test_a_state_without_accelerations_is_an_error_of_numpy():
     mod._frame = lambda t, q, pre: (S, r0)
     with pytest.raises(np.linalg.LinAlgError, match="do not fix the velocities"):
         mod.rhs(0.0, y, param)
+
+
+def _generated(seed: str) -> str:
+    code = ("import kronsub, sys\n"
+            "from kronsub.emitters.code import emit_python\n"
+            "s = kronsub.load(sys.argv[1]).derive(cache=False)\n"
+            "sys.stdout.write(emit_python(s, 'm', route='projected')[0].text)\n")
+    env = {**os.environ, "PYTHONHASHSEED": seed}
+    return subprocess.run([sys.executable, "-c", code, str(SMALL[4])], env=env, check=True, capture_output=True,
+                          text=True).stdout
+
+
+def test_the_generated_module_is_deterministic():
+    assert _generated("1") == _generated("2")
