@@ -5,7 +5,8 @@ the output grid) for the rolling disc over a parameter and an initial speed, wit
 and gauss4 (which integrates [q; u], there being no canonical form in the speeds); the disc
 keeps its energy in every run; the disc with its height held by a configuration constraint
 gives the plain disc's motion, its height put on the constraint at each run's start and in its
-rows as simulate puts it; the Whipple bicycle, projected onto its speeds at run time in its
+rows as simulate puts it; the Chaplygin sleigh ends straight at the speed its energy gives; a
+change of velocity frame alone (a body's velocities in its own axes) gives the closed form; the Whipple bicycle, projected onto its speeds at run time in its
 generated C, over the forward speed equals simulate and shows the weave: the lean grows below
 the weave speed 4.29 m/s and decays between it and the capsize speed 6.02 m/s (Meijaard et al.
 2007). Every sweep here runs on a Dask cluster of this machine; the job goes to the workers
@@ -112,6 +113,39 @@ def test_sleigh_ends_straight_at_the_speed_its_energy_gives(tmp_path):
     np.testing.assert_allclose(rows["final_v"], expected, rtol=1e-6)
     assert_rows_are_simulate(tmp_path, sleigh, rows.iloc[[3]], ("a", "w"), ["x", "y", "theta", "v", "w"],
                              ["x", "y", "theta"], *args)
+
+
+FRAME = """\
+name: body in its own axes
+parameters: {m: 1.0, I: 0.2, g: 9.81}
+components:
+  body: {type: planar_body, parameters: {mass: m, inertia: I}}
+coordinates: [x, y, theta]
+connection: {body.x: x, body.y: y, body.angle: theta}
+speeds:
+  v: cos(theta)*x_dot + sin(theta)*y_dot
+  w: -sin(theta)*x_dot + cos(theta)*y_dot
+  r: theta_dot
+effects:
+  gravity: {type: gravity, g: g, direction: [0, -1]}
+initial: {v: 1.0, r: 2.0}
+"""
+
+
+def test_speeds_alone_sweep_the_closed_form(tmp_path):
+    """A change of velocity frame without constraint (the body's velocities in its own axes): a
+    thrown body spinning at r, its speeds v, w in its axes at t are those of (1, -g t) turned by
+    -r t (the closed form), swept over r and g."""
+    model = tmp_path / "frame.yaml"
+    model.write_text(FRAME)
+    rows, _ = swept(tmp_path, model, "--grid", "r=[1, 3]", "--grid", "g=[9.81, 1.6]", "--t", 1.0, "--dt", 0.1)
+    t, r, g = 1.0, rows["r"], rows["g"]
+    np.testing.assert_allclose(rows["final_theta"], r * t, rtol=1e-12)
+    np.testing.assert_allclose(rows["final_y"], -g * t ** 2 / 2, rtol=1e-9)
+    np.testing.assert_allclose(rows["final_v"], np.cos(r * t) - g * t * np.sin(r * t), rtol=1e-9, atol=1e-9)
+    np.testing.assert_allclose(rows["final_w"], -np.sin(r * t) - g * t * np.cos(r * t), rtol=1e-9, atol=1e-9)
+    assert_rows_are_simulate(tmp_path, model, rows.iloc[[2]], ("r", "g"), ["x", "y", "theta", "v", "w", "r"],
+                             ["x", "y", "theta"], "--t", 1.0, "--dt", 0.1)
 
 
 def test_held_height_follows_each_run_and_gives_the_plain_disc(tmp_path):
