@@ -227,3 +227,25 @@ def test_requirements_are_checked_per_run(tmp_path):
                                        "-o", str(tmp_path / "runs.parquet")])
     assert result.exit_code == 1 and "run 1 (m = -1): mass of component 'disc' must not be negative" in result.output
     assert not (tmp_path / "runs.parquet").exists()
+
+
+def test_a_bicycle_job_travels_without_forming_its_equations_in_x():
+    """What Dask sends each worker (the job, cloudpickled): the bicycle's Mbar and hbar in x, which
+    its runs never read, stay deferred there and here (forming them takes minutes); the job that
+    arrives runs the same rows."""
+    import cloudpickle
+
+    from kronsub.commands.common import scene_system
+    from kronsub.core.deferred import pending
+    from kronsub.model.scenes import initial_values
+    from kronsub.sweep.axes import read_axes
+    from kronsub.sweep.chunk import run_chunk
+    from kronsub.sweep.study import make_job, make_plan
+
+    loaded, scene, system = scene_system(BICYCLE, None)
+    job = make_job(system, make_plan(*read_axes(("rear_dot=[17]",), ()), None, 0), initial_values(loaded, scene),
+                   {"roll": "0.01"}, method="dop853", t_end=0.5, dt=0.1, rtol=1e-10, atol=1e-10)
+    sent = cloudpickle.loads(cloudpickle.dumps(job))
+    assert pending(system.mass_matrix) and pending(system.velocity_terms)
+    assert pending(sent.system.mass_matrix) and pending(sent.system.velocity_terms)
+    pd.testing.assert_frame_equal(pd.DataFrame(run_chunk(sent, 0)), pd.DataFrame(run_chunk(job, 0)))
