@@ -254,16 +254,6 @@ def test_bad_velocity_constraints_are_located(tmp_path, extra, _, message, hint,
     assert hint_line.startswith("  hint: ") and hint in hint_line
 
 
-def test_velocity_constraints_with_other_commands_are_refused_where_written(tmp_path):
-    path = MODELS / "chaplygin_sleigh.yaml"
-    text = path.read_text()
-    line = text[:text.index("velocity_constraints:")].count("\n") + 1
-    result = CliRunner().invoke(main, ["sweep", str(path), "--grid", "a=0.1:0.3:3", "-o",
-                                       str(tmp_path / "runs.parquet")])
-    assert result.exit_code == 1 and f"Error: {path}:{line}:1: " in result.output
-    assert "not supported yet" in result.output and "Traceback" not in result.output
-
-
 @pytest.mark.parametrize("joint, written", [("rolling_disc_joint", "rolling_disc"),
                                             ("chaplygin_sleigh_joint", "chaplygin_sleigh")])
 def test_contact_joints_give_the_constraints_written_by_hand(joint, written):

@@ -14,6 +14,7 @@ import sys
 import time
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 pytest.importorskip("distributed")
@@ -96,6 +97,28 @@ def local_rows() -> pd.DataFrame:
 
 def read(out: Path) -> pd.DataFrame:
     return pd.read_parquet(out).sort_values("run", ignore_index=True)
+
+
+HELD_DISC = ROOT / "tests" / "models" / "nonholonomic" / "rolling_disc_height.yaml"
+
+
+def test_a_model_in_speeds_on_the_workers(cluster, tmp_path):
+    """The disc with its height held by a configuration constraint, in its speeds: its job (the
+    equations in x not formed, deferred) goes to the worker processes, which hold each run's start
+    and rows on the constraint; the rows are those of the same chunks run here."""
+    address, _ = cluster
+    out = tmp_path / "runs.parquet"
+    grids = ("r=[0.2, 0.35]", "lean=[0.1, 0.3]")
+    proc = subprocess.run([sys.executable, "-m", "kronsub", "sweep", str(HELD_DISC), *(a for g in grids for a in
+                           ("--grid", g)), "--t", "1", "--dt", "0.1", "--chunk", "2", "--scheduler", address,
+                           "-o", str(out)], capture_output=True, cwd=ROOT, timeout=WAIT)
+    assert proc.returncode == 0, proc.stderr.decode()
+    loaded, scene, system = scene_system(HELD_DISC, None)
+    job = make_job(system, make_plan(*read_axes(grids, ()), None, 0), initial_values(loaded, scene), {},
+                   method="dop853", t_end=1.0, dt=0.1, rtol=1e-10, atol=1e-10, chunk=2)
+    here = pd.concat([pd.DataFrame(run_chunk(job, i)) for i in range(job.chunks)], ignore_index=True)
+    pd.testing.assert_frame_equal(read(out), here, check_dtype=False)
+    assert np.all(np.abs(here["final_z"] - here["r"] * np.cos(here["final_lean"])) < 1e-12)
 
 
 def test_resume_after_a_killed_client_writes_only_the_missing_chunks(cluster, tmp_path):

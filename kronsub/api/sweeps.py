@@ -5,7 +5,6 @@ import os
 from typing import Mapping, Sequence
 
 from ..core.known_system import KnownSystem
-from ..core.nonholonomic import refuse_speeds
 from .runs import settings_text
 
 __all__ = ["sweep"]
@@ -27,7 +26,6 @@ def sweep(system: KnownSystem, grid: Mapping[str, object] | None = None, sample:
     existing one is refused unless ``force``). The DataFrame holds every summary row in memory;
     with ``output`` (a folder, as ``-o``: for sweeps larger than memory) the rows go to a Parquet
     dataset a chunk at a time, with its JSON sidecar, and its path is returned instead."""
-    refuse_speeds(system, "sweep")
     import dataclasses
     from pathlib import Path
 
@@ -44,7 +42,7 @@ def sweep(system: KnownSystem, grid: Mapping[str, object] | None = None, sample:
     plan = make_plan(*read_axes(grids, samples), runs, seed, latin)
     values = starting_values(system, settings_text(set)).values  # checks the fixed values
     settings = {p.name: repr(v) for p, v in zip(system.parameters, values.parameters) if p.name in (set or {})}
-    names = [q.name for q in system.coordinates] + [system.name_of(v) for v in system.velocities]
+    names = [q.name for q in system.coordinates] + [system.name_of(v) for v in system.state_velocities]
     settings.update({name: repr(v) for name, v in zip(names, values.y0) if name in (set or {})})
     job = make_job(system, plan, dict(system.initial), settings, method=method, t_end=t, dt=dt, rtol=rtol,
                    atol=atol, chunk=chunk or DEFAULT_CHUNK, summaries=tuple(summaries), summary_option="summaries")

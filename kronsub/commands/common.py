@@ -261,25 +261,15 @@ def plot_option(help: str):
     return click.option("--plot", type=FILE, help=help)
 
 
-WITHOUT_SPEEDS = ("sweep",)
-"""The commands that do not handle velocity constraints yet: a model with them is refused there,
-at its `velocity_constraints:` section (:func:`scene_system`)."""
-
-
 def scene_system(model: Path, scene_name: str | None, *, cache: bool = True, all_points: bool = False):
     """``(model, scene, system)``: the model loaded, its scene chosen (None: the whole model)
-    and the scene's equations derived. ``all_points`` asks the scene for every named point.
-    Velocity constraints are refused, at the section, by the commands of :data:`WITHOUT_SPEEDS`."""
-    from ..core.nonholonomic import refuse_speeds
+    and the scene's equations derived. ``all_points`` asks the scene for every named point."""
     from ..model.loader import load_model
     from ..model.scenes import scene_system as chosen_scene
 
     with budget.cpu_backstop():
         loaded = load_model(model, cache=cache)
         scene, system = chosen_scene(loaded, scene_name, cache=cache, all_points=all_points)
-        context = click.get_current_context(silent=True)
-        if context is not None and context.info_name in WITHOUT_SPEEDS:
-            refuse_speeds(system, f"`kronsub {context.info_name}`", loaded.locations.get("velocity_constraints"))
         return loaded, scene, system
 
 

@@ -7,6 +7,8 @@ forms, are built when something reads them: a printed derivation, generated code
 """
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import sympy
 
 from .sympy_internals import matrix_fromrep
@@ -43,7 +45,12 @@ class DeferredMatrix(sympy.MutableDenseMatrix):
         return matrix_fromrep(sympy.MutableDenseMatrix, rep)
 
     def __reduce__(self):
-        return sympy.Matrix, (self.rows, self.cols, list(self))
+        """Built: a plain matrix of the entries. Not built yet: a deferred matrix still, its build
+        with it (a closure, which cloudpickle carries, as Dask sends a sweep's system to its
+        workers), so that sending it does not build it."""
+        if self.built:
+            return sympy.Matrix, (self.rows, self.cols, list(self))
+        return DeferredMatrix, (self.rows, self.cols, self.__dict__["_build"])
 
     @property
     def built(self) -> bool:
@@ -51,9 +58,23 @@ class DeferredMatrix(sympy.MutableDenseMatrix):
         return "_rep" in self.__dict__
 
 
+class Once:
+    """A function of no arguments whose result is computed on the first call and kept (as
+    ``functools.cache`` keeps it, but carried by cloudpickle, with its function, while not
+    computed yet: what a :class:`DeferredMatrix` not built yet is built from)."""
+
+    def __init__(self, build: Callable[[], object]):
+        self.build = build
+
+    def __call__(self):
+        if "result" not in self.__dict__:
+            self.result = self.build()
+        return self.result
+
+
 def pending(m) -> bool:
     """Whether ``m`` is a :class:`DeferredMatrix` whose entries are not built yet."""
     return isinstance(m, DeferredMatrix) and not m.built
 
 
-__all__ = ["DeferredMatrix", "pending"]
+__all__ = ["DeferredMatrix", "Once", "pending"]

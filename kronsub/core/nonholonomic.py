@@ -28,8 +28,7 @@ from dataclasses import dataclass
 import numpy as np
 import sympy
 
-from ..errors import Location, ModelError, Problem
-from .deferred import DeferredMatrix
+from .deferred import DeferredMatrix, Once
 from .derivative import derivative, jacobian, where_defined
 from .known_system import Constraint, KnownSystem, SpeedEquations
 from .numeric_jacobian import value_and_jacobian
@@ -276,8 +275,7 @@ def velocity_transformation(constraints: Sequence[sympy.Expr], coordinates: Sequ
             "constraints do not fix, say)", kind="speeds")
     if made:  # A and b as printed: each constraint's printed form, made when first read
         rates = A[A.rows - len(holonomic):, :], b[b.rows - len(holonomic):, :]
-        form = functools.cache(lambda: linear_form([c if p is None else p() for c, p in zip(constraints, printed)],
-                                                   coordinates))
+        form = Once(lambda: linear_form([c if p is None else p() for c, p in zip(constraints, printed)], coordinates))
         A, b, rows = (DeferredMatrix(A.rows, n, lambda: form()[0].col_join(rates[0])),
                       DeferredMatrix(b.rows, 1, lambda: form()[1].col_join(rates[1])), tuple(constraints))
     else:
@@ -416,21 +414,6 @@ def _simplest_minor(A: sympy.Matrix, coordinates, point) -> list[int]:
     return best
 
 
-def refuse_speeds(system: KnownSystem, what: str, location: Location | None = None) -> None:
-    """A :class:`ModelError` at ``location`` (where the model writes its velocity constraints, or
-    its speeds) when ``system`` is written in speeds and ``what`` (a command) does not handle
-    them yet."""
-    if system.speeds is not None and not system.speeds.constraint_names:  # a change of velocity frame
-        raise ModelError([Problem(location, f"{what} of a model in speeds (a change of velocity frame) is not "
-                                            "supported yet",
-                                  "derive or simulate it instead (`kronsub derive`, `kronsub simulate`); or write "
-                                  "it in its coordinates' velocities")])
-    if system.speeds is not None:
-        raise ModelError([Problem(location, f"{what} of a model with velocity constraints is not supported yet",
-                                  "derive or simulate it instead (`kronsub derive`, `kronsub simulate`; "
-                                  "--reactions gives the contact forces)")])
-
-
 def speed_accelerations(projection: NonholonomicProjection) -> list[sympy.Symbol]:
     """The symbols of ``udot`` (named like accelerations of the speeds)."""
     return [acceleration_symbol(s) for s in projection.velocity.speeds]
@@ -493,5 +476,5 @@ def _numeric(A: sympy.Matrix, point: dict) -> np.ndarray | None:
 
 __all__ = ["GENERIC_POINTS", "NonholonomicProjection", "VelocityConstraintError", "VelocityTransformation",
            "SpeedProjection", "TIDY", "generic_values", "differentiated_form", "frame_entry", "generic_rank", "integrable", "linear_form",
-           "project_nonholonomic", "refuse_speeds", "speed_accelerations", "speed_equations", "speed_rates", "tidy_entry",
+           "project_nonholonomic", "speed_accelerations", "speed_equations", "speed_rates", "tidy_entry",
            "velocity_multipliers", "velocity_transformation"]

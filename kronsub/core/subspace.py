@@ -26,7 +26,7 @@ import sympy
 from ..budget import charge
 from ..components.base import Body
 from . import canonical
-from .deferred import DeferredMatrix
+from .deferred import DeferredMatrix, Once
 from .inverse_trig import Radicands
 from .known_system import KnownSystem, ParameterInfo, ProjectedEffect, Transition
 from .placed import PlacedBodies, PlacedPoints, Placer
@@ -233,8 +233,7 @@ def project_inertia(sub: Subspace, primitive: Primitive, *, name: str = "",
     if sub.is_identity:  # x = xbar: Mbar = M, hbar = h, nothing to project
         mass_matrix, velocity_terms = _mutable(metric), _mutable(h)
     elif deferred:
-        projected = functools.cache(lambda: _projected_inertia(Subspace(primitive, sub.coords, sub.connection),
-                                                               primitive))
+        projected = Once(lambda: _projected_inertia(Subspace(primitive, sub.coords, sub.connection), primitive))
         mass_matrix = DeferredMatrix(sub.n, sub.n, lambda: projected()[0])
         velocity_terms = DeferredMatrix(sub.n, 1, lambda: projected()[1])
     else:

@@ -238,12 +238,26 @@ def emit_c(system: KnownSystem, stem: str, source: str = "", prefix: str = "ks",
 
 @collector_paused()  # see kronsub.collector
 def emit_python(system: KnownSystem, stem: str, source: str = "", prefix: str = "ks",
-                outputs=None) -> list[GeneratedFile]:
+                outputs=None, route: str = "auto") -> list[GeneratedFile]:
     """``<stem>.py`` (``stem`` made safe by :func:`file_stem`): a numpy module that does not
-    import sympy (``outputs`` as for C)."""
-    model = prepare(system, source, outputs)
+    import sympy (``outputs`` as for C). Its equations are the derived expressions, but under
+    velocity constraints ``route`` (:data:`.projected.ROUTES`) chooses as for C: the projection
+    onto the speeds is kept for run time (:mod:`.projected_speeds`, made there in numpy) when
+    ``projected``, or when ``auto`` and its symbolic projection is too large."""
+    if route not in ROUTES:
+        raise ValueError(f"route must be one of {', '.join(ROUTES)}, not {route!r}")
+    if system.speeds is None:
+        route = "expanded"  # numpy code keeps the derived expressions (the projected route's loops are C's)
+    elif route == "projected" and not frame_applies(system):
+        raise KronsubError("cannot keep the projection onto the speeds for run time: the system has no primitive, "
+                           "a prescribed motion or an effect applied in the subspace")
+    model = prepare(system, source, outputs, route=route)
     printer = _PyPrinter({"fully_qualified_modules": False})
     ctx = _context(model, printer.doprint, "", "")
+    if model.frame is not None:  # the projection onto the speeds at run time (projected_speeds)
+        ctx["b"]["projected"] = _lines(model.frame.metric.block, printer.doprint, "", "")
+        ctx["b"]["frame"] = _lines(model.frame.frame, printer.doprint, "", "")
+        ctx["b"]["frame_rates"] = _lines(model.frame.rates, printer.doprint, "", "")
     ctx["NV"] = Markup("NU" if model.speeds else "NQ")
     text = template_environment().get_template("model.py.j2").render(**ctx)
     return [GeneratedFile(f"{file_stem(stem)}.py", text)]

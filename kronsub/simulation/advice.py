@@ -50,7 +50,8 @@ def energy_advice(native, param, nq: int, method: str, t0: float, y0, E0: float,
 
 def conserves_energy(native, param, nq: int, t0: float, y0) -> bool:
     """Whether ``dE/dt = 0`` along the equations (``E = T + V``, ``V`` of the conservative
-    effects): at three states with random velocities (seeded) about the first row, the rate,
+    effects): at three states with random velocities (or speeds: ``y0`` is ``[q; u]`` in the
+    speeds) about the first row, the rate,
     by central differences, is below 1e-6 of the sum of its terms' magnitudes. Damping, driving,
     loads or connections that depend on time all give a rate of the order of its terms."""
     rng = np.random.default_rng(20261124)
@@ -61,7 +62,7 @@ def conserves_energy(native, param, nq: int, t0: float, y0) -> bool:
 
     for _ in range(3):
         y = y0.copy()
-        y[nq:] += rng.standard_normal(nq) * max(1.0, float(np.max(np.abs(y0[nq:]), initial=0.0)))
+        y[nq:] += rng.standard_normal(len(y) - nq) * max(1.0, float(np.max(np.abs(y0[nq:]), initial=0.0)))
         ydot = native.rhs(t0, y, param)
         dt = 1e-5 * max(1.0, abs(t0))
         terms = [(energy(t0 + dt, y) - energy(t0 - dt, y)) / (2 * dt)]

@@ -29,11 +29,13 @@ def held_of(system: KnownSystem, values: RunValues) -> HeldCoordinates | None:
     return held_coordinates(system, {p.symbol: float(v) for p, v in zip(system.parameters, values.parameters)})
 
 
-def hold_start(system: KnownSystem, values: RunValues, given: Collection[str] = ()) -> tuple[RunValues, list[str]]:
+def hold_start(system: KnownSystem, values: RunValues, given: Collection[str] = (),
+               held: HeldCoordinates | None = None) -> tuple[RunValues, list[str]]:
     """``values`` with the held coordinates of ``y0`` on ``g(x, 0) = 0``, and notes on the
     corrections; a held coordinate ``given`` (by name: ``--set``) that is more than
-    :data:`~.constrained.TOLERANCE` off is refused, as a closed loop's dependent one is."""
-    held = held_of(system, values)
+    :data:`~.constrained.TOLERANCE` off is refused, as a closed loop's dependent one is.
+    ``held``: the held coordinates at the run's parameter values, when already made."""
+    held = held if held is not None else held_of(system, values)
     if held is None:
         return values, []
     n = len(system.coordinates)

@@ -4,8 +4,11 @@ A row holds the run's swept inputs, its status (``complete``, or ``stopped`` wit
 singular metric ``Mbar``, a non-finite state, a toggle position of a closed loop, ...), the time
 it got to, its final state, the least and greatest value of each coordinate on the output grid,
 the energy drift ``E(t_end) - E(0)`` (24) of a model that conserves energy, and its cost
-(steps, rejected steps, evaluations of the right-hand side). A run that fails is a row, never
-the end of the chunk. Runs wholly in C go through the compiled ensemble (:mod:`.ensemble`), a
+(steps, rejected steps, evaluations of the right-hand side). The state is ``[q; qdot]``, or
+``[q; u]`` in the speeds ``u`` of a model under velocity constraints (``xdot = C(q) u + d``),
+whose coordinates held by configuration constraints beside them are put on those constraints
+at each run's start and in its rows, as ``simulate`` puts them (:mod:`kronsub.simulation.held`).
+A run that fails is a row, never the end of the chunk. Runs wholly in C go through the compiled ensemble (:mod:`.ensemble`), a
 block at a time (``taylor`` through its own generated integrator; a closed loop whose coordinates
 stay those chosen, each run projected onto its constraints first); the others (scipy's methods,
 heyoka, closed loops with ``coordinates: auto``, a closed loop's runs that stop or keep rows, a
@@ -29,7 +32,8 @@ from .ensemble import Sources, load, load_taylor, pieces, summary_width
 from .plan import Plan
 from .trajectories import TrajectoryPart
 
-__all__ = ["ENSEMBLE", "ONE_BY_ONE", "TAYLOR", "Job", "columns", "inputs_of", "run_chunk", "state_names", "warm"]
+__all__ = ["ENSEMBLE", "ONE_BY_ONE", "TAYLOR", "Job", "columns", "inputs_of", "run_chunk", "state_names", "state_width",
+           "warm"]
 
 ENSEMBLE, TAYLOR, ONE_BY_ONE = "ensemble", "taylor ensemble", "one by one"  # the routes of a sweep's runs
 
@@ -54,6 +58,7 @@ class Job:
     initial: dict = field(default_factory=dict)  # the model's and scene's initial values (closed loops)
     dependent_settings: dict = field(default_factory=dict)  # --set of a closed loop's dependent coordinates
     derived_initial: tuple = ()  # (state index, expression of swept parameters) per such initial value
+    given: tuple[str, ...] = ()  # the names --set gives (a held coordinate among them is checked, not moved)
     summaries: tuple = ()  # user outputs (:class:`.outputs.UserOutput`), a column each
     taylor_sources: Sources | None = None  # the Taylor integrator's (route TAYLOR)
     trajectories: str | None = None  # the folder each worker writes its chunks' rows in (:mod:`.trajectories`)
@@ -68,7 +73,18 @@ class Job:
 
 
 def state_names(system: KnownSystem) -> list[str]:
-    return [q.name for q in system.coordinates] + [system.name_of(v) for v in system.velocities]
+    """The names of the state ``[q; qdot]``, or ``[q; u]`` in the speeds."""
+    return [q.name for q in system.coordinates] + [system.name_of(v) for v in system.state_velocities]
+
+
+def state_width(system: KnownSystem) -> int:
+    """The entries of the state: ``2 nq``, or ``nq`` and the speeds."""
+    return len(system.coordinates) + len(system.state_velocities)
+
+
+def _held(system: KnownSystem) -> bool:
+    """Whether configuration constraints stand beside ``system``'s velocity constraints."""
+    return system.speeds is not None and bool(system.speeds.holonomic)
 
 
 def columns(job: Job) -> list[tuple[str, str]]:
@@ -152,7 +168,7 @@ def run_chunk(job: Job, index: int) -> dict[str, object]:
     runs' rows written as the chunk's trajectory part first."""
     start, stop = job.span(index)
     inputs, param, y0 = inputs_of(job, start, stop)
-    n, nq = stop - start, len(job.system.coordinates)
+    n, nq, ny = stop - start, len(job.system.coordinates), state_width(job.system)
     part = contextlib.nullcontext() if job.trajectories is None else \
         TrajectoryPart(job.trajectories, index, job.system, job.outputs)
     with part as sink:
@@ -169,7 +185,6 @@ def run_chunk(job: Job, index: int) -> dict[str, object]:
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore")
                 summary, reasons, users = _one_by_one(job, param, y0, start, sink)
-    ny = 2 * nq
     first = zero_rows(job.system)
     if first:
         _first_order_finals(job, summary, param, first)
@@ -200,15 +215,15 @@ def _first_order_finals(job: Job, summary: np.ndarray, param: np.ndarray, indice
     from ..simulation.fallback import numpy_module  # heavy (the code emitters): only for first-order coordinates
 
     rhs = numpy_module(job.system, job.outputs)["rhs"]
-    nq = len(job.system.coordinates)
+    nq, ny = len(job.system.coordinates), state_width(job.system)
     columns = [5 + nq + j for j in indices]
     for r in range(len(summary)):
-        y = summary[r, 5:5 + 2 * nq].copy()
+        y = summary[r, 5:5 + ny].copy()
         try:
             with np.errstate(all="ignore"):
                 rates = rhs(float(summary[r, 1]), y, param[r])
         except (ArithmeticError, ValueError, np.linalg.LinAlgError):
-            rates = np.full(2 * nq, np.nan)
+            rates = np.full(ny, np.nan)
         summary[r, columns] = np.asarray(rates)[list(indices)]
 
 
@@ -221,7 +236,7 @@ def _functions(job: Job):
     from .outputs import evaluator
 
     system = job.system
-    return evaluator(list(job.summaries), [TIME, *system.coordinates, *system.velocities,
+    return evaluator(list(job.summaries), [TIME, *system.coordinates, *system.state_velocities,
                                            *(p.symbol for p in system.parameters)])
 
 
@@ -232,6 +247,8 @@ def _ensemble(job: Job, param: np.ndarray, y0: np.ndarray, run0: int = 0,
     ensemble = load(job.sources)
     if job.system.implicit is not None:
         return _closed_loops(job, ensemble, param, y0, run0, sink)
+    if _held(job.system):
+        return _held_runs(job, ensemble, param, y0, run0, sink)
     energies = _conserves(job, ensemble.native)
     cuts = pieces(job.t_end, job.dt, "dop853" if job.route == TAYLOR else job.method)
     grid = Grid(job.t_end, job.dt)
@@ -323,6 +340,73 @@ def _closed_loops(job: Job, ensemble, param: np.ndarray, y0: np.ndarray, run0: i
     return summary, reasons, np.full((len(y0), 0), np.nan)
 
 
+def _held_runs(job: Job, ensemble, param: np.ndarray, y0: np.ndarray, run0: int = 0,
+               sink: TrajectoryPart | None = None) -> tuple[np.ndarray, list[str], np.ndarray]:
+    """The runs of a system in its speeds with configuration constraints beside its velocity
+    constraints through the ensemble, as ``simulate`` makes them: each from its start put on the
+    constraints (:func:`kronsub.simulation.held.hold_start`), its rows put on them as the
+    right-hand side puts the states it evaluates (:meth:`kronsub.core.held.HeldCoordinates.rows`),
+    its final state, least and greatest coordinates and energies taken from those rows. A run
+    whose start is not put there, or that stops, goes one by one (``simulate``'s message)."""
+    from ..core.held import held_coordinates
+    from ..simulation.grid import Grid
+    from ..simulation.held import hold_start
+    from ..simulation.values import RunValues
+    from .outputs import evaluate
+
+    system, native = job.system, ensemble.native
+    nq, ny, nparam = len(system.coordinates), state_width(system), len(system.parameters)
+    held: dict[tuple, object] = {}  # per parameter values
+
+    def held_at(r: int):
+        values = tuple(float(v) for v in param[r, :nparam])
+        if values not in held:
+            held[values] = held_coordinates(system, {p.symbol: v for p, v in zip(system.parameters, values)})
+        return held[values]
+
+    start = np.array(y0, dtype=float)
+    redo = set()
+    for r in range(len(y0)):
+        try:
+            values, _ = hold_start(system, RunValues(tuple(map(float, param[r])), tuple(map(float, y0[r]))),
+                                   job.given, held_at(r))
+            start[r] = values.y0
+        except KronsubError:
+            redo.add(r)
+    energies = _conserves(job, native)
+    cuts, grid = pieces(job.t_end, job.dt, job.method), Grid(job.t_end, job.dt)
+    summary = np.full((len(y0), summary_width(nq, ny)), np.nan)
+    reasons = [""] * len(y0)
+    users = np.full((len(y0), len(job.summaries)), np.nan)
+    functions = _functions(job) if job.summaries else None
+    block = max(1, ROWS_BYTES // ((len(grid) + 3 * len(cuts)) * (ny + 1) * 8))
+    for a in range(0, len(y0), block):
+        b = min(a + block, len(y0))
+        part, rows, written = ensemble.run(job.method, cuts, job.dt, job.rtol, job.atol, param[a:b], start[a:b],
+                                           False, with_rows=True)
+        for k in range(b - a):
+            r = a + k
+            if r in redo or part[k, 0] != 0:  # simulate's start, or its message and the rows it kept
+                again, told, mine = _one_by_one(job, param[r:r + 1], y0[r:r + 1], run0 + r, sink)
+                summary[r], reasons[r], users[r] = again[0], told[0], mine[0]
+                continue
+            kept = rows[k, :written[k]]
+            Y = held_at(r).rows(kept[:, 0], kept[:, 1:])
+            times = grid.snap(kept[:, 0])
+            summary[r, :5] = part[k, :5]
+            summary[r, 5:5 + ny] = Y[-1]
+            summary[r, 5 + ny:5 + ny + nq] = Y[:, :nq].min(axis=0)
+            summary[r, 5 + ny + nq:5 + ny + 2 * nq] = Y[:, :nq].max(axis=0)
+            if energies:
+                T, V = native.energies(kept[[0, -1], 0], Y[[0, -1]], param[r, :nparam])
+                summary[r, 5 + ny + 2 * nq], summary[r, 6 + ny + 2 * nq] = T[0] + V[0], T[1] + V[1]
+            if sink is not None:
+                sink.add(run0 + r, times, Y)
+            if functions is not None:
+                users[r] = evaluate(list(job.summaries), functions, times, Y, param[r, :nparam])
+    return summary, reasons, users
+
+
 def _one_by_one(job: Job, param: np.ndarray, y0: np.ndarray, run0: int = 0,
                 sink: TrajectoryPart | None = None) -> tuple[np.ndarray, list[str], np.ndarray]:
     """Each run as ``simulate`` runs it (closed loops projected onto their constraints first)."""
@@ -330,9 +414,8 @@ def _one_by_one(job: Job, param: np.ndarray, y0: np.ndarray, run0: int = 0,
     from ..simulation.values import RunValues
 
     system = job.system
-    nq = len(system.coordinates)
-    ny = 2 * nq
-    summary = np.full((len(y0), summary_width(nq)), np.nan)
+    nq, ny = len(system.coordinates), state_width(system)
+    summary = np.full((len(y0), summary_width(nq, ny)), np.nan)
     reasons = []
     native = None
     if system.implicit is None:
@@ -359,6 +442,12 @@ def _one_by_one(job: Job, param: np.ndarray, y0: np.ndarray, run0: int = 0,
                 values, _, constrained = project_initial(system, job.initial, job.dependent_settings, values,
                                                          newton_tolerance(job.rtol, job.atol))
                 row[5:5 + ny] = values.y0
+            elif _held(system):  # on the configuration constraints beside the velocity constraints
+                from ..simulation.held import hold_start
+
+                values, _ = hold_start(system, values, job.given)
+                row[5:5 + ny] = values.y0
+                row[5 + ny:5 + ny + nq] = row[5 + ny + nq:5 + ny + 2 * nq] = values.y0[:nq]
             run = start(system, values, job.t_end, job.dt, job.method, job.rtol, job.atol, progress=False,
                         outputs=job.outputs, constrained=constrained)
             first = last = None

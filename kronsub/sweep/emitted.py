@@ -16,6 +16,7 @@ import re
 from collections.abc import Callable
 
 from ..cache import KEPT, load_entry, private_folder, store_entry, usable_cache_dir
+from ..core.deferred import pending
 from ..model import cache_format
 from ..model.derive import content_key
 from ..model.kept import RECORD_BYTES, quiet_cache_dir
@@ -30,11 +31,14 @@ Files = list[tuple[str, str]]
 
 def key(kind: str, system, extra: str = "") -> str | None:
     """The key of the C files ``kind`` emits for ``system`` with ``extra``; None when the system
-    cannot be written in the cache's format."""
+    cannot be written in the cache's format. Equations not built yet (under velocity constraints,
+    ``Mbar`` and ``hbar`` in ``x``, which the generated C may form at run time) count by what they
+    are built from, the transition the system carries, without building them."""
     import sympy
 
+    unbuilt = pending(system.mass_matrix) or pending(system.velocity_terms)
     try:
-        text = cache_format.dumps(system)
+        text = cache_format.dumps(system, unbuilt)
     except cache_format.CacheFormatError:
         return None
     return content_key("sweep-emitted-c", FORMAT, kind, text, extra, sympy.__version__)

@@ -40,12 +40,20 @@ class EnsembleError(KronsubError):
 
 @dataclass(frozen=True)
 class Sources:
-    """The C files of a sweep's library, their sha256, and the model's sizes."""
+    """The C files of a sweep's library, their sha256, and the model's sizes: ``ny`` the state's
+    (``2 nq``, or ``nq`` and the speeds under velocity constraints), ``canonical`` whether gauss4
+    integrates the canonical state ``[q; p]`` (not in the speeds)."""
 
     files: tuple[tuple[str, str], ...]
     sha256: str
     nq: int
     nparam: int
+    ny: int = 0  # 0: 2 nq
+    canonical: bool = True
+
+    @property
+    def state_width(self) -> int:
+        return self.ny or 2 * self.nq
 
 
 def _digest(files) -> str:
@@ -69,12 +77,13 @@ def ensemble_sources(system, outputs=None) -> Sources:
     if key is not None:
         files.append(identity_source(key, nq, nparam))
     files.append(("ks_ensemble.c", ENSEMBLE_C.read_text()))
-    return Sources(tuple(files), _digest(files), nq, nparam)
+    return Sources(tuple(files), _digest(files), nq, nparam, nq + len(system.state_velocities),
+                   canonical=system.speeds is None)
 
 
-def summary_width(nq: int) -> int:
-    """Doubles per run's summary (``ks_ensemble_nsum``)."""
-    return 7 + 4 * nq
+def summary_width(nq: int, ny: int | None = None) -> int:
+    """Doubles per run's summary (``ks_ensemble_nsum``): ``ny`` the state's (default ``2 nq``)."""
+    return 7 + (2 * nq if ny is None else ny) + 2 * nq
 
 
 def pieces(t_end: float, dt: float, method: str) -> np.ndarray:
@@ -91,7 +100,8 @@ class _Settings(ctypes.Structure):
 
     _fields_ = [(name, ctypes.c_void_p) for name in
                 ("rhs", "rhs_circle", "circle_state", "prepare", "momentum", "velocity", "kinetic", "potential")] + [
-        ("method", ctypes.c_int), ("nq", ctypes.c_int), ("nc", ctypes.c_int), ("nfull", ctypes.c_int),
+        ("method", ctypes.c_int), ("canonical", ctypes.c_int), ("nq", ctypes.c_int), ("ny", ctypes.c_int),
+        ("nc", ctypes.c_int), ("nfull", ctypes.c_int),
         ("npre", ctypes.c_int), ("n_pieces", ctypes.c_int), ("pieces", ctypes.c_void_p),
         ("dt", ctypes.c_double), ("rtol", ctypes.c_double), ("atol", ctypes.c_double),
         ("max_steps", ctypes.c_long), ("max_rows", ctypes.c_long), ("rows", ctypes.c_void_p),
@@ -111,7 +121,8 @@ class Ensemble:
     def __init__(self, sources: Sources):
         if _digest(sources.files) != sources.sha256:
             raise EnsembleError("the sweep's C sources do not match their sha256: not built")
-        self.native = NativeModel(compile_library(list(sources.files), "sweep"), sources.nq, sources.nparam)
+        self.native = NativeModel(compile_library(list(sources.files), "sweep"), sources.nq, sources.nparam,
+                                  sources.state_width, canonical=sources.canonical)
         lib = self.lib = ctypes.CDLL(str(self.native.path))  # the same library, for the ensemble's functions
         self.run_block = lib.ks_ensemble_run
         self.run_block.restype = ctypes.c_long
@@ -120,15 +131,16 @@ class Ensemble:
             "ks_rhs_pre", "ks_rhs_canonical_pre", "ks_rhs_circle_pre", "ks_circle_state", "ks_prepare",
             "ks_momentum", "ks_velocity", "ks_kinetic_energy", "ks_potential_energy")}
         self.npre = int(lib.ks_npre())
-        self.nq, self.nparam = sources.nq, sources.nparam
+        self.nq, self.nparam, self.ny = sources.nq, sources.nparam, sources.state_width
 
     def run(self, method: str, cuts: np.ndarray, dt: float, rtol: float, atol: float, param: np.ndarray,
             y0: np.ndarray, energies: bool, with_rows: bool = False):
         """Summaries (``runs x summary_width``) of the runs from the rows of ``y0`` with the rows
         of ``param`` (parameters, then a closed loop's Newton state); ``with_rows``: also each
-        run's rows ``[t, q, qdot]`` on the output grid, ``(summary, rows, count per run)``."""
+        run's rows ``[t, y]`` on the output grid, ``(summary, rows, count per run)``."""
         a, native = self.addresses, self.native
-        nq, ny, nc = self.nq, 2 * self.nq, native.nc
+        nq, ny, nc = self.nq, self.ny, native.nc
+        canonical = method == "gauss4" and native.canonical and not native.nstate and not native.nfirst
         param = np.ascontiguousarray(param, dtype=float)
         y0 = np.ascontiguousarray(y0, dtype=float)
         runs = len(y0)
@@ -141,18 +153,18 @@ class Ensemble:
         longest = float(np.max(cuts[:, 1] - cuts[:, 0]))
         rows = math.floor(longest / dt) + 3 if method == "dop853" else max(1, math.ceil(longest / dt * (1 - 2e-7))) + 3
         s = _Settings(
-            rhs=a["ks_rhs_canonical_pre"] if method == "gauss4" else a["ks_rhs_pre"],
+            rhs=a["ks_rhs_canonical_pre"] if canonical else a["ks_rhs_pre"],
             rhs_circle=a["ks_rhs_circle_pre"] if nc else None, circle_state=a["ks_circle_state"] if nc else None,
             prepare=a["ks_prepare"], momentum=a["ks_momentum"], velocity=a["ks_velocity"],
             kinetic=a["ks_kinetic_energy"] if energies else None, potential=a["ks_potential_energy"],
-            method=BATCH_METHODS[method], nq=nq, nc=nc, nfull=nfull, npre=self.npre, n_pieces=len(cuts),
+            method=BATCH_METHODS[method], canonical=int(canonical), nq=nq, ny=ny, nc=nc, nfull=nfull, npre=self.npre, n_pieces=len(cuts),
             pieces=data_address(cuts), dt=dt, rtol=rtol, atol=atol, max_steps=MAX_STEPS, max_rows=rows)
         if with_rows:
             per_run = sum(math.floor((b - a) / dt) + 3 for a, b in cuts)
             kept = np.zeros((runs, per_run, ny + 1))
             written = np.zeros(runs, dtype=np.int64)
             s.rows, s.rows_per_run, s.rows_written = data_address(kept), per_run, data_address(written)
-        summary = np.empty((runs, summary_width(nq)))
+        summary = np.empty((runs, summary_width(nq, ny)))
         out = np.empty(rows * (nz + 1))
         work = np.empty(27 * nz)
         pre = np.empty(max(self.npre, nfull) + 1)

@@ -1,6 +1,7 @@
 """A sweep set up from a derived model: the swept names checked against the system's
-parameters, coordinates and velocities, the values the runs share resolved as ``simulate``
-resolves them (the model's, the scene's, ``--set``), and the route of its runs chosen."""
+parameters, coordinates and velocities (its speeds, under velocity constraints), the values the
+runs share resolved as ``simulate`` resolves them (the model's, the scene's, ``--set``:
+:func:`kronsub.simulation.start.starting_values`), and the route of its runs chosen."""
 from __future__ import annotations
 
 from ..errors import Location, ModelError, Problem, near_names
@@ -50,6 +51,7 @@ def make_job(system, plan: Plan, initial: dict, settings: dict[str, str], *, met
              summary_option: str = "--summary") -> Job:
     """The :class:`Job` of ``plan`` over ``system``; ``settings`` the fixed ``--set`` values. Raises
     :class:`ModelError` (unknown or doubly given names, bad values) or :class:`SweepError`."""
+    from ..simulation.start import starting_values
     from ..simulation.values import resolve
 
     if method not in SIMULATE:
@@ -90,8 +92,17 @@ def make_job(system, plan: Plan, initial: dict, settings: dict[str, str], *, met
                 problems.append(Problem(Location(where.get(name, name)), f"{name} is a dependent coordinate of the "
                                         "closed loop: it follows from the independent ones",
                                         "sweep the independent coordinates: " + ", ".join(states)))
-    names = {"t": TIME, **{q.name: q for q in system.coordinates}, **{v.name: v for v in system.velocities},
-             **{system.name_of(v): v for v in system.velocities},
+    if system.speeds is not None and system.speeds.dependent:
+        held = {d.name for d in system.speeds.dependent}
+        constraints = ", ".join(f"'{c.name}'" for c in system.speeds.holonomic)
+        for name in plan.names:
+            if name in held:
+                problems.append(Problem(Location(where.get(name, name)), f"{name} is held by the configuration "
+                                        f"constraints {constraints}: it follows from the other coordinates",
+                                        "sweep the other coordinates: " + ", ".join(
+                                            q.name for q in system.coordinates if q.name not in held)))
+    names = {"t": TIME, **{q.name: q for q in system.coordinates},
+             **{v.name: v for v in system.state_velocities}, **{system.name_of(v): v for v in system.state_velocities},
              **{p.name: p.symbol for p in system.parameters}}
     user = []
     try:
@@ -108,7 +119,9 @@ def make_job(system, plan: Plan, initial: dict, settings: dict[str, str], *, met
         raise ModelError(problems)
     fixed = {k: v for k, v in settings.items() if k not in dependent}
     dependent_settings = {k: v for k, v in settings.items() if k in dependent}
-    values = resolve(system, initial, fixed)
+    # the values every run shares, as simulate starts (in speeds, held coordinates put on their constraints)
+    values = resolve(system, initial, fixed) if system.implicit is not None else \
+        starting_values(system, fixed, initial=initial).values
     swept = {p.symbol for p in system.parameters if p.name in plan.names}
     _meets_requirements(system, plan, values.parameters, where)
     derived = []
@@ -142,6 +155,7 @@ def make_job(system, plan: Plan, initial: dict, settings: dict[str, str], *, met
     return Job(system=system, plan=plan, chunk=chunk, method=method, t_end=t_end, dt=dt, rtol=rtol, atol=atol,
                base_param=values.parameters, base_y0=values.y0, route=route, sources=sources, outputs=outputs,
                initial=dict(initial), dependent_settings=dependent_settings, derived_initial=tuple(derived),
+               given=tuple(fixed),
                summaries=tuple(user), taylor_sources=taylor)
 
 

@@ -1,7 +1,7 @@
 """A sweep's trajectories (``--trajectories DIR``): every run's rows on the output grid, the
-columns of ``kronsub simulate``'s CSV for the same run (``t``, the coordinates and velocities
-the scene's outputs keep, a closed loop's dependent coordinates) after a ``run`` column, as a
-Parquet dataset of one part per chunk named as the summaries' parts (:mod:`.dataset`).
+columns of ``kronsub simulate``'s CSV for the same run (``t``, the coordinates and velocities,
+or speeds, the scene's outputs keep, a closed loop's dependent coordinates) after a ``run``
+column, as a Parquet dataset of one part per chunk named as the summaries' parts (:mod:`.dataset`).
 
 The worker that computes a chunk writes its part (a row group per :data:`GROUP_BYTES` of rows,
 so its memory stays bounded), atomically, before it hands the chunk's summaries to the client:
@@ -38,7 +38,7 @@ def trajectory_columns(system, outputs=None) -> list[tuple[str, str]]:
     if _wanted(outputs, "coordinates"):
         columns += [(q.name, "float64") for q in system.coordinates]
     if _wanted(outputs, "velocities"):
-        columns += [(system.name_of(v), "float64") for v in system.velocities]
+        columns += [(system.name_of(v), "float64") for v in system.state_velocities]
     if system.implicit is not None:
         columns += [(d.name, "float64") for d in system.implicit.dependent]
     names = [name for name, _ in columns]
@@ -57,7 +57,7 @@ class TrajectoryPart:
     def __init__(self, folder: str | Path, index: int, system, outputs=None):
         self.path = Path(folder) / part_name(index)
         self.columns = trajectory_columns(system, outputs)
-        self.nq = len(system.coordinates)
+        self.nq, self.ny = len(system.coordinates), len(system.coordinates) + len(system.state_velocities)
         self.keep_q, self.keep_v = _wanted(outputs, "coordinates"), _wanted(outputs, "velocities")
         self.dependent = system.implicit is not None
         self.held: list[np.ndarray] = []
@@ -87,8 +87,8 @@ class TrajectoryPart:
         return self.opened.__exit__(kind, value, trace)
 
     def add(self, run: int, t: np.ndarray, y: np.ndarray, dependent: np.ndarray | None = None) -> None:
-        """Rows of run ``run``: times ``t`` (on the grid), states ``y`` ``[q, qdot]`` per row and a
-        closed loop's dependent coordinates."""
+        """Rows of run ``run``: times ``t`` (on the grid), states ``y`` ``[q, qdot]`` (``[q, u]`` in
+        the speeds) per row and a closed loop's dependent coordinates."""
         n = len(t)
         if not n:
             return
@@ -97,7 +97,7 @@ class TrajectoryPart:
         if self.keep_q:
             parts.append(y[:, :self.nq])
         if self.keep_v:
-            parts.append(y[:, self.nq:2 * self.nq])
+            parts.append(y[:, self.nq:self.ny])
         if self.dependent:
             width = len(self.columns) - sum(p.shape[1] for p in parts)
             parts.append(np.full((n, width), np.nan) if dependent is None else

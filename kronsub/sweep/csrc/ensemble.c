@@ -2,12 +2,14 @@
  * kronsub sweeps: a block of runs of one model in one call (the ensemble of a sweep).
  *
  * Each run r has its own parameters param[r] (nfull = nparam + nstate doubles: the parameters,
- * then the Newton state of a closed loop) and initial state y0[r] = [q; qdot] (ny doubles). It is
+ * then the Newton state of a closed loop) and initial state y0[r] = [q; qdot], or [q; u] in the
+ * speeds u of a model under velocity constraints (ny doubles). It is
  * integrated exactly as one run of `kronsub simulate` is: the same integrator of integrators.c on
  * the same pieces of the output grid, the derived constants computed once by prepare (pre), the
  * circle state [q; qdot; cos q_c; sin q_c] for dop853 and rk4 when the model has circle
  * coordinates (the piece run again in [q; qdot] when it fails there), the canonical state
- * [q; p = Mbar qdot] for gauss4. Its summary, nsum = 7 + 2 ny doubles, is
+ * [q; p = Mbar qdot] for gauss4 when the model has one (canonical; else gauss4 integrates y as
+ * the others do). Its summary, nsum = 7 + ny + 2 nq doubles, is
  *     [status, t_last, steps, rejected, evaluations, y_last (ny), min q (nq), max q (nq), E0, E1]
  * with min and max over the rows on the output grid, E = T + V (24) at the start and at the end
  * (NaN unless asked for); given e->rows, the run's rows themselves (a piece's first row, the last
@@ -26,7 +28,7 @@ typedef void (*ks_momentum_fn)(const double *y, const double *param, double *z);
 
 /* The model's functions and the run's settings, shared by every run of the block. */
 typedef struct {
-    ks_fn rhs;                 /* on pre: ks_rhs_pre, or ks_rhs_canonical_pre for gauss4 */
+    ks_fn rhs;                 /* on pre: ks_rhs_pre, or ks_rhs_canonical_pre for gauss4 in [q; p] */
     ks_fn rhs_circle;          /* ks_rhs_circle_pre, or NULL without circle coordinates */
     ks_circle_fn circle_state; /* y -> [y; cos q_c; sin q_c], or NULL */
     ks_prepare_fn prepare;     /* param -> pre */
@@ -35,32 +37,34 @@ typedef struct {
     ks_energy_fn kinetic;      /* T(y), or NULL: no energies */
     ks_timed_energy_fn potential;
     int method;                /* 0 dop853, 1 gauss4, 2 rk4 */
-    int nq, nc, nfull, npre;
+    int canonical;             /* gauss4 in [q; p]: the model has the canonical form */
+    int nq, ny, nc, nfull, npre;
     int n_pieces;
     const double *pieces;      /* [t0, t1] per piece of the output grid */
     double dt, rtol, atol;
     long max_steps;
     long max_rows;
-    double *rows;              /* NULL, or each run's rows [t, q, qdot] on the output grid: */
-    long rows_per_run;         /*   rows_per_run rows of 2 nq + 1 doubles from rows + r rows_per_run (2 nq + 1) */
+    double *rows;              /* NULL, or each run's rows [t, y] on the output grid: */
+    long rows_per_run;         /*   rows_per_run rows of ny + 1 doubles from rows + r rows_per_run (ny + 1) */
     long *rows_written;        /*   and their count per run */
 } ks_ensemble;
 
-int ks_ensemble_nsum(int nq);
+int ks_ensemble_nsum(int nq, int ny);
 long ks_ensemble_run(const ks_ensemble *e, long n_runs, const double *param, const double *y0,
                      double *summary, double *out, double *work, double *pre, double *start);
 
-int ks_ensemble_nsum(int nq) { return 7 + 4 * nq; }
+int ks_ensemble_nsum(int nq, int ny) { return 7 + ny + 2 * nq; }
 
 /* One piece from y at t0 to t1; the rows in out, their count in res->n_rows. */
 static int piece(const ks_ensemble *e, const double *param, double *pre, double t0, const double *y,
                  double t1, int circle, double *start, double *out, double *work, ks_result *res)
 {
-    const int ny = 2 * e->nq, nz = circle ? ny + 2 * e->nc : ny;
+    const int ny = e->ny, nz = circle ? ny + 2 * e->nc : ny;
+    const int canonical = e->method == 1 && e->canonical;
     const double span = t1 - t0;
     ks_fn f = circle ? e->rhs_circle : e->rhs;
     int i;
-    if (e->method == 1)
+    if (canonical)
         e->momentum(y, param, start);
     else if (circle)
         e->circle_state(y, start);
@@ -83,7 +87,8 @@ static int piece(const ks_ensemble *e, const double *param, double *pre, double 
 long ks_ensemble_run(const ks_ensemble *e, long n_runs, const double *param, const double *y0,
                      double *summary, double *out, double *work, double *pre, double *start)
 {
-    const int nq = e->nq, ny = 2 * nq, nsum = ks_ensemble_nsum(nq);
+    const int nq = e->nq, ny = e->ny, nsum = ks_ensemble_nsum(nq, ny);
+    const int canonical = e->method == 1 && e->canonical;
     const int with_circle = e->method != 1 && e->nc > 0 && e->rhs_circle != NULL && e->circle_state != NULL;
     long r;
     for (r = 0; r < n_runs; ++r) {
@@ -129,9 +134,9 @@ long ks_ensemble_run(const ks_ensemble *e, long n_runs, const double *param, con
                     double *dst = to + e->rows_written[r] * (ny + 1);
                     const double *src = out + row * width;
                     dst[0] = src[0];
-                    if (e->method == 1) {
+                    if (canonical) {
                         if (e->velocity(src + 1, pre, dst + 1))
-                            for (i = 0; i < nq; ++i) dst[1 + nq + i] = NAN;
+                            for (i = nq; i < ny; ++i) dst[1 + i] = NAN;
                         for (i = 0; i < nq; ++i) dst[1 + i] = src[1 + i];
                     } else
                         for (i = 0; i < ny; ++i) dst[1 + i] = src[1 + i];
@@ -141,9 +146,9 @@ long ks_ensemble_run(const ks_ensemble *e, long n_runs, const double *param, con
             if (res.n_rows > 0) {
                 last = out + (res.n_rows - 1) * width;
                 t_last = last[0];
-                if (e->method == 1) {
+                if (canonical) {
                     if (e->velocity(last + 1, pre, y)) {  /* [q; p] -> [q; qdot] */
-                        for (i = 0; i < nq; ++i) y[nq + i] = NAN;
+                        for (i = nq; i < ny; ++i) y[i] = NAN;
                         if (status == 0) status = KS_RHS_FAILED;
                     }
                     for (i = 0; i < nq; ++i) y[i] = last[1 + i];
