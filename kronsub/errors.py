@@ -70,6 +70,11 @@ def command_line():
         _COMMAND_LINE.reset(token)
 
 
+def on_command_line() -> bool:
+    """Whether messages are made for the command line (:func:`command_line`), not for Python."""
+    return _COMMAND_LINE.get()
+
+
 def option(name: str, key: str | None = None) -> str:
     """The option ``name`` (and an entry ``key`` of it) as the caller gave it: ``--t``, ``--set m1``
     on the command line (:func:`command_line`), ``t``, ``set['m1']`` from Python."""
@@ -84,12 +89,13 @@ def given(name: str, value) -> str:
     return f"--{name} {value}" if _COMMAND_LINE.get() else f"{name}={value!r}"
 
 
-def assignment(name: str, key: str = "NAME", value: str = "VALUE") -> str:
+def assignment(name: str, key: str = "NAME", value: str = "VALUE", text: bool = False) -> str:
     """How to give ``key`` the value ``value`` by the option ``name``: ``--at NAME=VALUE`` on the
-    command line, ``at={'NAME': VALUE}`` from Python."""
+    command line, ``at={'NAME': VALUE}`` from Python (``text``: a string there, ``'VALUE'``)."""
     if _COMMAND_LINE.get():
         return f"--{name} {key}={value}"
-    return f"{name}={{{key!r}: {value}}}"
+    shown = repr(value) if text else value
+    return f"{name}={{{key!r}: {shown}}}"
 
 
 class KronsubError(Exception):
@@ -160,4 +166,4 @@ def close_matches(name: str, options) -> str:
 
 
 __all__ = ["KronsubError", "Location", "ModelError", "Problem", "ProblemCollector", "assignment", "close_matches",
-           "command_line", "given", "near_names", "option", "printable"]
+           "command_line", "given", "near_names", "on_command_line", "option", "printable"]

@@ -283,3 +283,8 @@ def test_errors_name_the_keyword_arguments_the_command_line_its_options():
         kronsub.load(path).derive(scene="nope")
     assert "scene='nope': " in str(caught.value) and "--scene" not in str(caught.value)
     assert "--scene nope: " in CliRunner().invoke(main, ["derive", path, "--scene", "nope"]).output
+    for kwargs, said in [({"sample": {"m1": "uniform(1, 2)"}}, "sample needs runs=N"),
+                         ({"grid": {"m1": "2:1:3"}}, "grid['m1']=2:1:3: the grid of m1 is inverted")]:
+        with pytest.raises(KronsubError) as caught:
+            system.sweep(t=0.1, **kwargs)
+        assert said in str(caught.value) and "--" not in str(caught.value), str(caught.value)

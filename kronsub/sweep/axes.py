@@ -11,7 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..errors import Location, ModelError, Problem
+from ..errors import Location, ModelError, Problem, option
 from ..model.expressions import constant_value, parse_expression
 
 __all__ = ["DISTRIBUTIONS", "GridAxis", "MAX_GRID_POINTS", "SampleAxis", "TableAxis", "parse_grid", "parse_sample",
@@ -228,12 +228,14 @@ def _constant(text: str, where: Location, what: str, problems: list[Problem]) ->
     return value
 
 
-def _assignment(option: str, item: str, example: str, problems: list[Problem]) -> tuple[str, str, Location] | None:
+def _assignment(kind: str, item: str, example: str, problems: list[Problem]) -> tuple[str, str, Location] | None:
+    """``NAME=VALUES`` of the option ``kind`` (``grid``, ``sample``), placed as the caller gave it
+    (``--grid m2=0.5:2:16``; from Python ``grid['m2']=0.5:2:16``)."""
     name, sep, value = item.partition("=")
     name, value = name.strip(), value.strip()
-    where = Location(f"{option} {item}")
+    where = Location(f"{option(kind, name)}={value}" if sep and name else f"{option(kind)} {item}")
     if not sep or not name or not value:
-        problems.append(Problem(where, f"{option} takes NAME=VALUES", f"e.g. {option} {example}"))
+        problems.append(Problem(where, f"{option(kind)} takes NAME=VALUES", f"e.g. {option(kind)} {example}"))
         return None
     return name, value, where
 
@@ -243,7 +245,7 @@ GRID_HINT = "a grid is a:b:n (n values from a to b), log:a:b:n (logarithmic, 0 <
 
 def parse_grid(item: str, problems: list[Problem]) -> GridAxis | None:
     """One ``--grid NAME=...``; its problems appended to ``problems``."""
-    got = _assignment("--grid", item, "m2=0.5:2:16", problems)
+    got = _assignment("grid", item, "m2=0.5:2:16", problems)
     if got is None:
         return None
     name, text, where = got
@@ -294,7 +296,7 @@ _CALL = re.compile(r"^([A-Za-z_][A-Za-z0-9_]*)\s*\((.*)\)$", re.S)
 
 def parse_sample(item: str, problems: list[Problem]) -> SampleAxis | None:
     """One ``--sample "NAME=dist(args)"``; its problems appended to ``problems``."""
-    got = _assignment("--sample", item, "k=uniform(90, 110)", problems)
+    got = _assignment("sample", item, "k=uniform(90, 110)", problems)
     if got is None:
         return None
     name, text, where = got
@@ -338,8 +340,8 @@ def read_axes(grids: tuple[str, ...], samples: tuple[str, ...],
     seen: dict[str, str] = {}
 
     def said(axis, name) -> str:
-        return f"--table {axis.text}" if isinstance(axis, TableAxis) else \
-            f"{'--sample' if isinstance(axis, SampleAxis) else '--grid'} {name}={axis.text}"
+        return f"{option('table')} {axis.text}" if isinstance(axis, TableAxis) else \
+            f"{option('sample' if isinstance(axis, SampleAxis) else 'grid', name)}={axis.text}"
 
     for axis in [*grid_axes, *sample_axes]:
         for name in getattr(axis, "names", (axis.name,)):

@@ -4,7 +4,7 @@ runs share resolved as ``simulate`` resolves them (the model's, the scene's, ``-
 :func:`kronsub.simulation.start.starting_values`), and the route of its runs chosen."""
 from __future__ import annotations
 
-from ..errors import Location, ModelError, Problem, near_names
+from ..errors import Location, ModelError, Problem, assignment, near_names, on_command_line, option
 from ..simulation.methods import METHODS, SIMULATE, unknown_method
 from ..simulation.run import SimulationError, check_tolerances, explicit_only, row_count
 from .axes import GridAxis, SampleAxis
@@ -27,17 +27,21 @@ class SweepError(SimulationError):
 def make_plan(grids: list[GridAxis], samples: list[SampleAxis], runs: int | None, seed: int,
               latin: bool = False) -> Plan:
     """The runs of the axes; ``runs`` draws per grid point when there are sample axes."""
+    sample, draws = option("sample"), option("runs")
+    count = f"{draws} N" if on_command_line() else f"{draws}=N"
     if samples and runs is None:
-        raise SweepError("--sample needs --runs N, the number of draws")
+        raise SweepError(f"{sample} needs {count}, the number of draws")
     if not samples and runs is not None and runs != 1:
-        raise SweepError("--runs is the number of draws of --sample axes; a grid alone has as many runs as points\n"
-                         "  hint: add --sample NAME=..., or leave out --runs")
+        raise SweepError(f"{draws} is the number of draws of {sample} axes; a grid alone has as many runs as points\n"
+                         f"  hint: add {assignment('sample', 'NAME', '...', text=True)}, or leave out {draws}")
     if latin and not samples:
-        raise SweepError("--latin stratifies --sample axes; there are none")
+        raise SweepError(f"{option('latin')} stratifies {sample} axes; there are none")
     if runs is not None and runs < 1:
-        raise SweepError(f"--runs must be at least 1 (got {runs})")
+        raise SweepError(f"{draws} must be at least 1 (got {runs})")
     if not grids and not samples:
-        raise SweepError("nothing to sweep\n  hint: add --grid NAME=a:b:n or --sample NAME=uniform(a, b) --runs N")
+        raise SweepError(f"nothing to sweep\n  hint: add {assignment('grid', 'NAME', 'a:b:n', text=True)} or "
+                         f"{assignment('sample', 'NAME', 'uniform(a, b)', text=True)}"
+                         f"{' ' if on_command_line() else ', '}{count}")
     plan = Plan(tuple(grids), tuple(samples), runs or 1, seed, latin)
     if plan.count > MAX_RUNS:
         raise SweepError(f"the sweep has {plan.count:,} runs, more than {MAX_RUNS:,}\n"
@@ -74,7 +78,7 @@ def make_job(system, plan: Plan, initial: dict, settings: dict[str, str], *, met
                                     ("did you mean " + ", ".join(near) + "?") if near else
                                     "parameters: " + ", ".join(params) + "; state: " + ", ".join(states)))
         elif name in settings:
-            problems.append(Problem(at, f"{name} is swept and also given by --set", "give it one or the other"))
+            problems.append(Problem(at, f"{name} is swept and also given by {option('set')}", "give it one or the other"))
     own = [name for name, _ in columns(Job(system=system, plan=Plan((), (), 1, 0), chunk=1, method=method, t_end=t_end,
                                            dt=dt, rtol=rtol, atol=atol, base_param=(), base_y0=(), route=""))]
     for name in plan.names:  # a row's own columns (those of a sweep of nothing) cannot also be an input's
