@@ -178,7 +178,7 @@ def _context(model: NumericModel, show, declare: str, end: str) -> dict:
 @collector_paused()  # see kronsub.collector
 def emit_c(system: KnownSystem, stem: str, source: str = "", prefix: str = "ks",
            outputs=None, jacobian: bool = False, route: str = "auto", terms_apart: bool = True,
-           canonical: bool = True, circle_apart: bool = False) -> list[GeneratedFile]:
+           canonical: bool = True, circle_apart: bool = False, mass_apart: bool = True) -> list[GeneratedFile]:
     """``<stem>.h`` and ``<stem>.c`` (``stem`` made safe by :func:`file_stem`): C99, libc and
     libm only; names start with ``<prefix>_`` (macros with ``<PREFIX>_``), so several models
     can live in one program. A scene's ``outputs`` leave out the energy and point functions
@@ -189,7 +189,9 @@ def emit_c(system: KnownSystem, stem: str, source: str = "", prefix: str = "ks",
     library that runs a method on ``y = [q; qdot]`` calls neither). ``circle_apart``: the circle
     state's right-hand side in a file of its own, ``<stem>_circle.c``, so that a build compiles
     the two files side by side (where it stands alone: not with the projection kept for run
-    time, nor with guarded angles left in it)."""
+    time, nor with guarded angles left in it). ``mass_apart`` False: ``<prefix>_mass_matrix`` (the
+    energies', the momentum's) reads ``Mbar`` from the equations' block at rest instead of a block
+    of its own, where that block holds it as it is (:func:`.numeric.prepare`)."""
     if route not in ROUTES:
         raise ValueError(f"route must be one of {', '.join(ROUTES)}, not {route!r}")
     # under velocity constraints the projection onto the speeds is kept (.projected_speeds)
@@ -199,7 +201,7 @@ def emit_c(system: KnownSystem, stem: str, source: str = "", prefix: str = "ks",
                            "prescribed motion, first-order coordinates, an effect applied in the subspace "
                            "or no primitive, or the exact Jacobian is asked for")
     model = prepare(system, source, outputs, guarded_angles=True, jacobian=jacobian, route=route,
-                    terms_apart=terms_apart, canonical=canonical)
+                    terms_apart=terms_apart, canonical=canonical, mass_apart=mass_apart)
     p = identifier(prefix)
     printer = _CPrinter(p)
     ctx = _context(model, printer.doprint, "const double ", ";")
