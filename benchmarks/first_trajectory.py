@@ -66,13 +66,16 @@ TOOLS = ("kronsub", "pydy-cython", "pydy-lambdify", "mujoco")
 def child_kronsub(model: str, out: str) -> None:
     phases = dict.fromkeys(PHASES, 0.0)
     start = time.perf_counter()
-    import kronsub.emitters.code as code
-    import kronsub.model.loader as loader
-    import kronsub.model.scenes as scenes
-    import kronsub.simulation.native as native
-    from kronsub.cli import main
-    import kronsub.commands.simulate  # noqa: F401
-    import kronsub.simulation.run  # noqa: F401
+    from kronsub.collector import preparation
+
+    with preparation():  # the command imports these in its preparation too (kronsub.collector)
+        import kronsub.emitters.code as code
+        import kronsub.model.loader as loader
+        import kronsub.model.scenes as scenes
+        import kronsub.simulation.native as native
+        from kronsub.cli import main
+        import kronsub.commands.simulate  # noqa: F401
+        import kronsub.simulation.run  # noqa: F401
 
     phases["import"] = time.perf_counter() - start
 
