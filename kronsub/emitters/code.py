@@ -49,7 +49,53 @@ def _double(expr, infinity: str) -> str:
     return repr(value) if abs(value) < float("inf") else (infinity if value > 0 else f"(-{infinity})")
 
 
-class _CPrinter(C99CodePrinter):
+def terms_in_order(expr) -> list | None:
+    """The terms of the sum ``expr`` in the order SymPy's code printers write them
+    (``Expr.as_ordered_terms``, lexicographic: a term's exponents of the sum's bases, the bases in
+    SymPy's sort order, compared largest first), or None where SymPy's own ordering is needed: a
+    term with a number other than its rational coefficient (the coefficient then breaks ties, and
+    a number alone comes first against a negative multiple: ``1 - x``), a non-integer power or a
+    non-commutative factor. Where it answers, no two terms have the same exponents (they would
+    be one term), so the coefficients, which SymPy converts by ``complex()`` one by one (most of
+    printing a block), never decide."""
+    exponents, bases = [], set()
+    for term in expr.args:
+        coefficient, rest = term.as_coeff_Mul()
+        if not coefficient.is_Rational or rest is sympy.S.One:
+            return None
+        powers = {}
+        for factor in sympy.Mul.make_args(rest):
+            if factor.is_number or not factor.is_commutative:
+                return None
+            base, exponent = factor.as_base_exp()
+            if not exponent.is_Integer:
+                return None
+            powers[base] = int(exponent)
+        bases.update(powers)
+        exponents.append(powers)
+    place = {base: k for k, base in enumerate(sorted(bases, key=sympy.default_sort_key))}
+
+    def key(k: int) -> tuple:
+        monomial = [0] * len(place)
+        for base, exponent in exponents[k].items():
+            monomial[place[base]] = -exponent
+        return tuple(monomial)
+
+    return [expr.args[k] for k in sorted(range(len(expr.args)), key=key)]
+
+
+class _OrderedSums:
+    """A code printer's sums, their terms ordered by :func:`terms_in_order` where it answers."""
+
+    def _as_ordered_terms(self, expr, order=None):
+        if order is None and self.order is None and expr.is_Add:
+            terms = terms_in_order(expr)
+            if terms is not None:
+                return terms
+        return super()._as_ordered_terms(expr, order=order)
+
+
+class _CPrinter(_OrderedSums, C99CodePrinter):
     """C99 with small integer powers written as products, constants as numbers (no ``M_PI``),
     integers past :data:`EXACT` and rationals of them as double literals, ``sign`` a double
     (``fabs`` of an ``int`` fails ``-Werror``): every math call gets a double argument."""
@@ -89,7 +135,7 @@ class _CPrinter(C99CodePrinter):
         return super()._print_Pow(expr)
 
 
-class _PyPrinter(NumPyPrinter):
+class _PyPrinter(_OrderedSums, NumPyPrinter):
     """numpy, with small integer powers written as products, constants as numbers, integers past
     :data:`EXACT` and rationals of them as floats (a Python integer past 64 bits overflows numpy)."""
 
