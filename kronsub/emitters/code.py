@@ -7,6 +7,7 @@ form, the energies and the named points. No timestamps: output is byte-identical
 """
 from __future__ import annotations
 
+import functools
 import re
 from dataclasses import dataclass
 
@@ -202,6 +203,7 @@ def ldlt_lines(n: int) -> list[Markup]:
 
 
 def _context(model: NumericModel, show, declare: str, end: str) -> dict:
+    show = functools.lru_cache(maxsize=None)(show)  # a block's part (numeric.prepare's mass) is printed once
     blocks = {name: _lines(getattr(model, name), show, declare, end)
               for name in ("mass", "velocity_terms", "forces", "equations", "canonical", "prepare", "potential",
                            "positions")}
@@ -236,8 +238,8 @@ def emit_c(system: KnownSystem, stem: str, source: str = "", prefix: str = "ks",
     state's right-hand side in a file of its own, ``<stem>_circle.c``, so that a build compiles
     the two files side by side (where it stands alone: not with the projection kept for run
     time, nor with guarded angles left in it). ``mass_apart`` False: ``<prefix>_mass_matrix`` (the
-    energies', the momentum's) reads ``Mbar`` from the equations' block at rest instead of a block
-    of its own, where that block holds it as it is (:func:`.numeric.prepare`)."""
+    energies', the momentum's) is the equations' block's part for ``Mbar`` instead of a block of its
+    own, where that block holds it as it is (:func:`.numeric.prepare`)."""
     if route not in ROUTES:
         raise ValueError(f"route must be one of {', '.join(ROUTES)}, not {route!r}")
     # under velocity constraints the projection onto the speeds is kept (.projected_speeds)

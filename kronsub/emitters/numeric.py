@@ -69,7 +69,7 @@ class NumericModel:
     velocities: tuple[str, ...] = ()  # the velocities' printed names (a charge's: its current); default q_dot
     terms_apart: bool = True  # emit hbar and fbar each on its own (a run's library needs neither)
     with_canonical: bool = True  # emit the canonical right-hand side (only gauss4 integrates it)
-    mass_apart: bool = True  # Mbar from a block of its own (else from the equations' block, mass empty)
+    mass_apart: bool = True  # Mbar from a block of its own (else mass is the equations' block's part for Mbar)
 
     @property
     def n(self) -> int:
@@ -432,9 +432,9 @@ def prepare(system: KnownSystem, source: str = "", outputs=None, guarded_angles:
     time (:mod:`.projected_speeds`), and ``auto`` does so when its symbolic projection is too large.
     ``terms_apart``: also ``hbar`` and ``fbar`` each on its own; ``canonical``: also the canonical
     form's ``dT/dq + fbar`` (a library that runs a method on ``y = [q; qdot]`` needs neither).
-    ``mass_apart`` False: ``Mbar`` alone (the energies', the momentum's) is read from the equations'
-    block at rest rather than emitted again, where that block holds ``Mbar`` as it is (no
-    first-order coordinate, no constraint): a run's library, which calls it once per row."""
+    ``mass_apart`` False: ``Mbar`` alone (the energies', the momentum's) is the equations' block's
+    part for it (:meth:`.Block.part`, its constants in ``pre``) rather than eliminated again, where
+    that block holds ``Mbar`` as it is (no first-order coordinate, no constraint): a run's library."""
     energies = outputs is None or outputs.energies
     with_points = outputs is None or bool(outputs.points)
     speeds = system.speeds  # under velocity constraints: the equations in the speeds, the state [q; u]
@@ -525,7 +525,7 @@ def prepare(system: KnownSystem, source: str = "", outputs=None, guarded_angles:
                               [constants(e) for e in solved + rates + currents], "x", qs, guarded_angles,
                               plain=len(targets))
         mass_apart = mass_apart or first is not None or speeds is not None or system.implicit is not None
-        mass = block(targets, exprs, "x", qs) if mass_apart else Block((), ())
+        mass = block(targets, exprs, "x", qs) if mass_apart else equations.part(set(targets))
         velocity_terms = forces = Block((), ())
         if terms_apart:
             velocity_terms = block([f"h[{i}]" for i in range(n)], [slot(e) for e in velocity_terms_of], "x", qs)

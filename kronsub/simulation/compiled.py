@@ -122,7 +122,7 @@ def generated_sources(system: KnownSystem, outputs=None, jacobian: bool = False,
     """The model's C files a library is built from: the named points left out of ``outputs``
     (a run's table takes them from the numpy module), and ``hbar`` and ``fbar`` apart (no run
     calls them), so neither their emission nor their compilation is paid for, ``Mbar`` alone (the
-    energies', once per row) read from the equations' block rather than emitted again, and the circle
+    energies', once per row) the equations' block's part for it rather than eliminated again, and the circle
     state's right-hand side in a file of its own, compiled beside the rest; ``jacobian``:
     with the exact ``d ydot/dy`` (``ks_jacobian``); ``canonical``: with the canonical
     right-hand side (:data:`.native.CANONICAL_METHODS` integrate it)."""
