@@ -12,7 +12,8 @@ connection (``spatial``) or as ``pin`` constraints (``spatial-pins``, ``--pins``
 
 * ``kronsub cold``: ``kronsub simulate MODEL --t 10`` with an empty cache folder. The run is the
   command's own (``kronsub.cli.main``), in a child process that times its phases by wrapping the
-  functions that do them: ``import`` (the modules a derived run needs), ``load``
+  functions that do them: ``import`` (the modules a derived run needs, imported inside the
+  command's preparation, ``kronsub.collector.preparation``, as the command imports them), ``load``
   (``load_model``), ``derive`` (``derive_scene``), ``emit`` (``emit_c``), ``compile``
   (``native.compile_library``), ``integrate`` (the rest: the run and the CSV written to
   /dev/null). ``wall`` is measured by the parent, interpreter start included. ``warm``: the
