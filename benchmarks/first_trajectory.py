@@ -12,7 +12,8 @@ connection (``spatial``) or as ``pin`` constraints (``spatial-pins``, ``--pins``
 
 * ``kronsub cold``: ``kronsub simulate MODEL --t 10`` with an empty cache folder. The run is the
   command's own (``kronsub.cli.main``), in a child process that times its phases by wrapping the
-  functions that do them: ``import`` (the modules a derived run needs), ``load``
+  functions that do them: ``import`` (the modules a derived run needs, imported inside the
+  command's preparation, ``kronsub.collector.preparation``, as the command imports them), ``load``
   (``load_model``), ``derive`` (``derive_scene``), ``emit`` (``emit_c``), ``compile``
   (``native.compile_library``), ``integrate`` (the rest: the run and the CSV written to
   /dev/null). ``wall`` is measured by the parent, interpreter start included. ``warm``: the
@@ -66,13 +67,16 @@ TOOLS = ("kronsub", "pydy-cython", "pydy-lambdify", "mujoco")
 def child_kronsub(model: str, out: str) -> None:
     phases = dict.fromkeys(PHASES, 0.0)
     start = time.perf_counter()
-    import kronsub.emitters.code as code
-    import kronsub.model.loader as loader
-    import kronsub.model.scenes as scenes
-    import kronsub.simulation.native as native
-    from kronsub.cli import main
-    import kronsub.commands.simulate  # noqa: F401
-    import kronsub.simulation.run  # noqa: F401
+    from kronsub.collector import preparation
+
+    with preparation():  # the command imports these in its preparation too (kronsub.collector)
+        import kronsub.emitters.code as code
+        import kronsub.model.loader as loader
+        import kronsub.model.scenes as scenes
+        import kronsub.simulation.native as native
+        from kronsub.cli import main
+        import kronsub.commands.simulate  # noqa: F401
+        import kronsub.simulation.run  # noqa: F401
 
     phases["import"] = time.perf_counter() - start
 

@@ -26,6 +26,37 @@ def collector_paused():
             gc.enable()
 
 
+@contextlib.contextmanager
+def preparation():
+    """A command's preparation (importing SymPy, loading, deriving, emitting and compiling the
+    model) with the collector paused, and what it leaves alive set aside (``gc.freeze``) when it
+    ends, until the command ends (:func:`released`, which ``run_command`` calls): the collections
+    of the command's rest (a run's rows) walk their own objects only, and turning the collector
+    back on walks none of the modules, SymPy expressions and cache entries made before, nor does
+    any collection while they are made. Nothing is set aside when something else froze objects
+    already (their owner would find them given back)."""
+    was_on = gc.isenabled()
+    gc.disable()
+    try:
+        yield
+    finally:
+        if _SET_ASIDE or not gc.get_freeze_count():
+            gc.freeze()
+            _SET_ASIDE[:] = [True]
+        if was_on:
+            gc.enable()
+
+
+def released() -> None:
+    """Give what :func:`preparation` set aside back to the collector (a command's end)."""
+    if _SET_ASIDE:
+        _SET_ASIDE.clear()
+        gc.unfreeze()
+
+
+_SET_ASIDE: list[bool] = []
+
+
 def frozen_at_exit() -> None:
     """Freeze every object left at interpreter exit (``gc.freeze``), once per process: the
     collections the interpreter runs while it shuts down then skip them, and reference
@@ -41,4 +72,4 @@ def frozen_at_exit() -> None:
 _FROZEN: list[bool] = []
 
 
-__all__ = ["collector_paused", "frozen_at_exit"]
+__all__ = ["collector_paused", "frozen_at_exit", "preparation", "released"]

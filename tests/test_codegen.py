@@ -220,6 +220,29 @@ def test_remembered_rewritings_give_what_cse_basic_gives():
     assert len(rewritings.done) == len(exprs)
 
 
+def test_sums_print_in_sympys_order_of_terms():
+    """`code.terms_in_order` (the printers' sums) is SymPy's ``as_ordered_terms``, on every sum of
+    the blocks of models of several kinds, and leaves to SymPy the sums whose order a number decides."""
+    from kronsub.emitters.code import terms_in_order
+    from kronsub.emitters.numeric import prepare
+
+    answered = 0
+    for path in (MODELS / "chain" / "chain5.yaml", MODELS / "examples" / "watt_governor.yaml",
+                 MODELS / "hoffmann" / "system3.yaml", MODELS / "electrical" / "machine.yaml"):
+        model = prepare(kronsub.load(path).derive(), guarded_angles=True)
+        for block in (model.mass, model.equations, model.canonical, model.prepare, model.potential, model.positions):
+            for _, expr in block.temporaries + block.outputs:
+                for sub in sympy.preorder_traversal(expr):
+                    if sub.is_Add and (ours := terms_in_order(sub)) is not None:
+                        assert ours == sub.as_ordered_terms()
+                        answered += 1
+    assert answered > 100
+    x, y, z = sympy.symbols("x y z")
+    assert terms_in_order(z**2 * y + x**3 + y * z + x * y**4) == [x**3, x * y**4, y * z**2, y * z]
+    for left in (1 - 2 * x, x + sympy.sqrt(2) * y, x**sympy.Rational(1, 2) + y):
+        assert terms_in_order(left) is None
+
+
 @needs_cc
 def test_written_out_solve_is_the_loops_to_the_last_bit(tmp_path, monkeypatch):
     """``code.ldlt_lines`` writes the ``L D L^T`` solve out in scalars in the loops' order of

@@ -11,7 +11,7 @@ import pytest
 
 import kronsub
 from conftest import MODELS
-from kronsub.collector import collector_paused
+from kronsub.collector import collector_paused, preparation, released
 from kronsub.errors import ModelError
 
 
@@ -73,3 +73,54 @@ def test_a_command_freezes_what_is_left_at_exit_and_its_outputs_are_whole(tmp_pa
     assert done.stdout.split() == ["ran", "True", "frozen"]  # not during the command: at its exit
     rows = out.read_text().splitlines()
     assert len(rows) == 52 and rows[-1].startswith("0.5,")  # a header and t = 0, 0.01, ..., 0.5
+
+
+def test_a_preparation_sets_aside_what_it_leaves_until_released(collector_on):
+    """kronsub.collector.preparation: paused inside; afterwards the collector is on again and the
+    objects then alive are frozen, a collection walks none of them; released() gives them back."""
+    assert gc.get_freeze_count() == 0
+    with preparation():
+        assert not gc.isenabled()
+        made = [[i] for i in range(1000)]
+    assert gc.isenabled() and gc.get_freeze_count() > 0
+    walked = {id(o) for o in gc.get_objects()}  # what a collection walks: not the frozen
+    assert not {id(x) for x in made} & walked
+    released()
+    assert gc.get_freeze_count() == 0
+    assert {id(x) for x in made} <= {id(o) for o in gc.get_objects()}
+    released()  # twice: nothing more to give back
+    gc.freeze()  # frozen by someone else: a preparation leaves it as it is
+    try:
+        count = gc.get_freeze_count()
+        with preparation():
+            pass
+        assert gc.get_freeze_count() == count
+        released()
+        assert gc.get_freeze_count() == count
+    finally:
+        gc.unfreeze()
+
+
+def test_a_runs_rows_are_written_with_its_preparation_set_aside(collector_on, tmp_path, monkeypatch):
+    """kronsub simulate: the run streams its rows with the collector on and the preparation's
+    objects frozen; the command gives them back at its end, with the collector as it was."""
+    from click.testing import CliRunner
+
+    from kronsub.cli import main
+    from kronsub.simulation.table import CsvWriter
+
+    seen = []
+    real = CsvWriter.stream
+
+    def stream(self, *args, **kwargs):
+        seen.append((gc.isenabled(), gc.get_freeze_count() > 0))
+        return real(self, *args, **kwargs)
+
+    monkeypatch.setattr(CsvWriter, "stream", stream)
+    monkeypatch.setenv("KRONSUB_CACHE_DIR", str(tmp_path / "cache"))
+    out = tmp_path / "run.csv"
+    done = CliRunner().invoke(main, ["simulate", str(MODELS / "hoffmann" / "system1.yaml"), "--t", "0.2",
+                                     "--output", str(out)])
+    assert done.exit_code == 0, done.output
+    assert seen == [(True, True)]
+    assert gc.isenabled() and gc.get_freeze_count() == 0

@@ -155,3 +155,34 @@ def test_a_cached_library_without_the_integrators_is_built_again(cache):
     assert native.verified(library, key) and native.lacking(library)
     assert run() == first
     assert native.lacking(library) == []
+
+
+def test_a_runs_library_reads_mbar_from_its_equations(cache):
+    """A run's library eliminates ``Mbar``'s common subexpressions once, in the equations' block,
+    and its ``ks_mass_matrix`` (the energies', the momentum's) is that block's part for ``Mbar``:
+    checked against the derived ``Mbar`` evaluated by sympy at random states, through
+    ``T = 1/2 qdot^T Mbar qdot`` and ``p = Mbar qdot``. Where the equations' block does not hold
+    ``Mbar`` as it is (a first-order coordinate's row is the identity there; a closed loop's needs
+    its Newton solve) the block of its own stays; ``kronsub codegen`` keeps it always."""
+    import sympy
+
+    chain = load_model(MODELS / "chain" / "chain5.yaml").derive()
+    run_c = dict(compiled.generated_sources(chain, canonical=False))["model.c"]
+    part = "the equations' part for Mbar"
+    assert part in run_c and part not in code.emit_c(chain, "model")[1].text
+    for path in (MODELS / "electrical" / "parallel_rlc.yaml", MODELS / "hoffmann" / "system3.yaml"):
+        assert part not in dict(compiled.generated_sources(load_model(path).derive(), canonical=False))["model.c"]
+
+    lib = native.NativeModel(compiled.compiled_library(chain, canonical=False), len(chain.coordinates),
+                             len(chain.parameters))
+    values = starting_values(chain, {}).values
+    param = np.array(values.parameters)
+    numbers = {p.symbol: v for p, v in zip(chain.parameters, param)}
+    mass = sympy.lambdify(list(chain.coordinates), chain.mass_matrix.xreplace(numbers), "numpy")
+    rng = np.random.default_rng(7)
+    n = len(chain.coordinates)
+    for _ in range(5):
+        y = rng.uniform(-3, 3, 2 * n)
+        M = np.array(mass(*y[:n]), dtype=float)
+        assert np.isclose(lib.kinetic_energy(y, param), 0.5 * y[n:] @ M @ y[n:], rtol=1e-13, atol=0)
+        np.testing.assert_allclose(lib.momentum(y, param)[n:], M @ y[n:], rtol=1e-12, atol=1e-12)

@@ -20,7 +20,7 @@ import click
 
 from .. import budget
 from ..atomic import STREAM, output_target, write_atomically
-from ..collector import frozen_at_exit
+from ..collector import frozen_at_exit, released
 from ..errors import KronsubError, Location, ModelError, command_line
 from ..interrupts import exit_code, signal_name, signal_of, signals_as_interrupts
 from ..simulation.span import T_END
@@ -151,8 +151,9 @@ def _show_warning(message, category, filename, lineno, file=None, line=None):
 
 def run_command(job):
     """Run a command body, turning known errors into messages and exit codes; its work is
-    bounded by the command's ``--budget`` (`kronsub.budget`); its objects are not collected
-    again while the process exits (:func:`kronsub.collector.frozen_at_exit`)."""
+    bounded by the command's ``--budget`` (`kronsub.budget`); what its preparation set aside goes
+    back to the collector at its end (:func:`kronsub.collector.released`), and its objects are not
+    collected again while the process exits (:func:`kronsub.collector.frozen_at_exit`)."""
     frozen_at_exit()
     warnings.showwarning = _show_warning
     _ADVICE[0] = 0
@@ -187,6 +188,8 @@ def run_command(job):
         fail(f"Error: internal error ({type(exc).__name__}{': ' + text if text else ''})\n"
               f"  hint: this is a bug in kronsub {__version__}; please report it to the kronsub developers "
               f"with the command and the model file; {DEBUG_ENV}=1 prints the traceback", INTERNAL_ERROR)
+    finally:
+        released()  # what a command's preparation set aside (kronsub.collector.preparation)
 
 
 def note_safely(text: str) -> None:

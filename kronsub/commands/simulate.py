@@ -10,6 +10,7 @@ from types import SimpleNamespace
 import click
 
 from ..atomic import atomic_file, write_atomically
+from ..collector import preparation
 from ..simulation.methods import SIMULATE
 from ..simulation.methods import help_text as method_help
 from .common import (INTERRUPTED, NUMERICAL_FAILURE, T_END, USAGE_ERROR, budget_option, budget_units, check_times,
@@ -145,40 +146,41 @@ def _simulate(model: Path, t_end: float | None, dt: float | None, method: str | 
               plot: Path | None, scene_name: str | None, with_reactions: bool, key: str | None,
               jacobian: str = "differences"):
     """The run of a derived model (recorded as a prepared run under ``key`` when it can be one)."""
-    from ..api import System, run_span
-    from ..simulation.constrained import newton_tolerance
-    from ..simulation.power import energy_split
-    from ..simulation.run import SimulationError, check_tolerances, collect, explicit_only, row_count, start
-    from ..simulation.start import starting_values
-    from ..simulation.table import CsvWriter, trajectory_csv
-    from ..simulation.values import parse_assignments
+    with preparation():  # the collector paused, what it leaves set aside (kronsub.collector)
+        from ..api import System, run_span
+        from ..simulation.constrained import newton_tolerance
+        from ..simulation.power import energy_split
+        from ..simulation.run import SimulationError, check_tolerances, collect, explicit_only, row_count, start
+        from ..simulation.start import starting_values
+        from ..simulation.table import CsvWriter, trajectory_csv
+        from ..simulation.values import parse_assignments
 
-    if method is not None and method not in SIMULATE:
-        fail(f"Error: unknown method '{method}'\n  hint: choose one of {', '.join(SIMULATE)}", USAGE_ERROR)
-    check_times(t_end, dt)  # before deriving; the row count once both are known
-    try:
-        check_tolerances(rtol, atol)
-    except SimulationError as exc:
-        fail(f"Error: {exc}", USAGE_ERROR)
-    meta_path = _outputs_checked(model, output, meta, plot)
-    loaded, scene, system = scene_system(model, scene_name, all_points=with_points)
-    note_choice(system)
-    outputs = scene.outputs if scene is not None else None
-    span, step, chosen = run_span(System.of(system, loaded, scene), t_end, dt, method)
-    try:
-        row_count(span, step)
-    except SimulationError as exc:
-        fail(f"Error: {exc}", USAGE_ERROR)
-    try:  # before the initial values are projected onto the constraints
-        explicit_only(system, chosen)
-    except SimulationError as exc:
-        fail(f"Error: {exc}")
-    begin = starting_values(system, parse_assignments(settings), tolerance=newton_tolerance(rtol, atol))
-    for note in begin.notes:
-        say(f"note: initial conditions projected onto the constraints: {note}")
-    values, constrained = begin.values, begin.constrained
-    run = start(system, values, span, step, chosen, rtol, atol,
-                outputs=outputs, constrained=constrained, jacobian=jacobian == "exact")
+        if method is not None and method not in SIMULATE:
+            fail(f"Error: unknown method '{method}'\n  hint: choose one of {', '.join(SIMULATE)}", USAGE_ERROR)
+        check_times(t_end, dt)  # before deriving; the row count once both are known
+        try:
+            check_tolerances(rtol, atol)
+        except SimulationError as exc:
+            fail(f"Error: {exc}", USAGE_ERROR)
+        meta_path = _outputs_checked(model, output, meta, plot)
+        loaded, scene, system = scene_system(model, scene_name, all_points=with_points)
+        note_choice(system)
+        outputs = scene.outputs if scene is not None else None
+        span, step, chosen = run_span(System.of(system, loaded, scene), t_end, dt, method)
+        try:
+            row_count(span, step)
+        except SimulationError as exc:
+            fail(f"Error: {exc}", USAGE_ERROR)
+        try:  # before the initial values are projected onto the constraints
+            explicit_only(system, chosen)
+        except SimulationError as exc:
+            fail(f"Error: {exc}")
+        begin = starting_values(system, parse_assignments(settings), tolerance=newton_tolerance(rtol, atol))
+        for note in begin.notes:
+            say(f"note: initial conditions projected onto the constraints: {note}")
+        values, constrained = begin.values, begin.constrained
+        run = start(system, values, span, step, chosen, rtol, atol,
+                    outputs=outputs, constrained=constrained, jacobian=jacobian == "exact")
     kept = [] if plot is not None or with_reactions else None
     run_info = dict(t_end=span, dt=step, scene=scene.name if scene is not None else None,
                     source=loaded.source, uses=loaded.uses, split=energy_split(loaded, system))

@@ -13,5 +13,16 @@ class Block:
     temporaries: tuple[tuple[sympy.Symbol, sympy.Expr], ...]
     outputs: tuple[tuple[str, sympy.Expr], ...]
 
+    def part(self, targets) -> Block:
+        """The outputs to ``targets`` with the temporaries they need, in their order."""
+        outputs = tuple((target, e) for target, e in self.outputs if target in targets)
+        needed = set().union(*(e.free_symbols for _, e in outputs))
+        kept = []
+        for name, e in reversed(self.temporaries):
+            if name in needed:
+                kept.append((name, e))
+                needed |= e.free_symbols
+        return Block(tuple(kept[::-1]), outputs)
+
 
 __all__ = ["Block"]

@@ -7,6 +7,7 @@ form, the energies and the named points. No timestamps: output is byte-identical
 """
 from __future__ import annotations
 
+import functools
 import re
 from dataclasses import dataclass
 
@@ -49,7 +50,53 @@ def _double(expr, infinity: str) -> str:
     return repr(value) if abs(value) < float("inf") else (infinity if value > 0 else f"(-{infinity})")
 
 
-class _CPrinter(C99CodePrinter):
+def terms_in_order(expr) -> list | None:
+    """The terms of the sum ``expr`` in the order SymPy's code printers write them
+    (``Expr.as_ordered_terms``, lexicographic: a term's exponents of the sum's bases, the bases in
+    SymPy's sort order, compared largest first), or None where SymPy's own ordering is needed: a
+    term with a number other than its rational coefficient (the coefficient then breaks ties, and
+    a number alone comes first against a negative multiple: ``1 - x``), a non-integer power or a
+    non-commutative factor. Where it answers, no two terms have the same exponents (they would
+    be one term), so the coefficients, which SymPy converts by ``complex()`` one by one (most of
+    printing a block), never decide."""
+    exponents, bases = [], set()
+    for term in expr.args:
+        coefficient, rest = term.as_coeff_Mul()
+        if not coefficient.is_Rational or rest is sympy.S.One:
+            return None
+        powers = {}
+        for factor in sympy.Mul.make_args(rest):
+            if factor.is_number or not factor.is_commutative:
+                return None
+            base, exponent = factor.as_base_exp()
+            if not exponent.is_Integer:
+                return None
+            powers[base] = int(exponent)
+        bases.update(powers)
+        exponents.append(powers)
+    place = {base: k for k, base in enumerate(sorted(bases, key=sympy.default_sort_key))}
+
+    def key(k: int) -> tuple:
+        monomial = [0] * len(place)
+        for base, exponent in exponents[k].items():
+            monomial[place[base]] = -exponent
+        return tuple(monomial)
+
+    return [expr.args[k] for k in sorted(range(len(expr.args)), key=key)]
+
+
+class _OrderedSums:
+    """A code printer's sums, their terms ordered by :func:`terms_in_order` where it answers."""
+
+    def _as_ordered_terms(self, expr, order=None):
+        if order is None and self.order is None and expr.is_Add:
+            terms = terms_in_order(expr)
+            if terms is not None:
+                return terms
+        return super()._as_ordered_terms(expr, order=order)
+
+
+class _CPrinter(_OrderedSums, C99CodePrinter):
     """C99 with small integer powers written as products, constants as numbers (no ``M_PI``),
     integers past :data:`EXACT` and rationals of them as double literals, ``sign`` a double
     (``fabs`` of an ``int`` fails ``-Werror``): every math call gets a double argument."""
@@ -89,7 +136,7 @@ class _CPrinter(C99CodePrinter):
         return super()._print_Pow(expr)
 
 
-class _PyPrinter(NumPyPrinter):
+class _PyPrinter(_OrderedSums, NumPyPrinter):
     """numpy, with small integer powers written as products, constants as numbers, integers past
     :data:`EXACT` and rationals of them as floats (a Python integer past 64 bits overflows numpy)."""
 
@@ -156,6 +203,7 @@ def ldlt_lines(n: int) -> list[Markup]:
 
 
 def _context(model: NumericModel, show, declare: str, end: str) -> dict:
+    show = functools.lru_cache(maxsize=None)(show)  # a block's part (numeric.prepare's mass) is printed once
     blocks = {name: _lines(getattr(model, name), show, declare, end)
               for name in ("mass", "velocity_terms", "forces", "equations", "canonical", "prepare", "potential",
                            "positions")}
@@ -178,7 +226,7 @@ def _context(model: NumericModel, show, declare: str, end: str) -> dict:
 @collector_paused()  # see kronsub.collector
 def emit_c(system: KnownSystem, stem: str, source: str = "", prefix: str = "ks",
            outputs=None, jacobian: bool = False, route: str = "auto", terms_apart: bool = True,
-           canonical: bool = True, circle_apart: bool = False) -> list[GeneratedFile]:
+           canonical: bool = True, circle_apart: bool = False, mass_apart: bool = True) -> list[GeneratedFile]:
     """``<stem>.h`` and ``<stem>.c`` (``stem`` made safe by :func:`file_stem`): C99, libc and
     libm only; names start with ``<prefix>_`` (macros with ``<PREFIX>_``), so several models
     can live in one program. A scene's ``outputs`` leave out the energy and point functions
@@ -189,7 +237,9 @@ def emit_c(system: KnownSystem, stem: str, source: str = "", prefix: str = "ks",
     library that runs a method on ``y = [q; qdot]`` calls neither). ``circle_apart``: the circle
     state's right-hand side in a file of its own, ``<stem>_circle.c``, so that a build compiles
     the two files side by side (where it stands alone: not with the projection kept for run
-    time, nor with guarded angles left in it)."""
+    time, nor with guarded angles left in it). ``mass_apart`` False: ``<prefix>_mass_matrix`` (the
+    energies', the momentum's) is the equations' block's part for ``Mbar`` instead of a block of its
+    own, where that block holds it as it is (:func:`.numeric.prepare`)."""
     if route not in ROUTES:
         raise ValueError(f"route must be one of {', '.join(ROUTES)}, not {route!r}")
     # under velocity constraints the projection onto the speeds is kept (.projected_speeds)
@@ -199,7 +249,7 @@ def emit_c(system: KnownSystem, stem: str, source: str = "", prefix: str = "ks",
                            "prescribed motion, first-order coordinates, an effect applied in the subspace "
                            "or no primitive, or the exact Jacobian is asked for")
     model = prepare(system, source, outputs, guarded_angles=True, jacobian=jacobian, route=route,
-                    terms_apart=terms_apart, canonical=canonical)
+                    terms_apart=terms_apart, canonical=canonical, mass_apart=mass_apart)
     p = identifier(prefix)
     printer = _CPrinter(p)
     ctx = _context(model, printer.doprint, "const double ", ";")

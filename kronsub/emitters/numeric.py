@@ -69,6 +69,7 @@ class NumericModel:
     velocities: tuple[str, ...] = ()  # the velocities' printed names (a charge's: its current); default q_dot
     terms_apart: bool = True  # emit hbar and fbar each on its own (a run's library needs neither)
     with_canonical: bool = True  # emit the canonical right-hand side (only gauss4 integrates it)
+    mass_apart: bool = True  # Mbar from a block of its own (else mass is the equations' block's part for Mbar)
 
     @property
     def n(self) -> int:
@@ -416,7 +417,7 @@ def jacobian_block(system: KnownSystem, first, slot) -> tuple[list[str], list[sy
 
 def prepare(system: KnownSystem, source: str = "", outputs=None, guarded_angles: bool = False,
             jacobian: bool = False, route: str = "expanded", terms_apart: bool = True,
-            canonical: bool = True) -> NumericModel:
+            canonical: bool = True, mass_apart: bool = True) -> NumericModel:
     """Map the system's symbols to array slots and eliminate common subexpressions.
 
     ``outputs`` (a scene's :class:`~kronsub.model.scenes.Outputs`; None: everything) leaves
@@ -430,7 +431,10 @@ def prepare(system: KnownSystem, source: str = "", outputs=None, guarded_angles:
     Jacobian); under velocity constraints ``projected`` keeps the projection onto the speeds for run
     time (:mod:`.projected_speeds`), and ``auto`` does so when its symbolic projection is too large.
     ``terms_apart``: also ``hbar`` and ``fbar`` each on its own; ``canonical``: also the canonical
-    form's ``dT/dq + fbar`` (a library that runs a method on ``y = [q; qdot]`` needs neither)."""
+    form's ``dT/dq + fbar`` (a library that runs a method on ``y = [q; qdot]`` needs neither).
+    ``mass_apart`` False: ``Mbar`` alone (the energies', the momentum's) is the equations' block's
+    part for it (:meth:`.Block.part`, its constants in ``pre``) rather than eliminated again, where
+    that block holds ``Mbar`` as it is (no first-order coordinate, no constraint): a run's library."""
     energies = outputs is None or outputs.energies
     with_points = outputs is None or bool(outputs.points)
     speeds = system.speeds  # under velocity constraints: the equations in the speeds, the state [q; u]
@@ -520,7 +524,8 @@ def prepare(system: KnownSystem, source: str = "", outputs=None, guarded_angles:
             equations = block(targets + r_targets + [f"r[{n + k}]" for k in range(len(currents))],
                               [constants(e) for e in solved + rates + currents], "x", qs, guarded_angles,
                               plain=len(targets))
-        mass = block(targets, exprs, "x", qs)
+        mass_apart = mass_apart or first is not None or speeds is not None or system.implicit is not None
+        mass = block(targets, exprs, "x", qs) if mass_apart else equations.part(set(targets))
         velocity_terms = forces = Block((), ())
         if terms_apart:
             velocity_terms = block([f"h[{i}]" for i in range(n)], [slot(e) for e in velocity_terms_of], "x", qs)
@@ -608,6 +613,7 @@ def prepare(system: KnownSystem, source: str = "", outputs=None, guarded_angles:
         velocities=tuple(system.name_of(v) for v in system.velocities),
         terms_apart=terms_apart,
         with_canonical=canonical,
+        mass_apart=mass_apart,
     )
 
 

@@ -109,8 +109,9 @@ class Cursor:
 
 
 def chunk_ranges(grid, count: int):
-    """Index ranges of the output grid, one per chunk."""
-    edges = np.unique(np.linspace(0, len(grid) - 1, min(count, len(grid) - 1) + 1).astype(int))
+    """Index ranges of the output grid, one per chunk (distinct edges sorted in Python: ``np.unique``
+    would import ``numpy.ma`` into every run)."""
+    edges = sorted({int(e) for e in np.linspace(0, len(grid) - 1, min(count, len(grid) - 1) + 1)})
     return list(zip(edges[:-1], edges[1:]))
 
 
