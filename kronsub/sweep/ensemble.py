@@ -69,7 +69,7 @@ def ensemble_sources(system, outputs=None) -> Sources:
     def emit():
         from ..emitters.code import emit_c  # heavy (jinja2, the C printer): only when the C is not kept
 
-        return [(g.name, g.text) for g in emit_c(system, "model", outputs=outputs)]
+        return [(g.name, g.text) for g in emit_c(system, "model", outputs=outputs, mass_apart=False)]  # Mbar as simulate's
 
     nq, nparam = len(system.coordinates), len(system.parameters)
     files = kept_files("ensemble", system, repr(outputs), emit)
