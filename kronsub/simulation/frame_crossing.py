@@ -45,7 +45,7 @@ class FrameWatch:
         x = self.x = list(system.coordinates)
         values = {p.symbol: sympy.Float(float(v), 17) for p, v in zip(system.parameters, param)}
         g = sympy.Matrix([c.expression for c in s.holonomic]) if s.holonomic else sympy.zeros(0, 1)
-        S, _, G = frame_matrix(g, velocity_rows(system), [e for _, e in s.definitions], x)
+        S = frame_matrix(g, velocity_rows(system), [e for _, e in s.definitions], x)[0]
         self.constraint_rows = S.rows - len(s.speeds)  # those of [G; A]
         self.sizes = row_sizes(generic_values(S, x, values))
         self.shown = [q for q in x if any(q in e.free_symbols for e in S)][:SHOWN]
