@@ -43,6 +43,24 @@ COMMANDS = {
 }
 
 
+def short_help(text: str, limit: int) -> str:
+    """A command's line in ``kronsub --help``: the first sentence of ``text`` when it fits in
+    ``limit`` characters, else as many of its first words as fit with ``...`` after them."""
+    words = text.split("\n\n")[0].split()
+    shown: list[str] = []
+    for word in words:
+        if len(" ".join([*shown, word])) > limit:
+            break
+        shown.append(word)
+        if word.endswith("."):
+            return " ".join(shown)
+    else:
+        return " ".join(shown)
+    while shown and len(" ".join(shown)) + 3 > limit:
+        shown.pop()
+    return " ".join(shown) + "..."
+
+
 class CommandTable(click.Group):
     """A click group whose commands are imported from :data:`COMMANDS` when first used."""
 
@@ -71,7 +89,7 @@ class CommandTable(click.Group):
         rows = []
         for name in names:
             if name in COMMANDS:
-                summary = click.utils.make_default_short_help(COMMANDS[name][1], limit)
+                summary = short_help(COMMANDS[name][1], limit)
             else:
                 summary = self.commands[name].get_short_help_str(limit)
             rows.append((name, summary))
