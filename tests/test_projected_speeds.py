@@ -15,14 +15,13 @@ tests/test_nonholonomic_numeric_route.py.
 from __future__ import annotations
 
 import ctypes
-import os
 import shutil
 import subprocess
-import sys
 
 import numpy as np
 import pytest
 
+from helpers.seeded import emitted_under_seed
 import kronsub
 from kronsub.emitters.code import emit_c
 from kronsub.core.projection_work import NUMERIC_FROM, projection_work
@@ -130,18 +129,8 @@ def test_a_singular_frame_is_reported_as_a_singular_mass_matrix(tmp_path):
     assert codes[0] == 1, codes
 
 
-def _generated(seed: str) -> str:
-    code = ("import kronsub, sys\n"
-            "from kronsub.emitters.code import emit_c\n"
-            "s = kronsub.load(sys.argv[1]).derive(cache=False)\n"
-            "sys.stdout.write(''.join(g.text for g in emit_c(s, 'm', route='projected')))\n")
-    env = {**os.environ, "PYTHONHASHSEED": seed}
-    return subprocess.run([sys.executable, "-c", code, str(SMALL[3])], env=env, check=True, capture_output=True,
-                          text=True).stdout
-
-
 def test_the_generated_code_is_deterministic():
-    assert _generated("1") == _generated("2")
+    assert emitted_under_seed("emit_c", SMALL[3], "1") == emitted_under_seed("emit_c", SMALL[3], "2")
 
 
 def test_the_route_refuses_a_system_it_cannot_keep():

@@ -11,15 +11,13 @@ it by itself, writes its module within the default work budget (its symbolic pro
 beyond it), and the module's right-hand side and energies equal its generated C's."""
 from __future__ import annotations
 
-import os
-import subprocess
-import sys
 import types
 
 import numpy as np
 import pytest
 from click.testing import CliRunner
 
+from helpers.seeded import emitted_under_seed
 import kronsub
 from kronsub.cli import main
 from kronsub.core.projection_work import projected_in_numbers
@@ -128,15 +126,5 @@ def test_a_state_without_accelerations_is_an_error_of_numpy():
         mod.rhs(0.0, y, param)
 
 
-def _generated(seed: str) -> str:
-    code = ("import kronsub, sys\n"
-            "from kronsub.emitters.code import emit_python\n"
-            "s = kronsub.load(sys.argv[1]).derive(cache=False)\n"
-            "sys.stdout.write(emit_python(s, 'm', route='projected')[0].text)\n")
-    env = {**os.environ, "PYTHONHASHSEED": seed}
-    return subprocess.run([sys.executable, "-c", code, str(SMALL[4])], env=env, check=True, capture_output=True,
-                          text=True).stdout
-
-
 def test_the_generated_module_is_deterministic():
-    assert _generated("1") == _generated("2")
+    assert emitted_under_seed("emit_python", SMALL[4], "1") == emitted_under_seed("emit_python", SMALL[4], "2")
