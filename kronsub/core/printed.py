@@ -16,7 +16,7 @@ import sympy
 from mpmath.libmp import dps_to_prec, from_rational, to_float
 from sympy.core.exprtools import decompose_power
 from sympy.core.numbers import mpf_norm
-from sympy.printing.precedence import precedence
+from sympy.printing.precedence import PRECEDENCE, precedence
 from sympy.printing.str import StrPrinter
 
 from .sympy_internals import parse_order
@@ -25,18 +25,26 @@ _PREC = dps_to_prec(15)
 """The bits of ``Expr.evalf()``'s default 15 digits; it evaluates with 4 more, then rounds."""
 
 
+_SORT_KEYS: dict = {}
+_ORDERED: dict = {}
+_RATIONALS: dict = {}
+_REMEMBERED = 100_000
+
+
 def _complex(number) -> complex:
     """``complex(number)`` as sympy computes it, without ``evalf``'s machinery for a rational:
     the quotient truncated to ``_PREC + 4`` bits, then rounded to nearest at ``_PREC`` (the
-    two roundings of ``Expr.__complex__``; not always the correctly rounded quotient)."""
+    two roundings of ``Expr.__complex__``; not always the correctly rounded quotient),
+    remembered (a large system's terms share a few coefficients)."""
     if number.is_Rational:
-        value = from_rational(int(number.p), int(number.q), _PREC + 4)
-        return complex(to_float(mpf_norm(value, _PREC)))
+        fraction = (int(number.p), int(number.q))
+        value = _RATIONALS.get(fraction)
+        if value is None:
+            if len(_RATIONALS) > _REMEMBERED:
+                _RATIONALS.clear()
+            value = _RATIONALS[fraction] = complex(to_float(mpf_norm(from_rational(*fraction, _PREC + 4), _PREC)))
+        return value
     return complex(number)
-
-
-_SORT_KEYS: dict = {}
-_REMEMBERED = 100_000
 
 
 def _sort_key(expr):
@@ -66,7 +74,19 @@ _ONE_KEY = sympy.S.One.sort_key()
 
 def ordered_terms(expr, order: str = "lex") -> list:
     """``expr.as_ordered_terms(order)`` for a sum, by sympy's key (``Expr._parse_order``)
-    over the terms as ``Expr.as_terms`` describes them."""
+    over the terms as ``Expr.as_terms`` describes them; remembered (a sum inside a product is
+    ordered for the product's sort key and again when printed). The list is not to be changed."""
+    key = (type(expr), expr, order)
+    terms = _ORDERED.get(key)
+    if terms is None:
+        if len(_ORDERED) > _REMEMBERED:
+            _ORDERED.clear()
+        terms = _ORDERED[key] = _ordered_terms(expr, order)
+    return terms
+
+
+def _ordered_terms(expr, order: str) -> list:
+    """`ordered_terms`, made."""
     terms, gens = [], set()
     for term in sympy.Add.make_args(expr):
         if term.is_Order:
@@ -188,6 +208,25 @@ def _plain_product(expr):
     return sign, numerator, denominator
 
 
+_ADD, _MUL = PRECEDENCE["Add"], PRECEDENCE["Mul"]
+
+
+def _product_precedence(expr) -> int | None:
+    """``precedence(expr)`` of a ``Mul`` of a rational coefficient, or of none, and factors
+    without a precedence of their own: that of a sum if the coefficient is negative (what
+    ``Mul.could_extract_minus_sign`` tells by negating the product), else a product's;
+    None for anything else."""
+    if type(expr) is not sympy.Mul:
+        return None
+    args = expr.args
+    if any(hasattr(a, "precedence") for a in args):
+        return None
+    first = args[0]
+    if first.is_Rational:
+        return _ADD if first.p < 0 else _MUL
+    return None if first.is_Number else _MUL
+
+
 class RememberingStr(Remembering):
     """`Remembering` for sympy's ``str`` printer: a product's factors also ordered by the
     remembered sort keys (`_plain_product`), for a large system's products share their
@@ -201,7 +240,7 @@ class RememberingStr(Remembering):
         key = (type(expr), expr)
         level = memo.get(key)
         if level is None:
-            level = memo[key] = precedence(expr)
+            level = memo[key] = _product_precedence(expr) or precedence(expr)
         return level
 
     def parenthesize(self, item, level, strict=False):

@@ -14,7 +14,7 @@ from markupsafe import Markup
 from sympy.printing.str import StrPrinter
 
 from ..core.known_system import KnownSystem
-from ..core.canonical import mul
+from ..core.canonical import add, mul
 from ..core.printed import RememberingStr
 from ..core.rheonomic import depends_on_time, project_frozen
 from ..core.operations import count_ops
@@ -262,9 +262,9 @@ def kinetic_energy(mass: sympy.Matrix, velocities) -> sympy.Expr:
     velocities would be far longer to print, and to make)."""
     half = sympy.Rational(1, 2)
     n = len(velocities)
-    return sympy.Add(*[_product(mass[a, a], velocities[a] ** 2, coefficient=half) if a == b  # 1/2 not distributed
-                       else _product(mass[a, b], velocities[a], velocities[b])
-                       for a in range(n) for b in range(a, n) if mass[a, b] != 0])
+    return add([_product(mass[a, a], velocities[a] ** 2, coefficient=half) if a == b  # 1/2 not distributed
+                else _product(mass[a, b], velocities[a], velocities[b])
+                for a in range(n) for b in range(a, n) if mass[a, b] != 0])
 
 
 def _product(entry: sympy.Expr, *factors: sympy.Expr, coefficient: sympy.Rational = sympy.S.One) -> sympy.Expr:
@@ -323,7 +323,7 @@ def build_report(system: KnownSystem, show: Printer, named: bool = True, names: 
     take = lambda k: [next(it) for _ in range(k)]  # noqa: E731
     accelerations = sympy.Matrix(system.accelerations)
     # Mbar qddot + hbar, each row one sum (the matrix product adds its terms one at a time)
-    lhs = [sympy.Add(*[_product(mass[i, j], accelerations[j]) for j in range(n)], hbar[i]) for i in range(n)]
+    lhs = [add([*[_product(mass[i, j], accelerations[j]) for j in range(n)], hbar[i]]) for i in range(n)]
     report = {
         **report_head(system, show),
         "mass_matrix": matrix_rows(mass, show),
