@@ -27,6 +27,7 @@ _PREC = dps_to_prec(15)
 
 _SORT_KEYS: dict = {}
 _ORDERED: dict = {}
+"""The ordered terms of the sums whose sort keys `_SORT_KEYS` holds."""
 _RATIONALS: dict = {}
 _REMEMBERED = 100_000
 
@@ -54,6 +55,7 @@ def _sort_key(expr):
     if key is None:
         if len(_SORT_KEYS) > _REMEMBERED:
             _SORT_KEYS.clear()
+            _ORDERED.clear()
         key = _SORT_KEYS[(type(expr), expr)] = _new_sort_key(expr)
     return key
 
@@ -64,7 +66,8 @@ def _new_sort_key(expr):
     factors ``cos(q1 - q2)`` each hold a sum whose key sympy builds through ``evalf``."""
     if isinstance(expr, sympy.Expr) and expr.is_commutative and (expr.is_Function or (
             expr.is_Add and not any(isinstance(t, (sympy.Number, sympy.NumberSymbol)) for t in expr.args))):
-        parts = ordered_terms(expr) if expr.is_Add else expr.args  # (a number and a negative product: sympy's own)
+        # (a number and a negative product: sympy's own); a sum's terms kept for its printing
+        parts = _ORDERED.setdefault((type(expr), expr), _ordered_terms(expr, "lex")) if expr.is_Add else expr.args
         return expr.class_key(), (len(parts), tuple(_sort_key(p) for p in parts)), _ONE_KEY, sympy.S.One
     return sympy.default_sort_key(expr)
 
@@ -74,15 +77,14 @@ _ONE_KEY = sympy.S.One.sort_key()
 
 def ordered_terms(expr, order: str = "lex") -> list:
     """``expr.as_ordered_terms(order)`` for a sum, by sympy's key (``Expr._parse_order``)
-    over the terms as ``Expr.as_terms`` describes them; remembered (a sum inside a product is
-    ordered for the product's sort key and again when printed). The list is not to be changed."""
-    key = (type(expr), expr, order)
-    terms = _ORDERED.get(key)
-    if terms is None:
-        if len(_ORDERED) > _REMEMBERED:
-            _ORDERED.clear()
-        terms = _ORDERED[key] = _ordered_terms(expr, order)
-    return terms
+    over the terms as ``Expr.as_terms`` describes them. A sum inside a product was ordered
+    already for the product's sort key (`_sort_key`): those terms are taken again, not to be
+    changed."""
+    if order == "lex":
+        terms = _ORDERED.get((type(expr), expr))
+        if terms is not None:
+            return terms
+    return _ordered_terms(expr, order)
 
 
 def _ordered_terms(expr, order: str) -> list:

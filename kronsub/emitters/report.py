@@ -6,6 +6,7 @@ Like the paper: the primitive metric and forces (16), (17), the connection
 """
 from __future__ import annotations
 
+import functools
 from itertools import count
 from typing import Callable, Iterable, Mapping
 
@@ -91,23 +92,32 @@ def model_names(system: KnownSystem) -> frozenset[str]:
 
 
 def _free_symbols(exprs) -> set:
-    """The free symbols of ``exprs``, each distinct subexpression walked once (the entries of a
-    large system share their sums: ``free_symbols`` would walk them in every entry)."""
-    seen: set = set()
+    """The free symbols of ``exprs``, each subexpression object walked once (the entries of a
+    large system share their sums: ``free_symbols`` would walk them in every entry), told apart
+    by identity (an equal copy is walked again, in less time than ``==`` compares the two)."""
+    seen: set = set()  # ids of nodes of exprs, alive while they are
     found: set = set()
     stack = [e for e in exprs if isinstance(e, sympy.Basic)]
     while stack:
         node = stack.pop()
-        if node in seen:
+        if id(node) in seen:
             continue
-        seen.add(node)
+        seen.add(id(node))
         if node.is_Atom or not node.args:
             found |= node.free_symbols
-        elif type(node).free_symbols is not sympy.Basic.free_symbols:  # a node that binds (an integral)
+        elif _binds(type(node)):  # a node that binds (an integral)
             found |= node.free_symbols
         else:
             stack.extend(node.args)
     return found
+
+
+@functools.lru_cache(maxsize=None)
+def _binds(cls: type) -> bool:
+    """Whether ``cls`` has free symbols of its own rule (an integral binds its variable): the
+    first ``free_symbols`` along its MRO is not ``Basic``'s (a function class's own attribute
+    of that name, its metaclass's, is not the values')."""
+    return next(k for k in cls.__mro__ if "free_symbols" in vars(k)) is not sympy.Basic
 
 
 NAME_PREFIX = "w"
@@ -129,6 +139,8 @@ def _uses(exprs, names: set) -> dict:
 def _repeats(exprs, coordinates) -> bool:
     """Whether a root, a non-integer power or a function other than sine and cosine of
     the coordinates occurs twice: the subexpressions worth a name (a chain has none)."""
+    if not _any_of_a_named_kind(exprs):
+        return False
     # one that occurs twice is met again inside some subexpression met twice: each distinct
     # subexpression is walked once, and one met again asked whether it holds one
     holds: dict = {}
@@ -148,6 +160,23 @@ def _repeats(exprs, coordinates) -> bool:
                 return True
             continue
         seen.add(node)
+        stack.extend(node.args)
+    return False
+
+
+def _any_of_a_named_kind(exprs) -> bool:
+    """Whether some subexpression of ``exprs`` is a non-integer power or a function other than
+    sine and cosine (of anything), each object walked once, told apart by identity."""
+    seen: set = set()  # ids of nodes of exprs, alive while they are
+    stack = [e for e in exprs if isinstance(e, sympy.Basic)]
+    while stack:
+        node = stack.pop()
+        if id(node) in seen:
+            continue
+        seen.add(id(node))
+        if (node.is_Pow and not node.exp.is_Integer) or (
+                isinstance(node, sympy.Function) and not isinstance(node, (sympy.sin, sympy.cos))):
+            return True
         stack.extend(node.args)
     return False
 
