@@ -19,6 +19,7 @@ from sympy.core.numbers import mpf_norm
 from sympy.printing.precedence import PRECEDENCE, precedence
 from sympy.printing.str import StrPrinter
 
+from .canonical import plain_factor
 from .sympy_internals import parse_order
 
 _PREC = dps_to_prec(15)
@@ -29,6 +30,7 @@ _SORT_KEYS: dict = {}
 _ORDERED: dict = {}
 """The ordered terms of the sums whose sort keys `_SORT_KEYS` holds."""
 _RATIONALS: dict = {}
+_DESCRIBED: dict = {}
 _REMEMBERED = 100_000
 
 
@@ -93,25 +95,9 @@ def _ordered_terms(expr, order: str) -> list:
     for term in sympy.Add.make_args(expr):
         if term.is_Order:
             return expr.as_ordered_terms(order=order)
-        coeff, rest = term.as_coeff_Mul()
-        value = _complex(coeff)
-        powers, noncommutative = {}, []
-        if rest is not sympy.S.One:
-            for factor in sympy.Mul.make_args(rest):
-                if factor.is_number:
-                    try:
-                        value *= _complex(factor)
-                    except (TypeError, ValueError):
-                        pass
-                    else:
-                        continue
-                if factor.is_commutative:
-                    base, exp = decompose_power(factor)
-                    powers[base] = exp
-                    gens.add(base)
-                else:
-                    noncommutative.append(factor)
-        terms.append((term, (value.real, value.imag), powers, tuple(noncommutative)))
+        coeff, powers, noncommutative = _described(term)
+        gens.update(powers)
+        terms.append((term, coeff, powers, noncommutative))
     index = {g: i for i, g in enumerate(sorted(gens, key=_sort_key))}
     if order == "lex":  # the same order from the exponents that are not zero
         described = [(term, (_lex_key(powers, index), noncommutative, ((bool(coeff[1]), coeff[1]), coeff)))
@@ -125,6 +111,47 @@ def _ordered_terms(expr, order: str) -> list:
         described.append((term, (coeff, tuple(monom), noncommutative)))
     key, reverse = parse_order(order)
     return [term for term, _ in sorted(described, key=key, reverse=reverse)]
+
+
+def _described(term) -> tuple:
+    """``((re, im), powers, noncommutative)`` of a term of a sum, as ``Expr.as_terms`` describes
+    it: its coefficient's value (times its factors that are numbers), the exponent of each
+    other commutative factor's base, its non-commutative factors; remembered (the sums of a
+    large system share their terms: a chain's masses), not to be changed."""
+    key = (type(term), term)
+    described = _DESCRIBED.get(key)
+    if described is None:
+        if len(_DESCRIBED) > _REMEMBERED:
+            _DESCRIBED.clear()
+        described = _DESCRIBED[key] = _description(term)
+    return described
+
+
+def _description(term) -> tuple:
+    """`_described`, made."""
+    coeff, rest = term.as_coeff_Mul()
+    value = _complex(coeff)
+    powers, noncommutative = {}, []
+    if rest is not sympy.S.One:
+        for factor in sympy.Mul.make_args(rest):
+            if factor.is_number:
+                try:
+                    value *= _complex(factor)
+                except (TypeError, ValueError):
+                    pass
+                else:
+                    continue
+            if factor.is_commutative:
+                base, exp = decompose_power(factor)
+                powers[base] = exp
+            else:
+                noncommutative.append(factor)
+    return (value.real, value.imag), powers, tuple(noncommutative)
+
+
+def _lex_order(coeff: tuple, powers: dict, index: dict) -> tuple:
+    """The key of a commutative term in ``lex`` order (`_described_lex`)."""
+    return _lex_key(powers, index), (), ((bool(coeff[1]), coeff[1]), coeff)
 
 
 _ENDED = (0.5,)
@@ -275,6 +302,139 @@ class RememberingStr(Remembering):
         level = self._precedence(expr)
         text = "*".join([self.parenthesize(f, level, strict=False) for f in numerator] or ["1"])
         return sign + text + (f"/{denominator}" if denominator != 1 else "")
+
+
+    def sum_of_products(self, products, others=()) -> str:
+        """``self._print(sympy.Add(*[sympy.Mul(c, entry, *extra) for entry, c, extra in products],
+        *others))``, the products and the sum not formed where sympy's rules leave nothing to
+        do but order (distinct factors, distinct terms): each product's factors are its entry's,
+        sorted and printed once, with the ``extra`` ones (symbols or their positive powers, of
+        bases the entry has not) put in their places, and the terms ordered by their exponents
+        (`ordered_terms`). ``c`` is rational; ``others`` are terms (not sums). A large system's
+        ``Mbar qddot + hbar`` and kinetic energy are such sums of its printed entries."""
+        def formed() -> str:
+            return self._print(sympy.Add(*[sympy.Mul(c, e, *x) for e, c, x in products], *others))
+
+        if self._settings.get("order") != "lex":
+            return formed()
+        terms = []  # (coefficient's value, powers, text, precedence)
+        for entry, coefficient, extra in products:
+            if (entry.is_Number and entry.is_zero) or coefficient == 0:
+                continue
+            term = self._product_term(entry, coefficient, extra)
+            if term is None:
+                product = sympy.Mul(coefficient, entry, *extra)
+                if product.is_Add or product.is_Number or product.is_Order or not product.is_commutative:
+                    return formed()
+                term = self._described_term(product)
+            terms.append(term)
+        for other in others:
+            if other.is_Add or other.is_Number or other.is_Order or not other.is_commutative:
+                return formed()
+            terms.append(self._described_term(other))
+        if not terms or len({frozenset(powers.items()) for _, powers, _, _ in terms}) < len(terms):
+            return formed()  # terms sympy may collect (or none)
+        gens = set()
+        for _, powers, _, _ in terms:
+            gens.update(powers)
+        index = {g: i for i, g in enumerate(sorted(gens, key=_sort_key))}
+        parts = []
+        for _, _, text, level in sorted(terms, key=lambda t: _lex_order(t[0], t[1], index)):
+            sign = "+"
+            if text.startswith("-"):
+                sign, text = "-", text[1:]
+            if level < _ADD:
+                text = f"({text})"
+            parts.append(f"{sign} {text}")
+        joined = " ".join(parts)
+        return joined[2:] if joined.startswith("+ ") else joined[0] + joined[2:]
+
+    def _described_term(self, term) -> tuple:
+        """``(coefficient's value, powers, text, precedence)`` of a commutative term of a sum."""
+        coeff, powers, _ = _described(term)
+        return coeff, powers, self._print(term), self._precedence(term)
+
+    def _product_term(self, entry, coefficient, extra) -> tuple | None:
+        """`_described_term` of ``sympy.Mul(coefficient, entry, *extra)`` from the entry's
+        remembered factors (`_entry_factors`), without forming the product; None where it
+        does not apply (the product is then formed)."""
+        form = self._entry_factors(entry)
+        if form is None or not extra:
+            return None
+        own, factors, powers = form
+        coeff = coefficient * own
+        if not coeff.is_Rational or coeff == 0 or len(factors) + len(extra) < 2:
+            return None
+        # StrPrinter._print_Mul by `_plain_product`: the sign in front, the factors by their
+        # sort keys, the coefficient's numerator among them by its key, its denominator after
+        level = _ADD if coeff.p < 0 else _MUL
+        items = list(self._printed_factors(entry, factors, level))
+        powers = dict(powers)
+        for factor in extra:
+            if not (factor.is_Symbol or (factor.is_Pow and factor.base.is_Symbol and factor.exp.is_Integer
+                                         and factor.exp > 0)) or not factor.is_commutative:
+                return None
+            base, exp = decompose_power(factor)
+            if base in powers:
+                return None
+            powers[base] = exp
+            items.append((_sort_key(factor), self.parenthesize(factor, level, strict=False)))
+        size = abs(coeff)
+        if size != 1:
+            items.append((_sort_key(size), self._print(sympy.Integer(size.p)) if size.p != 1 else ""))
+        items.sort(key=_first)
+        if any(a[0] == b[0] for a, b in zip(items, items[1:])):
+            return None  # factors sympy's key does not tell apart: the product's own order decides
+        text = "*".join([t for _, t in items if t] or ["1"])
+        text = ("-" if coeff.p < 0 else "") + text + (f"/{size.q}" if size.q != 1 else "")
+        value = _complex(coeff)
+        return (value.real, value.imag), powers, text, level
+
+    def _printed_factors(self, entry, factors, level: int) -> tuple:
+        """``(sort key, printed form in a product of precedence level)`` of each of the entry's
+        factors, remembered."""
+        memo = self.__dict__.setdefault("_entry_texts", {})
+        key = (type(entry), entry, level)
+        printed = memo.get(key)
+        if printed is None:
+            printed = memo[key] = tuple((k, self.parenthesize(f, level, strict=False)) for k, f in factors)
+        return printed
+
+    def _entry_factors(self, entry):
+        """``(coefficient, [(sort key, factor)...], powers)`` of a rational, a product of a
+        rational and factors ``Mul`` keeps as they are, or one such factor, remembered; None
+        for anything else (a number among the factors, a reciprocal, a factor with a precedence
+        of its own, a non-commutative one)."""
+        memo = self.__dict__.setdefault("_entry_forms", {})
+        key = (type(entry), entry)
+        if key in memo:
+            return memo[key]
+        form = None
+        if entry.is_Rational:
+            form = entry, (), {}
+        else:
+            own, factors = sympy.S.One, (entry,)
+            if entry.is_Mul:
+                own, rest = entry.as_coeff_Mul()
+                factors = sympy.Mul.make_args(rest)
+            powers = {}
+            for factor in factors:
+                if not (factor.is_Add or plain_factor(factor)) or factor.is_number or not factor.is_commutative \
+                        or hasattr(factor, "precedence") or (factor.is_Pow and factor.exp.as_coeff_Mul()[0] < 0):
+                    break
+                base, exp = decompose_power(factor)
+                if base in powers:
+                    break
+                powers[base] = exp
+            else:
+                if own.is_Rational:
+                    form = own, tuple((_sort_key(f), f) for f in factors), powers
+        memo[key] = form
+        return form
+
+
+def _first(item):
+    return item[0]
 
 
 class LexStrPrinter(RememberingStr, StrPrinter):
