@@ -319,7 +319,7 @@ class RememberingStr(Remembering):
             return formed()
         terms = []  # (coefficient's value, powers, text, precedence)
         for entry, coefficient, extra in products:
-            if (entry.is_Number and entry.is_zero) or coefficient == 0:
+            if (entry.is_Number and entry.is_zero) or coefficient.is_zero:
                 continue
             term = self._product_term(entry, coefficient, extra)
             if term is None:
@@ -363,7 +363,7 @@ class RememberingStr(Remembering):
             return None
         own, factors, powers = form
         coeff = coefficient * own
-        if not coeff.is_Rational or coeff == 0 or len(factors) + len(extra) < 2:
+        if not coeff.is_Rational or not coeff.p or len(factors) + len(extra) < 2:
             return None
         # StrPrinter._print_Mul by `_plain_product`: the sign in front, the factors by their
         # sort keys, the coefficient's numerator among them by its key, its denominator after
@@ -371,16 +371,14 @@ class RememberingStr(Remembering):
         items = list(self._printed_factors(entry, factors, level))
         powers = dict(powers)
         for factor in extra:
-            if not (factor.is_Symbol or (factor.is_Pow and factor.base.is_Symbol and factor.exp.is_Integer
-                                         and factor.exp > 0)) or not factor.is_commutative:
+            printed = self._extra_factor(factor, level)
+            if printed is None or printed[0] in powers:
                 return None
-            base, exp = decompose_power(factor)
-            if base in powers:
-                return None
+            base, exp, item = printed
             powers[base] = exp
-            items.append((_sort_key(factor), self.parenthesize(factor, level, strict=False)))
-        size = abs(coeff)
-        if size != 1:
+            items.append(item)
+        size = -coeff if coeff.p < 0 else coeff
+        if size.p != 1 or size.q != 1:
             items.append((_sort_key(size), self._print(sympy.Integer(size.p)) if size.p != 1 else ""))
         items.sort(key=_first)
         if any(a[0] == b[0] for a, b in zip(items, items[1:])):
@@ -389,6 +387,19 @@ class RememberingStr(Remembering):
         text = ("-" if coeff.p < 0 else "") + text + (f"/{size.q}" if size.q != 1 else "")
         value = _complex(coeff)
         return (value.real, value.imag), powers, text, level
+
+    def _extra_factor(self, factor, level: int) -> tuple | None:
+        """``(base, exponent, (sort key, printed form in a product of precedence level))`` of a
+        symbol or its positive integer power, remembered; None for anything else."""
+        memo = self.__dict__.setdefault("_extra_factors", {})
+        key = (type(factor), factor, level)
+        if key not in memo:
+            memo[key] = None
+            if (factor.is_Symbol or (factor.is_Pow and factor.base.is_Symbol and factor.exp.is_Integer
+                                     and factor.exp.p > 0)) and factor.is_commutative:
+                base, exp = decompose_power(factor)
+                memo[key] = base, exp, (_sort_key(factor), self.parenthesize(factor, level, strict=False))
+        return memo[key]
 
     def _printed_factors(self, entry, factors, level: int) -> tuple:
         """``(sort key, printed form in a product of precedence level)`` of each of the entry's
