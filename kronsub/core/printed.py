@@ -303,7 +303,6 @@ class RememberingStr(Remembering):
         text = "*".join([self.parenthesize(f, level, strict=False) for f in numerator] or ["1"])
         return sign + text + (f"/{denominator}" if denominator != 1 else "")
 
-
     def sum_of_products(self, products, others=()) -> str:
         """``self._print(sympy.Add(*[sympy.Mul(c, entry, *extra) for entry, c, extra in products],
         *others))``, the products and the sum not formed where sympy's rules leave nothing to
@@ -319,7 +318,7 @@ class RememberingStr(Remembering):
             return formed()
         terms = []  # (coefficient's value, powers, text, precedence)
         for entry, coefficient, extra in products:
-            if (entry.is_Number and entry.is_zero) or coefficient.is_zero:
+            if entry is sympy.S.Zero or coefficient is sympy.S.Zero:  # (as the sum drops them)
                 continue
             term = self._product_term(entry, coefficient, extra)
             if term is None:
