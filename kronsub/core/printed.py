@@ -7,8 +7,10 @@ sum by a key that turns each coefficient into a complex number through ``evalf``
 sum's terms by sympy's own key with rational coefficients converted exactly and
 directly. `RememberingStr` (the ``str`` form) also orders a product's factors by sort
 keys it remembers, builds the keys of sums and function values from their parts, and
-remembers each node's precedence. ``tests/test_printed.py`` checks them against sympy's
-printers and keys.
+remembers each node's precedence, and prints a sum of products of entries and velocities
+(a large system's ``Mbar qddot + hbar`` and kinetic energy) from the entries' printed factors,
+without forming the products or the sum (`RememberingStr.sum_of_products`).
+``tests/test_printed.py`` checks them against sympy's printers and keys.
 """
 from __future__ import annotations
 
@@ -310,7 +312,7 @@ class RememberingStr(Remembering):
         sorted and printed once, with the ``extra`` ones (symbols or their positive powers, of
         bases the entry has not) put in their places, and the terms ordered by their exponents
         (`ordered_terms`). ``c`` is rational; ``others`` are terms (not sums). A large system's
-        ``Mbar qddot + hbar`` and kinetic energy are such sums of its printed entries."""
+        ``Mbar qddot + hbar`` (10') and kinetic energy (24) are such sums of its printed entries."""
         def formed() -> str:
             return self._print(sympy.Add(*[sympy.Mul(c, e, *x) for e, c, x in products], *others))
 
