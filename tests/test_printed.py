@@ -12,6 +12,7 @@ from sympy.printing.str import StrPrinter
 
 import kronsub
 from helpers.expressions import random_coefficient, random_sum
+from helpers.expressions import x as ATOM_X, y as ATOM_Y
 from kronsub.core.printed import LexStrPrinter, _complex, _sort_key, ordered_terms
 from kronsub.core.simplify import _factor_terms_of
 from kronsub.emitters.latex_layout import LatexPrinter
@@ -145,3 +146,51 @@ def test_factor_terms_of_a_product_is_sympys(seed):
         expected = sympy.factor_terms(e)
         got = _factor_terms_of(e)
         assert got == expected and sympy.srepr(got) == sympy.srepr(expected), sympy.srepr(e)
+
+
+def _random_entry(rng):
+    """An entry of a projected metric's kind: a product of symbols, sums, sines and cosines
+    with a rational coefficient, or one factor, a rational, zero, or (for the formed route)
+    a reciprocal, a root, a float or an exponential among the factors."""
+    x, y = ATOM_X, ATOM_Y  # (a symbol named as another but of other assumptions would tie in sympy's key)
+    m, l = sympy.symbols("m l")
+    factors = [x, y, m, l, m + 2 * l, sympy.cos(x - y), sympy.sin(x), l ** 2, (m + l) ** 2, 1 / (m + l),
+               sympy.sqrt(1 - x ** 2), sympy.exp(y), sympy.Float(0.5), sympy.sqrt(2), sympy.Symbol("x_dot")]
+    kind = rng.randrange(10)
+    if kind == 0:
+        return rng.choice([sympy.S.Zero, sympy.Integer(3), sympy.Rational(-2, 5)])
+    if kind == 1:
+        return rng.choice(factors)
+    coefficient = rng.choice([1, 1, -1, 2, sympy.Rational(1, 2), sympy.Rational(-3, 4), sympy.Rational(5, 3)])
+    return sympy.Mul(coefficient, *rng.sample(factors, rng.randint(1, 4)))
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_sum_of_products_prints_the_sum_sympy_forms(seed):
+    """Sums of an entry times velocities (``Mbar qddot + hbar``, ``T``) printed from the entries'
+    factors against sympy's printing of the sum formed, including the cases it hands back
+    to the formed sum (like terms, a number, a velocity the entry holds)."""
+    rng = random.Random(500 + seed)
+    v = sympy.symbols("x_dot y_dot q_ddot")
+    extras = [(v[0],), (v[1],), (v[2],), (v[0], v[1]), (v[0] ** 2,), (v[1] ** 2, v[2]), ()]
+    printer = ModelStrPrinter()  # one for all: what it remembers must not leak between sums
+    for _ in range(300):
+        products = [(_random_entry(rng), sympy.Rational(rng.choice([1, 1, 1, -1, 2]), rng.choice([1, 1, 2])),
+                     rng.choice(extras)) for _ in range(rng.randint(0, 6))]
+        others = [t for t in sympy.Add.make_args(random_sum(rng, depth=1)) if rng.random() < 0.5]
+        formed = sympy.Add(*[sympy.Mul(c, e, *x) for e, c, x in products], *others)
+        assert printer.sum_of_products(products, others) == _ForgetfulModelPrinter().doprint(formed), formed
+
+
+@pytest.mark.parametrize("name", MODELS)
+def test_equations_and_kinetic_energy_printed_from_entries_as_formed(name):
+    """The report's ``Mbar qddot + hbar`` and ``T`` by the printer's sums of products equal
+    the same sums formed and printed (the LaTeX report's route)."""
+    from kronsub.emitters.report import build_report, sum_printer
+
+    system = _derived(name)
+    printer = ModelStrPrinter()
+    direct = build_report(system, printer.doprint, sums=printer.sum_of_products)
+    formed = build_report(system, ModelStrPrinter().doprint, sums=sum_printer(ModelStrPrinter().doprint))
+    assert direct["equations"] == formed["equations"]
+    assert direct["kinetic_energy"] == formed["kinetic_energy"]

@@ -27,7 +27,7 @@ from .sympy_internals import (add_from_args, args_sortkey, basic_new, hashable_c
 _ONE, _ZERO = sympy.S.One, sympy.S.Zero
 
 
-def _plain(factor: sympy.Expr) -> bool:
+def plain_factor(factor: sympy.Expr) -> bool:
     """A factor ``Mul`` keeps as it is: a symbol, a function value, or a power of one,
     or a power of a sum with a non-unit exponent."""
     if factor.is_Pow:
@@ -128,7 +128,7 @@ def mul(coefficient: sympy.Rational, factors: list[sympy.Expr]) -> sympy.Expr:
     for f in factors:
         if f.is_Add:
             base = f
-        elif _plain(f):
+        elif plain_factor(f):
             base = f.base if f.is_Pow else f
         else:
             return sympy.Mul(coefficient, *factors)
@@ -187,4 +187,4 @@ def add(terms: list[sympy.Expr]) -> sympy.Expr:
     return add_from_args(flat)
 
 
-__all__ = ["add", "function", "matrix", "mul", "nonzero", "ones_at", "order_key", "total"]
+__all__ = ["add", "function", "matrix", "mul", "nonzero", "ones_at", "order_key", "plain_factor", "total"]

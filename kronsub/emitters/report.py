@@ -6,6 +6,7 @@ Like the paper: the primitive metric and forces (16), (17), the connection
 """
 from __future__ import annotations
 
+import functools
 from itertools import count
 from typing import Callable, Iterable, Mapping
 
@@ -14,7 +15,7 @@ from markupsafe import Markup
 from sympy.printing.str import StrPrinter
 
 from ..core.known_system import KnownSystem
-from ..core.canonical import mul
+from ..core.canonical import add, mul
 from ..core.printed import RememberingStr
 from ..core.rheonomic import depends_on_time, project_frozen
 from ..core.operations import count_ops
@@ -91,23 +92,32 @@ def model_names(system: KnownSystem) -> frozenset[str]:
 
 
 def _free_symbols(exprs) -> set:
-    """The free symbols of ``exprs``, each distinct subexpression walked once (the entries of a
-    large system share their sums: ``free_symbols`` would walk them in every entry)."""
-    seen: set = set()
+    """The free symbols of ``exprs``, each subexpression object walked once (the entries of a
+    large system share their sums: ``free_symbols`` would walk them in every entry), told apart
+    by identity (an equal copy is walked again, in less time than ``==`` compares the two)."""
+    seen: set = set()  # ids of nodes of exprs, alive while they are
     found: set = set()
     stack = [e for e in exprs if isinstance(e, sympy.Basic)]
     while stack:
         node = stack.pop()
-        if node in seen:
+        if id(node) in seen:
             continue
-        seen.add(node)
+        seen.add(id(node))
         if node.is_Atom or not node.args:
             found |= node.free_symbols
-        elif type(node).free_symbols is not sympy.Basic.free_symbols:  # a node that binds (an integral)
+        elif _binds(type(node)):  # a node that binds (an integral)
             found |= node.free_symbols
         else:
             stack.extend(node.args)
     return found
+
+
+@functools.lru_cache(maxsize=None)
+def _binds(cls: type) -> bool:
+    """Whether ``cls`` has free symbols of its own rule (an integral binds its variable): the
+    first ``free_symbols`` along its MRO is not ``Basic``'s (a function class's own attribute
+    of that name, its metaclass's, is not the values')."""
+    return next(k for k in cls.__mro__ if "free_symbols" in vars(k)) is not sympy.Basic
 
 
 NAME_PREFIX = "w"
@@ -129,6 +139,8 @@ def _uses(exprs, names: set) -> dict:
 def _repeats(exprs, coordinates) -> bool:
     """Whether a root, a non-integer power or a function other than sine and cosine of
     the coordinates occurs twice: the subexpressions worth a name (a chain has none)."""
+    if not _any_of_a_named_kind(exprs):
+        return False
     # one that occurs twice is met again inside some subexpression met twice: each distinct
     # subexpression is walked once, and one met again asked whether it holds one
     holds: dict = {}
@@ -148,6 +160,23 @@ def _repeats(exprs, coordinates) -> bool:
                 return True
             continue
         seen.add(node)
+        stack.extend(node.args)
+    return False
+
+
+def _any_of_a_named_kind(exprs) -> bool:
+    """Whether some subexpression of ``exprs`` is a non-integer power or a function other than
+    sine and cosine (of anything), each object walked once, told apart by identity."""
+    seen: set = set()  # ids of nodes of exprs, alive while they are
+    stack = [e for e in exprs if isinstance(e, sympy.Basic)]
+    while stack:
+        node = stack.pop()
+        if id(node) in seen:
+            continue
+        seen.add(id(node))
+        if (node.is_Pow and not node.exp.is_Integer) or (
+                isinstance(node, sympy.Function) and not isinstance(node, (sympy.sin, sympy.cos))):
+            return True
         stack.extend(node.args)
     return False
 
@@ -237,7 +266,7 @@ def current_latex(name: str) -> str:
 
 
 def matrix_rows(matrix: sympy.Matrix, show: Printer) -> list[list[str]]:
-    return [[show(matrix[i, j]) for j in range(matrix.cols)] for i in range(matrix.rows)]
+    return [[show(e) for e in row] for row in matrix.tolist()]
 
 
 def _once(show: Printer) -> Printer:
@@ -255,16 +284,33 @@ def _once(show: Printer) -> Printer:
     return once
 
 
+Products = list
+"""Terms ``(entry, coefficient, factors)``: the product ``coefficient * entry * prod(factors)``."""
+SumPrinter = Callable[[Products, Iterable[sympy.Expr]], str]
+"""The printed sum of the products and other terms (`sum_printer`)."""
+
+
 def kinetic_energy(mass: sympy.Matrix, velocities) -> sympy.Expr:
-    """``T = 1/2 Mbar_ab qdot^a qdot^b`` as the paper prints (24): one term for each entry of the
-    upper triangle, ``Mbar_aa qdot_a^2 / 2`` and ``Mbar_ab qdot_a qdot_b``, the entries as printed
+    """``T = 1/2 Mbar_ab qdot^a qdot^b`` as the paper prints (24), `kinetic_terms` added."""
+    return add([_product(entry, *factors, coefficient=c) for entry, c, factors in kinetic_terms(mass, velocities)])
+
+
+def kinetic_terms(mass, velocities) -> Products:
+    """The terms of ``T = 1/2 Mbar_ab qdot^a qdot^b`` (24): one for each entry of the upper
+    triangle, ``Mbar_aa qdot_a^2 / 2`` and ``Mbar_ab qdot_a qdot_b``, the entries as printed
     (not multiplied out: a chain's entries hold sums of masses, whose products with the
-    velocities would be far longer to print, and to make)."""
+    velocities would be far longer to print, and to make); ``mass`` a list of rows."""
     half = sympy.Rational(1, 2)
     n = len(velocities)
-    return sympy.Add(*[_product(mass[a, a], velocities[a] ** 2, coefficient=half) if a == b  # 1/2 not distributed
-                       else _product(mass[a, b], velocities[a], velocities[b])
-                       for a in range(n) for b in range(a, n) if mass[a, b] != 0])
+    return [(mass[a][a], half, (velocities[a] ** 2,)) if a == b  # 1/2 not distributed
+            else (mass[a][b], sympy.S.One, (velocities[a], velocities[b]))
+            for a in range(n) for b in range(a, n) if mass[a][b] != 0]
+
+
+def sum_printer(show: Printer) -> SumPrinter:
+    """The printed sum of products and other terms: ``show`` of the sum formed."""
+    return lambda products, others: show(add([*[_product(entry, *factors, coefficient=c)
+                                                 for entry, c, factors in products], *others]))
 
 
 def _product(entry: sympy.Expr, *factors: sympy.Expr, coefficient: sympy.Rational = sympy.S.One) -> sympy.Expr:
@@ -293,14 +339,19 @@ def with_names(expr: sympy.Expr, where: list) -> sympy.Expr:
     return expr.subs(sorted(pairs, key=lambda pair: -count_ops(pair[0]))) if pairs else expr
 
 
-def build_report(system: KnownSystem, show: Printer, named: bool = True, names: frozenset[str] | None = None) -> dict:
+def build_report(system: KnownSystem, show: Printer, named: bool = True, names: frozenset[str] | None = None,
+                 sums: SumPrinter | None = None) -> dict:
     """The derivation as nested lists of printed strings, in a fixed order.
 
     With ``named``, subexpressions repeated across the projected system and the equations
     are printed once, in ``where`` (:func:`named_subexpressions`), under names other than
-    the model's (``names``: :func:`model_names`, when the caller has them already).
+    the model's (``names``: :func:`model_names`, when the caller has them already). ``sums``
+    prints the equations' left-hand sides and the kinetic energy from the entries' terms
+    (the printer's own, such as `ModelStrPrinter.sum_of_products`, that need not form them;
+    :func:`sum_printer` of ``show`` when not given).
     """
     show = _once(show)
+    sums = sums or sum_printer(show)
     tr = system.transition
     n = len(system.coordinates)
     effects = list(system.effect_forces.items())
@@ -317,23 +368,25 @@ def build_report(system: KnownSystem, show: Printer, named: bool = True, names: 
         mass[i, j] = mass[j, i] = e
     hbar, fbar = exprs[len(upper):len(upper) + n], exprs[len(upper) + n:]
     named_as = {e: s for s, e in where}
-    others = [kinetic_energy(mass, system.velocities), system.potential_energy.xreplace(named_as),
-              *[with_names(e, where) for _, f in effects for e in f]]
-    it = iter(others[2:])
+    others = [system.potential_energy.xreplace(named_as), *[with_names(e, where) for _, f in effects for e in f]]
+    it = iter(others[1:])
     take = lambda k: [next(it) for _ in range(k)]  # noqa: E731
-    accelerations = sympy.Matrix(system.accelerations)
-    # Mbar qddot + hbar, each row one sum (the matrix product adds its terms one at a time)
-    lhs = [sympy.Add(*[_product(mass[i, j], accelerations[j]) for j in range(n)], hbar[i]) for i in range(n)]
+    rows = mass.tolist()
+    accelerations = system.accelerations
+    one = sympy.S.One
     report = {
         **report_head(system, show),
         "mass_matrix": matrix_rows(mass, show),
         "velocity_terms": [show(e) for e in hbar],
         "forces": [show(e) for e in fbar],
         "effects": [{"name": k, "forces": [show(e) for e in take(len(f))]} for k, f in effects],
-        "kinetic_energy": show(others[0]),
-        "potential_energy": show(others[1]),
-        "accelerations": [show(a) for a in system.accelerations],
-        "equations": [{"lhs": show(lhs[i]), "rhs": show(fbar[i])} for i in range(n)],
+        "kinetic_energy": sums(kinetic_terms(rows, system.velocities), ()),
+        "potential_energy": show(others[0]),
+        "accelerations": [show(a) for a in accelerations],
+        # Mbar qddot + hbar, each row one sum (the matrix product adds its terms one at a time)
+        "equations": [{"lhs": sums([(e, one, (a,)) for e, a in zip(rows[i], accelerations)],
+                                   () if hbar[i] == 0 else sympy.Add.make_args(hbar[i])),
+                       "rhs": show(fbar[i])} for i in range(n)],
         "where": [{"name": show(s), "plain": s.name, "expression": show(e)} for s, e in where],
     }
     if tr is not None:
@@ -440,6 +493,6 @@ def implicit_report(imp, show: Printer) -> dict:
     }
 
 
-__all__ = ["MIN_NAMED_OPS", "ModelStrPrinter", "NAME_PREFIX", "Printer", "build_report", "implicit_report",
-           "kinetic_energy", "latex_printer", "matrix_rows", "model_names", "named_subexpressions", "plain",
-           "plain_printer", "primitive_report", "report_head"]
+__all__ = ["MIN_NAMED_OPS", "ModelStrPrinter", "NAME_PREFIX", "Printer", "Products", "SumPrinter", "build_report",
+           "implicit_report", "kinetic_energy", "kinetic_terms", "latex_printer", "matrix_rows", "model_names",
+           "named_subexpressions", "plain", "plain_printer", "primitive_report", "report_head", "sum_printer"]

@@ -11,7 +11,7 @@ from .escape import Markup, environment, json_document
 from .implicit_speeds import implicit_form, implicit_json, implicit_report, printed_names
 from .latex_layout import WIDTH, lines, measure, unbroken
 from .nonholonomic import speeds_report
-from .report import build_report, latex_printer, model_names, plain_printer
+from .report import ModelStrPrinter, build_report, latex_printer, model_names, plain_printer
 
 
 def template_environment() -> jinja2.Environment:
@@ -52,8 +52,10 @@ def _trusted(show):
 def emit_markdown(system: KnownSystem) -> str:
     """Markdown: the derivation step by step, expressions in sympy's ``str`` form."""
     names = _names(system)
-    show = plain_printer(names, system.printed_names)
-    return template_environment().get_template("derive.md.j2").render(r=_report(system, _trusted(show), names))
+    printer = ModelStrPrinter(names, system.printed_names)
+    r = _report(system, _trusted(printer.doprint), names, lambda products, others: Markup(
+        printer.sum_of_products(products, others)))
+    return template_environment().get_template("derive.md.j2").render(r=r)
 
 
 @collector_paused()  # see kronsub.collector
@@ -75,13 +77,14 @@ def _names(system: KnownSystem) -> frozenset[str]:
     return printed_names(system) if implicit_form(system) else model_names(system)
 
 
-def _report(system: KnownSystem, show, names: frozenset[str] | None = None) -> dict:
+def _report(system: KnownSystem, show, names: frozenset[str] | None = None, sums=None) -> dict:
     """The report, with the equations in the speeds under velocity constraints (in the implicit
     form when their projection is made in numbers, :mod:`.implicit_speeds`); ``names``: the
-    model's, as `_names` gives them, when the caller has them."""
+    model's, as `_names` gives them, when the caller has them; ``sums``: the printer's sums of
+    products (:func:`.report.build_report`)."""
     if implicit_form(system):
         return implicit_report(system, show)
-    r = build_report(system, show, names=names)
+    r = build_report(system, show, names=names, sums=sums)
     if system.speeds is not None:
         r["speeds"] = speeds_report(system, show)
     return r
@@ -92,8 +95,10 @@ def emit_json(system: KnownSystem) -> str:
     """The machine contract: ``Mbar qddot + hbar = fbar`` with sympy ``str`` expressions (in the
     speeds, in the implicit form when their projection is made in numbers: ``speeds_form``)."""
     implicit = implicit_form(system)
-    show = plain_printer(_names(system), system.printed_names)
-    r = implicit_report(system, show, named=False) if implicit else build_report(system, show, named=False)
+    printer = ModelStrPrinter(_names(system), system.printed_names)
+    show = printer.doprint
+    r = implicit_report(system, show, named=False) if implicit else build_report(
+        system, show, named=False, sums=printer.sum_of_products)
     data = {
         "name": r["name"],
         "coordinates": r["coordinate_names"],
