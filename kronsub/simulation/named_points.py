@@ -1,10 +1,11 @@
 """A run's named points in numbers, each compiled from its own expressions.
 
-A named point is an expression of the coordinates (and ``t``): it needs no projection. A system
-whose projection onto the speeds is made in numbers at run time
-(:func:`~kronsub.core.projection_work.projected_in_numbers`) has no generated numpy module, the
-usual home of a run's points (its ``points``); this gives it the same names and values, each point
-lambdified apart, the printed size charged to the work budget as generated code's is.
+A named point is an expression of the coordinates (and ``t``): it needs no projection. For a
+system whose projection onto the speeds is made in numbers at run time
+(:func:`~kronsub.core.projection_work.projected_in_numbers`) a run does not make the generated
+numpy module, the usual home of its points (its ``points``), which is long to write for such a
+system; this gives it the same names and values, each point lambdified apart, the printed size
+charged to the work budget as generated code's is.
 """
 from __future__ import annotations
 
