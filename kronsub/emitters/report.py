@@ -91,24 +91,34 @@ def model_names(system: KnownSystem) -> frozenset[str]:
     return frozenset(names)
 
 
-def _free_symbols(exprs) -> set:
-    """The free symbols of ``exprs``, each subexpression object walked once (the entries of a
-    large system share their sums: ``free_symbols`` would walk them in every entry), told apart
-    by identity (an equal copy is walked again, in less time than ``==`` compares the two)."""
+def _distinct_nodes(exprs, descend=lambda node: True):
+    """The subexpressions of ``exprs``, each object once, told apart by identity (the entries of a
+    large system share their sums; an equal copy is walked again, in less time than ``==``
+    compares the two); the arguments of a node are walked where ``descend(node)``."""
     seen: set = set()  # ids of nodes of exprs, alive while they are
-    found: set = set()
     stack = [e for e in exprs if isinstance(e, sympy.Basic)]
     while stack:
         node = stack.pop()
         if id(node) in seen:
             continue
         seen.add(id(node))
-        if node.is_Atom or not node.args:
-            found |= node.free_symbols
-        elif _binds(type(node)):  # a node that binds (an integral)
-            found |= node.free_symbols
-        else:
+        yield node
+        if descend(node):
             stack.extend(node.args)
+
+
+def _leaf(node) -> bool:
+    """An atom, a node without arguments, or one that binds its variables (an integral)."""
+    return node.is_Atom or not node.args or _binds(type(node))
+
+
+def _free_symbols(exprs) -> set:
+    """The free symbols of ``exprs``, each subexpression object walked once (:func:`_distinct_nodes`:
+    ``free_symbols`` would walk the shared sums in every entry)."""
+    found: set = set()
+    for node in _distinct_nodes(exprs, lambda node: not _leaf(node)):
+        if _leaf(node):
+            found |= node.free_symbols
     return found
 
 
@@ -166,19 +176,10 @@ def _repeats(exprs, coordinates) -> bool:
 
 def _any_of_a_named_kind(exprs) -> bool:
     """Whether some subexpression of ``exprs`` is a non-integer power or a function other than
-    sine and cosine (of anything), each object walked once, told apart by identity."""
-    seen: set = set()  # ids of nodes of exprs, alive while they are
-    stack = [e for e in exprs if isinstance(e, sympy.Basic)]
-    while stack:
-        node = stack.pop()
-        if id(node) in seen:
-            continue
-        seen.add(id(node))
-        if (node.is_Pow and not node.exp.is_Integer) or (
-                isinstance(node, sympy.Function) and not isinstance(node, (sympy.sin, sympy.cos))):
-            return True
-        stack.extend(node.args)
-    return False
+    sine and cosine (of anything), each object walked once (:func:`_distinct_nodes`)."""
+    return any((node.is_Pow and not node.exp.is_Integer)
+               or (isinstance(node, sympy.Function) and not isinstance(node, (sympy.sin, sympy.cos)))
+               for node in _distinct_nodes(exprs))
 
 
 def _worth_a_name(sub, coordinates) -> bool:
