@@ -323,8 +323,7 @@ def check_times(t_end: float | None, dt: float | None) -> None:
     from ..simulation.run import time_problem
 
     for name, given in (("t", t_end), ("dt", dt)):
-        with command_line():
-            why = time_problem(name, given) if given is not None else None
+        why = time_problem(name, given) if given is not None else None
         if why is not None:
             fail(f"Error: {why}", USAGE_ERROR)
 

@@ -40,7 +40,6 @@ from typing import Callable
 import mpmath
 import numpy as np
 
-from ..core.constraints import ConstraintFailure
 from ..core.first_order import zero_rows
 from ..core.held import held_coordinates
 from ..core.known_system import KnownSystem
@@ -359,15 +358,12 @@ def _implicit_cause(system, y0, param, dependent):
 
 def _on_constraints(held, t: float, y: np.ndarray) -> np.ndarray:
     """The state ``y = [x; u]`` at ``t`` with its held coordinates put on their configuration
-    constraints, as a run's rows are (:mod:`kronsub.core.held`): the integrated values of the
-    held coordinates are only Newton's starting guess, whose drift is no error of the motion.
-    Unchanged without held coordinates, or where Newton's method fails."""
+    constraints, as a run's rows are (:meth:`kronsub.core.held.HeldCoordinates.rows`): the
+    integrated values of the held coordinates are only Newton's starting guess, whose drift is no
+    error of the motion. Unchanged without held coordinates, or where they cannot be put there."""
     if held is None or not np.all(np.isfinite(y)):
         return y
-    try:
-        return np.concatenate([held.project(t, y[:len(held.coordinates)]), y[len(held.coordinates):]])
-    except ConstraintFailure:
-        return y
+    return held.rows(t, y[None, :])[0]
 
 
 def measure(system: KnownSystem, values: RunValues, t_end: float, methods: tuple[str, ...],

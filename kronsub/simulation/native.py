@@ -424,8 +424,9 @@ def _build(folder: Path, stem: str, files: list[tuple[str, str]], command: list[
             raise CompileError(f"compiling {stem} took longer than {COMPILE_TIMEOUT:.0f} s") from exc
         if proc.returncode == 0 and lacking(tmp):  # an object made ahead but not whole: all compiled here
             proc, full = _compile_and_link(command, flags, folder, files, tmp, use_ahead=False)
-            if proc.returncode == 0 and lacking(tmp):
-                raise CompileError(f"the library of {stem} lacks {', '.join(lacking(tmp))} after its build")
+            missing = lacking(tmp) if proc.returncode == 0 else []
+            if missing:
+                raise CompileError(f"the library of {stem} lacks {', '.join(missing)} after its build")
         if proc.returncode != 0:
             if not folder.is_dir() or not all((folder / name).is_file() for name in c_files):
                 raise _Vanished

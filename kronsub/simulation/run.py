@@ -22,7 +22,7 @@ from ..core.first_order import zero_rows
 from ..core.held import held_coordinates
 from ..core.known_system import KnownSystem
 from ..core.projection_work import projected_in_numbers
-from ..errors import option
+from ..errors import on_command_line, option
 from .advice import EnergyWarning, StiffnessWarning, energy_advice, is_stiff, stiffness_advice
 from .compiled import native_model
 from .engines import Problem, Steps, engine_of, runner
@@ -97,9 +97,9 @@ def check_tolerances(rtol: float, atol: float) -> None:
     ``rtol`` 0 is refused, not raised quietly to SciPy's floor of 100 eps as SciPy does)."""
     low, high = RTOL_RANGE
     r, a = option("rtol"), option("atol")
-    example = f"e.g. {r} 1e-10 {a} 1e-10" if r.startswith("-") else "e.g. rtol=1e-10, atol=1e-10"
+    example = f"e.g. {r} 1e-10 {a} 1e-10" if on_command_line() else "e.g. rtol=1e-10, atol=1e-10"
     if not low <= rtol <= high:
-        given = f"{r} {low:g}" if r.startswith("-") else f"rtol={low:g}"
+        given = f"{r} {low:g}" if on_command_line() else f"rtol={low:g}"
         raise SimulationError(f"{r} must be a finite tolerance from {low:g} to {high:g} (got {rtol!r})\n"
                               f"  hint: a relative tolerance below {low:g} is under the round-off of doubles "
                               f"(for an error test on {a} alone, give {given}); {example}")
@@ -467,8 +467,9 @@ def _finish(run, rows, bar, native, param, system, constrained, with_energies=Tr
         warnings.warn(StiffnessWarning(stiffness_advice(native, param, run.stats, last_t - first_t, last_t, last_y,
                                                          run.method, [q.name for q in system.coordinates],
                                                          charge_coordinates(system))))
-    if watch is not None and watch.advice():
-        warnings.warn(SingularSpeedsWarning(watch.advice()))
+    crossed = watch.advice() if watch is not None else ""
+    if crossed:
+        warnings.warn(SingularSpeedsWarning(crossed))
     if energy is not None and run.complete and constrained is None and not run.switches:
         advice = energy_advice(native, param, len(system.coordinates), run.method, *energy)
         if advice:
