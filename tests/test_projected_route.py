@@ -75,17 +75,29 @@ def _close(a, b, rtol=1e-12):
     return np.allclose(a, b, rtol=rtol, atol=rtol * max(1.0, float(np.max(np.abs(b)))))
 
 
-def _states(system, count, seed=3):
+def _states(system, count, seed=3, around=False):
+    """Random (t, y, param); ``around``: the model's own parameters each moved by up to 10 %
+    (a machine's inductances are positive definite only near its values)."""
     rng = np.random.default_rng(seed)
     n = len(system.coordinates)
+    values = np.array([float(p.value) for p in system.parameters])
     for _ in range(count):
-        yield rng.uniform(0, 2), rng.uniform(-1.0, 1.0, 2 * n), rng.uniform(0.5, 1.5, len(system.parameters))
+        scale = rng.uniform(0.9, 1.1, len(values)) if around else rng.uniform(0.5, 1.5, len(values))
+        yield rng.uniform(0, 2), rng.uniform(-1.0, 1.0, 2 * n), scale * values if around else scale
 
 
-MODELS_PROJECTED = {
-    "chain4": lambda: chain_yaml(4),
-    "chain5_hinges": lambda: chain_yaml(5, hinges=True),  # springs and dampers: f names x and xdot
-    "spatial2": lambda: spatial_chain_yaml(2),  # rigid bodies: M(x) and h(x, xdot) of the primitive
+MODELS_PROJECTED = {  # name: the model
+    "chain4": lambda: kronsub.load("chain4.yaml", text=chain_yaml(4)),
+    # springs and dampers: f names x and xdot
+    "chain5_hinges": lambda: kronsub.load("chain5_hinges.yaml", text=chain_yaml(5, hinges=True)),
+    # rigid bodies: M(x) and h(x, xdot) of the primitive
+    "spatial2": lambda: kronsub.load("spatial2.yaml", text=spatial_chain_yaml(2)),
+    # inductances that turn with the rotor, a governor's sleeves, a cart, particles: M's entries
+    # of x beside constant ones, entries of C that are constants, sums and products of bases
+    **{path.stem: (lambda path=path: kronsub.load(path)) for path in (
+        MODELS / "electrical" / "machine_pair.yaml", MODELS / "electrical" / "magnetic_suspension.yaml",
+        MODELS / "examples" / "watt_governor.yaml", MODELS / "examples" / "cart_pole.yaml",
+        MODELS / "examples" / "particle_on_sphere.yaml", MODELS / "hoffmann" / "three_particles.yaml")},
 }
 
 
@@ -94,7 +106,7 @@ MODELS_PROJECTED = {
 def test_the_projected_c_computes_the_expanded_equations(name, tmp_path):
     """Mbar = C^T M C, hbar, fbar (9'), (D)-(F) at run time: the derived expressions' values,
     and every right-hand side the expanded C's, at random states."""
-    system = kronsub.load(f"{name}.yaml", text=MODELS_PROJECTED[name]()).derive()
+    system = MODELS_PROJECTED[name]().derive()
     assert applies(system)
     n = len(system.coordinates)
     projected = _library(system, "projected", tmp_path / "projected")
@@ -102,13 +114,14 @@ def test_the_projected_c_computes_the_expanded_equations(name, tmp_path):
     syms = [*system.coordinates, *system.velocities, *(p.symbol for p in system.parameters), sympy.Symbol("t", real=True)]
     symbolic = sympy.lambdify(syms, [system.mass_matrix, system.velocity_terms, system.forces], modules="numpy",
                               dummify=True)
-    for t, y, param in _states(system, 20):
+    for t, y, param in _states(system, 20, around=name not in ("chain4", "chain5_hinges", "spatial2")):
         M, h, f = (np.array(v, float) for v in symbolic(*y, *param, t))
         got, want = _evaluate(projected, n, t, y, param), _evaluate(expanded, n, t, y, param)
         assert _close(got["M"].reshape(n, n), M) and _close(got["h"], h.ravel()) and _close(got["f"], f.ravel())
         assert _close(got["rhs"][n:], np.linalg.solve(M, f.ravel() - h.ravel()), 1e-11)
-        assert set(got) == set(want)
-        for key in want:
+        # the projected C has no circle state where an angle is multiplied in M's entries (cos 2 theta)
+        assert set(got) <= set(want) and set(want) - set(got) <= ({"circle"} if name == "machine_pair" else set())
+        for key in got:
             assert _close(got[key], want[key], 1e-11), key
 
 

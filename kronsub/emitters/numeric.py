@@ -275,6 +275,18 @@ class _Constants:
             return e.func(*rest)
         return e.func(*[self(a) for a in e.args])
 
+    def index(self, e: sympy.Expr) -> int:
+        """The slot of ``pre`` that holds ``e`` (of the parameters alone; a number too)."""
+        if not self._constant(e):
+            raise ValueError(f"{e} is not a constant of the parameters")
+        return int(self._name(e).name[len("pre["):-1])
+
+    def reserve(self, count: int) -> int:
+        """The first of ``count`` slots of ``pre`` that ``prepare`` fills after the definitions."""
+        first = self.count
+        self.count += count
+        return first
+
     def definitions(self) -> tuple[list[str], list[sympy.Expr]]:
         return [s.name for s in self.derived.values()], list(self.derived)
 

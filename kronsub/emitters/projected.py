@@ -50,31 +50,62 @@ class ProjectedCode:
     """The run-time projection's expressions and the sparse patterns of ``C`` and ``M``.
 
     ``c_rows[a]``: the nonzero entries of row ``a`` of ``C`` as (column, index into ``cv``);
-    ``m_rows[a]``: the nonzero entries of row ``a`` of ``M`` as (column, index into ``Mp``);
-    ``terms``: ``Mbar``'s upper triangle as (index ``j n + k``, ``u``, ``v``, index into ``Mw``),
-    ``Mbar_jk`` the sum of ``cv_u cv_v Mw_w`` over its terms."""
+    ``m_rows[a]``: the nonzero entries of row ``a`` of ``M`` as (column, index into ``Mp``).
+    Each distinct entry of ``C`` is a constant (of the parameters) times a base (of the
+    coordinates), ``cv_u = k_u b_u``; the bases follow the entries in ``cv`` (from ``n_entries``).
+    ``metric[t]`` is ``Mbar``'s entry ``t`` of the upper triangle (``j <= k``, row by row) as its
+    groups ``(g, ((b, b'), ...))``, ``pre[weights_from + g]`` times the sum of ``cv_b cv_b'``,
+    and its ``terms`` ``(u, v, w)``, ``cv_u cv_v Mw_w`` where ``M``'s entries depend on ``x``.
+    Group ``g``'s weight ``sum c pre[k] pre[k'] pre[w]`` over ``weights[g]`` is computed once
+    per parameter set (``prepare``). ``row_nodes``/``row_node``: the rows' sums ``sum_s cv[s] qd``
+    over a tree of their shared parts (node ``i`` = node ``parent`` + value times ``qd[column]``);
+    ``column_nodes``/``column_sums``: ``C^T w`` as sums of ``w`` over sets of rows in a tree, each
+    set taken by a (column, value) of ``C``."""
 
     n_primitive: int
-    n_values: int
+    n_subspace: int
+    n_entries: int
+    n_values: int  # entries and bases
     n_metric: int
     n_weights: int
+    weights_from: int
     c_rows: tuple[tuple[tuple[int, int], ...], ...]
     m_rows: tuple[tuple[tuple[int, int], ...], ...]
-    terms: tuple[tuple[int, int, int, int], ...]
-    block: Block  # cv, dv, Mp, Mw, hp, fp
+    metric: tuple[tuple[tuple[tuple[int, tuple[tuple[int, int], ...]], ...], tuple[tuple[int, int, int], ...]], ...]
+    weights: tuple[tuple[tuple[float, int, int, int], ...], ...]
+    row_nodes: tuple[tuple[int, int, int], ...]  # (parent, value, column); node 0 the empty sum
+    row_node: tuple[int, ...]
+    column_nodes: tuple[tuple[int, int], ...]  # (parent, row); node 0 the empty sum
+    column_sums: tuple[tuple[int, int, int], ...]  # (column, value, node)
+    block: Block  # cv (entries, then bases), dv, Mp, Mw, hp, fp
     kinetic: Block  # tp = dT/dx of the primitive (its entries not zero)
 
     @property
-    def tables(self) -> dict[str, list[int]]:
-        """The patterns as the flat arrays of the generated C (rows by their starts)."""
-        out: dict[str, list[int]] = {}
+    def entries(self):
+        """``Mbar``'s upper triangle: (its index, its mirror's, its groups, its terms) in the flat ``Mbar``."""
+        n = self.n_subspace
+        upper = [(j, k) for j in range(n) for k in range(j, n)]
+        return [(j * n + k, k * n + j, *parts) for (j, k), parts in zip(upper, self.metric)]
+
+    @property
+    def tables(self) -> dict[str, list]:
+        """The patterns as the flat arrays of the generated code (rows by their starts)."""
+        out: dict[str, list] = {}
         for name, rows, parts in (("c", self.c_rows, ("column", "value")), ("m", self.m_rows, ("column", "entry"))):
             out[f"{name}_start"] = _starts(rows)
             out[f"{name}_{parts[0]}"] = [e[0] for row in rows for e in row]
             out[f"{name}_{parts[1]}"] = [e[1] for row in rows for e in row]
-        for index, name in enumerate(("target", "u", "v", "weight")):
-            out[f"t_{name}"] = [t[index] for t in self.terms]
-        return out
+        out["w_start"] = _starts(self.weights)
+        for index, name in enumerate(("coefficient", "first", "second", "entry")):
+            out[f"w_{name}"] = [c[index] for g in self.weights for c in g]
+        for index, name in enumerate(("parent", "value", "column")):
+            out[f"rn_{name}"] = [node[index] for node in self.row_nodes]
+        out["row_node"] = list(self.row_node)
+        for index, name in enumerate(("parent", "row")):
+            out[f"cn_{name}"] = [node[index] for node in self.column_nodes]
+        for index, name in enumerate(("column", "value", "node")):
+            out[f"cs_{name}"] = [e[index] for e in self.column_sums]
+        return {k: v or [0] for k, v in out.items()}  # C99 has no empty arrays
 
 
 def _starts(rows) -> list[int]:
@@ -157,17 +188,44 @@ def projected_code(system: KnownSystem, slot: Callable, constants: Callable,
                     if k >= j:
                         key = (u, v) if k > j or u <= v else (v, u)
                         pairs.setdefault((j, k), {}).setdefault(key, []).append(e)
-    weights: dict[sympy.Expr, int] = {}
+    params = {p.symbol for p in system.parameters}
+    # cv_u = c_u K_u b_u: a number, a constant of the parameters (in pre) and the base
+    bases: dict[sympy.Expr, int] = {}
+    factors = []
+    for e in distinct:
+        c, K, base = _split(e, params)
+        factors.append((c, constants.index(slot(K)), bases.setdefault(base, len(bases))))
+    n_entries = len(distinct)
+    weights: dict[sympy.Expr, int] = {}  # the sums of M's entries that depend on x, in Mw
     summed: dict[tuple[int, ...], sympy.Expr] = {}  # the same entries met by many pairs: summed once
-    terms = []
-    for (j, k) in sorted(pairs):
-        for (u, v), es in pairs[j, k].items():
-            met = tuple(sorted(es))
-            w = summed.get(met)
-            if w is None:
-                w = summed[met] = sympy.Add(*[m_exprs[e] for e in met])
-            if w != 0:
-                terms.append((j * n + k, u, v, weights.setdefault(w, len(weights))))
+    groups: dict[tuple, int] = {}  # a group's weight, by its parts (c, k, k', w): one slot each
+    metric = []
+    for j in range(n):
+        for k in range(j, n):
+            by_bases: dict[tuple[int, int], list[tuple]] = {}
+            terms = []
+            for (u, v), es in pairs.get((j, k), {}).items():
+                met = tuple(sorted(es))
+                w = summed.get(met)
+                if w is None:
+                    w = summed[met] = sympy.Add(*[m_exprs[e] for e in met])
+                if w == 0:
+                    continue
+                if not w.free_symbols <= params:
+                    terms.append((u, v, weights.setdefault(w, len(weights))))
+                    continue
+                (cu, ku, bu), (cw, kw, bw) = factors[u], factors[v]
+                key = (min(bu, bw), max(bu, bw))
+                by_bases.setdefault(key, []).append((float(cu * cw), min(ku, kw), max(ku, kw),
+                                                     constants.index(slot(w))))
+            shared_weight: dict[tuple, list[tuple[int, int]]] = {}
+            for key, parts in by_bases.items():
+                shared_weight.setdefault(tuple(sorted(parts)), []).append((n_entries + key[0], n_entries + key[1]))
+            metric.append((tuple((groups.setdefault(parts, len(groups)), tuple(products))
+                                 for parts, products in shared_weight.items()), tuple(terms)))
+    weights_from = constants.reserve(len(groups))
+    row_nodes, row_node = _row_tree(c_rows)
+    column_nodes, column_sums = _column_tree(c_rows, n)
 
     xd = [velocity_symbol(x) for x in xs]
     h = tr.primitive_velocity_terms
@@ -181,9 +239,10 @@ def projected_code(system: KnownSystem, slot: Callable, constants: Callable,
             if x in index:
                 dT[index[x]] += derivative(m_exprs[k], x) * xd[b] * xd[c] * (1 if b == c else 2) / 2
 
-    shared_targets = [f"cv[{u}]" for u in range(len(distinct))] + [f"dv[{u}]" for u in range(len(distinct))] \
-        + [f"Mp[{k}]" for k in range(len(m_exprs))] + [f"Mw[{w}]" for w in range(len(weights))]
-    shared = [constants(slot(e)) for e in distinct] + [constants(slot(e)) for e in rates] \
+    shared_targets = [f"cv[{u}]" for u in range(n_entries + len(bases))] \
+        + [f"dv[{u}]" for u in range(n_entries)] + [f"Mp[{k}]" for k in range(len(m_exprs))] \
+        + [f"Mw[{w}]" for w in range(len(weights))]
+    shared = [constants(slot(e)) for e in [*distinct, *bases]] + [constants(slot(e)) for e in rates] \
         + [image(e) for e in m_exprs] + [image(e) for e in weights]
 
     def vector(name: str, column) -> tuple[list[str], list[sympy.Expr]]:
@@ -195,15 +254,76 @@ def projected_code(system: KnownSystem, slot: Callable, constants: Callable,
     t_targets, t_exprs = vector("tp", dT)
     return ProjectedCode(
         n_primitive=nx,
-        n_values=len(distinct),
+        n_subspace=n,
+        n_entries=n_entries,
+        n_values=n_entries + len(bases),
         n_metric=len(m_exprs),
         n_weights=len(weights),
+        weights_from=weights_from,
         c_rows=tuple(c_rows),
         m_rows=tuple(m_rows),
-        terms=tuple(terms),
+        metric=tuple(metric),
+        weights=tuple(sorted(groups, key=groups.__getitem__)),
+        row_nodes=row_nodes,
+        row_node=row_node,
+        column_nodes=column_nodes,
+        column_sums=column_sums,
         block=block(shared_targets + h_targets + f_targets, shared + h_exprs + f_exprs),
         kinetic=block(t_targets, t_exprs),
     )
+
+
+def _split(e: sympy.Expr, params: set) -> tuple[sympy.Number, sympy.Expr, sympy.Expr]:
+    """``e = c K b``: a number ``c``, a product of parameters ``K`` and the rest ``b`` (1 where
+    ``e`` is constant), so that equal bases of entries that differ by a constant are shared."""
+    factors = sympy.Mul.make_args(e)
+    constant = [f for f in factors if f.free_symbols <= params]
+    base = sympy.Mul(*[f for f in factors if not f.free_symbols <= params])
+    c, K = sympy.Mul(*constant).as_coeff_Mul()
+    return c, K, base
+
+
+def _row_tree(c_rows) -> tuple[tuple[tuple[int, int, int], ...], tuple[int, ...]]:
+    """The rows' sums ``sum_s value_s qd_column_s`` as paths from a root: each row's entries
+    ordered by how many rows share them (then by column), so rows sharing entries share the
+    partial sums of the path to them (a chain's rows below a joint: one addition each)."""
+    shared: dict[tuple[int, int], int] = {}
+    for row in c_rows:
+        for entry in row:
+            shared[entry] = shared.get(entry, 0) + 1
+    nodes, children, ends = [(0, 0, 0)], {}, []
+    for row in c_rows:
+        node = 0
+        for column, value in sorted(row, key=lambda e: (-shared[e], e)):
+            child = children.get((node, column, value))
+            if child is None:
+                child = children[node, column, value] = len(nodes)
+                nodes.append((node, value, column))
+            node = child
+        ends.append(node)
+    return tuple(nodes), tuple(ends)
+
+
+def _column_tree(c_rows, n: int) -> tuple[tuple[tuple[int, int], ...], tuple[tuple[int, int, int], ...]]:
+    """``C^T w`` (8'): ``(C^T w)_j = sum_u cv_u (sum of w_a over the rows a where C_aj = cv_u)``,
+    the sums over the sets of rows as paths from a root, the rows in the order of how many
+    sets hold them (a chain's links below a joint: one addition per set)."""
+    sets: dict[tuple[int, int], list[int]] = {}
+    for a, row in enumerate(c_rows):
+        for column, value in row:
+            sets.setdefault((column, value), []).append(a)
+    held = [len(row) for row in c_rows]
+    nodes, children, sums = [(0, 0)], {}, []
+    for (column, value) in sorted(sets):
+        node = 0
+        for a in sorted(sets[column, value], key=lambda a: (-held[a], a)):
+            child = children.get((node, a))
+            if child is None:
+                child = children[node, a] = len(nodes)
+                nodes.append((node, a))
+            node = child
+        sums.append((column, value, node))
+    return tuple(nodes), tuple(sums)
 
 
 __all__ = ["PROJECTED_FROM", "ROUTES", "ProjectedCode", "applies", "projected_by_size", "projected_code"]
