@@ -24,6 +24,7 @@ compiler's times; these expressions grow with the number of nonzero entries of `
 """
 from __future__ import annotations
 
+import itertools
 from dataclasses import dataclass
 from typing import Callable
 
@@ -43,6 +44,10 @@ expressions), ``projected`` (this module), ``auto`` (by :func:`projected_by_size
 PROJECTED_FROM = 12
 """Coordinates from which ``auto`` takes the projected route (benchmarks/README.md,
 ``first_trajectory.py``): below it the expanded right-hand side is quicker per call."""
+
+PART = 200
+"""Entries of ``Mbar`` in each generated function that forms it: the compiler's time grows
+faster than a function's length."""
 
 
 @dataclass(frozen=True)
@@ -88,6 +93,35 @@ class ProjectedCode:
         return [(j * n + k, k * n + j, *parts) for (j, k), parts in zip(upper, self.metric)]
 
     @property
+    def parts(self):
+        """:attr:`entries` in parts of :data:`PART`, each a function of the generated C."""
+        entries = self.entries
+        return [entries[i:i + PART] for i in range(0, len(entries), PART)]
+
+    @property
+    def row_sums(self):
+        """The rows' tree: (node, its parent, value, column) from node 1 on."""
+        return [(i, *node) for i, node in enumerate(self.row_nodes) if i]
+
+    @property
+    def inertia(self):
+        """``(M Cdot xbardot)_a``: (row ``a``, its terms (index into ``Mp``, node of the rows' tree))."""
+        return [(a, [(e, self.row_node[b]) for b, e in row]) for a, row in enumerate(self.m_rows)]
+
+    @property
+    def set_sums(self):
+        """The tree of the sets of rows: (node, its parent, row) from node 1 on."""
+        return [(i, *node) for i, node in enumerate(self.column_nodes) if i]
+
+    @property
+    def columns(self):
+        """``C^T w``: (column ``j``, its terms (index into ``cv``, node of the sets' tree))."""
+        by_column: list[list[tuple[int, int]]] = [[] for _ in range(self.n_subspace)]
+        for column, value, node in self.column_sums:
+            by_column[column].append((value, node))
+        return list(enumerate(by_column))
+
+    @property
     def tables(self) -> dict[str, list]:
         """The patterns as the flat arrays of the generated code (rows by their starts)."""
         out: dict[str, list] = {}
@@ -98,6 +132,19 @@ class ProjectedCode:
         out["w_start"] = _starts(self.weights)
         for index, name in enumerate(("coefficient", "first", "second", "entry")):
             out[f"w_{name}"] = [c[index] for g in self.weights for c in g]
+        entries = self.entries
+        out["e_upper"] = [e[0] for e in entries]
+        out["e_lower"] = [e[1] for e in entries]
+        out["e_groups"] = list(itertools.accumulate(len(e[2]) for e in entries))
+        out["e_terms"] = list(itertools.accumulate(len(e[3]) for e in entries))
+        groups = [g for e in entries for g in e[2]]
+        out["g_weight"] = [self.weights_from + g for g, _ in groups]
+        out["g_products"] = list(itertools.accumulate(len(products) for _, products in groups))
+        out["p_first"] = [b for _, products in groups for b, _ in products]
+        out["p_second"] = [c for _, products in groups for _, c in products]
+        terms = [t for e in entries for t in e[3]]
+        for index, name in enumerate(("first", "second", "weight")):
+            out[f"r_{name}"] = [t[index] for t in terms]
         for index, name in enumerate(("parent", "value", "column")):
             out[f"rn_{name}"] = [node[index] for node in self.row_nodes]
         out["row_node"] = list(self.row_node)
