@@ -24,7 +24,6 @@ compiler's times; these expressions grow with the number of nonzero entries of `
 """
 from __future__ import annotations
 
-import itertools
 from dataclasses import dataclass
 from typing import Callable
 
@@ -132,26 +131,6 @@ class ProjectedCode:
         out["w_start"] = _starts(self.weights)
         for index, name in enumerate(("coefficient", "first", "second", "entry")):
             out[f"w_{name}"] = [c[index] for g in self.weights for c in g]
-        entries = self.entries
-        out["e_upper"] = [e[0] for e in entries]
-        out["e_lower"] = [e[1] for e in entries]
-        out["e_groups"] = list(itertools.accumulate(len(e[2]) for e in entries))
-        out["e_terms"] = list(itertools.accumulate(len(e[3]) for e in entries))
-        groups = [g for e in entries for g in e[2]]
-        out["g_weight"] = [self.weights_from + g for g, _ in groups]
-        out["g_products"] = list(itertools.accumulate(len(products) for _, products in groups))
-        out["p_first"] = [b for _, products in groups for b, _ in products]
-        out["p_second"] = [c for _, products in groups for _, c in products]
-        terms = [t for e in entries for t in e[3]]
-        for index, name in enumerate(("first", "second", "weight")):
-            out[f"r_{name}"] = [t[index] for t in terms]
-        for index, name in enumerate(("parent", "value", "column")):
-            out[f"rn_{name}"] = [node[index] for node in self.row_nodes]
-        out["row_node"] = list(self.row_node)
-        for index, name in enumerate(("parent", "row")):
-            out[f"cn_{name}"] = [node[index] for node in self.column_nodes]
-        for index, name in enumerate(("column", "value", "node")):
-            out[f"cs_{name}"] = [e[index] for e in self.column_sums]
         return {k: v or [0] for k, v in out.items()}  # C99 has no empty arrays
 
 
@@ -265,11 +244,11 @@ def projected_code(system: KnownSystem, slot: Callable, constants: Callable,
                 key = (min(bu, bw), max(bu, bw))
                 by_bases.setdefault(key, []).append((float(cu * cw), min(ku, kw), max(ku, kw),
                                                      constants.index(slot(w))))
-            shared_weight: dict[tuple, list[tuple[int, int]]] = {}
-            for key, parts in by_bases.items():
-                shared_weight.setdefault(tuple(sorted(parts)), []).append((n_entries + key[0], n_entries + key[1]))
-            metric.append((tuple((groups.setdefault(parts, len(groups)), tuple(products))
-                                 for parts, products in shared_weight.items()), tuple(terms)))
+            by_products: dict[tuple, list[tuple]] = {}  # the groups of equal products: their weights summed
+            for products, parts in _shared_weights(by_bases, list(bases)):
+                by_products.setdefault(tuple(tuple(n_entries + b for b in p) for p in products), []).extend(parts)
+            metric.append((tuple((groups.setdefault(tuple(sorted(parts)), len(groups)), products)
+                                 for products, parts in by_products.items()), tuple(terms)))
     weights_from = constants.reserve(len(groups))
     row_nodes, row_node = _row_tree(c_rows)
     column_nodes, column_sums = _column_tree(c_rows, n)
@@ -328,6 +307,27 @@ def _split(e: sympy.Expr, params: set) -> tuple[sympy.Number, sympy.Expr, sympy.
     base = sympy.Mul(*[f for f in factors if not f.free_symbols <= params])
     c, K = sympy.Mul(*constant).as_coeff_Mul()
     return c, K, base
+
+
+def _shared_weights(by_bases: dict, bases: list) -> list[tuple[tuple[tuple[int, ...], ...], list]]:
+    """The pairs of bases of an entry of ``Mbar`` grouped by their weight (its parts), each group
+    ``(products, parts)``: a product the bases it multiplies, the base 1 left out, and
+    ``cos(a)^2 + sin(a)^2`` under one weight counted as 1."""
+    shared: dict[tuple, list[tuple[int, int]]] = {}
+    for key, parts in by_bases.items():
+        shared.setdefault(tuple(sorted(parts)), []).append(key)
+    out = []
+    for parts, pairs in shared.items():
+        squares = {b for b, c in pairs if b == c}
+        for b in sorted(squares):
+            if isinstance(bases[b], sympy.cos) and b in squares:
+                partner = next((c for c in squares if bases[c] == sympy.sin(bases[b].args[0])), None)
+                if partner is not None:
+                    pairs = [p for p in pairs if p not in ((b, b), (partner, partner))] + [(-1, -1)]
+                    squares -= {b, partner}
+        products = tuple(sorted(tuple(i for i in pair if i >= 0 and bases[i] != 1) for pair in pairs))
+        out.append((products, list(parts)))
+    return out
 
 
 def _row_tree(c_rows) -> tuple[tuple[tuple[int, int, int], ...], tuple[int, ...]]:
