@@ -37,6 +37,14 @@ b. The double pendulum of two uniform rods (System I with its defaults: masses 1
 c. Where the C ``dop853`` time goes: the same integration called from C, from Python through
    ctypes, and the right-hand side's share.
 
+d. The two routes of the generated C per call, the 12- to 30-link chains: ``Mbar``, ``hbar`` and
+   ``fbar`` from the derived expressions (``expanded``, the route of every size when issue 34 was
+   filed) and formed at run time (``projected``, ``kronsub/emitters/projected.py``, what ``auto``
+   takes from ``PROJECTED_FROM`` coordinates on), each in the circle state's right-hand side
+   called by the C harness of a.; min and median over 5 rounds (each the best of 3 loops), and
+   projected / expanded. Goal (issue 34): projected no slower per call than expanded at 20 links.
+   ``--routes`` runs this section alone.
+
 ``--quick`` shortens every loop (and builds PyDy only for n = 2) to finish within a minute.
 """
 from __future__ import annotations
@@ -208,9 +216,9 @@ def random_states(n: int, count: int, seed: int = 1) -> list[np.ndarray]:
 class Harness:
     """The generated C of a system compiled with the integrators and the C timing harness."""
 
-    def __init__(self, system, folder: Path):
+    def __init__(self, system, folder: Path, route: str = "auto"):
         folder.mkdir(parents=True, exist_ok=True)
-        for g in emit_c(system, "model"):
+        for g in emit_c(system, "model", route=route):
             (folder / g.name).write_text(g.text)
         for name in INTEGRATOR_FILES:
             (folder / name).write_text((CSRC / name).read_text())
@@ -586,9 +594,39 @@ def section_pendulum(quick: bool, scratch: Path) -> None:
     print(f"   one ks_rhs call from C: {rhs_ns:.1f} ns (n = 2)")
 
 
+ROUTE_SIZES = (12, 16, 20, 30)
+
+
+def section_routes(quick: bool, scratch: Path) -> None:
+    print("d. The right-hand side per call by route, n-link rod chain, circle state, C harness;")
+    print("   ns per call min/median of 5 rounds; goal: projected <= expanded at n = 20")
+    print()
+    header = f"{'n':>3}  {'expanded':>15}  {'projected':>15}  {'projected/expanded':>19}  build s (exp./proj.)"
+    print(header)
+    print("-" * len(header))
+    for n in ROUTE_SIZES[::2] if quick else ROUTE_SIZES:
+        system, param = chain(n)
+        calls = max(1000, (200_000 if quick else 2_000_000) * 10 // n ** 2)
+        cells, builds = {}, {}
+        for route in ("expanded", "projected"):
+            start = time.perf_counter()
+            harness = Harness(system, scratch / f"route-{route}{n}", route=route)
+            builds[route] = time.perf_counter() - start
+            rounds = sorted(harness.rhs_ns(param, calls, repeats=3, circle=True) for _ in range(5))
+            cells[route] = (rounds[0], rounds[len(rounds) // 2])
+        (e_min, e_med), (p_min, p_med) = cells["expanded"], cells["projected"]
+        verdict = ""
+        if n == 20:
+            verdict = "  met" if p_min <= e_min and p_med <= e_med else "  missed"
+        print(f"{n:>3}  {e_min:>7,.0f}/{e_med:<7,.0f}  {p_min:>7,.0f}/{p_med:<7,.0f}  "
+              f"{p_min / e_min:>9.2f}/{p_med / e_med:<9.2f}  {builds['expanded']:.1f}/{builds['projected']:.1f}{verdict}")
+    print()
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--quick", action="store_true", help="short loops: finishes within a minute")
+    parser.add_argument("--routes", action="store_true", help="section d alone: the routes per call")
     args = parser.parse_args(argv)
     print(f"kronsub {kronsub.__version__}, Python {platform.python_version()}, numpy {np.__version__}, "
           f"sympy {sympy.__version__}, {platform.machine()}, {os.cpu_count()} cores"
@@ -596,8 +634,10 @@ def main(argv=None) -> int:
     print()
     start = time.perf_counter()
     with tempfile.TemporaryDirectory(prefix="kronsub-bench-") as tmp:
-        section_rhs(args.quick, Path(tmp))
-        section_pendulum(args.quick, Path(tmp))
+        if not args.routes:
+            section_rhs(args.quick, Path(tmp))
+            section_pendulum(args.quick, Path(tmp))
+        section_routes(args.quick, Path(tmp))
     print()
     print(f"total {time.perf_counter() - start:.1f} s")
     return 0

@@ -191,3 +191,53 @@ def test_a_simulation_of_a_model_at_the_threshold_keeps_its_energy():
     energy, potential = np.asarray(table["total_energy"]), np.asarray(table["potential_energy"])
     assert len(energy) > 100 and np.ptp(potential) > 1.0  # it moved
     assert np.max(np.abs(energy - energy[0])) < 1e-9 * np.max(np.abs(potential))
+
+
+def _tree_sums(nodes, weight):
+    """Each node's sum along its path from node 0 (the empty sum): ``weight(node)`` per step."""
+    sums = [0.0]
+    for i, node in enumerate(nodes[1:], start=1):
+        sums.append(sums[node[0]] + weight(node))
+    return sums
+
+
+def test_the_trees_of_shared_parts_sum_what_the_rows_and_columns_hold():
+    """``Cdot xbardot`` row by row and ``C^T w`` column by column over the trees of their shared
+    parts equal the plain sums over a random sparse ``C`` whose columns repeat values down rows."""
+    from kronsub.emitters.projected import _column_tree, _row_tree
+
+    rng = np.random.default_rng(7)
+    for _ in range(20):
+        n, nx = int(rng.integers(1, 7)), int(rng.integers(1, 12))
+        rows = [tuple((j, int(rng.integers(0, 2 * n))) for j in range(n) if rng.random() < 0.6) for _ in range(nx)]
+        values, qd, w = rng.normal(size=2 * n), rng.normal(size=n), rng.normal(size=nx)
+        nodes, ends = _row_tree(rows)
+        sums = _tree_sums(nodes, lambda node: values[node[1]] * qd[node[2]])
+        for a, row in enumerate(rows):
+            assert sums[ends[a]] == pytest.approx(sum(values[u] * qd[j] for j, u in row), abs=1e-12)
+        nodes, terms = _column_tree(rows, n)
+        sums = _tree_sums(nodes, lambda node: w[node[1]])
+        got = np.zeros(n)
+        for column, value, node in terms:
+            got[column] += values[value] * sums[node]
+        want = np.zeros(n)
+        for a, row in enumerate(rows):
+            for j, u in row:
+                want[j] += values[u] * w[a]
+        assert np.allclose(got, want, atol=1e-12)
+
+
+def test_a_chain_s_projection_keeps_its_structure():
+    """The 20-link chain: the trees grow with the links, not with C's entries (about n^2); each
+    entry of Mbar off the diagonal is one weight times cos q_j cos q_k + sin q_j sin q_k, and each on
+    it a weight alone (cos^2 + sin^2 = 1, the rod's own inertia added to the same weight)."""
+    from kronsub.emitters.numeric import prepare
+
+    n = 20
+    pj = prepare(kronsub.load("chain20.yaml", text=chain_yaml(n)).derive(), route="projected").projected
+    assert sum(len(row) for row in pj.c_rows) > n * n
+    assert len(pj.row_nodes) <= 5 * n + 1 and len(pj.column_nodes) <= 5 * n + 1
+    for upper, lower, groups, terms in pj.entries:
+        assert not terms
+        ((_, products),) = groups
+        assert products == ((),) if upper == lower else [len(p) for p in products] == [2, 2]

@@ -8,19 +8,24 @@ The transition to the subspace is carried out numerically at every evaluation,
 
 from the primitive's metric ``M``, velocity terms ``h`` and forces ``f`` (blocks of a few
 entries, one per component) and the transformation ``C = dx/dxbar`` (7'), (21), all written as
-short expressions: the distinct entries of ``C`` (``cv``) and their rates ``d C/dt`` (``dv``,
-so ``Cdot xbardot`` and ``Cdot`` are sums over the same pattern), the nonzero entries of ``M``
-(``Mp``), ``h`` and ``f`` (``hp``, ``fp``), the primitive velocities written as ``C xbardot``.
-``Mbar_jk = sum_ab C_aj M_ab C_bk`` is summed over the distinct pairs of values
-``(C_aj, C_bk) = (cv_u, cv_v)``, each with the sum of the ``M_ab`` it meets (``Mw``: for
-constant inertias a constant, which ``prepare`` computes once), so rows of ``C`` equal within
-a column (the links below a joint) are multiplied once.
+short expressions: the distinct entries of ``C`` (``cv``) and their rates ``d C/dt`` (``dv``),
+the nonzero entries of ``M`` (``Mp``), ``h`` and ``f`` (``hp``, ``fp``), the primitive
+velocities written as ``C xbardot``. The structure of ``C`` is kept in the generated code:
+
+* each entry of ``C`` is a number times a constant of the parameters times a base of the
+  coordinates (``l1*cos(q1)/2``: ``1/2``, ``l1``, ``cos(q1)``), so
+  ``Mbar_jk = sum_ab C_aj M_ab C_bk`` is a sum over pairs of bases, each with a weight computed
+  once per parameter set (``prepare``) where ``M``'s entries are constants; pairs under one weight
+  share it (a chain's ``cos q_j cos q_k + sin q_j sin q_k``, and ``cos^2 + sin^2`` is 1);
+* the rows of ``C`` below a joint share its entries, so ``Cdot xbardot`` row by row and
+  ``C^T w`` column by column are sums over trees of their shared parts (one addition per link
+  of a chain, not one per entry).
+
 The canonical form's ``dT/dxbar = Cdot^T M xdot + C^T dT/dx`` (Lagrange's (A) through the
 connection; ``Cdot^a_alpha = d xdot^a / d xbar^alpha``) takes ``dT/dx`` of the primitive
-(``tp``). The sparse patterns of ``C`` and ``M`` become tables the generated loops walk.
-
-The expanded equations grow with the cube of a chain's length and so do ``cse`` and the
-compiler's times; these expressions grow with the number of nonzero entries of ``C``.
+(``tp``) over ``C``'s sparse pattern. The expanded equations grow with the cube of a chain's
+length and so do ``cse`` and the compiler's times; these expressions grow with the number of
+entries of ``Mbar``.
 """
 from __future__ import annotations
 
@@ -42,7 +47,8 @@ expressions), ``projected`` (this module), ``auto`` (by :func:`projected_by_size
 
 PROJECTED_FROM = 12
 """Coordinates from which ``auto`` takes the projected route (benchmarks/README.md,
-``first_trajectory.py``): below it the expanded right-hand side is quicker per call."""
+``first_trajectory.py`` and ``simulate.py --routes``): from about 18 it is also the quicker per
+call; below 12 the expanded equations are emitted and compiled within the cold start's goals."""
 
 PART = 200
 """Entries of ``Mbar`` in each generated function that forms it: the compiler's time grows
@@ -58,10 +64,11 @@ class ProjectedCode:
     Each distinct entry of ``C`` is a constant (of the parameters) times a base (of the
     coordinates), ``cv_u = k_u b_u``; the bases follow the entries in ``cv`` (from ``n_entries``).
     ``metric[t]`` is ``Mbar``'s entry ``t`` of the upper triangle (``j <= k``, row by row) as its
-    groups ``(g, ((b, b'), ...))``, ``pre[weights_from + g]`` times the sum of ``cv_b cv_b'``,
-    and its ``terms`` ``(u, v, w)``, ``cv_u cv_v Mw_w`` where ``M``'s entries depend on ``x``.
+    groups ``(g, products)``, ``pre[weights_from + g]`` times the sum of the products (each the
+    indices into ``cv`` of the bases it multiplies, none for 1), and its ``terms`` ``(u, v, w)``,
+    ``cv_u cv_v Mw_w`` where ``M``'s entries depend on ``x``.
     Group ``g``'s weight ``sum c pre[k] pre[k'] pre[w]`` over ``weights[g]`` is computed once
-    per parameter set (``prepare``). ``row_nodes``/``row_node``: the rows' sums ``sum_s cv[s] qd``
+    per parameter set (``prepare``). ``row_nodes``/``row_node``: the rows' sums ``sum_s v_s qd``
     over a tree of their shared parts (node ``i`` = node ``parent`` + value times ``qd[column]``);
     ``column_nodes``/``column_sums``: ``C^T w`` as sums of ``w`` over sets of rows in a tree, each
     set taken by a (column, value) of ``C``."""
@@ -75,7 +82,7 @@ class ProjectedCode:
     weights_from: int
     c_rows: tuple[tuple[tuple[int, int], ...], ...]
     m_rows: tuple[tuple[tuple[int, int], ...], ...]
-    metric: tuple[tuple[tuple[tuple[int, tuple[tuple[int, int], ...]], ...], tuple[tuple[int, int, int], ...]], ...]
+    metric: tuple[tuple[tuple[tuple[int, tuple[tuple[int, ...], ...]], ...], tuple[tuple[int, int, int], ...]], ...]
     weights: tuple[tuple[tuple[float, int, int, int], ...], ...]
     row_nodes: tuple[tuple[int, int, int], ...]  # (parent, value, column); node 0 the empty sum
     row_node: tuple[int, ...]
@@ -321,7 +328,7 @@ def _shared_weights(by_bases: dict, bases: list) -> list[tuple[tuple[tuple[int, 
         squares = {b for b, c in pairs if b == c}
         for b in sorted(squares):
             if isinstance(bases[b], sympy.cos) and b in squares:
-                partner = next((c for c in squares if bases[c] == sympy.sin(bases[b].args[0])), None)
+                partner = next((c for c in sorted(squares) if bases[c] == sympy.sin(bases[b].args[0])), None)
                 if partner is not None:
                     pairs = [p for p in pairs if p not in ((b, b), (partner, partner))] + [(-1, -1)]
                     squares -= {b, partner}
