@@ -257,7 +257,8 @@ def projected_code(system: KnownSystem, slot: Callable, constants: Callable,
             metric.append((tuple((groups.setdefault(tuple(sorted(parts)), len(groups)), products)
                                  for products, parts in by_products.items()), tuple(terms)))
     weights_from = constants.reserve(len(groups))
-    row_nodes, row_node = _row_tree(c_rows)
+    moving = {u for u, rate in enumerate(rates) if rate != 0}  # Cdot xbardot: the entries that change
+    row_nodes, row_node = _row_tree([tuple(e for e in row if e[1] in moving) for row in c_rows])
     column_nodes, column_sums = _column_tree(c_rows, n)
 
     xd = [velocity_symbol(x) for x in xs]
