@@ -226,7 +226,8 @@ def _context(model: NumericModel, show, declare: str, end: str) -> dict:
 @collector_paused()  # see kronsub.collector
 def emit_c(system: KnownSystem, stem: str, source: str = "", prefix: str = "ks",
            outputs=None, jacobian: bool = False, route: str = "auto", terms_apart: bool = True,
-           canonical: bool = True, circle_apart: bool = False, mass_apart: bool = True) -> list[GeneratedFile]:
+           canonical: bool = True, circle_apart: bool = False, mass_apart: bool = True,
+           metric_apart: bool = False) -> list[GeneratedFile]:
     """``<stem>.h`` and ``<stem>.c`` (``stem`` made safe by :func:`file_stem`): C99, libc and
     libm only; names start with ``<prefix>_`` (macros with ``<PREFIX>_``), so several models
     can live in one program. A scene's ``outputs`` leave out the energy and point functions
@@ -237,7 +238,8 @@ def emit_c(system: KnownSystem, stem: str, source: str = "", prefix: str = "ks",
     library that runs a method on ``y = [q; qdot]`` calls neither). ``circle_apart``: the circle
     state's right-hand side in a file of its own, ``<stem>_circle.c``, so that a build compiles
     the two files side by side (where it stands alone: not with the projection kept for run
-    time, nor with guarded angles left in it). ``mass_apart`` False: ``<prefix>_mass_matrix`` (the
+    time, nor with guarded angles left in it). ``metric_apart``: with the projection kept for run
+    time, ``Mbar``'s entries in a file of their own, ``<stem>_metric.c``, compiled side by side too. ``mass_apart`` False: ``<prefix>_mass_matrix`` (the
     energies', the momentum's) is the equations' block's part for ``Mbar`` instead of a block of its
     own, where that block holds it as it is (:func:`.numeric.prepare`)."""
     if route not in ROUTES:
@@ -272,6 +274,7 @@ def emit_c(system: KnownSystem, stem: str, source: str = "", prefix: str = "ks",
         alone = alone and not circle_printer.near_axis
     ctx["circle"] = [(k, i, model.coordinates[i]) for k, i in enumerate(circle)]
     ctx["circle_apart"] = circle_apart and alone
+    ctx["metric_apart"] = metric_apart and model.projected is not None
     stem = file_stem(stem)
     ctx.update(near_axis=printer.near_axis, ldlt=ldlt_lines(model.nv) if 0 < model.nv <= WRITTEN_OUT else None,
                p=Markup(p), P=Markup(p.upper()), header=Markup(f"{stem}.h"),
@@ -283,6 +286,8 @@ def emit_c(system: KnownSystem, stem: str, source: str = "", prefix: str = "ks",
              GeneratedFile(f"{stem}.c", env.get_template("model.c.j2").render(**ctx))]
     if ctx["circle_apart"]:
         files.append(GeneratedFile(f"{stem}_circle.c", env.get_template("model_circle.c.j2").render(**ctx)))
+    if ctx["metric_apart"]:
+        files.append(GeneratedFile(f"{stem}_metric.c", env.get_template("model_metric.c.j2").render(**ctx)))
     return files
 
 

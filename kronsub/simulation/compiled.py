@@ -129,14 +129,16 @@ def generated_sources(system: KnownSystem, outputs=None, jacobian: bool = False,
     (a run's table takes them from the numpy module), and ``hbar`` and ``fbar`` apart (no run
     calls them), so neither their emission nor their compilation is paid for, ``Mbar`` alone (the
     energies', once per row) the equations' block's part for it rather than eliminated again, and the circle
-    state's right-hand side in a file of its own, compiled beside the rest; ``jacobian``:
+    state's right-hand side and a projection's ``Mbar`` kept for run time in files of their own, compiled
+    beside the rest; ``jacobian``:
     with the exact ``d ydot/dy`` (``ks_jacobian``); ``canonical``: with the canonical
     right-hand side (:data:`.native.CANONICAL_METHODS` integrate it)."""
     from ..emitters.code import emit_c  # heavy (jinja2, the C printer): only when the index misses
 
     computed = dataclasses.replace(outputs or Outputs(), points=())
     return [(g.name, g.text) for g in emit_c(system, "model", outputs=computed, jacobian=jacobian, terms_apart=False,
-                                             canonical=canonical, circle_apart=True, mass_apart=False)]
+                                             canonical=canonical, circle_apart=True, mass_apart=False,
+                                             metric_apart=True)]
 
 
 def compiled_library(system: KnownSystem, outputs=None, jacobian: bool = False, canonical: bool = True) -> Path:
