@@ -243,14 +243,16 @@ def test_a_chain_s_projection_keeps_its_structure():
         assert products == ((),) if upper == lower else [len(p) for p in products] == [2, 2]
 
 
-def _particles_yaml(n: int, coefficient) -> str:
+def _particles_yaml(n: int, coefficient, last: str = "") -> str:
     """``n`` particles on a line, ``x_i = sum_{j <= i} a_ij y_j`` (``coefficient(i, j)``: the
-    text of ``a_ij``), springs between neighbours: a constant ``C`` of numbers alone."""
+    text of ``a_ij``; ``last``: a term added to ``x_n``), springs between neighbours: a constant
+    ``C`` of numbers alone but for ``last``."""
     lines = ["name: particles", "parameters:", "  k: {value: 3, unit: N/m}",
              *(f"  m{i}: {{value: {1 + i / 10}, unit: kg}}" for i in range(1, n + 1)), "components:",
              *(f"  p{i}: {{type: particle1d, parameters: {{mass: m{i}}}, coordinates: [x{i}]}}" for i in range(1, n + 1)),
              "coordinates: [" + ", ".join(f"y{i}" for i in range(1, n + 1)) + "]", "connection:",
-             *(f"  x{i}: " + " + ".join(f"{coefficient(i, j)}*y{j}" for j in range(1, i + 1)) for i in range(1, n + 1)),
+             *(f"  x{i}: " + " + ".join(f"{coefficient(i, j)}*y{j}" for j in range(1, i + 1)) + (last if i == n else "")
+               for i in range(1, n + 1)),
              "effects:",
              *(f"  s{i}: {{type: spring, between: [p{i}.centre, p{i + 1}.centre], stiffness: k}}" for i in range(1, n))]
     return "\n".join(lines) + "\n"
@@ -278,3 +280,20 @@ def test_a_weight_past_the_double_range_is_written_as_c_reads_it(tmp_path):
     assert np.isinf(want).any() and np.array_equal(np.isinf(got), np.isinf(want))
     finite = np.isfinite(want)
     assert _close(got[finite], want[finite])
+
+
+@needs_cc
+def test_an_angle_sum_in_c_compiles_and_projects(tmp_path):
+    """An entry of C with the sine of a sum of coordinates (the primitive's code calls the guarded
+    angle's helper, defined further down the file): the projected C compiles and computes the
+    expanded C's right-hand sides."""
+    system = kronsub.load("sum.yaml", text=_particles_yaml(PROJECTED_FROM, lambda i, j: "1", " + cos(y1 + y2)")).derive()
+    assert projected_by_size(system)
+    n = len(system.coordinates)
+    projected = _library(system, "projected", tmp_path / "projected")
+    expanded = _library(system, "expanded", tmp_path / "expanded")
+    for t, y, param in _states(system, 5, around=True):
+        got, want = _evaluate(projected, n, t, y, param), _evaluate(expanded, n, t, y, param)
+        assert {"M", "rhs", "canonical"} <= set(got) <= set(want)
+        for key in got:
+            assert _close(got[key], want[key], 1e-11), key
