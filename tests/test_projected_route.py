@@ -249,7 +249,8 @@ def _particles_yaml(n: int, coefficient, last: str = "") -> str:
     ``C`` of numbers alone but for ``last``."""
     lines = ["name: particles", "parameters:", "  k: {value: 3, unit: N/m}",
              *(f"  m{i}: {{value: {1 + i / 10}, unit: kg}}" for i in range(1, n + 1)), "components:",
-             *(f"  p{i}: {{type: particle1d, parameters: {{mass: m{i}}}, coordinates: [x{i}]}}" for i in range(1, n + 1)),
+             *(f"  p{i}: {{type: particle1d, parameters: {{mass: m{i}}}, coordinates: [x{i}]}}"
+               for i in range(1, n + 1)),
              "coordinates: [" + ", ".join(f"y{i}" for i in range(1, n + 1)) + "]", "connection:",
              *(f"  x{i}: " + " + ".join(f"{coefficient(i, j)}*y{j}" for j in range(1, i + 1)) + (last if i == n else "")
                for i in range(1, n + 1)),
@@ -287,7 +288,8 @@ def test_an_angle_sum_in_c_compiles_and_projects(tmp_path):
     """An entry of C with the sine of a sum of coordinates (the primitive's code calls the guarded
     angle's helper, defined further down the file): the projected C compiles and computes the
     expanded C's right-hand sides."""
-    system = kronsub.load("sum.yaml", text=_particles_yaml(PROJECTED_FROM, lambda i, j: "1", " + cos(y1 + y2)")).derive()
+    text = _particles_yaml(PROJECTED_FROM, lambda i, j: "1", " + cos(y1 + y2)")
+    system = kronsub.load("sum.yaml", text=text).derive()
     assert projected_by_size(system)
     n = len(system.coordinates)
     projected = _library(system, "projected", tmp_path / "projected")
