@@ -450,3 +450,14 @@ def test_hostile_names_print_as_latex_names(tmp_path):
             run = subprocess.run(["pdflatex", "-interaction=nonstopmode", "-halt-on-error", f"{stem}.tex"],
                                  cwd=tmp_path, capture_output=True, text=True, timeout=120)
             assert run.returncode == 0, run.stdout[-2000:]
+
+
+def test_a_double_literal_is_one_c_reads_past_the_double_range():
+    from kronsub.emitters.escape import c_double
+
+    assert [str(c_double(v)) for v in (0.5, -2, 1e308 * 10, -1e308 * 10, float("nan"))] == \
+        ["0.5", "-2.0", "HUGE_VAL", "(-HUGE_VAL)", "NAN"]
+    assert float(str(c_double(1 / 3))) == 1 / 3
+    for bad in (True, "1.0", None):
+        with pytest.raises(UnescapedText):
+            c_double(bad)

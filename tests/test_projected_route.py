@@ -258,3 +258,61 @@ def test_mbar_in_a_file_of_its_own_computes_the_same_bits(tmp_path):
     for t, y, param in _states(system, 5):
         got, want = _evaluate(apart, n, t, y, param), _evaluate(one, n, t, y, param)
         assert set(got) == set(want) and all(np.array_equal(got[k], want[k]) for k in want)
+
+
+def _particles_yaml(n: int, coefficient, last: str = "") -> str:
+    """``n`` particles on a line, ``x_i = sum_{j <= i} a_ij y_j`` (``coefficient(i, j)``: the
+    text of ``a_ij``; ``last``: a term added to ``x_n``), springs between neighbours: a constant
+    ``C`` of numbers alone but for ``last``."""
+    lines = ["name: particles", "parameters:", "  k: {value: 3, unit: N/m}",
+             *(f"  m{i}: {{value: {1 + i / 10}, unit: kg}}" for i in range(1, n + 1)), "components:",
+             *(f"  p{i}: {{type: particle1d, parameters: {{mass: m{i}}}, coordinates: [x{i}]}}"
+               for i in range(1, n + 1)),
+             "coordinates: [" + ", ".join(f"y{i}" for i in range(1, n + 1)) + "]", "connection:",
+             *(f"  x{i}: " + " + ".join(f"{coefficient(i, j)}*y{j}" for j in range(1, i + 1)) + (last if i == n else "")
+               for i in range(1, n + 1)),
+             "effects:",
+             *(f"  s{i}: {{type: spring, between: [p{i}.centre, p{i + 1}.centre], stiffness: k}}" for i in range(1, n))]
+    return "\n".join(lines) + "\n"
+
+
+@needs_cc
+def test_a_weight_past_the_double_range_is_written_as_c_reads_it(tmp_path):
+    """Two of C's numbers whose product (a weight's coefficient, once per parameter set) is past
+    the double range: the C still compiles, and its Mbar is the expanded C's (infinite where that
+    one's is, equal elsewhere)."""
+    import warnings
+
+    text = _particles_yaml(PROJECTED_FROM, lambda i, j: "1e170" if j == 3 else "1")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # C's columns differ by 1e170: a rank warning at a random state
+        system = kronsub.load("big.yaml", text=text).derive()
+    assert projected_by_size(system)
+    n = len(system.coordinates)
+    param = [float(p.value) for p in system.parameters]
+    y = np.linspace(-0.5, 0.5, 2 * n)
+    got, want = ((DOUBLE * (n * n))(), (DOUBLE * (n * n))())
+    _library(system, "projected", tmp_path / "projected").ks_mass_matrix(_array(y), _array(param), got)
+    _library(system, "expanded", tmp_path / "expanded").ks_mass_matrix(_array(y), _array(param), want)
+    got, want = np.array(got[:]), np.array(want[:])
+    assert np.isinf(want).any() and np.array_equal(np.isinf(got), np.isinf(want))
+    finite = np.isfinite(want)
+    assert _close(got[finite], want[finite])
+
+
+@needs_cc
+def test_an_angle_sum_in_c_compiles_and_projects(tmp_path):
+    """An entry of C with the sine of a sum of coordinates (the primitive's code calls the guarded
+    angle's helper, defined further down the file): the projected C compiles and computes the
+    expanded C's right-hand sides."""
+    text = _particles_yaml(PROJECTED_FROM, lambda i, j: "1", " + cos(y1 + y2)")
+    system = kronsub.load("sum.yaml", text=text).derive()
+    assert projected_by_size(system)
+    n = len(system.coordinates)
+    projected = _library(system, "projected", tmp_path / "projected")
+    expanded = _library(system, "expanded", tmp_path / "expanded")
+    for t, y, param in _states(system, 5, around=True):
+        got, want = _evaluate(projected, n, t, y, param), _evaluate(expanded, n, t, y, param)
+        assert {"M", "rhs", "canonical"} <= set(got) <= set(want)
+        for key in got:
+            assert _close(got[key], want[key], 1e-11), key

@@ -13,7 +13,8 @@ data. They reach generated C, Python, LaTeX and Markdown only through these func
 - :func:`plot_text`: a matplotlib title, label or legend entry;
 - :func:`terminal_text`: a message for the terminal (standard error, a status line).
 
-Templates call them as filters (``c_comment``, ``c_string``, ``py_str``, ``latex``, ``md``).
+Templates call them as filters (``c_comment``, ``c_string``, ``py_str``, ``latex``, ``md``);
+``c_double`` writes a number as a C ``double`` literal (past the double range too).
 :func:`environment` makes forgetting one an error rather than a hole: with it, every
 ``{{ ... }}`` must print a number or :class:`~markupsafe.Markup` (the mark of text already
 made safe for its target: the filters' output, or code the emitters generated themselves);
@@ -336,6 +337,20 @@ def _filter(escape: Callable[[str], str]) -> Callable[[object], Markup]:
     return apply
 
 
+def c_double(value) -> Markup:
+    """A number as a C ``double`` literal: its ``repr`` where finite, ``HUGE_VAL`` (signed) past
+    the double range and ``NAN`` for NaN (both from ``<math.h>``), never the bare ``inf`` or
+    ``nan`` that ``repr`` writes and no C compiler reads."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise UnescapedText(f"c_double expects a number, got {value!r}")
+    value = float(value)
+    if value != value:
+        return Markup("NAN")
+    if value in (float("inf"), float("-inf")):
+        return Markup("HUGE_VAL" if value > 0 else "(-HUGE_VAL)")
+    return Markup(repr(value))
+
+
 C_IDENTIFIER = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
 """A C identifier (and a prefix of generated names): the one pattern every check uses."""
 
@@ -355,6 +370,7 @@ FILTERS = {
     "latex": _filter(latex_text),
     "md": _filter(markdown_text),
     "c_ident": _filter(c_identifier),
+    "c_double": c_double,
 }
 _KEPT_FILTERS = ("length", "upper", "indent")  # indent keeps safe text safe
 
