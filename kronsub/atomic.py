@@ -284,5 +284,5 @@ def write_atomically(path: Path, data: str | bytes) -> None:
         fh.write(data)
 
 
-__all__ = ["NAME_MAX", "STALE_AFTER", "atomic_file", "atomic_path", "cannot_create", "clean_stale", "final_mode", "output_target",
-           "temporary_pattern", "temporary_stem", "umask", "write_atomically"]
+__all__ = ["NAME_MAX", "STALE_AFTER", "atomic_file", "atomic_path", "cannot_create", "clean_stale", "final_mode",
+           "output_target", "temporary_pattern", "temporary_stem", "umask", "write_atomically"]

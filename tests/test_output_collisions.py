@@ -30,10 +30,11 @@ def machine(tmp_path):
     return tmp_path / "synchronous_machine.yaml", tmp_path / "machine.yaml"
 
 
-@pytest.mark.parametrize("command", [["derive", "{model}", "-o", "{used}"],
-                                     ["linearize", "{model}", "-o", "{used}"],
-                                     ["simulate", "{model}", "--t", "0.01", "-o", "{folder}/run.csv", "--meta", "{used}"],
-                                     ["simulate", "{model}", "--t", "0.01", "-o", "{folder}/run.csv", "--plot", "{used}"]])
+SIMULATE = ["simulate", "{model}", "--t", "0.01", "-o", "{folder}/run.csv"]
+
+
+@pytest.mark.parametrize("command", [["derive", "{model}", "-o", "{used}"], ["linearize", "{model}", "-o", "{used}"],
+                                     [*SIMULATE, "--meta", "{used}"], [*SIMULATE, "--plot", "{used}"]])
 def test_an_output_on_a_model_file_the_model_uses_is_refused(machine, command):
     model, used = machine
     before = used.read_bytes()
@@ -45,7 +46,8 @@ def test_an_output_on_a_model_file_the_model_uses_is_refused(machine, command):
         args = [a.format(model=model, used=target, folder=used.parent) for a in command]
         result = invoke(*args)
         assert result.exit_code == 2, result.output
-        assert f"is a model file that {model} uses ({used})" in result.output and "hint: choose another" in result.output
+        assert f"is a model file that {model} uses ({used})" in result.output
+        assert "hint: choose another" in result.output
         assert used.read_bytes() == before and not (used.parent / "run.csv").exists()
 
 
@@ -80,7 +82,8 @@ def test_a_sweeps_metadata_never_replaces_the_model(tmp_path):
     for force in ([], ["--force"]):
         result = _sweep(model, "--grid", "m2=1:2:2", "--t", "0.1", "-o", tmp_path / "runs", *force)
         assert result.exit_code == 2, result.output
-        assert f"its metadata {model} is the model file itself" in result.output and "choose another -o" in result.output
+        assert f"its metadata {model} is the model file itself" in result.output
+        assert "choose another -o" in result.output
     assert model.read_bytes() == before and not (tmp_path / "runs").exists()
 
 
