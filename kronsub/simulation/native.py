@@ -509,8 +509,9 @@ class IntegrationResult:
     """What one integration did. ``status`` as in ``integrators.h``: 0 reached ``t_end``,
     1 right-hand side failed (singular mass matrix), 2 non-finite state, 3 step size underflow
     (gauss4: stage iteration did not converge), 4 too many steps, 5 output buffer full,
-    6 invalid argument, 7 interrupted (``ks_interrupt``, :meth:`NativeModel._waited`). On statuses 1 and 2, ``y_fail`` is the state ``[q; qdot]`` at which
-    the right-hand side failed (``qdot`` NaN when it cannot be recovered) and ``t_fail`` its time."""
+    6 invalid argument, 7 interrupted (``ks_interrupt``, :meth:`NativeModel._waited`). On
+    statuses 1 and 2, ``y_fail`` is the state ``[q; qdot]`` at which the right-hand side failed
+    (``qdot`` NaN when it cannot be recovered) and ``t_fail`` its time."""
 
     method: str
     status: int
