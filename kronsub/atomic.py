@@ -3,8 +3,9 @@ anything else in its own way, and never a device, a FIFO or a link replaced by a
 
 :func:`output_target` decides how a path is written. A new path or a regular file is written
 through a temporary file of kronsub's own naming, ``dir/.name.XXXXXXXX.tmp`` (eight characters of
-:func:`tempfile.mkstemp`), renamed over it; a regular file in a folder no file can be created in,
-but that may itself be written, is written in place. A symbolic link is followed: its target is
+:func:`tempfile.mkstemp`; a long name shortened to fit :data:`NAME_MAX`), renamed over it; a
+regular file in a folder no file can be created in, but that may itself be written, is written
+in place. A symbolic link is followed: its target is
 written by those rules and the link stays. A FIFO or a character device (``/dev/null``,
 ``/dev/stdout``) is opened and written directly. A folder, a socket or a block device is refused
 with an :class:`OSError` naming the path. A write that fails removes its temporary file and
@@ -32,12 +33,30 @@ FILE, STREAM = "file", "stream"
 """How :func:`output_target` says a path is written: through a temporary file, or directly."""
 
 
+NAME_MAX = 255
+"""Longest name of a file, in bytes (the usual file systems'): a temporary file's name is kept
+within it however long the target's (:func:`temporary_stem`)."""
+
+
+def temporary_stem(name: str, tail: str = ".tmp") -> str:
+    """``name``, shortened (by its last characters) so that a temporary file's name,
+    ``.STEM.XXXXXXXX`` and ``tail``, fits :data:`NAME_MAX` bytes."""
+    room = NAME_MAX - len(os.fsencode(tail)) - 10
+    stem = name
+    while stem and len(os.fsencode(stem)) > room:
+        stem = stem[:-1]
+    return stem
+
+
 def temporary_pattern(name: str) -> re.Pattern:
     """The names of kronsub's temporary files for the target ``name`` (``.tmp``, or ``.tmp``
     and the target's own suffix for a writer that needs it, :func:`atomic_path`)."""
-    suffix = re.escape(Path(name).suffix)
-    return re.compile(rf"\.{re.escape(name)}\.{_RANDOM}\.tmp(?:{suffix})?" if suffix else
-                      rf"\.{re.escape(name)}\.{_RANDOM}\.tmp")
+    suffix = Path(name).suffix
+    plain = rf"\.{re.escape(temporary_stem(name))}\.{_RANDOM}\.tmp"
+    if not suffix:
+        return re.compile(plain)
+    return re.compile(rf"{plain}|\.{re.escape(temporary_stem(name, '.tmp' + suffix))}\.{_RANDOM}\.tmp"
+                      rf"{re.escape(suffix)}")
 
 
 def clean_stale(path: Path, age: float = STALE_AFTER) -> list[Path]:
@@ -192,7 +211,8 @@ def _temporary(where: Path, shown: Path, suffix: str = "") -> tuple[int, str] | 
     folder = where.parent if str(where.parent) else Path(".")
     clean_stale(where)
     try:
-        return tempfile.mkstemp(dir=folder, prefix=f".{where.name}.", suffix=f".tmp{suffix}")
+        return tempfile.mkstemp(dir=folder, prefix=f".{temporary_stem(where.name, '.tmp' + suffix)}.",
+                                suffix=f".tmp{suffix}")
     except OSError as exc:
         if where.is_file() and os.access(where, os.W_OK):
             return None
@@ -264,5 +284,5 @@ def write_atomically(path: Path, data: str | bytes) -> None:
         fh.write(data)
 
 
-__all__ = ["STALE_AFTER", "atomic_file", "atomic_path", "cannot_create", "clean_stale", "final_mode", "output_target",
-           "temporary_pattern", "umask", "write_atomically"]
+__all__ = ["NAME_MAX", "STALE_AFTER", "atomic_file", "atomic_path", "cannot_create", "clean_stale", "final_mode",
+           "output_target", "temporary_pattern", "temporary_stem", "umask", "write_atomically"]

@@ -301,3 +301,28 @@ def test_a_full_device_names_the_path_the_user_gave(tmp_path, monkeypatch):
     assert result.exit_code == 1
     assert f"Error: {link}: No space left on device" in result.output
     assert stat.S_ISCHR(os.stat("/dev/full").st_mode) and link.is_symlink()
+
+
+@pytest.mark.parametrize("stem", ["b" * 250, "é" * 124, "x" * 251])
+def test_a_name_as_long_as_the_file_system_allows_is_written(tmp_path, stem):
+    """The temporary file beside a target of a long name (up to NAME_MAX bytes) gets a shortened
+    name of its own that fits, still recognised as the target's (a stale one is cleaned)."""
+    import os
+    import time
+
+    from kronsub.atomic import (NAME_MAX, STALE_AFTER, atomic_path, clean_stale, temporary_pattern, temporary_stem,
+                                write_atomically)
+
+    target = tmp_path / f"{stem}.csv"
+    assert len(os.fsencode(target.name)) <= NAME_MAX
+    write_atomically(target, "t\n0\n")
+    assert target.read_text() == "t\n0\n" and os.listdir(tmp_path) == [target.name]
+    with atomic_path(target) as tmp:  # a writer that wants the suffix
+        assert tmp.suffix == ".csv" and len(os.fsencode(tmp.name)) <= NAME_MAX
+        assert temporary_pattern(target.name).fullmatch(tmp.name)
+        tmp.write_text("t\n1\n")
+    assert target.read_text() == "t\n1\n" and os.listdir(tmp_path) == [target.name]
+    left = tmp_path / f".{temporary_stem(target.name)}.abcd_123.tmp"  # left by a killed write
+    left.write_text("t\n")
+    os.utime(left, (time.time() - 2 * STALE_AFTER,) * 2)
+    assert len(os.fsencode(left.name)) <= NAME_MAX and clean_stale(target) == [left]

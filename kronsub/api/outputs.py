@@ -142,10 +142,13 @@ def accuracy_plan(methods="all", tolerances=None, *, quick: bool = False,
 
 
 def accuracy(system: KnownSystem, t: float = 10.0, methods="all", tolerances=None, *, quick: bool = False,
-             digits: int | None = None, precision: str = "double", set: Mapping[str, object] | None = None) -> Accuracy:
+             digits: int | None = None, precision: str = "double", set: Mapping[str, object] | None = None,
+             keep_interrupted: bool = False) -> Accuracy:
     """The experiment of ``kronsub accuracy``: each method at each tolerance run to ``t`` from
     the model's initial values (``set`` overrides them), its error against a high-precision
-    reference and its time.
+    reference and its time. ``keep_interrupted``: an interrupt (Ctrl-C, SIGTERM) once the
+    reference is computed ends the experiment with the points measured so far
+    (``measurement.interrupted``: its signal) instead of raising.
 
     >>> import kronsub
     >>> system = kronsub.load("models/hoffmann/system1.yaml").derive(scene="free")
@@ -163,7 +166,8 @@ def accuracy(system: KnownSystem, t: float = 10.0, methods="all", tolerances=Non
     default_digits = 34 if "gbs-quad" in chosen else (16 if quick else 20)
     with numeric_route_advice(system):
         wp = acc.measure(system, begin.values, t, chosen, grid, digits=digits or default_digits, quick=quick,
-                         dependent=begin.constrained.guess if begin.constrained is not None else None)
+                         dependent=begin.constrained.guess if begin.constrained is not None else None,
+                         keep_interrupted=keep_interrupted)
     scene = scene_of(system)
     return Accuracy(wp, chosen, grid, scene.name if scene is not None else None, getattr(system, "model", None),
                     begin.notes)

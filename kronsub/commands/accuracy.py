@@ -10,9 +10,9 @@ from click.core import ParameterSource
 from ..atomic import write_atomically
 from ..simulation.methods import MEASURED
 from ..simulation.methods import help_text as method_help
-from .common import (T_END, budget_option, check_times, coincident_at_start, default_sidecar, fail, meta_option,
-                     output_option, plot_option, run_command, say, scene_option, scene_system, separate_outputs,
-                     set_option, writable, writable_outputs)
+from .common import (T_END, budget_option, check_times, coincident_at_start, default_sidecar, fail,
+                     interrupted_by, meta_option, output_option, plot_option, run_command, say, scene_option,
+                     scene_system, separate_outputs, set_option, writable, writable_outputs)
 
 __all__ = ["accuracy"]
 
@@ -72,7 +72,7 @@ def accuracy(model: Path, t_end: float, methods: str, tolerances: str, target: f
         say(f"computing the reference to t = {t_end:g} ...")
         try:
             result = experiment(System.of(system, loaded, scene), t_end, methods, given, quick=quick,
-                                digits=digits, precision=precision, set=assignments)
+                                digits=digits, precision=precision, set=assignments, keep_interrupted=True)
         except acc.AccuracyError:
             coincident_at_start(loaded, system, assignments)
             raise
@@ -89,6 +89,12 @@ def accuracy(model: Path, t_end: float, methods: str, tolerances: str, target: f
             info = result.metadata(target, csv_name)
             write_atomically(meta_path, metadata_json(info))
             say(f"wrote {meta_path}")
+        if wp.interrupted is not None:
+            count = f"{len(wp.points)} point{'s' if len(wp.points) != 1 else ''}"
+            kept = f": the {count} measured so far kept in {output}" if output is not None else f" after {count}"
+            marked = f" (marked interrupted in {meta_path})" if meta_path is not None else ""
+            fail(f"Interrupted{interrupted_by(wp.interrupted)}{kept}{marked}",
+                 128 + int(wp.interrupted))  # (as kronsub.interrupts.exit_code)
         if wp.points and wp.best_error() is None:
             first = next((p for p in wp.points if p.status), wp.points[0])
             fail(f"Error: every point failed ({len(wp.points)} of {len(wp.points)}); the first, "

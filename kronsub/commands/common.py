@@ -96,17 +96,27 @@ def _same_file(a: Path, b: Path) -> bool:
         return a.resolve() == b.resolve()
 
 
-def separate_outputs(model: Path | None, *outputs: tuple[str, Path | None, str]) -> None:
-    """Fail (a usage error) before any work when an output ``(flag, path, what)`` would replace the
-    model file or another output of the same command."""
+def separate_outputs(model: Path | None, *outputs: tuple[str, Path | None, str],
+                     inputs: tuple[tuple[str, Path | None, str], ...] = ()) -> None:
+    """Fail (a usage error) before any work when an output ``(flag, path, what)`` (or ``(flag, path,
+    what, option)``: the option the hint asks to change) would replace the model file, a model
+    file it uses (``model:``, :func:`~kronsub.model.uses.model_files`), another of the command's
+    ``inputs`` or another output of the same command."""
+    from ..model.uses import model_files
+
     seen = [("MODEL", model, "model")] if model is not None else []
-    for flag, path, what in outputs:
+    if model is not None:
+        seen += [("MODEL", used, "used model") for used in model_files(model)[1:]]
+    seen += [entry for entry in inputs if entry[1] is not None]
+    for flag, path, what, *option in outputs:
         if path is None:
             continue
-        for _, other, other_what in seen:
+        for _, other, other_what, *_ in seen:
             if _same_file(path, other):
-                fail(f"Error: {flag} {path} is the {other_what} file itself\n  hint: choose another {flag}",
-                      USAGE_ERROR)
+                itself = f"the {other_what} file itself" if other_what != "used model" else \
+                    f"a model file that {model} uses ({other})"
+                fail(f"Error: {flag} {path} is {itself}\n  hint: choose another {(option or [flag])[0]}",
+                     USAGE_ERROR)
         seen.append((flag, path, what))
 
 

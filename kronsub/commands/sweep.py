@@ -91,7 +91,9 @@ def sweep(model: Path, grids, samples, tables, runs, seed, latin, t_end, dt, met
         from ..sweep.study_file import is_study, read_study
 
         located: dict[str, object] = {}  # an option's text -> where the sweep file wrote it
+        study_file = None
         if is_study(model):
+            study_file = model
             study = read_study(model)
             v = study.values
             model = v["model"]
@@ -132,8 +134,14 @@ def sweep(model: Path, grids, samples, tables, runs, seed, latin, t_end, dt, met
             plan = make_plan(grid_axes, sample_axes, runs, seed, latin)
         except SweepError as exc:
             fail(f"Error: {exc}", USAGE_ERROR)
-        separate_outputs(model, ("--output", output, "output"), ("--plot", plot, "plot"),
-                         ("--trajectories", trajectories, "trajectories"))
+        from ..simulation.table import sidecar_path
+
+        metadata = lambda folder, option: (  # noqa: E731
+            f"{option} {folder}: its metadata", folder and sidecar_path(folder), f"{option} metadata", option)
+        separate_outputs(model, ("--output", output, "output"), metadata(output, "-o"), ("--plot", plot, "plot"),
+                         ("--trajectories", trajectories, "trajectories"), metadata(trajectories, "--trajectories"),
+                         inputs=tuple(("--table", Path(t), "--table") for t in tables)
+                         + ((("STUDY", study_file, "sweep"),) if study_file is not None else ()))
         if trajectories is not None and nested(trajectories, output):
             fail(f"Error: --trajectories {trajectories} and the output {output} are one inside the other\n"
                  "  hint: give them separate folders, e.g. -o runs.parquet --trajectories rows.parquet", USAGE_ERROR)

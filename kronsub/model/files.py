@@ -13,6 +13,7 @@ from ..errors import ModelError
 from .derive import content_key
 from .file_reading import SourceFile, read_model_file
 from .source import Node, load_yaml
+from .uses import MAX_MODEL_DEPTH, component_models
 
 TOP_LEVEL = ("name", "description", "parameters", "components", "coordinates", "definitions", "connection",
              "constraints", "prescribed", "velocity_constraints", "speeds", "effects", "initial", "scenes")
@@ -25,11 +26,6 @@ def looks_like_model(text: str) -> bool:
     file named by ``model:`` without one is no model, and nothing of it is quoted in messages
     (its first line may be a secret)."""
     return _SECTION_LINE.search(text) is not None
-
-
-MAX_MODEL_DEPTH = 32
-"""Most levels of model files, the model given first being level 1: a known system's own
-``model:`` files are one level further down."""
 
 
 def model_key(path: Path, stack: tuple[str, ...] = (), read: list[SourceFile] | None = None) -> str:
@@ -64,18 +60,6 @@ def alone(text: str) -> bool:
     return "model" not in text and "scenes" not in text and "\\" not in text
 
 
-def component_models(root: Node, path: Path) -> list[Path]:
-    """The files named by the ``model:`` of the components in ``root`` (the model at ``path``)."""
-    out = []
-    comps = root.get("components")
-    if comps is not None and comps.is_mapping:
-        for spec in comps.value.values():
-            mnode = spec.get("model") if spec.is_mapping else None
-            if mnode is not None and isinstance(mnode.value, str) and mnode.value and "\0" not in mnode.value:
-                out.append(path.parent / mnode.value)
-    return out
-
-
 def derivation_text(root: Node, text: str) -> str:
     """The text a derivation depends on: the file without its ``scenes:`` section, so
     editing a scene keeps the cached inertia and effects that every scene shares."""
@@ -105,5 +89,5 @@ def resolved_path(path: Path) -> str:
     return os.path.realpath(path)
 
 
-__all__ = ["MAX_MODEL_DEPTH", "TOP_LEVEL", "alone", "component_models", "derivation_text", "each_once",
+__all__ = ["TOP_LEVEL", "alone", "derivation_text", "each_once",
            "looks_like_model", "model_key", "resolved_path"]

@@ -18,7 +18,8 @@ from ..core.known_system import KnownSystem
 from ..core.primitive import Part
 from ..core.symbols import symbol
 from ..errors import ModelError
-from .files import MAX_MODEL_DEPTH, looks_like_model, resolved_path
+from .files import looks_like_model, resolved_path
+from .uses import MAX_MODEL_DEPTH
 from .parts import (component_origin, component_parameters, coordinate_names, inertial_parameters,
                     inherit_parameter, known_system_part, placed)
 from .reader import ModelReader, node_kind

@@ -45,6 +45,7 @@ from ..core.held import held_coordinates
 from ..core.known_system import KnownSystem
 from ..core.projection_work import projected_in_numbers
 from ..errors import option
+from ..interrupts import signal_of
 from . import native as native_module
 from .accuracy_options import (ALL_METHODS, CLOSED_LOOP, KNOWN_METHODS, AccuracyError, fixed_step, parse_methods,
                                parse_tolerances, quick_tolerances, setting)
@@ -104,6 +105,7 @@ class WorkPrecision:
     initial_state: dict[str, float] = field(default_factory=dict)  # [q; qdot] at t = 0, by name
     dependent: dict[str, float] = field(default_factory=dict)  # a closed loop's y_d at t = 0
     speeds: tuple[str, ...] = ()  # under velocity constraints: the speeds u of the state [q; u]
+    interrupted: int | None = None  # the signal that stopped the measurement after these points (Ctrl-C: SIGINT)
 
     def best_error(self) -> float | None:
         errors = [p.error for p in self.points if p.ok]
@@ -369,11 +371,12 @@ def _on_constraints(held, t: float, y: np.ndarray) -> np.ndarray:
 def measure(system: KnownSystem, values: RunValues, t_end: float, methods: tuple[str, ...],
             tolerances: tuple[float, ...], *, ref: Reference | None = None, digits: int = 20,
             quick: bool = False, progress: bool | None = None, budget: float | None = None,
-            max_repeats: int | None = None, dependent=None) -> WorkPrecision:
+            max_repeats: int | None = None, dependent=None, keep_interrupted: bool = False) -> WorkPrecision:
     """Every method at every tolerance, against ``ref`` (computed at ``digits`` digits when
     not given; its last time must be ``t_end``). With implicit constraints, ``values`` must be
     on them and ``dependent`` is ``y_d`` there (:func:`.constrained.project_initial`; done
-    here when not given)."""
+    here when not given). ``keep_interrupted``: an interrupt while the points are measured ends
+    the measurement with the points so far (:attr:`WorkPrecision.interrupted`), else it is raised."""
     if not (t_end > 0 and math.isfinite(t_end)):
         raise AccuracyError(f"{option('t')} must be a positive number")
     implicit = system.implicit
@@ -416,6 +419,7 @@ def measure(system: KnownSystem, values: RunValues, t_end: float, methods: tuple
     bar = Progress(len(plan), progress)
     points = []
     slow: dict[str, float] = {}
+    interrupted = None
     try:
         for method, tol in plan:
             bar.step(f"{method} {tol:.0e}")
@@ -449,6 +453,10 @@ def measure(system: KnownSystem, values: RunValues, t_end: float, methods: tuple
                                 timed.compile_seconds, status, residual, velocity_residual))
             if seconds > SLOW_SECONDS:
                 slow[method] = seconds
+    except KeyboardInterrupt as exc:  # (Ctrl-C, SIGTERM, SIGHUP) the points so far are kept and said so
+        if not keep_interrupted:
+            raise
+        interrupted = signal_of(exc)
     finally:
         bar.close()
     state = [q.name for q in system.coordinates] + [system.name_of(v) for v in system.state_velocities]
@@ -457,4 +465,5 @@ def measure(system: KnownSystem, values: RunValues, t_end: float, methods: tuple
                          {p.name: float(v) for p, v in zip(system.parameters, param)},
                          dict(zip(state, map(float, y0))),
                          {d.name: float(v) for d, v in zip(implicit.dependent, dependent)} if implicit is not None
-                         else {}, tuple(u.name for u in system.speeds.speeds) if system.speeds is not None else ())
+                         else {}, tuple(u.name for u in system.speeds.speeds) if system.speeds is not None else (),
+                         interrupted)

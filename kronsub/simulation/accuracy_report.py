@@ -8,6 +8,7 @@ import math
 import mpmath
 
 from ..emitters.escape import markdown_text, plot_text
+from ..interrupts import signal_name
 from ..model.file_reading import SourceFile
 from .accuracy import REFERENCE_MARGIN, WorkPrecision
 from .plot import plot_format
@@ -147,6 +148,8 @@ def metadata(wp: WorkPrecision, *, model_file: str | None = None, source: Source
         },
         "compile_seconds": json_number(wp.compile_seconds),
         "conservative": wp.conservative,
+        "status": "complete" if wp.interrupted is None else "interrupted",
+        "interrupted_by": None if wp.interrupted is None else signal_name(wp.interrupted),
         "skipped": dict(wp.skipped),
         "failures": [{"method": p.method, "setting": p.setting, "message": p.status or "non-finite state"}
                      for p in wp.points if not p.ok],

@@ -29,6 +29,7 @@ import stat
 import struct
 import subprocess
 import tempfile
+import threading
 from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
@@ -508,8 +509,9 @@ class IntegrationResult:
     """What one integration did. ``status`` as in ``integrators.h``: 0 reached ``t_end``,
     1 right-hand side failed (singular mass matrix), 2 non-finite state, 3 step size underflow
     (gauss4: stage iteration did not converge), 4 too many steps, 5 output buffer full,
-    6 invalid argument. On statuses 1 and 2, ``y_fail`` is the state ``[q; qdot]`` at which
-    the right-hand side failed (``qdot`` NaN when it cannot be recovered) and ``t_fail`` its time."""
+    6 invalid argument, 7 interrupted (``ks_interrupt``, :meth:`NativeModel._waited`). On
+    statuses 1 and 2, ``y_fail`` is the state ``[q; qdot]`` at which the right-hand side failed
+    (``qdot`` NaN when it cannot be recovered) and ``t_fail`` its time."""
 
     method: str
     status: int
@@ -812,9 +814,43 @@ class NativeModel:
 
     # -- integration -------------------------------------------------------------------------
 
+    def _waited(self, call: Callable[[], object]) -> None:
+        """``call()``, a C integration, in a thread of its own while this one waits on it: an
+        interrupt (Ctrl-C; SIGTERM and SIGHUP under :func:`kronsub.interrupts.signals_as_interrupts`)
+        sets the library's ``ks_interrupt``, the call stops before its next step, and the
+        interrupt is raised once it has."""
+        try:
+            flag = ctypes.c_int.in_dll(self._lib, "ks_interrupt")
+        except ValueError:  # (a library without it: called here, as ever)
+            call()
+            return
+        failed: list[BaseException] = []
+
+        def target():
+            try:
+                call()
+            except BaseException as exc:  # (raised here, in the waiting thread)
+                failed.append(exc)
+
+        worker = threading.Thread(target=target, name="kronsub-integrate", daemon=True)
+        worker.start()
+        try:
+            worker.join()
+        except BaseException:
+            flag.value = 1
+            while worker.is_alive():  # within a step; a second interrupt meanwhile changes nothing
+                try:
+                    worker.join()
+                except BaseException:
+                    pass
+            flag.value = 0
+            raise
+        if failed:
+            raise failed[0]
+
     def integrate(self, method: str, t0: float, y0, t_end: float, dt_out: float, param, *,
                   rtol: float = 1e-10, atol: float = 1e-10, h: float | None = None,
-                  max_steps: int = 10_000_000, circle: bool | None = None,
+                  max_steps: int = 10_000_000, circle: bool | None = None, interruptible: bool = False,
                   ) -> tuple[np.ndarray, np.ndarray, IntegrationResult]:
         """Integrate from ``y0 = [q; qdot]`` at ``t0`` to ``t_end`` wholly in C.
 
@@ -828,6 +864,9 @@ class NativeModel:
         model has circle coordinates (``circle`` None or True; False: ``[q; qdot]``); the rows
         are its first ``2 nq`` entries; a run that fails there is run again in ``[q; qdot]``.
         A failure does not raise: the rows computed so far are returned with ``result.status``.
+        ``interruptible`` (in the main thread): ``dop853``'s call, whose steps between two rows
+        nothing bounds but ``max_steps``, runs while this thread waits, so that Ctrl-C or
+        SIGTERM stops it before its next step and is raised (:meth:`_waited`).
         """
         if method not in METHODS:
             raise ValueError(f"unknown method {method!r}; valid methods: {', '.join(METHODS)}")
@@ -855,11 +894,14 @@ class NativeModel:
                 limit = max_steps + 2 if max_steps > 0 else 4096 * 16**5
                 capacity = [4096 * 16**k for k in range(5) if 4096 * 16**k < limit] + [limit]
 
-            def run(out, rows):
+            def call(out, rows):
                 return self._fn["ks_dop853"](
                     rhs_address, dim, data_address(p), t0, data_address(start), t_end, dt_out, rtol, atol,
                     h if h is not None else 0.0, max_steps, data_address(out), rows, data_address(work),
                     ctypes.byref(cres))
+
+            waited = interruptible and threading.current_thread() is threading.main_thread()
+            run = (lambda out, rows: self._waited(lambda: call(out, rows))) if waited else call
         else:
             if h is None:
                 h = dt_out if dt_out > 0 else span / 1000.0
@@ -890,7 +932,7 @@ class NativeModel:
             # found and told in the model's own coordinates (a square root's domain, a singular
             # Mbar): the circle point of an angle is not that angle's sine and cosine to the bit
             return self.integrate(method, t0, y0, t_end, dt_out, param, rtol=rtol, atol=atol, h=h,
-                                  max_steps=max_steps, circle=False)
+                                  max_steps=max_steps, circle=False, interruptible=interruptible)
         out = out[: cres.n_rows, : self.ny + 1]  # the circle state's rows begin with [t, q, qdot]
         y_fail = work[: self.ny].copy() if cres.status in (1, 2) else None
         if canonical:  # rows [t, q, p] -> [t, q, qdot]

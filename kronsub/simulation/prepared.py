@@ -163,7 +163,7 @@ def runs(prepared: Prepared, progress: bool | None = None) -> RunInProgress | No
 
         def integrate(t0, y, t1):
             return model.integrate(method.name, t0, y, t1, dt, param, rtol=prepared.rtol, atol=prepared.atol,
-                                   h=dt if method.fixed_step else None)
+                                   h=dt if method.fixed_step else None, interruptible=True)
 
         for _, _, t1, t, Y, result in integrated_pieces(integrate, grid, y0, dt, chunks, method.fixed_step, stats):
             if result.status != 0:

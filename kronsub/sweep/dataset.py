@@ -6,16 +6,16 @@ exists is whole: ``--resume`` computes only the chunks without one."""
 from __future__ import annotations
 
 import json
+import os
 import re
-import shutil
 from pathlib import Path
 
 import numpy as np
 
-from ..atomic import atomic_file, write_atomically
+from ..atomic import atomic_file, temporary_pattern, write_atomically
 from ..errors import KronsubError
 
-__all__ = ["Dataset", "DatasetError", "PART", "arrow_column", "part_name"]
+__all__ = ["Dataset", "DatasetError", "PART", "arrow_column", "owned", "part_name"]
 
 PART = re.compile(r"part-(\d{6,})\.parquet")
 
@@ -26,6 +26,15 @@ class DatasetError(KronsubError):
 
 def part_name(index: int) -> str:
     return f"part-{index:06d}.parquet"
+
+
+def owned(name: str) -> bool:
+    """Whether ``name`` is a part's (``part-000012.parquet``) or the temporary file of a part
+    being written (:func:`~kronsub.atomic.temporary_pattern`): what ``--force`` may remove."""
+    if PART.fullmatch(name):
+        return True
+    part = PART.match(name[1:]) if name.startswith(".") else None
+    return part is not None and temporary_pattern(part.group(0)).fullmatch(name) is not None
 
 
 def arrow_column(values, kind: str):
@@ -82,16 +91,25 @@ class Dataset:
                                    f"chunk size differ; see {self.sidecar})\n  hint: --force replaces it, or "
                                    f"choose another {self.option}")
             done = {int(m.group(1)) for p in self.folder.iterdir() if (m := PART.fullmatch(p.name))}
-        self.folder.mkdir(parents=True, exist_ok=True)
+        # a link to a folder not there yet: the folder it names is made, the link stays
+        made = Path(os.path.realpath(self.folder)) if self.folder.is_symlink() else self.folder
+        made.mkdir(parents=True, exist_ok=True)
         return done
 
     def _clear(self) -> None:
+        """Remove a sweep's own files (its parts, the temporary files of parts being written, the
+        sidecar), keeping the folder (a link to it stays a link); refuse before removing anything
+        when the folder holds anything else, hidden or not."""
         if self.folder.is_dir():
-            foreign = [p.name for p in self.folder.iterdir() if not PART.fullmatch(p.name) and not p.name.startswith(".")]
+            ours, foreign = [], []
+            for entry in sorted(os.scandir(self.folder), key=lambda e: e.name):
+                (ours if entry.is_file(follow_symlinks=False) and owned(entry.name) else foreign).append(entry)
             if foreign:
-                raise DatasetError(f"{self.folder} holds files that are not a sweep's parts ({', '.join(sorted(foreign)[:3])})"
+                names = ", ".join(e.name for e in foreign[:3]) + (", ..." if len(foreign) > 3 else "")
+                raise DatasetError(f"{self.folder} holds files that are not a sweep's parts ({names})"
                                    f"\n  hint: --force replaces only a sweep's output; choose another {self.option}")
-            shutil.rmtree(self.folder)
+            for entry in ours:
+                os.unlink(entry.path)
         self.sidecar.unlink(missing_ok=True)
 
     def table(self, rows: dict[str, object]):

@@ -27,6 +27,7 @@ from collections.abc import Callable, Iterable
 from ..errors import KronsubError
 from ..interrupts import handled
 from .chunk import ONE_BY_ONE, Job, run_chunk, warm
+from .ensemble import stop
 
 __all__ = ["CONNECT_SECONDS", "ENV_SCHEDULER", "QUIET", "RETRIES", "SchedulerError", "SweepLost", "SweepProgress",
            "execute", "local_cluster", "window"]
@@ -127,6 +128,7 @@ def execute(job: Job, todo: Iterable[int], done: Callable[[int, dict], None], *,
     finishes (in the order they finish)."""
     from distributed import as_completed
 
+    stop(False)  # (a sweep stopped before in this process)
     # threads where the runs are C calls; a closed loop's initial values are projected in Python
     threads = job.route != ONE_BY_ONE and job.system.implicit is None
     if threads and not scheduler:  # the workers will be threads of this process: their libraries loaded meanwhile
@@ -173,6 +175,7 @@ def execute(job: Job, todo: Iterable[int], done: Callable[[int, dict], None], *,
     except BaseException:
         for name in ("distributed", "distributed.client", "distributed.scheduler", "tornado", "tornado.application"):
             logging.getLogger(name).setLevel(logging.CRITICAL + 1)  # the cancelled futures are not news
+        stop()  # this process's worker threads start no further run: the cluster closes within a run, not a chunk
         raise
     finally:
         if progress is not None:

@@ -26,8 +26,8 @@ from ..simulation.native import NativeModel, compile_library, data_address
 from ..simulation.rows import BLOCK_ROWS
 from .emitted import kept_files
 
-__all__ = ["BATCH_METHODS", "Ensemble", "EnsembleError", "Sources", "TaylorEnsemble", "ensemble_sources", "load",
-           "load_taylor", "pieces", "summary_width", "taylor_sources"]
+__all__ = ["BATCH_METHODS", "Ensemble", "EnsembleError", "EnsembleStopped", "Sources", "TaylorEnsemble",
+           "ensemble_sources", "load", "load_taylor", "pieces", "stop", "summary_width", "taylor_sources"]
 
 ENSEMBLE_C = Path(__file__).resolve().parent / "csrc" / "ensemble.c"
 BATCH_METHODS = {"dop853": 0, "gauss4": 1, "rk4": 2}  # the methods wholly in C, as ensemble.c numbers them
@@ -36,6 +36,32 @@ MAX_STEPS = 10_000_000  # as a run of simulate (NativeModel.integrate's bound on
 
 class EnsembleError(KronsubError):
     """Shipped sources that do not match their digest, or a library without the ensemble."""
+
+
+class EnsembleStopped(KronsubError):
+    """A block of runs left unfinished because the sweep was stopped (:func:`stop`)."""
+
+
+_STOPPED = [False]  # whether this process's sweep was stopped: the libraries loaded later start stopped
+
+
+def stop(stopped: bool = True) -> None:
+    """Stop (or, ``False``, allow again) the blocks of runs of every library this process has
+    loaded: once set, no further run of a block starts (the runs under way finish), and the block
+    raises :class:`EnsembleStopped`. An interrupted client stops its threads' blocks so, rather
+    than waiting for whole chunks."""
+    _STOPPED[0] = stopped  # (before the libraries are listed: one loaded meanwhile reads it after it is listed)
+    for loaded in (*list(_LOADED.values()), *list(_LOADED_TAYLOR.values())):
+        _stop_flag(loaded.lib).value = int(stopped)
+
+
+def _stop_flag(lib) -> ctypes.c_int:
+    return ctypes.c_int.in_dll(lib, "ks_ensemble_stop")
+
+
+def _finished(done: int, runs: int) -> None:
+    if done < runs:
+        raise EnsembleStopped(f"the sweep was stopped after {done} of a block's {runs} runs")
 
 
 @dataclass(frozen=True)
@@ -170,8 +196,9 @@ class Ensemble:
         pre = np.empty(max(self.npre, nfull) + 1)
         start = np.empty(nz)
         if runs:
-            self.run_block(ctypes.byref(s), runs, data_address(param), data_address(y0), data_address(summary),
-                           data_address(out), data_address(work), data_address(pre), data_address(start))
+            _finished(self.run_block(ctypes.byref(s), runs, data_address(param), data_address(y0),
+                                     data_address(summary), data_address(out), data_address(work), data_address(pre),
+                                     data_address(start)), runs)
         return (summary, kept, written) if with_rows else summary
 
     def message(self, status: int) -> str:
@@ -189,6 +216,7 @@ def load(sources: Sources) -> Ensemble:
     with _LOADING:
         if sources.sha256 not in _LOADED:
             _LOADED[sources.sha256] = Ensemble(sources)
+            _stop_flag(_LOADED[sources.sha256].lib).value = int(_STOPPED[0])
         return _LOADED[sources.sha256]
 
 
@@ -237,10 +265,11 @@ class TaylorEnsemble:
         if energies is not None:
             kinetic, potential = energies.addresses["ks_kinetic_energy"], energies.addresses["ks_potential_energy"]
         if runs:
-            self.run_block(runs, nq, self.nparam, tol, float(max_steps), m, data_address(times),
-                           data_address(param) if param.size else None, data_address(y0), data_address(summary),
-                           data_address(io), kinetic, potential,
-                           data_address(kept) if with_rows else None, data_address(written) if with_rows else None)
+            _finished(self.run_block(runs, nq, self.nparam, tol, float(max_steps), m, data_address(times),
+                                     data_address(param) if param.size else None, data_address(y0),
+                                     data_address(summary), data_address(io), kinetic, potential,
+                                     data_address(kept) if with_rows else None,
+                                     data_address(written) if with_rows else None), runs)
         return (summary, kept, written) if with_rows else summary
 
 
@@ -262,4 +291,5 @@ def load_taylor(sources: Sources) -> TaylorEnsemble:
     with _LOADING:
         if sources.sha256 not in _LOADED_TAYLOR:
             _LOADED_TAYLOR[sources.sha256] = TaylorEnsemble(sources)
+            _stop_flag(_LOADED_TAYLOR[sources.sha256].lib).value = int(_STOPPED[0])
         return _LOADED_TAYLOR[sources.sha256]

@@ -14,6 +14,8 @@
 /* Shared: evaluating f, recording failures, writing rows                                      */
 /* ------------------------------------------------------------------------------------------ */
 
+volatile int ks_interrupt = 0;
+
 const char *ks_status_message(int status)
 {
     switch (status) {
@@ -26,6 +28,7 @@ const char *ks_status_message(int status)
     case KS_TOO_MANY_STEPS: return "the maximum number of steps was reached";
     case KS_OUTPUT_FULL: return "the output buffer is full";
     case KS_BAD_ARGUMENT: return "invalid argument";
+    case KS_INTERRUPTED: return "interrupted";
     default: return "unknown status";
     }
 }
@@ -445,6 +448,7 @@ int ks_dop853(ks_fn f, int dim, const double *param, double t0, const double *y0
     for (;;) {
         double err5 = 0.0, err3 = 0.0, deno, err, fac11, fac, h_new;
         if (max_steps > 0 && attempts >= max_steps) return stop(&run, KS_TOO_MANY_STEPS, t, NULL);
+        if (ks_interrupt) return stop(&run, KS_INTERRUPTED, t, NULL);
         if (0.1 * fabs(h) <= DBL_EPSILON * fmax(fabs(t), fabs(t_end)))
             return stop(&run, KS_STEP_UNDERFLOW, t, NULL);
         if (t + 1.01 * h - t_end > 0.0) {

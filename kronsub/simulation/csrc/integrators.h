@@ -26,6 +26,11 @@ typedef int (*ks_fn)(double t, const double *y, const double *param, double *ydo
 #define KS_TOO_MANY_STEPS 4  /* max_steps step attempts used before t_end */
 #define KS_OUTPUT_FULL 5     /* out has no room for the next row (max_rows) */
 #define KS_BAD_ARGUMENT 6    /* dim < 1, t_end < t0, bad step or tolerance, or a NULL array */
+#define KS_INTERRUPTED 7     /* dop853: ks_interrupt was set (by another thread) before a step */
+
+/* Set non-zero by another thread to stop a run of ks_dop853 before its next step (KS_INTERRUPTED):
+ * a caller waiting on an interrupt stops a long call within a step. */
+extern volatile int ks_interrupt;
 
 /* What one integration did. */
 typedef struct {

@@ -69,7 +69,8 @@ def blocks(run: RunInProgress, native: NativeModel, method: Method, grid: Grid |
     fixed, name = method.fixed_step, method.name
 
     def integrate(t0, y, t1):
-        return native.integrate(name, t0, y, t1, dt, param, rtol=rtol, atol=atol, h=dt if fixed else None)
+        return native.integrate(name, t0, y, t1, dt, param, rtol=rtol, atol=atol, h=dt if fixed else None,
+                                interruptible=True)
 
     for t0, y, t1, t, Y, result in integrated_pieces(integrate, grid, y0, dt, chunks, fixed, stats):
         if len(t):

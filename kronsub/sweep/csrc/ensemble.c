@@ -50,6 +50,11 @@ typedef struct {
 } ks_ensemble;
 
 int ks_ensemble_nsum(int nq, int ny);
+
+/* Set (non-zero) by the client when the sweep is interrupted: no further run of a block starts,
+ * and ks_ensemble_run returns the runs it finished (fewer than asked). */
+extern volatile int ks_ensemble_stop;
+volatile int ks_ensemble_stop = 0;
 long ks_ensemble_run(const ks_ensemble *e, long n_runs, const double *param, const double *y0,
                      double *summary, double *out, double *work, double *pre, double *start);
 
@@ -99,6 +104,8 @@ long ks_ensemble_run(const ks_ensemble *e, long n_runs, const double *param, con
         long steps = 0, rejected = 0, evals = 0;
         double t_last = 0.0;
         ks_result res;
+        if (ks_ensemble_stop)
+            return r;
         for (i = 0; i < ny; ++i) y[i] = y0[r * ny + i];
         for (i = 0; i < nq; ++i) lo[i] = hi[i] = y[i];
         e->prepare(p, pre);

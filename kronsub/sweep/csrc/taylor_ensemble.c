@@ -21,6 +21,11 @@ long ks_taylor_ensemble(long n_runs, int nq, int nparam, double tol, double max_
                         const double *param, const double *y0, double *summary, double *io, ks_kinetic_fn kinetic,
                         ks_potential_fn potential, double *rows, long *rows_written);
 
+/* Set (non-zero) by the client when the sweep is interrupted: no further run of a block starts,
+ * and ks_taylor_ensemble returns the runs it finished (fewer than asked). */
+extern volatile int ks_ensemble_stop;
+volatile int ks_ensemble_stop = 0;
+
 long ks_taylor_ensemble(long n_runs, int nq, int nparam, double tol, double max_steps, long m, const double *times,
                         const double *param, const double *y0, double *summary, double *io, ks_kinetic_fn kinetic,
                         ks_potential_fn potential, double *rows, long *rows_written)
@@ -35,6 +40,8 @@ long ks_taylor_ensemble(long n_runs, int nq, int nparam, double tol, double max_
         double *lo = s + 5 + ny, *hi = s + 5 + ny + nq;
         long written;
         int status;
+        if (ks_ensemble_stop)
+            return r;
         io[0] = times[0];
         io[1] = tol;
         io[2] = max_steps;
