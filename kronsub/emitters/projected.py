@@ -45,10 +45,11 @@ ROUTES = ("auto", "expanded", "projected")
 """How the C's ``Mbar``, ``hbar`` and ``fbar`` are computed: ``expanded`` (the derived
 expressions), ``projected`` (this module), ``auto`` (by :func:`projected_by_size`)."""
 
-PROJECTED_FROM = 12
+PROJECTED_FROM = 10
 """Coordinates from which ``auto`` takes the projected route (benchmarks/README.md,
-``first_trajectory.py`` and ``simulate.py --routes``): from about 18 it is also the quicker per
-call; below 12 the expanded equations are emitted and compiled within the cold start's goals."""
+``first_trajectory.py`` and ``simulate.py --routes``): emitted and compiled in half the time of
+the expanded equations there, within a tenth of their time per call, and the quicker from about
+18; below it the expanded equations are emitted and compiled within a second."""
 
 PART = 200
 """Entries of ``Mbar`` in each generated function that forms it: the compiler's time grows
